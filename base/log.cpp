@@ -1,0 +1,27 @@
+#include "base/log.h"
+
+#include <atomic>
+#include <cstdio>
+#include <cstdlib>
+
+namespace previs {
+
+namespace {
+std::atomic<LogLevel> gLevel{LogLevel::Info};
+}
+
+void setLogLevel(LogLevel level) { gLevel = level; }
+
+void logMessage(LogLevel level, const std::string& message) {
+    if (level < gLevel.load()) return;
+    static constexpr const char* kPrefix[] = {"debug: ", "", "warning: ", "error: "};
+    std::fprintf(stderr, "previs: %s%s\n", kPrefix[static_cast<int>(level)], message.c_str());
+}
+
+void assertFailed(const char* expr, const char* file, int line) {
+    std::fprintf(stderr, "previs: internal error: assertion '%s' failed at %s:%d\n", expr, file,
+                 line);
+    std::abort();
+}
+
+}  // namespace previs

@@ -1,0 +1,135 @@
+// GPU scene data: struct layouts (scalar block layout) and binding numbers shared by the
+// shaders and the C++ code that uploads them. C++ checks sizes and offsets in gpu_layout.cpp.
+#ifndef PREVIS_SHARED_SCENE_TYPES_H
+#define PREVIS_SHARED_SCENE_TYPES_H
+
+#include "shared/prelude.h"
+
+PV_BEGIN
+
+// Descriptor set 0 bindings of trace_paths.comp.
+#define PV_BINDING_PARAMS 0
+#define PV_BINDING_POSITIONS 1
+#define PV_BINDING_NORMALS 2
+#define PV_BINDING_UVS 3
+#define PV_BINDING_TRIANGLES 4
+#define PV_BINDING_TRIANGLE_MATERIALS 5
+#define PV_BINDING_BVH_NODES 6
+#define PV_BINDING_MATERIALS 7
+#define PV_BINDING_TEXTURES 8
+#define PV_BINDING_TEXELS 9
+#define PV_BINDING_LIGHTS 10
+#define PV_BINDING_EMISSIVE_TRIANGLES 11
+#define PV_BINDING_ENV_RADIANCE 12
+#define PV_BINDING_ENV_MARGINAL_CDF 13
+#define PV_BINDING_ENV_CONDITIONAL_CDF 14
+#define PV_BINDING_ACCUM_SUM 15
+#define PV_BINDING_ACCUM_COMPENSATION 16
+#define PV_BINDING_COUNT 17
+
+// Specialization constant ids: scene features that select pipeline variants, so a scene runs
+// none of the code it does not need ("model only what the scene requires").
+#define PV_SPEC_HAS_ENV 0
+#define PV_SPEC_HAS_EMISSIVE 1
+#define PV_SPEC_HAS_PUNCTUAL 2
+#define PV_SPEC_HAS_SPECULAR 3
+#define PV_SPEC_HAS_TRANSMISSION 4
+#define PV_SPEC_HAS_THIN_LENS 5
+#define PV_SPEC_HAS_TEXTURES 6
+#define PV_SPEC_HAS_VIRTUAL 7
+
+#define PV_WORKGROUP_SIZE_X 8
+#define PV_WORKGROUP_SIZE_Y 8
+
+#define PV_NO_TEXTURE 0xffffffffu
+
+// A node of the flattened BVH (32 bytes). Interior: count == 0, children at leftOrFirst and
+// leftOrFirst + 1. Leaf: count triangles starting at leftOrFirst in the triangle arrays.
+struct BvhNode {
+    vec3 boundsMin;
+    uint leftOrFirst;
+    vec3 boundsMax;
+    uint count;
+};
+
+// glTF 2.0 metallic-roughness material with the transmission, ior, specular and
+// emissive_strength extensions. Texture fields index TextureInfo or are PV_NO_TEXTURE.
+struct GpuMaterial {
+    vec4 baseColor;          // linear RGB + alpha
+    vec3 emission;           // emissiveFactor * emissive_strength (radiance)
+    float metallic;
+    vec3 specularColor;      // KHR_materials_specular specularColorFactor
+    float roughness;         // perceptual; alpha = roughness^2
+    float transmission;
+    float ior;
+    float specular;          // KHR_materials_specular specularFactor
+    uint baseColorTexture;
+    uint metallicRoughnessTexture;
+    uint normalTexture;
+    uint emissiveTexture;
+    uint flags;              // PV_MATERIAL_* bits
+};
+
+#define PV_MATERIAL_DOUBLE_SIDED 1u
+
+// A texture stored as packed RGBA8 texels at `offset` in the texel buffer.
+struct TextureInfo {
+    uint offset;
+    uint width;
+    uint height;
+    uint srgb;  // 1: colour data, decoded from sRGB; 0: linear data (roughness, normals)
+};
+
+#define PV_LIGHT_POINT 0u
+#define PV_LIGHT_SPOT 1u
+#define PV_LIGHT_DIRECTIONAL 2u
+
+// KHR_lights_punctual light in world space. intensity = colour * intensity (candela for point
+// and spot, lux for directional).
+struct GpuLight {
+    vec3 position;
+    uint type;
+    vec3 direction;  // unit, the direction the light points (spot, directional)
+    float cosOuterCone;
+    vec3 intensity;
+    float cosInnerCone;
+};
+
+// An emissive triangle for light sampling; chosen with probability proportional to its power
+// (area * mean emitted radiance) through the cumulative distribution `cdf`.
+struct EmissiveTriangle {
+    uint triangle;
+    float area;
+    float cdf;   // inclusive cumulative probability
+    float pdf;   // probability of choosing this triangle
+};
+
+// Per-dispatch parameters (binding PV_BINDING_PARAMS).
+struct FrameParams {
+    mat4 worldFromCamera;    // camera looks along -Z, +Y up
+    vec2 tanHalfFov;         // tan of the half field of view, x and y
+    float apertureRadiusM;   // thin lens; 0 = pinhole
+    float focusDistanceM;
+    uint width;
+    uint height;
+    uint sampleBase;         // index of the first sample of this dispatch
+    uint samplesPerDispatch;
+    uint seed;
+    uint maxDepth;           // most scattering events on a path (pbrt's maxdepth)
+    uint lightCount;
+    uint emissiveTriangleCount;
+    uint realRoot;           // BVH root over real (phantom) geometry, or 0xffffffff
+    uint virtualRoot;        // BVH root over virtual geometry, or 0xffffffff
+    uint envWidth;
+    uint envHeight;
+    float envScale;          // multiplies the map's radiance
+    float envRotationRad;    // about +Y, counter-clockwise seen from above
+    float envIntegral;       // sum of map luminance * sin(theta) weights, for the pdf
+    float fireflyClamp;      // 0 = off (default); else the largest sample luminance kept
+    uint rouletteStartDepth; // Russian roulette from this depth on
+    uint pad0;
+};
+
+PV_END
+
+#endif

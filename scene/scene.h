@@ -1,0 +1,97 @@
+#pragma once
+
+// The scene on the CPU, as loaded from glTF (and later the previs.toml scene description):
+// world-space triangles with their materials, textures, punctual lights, cameras and an optional
+// environment map. Everything here is in glTF conventions (DESIGN.md §4): right-handed, +Y up,
+// metres; cameras look along -Z of their node.
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+namespace previs {
+
+struct Material {
+    std::string name;
+    glm::vec4 baseColor{1.0f};            // linear
+    glm::vec3 emission{0.0f};             // emissiveFactor * emissive_strength
+    float metallic = 1.0f;                // glTF defaults
+    float roughness = 1.0f;
+    float transmission = 0.0f;
+    float ior = 1.5f;
+    float specular = 1.0f;
+    glm::vec3 specularColor{1.0f};
+    int baseColorTexture = -1;            // index into Scene::textures, -1 = none
+    int metallicRoughnessTexture = -1;
+    int normalTexture = -1;
+    int emissiveTexture = -1;
+    bool doubleSided = false;
+};
+
+// 8-bit RGBA texels, row 0 at the top (glTF UV origin).
+struct Texture {
+    std::string name;
+    uint32_t width = 0;
+    uint32_t height = 0;
+    bool srgb = true;                     // colour data; false for linear data
+    std::vector<uint32_t> rgba8;          // packed R | G<<8 | B<<16 | A<<24
+};
+
+// Triangles of all meshes, transformed to world space. Vertex attributes are per vertex;
+// triangles index them. normals/uvs are always filled (geometric normal / zero when absent).
+struct Geometry {
+    std::vector<glm::vec3> positions;
+    std::vector<glm::vec3> normals;
+    std::vector<glm::vec2> uvs;
+    std::vector<glm::uvec3> triangles;
+    std::vector<uint32_t> triangleMaterials;
+    std::vector<uint8_t> triangleIsReal;  // 1: phantom of a real object; 0: virtual
+};
+
+enum class LightType { Point, Spot, Directional };
+
+struct PunctualLight {
+    std::string name;
+    LightType type = LightType::Point;
+    glm::vec3 position{0.0f};
+    glm::vec3 direction{0.0f, 0.0f, -1.0f};  // where it points (unit)
+    glm::vec3 color{1.0f};
+    float intensity = 1.0f;                  // candela (point/spot) or lux (directional)
+    float innerConeAngleRad = 0.0f;
+    float outerConeAngleRad = 0.7853981633974483f;
+    float range = 0.0f;                      // 0 = infinite
+};
+
+struct Camera {
+    std::string name;
+    glm::mat4 worldFromCamera{1.0f};
+    float fovYRad = 0.8f;
+    float aspectRatio = 0.0f;                // 0 = from the image size
+    float apertureRadiusM = 0.0f;
+    float focusDistanceM = 1.0f;
+};
+
+// Equirectangular linear HDR map (DESIGN.md §4 orientation), row 0 at the top.
+struct EnvironmentMap {
+    std::string path;
+    uint32_t width = 0;
+    uint32_t height = 0;
+    std::vector<glm::vec3> radiance;
+    float rotationRad = 0.0f;
+    float scale = 1.0f;
+};
+
+struct Scene {
+    std::string path;
+    Geometry geometry;
+    std::vector<Material> materials;
+    std::vector<Texture> textures;
+    std::vector<PunctualLight> lights;
+    std::vector<Camera> cameras;
+    std::optional<EnvironmentMap> environment;  // none: black background
+};
+
+}  // namespace previs

@@ -1,0 +1,29 @@
+#!/usr/bin/env bash
+# Installs the Debian packages previs needs (skipping those present), then configures and
+# builds one configuration. Usage: scripts/setup.sh [release|asan]   (default release)
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+config=${1:-release}
+
+missing=()
+while read -r pkg; do
+    [[ -z "$pkg" || "$pkg" == \#* ]] && continue
+    dpkg-query -W -f='${Status}' "$pkg" 2>/dev/null | grep -q "install ok installed" || missing+=("$pkg")
+done < "$root/scripts/packages.txt"
+if ((${#missing[@]})); then
+    echo "setup: installing ${missing[*]}" >&2
+    sudo_cmd=()
+    [[ $(id -u) -ne 0 ]] && sudo_cmd=(sudo)
+    "${sudo_cmd[@]}" apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive "${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends \
+        "${missing[@]}" >&2
+fi
+
+case "$config" in
+    release) build="$root/build"; flags=(-DCMAKE_BUILD_TYPE=RelWithDebInfo) ;;
+    asan) build="$root/build-asan"; flags=(-DCMAKE_BUILD_TYPE=Debug -DPREVIS_SANITIZE=ON) ;;
+    *) echo "setup: unknown configuration '$config' (use release or asan)" >&2; exit 2 ;;
+esac
+cmake -S "$root" -B "$build" -G Ninja -DPREVIS_WERROR=${PREVIS_WERROR:-OFF} "${flags[@]}" >&2
+cmake --build "$build" -j"$(nproc)" >&2
+echo "$build"
