@@ -25,7 +25,9 @@ PV_BEGIN
 #define PV_BINDING_ENV_CONDITIONAL_CDF 14
 #define PV_BINDING_ACCUM_SUM 15
 #define PV_BINDING_ACCUM_COMPENSATION 16
-#define PV_BINDING_COUNT 17
+#define PV_BINDING_STATS 17
+#define PV_BINDING_TRIANGLE_LIGHT_PDF 18
+#define PV_BINDING_COUNT 19
 
 // Specialization constant ids: scene features that select pipeline variants, so a scene runs
 // none of the code it does not need ("model only what the scene requires").
@@ -36,7 +38,7 @@ PV_BEGIN
 #define PV_SPEC_HAS_TRANSMISSION 4
 #define PV_SPEC_HAS_THIN_LENS 5
 #define PV_SPEC_HAS_TEXTURES 6
-#define PV_SPEC_HAS_VIRTUAL 7
+#define PV_SPEC_COUNT 7
 
 #define PV_WORKGROUP_SIZE_X 8
 #define PV_WORKGROUP_SIZE_Y 8
@@ -102,6 +104,14 @@ struct EmissiveTriangle {
     float area;
     float cdf;   // inclusive cumulative probability
     float pdf;   // probability of choosing this triangle
+};
+
+// Counters the shader raises; the host checks them after a render.
+struct RenderStats {
+    uint nonFiniteSamples;   // samples dropped because they were NaN or infinite
+    uint pad0;
+    uint pad1;
+    uint pad2;
 };
 
 // Per-dispatch parameters (binding PV_BINDING_PARAMS).

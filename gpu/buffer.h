@@ -1,0 +1,51 @@
+#pragma once
+
+// A storage buffer with its memory. Host-visible device memory is used when the device has it
+// (CPU devices, integrated GPUs, resizable BAR); otherwise uploads and readbacks go through a
+// temporary staging buffer.
+
+#include <cstddef>
+#include <span>
+#include <vector>
+
+#include <vulkan/vulkan_raii.hpp>
+
+#include "base/result.h"
+#include "gpu/context.h"
+
+namespace previs {
+
+class GpuBuffer {
+public:
+    // size 0 is allowed (an empty scene array): a 16-byte buffer is created so it can be bound.
+    static Result<GpuBuffer> create(GpuContext& ctx, size_t sizeBytes, const char* label);
+
+    template <typename T>
+    static Result<GpuBuffer> createWith(GpuContext& ctx, std::span<const T> data,
+                                        const char* label) {
+        auto buffer = create(ctx, data.size_bytes(), label);
+        if (!buffer) return buffer;
+        if (Status s = buffer->upload(data.data(), data.size_bytes()); !s) return s.error();
+        return buffer;
+    }
+
+    GpuBuffer(GpuBuffer&&) = default;
+    GpuBuffer& operator=(GpuBuffer&&) = default;
+
+    Status upload(const void* data, size_t bytes, size_t offset = 0);
+    Status download(void* data, size_t bytes, size_t offset = 0) const;
+    Status fill(uint32_t value);
+
+    vk::Buffer handle() const { return *buffer_; }
+    size_t size() const { return size_; }
+
+private:
+    GpuBuffer() = default;
+    GpuContext* ctx_ = nullptr;
+    vk::raii::Buffer buffer_{nullptr};
+    vk::raii::DeviceMemory memory_{nullptr};
+    size_t size_ = 0;
+    void* mapped_ = nullptr;  // non-null when the memory is host visible and coherent
+};
+
+}  // namespace previs

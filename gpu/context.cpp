@@ -1,0 +1,212 @@
+#include "gpu/context.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cstdlib>
+#include <vector>
+
+#include "base/log.h"
+
+namespace previs {
+
+namespace {
+
+std::string lowercase(std::string s) {
+    std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
+    return s;
+}
+
+// Higher is preferred: discrete, integrated, virtual, then CPU.
+int deviceTypeRank(vk::PhysicalDeviceType type) {
+    switch (type) {
+        case vk::PhysicalDeviceType::eDiscreteGpu: return 4;
+        case vk::PhysicalDeviceType::eIntegratedGpu: return 3;
+        case vk::PhysicalDeviceType::eVirtualGpu: return 2;
+        case vk::PhysicalDeviceType::eCpu: return 1;
+        default: return 0;
+    }
+}
+
+std::optional<uint32_t> computeQueueFamily(const vk::raii::PhysicalDevice& device) {
+    auto families = device.getQueueFamilyProperties();
+    for (uint32_t i = 0; i < families.size(); ++i) {
+        if (families[i].queueFlags & vk::QueueFlagBits::eCompute) return i;
+    }
+    return std::nullopt;
+}
+
+bool supportsRequiredFeatures(const vk::raii::PhysicalDevice& device) {
+    auto chain = device.getFeatures2<vk::PhysicalDeviceFeatures2,
+                                     vk::PhysicalDeviceVulkan12Features>();
+    const auto& f12 = chain.get<vk::PhysicalDeviceVulkan12Features>();
+    return f12.scalarBlockLayout && device.getProperties().apiVersion >= VK_API_VERSION_1_2;
+}
+
+}  // namespace
+
+VKAPI_ATTR VkBool32 VKAPI_CALL GpuContext::debugCallback(
+    VkDebugUtilsMessageSeverityFlagBitsEXT severity, VkDebugUtilsMessageTypeFlagsEXT,
+    const VkDebugUtilsMessengerCallbackDataEXT* data, void* user) {
+    auto* self = static_cast<GpuContext*>(user);
+    if (severity & VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT) {
+        self->validationErrors_.fetch_add(1);
+        logError("Vulkan validation: {}", data->pMessage);
+    } else if (severity & VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT) {
+        logWarning("Vulkan validation: {}", data->pMessage);
+    }
+    return VK_FALSE;
+}
+
+Result<std::unique_ptr<GpuContext>> GpuContext::create(const GpuOptions& options) {
+    std::unique_ptr<GpuContext> ctx(new GpuContext());
+    try {
+        std::vector<const char*> layers;
+        std::vector<const char*> extensions;
+        if (options.validation) {
+            bool haveLayer = false;
+            for (const auto& layer : ctx->context_.enumerateInstanceLayerProperties()) {
+                if (std::string_view(layer.layerName) == "VK_LAYER_KHRONOS_validation")
+                    haveLayer = true;
+            }
+            if (haveLayer) {
+                layers.push_back("VK_LAYER_KHRONOS_validation");
+                extensions.push_back(VK_EXT_DEBUG_UTILS_EXTENSION_NAME);
+                ctx->validationEnabled_ = true;
+            } else {
+                logWarning(
+                    "Vulkan validation requested but VK_LAYER_KHRONOS_validation is not "
+                    "installed (Debian package vulkan-validationlayers); running without it");
+            }
+        }
+        vk::ApplicationInfo app("previs", 1, "previs", 1, VK_API_VERSION_1_2);
+        vk::InstanceCreateInfo instanceInfo({}, &app, layers, extensions);
+        ctx->instance_ = vk::raii::Instance(ctx->context_, instanceInfo);
+        if (ctx->validationEnabled_) {
+            vk::DebugUtilsMessengerCreateInfoEXT messengerInfo(
+                {},
+                vk::DebugUtilsMessageSeverityFlagBitsEXT::eWarning |
+                    vk::DebugUtilsMessageSeverityFlagBitsEXT::eError,
+                vk::DebugUtilsMessageTypeFlagBitsEXT::eGeneral |
+                    vk::DebugUtilsMessageTypeFlagBitsEXT::eValidation |
+                    vk::DebugUtilsMessageTypeFlagBitsEXT::ePerformance,
+                &GpuContext::debugCallback, ctx.get());
+            ctx->messenger_ = vk::raii::DebugUtilsMessengerEXT(ctx->instance_, messengerInfo);
+        }
+
+        vk::raii::PhysicalDevices devices(ctx->instance_);
+        if (devices.empty()) {
+            return makeError(
+                "no Vulkan device found; install a Vulkan driver (on a machine without a GPU: "
+                "Debian package mesa-vulkan-drivers for lavapipe)");
+        }
+        std::string override = options.deviceOverride;
+        if (override.empty()) {
+            if (const char* env = std::getenv("PREVIS_VK_DEVICE")) override = env;
+        }
+        int chosen = -1;
+        if (!override.empty()) {
+            bool isIndex = std::all_of(override.begin(), override.end(),
+                                       [](unsigned char c) { return std::isdigit(c); });
+            for (size_t i = 0; i < devices.size(); ++i) {
+                std::string name = devices[i].getProperties().deviceName;
+                bool match = isIndex ? std::stoul(override) == i
+                                     : lowercase(name).find(lowercase(override)) !=
+                                           std::string::npos;
+                if (match) {
+                    chosen = static_cast<int>(i);
+                    break;
+                }
+            }
+            if (chosen < 0) {
+                std::string names;
+                for (size_t i = 0; i < devices.size(); ++i)
+                    names += fmt::format(" [{}] {}", i, devices[i].getProperties().deviceName);
+                return makeError("PREVIS_VK_DEVICE '{}' matches no Vulkan device; devices:{}",
+                                 override, names);
+            }
+            if (!computeQueueFamily(devices[chosen]) || !supportsRequiredFeatures(devices[chosen]))
+                return makeError("Vulkan device '{}' lacks a compute queue or Vulkan 1.2 scalar "
+                                 "block layout; choose another with PREVIS_VK_DEVICE",
+                                 std::string(devices[chosen].getProperties().deviceName));
+        } else {
+            int bestRank = 0;
+            for (size_t i = 0; i < devices.size(); ++i) {
+                if (!computeQueueFamily(devices[i]) || !supportsRequiredFeatures(devices[i]))
+                    continue;
+                int rank = deviceTypeRank(devices[i].getProperties().deviceType);
+                if (rank > bestRank) {
+                    bestRank = rank;
+                    chosen = static_cast<int>(i);
+                }
+            }
+            if (chosen < 0)
+                return makeError("no Vulkan device with a compute queue and Vulkan 1.2 scalar "
+                                 "block layout was found");
+        }
+        ctx->physicalDevice_ = std::move(devices[chosen]);
+        auto props = ctx->physicalDevice_.getProperties();
+        ctx->deviceName_ = props.deviceName.data();
+        ctx->isCpu_ = props.deviceType == vk::PhysicalDeviceType::eCpu;
+        ctx->queueFamily_ = *computeQueueFamily(ctx->physicalDevice_);
+        auto family = ctx->physicalDevice_.getQueueFamilyProperties()[ctx->queueFamily_];
+        if (family.timestampValidBits > 0)
+            ctx->timestampPeriodNs_ = props.limits.timestampPeriod;
+
+        float priority = 1.0f;
+        vk::DeviceQueueCreateInfo queueInfo({}, ctx->queueFamily_, 1, &priority);
+        vk::StructureChain<vk::DeviceCreateInfo, vk::PhysicalDeviceFeatures2,
+                           vk::PhysicalDeviceVulkan12Features>
+            chain;
+        chain.get<vk::DeviceCreateInfo>().setQueueCreateInfos(queueInfo);
+        chain.get<vk::PhysicalDeviceVulkan12Features>().scalarBlockLayout = VK_TRUE;
+        ctx->device_ = vk::raii::Device(ctx->physicalDevice_, chain.get<vk::DeviceCreateInfo>());
+        ctx->queue_ = vk::raii::Queue(ctx->device_, ctx->queueFamily_, 0);
+        ctx->commandPool_ = vk::raii::CommandPool(
+            ctx->device_, vk::CommandPoolCreateInfo(
+                              vk::CommandPoolCreateFlagBits::eResetCommandBuffer, ctx->queueFamily_));
+        ctx->fence_ = vk::raii::Fence(ctx->device_, vk::FenceCreateInfo());
+        logDebug("Vulkan device: {}", ctx->deviceName_);
+    } catch (const std::exception& e) {
+        return makeError("Vulkan initialisation failed: {}", e.what());
+    }
+    return Result<std::unique_ptr<GpuContext>>(std::move(ctx));
+}
+
+GpuContext::~GpuContext() {
+    if (*device_) device_.waitIdle();
+}
+
+uint32_t GpuContext::findMemoryType(uint32_t typeBits, vk::MemoryPropertyFlags required,
+                                    vk::MemoryPropertyFlags preferred) const {
+    auto memory = physicalDevice_.getMemoryProperties();
+    for (auto want : {required | preferred, required}) {
+        for (uint32_t i = 0; i < memory.memoryTypeCount; ++i) {
+            if ((typeBits & (1u << i)) && (memory.memoryTypes[i].propertyFlags & want) == want)
+                return i;
+        }
+    }
+    return UINT32_MAX;
+}
+
+Status GpuContext::submitAndWait(
+    const std::function<void(const vk::raii::CommandBuffer&)>& record) {
+    try {
+        vk::raii::CommandBuffers buffers(
+            device_, vk::CommandBufferAllocateInfo(*commandPool_, vk::CommandBufferLevel::ePrimary, 1));
+        const vk::raii::CommandBuffer& cmd = buffers[0];
+        cmd.begin(vk::CommandBufferBeginInfo(vk::CommandBufferUsageFlagBits::eOneTimeSubmit));
+        record(cmd);
+        cmd.end();
+        device_.resetFences(*fence_);
+        vk::CommandBuffer raw = *cmd;
+        queue_.submit(vk::SubmitInfo({}, {}, raw), *fence_);
+        // Wait without a time limit: a long dispatch on a CPU device is still progress.
+        while (device_.waitForFences(*fence_, VK_TRUE, 1'000'000'000ull) == vk::Result::eTimeout) {
+        }
+    } catch (const std::exception& e) {
+        return makeError("Vulkan submission failed on '{}': {}", deviceName_, e.what());
+    }
+    return {};
+}
+
+}  // namespace previs

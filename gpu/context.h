@@ -1,0 +1,75 @@
+#pragma once
+
+// The Vulkan compute context: instance, device choice, one compute queue, validation messages.
+// Runs on any conformant device; prefers a discrete GPU, then integrated, then virtual, then a CPU
+// implementation (lavapipe). PREVIS_VK_DEVICE (index or name substring) overrides the choice.
+
+#include <atomic>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include <vulkan/vulkan_raii.hpp>
+
+#include "base/result.h"
+
+namespace previs {
+
+struct GpuOptions {
+    // Enable VK_LAYER_KHRONOS_validation when installed. Tests turn it on; a validation error
+    // is then counted (validationErrorCount) and logged.
+    bool validation = false;
+    // Index into the device list or a case-insensitive substring of the device name;
+    // empty = automatic (also read from PREVIS_VK_DEVICE when empty).
+    std::string deviceOverride;
+};
+
+class GpuContext {
+public:
+    static Result<std::unique_ptr<GpuContext>> create(const GpuOptions& options);
+    ~GpuContext();
+    GpuContext(const GpuContext&) = delete;
+    GpuContext& operator=(const GpuContext&) = delete;
+
+    const vk::raii::Device& device() const { return device_; }
+    const vk::raii::PhysicalDevice& physicalDevice() const { return physicalDevice_; }
+    const vk::raii::Queue& queue() const { return queue_; }
+    uint32_t queueFamily() const { return queueFamily_; }
+    const std::string& deviceName() const { return deviceName_; }
+    bool isCpuDevice() const { return isCpu_; }
+    // Nanoseconds per timestamp tick; 0 when the queue has no timestamps.
+    double timestampPeriodNs() const { return timestampPeriodNs_; }
+    uint32_t findMemoryType(uint32_t typeBits, vk::MemoryPropertyFlags required,
+                            vk::MemoryPropertyFlags preferred) const;
+
+    // Records commands into a one-time command buffer, submits them and waits.
+    Status submitAndWait(const std::function<void(const vk::raii::CommandBuffer&)>& record);
+
+    uint32_t validationErrorCount() const { return validationErrors_.load(); }
+    bool validationEnabled() const { return validationEnabled_; }
+
+private:
+    GpuContext() = default;
+    static VKAPI_ATTR VkBool32 VKAPI_CALL debugCallback(
+        VkDebugUtilsMessageSeverityFlagBitsEXT severity, VkDebugUtilsMessageTypeFlagsEXT types,
+        const VkDebugUtilsMessengerCallbackDataEXT* data, void* user);
+
+    // Declared in creation order so they are destroyed in reverse.
+    vk::raii::Context context_;
+    vk::raii::Instance instance_{nullptr};
+    vk::raii::DebugUtilsMessengerEXT messenger_{nullptr};
+    vk::raii::PhysicalDevice physicalDevice_{nullptr};
+    vk::raii::Device device_{nullptr};
+    vk::raii::Queue queue_{nullptr};
+    vk::raii::CommandPool commandPool_{nullptr};
+    vk::raii::Fence fence_{nullptr};
+    uint32_t queueFamily_ = 0;
+    std::string deviceName_;
+    bool isCpu_ = false;
+    bool validationEnabled_ = false;
+    double timestampPeriodNs_ = 0.0;
+    std::atomic<uint32_t> validationErrors_{0};
+};
+
+}  // namespace previs

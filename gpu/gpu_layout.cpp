@@ -1,0 +1,24 @@
+// Compile-time checks that the C++ view of the shared structs matches the GLSL scalar layout
+// (STYLE.md: every shared struct has static_assert(sizeof/offsetof) checks).
+#include <cstddef>
+
+#include "shared/scene_types.h"
+
+namespace previs::shader {
+
+static_assert(sizeof(vec3) == 12 && alignof(vec3) == 4, "GLM vec3 must be packed as in scalar layout");
+static_assert(sizeof(BvhNode) == 32);
+static_assert(offsetof(BvhNode, leftOrFirst) == 12);
+static_assert(offsetof(BvhNode, count) == 28);
+static_assert(sizeof(GpuMaterial) == 80);
+static_assert(offsetof(GpuMaterial, emission) == 16);
+static_assert(offsetof(GpuMaterial, specularColor) == 32);
+static_assert(offsetof(GpuMaterial, baseColorTexture) == 60);
+static_assert(sizeof(TextureInfo) == 16);
+static_assert(sizeof(GpuLight) == 48);
+static_assert(offsetof(GpuLight, intensity) == 32);
+static_assert(sizeof(EmissiveTriangle) == 16);
+static_assert(offsetof(FrameParams, tanHalfFov) == 64);
+static_assert(sizeof(FrameParams) % 4 == 0);
+
+}  // namespace previs::shader

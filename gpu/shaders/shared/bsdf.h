@@ -1,0 +1,253 @@
+// The glTF 2.0 metallic-roughness BSDF with KHR_materials_transmission, _ior and _specular, in a
+// local shading frame (normal +Z). Shared by trace_paths.comp and the C++ tests.
+//
+// The material is a mixture of four lobes:
+//   f = m·f_metal + (1−m)·[ f_dielectricReflection + (1−t)(1−F)·c/π + t·f_transmission ]
+// with m metallic, t transmission, c base colour, F the dielectric Fresnel term (exact Fresnel
+// of the IOR, scaled by specularFactor and tinted by specularColor as KHR_materials_specular
+// does), metal Fresnel by Schlick with F0 = c, microfacets by GGX with Smith height-correlated
+// masking (alpha = roughness²). The limit cases DESIGN.md §4 names are exact: metallic 0 and
+// specular 0 give Lambert; metallic 1, roughness 0, white give a perfect mirror; transmission 1,
+// roughness 0 give a smooth Fresnel dielectric.
+//
+// Convention: the caller flips the frame so that wo.z > 0 and passes etaRel, the IOR of the side
+// a transmitted ray enters over the IOR of the side wo is on (ior when hitting a front face).
+// Reflection keeps wi.z > 0, transmission gives wi.z < 0.
+#ifndef PREVIS_SHARED_BSDF_H
+#define PREVIS_SHARED_BSDF_H
+
+#include "shared/prelude.h"
+#include "shared/sampling.h"
+
+PV_BEGIN
+
+// Below this alpha a microfacet lobe is treated as a perfect specular (delta) lobe: GGX with
+// alpha → 0 tends to it, and float D values overflow well before alpha = 0.
+#define PV_DELTA_ALPHA 1.0e-4f
+
+#define PV_LOBE_METAL 0u
+#define PV_LOBE_DIELECTRIC_REFLECTION 1u
+#define PV_LOBE_DIFFUSE 2u
+#define PV_LOBE_TRANSMISSION 3u
+
+struct BsdfParams {
+    vec3 baseColor;
+    float metallic;
+    vec3 specularColor;
+    float alpha;         // GGX roughness, perceptual roughness squared
+    float transmission;
+    float etaRel;        // see the convention above
+    float specular;
+};
+
+struct BsdfSample {
+    vec3 wi;
+    float pdf;           // solid angle pdf of the mixture; 0 for delta lobes
+    vec3 weight;         // f·|cosθi| / pdf (for delta lobes: the lobe coefficient / choice prob)
+    uint lobe;
+    bool isDelta;
+};
+
+// Exact Fresnel reflectance of an unpolarised wave at a smooth dielectric boundary; cosThetaI
+// measured on the incident side, eta = η_transmitted / η_incident. 1 on total internal reflection.
+PV_INLINE float fresnelDielectric(float cosThetaI, float eta) {
+    cosThetaI = clamp(cosThetaI, 0.0f, 1.0f);
+    float sin2ThetaI = 1.0f - cosThetaI * cosThetaI;
+    float sin2ThetaT = sin2ThetaI / (eta * eta);
+    if (sin2ThetaT >= 1.0f) return 1.0f;
+    float cosThetaT = sqrt(max(0.0f, 1.0f - sin2ThetaT));
+    float rParl = (eta * cosThetaI - cosThetaT) / (eta * cosThetaI + cosThetaT);
+    float rPerp = (cosThetaI - eta * cosThetaT) / (cosThetaI + eta * cosThetaT);
+    return 0.5f * (rParl * rParl + rPerp * rPerp);
+}
+
+PV_INLINE vec3 dielectricFresnel(BsdfParams p, float cosThetaI) {
+    return p.specular * min(p.specularColor * fresnelDielectric(cosThetaI, p.etaRel), vec3(1.0f));
+}
+
+PV_INLINE vec3 schlickFresnel(vec3 f0, float cosTheta) {
+    float m = clamp(1.0f - cosTheta, 0.0f, 1.0f);
+    float m2 = m * m;
+    return f0 + (vec3(1.0f) - f0) * (m2 * m2 * m);
+}
+
+PV_INLINE float ggxD(vec3 h, float alpha) {
+    float a2 = alpha * alpha;
+    float c2 = h.z * h.z;
+    float d = c2 * (a2 - 1.0f) + 1.0f;
+    return a2 / (PV_PI * d * d);
+}
+
+PV_INLINE float ggxLambda(vec3 w, float alpha) {
+    float z2 = w.z * w.z;
+    if (z2 <= 0.0f) return PV_FLOAT_MAX;
+    float tan2 = max(0.0f, 1.0f - z2) / z2;
+    return 0.5f * (sqrt(1.0f + alpha * alpha * tan2) - 1.0f);
+}
+
+PV_INLINE float ggxG1(vec3 w, float alpha) { return 1.0f / (1.0f + ggxLambda(w, alpha)); }
+
+PV_INLINE float ggxG2(vec3 wo, vec3 wi, float alpha) {
+    return 1.0f / (1.0f + ggxLambda(wo, alpha) + ggxLambda(wi, alpha));
+}
+
+// Density of visible normals seen from wo (Heitz 2018): D_wo(h) = G1(wo)·max(0, wo·h)·D(h)/wo.z.
+PV_INLINE float ggxVisibleNormalPdf(vec3 wo, vec3 h, float alpha) {
+    return ggxG1(wo, alpha) * max(0.0f, dot(wo, h)) * ggxD(h, alpha) / abs(wo.z);
+}
+
+// Samples a visible normal (Heitz 2018, "Sampling the GGX Distribution of Visible Normals").
+PV_INLINE vec3 sampleGgxVisibleNormal(vec3 wo, float alpha, vec2 u) {
+    vec3 vh = normalize(vec3(alpha * wo.x, alpha * wo.y, wo.z));
+    float lensq = vh.x * vh.x + vh.y * vh.y;
+    vec3 t1 = lensq > 0.0f ? vec3(-vh.y, vh.x, 0.0f) * inversesqrt(lensq) : vec3(1.0f, 0.0f, 0.0f);
+    vec3 t2 = cross(vh, t1);
+    float r = sqrt(u.x);
+    float phi = PV_TWO_PI * u.y;
+    float p1 = r * cos(phi);
+    float p2 = r * sin(phi);
+    float s = 0.5f * (1.0f + vh.z);
+    p2 = (1.0f - s) * sqrt(max(0.0f, 1.0f - p1 * p1)) + s * p2;
+    vec3 nh = p1 * t1 + p2 * t2 + sqrt(max(0.0f, 1.0f - p1 * p1 - p2 * p2)) * vh;
+    return normalize(vec3(alpha * nh.x, alpha * nh.y, max(1.0e-7f, nh.z)));
+}
+
+// Refraction of wo about normal n (same side as wo) with eta = η_t/η_i; false on total internal
+// reflection.
+PV_INLINE bool refractDirection(vec3 wo, vec3 n, float eta, PV_OUT(vec3) wi) {
+    float cosThetaI = dot(n, wo);
+    float sin2ThetaI = max(0.0f, 1.0f - cosThetaI * cosThetaI);
+    float sin2ThetaT = sin2ThetaI / (eta * eta);
+    if (sin2ThetaT >= 1.0f) {
+        wi = vec3(0.0f);
+        return false;
+    }
+    float cosThetaT = sqrt(1.0f - sin2ThetaT);
+    wi = -wo / eta + (cosThetaI / eta - cosThetaT) * n;
+    return true;
+}
+
+// Lobe selection probabilities from the lobe coefficients seen from wo (a scalar estimate; the
+// sample weight uses the exact coefficients, so the choice only affects variance).
+PV_INLINE vec4 bsdfLobeProbabilities(BsdfParams p, vec3 wo) {
+    float fe = maxComponent(dielectricFresnel(p, wo.z));
+    float metal = p.metallic * maxComponent(schlickFresnel(p.baseColor, wo.z));
+    float dielectricReflection = (1.0f - p.metallic) * fe;
+    float base = (1.0f - p.metallic) * (1.0f - fe) * maxComponent(p.baseColor);
+    vec4 w = vec4(metal, dielectricReflection, base * (1.0f - p.transmission),
+                  base * p.transmission);
+    float sum = w.x + w.y + w.z + w.w;
+    return sum > 0.0f ? w / sum : vec4(0.0f);
+}
+
+PV_INLINE bool bsdfIsDelta(BsdfParams p) { return p.alpha < PV_DELTA_ALPHA; }
+
+// The non-delta part of the BSDF: f(wo, wi) (without the cosine) and the mixture pdf of
+// sampling wi with bsdfSample. Delta lobes contribute nothing here.
+PV_INLINE vec3 bsdfEvaluate(BsdfParams p, vec3 wo, vec3 wi, PV_OUT(float) pdf) {
+    pdf = 0.0f;
+    if (wo.z <= 0.0f || wi.z == 0.0f) return vec3(0.0f);
+    vec4 prob = bsdfLobeProbabilities(p, wo);
+    bool delta = bsdfIsDelta(p);
+    vec3 f = vec3(0.0f);
+    if (wi.z > 0.0f) {
+        vec3 h = normalize(wo + wi);
+        float hDotO = max(dot(h, wo), 0.0f);
+        vec3 fd = dielectricFresnel(p, hDotO);
+        if (prob.z > 0.0f) {
+            f += (1.0f - p.metallic) * (1.0f - p.transmission) * (vec3(1.0f) - fd) * p.baseColor *
+                 PV_INV_PI;
+            pdf += prob.z * cosineHemispherePdf(wi.z);
+        }
+        if (!delta && hDotO > 0.0f) {
+            float dg = ggxD(h, p.alpha) * ggxG2(wo, wi, p.alpha) / (4.0f * wo.z * wi.z);
+            float reflectionPdf = ggxVisibleNormalPdf(wo, h, p.alpha) / (4.0f * hDotO);
+            f += p.metallic * schlickFresnel(p.baseColor, hDotO) * dg;
+            f += (1.0f - p.metallic) * fd * dg;
+            pdf += (prob.x + prob.y) * reflectionPdf;
+        }
+    } else if (!delta && prob.w > 0.0f) {
+        // Rough transmission (Walter et al. 2007), in pbrt-v4's form.
+        float etap = p.etaRel;
+        vec3 wm = normalize(wi * etap + wo);
+        if (wm.z < 0.0f) wm = -wm;
+        float dotIM = dot(wi, wm);
+        float dotOM = dot(wo, wm);
+        if (dotIM < 0.0f && dotOM > 0.0f) {
+            float denom = dotIM + dotOM / etap;
+            float denom2 = denom * denom;
+            if (denom2 > 0.0f) {
+                vec3 fd = dielectricFresnel(p, dotOM);
+                float ft = ggxD(wm, p.alpha) * ggxG2(wo, wi, p.alpha) *
+                           abs(dotIM * dotOM / (wi.z * wo.z * denom2)) / (etap * etap);
+                f += (1.0f - p.metallic) * p.transmission * (vec3(1.0f) - fd) * p.baseColor * ft;
+                pdf += prob.w * ggxVisibleNormalPdf(wo, wm, p.alpha) * abs(dotIM) / denom2;
+            }
+        }
+    }
+    return f;
+}
+
+// Samples wi from the lobe mixture; false when no direction could be generated (black material,
+// total internal reflection on a sampled microfacet) — the path ends there.
+PV_INLINE bool bsdfSample(BsdfParams p, vec3 wo, float uLobe, vec2 u, PV_OUT(BsdfSample) s) {
+    s.wi = vec3(0.0f, 0.0f, 1.0f);
+    s.pdf = 0.0f;
+    s.weight = vec3(0.0f);
+    s.lobe = PV_LOBE_DIFFUSE;
+    s.isDelta = false;
+    if (wo.z <= 0.0f) return false;
+    vec4 prob = bsdfLobeProbabilities(p, wo);
+    bool delta = bsdfIsDelta(p);
+    uint lobe;
+    if (uLobe < prob.x) {
+        lobe = PV_LOBE_METAL;
+    } else if (uLobe < prob.x + prob.y) {
+        lobe = PV_LOBE_DIELECTRIC_REFLECTION;
+    } else if (uLobe < prob.x + prob.y + prob.z) {
+        lobe = PV_LOBE_DIFFUSE;
+    } else if (prob.w > 0.0f) {
+        lobe = PV_LOBE_TRANSMISSION;
+    } else {
+        return false;
+    }
+    s.lobe = lobe;
+    if (delta && lobe != PV_LOBE_DIFFUSE) {
+        // Perfect specular: the weight is the lobe's coefficient over its choice probability.
+        s.isDelta = true;
+        float cosO = wo.z;
+        vec3 fd = dielectricFresnel(p, cosO);
+        if (lobe == PV_LOBE_METAL) {
+            s.wi = vec3(-wo.x, -wo.y, wo.z);
+            s.weight = p.metallic * schlickFresnel(p.baseColor, cosO) / prob.x;
+        } else if (lobe == PV_LOBE_DIELECTRIC_REFLECTION) {
+            s.wi = vec3(-wo.x, -wo.y, wo.z);
+            s.weight = (1.0f - p.metallic) * fd / prob.y;
+        } else {
+            if (!refractDirection(wo, vec3(0.0f, 0.0f, 1.0f), p.etaRel, s.wi)) return false;
+            // Radiance is scaled by 1/η² across the boundary (non-symmetric scattering, Veach).
+            s.weight = (1.0f - p.metallic) * p.transmission * (vec3(1.0f) - fd) * p.baseColor /
+                       (prob.w * p.etaRel * p.etaRel);
+        }
+        return maxComponent(s.weight) > 0.0f;
+    }
+    if (lobe == PV_LOBE_DIFFUSE) {
+        s.wi = sampleCosineHemisphere(u);
+    } else {
+        vec3 h = sampleGgxVisibleNormal(wo, p.alpha, u);
+        if (lobe == PV_LOBE_TRANSMISSION) {
+            if (!refractDirection(wo, h, p.etaRel, s.wi)) return false;
+        } else {
+            s.wi = reflect(-wo, h);
+        }
+    }
+    if (s.wi.z == 0.0f) return false;
+    vec3 f = bsdfEvaluate(p, wo, s.wi, s.pdf);
+    if (!(s.pdf > 0.0f)) return false;
+    s.weight = f * abs(s.wi.z) / s.pdf;
+    return true;
+}
+
+PV_END
+
+#endif
