@@ -1,0 +1,40 @@
+#pragma once
+
+// Loading equirectangular HDR environment maps and building their importance-sampling tables
+// (piecewise-constant 2D distribution, pbrt-v4 PiecewiseConstant2D). The tables feed
+// gpu/shaders/shared/env_sampling.h on both CPU and GPU.
+
+#include <string>
+#include <vector>
+
+#include "base/result.h"
+#include "scene/scene.h"
+
+namespace previs {
+
+// OpenEXR or Radiance .hdr, linear RGB. NaN, Inf and negative texels become 0 (one warning with
+// their count): lossy EXR codecs leave small negatives, and one NaN would poison every pixel that
+// samples it.
+Result<EnvironmentMap> loadEnvironmentMap(const std::string& path);
+
+// Tables over (u, v) in [0,1)^2 with weights luminance(texel) * sin(θ_row_centre), θ = πv: the
+// sin θ makes the density in solid angle follow the luminance (dω = 2π² sinθ du dv).
+struct EnvironmentDistribution {
+    std::vector<float> marginalCdf;     // height + 1 entries, [0] = 0, [height] = 1
+    std::vector<float> conditionalCdf;  // height * (width + 1): row r at r * (width + 1)
+    // ∫∫ weight du dv = sum of the weights / (width * height), in luminance units. 0 when the map
+    // is black (the tables then sample the sphere uniformly).
+    float integral = 0.0f;
+};
+
+// Sums run in double so a 1e5 sun next to 1e-3 sky keeps the small texels' probabilities. A row
+// of zero weight gets a uniform conditional (it is never chosen anyway); a map of zero weight
+// everywhere gets weights sin θ, i.e. uniform directions on the sphere, so the tables stay valid.
+EnvironmentDistribution buildEnvironmentDistribution(const EnvironmentMap& map);
+
+// Rec. 709 luminance of linear RGB.
+inline float luminance(const glm::vec3& rgb) {
+    return 0.2126f * rgb.r + 0.7152f * rgb.g + 0.0722f * rgb.b;
+}
+
+}  // namespace previs

@@ -1,0 +1,809 @@
+#include "scene/gltf_loader.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstring>
+#include <exception>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <set>
+#include <utility>
+
+#include <glm/gtc/matrix_transform.hpp>
+#include <glm/gtc/quaternion.hpp>
+#include <glm/gtc/type_ptr.hpp>
+#include <stb_image.h>
+#include <tiny_gltf.h>
+
+#include "base/log.h"
+
+namespace previs {
+namespace {
+
+// Extensions this loader implements; any other one listed in extensionsRequired means the file
+// cannot be shown correctly, so loading fails (glTF 2.0 spec §3.12). KHR_texture_transform is
+// deliberately absent: silently ignoring it would misplace textures.
+const std::set<std::string> kSupportedRequiredExtensions = {
+    "KHR_materials_transmission", "KHR_materials_ior",   "KHR_materials_specular",
+    "KHR_materials_emissive_strength", "KHR_lights_punctual",
+};
+
+// Deeper hierarchies than this are treated as malformed (a cycle, or a hostile file trying to
+// exhaust the stack).
+constexpr int kMaxNodeDepth = 256;
+
+struct ImageLoadContext {
+    std::vector<std::string> warnings;
+};
+
+// Decodes every image to RGBA8 with stb. A texture that does not decode is not fatal: the image
+// is left empty and the material loses that texture (fallback "no texture", i.e. the material's
+// factors alone), with a warning. On set, a preview with a missing texture beats no preview.
+bool decodeImage(tinygltf::Image* image, const int imageIndex, std::string* /*err*/,
+                 std::string* /*warn*/, int /*reqWidth*/, int /*reqHeight*/,
+                 const unsigned char* bytes, int size, void* user) {
+    auto* context = static_cast<ImageLoadContext*>(user);
+    int w = 0;
+    int h = 0;
+    int comp = 0;
+    std::unique_ptr<unsigned char, decltype(&stbi_image_free)> data(
+        stbi_load_from_memory(bytes, size, &w, &h, &comp, 4), &stbi_image_free);
+    if (!data || w <= 0 || h <= 0) {
+        context->warnings.push_back(fmt::format(
+            "image {} ('{}') does not decode ({}); its textures are ignored", imageIndex,
+            image->name.empty() ? image->uri : image->name,
+            stbi_failure_reason() ? stbi_failure_reason() : "unknown error"));
+        image->image.clear();
+        image->width = image->height = 0;
+        return true;
+    }
+    image->width = w;
+    image->height = h;
+    image->component = 4;
+    image->bits = 8;
+    image->pixel_type = TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE;
+    image->image.assign(data.get(), data.get() + size_t(w) * size_t(h) * 4);
+    return true;
+}
+
+// tinygltf reports several problems as newline-separated text; one line reads better.
+std::string oneLine(std::string text) {
+    while (!text.empty() && (text.back() == '\n' || text.back() == ' ')) text.pop_back();
+    std::replace(text.begin(), text.end(), '\n', ';');
+    return text;
+}
+
+const tinygltf::Value* findPath(const tinygltf::Value& root, std::initializer_list<const char*> keys) {
+    const tinygltf::Value* v = &root;
+    for (const char* key : keys) {
+        if (!v->IsObject() || !v->Has(key)) return nullptr;
+        v = &v->Get(key);
+    }
+    return v;
+}
+
+const tinygltf::Value* findExtension(const tinygltf::ExtensionMap& extensions,
+                                     const std::string& name) {
+    auto it = extensions.find(name);
+    return it == extensions.end() ? nullptr : &it->second;
+}
+
+float numberOr(const tinygltf::Value* object, const char* key, float fallback) {
+    if (!object) return fallback;
+    const tinygltf::Value* v = findPath(*object, {key});
+    return v && v->IsNumber() ? float(v->GetNumberAsDouble()) : fallback;
+}
+
+glm::vec3 vec3Or(const tinygltf::Value* object, const char* key, glm::vec3 fallback) {
+    if (!object) return fallback;
+    const tinygltf::Value* v = findPath(*object, {key});
+    if (!v || !v->IsArray() || v->ArrayLen() != 3) return fallback;
+    glm::vec3 out;
+    for (int i = 0; i < 3; ++i) {
+        if (!v->Get(i).IsNumber()) return fallback;
+        out[i] = float(v->Get(i).GetNumberAsDouble());
+    }
+    return out;
+}
+
+class Loader {
+public:
+    Loader(std::string path, tinygltf::Model model) : path_(std::move(path)), model_(std::move(model)) {}
+
+    Result<Scene> run();
+
+private:
+    template <typename... Args>
+    Error fail(fmt::format_string<Args...> format, Args&&... args) const {
+        return Error{fmt::format("cannot load glTF '{}': {}", path_,
+                                 fmt::format(format, std::forward<Args>(args)...))};
+    }
+
+    Status checkRequiredExtensions() const;
+    Status loadMaterials();
+    Result<int> textureFor(int gltfTexture, bool srgb, const std::string& materialName);
+    Status visitNode(int nodeIndex, const glm::mat4& parentWorld, bool parentReal, int depth);
+    Status loadMesh(int meshIndex, const glm::mat4& worldFromMesh, bool real);
+    Status loadPrimitive(const tinygltf::Mesh& mesh, int meshIndex, size_t primIndex,
+                         const glm::mat4& worldFromMesh, bool real);
+    Status loadCamera(const tinygltf::Node& node, const glm::mat4& world);
+    Status loadLight(const tinygltf::Node& node, const glm::mat4& world);
+
+    // Reads `count` elements of `components` floats (float, or normalized unsigned integer types
+    // when allowNormalized) or of 1 unsigned integer (indices).
+    Status readFloats(int accessorIndex, int type, bool allowNormalized, const std::string& what,
+                      std::vector<float>& out, size_t& count) const;
+    Status readIndices(int accessorIndex, const std::string& what,
+                       std::vector<uint32_t>& out) const;
+    Result<const unsigned char*> accessorData(int accessorIndex, const std::string& what,
+                                              size_t elementSize, size_t& stride) const;
+
+    std::string path_;
+    tinygltf::Model model_;
+    Scene scene_;
+    int defaultMaterial_ = -1;
+    std::map<std::pair<int, bool>, int> textureMap_;  // (glTF image, srgb) -> Scene texture
+    std::set<int> warnedImages_;
+    size_t degenerateTriangles_ = 0;
+    size_t skippedPrimitives_ = 0;
+    size_t replacedNormals_ = 0;
+};
+
+Status Loader::checkRequiredExtensions() const {
+    for (const std::string& ext : model_.extensionsRequired) {
+        if (!kSupportedRequiredExtensions.count(ext))
+            return fail("it requires the unsupported extension '{}' (supported: "
+                        "KHR_materials_transmission, KHR_materials_ior, KHR_materials_specular, "
+                        "KHR_materials_emissive_strength, KHR_lights_punctual); re-export "
+                        "without it",
+                        ext);
+    }
+    return {};
+}
+
+Result<int> Loader::textureFor(int gltfTexture, bool srgb, const std::string& materialName) {
+    if (gltfTexture < 0) return -1;
+    if (size_t(gltfTexture) >= model_.textures.size())
+        return fail("material '{}' refers to texture {}, but the file has {} textures",
+                    materialName, gltfTexture, model_.textures.size());
+    const int source = model_.textures[gltfTexture].source;
+    if (source < 0) return -1;  // e.g. only an extension source (KTX2, WebP) we do not read
+    if (size_t(source) >= model_.images.size())
+        return fail("texture {} refers to image {}, but the file has {} images", gltfTexture,
+                    source, model_.images.size());
+    const tinygltf::Image& image = model_.images[source];
+    if (image.image.empty() || image.width <= 0 || image.height <= 0 ||
+        image.image.size() != size_t(image.width) * size_t(image.height) * 4) {
+        // Fallback documented at decodeImage: the material keeps its factors only.
+        if (warnedImages_.insert(source).second)
+            logWarning("glTF '{}': image {} ('{}') could not be loaded or decoded; material '{}' "
+                       "is rendered without that texture",
+                       path_, source, image.uri.empty() ? image.name : image.uri, materialName);
+        return -1;
+    }
+    auto key = std::make_pair(source, srgb);
+    if (auto it = textureMap_.find(key); it != textureMap_.end()) return it->second;
+
+    Texture texture;
+    texture.name = image.name.empty() ? image.uri : image.name;
+    texture.width = uint32_t(image.width);
+    texture.height = uint32_t(image.height);
+    texture.srgb = srgb;
+    texture.rgba8.resize(size_t(image.width) * size_t(image.height));
+    for (size_t i = 0; i < texture.rgba8.size(); ++i) {
+        const unsigned char* p = image.image.data() + i * 4;
+        texture.rgba8[i] = uint32_t(p[0]) | uint32_t(p[1]) << 8 | uint32_t(p[2]) << 16 |
+                           uint32_t(p[3]) << 24;
+    }
+    const int index = int(scene_.textures.size());
+    scene_.textures.push_back(std::move(texture));
+    textureMap_[key] = index;
+    return index;
+}
+
+Status Loader::loadMaterials() {
+    for (size_t i = 0; i < model_.materials.size(); ++i) {
+        const tinygltf::Material& m = model_.materials[i];
+        Material out;
+        out.name = m.name.empty() ? fmt::format("material{}", i) : m.name;
+        const auto& pbr = m.pbrMetallicRoughness;
+        if (pbr.baseColorFactor.size() == 4)
+            out.baseColor = glm::vec4(pbr.baseColorFactor[0], pbr.baseColorFactor[1],
+                                      pbr.baseColorFactor[2], pbr.baseColorFactor[3]);
+        out.metallic = float(pbr.metallicFactor);
+        out.roughness = float(pbr.roughnessFactor);
+        glm::vec3 emissive(0.0f);
+        if (m.emissiveFactor.size() == 3)
+            emissive = glm::vec3(m.emissiveFactor[0], m.emissiveFactor[1], m.emissiveFactor[2]);
+        const float strength = numberOr(
+            findExtension(m.extensions, "KHR_materials_emissive_strength"), "emissiveStrength",
+            1.0f);
+        out.emission = emissive * strength;
+        out.transmission = numberOr(findExtension(m.extensions, "KHR_materials_transmission"),
+                                    "transmissionFactor", 0.0f);
+        out.ior = numberOr(findExtension(m.extensions, "KHR_materials_ior"), "ior", 1.5f);
+        const tinygltf::Value* specular = findExtension(m.extensions, "KHR_materials_specular");
+        out.specular = numberOr(specular, "specularFactor", 1.0f);
+        out.specularColor = vec3Or(specular, "specularColorFactor", glm::vec3(1.0f));
+        out.doubleSided = m.doubleSided;
+
+        // Colour textures hold sRGB-encoded values, data textures linear ones (glTF 2.0 §3.9).
+        struct Slot {
+            int gltf;
+            bool srgb;
+            int* target;
+        };
+        for (Slot slot : {Slot{pbr.baseColorTexture.index, true, &out.baseColorTexture},
+                          Slot{pbr.metallicRoughnessTexture.index, false,
+                               &out.metallicRoughnessTexture},
+                          Slot{m.normalTexture.index, false, &out.normalTexture},
+                          Slot{m.emissiveTexture.index, true, &out.emissiveTexture}}) {
+            Result<int> t = textureFor(slot.gltf, slot.srgb, out.name);
+            if (!t) return t.error();
+            *slot.target = *t;
+        }
+
+        const float values[] = {out.baseColor.r, out.baseColor.g, out.baseColor.b,
+                                out.baseColor.a, out.metallic,    out.roughness,
+                                out.transmission, out.ior,        out.specular,
+                                out.emission.r,  out.emission.g,  out.emission.b};
+        for (float v : values)
+            if (!std::isfinite(v))
+                return fail("material '{}' has a non-finite factor", out.name);
+        scene_.materials.push_back(std::move(out));
+    }
+    return {};
+}
+
+Result<const unsigned char*> Loader::accessorData(int accessorIndex, const std::string& what,
+                                                  size_t elementSize, size_t& stride) const {
+    if (accessorIndex < 0 || size_t(accessorIndex) >= model_.accessors.size())
+        return fail("{} uses accessor {}, but the file has {} accessors", what, accessorIndex,
+                    model_.accessors.size());
+    const tinygltf::Accessor& a = model_.accessors[accessorIndex];
+    if (a.sparse.isSparse)
+        return fail("{} uses sparse accessor {} (sparse accessors are not supported)", what,
+                    accessorIndex);
+    if (a.bufferView < 0 || size_t(a.bufferView) >= model_.bufferViews.size())
+        return fail("{}: accessor {} refers to buffer view {}, but the file has {}", what,
+                    accessorIndex, a.bufferView, model_.bufferViews.size());
+    const tinygltf::BufferView& view = model_.bufferViews[a.bufferView];
+    if (view.buffer < 0 || size_t(view.buffer) >= model_.buffers.size())
+        return fail("{}: buffer view {} refers to buffer {}, but the file has {}", what,
+                    a.bufferView, view.buffer, model_.buffers.size());
+    const tinygltf::Buffer& buffer = model_.buffers[view.buffer];
+    // All sizes in 64 bits: a hostile file can make 32-bit products wrap.
+    const uint64_t viewEnd = uint64_t(view.byteOffset) + uint64_t(view.byteLength);
+    if (viewEnd > buffer.data.size())
+        return fail("buffer {} is missing or too short: buffer view {} needs {} bytes, it has {}",
+                    view.buffer, a.bufferView, viewEnd, buffer.data.size());
+    stride = view.byteStride ? view.byteStride : elementSize;
+    if (stride < elementSize)
+        return fail("{}: buffer view {} has byteStride {} smaller than the element size {}", what,
+                    a.bufferView, stride, elementSize);
+    if (a.count > 0) {
+        const uint64_t need =
+            uint64_t(a.byteOffset) + uint64_t(stride) * (uint64_t(a.count) - 1) + elementSize;
+        if (need > view.byteLength)
+            return fail("{}: accessor {} is out of range ({} elements need {} bytes, buffer view "
+                        "{} has {})",
+                        what, accessorIndex, a.count, need, a.bufferView, view.byteLength);
+    }
+    return buffer.data.data() + view.byteOffset + a.byteOffset;
+}
+
+Status Loader::readFloats(int accessorIndex, int type, bool allowNormalized,
+                          const std::string& what, std::vector<float>& out,
+                          size_t& count) const {
+    if (accessorIndex < 0 || size_t(accessorIndex) >= model_.accessors.size())
+        return fail("{} uses accessor {}, but the file has {} accessors", what, accessorIndex,
+                    model_.accessors.size());
+    const tinygltf::Accessor& a = model_.accessors[accessorIndex];
+    if (a.type != type)
+        return fail("{}: accessor {} has the wrong type (expected {} components)", what,
+                    accessorIndex, tinygltf::GetNumComponentsInType(uint32_t(type)));
+    const int components = tinygltf::GetNumComponentsInType(uint32_t(type));
+    size_t componentSize = 0;
+    switch (a.componentType) {
+        case TINYGLTF_COMPONENT_TYPE_FLOAT: componentSize = 4; break;
+        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: componentSize = 1; break;
+        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: componentSize = 2; break;
+        default: break;
+    }
+    const bool isFloat = a.componentType == TINYGLTF_COMPONENT_TYPE_FLOAT;
+    if (componentSize == 0 || (!isFloat && !(allowNormalized && a.normalized)))
+        return fail("{}: accessor {} has unsupported component type {}", what, accessorIndex,
+                    a.componentType);
+    size_t stride = 0;
+    Result<const unsigned char*> data =
+        accessorData(accessorIndex, what, componentSize * size_t(components), stride);
+    if (!data) return data.error();
+    count = a.count;
+    out.resize(count * size_t(components));
+    for (size_t e = 0; e < count; ++e) {
+        const unsigned char* p = *data + e * stride;
+        for (int c = 0; c < components; ++c) {
+            float v = 0.0f;
+            if (componentSize == 4) {
+                std::memcpy(&v, p + 4 * c, 4);
+            } else if (componentSize == 1) {
+                v = p[c] / 255.0f;
+            } else {
+                uint16_t s;
+                std::memcpy(&s, p + 2 * c, 2);
+                v = s / 65535.0f;
+            }
+            out[e * components + c] = v;
+        }
+    }
+    return {};
+}
+
+Status Loader::readIndices(int accessorIndex, const std::string& what,
+                           std::vector<uint32_t>& out) const {
+    if (accessorIndex < 0 || size_t(accessorIndex) >= model_.accessors.size())
+        return fail("{} uses index accessor {}, but the file has {} accessors", what,
+                    accessorIndex, model_.accessors.size());
+    const tinygltf::Accessor& a = model_.accessors[accessorIndex];
+    size_t size = 0;
+    switch (a.componentType) {
+        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: size = 1; break;
+        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: size = 2; break;
+        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: size = 4; break;
+        default:
+            return fail("{}: index accessor {} has component type {} (need an unsigned integer)",
+                        what, accessorIndex, a.componentType);
+    }
+    if (a.type != TINYGLTF_TYPE_SCALAR)
+        return fail("{}: index accessor {} is not SCALAR", what, accessorIndex);
+    size_t stride = 0;
+    Result<const unsigned char*> data = accessorData(accessorIndex, what, size, stride);
+    if (!data) return data.error();
+    out.resize(a.count);
+    for (size_t e = 0; e < a.count; ++e) {
+        const unsigned char* p = *data + e * stride;
+        if (size == 1) {
+            out[e] = p[0];
+        } else if (size == 2) {
+            uint16_t v;
+            std::memcpy(&v, p, 2);
+            out[e] = v;
+        } else {
+            std::memcpy(&out[e], p, 4);
+        }
+    }
+    return {};
+}
+
+glm::mat4 localTransform(const tinygltf::Node& node) {
+    if (node.matrix.size() == 16) {
+        glm::mat4 m;
+        for (int i = 0; i < 16; ++i) glm::value_ptr(m)[i] = float(node.matrix[i]);  // column-major
+        return m;
+    }
+    glm::mat4 t(1.0f);
+    if (node.translation.size() == 3)
+        t = glm::translate(glm::mat4(1.0f), glm::vec3(node.translation[0], node.translation[1],
+                                                      node.translation[2]));
+    glm::mat4 r(1.0f);
+    if (node.rotation.size() == 4) {
+        // glTF stores (x, y, z, w); glm::quat's constructor takes w first.
+        glm::quat q(float(node.rotation[3]), float(node.rotation[0]), float(node.rotation[1]),
+                    float(node.rotation[2]));
+        r = glm::mat4_cast(glm::normalize(q));
+    }
+    glm::mat4 s(1.0f);
+    if (node.scale.size() == 3)
+        s = glm::scale(glm::mat4(1.0f),
+                       glm::vec3(node.scale[0], node.scale[1], node.scale[2]));
+    return t * r * s;
+}
+
+bool finiteMatrix(const glm::mat4& m) {
+    for (int c = 0; c < 4; ++c)
+        for (int r = 0; r < 4; ++r)
+            if (!std::isfinite(m[c][r])) return false;
+    return true;
+}
+
+Status Loader::visitNode(int nodeIndex, const glm::mat4& parentWorld, bool parentReal,
+                         int depth) {
+    if (nodeIndex < 0 || size_t(nodeIndex) >= model_.nodes.size())
+        return fail("node index {} is out of range (the file has {} nodes)", nodeIndex,
+                    model_.nodes.size());
+    if (depth > kMaxNodeDepth)
+        return fail("the node hierarchy is deeper than {} at node {} (a cycle?)", kMaxNodeDepth,
+                    nodeIndex);
+    const tinygltf::Node& node = model_.nodes[nodeIndex];
+    const glm::mat4 world = parentWorld * localTransform(node);
+    if (!finiteMatrix(world))
+        return fail("node {} ('{}') has a non-finite transform", nodeIndex, node.name);
+
+    // DESIGN.md §4: extras.previs.role; children inherit unless they say otherwise.
+    bool real = parentReal;
+    if (const tinygltf::Value* role = findPath(node.extras, {"previs", "role"});
+        role && role->IsString()) {
+        const std::string& r = role->Get<std::string>();
+        if (r == "real") real = true;
+        else if (r == "virtual") real = false;
+        else logWarning("glTF '{}': node '{}' has unknown role '{}' (use \"real\" or "
+                        "\"virtual\"); it inherits its parent's",
+                        path_, node.name, r);
+    }
+
+    if (node.mesh >= 0) {
+        if (Status s = loadMesh(node.mesh, world, real); !s) return s;
+    }
+    if (node.camera >= 0) {
+        if (Status s = loadCamera(node, world); !s) return s;
+    }
+    if (findExtension(node.extensions, "KHR_lights_punctual")) {
+        if (Status s = loadLight(node, world); !s) return s;
+    }
+    for (int child : node.children) {
+        if (Status s = visitNode(child, world, real, depth + 1); !s) return s;
+    }
+    return {};
+}
+
+Status Loader::loadMesh(int meshIndex, const glm::mat4& worldFromMesh, bool real) {
+    if (size_t(meshIndex) >= model_.meshes.size())
+        return fail("mesh index {} is out of range (the file has {} meshes)", meshIndex,
+                    model_.meshes.size());
+    const tinygltf::Mesh& mesh = model_.meshes[meshIndex];
+    for (size_t p = 0; p < mesh.primitives.size(); ++p) {
+        if (Status s = loadPrimitive(mesh, meshIndex, p, worldFromMesh, real); !s) return s;
+    }
+    return {};
+}
+
+Status Loader::loadPrimitive(const tinygltf::Mesh& mesh, int meshIndex, size_t primIndex,
+                             const glm::mat4& worldFromMesh, bool real) {
+    const tinygltf::Primitive& prim = mesh.primitives[primIndex];
+    const std::string what =
+        fmt::format("mesh {} ('{}') primitive {}", meshIndex, mesh.name, primIndex);
+    if (prim.mode != TINYGLTF_MODE_TRIANGLES) {
+        // Points and lines have no area to render; strips/fans are rare in exported files.
+        logWarning("glTF '{}': {} has mode {} (only TRIANGLES is rendered); skipped", path_, what,
+                   prim.mode);
+        ++skippedPrimitives_;
+        return {};
+    }
+    auto attribute = [&](const char* name) {
+        auto it = prim.attributes.find(name);
+        return it == prim.attributes.end() ? -1 : it->second;
+    };
+    const int positionAccessor = attribute("POSITION");
+    if (positionAccessor < 0) return fail("{} has no POSITION attribute", what);
+
+    std::vector<float> positions;
+    size_t vertexCount = 0;
+    if (Status s = readFloats(positionAccessor, TINYGLTF_TYPE_VEC3, false, what + " POSITION",
+                              positions, vertexCount);
+        !s)
+        return s;
+    for (float v : positions)
+        if (!std::isfinite(v))
+            return fail("mesh '{}' (mesh {}) has NaN or infinite vertex positions; fix the "
+                        "mesh in the modelling tool",
+                        mesh.name, meshIndex);
+
+    std::vector<float> normals;
+    const int normalAccessor = attribute("NORMAL");
+    if (normalAccessor >= 0) {
+        size_t n = 0;
+        if (Status s = readFloats(normalAccessor, TINYGLTF_TYPE_VEC3, false, what + " NORMAL",
+                                  normals, n);
+            !s)
+            return s;
+        if (n != vertexCount)
+            return fail("{} has {} normals for {} positions", what, n, vertexCount);
+    }
+    std::vector<float> uvs;
+    const int uvAccessor = attribute("TEXCOORD_0");
+    if (uvAccessor >= 0) {
+        size_t n = 0;
+        if (Status s = readFloats(uvAccessor, TINYGLTF_TYPE_VEC2, true, what + " TEXCOORD_0", uvs,
+                                  n);
+            !s)
+            return s;
+        if (n != vertexCount)
+            return fail("{} has {} texture coordinates for {} positions", what, n, vertexCount);
+    }
+
+    std::vector<uint32_t> indices;
+    if (prim.indices >= 0) {
+        if (Status s = readIndices(prim.indices, what, indices); !s) return s;
+        for (uint32_t i : indices)
+            if (i >= vertexCount)
+                return fail("{} has index {} out of range (it has {} vertices)", what, i,
+                            vertexCount);
+    } else {
+        indices.resize(vertexCount);
+        for (size_t i = 0; i < vertexCount; ++i) indices[i] = uint32_t(i);
+    }
+    if (indices.size() % 3 != 0)
+        logWarning("glTF '{}': {} has {} indices, not a multiple of 3; the last {} are ignored",
+                   path_, what, indices.size(), indices.size() % 3);
+
+    uint32_t material = 0;
+    if (prim.material >= 0) {
+        if (size_t(prim.material) >= scene_.materials.size())
+            return fail("{} uses material {}, but the file has {} materials", what, prim.material,
+                        scene_.materials.size());
+        material = uint32_t(prim.material);
+    } else {
+        if (defaultMaterial_ < 0) {
+            defaultMaterial_ = int(scene_.materials.size());
+            Material m;
+            m.name = "default";
+            scene_.materials.push_back(m);
+        }
+        material = uint32_t(defaultMaterial_);
+    }
+
+    const glm::mat3 linear(worldFromMesh);
+    const glm::mat3 normalMatrix = glm::transpose(glm::inverse(linear));
+    // A mirroring transform flips the winding; swap two indices so the geometric normal
+    // (counter-clockwise, glTF §3.7.2.1) still points to the front face.
+    const bool mirrored = glm::determinant(linear) < 0.0f;
+
+    Geometry& g = scene_.geometry;
+    const bool flat = normals.empty();
+    const uint32_t base = uint32_t(g.positions.size());
+    auto localPosition = [&](uint32_t i) {
+        return glm::vec3(positions[3 * i], positions[3 * i + 1], positions[3 * i + 2]);
+    };
+    std::vector<glm::vec3> world(vertexCount);
+    for (size_t i = 0; i < vertexCount; ++i)
+        world[i] = glm::vec3(worldFromMesh * glm::vec4(localPosition(uint32_t(i)), 1.0f));
+
+    // |cross| in double: exact zero for collinear or coincident authored data; the relative
+    // threshold also catches float-rounded collinear points whose normal would be noise. Slivers
+    // (any aspect ratio above ~1e-7) are kept: they are legitimate geometry.
+    auto isDegenerate = [](const glm::vec3& a, const glm::vec3& b, const glm::vec3& c) {
+        const glm::dvec3 e1 = glm::dvec3(b) - glm::dvec3(a);
+        const glm::dvec3 e2 = glm::dvec3(c) - glm::dvec3(a);
+        const glm::dvec3 e3 = glm::dvec3(c) - glm::dvec3(b);
+        const double maxEdge2 =
+            std::max({glm::dot(e1, e1), glm::dot(e2, e2), glm::dot(e3, e3)});
+        const double area2 = glm::length(glm::cross(e1, e2));
+        return !(area2 > 1e-14 * maxEdge2) || maxEdge2 == 0.0;
+    };
+
+    std::vector<glm::uvec3> tris;
+    tris.reserve(indices.size() / 3);
+    size_t degenerate = 0;
+    for (size_t t = 0; t + 2 < indices.size(); t += 3) {
+        glm::uvec3 tri(indices[t], indices[t + 1], indices[t + 2]);
+        if (tri.x == tri.y || tri.y == tri.z || tri.x == tri.z ||
+            isDegenerate(localPosition(tri.x), localPosition(tri.y), localPosition(tri.z)) ||
+            isDegenerate(world[tri.x], world[tri.y], world[tri.z])) {
+            ++degenerate;
+            continue;
+        }
+        if (mirrored) std::swap(tri.y, tri.z);
+        tris.push_back(tri);
+    }
+    degenerateTriangles_ += degenerate;
+
+    auto faceNormal = [&](const glm::uvec3& tri) {
+        const glm::dvec3 n = glm::cross(glm::dvec3(world[tri.y]) - glm::dvec3(world[tri.x]),
+                                        glm::dvec3(world[tri.z]) - glm::dvec3(world[tri.x]));
+        return glm::vec3(glm::normalize(n));
+    };
+
+    auto uvOf = [&](uint32_t i) {
+        return uvs.empty() ? glm::vec2(0.0f) : glm::vec2(uvs[2 * i], uvs[2 * i + 1]);
+    };
+
+    if (flat) {
+        // No normals: one vertex per corner so each triangle carries its own flat normal.
+        for (const glm::uvec3& tri : tris) {
+            const glm::vec3 n = faceNormal(tri);
+            const uint32_t first = uint32_t(g.positions.size());
+            for (uint32_t k = 0; k < 3; ++k) {
+                g.positions.push_back(world[tri[k]]);
+                g.normals.push_back(n);
+                g.uvs.push_back(uvOf(tri[k]));
+            }
+            g.triangles.emplace_back(first, first + 1, first + 2);
+            g.triangleMaterials.push_back(material);
+            g.triangleIsReal.push_back(real ? 1 : 0);
+        }
+        return {};
+    }
+
+    std::vector<glm::vec3> worldNormals(vertexCount);
+    std::vector<uint8_t> bad(vertexCount, 0);
+    for (size_t i = 0; i < vertexCount; ++i) {
+        const glm::vec3 n = normalMatrix * glm::vec3(normals[3 * i], normals[3 * i + 1],
+                                                     normals[3 * i + 2]);
+        const float len = glm::length(n);
+        if (std::isfinite(len) && len > 0.0f && std::isfinite(n.x + n.y + n.z)) {
+            worldNormals[i] = n / len;
+        } else {
+            bad[i] = 1;
+            worldNormals[i] = glm::vec3(0.0f);
+        }
+    }
+    // Unusable normals (NaN, Inf, zero) become the area-weighted geometric normal of the
+    // triangles around the vertex.
+    size_t replaced = 0;
+    for (const glm::uvec3& tri : tris) {
+        const glm::dvec3 n = glm::cross(glm::dvec3(world[tri.y]) - glm::dvec3(world[tri.x]),
+                                        glm::dvec3(world[tri.z]) - glm::dvec3(world[tri.x]));
+        for (int k = 0; k < 3; ++k)
+            if (bad[tri[k]]) worldNormals[tri[k]] += glm::vec3(n);
+    }
+    for (size_t i = 0; i < vertexCount; ++i) {
+        if (!bad[i]) continue;
+        ++replaced;
+        const float len = glm::length(worldNormals[i]);
+        worldNormals[i] = std::isfinite(len) && len > 0.0f ? worldNormals[i] / len
+                                                            : glm::vec3(0.0f, 1.0f, 0.0f);
+    }
+    replacedNormals_ += replaced;
+
+    for (size_t i = 0; i < vertexCount; ++i) {
+        g.positions.push_back(world[i]);
+        g.normals.push_back(worldNormals[i]);
+        g.uvs.push_back(uvOf(uint32_t(i)));
+    }
+    for (const glm::uvec3& tri : tris) {
+        g.triangles.push_back(tri + glm::uvec3(base));
+        g.triangleMaterials.push_back(material);
+        g.triangleIsReal.push_back(real ? 1 : 0);
+    }
+    return {};
+}
+
+Status Loader::loadCamera(const tinygltf::Node& node, const glm::mat4& world) {
+    if (size_t(node.camera) >= model_.cameras.size())
+        return fail("node '{}' refers to camera {}, but the file has {} cameras", node.name,
+                    node.camera, model_.cameras.size());
+    const tinygltf::Camera& c = model_.cameras[node.camera];
+    if (c.type != "perspective") {
+        logWarning("glTF '{}': camera '{}' is {}, only perspective cameras are supported; skipped",
+                   path_, c.name, c.type);
+        return {};
+    }
+    Camera camera;
+    camera.name = !c.name.empty() ? c.name : node.name;
+    camera.fovYRad = float(c.perspective.yfov);
+    camera.aspectRatio = float(c.perspective.aspectRatio);
+    if (!(camera.fovYRad > 0.0f && camera.fovYRad < 3.14159f))
+        return fail("camera '{}' has yfov {} rad (need 0 < yfov < π)", camera.name,
+                    camera.fovYRad);
+    // Cameras ignore scale (glTF §3.10.4 "camera ... transform ... shall not contain scale"
+    // in spirit): rays need an orthonormal frame, so the columns are normalised.
+    camera.worldFromCamera = world;
+    for (int k = 0; k < 3; ++k) {
+        const glm::vec3 axis(world[k]);
+        const float len = glm::length(axis);
+        if (!(len > 0.0f)) return fail("camera node '{}' has a degenerate transform", node.name);
+        camera.worldFromCamera[k] = glm::vec4(axis / len, 0.0f);
+    }
+    const tinygltf::Value* previs = findPath(node.extras, {"previs"});
+    camera.apertureRadiusM = numberOr(previs, "apertureRadiusM", 0.0f);
+    camera.focusDistanceM = numberOr(previs, "focusDistanceM", 1.0f);
+    if (!(camera.apertureRadiusM >= 0.0f) || !(camera.focusDistanceM > 0.0f) ||
+        !std::isfinite(camera.apertureRadiusM) || !std::isfinite(camera.focusDistanceM))
+        return fail("camera node '{}' has invalid extras.previs apertureRadiusM {} / "
+                    "focusDistanceM {} (need >= 0 and > 0)",
+                    node.name, camera.apertureRadiusM, camera.focusDistanceM);
+    scene_.cameras.push_back(camera);
+    return {};
+}
+
+Status Loader::loadLight(const tinygltf::Node& node, const glm::mat4& world) {
+    const tinygltf::Value* ext = findExtension(node.extensions, "KHR_lights_punctual");
+    const tinygltf::Value* index = ext ? findPath(*ext, {"light"}) : nullptr;
+    if (!index || !index->IsNumber())
+        return fail("node '{}' has KHR_lights_punctual without a light index", node.name);
+    const int i = index->GetNumberAsInt();
+    if (i < 0 || size_t(i) >= model_.lights.size())
+        return fail("node '{}' refers to light {}, but the file has {} lights", node.name, i,
+                    model_.lights.size());
+    const tinygltf::Light& l = model_.lights[i];
+    PunctualLight light;
+    light.name = !l.name.empty() ? l.name : node.name;
+    if (l.type == "point") light.type = LightType::Point;
+    else if (l.type == "spot") light.type = LightType::Spot;
+    else if (l.type == "directional") light.type = LightType::Directional;
+    else return fail("light '{}' has unknown type '{}'", light.name, l.type);
+    light.position = glm::vec3(world[3]);
+    const glm::vec3 dir = -glm::vec3(world[2]);
+    const float len = glm::length(dir);
+    if (!(len > 0.0f) && light.type != LightType::Point)
+        return fail("light node '{}' has a degenerate transform", node.name);
+    light.direction = len > 0.0f ? dir / len : glm::vec3(0.0f, 0.0f, -1.0f);
+    if (l.color.size() == 3) light.color = glm::vec3(l.color[0], l.color[1], l.color[2]);
+    light.intensity = float(l.intensity);
+    light.range = float(l.range);
+    light.innerConeAngleRad = float(l.spot.innerConeAngle);
+    light.outerConeAngleRad = float(l.spot.outerConeAngle);
+    if (!std::isfinite(light.intensity) || light.intensity < 0.0f ||
+        !std::isfinite(light.color.r + light.color.g + light.color.b))
+        return fail("light '{}' has an invalid colour or intensity", light.name);
+    scene_.lights.push_back(light);
+    return {};
+}
+
+Result<Scene> Loader::run() {
+    scene_.path = path_;
+    if (Status s = checkRequiredExtensions(); !s) return s.error();
+    if (Status s = loadMaterials(); !s) return s.error();
+
+    std::vector<int> roots;
+    if (!model_.scenes.empty()) {
+        int sceneIndex = model_.defaultScene >= 0 ? model_.defaultScene : 0;
+        if (size_t(sceneIndex) >= model_.scenes.size())
+            return fail("default scene {} is out of range (the file has {} scenes)", sceneIndex,
+                        model_.scenes.size());
+        roots = model_.scenes[sceneIndex].nodes;
+    } else {
+        // No scenes: every node that is nobody's child is a root (glTF allows this for
+        // libraries of assets; showing them beats showing nothing).
+        std::vector<uint8_t> isChild(model_.nodes.size(), 0);
+        for (const tinygltf::Node& n : model_.nodes)
+            for (int c : n.children)
+                if (c >= 0 && size_t(c) < isChild.size()) isChild[c] = 1;
+        for (size_t i = 0; i < model_.nodes.size(); ++i)
+            if (!isChild[i]) roots.push_back(int(i));
+    }
+    for (int root : roots) {
+        if (Status s = visitNode(root, glm::mat4(1.0f), false, 0); !s) return s.error();
+    }
+    if (degenerateTriangles_ > 0)
+        logWarning("glTF '{}': dropped {} degenerate triangles (zero area or repeated index)",
+                   path_, degenerateTriangles_);
+    if (replacedNormals_ > 0)
+        logWarning("glTF '{}': {} vertex normals were NaN, infinite or zero; replaced by the "
+                   "geometric normal",
+                   path_, replacedNormals_);
+    return std::move(scene_);
+}
+
+}  // namespace
+
+Result<Scene> loadGltf(const std::string& path) {
+    std::error_code ec;
+    if (!std::filesystem::exists(path, ec))
+        return makeError("cannot load glTF '{}': no such file (check the path)", path);
+    if (std::filesystem::is_directory(path, ec))
+        return makeError("cannot load glTF '{}': it is a folder, not a .gltf/.glb file", path);
+    std::string ext = std::filesystem::path(path).extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(),
+                   [](unsigned char c) { return char(std::tolower(c)); });
+    if (ext != ".gltf" && ext != ".glb")
+        return makeError("cannot load glTF '{}': unsupported extension '{}' (use .gltf or .glb)",
+                         path, ext);
+
+    tinygltf::TinyGLTF gltf;
+    ImageLoadContext images;
+    gltf.SetImageLoader(&decodeImage, &images);
+    tinygltf::Model model;
+    std::string err;
+    std::string warn;
+    bool ok = false;
+    try {
+        ok = ext == ".glb" ? gltf.LoadBinaryFromFile(&model, &err, &warn, path)
+                           : gltf.LoadASCIIFromFile(&model, &err, &warn, path);
+    } catch (const std::exception& e) {
+        return makeError("cannot load glTF '{}': {}", path, e.what());
+    }
+    if (!ok)
+        return makeError("cannot load glTF '{}': {}", path,
+                         err.empty() ? std::string("malformed file") : oneLine(err));
+    for (const std::string& w : images.warnings)
+        logWarning("glTF '{}': {}; the material is rendered without them", path, w);
+    if (!warn.empty()) logDebug("glTF '{}': tinygltf: {}", path, oneLine(warn));
+
+    Loader loader(path, std::move(model));
+    return loader.run();
+}
+
+}  // namespace previs
