@@ -35,7 +35,7 @@ const std::set<std::string> kSupportedRequiredExtensions = {
 constexpr int kMaxNodeDepth = 256;
 
 struct ImageLoadContext {
-    std::vector<std::string> warnings;
+    std::map<int, std::string> failures;  // glTF image index -> why it did not decode
 };
 
 // Decodes every image to RGBA8 with stb. A texture that does not decode is not fatal: the image
@@ -51,10 +51,8 @@ bool decodeImage(tinygltf::Image* image, const int imageIndex, std::string* /*er
     std::unique_ptr<unsigned char, decltype(&stbi_image_free)> data(
         stbi_load_from_memory(bytes, size, &w, &h, &comp, 4), &stbi_image_free);
     if (!data || w <= 0 || h <= 0) {
-        context->warnings.push_back(fmt::format(
-            "image {} ('{}') does not decode ({}); its textures are ignored", imageIndex,
-            image->name.empty() ? image->uri : image->name,
-            stbi_failure_reason() ? stbi_failure_reason() : "unknown error"));
+        context->failures[imageIndex] =
+            stbi_failure_reason() ? stbi_failure_reason() : "unknown error";
         image->image.clear();
         image->width = image->height = 0;
         return true;
@@ -110,7 +108,10 @@ glm::vec3 vec3Or(const tinygltf::Value* object, const char* key, glm::vec3 fallb
 
 class Loader {
 public:
-    Loader(std::string path, tinygltf::Model model) : path_(std::move(path)), model_(std::move(model)) {}
+    Loader(std::string path, tinygltf::Model model, std::map<int, std::string> imageFailures)
+        : path_(std::move(path)),
+          model_(std::move(model)),
+          imageFailures_(std::move(imageFailures)) {}
 
     Result<Scene> run();
 
@@ -142,6 +143,7 @@ private:
 
     std::string path_;
     tinygltf::Model model_;
+    std::map<int, std::string> imageFailures_;
     Scene scene_;
     int defaultMaterial_ = -1;
     std::map<std::pair<int, bool>, int> textureMap_;  // (glTF image, srgb) -> Scene texture
@@ -177,10 +179,16 @@ Result<int> Loader::textureFor(int gltfTexture, bool srgb, const std::string& ma
     if (image.image.empty() || image.width <= 0 || image.height <= 0 ||
         image.image.size() != size_t(image.width) * size_t(image.height) * 4) {
         // Fallback documented at decodeImage: the material keeps its factors only.
-        if (warnedImages_.insert(source).second)
-            logWarning("glTF '{}': image {} ('{}') could not be loaded or decoded; material '{}' "
-                       "is rendered without that texture",
-                       path_, source, image.uri.empty() ? image.name : image.uri, materialName);
+        if (warnedImages_.insert(source).second) {
+            auto failure = imageFailures_.find(source);
+            logWarning("glTF '{}': image {} ('{}') {}; material '{}' is rendered without that "
+                       "texture",
+                       path_, source, image.uri.size() > 64 ? image.name : image.uri,
+                       failure != imageFailures_.end()
+                           ? "does not decode (" + failure->second + ")"
+                           : std::string("could not be loaded (missing file?)"),
+                       materialName);
+        }
         return -1;
     }
     auto key = std::make_pair(source, srgb);
@@ -798,11 +806,9 @@ Result<Scene> loadGltf(const std::string& path) {
     if (!ok)
         return makeError("cannot load glTF '{}': {}", path,
                          err.empty() ? std::string("malformed file") : oneLine(err));
-    for (const std::string& w : images.warnings)
-        logWarning("glTF '{}': {}; the material is rendered without them", path, w);
     if (!warn.empty()) logDebug("glTF '{}': tinygltf: {}", path, oneLine(warn));
 
-    Loader loader(path, std::move(model));
+    Loader loader(path, std::move(model), std::move(images.failures));
     return loader.run();
 }
 

@@ -1,0 +1,589 @@
+// Loader tests on small glTF files written here: geometry, transforms, roles, materials, lights,
+// cameras, .glb, and every kind of bad input (each must give one error naming the file).
+#include "scene/gltf_loader.h"
+
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+
+#include <unistd.h>
+
+#include <glm/gtc/matrix_transform.hpp>
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "image/image.h"
+
+namespace previs {
+namespace {
+
+using nlohmann::json;
+
+std::filesystem::path tempDir() {
+    auto dir = std::filesystem::temp_directory_path() /
+               ("previs_scene_test_" + std::to_string(::getpid()));
+    std::filesystem::create_directories(dir);
+    return dir;
+}
+
+std::string base64(const std::vector<uint8_t>& data) {
+    static const char* table = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    std::string out;
+    size_t i = 0;
+    for (; i + 2 < data.size(); i += 3) {
+        uint32_t v = data[i] << 16 | data[i + 1] << 8 | data[i + 2];
+        for (int k = 3; k >= 0; --k) out += table[(v >> (6 * k)) & 63];
+    }
+    if (i + 1 == data.size()) {
+        uint32_t v = data[i] << 16;
+        out += table[(v >> 18) & 63];
+        out += table[(v >> 12) & 63];
+        out += "==";
+    } else if (i + 2 == data.size()) {
+        uint32_t v = data[i] << 16 | data[i + 1] << 8;
+        out += table[(v >> 18) & 63];
+        out += table[(v >> 12) & 63];
+        out += table[(v >> 6) & 63];
+        out += '=';
+    }
+    return out;
+}
+
+// Builds a glTF document and its single binary buffer.
+class GltfBuilder {
+public:
+    GltfBuilder() {
+        doc_ = {{"asset", {{"version", "2.0"}}},
+                {"scene", 0},
+                {"scenes", json::array({json{{"nodes", json::array()}}})},
+                {"nodes", json::array()},
+                {"meshes", json::array()},
+                {"accessors", json::array()},
+                {"bufferViews", json::array()}};
+    }
+
+    json& doc() { return doc_; }
+    std::vector<uint8_t>& bin() { return bin_; }
+
+    int addAccessor(const void* data, size_t bytes, int componentType, const char* type,
+                    size_t count) {
+        while (bin_.size() % 4) bin_.push_back(0);
+        const size_t offset = bin_.size();
+        bin_.insert(bin_.end(), static_cast<const uint8_t*>(data),
+                    static_cast<const uint8_t*>(data) + bytes);
+        doc_["bufferViews"].push_back(
+            {{"buffer", 0}, {"byteOffset", offset}, {"byteLength", bytes}});
+        doc_["accessors"].push_back({{"bufferView", doc_["bufferViews"].size() - 1},
+                                     {"componentType", componentType},
+                                     {"type", type},
+                                     {"count", count}});
+        return int(doc_["accessors"].size() - 1);
+    }
+    int addPositions(const std::vector<glm::vec3>& p) {
+        return addAccessor(p.data(), p.size() * 12, 5126, "VEC3", p.size());
+    }
+    int addVec3(const std::vector<glm::vec3>& p) { return addPositions(p); }
+    int addIndices(const std::vector<uint16_t>& i) {
+        return addAccessor(i.data(), i.size() * 2, 5123, "SCALAR", i.size());
+    }
+    int addMesh(json primitives) {
+        doc_["meshes"].push_back({{"name", "mesh" + std::to_string(doc_["meshes"].size())},
+                                  {"primitives", primitives}});
+        return int(doc_["meshes"].size() - 1);
+    }
+    // A unit right triangle in the XY plane, indexed.
+    int addTriangleMesh(int material = -1) {
+        int pos = addPositions({{0, 0, 0}, {1, 0, 0}, {0, 1, 0}});
+        int idx = addIndices({0, 1, 2});
+        json prim = {{"attributes", {{"POSITION", pos}}}, {"indices", idx}};
+        if (material >= 0) prim["material"] = material;
+        return addMesh(json::array({prim}));
+    }
+    int addNode(json node, int parent = -1) {
+        doc_["nodes"].push_back(node);
+        const int index = int(doc_["nodes"].size() - 1);
+        if (parent < 0) {
+            doc_["scenes"][0]["nodes"].push_back(index);
+        } else {
+            doc_["nodes"][parent]["children"].push_back(index);
+        }
+        return index;
+    }
+
+    // .gltf with the buffer as a data URI (dataUri) or as a .bin file beside it.
+    std::string writeGltf(const std::string& name, bool dataUri = true) {
+        const auto path = tempDir() / name;
+        json d = doc_;
+        std::vector<uint8_t> bin = bin_;
+        if (bin.empty()) {
+            // No geometry: glTF forbids empty buffers.
+        } else if (dataUri) {
+            d["buffers"] = json::array(
+                {{{"byteLength", bin.size()},
+                  {"uri", "data:application/octet-stream;base64," + base64(bin)}}});
+        } else {
+            const std::string binName = std::filesystem::path(name).stem().string() + ".bin";
+            std::ofstream(tempDir() / binName, std::ios::binary)
+                .write(reinterpret_cast<const char*>(bin.data()), std::streamsize(bin.size()));
+            d["buffers"] = json::array({{{"byteLength", bin.size()}, {"uri", binName}}});
+        }
+        std::ofstream(path) << d.dump(1);
+        return path.string();
+    }
+
+    std::string writeGlb(const std::string& name) {
+        json d = doc_;
+        std::vector<uint8_t> bin = bin_;
+        while (bin.size() % 4) bin.push_back(0);
+        d["buffers"] = json::array({{{"byteLength", bin_.size()}}});
+        std::string text = d.dump();
+        while (text.size() % 4) text += ' ';
+        std::vector<uint8_t> out;
+        auto put32 = [&](uint32_t v) {
+            for (int k = 0; k < 4; ++k) out.push_back(uint8_t(v >> (8 * k)));
+        };
+        put32(0x46546C67);
+        put32(2);
+        put32(uint32_t(12 + 8 + text.size() + 8 + bin.size()));
+        put32(uint32_t(text.size()));
+        put32(0x4E4F534A);
+        out.insert(out.end(), text.begin(), text.end());
+        put32(uint32_t(bin.size()));
+        put32(0x004E4942);
+        out.insert(out.end(), bin.begin(), bin.end());
+        const auto path = tempDir() / name;
+        std::ofstream(path, std::ios::binary)
+            .write(reinterpret_cast<const char*>(out.data()), std::streamsize(out.size()));
+        return path.string();
+    }
+
+private:
+    json doc_;
+    std::vector<uint8_t> bin_;
+};
+
+void expectNear(const glm::vec3& a, const glm::vec3& b, float tol = 1e-5f) {
+    EXPECT_NEAR(a.x, b.x, tol);
+    EXPECT_NEAR(a.y, b.y, tol);
+    EXPECT_NEAR(a.z, b.z, tol);
+}
+
+// glTF rotation (x, y, z, w) for an angle about +Y.
+json quatY(float angleRad) {
+    return json::array({0.0, std::sin(angleRad / 2), 0.0, std::cos(angleRad / 2)});
+}
+
+void expectErrorNamesFile(const std::string& path, const std::string& fragment) {
+    Result<Scene> r = loadGltf(path);
+    ASSERT_FALSE(r.ok()) << "expected an error for " << path;
+    EXPECT_NE(r.message().find(std::filesystem::path(path).filename().string()),
+              std::string::npos)
+        << r.message();
+    EXPECT_NE(r.message().find(fragment), std::string::npos)
+        << "message '" << r.message() << "' lacks '" << fragment << "'";
+}
+
+TEST(GltfLoader, TrianglesAndWorldTransforms) {
+    GltfBuilder b;
+    const int mesh = b.addTriangleMesh();
+    // Non-indexed quad: two triangles, six vertices.
+    const int quadPos = b.addPositions({{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 0, 0}, {1, 1, 0},
+                                        {0, 1, 0}});
+    const int quad = b.addMesh(json::array({{{"attributes", {{"POSITION", quadPos}}}}}));
+    const int parent = b.addNode({{"name", "parent"},
+                                  {"mesh", mesh},
+                                  {"translation", {1.0, 2.0, 3.0}},
+                                  {"scale", {2.0, 2.0, 2.0}}});
+    b.addNode({{"name", "child"}, {"mesh", mesh}, {"rotation", quatY(float(M_PI / 2))}}, parent);
+    glm::mat4 m = glm::translate(glm::mat4(1.0f), glm::vec3(5, 0, 0));
+    std::vector<double> matrix(16);
+    for (int i = 0; i < 16; ++i) matrix[i] = (&m[0][0])[i];
+    b.addNode({{"name", "quad"}, {"mesh", quad}, {"matrix", matrix}});
+    // A node outside the default scene is not loaded.
+    b.doc()["nodes"].push_back({{"name", "orphan"}, {"mesh", mesh}});
+
+    Result<Scene> scene = loadGltf(b.writeGltf("transforms.gltf"));
+    ASSERT_TRUE(scene.ok()) << scene.message();
+    const Geometry& g = scene->geometry;
+    ASSERT_EQ(g.triangles.size(), 4u);
+    ASSERT_EQ(g.triangleMaterials.size(), 4u);
+    ASSERT_EQ(g.triangleIsReal.size(), 4u);
+    ASSERT_EQ(g.normals.size(), g.positions.size());
+    ASSERT_EQ(g.uvs.size(), g.positions.size());
+    // Parent: p * 2 + (1, 2, 3).
+    const glm::uvec3 t0 = g.triangles[0];
+    expectNear(g.positions[t0.x], {1, 2, 3});
+    expectNear(g.positions[t0.y], {3, 2, 3});
+    expectNear(g.positions[t0.z], {1, 4, 3});
+    // No normals in the file: flat normal +Z.
+    expectNear(g.normals[t0.x], {0, 0, 1});
+    // Child: rotate 90° about +Y ((1,0,0) -> (0,0,-1)), then the parent's transform.
+    const glm::uvec3 t1 = g.triangles[1];
+    expectNear(g.positions[t1.y], glm::vec3(0, 0, -2) + glm::vec3(1, 2, 3));
+    expectNear(g.normals[t1.x], {1, 0, 0});
+    // Quad through its matrix.
+    expectNear(g.positions[g.triangles[2].x], {5, 0, 0});
+    expectNear(g.positions[g.triangles[3].z], {5, 1, 0});
+    // A default material was appended for primitives without one.
+    ASSERT_EQ(scene->materials.size(), 1u);
+    EXPECT_EQ(scene->materials[0].metallic, 1.0f);
+    EXPECT_EQ(scene->materials[0].roughness, 1.0f);
+    EXPECT_EQ(g.triangleMaterials[0], 0u);
+}
+
+TEST(GltfLoader, NormalsTransformedByInverseTransposeAndMirroringKeepsFront) {
+    GltfBuilder b;
+    const int pos = b.addPositions({{0, 0, 0}, {1, 0, 0}, {0, 1, 0}});
+    const glm::vec3 n = glm::normalize(glm::vec3(1, 1, 1));
+    const int nrm = b.addVec3({n, n, n});
+    const int mesh =
+        b.addMesh(json::array({{{"attributes", {{"POSITION", pos}, {"NORMAL", nrm}}}}}));
+    b.addNode({{"mesh", mesh}, {"scale", {2.0, 1.0, 1.0}}});
+    b.addNode({{"mesh", mesh}, {"scale", {1.0, 1.0, -1.0}}});
+    Result<Scene> scene = loadGltf(b.writeGltf("normals.gltf"));
+    ASSERT_TRUE(scene.ok()) << scene.message();
+    const Geometry& g = scene->geometry;
+    ASSERT_EQ(g.triangles.size(), 2u);
+    // Non-uniform scale (2,1,1): normal (1,1,1) -> (1/2, 1, 1), normalised.
+    expectNear(g.normals[g.triangles[0].x], glm::normalize(glm::vec3(0.5f, 1, 1)));
+    // Mirror in z: the geometric normal of the stored winding still agrees with the shading
+    // normal's side.
+    const glm::uvec3 t = g.triangles[1];
+    const glm::vec3 geo = glm::cross(g.positions[t.y] - g.positions[t.x],
+                                     g.positions[t.z] - g.positions[t.x]);
+    EXPECT_GT(glm::dot(geo, g.normals[t.x]), 0.0f);
+}
+
+TEST(GltfLoader, RoleInheritance) {
+    GltfBuilder b;
+    const int mesh = b.addTriangleMesh();
+    const json real = {{"previs", {{"role", "real"}}}};
+    const json virt = {{"previs", {{"role", "virtual"}}}};
+    const int a = b.addNode({{"name", "table"}, {"mesh", mesh}, {"extras", real}});
+    const int a1 = b.addNode({{"name", "leg"}, {"mesh", mesh}}, a);
+    b.addNode({{"name", "foot"}, {"mesh", mesh}}, a1);
+    b.addNode({{"name", "vase"}, {"mesh", mesh}, {"extras", virt}}, a);
+    b.addNode({{"name", "cg"}, {"mesh", mesh}});
+    const int empty = b.addNode({{"name", "group"}, {"extras", real}});
+    b.addNode({{"name", "inGroup"}, {"mesh", mesh}}, empty);
+    Result<Scene> scene = loadGltf(b.writeGltf("roles.gltf"));
+    ASSERT_TRUE(scene.ok()) << scene.message();
+    // Depth-first order: table, leg, foot, vase, cg, inGroup.
+    const std::vector<uint8_t> expected = {1, 1, 1, 0, 0, 1};
+    EXPECT_EQ(scene->geometry.triangleIsReal, expected);
+}
+
+TEST(GltfLoader, MaterialsWithExtensionsAndTextures) {
+    // A 2x1 PNG texture beside the file: red, then half-transparent green.
+    const std::string png = (tempDir() / "tex.png").string();
+    ASSERT_TRUE(writePng(png, 2, 1, {255, 0, 0, 0, 255, 0}).ok());
+    GltfBuilder b;
+    json& d = b.doc();
+    d["extensionsUsed"] = {"KHR_materials_transmission", "KHR_materials_ior",
+                           "KHR_materials_specular", "KHR_materials_emissive_strength"};
+    d["extensionsRequired"] = {"KHR_materials_transmission"};
+    d["images"] = json::array({{{"uri", "tex.png"}}});
+    d["textures"] = json::array({{{"source", 0}}});
+    d["materials"] = json::array(
+        {{{"name", "glass"},
+          {"pbrMetallicRoughness",
+           {{"baseColorFactor", {0.5, 0.25, 1.0, 0.75}},
+            {"metallicFactor", 0.0},
+            {"roughnessFactor", 0.1},
+            {"baseColorTexture", {{"index", 0}}},
+            {"metallicRoughnessTexture", {{"index", 0}}}}},
+          {"normalTexture", {{"index", 0}}},
+          {"emissiveTexture", {{"index", 0}}},
+          {"emissiveFactor", {1.0, 0.5, 0.0}},
+          {"doubleSided", true},
+          {"extensions",
+           {{"KHR_materials_transmission", {{"transmissionFactor", 0.9}}},
+            {"KHR_materials_ior", {{"ior", 1.33}}},
+            {"KHR_materials_specular",
+             {{"specularFactor", 0.3}, {"specularColorFactor", {0.1, 0.2, 0.3}}}},
+            {"KHR_materials_emissive_strength", {{"emissiveStrength", 4.0}}}}}},
+         {{"name", "plain"}}});
+    b.addNode({{"mesh", b.addTriangleMesh(0)}});
+    b.addNode({{"mesh", b.addTriangleMesh(1)}});
+    Result<Scene> scene = loadGltf(b.writeGltf("materials.gltf", false));
+    ASSERT_TRUE(scene.ok()) << scene.message();
+    ASSERT_EQ(scene->materials.size(), 2u);
+    const Material& m = scene->materials[0];
+    EXPECT_EQ(m.name, "glass");
+    EXPECT_FLOAT_EQ(m.baseColor.g, 0.25f);
+    EXPECT_FLOAT_EQ(m.baseColor.a, 0.75f);
+    EXPECT_FLOAT_EQ(m.metallic, 0.0f);
+    EXPECT_FLOAT_EQ(m.roughness, 0.1f);
+    EXPECT_FLOAT_EQ(m.transmission, 0.9f);
+    EXPECT_FLOAT_EQ(m.ior, 1.33f);
+    EXPECT_FLOAT_EQ(m.specular, 0.3f);
+    expectNear(m.specularColor, {0.1f, 0.2f, 0.3f});
+    expectNear(m.emission, {4.0f, 2.0f, 0.0f});
+    EXPECT_TRUE(m.doubleSided);
+    // One image used as colour (sRGB) and as data (linear): two textures.
+    ASSERT_EQ(scene->textures.size(), 2u);
+    ASSERT_GE(m.baseColorTexture, 0);
+    ASSERT_GE(m.metallicRoughnessTexture, 0);
+    EXPECT_EQ(m.baseColorTexture, m.emissiveTexture);
+    EXPECT_EQ(m.metallicRoughnessTexture, m.normalTexture);
+    EXPECT_TRUE(scene->textures[m.baseColorTexture].srgb);
+    EXPECT_FALSE(scene->textures[m.normalTexture].srgb);
+    const Texture& t = scene->textures[m.baseColorTexture];
+    ASSERT_EQ(t.width, 2u);
+    ASSERT_EQ(t.height, 1u);
+    EXPECT_EQ(t.rgba8[0], 0xff0000ffu);  // R=255, A=255
+    EXPECT_EQ(t.rgba8[1], 0xff00ff00u);  // G=255
+    // glTF defaults.
+    const Material& p = scene->materials[1];
+    EXPECT_EQ(p.baseColor, glm::vec4(1.0f));
+    EXPECT_EQ(p.metallic, 1.0f);
+    EXPECT_EQ(p.roughness, 1.0f);
+    EXPECT_EQ(p.transmission, 0.0f);
+    EXPECT_EQ(p.ior, 1.5f);
+    EXPECT_EQ(p.specular, 1.0f);
+    EXPECT_EQ(p.emission, glm::vec3(0.0f));
+    EXPECT_EQ(p.baseColorTexture, -1);
+    EXPECT_FALSE(p.doubleSided);
+    EXPECT_EQ(scene->geometry.triangleMaterials, (std::vector<uint32_t>{0, 1}));
+}
+
+TEST(GltfLoader, LightsAndCameras) {
+    GltfBuilder b;
+    json& d = b.doc();
+    d["extensionsUsed"] = {"KHR_lights_punctual"};
+    d["extensions"] = {
+        {"KHR_lights_punctual",
+         {{"lights",
+           json::array({{{"name", "sun"}, {"type", "directional"}, {"intensity", 3.0}},
+                        {{"name", "lamp"},
+                         {"type", "spot"},
+                         {"color", {1.0, 0.5, 0.25}},
+                         {"intensity", 100.0},
+                         {"range", 10.0},
+                         {"spot", {{"innerConeAngle", 0.1}, {"outerConeAngle", 0.5}}}}})}}}};
+    d["cameras"] = json::array(
+        {{{"name", "main"},
+          {"type", "perspective"},
+          {"perspective", {{"yfov", 0.6}, {"aspectRatio", 1.5}, {"znear", 0.01}}}},
+         {{"name", "ortho"},
+          {"type", "orthographic"},
+          {"orthographic", {{"xmag", 1.0}, {"ymag", 1.0}, {"znear", 0.01}, {"zfar", 10.0}}}}});
+    const int rig = b.addNode({{"name", "rig"}, {"translation", {0.0, 1.0, 0.0}}});
+    // Sun rotated 90° about +Y: -Z becomes -X.
+    b.addNode({{"name", "sunNode"},
+               {"rotation", quatY(float(M_PI / 2))},
+               {"extensions", {{"KHR_lights_punctual", {{"light", 0}}}}}},
+              rig);
+    b.addNode({{"name", "lampNode"},
+               {"translation", {2.0, 0.0, 0.0}},
+               {"extensions", {{"KHR_lights_punctual", {{"light", 1}}}}}},
+              rig);
+    b.addNode({{"name", "camNode"},
+               {"camera", 0},
+               {"translation", {0.0, 0.0, 5.0}},
+               {"rotation", quatY(float(M_PI))},
+               {"scale", {2.0, 2.0, 2.0}},
+               {"extras", {{"previs", {{"apertureRadiusM", 0.01}, {"focusDistanceM", 2.5}}}}}},
+              rig);
+    b.addNode({{"name", "orthoNode"}, {"camera", 1}});
+    Result<Scene> scene = loadGltf(b.writeGltf("lights.gltf"));
+    ASSERT_TRUE(scene.ok()) << scene.message();
+    ASSERT_EQ(scene->lights.size(), 2u);
+    const PunctualLight& sun = scene->lights[0];
+    EXPECT_EQ(sun.type, LightType::Directional);
+    EXPECT_FLOAT_EQ(sun.intensity, 3.0f);
+    expectNear(sun.direction, {-1, 0, 0});
+    const PunctualLight& lamp = scene->lights[1];
+    EXPECT_EQ(lamp.type, LightType::Spot);
+    expectNear(lamp.position, {2, 1, 0});
+    expectNear(lamp.direction, {0, 0, -1});
+    expectNear(lamp.color, {1, 0.5f, 0.25f});
+    EXPECT_FLOAT_EQ(lamp.range, 10.0f);
+    EXPECT_FLOAT_EQ(lamp.innerConeAngleRad, 0.1f);
+    EXPECT_FLOAT_EQ(lamp.outerConeAngleRad, 0.5f);
+    // The orthographic camera is skipped with a warning.
+    ASSERT_EQ(scene->cameras.size(), 1u);
+    const Camera& cam = scene->cameras[0];
+    EXPECT_EQ(cam.name, "main");
+    EXPECT_FLOAT_EQ(cam.fovYRad, 0.6f);
+    EXPECT_FLOAT_EQ(cam.aspectRatio, 1.5f);
+    EXPECT_FLOAT_EQ(cam.apertureRadiusM, 0.01f);
+    EXPECT_FLOAT_EQ(cam.focusDistanceM, 2.5f);
+    expectNear(glm::vec3(cam.worldFromCamera[3]), {0, 1, 5});
+    // Turned around: looks along +Z in the world; scale removed from the frame.
+    expectNear(-glm::vec3(cam.worldFromCamera[2]), {0, 0, 1});
+    expectNear(glm::vec3(cam.worldFromCamera[1]), {0, 1, 0});
+}
+
+TEST(GltfLoader, LoadsGlb) {
+    GltfBuilder b;
+    b.addNode({{"mesh", b.addTriangleMesh()}, {"translation", {0.0, 0.0, -1.0}}});
+    Result<Scene> scene = loadGltf(b.writeGlb("scene.glb"));
+    ASSERT_TRUE(scene.ok()) << scene.message();
+    ASSERT_EQ(scene->geometry.triangles.size(), 1u);
+    expectNear(scene->geometry.positions[scene->geometry.triangles[0].y], {1, 0, -1});
+}
+
+TEST(GltfLoader, DegenerateTrianglesDroppedSliversKept) {
+    GltfBuilder b;
+    const int pos = b.addPositions({{0, 0, 0},
+                                    {1, 0, 0},
+                                    {0, 1, 0},
+                                    {2, 0, 0},        // collinear with 0 and 1
+                                    {1, 1e-5f, 0},    // sliver with 0 and 3
+                                    {0, 0, 0}});      // coincident with 0
+    const int idx = b.addIndices({0, 1, 2,   // good
+                                  0, 0, 2,   // repeated index
+                                  0, 1, 3,   // zero area (collinear)
+                                  0, 3, 4,   // sliver: kept
+                                  0, 5, 1}); // coincident vertices: zero area
+    b.addNode({{"mesh", b.addMesh(json::array(
+                            {{{"attributes", {{"POSITION", pos}}}, {"indices", idx}}}))}});
+    Result<Scene> scene = loadGltf(b.writeGltf("degenerate.gltf"));
+    ASSERT_TRUE(scene.ok()) << scene.message();
+    ASSERT_EQ(scene->geometry.triangles.size(), 2u);
+    for (const glm::vec3& n : scene->geometry.normals) {
+        EXPECT_TRUE(std::isfinite(n.x) && std::isfinite(n.y) && std::isfinite(n.z));
+        EXPECT_NEAR(glm::length(n), 1.0f, 1e-5f);
+    }
+}
+
+TEST(GltfLoader, NonFiniteNormalsReplacedByGeometric) {
+    GltfBuilder b;
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    const int pos = b.addPositions({{0, 0, 0}, {1, 0, 0}, {0, 1, 0}});
+    const int nrm = b.addVec3({{nan, 0, 0}, {0, 0, 0}, {0, 0, 1}});
+    b.addNode({{"mesh", b.addMesh(json::array(
+                            {{{"attributes", {{"POSITION", pos}, {"NORMAL", nrm}}}}}))}});
+    Result<Scene> scene = loadGltf(b.writeGltf("nan_normals.gltf"));
+    ASSERT_TRUE(scene.ok()) << scene.message();
+    for (const glm::vec3& n : scene->geometry.normals) expectNear(n, {0, 0, 1});
+}
+
+TEST(GltfLoader, SkipsNonTrianglePrimitives) {
+    GltfBuilder b;
+    const int pos = b.addPositions({{0, 0, 0}, {1, 0, 0}, {0, 1, 0}});
+    b.addNode({{"mesh", b.addMesh(json::array({{{"attributes", {{"POSITION", pos}}}, {"mode", 1}},
+                                               {{"attributes", {{"POSITION", pos}}}}}))}});
+    Result<Scene> scene = loadGltf(b.writeGltf("lines.gltf"));
+    ASSERT_TRUE(scene.ok()) << scene.message();
+    EXPECT_EQ(scene->geometry.triangles.size(), 1u);
+}
+
+TEST(GltfLoader, UndecodableTextureFallsBackToNoTexture) {
+    GltfBuilder b;
+    json& d = b.doc();
+    d["images"] = json::array(
+        {{{"uri", "data:image/png;base64," + base64({1, 2, 3, 4, 5, 6, 7, 8})}},
+         {{"uri", "missing_texture.png"}}});
+    d["textures"] = json::array({{{"source", 0}}, {{"source", 1}}});
+    d["materials"] = json::array({{{"pbrMetallicRoughness", {{"baseColorTexture", {{"index", 0}}}}},
+                                   {"emissiveTexture", {{"index", 1}}}}});
+    b.addNode({{"mesh", b.addTriangleMesh(0)}});
+    Result<Scene> scene = loadGltf(b.writeGltf("badtexture.gltf"));
+    ASSERT_TRUE(scene.ok()) << scene.message();
+    EXPECT_EQ(scene->materials[0].baseColorTexture, -1);
+    EXPECT_EQ(scene->materials[0].emissiveTexture, -1);
+    EXPECT_TRUE(scene->textures.empty());
+}
+
+TEST(GltfLoader, BadInputGivesOneErrorNamingTheFile) {
+    const auto dir = tempDir();
+    expectErrorNamesFile((dir / "does_not_exist.gltf").string(), "no such file");
+
+    {
+        const auto p = dir / "malformed.gltf";
+        std::ofstream(p) << "{ \"asset\": { \"version\": \"2.0\" }, \"nodes\": [ {,] ";
+        Result<Scene> r = loadGltf(p.string());
+        ASSERT_FALSE(r.ok());
+        EXPECT_NE(r.message().find("malformed.gltf"), std::string::npos) << r.message();
+    }
+    {
+        const auto p = dir / "not_json.glb";
+        std::ofstream(p) << "garbage that is not a binary glTF";
+        Result<Scene> r = loadGltf(p.string());
+        ASSERT_FALSE(r.ok());
+        EXPECT_NE(r.message().find("not_json.glb"), std::string::npos) << r.message();
+    }
+    {
+        // The .bin beside the file is missing.
+        GltfBuilder b;
+        b.addNode({{"mesh", b.addTriangleMesh()}});
+        const std::string p = b.writeGltf("missing_bin.gltf", false);
+        std::filesystem::remove(dir / "missing_bin.bin");
+        Result<Scene> r = loadGltf(p);
+        ASSERT_FALSE(r.ok());
+        EXPECT_NE(r.message().find("missing_bin.gltf"), std::string::npos) << r.message();
+    }
+    {
+        // The buffer is shorter than the buffer view says (byteLength matches the short data).
+        GltfBuilder b;
+        b.addNode({{"mesh", b.addTriangleMesh()}});
+        b.bin().resize(20);
+        const std::string p = b.writeGltf("short_buffer.gltf");
+        Result<Scene> r = loadGltf(p);
+        ASSERT_FALSE(r.ok());
+        EXPECT_NE(r.message().find("short_buffer.gltf"), std::string::npos) << r.message();
+    }
+    {
+        GltfBuilder b;
+        b.addNode({{"mesh", b.addTriangleMesh()}});
+        b.doc()["accessors"][0]["count"] = 1000;
+        expectErrorNamesFile(b.writeGltf("accessor_range.gltf"), "out of range");
+    }
+    {
+        GltfBuilder b;
+        b.addNode({{"mesh", b.addTriangleMesh()}});
+        b.doc()["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = 42;
+        expectErrorNamesFile(b.writeGltf("accessor_index.gltf"), "accessor 42");
+    }
+    {
+        GltfBuilder b;
+        const int pos = b.addPositions({{0, 0, 0}, {1, 0, 0}, {0, 1, 0}});
+        const int idx = b.addIndices({0, 1, 7});
+        b.addNode({{"mesh", b.addMesh(json::array(
+                                {{{"attributes", {{"POSITION", pos}}}, {"indices", idx}}}))}});
+        expectErrorNamesFile(b.writeGltf("index_range.gltf"), "index 7 out of range");
+    }
+    {
+        GltfBuilder b;
+        const float inf = std::numeric_limits<float>::infinity();
+        const int pos = b.addPositions({{0, 0, 0}, {inf, 0, 0}, {0, 1, 0}});
+        b.addMesh(json::array({{{"attributes", {{"POSITION", pos}}}}}));
+        b.doc()["meshes"][0]["name"] = "brokenMesh";
+        b.addNode({{"mesh", 0}});
+        expectErrorNamesFile(b.writeGltf("nan_position.gltf"), "brokenMesh");
+    }
+    {
+        GltfBuilder b;
+        b.addNode({{"mesh", b.addTriangleMesh()}});
+        b.doc()["extensionsUsed"] = {"KHR_draco_mesh_compression"};
+        b.doc()["extensionsRequired"] = {"KHR_draco_mesh_compression"};
+        expectErrorNamesFile(b.writeGltf("draco.gltf"), "KHR_draco_mesh_compression");
+    }
+    {
+        GltfBuilder b;
+        b.addNode({{"mesh", b.addTriangleMesh(3)}});
+        expectErrorNamesFile(b.writeGltf("material_range.gltf"), "material 3");
+    }
+    {
+        // A node that is its own child: no infinite recursion.
+        GltfBuilder b;
+        const int n = b.addNode({{"mesh", b.addTriangleMesh()}});
+        b.doc()["nodes"][n]["children"] = {n};
+        Result<Scene> r = loadGltf(b.writeGltf("cycle.gltf"));
+        ASSERT_FALSE(r.ok());
+        EXPECT_NE(r.message().find("cycle.gltf"), std::string::npos) << r.message();
+    }
+    expectErrorNamesFile((dir / "scene.obj").string(), "no such file");
+    {
+        const auto p = dir / "scene.obj";
+        std::ofstream(p) << "v 0 0 0";
+        expectErrorNamesFile(p.string(), "unsupported extension");
+    }
+}
+
+}  // namespace
+}  // namespace previs
