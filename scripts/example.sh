@@ -4,6 +4,6 @@ set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 build=$("$root/scripts/setup.sh" release)
 mkdir -p "$root/out"
-"$build/cli/previs" render "$root/examples/cornell_bunny/scene.gltf" \
+"$build/cli/previs" render "$root/examples/cubes_spheres/scene.gltf" \
     --width 640 --height 480 --spp 64 --out "$root/out/example.png"
 echo "previs: wrote $root/out/example.png"

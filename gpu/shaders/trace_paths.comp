@@ -286,7 +286,7 @@ float emissiveLightPdf(uint triangle, vec3 from, Surface lightSurface) {
 
 vec3 sampleDirectLight(Surface s, BsdfParams bp, Frame frame, vec3 wo, inout uint rng) {
     vec3 result = vec3(0.0);
-    if (kHasEnv) {
+    if (kHasEnv && params.envWidth > 0u) {
         float envPdfValue;
         vec3 wi = envSample(rngNext2(rng), params.envWidth, params.envHeight, params.envRotationRad,
                             envPdfValue);
@@ -407,10 +407,13 @@ vec3 tracePath(uvec2 pixel, inout uint rng) {
     float prevPdf = 0.0;
     bool prevDelta = true;  // the camera ray: emitters seen directly get full weight
     vec3 prevPosition = ray.origin;
+    // Product of the η² factors of the refractions so far: Russian roulette decides on
+    // throughput·etaScale, so radiance compressed inside glass does not get paths killed (pbrt).
+    float etaScale = 1.0;
     for (uint depth = 0u;; ++depth) {
         Hit hit;
         if (!intersectScene(ray, hit)) {
-            if (kHasEnv) {
+            if (kHasEnv && params.envWidth > 0u) {
                 vec3 le = params.envScale * envRadiance(ray.direction, params.envWidth,
                                                         params.envHeight, params.envRotationRad);
                 float w = prevDelta ? 1.0
@@ -454,6 +457,7 @@ vec3 tracePath(uvec2 pixel, inout uint rng) {
         vec3 wi = toWorld(frame, bs.wi);
         if (!consistentSide(s, wi, bs.wi)) break;
         throughput *= bs.weight;
+        if (bs.lobe == PV_LOBE_TRANSMISSION) etaScale *= bp.etaRel * bp.etaRel;
         prevPdf = bs.pdf;
         prevDelta = bs.isDelta;
         prevPosition = s.position;
@@ -465,7 +469,7 @@ vec3 tracePath(uvec2 pixel, inout uint rng) {
 
         if (depth + 1u >= params.rouletteStartDepth) {
             // Russian roulette: unbiased, keeps paths whose throughput is still large.
-            float pContinue = min(1.0, maxComponent(throughput));
+            float pContinue = min(1.0, maxComponent(throughput) * etaScale);
             if (rngNext(rng) >= pContinue) break;
             throughput /= pContinue;
         }
@@ -477,7 +481,11 @@ void main() {
     uvec2 pixel = gl_GlobalInvocationID.xy;
     if (pixel.x >= params.width || pixel.y >= params.height) return;
     uint pixelIndex = pixel.y * params.width + pixel.x;
-    vec3 sum = vec3(0.0);
+    // Kahan-compensated sums, within the dispatch and across dispatches: the mean stays exact
+    // over millions of samples in 32-bit floats (the paper's running average, Eq. 3, drifts).
+    // `precise` forbids the compiler from reassociating the compensation away.
+    precise vec3 sum = vec3(0.0);
+    precise vec3 sumC = vec3(0.0);
     for (uint i = 0u; i < params.samplesPerDispatch; ++i) {
         uint rng = rngSeed(pixelIndex, params.sampleBase + i, params.seed);
         vec3 l = tracePath(pixel, rng);
@@ -490,10 +498,12 @@ void main() {
             float lum = luminance(l);
             if (lum > params.fireflyClamp) l *= params.fireflyClamp / lum;
         }
-        sum += l;
+        precise vec3 y = l - sumC;
+        precise vec3 t = sum + y;
+        sumC = (t - sum) - y;
+        sum = t;
     }
-    // Kahan-compensated running sum: exact mean over millions of samples in 32-bit floats
-    // (the paper's running average, Eq. 3, drifts). `precise` forbids reassociation.
+    sum -= sumC;
     vec4 total = accumSum[pixelIndex];
     vec4 c = accumCompensation[pixelIndex];
     precise vec4 y = vec4(sum, 0.0) - c;

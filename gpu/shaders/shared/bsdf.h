@@ -2,13 +2,19 @@
 // local shading frame (normal +Z). Shared by trace_paths.comp and the C++ tests.
 //
 // The material is a mixture of four lobes:
-//   f = m·f_metal + (1−m)·[ f_dielectricReflection + (1−t)(1−F)·c/π + t·f_transmission ]
+//   f = m·f_metal + (1−m)·[ f_dielectricReflection + (1−t)(1−F(n·wo))·c/π + t·f_transmission ]
 // with m metallic, t transmission, c base colour, F the dielectric Fresnel term (exact Fresnel
 // of the IOR, scaled by specularFactor and tinted by specularColor as KHR_materials_specular
 // does), metal Fresnel by Schlick with F0 = c, microfacets by GGX with Smith height-correlated
 // masking (alpha = roughness²). The limit cases DESIGN.md §4 names are exact: metallic 0 and
 // specular 0 give Lambert; metallic 1, roughness 0, white give a perfect mirror; transmission 1,
 // roughness 0 give a smooth Fresnel dielectric.
+//
+// One departure from the glTF specification's sample BRDF: the diffuse base is weighted by
+// 1 − F(n·wo), the light the specular layer lets through seen from wo, instead of 1 − F(h·wo).
+// The specification's form reflects up to 1.4× the incident energy at grazing angles (measured
+// by BsdfTest.EnergyIsConserved); this one never exceeds 1, at the price of reciprocity of the
+// diffuse term (which a path tracer does not rely on).
 //
 // Convention: the caller flips the frame so that wo.z > 0 and passes etaRel, the IOR of the side
 // a transmitted ray enters over the IOR of the side wo is on (ior when hitting a front face).
@@ -20,6 +26,10 @@
 #include "shared/sampling.h"
 
 PV_BEGIN
+
+// Directions closer to the tangent plane than this cosine carry no energy (the cosine factor
+// makes their contribution vanish) but would overflow the microfacet terms; they are skipped.
+#define PV_MIN_COSINE 1.0e-7f
 
 // Below this alpha a microfacet lobe is treated as a perfect specular (delta) lobe: GGX with
 // alpha → 0 tends to it, and float D values overflow well before alpha = 0.
@@ -71,17 +81,18 @@ PV_INLINE vec3 schlickFresnel(vec3 f0, float cosTheta) {
     return f0 + (vec3(1.0f) - f0) * (m2 * m2 * m);
 }
 
+// D(h) = α² / (π (cos²θ (α²−1) + 1)²), with the denominator written as sin²θ + α² cos²θ from the
+// components: the textbook form cancels to 0 in float for tiny α at h = n.
 PV_INLINE float ggxD(vec3 h, float alpha) {
     float a2 = alpha * alpha;
-    float c2 = h.z * h.z;
-    float d = c2 * (a2 - 1.0f) + 1.0f;
+    float d = (h.x * h.x + h.y * h.y) + a2 * (h.z * h.z);
     return a2 / (PV_PI * d * d);
 }
 
 PV_INLINE float ggxLambda(vec3 w, float alpha) {
     float z2 = w.z * w.z;
     if (z2 <= 0.0f) return PV_FLOAT_MAX;
-    float tan2 = max(0.0f, 1.0f - z2) / z2;
+    float tan2 = (w.x * w.x + w.y * w.y) / z2;
     return 0.5f * (sqrt(1.0f + alpha * alpha * tan2) - 1.0f);
 }
 
@@ -146,7 +157,7 @@ PV_INLINE bool bsdfIsDelta(BsdfParams p) { return p.alpha < PV_DELTA_ALPHA; }
 // sampling wi with bsdfSample. Delta lobes contribute nothing here.
 PV_INLINE vec3 bsdfEvaluate(BsdfParams p, vec3 wo, vec3 wi, PV_OUT(float) pdf) {
     pdf = 0.0f;
-    if (wo.z <= 0.0f || wi.z == 0.0f) return vec3(0.0f);
+    if (wo.z < PV_MIN_COSINE || abs(wi.z) < PV_MIN_COSINE) return vec3(0.0f);
     vec4 prob = bsdfLobeProbabilities(p, wo);
     bool delta = bsdfIsDelta(p);
     vec3 f = vec3(0.0f);
@@ -155,8 +166,8 @@ PV_INLINE vec3 bsdfEvaluate(BsdfParams p, vec3 wo, vec3 wi, PV_OUT(float) pdf) {
         float hDotO = max(dot(h, wo), 0.0f);
         vec3 fd = dielectricFresnel(p, hDotO);
         if (prob.z > 0.0f) {
-            f += (1.0f - p.metallic) * (1.0f - p.transmission) * (vec3(1.0f) - fd) * p.baseColor *
-                 PV_INV_PI;
+            vec3 through = vec3(1.0f) - dielectricFresnel(p, wo.z);
+            f += (1.0f - p.metallic) * (1.0f - p.transmission) * through * p.baseColor * PV_INV_PI;
             pdf += prob.z * cosineHemispherePdf(wi.z);
         }
         if (!delta && hDotO > 0.0f) {
@@ -196,7 +207,7 @@ PV_INLINE bool bsdfSample(BsdfParams p, vec3 wo, float uLobe, vec2 u, PV_OUT(Bsd
     s.weight = vec3(0.0f);
     s.lobe = PV_LOBE_DIFFUSE;
     s.isDelta = false;
-    if (wo.z <= 0.0f) return false;
+    if (wo.z < PV_MIN_COSINE) return false;
     vec4 prob = bsdfLobeProbabilities(p, wo);
     bool delta = bsdfIsDelta(p);
     uint lobe;
@@ -241,7 +252,11 @@ PV_INLINE bool bsdfSample(BsdfParams p, vec3 wo, float uLobe, vec2 u, PV_OUT(Bsd
             s.wi = reflect(-wo, h);
         }
     }
-    if (s.wi.z == 0.0f) return false;
+    // A microfacet can send a reflection below the surface or a refraction above it; such
+    // samples are discarded, so bsdfEvaluate's pdf (which counts each lobe only on its own
+    // side) is exactly the density of the directions returned.
+    bool reflection = lobe != PV_LOBE_TRANSMISSION;
+    if (reflection ? s.wi.z < PV_MIN_COSINE : s.wi.z > -PV_MIN_COSINE) return false;
     vec3 f = bsdfEvaluate(p, wo, s.wi, s.pdf);
     if (!(s.pdf > 0.0f)) return false;
     s.weight = f * abs(s.wi.z) / s.pdf;

@@ -1,0 +1,20 @@
+// previs: the command line (DESIGN.md §3).
+#include <CLI/CLI.hpp>
+
+#include "base/log.h"
+#include "cli/render_command.h"
+
+int main(int argc, char** argv) {
+    CLI::App app("previs: on-set AR previsualization (differential progressive path tracing)");
+    app.require_subcommand(1);
+    auto runRender = previs::addRenderCommand(app);
+    try {
+        app.parse(argc, argv);
+    } catch (const CLI::ParseError& e) {
+        // Usage errors exit with 2 (DESIGN.md §3), --help with 0.
+        int code = app.exit(e);
+        return code == 0 ? 0 : 2;
+    }
+    if (app.got_subcommand("render")) return runRender();
+    return 2;
+}

@@ -1,0 +1,187 @@
+#include "cli/render_command.h"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <optional>
+
+#include "base/log.h"
+#include "gpu/context.h"
+#include "image/image.h"
+#include "render/renderer.h"
+#include "render/tonemap.h"
+#include "scene/environment_map.h"
+#include "scene/gltf_loader.h"
+
+namespace previs {
+
+namespace {
+
+struct RenderOptions {
+    std::string scene;
+    std::string env;
+    float envRotationDeg = 0.0f;
+    float envScale = 1.0f;
+    std::string camera;
+    uint32_t width = 0;
+    uint32_t height = 0;
+    uint32_t spp = 0;
+    double seconds = 0.0;
+    uint32_t maxDepth = 16;
+    std::optional<float> apertureRadiusM;
+    std::optional<float> focusDistanceM;
+    uint32_t seed = 0;
+    std::string out;
+    float exposure = 0.0f;
+    std::string toneMap = "clamp";
+    float fireflyClamp = 0.0f;
+    bool quiet = false;
+};
+
+bool endsWith(const std::string& s, const std::string& suffix) {
+    return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
+}
+
+int run(const RenderOptions& o) {
+    if (!endsWith(o.out, ".exr") && !endsWith(o.out, ".png")) {
+        logError("--out {}: the output must end in .exr (linear HDR) or .png (tone mapped)", o.out);
+        return 2;
+    }
+    if (o.spp > 0 && o.seconds > 0.0) {
+        logError("give either --spp or --seconds, not both");
+        return 2;
+    }
+    auto scene = loadGltf(o.scene);
+    if (!scene) {
+        logError("{}", scene.message());
+        return 1;
+    }
+    if (!o.env.empty()) {
+        auto env = loadEnvironmentMap(o.env);
+        if (!env) {
+            logError("{}", env.message());
+            return 1;
+        }
+        scene->environment = std::move(env.value());
+    }
+    if (scene->environment) {
+        scene->environment->rotationRad = o.envRotationDeg * float(M_PI / 180.0);
+        scene->environment->scale = o.envScale;
+    }
+
+    RenderSettings settings;
+    if (!o.camera.empty()) {
+        auto it = std::find_if(scene->cameras.begin(), scene->cameras.end(),
+                               [&](const Camera& c) { return c.name == o.camera; });
+        if (it == scene->cameras.end()) {
+            logError("{}: no camera named '{}' ({} camera(s) in the file)", o.scene, o.camera,
+                     scene->cameras.size());
+            return 2;
+        }
+        settings.cameraIndex = int(it - scene->cameras.begin());
+    }
+    float aspect = 4.0f / 3.0f;
+    if (!scene->cameras.empty() && scene->cameras[settings.cameraIndex].aspectRatio > 0.0f)
+        aspect = scene->cameras[settings.cameraIndex].aspectRatio;
+    settings.width = o.width ? o.width : (o.height ? uint32_t(std::lround(o.height * aspect)) : 640);
+    settings.height = o.height ? o.height : uint32_t(std::lround(settings.width / aspect));
+    settings.maxDepth = o.maxDepth;
+    settings.seed = o.seed;
+    settings.apertureRadiusM = o.apertureRadiusM;
+    settings.focusDistanceM = o.focusDistanceM;
+    settings.fireflyClamp = o.fireflyClamp;
+    settings.samplesPerDispatch = 1;
+
+    auto ctx = GpuContext::create({});
+    if (!ctx) {
+        logError("{}", ctx.message());
+        return 1;
+    }
+    auto renderer = Renderer::create(**ctx, *scene, settings);
+    if (!renderer) {
+        logError("{}: {}", o.scene, renderer.message());
+        return 1;
+    }
+    auto start = std::chrono::steady_clock::now();
+    auto elapsed = [&] {
+        return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    };
+    uint32_t target = o.spp ? o.spp : (o.seconds > 0.0 ? UINT32_MAX : 64);
+    while ((*renderer)->samplesPerPixel() < target) {
+        if (Status s = (*renderer)->render(1); !s) {
+            logError("{}", s.message());
+            return 1;
+        }
+        if (!o.quiet) {
+            std::fprintf(stderr, "\rrender: %llu%s spp, %.1f s", 
+                         (unsigned long long)(*renderer)->samplesPerPixel(),
+                         o.spp ? fmt::format("/{}", o.spp).c_str() : "", elapsed());
+        }
+        if (o.seconds > 0.0 && elapsed() >= o.seconds) break;
+    }
+    if (!o.quiet) std::fprintf(stderr, "\n");
+    auto nonFinite = (*renderer)->nonFiniteSamples();
+    if (nonFinite && *nonFinite > 0)
+        logWarning("{} sample(s) were NaN or infinite and were dropped", *nonFinite);
+
+    auto image = (*renderer)->image();
+    if (!image) {
+        logError("{}", image.message());
+        return 1;
+    }
+    Status written;
+    if (endsWith(o.out, ".exr")) {
+        written = writeExr(o.out, *image);
+    } else {
+        ToneMapSettings tm;
+        tm.exposureStops = o.exposure;
+        tm.op = *parseToneMapOperator(o.toneMap);
+        written = writePng(o.out, image->width, image->height, toneMapToSrgb8(*image, tm));
+    }
+    if (!written) {
+        logError("{}", written.message());
+        return 1;
+    }
+    if (!o.quiet)
+        logInfo("wrote {} ({}x{}, {} spp, {:.1f} s on {})", o.out, image->width, image->height,
+                (*renderer)->samplesPerPixel(), elapsed(), (*ctx)->deviceName());
+    return 0;
+}
+
+}  // namespace
+
+std::function<int()> addRenderCommand(CLI::App& app) {
+    auto o = std::make_shared<RenderOptions>();
+    CLI::App* cmd = app.add_subcommand("render", "render a scene to an image");
+    cmd->add_option("SCENE", o->scene, "scene: .gltf or .glb")->required()->check(CLI::ExistingFile);
+    cmd->add_option("--env", o->env, "equirectangular HDR environment map (.exr or .hdr)")
+        ->check(CLI::ExistingFile);
+    cmd->add_option("--env-rotation", o->envRotationDeg,
+                    "rotate the map about +Y, degrees (counter-clockwise seen from above)");
+    cmd->add_option("--env-scale", o->envScale, "multiply the map's radiance")
+        ->check(CLI::NonNegativeNumber);
+    cmd->add_option("--camera", o->camera, "camera node name (default: the first camera)");
+    cmd->add_option("--width", o->width, "image width in pixels")->check(CLI::Range(1, 16384));
+    cmd->add_option("--height", o->height, "image height in pixels")->check(CLI::Range(1, 16384));
+    cmd->add_option("--spp", o->spp, "samples per pixel (default 64)")->check(CLI::PositiveNumber);
+    cmd->add_option("--seconds", o->seconds, "render for this long instead of --spp")
+        ->check(CLI::PositiveNumber);
+    cmd->add_option("--max-depth", o->maxDepth, "most scattering events on a path (1 = direct)");
+    cmd->add_option("--aperture-radius", o->apertureRadiusM, "thin lens aperture radius, metres")
+        ->check(CLI::NonNegativeNumber);
+    cmd->add_option("--focus-distance", o->focusDistanceM, "thin lens focus distance, metres")
+        ->check(CLI::PositiveNumber);
+    cmd->add_option("--seed", o->seed, "random seed");
+    cmd->add_option("--exposure", o->exposure, "PNG output: exposure in stops");
+    cmd->add_option("--tonemap", o->toneMap, "PNG output: clamp or reinhard")
+        ->check(CLI::IsMember({"clamp", "reinhard"}));
+    cmd->add_option("--firefly-clamp", o->fireflyClamp,
+                    "clamp each sample's luminance to this (biased; off by default)")
+        ->check(CLI::NonNegativeNumber);
+    cmd->add_option("--out", o->out, "output: FILE.exr (linear HDR) or FILE.png")->required();
+    cmd->add_flag("--quiet", o->quiet, "no progress on stderr");
+    return [o] { return run(*o); };
+}
+
+}  // namespace previs

@@ -1,0 +1,324 @@
+#include "render/renderer.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+
+#include <glm/gtc/matrix_transform.hpp>
+
+#include "base/log.h"
+#include "scene/environment_map.h"
+#include "shared/scene_types.h"
+#include "trace_paths.spv.h"
+
+namespace previs {
+
+namespace {
+
+using shader::BvhNode;
+
+constexpr uint32_t kNoRoot = 0xffffffffu;
+
+// A camera that frames the whole scene from +Z when the file has none.
+Camera defaultCamera(const Geometry& geometry) {
+    Camera camera;
+    camera.name = "default";
+    glm::vec3 lo(1e30f), hi(-1e30f);
+    for (const auto& p : geometry.positions) {
+        lo = glm::min(lo, p);
+        hi = glm::max(hi, p);
+    }
+    if (geometry.positions.empty()) lo = hi = glm::vec3(0.0f);
+    glm::vec3 center = 0.5f * (lo + hi);
+    float radius = std::max(0.5f * glm::length(hi - lo), 1e-3f);
+    float distance = radius / std::tan(0.5f * camera.fovYRad) * 1.1f;
+    camera.worldFromCamera = glm::translate(glm::mat4(1.0f), center + glm::vec3(0, 0, distance));
+    camera.focusDistanceM = distance;
+    return camera;
+}
+
+bool materialHasSpecular(const Material& m) { return m.metallic > 0.0f || m.specular > 0.0f; }
+
+}  // namespace
+
+SceneFeatures detectSceneFeatures(const Scene& scene, const Camera& camera) {
+    SceneFeatures f;
+    f.environment = scene.environment.has_value();
+    f.punctual = !scene.lights.empty();
+    f.thinLens = camera.apertureRadiusM > 0.0f;
+    f.textures = !scene.textures.empty();
+    // Only materials some triangle uses count.
+    std::vector<bool> used(scene.materials.size(), false);
+    for (uint32_t m : scene.geometry.triangleMaterials)
+        if (m < used.size()) used[m] = true;
+    for (size_t i = 0; i < scene.materials.size(); ++i) {
+        if (!used[i]) continue;
+        const Material& m = scene.materials[i];
+        f.specular |= materialHasSpecular(m);
+        f.transmission |= m.transmission > 0.0f;
+        f.emissive |= glm::length(m.emission) > 0.0f;
+    }
+    return f;
+}
+
+Result<std::unique_ptr<Renderer>> Renderer::create(GpuContext& ctx, const Scene& scene,
+                                                   const RenderSettings& settings) {
+    if (settings.width == 0 || settings.height == 0 || settings.width > 16384 ||
+        settings.height > 16384)
+        return makeError("image size {}x{} is out of range (1..16384)", settings.width,
+                         settings.height);
+    std::unique_ptr<Renderer> r(new Renderer());
+    r->ctx_ = &ctx;
+    r->settings_ = settings;
+    if (scene.cameras.empty()) {
+        r->camera_ = defaultCamera(scene.geometry);
+    } else {
+        if (settings.cameraIndex < 0 || size_t(settings.cameraIndex) >= scene.cameras.size())
+            return makeError("camera index {} does not exist; the scene has {} camera(s)",
+                             settings.cameraIndex, scene.cameras.size());
+        r->camera_ = scene.cameras[settings.cameraIndex];
+    }
+    if (settings.apertureRadiusM) r->camera_.apertureRadiusM = *settings.apertureRadiusM;
+    if (settings.focusDistanceM) r->camera_.focusDistanceM = *settings.focusDistanceM;
+    if (!(r->camera_.apertureRadiusM >= 0.0f) || !(r->camera_.focusDistanceM > 0.0f))
+        return makeError("thin lens needs aperture radius >= 0 and focus distance > 0 (got {} m, "
+                         "{} m)", r->camera_.apertureRadiusM, r->camera_.focusDistanceM);
+
+    r->features_ = detectSceneFeatures(scene, r->camera_);
+    if (Status s = r->buildScene(scene); !s) return s.error();
+
+    SceneFeatures spec = r->features_;
+    if (settings.generalPipeline) spec = SceneFeatures{true, true, true, true, true, true, true};
+    std::array<uint32_t, PV_SPEC_COUNT> constants{};
+    constants[PV_SPEC_HAS_ENV] = spec.environment;
+    constants[PV_SPEC_HAS_EMISSIVE] = spec.emissive;
+    constants[PV_SPEC_HAS_PUNCTUAL] = spec.punctual;
+    constants[PV_SPEC_HAS_SPECULAR] = spec.specular;
+    constants[PV_SPEC_HAS_TRANSMISSION] = spec.transmission;
+    constants[PV_SPEC_HAS_THIN_LENS] = spec.thinLens;
+    constants[PV_SPEC_HAS_TEXTURES] = spec.textures;
+    auto pipeline = ComputePipeline::create(
+        ctx, std::span<const uint32_t>(trace_paths_spv, sizeof(trace_paths_spv) / 4),
+        PV_BINDING_COUNT, constants, "trace_paths");
+    if (!pipeline) return pipeline.error();
+    r->pipeline_.emplace(std::move(pipeline.value()));
+    std::vector<const GpuBuffer*> bound;
+    for (const auto& b : r->buffers_) bound.push_back(&b);
+    r->pipeline_->bind(bound);
+    if (Status s = r->reset(); !s) return s.error();
+    return Result<std::unique_ptr<Renderer>>(std::move(r));
+}
+
+Status Renderer::buildScene(const Scene& scene) {
+    const Geometry& g = scene.geometry;
+    auto bvh = buildSceneBvh(g);
+    if (!bvh) return bvh.error();
+    bvh_ = std::move(bvh.value());
+
+    // Triangles in BVH order, so that each leaf's triangles are contiguous.
+    size_t triCount = g.triangles.size();
+    std::vector<glm::uvec3> triangles(triCount);
+    std::vector<uint32_t> triMaterials(triCount);
+    for (size_t i = 0; i < triCount; ++i) {
+        uint32_t src = bvh_.triangleOrder[i];
+        triangles[i] = g.triangles[src];
+        triMaterials[i] = g.triangleMaterials[src];
+    }
+
+    std::vector<shader::GpuMaterial> materials;
+    for (const Material& m : scene.materials) {
+        shader::GpuMaterial gm{};
+        gm.baseColor = m.baseColor;
+        gm.emission = m.emission;
+        gm.metallic = m.metallic;
+        gm.roughness = m.roughness;
+        gm.transmission = m.transmission;
+        gm.ior = m.ior;
+        gm.specular = m.specular;
+        gm.specularColor = m.specularColor;
+        auto tex = [](int i) { return i < 0 ? PV_NO_TEXTURE : uint32_t(i); };
+        gm.baseColorTexture = tex(m.baseColorTexture);
+        gm.metallicRoughnessTexture = tex(m.metallicRoughnessTexture);
+        gm.normalTexture = tex(m.normalTexture);
+        gm.emissiveTexture = tex(m.emissiveTexture);
+        gm.flags = m.doubleSided ? PV_MATERIAL_DOUBLE_SIDED : 0u;
+        materials.push_back(gm);
+    }
+
+    std::vector<shader::TextureInfo> textureInfos;
+    std::vector<uint32_t> texels;
+    for (const Texture& t : scene.textures) {
+        textureInfos.push_back({uint32_t(texels.size()), t.width, t.height, t.srgb ? 1u : 0u});
+        texels.insert(texels.end(), t.rgba8.begin(), t.rgba8.end());
+    }
+
+    std::vector<shader::GpuLight> lights;
+    for (const PunctualLight& l : scene.lights) {
+        shader::GpuLight gl{};
+        gl.position = l.position;
+        gl.type = l.type == LightType::Point ? PV_LIGHT_POINT
+                  : l.type == LightType::Spot ? PV_LIGHT_SPOT
+                                              : PV_LIGHT_DIRECTIONAL;
+        gl.direction = glm::normalize(l.direction);
+        gl.intensity = l.color * l.intensity;
+        gl.cosInnerCone = std::cos(l.innerConeAngleRad);
+        gl.cosOuterCone = std::cos(l.outerConeAngleRad);
+        lights.push_back(gl);
+    }
+
+    // Emissive triangles, chosen in proportion to their power (area × luminance).
+    std::vector<shader::EmissiveTriangle> emissive;
+    std::vector<float> triangleLightPdf(features_.emissive ? triCount : 0, 0.0f);
+    if (features_.emissive) {
+        double total = 0.0;
+        std::vector<double> power;
+        for (uint32_t i = 0; i < triCount; ++i) {
+            const Material& m = scene.materials[triMaterials[i]];
+            float lum = 0.2126f * m.emission.r + 0.7152f * m.emission.g + 0.0722f * m.emission.b;
+            if (!(lum > 0.0f)) continue;
+            glm::vec3 p0 = g.positions[triangles[i].x];
+            float area = 0.5f * glm::length(glm::cross(g.positions[triangles[i].y] - p0,
+                                                       g.positions[triangles[i].z] - p0));
+            if (!(area > 0.0f)) continue;
+            emissive.push_back({i, area, 0.0f, 0.0f});
+            power.push_back(double(area) * lum);
+            total += power.back();
+        }
+        double running = 0.0;
+        for (size_t k = 0; k < emissive.size(); ++k) {
+            running += power[k];
+            emissive[k].pdf = float(power[k] / total);
+            emissive[k].cdf = float(running / total);
+            triangleLightPdf[emissive[k].triangle] = emissive[k].pdf;
+        }
+        if (!emissive.empty()) emissive.back().cdf = 1.0f;
+        if (emissive.empty()) features_.emissive = false;
+    }
+
+    std::vector<glm::vec3> envRadiance;
+    EnvironmentDistribution envDist;
+    if (scene.environment) {
+        envRadiance = scene.environment->radiance;
+        envDist = buildEnvironmentDistribution(*scene.environment);
+    }
+
+    // Parameters that do not change between dispatches.
+    shader::FrameParams& p = params_;
+    p.worldFromCamera = camera_.worldFromCamera;
+    float tanY = std::tan(0.5f * camera_.fovYRad);
+    p.tanHalfFov = glm::vec2(tanY * float(settings_.width) / float(settings_.height), tanY);
+    p.apertureRadiusM = camera_.apertureRadiusM;
+    p.focusDistanceM = camera_.focusDistanceM;
+    p.width = settings_.width;
+    p.height = settings_.height;
+    p.seed = settings_.seed;
+    p.maxDepth = settings_.maxDepth;
+    p.lightCount = uint32_t(lights.size());
+    p.emissiveTriangleCount = uint32_t(emissive.size());
+    p.realRoot = bvh_.realRoot;
+    p.virtualRoot = bvh_.virtualRoot;
+    if (scene.environment) {
+        p.envWidth = scene.environment->width;
+        p.envHeight = scene.environment->height;
+        p.envScale = scene.environment->scale;
+        p.envRotationRad = scene.environment->rotationRad;
+        p.envIntegral = envDist.integral;
+    }
+    p.fireflyClamp = settings_.fireflyClamp;
+    p.rouletteStartDepth = settings_.rouletteStartDepth;
+
+    size_t pixels = size_t(settings_.width) * settings_.height;
+    buffers_.clear();
+    buffers_.reserve(PV_BINDING_COUNT);
+    auto add = [&](auto&& result) -> Status {
+        if (!result) return result.error();
+        buffers_.push_back(std::move(result.value()));
+        return {};
+    };
+    auto span = [](const auto& v) { return std::span(v.data(), v.size()); };
+    Status s;
+    // Order = binding numbers (PV_BINDING_*).
+    if (!(s = add(GpuBuffer::createWith(*ctx_, std::span(&params_, 1), "params")))) return s;
+    if (!(s = add(GpuBuffer::createWith(*ctx_, span(g.positions), "positions")))) return s;
+    if (!(s = add(GpuBuffer::createWith(*ctx_, span(g.normals), "normals")))) return s;
+    if (!(s = add(GpuBuffer::createWith(*ctx_, span(g.uvs), "uvs")))) return s;
+    if (!(s = add(GpuBuffer::createWith(*ctx_, span(triangles), "triangles")))) return s;
+    if (!(s = add(GpuBuffer::createWith(*ctx_, span(triMaterials), "triangleMaterials")))) return s;
+    if (!(s = add(GpuBuffer::createWith(*ctx_, span(bvh_.nodes), "bvhNodes")))) return s;
+    if (!(s = add(GpuBuffer::createWith(*ctx_, span(materials), "materials")))) return s;
+    if (!(s = add(GpuBuffer::createWith(*ctx_, span(textureInfos), "textures")))) return s;
+    if (!(s = add(GpuBuffer::createWith(*ctx_, span(texels), "texels")))) return s;
+    if (!(s = add(GpuBuffer::createWith(*ctx_, span(lights), "lights")))) return s;
+    if (!(s = add(GpuBuffer::createWith(*ctx_, span(emissive), "emissiveTriangles")))) return s;
+    if (!(s = add(GpuBuffer::createWith(*ctx_, span(envRadiance), "envRadiance")))) return s;
+    if (!(s = add(GpuBuffer::createWith(*ctx_, span(envDist.marginalCdf), "envMarginal")))) return s;
+    if (!(s = add(GpuBuffer::createWith(*ctx_, span(envDist.conditionalCdf), "envConditional"))))
+        return s;
+    if (!(s = add(GpuBuffer::create(*ctx_, pixels * sizeof(glm::vec4), "accumSum")))) return s;
+    if (!(s = add(GpuBuffer::create(*ctx_, pixels * sizeof(glm::vec4), "accumCompensation"))))
+        return s;
+    if (!(s = add(GpuBuffer::create(*ctx_, sizeof(shader::RenderStats), "stats")))) return s;
+    if (!(s = add(GpuBuffer::createWith(*ctx_, span(triangleLightPdf), "triangleLightPdf"))))
+        return s;
+    PV_ASSERT(buffers_.size() == PV_BINDING_COUNT);
+    return {};
+}
+
+Status Renderer::reset() {
+    samples_ = 0;
+    gpuMs_ = 0.0;
+    for (int b : {PV_BINDING_ACCUM_SUM, PV_BINDING_ACCUM_COMPENSATION, PV_BINDING_STATS}) {
+        if (Status s = buffers_[b].fill(0); !s) return s;
+    }
+    return {};
+}
+
+Status Renderer::render(uint32_t samples,
+                        const std::function<void(const RenderProgress&)>& progress) {
+    uint32_t groupsX = (settings_.width + PV_WORKGROUP_SIZE_X - 1) / PV_WORKGROUP_SIZE_X;
+    uint32_t groupsY = (settings_.height + PV_WORKGROUP_SIZE_Y - 1) / PV_WORKGROUP_SIZE_Y;
+    uint32_t done = 0;
+    while (done < samples) {
+        uint32_t n = std::min(samples - done, std::max(1u, settings_.samplesPerDispatch));
+        // The sample index selects the random sequence; it wraps after 2^32 samples.
+        params_.sampleBase = uint32_t(samples_);
+        params_.samplesPerDispatch = n;
+        if (Status s = buffers_[PV_BINDING_PARAMS].upload(&params_, sizeof(params_)); !s) return s;
+        auto ms = pipeline_->dispatch(groupsX, groupsY);
+        if (!ms) return ms.error();
+        gpuMs_ += ms.value();
+        samples_ += n;
+        done += n;
+        if (progress) progress({done, samples});
+    }
+    return {};
+}
+
+Result<ImageF> Renderer::image() const {
+    size_t pixels = size_t(settings_.width) * settings_.height;
+    std::vector<glm::vec4> sum(pixels), comp(pixels);
+    if (Status s = buffers_[PV_BINDING_ACCUM_SUM].download(sum.data(), pixels * 16); !s)
+        return s.error();
+    if (Status s = buffers_[PV_BINDING_ACCUM_COMPENSATION].download(comp.data(), pixels * 16); !s)
+        return s.error();
+    ImageF img;
+    img.width = settings_.width;
+    img.height = settings_.height;
+    img.channels = 3;
+    img.pixels.resize(pixels * 3);
+    double inv = samples_ > 0 ? 1.0 / double(samples_) : 0.0;
+    for (size_t i = 0; i < pixels; ++i) {
+        for (int c = 0; c < 3; ++c)
+            img.pixels[i * 3 + c] = float((double(sum[i][c]) - double(comp[i][c])) * inv);
+    }
+    return img;
+}
+
+Result<uint32_t> Renderer::nonFiniteSamples() const {
+    shader::RenderStats stats{};
+    if (Status s = buffers_[PV_BINDING_STATS].download(&stats, sizeof(stats)); !s)
+        return s.error();
+    return stats.nonFiniteSamples;
+}
+
+}  // namespace previs

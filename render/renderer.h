@@ -1,0 +1,93 @@
+#pragma once
+
+// Turns a Scene into GPU data (BVHs, materials, textures, lights, environment tables) and runs
+// the path tracer on it: progressive, exact accumulation of samples per pixel.
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include "base/result.h"
+#include "gpu/buffer.h"
+#include "gpu/compute_pipeline.h"
+#include "gpu/context.h"
+#include "image/image.h"
+#include "render/bvh.h"
+#include "scene/scene.h"
+
+namespace previs {
+
+struct RenderSettings {
+    uint32_t width = 640;
+    uint32_t height = 480;
+    uint32_t maxDepth = 16;            // pbrt's maxdepth: 1 = direct light only
+    uint32_t rouletteStartDepth = 3;   // Russian roulette from this many bounces on
+    uint32_t seed = 0;
+    int cameraIndex = 0;               // into Scene::cameras; a default camera if there is none
+    std::optional<float> apertureRadiusM;  // override the camera's thin lens
+    std::optional<float> focusDistanceM;
+    float fireflyClamp = 0.0f;         // 0 = off (default): no hidden clamping
+    uint32_t samplesPerDispatch = 1;   // paths per pixel in one GPU dispatch
+    bool generalPipeline = false;      // run every feature's code (benchmarks the saving)
+};
+
+// What the scene uses; each off feature is compiled out of the pipeline.
+struct SceneFeatures {
+    bool environment = false;
+    bool emissive = false;
+    bool punctual = false;
+    bool specular = false;      // any metal or specular (Fresnel) reflection
+    bool transmission = false;
+    bool thinLens = false;
+    bool textures = false;
+};
+
+SceneFeatures detectSceneFeatures(const Scene& scene, const Camera& camera);
+
+struct RenderProgress {
+    uint64_t samplesDone;
+    uint64_t samplesTotal;
+};
+
+class Renderer {
+public:
+    static Result<std::unique_ptr<Renderer>> create(GpuContext& ctx, const Scene& scene,
+                                                    const RenderSettings& settings);
+
+    // Adds `samples` paths per pixel to the accumulation.
+    Status render(uint32_t samples,
+                  const std::function<void(const RenderProgress&)>& progress = {});
+    // Clears the accumulation (refinement restarts at sample 0).
+    Status reset();
+
+    // The mean radiance per pixel so far (RGB, linear).
+    Result<ImageF> image() const;
+
+    uint64_t samplesPerPixel() const { return samples_; }
+    const SceneFeatures& features() const { return features_; }
+    const SceneBvh& bvh() const { return bvh_; }
+    // GPU time of all dispatches so far (ms), and of the last one.
+    double gpuMilliseconds() const { return gpuMs_; }
+    // Samples the shader found NaN or infinite and dropped (should be 0; tests check it).
+    Result<uint32_t> nonFiniteSamples() const;
+    const Camera& camera() const { return camera_; }
+
+private:
+    Renderer() = default;
+    Status buildScene(const Scene& scene);
+
+    GpuContext* ctx_ = nullptr;
+    RenderSettings settings_;
+    SceneFeatures features_;
+    Camera camera_;
+    SceneBvh bvh_;
+    shader::FrameParams params_{};
+    std::vector<GpuBuffer> buffers_;  // indexed by PV_BINDING_*
+    std::optional<ComputePipeline> pipeline_;
+    uint64_t samples_ = 0;
+    double gpuMs_ = 0.0;
+};
+
+}  // namespace previs

@@ -1,0 +1,42 @@
+#pragma once
+
+// A Vulkan context shared by a test suite, with validation on; any validation error fails the
+// test that caused it.
+
+#include <gtest/gtest.h>
+
+#include <memory>
+
+#include "gpu/context.h"
+#include "image/image.h"
+#include "render/renderer.h"
+
+namespace previs::testing {
+
+class GpuTest : public ::testing::Test {
+protected:
+    static void SetUpTestSuite();
+    static void TearDownTestSuite() { context_.reset(); }
+    void SetUp() override;
+    void TearDown() override;
+
+    static GpuContext& ctx() { return *context_; }
+
+    // Renders `spp` samples per pixel and returns the mean image; fails the test on any error,
+    // on a NaN/Inf sample, or a non-finite pixel.
+    ImageF render(const Scene& scene, const RenderSettings& settings, uint32_t spp);
+
+    // Per-pixel mean and variance of the mean over `runs` independent renders (seeds 1..runs):
+    // the noise that tolerances are derived from.
+    struct Estimate {
+        ImageF mean;
+        std::vector<double> varianceOfMean;  // per pixel and channel
+    };
+    Estimate estimate(const Scene& scene, RenderSettings settings, uint32_t spp, uint32_t runs);
+
+private:
+    static std::unique_ptr<GpuContext> context_;
+    uint32_t errorsAtStart_ = 0;
+};
+
+}  // namespace previs::testing

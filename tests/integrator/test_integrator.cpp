@@ -1,0 +1,371 @@
+// The path tracer against answers known in closed form. Tolerances come from the noise each
+// render measures (variance of the mean over independent seeds), never tuned until green;
+// seeds are fixed so every run draws the same samples.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numeric>
+
+#include <glm/gtc/matrix_transform.hpp>
+
+#include "tests/integrator/gpu_fixture.h"
+#include "tests/support/scene_builders.h"
+
+namespace previs::testing {
+namespace {
+
+constexpr float kPi = 3.14159265358979f;
+
+float radians(float deg) { return deg * kPi / 180.0f; }
+
+// Luminance-free helpers: every test scene here is grey, so channel 0 stands for all.
+float pixel(const ImageF& img, uint32_t x, uint32_t y) { return img.at(x, y, 0); }
+
+// The camera ray through image position (px, py) in pixels, as trace_paths.comp builds it.
+glm::vec3 cameraDirection(const Camera& c, uint32_t w, uint32_t h, float px, float py) {
+    float tanY = std::tan(0.5f * c.fovYRad);
+    glm::vec3 d((px / float(w) * 2.0f - 1.0f) * tanY * float(w) / float(h),
+                (1.0f - py / float(h) * 2.0f) * tanY, -1.0f);
+    return glm::normalize(glm::mat3(c.worldFromCamera) * d);
+}
+
+glm::vec3 cameraPosition(const Camera& c) { return glm::vec3(c.worldFromCamera[3]); }
+
+// Mean of f over a pixel's footprint by an n×n midpoint rule (the box pixel filter).
+template <typename F>
+double pixelAverage(uint32_t x, uint32_t y, int n, F f) {
+    double sum = 0.0;
+    for (int j = 0; j < n; ++j)
+        for (int i = 0; i < n; ++i) sum += f(float(x) + (i + 0.5f) / n, float(y) + (j + 0.5f) / n);
+    return sum / (n * n);
+}
+
+class IntegratorTest : public GpuTest {};
+
+// White furnace: inside a uniform environment of radiance 1, an albedo-1 object neither creates
+// nor loses energy, so every pixel is 1.
+Scene furnaceScene(const Material& material) {
+    Scene s;
+    addSphere(s, glm::vec3(0.0f), 1.0f, addMaterial(s, material));
+    s.environment = uniformEnvironment(glm::vec3(1.0f));
+    s.cameras.push_back(lookAt({0, 0, 4}, {0, 0, 0}, {0, 1, 0}, radians(40)));
+    return s;
+}
+
+TEST_F(IntegratorTest, WhiteFurnaceLambertianSphere) {
+    Scene s = furnaceScene(lambert(glm::vec3(1.0f)));
+    RenderSettings rs;
+    rs.width = rs.height = 24;
+    rs.maxDepth = 64;
+    Estimate e = estimate(s, rs, 16, 16);
+    double sum = 0.0, var = 0.0;
+    double worstZ = 0.0;
+    size_t n = size_t(rs.width) * rs.height;
+    for (size_t i = 0; i < n; ++i) {
+        double v = e.mean.pixels[i * 3];
+        sum += v;
+        var += e.varianceOfMean[i * 3];
+        if (e.varianceOfMean[i * 3] > 0.0)
+            worstZ = std::max(worstZ, std::abs(v - 1.0) / std::sqrt(e.varianceOfMean[i * 3]));
+        else
+            EXPECT_NEAR(v, 1.0, 1e-5) << "noise-free pixel " << i;
+    }
+    double mean = sum / n;
+    double stdErr = std::sqrt(var) / n;
+    // 4 standard errors of the image mean; per pixel 7 (t with 15 dof over 576 pixels).
+    EXPECT_NEAR(mean, 1.0, 4.0 * stdErr) << "standard error " << stdErr;
+    EXPECT_LT(worstZ, 7.0);
+}
+
+TEST_F(IntegratorTest, WhiteFurnaceMirrorSphereIsExact) {
+    Scene s = furnaceScene(mirror());
+    RenderSettings rs;
+    rs.width = rs.height = 24;
+    rs.maxDepth = 64;
+    ImageF img = render(s, rs, 4);
+    for (float v : img.pixels) ASSERT_NEAR(v, 1.0f, 1e-5f);
+}
+
+TEST_F(IntegratorTest, WhiteFurnaceGlassSphereIsExact) {
+    for (float ior : {1.33f, 1.5f, 2.4f}) {
+        Scene s = furnaceScene(glass(ior));
+        RenderSettings rs;
+        rs.width = rs.height = 24;
+        rs.maxDepth = 256;
+        ImageF img = render(s, rs, 8);
+        // Each path carries weight 1: Fresnel reflection and refraction are chosen with their
+        // exact probabilities and the η² factors cancel on the way out.
+        for (float v : img.pixels) ASSERT_NEAR(v, 1.0f, 2e-4f) << "ior " << ior;
+    }
+}
+
+// A Lambertian plane (albedo ρ) under a point light of intensity I at height h:
+// L = ρ/π · I cosθ / d² = ρ I h / (π d³) (inverse-square cosine law).
+TEST_F(IntegratorTest, PointLightFollowsInverseSquareCosineLaw) {
+    const float h = 1.0f, intensity = 10.0f, rho = 0.75f;
+    Scene s;
+    addQuad(s, {0, 0, 0}, {0, 0, 50}, {50, 0, 0}, addMaterial(s, lambert(glm::vec3(rho))));
+    PunctualLight light;
+    light.type = LightType::Point;
+    light.position = {0.0f, h, 0.0f};
+    light.intensity = intensity;
+    s.lights.push_back(light);
+    s.cameras.push_back(lookAt({0.3f, 3, 0.2f}, {0.3f, 0, 0}, {0, 0, -1}, radians(70)));
+    RenderSettings rs;
+    rs.width = rs.height = 32;
+    rs.maxDepth = 1;
+    Estimate e = estimate(s, rs, 8, 4);
+    const Camera& cam = s.cameras[0];
+    glm::vec3 eye = cameraPosition(cam);
+    double worst = 0.0;
+    for (uint32_t y = 0; y < rs.height; ++y) {
+        for (uint32_t x = 0; x < rs.width; ++x) {
+            double expected = pixelAverage(x, y, 8, [&](float px, float py) {
+                glm::vec3 d = cameraDirection(cam, rs.width, rs.height, px, py);
+                glm::vec3 p = eye + d * (-eye.y / d.y);
+                float dist = glm::length(light.position - p);
+                return double(rho) * intensity * h / (kPi * dist * dist * dist);
+            });
+            double got = pixel(e.mean, x, y);
+            double sigma = std::sqrt(e.varianceOfMean[(y * rs.width + x) * 3]);
+            // 5σ of the pixel-jitter noise, plus 1e-4 relative for float arithmetic and the
+            // quadrature of the expected pixel average.
+            double tol = 5.0 * sigma + 1e-4 * expected;
+            EXPECT_NEAR(got, expected, tol) << "pixel " << x << "," << y;
+            worst = std::max(worst, std::abs(got - expected) / expected);
+        }
+    }
+    RecordProperty("worstRelativeError", std::to_string(worst));
+}
+
+// A Lambertian plane under a spherical emitter of radius R and radiance Le whose centre is at
+// distance d and angle θ from the normal (sphere above the horizon): E = π Le (R/d)² cosθ, so
+// L = ρ Le (R/d)² cosθ.
+TEST_F(IntegratorTest, EmissiveSphereGivesClosedFormIrradiance) {
+    const float radius = 0.5f, le = 4.0f, rho = 0.9f;
+    const glm::vec3 center(0.0f, 2.0f, 0.0f);
+    Scene s;
+    addQuad(s, {0, 0, 0}, {0, 0, 50}, {50, 0, 0}, addMaterial(s, lambert(glm::vec3(rho))));
+    addSphere(s, center, radius, addMaterial(s, emitter(glm::vec3(le))), false, 96, 192);
+    s.cameras.push_back(lookAt({0, 1.2f, 3}, {0, 0, 0}, {0, 1, 0}, radians(50)));
+    RenderSettings rs;
+    rs.width = rs.height = 24;
+    rs.maxDepth = 1;
+    Estimate e = estimate(s, rs, 32, 8);
+    const Camera& cam = s.cameras[0];
+    glm::vec3 eye = cameraPosition(cam);
+    int tested = 0;
+    for (uint32_t y = 0; y < rs.height; ++y) {
+        for (uint32_t x = 0; x < rs.width; ++x) {
+            bool valid = true;
+            double expected = pixelAverage(x, y, 6, [&](float px, float py) {
+                glm::vec3 d = cameraDirection(cam, rs.width, rs.height, px, py);
+                if (d.y >= 0.0f) {
+                    valid = false;
+                    return 0.0;
+                }
+                glm::vec3 p = eye + d * (-eye.y / d.y);
+                glm::vec3 toC = center - p;
+                float dist = glm::length(toC);
+                float cosT = toC.y / dist;
+                // Only where the whole sphere is above the horizon and the camera ray does not
+                // pass near the sphere.
+                if (std::acos(cosT) + std::asin(radius / dist) > 0.5f * kPi) valid = false;
+                return double(rho) * le * (radius / dist) * (radius / dist) * cosT;
+            });
+            if (!valid) continue;
+            ++tested;
+            double got = pixel(e.mean, x, y);
+            double sigma = std::sqrt(e.varianceOfMean[(y * rs.width + x) * 3]);
+            // 5σ of the measured noise, plus 1% for the tessellated sphere (96×192 facets have
+            // a projected area about 0.05% below the true sphere; margin for the quadrature).
+            EXPECT_NEAR(got, expected, 5.0 * sigma + 0.01 * expected) << x << "," << y;
+        }
+    }
+    EXPECT_GT(tested, 200);
+}
+
+// The error against a high-sample reference falls as 1/√spp: log-log slope −0.5 ± 0.05. A bias
+// would flatten the slope as the noise falls below it.
+TEST_F(IntegratorTest, ErrorFallsAsInverseSquareRootOfSamples) {
+    Scene s;
+    uint32_t white = addMaterial(s, lambert(glm::vec3(0.7f)));
+    addQuad(s, {0, 0, 0}, {0, 0, 3}, {3, 0, 0}, white);
+    addSphere(s, {0, 0.4f, 0}, 0.4f, addMaterial(s, lambert(glm::vec3(0.8f, 0.3f, 0.2f))), false,
+              16, 32);
+    addQuad(s, {0, 1.5f, 0}, {0.3f, 0, 0}, {0, 0, 0.3f}, addMaterial(s, emitter(glm::vec3(8))));
+    s.environment = uniformEnvironment(glm::vec3(0.2f));
+    s.cameras.push_back(lookAt({0, 1, 2.5f}, {0, 0.3f, 0}, {0, 1, 0}, radians(45)));
+    RenderSettings rs;
+    rs.width = rs.height = 16;
+    rs.maxDepth = 4;
+    rs.samplesPerDispatch = 256;
+    rs.seed = 999;
+    ImageF reference = render(s, rs, 32768);
+    std::vector<double> logN, logErr;
+    for (uint32_t spp : {8u, 32u, 128u, 512u}) {
+        double mse = 0.0;
+        const int runs = 4;
+        for (int r = 0; r < runs; ++r) {
+            rs.seed = uint32_t(r + 1);
+            ImageF img = render(s, rs, spp);
+            for (size_t i = 0; i < img.pixels.size(); ++i) {
+                double d = img.pixels[i] - reference.pixels[i];
+                mse += d * d;
+            }
+        }
+        mse /= runs * double(reference.pixels.size());
+        logN.push_back(std::log(double(spp)));
+        logErr.push_back(0.5 * std::log(mse));
+    }
+    double mx = std::accumulate(logN.begin(), logN.end(), 0.0) / logN.size();
+    double my = std::accumulate(logErr.begin(), logErr.end(), 0.0) / logErr.size();
+    double sxy = 0.0, sxx = 0.0;
+    for (size_t i = 0; i < logN.size(); ++i) {
+        sxy += (logN[i] - mx) * (logErr[i] - my);
+        sxx += (logN[i] - mx) * (logN[i] - mx);
+    }
+    double slope = sxy / sxx;
+    RecordProperty("slope", std::to_string(slope));
+    EXPECT_NEAR(slope, -0.5, 0.05);
+}
+
+// Accumulation stays exact over a million samples per pixel (compensated sums), where the paper's
+// running average (Eq. 3) in 32-bit floats drifts.
+TEST_F(IntegratorTest, MillionSampleAccumulationIsExact) {
+    const float value = 0.1f;
+    Scene s;
+    s.environment = uniformEnvironment(glm::vec3(value));
+    s.cameras.push_back(lookAt({0, 0, 0}, {0, 0, -1}, {0, 1, 0}, radians(60)));
+    RenderSettings rs;
+    rs.width = rs.height = 16;
+    rs.samplesPerDispatch = 4096;
+    const uint32_t spp = 1u << 20;
+    ImageF img = render(s, rs, spp);
+    for (float v : img.pixels) ASSERT_NEAR(v, value, 2e-7f * value);
+
+    // What Eq. 3 would give, L_acc = ((n−1)·L_acc + L)/n in float, for the same samples.
+    float acc = 0.0f;
+    for (uint32_t n = 1; n <= spp; ++n) acc = (float(n - 1) * acc + value) / float(n);
+    RecordProperty("runningAverageRelativeError", std::to_string(std::abs(acc - value) / value));
+    EXPECT_GT(std::abs(acc - value) / value, 1e-5f) << "the naive average no longer drifts?";
+}
+
+// Self-intersection: a plane under a directional light at 45° has the same radiance everywhere,
+// at any scale; acne would show as dark pixels. Light leaks: inside a closed box lit from
+// outside, everything is black.
+TEST_F(IntegratorTest, NoAcneOrLeaksFromMillimetreToKilometre) {
+    for (float scale : {1e-3f, 1.0f, 1e3f}) {
+        const float rho = 0.5f, lux = 2.0f;
+        Scene s;
+        addQuad(s, {0, 0, 0}, {0, 0, 100 * scale}, {100 * scale, 0, 0},
+                addMaterial(s, lambert(glm::vec3(rho))));
+        // A sliver and a zero-area triangle nearby must not disturb anything either.
+        addMesh(s, {{0, 0.1f * scale, 0}, {10 * scale, 0.1f * scale, 1e-6f * scale},
+                    {20 * scale, 0.1f * scale, 0}},
+                {{0, 1, 0}, {0, 1, 0}, {0, 1, 0}}, {{0, 1, 2}, {0, 0, 1}}, 0, false);
+        PunctualLight sun;
+        sun.type = LightType::Directional;
+        sun.direction = glm::normalize(glm::vec3(1, -1, 0));
+        sun.intensity = lux;
+        s.lights.push_back(sun);
+        s.cameras.push_back(lookAt(glm::vec3(0, 2, 3) * scale, glm::vec3(0, 0, -1) * scale,
+                                   {0, 1, 0}, radians(30)));
+        RenderSettings rs;
+        rs.width = rs.height = 32;
+        rs.maxDepth = 1;
+        ImageF img = render(s, rs, 2);
+        const float expected = rho / kPi * lux * std::sqrt(0.5f);
+        for (uint32_t y = 0; y < rs.height; ++y)
+            for (uint32_t x = 0; x < rs.width; ++x)
+                ASSERT_NEAR(pixel(img, x, y), expected, 1e-5f * expected)
+                    << "scale " << scale << " pixel " << x << "," << y;
+
+        Scene box;
+        addBox(box, glm::vec3(-1) * scale, glm::vec3(1) * scale,
+               addMaterial(box, lambert(glm::vec3(0.8f))), false, true);
+        box.lights = s.lights;
+        box.environment = uniformEnvironment(glm::vec3(1.0f));
+        box.cameras.push_back(lookAt(glm::vec3(0.2f, 0.1f, 0.3f) * scale,
+                                     glm::vec3(1, -1, -1) * scale, {0, 1, 0}, radians(90)));
+        rs.maxDepth = 8;
+        ImageF inside = render(box, rs, 8);
+        for (float v : inside.pixels) ASSERT_EQ(v, 0.0f) << "light leaked in at scale " << scale;
+    }
+}
+
+// An environment with a 1e5-radiance sun: a Lambertian plane (albedo 1, direct light only)
+// reflects L = E/π with E = Σ L_texel ∫_texel cosθ dω, exact for nearest-texel lookup because
+// the map's rows are circles of constant θ around the plane's normal (+Y).
+TEST_F(IntegratorTest, EnvironmentWithIntenseSunMatchesIrradianceSum) {
+    const uint32_t w = 64, hgt = 32;
+    Scene s;
+    addQuad(s, {0, 0, 0}, {0, 0, 1000}, {1000, 0, 0}, addMaterial(s, lambert(glm::vec3(1.0f))));
+    EnvironmentMap env = uniformEnvironment(glm::vec3(0.5f), w, hgt);
+    env.radiance[size_t(8) * w + 40] = glm::vec3(1e5f);  // a 1-texel sun 33.75° up
+    s.environment = env;
+    s.cameras.push_back(lookAt({0, 1, 0}, {0, 0, -1}, {0, 1, 0}, radians(60)));
+    RenderSettings rs;
+    rs.width = rs.height = 16;
+    rs.maxDepth = 1;
+    Estimate e = estimate(s, rs, 16, 8);
+    double irradiance = 0.0;
+    for (uint32_t row = 0; row < hgt / 2; ++row) {
+        double t0 = kPi * row / hgt, t1 = kPi * (row + 1) / hgt;
+        double band = (2.0 * kPi / w) * 0.5 * (std::sin(t1) * std::sin(t1) - std::sin(t0) * std::sin(t0));
+        for (uint32_t col = 0; col < w; ++col) irradiance += env.radiance[row * w + col].x * band;
+    }
+    double expected = irradiance / kPi;
+    double sum = 0.0, var = 0.0;
+    size_t n = size_t(rs.width) * rs.height;
+    for (size_t i = 0; i < n; ++i) {
+        sum += e.mean.pixels[i * 3];
+        var += e.varianceOfMean[i * 3];
+    }
+    double stdErr = std::sqrt(var) / n;
+    EXPECT_NEAR(sum / n, expected, 4.0 * stdErr + 1e-5 * expected) << "standard error " << stdErr;
+}
+
+// Grazing and exactly tangent camera rays over a plane produce no NaN (the fixture checks every
+// sample and pixel) and see the plane or the sky, nothing in between.
+TEST_F(IntegratorTest, TangentRaysStayFinite) {
+    Scene s;
+    addQuad(s, {0, 0, 0}, {0, 0, 10}, {10, 0, 0}, addMaterial(s, lambert(glm::vec3(0.5f))));
+    addSphere(s, {0, 0.5f, -3}, 0.5f, addMaterial(s, mirror()));
+    s.environment = uniformEnvironment(glm::vec3(1.0f));
+    s.cameras.push_back(lookAt({0, 0, 5}, {0, 0, -5}, {0, 1, 0}, radians(30)));
+    RenderSettings rs;
+    rs.width = rs.height = 16;
+    rs.maxDepth = 8;
+    render(s, rs, 16);
+}
+
+// The specialised pipeline runs less code and gives the same image as the general one (same
+// random sequence; differences only from float rounding).
+TEST_F(IntegratorTest, SpecialisedPipelineMatchesGeneral) {
+    Scene s;
+    addQuad(s, {0, 0, 0}, {0, 0, 2}, {2, 0, 0}, addMaterial(s, lambert(glm::vec3(0.6f))));
+    addSphere(s, {0, 0.3f, 0}, 0.3f, addMaterial(s, lambert(glm::vec3(0.2f, 0.5f, 0.8f))));
+    PunctualLight light;
+    light.position = {1, 2, 1};
+    light.intensity = 5.0f;
+    s.lights.push_back(light);
+    s.cameras.push_back(lookAt({0, 1, 2}, {0, 0.2f, 0}, {0, 1, 0}, radians(45)));
+    RenderSettings rs;
+    rs.width = rs.height = 16;
+    rs.maxDepth = 6;
+    auto specialised = Renderer::create(ctx(), s, rs);
+    ASSERT_TRUE(specialised.ok());
+    SceneFeatures f = (*specialised)->features();
+    EXPECT_FALSE(f.environment || f.emissive || f.specular || f.transmission || f.thinLens ||
+                 f.textures);
+    EXPECT_TRUE(f.punctual);
+    ImageF a = render(s, rs, 16);
+    rs.generalPipeline = true;
+    ImageF b = render(s, rs, 16);
+    for (size_t i = 0; i < a.pixels.size(); ++i)
+        ASSERT_NEAR(a.pixels[i], b.pixels[i], 1e-4f * std::max(1.0f, a.pixels[i]));
+}
+
+}  // namespace
+}  // namespace previs::testing

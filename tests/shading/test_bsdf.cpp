@@ -1,0 +1,222 @@
+// The shading math of trace_paths.comp, run on the CPU from the same headers: sampling warps and
+// BSDF lobes against their stated densities (chi-square), energy conservation, reciprocity and
+// the exact limit cases of DESIGN.md §4.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "shared/bsdf.h"
+#include "shared/sampling.h"
+#include "tests/support/chi2.h"
+
+namespace previs::testing {
+namespace {
+
+using namespace previs::shader;
+
+// All chi-square tests in this file share one overall significance of 1%.
+constexpr int kChi2Tests = 2 + 4 * 3;
+const double kLevel = sidakLevel(0.01, kChi2Tests);
+
+BsdfParams material(glm::vec3 color, float metallic, float roughness, float transmission = 0.0f,
+                    float ior = 1.5f, float specular = 1.0f) {
+    BsdfParams p;
+    p.baseColor = color;
+    p.metallic = metallic;
+    p.specularColor = glm::vec3(1.0f);
+    p.alpha = roughness * roughness;
+    p.transmission = transmission;
+    p.etaRel = ior;
+    p.specular = specular;
+    return p;
+}
+
+glm::vec3 direction(float thetaDeg, float phiDeg) {
+    float t = glm::radians(thetaDeg), p = glm::radians(phiDeg);
+    return {std::sin(t) * std::cos(p), std::sin(t) * std::sin(p), std::cos(t)};
+}
+
+TEST(SamplingTest, CosineHemisphereMatchesItsDensity) {
+    auto r = chi2DirectionTest([](glm::vec2 u) { return std::optional(sampleCosineHemisphere(u)); },
+                               [](glm::vec3 d) { return double(cosineHemispherePdf(d.z)); }, 16,
+                               32, 1'000'000, 1);
+    EXPECT_GT(r.pValue, kLevel) << r.describe();
+}
+
+TEST(SamplingTest, UniformSphereMatchesItsDensity) {
+    auto r = chi2DirectionTest([](glm::vec2 u) { return std::optional(sampleUniformSphere(u)); },
+                               [](glm::vec3) { return 1.0 / (4.0 * M_PI); }, 16, 32, 1'000'000, 2);
+    EXPECT_GT(r.pValue, kLevel) << r.describe();
+}
+
+TEST(SamplingTest, TriangleSamplesAreUniform) {
+    // Equal counts in the four sub-triangles cut by the edge midpoints.
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<float> uni(0.0f, 1.0f);
+    int counts[4] = {};
+    const int n = 400000;
+    for (int i = 0; i < n; ++i) {
+        glm::vec2 b = sampleUniformTriangle({uni(rng), uni(rng)});
+        float b0 = 1.0f - b.x - b.y;
+        ASSERT_GE(b0, -1e-6f);
+        int cell = b0 > 0.5f ? 0 : b.x > 0.5f ? 1 : b.y > 0.5f ? 2 : 3;
+        ++counts[cell];
+    }
+    double chi2 = 0.0;
+    for (int c : counts) chi2 += (c - n / 4.0) * (c - n / 4.0) / (n / 4.0);
+    EXPECT_GT(incompleteGammaQ(1.5, 0.5 * chi2), 1e-3);
+}
+
+TEST(SamplingTest, PowerHeuristicIsDefinedEverywhere) {
+    EXPECT_FLOAT_EQ(powerHeuristic(1.0f, 1.0f), 0.5f);
+    EXPECT_EQ(powerHeuristic(0.0f, 0.0f), 0.0f);
+    EXPECT_EQ(powerHeuristic(1e30f, 1.0f), 1.0f);
+    EXPECT_EQ(powerHeuristic(1.0f, 1e30f), 0.0f);
+}
+
+// Lobe mixtures: sampled directions follow the pdf bsdfEvaluate reports.
+struct LobeCase {
+    const char* name;
+    BsdfParams params;
+};
+
+class BsdfSamplingTest : public ::testing::TestWithParam<int> {};
+
+TEST(BsdfTest, MixtureSamplingMatchesReportedPdf) {
+    const LobeCase cases[] = {
+        {"rough metal", material(glm::vec3(0.9f, 0.6f, 0.3f), 1.0f, 0.5f)},
+        {"glossy plastic", material(glm::vec3(0.2f, 0.5f, 0.8f), 0.0f, 0.3f)},
+        {"rough glass", material(glm::vec3(1.0f), 0.0f, 0.5f, 1.0f, 1.5f)},
+        {"rough glass from inside", material(glm::vec3(1.0f), 0.0f, 0.6f, 1.0f, 1.0f / 1.5f)},
+    };
+    for (const LobeCase& c : cases) {
+        for (float thetaO : {10.0f, 50.0f, 80.0f}) {
+            glm::vec3 wo = direction(thetaO, 30.0f);
+            std::mt19937 lobeRng(7);
+            std::uniform_real_distribution<float> uni(0.0f, std::nextafter(1.0f, 0.0f));
+            auto r = chi2DirectionTest(
+                [&](glm::vec2 u) -> std::optional<glm::vec3> {
+                    BsdfSample s;
+                    if (!bsdfSample(c.params, wo, uni(lobeRng), u, s)) return std::nullopt;
+                    return s.wi;
+                },
+                [&](glm::vec3 wi) {
+                    float pdf;
+                    bsdfEvaluate(c.params, wo, wi, pdf);
+                    return double(pdf);
+                },
+                16, 32, 1'000'000, 11);
+            EXPECT_GT(r.pValue, kLevel) << c.name << " θo=" << thetaO << ": " << r.describe();
+        }
+    }
+}
+
+// Directional albedo ∫ f |cos| dω estimated from the sampler's weights.
+glm::vec3 albedo(const BsdfParams& p, glm::vec3 wo, int n = 200000) {
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<float> uni(0.0f, std::nextafter(1.0f, 0.0f));
+    glm::dvec3 sum(0.0);
+    for (int i = 0; i < n; ++i) {
+        BsdfSample s;
+        if (bsdfSample(p, wo, uni(rng), {uni(rng), uni(rng)}, s)) sum += glm::dvec3(s.weight);
+    }
+    return glm::vec3(sum / double(n));
+}
+
+TEST(BsdfTest, LimitCasesAreExact) {
+    glm::vec3 wo = direction(40.0f, 10.0f);
+    // metallic 0, specular 0: Lambert, f = c/π and every sample weighs exactly c.
+    BsdfParams lambert = material(glm::vec3(0.3f, 0.6f, 0.9f), 0.0f, 0.7f, 0.0f, 1.5f, 0.0f);
+    float pdf;
+    glm::vec3 f = bsdfEvaluate(lambert, wo, direction(60.0f, 200.0f), pdf);
+    EXPECT_NEAR(f.y, 0.6f / M_PI, 1e-7);
+    EXPECT_NEAR(pdf, std::cos(glm::radians(60.0f)) / M_PI, 1e-6);
+    BsdfSample s;
+    ASSERT_TRUE(bsdfSample(lambert, wo, 0.3f, {0.2f, 0.7f}, s));
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(s.weight[c], lambert.baseColor[c], 1e-6f);
+    // metallic 1, roughness 0, white: a perfect mirror of weight 1.
+    ASSERT_TRUE(bsdfSample(material(glm::vec3(1.0f), 1.0f, 0.0f), wo, 0.5f, {0.1f, 0.1f}, s));
+    EXPECT_TRUE(s.isDelta);
+    EXPECT_EQ(s.weight, glm::vec3(1.0f));
+    EXPECT_NEAR(s.wi.x, -wo.x, 1e-7);
+    EXPECT_NEAR(s.wi.z, wo.z, 1e-7);
+    // transmission 1, roughness 0: smooth dielectric, reflect with Fresnel probability, each
+    // branch weighs 1 (times 1/η² on refraction for radiance).
+    BsdfParams glass = material(glm::vec3(1.0f), 0.0f, 0.0f, 1.0f, 1.5f);
+    float fr = fresnelDielectric(wo.z, 1.5f);
+    ASSERT_TRUE(bsdfSample(glass, wo, 0.5f * fr, {0.5f, 0.5f}, s));
+    EXPECT_EQ(s.lobe, PV_LOBE_DIELECTRIC_REFLECTION);
+    EXPECT_NEAR(s.weight.x, 1.0f, 1e-6f);
+    ASSERT_TRUE(bsdfSample(glass, wo, fr + 0.5f * (1.0f - fr), {0.5f, 0.5f}, s));
+    EXPECT_EQ(s.lobe, PV_LOBE_TRANSMISSION);
+    EXPECT_NEAR(s.weight.x, 1.0f / (1.5f * 1.5f), 1e-6f);
+    // Snell's law.
+    float sinO = std::sqrt(1 - wo.z * wo.z), sinI = std::sqrt(1 - s.wi.z * s.wi.z);
+    EXPECT_NEAR(sinO, 1.5f * sinI, 1e-6f);
+}
+
+TEST(BsdfTest, FresnelOfDielectric) {
+    EXPECT_NEAR(fresnelDielectric(1.0f, 1.5f), 0.04f, 1e-6f);
+    EXPECT_NEAR(fresnelDielectric(0.0f, 1.5f), 1.0f, 1e-6f);
+    // Beyond the critical angle from inside: total internal reflection.
+    EXPECT_EQ(fresnelDielectric(std::cos(glm::radians(45.0f)), 1.0f / 1.5f), 1.0f);
+    // Rising toward the critical angle asin(1/1.5) = 41.81°.
+    EXPECT_LT(fresnelDielectric(std::cos(glm::radians(30.0f)), 1.0f / 1.5f),
+              fresnelDielectric(std::cos(glm::radians(41.5f)), 1.0f / 1.5f));
+    EXPECT_EQ(fresnelDielectric(std::cos(glm::radians(41.9f)), 1.0f / 1.5f), 1.0f);
+}
+
+TEST(BsdfTest, EnergyIsConserved) {
+    for (float thetaO : {0.0f, 30.0f, 60.0f, 85.0f}) {
+        glm::vec3 wo = direction(thetaO, 0.0f);
+        // Exactly 1 for the smooth cases; single-scattering GGX loses energy but never gains.
+        EXPECT_NEAR(albedo(material(glm::vec3(1.0f), 1.0f, 0.0f), wo).x, 1.0f, 1e-6f);
+        EXPECT_NEAR(albedo(material(glm::vec3(1.0f), 0.0f, 0.0f, 1.0f, 1.5f), wo, 100000).x,
+                    1.0f / (1.5f * 1.5f) + fresnelDielectric(wo.z, 1.5f) * (1 - 1 / 2.25f), 0.01f);
+        for (float rough : {0.2f, 0.5f, 1.0f}) {
+            EXPECT_LE(albedo(material(glm::vec3(1.0f), 1.0f, rough), wo).x, 1.0f + 3e-3f)
+                << "metal roughness " << rough << " θo " << thetaO;
+            EXPECT_LE(albedo(material(glm::vec3(1.0f), 0.0f, rough), wo).x, 1.0f + 3e-3f)
+                << "plastic roughness " << rough << " θo " << thetaO;
+        }
+    }
+}
+
+// Metals and Lambert are reciprocal; the diffuse base under a specular layer is not, by design
+// (see bsdf.h).
+TEST(BsdfTest, MetalAndLambertAreReciprocal) {
+    std::mt19937 rng(9);
+    std::uniform_real_distribution<float> uni(1.0f, 89.0f), phi(0.0f, 360.0f);
+    BsdfParams p = material(glm::vec3(0.5f, 0.4f, 0.3f), 1.0f, 0.4f);
+    for (int i = 0; i < 1000; ++i) {
+        glm::vec3 a = direction(uni(rng), phi(rng)), b = direction(uni(rng), phi(rng));
+        float pdf;
+        glm::vec3 fab = bsdfEvaluate(p, a, b, pdf), fba = bsdfEvaluate(p, b, a, pdf);
+        EXPECT_NEAR(fab.x, fba.x, 1e-5f * std::max(1.0f, fab.x));
+    }
+}
+
+TEST(BsdfTest, GrazingAndDegenerateDirectionsStayFinite) {
+    BsdfParams cases[] = {material(glm::vec3(1.0f), 1.0f, 0.01f),
+                          material(glm::vec3(1.0f), 0.0f, 1.0f, 1.0f, 1.5f),
+                          material(glm::vec3(0.5f), 0.5f, 0.5f, 0.5f, 1.0f / 1.5f)};
+    glm::vec3 dirs[] = {{1, 0, 0}, {0, 0, 1}, glm::normalize(glm::vec3(1, 0, 1e-7f)),
+                        {0, 1, 1e-30f}};
+    for (const BsdfParams& p : cases) {
+        for (glm::vec3 wo : dirs) {
+            for (glm::vec3 wi : dirs) {
+                float pdf;
+                glm::vec3 f = bsdfEvaluate(p, wo, wi, pdf);
+                EXPECT_TRUE(std::isfinite(f.x) && std::isfinite(pdf));
+                BsdfSample s;
+                if (bsdfSample(p, wo, 0.5f, {0.5f, 0.5f}, s)) {
+                    EXPECT_TRUE(std::isfinite(s.weight.x) && std::isfinite(s.wi.x));
+                }
+            }
+        }
+    }
+}
+
+}  // namespace
+}  // namespace previs::testing

@@ -1,0 +1,35 @@
+#pragma once
+
+// Scenes with known answers, built in code for the renderer's tests and benchmarks.
+
+#include <glm/glm.hpp>
+
+#include "scene/scene.h"
+
+namespace previs::testing {
+
+Material lambert(glm::vec3 albedo);            // metallic 0, specular 0: exactly Lambertian
+Material mirror();                             // metallic 1, roughness 0, white
+Material glass(float ior);                     // transmission 1, roughness 0, white
+Material emitter(glm::vec3 radiance);          // black, emitting `radiance` from its front side
+
+uint32_t addMaterial(Scene& scene, const Material& material);
+
+// Appends triangles (indices into `positions`), transformed by worldFromObject.
+void addMesh(Scene& scene, const std::vector<glm::vec3>& positions,
+             const std::vector<glm::vec3>& normals, const std::vector<glm::uvec3>& triangles,
+             uint32_t material, bool real, const glm::mat4& worldFromObject = glm::mat4(1.0f));
+void addSphere(Scene& scene, glm::vec3 center, float radius, uint32_t material, bool real = false,
+               int rings = 48, int segments = 96);
+// A parallelogram centred at `center` spanned by ±u, ±v; its front faces cross(u, v).
+void addQuad(Scene& scene, glm::vec3 center, glm::vec3 u, glm::vec3 v, uint32_t material,
+             bool real = false);
+// An axis-aligned box; outward faces (insideOut: faces point inward).
+void addBox(Scene& scene, glm::vec3 lo, glm::vec3 hi, uint32_t material, bool real = false,
+            bool insideOut = false);
+
+EnvironmentMap uniformEnvironment(glm::vec3 radiance, uint32_t width = 16, uint32_t height = 8);
+
+Camera lookAt(glm::vec3 eye, glm::vec3 target, glm::vec3 up, float fovYRad);
+
+}  // namespace previs::testing
