@@ -803,9 +803,14 @@ Result<Scene> loadGltf(const std::string& path) {
     } catch (const std::exception& e) {
         return makeError("cannot load glTF '{}': {}", path, e.what());
     }
-    if (!ok)
-        return makeError("cannot load glTF '{}': {}", path,
-                         err.empty() ? std::string("malformed file") : oneLine(err));
+    if (!ok) {
+        std::string reason = err.empty() ? std::string("malformed file") : oneLine(err);
+        if (reason.find("json.exception") != std::string::npos)
+            reason = "malformed JSON: " + reason;
+        else if (ext == ".glb" && reason.find("magic") != std::string::npos)
+            reason = "not a binary glTF file (" + reason + ")";
+        return makeError("cannot load glTF '{}': {}", path, reason);
+    }
     if (!warn.empty()) logDebug("glTF '{}': tinygltf: {}", path, oneLine(warn));
 
     Loader loader(path, std::move(model), std::move(images.failures));

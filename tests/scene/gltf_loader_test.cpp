@@ -178,6 +178,7 @@ json quatY(float angleRad) {
 void expectErrorNamesFile(const std::string& path, const std::string& fragment) {
     Result<Scene> r = loadGltf(path);
     ASSERT_FALSE(r.ok()) << "expected an error for " << path;
+    std::printf("%s\n", r.message().c_str());
     EXPECT_NE(r.message().find(std::filesystem::path(path).filename().string()),
               std::string::npos)
         << r.message();
@@ -498,6 +499,7 @@ TEST(GltfLoader, BadInputGivesOneErrorNamingTheFile) {
         std::ofstream(p) << "{ \"asset\": { \"version\": \"2.0\" }, \"nodes\": [ {,] ";
         Result<Scene> r = loadGltf(p.string());
         ASSERT_FALSE(r.ok());
+        std::printf("%s\n", r.message().c_str());
         EXPECT_NE(r.message().find("malformed.gltf"), std::string::npos) << r.message();
     }
     {
@@ -505,6 +507,7 @@ TEST(GltfLoader, BadInputGivesOneErrorNamingTheFile) {
         std::ofstream(p) << "garbage that is not a binary glTF";
         Result<Scene> r = loadGltf(p.string());
         ASSERT_FALSE(r.ok());
+        std::printf("%s\n", r.message().c_str());
         EXPECT_NE(r.message().find("not_json.glb"), std::string::npos) << r.message();
     }
     {
@@ -515,6 +518,7 @@ TEST(GltfLoader, BadInputGivesOneErrorNamingTheFile) {
         std::filesystem::remove(dir / "missing_bin.bin");
         Result<Scene> r = loadGltf(p);
         ASSERT_FALSE(r.ok());
+        std::printf("%s\n", r.message().c_str());
         EXPECT_NE(r.message().find("missing_bin.gltf"), std::string::npos) << r.message();
     }
     {
@@ -525,6 +529,7 @@ TEST(GltfLoader, BadInputGivesOneErrorNamingTheFile) {
         const std::string p = b.writeGltf("short_buffer.gltf");
         Result<Scene> r = loadGltf(p);
         ASSERT_FALSE(r.ok());
+        std::printf("%s\n", r.message().c_str());
         EXPECT_NE(r.message().find("short_buffer.gltf"), std::string::npos) << r.message();
     }
     {
