@@ -321,4 +321,11 @@ Result<uint32_t> Renderer::nonFiniteSamples() const {
     return stats.nonFiniteSamples;
 }
 
+Result<uint32_t> Renderer::raysTraced() const {
+    shader::RenderStats stats{};
+    if (Status s = buffers_[PV_BINDING_STATS].download(&stats, sizeof(stats)); !s)
+        return s.error();
+    return stats.raysTraced;
+}
+
 }  // namespace previs

@@ -72,6 +72,8 @@ public:
     double gpuMilliseconds() const { return gpuMs_; }
     // Samples the shader found NaN or infinite and dropped (should be 0; tests check it).
     Result<uint32_t> nonFiniteSamples() const;
+    // Rays traced since the last reset (closest-hit and shadow; wraps at 2^32).
+    Result<uint32_t> raysTraced() const;
     const Camera& camera() const { return camera_; }
 
 private:

@@ -72,8 +72,12 @@ layout(binding = PV_BINDING_TRIANGLE_LIGHT_PDF, scalar) readonly buffer Triangle
 
 #define NO_HIT 0xffffffffu
 
+// Rays this invocation traced, added to stats.raysTraced once at the end (one atomic per pixel).
+uint gRaysTraced = 0u;
+
 // Closest hit against all geometry (both BVHs: real phantoms and virtual objects).
 bool intersectScene(Ray ray, out Hit hit) {
+    ++gRaysTraced;
     hit.t = ray.tMax;
     hit.triangle = NO_HIT;
     hit.b1 = 0.0;
@@ -83,7 +87,10 @@ bool intersectScene(Ray ray, out Hit hit) {
     return found;
 }
 
-bool occluded(Ray ray) { return traceAny(params.realRoot, ray) || traceAny(params.virtualRoot, ray); }
+bool occluded(Ray ray) {
+    ++gRaysTraced;
+    return traceAny(params.realRoot, ray) || traceAny(params.virtualRoot, ray);
+}
 
 // Shadow ray between two surface points, each offset off its surface toward the other.
 bool segmentOccluded(vec3 from, vec3 fromNormal, vec3 to, vec3 toNormal) {
@@ -504,6 +511,7 @@ void main() {
         sum = t;
     }
     sum -= sumC;
+    atomicAdd(stats.raysTraced, gRaysTraced);
     vec4 total = accumSum[pixelIndex];
     vec4 c = accumCompensation[pixelIndex];
     precise vec4 y = vec4(sum, 0.0) - c;

@@ -109,7 +109,7 @@ struct EmissiveTriangle {
 // Counters the shader raises; the host checks them after a render.
 struct RenderStats {
     uint nonFiniteSamples;   // samples dropped because they were NaN or infinite
-    uint pad0;
+    uint raysTraced;         // closest-hit and shadow rays (wraps at 2^32; benchmarks only)
     uint pad1;
     uint pad2;
 };
@@ -134,7 +134,7 @@ struct FrameParams {
     uint envHeight;
     float envScale;          // multiplies the map's radiance
     float envRotationRad;    // about +Y, counter-clockwise seen from above
-    float envIntegral;       // sum of map luminance * sin(theta) weights, for the pdf
+    float envIntegral;       // mean luminance·sinθ weight of the map (EnvironmentDistribution)
     float fireflyClamp;      // 0 = off (default); else the largest sample luminance kept
     uint rouletteStartDepth; // Russian roulette from this depth on
     uint pad0;
