@@ -1,0 +1,315 @@
+// Ray casting shared by the shaders and the C++ reference tracer (render/cpu_tracer.cpp):
+// watertight ray/triangle intersection, a conservative ray/box slab test, stack-based BVH
+// traversal over the node layout of scene_types.h, and self-intersection-free ray origins.
+//
+// The first part (types, intersection, offsetRayOrigin) needs nothing from the includer. The
+// traversal part is compiled only when the includer has defined the accessors first:
+//   PV_BVH_NODE(i)  -> BvhNode      node i of the flattened BVH
+//   PV_TRIANGLE(i)  -> uvec3        vertex indices of triangle i, in BVH order
+//   PV_POSITION(i)  -> vec3         vertex position i
+// It has its own include guard, so a C++ file may include the first part through another header
+// and the traversal after binding the macros. In C++ the traversal sits in an anonymous
+// namespace: each translation unit binds its own accessors without breaking the ODR.
+#ifndef PREVIS_SHARED_RAY_TRACING_H
+#define PREVIS_SHARED_RAY_TRACING_H
+
+#include "shared/prelude.h"
+#include "shared/scene_types.h"
+
+// `precise` stops the GLSL compiler from fusing a*b - c*d into an fma: an fma rounds the two
+// products differently, so the two triangles sharing an edge would no longer compute exactly
+// negated edge functions and rays could slip between them. C++ (x86-64, no -mfma, ISO mode)
+// does not contract.
+#ifdef __cplusplus
+#define PV_PRECISE
+#else
+#define PV_PRECISE precise
+#endif
+
+// Root index of a BVH with no triangles: traversal returns "no hit" at once.
+#define PV_BVH_NO_ROOT 0xffffffffu
+// Traversal stack entries. Near-child-first traversal pushes at most one node per level, so a
+// tree of depth D (root at depth 0) needs D entries; render/bvh.cpp caps the depth below this.
+#define PV_BVH_STACK_SIZE 64
+// 1 + 2γ(3) with γ(n) = nε/(1 - nε), ε = 2^-24 (pbrt-v4 Bounds3::IntersectP; Ize 2013, "Robust
+// BVH Ray Traversal"): widens a slab's far distance by the worst rounding error of
+// (bound - origin) * invDir, so a ray that hits a triangle never misses its box.
+#define PV_BOX_FAR_SCALE 1.0000003576278687f
+// Ray origin offset of Wächter & Binder, "A Fast and Robust Method for Avoiding
+// Self-Intersection" (Ray Tracing Gems, ch. 6): 256 ULPs along the normal, except within 1/32 of
+// the origin, where ULPs get too small and a fixed 1/65536 is used instead.
+#define PV_OFFSET_ORIGIN_EPS (1.0f / 32.0f)
+#define PV_OFFSET_FLOAT_SCALE (1.0f / 65536.0f)
+#define PV_OFFSET_INT_SCALE 256.0f
+
+PV_BEGIN
+
+struct Ray {
+    vec3 origin;
+    float tMin;     // hits count for t in (tMin, tMax)
+    vec3 direction; // need not be unit; t is in units of |direction|
+    float tMax;
+};
+
+struct Hit {
+    float t;
+    uint triangle;  // index in BVH order
+    float b1;       // barycentric weight of the triangle's vertex 1
+    float b2;       // barycentric weight of vertex 2 (vertex 0: 1 - b1 - b2)
+};
+
+// Per-ray setup of the watertight test (Woop, Benthin & Wald 2013, "Watertight Ray/Triangle
+// Intersection", JCGT 2(1), §3): kz is the dominant direction axis, kx and ky the other two
+// (swapped when dir[kz] < 0 to keep the winding), and the shear that maps the ray to +z.
+struct TriangleRay {
+    vec3 origin;
+    int kx;
+    int ky;
+    int kz;
+    float sx;
+    float sy;
+    float sz;
+};
+
+PV_INLINE TriangleRay makeTriangleRay(vec3 origin, vec3 direction) {
+    TriangleRay r;
+    r.origin = origin;
+    vec3 a = abs(direction);
+    r.kz = a.x > a.y ? (a.x > a.z ? 0 : 2) : (a.y > a.z ? 1 : 2);
+    r.kx = r.kz == 2 ? 0 : r.kz + 1;
+    r.ky = r.kx == 2 ? 0 : r.kx + 1;
+    if (direction[r.kz] < 0.0f) {
+        int k = r.kx;
+        r.kx = r.ky;
+        r.ky = k;
+    }
+    r.sx = direction[r.kx] / direction[r.kz];
+    r.sy = direction[r.ky] / direction[r.kz];
+    r.sz = 1.0f / direction[r.kz];
+    return r;
+}
+
+// Woop et al. 2013, §3 (Fig. 1 code), in float only: GLSL has no portable double. Vertices are
+// translated to the ray origin and sheared per vertex, so a vertex shared by two triangles is
+// transformed identically in both; an edge function of a shared edge is then computed from the
+// same two values in both triangles and comes out exactly negated (round-to-nearest is symmetric,
+// and PV_PRECISE forbids fma), so a ray through an edge cannot miss both triangles. A zero edge
+// function counts as inside for either winding, so a ray exactly on an edge or vertex hits.
+// Accepts hits with t in (tMin, tMax); t, b1, b2 are written only on a hit.
+PV_INLINE bool intersectTriangle(TriangleRay r, vec3 p0, vec3 p1, vec3 p2, float tMin, float tMax,
+                                 PV_OUT(float) t, PV_OUT(float) b1, PV_OUT(float) b2) {
+    vec3 a = p0 - r.origin;
+    vec3 b = p1 - r.origin;
+    vec3 c = p2 - r.origin;
+    PV_PRECISE float ax = a[r.kx] - r.sx * a[r.kz];
+    PV_PRECISE float ay = a[r.ky] - r.sy * a[r.kz];
+    PV_PRECISE float bx = b[r.kx] - r.sx * b[r.kz];
+    PV_PRECISE float by = b[r.ky] - r.sy * b[r.kz];
+    PV_PRECISE float cx = c[r.kx] - r.sx * c[r.kz];
+    PV_PRECISE float cy = c[r.ky] - r.sy * c[r.kz];
+    PV_PRECISE float u = cx * by - cy * bx;
+    PV_PRECISE float v = ax * cy - ay * cx;
+    PV_PRECISE float w = bx * ay - by * ax;
+    if ((u < 0.0f || v < 0.0f || w < 0.0f) && (u > 0.0f || v > 0.0f || w > 0.0f)) return false;
+    float det = u + v + w;
+    // det == 0: the ray lies in the triangle's plane (or the triangle is degenerate). NaN
+    // (a non-finite vertex or direction) fails the comparisons below.
+    if (det == 0.0f) return false;
+    float az = r.sz * a[r.kz];
+    float bz = r.sz * b[r.kz];
+    float cz = r.sz * c[r.kz];
+    float rcpDet = 1.0f / det;
+    float tHit = (u * az + v * bz + w * cz) * rcpDet;
+    if (!(tHit > tMin && tHit < tMax)) return false;
+    t = tHit;
+    b1 = v * rcpDet;
+    b2 = w * rcpDet;
+    return true;
+}
+
+// Slab test (Kay & Kajiya 1986) in pbrt-v4's robust form: the near/far plane of each axis is
+// chosen by the sign of invDir, so a -0 direction component (invDir = -inf) picks the right
+// planes; a 0 * inf = NaN (origin on a slab plane, ray parallel to it) fails both comparisons
+// and leaves the interval unchanged, i.e. the box is not rejected on that axis. The far
+// distance is widened by PV_BOX_FAR_SCALE. Writes the entry distance on a hit.
+PV_INLINE bool intersectBox(vec3 lo, vec3 hi, vec3 origin, vec3 invDir, float tMin, float tMax,
+                            PV_OUT(float) tEntry) {
+    float t0 = tMin;
+    float t1 = tMax;
+    for (int i = 0; i < 3; ++i) {
+        bool negative = invDir[i] < 0.0f;
+        float tNear = ((negative ? hi[i] : lo[i]) - origin[i]) * invDir[i];
+        float tFar = ((negative ? lo[i] : hi[i]) - origin[i]) * invDir[i];
+        tFar *= PV_BOX_FAR_SCALE;
+        if (tNear > t0) t0 = tNear;
+        if (tFar < t1) t1 = tFar;
+        if (t0 > t1) return false;
+    }
+    tEntry = t0;
+    return true;
+}
+
+// Wächter & Binder, Ray Tracing Gems ch. 6, "A Fast and Robust Method for Avoiding
+// Self-Intersection": moves p by PV_OFFSET_INT_SCALE ULPs (per component, scaled by n) along n,
+// which bounds the error of a computed hit point at any scale; near the origin a fixed float
+// offset. n is the geometric normal on the side the new ray leaves to (-n for transmission).
+// Uses uint bit arithmetic, which wraps, where the paper adds ints: the result is the same and
+// no signed overflow is possible for -0 or NaN components on the C++ side.
+PV_INLINE vec3 offsetRayOrigin(vec3 p, vec3 n) {
+    ivec3 offsetInt = ivec3(PV_OFFSET_INT_SCALE * n);
+    uvec3 bits = floatBitsToUint(p);
+    vec3 result;
+    for (int i = 0; i < 3; ++i) {
+        // Negative floats grow in magnitude as their bits grow: step the bits the other way.
+        int step = p[i] < 0.0f ? -offsetInt[i] : offsetInt[i];
+        float moved = uintBitsToFloat(bits[i] + uint(step));
+        result[i] = abs(p[i]) < PV_OFFSET_ORIGIN_EPS ? p[i] + PV_OFFSET_FLOAT_SCALE * n[i] : moved;
+    }
+    return result;
+}
+
+PV_END
+
+#endif  // PREVIS_SHARED_RAY_TRACING_H
+
+#if defined(PV_BVH_NODE) && defined(PV_TRIANGLE) && defined(PV_POSITION) && \
+    !defined(PREVIS_SHARED_RAY_TRACING_TRAVERSAL_H)
+#define PREVIS_SHARED_RAY_TRACING_TRAVERSAL_H
+
+PV_BEGIN
+#ifdef __cplusplus
+namespace {
+#endif
+
+// Intersects triangles [first, first + count) of a leaf, shrinking tMax to each hit.
+PV_INLINE bool intersectLeaf(TriangleRay tr, uint first, uint count, float tMin,
+                             PV_INOUT(float) tMax, PV_INOUT(Hit) hit) {
+    bool found = false;
+    for (uint i = first; i < first + count; ++i) {
+        uvec3 tri = PV_TRIANGLE(i);
+        float t;
+        float b1;
+        float b2;
+        if (intersectTriangle(tr, PV_POSITION(tri.x), PV_POSITION(tri.y), PV_POSITION(tri.z), tMin,
+                              tMax, t, b1, b2)) {
+            tMax = t;
+            hit.t = t;
+            hit.triangle = i;
+            hit.b1 = b1;
+            hit.b2 = b2;
+            found = true;
+        }
+    }
+    return found;
+}
+
+// Closest hit with t in (ray.tMin, min(ray.tMax, hit.t)) in the BVH at `root`; updates `hit` and
+// returns true if it found one. Children are visited nearest entry first and the far one is
+// pushed, so boxes behind a found hit are culled.
+PV_INLINE bool traceClosest(uint root, Ray ray, PV_INOUT(Hit) hit) {
+    if (root == PV_BVH_NO_ROOT) return false;
+    float tMax = min(ray.tMax, hit.t);
+    vec3 invDir = 1.0f / ray.direction;
+    float tEntry;
+    BvhNode node = PV_BVH_NODE(root);
+    if (!intersectBox(node.boundsMin, node.boundsMax, ray.origin, invDir, ray.tMin, tMax, tEntry))
+        return false;
+    TriangleRay tr = makeTriangleRay(ray.origin, ray.direction);
+    uint stack[PV_BVH_STACK_SIZE];
+    int stackSize = 0;
+    bool found = false;
+    while (true) {
+        if (node.count > 0u) {
+            if (intersectLeaf(tr, node.leftOrFirst, node.count, ray.tMin, tMax, hit)) found = true;
+        } else {
+            uint left = node.leftOrFirst;
+            BvhNode leftNode = PV_BVH_NODE(left);
+            BvhNode rightNode = PV_BVH_NODE(left + 1u);
+            float tLeft;
+            float tRight;
+            bool hitLeft = intersectBox(leftNode.boundsMin, leftNode.boundsMax, ray.origin, invDir,
+                                        ray.tMin, tMax, tLeft);
+            bool hitRight = intersectBox(rightNode.boundsMin, rightNode.boundsMax, ray.origin,
+                                         invDir, ray.tMin, tMax, tRight);
+            if (hitLeft && hitRight) {
+                if (tRight < tLeft) {
+                    stack[stackSize++] = left;
+                    node = rightNode;
+                } else {
+                    stack[stackSize++] = left + 1u;
+                    node = leftNode;
+                }
+                continue;
+            }
+            if (hitLeft) {
+                node = leftNode;
+                continue;
+            }
+            if (hitRight) {
+                node = rightNode;
+                continue;
+            }
+        }
+        if (stackSize == 0) break;
+        node = PV_BVH_NODE(stack[--stackSize]);
+    }
+    return found;
+}
+
+// Any hit with t in (ray.tMin, ray.tMax) in the BVH at `root` (shadow rays).
+PV_INLINE bool traceAny(uint root, Ray ray) {
+    if (root == PV_BVH_NO_ROOT) return false;
+    vec3 invDir = 1.0f / ray.direction;
+    float tEntry;
+    BvhNode node = PV_BVH_NODE(root);
+    if (!intersectBox(node.boundsMin, node.boundsMax, ray.origin, invDir, ray.tMin, ray.tMax,
+                      tEntry))
+        return false;
+    TriangleRay tr = makeTriangleRay(ray.origin, ray.direction);
+    uint stack[PV_BVH_STACK_SIZE];
+    int stackSize = 0;
+    while (true) {
+        if (node.count > 0u) {
+            for (uint i = node.leftOrFirst; i < node.leftOrFirst + node.count; ++i) {
+                uvec3 tri = PV_TRIANGLE(i);
+                float t;
+                float b1;
+                float b2;
+                if (intersectTriangle(tr, PV_POSITION(tri.x), PV_POSITION(tri.y),
+                                      PV_POSITION(tri.z), ray.tMin, ray.tMax, t, b1, b2))
+                    return true;
+            }
+        } else {
+            uint left = node.leftOrFirst;
+            BvhNode leftNode = PV_BVH_NODE(left);
+            BvhNode rightNode = PV_BVH_NODE(left + 1u);
+            bool hitLeft = intersectBox(leftNode.boundsMin, leftNode.boundsMax, ray.origin, invDir,
+                                        ray.tMin, ray.tMax, tEntry);
+            bool hitRight = intersectBox(rightNode.boundsMin, rightNode.boundsMax, ray.origin,
+                                         invDir, ray.tMin, ray.tMax, tEntry);
+            if (hitLeft && hitRight) {
+                stack[stackSize++] = left + 1u;
+                node = leftNode;
+                continue;
+            }
+            if (hitLeft) {
+                node = leftNode;
+                continue;
+            }
+            if (hitRight) {
+                node = rightNode;
+                continue;
+            }
+        }
+        if (stackSize == 0) break;
+        node = PV_BVH_NODE(stack[--stackSize]);
+    }
+    return false;
+}
+
+#ifdef __cplusplus
+}  // namespace
+#endif
+PV_END
+
+#endif  // traversal
