@@ -8,8 +8,11 @@
 #include <filesystem>
 #include <map>
 #include <memory>
+#include <optional>
 #include <set>
 #include <utility>
+
+#include <fnmatch.h>
 
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/quaternion.hpp>
@@ -108,10 +111,13 @@ glm::vec3 vec3Or(const tinygltf::Value* object, const char* key, glm::vec3 fallb
 
 class Loader {
 public:
-    Loader(std::string path, tinygltf::Model model, std::map<int, std::string> imageFailures)
+    Loader(std::string path, tinygltf::Model model, std::map<int, std::string> imageFailures,
+           GltfLoadOptions options)
         : path_(std::move(path)),
           model_(std::move(model)),
-          imageFailures_(std::move(imageFailures)) {}
+          imageFailures_(std::move(imageFailures)),
+          options_(std::move(options)),
+          ruleMatched_(options_.roleRules.size(), 0) {}
 
     Result<Scene> run();
 
@@ -122,7 +128,12 @@ private:
                                  fmt::format(format, std::forward<Args>(args)...))};
     }
 
+    std::string originSuffix() const {
+        return options_.roleRulesOrigin.empty() ? std::string()
+                                                : " in " + options_.roleRulesOrigin;
+    }
     Status checkRequiredExtensions() const;
+    Result<std::optional<bool>> roleByName(const tinygltf::Node& node, int nodeIndex);
     Status loadMaterials();
     Result<int> textureFor(int gltfTexture, bool srgb, const std::string& materialName);
     Status visitNode(int nodeIndex, const glm::mat4& parentWorld, bool parentReal, int depth);
@@ -144,6 +155,8 @@ private:
     std::string path_;
     tinygltf::Model model_;
     std::map<int, std::string> imageFailures_;
+    GltfLoadOptions options_;
+    std::vector<uint8_t> ruleMatched_;  // per role rule: did it match any visited node
     Scene scene_;
     int defaultMaterial_ = -1;
     std::map<std::pair<int, bool>, int> textureMap_;  // (glTF image, srgb) -> Scene texture
@@ -416,6 +429,26 @@ bool finiteMatrix(const glm::mat4& m) {
     return true;
 }
 
+Result<std::optional<bool>> Loader::roleByName(const tinygltf::Node& node, int nodeIndex) {
+    std::optional<bool> role;
+    size_t first = 0;
+    for (size_t i = 0; i < options_.roleRules.size(); ++i) {
+        const auto& [pattern, real] = options_.roleRules[i];
+        if (::fnmatch(pattern.c_str(), node.name.c_str(), 0) != 0) continue;
+        ruleMatched_[i] = 1;
+        if (role && *role != real) {
+            const auto& other = options_.roleRules[first];
+            return fail("node {} ('{}') matches both the {} role pattern '{}' and the {} role "
+                        "pattern '{}'{}; make the patterns exclusive",
+                        nodeIndex, node.name, other.second ? "real" : "virtual", other.first,
+                        real ? "real" : "virtual", pattern, originSuffix());
+        }
+        if (!role) first = i;
+        role = real;
+    }
+    return role;
+}
+
 Status Loader::visitNode(int nodeIndex, const glm::mat4& parentWorld, bool parentReal,
                          int depth) {
     if (nodeIndex < 0 || size_t(nodeIndex) >= model_.nodes.size())
@@ -440,6 +473,11 @@ Status Loader::visitNode(int nodeIndex, const glm::mat4& parentWorld, bool paren
                         "\"virtual\"); it inherits its parent's",
                         path_, node.name, r);
     }
+    // Name rules come from the scene description, written for this shot by the person who
+    // knows the set; they win over whatever the modelling tool exported.
+    Result<std::optional<bool>> byName = roleByName(node, nodeIndex);
+    if (!byName) return byName.error();
+    if (byName->has_value()) real = **byName;
 
     if (node.mesh >= 0) {
         if (Status s = loadMesh(node.mesh, world, real); !s) return s;
@@ -765,6 +803,13 @@ Result<Scene> Loader::run() {
     for (int root : roots) {
         if (Status s = visitNode(root, glm::mat4(1.0f), false, 0); !s) return s.error();
     }
+    for (size_t i = 0; i < ruleMatched_.size(); ++i) {
+        if (!ruleMatched_[i])
+            logWarning("glTF '{}': the {} role pattern '{}'{} matches no node name; check its "
+                       "spelling (names are case-sensitive)",
+                       path_, options_.roleRules[i].second ? "real" : "virtual",
+                       options_.roleRules[i].first, originSuffix());
+    }
     if (degenerateTriangles_ > 0)
         logWarning("glTF '{}': dropped {} degenerate triangles (zero area or repeated index)",
                    path_, degenerateTriangles_);
@@ -777,7 +822,7 @@ Result<Scene> Loader::run() {
 
 }  // namespace
 
-Result<Scene> loadGltf(const std::string& path) {
+Result<Scene> loadGltf(const std::string& path, const GltfLoadOptions& options) {
     std::error_code ec;
     if (!std::filesystem::exists(path, ec))
         return makeError("cannot load glTF '{}': no such file (check the path)", path);
@@ -813,7 +858,7 @@ Result<Scene> loadGltf(const std::string& path) {
     }
     if (!warn.empty()) logDebug("glTF '{}': tinygltf: {}", path, oneLine(warn));
 
-    Loader loader(path, std::move(model), std::move(images.failures));
+    Loader loader(path, std::move(model), std::move(images.failures), options);
     return loader.run();
 }
 

@@ -92,6 +92,9 @@ struct Scene {
     std::vector<PunctualLight> lights;
     std::vector<Camera> cameras;
     std::optional<EnvironmentMap> environment;  // none: black background
+    // The camera to render from when the caller names none (a scene description's
+    // camera.name, already checked to exist in `cameras`); empty: the first camera.
+    std::string cameraName;
 };
 
 }  // namespace previs
