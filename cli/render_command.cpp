@@ -7,12 +7,12 @@
 #include <optional>
 
 #include "base/log.h"
+#include "config/scene_description.h"
 #include "gpu/context.h"
 #include "image/image.h"
 #include "render/renderer.h"
 #include "render/tonemap.h"
 #include "scene/environment_map.h"
-#include "scene/gltf_loader.h"
 
 namespace previs {
 
@@ -21,8 +21,9 @@ namespace {
 struct RenderOptions {
     std::string scene;
     std::string env;
-    float envRotationDeg = 0.0f;
-    float envScale = 1.0f;
+    // Unset: the scene description's value (or the default); set: overrides it.
+    std::optional<float> envRotationDeg;
+    std::optional<float> envScale;
     std::string camera;
     uint32_t width = 0;
     uint32_t height = 0;
@@ -52,7 +53,7 @@ int run(const RenderOptions& o) {
         logError("give either --spp or --seconds, not both");
         return 2;
     }
-    auto scene = loadGltf(o.scene);
+    auto scene = loadScene(o.scene);
     if (!scene) {
         logError("{}", scene.message());
         return 1;
@@ -63,19 +64,24 @@ int run(const RenderOptions& o) {
             logError("{}", env.message());
             return 1;
         }
+        // --env replaces the description's whole [environment]: its rotation and scale were
+        // set for its own map, not for this one.
         scene->environment = std::move(env.value());
     }
     if (scene->environment) {
-        scene->environment->rotationRad = o.envRotationDeg * float(M_PI / 180.0);
-        scene->environment->scale = o.envScale;
+        if (o.envRotationDeg)
+            scene->environment->rotationRad = *o.envRotationDeg * float(M_PI / 180.0);
+        if (o.envScale) scene->environment->scale = *o.envScale;
     }
 
     RenderSettings settings;
-    if (!o.camera.empty()) {
+    // --camera wins over the scene description's camera.name.
+    const std::string cameraName = !o.camera.empty() ? o.camera : scene->cameraName;
+    if (!cameraName.empty()) {
         auto it = std::find_if(scene->cameras.begin(), scene->cameras.end(),
-                               [&](const Camera& c) { return c.name == o.camera; });
+                               [&](const Camera& c) { return c.name == cameraName; });
         if (it == scene->cameras.end()) {
-            logError("{}: no camera named '{}' ({} camera(s) in the file)", o.scene, o.camera,
+            logError("{}: no camera named '{}' ({} camera(s) in the file)", o.scene, cameraName,
                      scene->cameras.size());
             return 2;
         }
@@ -154,7 +160,9 @@ int run(const RenderOptions& o) {
 std::function<int()> addRenderCommand(CLI::App& app) {
     auto o = std::make_shared<RenderOptions>();
     CLI::App* cmd = app.add_subcommand("render", "render a scene to an image");
-    cmd->add_option("SCENE", o->scene, "scene: .gltf or .glb")->required()->check(CLI::ExistingFile);
+    cmd->add_option("SCENE", o->scene, "scene: .gltf, .glb or previs.toml")
+        ->required()
+        ->check(CLI::ExistingFile);
     cmd->add_option("--env", o->env, "equirectangular HDR environment map (.exr or .hdr)")
         ->check(CLI::ExistingFile);
     cmd->add_option("--env-rotation", o->envRotationDeg,

@@ -185,11 +185,11 @@ Result<std::string> DescriptionReader::file(const toml::node& node, const std::s
     const fs::path resolved = folder_ / fs::path(value);
     std::error_code ec;
     if (!fs::is_regular_file(resolved, ec))
-        return fail(&node,
-                    "'{}' is '{}', but '{}' {} (relative paths start at the description's "
-                    "folder)",
-                    key, value, resolved.string(),
-                    fs::exists(resolved, ec) ? "is not a file" : "does not exist");
+        return fail(&node, "'{}' is '{}', but '{}' {}{}", key, value, resolved.string(),
+                    fs::exists(resolved, ec) ? "is not a file" : "does not exist",
+                    fs::path(value).is_relative()
+                        ? " (relative paths start at the description's folder)"
+                        : "");
     return resolved.string();
 }
 
