@@ -131,11 +131,13 @@ PV_INLINE bool intersectTriangle(TriangleRay r, vec3 p0, vec3 p1, vec3 p2, float
 // chosen by the sign of invDir, so a -0 direction component (invDir = -inf) picks the right
 // planes; a 0 * inf = NaN (origin on a slab plane, ray parallel to it) fails both comparisons
 // and leaves the interval unchanged, i.e. the box is not rejected on that axis. The far
-// distance is widened by PV_BOX_FAR_SCALE. Writes the entry distance on a hit.
+// distance is widened by PV_BOX_FAR_SCALE, and so is the ray's tMax (the closest hit so far): a
+// triangle whose computed t is a few ULPs below it must not lose its box to the box's own
+// rounding. Writes the entry distance on a hit.
 PV_INLINE bool intersectBox(vec3 lo, vec3 hi, vec3 origin, vec3 invDir, float tMin, float tMax,
                             PV_OUT(float) tEntry) {
     float t0 = tMin;
-    float t1 = tMax;
+    float t1 = tMax * PV_BOX_FAR_SCALE;
     for (int i = 0; i < 3; ++i) {
         bool negative = invDir[i] < 0.0f;
         float tNear = ((negative ? hi[i] : lo[i]) - origin[i]) * invDir[i];

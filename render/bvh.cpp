@@ -1,0 +1,329 @@
+#include "render/bvh.h"
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <thread>
+
+#include "shared/ray_tracing.h"
+
+namespace previs {
+
+namespace {
+
+using shader::BvhNode;
+
+// Deepest leaf (root at depth 0). Near-first traversal needs one stack entry per level, so this
+// leaves the shaders' stack a margin; at the cap a node becomes a leaf whatever its size.
+constexpr uint32_t kMaxDepth = 56;
+static_assert(kMaxDepth <= PV_BVH_STACK_SIZE, "traversal stack cannot hold the deepest path");
+
+// Centroid bins per axis (Wald 2007, "On fast Construction of SAH-based Bounding Volume
+// Hierarchies": 16–32 bins lose little against a full sweep).
+constexpr int kBins = 32;
+// A node at least this large in the top kParallelDepth levels builds its right child on another
+// thread (at most 2^kParallelDepth threads; the target has 2 cores).
+constexpr uint32_t kParallelThreshold = 1u << 16;
+constexpr uint32_t kParallelDepth = 2;
+
+// SAH constants (MacDonald & Booth 1990): the cost of visiting a node and of one triangle test,
+// in the same unit. 1 and 1 match the reported sahCost; their ratio, not their values, steers
+// the build.
+constexpr float kTraversalCost = 1.0f;
+constexpr float kIntersectionCost = 1.0f;
+
+struct PrimRef {
+    glm::vec3 lo;
+    uint32_t triangle;
+    glm::vec3 hi;
+};
+
+struct Box {
+    glm::vec3 lo{PV_FLOAT_MAX};
+    glm::vec3 hi{-PV_FLOAT_MAX};
+
+    void grow(glm::vec3 p) {
+        lo = glm::min(lo, p);
+        hi = glm::max(hi, p);
+    }
+    void grow(const Box& b) {
+        lo = glm::min(lo, b.lo);
+        hi = glm::max(hi, b.hi);
+    }
+    // Half the surface area (only ratios matter); 0 for an empty or flat-to-a-line box.
+    float halfArea() const {
+        glm::vec3 d = glm::max(hi - lo, glm::vec3(0.0f));
+        return d.x * d.y + d.y * d.z + d.z * d.x;
+    }
+};
+
+glm::vec3 centroid(const PrimRef& p) { return 0.5f * p.lo + 0.5f * p.hi; }
+
+struct BuildStats {
+    uint32_t maxDepth = 0;
+    uint32_t maxLeafSize = 0;
+};
+
+// Top-down builder over prims_[begin, end): reorders the prims so that each leaf's are
+// contiguous and appends nodes. Leaves store offsets into the prim array (== BVH order).
+class Builder {
+public:
+    Builder(std::vector<PrimRef>& prims, const BvhBuildOptions& options,
+            std::vector<BvhNode>& nodes)
+        : prims_(prims), options_(options), nodes_(nodes) {}
+
+    void build(uint32_t node, uint32_t begin, uint32_t end, uint32_t depth);
+    const BuildStats& stats() const { return stats_; }
+
+private:
+    void makeLeaf(uint32_t node, uint32_t begin, uint32_t end, uint32_t depth);
+    // Where to split [begin, end), or 0 for a leaf. Reorders the range.
+    uint32_t split(uint32_t begin, uint32_t end, const Box& bounds, const Box& centroids);
+    uint32_t splitSah(uint32_t begin, uint32_t end, const Box& bounds, const Box& centroids);
+    uint32_t splitMedian(uint32_t begin, uint32_t end, const Box& centroids);
+
+    std::vector<PrimRef>& prims_;
+    const BvhBuildOptions& options_;
+    std::vector<BvhNode>& nodes_;
+    BuildStats stats_;
+};
+
+void Builder::makeLeaf(uint32_t node, uint32_t begin, uint32_t end, uint32_t depth) {
+    nodes_[node].leftOrFirst = begin;
+    nodes_[node].count = end - begin;
+    stats_.maxDepth = std::max(stats_.maxDepth, depth);
+    stats_.maxLeafSize = std::max(stats_.maxLeafSize, end - begin);
+}
+
+uint32_t Builder::splitMedian(uint32_t begin, uint32_t end, const Box& centroids) {
+    glm::vec3 extent = centroids.hi - centroids.lo;
+    int axis = extent.x >= extent.y ? (extent.x >= extent.z ? 0 : 2) : (extent.y >= extent.z ? 1 : 2);
+    uint32_t mid = begin + (end - begin) / 2;
+    if (extent[axis] > 0.0f) {
+        std::nth_element(prims_.begin() + begin, prims_.begin() + mid, prims_.begin() + end,
+                         [axis](const PrimRef& a, const PrimRef& b) {
+                             return centroid(a)[axis] < centroid(b)[axis];
+                         });
+    }
+    return mid;
+}
+
+uint32_t Builder::splitSah(uint32_t begin, uint32_t end, const Box& bounds, const Box& centroids) {
+    uint32_t count = end - begin;
+    struct Bin {
+        Box box;
+        uint32_t count = 0;
+    };
+    float bestCost = PV_FLOAT_MAX;
+    int bestAxis = -1;
+    int bestBin = 0;
+    glm::vec3 scale(0.0f);
+    for (int axis = 0; axis < 3; ++axis) {
+        float extent = centroids.hi[axis] - centroids.lo[axis];
+        // Zero extent: every centroid in one bin. A denormal extent can make the scale infinite.
+        float s = float(kBins) / extent;
+        if (!(extent > 0.0f) || !std::isfinite(s)) continue;
+        scale[axis] = s;
+        std::array<Bin, kBins> bins{};
+        for (uint32_t i = begin; i < end; ++i) {
+            int b = std::min(kBins - 1, int((centroid(prims_[i])[axis] - centroids.lo[axis]) * s));
+            bins[b].count++;
+            bins[b].box.grow(prims_[i].lo);
+            bins[b].box.grow(prims_[i].hi);
+        }
+        // Sweep from the right for the area·count of every suffix, then from the left.
+        std::array<float, kBins> rightCost{};
+        Box right;
+        uint32_t rightCount = 0;
+        for (int b = kBins - 1; b > 0; --b) {
+            right.grow(bins[b].box);
+            rightCount += bins[b].count;
+            rightCost[b] = rightCount ? right.halfArea() * float(rightCount) : PV_FLOAT_MAX;
+        }
+        Box left;
+        uint32_t leftCount = 0;
+        for (int b = 1; b < kBins; ++b) {
+            left.grow(bins[b - 1].box);
+            leftCount += bins[b - 1].count;
+            if (leftCount == 0 || leftCount == count) continue;
+            float cost = left.halfArea() * float(leftCount) + rightCost[b];
+            if (cost < bestCost) {
+                bestCost = cost;
+                bestAxis = axis;
+                bestBin = b;
+            }
+        }
+    }
+    if (bestAxis < 0) {
+        // All centroids equal (or too close to bin): nothing separates the triangles. A leaf if
+        // it is small enough, else halves in any order so the depth stays logarithmic.
+        return count <= options_.maxLeafSize ? 0 : begin + count / 2;
+    }
+    // Split only if it pays: Ct·A(node) + Ci·Σ A(child)·N(child) < Ci·A(node)·N, all areas
+    // un-normalised (a zero-area node then keeps its leaf while it is small enough).
+    float nodeArea = bounds.halfArea();
+    float splitCost = kTraversalCost * nodeArea + kIntersectionCost * bestCost;
+    float leafCost = kIntersectionCost * nodeArea * float(count);
+    if (count <= options_.maxLeafSize && !(splitCost < leafCost)) return 0;
+    float lo = centroids.lo[bestAxis];
+    float s = scale[bestAxis];
+    auto midIt = std::partition(prims_.begin() + begin, prims_.begin() + end,
+                                [&](const PrimRef& p) {
+                                    int b = std::min(kBins - 1, int((centroid(p)[bestAxis] - lo) * s));
+                                    return b < bestBin;
+                                });
+    uint32_t mid = uint32_t(midIt - prims_.begin());
+    // Binning and partitioning use the same expression, so both sides are non-empty.
+    if (mid == begin || mid == end) mid = begin + count / 2;
+    return mid;
+}
+
+uint32_t Builder::split(uint32_t begin, uint32_t end, const Box& bounds, const Box& centroids) {
+    uint32_t count = end - begin;
+    if (options_.split == BvhSplit::Median) {
+        return count <= options_.maxLeafSize ? 0 : splitMedian(begin, end, centroids);
+    }
+    return splitSah(begin, end, bounds, centroids);
+}
+
+void Builder::build(uint32_t node, uint32_t begin, uint32_t end, uint32_t depth) {
+    Box bounds;
+    Box centroids;
+    for (uint32_t i = begin; i < end; ++i) {
+        bounds.grow(prims_[i].lo);
+        bounds.grow(prims_[i].hi);
+        centroids.grow(centroid(prims_[i]));
+    }
+    nodes_[node].boundsMin = bounds.lo;
+    nodes_[node].boundsMax = bounds.hi;
+    uint32_t count = end - begin;
+    uint32_t mid = (count <= 1 || depth >= kMaxDepth) ? 0 : split(begin, end, bounds, centroids);
+    if (mid == 0 || mid == begin) {
+        makeLeaf(node, begin, end, depth);
+        return;
+    }
+    uint32_t left = uint32_t(nodes_.size());
+    nodes_.resize(nodes_.size() + 2);
+    nodes_[node].leftOrFirst = left;
+    nodes_[node].count = 0;
+
+    if (count < kParallelThreshold || depth >= kParallelDepth) {
+        build(left, begin, mid, depth + 1);
+        build(left + 1, mid, end, depth + 1);
+        return;
+    }
+    // Large subtree: the right child is built on another thread into its own node array (root at
+    // 0), then spliced in. The two halves touch disjoint prim ranges.
+    std::vector<BvhNode> rightNodes(1);
+    rightNodes.reserve(2 * size_t(end - mid));
+    Builder rightBuilder(prims_, options_, rightNodes);
+    std::thread worker([&] { rightBuilder.build(0, mid, end, depth + 1); });
+    build(left, begin, mid, depth + 1);
+    worker.join();
+    // Local index j >= 1 moves to base + j - 1; local 0 goes to slot left + 1.
+    uint32_t base = uint32_t(nodes_.size());
+    auto relocate = [base](BvhNode n) {
+        if (n.count == 0) n.leftOrFirst = base + n.leftOrFirst - 1;
+        return n;
+    };
+    nodes_[left + 1] = relocate(rightNodes[0]);
+    for (size_t j = 1; j < rightNodes.size(); ++j) nodes_.push_back(relocate(rightNodes[j]));
+    stats_.maxDepth = std::max(stats_.maxDepth, rightBuilder.stats().maxDepth);
+    stats_.maxLeafSize = std::max(stats_.maxLeafSize, rightBuilder.stats().maxLeafSize);
+}
+
+}  // namespace
+
+double bvhSahCost(const std::vector<BvhNode>& nodes, uint32_t root) {
+    if (root == kBvhNoRoot || root >= nodes.size()) return 0.0;
+    auto area = [&](uint32_t i) {
+        Box b{nodes[i].boundsMin, nodes[i].boundsMax};
+        return double(b.halfArea());
+    };
+    double rootArea = area(root);
+    double cost = 0.0;
+    std::vector<uint32_t> stack{root};
+    while (!stack.empty()) {
+        uint32_t i = stack.back();
+        stack.pop_back();
+        double weight = rootArea > 0.0 ? area(i) / rootArea : 1.0;
+        const BvhNode& n = nodes[i];
+        if (n.count > 0) {
+            cost += kIntersectionCost * double(n.count) * weight;
+        } else {
+            cost += kTraversalCost * weight;
+            stack.push_back(n.leftOrFirst);
+            stack.push_back(n.leftOrFirst + 1);
+        }
+    }
+    return cost;
+}
+
+Result<SceneBvh> buildSceneBvh(const Geometry& geometry, const BvhBuildOptions& options) {
+    auto start = std::chrono::steady_clock::now();
+    size_t triangleCount = geometry.triangles.size();
+    if (triangleCount >= size_t(kBvhNoRoot) / 2)
+        return makeError("scene has {} triangles; the BVH supports fewer than {}", triangleCount,
+                         kBvhNoRoot / 2);
+    if (!geometry.triangleIsReal.empty() && geometry.triangleIsReal.size() != triangleCount)
+        return makeError("geometry has {} triangles but {} real/virtual flags", triangleCount,
+                         geometry.triangleIsReal.size());
+    if (options.maxLeafSize == 0) return makeError("BVH maxLeafSize must be at least 1");
+
+    // Real triangles first, then virtual: each tree owns one contiguous prim range.
+    std::vector<PrimRef> prims(triangleCount);
+    size_t realCount = 0;
+    for (size_t i = 0; i < triangleCount; ++i)
+        realCount += geometry.triangleIsReal.empty() ? 0 : (geometry.triangleIsReal[i] != 0);
+    size_t nextReal = 0;
+    size_t nextVirtual = realCount;
+    for (size_t i = 0; i < triangleCount; ++i) {
+        const glm::uvec3& t = geometry.triangles[i];
+        PrimRef p;
+        p.triangle = uint32_t(i);
+        p.lo = glm::vec3(PV_FLOAT_MAX);
+        p.hi = glm::vec3(-PV_FLOAT_MAX);
+        for (int k = 0; k < 3; ++k) {
+            if (t[k] >= geometry.positions.size())
+                return makeError("triangle {} uses vertex {}, but there are only {} vertices", i,
+                                 t[k], geometry.positions.size());
+            glm::vec3 v = geometry.positions[t[k]];
+            if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z))
+                return makeError("triangle {} has a non-finite vertex {} ({}, {}, {}); the scene "
+                                 "loader should have rejected it",
+                                 i, t[k], v.x, v.y, v.z);
+            p.lo = glm::min(p.lo, v);
+            p.hi = glm::max(p.hi, v);
+        }
+        bool real = !geometry.triangleIsReal.empty() && geometry.triangleIsReal[i] != 0;
+        prims[real ? nextReal++ : nextVirtual++] = p;
+    }
+
+    SceneBvh bvh;
+    bvh.nodes.reserve(2 * triangleCount + 2);
+    BuildStats stats;
+    auto buildTree = [&](uint32_t begin, uint32_t end) {
+        if (begin == end) return kBvhNoRoot;
+        uint32_t root = uint32_t(bvh.nodes.size());
+        bvh.nodes.emplace_back();
+        Builder builder(prims, options, bvh.nodes);
+        builder.build(root, begin, end, 0);
+        stats.maxDepth = std::max(stats.maxDepth, builder.stats().maxDepth);
+        stats.maxLeafSize = std::max(stats.maxLeafSize, builder.stats().maxLeafSize);
+        return root;
+    };
+    bvh.realRoot = buildTree(0, uint32_t(realCount));
+    bvh.virtualRoot = buildTree(uint32_t(realCount), uint32_t(triangleCount));
+
+    bvh.triangleOrder.resize(triangleCount);
+    for (size_t i = 0; i < triangleCount; ++i) bvh.triangleOrder[i] = prims[i].triangle;
+    bvh.maxDepth = stats.maxDepth;
+    bvh.maxLeafSize = stats.maxLeafSize;
+    bvh.sahCost = bvhSahCost(bvh.nodes, bvh.realRoot) + bvhSahCost(bvh.nodes, bvh.virtualRoot);
+    bvh.buildSeconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return bvh;
+}
+
+}  // namespace previs
