@@ -119,33 +119,43 @@ uint32_t Builder::splitSah(uint32_t begin, uint32_t end, const Box& bounds, cons
     int bestAxis = -1;
     int bestBin = 0;
     glm::vec3 scale(0.0f);
+    bool active[3];
     for (int axis = 0; axis < 3; ++axis) {
         float extent = centroids.hi[axis] - centroids.lo[axis];
         // Zero extent: every centroid in one bin. A denormal extent can make the scale infinite.
         float s = float(kBins) / extent;
-        if (!(extent > 0.0f) || !std::isfinite(s)) continue;
-        scale[axis] = s;
-        std::array<Bin, kBins> bins{};
-        for (uint32_t i = begin; i < end; ++i) {
-            int b = std::min(kBins - 1, int((centroid(prims_[i])[axis] - centroids.lo[axis]) * s));
-            bins[b].count++;
-            bins[b].box.grow(prims_[i].lo);
-            bins[b].box.grow(prims_[i].hi);
+        active[axis] = extent > 0.0f && std::isfinite(s);
+        scale[axis] = active[axis] ? s : 0.0f;
+    }
+    // One pass bins all three axes (an inactive axis puts everything in bin 0, unused).
+    std::array<std::array<Bin, kBins>, 3> bins{};
+    for (uint32_t i = begin; i < end; ++i) {
+        const PrimRef& p = prims_[i];
+        glm::vec3 c = centroid(p);
+        for (int axis = 0; axis < 3; ++axis) {
+            int b = std::min(kBins - 1, int((c[axis] - centroids.lo[axis]) * scale[axis]));
+            Bin& bin = bins[axis][b];
+            bin.count++;
+            bin.box.grow(p.lo);
+            bin.box.grow(p.hi);
         }
+    }
+    for (int axis = 0; axis < 3; ++axis) {
+        if (!active[axis]) continue;
         // Sweep from the right for the area·count of every suffix, then from the left.
         std::array<float, kBins> rightCost{};
         Box right;
         uint32_t rightCount = 0;
         for (int b = kBins - 1; b > 0; --b) {
-            right.grow(bins[b].box);
-            rightCount += bins[b].count;
+            right.grow(bins[axis][b].box);
+            rightCount += bins[axis][b].count;
             rightCost[b] = rightCount ? right.halfArea() * float(rightCount) : PV_FLOAT_MAX;
         }
         Box left;
         uint32_t leftCount = 0;
         for (int b = 1; b < kBins; ++b) {
-            left.grow(bins[b - 1].box);
-            leftCount += bins[b - 1].count;
+            left.grow(bins[axis][b - 1].box);
+            leftCount += bins[axis][b - 1].count;
             if (leftCount == 0 || leftCount == count) continue;
             float cost = left.halfArea() * float(leftCount) + rightCost[b];
             if (cost < bestCost) {
