@@ -2,12 +2,18 @@
 #include <CLI/CLI.hpp>
 
 #include "base/log.h"
+#include "cli/envmap_command.h"
+#include "cli/lights_command.h"
 #include "cli/render_command.h"
+#include "cli/track_command.h"
 
 int main(int argc, char** argv) {
     CLI::App app("previs: on-set AR previsualization (differential progressive path tracing)");
     app.require_subcommand(1);
     auto runRender = previs::addRenderCommand(app);
+    auto runTrack = previs::addTrackCommand(app);
+    auto runEnvmap = previs::addEnvmapCommand(app);
+    auto runLights = previs::addLightsCommand(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
@@ -16,5 +22,8 @@ int main(int argc, char** argv) {
         return code == 0 ? 0 : 2;
     }
     if (app.got_subcommand("render")) return runRender();
+    if (app.got_subcommand("track")) return runTrack();
+    if (app.got_subcommand("envmap")) return runEnvmap();
+    if (app.got_subcommand("lights")) return runLights();
     return 2;
 }

@@ -1,0 +1,205 @@
+#include "cli/track_command.h"
+
+#include <cstdio>
+#include <optional>
+
+#include <nlohmann/json.hpp>
+#include <opencv2/core/utils/logger.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "base/log.h"
+#include "vision/board_pose.h"
+#include "vision/camera_calibration.h"
+#include "vision/tag_board.h"
+#include "vision/tag_detector.h"
+
+namespace previs {
+
+namespace {
+
+struct TrackOptions {
+    std::vector<std::string> images;
+    std::string camera;
+    std::string family = "tag36h11";
+    bool familyGiven = false;
+    std::optional<double> tagSizeM;
+    std::string board;
+    bool json = false;
+    bool quiet = false;
+    TagDetectorSettings detector;
+    int refineEdges = 1;
+};
+
+nlohmann::ordered_json matrixJson(const cv::Matx44d& m) {
+    nlohmann::ordered_json rows = nlohmann::ordered_json::array();
+    for (int r = 0; r < 4; ++r)
+        rows.push_back({m(r, 0), m(r, 1), m(r, 2), m(r, 3)});
+    return rows;
+}
+
+void printText(const std::string& image, const std::vector<TagDetection>& detections,
+               const std::vector<std::optional<cv::Matx44d>>& tagPoses,
+               const std::optional<BoardPose>& pose) {
+    std::printf("%s: %zu tag(s)\n", image.c_str(), detections.size());
+    for (size_t i = 0; i < detections.size(); ++i) {
+        const TagDetection& d = detections[i];
+        std::printf("  id %d margin %.1f corners", d.id, d.margin);
+        for (const cv::Point2d& c : d.corners) std::printf(" (%.3f, %.3f)", c.x, c.y);
+        if (tagPoses[i]) {
+            const cv::Matx44d& m = *tagPoses[i];
+            std::printf(" t=(%.4f, %.4f, %.4f) m", m(0, 3), m(1, 3), m(2, 3));
+        }
+        std::printf("\n");
+    }
+    if (pose) {
+        const cv::Matx44d& m = pose->worldFromCamera;
+        std::printf("  camera position (%.4f, %.4f, %.4f) m, reprojection %.3f px, %zu tag(s)\n",
+                    m(0, 3), m(1, 3), m(2, 3), pose->reprojErrorPx, pose->tagIds.size());
+    } else {
+        std::printf("  no camera pose\n");
+    }
+}
+
+int run(TrackOptions& o) {
+    // Our own messages name the file and the fix; OpenCV's console warnings would only repeat them.
+    cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);
+    auto calib = CameraCalibration::load(o.camera);
+    if (!calib) {
+        logError("--camera: {}", calib.message());
+        return 2;
+    }
+    std::optional<TagBoard> board;
+    if (!o.board.empty()) {
+        auto loaded = TagBoard::load(o.board);
+        if (!loaded) {
+            logError("--board: {}", loaded.message());
+            return 2;
+        }
+        board = std::move(loaded).value();
+        if (!board->family().empty()) {
+            if (o.familyGiven && board->family() != o.family) {
+                logError("--family {} disagrees with the board file {} (family = \"{}\"); drop "
+                         "--family or fix the board",
+                         o.family, o.board, board->family());
+                return 2;
+            }
+            o.family = board->family();
+        }
+    }
+    o.detector.family = o.family;
+    o.detector.refineEdges = o.refineEdges != 0;
+    auto detector = TagDetector::create(o.detector);
+    if (!detector) {
+        logError("{}", detector.message());
+        return 2;
+    }
+
+    int failures = 0;
+    for (size_t n = 0; n < o.images.size(); ++n) {
+        const std::string& path = o.images[n];
+        cv::Mat gray;
+        // imread throws on some corrupt files: caught here, at the edge.
+        try {
+            gray = cv::imread(path, cv::IMREAD_GRAYSCALE);
+        } catch (const cv::Exception& e) {
+            gray.release();
+        }
+        if (gray.empty()) {
+            logError("{}: cannot decode the image (not found, or not a format OpenCV reads)",
+                     path);
+            ++failures;
+            continue;
+        }
+        if (gray.size() != calib->imageSize())
+            logWarning("{}: image is {}x{} but {} was calibrated at {}x{}; the pose will be wrong "
+                       "unless the calibration is scaled",
+                       path, gray.cols, gray.rows, o.camera, calib->imageSize().width,
+                       calib->imageSize().height);
+        std::vector<TagDetection> detections = detector->detect(gray);
+
+        std::vector<std::optional<cv::Matx44d>> tagPoses(detections.size());
+        if (o.tagSizeM)
+            for (size_t i = 0; i < detections.size(); ++i)
+                tagPoses[i] = estimateTagPose(detections[i], *calib, *o.tagSizeM);
+
+        std::optional<BoardPose> pose;
+        if (board) {
+            pose = estimateBoardPose(detections, *board, *calib);
+        } else if (o.tagSizeM && !detections.empty()) {
+            // No board: the world is the first detected tag's frame.
+            auto single = TagBoard::create({BoardTag{detections[0].id, *o.tagSizeM}}, path);
+            if (single) {
+                std::vector<TagDetection> first{detections[0]};
+                pose = estimateBoardPose(first, *single, *calib);
+            }
+        }
+
+        if (o.json) {
+            nlohmann::ordered_json out;
+            out["image"] = path;
+            out["detections"] = nlohmann::ordered_json::array();
+            for (size_t i = 0; i < detections.size(); ++i) {
+                const TagDetection& d = detections[i];
+                nlohmann::ordered_json j;
+                j["id"] = d.id;
+                j["corners"] = nlohmann::ordered_json::array();
+                for (const cv::Point2d& c : d.corners) j["corners"].push_back({c.x, c.y});
+                j["margin"] = d.margin;
+                if (tagPoses[i]) j["cameraFromTag"] = matrixJson(*tagPoses[i]);
+                out["detections"].push_back(j);
+            }
+            if (pose) {
+                out["pose"] = {{"worldFromCamera", matrixJson(pose->worldFromCamera)},
+                               {"reprojErrorPx", pose->reprojErrorPx},
+                               {"tags", pose->tagIds}};
+            } else {
+                out["pose"] = nullptr;
+            }
+            std::printf("%s\n", out.dump().c_str());
+        } else {
+            printText(path, detections, tagPoses, pose);
+        }
+        std::fflush(stdout);
+        if (!o.quiet && o.images.size() > 1)
+            std::fprintf(stderr, "track: %zu/%zu %s\n", n + 1, o.images.size(), path.c_str());
+    }
+    return failures > 0 ? 1 : 0;
+}
+
+}  // namespace
+
+std::function<int()> addTrackCommand(CLI::App& app) {
+    auto o = std::make_shared<TrackOptions>();
+    CLI::App* cmd =
+        app.add_subcommand("track", "detect AprilTags and estimate the camera pose on images");
+    cmd->add_option("IMAGE", o->images, "images (PNG, JPEG, ...)")->required();
+    cmd->add_option("--camera", o->camera,
+                    "OpenCV calibration YAML (camera_matrix, distortion_coefficients, "
+                    "image_width, image_height[, distortion_model: fisheye])")
+        ->required()
+        ->check(CLI::ExistingFile);
+    auto* family = cmd->add_option("--family", o->family, "tag family (default tag36h11)")
+                       ->check(CLI::IsMember(supportedTagFamilies()));
+    cmd->add_option("--tag-size", o->tagSizeM,
+                    "edge of the tag's black square, metres: adds cameraFromTag per detection")
+        ->check(CLI::PositiveNumber);
+    cmd->add_option("--board", o->board, "tag board TOML (docs/board-format.md): world frame")
+        ->check(CLI::ExistingFile);
+    cmd->add_flag("--json", o->json, "one JSON object per image on stdout");
+    cmd->add_option("--decimate", o->detector.decimate,
+                    "quad_decimate (libapriltag default 2; 1 = full resolution)")
+        ->check(CLI::Range(1.0, 16.0));
+    cmd->add_option("--refine-edges", o->refineEdges, "refine_edges 0|1 (default 1)")
+        ->check(CLI::IsMember({0, 1}));
+    cmd->add_option("--sigma", o->detector.sigma, "quad_sigma: Gaussian blur, pixels (default 0)")
+        ->check(CLI::NonNegativeNumber);
+    cmd->add_option("--threads", o->detector.threads, "detector threads (default 1)")
+        ->check(CLI::Range(1, 64));
+    cmd->add_flag("--quiet", o->quiet, "no progress on stderr");
+    return [o, family] {
+        o->familyGiven = family->count() > 0;
+        return run(*o);
+    };
+}
+
+}  // namespace previs

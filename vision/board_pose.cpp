@@ -1,0 +1,154 @@
+#include "vision/board_pose.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+
+#include <opencv2/calib3d.hpp>
+
+#include "base/log.h"
+
+namespace previs {
+
+cv::Matx44d invertRigid(const cv::Matx44d& m) {
+    cv::Matx33d r = m.get_minor<3, 3>(0, 0);
+    cv::Vec3d t(m(0, 3), m(1, 3), m(2, 3));
+    cv::Matx33d rt = r.t();
+    cv::Vec3d ti = -(rt * t);
+    cv::Matx44d out = cv::Matx44d::eye();
+    for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) out(i, j) = rt(i, j);
+        out(i, 3) = ti[i];
+    }
+    return out;
+}
+
+std::optional<BoardPose> estimateBoardPose(const std::vector<TagDetection>& detections,
+                                           const TagBoard& board,
+                                           const CameraCalibration& calibration) {
+    std::map<int, int> count;
+    for (const TagDetection& d : detections) ++count[d.id];
+
+    std::vector<cv::Point3d> world;
+    std::vector<cv::Point2d> pixels;
+    std::vector<int> ids;
+    for (const TagDetection& d : detections) {
+        const BoardTag* tag = board.find(d.id);
+        if (!tag || count[d.id] != 1) continue;
+        std::array<cv::Point3d, 4> corners = board.worldCorners(*tag);
+        world.insert(world.end(), corners.begin(), corners.end());
+        pixels.insert(pixels.end(), d.corners.begin(), d.corners.end());
+        ids.push_back(d.id);
+    }
+    if (ids.empty()) return std::nullopt;
+
+    // Solve on ideal pinhole pixels (the same for both distortion models), then measure the
+    // error on the raw pixels through the full model.
+    std::vector<cv::Point2d> ideal = calibration.undistortPixels(pixels);
+    std::vector<cv::Point3d> worldUsed;
+    std::vector<cv::Point2d> idealUsed;
+    std::vector<cv::Point2d> pixelsUsed;
+    for (size_t i = 0; i < ideal.size(); ++i) {
+        if (!std::isfinite(ideal[i].x) || !std::isfinite(ideal[i].y)) continue;
+        worldUsed.push_back(world[i]);
+        idealUsed.push_back(ideal[i]);
+        pixelsUsed.push_back(pixels[i]);
+    }
+    if (worldUsed.size() < 4) return std::nullopt;
+
+    cv::Mat k(calibration.cameraMatrix());
+    cv::Vec3d rvec;
+    cv::Vec3d tvec;
+    // OpenCV throws on degenerate input (all points collinear, ...): caught here.
+    try {
+        // SQPnP: globally optimal for any point layout (coplanar boards included), no initial
+        // guess; LM then minimises the reprojection error itself.
+        if (!cv::solvePnP(worldUsed, idealUsed, k, cv::noArray(), rvec, tvec, false,
+                          cv::SOLVEPNP_SQPNP))
+            return std::nullopt;
+        cv::solvePnPRefineLM(worldUsed, idealUsed, k, cv::noArray(), rvec, tvec);
+    } catch (const cv::Exception& e) {
+        logDebug("solvePnP failed: {}", e.what());
+        return std::nullopt;
+    }
+    cv::Matx33d r;
+    cv::Rodrigues(rvec, r);
+    cv::Matx44d cameraFromWorld = cv::Matx44d::eye();
+    for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) cameraFromWorld(i, j) = r(i, j);
+        cameraFromWorld(i, 3) = tvec[i];
+    }
+    for (int i = 0; i < 16; ++i)
+        if (!std::isfinite(cameraFromWorld.val[i])) return std::nullopt;
+
+    std::vector<cv::Point3d> cameraPoints;
+    cameraPoints.reserve(worldUsed.size());
+    for (const cv::Point3d& p : worldUsed) {
+        cv::Vec3d q = r * cv::Vec3d(p.x, p.y, p.z) + tvec;
+        cameraPoints.emplace_back(q[0], q[1], q[2]);
+    }
+    std::vector<cv::Point2d> projected = calibration.projectPoints(cameraPoints);
+    double sum = 0.0;
+    for (size_t i = 0; i < projected.size(); ++i) {
+        cv::Point2d e = projected[i] - pixelsUsed[i];
+        sum += e.dot(e);
+    }
+
+    BoardPose pose;
+    pose.worldFromCamera = invertRigid(cameraFromWorld);
+    pose.reprojErrorPx = std::sqrt(sum / double(projected.size()));
+    std::sort(ids.begin(), ids.end());
+    pose.tagIds = std::move(ids);
+    return pose;
+}
+
+Tracker::Tracker(TagDetector detector, TagBoard board, CameraCalibration calibration,
+                 TrackerSettings settings)
+    : detector_(std::move(detector)),
+      board_(std::move(board)),
+      calibration_(std::move(calibration)),
+      settings_(settings) {}
+
+Result<Tracker> Tracker::create(const TagDetectorSettings& detectorSettings, TagBoard board,
+                                CameraCalibration calibration, TrackerSettings settings) {
+    Result<TagDetector> detector = TagDetector::create(detectorSettings);
+    if (!detector) return detector.error();
+    return Tracker(std::move(detector).value(), std::move(board), std::move(calibration),
+                   settings);
+}
+
+const TrackingState& Tracker::track(const cv::Mat& gray) {
+    return update(detector_.detect(gray));
+}
+
+const TrackingState& Tracker::update(const std::vector<TagDetection>& detections) {
+    std::optional<BoardPose> pose = estimateBoardPose(detections, board_, calibration_);
+    std::string reason;
+    if (!pose)
+        reason = detections.empty() ? "no tags detected" : "no tag of the board detected";
+    else if (int(pose->tagIds.size()) < settings_.minTags)
+        reason = fmt::format("{} board tag(s) seen, {} needed", pose->tagIds.size(),
+                             settings_.minTags);
+    else if (pose->reprojErrorPx > settings_.maxReprojErrorPx)
+        reason = fmt::format("reprojection error {:.2f} px over the {:.2f} px limit",
+                             pose->reprojErrorPx, settings_.maxReprojErrorPx);
+
+    if (reason.empty()) {
+        if (state_.lost && everGood_)
+            logInfo("tracking regained after {} frame(s)", state_.framesSinceGood);
+        everGood_ = true;
+        state_.pose = std::move(pose);
+        state_.lost = false;
+        state_.framesSinceGood = 0;
+        state_.reason.clear();
+    } else {
+        if (!state_.lost)
+            logWarning("tracking lost ({}); holding the last good pose", reason);
+        state_.lost = true;
+        ++state_.framesSinceGood;
+        state_.reason = std::move(reason);
+    }
+    return state_;
+}
+
+}  // namespace previs

@@ -1,0 +1,74 @@
+#pragma once
+
+// Camera pose from all visible tags of a board at once (OpenCV solvePnP + Levenberg–Marquardt
+// refinement), and a Tracker that holds the last good pose when tracking is lost.
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "base/result.h"
+#include "vision/camera_calibration.h"
+#include "vision/tag_board.h"
+#include "vision/tag_detector.h"
+
+namespace previs {
+
+struct BoardPose {
+    cv::Matx44d worldFromCamera = cv::Matx44d::eye();
+    // RMS distance between the detected corners and the board's corners projected with the pose
+    // and the full distortion model, in the image's own (distorted) pixels.
+    double reprojErrorPx = 0.0;
+    std::vector<int> tagIds;  // tags used, ascending
+};
+
+// Uses every detection whose id is on the board. An id seen twice in one image is ambiguous
+// (which one is the board's?) and is left out. nullopt: no usable tag.
+std::optional<BoardPose> estimateBoardPose(const std::vector<TagDetection>& detections,
+                                           const TagBoard& board,
+                                           const CameraCalibration& calibration);
+
+// Rigid inverse of a 4x4 [R t; 0 1].
+cv::Matx44d invertRigid(const cv::Matx44d& m);
+
+struct TrackerSettings {
+    double maxReprojErrorPx = 3.0;  // a pose worse than this is not trusted (wrong id, blur)
+    int minTags = 1;
+};
+
+struct TrackingState {
+    std::optional<BoardPose> pose;  // the last good pose (held while lost); none before the first
+    bool lost = true;               // this frame gave no trusted pose
+    uint64_t framesSinceGood = 0;   // 0 when this frame's pose is good
+    std::string reason;             // why the frame was rejected, empty when good
+};
+
+// Detection + board pose for one camera, frame after frame (the service's tracking thread).
+class Tracker {
+public:
+    static Result<Tracker> create(const TagDetectorSettings& detectorSettings, TagBoard board,
+                                  CameraCalibration calibration, TrackerSettings settings = {});
+
+    // 8-bit grey frame. Logs "tracking lost" / "tracking regained" on transitions only.
+    const TrackingState& track(const cv::Mat& gray);
+    // The same from detections made elsewhere.
+    const TrackingState& update(const std::vector<TagDetection>& detections);
+
+    const TrackingState& state() const { return state_; }
+
+private:
+    Tracker(TagDetector detector, TagBoard board, CameraCalibration calibration,
+            TrackerSettings settings);
+
+    TagDetector detector_;
+    TagBoard board_;
+    CameraCalibration calibration_;
+    TrackerSettings settings_;
+    TrackingState state_;
+    bool everGood_ = false;
+};
+
+}  // namespace previs

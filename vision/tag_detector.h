@@ -1,0 +1,85 @@
+#pragma once
+
+// AprilTag detection with Debian's libapriltag 3.3, every C handle owned by a unique_ptr.
+
+#include <array>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "base/result.h"
+
+struct apriltag_detector;
+struct apriltag_family;
+
+namespace previs {
+
+class CameraCalibration;
+
+// Defaults are libapriltag's own (apriltag_detector_create and apriltag_detector_add_family).
+struct TagDetectorSettings {
+    std::string family = "tag36h11";
+    float decimate = 2.0f;          // quad_decimate
+    float sigma = 0.0f;             // quad_sigma, Gaussian blur before segmentation, pixels
+    bool refineEdges = true;        // refine_edges
+    double decodeSharpening = 0.25; // decode_sharpening
+    int threads = 1;                // nthreads
+    int bitsCorrected = 2;          // hamming errors corrected (memory grows steeply above 2)
+};
+
+// Families Debian's libapriltag 3.3 ships.
+const std::vector<std::string>& supportedTagFamilies();
+
+struct TagDetection {
+    int id = -1;
+    int hamming = 0;
+    double margin = 0.0;  // decision_margin
+    // Exactly apriltag_detection_t::p: pixel coordinates (x = column, y = row, origin at the top
+    // left pixel's top-left corner as libapriltag counts it), counter-clockwise around the tag.
+    std::array<cv::Point2d, 4> corners;
+};
+
+// Owners of libapriltag's handles (outside TagDetector: a nested class's default member
+// initialisers are not usable until the enclosing class is complete).
+struct TagFamilyDeleter {
+    void (*destroy)(apriltag_family*) = nullptr;
+    void operator()(apriltag_family* family) const;
+};
+struct TagDetectorDeleter {
+    void operator()(apriltag_detector* detector) const;
+};
+
+class TagDetector {
+public:
+    static Result<TagDetector> create(const TagDetectorSettings& settings);
+    TagDetector(TagDetector&&) noexcept;
+    TagDetector& operator=(TagDetector&&) noexcept;
+    ~TagDetector();
+
+    // 8-bit single-channel image (any stride). Not reentrant: one detector per thread.
+    std::vector<TagDetection> detect(const cv::Mat& gray);
+
+    const TagDetectorSettings& settings() const { return settings_; }
+
+private:
+    TagDetector() = default;
+
+    TagDetectorSettings settings_;
+    // Declared before the detector, so the detector that refers to it is destroyed first.
+    std::unique_ptr<apriltag_family, TagFamilyDeleter> family_;
+    std::unique_ptr<apriltag_detector, TagDetectorDeleter> detector_;
+};
+
+// The tag's pose in the camera frame from libapriltag's estimate_tag_pose (tag frame as it
+// defines it: origin at the tag centre, x right, y down, z into the tag, for corner 0 at
+// (-s/2, s/2, 0)). Returns nullopt when the corners cannot be undistorted (behind a fisheye).
+std::optional<cv::Matx44d> estimateTagPose(const TagDetection& detection,
+                                           const CameraCalibration& calibration, double tagSizeM);
+
+// The four corners in the tag frame of estimateTagPose, in the order of TagDetection::corners.
+std::array<cv::Point3d, 4> tagCornersInTagFrame(double tagSizeM);
+
+}  // namespace previs
