@@ -1,0 +1,97 @@
+#include "vision/inverse_tone_map.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "base/log.h"
+
+namespace previs {
+
+namespace {
+
+float rec709Luminance(float r, float g, float b) { return 0.2126f * r + 0.7152f * g + 0.0722f * b; }
+
+// Linear display values (after the sRGB decode) → radiance.
+inline void untonemap(float rgb[3], const InverseToneMapSettings& s, float exposureScale) {
+    if (s.op == InverseToneMapOperator::Reinhard) {
+        // Forward: rgb_d = rgb / (1 + L) with L the luminance of rgb, so L_d = L / (1 + L) and
+        // rgb = rgb_d / (1 − L_d).
+        float ld = rec709Luminance(rgb[0], rgb[1], rgb[2]);
+        ld = std::clamp(ld, 0.0f, s.maxDisplayLuminance);
+        const float k = 1.0f / (1.0f - ld);
+        for (int c = 0; c < 3; ++c) rgb[c] *= k;
+    }
+    for (int c = 0; c < 3; ++c) rgb[c] *= exposureScale * s.whiteBalance[c];
+}
+
+inline float sanitize(float v) { return std::isfinite(v) ? std::clamp(v, 0.0f, 1.0f) : 0.0f; }
+
+}  // namespace
+
+std::optional<InverseToneMapOperator> parseInverseToneMapOperator(const std::string& name) {
+    // "clamp" is the forward operator's name in render/tonemap.h: its inverse is the sRGB decode.
+    if (name == "srgb" || name == "clamp") return InverseToneMapOperator::Srgb;
+    if (name == "reinhard") return InverseToneMapOperator::Reinhard;
+    return std::nullopt;
+}
+
+float srgbDecode(float encoded) {
+    if (!(encoded > 0.0f)) return 0.0f;
+    if (encoded <= 0.04045f) return encoded / 12.92f;
+    return std::pow((std::min(encoded, 1.0f) + 0.055f) / 1.055f, 2.4f);
+}
+
+std::array<float, 3> inverseToneMapRgb(const std::array<float, 3>& encoded,
+                                       const InverseToneMapSettings& settings) {
+    float rgb[3];
+    for (int c = 0; c < 3; ++c) rgb[c] = srgbDecode(sanitize(encoded[c]));
+    untonemap(rgb, settings, std::exp2(-settings.exposureStops));
+    return {rgb[0], rgb[1], rgb[2]};
+}
+
+ImageF inverseToneMap(const ImageF& image, const InverseToneMapSettings& settings) {
+    if (!image.ldrSrgb) return image;
+    ImageF out;
+    out.width = image.width;
+    out.height = image.height;
+    out.channels = image.channels == 4 ? 4 : 3;
+    out.ldrSrgb = false;
+    const size_t n = size_t(image.width) * image.height;
+    out.pixels.resize(n * out.channels);
+    const float exposureScale = std::exp2(-settings.exposureStops);
+    for (size_t i = 0; i < n; ++i) {
+        const float* p = image.pixels.data() + i * image.channels;
+        float rgb[3];
+        for (int c = 0; c < 3; ++c)
+            rgb[c] = srgbDecode(sanitize(p[image.channels >= 3 ? c : 0]));
+        untonemap(rgb, settings, exposureScale);
+        float* q = out.pixels.data() + i * out.channels;
+        q[0] = rgb[0];
+        q[1] = rgb[1];
+        q[2] = rgb[2];
+        if (out.channels == 4) q[3] = sanitize(p[3]);
+    }
+    return out;
+}
+
+cv::Mat inverseToneMapRgb8(const cv::Mat& rgb8, const InverseToneMapSettings& settings) {
+    PV_ASSERT(rgb8.type() == CV_8UC3);
+    float table[256];
+    for (int i = 0; i < 256; ++i) table[i] = srgbDecode(float(i) / 255.0f);
+    const float exposureScale = std::exp2(-settings.exposureStops);
+    cv::Mat out(rgb8.size(), CV_32FC3);
+    for (int y = 0; y < rgb8.rows; ++y) {
+        const uint8_t* in = rgb8.ptr<uint8_t>(y);
+        float* o = out.ptr<float>(y);
+        for (int x = 0; x < rgb8.cols; ++x) {
+            float rgb[3] = {table[in[3 * x]], table[in[3 * x + 1]], table[in[3 * x + 2]]};
+            untonemap(rgb, settings, exposureScale);
+            o[3 * x] = rgb[0];
+            o[3 * x + 1] = rgb[1];
+            o[3 * x + 2] = rgb[2];
+        }
+    }
+    return out;
+}
+
+}  // namespace previs
