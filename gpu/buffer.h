@@ -20,8 +20,8 @@ public:
     // size 0 is allowed (an empty scene array): a 16-byte buffer is created so it can be bound.
     static Result<GpuBuffer> create(GpuContext& ctx, size_t sizeBytes, const char* label);
 
-    template <typename T>
-    static Result<GpuBuffer> createWith(GpuContext& ctx, std::span<const T> data,
+    template <typename T, size_t N>
+    static Result<GpuBuffer> createWith(GpuContext& ctx, std::span<T, N> data,
                                         const char* label) {
         auto buffer = create(ctx, data.size_bytes(), label);
         if (!buffer) return buffer;

@@ -61,6 +61,9 @@ public:
                   const std::function<void(const RenderProgress&)>& progress = {});
     // Clears the accumulation (refinement restarts at sample 0).
     Status reset();
+    // Selects another random sequence (takes effect with the next render; call reset() first
+    // unless the new samples are meant to join the old ones).
+    void setSeed(uint32_t seed) { params_.seed = seed; }
 
     // The mean radiance per pixel so far (RGB, linear).
     Result<ImageF> image() const;

@@ -3,6 +3,7 @@
 // HDR → 8-bit display: exposure, then a global operator, then the sRGB transfer function.
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
