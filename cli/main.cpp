@@ -2,6 +2,7 @@
 #include <CLI/CLI.hpp>
 
 #include "base/log.h"
+#include "cli/bench_command.h"
 #include "cli/envmap_command.h"
 #include "cli/lights_command.h"
 #include "cli/render_command.h"
@@ -14,6 +15,7 @@ int main(int argc, char** argv) {
     auto runTrack = previs::addTrackCommand(app);
     auto runEnvmap = previs::addEnvmapCommand(app);
     auto runLights = previs::addLightsCommand(app);
+    auto runBench = previs::addBenchCommand(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
@@ -25,5 +27,6 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("track")) return runTrack();
     if (app.got_subcommand("envmap")) return runEnvmap();
     if (app.got_subcommand("lights")) return runLights();
+    if (app.got_subcommand("bench")) return runBench();
     return 2;
 }

@@ -117,7 +117,11 @@ def sphere(r, rings=24, segments=48):
         for j in range(segments):
             a = i * (segments + 1) + j
             b = a + segments + 1
-            idx += [a, a + 1, b, a + 1, b + 1, b]
+            # The first and last rings meet at the poles: one triangle per quad there.
+            if i != 0:
+                idx += [a, a + 1, b]
+            if i != rings - 1:
+                idx += [a + 1, b + 1, b]
     return pos, nrm, idx
 
 

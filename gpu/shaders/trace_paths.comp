@@ -295,15 +295,16 @@ vec3 sampleDirectLight(Surface s, BsdfParams bp, Frame frame, vec3 wo, inout uin
     vec3 result = vec3(0.0);
     if (kHasEnv && params.envWidth > 0u) {
         float envPdfValue;
-        vec3 wi = envSample(rngNext2(rng), params.envWidth, params.envHeight, params.envRotationRad,
-                            envPdfValue);
+        uint texel;
+        vec3 wi = envSampleTexel(rngNext2(rng), params.envWidth, params.envHeight,
+                                 params.envRotationRad, envPdfValue, texel);
         vec3 wiLocal = toLocal(frame, wi);
         if (envPdfValue > 0.0 && consistentSide(s, wi, wiLocal)) {
             float bsdfPdf;
             vec3 f = evaluateBsdf(bp, wo, wiLocal, bsdfPdf);
             if (maxComponent(f) > 0.0 && !rayOccluded(s.position, s.geometricNormal, wi)) {
-                vec3 le = params.envScale *
-                          envRadiance(wi, params.envWidth, params.envHeight, params.envRotationRad);
+                // The sampled texel's radiance (see envSampleTexel).
+                vec3 le = params.envScale * envRadianceTexels[texel];
                 result += f * abs(wiLocal.z) * le * powerHeuristic(envPdfValue, bsdfPdf) / envPdfValue;
             }
         }

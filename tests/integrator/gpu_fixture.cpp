@@ -21,8 +21,10 @@ void GpuTest::SetUp() {
 }
 
 void GpuTest::TearDown() {
-    if (context_) EXPECT_EQ(context_->validationErrorCount(), errorsAtStart_)
-        << "Vulkan validation errors (see the log above)";
+    if (context_) {
+        EXPECT_EQ(context_->validationErrorCount(), errorsAtStart_)
+            << "Vulkan validation errors (see the log above)";
+    }
 }
 
 ImageF GpuTest::render(const Scene& scene, const RenderSettings& settings, uint32_t spp) {
@@ -33,7 +35,9 @@ ImageF GpuTest::render(const Scene& scene, const RenderSettings& settings, uint3
     EXPECT_TRUE(s.ok()) << s.message();
     auto nonFinite = (*renderer)->nonFiniteSamples();
     EXPECT_TRUE(nonFinite.ok());
-    if (nonFinite) EXPECT_EQ(*nonFinite, 0u) << "NaN/Inf samples";
+    if (nonFinite) {
+        EXPECT_EQ(*nonFinite, 0u) << "NaN/Inf samples";
+    }
     auto image = (*renderer)->image();
     EXPECT_TRUE(image.ok()) << image.message();
     if (!image) return {};
@@ -46,10 +50,25 @@ ImageF GpuTest::render(const Scene& scene, const RenderSettings& settings, uint3
 
 GpuTest::Estimate GpuTest::estimate(const Scene& scene, RenderSettings settings, uint32_t spp,
                                     uint32_t runs) {
+    // One renderer (one pipeline compile), re-seeded for each independent run.
     std::vector<ImageF> images;
+    auto renderer = Renderer::create(*context_, scene, settings);
+    EXPECT_TRUE(renderer.ok()) << renderer.message();
+    if (!renderer) return {};
     for (uint32_t r = 0; r < runs; ++r) {
-        settings.seed = 1000 + r;
-        images.push_back(render(scene, settings, spp));
+        Renderer& rr = **renderer;
+        EXPECT_TRUE(rr.reset().ok());
+        rr.setSeed(1000 + r);
+        Status s = rr.render(spp);
+        EXPECT_TRUE(s.ok()) << s.message();
+        auto nonFinite = rr.nonFiniteSamples();
+        if (nonFinite) {
+            EXPECT_EQ(*nonFinite, 0u) << "NaN/Inf samples";
+        }
+        auto image = rr.image();
+        EXPECT_TRUE(image.ok());
+        if (!image) return {};
+        images.push_back(std::move(image.value()));
     }
     Estimate e;
     e.mean = images[0];

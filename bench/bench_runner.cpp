@@ -1,0 +1,201 @@
+#include "bench/bench_runner.h"
+
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <vector>
+
+#include "base/log.h"
+#include "bench/bench_scenes.h"
+#include "gpu/context.h"
+#include "render/renderer.h"
+
+namespace previs::bench {
+
+namespace {
+
+double peakRssMiB() {
+    rusage usage{};
+    getrusage(RUSAGE_SELF, &usage);
+    return double(usage.ru_maxrss) / 1024.0;
+}
+
+double median(std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    size_t n = v.size();
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+struct Measurement {
+    double seconds = 0.0;      // median wall time of `spp` samples per pixel
+    double gpuMs = 0.0;        // median GPU (timestamp) time of the same
+    double pathsPerSecond = 0.0;
+    double raysPerSecond = 0.0;
+    double bvhSeconds = 0.0;
+    double sahCost = 0.0;
+    size_t triangles = 0;
+};
+
+// Builds a renderer (BVH, upload, pipeline), renders one warm-up sample, then times `spp`
+// samples per pixel `reps` times.
+Result<Measurement> measure(GpuContext& ctx, const Scene& scene, RenderSettings settings,
+                            uint32_t spp, int reps) {
+    auto renderer = Renderer::create(ctx, scene, settings);
+    if (!renderer) return renderer.error();
+    Renderer& r = **renderer;
+    if (Status s = r.render(1); !s) return s.error();
+    std::vector<double> wall, gpu, rays;
+    for (int i = 0; i < reps; ++i) {
+        if (Status s = r.reset(); !s) return s.error();
+        double gpuBefore = r.gpuMilliseconds();
+        auto start = std::chrono::steady_clock::now();
+        if (Status s = r.render(spp); !s) return s.error();
+        wall.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+        gpu.push_back(r.gpuMilliseconds() - gpuBefore);
+        auto traced = r.raysTraced();
+        rays.push_back(traced ? double(*traced) : 0.0);
+    }
+    Measurement m;
+    m.seconds = median(wall);
+    m.gpuMs = median(gpu);
+    double paths = double(settings.width) * settings.height * spp;
+    m.pathsPerSecond = paths / m.seconds;
+    m.raysPerSecond = median(rays) / m.seconds;
+    m.bvhSeconds = r.bvh().buildSeconds;
+    m.sahCost = r.bvh().sahCost;
+    m.triangles = scene.geometry.triangles.size();
+    return m;
+}
+
+std::string millions(double v) { return fmt::format("{:.2f} M", v * 1e-6); }
+
+}  // namespace
+
+int runBenchmarks(const BenchOptions& o) {
+    auto ctx = GpuContext::create({});
+    if (!ctx) {
+        logError("{}", ctx.message());
+        return 1;
+    }
+    const int reps = o.quick ? 1 : o.repetitions;
+    const uint32_t spp = o.quick ? 1 : o.spp;
+    const std::string env = o.dataDir + "/envmaps/polyhaven_1k_hdr/rooitou_park_1k.hdr";
+    auto want = [&](const char* section) { return o.only.empty() || o.only == section; };
+    std::printf("Device: %s. Timings are medians of %d run(s); paths = pixels × spp.\n\n",
+                (*ctx)->deviceName().c_str(), reps);
+
+    auto fail = [](const Error& e) {
+        logError("{}", e.message);
+        return 1;
+    };
+
+    std::vector<std::pair<std::string, Scene>> scenes;
+    auto loadMesh = [&](const std::string& name) { return readPly(o.dataDir + "/meshes/" + name); };
+
+    if (want("throughput")) {
+        std::printf("## Throughput, 640×480, %u spp, environment map, max depth 8\n\n", spp);
+        std::printf("| scene | triangles | BVH build | SAH cost | ms / spp | paths/s | rays/s | "
+                    "peak RSS |\n|---|---|---|---|---|---|---|---|\n");
+        auto bunny = bunnyScene(o.dataDir, env);
+        if (!bunny) return fail(bunny.error());
+        auto dragon = loadMesh("dragon_vrip_res2.ply");
+        if (!dragon) return fail(dragon.error());
+        Scene bigDragon = meshOnPlaneScene(subdivide(*dragon), env, 0.3f);
+        std::pair<const char*, const Scene*> list[] = {{"bunny on a plane", &bunny.value()},
+                                                       {"dragon ×4 subdivided", &bigDragon}};
+        for (auto [name, scene] : list) {
+            RenderSettings rs;
+            rs.width = 640;
+            rs.height = 480;
+            rs.maxDepth = 8;
+            fmt::print(stderr, "bench: throughput {}\n", name);
+            auto m = measure(**ctx, *scene, rs, spp, reps);
+            if (!m) return fail(m.error());
+            std::printf("| %s | %zu | %.3f s | %.1f | %.1f | %s | %s | %.0f MiB |\n", name,
+                        m->triangles, m->bvhSeconds, m->sahCost, m->seconds * 1e3 / spp,
+                        millions(m->pathsPerSecond).c_str(), millions(m->raysPerSecond).c_str(),
+                        peakRssMiB());
+            std::fflush(stdout);
+        }
+        std::printf("\n");
+    }
+
+    if (want("resolution")) {
+        auto mesh = loadMesh("dragon_vrip_res3.ply");
+        if (!mesh) return fail(mesh.error());
+        Scene scene = meshOnPlaneScene(*mesh, env, 0.3f);
+        std::printf("## Rendering time against resolution (paper's figure 4): %zu triangles, "
+                    "1 spp, max depth 4\n\n| resolution | ms / frame | GPU ms | paths/s |\n"
+                    "|---|---|---|---|\n",
+                    scene.geometry.triangles.size());
+        for (auto [w, h] : {std::pair{320u, 240u}, {640u, 480u}, {800u, 600u}, {1280u, 720u},
+                            {1920u, 1080u}}) {
+            RenderSettings rs;
+            rs.width = w;
+            rs.height = h;
+            rs.maxDepth = 4;
+            fmt::print(stderr, "bench: resolution {}x{}\n", w, h);
+            auto m = measure(**ctx, scene, rs, 1, reps);
+            if (!m) return fail(m.error());
+            std::printf("| %u×%u | %.1f | %.1f | %s |\n", w, h, m->seconds * 1e3, m->gpuMs,
+                        millions(m->pathsPerSecond).c_str());
+            std::fflush(stdout);
+        }
+        std::printf("\n");
+    }
+
+    if (want("triangles")) {
+        std::printf("## Rendering time against triangle count: 640×480, %u spp, max depth 4\n\n"
+                    "| mesh | triangles | BVH build | ms / spp | paths/s | rays/s |\n"
+                    "|---|---|---|---|---|---|\n", spp);
+        for (const char* name : {"teapot_newell.ply", "dragon_vrip_res4.ply", "dragon_vrip_res3.ply",
+                                 "stanford_bunny.ply", "dragon_vrip_res2.ply", "dragon ×4"}) {
+            bool subdivided = std::string(name) == "dragon ×4";
+            auto mesh = loadMesh(subdivided ? "dragon_vrip_res2.ply" : name);
+            if (!mesh) return fail(mesh.error());
+            Scene scene = meshOnPlaneScene(subdivided ? subdivide(*mesh) : *mesh, env, 0.3f);
+            RenderSettings rs;
+            rs.width = 640;
+            rs.height = 480;
+            rs.maxDepth = 4;
+            fmt::print(stderr, "bench: triangles {}\n", name);
+            auto m = measure(**ctx, scene, rs, spp, reps);
+            if (!m) return fail(m.error());
+            std::printf("| %s | %zu | %.3f s | %.1f | %s | %s |\n", name, m->triangles,
+                        m->bvhSeconds, m->seconds * 1e3 / spp, millions(m->pathsPerSecond).c_str(),
+                        millions(m->raysPerSecond).c_str());
+            std::fflush(stdout);
+        }
+        std::printf("\n");
+    }
+
+    if (want("specialisation")) {
+        auto bunny = bunnyScene(o.dataDir, env);
+        if (!bunny) return fail(bunny.error());
+        std::printf("## Specialised against general pipeline: the Lambertian bunny scene, "
+                    "640×480, %u spp, max depth 8\n\n| pipeline | ms / spp | paths/s |\n"
+                    "|---|---|---|\n", spp);
+        double times[2] = {};
+        for (int general = 0; general < 2; ++general) {
+            RenderSettings rs;
+            rs.width = 640;
+            rs.height = 480;
+            rs.maxDepth = 8;
+            rs.generalPipeline = general == 1;
+            fmt::print(stderr, "bench: {} pipeline\n", general ? "general" : "specialised");
+            auto m = measure(**ctx, *bunny, rs, spp, reps);
+            if (!m) return fail(m.error());
+            times[general] = m->seconds;
+            std::printf("| %s | %.1f | %s |\n", general ? "general (every feature compiled in)"
+                                                        : "specialised (environment only)",
+                        m->seconds * 1e3 / spp, millions(m->pathsPerSecond).c_str());
+        }
+        std::printf("\nGeneral / specialised time: %.2f×\n\n", times[1] / times[0]);
+    }
+    std::printf("Peak resident memory of the whole run: %.0f MiB\n", peakRssMiB());
+    return 0;
+}
+
+}  // namespace previs::bench

@@ -1,0 +1,21 @@
+#pragma once
+
+// `previs bench`: paths and rays per second, BVH build time and memory, scaling with resolution
+// and triangle count, and the saving of the specialised pipeline. Prints a Markdown report.
+
+#include <string>
+
+namespace previs::bench {
+
+struct BenchOptions {
+    std::string dataDir;     // ../shared/data
+    bool quick = false;      // one repetition, fewer samples: a smoke run
+    int repetitions = 3;     // timings are medians over this many runs
+    uint32_t spp = 8;        // samples per pixel of the throughput runs
+    std::string only;        // run one section: throughput, resolution, triangles, specialisation
+};
+
+// Returns the process exit code; writes the report to stdout, progress to stderr.
+int runBenchmarks(const BenchOptions& options);
+
+}  // namespace previs::bench

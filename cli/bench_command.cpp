@@ -1,0 +1,26 @@
+#include "cli/bench_command.h"
+
+#include <memory>
+
+#include "bench/bench_runner.h"
+
+namespace previs {
+
+std::function<int()> addBenchCommand(CLI::App& app) {
+    auto o = std::make_shared<bench::BenchOptions>();
+    o->dataDir = PREVIS_DEFAULT_DATA_DIR;
+    CLI::App* cmd = app.add_subcommand(
+        "bench", "speed measurements: paths/s, rays/s, BVH build, scaling (Markdown on stdout)");
+    cmd->add_option("--data", o->dataDir, "test data folder (default: ../shared/data)")
+        ->check(CLI::ExistingDirectory);
+    cmd->add_flag("--quick", o->quick, "one repetition at 1 spp: a smoke run");
+    cmd->add_option("--repetitions", o->repetitions, "timings are medians over this many runs")
+        ->check(CLI::Range(1, 100));
+    cmd->add_option("--spp", o->spp, "samples per pixel of the throughput runs")
+        ->check(CLI::Range(1, 4096));
+    cmd->add_option("--only", o->only, "one section")
+        ->check(CLI::IsMember({"throughput", "resolution", "triangles", "specialisation"}));
+    return [o] { return bench::runBenchmarks(*o); };
+}
+
+}  // namespace previs
