@@ -94,6 +94,7 @@ Result<std::unique_ptr<Renderer>> Renderer::create(GpuContext& ctx, const Scene&
     SceneFeatures spec = r->features_;
     if (settings.generalPipeline) spec = SceneFeatures{true, true, true, true, true, true, true};
     std::array<uint32_t, PV_SPEC_COUNT> constants{};
+    constants[PV_SPEC_DIFFERENTIAL] = settings.differential;
     constants[PV_SPEC_HAS_ENV] = spec.environment;
     constants[PV_SPEC_HAS_EMISSIVE] = spec.emissive;
     constants[PV_SPEC_HAS_PUNCTUAL] = spec.punctual;
@@ -163,6 +164,7 @@ Status Renderer::buildScene(const Scene& scene) {
         gl.type = l.type == LightType::Point ? PV_LIGHT_POINT
                   : l.type == LightType::Spot ? PV_LIGHT_SPOT
                                               : PV_LIGHT_DIRECTIONAL;
+        if (l.isReal) gl.type |= PV_LIGHT_REAL;
         gl.direction = glm::normalize(l.direction);
         gl.intensity = l.color * l.intensity;
         gl.cosInnerCone = std::cos(l.innerConeAngleRad);
@@ -230,6 +232,9 @@ Status Renderer::buildScene(const Scene& scene) {
     }
     p.fireflyClamp = settings_.fireflyClamp;
     p.rouletteStartDepth = settings_.rouletteStartDepth;
+    // The BVH puts real triangles first.
+    p.realTriangleCount = uint32_t(
+        std::count(g.triangleIsReal.begin(), g.triangleIsReal.end(), uint8_t(1)));
 
     size_t pixels = size_t(settings_.width) * settings_.height;
     buffers_.clear();
@@ -258,9 +263,9 @@ Status Renderer::buildScene(const Scene& scene) {
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(envDist.marginalCdf), "envMarginal")))) return s;
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(envDist.conditionalCdf), "envConditional"))))
         return s;
-    if (!(s = add(GpuBuffer::create(*ctx_, pixels * sizeof(glm::vec4), "accumSum")))) return s;
-    if (!(s = add(GpuBuffer::create(*ctx_, pixels * sizeof(glm::vec4), "accumCompensation"))))
-        return s;
+    size_t accumBytes = pixels * PV_ACCUM_COUNT * sizeof(glm::vec4);
+    if (!(s = add(GpuBuffer::create(*ctx_, accumBytes, "accumSum")))) return s;
+    if (!(s = add(GpuBuffer::create(*ctx_, accumBytes, "accumCompensation")))) return s;
     if (!(s = add(GpuBuffer::create(*ctx_, sizeof(shader::RenderStats), "stats")))) return s;
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(triangleLightPdf), "triangleLightPdf"))))
         return s;
@@ -299,22 +304,52 @@ Status Renderer::render(uint32_t samples,
     return {};
 }
 
-Result<ImageF> Renderer::image() const {
+Status Renderer::setPlate(const ImageF& plate) {
+    if (plate.width != settings_.width || plate.height != settings_.height || plate.channels < 3)
+        return makeError("the plate is {}x{} with {} channel(s); the render is {}x{} and needs "
+                         "RGB (render at the plate's resolution)", plate.width, plate.height,
+                         plate.channels, settings_.width, settings_.height);
+    plate_ = plate;
+    return {};
+}
+
+Result<ImageF> Renderer::image(Aov aov) const {
     size_t pixels = size_t(settings_.width) * settings_.height;
-    std::vector<glm::vec4> sum(pixels), comp(pixels);
-    if (Status s = buffers_[PV_BINDING_ACCUM_SUM].download(sum.data(), pixels * 16); !s)
+    std::vector<glm::vec4> sum(pixels * PV_ACCUM_COUNT), comp(pixels * PV_ACCUM_COUNT);
+    size_t bytes = sum.size() * sizeof(glm::vec4);
+    if (Status s = buffers_[PV_BINDING_ACCUM_SUM].download(sum.data(), bytes); !s)
         return s.error();
-    if (Status s = buffers_[PV_BINDING_ACCUM_COMPENSATION].download(comp.data(), pixels * 16); !s)
+    if (Status s = buffers_[PV_BINDING_ACCUM_COMPENSATION].download(comp.data(), bytes); !s)
         return s.error();
     ImageF img;
     img.width = settings_.width;
     img.height = settings_.height;
-    img.channels = 3;
-    img.pixels.resize(pixels * 3);
+    img.channels = aov == Aov::Mask ? 1 : 3;
+    img.pixels.resize(pixels * img.channels);
     double inv = samples_ > 0 ? 1.0 / double(samples_) : 0.0;
+    // The mean of a compensated sum: (sum − compensation) / n, in double.
+    auto mean = [&](size_t i, uint32_t k, int c) {
+        size_t at = i * PV_ACCUM_COUNT + k;
+        return (double(sum[at][c]) - double(comp[at][c])) * inv;
+    };
+    bool withPlate = aov == Aov::Composite && plate_ && settings_.differential;
     for (size_t i = 0; i < pixels; ++i) {
-        for (int c = 0; c < 3; ++c)
-            img.pixels[i * 3 + c] = float((double(sum[i][c]) - double(comp[i][c])) * inv);
+        if (aov == Aov::Mask) {
+            img.pixels[i] = float(mean(i, PV_ACCUM_COMPOSITE, 3));
+            continue;
+        }
+        uint32_t k = aov == Aov::Real ? PV_ACCUM_REAL
+                     : aov == Aov::Mixed || !withPlate ? PV_ACCUM_MIXED
+                                                       : PV_ACCUM_COMPOSITE;
+        double plateWeight = withPlate ? 1.0 - mean(i, PV_ACCUM_COMPOSITE, 3) : 0.0;
+        for (int c = 0; c < 3; ++c) {
+            double v = mean(i, k, c);
+            // Eq. 1 averaged over the pixel's samples: mean(M·L_om + (1−M)(L_om − L_or)) plus
+            // (1 − mean M)·L_oc. Where no sample met a virtual object this is 0 + 1·L_oc: the
+            // plate, bit for bit.
+            if (withPlate) v += plateWeight * double(plate_->pixels[i * plate_->channels + c]);
+            img.pixels[i * 3 + c] = float(v);
+        }
     }
     return img;
 }

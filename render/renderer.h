@@ -31,6 +31,17 @@ struct RenderSettings {
     float fireflyClamp = 0.0f;         // 0 = off (default): no hidden clamping
     uint32_t samplesPerDispatch = 1;   // paths per pixel in one GPU dispatch
     bool generalPipeline = false;      // run every feature's code (benchmarks the saving)
+    // Differential rendering (the paper): also compute the real-only solution L_or in the same
+    // pass, for compositing with the camera image. Off: a plain CG render of the mixed scene.
+    bool differential = false;
+};
+
+// The buffers a render produces (DESIGN.md §3 --aov).
+enum class Aov {
+    Composite,  // Eq. 1 with the plate; without a plate the mixed scene
+    Mixed,      // L_om: real phantoms and virtual objects
+    Real,       // L_or: phantoms only (differential renders)
+    Mask,       // fraction of camera samples whose first hit is virtual (one channel)
 };
 
 // What the scene uses; each off feature is compiled out of the pipeline.
@@ -65,8 +76,12 @@ public:
     // unless the new samples are meant to join the old ones).
     void setSeed(uint32_t seed) { params_.seed = seed; }
 
-    // The mean radiance per pixel so far (RGB, linear).
-    Result<ImageF> image() const;
+    // The camera image L_oc in linear radiance, at the render's resolution (no resampling:
+    // primary rays follow the camera's lens model instead). Used by Aov::Composite.
+    Status setPlate(const ImageF& plate);
+
+    // The mean per pixel so far (RGB linear; the mask one channel).
+    Result<ImageF> image(Aov aov = Aov::Composite) const;
 
     uint64_t samplesPerPixel() const { return samples_; }
     const SceneFeatures& features() const { return features_; }
@@ -91,6 +106,7 @@ private:
     shader::FrameParams params_{};
     std::vector<GpuBuffer> buffers_;  // indexed by PV_BINDING_*
     std::optional<ComputePipeline> pipeline_;
+    std::optional<ImageF> plate_;
     uint64_t samples_ = 0;
     double gpuMs_ = 0.0;
 };

@@ -141,7 +141,7 @@ private:
     Status loadPrimitive(const tinygltf::Mesh& mesh, int meshIndex, size_t primIndex,
                          const glm::mat4& worldFromMesh, bool real);
     Status loadCamera(const tinygltf::Node& node, const glm::mat4& world);
-    Status loadLight(const tinygltf::Node& node, const glm::mat4& world);
+    Status loadLight(const tinygltf::Node& node, const glm::mat4& world, bool real);
 
     // Reads `count` elements of `components` floats (float, or normalized unsigned integer types
     // when allowNormalized) or of 1 unsigned integer (indices).
@@ -486,7 +486,7 @@ Status Loader::visitNode(int nodeIndex, const glm::mat4& parentWorld, bool paren
         if (Status s = loadCamera(node, world); !s) return s;
     }
     if (findExtension(node.extensions, "KHR_lights_punctual")) {
-        if (Status s = loadLight(node, world); !s) return s;
+        if (Status s = loadLight(node, world, real); !s) return s;
     }
     for (int child : node.children) {
         if (Status s = visitNode(child, world, real, depth + 1); !s) return s;
@@ -744,7 +744,7 @@ Status Loader::loadCamera(const tinygltf::Node& node, const glm::mat4& world) {
     return {};
 }
 
-Status Loader::loadLight(const tinygltf::Node& node, const glm::mat4& world) {
+Status Loader::loadLight(const tinygltf::Node& node, const glm::mat4& world, bool real) {
     const tinygltf::Value* ext = findExtension(node.extensions, "KHR_lights_punctual");
     const tinygltf::Value* index = ext ? findPath(*ext, {"light"}) : nullptr;
     if (!index || !index->IsNumber())
@@ -774,6 +774,7 @@ Status Loader::loadLight(const tinygltf::Node& node, const glm::mat4& world) {
     if (!std::isfinite(light.intensity) || light.intensity < 0.0f ||
         !std::isfinite(light.color.r + light.color.g + light.color.b))
         return fail("light '{}' has an invalid colour or intensity", light.name);
+    light.isReal = real;
     scene_.lights.push_back(light);
     return {};
 }

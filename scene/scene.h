@@ -63,6 +63,9 @@ struct PunctualLight {
     float innerConeAngleRad = 0.0f;
     float outerConeAngleRad = 0.7853981633974483f;
     float range = 0.0f;                      // 0 = infinite
+    // A light of the real set (its node's role is real): it lights both solutions of
+    // differential rendering. Otherwise a virtual (artistic) light: the mixed solution only.
+    bool isReal = false;
 };
 
 struct Camera {

@@ -18,6 +18,7 @@ layout(constant_id = PV_SPEC_HAS_SPECULAR) const bool kHasSpecular = true;
 layout(constant_id = PV_SPEC_HAS_TRANSMISSION) const bool kHasTransmission = true;
 layout(constant_id = PV_SPEC_HAS_THIN_LENS) const bool kHasThinLens = true;
 layout(constant_id = PV_SPEC_HAS_TEXTURES) const bool kHasTextures = true;
+layout(constant_id = PV_SPEC_DIFFERENTIAL) const bool kDifferential = true;
 
 layout(binding = PV_BINDING_PARAMS, scalar) readonly buffer ParamsBuffer { FrameParams params; };
 layout(binding = PV_BINDING_POSITIONS, scalar) readonly buffer Positions { vec3 positions[]; };
@@ -75,46 +76,67 @@ layout(binding = PV_BINDING_TRIANGLE_LIGHT_PDF, scalar) readonly buffer Triangle
 // Rays this invocation traced, added to stats.raysTraced once at the end (one atomic per pixel).
 uint gRaysTraced = 0u;
 
-// Closest hit against all geometry (both BVHs: real phantoms and virtual objects).
-bool intersectScene(Ray ray, out Hit hit) {
+// The paper's ray types. A path starts SHARED (a mixed radiance ray carrying both solutions)
+// while it only meets real surfaces; where it first meets a virtual object it splits: the mixed
+// solution goes on from the virtual surface (MIXED), and the real solution continues the same
+// ray to the real surface behind it (REAL, a real radiance ray), traced after the mixed part.
+#define MODE_SHARED 0u
+#define MODE_MIXED 1u
+#define MODE_REAL 2u
+
+// Closest hit: real rays see the phantoms only, mixed and shared rays both BVHs.
+bool intersectScene(Ray ray, uint mode, out Hit hit) {
     ++gRaysTraced;
     hit.t = ray.tMax;
     hit.triangle = NO_HIT;
     hit.b1 = 0.0;
     hit.b2 = 0.0;
     bool found = traceClosest(params.realRoot, ray, hit);
-    found = traceClosest(params.virtualRoot, ray, hit) || found;
+    if (mode != MODE_REAL) found = traceClosest(params.virtualRoot, ray, hit) || found;
     return found;
 }
 
-bool occluded(Ray ray) {
+bool occludedBy(uint root, Ray ray) {
     ++gRaysTraced;
-    return traceAny(params.realRoot, ray) || traceAny(params.virtualRoot, ray);
+    return traceAny(root, ray);
+}
+
+// Adds a light sample's contribution `c` along shadow ray `ray` to the solutions that see it:
+// the real shadow ray first (real geometry), and only if that is clear the mixed shadow ray
+// (virtual geometry). A virtual light exists only in the mixed scene.
+void addLightSample(vec3 c, bool lightIsReal, Ray ray, uint mode, inout vec3 toMixed,
+                    inout vec3 toReal) {
+    if (mode == MODE_REAL) {
+        if (lightIsReal && !occludedBy(params.realRoot, ray)) toReal += c;
+        return;
+    }
+    if (occludedBy(params.realRoot, ray)) return;
+    if (mode == MODE_SHARED && lightIsReal) toReal += c;
+    if (!occludedBy(params.virtualRoot, ray)) toMixed += c;
 }
 
 // Shadow ray between two surface points, each offset off its surface toward the other.
-bool segmentOccluded(vec3 from, vec3 fromNormal, vec3 to, vec3 toNormal) {
+Ray segmentRay(vec3 from, vec3 fromNormal, vec3 to, vec3 toNormal) {
     vec3 d = to - from;
     vec3 origin = offsetRayOrigin(from, dot(d, fromNormal) >= 0.0 ? fromNormal : -fromNormal);
     vec3 target = offsetRayOrigin(to, dot(d, toNormal) <= 0.0 ? toNormal : -toNormal);
     vec3 dir = target - origin;
     float len = length(dir);
-    if (!(len > 0.0)) return false;
     Ray ray;
     ray.origin = origin;
-    ray.direction = dir / len;
+    ray.direction = len > 0.0 ? dir / len : vec3(0.0, 1.0, 0.0);
     ray.tMin = 0.0;
-    ray.tMax = len;
-    return occluded(ray);
+    ray.tMax = len > 0.0 ? len : 0.0;
+    return ray;
 }
 
-bool rayOccluded(vec3 from, vec3 fromNormal, vec3 dir) {
+Ray directionRay(vec3 from, vec3 fromNormal, vec3 dir, float tMax) {
     Ray ray;
     ray.origin = offsetRayOrigin(from, dot(dir, fromNormal) >= 0.0 ? fromNormal : -fromNormal);
     ray.direction = dir;
     ray.tMin = 0.0;
-    ray.tMax = PV_FLOAT_MAX;
-    return occluded(ray);
+    ray.tMax = tMax;
+    return ray;
 }
 
 vec4 unpackTexel(uint texel, bool srgb) {
@@ -291,8 +313,10 @@ float emissiveLightPdf(uint triangle, vec3 from, Surface lightSurface) {
     return triangleLightPdf[triangle] * dist2 / (area * cosLight);
 }
 
-vec3 sampleDirectLight(Surface s, BsdfParams bp, Frame frame, vec3 wo, inout uint rng) {
-    vec3 result = vec3(0.0);
+// Next-event estimation at a surface: one environment sample, one emissive-triangle sample and
+// one punctual light, each added (without the path throughput) to the solutions that see it.
+void sampleDirectLight(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint mode, inout uint rng,
+                       inout vec3 toMixed, inout vec3 toReal) {
     if (kHasEnv && params.envWidth > 0u) {
         float envPdfValue;
         uint texel;
@@ -302,10 +326,13 @@ vec3 sampleDirectLight(Surface s, BsdfParams bp, Frame frame, vec3 wo, inout uin
         if (envPdfValue > 0.0 && consistentSide(s, wi, wiLocal)) {
             float bsdfPdf;
             vec3 f = evaluateBsdf(bp, wo, wiLocal, bsdfPdf);
-            if (maxComponent(f) > 0.0 && !rayOccluded(s.position, s.geometricNormal, wi)) {
-                // The sampled texel's radiance (see envSampleTexel).
+            if (maxComponent(f) > 0.0) {
+                // The sampled texel's radiance (see envSampleTexel). The captured environment
+                // is real: it lights both solutions.
                 vec3 le = params.envScale * envRadianceTexels[texel];
-                result += f * abs(wiLocal.z) * le * powerHeuristic(envPdfValue, bsdfPdf) / envPdfValue;
+                vec3 c = f * abs(wiLocal.z) * le * powerHeuristic(envPdfValue, bsdfPdf) / envPdfValue;
+                addLightSample(c, true, directionRay(s.position, s.geometricNormal, wi, PV_FLOAT_MAX),
+                               mode, toMixed, toReal);
             }
         }
     }
@@ -331,60 +358,52 @@ vec3 sampleDirectLight(Surface s, BsdfParams bp, Frame frame, vec3 wo, inout uin
             float lightPdf = et.pdf * dist2 / (et.area * abs(cosLight));
             float bsdfPdf;
             vec3 f = evaluateBsdf(bp, wo, wiLocal, bsdfPdf);
-            if (maxComponent(f) > 0.0 && lightPdf > 0.0 &&
-                !segmentOccluded(s.position, s.geometricNormal, lightPoint, ng)) {
+            if (maxComponent(f) > 0.0 && lightPdf > 0.0) {
                 vec2 uv = (1.0 - b.x - b.y) * uvs[tri.x] + b.x * uvs[tri.y] + b.y * uvs[tri.z];
-                vec3 le = emittedRadiance(lm, uv);
-                result += f * abs(wiLocal.z) * le * powerHeuristic(lightPdf, bsdfPdf) / lightPdf;
+                vec3 c = f * abs(wiLocal.z) * emittedRadiance(lm, uv) *
+                         powerHeuristic(lightPdf, bsdfPdf) / lightPdf;
+                addLightSample(c, et.triangle < params.realTriangleCount,
+                               segmentRay(s.position, s.geometricNormal, lightPoint, ng), mode,
+                               toMixed, toReal);
             }
         }
     }
     if (kHasPunctual && params.lightCount > 0u) {
         uint index = min(uint(rngNext(rng) * float(params.lightCount)), params.lightCount - 1u);
         GpuLight light = lights[index];
+        uint type = light.type & PV_LIGHT_TYPE_MASK;
         vec3 wi;
         vec3 li;
-        bool occ;
-        if (light.type == PV_LIGHT_DIRECTIONAL) {
+        float dist = PV_FLOAT_MAX;
+        if (type == PV_LIGHT_DIRECTIONAL) {
             wi = -light.direction;
             li = light.intensity;  // illuminance (lux) from a delta direction
-            occ = false;
         } else {
             vec3 d = light.position - s.position;
             float dist2 = dot(d, d);
             wi = d * inversesqrt(dist2);
             li = light.intensity / dist2;  // inverse-square law
-            if (light.type == PV_LIGHT_SPOT) {
+            if (type == PV_LIGHT_SPOT) {
                 // glTF KHR_lights_punctual's recommended smooth cone falloff.
                 float cd = dot(light.direction, -wi);
                 float scale = 1.0 / max(0.001, light.cosInnerCone - light.cosOuterCone);
                 float a = clamp((cd - light.cosOuterCone) * scale, 0.0, 1.0);
                 li *= a * a;
             }
-            occ = false;
+            dist = sqrt(dist2);
         }
         vec3 wiLocal = toLocal(frame, wi);
         if (maxComponent(li) > 0.0 && consistentSide(s, wi, wiLocal)) {
             float bsdfPdf;
             vec3 f = evaluateBsdf(bp, wo, wiLocal, bsdfPdf);
             if (maxComponent(f) > 0.0) {
-                if (light.type == PV_LIGHT_DIRECTIONAL) {
-                    occ = rayOccluded(s.position, s.geometricNormal, wi);
-                } else {
-                    Ray r;
-                    r.origin = offsetRayOrigin(s.position, s.geometricNormal *
-                                               (dot(wi, s.geometricNormal) >= 0.0 ? 1.0 : -1.0));
-                    vec3 toLight = light.position - r.origin;
-                    r.tMax = length(toLight);
-                    r.direction = toLight / r.tMax;
-                    r.tMin = 0.0;
-                    occ = occluded(r);
-                }
-                if (!occ) result += f * abs(wiLocal.z) * li * float(params.lightCount);
+                Ray r = directionRay(s.position, s.geometricNormal, wi, PV_FLOAT_MAX);
+                if (type != PV_LIGHT_DIRECTIONAL) r.tMax = length(light.position - r.origin);
+                addLightSample(f * abs(wiLocal.z) * li * float(params.lightCount),
+                               (light.type & PV_LIGHT_REAL) != 0u, r, mode, toMixed, toReal);
             }
         }
     }
-    return result;
 }
 
 Ray cameraRay(uvec2 pixel, inout uint rng) {
@@ -408,116 +427,183 @@ Ray cameraRay(uvec2 pixel, inout uint rng) {
     return ray;
 }
 
-vec3 tracePath(uvec2 pixel, inout uint rng) {
-    Ray ray = cameraRay(pixel, rng);
-    vec3 radiance = vec3(0.0);
-    vec3 throughput = vec3(1.0);
-    float prevPdf = 0.0;
-    bool prevDelta = true;  // the camera ray: emitters seen directly get full weight
-    vec3 prevPosition = ray.origin;
+// Adds radiance to the solutions the path carries in `mode`, in the same order for both, so that
+// where the two solutions followed the same path L_om − L_or is exactly zero.
+void addRadiance(uint mode, vec3 l, inout vec3 lm, inout vec3 lr) {
+    if (mode != MODE_REAL) lm += l;
+    if (mode != MODE_MIXED) lr += l;
+}
+
+struct PathState {
+    Ray ray;
+    vec3 throughput;
+    float prevPdf;
+    bool prevDelta;     // the last scattering was a delta lobe (or the camera): no MIS
+    vec3 prevPosition;
     // Product of the η² factors of the refractions so far: Russian roulette decides on
     // throughput·etaScale, so radiance compressed inside glass does not get paths killed (pbrt).
-    float etaScale = 1.0;
-    for (uint depth = 0u;; ++depth) {
-        Hit hit;
-        if (!intersectScene(ray, hit)) {
-            if (kHasEnv && params.envWidth > 0u) {
-                vec3 le = params.envScale * envRadiance(ray.direction, params.envWidth,
-                                                        params.envHeight, params.envRotationRad);
-                float w = prevDelta ? 1.0
-                                    : powerHeuristic(prevPdf, envPdf(ray.direction, params.envWidth,
-                                                                     params.envHeight,
-                                                                     params.envRotationRad));
-                radiance += throughput * le * w;
+    float etaScale;
+    uint depth;         // scattering events so far
+};
+
+// One camera sample: the mixed radiance lm (L_om), the real radiance lr (L_or), and whether the
+// camera ray's first hit is virtual (the sample's mask M).
+void tracePath(uvec2 pixel, inout uint rng, out vec3 lm, out vec3 lr, out bool firstHitVirtual) {
+    PathState st;
+    st.ray = cameraRay(pixel, rng);
+    st.throughput = vec3(1.0);
+    st.prevPdf = 0.0;
+    st.prevDelta = true;
+    st.prevPosition = st.ray.origin;
+    st.etaScale = 1.0;
+    st.depth = 0u;
+    lm = vec3(0.0);
+    lr = vec3(0.0);
+    firstHitVirtual = false;
+    uint mode = kDifferential ? MODE_SHARED : MODE_MIXED;
+    PathState realContinuation = st;
+    bool haveRealContinuation = false;
+    for (uint pass = 0u; pass < 2u; ++pass) {
+        if (pass == 1u) {
+            if (!haveRealContinuation) break;
+            st = realContinuation;
+            mode = MODE_REAL;
+        }
+        for (;;) {
+            Hit hit;
+            bool found = intersectScene(st.ray, mode, hit);
+            bool hitVirtual = found && hit.triangle >= params.realTriangleCount;
+            if (hitVirtual && st.depth == 0u) firstHitVirtual = true;
+            if (hitVirtual && mode == MODE_SHARED) {
+                // The solutions part here: the real one continues this ray behind the virtual
+                // object (traced after the mixed part), the mixed one shades the virtual hit.
+                realContinuation = st;
+                haveRealContinuation = true;
+                mode = MODE_MIXED;
             }
-            break;
-        }
-        Surface s = surfaceAt(ray, hit);
-        GpuMaterial m = materials[s.material];
-        if (kHasEmissive && maxComponent(m.emission) > 0.0 && emitsToward(m, s.frontFace)) {
-            float w = prevDelta ? 1.0
-                                : powerHeuristic(prevPdf, emissiveLightPdf(hit.triangle,
-                                                                           prevPosition, s));
-            radiance += throughput * emittedRadiance(m, s.uv) * w;
-        }
-        if (depth >= params.maxDepth) break;
+            if (!found) {
+                if (kHasEnv && params.envWidth > 0u) {
+                    vec3 le = params.envScale * envRadiance(st.ray.direction, params.envWidth,
+                                                            params.envHeight, params.envRotationRad);
+                    float w = st.prevDelta
+                                  ? 1.0
+                                  : powerHeuristic(st.prevPdf,
+                                                   envPdf(st.ray.direction, params.envWidth,
+                                                          params.envHeight, params.envRotationRad));
+                    addRadiance(mode, st.throughput * le * w, lm, lr);
+                }
+                break;
+            }
+            Surface s = surfaceAt(st.ray, hit);
+            GpuMaterial m = materials[s.material];
+            if (kHasEmissive && maxComponent(m.emission) > 0.0 && emitsToward(m, s.frontFace)) {
+                float w = st.prevDelta ? 1.0
+                                       : powerHeuristic(st.prevPdf,
+                                                        emissiveLightPdf(hit.triangle,
+                                                                         st.prevPosition, s));
+                addRadiance(mode, st.throughput * emittedRadiance(m, s.uv) * w, lm, lr);
+            }
+            if (st.depth >= params.maxDepth) break;
 
-        Frame frame;
-        frame.n = s.shadingNormal;
-        buildBasis(frame.n, frame.t, frame.b);
-        vec3 wo = toLocal(frame, -ray.direction);
-        if (wo.z <= 0.0) {
-            // Seen from below its shading normal: shade with the geometric normal instead.
-            frame.n = s.geometricNormal;
+            Frame frame;
+            frame.n = s.shadingNormal;
             buildBasis(frame.n, frame.t, frame.b);
-            wo = toLocal(frame, -ray.direction);
-        }
-        BsdfParams bp = bsdfParamsAt(m, s);
-        // Light sampling only where some lobe is not a delta (a smooth mirror or glass cannot
-        // use it: it can only see lights through its one reflected or refracted ray).
-        if (!(kHasSpecular || kHasTransmission) || !bsdfIsDelta(bp) ||
-            bsdfLobeProbabilities(bp, wo).z > 0.0) {
-            radiance += throughput * sampleDirectLight(s, bp, frame, wo, rng);
-        }
+            vec3 wo = toLocal(frame, -st.ray.direction);
+            if (wo.z <= 0.0) {
+                // Seen from below its shading normal: shade with the geometric normal instead.
+                frame.n = s.geometricNormal;
+                buildBasis(frame.n, frame.t, frame.b);
+                wo = toLocal(frame, -st.ray.direction);
+            }
+            BsdfParams bp = bsdfParamsAt(m, s);
+            // Light sampling only where some lobe is not a delta (a smooth mirror or glass
+            // can only see lights through its one reflected or refracted ray).
+            if (!(kHasSpecular || kHasTransmission) || !bsdfIsDelta(bp) ||
+                bsdfLobeProbabilities(bp, wo).z > 0.0) {
+                vec3 directMixed = vec3(0.0);
+                vec3 directReal = vec3(0.0);
+                sampleDirectLight(s, bp, frame, wo, mode, rng, directMixed, directReal);
+                if (mode != MODE_REAL) lm += st.throughput * directMixed;
+                if (mode != MODE_MIXED) lr += st.throughput * directReal;
+            }
 
-        BsdfSample bs;
-        if (!sampleBsdf(bp, wo, rng, bs)) break;
-        vec3 wi = toWorld(frame, bs.wi);
-        if (!consistentSide(s, wi, bs.wi)) break;
-        throughput *= bs.weight;
-        if (bs.lobe == PV_LOBE_TRANSMISSION) etaScale *= bp.etaRel * bp.etaRel;
-        prevPdf = bs.pdf;
-        prevDelta = bs.isDelta;
-        prevPosition = s.position;
-        ray.origin = offsetRayOrigin(s.position, bs.wi.z > 0.0 ? s.geometricNormal
-                                                               : -s.geometricNormal);
-        ray.direction = wi;
-        ray.tMin = 0.0;
-        ray.tMax = PV_FLOAT_MAX;
-
-        if (depth + 1u >= params.rouletteStartDepth) {
-            // Russian roulette: unbiased, keeps paths whose throughput is still large.
-            float pContinue = min(1.0, maxComponent(throughput) * etaScale);
-            if (rngNext(rng) >= pContinue) break;
-            throughput /= pContinue;
+            BsdfSample bs;
+            if (!sampleBsdf(bp, wo, rng, bs)) break;
+            vec3 wi = toWorld(frame, bs.wi);
+            if (!consistentSide(s, wi, bs.wi)) break;
+            st.throughput *= bs.weight;
+            if (bs.lobe == PV_LOBE_TRANSMISSION) st.etaScale *= bp.etaRel * bp.etaRel;
+            st.prevPdf = bs.pdf;
+            st.prevDelta = bs.isDelta;
+            st.prevPosition = s.position;
+            st.ray = directionRay(s.position, s.geometricNormal * (bs.wi.z > 0.0 ? 1.0 : -1.0),
+                                  wi, PV_FLOAT_MAX);
+            st.depth += 1u;
+            if (st.depth >= params.rouletteStartDepth) {
+                // Russian roulette: unbiased, keeps paths whose throughput is still large.
+                float pContinue = min(1.0, maxComponent(st.throughput) * st.etaScale);
+                if (rngNext(rng) >= pContinue) break;
+                st.throughput /= pContinue;
+            }
         }
     }
-    return radiance;
+}
+
+// Kahan-compensated sum (`precise` forbids the compiler from reassociating it away).
+void kahanAdd(inout vec4 sum, inout vec4 c, vec4 x) {
+    precise vec4 y = x - c;
+    precise vec4 t = sum + y;
+    precise vec4 newC = (t - sum) - y;
+    c = newC;
+    sum = t;
 }
 
 void main() {
     uvec2 pixel = gl_GlobalInvocationID.xy;
     if (pixel.x >= params.width || pixel.y >= params.height) return;
     uint pixelIndex = pixel.y * params.width + pixel.x;
-    // Kahan-compensated sums, within the dispatch and across dispatches: the mean stays exact
-    // over millions of samples in 32-bit floats (the paper's running average, Eq. 3, drifts).
-    // `precise` forbids the compiler from reassociating the compensation away.
-    precise vec3 sum = vec3(0.0);
-    precise vec3 sumC = vec3(0.0);
+    // Compensated sums, within the dispatch and across dispatches: the mean stays exact over
+    // millions of samples in 32-bit floats (the paper's running average, Eq. 3, drifts).
+    vec4 sum[PV_ACCUM_COUNT];
+    vec4 comp[PV_ACCUM_COUNT];
+    for (uint k = 0u; k < PV_ACCUM_COUNT; ++k) {
+        sum[k] = vec4(0.0);
+        comp[k] = vec4(0.0);
+    }
     for (uint i = 0u; i < params.samplesPerDispatch; ++i) {
         uint rng = rngSeed(pixelIndex, params.sampleBase + i, params.seed);
-        vec3 l = tracePath(pixel, rng);
-        if (any(isnan(l)) || any(isinf(l))) {
+        vec3 lm;
+        vec3 lr;
+        bool firstHitVirtual;
+        tracePath(pixel, rng, lm, lr, firstHitVirtual);
+        if (any(isnan(lm)) || any(isinf(lm)) || any(isnan(lr)) || any(isinf(lr))) {
             // Counted, and the host reports it: never silently part of the image.
             atomicAdd(stats.nonFiniteSamples, 1u);
             continue;
         }
         if (params.fireflyClamp > 0.0) {
-            float lum = luminance(l);
-            if (lum > params.fireflyClamp) l *= params.fireflyClamp / lum;
+            // One factor for both solutions, so their difference stays consistent.
+            float lum = max(luminance(lm), luminance(lr));
+            if (lum > params.fireflyClamp) {
+                lm *= params.fireflyClamp / lum;
+                lr *= params.fireflyClamp / lum;
+            }
         }
-        precise vec3 y = l - sumC;
-        precise vec3 t = sum + y;
-        sumC = (t - sum) - y;
-        sum = t;
+        float mask = firstHitVirtual ? 1.0 : 0.0;
+        // Eq. 1 per sample, without the plate term (1 − M)·L_oc, which the host adds from the
+        // mean mask: where both solutions followed the same path lm − lr is exactly 0.
+        vec3 composite = firstHitVirtual ? lm : lm - lr;
+        kahanAdd(sum[PV_ACCUM_COMPOSITE], comp[PV_ACCUM_COMPOSITE], vec4(composite, mask));
+        kahanAdd(sum[PV_ACCUM_MIXED], comp[PV_ACCUM_MIXED], vec4(lm, 0.0));
+        if (kDifferential) kahanAdd(sum[PV_ACCUM_REAL], comp[PV_ACCUM_REAL], vec4(lr, 0.0));
     }
-    sum -= sumC;
     atomicAdd(stats.raysTraced, gRaysTraced);
-    vec4 total = accumSum[pixelIndex];
-    vec4 c = accumCompensation[pixelIndex];
-    precise vec4 y = vec4(sum, 0.0) - c;
-    precise vec4 t = total + y;
-    precise vec4 newC = (t - total) - y;
-    accumSum[pixelIndex] = t;
-    accumCompensation[pixelIndex] = newC;
+    for (uint k = 0u; k < PV_ACCUM_COUNT; ++k) {
+        uint at = pixelIndex * PV_ACCUM_COUNT + k;
+        vec4 total = accumSum[at];
+        vec4 c = accumCompensation[at];
+        kahanAdd(total, c, sum[k] - comp[k]);
+        accumSum[at] = total;
+        accumCompensation[at] = c;
+    }
 }

@@ -23,8 +23,14 @@ PV_BEGIN
 #define PV_BINDING_ENV_RADIANCE 12
 #define PV_BINDING_ENV_MARGINAL_CDF 13
 #define PV_BINDING_ENV_CONDITIONAL_CDF 14
+// Accumulations: 3 vec4 per pixel, [composite | mask], [mixed L_om | 0], [real L_or | 0];
+// composite = M ? L_om : L_om − L_or per sample (the plate is added on readback).
 #define PV_BINDING_ACCUM_SUM 15
 #define PV_BINDING_ACCUM_COMPENSATION 16
+#define PV_ACCUM_COMPOSITE 0u
+#define PV_ACCUM_MIXED 1u
+#define PV_ACCUM_REAL 2u
+#define PV_ACCUM_COUNT 3u
 #define PV_BINDING_STATS 17
 #define PV_BINDING_TRIANGLE_LIGHT_PDF 18
 #define PV_BINDING_COUNT 19
@@ -38,7 +44,10 @@ PV_BEGIN
 #define PV_SPEC_HAS_TRANSMISSION 4
 #define PV_SPEC_HAS_THIN_LENS 5
 #define PV_SPEC_HAS_TEXTURES 6
-#define PV_SPEC_COUNT 7
+// Differential rendering: also the real-only solution L_or (paper's four ray types). Off for a
+// plain CG render, which then runs none of it.
+#define PV_SPEC_DIFFERENTIAL 7
+#define PV_SPEC_COUNT 8
 
 #define PV_WORKGROUP_SIZE_X 8
 #define PV_WORKGROUP_SIZE_Y 8
@@ -85,6 +94,10 @@ struct TextureInfo {
 #define PV_LIGHT_POINT 0u
 #define PV_LIGHT_SPOT 1u
 #define PV_LIGHT_DIRECTIONAL 2u
+#define PV_LIGHT_TYPE_MASK 0xffu
+// Set in GpuLight::type for a light that exists in the real scene (lights both solutions);
+// a light without it is a virtual (artistic) light and only lights the mixed solution.
+#define PV_LIGHT_REAL 0x100u
 
 // KHR_lights_punctual light in world space. intensity = colour * intensity (candela for point
 // and spot, lux for directional).
@@ -137,7 +150,7 @@ struct FrameParams {
     float envIntegral;       // mean luminance·sinθ weight of the map (EnvironmentDistribution)
     float fireflyClamp;      // 0 = off (default); else the largest sample luminance kept
     uint rouletteStartDepth; // Russian roulette from this depth on
-    uint pad0;
+    uint realTriangleCount;  // triangles [0, this) in BVH order are real (phantoms)
 };
 
 PV_END
