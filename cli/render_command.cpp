@@ -11,6 +11,7 @@
 #include "gpu/context.h"
 #include "image/image.h"
 #include "render/renderer.h"
+#include "vision/inverse_tone_map.h"
 #include "render/tonemap.h"
 #include "scene/environment_map.h"
 
@@ -38,7 +39,17 @@ struct RenderOptions {
     std::string toneMap = "clamp";
     float fireflyClamp = 0.0f;
     bool quiet = false;
+    std::string plate;
+    std::string plateToneMap = "srgb";
+    float plateExposure = 0.0f;
+    std::vector<std::string> aovs;
 };
+
+// `--out dir/name.exr` → `dir/name.<aov>.exr` (DESIGN.md §3).
+std::string aovPath(const std::string& out, const std::string& aov) {
+    std::filesystem::path p(out);
+    return (p.parent_path() / (p.stem().string() + "." + aov + ".exr")).string();
+}
 
 bool endsWith(const std::string& s, const std::string& suffix) {
     return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
@@ -99,6 +110,42 @@ int run(const RenderOptions& o) {
     settings.fireflyClamp = o.fireflyClamp;
     settings.samplesPerDispatch = 1;
 
+    // The plate: linear radiance at the render's resolution (its own resolution by default).
+    std::optional<ImageF> plate;
+    if (!o.plate.empty()) {
+        auto img = readImage(o.plate);
+        if (!img) {
+            logError("{}", img.message());
+            return 1;
+        }
+        if (img->ldrSrgb) {
+            InverseToneMapSettings itm;
+            auto op = parseInverseToneMapOperator(o.plateToneMap);
+            if (!op) {
+                logError("--plate-tonemap {}: not available in this build", o.plateToneMap);
+                return 2;
+            }
+            itm.op = *op;
+            itm.exposureStops = o.plateExposure;
+            plate = inverseToneMap(*img, itm);
+        } else {
+            plate = std::move(img.value());
+        }
+        if (!o.width && !o.height) {
+            settings.width = plate->width;
+            settings.height = plate->height;
+        }
+        if (plate->width != settings.width || plate->height != settings.height) {
+            logError("--plate {} is {}x{} but the render is {}x{}: render at the plate's "
+                     "resolution (omit --width/--height)", o.plate, plate->width, plate->height,
+                     settings.width, settings.height);
+            return 2;
+        }
+    }
+    bool wantsReal = std::find(o.aovs.begin(), o.aovs.end(), "real") != o.aovs.end();
+    // The real-only solution costs extra rays: computed only when something uses it.
+    settings.differential = plate.has_value() || wantsReal;
+
     auto ctx = GpuContext::create({});
     if (!ctx) {
         logError("{}", ctx.message());
@@ -108,6 +155,12 @@ int run(const RenderOptions& o) {
     if (!renderer) {
         logError("{}: {}", o.scene, renderer.message());
         return 1;
+    }
+    if (plate) {
+        if (Status s = (*renderer)->setPlate(*plate); !s) {
+            logError("--plate {}: {}", o.plate, s.message());
+            return 2;
+        }
     }
     auto start = std::chrono::steady_clock::now();
     auto elapsed = [&] {
@@ -149,6 +202,18 @@ int run(const RenderOptions& o) {
         logError("{}", written.message());
         return 1;
     }
+    for (const std::string& name : o.aovs) {
+        Aov aov = name == "mixed" ? Aov::Mixed
+                  : name == "real" ? Aov::Real
+                  : name == "mask" ? Aov::Mask
+                                   : Aov::Composite;
+        auto buffer = (*renderer)->image(aov);
+        Status s = buffer ? writeExr(aovPath(o.out, name), *buffer) : Status(buffer.error());
+        if (!s) {
+            logError("{}", s.message());
+            return 1;
+        }
+    }
     if (!o.quiet)
         logInfo("wrote {} ({}x{}, {} spp, {:.1f} s on {})", o.out, image->width, image->height,
                 (*renderer)->samplesPerPixel(), elapsed(), (*ctx)->deviceName());
@@ -189,6 +254,18 @@ std::function<int()> addRenderCommand(CLI::App& app) {
         ->check(CLI::NonNegativeNumber);
     cmd->add_option("--out", o->out, "output: FILE.exr (linear HDR) or FILE.png")->required();
     cmd->add_flag("--quiet", o->quiet, "no progress on stderr");
+    cmd->add_option("--plate", o->plate,
+                    "camera image to composite into: PNG/JPEG (sRGB, inverse tone mapped) or "
+                    "OpenEXR (linear, used as is); sets the resolution")
+        ->check(CLI::ExistingFile);
+    cmd->add_option("--plate-tonemap", o->plateToneMap,
+                    "inverse tone mapping of an LDR plate: srgb, reinhard or banterle")
+        ->check(CLI::IsMember({"srgb", "reinhard", "banterle"}));
+    cmd->add_option("--plate-exposure", o->plateExposure, "LDR plate exposure, stops");
+    cmd->add_option("--aov", o->aovs,
+                    "also write buffers as OUT.<aov>.exr: composite, mixed, real, mask")
+        ->delimiter(',')
+        ->check(CLI::IsMember({"composite", "mixed", "real", "mask"}));
     return [o] { return run(*o); };
 }
 

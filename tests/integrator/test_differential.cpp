@@ -1,0 +1,323 @@
+// Differential rendering (the paper's Eq. 1 and four ray types): identities that must hold
+// exactly, agreement with independent renders within the measured noise, and the effects a
+// virtual object has on the real set. Seeds are fixed; tolerances come from measured variances.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <random>
+
+#include <glm/gtc/matrix_transform.hpp>
+
+#include "render/tonemap.h"
+#include "tests/integrator/gpu_fixture.h"
+#include "tests/support/scene_builders.h"
+#include "vision/inverse_tone_map.h"
+
+namespace previs::testing {
+namespace {
+
+constexpr float kPi = 3.14159265358979f;
+// As in test_integrator.cpp: Student's t with 15 dof, Šidák-corrected 1% over ~1000 pixels.
+constexpr int kRuns = 16;
+constexpr double kPixelT = 6.6;
+
+// The image of a render result (failing the test on an error).
+ImageF take(Result<ImageF> result) {
+    if (!result.ok()) {
+        ADD_FAILURE() << result.message();
+        return {};
+    }
+    ImageF image = std::move(result).value();
+    return image;
+}
+
+class DifferentialTest : public GpuTest {
+protected:
+    struct AovEstimate {
+        std::vector<double> mean[4];  // indexed by Aov
+        std::vector<double> var[4];   // variance of the mean
+    };
+
+    // Means and variances of every AOV over kRuns independent runs of one renderer.
+    AovEstimate estimateAovs(const Scene& scene, RenderSettings rs, const ImageF* plate,
+                             uint32_t spp, int runs = kRuns) {
+        AovEstimate e;
+        auto renderer = Renderer::create(ctx(), scene, rs);
+        EXPECT_TRUE(renderer.ok()) << renderer.message();
+        if (!renderer) return e;
+        Renderer& r = **renderer;
+        if (plate) {
+            EXPECT_TRUE(r.setPlate(*plate).ok());
+        }
+        std::vector<double> sum[4], sum2[4];
+        for (int run = 0; run < runs; ++run) {
+            EXPECT_TRUE(r.reset().ok());
+            r.setSeed(uint32_t(5000 + run));
+            EXPECT_TRUE(r.render(spp).ok());
+            EXPECT_EQ(r.nonFiniteSamples().value(), 0u);
+            for (int a = 0; a < 4; ++a) {
+                ImageF img = take(r.image(Aov(a)));
+                sum[a].resize(img.pixels.size(), 0.0);
+                sum2[a].resize(img.pixels.size(), 0.0);
+                for (size_t i = 0; i < img.pixels.size(); ++i) {
+                    sum[a][i] += img.pixels[i];
+                    sum2[a][i] += double(img.pixels[i]) * img.pixels[i];
+                }
+            }
+        }
+        for (int a = 0; a < 4; ++a) {
+            e.mean[a].resize(sum[a].size());
+            e.var[a].resize(sum[a].size());
+            for (size_t i = 0; i < sum[a].size(); ++i) {
+                double m = sum[a][i] / runs;
+                e.mean[a][i] = m;
+                e.var[a][i] = std::max(0.0, (sum2[a][i] - runs * m * m) / (runs - 1)) / runs;
+            }
+        }
+        return e;
+    }
+};
+
+RenderSettings differentialSettings(uint32_t w, uint32_t h) {
+    RenderSettings rs;
+    rs.width = w;
+    rs.height = h;
+    rs.maxDepth = 6;
+    rs.differential = true;
+    return rs;
+}
+
+// The set: a real table top and a real red box under a real sun and sky, seen from above.
+Scene realSet() {
+    Scene s;
+    addQuad(s, {0, 0, 0}, {0, 0, 2}, {2, 0, 0}, addMaterial(s, lambert(glm::vec3(0.7f))), true);
+    addBox(s, {-0.9f, 0, -0.3f}, {-0.5f, 0.4f, 0.1f},
+           addMaterial(s, lambert(glm::vec3(0.8f, 0.1f, 0.1f))), true);
+    PunctualLight sun;
+    sun.type = LightType::Directional;
+    sun.direction = glm::normalize(glm::vec3(-1, -1, 0));
+    sun.intensity = 3.0f;
+    sun.isReal = true;
+    s.lights.push_back(sun);
+    s.environment = uniformEnvironment(glm::vec3(0.3f));
+    s.cameras.push_back(lookAt({0, 3, 0.01f}, {0, 0, 0}, {0, 0, -1}, glm::radians(60.0f)));
+    return s;
+}
+
+ImageF hdrPlate(uint32_t w, uint32_t h) {
+    ImageF p;
+    p.width = w;
+    p.height = h;
+    p.channels = 3;
+    std::mt19937 rng(42);
+    std::uniform_real_distribution<float> logv(-4.0f, 5.0f);
+    for (size_t i = 0; i < size_t(w) * h * 3; ++i) p.pixels.push_back(std::pow(10.0f, logv(rng)));
+    return p;
+}
+
+// Without virtual objects every path is shared: L_om − L_or is exactly zero, so the composite is
+// the plate bit for bit, at any sample count.
+TEST_F(DifferentialTest, NoVirtualObjectsGivesThePlateBitForBit) {
+    Scene s = realSet();
+    RenderSettings rs = differentialSettings(24, 24);
+    ImageF plate = hdrPlate(rs.width, rs.height);
+    auto renderer = Renderer::create(ctx(), s, rs);
+    ASSERT_TRUE(renderer.ok()) << renderer.message();
+    ASSERT_TRUE((*renderer)->setPlate(plate).ok());
+    for (uint32_t spp : {1u, 3u, 17u}) {
+        ASSERT_TRUE((*renderer)->reset().ok());
+        ASSERT_TRUE((*renderer)->render(spp).ok());
+        ImageF composite = take((*renderer)->image(Aov::Composite));
+        ASSERT_EQ(composite.pixels.size(), plate.pixels.size());
+        EXPECT_EQ(std::memcmp(composite.pixels.data(), plate.pixels.data(),
+                              plate.pixels.size() * sizeof(float)), 0)
+            << "at " << spp << " spp";
+        ImageF mask = take((*renderer)->image(Aov::Mask));
+        for (float m : mask.pixels) ASSERT_EQ(m, 0.0f);
+    }
+}
+
+// An 8-bit plate survives inverse tone mapping, compositing and tone mapping within one step.
+TEST_F(DifferentialTest, LdrPlateRoundTripsWithinOneStep) {
+    Scene s = realSet();
+    RenderSettings rs = differentialSettings(16, 16);
+    ImageF codes;
+    codes.width = rs.width;
+    codes.height = rs.height;
+    codes.channels = 3;
+    codes.ldrSrgb = true;
+    for (size_t i = 0; i < size_t(rs.width) * rs.height * 3; ++i)
+        codes.pixels.push_back(float(i % 256) / 255.0f);
+    ImageF plate = inverseToneMap(codes, InverseToneMapSettings{});
+    auto renderer = Renderer::create(ctx(), s, rs);
+    ASSERT_TRUE(renderer.ok());
+    ASSERT_TRUE((*renderer)->setPlate(plate).ok());
+    ASSERT_TRUE((*renderer)->render(4).ok());
+    ImageF composite = take((*renderer)->image());
+    std::vector<uint8_t> out = toneMapToSrgb8(composite, ToneMapSettings{});
+    for (size_t i = 0; i < out.size(); ++i)
+        ASSERT_LE(std::abs(int(out[i]) - int(std::lround(codes.pixels[i] * 255.0f))), 1) << i;
+}
+
+// Scene `s` with only its real triangles and lights: what the real-only solution renders.
+Scene realOnly(const Scene& s) {
+    Scene r = s;
+    r.geometry.triangles.clear();
+    r.geometry.triangleMaterials.clear();
+    r.geometry.triangleIsReal.clear();
+    for (size_t i = 0; i < s.geometry.triangles.size(); ++i) {
+        if (!s.geometry.triangleIsReal[i]) continue;
+        r.geometry.triangles.push_back(s.geometry.triangles[i]);
+        r.geometry.triangleMaterials.push_back(s.geometry.triangleMaterials[i]);
+        r.geometry.triangleIsReal.push_back(1);
+    }
+    r.lights.clear();
+    for (const auto& l : s.lights)
+        if (l.isReal) r.lights.push_back(l);
+    return r;
+}
+
+Scene setWithVirtualObjects() {
+    Scene s = realSet();
+    addSphere(s, {0.3f, 0.35f, 0.0f}, 0.25f, addMaterial(s, lambert(glm::vec3(0.1f, 0.8f, 0.2f))),
+              false, 16, 32);
+    addSphere(s, {-0.2f, 0.2f, 0.5f}, 0.2f, addMaterial(s, mirror()), false, 16, 32);
+    PunctualLight fill;  // a virtual (artistic) light: it lights the mixed solution only
+    fill.position = {0.5f, 1.0f, 0.8f};
+    fill.intensity = 0.5f;
+    s.lights.push_back(fill);
+    return s;
+}
+
+// One pass gives both solutions: its L_om equals a plain render of the mixed scene and its L_or
+// a plain render of the real-only scene, in expectation (per-pixel t-test on the difference).
+TEST_F(DifferentialTest, OnePassEqualsTwoIndependentRenders) {
+    Scene s = setWithVirtualObjects();
+    RenderSettings rs = differentialSettings(20, 20);
+    AovEstimate onePass = estimateAovs(s, rs, nullptr, 8);
+    RenderSettings plain = rs;
+    plain.differential = false;
+    AovEstimate mixed = estimateAovs(s, plain, nullptr, 8);
+    AovEstimate real = estimateAovs(realOnly(s), plain, nullptr, 8);
+    auto compare = [&](const std::vector<double>& a, const std::vector<double>& va,
+                       const std::vector<double>& b, const std::vector<double>& vb,
+                       const char* what) {
+        double worst = 0.0;
+        for (size_t i = 0; i < a.size(); ++i) {
+            double sigma = std::sqrt(va[i] + vb[i]);
+            if (sigma == 0.0) {
+                EXPECT_NEAR(a[i], b[i], 1e-6 * std::max(1.0, std::abs(a[i]))) << what << " " << i;
+                continue;
+            }
+            worst = std::max(worst, std::abs(a[i] - b[i]) / sigma);
+        }
+        EXPECT_LT(worst, kPixelT) << what;
+        RecordProperty(std::string(what) + "WorstT", std::to_string(worst));
+    };
+    compare(onePass.mean[int(Aov::Mixed)], onePass.var[int(Aov::Mixed)],
+            mixed.mean[int(Aov::Mixed)], mixed.var[int(Aov::Mixed)], "mixed");
+    compare(onePass.mean[int(Aov::Real)], onePass.var[int(Aov::Real)],
+            real.mean[int(Aov::Mixed)], real.var[int(Aov::Mixed)], "real");
+}
+
+// With this renderer's own converged real-only image as the plate, the composite equals its
+// render of the mixed scene wherever the mask is all-or-nothing (at fractional-mask edges the
+// pixel average of Eq. 1 legitimately differs).
+TEST_F(DifferentialTest, CompositeOverOwnRealRenderEqualsMixedRender) {
+    Scene s = setWithVirtualObjects();
+    RenderSettings plain = differentialSettings(20, 20);
+    plain.differential = false;
+    AovEstimate real = estimateAovs(realOnly(s), plain, nullptr, 32);
+    ImageF plate;
+    plate.width = plain.width;
+    plate.height = plain.height;
+    plate.channels = 3;
+    for (double v : real.mean[int(Aov::Mixed)]) plate.pixels.push_back(float(v));
+    AovEstimate mixed = estimateAovs(s, plain, nullptr, 8);
+    AovEstimate composite = estimateAovs(s, differentialSettings(20, 20), &plate, 8);
+    double worst = 0.0;
+    int tested = 0;
+    for (size_t p = 0; p < size_t(plain.width) * plain.height; ++p) {
+        double mask = composite.mean[int(Aov::Mask)][p];
+        if (mask != 0.0 && mask != 1.0) continue;
+        ++tested;
+        for (int c = 0; c < 3; ++c) {
+            size_t i = p * 3 + c;
+            double sigma = std::sqrt(composite.var[0][i] + mixed.var[int(Aov::Mixed)][i] +
+                                     real.var[int(Aov::Mixed)][i]);
+            double d = std::abs(composite.mean[0][i] - mixed.mean[int(Aov::Mixed)][i]);
+            if (sigma > 0.0) worst = std::max(worst, d / sigma);
+            else EXPECT_NEAR(d, 0.0, 1e-6);
+        }
+    }
+    EXPECT_GT(tested, 300);
+    EXPECT_LT(worst, kPixelT);
+    RecordProperty("worstT", std::to_string(worst));
+}
+
+// Pixel of world point p for the realSet camera (looking straight down, +X right, −Z up).
+glm::ivec2 pixelOf(const Scene& s, const RenderSettings& rs, glm::vec3 p) {
+    const Camera& c = s.cameras[0];
+    glm::vec3 q = glm::vec3(glm::inverse(c.worldFromCamera) * glm::vec4(p, 1.0f));
+    float t = std::tan(0.5f * c.fovYRad);
+    float ndcX = q.x / -q.z / (t * float(rs.width) / float(rs.height));
+    float ndcY = q.y / -q.z / t;
+    return {int((ndcX + 1.0f) * 0.5f * float(rs.width)), int((1.0f - ndcY) * 0.5f * float(rs.height))};
+}
+
+// The effects a virtual object has on the real set, measured in the composite.
+TEST_F(DifferentialTest, VirtualObjectsShadowReflectBleedAndAreOccluded) {
+    Scene s = realSet();
+    // A green diffuse ball floating above the table: its shadow falls 0.5 m toward −X (sun at 45°).
+    addSphere(s, {0.6f, 0.5f, 0.0f}, 0.2f, addMaterial(s, lambert(glm::vec3(0.05f, 0.9f, 0.05f))),
+              false, 16, 32);
+    // A mirror ball next to the red box.
+    addSphere(s, {-0.3f, 0.15f, -0.6f}, 0.15f, addMaterial(s, mirror()), false, 16, 32);
+    // A virtual ball hidden under the (real) box: the phantom must occlude it.
+    addSphere(s, {-0.7f, 0.1f, -0.1f}, 0.08f, addMaterial(s, lambert(glm::vec3(0.0f, 0.0f, 1.0f))),
+              false, 8, 16);
+    RenderSettings rs = differentialSettings(40, 40);
+    rs.maxDepth = 4;
+    ImageF plate;
+    plate.width = rs.width;
+    plate.height = rs.height;
+    plate.channels = 3;
+    plate.pixels.assign(size_t(rs.width) * rs.height * 3, 0.5f);
+    AovEstimate e = estimateAovs(s, rs, &plate, 16, 8);
+    auto at = [&](glm::ivec2 px, int c, int aov = 0) {
+        return e.mean[aov][(size_t(px.y) * rs.width + px.x) * (aov == int(Aov::Mask) ? 1 : 3) +
+                           (aov == int(Aov::Mask) ? 0 : c)];
+    };
+    auto sigma = [&](glm::ivec2 px, int c) {
+        return std::sqrt(e.var[0][(size_t(px.y) * rs.width + px.x) * 3 + c]);
+    };
+    // Shadow: the sun's light (E = 3·cos45° lux on albedo 0.7: 0.47 radiance) is gone there.
+    glm::ivec2 shadow = pixelOf(s, rs, {0.1f, 0.0f, 0.0f});
+    double darkening = 0.5 - at(shadow, 0);
+    RecordProperty("shadowDarkening", std::to_string(darkening));
+    EXPECT_GT(darkening, 0.3) << "no virtual shadow on the real table";
+    // Far from every virtual object the composite is the plate (up to the noise).
+    glm::ivec2 far = pixelOf(s, rs, {0.8f, 0.0f, 0.8f});
+    EXPECT_NEAR(at(far, 1), 0.5, kPixelT * sigma(far, 1) + 0.02);
+    // Colour bleeding: the table next to the green ball receives green light, not red.
+    glm::ivec2 beside = pixelOf(s, rs, {0.6f, 0.0f, 0.3f});
+    double bleed = (at(beside, 1) - 0.5) - (at(beside, 0) - 0.5);
+    EXPECT_GT(bleed, 5.0 * std::hypot(sigma(beside, 0), sigma(beside, 1)));
+    RecordProperty("greenBleed", std::to_string(bleed));
+    // The mirror shows the real red box and the grey environment: some mirror pixels are red.
+    double reddest = 0.0;
+    for (int y = 0; y < int(rs.height); ++y)
+        for (int x = 0; x < int(rs.width); ++x)
+            if (at({x, y}, 0, int(Aov::Mask)) == 1.0 && glm::length(glm::vec2(x, y) -
+                glm::vec2(pixelOf(s, rs, {-0.3f, 0.15f, -0.6f}))) < 3.0f)
+                reddest = std::max(reddest, at({x, y}, 0) - at({x, y}, 1));
+    EXPECT_GT(reddest, 0.1) << "the virtual mirror does not reflect the real box";
+    // Occlusion: the ball under the box is hidden, the box's pixels keep the plate.
+    glm::ivec2 box = pixelOf(s, rs, {-0.7f, 0.4f, -0.1f});
+    EXPECT_EQ(at(box, 0, int(Aov::Mask)), 0.0);
+    EXPECT_NEAR(at(box, 2), 0.5, kPixelT * sigma(box, 2) + 0.02) << "blue shows through the box";
+}
+
+}  // namespace
+}  // namespace previs::testing
