@@ -3,11 +3,14 @@
 #include <algorithm>
 #include <cmath>
 
+#include "base/log.h"
+
 namespace previs {
 
 std::optional<ToneMapOperator> parseToneMapOperator(const std::string& name) {
     if (name == "clamp") return ToneMapOperator::Clamp;
     if (name == "reinhard") return ToneMapOperator::Reinhard;
+    if (name == "reinhard-extended") return ToneMapOperator::ReinhardExtended;
     return std::nullopt;
 }
 
@@ -17,22 +20,56 @@ float srgbEncode(float linear) {
     return linear <= 0.0031308f ? 12.92f * linear : 1.055f * std::pow(linear, 1.0f / 2.4f) - 0.055f;
 }
 
+namespace {
+
+// L_d / L_w of reinhardExtendedCurve, finite at L_w = 0 (where it is the slope L_white/L_max),
+// so colour ratios are kept without a 0/0 at black.
+inline float reinhardExtendedRatio(float lw, float maxRadiance, float whiteLuminance) {
+    const float scale = whiteLuminance / maxRadiance;
+    const float l = lw * scale;
+    return scale * (1.0f + l / (whiteLuminance * whiteLuminance)) / (1.0f + l);
+}
+
+// Exposed radiance (finite, ≥ 0) → linear display values, in place.
+inline void tonemap(float rgb[3], const ToneMapSettings& settings) {
+    if (settings.op == ToneMapOperator::Clamp) return;
+    const float lum = 0.2126f * rgb[0] + 0.7152f * rgb[1] + 0.0722f * rgb[2];
+    float k = 1.0f;
+    if (settings.op == ToneMapOperator::Reinhard)
+        k = lum > 0.0f ? 1.0f / (1.0f + lum) : 1.0f;
+    else
+        k = reinhardExtendedRatio(lum, settings.maxRadiance, settings.whiteLuminance);
+    for (int c = 0; c < 3; ++c) rgb[c] *= k;
+}
+
+}  // namespace
+
+float reinhardExtendedCurve(float luminance, float maxRadiance, float whiteLuminance) {
+    PV_DCHECK(maxRadiance > 0.0f && std::isfinite(maxRadiance));
+    PV_DCHECK(whiteLuminance > 0.0f && std::isfinite(whiteLuminance));
+    const float lw = std::isfinite(luminance) ? std::max(luminance, 0.0f) : 0.0f;
+    return lw * reinhardExtendedRatio(lw, maxRadiance, whiteLuminance);
+}
+
+std::array<float, 3> toneMapRgb(const std::array<float, 3>& radiance,
+                                const ToneMapSettings& settings) {
+    const float scale = std::exp2(settings.exposureStops);
+    float rgb[3];
+    for (int c = 0; c < 3; ++c)
+        rgb[c] = std::isfinite(radiance[c]) ? std::max(radiance[c], 0.0f) * scale : 0.0f;
+    tonemap(rgb, settings);
+    return {srgbEncode(rgb[0]), srgbEncode(rgb[1]), srgbEncode(rgb[2])};
+}
+
 std::vector<uint8_t> toneMapToSrgb8(const ImageF& image, const ToneMapSettings& settings) {
     std::vector<uint8_t> out(size_t(image.width) * image.height * 3);
-    float scale = std::exp2(settings.exposureStops);
     for (size_t i = 0; i < size_t(image.width) * image.height; ++i) {
-        float rgb[3];
-        for (int c = 0; c < 3; ++c) {
-            float v = image.pixels[i * image.channels + std::min<uint32_t>(c, image.channels - 1)];
-            rgb[c] = std::isfinite(v) ? std::max(v, 0.0f) * scale : 0.0f;
-        }
-        if (settings.op == ToneMapOperator::Reinhard) {
-            float lum = 0.2126f * rgb[0] + 0.7152f * rgb[1] + 0.0722f * rgb[2];
-            float k = lum > 0.0f ? 1.0f / (1.0f + lum) : 1.0f;
-            for (float& v : rgb) v *= k;
-        }
+        std::array<float, 3> rgb;
         for (int c = 0; c < 3; ++c)
-            out[i * 3 + c] = static_cast<uint8_t>(std::lround(srgbEncode(rgb[c]) * 255.0f));
+            rgb[c] = image.pixels[i * image.channels + std::min<uint32_t>(c, image.channels - 1)];
+        const std::array<float, 3> encoded = toneMapRgb(rgb, settings);
+        for (int c = 0; c < 3; ++c)
+            out[i * 3 + c] = static_cast<uint8_t>(std::lround(encoded[c] * 255.0f));
     }
     return out;
 }

@@ -2,6 +2,7 @@
 
 // HDR → 8-bit display: exposure, then a global operator, then the sRGB transfer function.
 
+#include <array>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -15,16 +16,37 @@ namespace previs {
 enum class ToneMapOperator {
     Clamp,     // linear, clipped at 1 (radiometrically faithful below 1)
     Reinhard,  // L / (1 + L) on luminance (Reinhard et al. 2002, global)
+    // L(1 + L/L_white²)/(1 + L) on luminance, L = luminance · L_white/L_max (Reinhard et al. 2002
+    // Eq. 4, scaled as in Banterle et al. 2006): L_max maps to display white, and
+    // vision/inverse_tone_map.h's Banterle operator inverts it exactly.
+    ReinhardExtended,
 };
 
+// "clamp", "reinhard", "reinhard-extended".
 std::optional<ToneMapOperator> parseToneMapOperator(const std::string& name);
 
 struct ToneMapSettings {
     float exposureStops = 0.0f;
     ToneMapOperator op = ToneMapOperator::Clamp;
+    // ReinhardExtended only (both > 0, finite), the same parameters as the inverse's: maxRadiance
+    // (L_max) is the luminance after exposure that maps to display white 1; whiteLuminance is
+    // L_white, the shape (> 1 compresses, 1 is linear). Equal values give slope 1 at black.
+    float maxRadiance = 16.0f;
+    float whiteLuminance = 16.0f;
 };
 
 float srgbEncode(float linear);
+
+// Reinhard's extended global curve: luminance L_w ≥ 0 (after exposure) → display luminance
+//   L_d = L · (1 + L/L_white²) / (1 + L),  L = L_w · L_white / L_max.
+// Strictly increasing; L_d(L_max) = 1, values above L_max exceed 1 and clip at the encode.
+float reinhardExtendedCurve(float luminance, float maxRadiance, float whiteLuminance);
+
+// One linear RGB radiance → sRGB-encoded display values in [0,1], not yet quantised: exposure,
+// operator, sRGB encode. NaN/Inf/negative channels count as 0. Exposed so the inverse's round trip
+// can be tested in float, before 8-bit rounding hides errors.
+std::array<float, 3> toneMapRgb(const std::array<float, 3>& radiance,
+                                const ToneMapSettings& settings);
 
 // RGB (3 or 4 channel) float image → interleaved RGB8 in sRGB. NaN maps to 0.
 std::vector<uint8_t> toneMapToSrgb8(const ImageF& image, const ToneMapSettings& settings);

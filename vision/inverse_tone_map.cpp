@@ -11,9 +11,27 @@ namespace {
 
 float rec709Luminance(float r, float g, float b) { return 0.2126f * r + 0.7152f * g + 0.0722f * b; }
 
+// L_w / L_d of banterleInverseCurve. The paper's form L_d − 1 + √((1 − L_d)² + 4·L_d/L_white²)
+// cancels catastrophically for small L_d (two terms ≈ ±1; in float the relative error is
+// ~1e-7/L_d, 1e-3 at L_d = 1e-4); multiplying by the conjugate gives
+//   L_w / L_d = 2·L_max / (L_white · (√((1 − L_d)² + 4·L_d/L_white²) + 1 − L_d)),
+// a sum of non-negative terms, accurate to a few ulp everywhere and finite at L_d = 0 (slope
+// L_max/L_white) and L_d = 1 (ratio L_max), so colour ratios are kept without a 0/0 at black.
+inline float banterleRatio(float ld, float maxRadiance, float whiteLuminance) {
+    const float a = 1.0f - ld;
+    const float root = std::sqrt(a * a + 4.0f * ld / (whiteLuminance * whiteLuminance));
+    return 2.0f * maxRadiance / (whiteLuminance * (root + a));
+}
+
 // Linear display values (after the sRGB decode) → radiance.
 inline void untonemap(float rgb[3], const InverseToneMapSettings& s, float exposureScale) {
-    if (s.op == InverseToneMapOperator::Reinhard) {
+    if (s.op == InverseToneMapOperator::Banterle) {
+        // On luminance, colour ratios kept: rgb = rgb_d · L_w/L_d. Rec.709 weights sum to 1, so
+        // L_d ≤ 1 for decoded values; the clamp only absorbs rounding.
+        const float ld = std::clamp(rec709Luminance(rgb[0], rgb[1], rgb[2]), 0.0f, 1.0f);
+        const float k = banterleRatio(ld, s.maxRadiance, s.whiteLuminance);
+        for (int c = 0; c < 3; ++c) rgb[c] *= k;
+    } else if (s.op == InverseToneMapOperator::Reinhard) {
         // Forward: rgb_d = rgb / (1 + L) with L the luminance of rgb, so L_d = L / (1 + L) and
         // rgb = rgb_d / (1 − L_d).
         float ld = rec709Luminance(rgb[0], rgb[1], rgb[2]);
@@ -32,6 +50,7 @@ std::optional<InverseToneMapOperator> parseInverseToneMapOperator(const std::str
     // "clamp" is the forward operator's name in render/tonemap.h: its inverse is the sRGB decode.
     if (name == "srgb" || name == "clamp") return InverseToneMapOperator::Srgb;
     if (name == "reinhard") return InverseToneMapOperator::Reinhard;
+    if (name == "banterle" || name == "reinhard-extended") return InverseToneMapOperator::Banterle;
     return std::nullopt;
 }
 
@@ -39,6 +58,14 @@ float srgbDecode(float encoded) {
     if (!(encoded > 0.0f)) return 0.0f;
     if (encoded <= 0.04045f) return encoded / 12.92f;
     return std::pow((std::min(encoded, 1.0f) + 0.055f) / 1.055f, 2.4f);
+}
+
+float banterleInverseCurve(float displayLuminance, float maxRadiance, float whiteLuminance) {
+    PV_DCHECK(maxRadiance > 0.0f && std::isfinite(maxRadiance));
+    PV_DCHECK(whiteLuminance > 0.0f && std::isfinite(whiteLuminance));
+    const float ld = std::isfinite(displayLuminance) ? std::clamp(displayLuminance, 0.0f, 1.0f)
+                                                     : 0.0f;
+    return ld * banterleRatio(ld, maxRadiance, whiteLuminance);
 }
 
 std::array<float, 3> inverseToneMapRgb(const std::array<float, 3>& encoded,

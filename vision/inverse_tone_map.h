@@ -1,7 +1,8 @@
 #pragma once
 
 // Display-referred 8-bit camera images → linear radiance, the inverse of render/tonemap.h's
-// operators (sRGB transfer, optional global Reinhard, exposure), plus the per-camera white-balance
+// operators (sRGB transfer, optional global Reinhard or extended Reinhard, exposure), plus the
+// per-camera white-balance
 // gains that bring every camera to the scene's radiance units. Used for fisheye frames
 // (previs envmap) and for plates, so both end in the same units (docs/radiometric-calibration.md).
 
@@ -15,11 +16,18 @@
 
 namespace previs {
 
+// Banterle is the recommended operator for LDR plates and fisheye frames whose camera applied a
+// highlight roll-off: it recovers highlights up to a chosen peak radiance and stays finite and
+// smooth up to code 255. Srgb is for cameras whose output is linear up to clipping (no
+// roll-off); Reinhard only inverts frames made by render's own "reinhard" operator.
 enum class InverseToneMapOperator {
     Srgb,      // inverse of render's Clamp: the sRGB transfer function only
     Reinhard,  // inverse of L/(1+L) on Rec.709 luminance (Reinhard et al. 2002, global)
+    Banterle,  // inverse of render's ReinhardExtended (Banterle et al., GRAPHITE 2006)
 };
 
+// "srgb" (or "clamp"), "reinhard", "banterle" (or "reinhard-extended"): each forward operator
+// name of render/tonemap.h also selects its inverse.
 std::optional<InverseToneMapOperator> parseInverseToneMapOperator(const std::string& name);
 
 struct InverseToneMapSettings {
@@ -32,10 +40,26 @@ struct InverseToneMapSettings {
     // (clipped highlights cannot be recovered anyway), so the largest radiance is finite:
     // 0.99 → 99× the display white.
     float maxDisplayLuminance = 0.99f;
+    // Banterle only (both > 0, finite). maxRadiance is L_max: the luminance, before exposure and
+    // white balance, that display white (code 255 on all channels) maps to; there the inverse
+    // curve ends with a finite slope. whiteLuminance is Reinhard's L_white, the curve's shape:
+    // > 1 compresses highlights (larger = longer shoulder, more of the range kept for shadows),
+    // 1 is linear, < 1 expands. Equal values (the defaults) make the curve's slope 1 at black, so
+    // shadows and mid-tones keep the radiance the sRGB-only inverse gives them, and 16 gives
+    // 4 stops of highlight headroom above display white. Set both per camera (docs/camera-calibration.md).
+    float maxRadiance = 16.0f;
+    float whiteLuminance = 16.0f;
 };
 
 // sRGB transfer function, decoding (IEC 61966-2-1): encoded value in [0,1] → linear.
 float srgbDecode(float encoded);
+
+// Banterle et al., "Inverse Tone Mapping", GRAPHITE 2006: linear display luminance L_d → luminance L_w,
+//   L_w = ½ · L_max · L_white · (L_d − 1 + √((1 − L_d)² + 4·L_d / L_white²)),
+// the exact inverse of render/tonemap.h's reinhardExtendedCurve with the same parameters.
+// L_d is clamped to [0, 1]; L_w(0) = 0, L_w(1) = L_max, and the slope is finite everywhere
+// (at most L_max · max((1 + L_white)/2, 1/L_white)), unlike L_d/(1 − L_d).
+float banterleInverseCurve(float displayLuminance, float maxRadiance, float whiteLuminance);
 
 // One RGB triple, display-referred sRGB-encoded in [0,1] → linear radiance.
 std::array<float, 3> inverseToneMapRgb(const std::array<float, 3>& encoded,
