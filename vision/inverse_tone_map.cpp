@@ -63,8 +63,8 @@ float srgbDecode(float encoded) {
 float banterleInverseCurve(float displayLuminance, float maxRadiance, float whiteLuminance) {
     PV_DCHECK(maxRadiance > 0.0f && std::isfinite(maxRadiance));
     PV_DCHECK(whiteLuminance > 0.0f && std::isfinite(whiteLuminance));
-    const float ld = std::isfinite(displayLuminance) ? std::clamp(displayLuminance, 0.0f, 1.0f)
-                                                     : 0.0f;
+    const float ld =
+        std::isfinite(displayLuminance) ? std::clamp(displayLuminance, 0.0f, 1.0f) : 0.0f;
     return ld * banterleRatio(ld, maxRadiance, whiteLuminance);
 }
 

@@ -44,9 +44,10 @@ struct InverseToneMapSettings {
     // white balance, that display white (code 255 on all channels) maps to; there the inverse
     // curve ends with a finite slope. whiteLuminance is Reinhard's L_white, the curve's shape:
     // > 1 compresses highlights (larger = longer shoulder, more of the range kept for shadows),
-    // 1 is linear, < 1 expands. Equal values (the defaults) make the curve's slope 1 at black, so
-    // shadows and mid-tones keep the radiance the sRGB-only inverse gives them, and 16 gives
-    // 4 stops of highlight headroom above display white. Set both per camera (docs/camera-calibration.md).
+    // 1 is linear, < 1 expands. Equal values (the defaults) make the forward curve Reinhard's
+    // extended operator unscaled (slope 1 at black): within 1 % of the plain Reinhard inverse up
+    // to L_d = 0.5, ending at 16, 4 stops above display white, instead of diverging. Set both per
+    // camera (docs/camera-calibration.md §2).
     float maxRadiance = 16.0f;
     float whiteLuminance = 16.0f;
 };
@@ -54,7 +55,8 @@ struct InverseToneMapSettings {
 // sRGB transfer function, decoding (IEC 61966-2-1): encoded value in [0,1] → linear.
 float srgbDecode(float encoded);
 
-// Banterle et al., "Inverse Tone Mapping", GRAPHITE 2006: linear display luminance L_d → luminance L_w,
+// Banterle et al., "Inverse Tone Mapping", GRAPHITE 2006: linear display luminance L_d →
+// luminance L_w,
 //   L_w = ½ · L_max · L_white · (L_d − 1 + √((1 − L_d)² + 4·L_d / L_white²)),
 // the exact inverse of render/tonemap.h's reinhardExtendedCurve with the same parameters.
 // L_d is clamped to [0, 1]; L_w(0) = 0, L_w(1) = L_max, and the slope is finite everywhere

@@ -2,19 +2,19 @@
 // (render/tonemap.h): round trips over the whole 8-bit and float range, finiteness at the ends,
 // monotonicity, and the Banterle inverse's bounded slope where the naive Reinhard inverse diverges.
 
+#include "vision/inverse_tone_map.h"
+
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <array>
 #include <cmath>
 #include <limits>
+#include <opencv2/core.hpp>
 #include <string>
 #include <vector>
 
-#include <fmt/format.h>
-#include <opencv2/core.hpp>
-
 #include "render/tonemap.h"
-#include "vision/inverse_tone_map.h"
 
 namespace previs {
 namespace {
@@ -78,15 +78,18 @@ float relativeError(float value, float expected) {
 // float rounding of the display value; display → radiance → display divides errors by it.
 double inverseCondition(const OperatorPair& p, double ld) {
     switch (p.inverse.op) {
-    case InverseToneMapOperator::Srgb: return 1.0;
-    case InverseToneMapOperator::Reinhard: return 1.0 / (1.0 - ld);
-    case InverseToneMapOperator::Banterle: {
-        const double w = p.inverse.whiteLuminance;
-        const double a = 1.0 - ld;
-        const double l = 0.5 * w * w * (std::sqrt(a * a + 4.0 * ld / (w * w)) - a);
-        const double slope = (1.0 + 2.0 * l / (w * w) + l * l / (w * w)) / ((1.0 + l) * (1.0 + l));
-        return ld > 0.0 ? (ld / l) / slope : 1.0;
-    }
+        case InverseToneMapOperator::Srgb:
+            return 1.0;
+        case InverseToneMapOperator::Reinhard:
+            return 1.0 / (1.0 - ld);
+        case InverseToneMapOperator::Banterle: {
+            const double w = p.inverse.whiteLuminance;
+            const double a = 1.0 - ld;
+            const double l = 0.5 * w * w * (std::sqrt(a * a + 4.0 * ld / (w * w)) - a);
+            const double slope =
+                (1.0 + 2.0 * l / (w * w) + l * l / (w * w)) / ((1.0 + l) * (1.0 + l));
+            return ld > 0.0 ? (ld / l) / slope : 1.0;
+        }
     }
     return 1.0;
 }
@@ -103,8 +106,8 @@ std::array<float, 3> grey(float v) { return {v, v, v}; }
 // ---- the curves --------------------------------------------------------------------------------
 
 TEST(InverseToneMapCurves, BanterleMatchesThePaperAndInvertsReinhardExtended) {
-    for (auto [lmax, lwhite] : {std::pair{16.0f, 16.0f}, {100.0f, 4.0f}, {8.0f, 1.0f},
-                                {2.0f, 0.5f}, {1000.0f, 64.0f}}) {
+    for (auto [lmax, lwhite] :
+         {std::pair{16.0f, 16.0f}, {100.0f, 4.0f}, {8.0f, 1.0f}, {2.0f, 0.5f}, {1000.0f, 64.0f}}) {
         SCOPED_TRACE(fmt::format("Lmax {} Lwhite {}", lmax, lwhite));
         // Endpoints: black stays black, display white is exactly the peak radiance.
         EXPECT_EQ(banterleInverseCurve(0.0f, lmax, lwhite), 0.0f);
@@ -159,8 +162,8 @@ TEST(InverseToneMapCurves, BanterleSlopeIsBoundedWhereTheNaiveInverseDiverges) {
         // Over the last 8-bit step (linear display 0.991 → 1) the radiance rises by a bounded,
         // small fraction of L_max; the naive inverse goes from ~110 to infinity.
         const float d254 = srgbDecode(254.0f / 255.0f);
-        const float step = banterleInverseCurve(1.0f, lmax, lwhite) -
-                           banterleInverseCurve(d254, lmax, lwhite);
+        const float step =
+            banterleInverseCurve(1.0f, lmax, lwhite) - banterleInverseCurve(d254, lmax, lwhite);
         EXPECT_LE(step, bound * (1.0f - d254) * 1.001f);
         EXPECT_GT(naive(d254), 100.0);
         EXPECT_GT(naive(1.0 - 1e-6), 1e5);
@@ -179,8 +182,8 @@ TEST(InverseToneMap, EightBitCodesRoundTripExactly) {
         int failures = 0, tested = 0;
         auto check = [&](int r, int g, int b) {
             const std::array<float, 3> encoded{r / 255.0f, g / 255.0f, b / 255.0f};
-            const float ld = luminance(
-                {srgbDecode(encoded[0]), srgbDecode(encoded[1]), srgbDecode(encoded[2])});
+            const float ld =
+                luminance({srgbDecode(encoded[0]), srgbDecode(encoded[1]), srgbDecode(encoded[2])});
             if (ld > p.maxInvertibleDisplay) return;
             ++tested;
             const auto back = toneMapRgb(inverseToneMapRgb(encoded, p.inverse), p.forward);
@@ -197,8 +200,9 @@ TEST(InverseToneMap, EightBitCodesRoundTripExactly) {
                 for (int b = 0; b < 256; b += 5) check(r, g, b);
         EXPECT_EQ(failures, 0);
         // Reinhard's clamp excludes exactly the top grey codes; the others test the full range.
-        EXPECT_GE(tested, p.inverse.op == InverseToneMapOperator::Reinhard ? 256 + 52 * 52 * 52 - 100
-                                                                           : 256 + 52 * 52 * 52);
+        EXPECT_GE(tested, p.inverse.op == InverseToneMapOperator::Reinhard
+                              ? 256 + 52 * 52 * 52 - 100
+                              : 256 + 52 * 52 * 52);
     }
 }
 
