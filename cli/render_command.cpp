@@ -12,6 +12,7 @@
 #include "image/image.h"
 #include "render/renderer.h"
 #include "vision/inverse_tone_map.h"
+#include "vision/lens_grid.h"
 #include "render/tonemap.h"
 #include "scene/environment_map.h"
 
@@ -43,6 +44,7 @@ struct RenderOptions {
     std::string plateToneMap = "srgb";
     float plateExposure = 0.0f;
     std::vector<std::string> aovs;
+    std::string calibration;
 };
 
 // `--out dir/name.exr` → `dir/name.<aov>.exr` (DESIGN.md §3).
@@ -141,6 +143,23 @@ int run(const RenderOptions& o) {
                      settings.width, settings.height);
             return 2;
         }
+    }
+    if (!o.calibration.empty()) {
+        auto calib = CameraCalibration::load(o.calibration);
+        if (!calib) {
+            logError("{}", calib.message());
+            return 2;
+        }
+        if (!o.width && !o.height && !plate) {
+            settings.width = uint32_t(calib->imageSize().width);
+            settings.height = uint32_t(calib->imageSize().height);
+        }
+        auto grid = lensRayGrid(*calib, settings.width, settings.height);
+        if (!grid) {
+            logError("--calibration {}: {}", o.calibration, grid.message());
+            return 2;
+        }
+        settings.lensGrid = std::move(grid.value());
     }
     bool wantsReal = std::find(o.aovs.begin(), o.aovs.end(), "real") != o.aovs.end();
     // The real-only solution costs extra rays: computed only when something uses it.
@@ -266,6 +285,10 @@ std::function<int()> addRenderCommand(CLI::App& app) {
                     "also write buffers as OUT.<aov>.exr: composite, mixed, real, mask")
         ->delimiter(',')
         ->check(CLI::IsMember({"composite", "mixed", "real", "mask"}));
+    cmd->add_option("--calibration", o->calibration,
+                    "OpenCV calibration YAML of the scene camera: primary rays follow its lens "
+                    "(pinhole + radial-tangential or fisheye) so the plate needs no resampling")
+        ->check(CLI::ExistingFile);
     return [o] { return run(*o); };
 }
 

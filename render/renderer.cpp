@@ -84,6 +84,11 @@ Result<std::unique_ptr<Renderer>> Renderer::create(GpuContext& ctx, const Scene&
     }
     if (settings.apertureRadiusM) r->camera_.apertureRadiusM = *settings.apertureRadiusM;
     if (settings.focusDistanceM) r->camera_.focusDistanceM = *settings.focusDistanceM;
+    if (!settings.lensGrid.empty() &&
+        settings.lensGrid.size() != size_t(settings.width + 1) * (settings.height + 1))
+        return makeError("lens grid has {} entries; a {}x{} render needs {}",
+                         settings.lensGrid.size(), settings.width, settings.height,
+                         size_t(settings.width + 1) * (settings.height + 1));
     if (!(r->camera_.apertureRadiusM >= 0.0f) || !(r->camera_.focusDistanceM > 0.0f))
         return makeError("thin lens needs aperture radius >= 0 and focus distance > 0 (got {} m, "
                          "{} m)", r->camera_.apertureRadiusM, r->camera_.focusDistanceM);
@@ -95,6 +100,7 @@ Result<std::unique_ptr<Renderer>> Renderer::create(GpuContext& ctx, const Scene&
     if (settings.generalPipeline) spec = SceneFeatures{true, true, true, true, true, true, true};
     std::array<uint32_t, PV_SPEC_COUNT> constants{};
     constants[PV_SPEC_DIFFERENTIAL] = settings.differential;
+    constants[PV_SPEC_HAS_LENS_GRID] = !settings.lensGrid.empty();
     constants[PV_SPEC_HAS_ENV] = spec.environment;
     constants[PV_SPEC_HAS_EMISSIVE] = spec.emissive;
     constants[PV_SPEC_HAS_PUNCTUAL] = spec.punctual;
@@ -269,6 +275,7 @@ Status Renderer::buildScene(const Scene& scene) {
     if (!(s = add(GpuBuffer::create(*ctx_, sizeof(shader::RenderStats), "stats")))) return s;
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(triangleLightPdf), "triangleLightPdf"))))
         return s;
+    if (!(s = add(GpuBuffer::createWith(*ctx_, span(settings_.lensGrid), "lensGrid")))) return s;
     PV_ASSERT(buffers_.size() == PV_BINDING_COUNT);
     return {};
 }
@@ -280,6 +287,12 @@ Status Renderer::reset() {
         if (Status s = buffers_[b].fill(0); !s) return s;
     }
     return {};
+}
+
+Status Renderer::renderPreviewFrame(uint32_t spp) {
+    if (Status s = reset(); !s) return s;
+    params_.seed = settings_.seed;
+    return render(spp);
 }
 
 Status Renderer::render(uint32_t samples,

@@ -34,6 +34,9 @@ struct RenderSettings {
     // Differential rendering (the paper): also compute the real-only solution L_or in the same
     // pass, for compositing with the camera image. Off: a plain CG render of the mixed scene.
     bool differential = false;
+    // A calibrated lens (vision/lens_grid.h): (width+1)×(height+1) normalised OpenCV camera
+    // coordinates of the pixel corners. Empty: a pinhole with the camera's field of view.
+    std::vector<glm::vec2> lensGrid;
 };
 
 // The buffers a render produces (DESIGN.md §3 --aov).
@@ -72,6 +75,19 @@ public:
                   const std::function<void(const RenderProgress&)>& progress = {});
     // Clears the accumulation (refinement restarts at sample 0).
     Status reset();
+    // Preview mode (the paper's interactive mode): one frame of `spp` samples per pixel that
+    // replaces the previous one, drawn with the same random sequence every frame so the noise
+    // stays put while the camera, plate or lighting change (temporal coherence).
+    Status renderPreviewFrame(uint32_t spp);
+    // Refinement mode: adds `spp` more samples to the accumulation, continuing the sequence, so
+    // the image converges frame after frame (exact over millions of samples).
+    Status refine(uint32_t spp) { return render(spp); }
+    // The tracked camera pose for the next frames (world from camera, looking along −Z).
+    void setCameraPose(const glm::mat4& worldFromCamera) {
+        camera_.worldFromCamera = worldFromCamera;
+        params_.worldFromCamera = worldFromCamera;
+    }
+
     // Selects another random sequence (takes effect with the next render; call reset() first
     // unless the new samples are meant to join the old ones).
     void setSeed(uint32_t seed) { params_.seed = seed; }

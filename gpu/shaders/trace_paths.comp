@@ -19,6 +19,7 @@ layout(constant_id = PV_SPEC_HAS_TRANSMISSION) const bool kHasTransmission = tru
 layout(constant_id = PV_SPEC_HAS_THIN_LENS) const bool kHasThinLens = true;
 layout(constant_id = PV_SPEC_HAS_TEXTURES) const bool kHasTextures = true;
 layout(constant_id = PV_SPEC_DIFFERENTIAL) const bool kDifferential = true;
+layout(constant_id = PV_SPEC_HAS_LENS_GRID) const bool kHasLensGrid = true;
 
 layout(binding = PV_BINDING_PARAMS, scalar) readonly buffer ParamsBuffer { FrameParams params; };
 layout(binding = PV_BINDING_POSITIONS, scalar) readonly buffer Positions { vec3 positions[]; };
@@ -57,6 +58,8 @@ layout(binding = PV_BINDING_STATS, scalar) buffer Stats { RenderStats stats; };
 layout(binding = PV_BINDING_TRIANGLE_LIGHT_PDF, scalar) readonly buffer TriangleLightPdf {
     float triangleLightPdf[];
 };
+
+layout(binding = PV_BINDING_LENS_GRID, scalar) readonly buffer LensGrid { vec2 lensGrid[]; };
 
 #define PV_BVH_NODE(i) bvhNodes[i]
 #define PV_TRIANGLE(i) triangles[i]
@@ -411,6 +414,19 @@ Ray cameraRay(uvec2 pixel, inout uint rng) {
     vec2 ndc = vec2((float(pixel.x) + jitter.x) / float(params.width) * 2.0 - 1.0,
                     1.0 - (float(pixel.y) + jitter.y) / float(params.height) * 2.0);
     vec3 dir = vec3(ndc * params.tanHalfFov, -1.0);
+    if (kHasLensGrid) {
+        // The calibrated lens: bilinear in the grid of pixel-corner rays (OpenCV's frame has y
+        // down and z forward; previs's camera looks along −Z with +Y up).
+        vec2 p = vec2(float(pixel.x) + jitter.x, float(pixel.y) + jitter.y);
+        uvec2 c = min(uvec2(p), uvec2(params.width - 1u, params.height - 1u));
+        vec2 f = p - vec2(c);
+        uint row = params.width + 1u;
+        uint i00 = c.y * row + c.x;
+        vec2 top = mix(lensGrid[i00], lensGrid[i00 + 1u], f.x);
+        vec2 bottom = mix(lensGrid[i00 + row], lensGrid[i00 + row + 1u], f.x);
+        vec2 n = mix(top, bottom, f.y);
+        dir = vec3(n.x, -n.y, -1.0);
+    }
     vec3 origin = vec3(0.0);
     if (kHasThinLens && params.apertureRadiusM > 0.0) {
         // Thin lens: the lens sits at the camera position, perpendicular to the optical axis;

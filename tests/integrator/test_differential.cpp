@@ -13,6 +13,7 @@
 #include "tests/integrator/gpu_fixture.h"
 #include "tests/support/scene_builders.h"
 #include "vision/inverse_tone_map.h"
+#include "vision/lens_grid.h"
 
 namespace previs::testing {
 namespace {
@@ -317,6 +318,100 @@ TEST_F(DifferentialTest, VirtualObjectsShadowReflectBleedAndAreOccluded) {
     glm::ivec2 box = pixelOf(s, rs, {-0.7f, 0.4f, -0.1f});
     EXPECT_EQ(at(box, 0, int(Aov::Mask)), 0.0);
     EXPECT_NEAR(at(box, 2), 0.5, kPixelT * sigma(box, 2) + 0.02) << "blue shows through the box";
+}
+
+}  // namespace
+}  // namespace previs::testing
+
+namespace previs::testing {
+namespace {
+
+CameraCalibration pinholeFor(const Camera& camera, uint32_t w, uint32_t h,
+                             std::vector<double> distortion) {
+    double fy = 0.5 * h / std::tan(0.5 * camera.fovYRad);
+    cv::Matx33d k(fy, 0, 0.5 * w - 0.5, 0, fy, 0.5 * h - 0.5, 0, 0, 1);
+    return CameraCalibration::create(k, std::move(distortion), cv::Size(int(w), int(h)),
+                                     DistortionModel::Pinhole, "test")
+        .value();
+}
+
+// The lens grid inverts the calibrated distortion: projecting a grid ray with OpenCV lands on
+// its pixel corner.
+TEST(LensGridTest, RaysProjectBackToTheirPixels) {
+    Camera cam;
+    cam.fovYRad = glm::radians(60.0f);
+    const uint32_t w = 64, h = 48;
+    for (auto distortion : {std::vector<double>{}, std::vector<double>{-0.3, 0.1, 0.001, -0.002, 0.0}}) {
+        CameraCalibration calib = pinholeFor(cam, w, h, distortion);
+        auto grid = lensRayGrid(calib, w, h);
+        ASSERT_TRUE(grid.ok()) << grid.message();
+        std::vector<cv::Point3d> rays;
+        for (const auto& n : *grid) rays.emplace_back(n.x, n.y, 1.0);
+        std::vector<cv::Point2d> pixels = calib.projectPoints(rays);
+        double worst = 0.0;
+        for (uint32_t j = 0; j <= h; ++j)
+            for (uint32_t i = 0; i <= w; ++i) {
+                const auto& p = pixels[j * (w + 1) + i];
+                worst = std::max(worst, std::hypot(p.x - (i - 0.5), p.y - (j - 0.5)));
+            }
+        EXPECT_LT(worst, 1e-3) << "pixels";
+    }
+    EXPECT_FALSE(lensRayGrid(pinholeFor(cam, w, h, {}), w + 1, h).ok());
+}
+
+class LensTest : public GpuTest {};
+
+// An undistorted calibration with the camera's focal length renders what the pinhole renders.
+TEST_F(LensTest, IdealLensMatchesPinhole) {
+    Scene s = realSet();
+    RenderSettings rs = differentialSettings(32, 24);
+    rs.differential = false;
+    ImageF pinhole = render(s, rs, 4);
+    rs.lensGrid = lensRayGrid(pinholeFor(s.cameras[0], rs.width, rs.height, {}), rs.width,
+                              rs.height).value();
+    ImageF lens = render(s, rs, 4);
+    double sumDiff = 0.0, sum = 0.0;
+    for (size_t i = 0; i < lens.pixels.size(); ++i) {
+        sumDiff += std::abs(lens.pixels[i] - pinhole.pixels[i]);
+        sum += pinhole.pixels[i];
+    }
+    // Same random numbers, rays equal to float rounding: only rays grazing an edge may differ.
+    EXPECT_LT(sumDiff / sum, 1e-3);
+}
+
+}  // namespace
+}  // namespace previs::testing
+
+namespace previs::testing {
+namespace {
+
+class ModesTest : public GpuTest {};
+
+// Preview frames repeat their noise exactly (same random sequence every frame); refinement keeps
+// adding new samples, and its mean moves toward the converged image.
+TEST_F(ModesTest, PreviewIsTemporallyCoherentRefinementAccumulates) {
+    Scene s = setWithVirtualObjects();
+    RenderSettings rs = differentialSettings(16, 16);
+    auto renderer = Renderer::create(ctx(), s, rs);
+    ASSERT_TRUE(renderer.ok());
+    Renderer& r = **renderer;
+    ASSERT_TRUE(r.renderPreviewFrame(2).ok());
+    ImageF first = take(r.image(Aov::Mixed));
+    // A camera move and back, as tracking jitters: the same pose gives the same pixels.
+    glm::mat4 pose = r.camera().worldFromCamera;
+    r.setCameraPose(glm::translate(pose, glm::vec3(0.05f, 0, 0)));
+    ASSERT_TRUE(r.renderPreviewFrame(2).ok());
+    ImageF moved = take(r.image(Aov::Mixed));
+    r.setCameraPose(pose);
+    ASSERT_TRUE(r.renderPreviewFrame(2).ok());
+    ImageF again = take(r.image(Aov::Mixed));
+    EXPECT_NE(first.pixels, moved.pixels);
+    EXPECT_EQ(first.pixels, again.pixels);
+    // Refinement: 2 + 30 samples; the 32-sample image differs from the 2-sample preview.
+    ASSERT_TRUE(r.refine(30).ok());
+    EXPECT_EQ(r.samplesPerPixel(), 32u);
+    ImageF refined = take(r.image(Aov::Mixed));
+    EXPECT_NE(refined.pixels, first.pixels);
 }
 
 }  // namespace

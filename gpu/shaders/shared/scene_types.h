@@ -33,7 +33,10 @@ PV_BEGIN
 #define PV_ACCUM_COUNT 3u
 #define PV_BINDING_STATS 17
 #define PV_BINDING_TRIANGLE_LIGHT_PDF 18
-#define PV_BINDING_COUNT 19
+// (width+1)×(height+1) vec2: normalised OpenCV camera coordinates of each pixel corner
+// (vision/lens_grid.h), when the camera has a calibrated lens.
+#define PV_BINDING_LENS_GRID 19
+#define PV_BINDING_COUNT 20
 
 // Specialization constant ids: scene features that select pipeline variants, so a scene runs
 // none of the code it does not need ("model only what the scene requires").
@@ -47,7 +50,9 @@ PV_BEGIN
 // Differential rendering: also the real-only solution L_or (paper's four ray types). Off for a
 // plain CG render, which then runs none of it.
 #define PV_SPEC_DIFFERENTIAL 7
-#define PV_SPEC_COUNT 8
+// Primary rays through the calibrated lens grid instead of the pinhole field of view.
+#define PV_SPEC_HAS_LENS_GRID 8
+#define PV_SPEC_COUNT 9
 
 #define PV_WORKGROUP_SIZE_X 8
 #define PV_WORKGROUP_SIZE_Y 8
