@@ -11,6 +11,7 @@
 #include "bench/bench_scenes.h"
 #include "gpu/context.h"
 #include "render/renderer.h"
+#include "scene/gltf_loader.h"
 
 namespace previs::bench {
 
@@ -193,6 +194,39 @@ int runBenchmarks(const BenchOptions& o) {
                         m->seconds * 1e3 / spp, millions(m->pathsPerSecond).c_str());
         }
         std::printf("\nGeneral / specialised time: %.2f×\n\n", times[1] / times[0]);
+    }
+    if (want("differential")) {
+        std::printf("## Differential pass against a plain path trace of the mixed scene: "
+                    "640×480, %u spp, max depth 8\n\n| scene | plain ms / spp | differential "
+                    "ms / spp | ratio |\n|---|---|---|---|\n", spp);
+        auto bunny = bunnyScene(o.dataDir, env);
+        if (!bunny) return fail(bunny.error());
+        // Bunny box: the floor is the real set, the bunny virtual.
+        Scene bunnyBox = *bunny;
+        for (size_t t = 0; t < 2; ++t) bunnyBox.geometry.triangleIsReal[t] = 1;
+        auto cubes = loadGltf(o.examplesDir + "/cubes_spheres/scene.gltf");
+        if (!cubes) return fail(cubes.error());
+        std::pair<const char*, const Scene*> list[] = {{"bunny on a real floor", &bunnyBox},
+                                                       {"cubes (real) and spheres (virtual)",
+                                                        &cubes.value()}};
+        for (auto [name, scene] : list) {
+            double t[2] = {};
+            for (int differential = 0; differential < 2; ++differential) {
+                RenderSettings rs;
+                rs.width = 640;
+                rs.height = 480;
+                rs.maxDepth = 8;
+                rs.differential = differential == 1;
+                fmt::print(stderr, "bench: {} {}\n", name, differential ? "differential" : "plain");
+                auto m = measure(**ctx, *scene, rs, spp, reps);
+                if (!m) return fail(m.error());
+                t[differential] = m->seconds;
+            }
+            std::printf("| %s | %.1f | %.1f | %.2f× |\n", name, t[0] * 1e3 / spp, t[1] * 1e3 / spp,
+                        t[1] / t[0]);
+            std::fflush(stdout);
+        }
+        std::printf("\n");
     }
     std::printf("Peak resident memory of the whole run: %.0f MiB\n", peakRssMiB());
     return 0;

@@ -9,10 +9,11 @@ namespace previs::bench {
 
 struct BenchOptions {
     std::string dataDir;     // ../shared/data
+    std::string examplesDir; // the repository's examples/
     bool quick = false;      // one repetition, fewer samples: a smoke run
     int repetitions = 3;     // timings are medians over this many runs
     uint32_t spp = 8;        // samples per pixel of the throughput runs
-    std::string only;        // run one section: throughput, resolution, triangles, specialisation
+    std::string only;        // run one section: throughput, resolution, triangles, specialisation, differential
 };
 
 // Returns the process exit code; writes the report to stdout, progress to stderr.

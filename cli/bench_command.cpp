@@ -9,6 +9,7 @@ namespace previs {
 std::function<int()> addBenchCommand(CLI::App& app) {
     auto o = std::make_shared<bench::BenchOptions>();
     o->dataDir = PREVIS_DEFAULT_DATA_DIR;
+    o->examplesDir = PREVIS_EXAMPLES_DIR;
     CLI::App* cmd = app.add_subcommand(
         "bench", "speed measurements: paths/s, rays/s, BVH build, scaling (Markdown on stdout)");
     cmd->add_option("--data", o->dataDir, "test data folder (default: ../shared/data)")
@@ -19,7 +20,8 @@ std::function<int()> addBenchCommand(CLI::App& app) {
     cmd->add_option("--spp", o->spp, "samples per pixel of the throughput runs")
         ->check(CLI::Range(1, 4096));
     cmd->add_option("--only", o->only, "one section")
-        ->check(CLI::IsMember({"throughput", "resolution", "triangles", "specialisation"}));
+        ->check(CLI::IsMember(
+            {"throughput", "resolution", "triangles", "specialisation", "differential"}));
     return [o] { return bench::runBenchmarks(*o); };
 }
 

@@ -43,6 +43,8 @@ struct RenderOptions {
     std::string plate;
     std::string plateToneMap = "srgb";
     float plateExposure = 0.0f;
+    float plateMaxRadiance = 16.0f;
+    float plateWhite = 16.0f;
     std::vector<std::string> aovs;
     std::string calibration;
 };
@@ -129,6 +131,8 @@ int run(const RenderOptions& o) {
             }
             itm.op = *op;
             itm.exposureStops = o.plateExposure;
+            itm.maxRadiance = o.plateMaxRadiance;
+            itm.whiteLuminance = o.plateWhite;
             plate = inverseToneMap(*img, itm);
         } else {
             plate = std::move(img.value());
@@ -266,8 +270,8 @@ std::function<int()> addRenderCommand(CLI::App& app) {
         ->check(CLI::PositiveNumber);
     cmd->add_option("--seed", o->seed, "random seed");
     cmd->add_option("--exposure", o->exposure, "PNG output: exposure in stops");
-    cmd->add_option("--tonemap", o->toneMap, "PNG output: clamp or reinhard")
-        ->check(CLI::IsMember({"clamp", "reinhard"}));
+    cmd->add_option("--tonemap", o->toneMap, "PNG output: clamp, reinhard or reinhard-extended")
+        ->check(CLI::IsMember({"clamp", "reinhard", "reinhard-extended"}));
     cmd->add_option("--firefly-clamp", o->fireflyClamp,
                     "clamp each sample's luminance to this (biased; off by default)")
         ->check(CLI::NonNegativeNumber);
@@ -281,6 +285,11 @@ std::function<int()> addRenderCommand(CLI::App& app) {
                     "inverse tone mapping of an LDR plate: srgb, reinhard or banterle")
         ->check(CLI::IsMember({"srgb", "reinhard", "banterle"}));
     cmd->add_option("--plate-exposure", o->plateExposure, "LDR plate exposure, stops");
+    cmd->add_option("--plate-max-radiance", o->plateMaxRadiance,
+                    "banterle: radiance that 8-bit white maps to (L_max)")
+        ->check(CLI::PositiveNumber);
+    cmd->add_option("--plate-white", o->plateWhite, "banterle: Reinhard white point L_white")
+        ->check(CLI::PositiveNumber);
     cmd->add_option("--aov", o->aovs,
                     "also write buffers as OUT.<aov>.exr: composite, mixed, real, mask")
         ->delimiter(',')
