@@ -1,0 +1,169 @@
+#include "capture/camera_source.h"
+
+#include <utility>
+
+#include "base/log.h"
+
+namespace previs {
+
+const char* toString(CaptureState state) {
+    switch (state) {
+    case CaptureState::Stopped: return "stopped";
+    case CaptureState::Opening: return "opening";
+    case CaptureState::Streaming: return "streaming";
+    case CaptureState::Lost: return "lost";
+    case CaptureState::Finished: return "finished";
+    }
+    return "?";
+}
+
+CaptureThread::CaptureThread(FrameReaderFactory factory, CaptureOptions options)
+    : factory_(std::move(factory)), options_(std::move(options)) {}
+
+CaptureThread::~CaptureThread() { stop(); }
+
+Status CaptureThread::start() {
+    if (thread_.joinable())
+        return makeError("{}: already started", options_.name);
+    if (!factory_)
+        return makeError("{}: no frame source configured", options_.name);
+    {
+        std::lock_guard lock(stopMutex_);
+        stopRequested_ = false;
+    }
+    state_ = CaptureState::Opening;
+    thread_ = std::thread([this] { run(); });
+    return {};
+}
+
+void CaptureThread::stop() {
+    {
+        std::lock_guard lock(stopMutex_);
+        stopRequested_ = true;
+    }
+    stopCv_.notify_all();
+    if (thread_.joinable())
+        thread_.join();
+    state_ = CaptureState::Stopped;
+}
+
+CaptureStats CaptureThread::stats() const {
+    CaptureStats s;
+    s.state = state_.load();
+    s.delivered = delivered_.load();
+    s.dropped = slot_.dropped();
+    s.badFrames = badFrames_.load();
+    s.reconnects = reconnects_.load();
+    return s;
+}
+
+bool CaptureThread::waitForStop(int ms) {
+    std::unique_lock lock(stopMutex_);
+    return stopCv_.wait_for(lock, std::chrono::milliseconds(ms), [this] { return stopRequested_; });
+}
+
+void CaptureThread::setState(CaptureState state, const std::string& detail) {
+    // One log line per change, not per retry: a camera left unplugged for an hour must not
+    // fill the journal.
+    const CaptureState old = state_.exchange(state);
+    if (old == state)
+        return;
+    switch (state) {
+    case CaptureState::Streaming:
+        logInfo("{}: streaming{}", options_.name, detail.empty() ? "" : " (" + detail + ")");
+        break;
+    case CaptureState::Lost:
+        logWarning("{}: {}; retrying every {} ms", options_.name, detail,
+                   options_.retryIntervalMs);
+        break;
+    case CaptureState::Finished:
+        logInfo("{}: end of source", options_.name);
+        break;
+    default:
+        break;
+    }
+}
+
+void CaptureThread::run() {
+    using Clock = std::chrono::steady_clock;
+    std::unique_ptr<FrameReader> reader;
+    uint64_t badBase = 0;
+    bool everStreamed = false;
+    Clock::time_point lastFrame;
+    Clock::time_point lostSince;
+
+    auto dropReader = [&](const std::string& why) {
+        if (reader) {
+            badBase += reader->badFrames();
+            reader.reset();
+        }
+        if (state_.load() != CaptureState::Lost)
+            lostSince = Clock::now();
+        setState(CaptureState::Lost, why);
+    };
+
+    while (true) {
+        {
+            std::lock_guard lock(stopMutex_);
+            if (stopRequested_)
+                break;
+        }
+        if (!reader) {
+            Result<std::unique_ptr<FrameReader>> opened = factory_();
+            Status started = opened ? (*opened)->start() : Status(opened.error());
+            if (!started) {
+                dropReader(started.message());
+                if (waitForStop(options_.retryIntervalMs))
+                    break;
+                continue;
+            }
+            reader = std::move(*opened);
+            lastFrame = Clock::now();
+            std::string detail;
+            if (everStreamed) {
+                ++reconnects_;
+                const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(
+                    Clock::now() - lostSince);
+                detail = fmt::format("back after {} ms, reconnect {}", ms.count(),
+                                     reconnects_.load());
+            }
+            everStreamed = true;
+            setState(CaptureState::Streaming, detail);
+        }
+
+        Frame frame;
+        Result<bool> got = reader->read(options_.readTimeoutMs, frame);
+        badFrames_ = badBase + (reader ? reader->badFrames() : 0);
+        if (!got) {
+            dropReader(got.message());
+            if (waitForStop(options_.retryIntervalMs))
+                break;
+            continue;
+        }
+        if (!*got) {
+            if (reader->finished()) {
+                setState(CaptureState::Finished, "");
+                // Stay alive until stop() so the state stays observable.
+                while (!waitForStop(options_.readTimeoutMs)) {
+                }
+                break;
+            }
+            const auto silentMs = std::chrono::duration_cast<std::chrono::milliseconds>(
+                                      Clock::now() - lastFrame)
+                                      .count();
+            if (silentMs > options_.stallTimeoutMs)
+                dropReader(fmt::format("no frame for {} ms", silentMs));
+            continue;
+        }
+        lastFrame = Clock::now();
+        // Counted before publishing, so stats().delivered never lags a frame already visible.
+        frame.sequence = delivered_++;
+        slot_.publish(std::make_shared<const Frame>(std::move(frame)));
+    }
+    if (reader)
+        badBase += reader->badFrames();
+    badFrames_ = badBase;
+    reader.reset();
+}
+
+}  // namespace previs

@@ -1,0 +1,26 @@
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+namespace previs {
+
+// One camera frame as handed between threads: built once by the capture thread, then shared as
+// std::shared_ptr<const Frame> (an immutable snapshot, DESIGN.md §6), so readers need no locks.
+struct Frame {
+    uint32_t width = 0;
+    uint32_t height = 0;
+    // Tightly packed 8-bit RGB, row 0 at the top, width * height * 3 bytes.
+    std::vector<uint8_t> rgb;
+    // When the sensor finished the frame, CLOCK_MONOTONIC (the kernel's V4L2 buffer timestamp;
+    // for recorded sessions the recorded value), so poses and frames from different sources
+    // can be matched on one clock.
+    uint64_t timestampNs = 0;
+    // Frames delivered by this source so far, across reconnects: strictly increasing, and a
+    // gap means frames were lost before delivery (the consumer's drops are counted separately).
+    uint64_t sequence = 0;
+    // The driver's own counter (v4l2_buffer::sequence); restarts at 0 when a device reopens.
+    uint32_t deviceSequence = 0;
+};
+
+}  // namespace previs

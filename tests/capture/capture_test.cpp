@@ -1,0 +1,313 @@
+// Capture without a device: pixel conversion against known colours and OpenCV's reference, the
+// latest-value slot, the capture thread's recovery (with a scripted reader), and the messages
+// for a missing or wrong device node.
+#include <fcntl.h>
+#include <linux/videodev2.h>
+
+#include <atomic>
+#include <chrono>
+#include <cstring>
+#include <deque>
+#include <random>
+#include <thread>
+
+#include <gtest/gtest.h>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "capture/camera_source.h"
+#include "capture/frame_slot.h"
+#include "capture/pixel_format.h"
+#include "capture/unique_fd.h"
+#include "capture/v4l2_device.h"
+
+namespace previs {
+namespace {
+
+std::vector<uint8_t> randomBytes(size_t n, uint32_t seed) {
+    std::mt19937 rng(seed);
+    std::vector<uint8_t> v(n);
+    for (uint8_t& b : v)
+        b = uint8_t(rng());
+    return v;
+}
+
+int maxAbsDiff(const std::vector<uint8_t>& a, const cv::Mat& b) {
+    EXPECT_EQ(a.size(), b.total() * b.elemSize());
+    int worst = 0;
+    for (size_t i = 0; i < a.size() && i < b.total() * b.elemSize(); ++i)
+        worst = std::max(worst, std::abs(int(a[i]) - int(b.data[i])));
+    return worst;
+}
+
+// BT.601 limited range: Y 16..235, chroma 16..240 around 128.
+TEST(PixelFormat, YuyvKnownColours) {
+    struct Case {
+        uint8_t y, u, v, r, g, b;
+    };
+    // White, black, and the 100% primaries' BT.601 codes (ITU-R BT.601 colour bars).
+    const Case cases[] = {{235, 128, 128, 255, 255, 255}, {16, 128, 128, 0, 0, 0},
+                          {81, 90, 240, 255, 0, 0},       {145, 54, 34, 0, 255, 0},
+                          {41, 240, 110, 0, 0, 255}};
+    for (const Case& c : cases) {
+        const std::vector<uint8_t> yuyv = {c.y, c.u, c.y, c.v};
+        std::vector<uint8_t> rgb;
+        ASSERT_TRUE(convertToRgb(V4L2_PIX_FMT_YUYV, yuyv, 2, 1, 0, rgb));
+        ASSERT_EQ(rgb.size(), 6u);
+        for (int px = 0; px < 2; ++px) {
+            EXPECT_NEAR(rgb[px * 3 + 0], c.r, 3) << int(c.y) << "," << int(c.u) << "," << int(c.v);
+            EXPECT_NEAR(rgb[px * 3 + 1], c.g, 3);
+            EXPECT_NEAR(rgb[px * 3 + 2], c.b, 3);
+        }
+    }
+}
+
+TEST(PixelFormat, YuyvWithPaddedStrideMatchesOpenCv) {
+    const uint32_t w = 64, h = 16, stride = w * 2 + 32;
+    std::vector<uint8_t> buf = randomBytes(size_t(stride) * h, 1);
+    cv::Mat packed(h, w, CV_8UC2);
+    for (uint32_t y = 0; y < h; ++y)
+        std::memcpy(packed.ptr(y), buf.data() + y * stride, w * 2);
+    cv::Mat ref;
+    cv::cvtColor(packed, ref, cv::COLOR_YUV2RGB_YUYV);
+    std::vector<uint8_t> rgb;
+    ASSERT_TRUE(convertToRgb(V4L2_PIX_FMT_YUYV, buf, w, h, stride, rgb));
+    EXPECT_EQ(maxAbsDiff(rgb, ref), 0);
+}
+
+TEST(PixelFormat, Nv12WithPaddedStrideMatchesOpenCv) {
+    const uint32_t w = 48, h = 32, stride = 64;
+    std::vector<uint8_t> buf = randomBytes(size_t(stride) * h * 3 / 2, 2);
+    cv::Mat packed(h * 3 / 2, w, CV_8UC1);
+    for (uint32_t y = 0; y < h * 3 / 2; ++y)
+        std::memcpy(packed.ptr(y), buf.data() + y * stride, w);
+    cv::Mat ref;
+    cv::cvtColor(packed, ref, cv::COLOR_YUV2RGB_NV12);
+    std::vector<uint8_t> rgb;
+    ASSERT_TRUE(convertToRgb(V4L2_PIX_FMT_NV12, buf, w, h, stride, rgb));
+    EXPECT_EQ(maxAbsDiff(rgb, ref), 0);
+}
+
+TEST(PixelFormat, Nv12KnownColour) {
+    // 2x2 pure red: four Y samples, one interleaved Cb/Cr pair.
+    const std::vector<uint8_t> nv12 = {81, 81, 81, 81, 90, 240};
+    std::vector<uint8_t> rgb;
+    ASSERT_TRUE(convertToRgb(V4L2_PIX_FMT_NV12, nv12, 2, 2, 0, rgb));
+    for (int px = 0; px < 4; ++px) {
+        EXPECT_NEAR(rgb[px * 3 + 0], 255, 3);
+        EXPECT_NEAR(rgb[px * 3 + 1], 0, 3);
+        EXPECT_NEAR(rgb[px * 3 + 2], 0, 3);
+    }
+}
+
+TEST(PixelFormat, MjpegDecodesToRgb) {
+    // A smooth image so JPEG's error stays small and the channel order is unambiguous.
+    const int w = 64, h = 48;
+    cv::Mat rgbRef(h, w, CV_8UC3);
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x)
+            rgbRef.at<cv::Vec3b>(y, x) = {uint8_t(200), uint8_t(x * 2), uint8_t(y * 3)};
+    cv::Mat bgr;
+    cv::cvtColor(rgbRef, bgr, cv::COLOR_RGB2BGR);
+    std::vector<uint8_t> jpeg;
+    ASSERT_TRUE(cv::imencode(".jpg", bgr, jpeg, {cv::IMWRITE_JPEG_QUALITY, 95}));
+    std::vector<uint8_t> rgb;
+    ASSERT_TRUE(convertToRgb(V4L2_PIX_FMT_MJPEG, jpeg, w, h, 0, rgb));
+    EXPECT_LE(maxAbsDiff(rgb, rgbRef), 12);
+    EXPECT_NEAR(rgb[0], 200, 6);  // red channel first
+}
+
+TEST(PixelFormat, BadBuffersAreErrorsNotCrashes) {
+    std::vector<uint8_t> rgb;
+    const std::vector<uint8_t> shortYuyv(100);
+    Status s = convertToRgb(V4L2_PIX_FMT_YUYV, shortYuyv, 640, 480, 0, rgb);
+    ASSERT_FALSE(s);
+    EXPECT_NE(s.message().find("truncated"), std::string::npos) << s.message();
+
+    const std::vector<uint8_t> garbage = randomBytes(5000, 3);
+    s = convertToRgb(V4L2_PIX_FMT_MJPEG, garbage, 64, 48, 0, rgb);
+    ASSERT_FALSE(s);
+    EXPECT_NE(s.message().find("MJPEG"), std::string::npos) << s.message();
+
+    // A JPEG of the wrong size: the stream's size is what consumers rely on.
+    std::vector<uint8_t> jpeg;
+    ASSERT_TRUE(cv::imencode(".jpg", cv::Mat(8, 8, CV_8UC3, cv::Scalar(1, 2, 3)), jpeg));
+    s = convertToRgb(V4L2_PIX_FMT_MJPEG, jpeg, 64, 48, 0, rgb);
+    ASSERT_FALSE(s);
+    EXPECT_NE(s.message().find("8x8"), std::string::npos) << s.message();
+
+    s = convertToRgb(V4L2_PIX_FMT_SBGGR8, garbage, 16, 16, 0, rgb);
+    ASSERT_FALSE(s);
+    EXPECT_NE(s.message().find("BA81"), std::string::npos) << s.message();
+    EXPECT_NE(s.message().find("YUYV"), std::string::npos) << s.message();
+}
+
+TEST(PixelFormat, FourccNames) {
+    EXPECT_EQ(fourccToString(V4L2_PIX_FMT_YUYV), "YUYV");
+    EXPECT_EQ(fourccToString(V4L2_PIX_FMT_MJPEG), "MJPG");
+    EXPECT_EQ(fourccToString(V4L2_PIX_FMT_Y16_BE), "Y16-BE");
+    EXPECT_EQ(fourccFromString("NV12"), uint32_t(V4L2_PIX_FMT_NV12));
+    EXPECT_EQ(fourccFromString("GREY"), uint32_t(V4L2_PIX_FMT_GREY));
+    EXPECT_EQ(fourccFromString("TOOLONG"), 0u);
+}
+
+TEST(UniqueFd, ClosesOnceAndMoves) {
+    int fds[2];
+    ASSERT_EQ(::pipe(fds), 0);
+    ::close(fds[1]);
+    UniqueFD a(fds[0]);
+    UniqueFD b(std::move(a));
+    EXPECT_FALSE(a.isValid());
+    EXPECT_EQ(b.get(), fds[0]);
+    b.reset();
+    EXPECT_EQ(::fcntl(fds[0], F_GETFD), -1);  // closed
+}
+
+TEST(FrameSlot, SlowConsumerDropsAndCounts) {
+    FrameSlot slot;
+    EXPECT_EQ(slot.take(), nullptr);
+    for (uint64_t i = 0; i < 10; ++i) {
+        auto f = std::make_shared<Frame>();
+        f->sequence = i;
+        slot.publish(std::move(f));
+    }
+    EXPECT_EQ(slot.published(), 10u);
+    EXPECT_EQ(slot.dropped(), 9u);
+    auto got = slot.take();
+    ASSERT_NE(got, nullptr);
+    EXPECT_EQ(got->sequence, 9u);
+    EXPECT_EQ(slot.take(), nullptr);
+    ASSERT_NE(slot.latest(), nullptr);  // latest() survives take()
+    EXPECT_EQ(slot.waitTake(std::chrono::milliseconds(5)), nullptr);
+    slot.publish(std::make_shared<Frame>());
+    EXPECT_EQ(slot.dropped(), 9u);  // the previous one was taken: no drop
+}
+
+TEST(V4L2Device, MissingDeviceSaysSo) {
+    V4L2Config config;
+    config.device = "/dev/video-previs-missing";
+    auto dev = V4L2Device::create(config);
+    ASSERT_FALSE(dev);
+    EXPECT_NE(dev.message().find("/dev/video-previs-missing"), std::string::npos);
+    EXPECT_NE(dev.message().find("no such device"), std::string::npos) << dev.message();
+}
+
+TEST(V4L2Device, NonVideoNodeSaysSo) {
+    V4L2Config config;
+    config.device = "/dev/null";
+    auto dev = V4L2Device::create(config);
+    ASSERT_FALSE(dev);
+    EXPECT_NE(dev.message().find("not a V4L2 device"), std::string::npos) << dev.message();
+}
+
+// A reader whose behaviour is scripted per call, standing in for a device that comes and goes.
+struct Script {
+    std::atomic<int> opensToFail{0};  // factory failures before the next successful open
+    std::atomic<int> framesBeforeLoss{-1};  // -1: never lost
+    std::atomic<int> opens{0};
+    std::atomic<uint64_t> timestampNs{1000};
+};
+
+class ScriptedReader : public FrameReader {
+public:
+    explicit ScriptedReader(Script& s) : s_(s) {}
+    Status start() override { return {}; }
+    Result<bool> read(int, Frame& frame) override {
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+        if (s_.framesBeforeLoss.load() == 0) {
+            s_.framesBeforeLoss = -1;
+            return makeError("scripted device vanished");
+        }
+        if (s_.framesBeforeLoss.load() > 0)
+            --s_.framesBeforeLoss;
+        frame.width = 2;
+        frame.height = 1;
+        frame.rgb.assign(6, 7);
+        frame.timestampNs = s_.timestampNs += 1000;
+        frame.deviceSequence = seq_++;
+        return true;
+    }
+
+private:
+    Script& s_;
+    uint32_t seq_ = 0;
+};
+
+FrameReaderFactory scriptedFactory(Script& s) {
+    return [&s]() -> Result<std::unique_ptr<FrameReader>> {
+        if (s.opensToFail.load() > 0) {
+            --s.opensToFail;
+            return makeError("scripted camera: no such device");
+        }
+        ++s.opens;
+        return std::unique_ptr<FrameReader>(new ScriptedReader(s));
+    };
+}
+
+template <typename Pred>
+bool waitFor(Pred pred, int ms = 5000) {
+    for (int i = 0; i < ms / 5; ++i) {
+        if (pred())
+            return true;
+        std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    return pred();
+}
+
+TEST(CaptureThread, WaitsForAbsentDeviceThenRecoversFromLoss) {
+    Script script;
+    script.opensToFail = 3;
+    script.framesBeforeLoss = 20;
+    CaptureOptions options;
+    options.name = "scripted";
+    options.retryIntervalMs = 10;
+    CaptureThread capture(scriptedFactory(script), options);
+    ASSERT_TRUE(capture.start());
+
+    // Absent at start: the thread keeps trying, then streams; then the device is lost once and
+    // comes back on the next open, without anyone restarting the thread.
+    ASSERT_TRUE(waitFor([&] { return capture.stats().reconnects >= 1; }));
+    ASSERT_TRUE(waitFor([&] { return capture.stats().delivered >= 40; }));
+    EXPECT_EQ(script.opens.load(), 2);
+    EXPECT_EQ(capture.state(), CaptureState::Streaming);
+
+    uint64_t lastSeq = 0, lastTs = 0;
+    for (int i = 0; i < 5; ++i) {
+        auto f = capture.frames().waitTake(std::chrono::milliseconds(500));
+        ASSERT_NE(f, nullptr);
+        if (i > 0) {
+            EXPECT_GT(f->sequence, lastSeq);
+            EXPECT_GT(f->timestampNs, lastTs);
+        }
+        lastSeq = f->sequence;
+        lastTs = f->timestampNs;
+    }
+    capture.stop();
+    EXPECT_EQ(capture.state(), CaptureState::Stopped);
+}
+
+TEST(CaptureThread, SlowConsumerNeverStallsCapture) {
+    Script script;
+    CaptureOptions options;
+    options.name = "fast";
+    CaptureThread capture(scriptedFactory(script), options);
+    ASSERT_TRUE(capture.start());
+    uint64_t taken = 0;
+    for (int i = 0; i < 10; ++i) {
+        // A consumer 20x slower than the source.
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+        if (capture.frames().take())
+            ++taken;
+    }
+    capture.stop();
+    const CaptureStats s = capture.stats();
+    EXPECT_GE(s.delivered, 50u);  // capture kept its own pace
+    EXPECT_GT(s.dropped, 0u);
+    // Every delivered frame was either taken, dropped, or is still waiting in the slot.
+    const uint64_t pending = capture.frames().take() ? 1 : 0;
+    EXPECT_EQ(s.delivered, taken + s.dropped + pending);
+}
+
+}  // namespace
+}  // namespace previs
