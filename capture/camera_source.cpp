@@ -73,7 +73,7 @@ void CaptureThread::setState(CaptureState state, const std::string& detail) {
         logInfo("{}: streaming{}", options_.name, detail.empty() ? "" : " (" + detail + ")");
         break;
     case CaptureState::Lost:
-        logWarning("{}: {}; retrying every {} ms", options_.name, detail,
+        logWarning("{}: {} (retrying every {} ms)", options_.name, detail,
                    options_.retryIntervalMs);
         break;
     case CaptureState::Finished:
