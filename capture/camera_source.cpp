@@ -151,7 +151,7 @@ void CaptureThread::run() {
             const auto silentMs = std::chrono::duration_cast<std::chrono::milliseconds>(
                                       Clock::now() - lastFrame)
                                       .count();
-            if (silentMs > options_.stallTimeoutMs)
+            if (reader->isLive() && silentMs > options_.stallTimeoutMs)
                 dropReader(fmt::format("no frame for {} ms", silentMs));
             continue;
         }

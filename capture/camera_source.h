@@ -32,6 +32,9 @@ public:
     virtual Result<bool> read(int timeoutMs, Frame& frame) = 0;
     // A finite source (a recording) has delivered its last frame.
     virtual bool finished() const { return false; }
+    // A live device: silence longer than CaptureOptions::stallTimeoutMs means it is dead. A
+    // recording's gaps are its recorded timing, never a stall.
+    virtual bool isLive() const { return true; }
     // Frames the device delivered that could not be converted (skipped, never published).
     virtual uint64_t badFrames() const { return 0; }
 };

@@ -8,9 +8,12 @@
 #include <chrono>
 #include <cstring>
 #include <deque>
+#include <filesystem>
+#include <fstream>
 #include <random>
 #include <thread>
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -19,6 +22,7 @@
 #include "capture/camera_source.h"
 #include "capture/frame_slot.h"
 #include "capture/pixel_format.h"
+#include "capture/recorded_source.h"
 #include "capture/unique_fd.h"
 #include "capture/v4l2_device.h"
 
@@ -307,6 +311,104 @@ TEST(CaptureThread, SlowConsumerNeverStallsCapture) {
     // Every delivered frame was either taken, dropped, or is still waiting in the slot.
     const uint64_t pending = capture.frames().take() ? 1 : 0;
     EXPECT_EQ(s.delivered, taken + s.dropped + pending);
+}
+
+// A session camera folder as the recorder leaves it after a crash: N complete frames and a cut-off
+// last index line (docs/session-format.md).
+std::string writeRecordedCamera(const std::string& name, int frames, uint64_t periodNs) {
+    const auto dir = std::filesystem::temp_directory_path() /
+                     ("previs_capture_test_" + name + "_" + std::to_string(::getpid()));
+    std::filesystem::remove_all(dir);
+    std::filesystem::create_directories(dir);
+    std::ofstream index(dir / "index.csv");
+    index << "# previs-session camera index v1: sequence,timestampNs,file,width,height\n";
+    for (int i = 0; i < frames; ++i) {
+        cv::Mat bgr(12, 16, CV_8UC3, cv::Scalar(10 * i, 100, 200));  // B, G, R
+        const std::string file = fmt::format("{:012}.png", i * 2);
+        EXPECT_TRUE(cv::imwrite((dir / file).string(), bgr));
+        index << i * 2 << "," << 5'000'000'000ull + i * periodNs << "," << file << ",16,12\n";
+    }
+    index << frames * 2 << ",99999";  // the crash: no newline, never counted
+    return dir.string();
+}
+
+TEST(RecordedSource, ReplaysAsFastAsPossibleAndFinishes) {
+    const std::string dir = writeRecordedCamera("fast", 5, 1'000'000'000ull);
+    CaptureOptions options;
+    options.name = "recorded";
+    auto source = makeRecordedSource(dir, ReplayTiming::AsFastAsPossible, options);
+    ASSERT_TRUE(source->start());
+    std::vector<std::shared_ptr<const Frame>> got;
+    // A consumer that keeps up (the slot keeps only the newest, so poll fast).
+    ASSERT_TRUE(waitFor([&] {
+        if (auto f = source->frames().take())
+            got.push_back(f);
+        return source->stats().state == CaptureState::Finished;
+    }));
+    source->stop();
+    EXPECT_EQ(source->stats().delivered, 5u);
+    ASSERT_FALSE(got.empty());
+    const Frame& last = *source->frames().latest();
+    EXPECT_EQ(last.timestampNs, 5'000'000'000ull + 4'000'000'000ull);  // recorded, not now
+    EXPECT_EQ(last.deviceSequence, 8u);
+    ASSERT_EQ(last.rgb.size(), 16u * 12 * 3);
+    EXPECT_EQ(last.rgb[0], 200);  // R
+    EXPECT_EQ(last.rgb[1], 100);  // G
+    EXPECT_EQ(last.rgb[2], 40);   // B
+    std::filesystem::remove_all(dir);
+}
+
+TEST(RecordedSource, ReplaysAtRecordedTiming) {
+    const uint64_t periodNs = 40'000'000;  // 25 fps
+    const std::string dir = writeRecordedCamera("timed", 6, periodNs);
+    auto reader = RecordedReader::create(dir, ReplayTiming::Recorded);
+    ASSERT_TRUE(reader) << reader.message();
+    ASSERT_TRUE((*reader)->start());
+    const auto t0 = std::chrono::steady_clock::now();
+    int frames = 0;
+    while (!(*reader)->finished()) {
+        Frame f;
+        Result<bool> got = (*reader)->read(100, f);
+        ASSERT_TRUE(got);
+        frames += *got ? 1 : 0;
+    }
+    const double elapsedMs =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    EXPECT_EQ(frames, 6);
+    EXPECT_GE(elapsedMs, 5 * 40 - 2);  // the last frame is due 200 ms after the first
+    EXPECT_LT(elapsedMs, 5 * 40 + 150);
+    std::filesystem::remove_all(dir);
+}
+
+TEST(RecordedSource, BadIndexAndFramesAreReported) {
+    auto missing = RecordedReader::create("/nonexistent/session/cameras/scene",
+                                          ReplayTiming::AsFastAsPossible);
+    ASSERT_FALSE(missing);
+    EXPECT_NE(missing.message().find("/nonexistent/session/cameras/scene/index.csv"),
+              std::string::npos);
+
+    const std::string dir = writeRecordedCamera("bad", 3, 1000);
+    {
+        std::ofstream(dir + "/000000000002.png") << "not a png";  // frame 1 corrupt
+    }
+    auto reader = RecordedReader::create(dir, ReplayTiming::AsFastAsPossible);
+    ASSERT_TRUE(reader);
+    ASSERT_TRUE((*reader)->start());
+    int frames = 0;
+    while (!(*reader)->finished()) {
+        Frame f;
+        Result<bool> got = (*reader)->read(10, f);
+        ASSERT_TRUE(got);
+        frames += *got ? 1 : 0;
+    }
+    EXPECT_EQ(frames, 2);
+    EXPECT_EQ((*reader)->badFrames(), 1u);
+
+    std::ofstream(dir + "/index.csv", std::ios::app) << "\nx,1,f.png,16,12\n";
+    auto corrupt = loadCameraIndex(dir);
+    ASSERT_FALSE(corrupt);
+    EXPECT_NE(corrupt.message().find("index.csv:"), std::string::npos) << corrupt.message();
+    std::filesystem::remove_all(dir);
 }
 
 }  // namespace

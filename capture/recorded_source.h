@@ -1,0 +1,60 @@
+#pragma once
+
+// The recorded twin of a camera (DESIGN.md §1, §5): frames from a session folder's
+// cameras/<name>/ (docs/session-format.md), behind the same FrameReader/CameraSource interfaces
+// as a live device, in the spirit of libcamera's "virtual" pipeline handler.
+
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "base/result.h"
+#include "capture/camera_source.h"
+
+namespace previs {
+
+struct RecordedFrameEntry {
+    uint64_t sequence = 0;
+    uint64_t timestampNs = 0;
+    std::string file;  // absolute path
+    uint32_t width = 0;
+    uint32_t height = 0;
+};
+
+// Parses cameras/<name>/index.csv of a session; a truncated last line (a crash mid-append) is
+// ignored, a malformed complete line is an error naming file and line.
+Result<std::vector<RecordedFrameEntry>> loadCameraIndex(const std::string& cameraDir);
+
+enum class ReplayTiming {
+    Recorded,  // frames at their recorded intervals (a live-like replay)
+    AsFastAsPossible,  // deterministic CI runs, offline rendering
+};
+
+class RecordedReader : public FrameReader {
+public:
+    static Result<std::unique_ptr<RecordedReader>> create(const std::string& cameraDir,
+                                                          ReplayTiming timing);
+
+    Status start() override;
+    Result<bool> read(int timeoutMs, Frame& frame) override;
+    bool finished() const override { return next_ >= entries_.size(); }
+    bool isLive() const override { return false; }
+    uint64_t badFrames() const override { return badFrames_; }
+
+private:
+    RecordedReader(std::vector<RecordedFrameEntry> entries, ReplayTiming timing);
+
+    std::vector<RecordedFrameEntry> entries_;
+    ReplayTiming timing_;
+    size_t next_ = 0;
+    std::chrono::steady_clock::time_point startTime_;
+    uint64_t badFrames_ = 0;
+};
+
+// A CameraSource replaying cameras/<name>/ of a session on its own thread.
+std::unique_ptr<CameraSource> makeRecordedSource(const std::string& cameraDir,
+                                                 ReplayTiming timing, CaptureOptions options);
+
+}  // namespace previs
