@@ -148,11 +148,12 @@ def main(out):
     g.node("RedSphere", mesh=g.mesh("red sphere", *sphere(0.05), red),
            translation=[0.05, 0.05, 0.2])
     # A softbox above the set, facing down (the box's -Y face points at the table).
-    g.node("Softbox", mesh=g.mesh("softbox", *box(0.25, 0.005, 0.15), lamp),
+    # The set's lights are real: they light the real-only solution too.
+    g.node("Softbox", real=True, mesh=g.mesh("softbox", *box(0.25, 0.005, 0.15), lamp),
            translation=[0.0, 0.9, 0.1])
     g.gltf["extensions"]["KHR_lights_punctual"]["lights"].append(
         {"name": "key", "type": "point", "color": [1.0, 0.9, 0.8], "intensity": 0.6})
-    g.node("KeyLight", extensions={"KHR_lights_punctual": {"light": 0}},
+    g.node("KeyLight", real=True, extensions={"KHR_lights_punctual": {"light": 0}},
            translation=[0.6, 0.7, 0.6])
     g.gltf["cameras"].append({"name": "SceneCamera", "type": "perspective", "perspective":
                               {"yfov": math.radians(40), "aspectRatio": 4 / 3, "znear": 0.01}})
