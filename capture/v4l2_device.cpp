@@ -282,6 +282,9 @@ Result<bool> V4L2Device::read(int timeoutMs, Frame& frame) {
         return makeError("camera {}: driver returned unknown buffer {}", path_, buf.index);
 
     bool good = !(buf.flags & V4L2_BUF_FLAG_ERROR);
+    if (!good && badFrames_ < 3)
+        logWarning("camera {}: the driver flagged frame {} as corrupt; skipped", path_,
+                   buf.sequence);
     if (good) {
         const Mapping& m = buffers_[buf.index];
         const size_t used = std::min<size_t>(buf.bytesused, m.length);
