@@ -8,11 +8,16 @@ namespace previs {
 
 const char* toString(CaptureState state) {
     switch (state) {
-    case CaptureState::Stopped: return "stopped";
-    case CaptureState::Opening: return "opening";
-    case CaptureState::Streaming: return "streaming";
-    case CaptureState::Lost: return "lost";
-    case CaptureState::Finished: return "finished";
+        case CaptureState::Stopped:
+            return "stopped";
+        case CaptureState::Opening:
+            return "opening";
+        case CaptureState::Streaming:
+            return "streaming";
+        case CaptureState::Lost:
+            return "lost";
+        case CaptureState::Finished:
+            return "finished";
     }
     return "?";
 }
@@ -23,10 +28,8 @@ CaptureThread::CaptureThread(FrameReaderFactory factory, CaptureOptions options)
 CaptureThread::~CaptureThread() { stop(); }
 
 Status CaptureThread::start() {
-    if (thread_.joinable())
-        return makeError("{}: already started", options_.name);
-    if (!factory_)
-        return makeError("{}: no frame source configured", options_.name);
+    if (thread_.joinable()) return makeError("{}: already started", options_.name);
+    if (!factory_) return makeError("{}: no frame source configured", options_.name);
     {
         std::lock_guard lock(stopMutex_);
         stopRequested_ = false;
@@ -42,8 +45,7 @@ void CaptureThread::stop() {
         stopRequested_ = true;
     }
     stopCv_.notify_all();
-    if (thread_.joinable())
-        thread_.join();
+    if (thread_.joinable()) thread_.join();
     state_ = CaptureState::Stopped;
 }
 
@@ -66,21 +68,20 @@ void CaptureThread::setState(CaptureState state, const std::string& detail) {
     // One log line per change, not per retry: a camera left unplugged for an hour must not
     // fill the journal.
     const CaptureState old = state_.exchange(state);
-    if (old == state)
-        return;
+    if (old == state) return;
     switch (state) {
-    case CaptureState::Streaming:
-        logInfo("{}: streaming{}", options_.name, detail.empty() ? "" : " (" + detail + ")");
-        break;
-    case CaptureState::Lost:
-        logWarning("{}: {} (retrying every {} ms)", options_.name, detail,
-                   options_.retryIntervalMs);
-        break;
-    case CaptureState::Finished:
-        logInfo("{}: end of source", options_.name);
-        break;
-    default:
-        break;
+        case CaptureState::Streaming:
+            logInfo("{}: streaming{}", options_.name, detail.empty() ? "" : " (" + detail + ")");
+            break;
+        case CaptureState::Lost:
+            logWarning("{}: {} (retrying every {} ms)", options_.name, detail,
+                       options_.retryIntervalMs);
+            break;
+        case CaptureState::Finished:
+            logInfo("{}: end of source", options_.name);
+            break;
+        default:
+            break;
     }
 }
 
@@ -97,24 +98,21 @@ void CaptureThread::run() {
             badBase += reader->badFrames();
             reader.reset();
         }
-        if (state_.load() != CaptureState::Lost)
-            lostSince = Clock::now();
+        if (state_.load() != CaptureState::Lost) lostSince = Clock::now();
         setState(CaptureState::Lost, why);
     };
 
     while (true) {
         {
             std::lock_guard lock(stopMutex_);
-            if (stopRequested_)
-                break;
+            if (stopRequested_) break;
         }
         if (!reader) {
             Result<std::unique_ptr<FrameReader>> opened = factory_();
             Status started = opened ? (*opened)->start() : Status(opened.error());
             if (!started) {
                 dropReader(started.message());
-                if (waitForStop(options_.retryIntervalMs))
-                    break;
+                if (waitForStop(options_.retryIntervalMs)) break;
                 continue;
             }
             reader = std::move(*opened);
@@ -122,10 +120,10 @@ void CaptureThread::run() {
             std::string detail;
             if (everStreamed) {
                 ++reconnects_;
-                const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(
-                    Clock::now() - lostSince);
-                detail = fmt::format("back after {} ms, reconnect {}", ms.count(),
-                                     reconnects_.load());
+                const auto ms =
+                    std::chrono::duration_cast<std::chrono::milliseconds>(Clock::now() - lostSince);
+                detail =
+                    fmt::format("back after {} ms, reconnect {}", ms.count(), reconnects_.load());
             }
             everStreamed = true;
             setState(CaptureState::Streaming, detail);
@@ -136,8 +134,7 @@ void CaptureThread::run() {
         badFrames_ = badBase + (reader ? reader->badFrames() : 0);
         if (!got) {
             dropReader(got.message());
-            if (waitForStop(options_.retryIntervalMs))
-                break;
+            if (waitForStop(options_.retryIntervalMs)) break;
             continue;
         }
         if (!*got) {
@@ -148,9 +145,9 @@ void CaptureThread::run() {
                 }
                 break;
             }
-            const auto silentMs = std::chrono::duration_cast<std::chrono::milliseconds>(
-                                      Clock::now() - lastFrame)
-                                      .count();
+            const auto silentMs =
+                std::chrono::duration_cast<std::chrono::milliseconds>(Clock::now() - lastFrame)
+                    .count();
             if (reader->isLive() && silentMs > options_.stallTimeoutMs)
                 dropReader(fmt::format("no frame for {} ms", silentMs));
             continue;
@@ -160,8 +157,7 @@ void CaptureThread::run() {
         frame.sequence = delivered_++;
         slot_.publish(std::make_shared<const Frame>(std::move(frame)));
     }
-    if (reader)
-        badBase += reader->badFrames();
+    if (reader) badBase += reader->badFrames();
     badFrames_ = badBase;
     reader.reset();
 }

@@ -11,8 +11,7 @@ void FrameSlot::publish(std::shared_ptr<const Frame> frame) {
         latest_ = frame;
         replaced = std::exchange(pending_, std::move(frame));
         ++published_;
-        if (replaced)
-            ++dropped_;
+        if (replaced) ++dropped_;
     }
     ready_.notify_all();
 }

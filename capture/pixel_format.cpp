@@ -1,10 +1,9 @@
 #include "capture/pixel_format.h"
 
+#include <fmt/format.h>
 #include <linux/videodev2.h>
 
 #include <array>
-
-#include <fmt/format.h>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -32,8 +31,7 @@ constexpr std::array kFormats = {
 
 const FormatInfo* findFormat(uint32_t fourcc) {
     for (const FormatInfo& f : kFormats)
-        if (f.fourcc == fourcc)
-            return &f;
+        if (f.fourcc == fourcc) return &f;
     return nullptr;
 }
 
@@ -51,69 +49,66 @@ Status convert(uint32_t fourcc, std::span<const uint8_t> data, uint32_t width, u
     };
 
     switch (fourcc) {
-    case V4L2_PIX_FMT_YUYV:
-    case V4L2_PIX_FMT_UYVY:
-    case V4L2_PIX_FMT_YVYU: {
-        if (Status s = need(size_t(stride) * (height - 1) + size_t(width) * 2); !s)
-            return s;
-        const int code = fourcc == V4L2_PIX_FMT_YUYV   ? cv::COLOR_YUV2RGB_YUYV
-                         : fourcc == V4L2_PIX_FMT_UYVY ? cv::COLOR_YUV2RGB_UYVY
-                                                       : cv::COLOR_YUV2RGB_YVYU;
-        cv::cvtColor(cv::Mat(h, w, CV_8UC2, src, stride), dst, code);
-        return {};
-    }
-    case V4L2_PIX_FMT_NV12:
-    case V4L2_PIX_FMT_NV21:
-    case V4L2_PIX_FMT_YUV420: {
-        if (width % 2 || height % 2)
-            return makeError("{} needs an even frame size, got {}x{}", fourccToString(fourcc),
-                             width, height);
-        // Single-planar layout: the chroma plane(s) follow the luma plane at the same pitch
-        // (I420's half-width planes at half the pitch), so one Mat of 3/2 the height spans all.
-        if (fourcc == V4L2_PIX_FMT_YUV420 && stride != width)
-            return makeError("YU12 with padded lines (stride {} for width {}) is not supported",
-                             stride, width);
-        if (Status s = need(size_t(stride) * height * 3 / 2); !s)
-            return s;
-        const int code = fourcc == V4L2_PIX_FMT_NV12   ? cv::COLOR_YUV2RGB_NV12
-                         : fourcc == V4L2_PIX_FMT_NV21 ? cv::COLOR_YUV2RGB_NV21
-                                                       : cv::COLOR_YUV2RGB_I420;
-        cv::cvtColor(cv::Mat(h * 3 / 2, w, CV_8UC1, src, stride), dst, code);
-        return {};
-    }
-    case V4L2_PIX_FMT_MJPEG:
-    case V4L2_PIX_FMT_JPEG: {
-        if (data.size() < 4 || data[0] != 0xff || data[1] != 0xd8)
-            return makeError("MJPEG frame of {} bytes has no JPEG start marker", data.size());
-        cv::Mat bgr = cv::imdecode(cv::Mat(1, int(data.size()), CV_8UC1, src), cv::IMREAD_COLOR);
-        if (bgr.empty())
-            return makeError("MJPEG frame of {} bytes does not decode", data.size());
-        if (bgr.cols != w || bgr.rows != h)
-            return makeError("MJPEG frame decodes to {}x{}, the stream is {}x{}", bgr.cols,
-                             bgr.rows, width, height);
-        cv::cvtColor(bgr, dst, cv::COLOR_BGR2RGB);
-        return {};
-    }
-    case V4L2_PIX_FMT_RGB24:
-    case V4L2_PIX_FMT_BGR24: {
-        if (Status s = need(size_t(stride) * (height - 1) + size_t(width) * 3); !s)
-            return s;
-        cv::Mat in(h, w, CV_8UC3, src, stride);
-        if (fourcc == V4L2_PIX_FMT_RGB24)
-            in.copyTo(dst);
-        else
-            cv::cvtColor(in, dst, cv::COLOR_BGR2RGB);
-        return {};
-    }
-    case V4L2_PIX_FMT_GREY: {
-        if (Status s = need(size_t(stride) * (height - 1) + width); !s)
-            return s;
-        cv::cvtColor(cv::Mat(h, w, CV_8UC1, src, stride), dst, cv::COLOR_GRAY2RGB);
-        return {};
-    }
-    default:
-        return makeError("pixel format {} is not supported (supported: {})",
-                         fourccToString(fourcc), supportedFormatList());
+        case V4L2_PIX_FMT_YUYV:
+        case V4L2_PIX_FMT_UYVY:
+        case V4L2_PIX_FMT_YVYU: {
+            if (Status s = need(size_t(stride) * (height - 1) + size_t(width) * 2); !s) return s;
+            const int code = fourcc == V4L2_PIX_FMT_YUYV   ? cv::COLOR_YUV2RGB_YUYV
+                             : fourcc == V4L2_PIX_FMT_UYVY ? cv::COLOR_YUV2RGB_UYVY
+                                                           : cv::COLOR_YUV2RGB_YVYU;
+            cv::cvtColor(cv::Mat(h, w, CV_8UC2, src, stride), dst, code);
+            return {};
+        }
+        case V4L2_PIX_FMT_NV12:
+        case V4L2_PIX_FMT_NV21:
+        case V4L2_PIX_FMT_YUV420: {
+            if (width % 2 || height % 2)
+                return makeError("{} needs an even frame size, got {}x{}", fourccToString(fourcc),
+                                 width, height);
+            // Single-planar layout: the chroma plane(s) follow the luma plane at the same pitch
+            // (I420's half-width planes at half the pitch), so one Mat of 3/2 the height spans all.
+            if (fourcc == V4L2_PIX_FMT_YUV420 && stride != width)
+                return makeError("YU12 with padded lines (stride {} for width {}) is not supported",
+                                 stride, width);
+            if (Status s = need(size_t(stride) * height * 3 / 2); !s) return s;
+            const int code = fourcc == V4L2_PIX_FMT_NV12   ? cv::COLOR_YUV2RGB_NV12
+                             : fourcc == V4L2_PIX_FMT_NV21 ? cv::COLOR_YUV2RGB_NV21
+                                                           : cv::COLOR_YUV2RGB_I420;
+            cv::cvtColor(cv::Mat(h * 3 / 2, w, CV_8UC1, src, stride), dst, code);
+            return {};
+        }
+        case V4L2_PIX_FMT_MJPEG:
+        case V4L2_PIX_FMT_JPEG: {
+            if (data.size() < 4 || data[0] != 0xff || data[1] != 0xd8)
+                return makeError("MJPEG frame of {} bytes has no JPEG start marker", data.size());
+            cv::Mat bgr =
+                cv::imdecode(cv::Mat(1, int(data.size()), CV_8UC1, src), cv::IMREAD_COLOR);
+            if (bgr.empty())
+                return makeError("MJPEG frame of {} bytes does not decode", data.size());
+            if (bgr.cols != w || bgr.rows != h)
+                return makeError("MJPEG frame decodes to {}x{}, the stream is {}x{}", bgr.cols,
+                                 bgr.rows, width, height);
+            cv::cvtColor(bgr, dst, cv::COLOR_BGR2RGB);
+            return {};
+        }
+        case V4L2_PIX_FMT_RGB24:
+        case V4L2_PIX_FMT_BGR24: {
+            if (Status s = need(size_t(stride) * (height - 1) + size_t(width) * 3); !s) return s;
+            cv::Mat in(h, w, CV_8UC3, src, stride);
+            if (fourcc == V4L2_PIX_FMT_RGB24)
+                in.copyTo(dst);
+            else
+                cv::cvtColor(in, dst, cv::COLOR_BGR2RGB);
+            return {};
+        }
+        case V4L2_PIX_FMT_GREY: {
+            if (Status s = need(size_t(stride) * (height - 1) + width); !s) return s;
+            cv::cvtColor(cv::Mat(h, w, CV_8UC1, src, stride), dst, cv::COLOR_GRAY2RGB);
+            return {};
+        }
+        default:
+            return makeError("pixel format {} is not supported (supported: {})",
+                             fourccToString(fourcc), supportedFormatList());
     }
 }
 
@@ -127,16 +122,13 @@ std::string fourccToString(uint32_t fourcc) {
     }
     // V4L2 marks big-endian variants with the top bit; say so rather than print a '?'.
     const bool bigEndian = fourcc & (1u << 31);
-    if (bigEndian)
-        s[3] = char((fourcc >> 24) & 0x7f);
-    while (!s.empty() && s.back() == ' ')
-        s.pop_back();
+    if (bigEndian) s[3] = char((fourcc >> 24) & 0x7f);
+    while (!s.empty() && s.back() == ' ') s.pop_back();
     return bigEndian ? s + "-BE" : s;
 }
 
 uint32_t fourccFromString(const std::string& name) {
-    if (name.empty() || name.size() > 4)
-        return 0;
+    if (name.empty() || name.size() > 4) return 0;
     uint32_t v = 0;
     for (size_t i = 0; i < 4; ++i)
         v |= uint32_t(uint8_t(i < name.size() ? name[i] : ' ')) << (8 * i);
@@ -152,19 +144,18 @@ std::string supportedFormatList() {
     return out;
 }
 
-Status convertToRgb(uint32_t fourcc, std::span<const uint8_t> data, uint32_t width,
-                    uint32_t height, uint32_t stride, std::vector<uint8_t>& rgb) {
+Status convertToRgb(uint32_t fourcc, std::span<const uint8_t> data, uint32_t width, uint32_t height,
+                    uint32_t stride, std::vector<uint8_t>& rgb) {
     const FormatInfo* info = findFormat(fourcc);
     if (!info)
-        return makeError("pixel format {} is not supported (supported: {})",
-                         fourccToString(fourcc), supportedFormatList());
+        return makeError("pixel format {} is not supported (supported: {})", fourccToString(fourcc),
+                         supportedFormatList());
     if (width == 0 || height == 0 || width > 16384 || height > 16384)
         return makeError("frame size {}x{} is out of range", width, height);
-    if (stride == 0)
-        stride = width * info->bytesPerPixel;
+    if (stride == 0) stride = width * info->bytesPerPixel;
     if (info->bytesPerPixel && stride < width * info->bytesPerPixel)
-        return makeError("{} line pitch {} is shorter than a {}-pixel line",
-                         fourccToString(fourcc), stride, width);
+        return makeError("{} line pitch {} is shorter than a {}-pixel line", fourccToString(fourcc),
+                         stride, width);
 
     rgb.resize(size_t(width) * height * 3);
     // Converting straight into the frame's storage: cvtColor keeps a destination that already
@@ -173,8 +164,7 @@ Status convertToRgb(uint32_t fourcc, std::span<const uint8_t> data, uint32_t wid
     // OpenCV reports failures by throwing; they stop at this function (STYLE.md errors).
     try {
         Status s = convert(fourcc, data, width, height, stride, dst);
-        if (!s)
-            return s;
+        if (!s) return s;
     } catch (const cv::Exception& e) {
         return makeError("{} frame {}x{}: conversion failed: {}", fourccToString(fourcc), width,
                          height, e.what());

@@ -27,7 +27,7 @@ std::string supportedFormatList();
 // the first plane (v4l2_pix_format::bytesperline; 0 = packed). YUV is BT.601 limited range,
 // what UVC webcams and vivid send by default. Fails on a short or undecodable buffer (a camera
 // delivering garbage) without touching anything but `rgb`.
-Status convertToRgb(uint32_t fourcc, std::span<const uint8_t> data, uint32_t width,
-                    uint32_t height, uint32_t stride, std::vector<uint8_t>& rgb);
+Status convertToRgb(uint32_t fourcc, std::span<const uint8_t> data, uint32_t width, uint32_t height,
+                    uint32_t stride, std::vector<uint8_t>& rgb);
 
 }  // namespace previs

@@ -2,13 +2,12 @@
 
 #include <charconv>
 #include <fstream>
-#include <sstream>
-#include <thread>
-#include <utility>
-
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <sstream>
+#include <thread>
+#include <utility>
 
 #include "base/log.h"
 
@@ -28,9 +27,10 @@ Result<std::vector<RecordedFrameEntry>> loadCameraIndex(const std::string& camer
     const std::string path = cameraDir + "/index.csv";
     std::ifstream in(path, std::ios::binary);
     if (!in)
-        return makeError("{}: cannot open (is {} a session camera folder? see "
-                         "docs/session-format.md)",
-                         path, cameraDir);
+        return makeError(
+            "{}: cannot open (is {} a session camera folder? see "
+            "docs/session-format.md)",
+            path, cameraDir);
     std::stringstream buffer;
     buffer << in.rdbuf();
     const std::string text = buffer.str();
@@ -41,30 +41,27 @@ Result<std::vector<RecordedFrameEntry>> loadCameraIndex(const std::string& camer
     while (pos < text.size()) {
         const size_t eol = text.find('\n', pos);
         // No terminating newline: the recorder was cut off mid-append; that line never counted.
-        if (eol == std::string::npos)
-            break;
+        if (eol == std::string::npos) break;
         std::string line = text.substr(pos, eol - pos);
         pos = eol + 1;
         ++lineNo;
-        if (!line.empty() && line.back() == '\r')
-            line.pop_back();
-        if (line.empty() || line[0] == '#')
-            continue;
+        if (!line.empty() && line.back() == '\r') line.pop_back();
+        if (line.empty() || line[0] == '#') continue;
         std::vector<std::string> fields;
         std::stringstream ls(line);
-        for (std::string f; std::getline(ls, f, ',');)
-            fields.push_back(f);
+        for (std::string f; std::getline(ls, f, ',');) fields.push_back(f);
         RecordedFrameEntry e;
         // Five fields; later versions may append columns (docs/session-format.md, versioning).
         if (fields.size() < 5 || !parseNumber(fields[0], e.sequence) ||
             !parseNumber(fields[1], e.timestampNs) || fields[2].empty() ||
             fields[2].find('/') != std::string::npos || !parseNumber(fields[3], e.width) ||
             !parseNumber(fields[4], e.height))
-            return makeError("{}:{}: malformed frame line '{}' (expected "
-                             "sequence,timestampNs,file,width,height)",
-                             path, lineNo, line);
-        if (!entries.empty() && (e.sequence <= entries.back().sequence ||
-                                 e.timestampNs < entries.back().timestampNs))
+            return makeError(
+                "{}:{}: malformed frame line '{}' (expected "
+                "sequence,timestampNs,file,width,height)",
+                path, lineNo, line);
+        if (!entries.empty() &&
+            (e.sequence <= entries.back().sequence || e.timestampNs < entries.back().timestampNs))
             return makeError("{}:{}: sequence or timestamp goes backwards", path, lineNo);
         e.file = cameraDir + "/" + fields[2];
         entries.push_back(std::move(e));
@@ -78,8 +75,7 @@ RecordedReader::RecordedReader(std::vector<RecordedFrameEntry> entries, ReplayTi
 Result<std::unique_ptr<RecordedReader>> RecordedReader::create(const std::string& cameraDir,
                                                                ReplayTiming timing) {
     auto entries = loadCameraIndex(cameraDir);
-    if (!entries)
-        return entries.error();
+    if (!entries) return entries.error();
     return std::unique_ptr<RecordedReader>(new RecordedReader(std::move(*entries), timing));
 }
 
@@ -93,8 +89,8 @@ Result<bool> RecordedReader::read(int timeoutMs, Frame& frame) {
     while (next_ < entries_.size()) {
         const RecordedFrameEntry& e = entries_[next_];
         if (timing_ == ReplayTiming::Recorded) {
-            const auto due = startTime_ + std::chrono::nanoseconds(e.timestampNs -
-                                                                   entries_.front().timestampNs);
+            const auto due =
+                startTime_ + std::chrono::nanoseconds(e.timestampNs - entries_.front().timestampNs);
             const auto now = std::chrono::steady_clock::now();
             if (due > now + std::chrono::milliseconds(timeoutMs)) {
                 std::this_thread::sleep_for(std::chrono::milliseconds(timeoutMs));
@@ -128,12 +124,11 @@ Result<bool> RecordedReader::read(int timeoutMs, Frame& frame) {
     return false;
 }
 
-std::unique_ptr<CameraSource> makeRecordedSource(const std::string& cameraDir,
-                                                 ReplayTiming timing, CaptureOptions options) {
+std::unique_ptr<CameraSource> makeRecordedSource(const std::string& cameraDir, ReplayTiming timing,
+                                                 CaptureOptions options) {
     FrameReaderFactory factory = [cameraDir, timing]() -> Result<std::unique_ptr<FrameReader>> {
         auto reader = RecordedReader::create(cameraDir, timing);
-        if (!reader)
-            return reader.error();
+        if (!reader) return reader.error();
         return std::unique_ptr<FrameReader>(std::move(*reader));
     };
     return std::make_unique<CaptureThread>(std::move(factory), std::move(options));

@@ -28,7 +28,7 @@ struct RecordedFrameEntry {
 Result<std::vector<RecordedFrameEntry>> loadCameraIndex(const std::string& cameraDir);
 
 enum class ReplayTiming {
-    Recorded,  // frames at their recorded intervals (a live-like replay)
+    Recorded,          // frames at their recorded intervals (a live-like replay)
     AsFastAsPossible,  // deterministic CI runs, offline rendering
 };
 
@@ -54,7 +54,7 @@ private:
 };
 
 // A CameraSource replaying cameras/<name>/ of a session on its own thread.
-std::unique_ptr<CameraSource> makeRecordedSource(const std::string& cameraDir,
-                                                 ReplayTiming timing, CaptureOptions options);
+std::unique_ptr<CameraSource> makeRecordedSource(const std::string& cameraDir, ReplayTiming timing,
+                                                 CaptureOptions options);
 
 }  // namespace previs

@@ -33,8 +33,7 @@ public:
     // close() the number is released whatever it returns (retrying could close a reused fd).
     void reset(int fd = -1) {
         int old = std::exchange(fd_, fd);
-        if (old >= 0 && old != fd)
-            ::close(old);
+        if (old >= 0 && old != fd) ::close(old);
     }
 
 private:

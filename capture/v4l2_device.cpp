@@ -45,8 +45,7 @@ V4L2Device::Mapping::Mapping(Mapping&& o) noexcept
     : data(std::exchange(o.data, nullptr)), length(std::exchange(o.length, 0)) {}
 
 V4L2Device::Mapping::~Mapping() {
-    if (data)
-        ::munmap(data, length);
+    if (data) ::munmap(data, length);
 }
 
 V4L2Device::V4L2Device(std::string path) : path_(std::move(path)) {}
@@ -59,8 +58,7 @@ std::string V4L2Device::listFormats(int fd) {
         v4l2_fmtdesc desc{};
         desc.index = i;
         desc.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
-        if (xioctl(fd, VIDIOC_ENUM_FMT, &desc) < 0)
-            break;
+        if (xioctl(fd, VIDIOC_ENUM_FMT, &desc) < 0) break;
         out += (out.empty() ? "" : ", ") + fourccToString(desc.pixelformat);
     }
     return out.empty() ? "none" : out;
@@ -73,20 +71,21 @@ Result<std::unique_ptr<V4L2Device>> V4L2Device::create(const V4L2Config& config)
     if (!dev->fd_.isValid()) {
         const int err = errno;
         if (err == ENOENT || err == ENODEV || err == ENXIO)
-            return makeError("camera {}: no such device (unplugged? `ls /dev/video*` lists the "
-                             "cameras present)",
-                             config.device);
+            return makeError(
+                "camera {}: no such device (unplugged? `ls /dev/video*` lists the "
+                "cameras present)",
+                config.device);
         if (err == EACCES || err == EPERM)
-            return makeError("camera {}: permission denied (add the service user to the "
-                             "'video' group)",
-                             config.device);
+            return makeError(
+                "camera {}: permission denied (add the service user to the "
+                "'video' group)",
+                config.device);
         if (err == EBUSY)
             return makeError("camera {}: busy (another program is streaming from it)",
                              config.device);
         return makeError("camera {}: cannot open: {}", config.device, std::strerror(err));
     }
-    if (Status s = dev->configure(config); !s)
-        return s.error();
+    if (Status s = dev->configure(config); !s) return s.error();
     return dev;
 }
 
@@ -101,12 +100,14 @@ Status V4L2Device::configure(const V4L2Config& config) {
         (cap.capabilities & V4L2_CAP_DEVICE_CAPS) ? cap.device_caps : cap.capabilities;
     if (!(caps & V4L2_CAP_VIDEO_CAPTURE)) {
         if (caps & V4L2_CAP_VIDEO_CAPTURE_MPLANE)
-            return makeError("camera {} ({}): multi-planar capture is not supported; use a "
-                             "single-planar node or the libcamera source",
-                             path_, card_);
-        return makeError("camera {} ({}): not a video capture device (a metadata or output "
-                         "node? try another /dev/videoN)",
-                         path_, card_);
+            return makeError(
+                "camera {} ({}): multi-planar capture is not supported; use a "
+                "single-planar node or the libcamera source",
+                path_, card_);
+        return makeError(
+            "camera {} ({}): not a video capture device (a metadata or output "
+            "node? try another /dev/videoN)",
+            path_, card_);
     }
     if (!(caps & V4L2_CAP_STREAMING))
         return makeError("camera {} ({}): does not support streaming I/O", path_, card_);
@@ -120,8 +121,7 @@ Status V4L2Device::configure(const V4L2Config& config) {
         v4l2_fmtdesc desc{};
         desc.index = i;
         desc.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
-        if (xioctl(fd, VIDIOC_ENUM_FMT, &desc) < 0)
-            break;
+        if (xioctl(fd, VIDIOC_ENUM_FMT, &desc) < 0) break;
         offered = desc.pixelformat == fourcc;
     }
     if (!offered)
@@ -143,10 +143,11 @@ Status V4L2Device::configure(const V4L2Config& config) {
         return makeError("camera {}: asked for {}, the driver chose {}", path_,
                          fourccToString(fourcc), fourccToString(fmt.fmt.pix.pixelformat));
     if (fmt.fmt.pix.width != config.width || fmt.fmt.pix.height != config.height)
-        return makeError("camera {}: {} {}x{} is not available (the driver offers {}x{}); set "
-                         "the camera's width/height in the config to a supported size",
-                         path_, fourccToString(fourcc), config.width, config.height,
-                         fmt.fmt.pix.width, fmt.fmt.pix.height);
+        return makeError(
+            "camera {}: {} {}x{} is not available (the driver offers {}x{}); set "
+            "the camera's width/height in the config to a supported size",
+            path_, fourccToString(fourcc), config.width, config.height, fmt.fmt.pix.width,
+            fmt.fmt.pix.height);
     if (fmt.fmt.pix.field != V4L2_FIELD_NONE && fmt.fmt.pix.field != V4L2_FIELD_ANY)
         return makeError("camera {}: interlaced video is not supported", path_);
     width_ = fmt.fmt.pix.width;
@@ -166,8 +167,7 @@ Status V4L2Device::configure(const V4L2Config& config) {
                 return makeError("camera {}: setting {} fps failed: {}", path_, config.fps,
                                  std::strerror(-r));
         } else {
-            logWarning("camera {}: the driver does not set frame rates; using its default",
-                       path_);
+            logWarning("camera {}: the driver does not set frame rates; using its default", path_);
         }
     }
     parm = {};
@@ -229,11 +229,9 @@ Error V4L2Device::vanished(const char* during, int err) const {
 }
 
 Status V4L2Device::start() {
-    if (streaming_)
-        return {};
+    if (streaming_) return {};
     for (uint32_t i = 0; i < buffers_.size(); ++i)
-        if (Status s = queueBuffer(i); !s)
-            return s;
+        if (Status s = queueBuffer(i); !s) return s;
     int type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
     if (int r = xioctl(fd_.get(), VIDIOC_STREAMON, &type); r < 0)
         return isGone(-r) ? Status(vanished("STREAMON", -r))
@@ -244,38 +242,31 @@ Status V4L2Device::start() {
 }
 
 void V4L2Device::stop() {
-    if (!streaming_)
-        return;
+    if (!streaming_) return;
     int type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
     (void)xioctl(fd_.get(), VIDIOC_STREAMOFF, &type);
     streaming_ = false;
 }
 
 Result<bool> V4L2Device::read(int timeoutMs, Frame& frame) {
-    if (!streaming_)
-        return makeError("camera {}: read before start()", path_);
+    if (!streaming_) return makeError("camera {}: read before start()", path_);
     pollfd pfd{fd_.get(), POLLIN, 0};
     int n;
     do {
         n = ::poll(&pfd, 1, timeoutMs);
     } while (n < 0 && errno == EINTR);
-    if (n < 0)
-        return makeError("camera {}: poll failed: {}", path_, std::strerror(errno));
-    if (n == 0)
-        return false;
+    if (n < 0) return makeError("camera {}: poll failed: {}", path_, std::strerror(errno));
+    if (n == 0) return false;
     // An unregistered video node reports POLLERR|POLLHUP; with all our buffers queued, a live
     // device never does, so this is the unplug signal.
-    if (pfd.revents & (POLLERR | POLLHUP | POLLNVAL))
-        return vanished("poll", ENODEV);
+    if (pfd.revents & (POLLERR | POLLHUP | POLLNVAL)) return vanished("poll", ENODEV);
 
     v4l2_buffer buf{};
     buf.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
     buf.memory = V4L2_MEMORY_MMAP;
     if (int r = xioctl(fd_.get(), VIDIOC_DQBUF, &buf); r < 0) {
-        if (r == -EAGAIN)
-            return false;
-        if (isGone(-r))
-            return vanished("DQBUF", -r);
+        if (r == -EAGAIN) return false;
+        if (isGone(-r)) return vanished("DQBUF", -r);
         return makeError("camera {}: dequeueing a frame failed: {}", path_, std::strerror(-r));
     }
     if (buf.index >= buffers_.size())
@@ -297,19 +288,16 @@ Result<bool> V4L2Device::read(int timeoutMs, Frame& frame) {
             good = false;
         }
     }
-    if (!good)
-        ++badFrames_;
+    if (!good) ++badFrames_;
     // Requeue only after conversion: until then the driver must not overwrite the pixels.
-    if (Status s = queueBuffer(buf.index); !s)
-        return s.error();
-    if (!good)
-        return false;
+    if (Status s = queueBuffer(buf.index); !s) return s.error();
+    if (!good) return false;
 
     frame.width = width_;
     frame.height = height_;
     // vivid and UVC stamp with CLOCK_MONOTONIC (V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC).
-    frame.timestampNs = uint64_t(buf.timestamp.tv_sec) * 1000000000ull +
-                        uint64_t(buf.timestamp.tv_usec) * 1000ull;
+    frame.timestampNs =
+        uint64_t(buf.timestamp.tv_sec) * 1000000000ull + uint64_t(buf.timestamp.tv_usec) * 1000ull;
     frame.deviceSequence = buf.sequence;
     return true;
 }
@@ -324,8 +312,8 @@ Status V4L2Device::setControl(std::string_view name, int32_t value) {
         if (q.type != V4L2_CTRL_TYPE_CTRL_CLASS) {
             if (equalsIgnoreCase(qname, name)) {
                 if (value < q.minimum || value > q.maximum)
-                    return makeError("camera {}: control '{}' = {} is out of range [{}, {}]",
-                                     path_, q.name, value, q.minimum, q.maximum);
+                    return makeError("camera {}: control '{}' = {} is out of range [{}, {}]", path_,
+                                     q.name, value, q.minimum, q.maximum);
                 v4l2_control c{q.id, value};
                 if (int r = xioctl(fd, VIDIOC_S_CTRL, &c); r < 0)
                     return makeError("camera {}: setting '{}' to {} failed: {}", path_, q.name,

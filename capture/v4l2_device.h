@@ -21,8 +21,8 @@ struct V4L2Config {
     std::string device = "/dev/video0";
     uint32_t width = 640;
     uint32_t height = 480;
-    uint32_t fourcc = 0;   // V4L2_PIX_FMT_*; 0 = YUYV
-    double fps = 0;        // 0 = the driver's default rate
+    uint32_t fourcc = 0;       // V4L2_PIX_FMT_*; 0 = YUYV
+    double fps = 0;            // 0 = the driver's default rate
     uint32_t bufferCount = 4;  // enough to absorb a late conversion without the driver dropping
 };
 

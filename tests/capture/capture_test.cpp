@@ -2,6 +2,8 @@
 // latest-value slot, the capture thread's recovery (with a scripted reader), and the messages
 // for a missing or wrong device node.
 #include <fcntl.h>
+#include <fmt/format.h>
+#include <gtest/gtest.h>
 #include <linux/videodev2.h>
 
 #include <atomic>
@@ -10,14 +12,11 @@
 #include <deque>
 #include <filesystem>
 #include <fstream>
-#include <random>
-#include <thread>
-
-#include <fmt/format.h>
-#include <gtest/gtest.h>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <random>
+#include <thread>
 
 #include "capture/camera_source.h"
 #include "capture/frame_slot.h"
@@ -32,8 +31,7 @@ namespace {
 std::vector<uint8_t> randomBytes(size_t n, uint32_t seed) {
     std::mt19937 rng(seed);
     std::vector<uint8_t> v(n);
-    for (uint8_t& b : v)
-        b = uint8_t(rng());
+    for (uint8_t& b : v) b = uint8_t(rng());
     return v;
 }
 
@@ -51,8 +49,10 @@ TEST(PixelFormat, YuyvKnownColours) {
         uint8_t y, u, v, r, g, b;
     };
     // White, black, and the 100% primaries' BT.601 codes (ITU-R BT.601 colour bars).
-    const Case cases[] = {{235, 128, 128, 255, 255, 255}, {16, 128, 128, 0, 0, 0},
-                          {81, 90, 240, 255, 0, 0},       {145, 54, 34, 0, 255, 0},
+    const Case cases[] = {{235, 128, 128, 255, 255, 255},
+                          {16, 128, 128, 0, 0, 0},
+                          {81, 90, 240, 255, 0, 0},
+                          {145, 54, 34, 0, 255, 0},
                           {41, 240, 110, 0, 0, 255}};
     for (const Case& c : cases) {
         const std::vector<uint8_t> yuyv = {c.y, c.u, c.y, c.v};
@@ -71,8 +71,7 @@ TEST(PixelFormat, YuyvWithPaddedStrideMatchesOpenCv) {
     const uint32_t w = 64, h = 16, stride = w * 2 + 32;
     std::vector<uint8_t> buf = randomBytes(size_t(stride) * h, 1);
     cv::Mat packed(h, w, CV_8UC2);
-    for (uint32_t y = 0; y < h; ++y)
-        std::memcpy(packed.ptr(y), buf.data() + y * stride, w * 2);
+    for (uint32_t y = 0; y < h; ++y) std::memcpy(packed.ptr(y), buf.data() + y * stride, w * 2);
     cv::Mat ref;
     cv::cvtColor(packed, ref, cv::COLOR_YUV2RGB_YUYV);
     std::vector<uint8_t> rgb;
@@ -84,8 +83,7 @@ TEST(PixelFormat, Nv12WithPaddedStrideMatchesOpenCv) {
     const uint32_t w = 48, h = 32, stride = 64;
     std::vector<uint8_t> buf = randomBytes(size_t(stride) * h * 3 / 2, 2);
     cv::Mat packed(h * 3 / 2, w, CV_8UC1);
-    for (uint32_t y = 0; y < h * 3 / 2; ++y)
-        std::memcpy(packed.ptr(y), buf.data() + y * stride, w);
+    for (uint32_t y = 0; y < h * 3 / 2; ++y) std::memcpy(packed.ptr(y), buf.data() + y * stride, w);
     cv::Mat ref;
     cv::cvtColor(packed, ref, cv::COLOR_YUV2RGB_NV12);
     std::vector<uint8_t> rgb;
@@ -207,7 +205,7 @@ TEST(V4L2Device, NonVideoNodeSaysSo) {
 
 // A reader whose behaviour is scripted per call, standing in for a device that comes and goes.
 struct Script {
-    std::atomic<int> opensToFail{0};  // factory failures before the next successful open
+    std::atomic<int> opensToFail{0};        // factory failures before the next successful open
     std::atomic<int> framesBeforeLoss{-1};  // -1: never lost
     std::atomic<int> opens{0};
     std::atomic<uint64_t> timestampNs{1000};
@@ -223,8 +221,7 @@ public:
             s_.framesBeforeLoss = -1;
             return makeError("scripted device vanished");
         }
-        if (s_.framesBeforeLoss.load() > 0)
-            --s_.framesBeforeLoss;
+        if (s_.framesBeforeLoss.load() > 0) --s_.framesBeforeLoss;
         frame.width = 2;
         frame.height = 1;
         frame.rgb.assign(6, 7);
@@ -252,8 +249,7 @@ FrameReaderFactory scriptedFactory(Script& s) {
 template <typename Pred>
 bool waitFor(Pred pred, int ms = 5000) {
     for (int i = 0; i < ms / 5; ++i) {
-        if (pred())
-            return true;
+        if (pred()) return true;
         std::this_thread::sleep_for(std::chrono::milliseconds(5));
     }
     return pred();
@@ -301,8 +297,7 @@ TEST(CaptureThread, SlowConsumerNeverStallsCapture) {
     for (int i = 0; i < 10; ++i) {
         // A consumer 20x slower than the source.
         std::this_thread::sleep_for(std::chrono::milliseconds(20));
-        if (capture.frames().take())
-            ++taken;
+        if (capture.frames().take()) ++taken;
     }
     capture.stop();
     const CaptureStats s = capture.stats();
@@ -341,8 +336,7 @@ TEST(RecordedSource, ReplaysAsFastAsPossibleAndFinishes) {
     std::vector<std::shared_ptr<const Frame>> got;
     // A consumer that keeps up (the slot keeps only the newest, so poll fast).
     ASSERT_TRUE(waitFor([&] {
-        if (auto f = source->frames().take())
-            got.push_back(f);
+        if (auto f = source->frames().take()) got.push_back(f);
         return source->stats().state == CaptureState::Finished;
     }));
     source->stop();

@@ -2,6 +2,7 @@
 // cameras, and v4l2loopback as an MJPEG camera (vivid has no compressed formats). Outside the
 // VM the binary exits 77, which CTest reports as skipped.
 #include <fcntl.h>
+#include <gtest/gtest.h>
 #include <linux/videodev2.h>
 #include <sys/ioctl.h>
 #include <unistd.h>
@@ -10,12 +11,10 @@
 #include <chrono>
 #include <cstdlib>
 #include <fstream>
-#include <thread>
-
-#include <gtest/gtest.h>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <thread>
 
 #include "capture/camera_source.h"
 #include "capture/pixel_format.h"
@@ -45,21 +44,18 @@ void expectColorbar(const Frame& f, int tolerance) {
     }
 }
 
-Result<std::unique_ptr<V4L2Device>> openVivid(const std::string& path, uint32_t fourcc,
-                                              uint32_t w, uint32_t h) {
+Result<std::unique_ptr<V4L2Device>> openVivid(const std::string& path, uint32_t fourcc, uint32_t w,
+                                              uint32_t h) {
     V4L2Config config;
     config.device = path;
     config.fourcc = fourcc;
     config.width = w;
     config.height = h;
     auto dev = V4L2Device::create(config);
-    if (!dev)
-        return dev;
+    if (!dev) return dev;
     // Deterministic frames: a fixed pattern and no timestamp text (vmtest README).
-    if (Status s = (*dev)->setControl("Test Pattern", 1); !s)
-        return s.error();
-    if (Status s = (*dev)->setControl("OSD Text Mode", 2); !s)
-        return s.error();
+    if (Status s = (*dev)->setControl("Test Pattern", 1); !s) return s.error();
+    if (Status s = (*dev)->setControl("OSD Text Mode", 2); !s) return s.error();
     return dev;
 }
 
@@ -83,8 +79,7 @@ void streamAndCheck(uint32_t fourcc, uint32_t w, uint32_t h, int tolerance) {
         lastSeq = f.deviceSequence;
         lastTs = f.timestampNs;
         // The first frames may predate the control change.
-        if (i >= 3)
-            expectColorbar(f, tolerance);
+        if (i >= 3) expectColorbar(f, tolerance);
     }
     // A driver may flag a frame as corrupt (vivid does now and then on a loaded VM); such a
     // frame is skipped and counted, never delivered, and must stay the exception.
@@ -129,8 +124,7 @@ TEST(Vivid, UnsupportedFormatListsWhatTheDeviceOffers) {
     config.height = 1000;
     dev = V4L2Device::create(config);
     ASSERT_FALSE(dev);
-    EXPECT_NE(dev.message().find("1000x1000 is not available"), std::string::npos)
-        << dev.message();
+    EXPECT_NE(dev.message().find("1000x1000 is not available"), std::string::npos) << dev.message();
 
     config.width = 640;
     config.height = 480;
@@ -145,13 +139,12 @@ TEST(Vivid, UnsupportedFormatListsWhatTheDeviceOffers) {
 // captures it. Needs `--modprobe 'v4l2loopback video_nr=10 ...'` (see CMakeLists.txt).
 TEST(Loopback, StreamsMjpeg) {
     const char* node = "/dev/video10";
-    if (::access(node, F_OK) != 0)
-        GTEST_SKIP() << node << " absent: v4l2loopback not loaded";
+    if (::access(node, F_OK) != 0) GTEST_SKIP() << node << " absent: v4l2loopback not loaded";
     const int w = 320, h = 240;
     cv::Mat rgb(h, w, CV_8UC3);
     for (int x = 0; x < w; ++x)
-        rgb.col(x).setTo(cv::Scalar(kColorbar[x * 8 / w][0], kColorbar[x * 8 / w][1],
-                                    kColorbar[x * 8 / w][2]));
+        rgb.col(x).setTo(
+            cv::Scalar(kColorbar[x * 8 / w][0], kColorbar[x * 8 / w][1], kColorbar[x * 8 / w][2]));
     cv::Mat bgr;
     cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
     std::vector<uint8_t> jpeg;
@@ -173,8 +166,7 @@ TEST(Loopback, StreamsMjpeg) {
     std::atomic<bool> stop{false};
     std::thread writer([&] {
         while (!stop) {
-            if (::write(out.get(), jpeg.data(), jpeg.size()) < 0)
-                break;
+            if (::write(out.get(), jpeg.data(), jpeg.size()) < 0) break;
             std::this_thread::sleep_for(std::chrono::milliseconds(40));
         }
     });
@@ -191,8 +183,7 @@ TEST(Loopback, StreamsMjpeg) {
             Frame f;
             Result<bool> got = (*dev)->read(kFrameTimeoutMs, f);
             ASSERT_TRUE(got) << got.message();
-            if (!*got)
-                continue;
+            if (!*got) continue;
             ++frames;
             expectColorbar(f, 16);
         }
@@ -210,8 +201,7 @@ FrameReaderFactory vividFactory(const std::string& path, uint32_t w, uint32_t h)
         config.width = w;
         config.height = h;
         auto dev = V4L2Device::create(config);
-        if (!dev)
-            return dev.error();
+        if (!dev) return dev.error();
         return std::unique_ptr<FrameReader>(std::move(*dev));
     };
 }
@@ -228,8 +218,7 @@ template <typename Pred>
 bool waitFor(Pred pred, int ms) {
     const auto end = std::chrono::steady_clock::now() + std::chrono::milliseconds(ms);
     while (std::chrono::steady_clock::now() < end) {
-        if (pred())
-            return true;
+        if (pred()) return true;
         std::this_thread::sleep_for(std::chrono::milliseconds(20));
     }
     return pred();
@@ -280,8 +269,7 @@ TEST(Vivid, UnplugAndReplugResumeWithoutRestart) {
 
     ASSERT_TRUE(writeSysfs("/sys/bus/platform/drivers/vivid/bind", "vivid.0"));
     EXPECT_TRUE(waitFor([&] { return capture.stats().delivered >= before + 3; }, 30000))
-        << "state " << toString(capture.state()) << ", delivered "
-        << capture.stats().delivered;
+        << "state " << toString(capture.state()) << ", delivered " << capture.stats().delivered;
     EXPECT_EQ(capture.state(), CaptureState::Streaming);
     EXPECT_EQ(capture.stats().reconnects, 1u);
     auto f = capture.frames().latest();
