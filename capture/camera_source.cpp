@@ -92,6 +92,12 @@ void CaptureThread::run() {
     bool everStreamed = false;
     Clock::time_point lastFrame;
     Clock::time_point lostSince;
+    // Drops are logged as a summary at most every kDropLogInterval: a consumer that is slow
+    // for a while must be visible in the log without one line per frame.
+    constexpr auto kDropLogInterval = std::chrono::seconds(10);
+    Clock::time_point dropLogTime = Clock::now();
+    uint64_t droppedLogged = 0;
+    uint64_t deliveredAtDropLog = 0;
 
     auto dropReader = [&](const std::string& why) {
         if (reader) {
@@ -156,6 +162,16 @@ void CaptureThread::run() {
         // Counted before publishing, so stats().delivered never lags a frame already visible.
         frame.sequence = delivered_++;
         slot_.publish(std::make_shared<const Frame>(std::move(frame)));
+        if (lastFrame - dropLogTime >= kDropLogInterval) {
+            const uint64_t dropped = slot_.dropped();
+            if (dropped > droppedLogged)
+                logWarning("{}: the consumer missed {} of the last {} frames ({} in total)",
+                           options_.name, dropped - droppedLogged,
+                           delivered_.load() - deliveredAtDropLog, dropped);
+            droppedLogged = dropped;
+            deliveredAtDropLog = delivered_.load();
+            dropLogTime = lastFrame;
+        }
     }
     if (reader) badBase += reader->badFrames();
     badFrames_ = badBase;

@@ -287,6 +287,35 @@ TEST(CaptureThread, WaitsForAbsentDeviceThenRecoversFromLoss) {
     EXPECT_EQ(capture.state(), CaptureState::Stopped);
 }
 
+// A camera that stays open but delivers nothing is treated as lost and reopened.
+class SilentReader : public FrameReader {
+public:
+    Status start() override { return {}; }
+    Result<bool> read(int timeoutMs, Frame&) override {
+        std::this_thread::sleep_for(std::chrono::milliseconds(timeoutMs));
+        return false;
+    }
+};
+
+TEST(CaptureThread, SilentDeviceIsReopened) {
+    std::atomic<int> opens{0};
+    CaptureOptions options;
+    options.name = "silent";
+    options.readTimeoutMs = 5;
+    options.retryIntervalMs = 5;
+    options.stallTimeoutMs = 30;
+    CaptureThread capture(
+        [&]() -> Result<std::unique_ptr<FrameReader>> {
+            ++opens;
+            return std::unique_ptr<FrameReader>(new SilentReader);
+        },
+        options);
+    ASSERT_TRUE(capture.start());
+    EXPECT_TRUE(waitFor([&] { return opens.load() >= 3; }));
+    capture.stop();
+    EXPECT_EQ(capture.stats().delivered, 0u);
+}
+
 TEST(CaptureThread, SlowConsumerNeverStallsCapture) {
     Script script;
     CaptureOptions options;

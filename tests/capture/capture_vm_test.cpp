@@ -162,36 +162,46 @@ TEST(Loopback, StreamsMjpeg) {
     ASSERT_EQ(::ioctl(out.get(), VIDIOC_S_FMT, &fmt), 0) << strerror(errno);
     ASSERT_EQ(::write(out.get(), jpeg.data(), jpeg.size()), ssize_t(jpeg.size()));
 
-    // Paced: v4l2loopback does not throttle its writer.
+    // Paced (v4l2loopback does not throttle its writer). Every third frame is garbage (a camera
+    // sending corrupt data): it must cost that frame, counted, and never the stream.
+    std::vector<uint8_t> garbage(jpeg.size(), 0x5a);
     std::atomic<bool> stop{false};
     std::thread writer([&] {
-        while (!stop) {
-            if (::write(out.get(), jpeg.data(), jpeg.size()) < 0) break;
+        for (int n = 0; !stop; ++n) {
+            const std::vector<uint8_t>& data = n % 3 == 2 ? garbage : jpeg;
+            if (::write(out.get(), data.data(), data.size()) < 0) break;
             std::this_thread::sleep_for(std::chrono::milliseconds(40));
         }
     });
+    // Joins the writer on every exit path, ASSERT's early returns included.
+    struct Joiner {
+        std::atomic<bool>& stop;
+        std::thread& thread;
+        ~Joiner() {
+            stop = true;
+            thread.join();
+        }
+    } joiner{stop, writer};
+
     V4L2Config config;
     config.device = node;
     config.fourcc = V4L2_PIX_FMT_MJPEG;
     config.width = w;
     config.height = h;
     auto dev = V4L2Device::create(config);
-    if (dev) {
-        ASSERT_TRUE((*dev)->start());
-        int frames = 0;
-        for (int i = 0; i < 4; ++i) {
-            Frame f;
-            Result<bool> got = (*dev)->read(kFrameTimeoutMs, f);
-            ASSERT_TRUE(got) << got.message();
-            if (!*got) continue;
-            ++frames;
-            expectColorbar(f, 16);
-        }
-        EXPECT_GE(frames, 3);
-    }
-    stop = true;
-    writer.join();
     ASSERT_TRUE(dev) << dev.message();
+    ASSERT_TRUE((*dev)->start());
+    int frames = 0;
+    for (int i = 0; i < 12 && frames < 4; ++i) {
+        Frame f;
+        Result<bool> got = (*dev)->read(kFrameTimeoutMs, f);
+        ASSERT_TRUE(got) << got.message();
+        if (!*got) continue;
+        ++frames;
+        expectColorbar(f, 16);
+    }
+    EXPECT_EQ(frames, 4);
+    EXPECT_GE((*dev)->badFrames(), 1u);
 }
 
 FrameReaderFactory vividFactory(const std::string& path, uint32_t w, uint32_t h) {
