@@ -6,6 +6,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <sstream>
+#include <string_view>
 #include <thread>
 #include <utility>
 
@@ -14,6 +15,9 @@
 namespace previs {
 
 namespace {
+
+// docs/session-format.md: the version this reader understands.
+constexpr int kCameraIndexVersion = 1;
 
 template <typename T>
 bool parseNumber(const std::string& s, T& out) {
@@ -46,6 +50,21 @@ Result<std::vector<RecordedFrameEntry>> loadCameraIndex(const std::string& camer
         pos = eol + 1;
         ++lineNo;
         if (!line.empty() && line.back() == '\r') line.pop_back();
+        // The header names the format version; a newer major version may mean columns this
+        // reader would misread, so it refuses rather than replay wrong data.
+        constexpr std::string_view kHeader = "# previs-session camera index v";
+        if (line.starts_with(kHeader)) {
+            const std::string rest = line.substr(kHeader.size(), line.find(':') - kHeader.size());
+            int version = 0;
+            if (!parseNumber(rest, version) || version < 1)
+                return makeError("{}:{}: unreadable format version in '{}'", path, lineNo, line);
+            if (version > kCameraIndexVersion)
+                return makeError(
+                    "{}: format version {} is newer than this previs reads ({}); "
+                    "replay it with a newer previs",
+                    path, version, kCameraIndexVersion);
+            continue;
+        }
         if (line.empty() || line[0] == '#') continue;
         std::vector<std::string> fields;
         std::stringstream ls(line);

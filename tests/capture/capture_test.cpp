@@ -427,10 +427,19 @@ TEST(RecordedSource, BadIndexAndFramesAreReported) {
     EXPECT_EQ(frames, 2);
     EXPECT_EQ((*reader)->badFrames(), 1u);
 
-    std::ofstream(dir + "/index.csv", std::ios::app) << "\nx,1,f.png,16,12\n";
+    {
+        std::ofstream index(dir + "/index.csv");
+        index << "# previs-session camera index v2: a future layout\n0,1,x.png,16,12\n";
+    }
+    auto future = loadCameraIndex(dir);
+    ASSERT_FALSE(future);
+    EXPECT_NE(future.message().find("version 2 is newer"), std::string::npos) << future.message();
+
+    std::ofstream(dir + "/index.csv") << "0,1,a.png,16,12\nx,2,b.png,16,12\n";
     auto corrupt = loadCameraIndex(dir);
     ASSERT_FALSE(corrupt);
-    EXPECT_NE(corrupt.message().find("index.csv:"), std::string::npos) << corrupt.message();
+    EXPECT_NE(corrupt.message().find("index.csv:2: malformed"), std::string::npos)
+        << corrupt.message();
     std::filesystem::remove_all(dir);
 }
 
