@@ -5,5 +5,5 @@ root=$(cd "$(dirname "$0")/.." && pwd)
 build=$("$root/scripts/setup.sh" release)
 mkdir -p "$root/out"
 "$build/cli/previs" render "$root/examples/cubes_spheres/scene.gltf" \
-    --width 640 --height 480 --spp 64 --out "$root/out/example.png"
+    --width 640 --height 480 --spp 32 --out "$root/out/example.png"
 echo "previs: wrote $root/out/example.png"
