@@ -24,8 +24,16 @@ using nlohmann::json;
 namespace fs = std::filesystem;
 
 fs::path tempDir() {
-    const fs::path dir =
+    static const fs::path dir =
         fs::temp_directory_path() / ("previs_config_test_" + std::to_string(::getpid()));
+    // Removed when the test binary exits, so repeated runs leave nothing behind.
+    struct Cleanup {
+        ~Cleanup() {
+            std::error_code ec;
+            fs::remove_all(dir, ec);
+        }
+    };
+    static Cleanup cleanup;
     fs::create_directories(dir);
     return dir;
 }

@@ -22,8 +22,16 @@ namespace {
 using nlohmann::json;
 
 std::filesystem::path tempDir() {
-    auto dir = std::filesystem::temp_directory_path() /
-               ("previs_scene_test_" + std::to_string(::getpid()));
+    static const auto dir = std::filesystem::temp_directory_path() /
+                            ("previs_scene_test_" + std::to_string(::getpid()));
+    // Removed when the test binary exits, so repeated runs leave nothing behind.
+    struct Cleanup {
+        ~Cleanup() {
+            std::error_code ec;
+            std::filesystem::remove_all(dir, ec);
+        }
+    };
+    static Cleanup cleanup;
     std::filesystem::create_directories(dir);
     return dir;
 }
