@@ -186,7 +186,7 @@ Status Renderer::buildScene(const Scene& scene) {
         std::vector<double> power;
         for (uint32_t i = 0; i < triCount; ++i) {
             const Material& m = scene.materials[triMaterials[i]];
-            float lum = 0.2126f * m.emission.r + 0.7152f * m.emission.g + 0.0722f * m.emission.b;
+            float lum = luminance(m.emission);
             if (!(lum > 0.0f)) continue;
             glm::vec3 p0 = g.positions[triangles[i].x];
             float area = 0.5f * glm::length(glm::cross(g.positions[triangles[i].y] - p0,

@@ -1,6 +1,7 @@
 // Scene description tests: the shipped example, role patterns on small glTF files written here,
 // camera and environment overrides, the dispatcher, and every kind of bad input (each must give
 // one message naming the description file and the offending key).
+#include "tests/support/temp_dir.h"
 #include "config/scene_description.h"
 
 #include <cmath>
@@ -23,20 +24,7 @@ namespace {
 using nlohmann::json;
 namespace fs = std::filesystem;
 
-fs::path tempDir() {
-    static const fs::path dir =
-        fs::temp_directory_path() / ("previs_config_test_" + std::to_string(::getpid()));
-    // Removed when the test binary exits, so repeated runs leave nothing behind.
-    struct Cleanup {
-        ~Cleanup() {
-            std::error_code ec;
-            fs::remove_all(dir, ec);
-        }
-    };
-    static Cleanup cleanup;
-    fs::create_directories(dir);
-    return dir;
-}
+fs::path tempDir() { return previs::testing::scratchDir("previs_config_test"); }
 
 std::string writeFile(const std::string& name, const std::string& text) {
     const fs::path path = tempDir() / name;

@@ -1,3 +1,4 @@
+#include "tests/support/temp_dir.h"
 #include "image/image.h"
 
 #include <cstring>
@@ -11,20 +12,7 @@
 namespace previs {
 namespace {
 
-std::filesystem::path tempDir() {
-    static const auto dir = std::filesystem::temp_directory_path() /
-                            ("previs_image_test_" + std::to_string(::getpid()));
-    // Removed when the test binary exits, so repeated runs leave nothing behind.
-    struct Cleanup {
-        ~Cleanup() {
-            std::error_code ec;
-            std::filesystem::remove_all(dir, ec);
-        }
-    };
-    static Cleanup cleanup;
-    std::filesystem::create_directories(dir);
-    return dir;
-}
+std::filesystem::path tempDir() { return previs::testing::scratchDir("previs_image_test"); }
 
 TEST(Image, ExrFloatRoundTripIsBitExact) {
     for (uint32_t channels : {1u, 3u, 4u}) {

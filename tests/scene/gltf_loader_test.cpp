@@ -1,5 +1,6 @@
 // Loader tests on small glTF files written here: geometry, transforms, roles, materials, lights,
 // cameras, .glb, and every kind of bad input (each must give one error naming the file).
+#include "tests/support/temp_dir.h"
 #include "scene/gltf_loader.h"
 
 #include <cmath>
@@ -21,20 +22,7 @@ namespace {
 
 using nlohmann::json;
 
-std::filesystem::path tempDir() {
-    static const auto dir = std::filesystem::temp_directory_path() /
-                            ("previs_scene_test_" + std::to_string(::getpid()));
-    // Removed when the test binary exits, so repeated runs leave nothing behind.
-    struct Cleanup {
-        ~Cleanup() {
-            std::error_code ec;
-            std::filesystem::remove_all(dir, ec);
-        }
-    };
-    static Cleanup cleanup;
-    std::filesystem::create_directories(dir);
-    return dir;
-}
+std::filesystem::path tempDir() { return previs::testing::scratchDir("previs_scene_test"); }
 
 std::string base64(const std::vector<uint8_t>& data) {
     static const char* table = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
