@@ -200,8 +200,9 @@ void LightingEstimator::run() {
             continue;
         }
         result->sequence = env->sequence;
-        output_.publish(std::make_shared<const LightingSnapshot>(std::move(result).value()));
+        // Count before publishing: a reader that sees this snapshot must also see it counted.
         ++processed_;
+        output_.publish(std::make_shared<const LightingSnapshot>(std::move(result).value()));
     }
 }
 
