@@ -399,7 +399,8 @@ TEST(RecordedSource, ReplaysAtRecordedTiming) {
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     EXPECT_EQ(frames, 6);
     EXPECT_GE(elapsedMs, 5 * 40 - 2);  // the last frame is due 200 ms after the first
-    EXPECT_LT(elapsedMs, 5 * 40 + 150);
+    // Generous: only "not replayed as fast as possible, not stuck"; a loaded CI machine is slow.
+    EXPECT_LT(elapsedMs, 5 * 40 + 2000);
     std::filesystem::remove_all(dir);
 }
 
