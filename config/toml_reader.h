@@ -1,0 +1,92 @@
+#pragma once
+
+// Internal to config/ (it exposes toml++, which only this module links).
+// Typed, checked access to a parsed TOML file for the project's config formats (the scene
+// description, the service config). Every failure is one message naming the file, the line and
+// the dotted key, and what to change (DESIGN.md §7: a bad config never crashes anything).
+
+#include <cstdint>
+#include <filesystem>
+#include <initializer_list>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include <fmt/format.h>
+#include <toml++/toml.h>
+
+#include "base/result.h"
+
+
+namespace previs {
+
+// `what` names the format in messages: "cannot load <what> '<path>': ...".
+class TomlReader {
+public:
+    TomlReader(std::string path, std::string what);
+
+    // Errors with the file, and the node's line when it has one.
+    template <typename... Args>
+    Error fail(const toml::node* at, fmt::format_string<Args...> format, Args&&... args) const {
+        return failMessage(at, fmt::format(format, std::forward<Args>(args)...));
+    }
+    Error failMessage(const toml::node* at, const std::string& what) const;
+
+    // An unknown key is most often a typo; ignoring it would silently do something else than
+    // the user asked for, so it is an error listing the valid keys.
+    Status checkKeys(const toml::table& table, std::string_view section,
+                     std::initializer_list<std::string_view> valid) const;
+
+    // Each returns nullopt (or null) when the key is absent and an error when it has the wrong
+    // type. `section` is the dotted path of `table` ("" at the top), for messages.
+    Result<const toml::table*> table(const toml::table& parent, std::string_view section,
+                                     std::string_view key) const;
+    Result<std::optional<std::string>> string(const toml::table& table, std::string_view section,
+                                              std::string_view key) const;
+    // Integers are accepted where a number is asked for (`scale = 1` as `scale = 1.0`); the
+    // value must be finite.
+    Result<std::optional<double>> number(const toml::table& table, std::string_view section,
+                                         std::string_view key) const;
+    Result<std::optional<int64_t>> integer(const toml::table& table, std::string_view section,
+                                           std::string_view key) const;
+    Result<std::optional<bool>> boolean(const toml::table& table, std::string_view section,
+                                        std::string_view key) const;
+    // An array of exactly `count` finite numbers.
+    Result<std::optional<std::vector<double>>> numbers(const toml::table& table,
+                                                       std::string_view section,
+                                                       std::string_view key, size_t count) const;
+    // An existing regular file with one of `extensions` (lower case, with the dot); relative
+    // paths start at the file's folder. Returns the resolved path.
+    Result<std::string> file(const toml::node& node, std::string_view key,
+                             const std::string& value,
+                             std::initializer_list<std::string_view> extensions,
+                             const char* what) const;
+
+    const std::string& path() const { return path_; }
+    const std::filesystem::path& folder() const { return folder_; }
+
+    static std::string dotted(std::string_view section, std::string_view key) {
+        return section.empty() ? std::string(key) : fmt::format("{}.{}", section, key);
+    }
+
+private:
+    std::string path_;
+    std::string what_;
+    std::filesystem::path folder_;  // relative paths inside the file are relative to this
+};
+
+// Reads and parses `path`. A missing file, a directory and TOML syntax errors (toml++ throws
+// them: Debian builds it with exceptions, see config/CMakeLists.txt) end here as an Error
+// naming the file, the line and the column.
+Result<toml::table> parseTomlFile(const std::string& path, const std::string& what);
+
+// "a string", "an integer", ... for messages.
+const char* tomlTypeName(const toml::node& node);
+// Lower-case extension with its dot ("" when none).
+std::string lowerExtension(const std::string& path);
+// "a, b, c".
+std::string joined(std::initializer_list<std::string_view> items);
+
+}  // namespace previs
