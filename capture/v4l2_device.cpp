@@ -34,10 +34,19 @@ int xioctl(int fd, unsigned long request, void* arg) {
 // The errors that mean the hardware is gone rather than misused.
 bool isGone(int err) { return err == ENODEV || err == ENXIO || err == EIO || err == EPIPE; }
 
-bool equalsIgnoreCase(std::string_view a, std::string_view b) {
-    return a.size() == b.size() && std::equal(a.begin(), a.end(), b.begin(), [](char x, char y) {
-               return std::tolower(uint8_t(x)) == std::tolower(uint8_t(y));
-           });
+// A control name as v4l2-ctl prints it: "Exposure Time, Absolute" → "exposure_time_absolute"
+// (lower case, each run of other characters one '_', none at the ends). Comparing these forms
+// accepts both the driver's name and v4l2-ctl's, in any case.
+std::string controlKey(std::string_view name) {
+    std::string key;
+    for (char ch : name) {
+        if (std::isalnum(uint8_t(ch)))
+            key += char(std::tolower(uint8_t(ch)));
+        else if (!key.empty() && key.back() != '_')
+            key += '_';
+    }
+    while (!key.empty() && key.back() == '_') key.pop_back();
+    return key;
 }
 
 }  // namespace
@@ -311,7 +320,7 @@ Status V4L2Device::setControl(std::string_view name, int32_t value) {
     while (xioctl(fd, VIDIOC_QUERY_EXT_CTRL, &q) == 0) {
         const std::string_view qname(q.name);
         if (q.type != V4L2_CTRL_TYPE_CTRL_CLASS) {
-            if (equalsIgnoreCase(qname, name)) {
+            if (controlKey(qname) == controlKey(name)) {
                 if (value < q.minimum || value > q.maximum)
                     return makeError("camera {}: control '{}' = {} is out of range [{}, {}]", path_,
                                      q.name, value, q.minimum, q.maximum);

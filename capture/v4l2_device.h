@@ -42,8 +42,9 @@ public:
     Result<bool> read(int timeoutMs, Frame& frame) override;
     uint64_t badFrames() const override { return badFrames_; }
 
-    // Sets a control by its driver name, case-insensitive ("Test Pattern", "Exposure Time,
-    // Absolute"): exposure, gain and white balance come from config this way.
+    // Sets a control by its driver name ("Exposure Time, Absolute") or v4l2-ctl's form of it
+    // ("exposure_time_absolute"), case-insensitive: exposure, gain and white balance come from
+    // config this way.
     Status setControl(std::string_view name, int32_t value);
 
     const std::string& path() const { return path_; }

@@ -1,0 +1,441 @@
+#include "config/service_config.h"
+
+#include <exception>
+#include <filesystem>
+#include <limits>
+
+#include "capture/pixel_format.h"
+#include "config/toml_reader.h"
+
+namespace previs {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr int64_t kFormatVersion = 1;
+constexpr const char* kWhat = "service config";
+
+// Reads one config file; each failure names the file, the line and the dotted key.
+class ConfigReader {
+public:
+    explicit ConfigReader(const std::string& path) : r_(path, kWhat) {}
+
+    Result<ServiceConfig> read(const toml::table& root);
+
+private:
+    template <typename... Args>
+    Error fail(const toml::node* at, fmt::format_string<Args...> format, Args&&... args) const {
+        return r_.fail(at, format, std::forward<Args>(args)...);
+    }
+
+    // A number within [lo, hi] (inclusive ends unless `openLow`), kept as `value` when absent.
+    template <typename T>
+    Status ranged(const toml::table& t, std::string_view section, std::string_view key, T& value,
+                  double lo, double hi, bool openLow = false) const;
+    Status integerIn(const toml::table& t, std::string_view section, std::string_view key,
+                     int64_t& value, int64_t lo, int64_t hi) const;
+
+    Status parseCamera(const toml::table& t, const std::string& name, CameraConfig& c) const;
+    Status parseRadiometry(const toml::table& t, std::string_view section,
+                           InverseToneMapSettings& s) const;
+    Status parseTracking(const toml::table& t, TrackingConfig& c) const;
+    Status parseLighting(const toml::table& t, LightingConfig& c) const;
+
+    TomlReader r_;
+};
+
+template <typename T>
+Status ConfigReader::ranged(const toml::table& t, std::string_view section, std::string_view key,
+                            T& value, double lo, double hi, bool openLow) const {
+    Result<std::optional<double>> v = r_.number(t, section, key);
+    if (!v) return v.error();
+    if (!*v) return {};
+    const double x = **v;
+    if (x < lo || x > hi || (openLow && x == lo))
+        return fail(t.get(key), "'{}' is {}; it must be in {}{}, {}]",
+                    TomlReader::dotted(section, key), x, openLow ? "(" : "[", lo, hi);
+    value = T(x);
+    return {};
+}
+
+Status ConfigReader::integerIn(const toml::table& t, std::string_view section,
+                               std::string_view key, int64_t& value, int64_t lo,
+                               int64_t hi) const {
+    Result<std::optional<int64_t>> v = r_.integer(t, section, key);
+    if (!v) return v.error();
+    if (!*v) return {};
+    if (**v < lo || **v > hi)
+        return fail(t.get(key), "'{}' is {}; it must be an integer in [{}, {}]",
+                    TomlReader::dotted(section, key), **v, lo, hi);
+    value = **v;
+    return {};
+}
+
+Status ConfigReader::parseRadiometry(const toml::table& t, std::string_view section,
+                                     InverseToneMapSettings& s) const {
+    if (Status st = r_.checkKeys(t, section,
+                                 {"tone_curve", "exposure_stops", "white_balance", "max_radiance",
+                                  "white_luminance"});
+        !st)
+        return st;
+    Result<std::optional<std::string>> curve = r_.string(t, section, "tone_curve");
+    if (!curve) return curve.error();
+    if (*curve) {
+        const std::optional<InverseToneMapOperator> op = parseInverseToneMapOperator(**curve);
+        if (!op)
+            return fail(t.get("tone_curve"),
+                        "'{}.tone_curve' is '{}'; use srgb, reinhard or banterle", section,
+                        **curve);
+        s.op = *op;
+    }
+    if (Status st = ranged(t, section, "exposure_stops", s.exposureStops, -64.0, 64.0); !st)
+        return st;
+    Result<std::optional<std::vector<double>>> wb = r_.numbers(t, section, "white_balance", 3);
+    if (!wb) return wb.error();
+    if (*wb) {
+        for (size_t i = 0; i < 3; ++i) {
+            if (!((**wb)[i] > 0.0))
+                return fail(t.get("white_balance"),
+                            "'{}.white_balance' has {} for {}; each gain must be > 0", section,
+                            (**wb)[i], "RGB"[i]);
+            s.whiteBalance[i] = float((**wb)[i]);
+        }
+    }
+    const double big = std::numeric_limits<float>::max();
+    if (Status st = ranged(t, section, "max_radiance", s.maxRadiance, 0.0, big, true); !st)
+        return st;
+    if (Status st = ranged(t, section, "white_luminance", s.whiteLuminance, 0.0, big, true); !st)
+        return st;
+    return {};
+}
+
+Status ConfigReader::parseCamera(const toml::table& t, const std::string& name,
+                                 CameraConfig& c) const {
+    const std::string section = "cameras." + name;
+    const bool fisheye = name == "fisheye";
+    Status keys = fisheye ? r_.checkKeys(t, section,
+                                         {"source", "device", "width", "height", "format", "fps",
+                                          "controls", "calibration", "radiometry",
+                                          "mount_rotation_deg"})
+                          : r_.checkKeys(t, section,
+                                         {"source", "device", "width", "height", "format", "fps",
+                                          "controls", "calibration", "radiometry"});
+    if (!keys) return keys;
+    c.name = name;
+
+    Result<std::optional<std::string>> source = r_.string(t, section, "source");
+    if (!source) return source.error();
+    const std::string kind = source->value_or("v4l2");
+    if (kind == "v4l2")
+        c.source = CameraSourceKind::V4L2;
+    else if (kind == "libcamera")
+        c.source = CameraSourceKind::Libcamera;
+    else if (kind == "session")
+        c.source = CameraSourceKind::Session;
+    else
+        return fail(t.get("source"), "'{}.source' is '{}'; use v4l2, libcamera or session",
+                    section, kind);
+
+    Result<std::optional<std::string>> device = r_.string(t, section, "device");
+    if (!device) return device.error();
+    if (c.source != CameraSourceKind::Libcamera && (!*device || (*device)->empty()))
+        return fail(*device ? t.get("device") : &t,
+                    "[{}] needs 'device' ({})", section,
+                    c.source == CameraSourceKind::V4L2
+                        ? "the V4L2 node, e.g. device = \"/dev/video0\""
+                        : "the recorded camera folder, e.g. device = \"session/cameras/scene\"");
+    c.device = device->value_or("");
+    if (c.source == CameraSourceKind::Session) {
+        const fs::path folder = r_.folder() / fs::path(c.device);
+        std::error_code ec;
+        if (!fs::is_regular_file(folder / "index.csv", ec))
+            return fail(t.get("device"),
+                        "'{}.device' is '{}', but '{}' is not a recorded camera folder (no "
+                        "index.csv; docs/session-format.md)",
+                        section, c.device, folder.string());
+        c.device = folder.string();
+    }
+
+    // The size is required: it must be the calibrated one, and a camera's default size is
+    // whatever the last program left it at.
+    for (auto [key, field] : {std::pair<const char*, uint32_t*>{"width", &c.width},
+                              std::pair<const char*, uint32_t*>{"height", &c.height}}) {
+        int64_t v = 0;
+        if (Status st = integerIn(t, section, key, v, 1, 16384); !st) return st;
+        if (v == 0)
+            return fail(&t, "[{}] needs '{}' (pixels; the size the calibration was made at)",
+                        section, key);
+        *field = uint32_t(v);
+    }
+
+    Result<std::optional<std::string>> format = r_.string(t, section, "format");
+    if (!format) return format.error();
+    if (*format) {
+        if (c.source != CameraSourceKind::V4L2)
+            return fail(t.get("format"), "'{}.format' applies to v4l2 cameras only", section);
+        const uint32_t fourcc = fourccFromString(**format);
+        if (!isSupportedFormat(fourcc))
+            return fail(t.get("format"), "'{}.format' is '{}'; supported: {}", section, **format,
+                        supportedFormatList());
+        c.pixelFormat = **format;
+    }
+    if (Status st = ranged(t, section, "fps", c.fps, 0.0, 1000.0); !st) return st;
+
+    Result<const toml::table*> controls = r_.table(t, section, "controls");
+    if (!controls) return controls.error();
+    if (*controls) {
+        if (c.source == CameraSourceKind::Session)
+            return fail(*controls, "'{}.controls' has no meaning for a recorded camera",
+                        section);
+        for (auto&& [key, node] : **controls) {
+            const toml::value<int64_t>* v = node.as_integer();
+            if (!v)
+                return fail(&node, "'{}.controls.\"{}\"' must be an integer, not {}", section,
+                            key.str(), tomlTypeName(node));
+            c.controls.emplace_back(std::string(key.str()), v->get());
+        }
+    }
+
+    Result<std::optional<std::string>> calibration = r_.string(t, section, "calibration");
+    if (!calibration) return calibration.error();
+    if (!*calibration)
+        return fail(&t, "[{}] needs 'calibration' (an OpenCV calibration .yaml; "
+                        "docs/camera-calibration.md)",
+                    section);
+    Result<std::string> calibrationPath = r_.file(*t.get("calibration"), section + ".calibration",
+                                                  **calibration, {".yaml", ".yml", ".xml"},
+                                                  "OpenCV calibration");
+    if (!calibrationPath) return calibrationPath.error();
+    Result<CameraCalibration> loaded = CameraCalibration::load(*calibrationPath);
+    if (!loaded) return fail(t.get("calibration"), "'{}.calibration': {}", section,
+                             loaded.message());
+    const cv::Size size = loaded->imageSize();
+    if (size.width != int(c.width) || size.height != int(c.height))
+        return fail(t.get("calibration"),
+                    "'{}.calibration' was made at {}x{}, but the camera is configured {}x{}; "
+                    "calibrate at the capture size (intrinsics do not carry over between sizes "
+                    "a sensor crops or bins)",
+                    section, size.width, size.height, c.width, c.height);
+    c.calibrationPath = *calibrationPath;
+    c.calibration = std::move(*loaded);
+
+    Result<const toml::table*> radiometry = r_.table(t, section, "radiometry");
+    if (!radiometry) return radiometry.error();
+    if (*radiometry) {
+        if (Status st = parseRadiometry(**radiometry, section + ".radiometry", c.radiometry); !st)
+            return st;
+    }
+    return {};
+}
+
+Status ConfigReader::parseTracking(const toml::table& t, TrackingConfig& c) const {
+    if (Status st = r_.checkKeys(t, "tracking",
+                                 {"board", "family", "decimate", "sigma", "refine_edges",
+                                  "decode_sharpening", "threads", "max_reproj_error_px",
+                                  "min_tags"});
+        !st)
+        return st;
+    Result<std::optional<std::string>> board = r_.string(t, "tracking", "board");
+    if (!board) return board.error();
+    if (!*board)
+        return fail(&t, "[tracking] needs 'board' (the tag board layout .toml; "
+                        "docs/board-format.md)");
+    Result<std::string> boardPath =
+        r_.file(*t.get("board"), "tracking.board", **board, {".toml"}, "tag board");
+    if (!boardPath) return boardPath.error();
+    Result<TagBoard> loaded = TagBoard::load(*boardPath);
+    if (!loaded) return fail(t.get("board"), "'tracking.board': {}", loaded.message());
+
+    Result<std::optional<std::string>> family = r_.string(t, "tracking", "family");
+    if (!family) return family.error();
+    if (*family) {
+        const std::vector<std::string>& known = supportedTagFamilies();
+        if (std::find(known.begin(), known.end(), **family) == known.end()) {
+            std::string list;
+            for (const std::string& f : known) list += (list.empty() ? "" : ", ") + f;
+            return fail(t.get("family"), "'tracking.family' is '{}'; supported: {}", **family,
+                        list);
+        }
+        c.detector.family = **family;
+    } else if (!loaded->family().empty()) {
+        c.detector.family = loaded->family();
+    }
+    if (!loaded->family().empty() && loaded->family() != c.detector.family)
+        return fail(t.get("family"),
+                    "'tracking.family' is '{}', but the board '{}' is made of {} tags",
+                    c.detector.family, *boardPath, loaded->family());
+    c.boardPath = *boardPath;
+    c.board = std::move(*loaded);
+
+    if (Status st = ranged(t, "tracking", "decimate", c.detector.decimate, 1.0, 16.0); !st)
+        return st;
+    if (Status st = ranged(t, "tracking", "sigma", c.detector.sigma, 0.0, 16.0); !st) return st;
+    Result<std::optional<bool>> refine = r_.boolean(t, "tracking", "refine_edges");
+    if (!refine) return refine.error();
+    c.detector.refineEdges = refine->value_or(c.detector.refineEdges);
+    if (Status st = ranged(t, "tracking", "decode_sharpening", c.detector.decodeSharpening, 0.0,
+                           16.0);
+        !st)
+        return st;
+    int64_t threads = c.detector.threads;
+    if (Status st = integerIn(t, "tracking", "threads", threads, 1, 64); !st) return st;
+    c.detector.threads = int(threads);
+    if (Status st = ranged(t, "tracking", "max_reproj_error_px", c.tracker.maxReprojErrorPx, 0.0,
+                           1e6, true);
+        !st)
+        return st;
+    int64_t minTags = c.tracker.minTags;
+    if (Status st = integerIn(t, "tracking", "min_tags", minTags, 1, 1024); !st) return st;
+    c.tracker.minTags = int(minTags);
+    return {};
+}
+
+Status ConfigReader::parseLighting(const toml::table& t, LightingConfig& c) const {
+    if (Status st = r_.checkKeys(t, "lighting",
+                                 {"mode", "map_width", "max_field_angle_deg", "fill_ring_deg",
+                                  "mean_factor", "max_fraction", "max_lights",
+                                  "min_power_fraction"});
+        !st)
+        return st;
+    Result<std::optional<std::string>> mode = r_.string(t, "lighting", "mode");
+    if (!mode) return mode.error();
+    if (*mode) {
+        if (**mode == "environment")
+            c.mode = LightingMode::Environment;
+        else if (**mode == "lights")
+            c.mode = LightingMode::Lights;
+        else
+            return fail(t.get("mode"), "'lighting.mode' is '{}'; use environment or lights",
+                        **mode);
+    }
+    int64_t width = c.fisheye.width;
+    if (Status st = integerIn(t, "lighting", "map_width", width, 16, 16384); !st) return st;
+    if (width % 2 != 0)
+        return fail(t.get("map_width"), "'lighting.map_width' is {}; it must be even (the map "
+                                        "is width x width/2)",
+                    width);
+    c.fisheye.width = int(width);
+    if (Status st = ranged(t, "lighting", "max_field_angle_deg", c.fisheye.maxFieldAngleDeg, 0.0,
+                           180.0, true);
+        !st)
+        return st;
+    if (Status st = ranged(t, "lighting", "fill_ring_deg", c.fisheye.fillRingDeg, 0.0,
+                           c.fisheye.maxFieldAngleDeg, true);
+        !st)
+        return st;
+    if (Status st = ranged(t, "lighting", "mean_factor", c.lights.meanFactor, 0.0, 1e12, true);
+        !st)
+        return st;
+    if (Status st = ranged(t, "lighting", "max_fraction", c.lights.maxFraction, 0.0, 1.0); !st)
+        return st;
+    int64_t maxLights = c.lights.maxLights;
+    if (Status st = integerIn(t, "lighting", "max_lights", maxLights, 0, 256); !st) return st;
+    c.lights.maxLights = int(maxLights);
+    if (Status st = ranged(t, "lighting", "min_power_fraction", c.lights.minPowerFraction, 0.0,
+                           1.0);
+        !st)
+        return st;
+    return {};
+}
+
+Result<ServiceConfig> ConfigReader::read(const toml::table& root) {
+    if (Status st = r_.checkKeys(root, "",
+                                 {"version", "scene", "cameras", "tracking", "lighting"});
+        !st)
+        return st.error();
+    const toml::node* version = root.get("version");
+    if (!version)
+        return fail(nullptr, "missing key 'version' (start the file with `version = {}`)",
+                    kFormatVersion);
+    const toml::value<int64_t>* v = version->as_integer();
+    if (!v || v->get() != kFormatVersion)
+        return fail(version, "'version' must be {} (this previs reads config version {} only)",
+                    kFormatVersion, kFormatVersion);
+
+    ServiceConfig config;
+    config.path = r_.path();
+    Result<std::optional<std::string>> scene = r_.string(root, "", "scene");
+    if (!scene) return scene.error();
+    if (!*scene)
+        return fail(nullptr, "missing key 'scene' (a .gltf/.glb or previs.toml scene, e.g. "
+                             "scene = \"scene/previs.toml\")");
+    Result<std::string> scenePath =
+        r_.file(*root.get("scene"), "scene", **scene, {".gltf", ".glb", ".toml"}, "scene");
+    if (!scenePath) return scenePath.error();
+    config.scenePath = *scenePath;
+
+    Result<const toml::table*> cameras = r_.table(root, "", "cameras");
+    if (!cameras) return cameras.error();
+    if (!*cameras)
+        return fail(nullptr, "missing [cameras.scene] (the camera that films the set)");
+    if (Status st = r_.checkKeys(**cameras, "cameras", {"scene", "fisheye"}); !st)
+        return st.error();
+    Result<const toml::table*> sceneCamera = r_.table(**cameras, "cameras", "scene");
+    if (!sceneCamera) return sceneCamera.error();
+    if (!*sceneCamera)
+        return fail(*cameras, "missing [cameras.scene] (the camera that films the set)");
+    if (Status st = parseCamera(**sceneCamera, "scene", config.sceneCamera); !st)
+        return st.error();
+    Result<const toml::table*> fisheye = r_.table(**cameras, "cameras", "fisheye");
+    if (!fisheye) return fisheye.error();
+    if (*fisheye) {
+        CameraConfig camera;
+        if (Status st = parseCamera(**fisheye, "fisheye", camera); !st) return st.error();
+        Result<std::optional<std::vector<double>>> mount =
+            r_.numbers(**fisheye, "cameras.fisheye", "mount_rotation_deg", 3);
+        if (!mount) return mount.error();
+        if (*mount)
+            config.lighting.fisheye.mountRotationDeg = {(**mount)[0], (**mount)[1], (**mount)[2]};
+        if (!config.sceneCamera.device.empty() && camera.source == config.sceneCamera.source &&
+            camera.device == config.sceneCamera.device)
+            return fail(*fisheye, "[cameras.fisheye] and [cameras.scene] both use '{}'; each "
+                                   "camera needs its own device",
+                        camera.device);
+        config.fisheyeCamera = std::move(camera);
+    }
+
+    Result<const toml::table*> tracking = r_.table(root, "", "tracking");
+    if (!tracking) return tracking.error();
+    if (!*tracking)
+        return fail(nullptr, "missing [tracking] (at least board = \"board.toml\", the tag "
+                             "layout; docs/board-format.md)");
+    if (Status st = parseTracking(**tracking, config.tracking); !st) return st.error();
+
+    Result<const toml::table*> lighting = r_.table(root, "", "lighting");
+    if (!lighting) return lighting.error();
+    if (*lighting) {
+        if (Status st = parseLighting(**lighting, config.lighting); !st) return st.error();
+    }
+    return config;
+}
+
+}  // namespace
+
+const char* toString(CameraSourceKind kind) {
+    switch (kind) {
+        case CameraSourceKind::V4L2: return "v4l2";
+        case CameraSourceKind::Libcamera: return "libcamera";
+        case CameraSourceKind::Session: return "session";
+    }
+    return "?";
+}
+
+const char* toString(LightingMode mode) {
+    switch (mode) {
+        case LightingMode::Environment: return "environment";
+        case LightingMode::Lights: return "lights";
+    }
+    return "?";
+}
+
+Result<ServiceConfig> loadServiceConfig(const std::string& path) {
+    Result<toml::table> root = parseTomlFile(path, kWhat);
+    if (!root) return root.error();
+    try {
+        return ConfigReader(path).read(*root);
+    } catch (const std::exception& e) {  // toml++, OpenCV and the standard library throw
+        return makeError("cannot load {} '{}': {}", kWhat, path, e.what());
+    }
+}
+
+}  // namespace previs

@@ -1,0 +1,235 @@
+// Service config tests: the shipped example box config, the defaults of a minimal file, and each
+// kind of user error (one message naming the file, the line and the key, and what to do).
+#include "config/service_config.h"
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+
+#include "tests/support/temp_dir.h"
+
+namespace previs {
+namespace {
+
+namespace fs = std::filesystem;
+
+const std::string kExamples = PREVIS_SOURCE_DIR "/examples/box";
+
+fs::path tempDir() { return previs::testing::scratchDir("previs_service_config_test"); }
+
+std::string writeFile(const std::string& name, const std::string& text) {
+    const fs::path path = tempDir() / name;
+    fs::create_directories(path.parent_path());
+    std::ofstream(path) << text;
+    return path.string();
+}
+
+// A valid minimal config; tests splice their error into it.
+std::string minimal(const std::string& sceneCameraExtra = "", const std::string& extra = "") {
+    return fmt::format(R"(version = 1
+scene = "{0}/../cubes_spheres/scene.gltf"
+[cameras.scene]
+device = "/dev/video0"
+width = 1280
+height = 720
+calibration = "{0}/scene_camera.yaml"
+{1}
+[tracking]
+board = "{0}/board.toml"
+{2}
+)",
+                       kExamples, sceneCameraExtra, extra);
+}
+
+TEST(ServiceConfig, LoadsTheExampleBox) {
+    Result<ServiceConfig> c = loadServiceConfig(kExamples + "/previsd.toml");
+    ASSERT_TRUE(c) << c.message();
+    EXPECT_TRUE(fs::equivalent(c->scenePath, kExamples + "/../cubes_spheres/previs.toml"));
+
+    const CameraConfig& scene = c->sceneCamera;
+    EXPECT_EQ(scene.name, "scene");
+    EXPECT_EQ(scene.source, CameraSourceKind::V4L2);
+    EXPECT_EQ(scene.device, "/dev/video0");
+    EXPECT_EQ(scene.width, 1280u);
+    EXPECT_EQ(scene.height, 720u);
+    EXPECT_EQ(scene.pixelFormat, "YUYV");
+    EXPECT_EQ(scene.fps, 30.0);
+    ASSERT_EQ(scene.controls.size(), 4u);  // in file order: auto exposure off before the time
+    EXPECT_EQ(scene.controls[0].first, "Auto Exposure");
+    EXPECT_EQ(scene.controls[1].first, "Exposure Time, Absolute");
+    EXPECT_EQ(scene.controls[1].second, 156);
+    ASSERT_TRUE(scene.calibration);
+    EXPECT_NEAR(scene.calibration->fx(), 1108.5125, 1e-3);
+    EXPECT_EQ(scene.radiometry.op, InverseToneMapOperator::Banterle);
+    EXPECT_EQ(scene.radiometry.maxRadiance, 16.0f);
+
+    ASSERT_TRUE(c->fisheyeCamera);
+    EXPECT_EQ(c->fisheyeCamera->device, "/dev/video1");
+    ASSERT_TRUE(c->fisheyeCamera->calibration);
+    EXPECT_EQ(c->fisheyeCamera->calibration->model(), DistortionModel::Fisheye);
+    EXPECT_EQ(c->lighting.fisheye.mountRotationDeg, cv::Vec3d(-90.0, 0.0, 0.0));
+    EXPECT_EQ(c->lighting.fisheye.width, 512);
+    EXPECT_EQ(c->lighting.mode, LightingMode::Environment);
+
+    ASSERT_TRUE(c->tracking.board);
+    EXPECT_EQ(c->tracking.board->tags().size(), 4u);
+    EXPECT_EQ(c->tracking.detector.family, "tag36h11");
+    EXPECT_EQ(c->tracking.tracker.maxReprojErrorPx, 3.0);
+}
+
+TEST(ServiceConfig, MinimalFileTakesTheLibraryDefaults) {
+    Result<ServiceConfig> c = loadServiceConfig(writeFile("minimal.toml", minimal()));
+    ASSERT_TRUE(c) << c.message();
+    EXPECT_FALSE(c->fisheyeCamera);
+    EXPECT_EQ(c->sceneCamera.pixelFormat, "");
+    EXPECT_EQ(c->sceneCamera.fps, 0.0);
+    EXPECT_TRUE(c->sceneCamera.controls.empty());
+    const InverseToneMapSettings defaults;
+    EXPECT_EQ(c->sceneCamera.radiometry.op, defaults.op);
+    EXPECT_EQ(c->sceneCamera.radiometry.exposureStops, defaults.exposureStops);
+    const TagDetectorSettings detector;
+    EXPECT_EQ(c->tracking.detector.decimate, detector.decimate);
+    EXPECT_EQ(c->tracking.detector.refineEdges, detector.refineEdges);
+    const LightEstimatorSettings lights;
+    EXPECT_EQ(c->lighting.lights.maxLights, lights.maxLights);
+    EXPECT_EQ(c->lighting.mode, LightingMode::Environment);
+}
+
+TEST(ServiceConfig, RecordedCameraFolderResolvesAgainstTheConfig) {
+    writeFile("session/cameras/scene/index.csv",
+              "# previs-session camera index v1: sequence,timestampNs,file,width,height\n");
+    const std::string text = fmt::format(R"(version = 1
+scene = "{0}/../cubes_spheres/scene.gltf"
+[cameras.scene]
+source = "session"
+device = "session/cameras/scene"
+width = 1280
+height = 720
+calibration = "{0}/scene_camera.yaml"
+[tracking]
+board = "{0}/board.toml"
+)",
+                                         kExamples);
+    Result<ServiceConfig> c = loadServiceConfig(writeFile("replay.toml", text));
+    ASSERT_TRUE(c) << c.message();
+    EXPECT_EQ(c->sceneCamera.source, CameraSourceKind::Session);
+    EXPECT_TRUE(fs::equivalent(c->sceneCamera.device, tempDir() / "session/cameras/scene"));
+}
+
+struct BadConfig {
+    const char* name;
+    std::string text;
+    std::vector<std::string> expected;  // substrings of the one message
+};
+
+class ServiceConfigErrors : public ::testing::TestWithParam<BadConfig> {};
+
+TEST_P(ServiceConfigErrors, NameTheFileTheKeyAndTheFix) {
+    const BadConfig& bad = GetParam();
+    const std::string path = writeFile(std::string(bad.name) + ".toml", bad.text);
+    Result<ServiceConfig> c = loadServiceConfig(path);
+    ASSERT_FALSE(c) << bad.name << " was accepted";
+    EXPECT_NE(c.message().find(path), std::string::npos) << c.message();
+    for (const std::string& s : bad.expected)
+        EXPECT_NE(c.message().find(s), std::string::npos)
+            << bad.name << ": '" << s << "' not in: " << c.message();
+    EXPECT_EQ(c.message().find('\n'), std::string::npos) << "one line: " << c.message();
+}
+
+std::string replaced(std::string text, const std::string& from, const std::string& to) {
+    const size_t at = text.find(from);
+    EXPECT_NE(at, std::string::npos) << from;
+    return text.replace(at, from.size(), to);
+}
+
+std::vector<BadConfig> badConfigs() {
+    const std::string e = kExamples;
+    // A calibration that exists but is broken, and a board with a duplicate id.
+    const std::string brokenCalibration = writeFile("broken.yaml", "%YAML:1.0\n---\nimage_width: 3\n");
+    const std::string duplicateBoard = writeFile("dup_board.toml", R"(tag_size_m = 0.1
+[[tag]]
+id = 4
+position_m = [0, 0, 0]
+[[tag]]
+id = 4
+position_m = [1, 0, 0]
+)");
+    return {
+        {"syntax", "version = 1\nscene = \"x.gltf", {"line 2", "not valid TOML"}},
+        {"no_version", replaced(minimal(), "version = 1", ""), {"missing key 'version'"}},
+        {"new_version", replaced(minimal(), "version = 1", "version = 2"), {"line 1", "'version'"}},
+        {"typo_top", "sceen = 1\n" + minimal(), {"unknown key 'sceen'", "valid top-level"}},
+        {"typo_camera", minimal("widht = 3"), {"line 8", "unknown key 'widht' in [cameras.scene]"}},
+        {"no_scene_camera", fmt::format("version = 1\nscene = \"{}/../cubes_spheres/scene.gltf\"\n",
+                                        e),
+         {"missing [cameras.scene]"}},
+        {"missing_scene_file", replaced(minimal(), "scene.gltf", "nothere.gltf"),
+         {"'scene'", "does not exist"}},
+        {"bad_source", minimal("source = \"usb\""), {"'cameras.scene.source' is 'usb'", "v4l2"}},
+        {"no_device", replaced(minimal(), "device = \"/dev/video0\"", ""),
+         {"[cameras.scene] needs 'device'"}},
+        {"zero_width", replaced(minimal(), "width = 1280", "width = 0"),
+         {"'cameras.scene.width' is 0"}},
+        {"string_width", replaced(minimal(), "width = 1280", "width = \"1280\""),
+         {"'cameras.scene.width' must be an integer, not a string"}},
+        {"bad_format", minimal("format = \"RGGB\""),
+         {"'cameras.scene.format' is 'RGGB'", "supported:"}},
+        {"negative_fps", minimal("fps = -1"), {"'cameras.scene.fps' is -1"}},
+        {"control_not_int", minimal("controls = { Gain = \"high\" }"),
+         {"'cameras.scene.controls.\"Gain\"' must be an integer"}},
+        {"no_calibration", replaced(minimal(), fmt::format("calibration = \"{}/scene_camera.yaml\"", e), ""),
+         {"[cameras.scene] needs 'calibration'"}},
+        {"broken_calibration",
+         replaced(minimal(), fmt::format("{}/scene_camera.yaml", e), brokenCalibration),
+         {"'cameras.scene.calibration'", brokenCalibration}},
+        {"calibration_size", replaced(minimal(), "width = 1280", "width = 1920"),
+         {"made at 1280x720", "configured 1920x720", "calibrate at the capture size"}},
+        {"bad_tone_curve", minimal("[cameras.scene.radiometry]\ntone_curve = \"aces\""),
+         {"'cameras.scene.radiometry.tone_curve' is 'aces'", "banterle"}},
+        {"negative_gain", minimal("[cameras.scene.radiometry]\nwhite_balance = [1, -1, 1]"),
+         {"'cameras.scene.radiometry.white_balance'", "for G", "> 0"}},
+        {"short_gain", minimal("[cameras.scene.radiometry]\nwhite_balance = [1, 1]"),
+         {"array of 3 numbers", "2 elements"}},
+        {"zero_max_radiance", minimal("[cameras.scene.radiometry]\nmax_radiance = 0"),
+         {"'cameras.scene.radiometry.max_radiance' is 0", "(0,"}},
+        {"no_board", replaced(minimal(), fmt::format("board = \"{}/board.toml\"", e), ""),
+         {"[tracking] needs 'board'"}},
+        {"duplicate_board", replaced(minimal(), fmt::format("{}/board.toml", e), duplicateBoard),
+         {"'tracking.board'", "id 4"}},
+        {"unknown_family", minimal("", "family = \"tag99h99\""),
+         {"'tracking.family' is 'tag99h99'", "tag36h11"}},
+        {"family_mismatch", minimal("", "family = \"tag25h9\""),
+         {"made of tag36h11 tags"}},
+        {"bad_decimate", minimal("", "decimate = 0.5"), {"'tracking.decimate' is 0.5"}},
+        {"bad_lighting_mode", minimal("", "[lighting]\nmode = \"sun\""),
+         {"'lighting.mode' is 'sun'", "environment or lights"}},
+        {"odd_map", minimal("", "[lighting]\nmap_width = 511"), {"'lighting.map_width' is 511", "even"}},
+        {"same_device",
+         minimal("[cameras.fisheye]\ndevice = \"/dev/video0\"\nwidth = 640\nheight = 480\n"
+                 "calibration = \"" + e + "/fisheye.yaml\""),
+         {"both use '/dev/video0'"}},
+        {"mount_on_scene", minimal("mount_rotation_deg = [0, 0, 0]"),
+         {"unknown key 'mount_rotation_deg' in [cameras.scene]"}},
+        {"session_without_index", minimal("source = \"session\""),
+         {"not a recorded camera folder", "index.csv"}},
+    };
+}
+
+INSTANTIATE_TEST_SUITE_P(Config, ServiceConfigErrors, ::testing::ValuesIn(badConfigs()),
+                         [](const auto& p) { return std::string(p.param.name); });
+
+TEST(ServiceConfig, MissingFileAndFolder) {
+    Result<ServiceConfig> missing = loadServiceConfig("/nonexistent/previsd.toml");
+    ASSERT_FALSE(missing);
+    EXPECT_NE(missing.message().find("/nonexistent/previsd.toml"), std::string::npos);
+    EXPECT_NE(missing.message().find("no such file"), std::string::npos);
+    Result<ServiceConfig> folder = loadServiceConfig(tempDir().string());
+    ASSERT_FALSE(folder);
+    EXPECT_NE(folder.message().find("not a regular file"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace previs
