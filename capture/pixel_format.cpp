@@ -21,12 +21,13 @@ struct FormatInfo {
 // MJPEG and JPEG differ only in whether the driver strips the Huffman tables; libjpeg-turbo (via
 // imdecode) handles both, since UVC cameras send the standard tables implicitly.
 constexpr std::array kFormats = {
-    FormatInfo{V4L2_PIX_FMT_YUYV, 2},  FormatInfo{V4L2_PIX_FMT_UYVY, 2},
-    FormatInfo{V4L2_PIX_FMT_YVYU, 2},  FormatInfo{V4L2_PIX_FMT_NV12, 1},
-    FormatInfo{V4L2_PIX_FMT_NV21, 1},  FormatInfo{V4L2_PIX_FMT_YUV420, 1},
-    FormatInfo{V4L2_PIX_FMT_MJPEG, 0}, FormatInfo{V4L2_PIX_FMT_JPEG, 0},
-    FormatInfo{V4L2_PIX_FMT_RGB24, 3}, FormatInfo{V4L2_PIX_FMT_BGR24, 3},
-    FormatInfo{V4L2_PIX_FMT_GREY, 1},
+    FormatInfo{V4L2_PIX_FMT_YUYV, 2},   FormatInfo{V4L2_PIX_FMT_UYVY, 2},
+    FormatInfo{V4L2_PIX_FMT_YVYU, 2},   FormatInfo{V4L2_PIX_FMT_NV12, 1},
+    FormatInfo{V4L2_PIX_FMT_NV21, 1},   FormatInfo{V4L2_PIX_FMT_YUV420, 1},
+    FormatInfo{V4L2_PIX_FMT_MJPEG, 0},  FormatInfo{V4L2_PIX_FMT_JPEG, 0},
+    FormatInfo{V4L2_PIX_FMT_RGB24, 3},  FormatInfo{V4L2_PIX_FMT_BGR24, 3},
+    FormatInfo{V4L2_PIX_FMT_GREY, 1},   FormatInfo{V4L2_PIX_FMT_XBGR32, 4},
+    FormatInfo{V4L2_PIX_FMT_RGBX32, 4},
 };
 
 const FormatInfo* findFormat(uint32_t fourcc) {
@@ -99,6 +100,15 @@ Status convert(uint32_t fourcc, std::span<const uint8_t> data, uint32_t width, u
                 in.copyTo(dst);
             else
                 cv::cvtColor(in, dst, cv::COLOR_BGR2RGB);
+            return {};
+        }
+        // libcamera's XRGB8888/XBGR8888 (ISP viewfinder outputs) under their V4L2 names: bytes
+        // B,G,R,X and R,G,B,X; the padding byte is ignored.
+        case V4L2_PIX_FMT_XBGR32:
+        case V4L2_PIX_FMT_RGBX32: {
+            if (Status s = need(size_t(stride) * (height - 1) + size_t(width) * 4); !s) return s;
+            cv::cvtColor(cv::Mat(h, w, CV_8UC4, src, stride), dst,
+                         fourcc == V4L2_PIX_FMT_XBGR32 ? cv::COLOR_BGRA2RGB : cv::COLOR_RGBA2RGB);
             return {};
         }
         case V4L2_PIX_FMT_GREY: {
