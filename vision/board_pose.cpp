@@ -37,7 +37,7 @@ std::optional<BoardPose> estimateBoardPose(const std::vector<TagDetection>& dete
         if (!tag || count[d.id] != 1) continue;
         std::array<cv::Point3d, 4> corners = board.worldCorners(*tag);
         world.insert(world.end(), corners.begin(), corners.end());
-        pixels.insert(pixels.end(), d.corners.begin(), d.corners.end());
+        for (const cv::Point2d& c : d.corners) pixels.push_back(openCvPixel(c));
         ids.push_back(d.id);
     }
     if (ids.empty()) return std::nullopt;

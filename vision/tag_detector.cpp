@@ -157,7 +157,8 @@ std::optional<cv::Matx44d> estimateTagPose(const TagDetection& detection,
     // only. So the corners are undistorted with the calibration first, and the homography it
     // starts from is recomputed from the undistorted corners (det->H of the raw corners would
     // disagree with them on a distorted lens).
-    std::vector<cv::Point2d> raw(detection.corners.begin(), detection.corners.end());
+    std::vector<cv::Point2d> raw;
+    for (const cv::Point2d& c : detection.corners) raw.push_back(openCvPixel(c));
     std::vector<cv::Point2d> ideal = calibration.undistortPixels(raw);
     for (const cv::Point2d& p : ideal)
         if (!std::isfinite(p.x) || !std::isfinite(p.y)) return std::nullopt;

@@ -73,6 +73,14 @@ private:
     std::unique_ptr<apriltag_detector, TagDetectorDeleter> detector_;
 };
 
+// A TagDetection corner in OpenCV's pixel convention, the one every CameraCalibration uses.
+// libapriltag puts a pixel's centre at +0.5 (pixel x covers [x, x+1): its line fit adds 0.5 "for
+// pixel center bias" and decimation maps (p − 0.5)·d + 0.5), OpenCV at the integer; measured on
+// rendered boards with exact ground truth (tests/vision/rendered_pose_test.cpp).
+inline cv::Point2d openCvPixel(const cv::Point2d& apriltagCorner) {
+    return apriltagCorner - cv::Point2d(0.5, 0.5);
+}
+
 // The tag's pose in the camera frame from libapriltag's estimate_tag_pose (tag frame as it
 // defines it: origin at the tag centre, x right, y down, z into the tag, for corner 0 at
 // (-s/2, s/2, 0)). Returns nullopt when the corners cannot be undistorted (behind a fisheye).
