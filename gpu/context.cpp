@@ -147,6 +147,9 @@ Result<std::unique_ptr<GpuContext>> GpuContext::create(const GpuOptions& options
         auto props = ctx->physicalDevice_.getProperties();
         ctx->deviceName_ = props.deviceName.data();
         ctx->isCpu_ = props.deviceType == vk::PhysicalDeviceType::eCpu;
+        auto properties = ctx->physicalDevice_.getProperties2<vk::PhysicalDeviceProperties2,
+                                                          vk::PhysicalDeviceSubgroupProperties>();
+        ctx->subgroupSize_ = properties.get<vk::PhysicalDeviceSubgroupProperties>().subgroupSize;
         ctx->queueFamily_ = *computeQueueFamily(ctx->physicalDevice_);
         auto family = ctx->physicalDevice_.getQueueFamilyProperties()[ctx->queueFamily_];
         if (family.timestampValidBits > 0)

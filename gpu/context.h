@@ -38,6 +38,8 @@ public:
     uint32_t queueFamily() const { return queueFamily_; }
     const std::string& deviceName() const { return deviceName_; }
     bool isCpuDevice() const { return isCpu_; }
+    // Invocations that run in lockstep (a CPU device's SIMD width).
+    uint32_t subgroupSize() const { return subgroupSize_; }
     // Nanoseconds per timestamp tick; 0 when the queue has no timestamps.
     double timestampPeriodNs() const { return timestampPeriodNs_; }
     uint32_t findMemoryType(uint32_t typeBits, vk::MemoryPropertyFlags required,
@@ -67,6 +69,7 @@ private:
     uint32_t queueFamily_ = 0;
     std::string deviceName_;
     bool isCpu_ = false;
+    uint32_t subgroupSize_ = 1;
     bool validationEnabled_ = false;
     double timestampPeriodNs_ = 0.0;
     std::atomic<uint32_t> validationErrors_{0};

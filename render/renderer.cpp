@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstddef>
 
 #include <glm/gtc/matrix_transform.hpp>
 
@@ -17,11 +18,17 @@ namespace {
 
 using shader::BvhNode;
 
-// Paths per pixel in one dispatch. Measured on lavapipe (Mesa 22.3): with 8192 or 16384 per
-// dispatch only about 5460 samples per invocation reached the sum (test
-// MillionSampleAccumulationIsExact); the cause is not yet understood, so dispatches stay well
-// below that. Short dispatches also keep a desktop GPU's watchdog away.
+// Paths per pixel in one dispatch at most: short dispatches keep a desktop GPU's watchdog away.
 constexpr uint32_t kMaxSamplesPerDispatch = 1024;
+
+// llvmpipe (lavapipe, Mesa's CPU device) ends all loops of a shader invocation once 65535
+// iterations of all its loops together have run on one SIMD batch (gallivm's
+// LP_MAX_TGSI_LOOP_ITERATIONS): a longer dispatch silently loses BVH traversal steps, bounces
+// and samples. A batch runs a loop iteration whenever any of its lanes does, so it runs at most
+// subgroupSize × (the most iterations one lane ran). The shader reports that per-lane maximum
+// (PV_COUNT_LOOP_ITERATION); dispatches are sized to keep the batch bound under half the limit.
+constexpr double kCpuLoopLimit = 65535.0;
+constexpr double kCpuLoopSafety = 0.5;
 
 // A camera that frames the whole scene from +Z when the file has none.
 Camera defaultCamera(const Geometry& geometry) {
@@ -295,20 +302,46 @@ Status Renderer::renderPreviewFrame(uint32_t spp) {
     return render(spp);
 }
 
+uint32_t Renderer::samplesForNextDispatch(uint32_t remaining) const {
+    uint32_t n = std::min({remaining, std::max(1u, settings_.samplesPerDispatch),
+                           kMaxSamplesPerDispatch});
+    if (!ctx_->isCpuDevice() || !settings_.respectCpuLoopLimit) return n;
+    // Until one sample has been measured, one at a time.
+    if (loopIterationsPerSample_ <= 0.0) return 1;
+    const double laneBudget = kCpuLoopLimit * kCpuLoopSafety / double(ctx_->subgroupSize());
+    return std::clamp(uint32_t(laneBudget / loopIterationsPerSample_), 1u, n);
+}
+
 Status Renderer::render(uint32_t samples,
                         const std::function<void(const RenderProgress&)>& progress) {
     uint32_t groupsX = (settings_.width + PV_WORKGROUP_SIZE_X - 1) / PV_WORKGROUP_SIZE_X;
     uint32_t groupsY = (settings_.height + PV_WORKGROUP_SIZE_Y - 1) / PV_WORKGROUP_SIZE_Y;
+    constexpr size_t kMaxLoopOffset = offsetof(shader::RenderStats, maxLoopIterations);
     uint32_t done = 0;
     while (done < samples) {
-        uint32_t n = std::min({samples - done, std::max(1u, settings_.samplesPerDispatch),
-                               kMaxSamplesPerDispatch});
+        const uint32_t n = samplesForNextDispatch(samples - done);
         // The sample index selects the random sequence; it wraps after 2^32 samples.
         params_.sampleBase = uint32_t(samples_);
         params_.samplesPerDispatch = n;
         if (Status s = buffers_[PV_BINDING_PARAMS].upload(&params_, sizeof(params_)); !s) return s;
+        const uint32_t zero = 0;
+        if (Status s = buffers_[PV_BINDING_STATS].upload(&zero, sizeof(zero), kMaxLoopOffset); !s)
+            return s;
         auto ms = pipeline_->dispatch(groupsX, groupsY);
         if (!ms) return ms.error();
+        uint32_t maxLoop = 0;
+        if (Status s = buffers_[PV_BINDING_STATS].download(&maxLoop, sizeof(maxLoop),
+                                                           kMaxLoopOffset);
+            !s)
+            return s;
+        // The costliest sample so far decides (a camera move can make paths longer).
+        loopIterationsPerSample_ = std::max(loopIterationsPerSample_, double(maxLoop) / n);
+        const double batchBound = double(maxLoop) * ctx_->subgroupSize();
+        if (ctx_->isCpuDevice() && batchBound >= kCpuLoopLimit && loopLimitRisks_++ == 0)
+            logWarning("{}: a dispatch of {} sample(s) may have reached the CPU device's loop "
+                       "limit ({} iterations per lane x {} lanes >= {}): parts of paths may be "
+                       "missing",
+                       ctx_->deviceName(), n, maxLoop, ctx_->subgroupSize(), kCpuLoopLimit);
         gpuMs_ += ms.value();
         samples_ += n;
         done += n;

@@ -29,7 +29,11 @@ struct RenderSettings {
     std::optional<float> apertureRadiusM;  // override the camera's thin lens
     std::optional<float> focusDistanceM;
     float fireflyClamp = 0.0f;         // 0 = off (default): no hidden clamping
-    uint32_t samplesPerDispatch = 1;   // paths per pixel in one GPU dispatch
+    // Paths per pixel in one GPU dispatch (fewer dispatches, less overhead). On a CPU device
+    // the renderer lowers it to stay inside llvmpipe's loop limit (renderer.cpp).
+    uint32_t samplesPerDispatch = 1;
+    // Off only to demonstrate what happens without it (tests): llvmpipe drops work.
+    bool respectCpuLoopLimit = true;
     bool generalPipeline = false;      // run every feature's code (benchmarks the saving)
     // Differential rendering (the paper): also compute the real-only solution L_or in the same
     // pass, for compositing with the camera image. Off: a plain CG render of the mixed scene.
@@ -108,11 +112,17 @@ public:
     Result<uint32_t> nonFiniteSamples() const;
     // Rays traced since the last reset (closest-hit and shadow; wraps at 2^32).
     Result<uint32_t> raysTraced() const;
+    // Dispatches whose loop iterations may have reached llvmpipe's limit (work silently lost);
+    // 0 unless respectCpuLoopLimit was turned off or one sample alone is too long.
+    uint64_t loopLimitRisks() const { return loopLimitRisks_; }
+    // The most loop iterations one invocation ran per sample (the dispatch sizing measure).
+    double loopIterationsPerSample() const { return loopIterationsPerSample_; }
     const Camera& camera() const { return camera_; }
 
 private:
     Renderer() = default;
     Status buildScene(const Scene& scene);
+    uint32_t samplesForNextDispatch(uint32_t remaining) const;
 
     GpuContext* ctx_ = nullptr;
     RenderSettings settings_;
@@ -125,6 +135,8 @@ private:
     std::optional<ImageF> plate_;
     uint64_t samples_ = 0;
     double gpuMs_ = 0.0;
+    double loopIterationsPerSample_ = 0.0;  // the most one lane ran per sample, measured
+    uint64_t loopLimitRisks_ = 0;
 };
 
 }  // namespace previs

@@ -6,6 +6,10 @@
 #extension GL_EXT_scalar_block_layout : require
 #extension GL_GOOGLE_include_directive : require
 
+// Loop iterations this invocation ran, all loops together (shared/prelude.h says why).
+uint gLoopIterations = 0u;
+#define PV_COUNT_LOOP_ITERATION() (++gLoopIterations)
+
 #include "shared/scene_types.h"
 
 layout(local_size_x = PV_WORKGROUP_SIZE_X, local_size_y = PV_WORKGROUP_SIZE_Y) in;
@@ -160,7 +164,9 @@ vec4 sampleTexture(uint index, vec2 uv) {
     ivec2 i0 = ivec2(floor(p));
     vec4 c = vec4(0.0);
     for (int dy = 0; dy < 2; ++dy) {
+        PV_COUNT_LOOP_ITERATION();
         for (int dx = 0; dx < 2; ++dx) {
+            PV_COUNT_LOOP_ITERATION();
             ivec2 q = (i0 + ivec2(dx, dy)) % size;
             q += size * ivec2(lessThan(q, ivec2(0)));
             float w = (dx == 1 ? f.x : 1.0 - f.x) * (dy == 1 ? f.y : 1.0 - f.y);
@@ -298,6 +304,7 @@ uint pickEmissiveTriangle(float u) {
     uint lo = 0u;
     uint hi = params.emissiveTriangleCount - 1u;
     while (lo < hi) {
+        PV_COUNT_LOOP_ITERATION();
         uint mid = (lo + hi) / 2u;
         if (u < emissiveTriangles[mid].cdf) hi = mid; else lo = mid + 1u;
     }
@@ -480,12 +487,14 @@ void tracePath(uvec2 pixel, inout uint rng, out vec3 lm, out vec3 lr, out bool f
     PathState realContinuation = st;
     bool haveRealContinuation = false;
     for (uint pass = 0u; pass < 2u; ++pass) {
+        PV_COUNT_LOOP_ITERATION();
         if (pass == 1u) {
             if (!haveRealContinuation) break;
             st = realContinuation;
             mode = MODE_REAL;
         }
         for (;;) {
+            PV_COUNT_LOOP_ITERATION();
             Hit hit;
             bool found = intersectScene(st.ray, mode, hit);
             bool hitVirtual = found && hit.triangle >= params.realTriangleCount;
@@ -583,10 +592,12 @@ void main() {
     vec4 sum[PV_ACCUM_COUNT];
     vec4 comp[PV_ACCUM_COUNT];
     for (uint k = 0u; k < PV_ACCUM_COUNT; ++k) {
+        PV_COUNT_LOOP_ITERATION();
         sum[k] = vec4(0.0);
         comp[k] = vec4(0.0);
     }
     for (uint i = 0u; i < params.samplesPerDispatch; ++i) {
+        PV_COUNT_LOOP_ITERATION();
         uint rng = rngSeed(pixelIndex, params.sampleBase + i, params.seed);
         vec3 lm;
         vec3 lr;
@@ -615,6 +626,7 @@ void main() {
     }
     atomicAdd(stats.raysTraced, gRaysTraced);
     for (uint k = 0u; k < PV_ACCUM_COUNT; ++k) {
+        PV_COUNT_LOOP_ITERATION();
         uint at = pixelIndex * PV_ACCUM_COUNT + k;
         vec4 total = accumSum[at];
         vec4 c = accumCompensation[at];
@@ -622,4 +634,6 @@ void main() {
         accumSum[at] = total;
         accumCompensation[at] = c;
     }
+    // The renderer sizes later dispatches from this (lavapipe's loop budget).
+    atomicMax(stats.maxLoopIterations, gLoopIterations);
 }

@@ -105,6 +105,52 @@ TEST_F(IntegratorTest, WhiteFurnaceGlassSphereIsExact) {
     }
 }
 
+// llvmpipe ends all of an invocation's loops after 65535 iterations of them together
+// (render/renderer.cpp): a long dispatch silently loses bounces, traversal steps and samples.
+// The same samples (the sequence depends on the sample index only) rendered one per dispatch
+// are the reference: sized dispatches must agree with it to rounding; on a CPU device, turning
+// the sizing off reproduces the loss the guard exists for.
+TEST_F(IntegratorTest, DispatchesStayInsideTheCpuDeviceLoopLimit) {
+    Scene s = furnaceScene(mirror());
+    RenderSettings rs;
+    rs.width = rs.height = 16;
+    rs.maxDepth = 64;
+    const uint32_t spp = 1024;
+    auto renderWith = [&](uint32_t perDispatch, bool respectLimit) {
+        RenderSettings settings = rs;
+        settings.samplesPerDispatch = perDispatch;
+        settings.respectCpuLoopLimit = respectLimit;
+        auto r = Renderer::create(ctx(), s, settings);
+        EXPECT_TRUE(r.ok()) << r.message();
+        EXPECT_TRUE((*r)->render(spp).ok());
+        return std::move(*r);
+    };
+    auto worstDifference = [](const Renderer& a, const Renderer& b) {
+        Result<ImageF> x = a.image(Aov::Mixed);
+        Result<ImageF> y = b.image(Aov::Mixed);
+        EXPECT_TRUE(x.ok() && y.ok());
+        float worst = 0.0f;
+        for (size_t i = 0; i < x->pixels.size(); ++i)
+            worst = std::max(worst, std::abs(x->pixels[i] - y->pixels[i]));
+        return worst;
+    };
+    auto reference = renderWith(1, true);
+    auto sized = renderWith(1024, true);
+    // Only the summation order differs (compensated sums of values near 1).
+    EXPECT_LT(worstDifference(*sized, *reference), 1e-6f);
+    EXPECT_EQ(sized->loopLimitRisks(), 0u);
+    RecordProperty("loopIterationsPerSample", std::to_string(sized->loopIterationsPerSample()));
+    if (!ctx().isCpuDevice()) GTEST_SKIP() << "the loop limit is llvmpipe's";
+
+    auto unsized = renderWith(1024, false);
+    const float lost = worstDifference(*unsized, *reference);
+    std::printf("%.0f loop iterations per sample; unsized 1024-sample dispatches: worst error "
+                "%.3g\n",
+                sized->loopIterationsPerSample(), lost);
+    EXPECT_GT(lost, 0.01f) << "llvmpipe no longer cuts long loops? (then the guard can go)";
+    EXPECT_GT(unsized->loopLimitRisks(), 0u);
+}
+
 // A Lambertian plane (albedo ρ) under a point light of intensity I at height h:
 // L = ρ/π · I cosθ / d² = ρ I h / (π d³) (inverse-square cosine law).
 TEST_F(IntegratorTest, PointLightFollowsInverseSquareCosineLaw) {

@@ -64,6 +64,7 @@ PV_INLINE uint envSearchMarginal(float x, uint height) {
     uint lo = 0u;
     uint hi = height;
     while (hi - lo > 1u) {
+        PV_COUNT_LOOP_ITERATION();
         uint mid = (lo + hi) / 2u;
         if (PV_ENV_MARGINAL_CDF(mid) <= x) lo = mid; else hi = mid;
     }
@@ -75,6 +76,7 @@ PV_INLINE uint envSearchConditional(float x, uint row, uint width) {
     uint lo = 0u;
     uint hi = width;
     while (hi - lo > 1u) {
+        PV_COUNT_LOOP_ITERATION();
         uint mid = (lo + hi) / 2u;
         if (PV_ENV_CONDITIONAL_CDF(base + mid) <= x) lo = mid; else hi = mid;
     }

@@ -29,6 +29,16 @@
 #define PV_INLINE
 #endif
 
+// Counts one iteration of a loop whose trip count depends on the data (BVH traversal, binary
+// searches, path bounces). llvmpipe (lavapipe) ends every loop of a shader invocation once
+// 65535 iterations of all its loops together have run (gallivm's LP_MAX_TGSI_LOOP_ITERATIONS,
+// shared by all loops): a dispatch that runs longer silently loses work. The GLSL side counts
+// so the renderer can keep each dispatch far below that budget; shaders that include a header
+// using this define PV_COUNT_LOOP_ITERATION before including it.
+#ifndef PV_COUNT_LOOP_ITERATION
+#define PV_COUNT_LOOP_ITERATION()
+#endif
+
 #define PV_PI 3.14159265358979323846f
 #define PV_INV_PI 0.31830988618379067154f
 #define PV_TWO_PI 6.28318530717958647692f

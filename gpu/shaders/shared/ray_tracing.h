@@ -139,6 +139,7 @@ PV_INLINE bool intersectBox(vec3 lo, vec3 hi, vec3 origin, vec3 invDir, float tM
     float t0 = tMin;
     float t1 = tMax * PV_BOX_FAR_SCALE;
     for (int i = 0; i < 3; ++i) {
+        PV_COUNT_LOOP_ITERATION();
         bool negative = invDir[i] < 0.0f;
         float tNear = ((negative ? hi[i] : lo[i]) - origin[i]) * invDir[i];
         float tFar = ((negative ? lo[i] : hi[i]) - origin[i]) * invDir[i];
@@ -162,6 +163,7 @@ PV_INLINE vec3 offsetRayOrigin(vec3 p, vec3 n) {
     uvec3 bits = floatBitsToUint(p);
     vec3 result;
     for (int i = 0; i < 3; ++i) {
+        PV_COUNT_LOOP_ITERATION();
         // Negative floats grow in magnitude as their bits grow: step the bits the other way.
         int step = p[i] < 0.0f ? -offsetInt[i] : offsetInt[i];
         float moved = uintBitsToFloat(bits[i] + uint(step));
@@ -188,6 +190,7 @@ PV_INLINE bool intersectLeaf(TriangleRay tr, uint first, uint count, float tMin,
                              PV_INOUT(float) tMax, PV_INOUT(Hit) hit) {
     bool found = false;
     for (uint i = first; i < first + count; ++i) {
+        PV_COUNT_LOOP_ITERATION();
         uvec3 tri = PV_TRIANGLE(i);
         float t;
         float b1;
@@ -221,6 +224,7 @@ PV_INLINE bool traceClosest(uint root, Ray ray, PV_INOUT(Hit) hit) {
     int stackSize = 0;
     bool found = false;
     while (true) {
+        PV_COUNT_LOOP_ITERATION();
         if (node.count > 0u) {
             if (intersectLeaf(tr, node.leftOrFirst, node.count, ray.tMin, tMax, hit)) found = true;
         } else {
@@ -271,8 +275,10 @@ PV_INLINE bool traceAny(uint root, Ray ray) {
     uint stack[PV_BVH_STACK_SIZE];
     int stackSize = 0;
     while (true) {
+        PV_COUNT_LOOP_ITERATION();
         if (node.count > 0u) {
             for (uint i = node.leftOrFirst; i < node.leftOrFirst + node.count; ++i) {
+                PV_COUNT_LOOP_ITERATION();
                 uvec3 tri = PV_TRIANGLE(i);
                 float t;
                 float b1;

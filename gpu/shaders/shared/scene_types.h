@@ -128,7 +128,7 @@ struct EmissiveTriangle {
 struct RenderStats {
     uint nonFiniteSamples;   // samples dropped because they were NaN or infinite
     uint raysTraced;         // closest-hit and shadow rays (wraps at 2^32; benchmarks only)
-    uint pad1;
+    uint maxLoopIterations;  // the most loop iterations one invocation ran in a dispatch
     uint pad2;
 };
 
