@@ -82,6 +82,14 @@ Status convert(uint32_t fourcc, std::span<const uint8_t> data, uint32_t width, u
         case V4L2_PIX_FMT_JPEG: {
             if (data.size() < 4 || data[0] != 0xff || data[1] != 0xd8)
                 return makeError("MJPEG frame of {} bytes has no JPEG start marker", data.size());
+            // A frame cut short (a UVC camera losing USB packets, a buffer overwritten while
+            // read) still decodes, grey or garbled below the cut, with only a libjpeg warning;
+            // the end marker tells. Some cameras pad the payload with zeros after it.
+            size_t end = data.size();
+            while (end > 2 && data[end - 1] == 0) --end;
+            if (data[end - 2] != 0xff || data[end - 1] != 0xd9)
+                return makeError("MJPEG frame of {} bytes has no JPEG end marker (cut short)",
+                                 data.size());
             cv::Mat bgr =
                 cv::imdecode(cv::Mat(1, int(data.size()), CV_8UC1, src), cv::IMREAD_COLOR);
             if (bgr.empty())

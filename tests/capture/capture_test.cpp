@@ -118,6 +118,16 @@ TEST(PixelFormat, MjpegDecodesToRgb) {
     ASSERT_TRUE(convertToRgb(V4L2_PIX_FMT_MJPEG, jpeg, w, h, 0, rgb));
     EXPECT_LE(maxAbsDiff(rgb, rgbRef), 12);
     EXPECT_NEAR(rgb[0], 200, 6);  // red channel first
+
+    // Zero padding after the end marker (as some UVC cameras send) is fine...
+    std::vector<uint8_t> padded = jpeg;
+    padded.resize(jpeg.size() + 4096, 0);
+    EXPECT_TRUE(convertToRgb(V4L2_PIX_FMT_MJPEG, padded, w, h, 0, rgb));
+    // ...a frame cut short is not, although libjpeg would decode it (grey below the cut).
+    std::vector<uint8_t> cut(jpeg.begin(), jpeg.begin() + std::ptrdiff_t(jpeg.size() * 2 / 3));
+    Status s = convertToRgb(V4L2_PIX_FMT_MJPEG, cut, w, h, 0, rgb);
+    ASSERT_FALSE(s);
+    EXPECT_NE(s.message().find("end marker"), std::string::npos) << s.message();
 }
 
 TEST(PixelFormat, BadBuffersAreErrorsNotCrashes) {
