@@ -36,6 +36,8 @@ private:
                      int64_t& value, int64_t lo, int64_t hi) const;
 
     Status parseCamera(const toml::table& t, const std::string& name, CameraConfig& c) const;
+    Status parseLibcameraControls(const toml::table& t, const std::string& section,
+                                  CameraConfig& c) const;
     Status parseRadiometry(const toml::table& t, std::string_view section,
                            InverseToneMapSettings& s) const;
     Status parseTracking(const toml::table& t, TrackingConfig& c) const;
@@ -109,6 +111,31 @@ Status ConfigReader::parseRadiometry(const toml::table& t, std::string_view sect
     return {};
 }
 
+// libcamera's controls are typed and named by libcamera, not by a driver.
+Status ConfigReader::parseLibcameraControls(const toml::table& t, const std::string& section,
+                                            CameraConfig& c) const {
+    if (Status st = r_.checkKeys(t, section, {"exposure_time_us", "analogue_gain", "colour_gains"});
+        !st)
+        return st;
+    int64_t exposure = 0;
+    if (Status st = integerIn(t, section, "exposure_time_us", exposure, 1, 60'000'000); !st)
+        return st;
+    if (exposure > 0) c.exposureUs = int32_t(exposure);
+    float gain = 0.0f;
+    if (Status st = ranged(t, section, "analogue_gain", gain, 0.0, 1024.0, true); !st) return st;
+    if (gain > 0.0f) c.analogueGain = gain;
+    Result<std::optional<std::vector<double>>> gains = r_.numbers(t, section, "colour_gains", 2);
+    if (!gains) return gains.error();
+    if (*gains) {
+        if (!((**gains)[0] > 0.0 && (**gains)[1] > 0.0))
+            return fail(t.get("colour_gains"), "'{}.colour_gains' must be two gains > 0 (red, "
+                                               "blue)",
+                        section);
+        c.colourGains = std::array<float, 2>{float((**gains)[0]), float((**gains)[1])};
+    }
+    return {};
+}
+
 Status ConfigReader::parseCamera(const toml::table& t, const std::string& name,
                                  CameraConfig& c) const {
     const std::string section = "cameras." + name;
@@ -171,10 +198,11 @@ Status ConfigReader::parseCamera(const toml::table& t, const std::string& name,
     Result<std::optional<std::string>> format = r_.string(t, section, "format");
     if (!format) return format.error();
     if (*format) {
-        if (c.source != CameraSourceKind::V4L2)
-            return fail(t.get("format"), "'{}.format' applies to v4l2 cameras only", section);
-        const uint32_t fourcc = fourccFromString(**format);
-        if (!isSupportedFormat(fourcc))
+        if (c.source == CameraSourceKind::Session)
+            return fail(t.get("format"), "'{}.format' has no meaning for a recorded camera",
+                        section);
+        // libcamera's names differ from V4L2's; its camera checks them when it opens.
+        if (c.source == CameraSourceKind::V4L2 && !isSupportedFormat(fourccFromString(**format)))
             return fail(t.get("format"), "'{}.format' is '{}'; supported: {}", section, **format,
                         supportedFormatList());
         c.pixelFormat = **format;
@@ -187,12 +215,17 @@ Status ConfigReader::parseCamera(const toml::table& t, const std::string& name,
         if (c.source == CameraSourceKind::Session)
             return fail(*controls, "'{}.controls' has no meaning for a recorded camera",
                         section);
-        for (auto&& [key, node] : **controls) {
-            const toml::value<int64_t>* v = node.as_integer();
-            if (!v)
-                return fail(&node, "'{}.controls.\"{}\"' must be an integer, not {}", section,
-                            key.str(), tomlTypeName(node));
-            c.controls.emplace_back(std::string(key.str()), v->get());
+        if (c.source == CameraSourceKind::Libcamera) {
+            if (Status st = parseLibcameraControls(**controls, section + ".controls", c); !st)
+                return st;
+        } else {
+            for (auto&& [key, node] : **controls) {
+                const toml::value<int64_t>* v = node.as_integer();
+                if (!v)
+                    return fail(&node, "'{}.controls.\"{}\"' must be an integer, not {}",
+                                section, key.str(), tomlTypeName(node));
+                c.controls.emplace_back(std::string(key.str()), v->get());
+            }
         }
     }
 

@@ -39,11 +39,17 @@ struct CameraConfig {
     std::string device;
     uint32_t width = 0;
     uint32_t height = 0;
-    std::string pixelFormat;  // V4L2 fourcc name ("YUYV", "MJPG", "NV12"); "" = the default
-    double fps = 0.0;         // 0 = the device's default rate
-    // Device controls set after opening, in file order, by the driver's name for them
+    // v4l2: the fourcc name ("YUYV", "MJPG", "NV12"); libcamera: its format name ("BGR888",
+    // "NV12"), checked when the camera opens; "" = the device's choice.
+    std::string pixelFormat;
+    double fps = 0.0;  // 0 = the device's default rate
+    // v4l2: controls set after opening, in file order, by the driver's name for them
     // (`v4l2-ctl --list-ctrls` shows them; case-insensitive): exposure, gain, white balance.
     std::vector<std::pair<std::string, int64_t>> controls;
+    // libcamera: its typed controls (capture/libcamera_camera.h); each turns its auto mode off.
+    std::optional<int32_t> exposureUs;
+    std::optional<float> analogueGain;
+    std::optional<std::array<float, 2>> colourGains;  // red, blue
     std::string calibrationPath;
     // Loaded from calibrationPath; always set in a config loadServiceConfig returned
     // (optional only because a calibration has no meaningful empty state).

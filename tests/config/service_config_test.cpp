@@ -44,6 +44,12 @@ board = "{0}/board.toml"
                        kExamples, sceneCameraExtra, extra);
 }
 
+std::string replaced(std::string text, const std::string& from, const std::string& to) {
+    const size_t at = text.find(from);
+    EXPECT_NE(at, std::string::npos) << from;
+    return text.replace(at, from.size(), to);
+}
+
 TEST(ServiceConfig, LoadsTheExampleBox) {
     Result<ServiceConfig> c = loadServiceConfig(kExamples + "/previsd.toml");
     ASSERT_TRUE(c) << c.message();
@@ -119,6 +125,33 @@ board = "{0}/board.toml"
     EXPECT_TRUE(fs::equivalent(c->sceneCamera.device, tempDir() / "session/cameras/scene"));
 }
 
+TEST(ServiceConfig, LibcameraCameraTakesItsTypedControls) {
+    const std::string text = replaced(
+        minimal("format = \"BGR888\"\n[cameras.scene.controls]\nexposure_time_us = 8000\n"
+                "analogue_gain = 2.5\ncolour_gains = [1.9, 1.4]"),
+        "device = \"/dev/video0\"", "source = \"libcamera\"\ndevice = \"imx477\"");
+    Result<ServiceConfig> c = loadServiceConfig(writeFile("libcamera.toml", text));
+    ASSERT_TRUE(c) << c.message();
+    const CameraConfig& camera = c->sceneCamera;
+    EXPECT_EQ(camera.source, CameraSourceKind::Libcamera);
+    EXPECT_EQ(camera.device, "imx477");
+    EXPECT_EQ(camera.pixelFormat, "BGR888");  // libcamera's name, checked when it opens
+    EXPECT_EQ(camera.exposureUs, 8000);
+    EXPECT_EQ(camera.analogueGain, 2.5f);
+    ASSERT_TRUE(camera.colourGains);
+    EXPECT_EQ((*camera.colourGains)[0], 1.9f);
+    EXPECT_TRUE(camera.controls.empty());
+
+    // A V4L2 driver's control name means nothing to libcamera.
+    const std::string v4l2Names = replaced(minimal("controls = { Gain = 3 }"),
+                                           "device = \"/dev/video0\"", "source = \"libcamera\"");
+    Result<ServiceConfig> bad = loadServiceConfig(writeFile("libcamera_bad.toml", v4l2Names));
+    ASSERT_FALSE(bad);
+    EXPECT_NE(bad.message().find("unknown key 'Gain' in [cameras.scene.controls]"),
+              std::string::npos)
+        << bad.message();
+}
+
 struct BadConfig {
     const char* name;
     std::string text;
@@ -137,12 +170,6 @@ TEST_P(ServiceConfigErrors, NameTheFileTheKeyAndTheFix) {
         EXPECT_NE(c.message().find(s), std::string::npos)
             << bad.name << ": '" << s << "' not in: " << c.message();
     EXPECT_EQ(c.message().find('\n'), std::string::npos) << "one line: " << c.message();
-}
-
-std::string replaced(std::string text, const std::string& from, const std::string& to) {
-    const size_t at = text.find(from);
-    EXPECT_NE(at, std::string::npos) << from;
-    return text.replace(at, from.size(), to);
 }
 
 std::vector<BadConfig> badConfigs() {
