@@ -9,6 +9,7 @@
 
 #include "base/log.h"
 #include "bench/bench_scenes.h"
+#include "bench/pose_accuracy.h"
 #include "gpu/context.h"
 #include "render/renderer.h"
 #include "scene/gltf_loader.h"
@@ -230,6 +231,9 @@ int runBenchmarks(const BenchOptions& o) {
             std::fflush(stdout);
         }
         std::printf("\n");
+    }
+    if (want("pose")) {
+        if (int rc = runPoseSweep(**ctx, {.quick = o.quick}); rc != 0) return rc;
     }
     std::printf("Peak resident memory of the whole run: %.0f MiB\n", peakRssMiB());
     return 0;

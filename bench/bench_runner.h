@@ -1,7 +1,8 @@
 #pragma once
 
 // `previs bench`: paths and rays per second, BVH build time and memory, scaling with resolution
-// and triangle count, and the saving of the specialised pipeline. Prints a Markdown report.
+// and triangle count, the saving of the specialised pipeline, and the tracker's pose accuracy on
+// rendered boards (bench/pose_accuracy.h). Prints a Markdown report.
 
 #include <string>
 
@@ -13,7 +14,8 @@ struct BenchOptions {
     bool quick = false;      // one repetition, fewer samples: a smoke run
     int repetitions = 3;     // timings are medians over this many runs
     uint32_t spp = 8;        // samples per pixel of the throughput runs
-    std::string only;        // run one section: throughput, resolution, triangles, specialisation, differential
+    // Run one section: throughput, resolution, triangles, specialisation, differential, pose.
+    std::string only;
 };
 
 // Returns the process exit code; writes the report to stdout, progress to stderr.

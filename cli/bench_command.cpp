@@ -11,7 +11,8 @@ std::function<int()> addBenchCommand(CLI::App& app) {
     o->dataDir = PREVIS_DEFAULT_DATA_DIR;
     o->examplesDir = PREVIS_EXAMPLES_DIR;
     CLI::App* cmd = app.add_subcommand(
-        "bench", "speed measurements: paths/s, rays/s, BVH build, scaling (Markdown on stdout)");
+        "bench", "speed measurements: paths/s, rays/s, BVH build, scaling; pose accuracy on "
+               "rendered boards (Markdown on stdout)");
     cmd->add_option("--data", o->dataDir, "test data folder (default: ../shared/data)")
         ->check(CLI::ExistingDirectory);
     cmd->add_flag("--quick", o->quick, "one repetition at 1 spp: a smoke run");
@@ -21,7 +22,8 @@ std::function<int()> addBenchCommand(CLI::App& app) {
         ->check(CLI::Range(1, 4096));
     cmd->add_option("--only", o->only, "one section")
         ->check(CLI::IsMember(
-            {"throughput", "resolution", "triangles", "specialisation", "differential"}));
+            {"throughput", "resolution", "triangles", "specialisation", "differential",
+             "pose"}));
     return [o] { return bench::runBenchmarks(*o); };
 }
 

@@ -53,7 +53,7 @@ constexpr uint32_t kSpp = 4;
 constexpr uint32_t kCleanSpp = 16;
 
 // 640×480 lenses: an ideal pinhole, a wide rad-tan lens (barrel distortion, a little tangential)
-// and a Kannala–Brandt fisheye seeing 82° off axis at the image corners.
+// and a Kannala–Brandt fisheye seeing 84° off axis at the farthest image corner.
 CameraCalibration idealLens() {
     return CameraCalibration::create(cv::Matx33d(500, 0, 319.5, 0, 500, 239.5, 0, 0, 1), {},
                                      cv::Size(640, 480), DistortionModel::Pinhole, "ideal lens")
