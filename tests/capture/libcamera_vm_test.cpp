@@ -117,16 +117,16 @@ void streamAndCheck(const std::string& pixelFormat) {
 TEST(Vimc, StreamsColourBarsBgr888) { streamAndCheck("BGR888"); }
 TEST(Vimc, StreamsColourBarsRgb888) { streamAndCheck("RGB888"); }
 
-TEST(Vimc, ReadTimesOutBeforeStartingFrames) {
+TEST(Vimc, ReadBeforeStartIsAnErrorAndRestartReusesRequests) {
     auto camera = LibcameraCamera::create(vimcConfig());
     ASSERT_TRUE(camera) << camera.message();
     Frame f;
     EXPECT_FALSE((*camera)->read(10, f)) << "read before start() must be an error";
     ASSERT_TRUE((*camera)->start());
-    // A 0 ms wait right after start: vimc cannot have finished a frame yet.
+    // A 0 ms wait returns at once, frame or not (whether vimc finished one is timing: not
+    // asserted, it flaked in CI).
     Result<bool> got = (*camera)->read(0, f);
     ASSERT_TRUE(got) << got.message();
-    EXPECT_FALSE(*got);
     got = (*camera)->read(kFrameTimeoutMs, f);
     ASSERT_TRUE(got) << got.message();
     EXPECT_TRUE(*got);
