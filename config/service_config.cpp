@@ -265,7 +265,8 @@ Status ConfigReader::parseTracking(const toml::table& t, TrackingConfig& c) cons
     if (Status st = r_.checkKeys(t, "tracking",
                                  {"board", "family", "decimate", "sigma", "refine_edges",
                                   "decode_sharpening", "threads", "max_reproj_error_px",
-                                  "min_tags"});
+                                  "min_tags", "max_position_std_fraction",
+                                  "max_rotation_std_deg"});
         !st)
         return st;
     Result<std::optional<std::string>> board = r_.string(t, "tracking", "board");
@@ -320,6 +321,14 @@ Status ConfigReader::parseTracking(const toml::table& t, TrackingConfig& c) cons
     int64_t minTags = c.tracker.minTags;
     if (Status st = integerIn(t, "tracking", "min_tags", minTags, 1, 1024); !st) return st;
     c.tracker.minTags = int(minTags);
+    if (Status st = ranged(t, "tracking", "max_position_std_fraction",
+                           c.tracker.maxPositionStdFraction, 0.0, 1e6, true);
+        !st)
+        return st;
+    if (Status st = ranged(t, "tracking", "max_rotation_std_deg", c.tracker.maxRotationStdDeg,
+                           0.0, 1e6, true);
+        !st)
+        return st;
     return {};
 }
 

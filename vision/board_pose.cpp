@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 
 #include <opencv2/calib3d.hpp>
@@ -22,6 +23,68 @@ cv::Matx44d invertRigid(const cv::Matx44d& m) {
     }
     return out;
 }
+
+namespace {
+
+// First-order uncertainty of the pose from the corners (BoardPose::positionStdM). Parameters:
+// a small rotation δ applied in the camera frame (R = exp(δ)·R₀) and the camera centre C in the
+// world, X_c = R·(X_w − C); the Jacobian of the distorted pixels is taken numerically, so both
+// lens models are covered by CameraCalibration::projectPoints.
+void poseUncertainty(const std::vector<cv::Point3d>& world, const cv::Matx33d& r0,
+                     const cv::Vec3d& t0, const CameraCalibration& calibration, BoardPose& pose) {
+    const cv::Vec3d c0 = -(r0.t() * t0);
+    cv::Vec3d centroid(0, 0, 0);
+    for (const cv::Point3d& p : world) centroid += cv::Vec3d(p.x, p.y, p.z);
+    centroid *= 1.0 / double(world.size());
+    pose.distanceM = cv::norm(centroid - c0);
+    auto project = [&](const cv::Vec3d& delta, const cv::Vec3d& c) {
+        cv::Matx33d dr;
+        cv::Rodrigues(delta, dr);
+        const cv::Matx33d r = dr * r0;
+        std::vector<cv::Point3d> camera;
+        camera.reserve(world.size());
+        for (const cv::Point3d& p : world) {
+            const cv::Vec3d q = r * (cv::Vec3d(p.x, p.y, p.z) - c);
+            camera.emplace_back(q[0], q[1], q[2]);
+        }
+        return calibration.projectPoints(camera);
+    };
+    const std::vector<cv::Point2d> base = project({0, 0, 0}, c0);
+    const size_t n = base.size();
+    cv::Mat jacobian(int(2 * n), 6, CV_64F);
+    const double hRotation = 1e-6;
+    const double hPosition = 1e-6 * std::max(pose.distanceM, 1e-3);
+    for (int k = 0; k < 6; ++k) {
+        cv::Vec3d delta(0, 0, 0);
+        cv::Vec3d c = c0;
+        const double h = k < 3 ? hRotation : hPosition;
+        if (k < 3)
+            delta[k] = h;
+        else
+            c[k - 3] += h;
+        const std::vector<cv::Point2d> moved = project(delta, c);
+        for (size_t i = 0; i < n; ++i) {
+            jacobian.at<double>(int(2 * i), k) = (moved[i].x - base[i].x) / h;
+            jacobian.at<double>(int(2 * i + 1), k) = (moved[i].y - base[i].y) / h;
+        }
+    }
+    cv::Mat covariance;
+    const double sigma = std::max(pose.reprojErrorPx, kNominalCornerNoisePx);
+    if (cv::invert(jacobian.t() * jacobian, covariance, cv::DECOMP_SVD) == 0.0 ||
+        !cv::checkRange(covariance)) {
+        pose.positionStdM = pose.rotationStdDeg = std::numeric_limits<double>::infinity();
+        return;
+    }
+    covariance *= sigma * sigma;
+    const auto trace3 = [&](int from) {
+        return covariance.at<double>(from, from) + covariance.at<double>(from + 1, from + 1) +
+               covariance.at<double>(from + 2, from + 2);
+    };
+    pose.rotationStdDeg = std::sqrt(std::max(trace3(0), 0.0)) * 180.0 / M_PI;
+    pose.positionStdM = std::sqrt(std::max(trace3(3), 0.0));
+}
+
+}  // namespace
 
 std::optional<BoardPose> estimateBoardPose(const std::vector<TagDetection>& detections,
                                            const TagBoard& board,
@@ -97,6 +160,7 @@ std::optional<BoardPose> estimateBoardPose(const std::vector<TagDetection>& dete
     BoardPose pose;
     pose.worldFromCamera = invertRigid(cameraFromWorld);
     pose.reprojErrorPx = std::sqrt(sum / double(projected.size()));
+    poseUncertainty(worldUsed, r, tvec, calibration, pose);
     std::sort(ids.begin(), ids.end());
     pose.tagIds = std::move(ids);
     return pose;
@@ -132,6 +196,13 @@ const TrackingState& Tracker::update(const std::vector<TagDetection>& detections
     else if (pose->reprojErrorPx > settings_.maxReprojErrorPx)
         reason = fmt::format("reprojection error {:.2f} px over the {:.2f} px limit",
                              pose->reprojErrorPx, settings_.maxReprojErrorPx);
+    else if (!(pose->positionStdM <= settings_.maxPositionStdFraction * pose->distanceM) ||
+             !(pose->rotationStdDeg <= settings_.maxRotationStdDeg))
+        reason = fmt::format("pose ill-conditioned ({} tag(s) seen): uncertain by {:.1f}% of "
+                             "the distance and {:.2f} deg, limits {:.1f}% and {:.2f} deg",
+                             pose->tagIds.size(), 100.0 * pose->positionStdM / pose->distanceM,
+                             pose->rotationStdDeg, 100.0 * settings_.maxPositionStdFraction,
+                             settings_.maxRotationStdDeg);
 
     if (reason.empty()) {
         if (state_.lost && everGood_)
