@@ -324,20 +324,28 @@ Status Renderer::render(uint32_t samples,
         params_.sampleBase = uint32_t(samples_);
         params_.samplesPerDispatch = n;
         if (Status s = buffers_[PV_BINDING_PARAMS].upload(&params_, sizeof(params_)); !s) return s;
+        // Only a CPU device has the loop limit: elsewhere the per-dispatch readback (a staging
+        // copy on a discrete GPU) is skipped.
+        const bool watchLoops = ctx_->isCpuDevice();
         const uint32_t zero = 0;
-        if (Status s = buffers_[PV_BINDING_STATS].upload(&zero, sizeof(zero), kMaxLoopOffset); !s)
-            return s;
+        if (watchLoops) {
+            if (Status s = buffers_[PV_BINDING_STATS].upload(&zero, sizeof(zero), kMaxLoopOffset);
+                !s)
+                return s;
+        }
         auto ms = pipeline_->dispatch(groupsX, groupsY);
         if (!ms) return ms.error();
         uint32_t maxLoop = 0;
-        if (Status s = buffers_[PV_BINDING_STATS].download(&maxLoop, sizeof(maxLoop),
-                                                           kMaxLoopOffset);
-            !s)
-            return s;
+        if (watchLoops) {
+            if (Status s = buffers_[PV_BINDING_STATS].download(&maxLoop, sizeof(maxLoop),
+                                                               kMaxLoopOffset);
+                !s)
+                return s;
+        }
         // The costliest sample so far decides (a camera move can make paths longer).
         loopIterationsPerSample_ = std::max(loopIterationsPerSample_, double(maxLoop) / n);
         const double batchBound = double(maxLoop) * ctx_->subgroupSize();
-        if (ctx_->isCpuDevice() && batchBound >= kCpuLoopLimit && loopLimitRisks_++ == 0)
+        if (watchLoops && batchBound >= kCpuLoopLimit && loopLimitRisks_++ == 0)
             logWarning("{}: a dispatch of {} sample(s) may have reached the CPU device's loop "
                        "limit ({} iterations per lane x {} lanes >= {}): parts of paths may be "
                        "missing",
