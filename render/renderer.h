@@ -115,7 +115,8 @@ public:
     // Dispatches whose loop iterations may have reached llvmpipe's limit (work silently lost);
     // 0 unless respectCpuLoopLimit was turned off or one sample alone is too long.
     uint64_t loopLimitRisks() const { return loopLimitRisks_; }
-    // The most loop iterations one invocation ran per sample (the dispatch sizing measure).
+    // The most loop iterations one invocation ran per sample (the dispatch sizing measure;
+    // measured on CPU devices only, 0 elsewhere).
     double loopIterationsPerSample() const { return loopIterationsPerSample_; }
     const Camera& camera() const { return camera_; }
 
