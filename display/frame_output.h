@@ -1,0 +1,38 @@
+#pragma once
+
+// Where the service's frames go (DESIGN.md §1 "display", issue 7): a KMS display on the box, a
+// folder of PNG files or nothing for headless use. One display thread owns the output and calls
+// show() with the newest frame; an output never throws and never blocks for longer than a frame
+// period (a KMS output waits at most for the pending page flip).
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "base/result.h"
+
+namespace previs {
+
+// A tone-mapped frame, ready to show.
+struct DisplayFrame {
+    uint32_t width = 0;
+    uint32_t height = 0;
+    std::vector<uint8_t> rgb;  // 8-bit sRGB, 3 bytes per pixel, rows packed (stride = 3·width)
+    std::string status;        // the one-line overlay ("PREVIEW 1 spp 9.8 fps"); "" = none
+    uint64_t index = 0;        // output frame number, from 0
+    int64_t captureTimestampNs = 0;  // the camera frame's timestamp (CLOCK_MONOTONIC)
+};
+
+class FrameOutput {
+public:
+    virtual ~FrameOutput() = default;
+    // Shows (or writes) the frame. An error is logged by the caller; the output stays usable
+    // and is tried again with the next frame. A KMS output whose display went away reports
+    // kind() "lost" and returns success without showing anything until it is back.
+    virtual Status show(const DisplayFrame& frame) = 0;
+    // DESIGN.md §3 status "display": "kms" | "files" | "none" | "lost".
+    virtual std::string kind() const = 0;
+};
+
+}  // namespace previs
