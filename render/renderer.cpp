@@ -50,6 +50,23 @@ Camera defaultCamera(const Geometry& geometry) {
 
 bool materialHasSpecular(const Material& m) { return m.metallic > 0.0f || m.specular > 0.0f; }
 
+// The environment's FrameParams fields; all zero without one (as a fresh renderer has them).
+void setEnvironmentParams(shader::FrameParams& p, const EnvironmentMap* map,
+                          const EnvironmentDistribution& dist) {
+    p.envWidth = map ? map->width : 0;
+    p.envHeight = map ? map->height : 0;
+    p.envScale = map ? map->scale : 0.0f;
+    p.envRotationRad = map ? map->rotationRad : 0.0f;
+    p.envIntegral = map ? dist.integral : 0.0f;
+}
+
+bool finiteNonNegative(const glm::vec3& v) {
+    return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z) && v.x >= 0.0f &&
+           v.y >= 0.0f && v.z >= 0.0f;
+}
+
+constexpr float kFourPi = 4.0f * 3.14159265358979f;
+
 }  // namespace
 
 SceneFeatures detectSceneFeatures(const Scene& scene, const Camera& camera) {
@@ -103,31 +120,141 @@ Result<std::unique_ptr<Renderer>> Renderer::create(GpuContext& ctx, const Scene&
     r->features_ = detectSceneFeatures(scene, r->camera_);
     if (Status s = r->buildScene(scene); !s) return s.error();
 
-    SceneFeatures spec = r->features_;
-    if (settings.generalPipeline) spec = SceneFeatures{true, true, true, true, true, true, true};
-    std::array<uint32_t, PV_SPEC_COUNT> constants{};
-    constants[PV_SPEC_DIFFERENTIAL] = settings.differential;
-    constants[PV_SPEC_HAS_LENS_GRID] = !settings.lensGrid.empty();
-    constants[PV_SPEC_HAS_ENV] = spec.environment;
-    constants[PV_SPEC_HAS_EMISSIVE] = spec.emissive;
-    constants[PV_SPEC_HAS_PUNCTUAL] = spec.punctual;
-    constants[PV_SPEC_HAS_SPECULAR] = spec.specular;
-    constants[PV_SPEC_HAS_TRANSMISSION] = spec.transmission;
-    constants[PV_SPEC_HAS_THIN_LENS] = spec.thinLens;
-    constants[PV_SPEC_HAS_TEXTURES] = spec.textures;
-    auto pipeline = ComputePipeline::create(
-        ctx, std::span<const uint32_t>(trace_paths_spv, sizeof(trace_paths_spv) / 4),
-        PV_BINDING_COUNT, constants, "trace_paths");
-    if (!pipeline) return pipeline.error();
-    r->pipeline_.emplace(std::move(pipeline.value()));
-    std::vector<const GpuBuffer*> bound;
-    for (const auto& b : r->buffers_) bound.push_back(&b);
-    r->pipeline_->bind(bound);
+    if (Status s = r->specialisePipeline(); !s) return s.error();
     if (Status s = r->reset(); !s) return s.error();
     return Result<std::unique_ptr<Renderer>>(std::move(r));
 }
 
+Status Renderer::specialisePipeline() {
+    SceneFeatures spec = features_;
+    if (settings_.generalPipeline)
+        spec = SceneFeatures{true, true, true, true, true, true, true, true};
+    std::array<uint32_t, PV_SPEC_COUNT> constants{};
+    constants[PV_SPEC_DIFFERENTIAL] = settings_.differential;
+    constants[PV_SPEC_HAS_LENS_GRID] = !settings_.lensGrid.empty();
+    constants[PV_SPEC_HAS_ENV] = spec.environment;
+    constants[PV_SPEC_HAS_EMISSIVE] = spec.emissive;
+    // Cone lights share the lights buffer and its sampling with the punctual lights.
+    constants[PV_SPEC_HAS_PUNCTUAL] = spec.punctual || spec.coneLights;
+    constants[PV_SPEC_HAS_SPECULAR] = spec.specular;
+    constants[PV_SPEC_HAS_TRANSMISSION] = spec.transmission;
+    constants[PV_SPEC_HAS_THIN_LENS] = spec.thinLens;
+    constants[PV_SPEC_HAS_TEXTURES] = spec.textures;
+    constants[PV_SPEC_HAS_CONE_LIGHTS] = spec.coneLights;
+    if (pipeline_ && constants == specConstants_) {
+        bindBuffers();
+        return {};
+    }
+    auto pipeline = ComputePipeline::create(
+        *ctx_, std::span<const uint32_t>(trace_paths_spv, sizeof(trace_paths_spv) / 4),
+        PV_BINDING_COUNT, constants, "trace_paths");
+    if (!pipeline) return pipeline.error();
+    // Dispatches wait for completion (ComputePipeline::dispatch), so no submission can still
+    // use the pipeline this replaces.
+    pipeline_.emplace(std::move(pipeline.value()));
+    specConstants_ = constants;
+    bindBuffers();
+    return {};
+}
+
+void Renderer::bindBuffers() {
+    std::vector<const GpuBuffer*> bound;
+    for (const auto& b : buffers_) bound.push_back(&b);
+    pipeline_->bind(bound);
+}
+
+Status Renderer::replaceBufferContents(int binding, const void* data, size_t bytes,
+                                       const char* label) {
+    GpuBuffer& current = buffers_[binding];
+    if (current.size() != bytes) {
+        auto fresh = GpuBuffer::create(*ctx_, bytes, label);
+        if (!fresh) return fresh.error();
+        // Dispatches are synchronous (ComputePipeline::dispatch waits), so the GPU is done with
+        // the old buffer; a frame-overlapped renderer would have to defer this deletion.
+        current = std::move(fresh.value());
+    }
+    if (bytes == 0) return {};
+    return current.upload(data, bytes);
+}
+
+Status Renderer::setEnvironment(std::shared_ptr<const EnvironmentMap> map) {
+    if (map && map->width == 0 && map->height == 0) map.reset();
+    if (map && (map->width == 0 || map->height == 0 ||
+                map->radiance.size() != size_t(map->width) * map->height))
+        return makeError("environment map '{}' is {}x{} but has {} texels; expected width x "
+                         "height RGB texels", map->path, map->width, map->height,
+                         map->radiance.size());
+    // NaN, Inf or negative texels (a bad camera frame) would poison every pixel that samples
+    // them: they become 0 in a copy, as loadEnvironmentMap does for files.
+    if (map) {
+        size_t bad = std::count_if(map->radiance.begin(), map->radiance.end(),
+                                   [](const glm::vec3& v) { return !finiteNonNegative(v); });
+        if (bad > 0) {
+            logWarning("environment map '{}': {} NaN, infinite or negative texel(s) set to 0",
+                       map->path, bad);
+            auto clean = std::make_shared<EnvironmentMap>(*map);
+            for (glm::vec3& v : clean->radiance)
+                if (!finiteNonNegative(v)) v = glm::vec3(0.0f);
+            map = std::move(clean);
+        }
+    }
+
+    EnvironmentDistribution dist;
+    if (map) dist = buildEnvironmentDistribution(*map);
+    Status s;
+    auto upload = [&](int binding, const auto& v, const char* label) {
+        if (s) s = replaceBufferContents(binding, v.data(), v.size() * sizeof(v[0]), label);
+    };
+    static const std::vector<glm::vec3> kNoTexels;
+    upload(PV_BINDING_ENV_RADIANCE, map ? map->radiance : kNoTexels, "envRadiance");
+    upload(PV_BINDING_ENV_MARGINAL_CDF, dist.marginalCdf, "envMarginal");
+    upload(PV_BINDING_ENV_CONDITIONAL_CDF, dist.conditionalCdf, "envConditional");
+    // A half-replaced environment is no environment (black) rather than a wrong one.
+    setEnvironmentParams(params_, s ? map.get() : nullptr, dist);
+    features_.environment = s && map;
+    if (Status p = specialisePipeline(); !p) return p;
+    return s;
+}
+
+Status Renderer::setEstimatedLights(std::span<const EstimatedLightSource> estimated) {
+    std::vector<shader::GpuLight> lights = sceneLights_;
+    for (size_t i = 0; i < estimated.size(); ++i) {
+        const EstimatedLightSource& e = estimated[i];
+        float len = glm::length(e.direction);
+        if (!(len > 0.0f) || !std::isfinite(len) || !(e.solidAngleSr > 0.0f) ||
+            !(e.solidAngleSr <= kFourPi) || !finiteNonNegative(e.radiance))
+            return makeError("estimated light {} is invalid (direction length {}, solid angle {} "
+                             "sr, radiance {} {} {}): it needs a direction, a solid angle in "
+                             "(0, 4pi] and finite non-negative radiance", i, len, e.solidAngleSr,
+                             e.radiance.r, e.radiance.g, e.radiance.b);
+        shader::GpuLight gl{};
+        gl.type = PV_LIGHT_CONE | PV_LIGHT_REAL;
+        gl.direction = -e.direction / len;  // where the light points
+        gl.intensity = e.radiance;
+        // Ω = 2π(1 − cos θmax).
+        gl.cosInnerCone = e.solidAngleSr / (2.0f * 3.14159265358979f);
+        gl.cosOuterCone = 1.0f - gl.cosInnerCone;
+        lights.push_back(gl);
+    }
+    Status s = replaceBufferContents(PV_BINDING_LIGHTS, lights.data(),
+                                     lights.size() * sizeof(shader::GpuLight), "lights");
+    const bool ok = s.ok();
+    params_.lightCount = uint32_t(ok ? lights.size() : sceneLights_.size());
+    features_.coneLights = ok && !estimated.empty();
+    if (!ok) {
+        // Keep at least the scene's lights.
+        if (Status r = replaceBufferContents(PV_BINDING_LIGHTS, sceneLights_.data(),
+                                             sceneLights_.size() * sizeof(shader::GpuLight),
+                                             "lights");
+            !r)
+            params_.lightCount = 0;
+    }
+    if (Status p = specialisePipeline(); !p) return p;
+    return s;
+}
+
 Status Renderer::buildScene(const Scene& scene) {
+    ++sceneBuilds_;
     const Geometry& g = scene.geometry;
     auto bvh = buildSceneBvh(g);
     if (!bvh) return bvh.error();
@@ -184,6 +311,7 @@ Status Renderer::buildScene(const Scene& scene) {
         gl.cosOuterCone = std::cos(l.outerConeAngleRad);
         lights.push_back(gl);
     }
+    sceneLights_ = lights;
 
     // Emissive triangles, chosen in proportion to their power (area × luminance).
     std::vector<shader::EmissiveTriangle> emissive;
@@ -236,13 +364,8 @@ Status Renderer::buildScene(const Scene& scene) {
     p.emissiveTriangleCount = uint32_t(emissive.size());
     p.realRoot = bvh_.realRoot;
     p.virtualRoot = bvh_.virtualRoot;
-    if (scene.environment) {
-        p.envWidth = scene.environment->width;
-        p.envHeight = scene.environment->height;
-        p.envScale = scene.environment->scale;
-        p.envRotationRad = scene.environment->rotationRad;
-        p.envIntegral = envDist.integral;
-    }
+    setEnvironmentParams(p, scene.environment ? &*scene.environment : nullptr, envDist);
+    p.coneLightFirst = uint32_t(lights.size());
     p.fireflyClamp = settings_.fireflyClamp;
     p.rouletteStartDepth = settings_.rouletteStartDepth;
     // The BVH puts real triangles first.

@@ -3,10 +3,12 @@
 // Turns a Scene into GPU data (BVHs, materials, textures, lights, environment tables) and runs
 // the path tracer on it: progressive, exact accumulation of samples per pixel.
 
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <memory>
 #include <optional>
+#include <span>
 #include <vector>
 
 #include "base/result.h"
@@ -60,6 +62,17 @@ struct SceneFeatures {
     bool transmission = false;
     bool thinLens = false;
     bool textures = false;
+    bool coneLights = false;    // estimated lights (Renderer::setEstimatedLights)
+};
+
+// A distant light estimated from the captured environment (vision/light_estimator.h's
+// EstimatedLight; the map's residual becomes the environment): uniform radiance over a cone of
+// directions of the given solid angle. It belongs to the real set, so it lights both solutions
+// of differential rendering, with soft shadows.
+struct EstimatedLightSource {
+    glm::vec3 direction{0.0f, 1.0f, 0.0f};  // world, toward the light (normalised on upload)
+    float solidAngleSr = 0.0f;              // in (0, 4π]
+    glm::vec3 radiance{0.0f};               // linear RGB, the environment's units
 };
 
 SceneFeatures detectSceneFeatures(const Scene& scene, const Camera& camera);
@@ -92,6 +105,20 @@ public:
         params_.worldFromCamera = worldFromCamera;
     }
 
+    // Live lighting: each fisheye snapshot replaces the environment and the estimated lights
+    // without touching the scene's geometry or BVH. Like setCameraPose, they take effect with
+    // the next render and do not clear the accumulation (reset() before refining on).
+    //
+    // The environment's radiance, sampling tables and FrameParams; null or an empty map removes
+    // it. Buffers are reallocated only when the map's size changes; the pipeline is
+    // re-specialised only when the environment appears or disappears.
+    Status setEnvironment(std::shared_ptr<const EnvironmentMap> map);
+    // Replaces the estimated lights (the scene's own lights stay). A new count reallocates the
+    // lights buffer; lights appearing or disappearing re-specialise the pipeline.
+    Status setEstimatedLights(std::span<const EstimatedLightSource> lights);
+    // How often this renderer built its BVH and geometry buffers (1: only in create()).
+    uint64_t sceneBuildCount() const { return sceneBuilds_; }
+
     // Selects another random sequence (takes effect with the next render; call reset() first
     // unless the new samples are meant to join the old ones).
     void setSeed(uint32_t seed) { params_.seed = seed; }
@@ -123,6 +150,11 @@ public:
 private:
     Renderer() = default;
     Status buildScene(const Scene& scene);
+    // (Re)creates the pipeline when the specialization constants changed, and binds buffers_.
+    Status specialisePipeline();
+    // Uploads `bytes` into buffers_[binding], reallocating it only when its size differs.
+    Status replaceBufferContents(int binding, const void* data, size_t bytes, const char* label);
+    void bindBuffers();
     uint32_t samplesForNextDispatch(uint32_t remaining) const;
 
     GpuContext* ctx_ = nullptr;
@@ -133,6 +165,9 @@ private:
     shader::FrameParams params_{};
     std::vector<GpuBuffer> buffers_;  // indexed by PV_BINDING_*
     std::optional<ComputePipeline> pipeline_;
+    std::array<uint32_t, PV_SPEC_COUNT> specConstants_{};
+    std::vector<shader::GpuLight> sceneLights_;  // the scene's own; estimated ones follow them
+    uint64_t sceneBuilds_ = 0;
     std::optional<ImageF> plate_;
     uint64_t samples_ = 0;
     double gpuMs_ = 0.0;

@@ -24,6 +24,7 @@ layout(constant_id = PV_SPEC_HAS_THIN_LENS) const bool kHasThinLens = true;
 layout(constant_id = PV_SPEC_HAS_TEXTURES) const bool kHasTextures = true;
 layout(constant_id = PV_SPEC_DIFFERENTIAL) const bool kDifferential = true;
 layout(constant_id = PV_SPEC_HAS_LENS_GRID) const bool kHasLensGrid = true;
+layout(constant_id = PV_SPEC_HAS_CONE_LIGHTS) const bool kHasConeLights = true;
 
 layout(binding = PV_BINDING_PARAMS, scalar) readonly buffer ParamsBuffer { FrameParams params; };
 layout(binding = PV_BINDING_POSITIONS, scalar) readonly buffer Positions { vec3 positions[]; };
@@ -323,8 +324,15 @@ float emissiveLightPdf(uint triangle, vec3 from, Surface lightSurface) {
     return triangleLightPdf[triangle] * dist2 / (area * cosLight);
 }
 
+// Solid-angle pdf with which light sampling picks direction `dir` from cone light `light` (0
+// outside the cone): uniform choice of the light, uniform direction in its cone.
+float coneLightPdf(GpuLight light, vec3 dir) {
+    if (dot(dir, -light.direction) < light.cosOuterCone) return 0.0;
+    return uniformConePdf(light.cosInnerCone) / float(params.lightCount);
+}
+
 // Next-event estimation at a surface: one environment sample, one emissive-triangle sample and
-// one punctual light, each added (without the path throughput) to the solutions that see it.
+// one light of the lights buffer (punctual or cone), each added (without the path throughput) to the solutions that see it.
 void sampleDirectLight(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint mode, inout uint rng,
                        inout vec3 toMixed, inout vec3 toReal) {
     if (kHasEnv && params.envWidth > 0u) {
@@ -385,7 +393,17 @@ void sampleDirectLight(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint mode
         vec3 wi;
         vec3 li;
         float dist = PV_FLOAT_MAX;
-        if (type == PV_LIGHT_DIRECTIONAL) {
+        // Solid-angle pdf of a cone light's sample (with the choice of the light); 0 for the
+        // delta lights, which BSDF sampling cannot hit.
+        float lightPdf = 0.0;
+        if (kHasConeLights && type == PV_LIGHT_CONE) {
+            Frame cone;
+            cone.n = -light.direction;
+            buildBasis(cone.n, cone.t, cone.b);
+            wi = toWorld(cone, sampleUniformCone(rngNext2(rng), light.cosInnerCone));
+            li = light.intensity;  // radiance
+            lightPdf = uniformConePdf(light.cosInnerCone) / float(params.lightCount);
+        } else if (type == PV_LIGHT_DIRECTIONAL) {
             wi = -light.direction;
             li = light.intensity;  // illuminance (lux) from a delta direction
         } else {
@@ -408,9 +426,12 @@ void sampleDirectLight(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint mode
             vec3 f = evaluateBsdf(bp, wo, wiLocal, bsdfPdf);
             if (maxComponent(f) > 0.0) {
                 Ray r = directionRay(s.position, s.geometricNormal, wi, PV_FLOAT_MAX);
-                if (type != PV_LIGHT_DIRECTIONAL) r.tMax = length(light.position - r.origin);
-                addLightSample(f * abs(wiLocal.z) * li * float(params.lightCount),
-                               (light.type & PV_LIGHT_REAL) != 0u, r, mode, toMixed, toReal);
+                bool distant = type == PV_LIGHT_DIRECTIONAL || type == PV_LIGHT_CONE;
+                if (!distant) r.tMax = length(light.position - r.origin);
+                vec3 c = lightPdf > 0.0
+                             ? f * abs(wiLocal.z) * li * powerHeuristic(lightPdf, bsdfPdf) / lightPdf
+                             : f * abs(wiLocal.z) * li * float(params.lightCount);
+                addLightSample(c, (light.type & PV_LIGHT_REAL) != 0u, r, mode, toMixed, toReal);
             }
         }
     }
@@ -516,6 +537,22 @@ void tracePath(uvec2 pixel, inout uint rng, out vec3 lm, out vec3 lr, out bool f
                                                    envPdf(st.ray.direction, params.envWidth,
                                                           params.envHeight, params.envRotationRad));
                     addRadiance(mode, st.throughput * le * w, lm, lr);
+                }
+                if (kHasConeLights) {
+                    // Cone lights are seen where they are (camera rays, mirrors, and the BSDF
+                    // half of their multiple importance sampling).
+                    for (uint i = params.coneLightFirst; i < params.lightCount; ++i) {
+                        PV_COUNT_LOOP_ITERATION();
+                        GpuLight light = lights[i];
+                        float pdf = coneLightPdf(light, st.ray.direction);
+                        if (!(pdf > 0.0)) continue;
+                        float w = st.prevDelta ? 1.0 : powerHeuristic(st.prevPdf, pdf);
+                        // Estimated lights are part of the captured (real) environment; a cone
+                        // light without PV_LIGHT_REAL lights only the mixed solution.
+                        vec3 l = st.throughput * light.intensity * w;
+                        if ((light.type & PV_LIGHT_REAL) != 0u) addRadiance(mode, l, lm, lr);
+                        else if (mode != MODE_REAL) lm += l;
+                    }
                 }
                 break;
             }

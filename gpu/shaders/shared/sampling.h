@@ -69,6 +69,20 @@ PV_INLINE vec3 sampleUniformSphere(vec2 u) {
     return vec3(r * cos(phi), r * sin(phi), z);
 }
 
+// Uniform direction in the cone of half-angle θmax about +Z, given oneMinusCosMax = 1 − cos θmax
+// (passed instead of cos θmax, which rounds to 1 for a small cone); pdf uniformConePdf.
+PV_INLINE vec3 sampleUniformCone(vec2 u, float oneMinusCosMax) {
+    float oneMinusCos = u.x * oneMinusCosMax;
+    float sinTheta = sqrt(max(0.0f, oneMinusCos * (2.0f - oneMinusCos)));
+    float phi = PV_TWO_PI * u.y;
+    return vec3(sinTheta * cos(phi), sinTheta * sin(phi), 1.0f - oneMinusCos);
+}
+
+// 1 / solid angle of the cone.
+PV_INLINE float uniformConePdf(float oneMinusCosMax) {
+    return 1.0f / (PV_TWO_PI * oneMinusCosMax);
+}
+
 // Uniform point on a triangle as barycentrics (b1, b2) of vertices 1 and 2 (Heitz 2019,
 // "A Low-Distortion Map Between Triangle and Square"); pdf 1/area.
 PV_INLINE vec2 sampleUniformTriangle(vec2 u) {

@@ -52,7 +52,10 @@ PV_BEGIN
 #define PV_SPEC_DIFFERENTIAL 7
 // Primary rays through the calibrated lens grid instead of the pinhole field of view.
 #define PV_SPEC_HAS_LENS_GRID 8
-#define PV_SPEC_COUNT 9
+// Cone lights (estimated from the captured environment, Renderer::setEstimatedLights): their
+// sampling branch and the test of escaped rays against them.
+#define PV_SPEC_HAS_CONE_LIGHTS 9
+#define PV_SPEC_COUNT 10
 
 #define PV_WORKGROUP_SIZE_X 8
 #define PV_WORKGROUP_SIZE_Y 8
@@ -99,13 +102,18 @@ struct TextureInfo {
 #define PV_LIGHT_POINT 0u
 #define PV_LIGHT_SPOT 1u
 #define PV_LIGHT_DIRECTIONAL 2u
+// A distant light of finite size: uniform radiance over the cone of directions around
+// −direction (an estimated light of the captured environment; soft shadows, seen by escaping rays).
+#define PV_LIGHT_CONE 3u
 #define PV_LIGHT_TYPE_MASK 0xffu
 // Set in GpuLight::type for a light that exists in the real scene (lights both solutions);
 // a light without it is a virtual (artistic) light and only lights the mixed solution.
 #define PV_LIGHT_REAL 0x100u
 
 // KHR_lights_punctual light in world space. intensity = colour * intensity (candela for point
-// and spot, lux for directional).
+// and spot, lux for directional). A cone light keeps its radiance in `intensity`, cos θmax of its
+// half-angle in `cosOuterCone` and 1 − cos θmax in `cosInnerCone` (a small cone's cos θmax rounds
+// to 1 in float; its solid angle 2π(1 − cos θmax) must not).
 struct GpuLight {
     vec3 position;
     uint type;
@@ -156,6 +164,7 @@ struct FrameParams {
     float fireflyClamp;      // 0 = off (default); else the largest sample luminance kept
     uint rouletteStartDepth; // Russian roulette from this depth on
     uint realTriangleCount;  // triangles [0, this) in BVH order are real (phantoms)
+    uint coneLightFirst;     // lights [this, lightCount) are cone lights (PV_LIGHT_CONE)
 };
 
 PV_END
