@@ -1,0 +1,571 @@
+#include "io/session.h"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <charconv>
+#include <cmath>
+#include <cstring>
+#include <ctime>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <sstream>
+#include <string_view>
+
+#include <toml++/toml.h>
+
+#include "base/log.h"
+#include "capture/recorded_source.h"
+
+#ifndef PREVIS_VERSION
+#define PREVIS_VERSION "unknown"
+#endif
+
+namespace previs {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+template <typename T>
+bool parseNumber(std::string_view s, T& out) {
+    const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), out);
+    return ec == std::errc() && end == s.data() + s.size();
+}
+
+std::vector<std::string_view> splitFields(std::string_view line) {
+    std::vector<std::string_view> fields;
+    size_t start = 0;
+    while (true) {
+        const size_t comma = line.find(',', start);
+        fields.push_back(line.substr(start, comma - start));
+        if (comma == std::string_view::npos) break;
+        start = comma + 1;
+    }
+    return fields;
+}
+
+// The complete lines of a session CSV with their 1-based numbers, as capture/recorded_source.cpp
+// reads a camera index: a last line without '\n' was cut off mid-append and never counted.
+// `header` is the header's prefix up to the version ("# previs-session poses v"); a header with
+// a newer version is refused. `onLine` returns an error for a malformed line.
+Status forEachLine(const std::string& path, std::string_view header, int& version,
+                   const std::function<Status(int lineNo, std::string_view line)>& onLine) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) return makeError("{}: cannot open ({})", path, std::strerror(errno));
+    std::stringstream buffer;
+    buffer << in.rdbuf();
+    const std::string text = buffer.str();
+    size_t pos = 0;
+    int lineNo = 0;
+    while (pos < text.size()) {
+        const size_t eol = text.find('\n', pos);
+        if (eol == std::string::npos) break;
+        std::string_view line(text.data() + pos, eol - pos);
+        pos = eol + 1;
+        ++lineNo;
+        if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+        if (line.starts_with(header)) {
+            std::string_view rest = line.substr(header.size());
+            rest = rest.substr(0, rest.find(':'));
+            int v = 0;
+            if (!parseNumber(rest, v) || v < 1)
+                return makeError("{}:{}: unreadable format version in '{}'", path, lineNo, line);
+            if (v > kSessionFormatVersion)
+                return makeError(
+                    "{}: format version {} is newer than this previs reads ({}); read it with a "
+                    "newer previs",
+                    path, v, kSessionFormatVersion);
+            version = v;
+            continue;
+        }
+        if (line.empty() || line[0] == '#') continue;
+        if (Status s = onLine(lineNo, line); !s) return s;
+    }
+    return {};
+}
+
+std::string nowRfc3339() {
+    const std::time_t t = std::time(nullptr);
+    std::tm tm{};
+    gmtime_r(&t, &tm);
+    char buf[32];
+    std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
+    return buf;
+}
+
+std::string errnoText() { return std::strerror(errno); }
+
+// write() until done: a regular file takes all bytes in one call unless the disk is full or a
+// signal interrupts it; an index line must still be one call (docs/session-format.md), which the
+// caller ensures by checking that the first call wrote everything.
+Status writeAll(int fd, const void* data, size_t size, const std::string& path) {
+    const auto* p = static_cast<const uint8_t*>(data);
+    while (size > 0) {
+        const ssize_t n = ::write(fd, p, size);
+        if (n < 0) {
+            if (errno == EINTR) continue;
+            return makeError("{}: write failed: {} (is the disk full?)", path, errnoText());
+        }
+        p += n;
+        size -= size_t(n);
+    }
+    return {};
+}
+
+// A whole file, atomically: `path` either does not exist or holds all of `bytes`.
+Status writeFileAtomic(const std::string& path, std::span<const uint8_t> bytes) {
+    const std::string tmp = path + ".tmp";
+    UniqueFD fd(::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644));
+    if (!fd.isValid()) return makeError("{}: cannot create: {}", tmp, errnoText());
+    if (Status s = writeAll(fd.get(), bytes.data(), bytes.size(), tmp); !s) return s;
+    if (::fdatasync(fd.get()) != 0)
+        return makeError("{}: fdatasync failed: {}", tmp, errnoText());
+    fd.reset();
+    if (::rename(tmp.c_str(), path.c_str()) != 0)
+        return makeError("{}: cannot rename to {}: {}", tmp, path, errnoText());
+    return {};
+}
+
+Status writeTextAtomic(const std::string& path, const std::string& text) {
+    return writeFileAtomic(path, std::span(reinterpret_cast<const uint8_t*>(text.data()),
+                                           text.size()));
+}
+
+// A rename or a new file is durable once its folder is.
+Status syncDir(const std::string& dir) {
+    UniqueFD fd(::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC));
+    if (!fd.isValid()) return makeError("{}: cannot open folder: {}", dir, errnoText());
+    if (::fsync(fd.get()) != 0) return makeError("{}: fsync failed: {}", dir, errnoText());
+    return {};
+}
+
+bool validCameraName(const std::string& name) {
+    if (name.empty() || name == "." || name == "..") return false;
+    return std::all_of(name.begin(), name.end(), [](char c) {
+        return std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' || c == '.';
+    });
+}
+
+// A TOML basic string (paths may hold quotes or backslashes).
+std::string tomlString(const std::string& v) {
+    std::string out = "\"";
+    for (char c : v) {
+        if (c == '"' || c == '\\') out += '\\';
+        out += c;
+    }
+    return out + '"';
+}
+
+// Shortest text that reads back as the same double.
+std::string formatDouble(double v) { return fmt::format("{}", v); }
+
+constexpr std::string_view kPosesHeader = "# previs-session poses v";
+constexpr std::string_view kEventsHeader = "# previs-session events v";
+
+bool knownEvent(std::string_view source, std::string_view event, int version) {
+    if (source == "mode-button")
+        // v1 did not fix the button's event names.
+        return version < 2 || event == "short-press" || event == "long-press";
+    if (source == "ctl")
+        return event == "mode=preview" || event == "mode=refine" || event == "mode=toggle";
+    return false;
+}
+
+}  // namespace
+
+const SessionCamera* SessionInfo::cameraWithRole(const std::string& role) const {
+    for (const SessionCamera& c : cameras)
+        if (c.role == role) return &c;
+    return nullptr;
+}
+
+Result<SessionInfo> openSession(const std::string& dir) {
+    const std::string path = dir + "/session.toml";
+    std::error_code ec;
+    if (!fs::is_regular_file(path, ec))
+        return makeError("{}: not a session folder (no session.toml; see docs/session-format.md)",
+                         dir);
+    toml::table table;
+    try {
+        table = toml::parse_file(path);
+    } catch (const toml::parse_error& e) {
+        return makeError("{}: line {}: not valid TOML: {}", path, e.source().begin.line,
+                         e.description());
+    } catch (const std::exception& e) {
+        return makeError("{}: {}", path, e.what());
+    }
+    SessionInfo info;
+    info.dir = dir;
+    if (table["format"].value_or(std::string()) != "previs-session")
+        return makeError("{}: format is not \"previs-session\" (not a previs session)", path);
+    const std::optional<int64_t> version = table["version"].value<int64_t>();
+    if (!version || *version < 1)
+        return makeError("{}: 'version' must be a positive integer", path);
+    if (*version > kSessionFormatVersion)
+        return makeError(
+            "{}: session format version {} is newer than this previs reads ({}); replay it "
+            "with a newer previs",
+            path, *version, kSessionFormatVersion);
+    info.version = int(*version);
+    // A string, or a TOML date-time from a hand-written file.
+    if (const toml::node* created = table.get("created")) {
+        if (auto text = created->value<std::string>()) {
+            info.created = *text;
+        } else {
+            std::ostringstream os;
+            created->visit([&](const auto& n) { os << n; });
+            info.created = os.str();
+        }
+    }
+    info.clock = table["clock"].value_or(std::string("CLOCK_MONOTONIC"));
+    info.previsVersion = table["previs"].value_or(std::string());
+    if (fs::is_regular_file(dir + "/config.toml", ec)) {
+        info.configPath = dir + "/config.toml";
+        // Relative paths in config.toml start at the original config's folder (v2), which v1
+        // did not record: there they start at the session folder.
+        const std::string configDir = table["config_dir"].value_or(std::string());
+        if (configDir.empty())
+            info.configDir = dir;
+        else if (fs::path(configDir).is_absolute())
+            info.configDir = configDir;
+        else {
+            fs::path p = (fs::path(dir) / configDir).lexically_normal();
+            if (p.filename().empty()) p = p.parent_path();  // "a/b/.." normalises to "a/"
+            info.configDir = p.string();
+        }
+    }
+
+    std::map<std::string, std::string> roles;
+    if (const toml::table* cams = table["cameras"].as_table()) {
+        for (const auto& [key, node] : *cams) {
+            const toml::table* cam = node.as_table();
+            const std::string name(key.str());
+            std::optional<std::string> role = cam ? (*cam)["role"].value<std::string>()
+                                                  : std::nullopt;
+            if (!role || (*role != "scene" && *role != "fisheye"))
+                return makeError("{}: [cameras.{}] needs role = \"scene\" or \"fisheye\"", path,
+                                 name);
+            roles[name] = *role;
+        }
+    }
+    const fs::path camerasDir = fs::path(dir) / "cameras";
+    if (fs::is_directory(camerasDir, ec)) {
+        for (const fs::directory_entry& entry : fs::directory_iterator(camerasDir, ec)) {
+            if (!entry.is_directory() || !fs::is_regular_file(entry.path() / "index.csv", ec))
+                continue;
+            SessionCamera cam;
+            cam.name = entry.path().filename().string();
+            cam.dir = entry.path().string();
+            auto index = loadCameraIndex(cam.dir);
+            if (!index) return index.error();
+            cam.frames = index->size();
+            if (auto it = roles.find(cam.name); it != roles.end()) cam.role = it->second;
+            info.cameras.push_back(std::move(cam));
+        }
+    }
+    std::sort(info.cameras.begin(), info.cameras.end(),
+              [](const SessionCamera& a, const SessionCamera& b) { return a.name < b.name; });
+    for (const auto& [name, role] : roles)
+        if (std::none_of(info.cameras.begin(), info.cameras.end(),
+                         [&](const SessionCamera& c) { return c.name == name; }))
+            logWarning("{}: camera '{}' ({}) has no frames (no cameras/{}/index.csv)", path, name,
+                       role, name);
+    return info;
+}
+
+const char* poseKindName(PoseKind kind) {
+    switch (kind) {
+    case PoseKind::Tracked:
+        return "tracked";
+    case PoseKind::Lost:
+        return "lost";
+    case PoseKind::Truth:
+        return "truth";
+    }
+    return "?";
+}
+
+Result<std::vector<PoseRecord>> loadPoses(const std::string& dir) {
+    const std::string path = dir + "/poses.csv";
+    std::error_code ec;
+    if (!fs::exists(path, ec)) return std::vector<PoseRecord>{};
+    // v1 files had no header; their columns lack `frame`.
+    int version = 1;
+    std::vector<PoseRecord> poses;
+    Status s = forEachLine(path, kPosesHeader, version, [&](int lineNo, std::string_view line) {
+        const std::vector<std::string_view> f = splitFields(line);
+        const size_t base = version >= 2 ? 2 : 1;  // index of `kind`
+        auto malformed = [&](std::string_view why) -> Status {
+            return makeError("{}:{}: malformed pose line ({}): '{}'", path, lineNo, why, line);
+        };
+        if (f.size() < base + 19) return malformed("too few columns");
+        PoseRecord p;
+        if (!parseNumber(f[0], p.timestampNs)) return malformed("timestampNs");
+        if (version >= 2) {
+            uint64_t frame = 0;
+            if (!parseNumber(f[1], frame)) return malformed("frame");
+            p.frame = frame;
+        }
+        const std::string_view kind = f[base];
+        if (kind == "tracked")
+            p.kind = PoseKind::Tracked;
+        else if (kind == "lost")
+            p.kind = PoseKind::Lost;
+        else if (kind == "truth")
+            p.kind = PoseKind::Truth;
+        else
+            return malformed("kind must be tracked, lost or truth");
+        const bool empty = std::all_of(f.begin() + base + 1, f.begin() + base + 17,
+                                       [](std::string_view v) { return v.empty(); });
+        if (p.kind == PoseKind::Lost) {
+            if (!empty) return malformed("a lost pose has no matrix");
+        } else {
+            std::array<double, 16> m{};
+            for (int i = 0; i < 16; ++i)
+                if (!parseNumber(f[base + 1 + i], m[i]) || !std::isfinite(m[i]))
+                    return malformed("matrix");
+            p.worldFromCamera = m;
+        }
+        if (!f[base + 17].empty()) {
+            double e = 0.0;
+            if (!parseNumber(f[base + 17], e) || !(e >= 0.0)) return malformed("reprojErrorPx");
+            p.reprojErrorPx = e;
+        }
+        if (!parseNumber(f[base + 18], p.tags) || p.tags < 0) return malformed("tags");
+        poses.push_back(std::move(p));
+        return Status{};
+    });
+    if (!s) return s.error();
+    return poses;
+}
+
+Result<std::vector<SessionEvent>> loadEvents(const std::string& dir, size_t* skippedUnknown) {
+    if (skippedUnknown) *skippedUnknown = 0;
+    const std::string path = dir + "/events.csv";
+    std::error_code ec;
+    if (!fs::exists(path, ec)) return std::vector<SessionEvent>{};
+    int version = 1;
+    size_t skipped = 0;
+    std::vector<SessionEvent> events;
+    Status s = forEachLine(path, kEventsHeader, version, [&](int lineNo, std::string_view line) {
+        const std::vector<std::string_view> f = splitFields(line);
+        SessionEvent e;
+        if (f.size() < 3 || !parseNumber(f[0], e.timestampNs) || f[1].empty() || f[2].empty())
+            return Status(makeError(
+                "{}:{}: malformed event line '{}' (expected timestampNs,source,event)", path,
+                lineNo, line));
+        // Later issues add sources; an old reader replays what it knows.
+        if (!knownEvent(f[1], f[2], version)) {
+            ++skipped;
+            return Status{};
+        }
+        e.source = f[1];
+        e.event = f[2];
+        events.push_back(std::move(e));
+        return Status{};
+    });
+    if (!s) return s.error();
+    if (skipped > 0) logInfo("{}: {} event(s) of unknown sources skipped", path, skipped);
+    if (skippedUnknown) *skippedUnknown = skipped;
+    return events;
+}
+
+// --- writer -----------------------------------------------------------------------------------
+
+Result<SessionWriter> SessionWriter::create(const std::string& dir,
+                                            const SessionWriterOptions& options) {
+    std::error_code ec;
+    if (fs::exists(fs::path(dir) / "session.toml", ec))
+        return makeError("{}: already holds a session; record into a new folder", dir);
+    if (::mkdir(dir.c_str(), 0755) != 0 && errno != EEXIST)
+        return makeError("{}: cannot create the session folder: {}", dir, errnoText());
+    for (const auto& [name, role] : options.cameraRoles) {
+        if (!validCameraName(name))
+            return makeError("session camera name '{}': use letters, digits, '-', '_', '.'",
+                             name);
+        if (role != "scene" && role != "fisheye")
+            return makeError("session camera '{}': role '{}' is not scene or fisheye", name,
+                             role);
+    }
+
+    std::string toml = fmt::format(
+        "format = \"previs-session\"\nversion = {}\ncreated = \"{}\"\nclock = \"CLOCK_MONOTONIC\"\n"
+        "previs = \"{}\"\n",
+        kSessionFormatVersion, options.created.empty() ? nowRfc3339() : options.created,
+        options.previsVersion.empty() ? PREVIS_VERSION : options.previsVersion);
+    if (!options.configDir.empty())
+        toml += fmt::format("config_dir = {}\n", tomlString(options.configDir));
+    for (const auto& [name, role] : options.cameraRoles)
+        toml += fmt::format("\n[cameras.{}]\nrole = \"{}\"\n", name, role);
+
+    SessionWriter w;
+    w.dir_ = dir;
+    w.lastSync_ = std::chrono::steady_clock::now();
+    // config.toml first: a folder with session.toml is a session, and should be complete.
+    if (!options.configToml.empty())
+        if (Status s = writeTextAtomic(dir + "/config.toml", options.configToml); !s)
+            return s.error();
+    if (Status s = writeTextAtomic(dir + "/session.toml", toml); !s) return s.error();
+    if (Status s = syncDir(dir); !s) return s.error();
+    return w;
+}
+
+SessionWriter::~SessionWriter() {
+    if (dir_.empty()) return;  // moved from
+    if (Status s = flush(); !s) logError("{}", s.message());
+}
+
+Result<SessionWriter::Index*> SessionWriter::openIndex(const std::string& relPath,
+                                                       const std::string& header) {
+    if (auto it = indices_.find(relPath); it != indices_.end()) return &it->second;
+    Index index;
+    index.path = dir_ + "/" + relPath;
+    index.fd = UniqueFD(
+        ::open(index.path.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644));
+    if (!index.fd.isValid())
+        return makeError("{}: cannot open for appending: {}", index.path, errnoText());
+    struct stat st {};
+    if (::fstat(index.fd.get(), &st) != 0)
+        return makeError("{}: cannot stat: {}", index.path, errnoText());
+    if (st.st_size == 0) {
+        if (Status s = appendLine(index, header); !s) return s.error();
+        newEntries_ = true;
+    }
+    return &indices_.emplace(relPath, std::move(index)).first->second;
+}
+
+Status SessionWriter::appendLine(Index& index, const std::string& line) {
+    PV_DCHECK(!line.empty() && line.back() == '\n');
+    // One write() per line: after a crash a line is whole or cut short (and then ignored),
+    // never interleaved.
+    ssize_t n;
+    do {
+        n = ::write(index.fd.get(), line.data(), line.size());
+    } while (n < 0 && errno == EINTR);
+    if (n < 0) return makeError("{}: write failed: {} (is the disk full?)", index.path, errnoText());
+    if (size_t(n) != line.size())
+        return makeError("{}: short write ({} of {} bytes; is the disk full?)", index.path, n,
+                         line.size());
+    index.dirty = true;
+    return {};
+}
+
+Status SessionWriter::syncIfDue() {
+    // At least once a second (docs/session-format.md): a power cut loses at most that much.
+    if (std::chrono::steady_clock::now() - lastSync_ < std::chrono::seconds(1)) return {};
+    return flush();
+}
+
+Status SessionWriter::flush() {
+    Status result;
+    for (auto& [rel, index] : indices_) {
+        if (!index.dirty) continue;
+        if (::fdatasync(index.fd.get()) != 0 && result)
+            result = makeError("{}: fdatasync failed: {}", index.path, errnoText());
+        index.dirty = false;
+    }
+    if (newEntries_) {
+        // Renamed frames and new index files live in these folders.
+        for (auto& [rel, index] : indices_)
+            if (Status s = syncDir(fs::path(index.path).parent_path().string()); !s && result)
+                result = s;
+        if (Status s = syncDir(dir_); !s && result) result = s;
+        newEntries_ = false;
+    }
+    lastSync_ = std::chrono::steady_clock::now();
+    return result;
+}
+
+Status SessionWriter::writeFrame(const std::string& camera, uint64_t sequence,
+                                 uint64_t timestampNs, std::span<const uint8_t> encoded,
+                                 const std::string& ext, uint32_t width, uint32_t height) {
+    if (!validCameraName(camera))
+        return makeError("session camera name '{}': use letters, digits, '-', '_', '.'", camera);
+    if (ext != "png" && ext != "jpg")
+        return makeError("session frame of '{}': extension '{}' is not png or jpg", camera, ext);
+    if (width == 0 || height == 0 || encoded.empty())
+        return makeError("session frame {} of '{}': empty frame", sequence, camera);
+    const std::string camDir = dir_ + "/cameras/" + camera;
+    const std::string rel = "cameras/" + camera + "/index.csv";
+    if (indices_.find(rel) == indices_.end()) {
+        std::error_code ec;
+        fs::create_directories(camDir, ec);
+        if (ec) return makeError("{}: cannot create: {}", camDir, ec.message());
+        newEntries_ = true;
+    }
+    auto index = openIndex(rel,
+                           "# previs-session camera index v1: sequence,timestampNs,file,width,"
+                           "height\n");
+    if (!index) return index.error();
+    Index& idx = **index;
+    if ((idx.lastSequence && sequence <= *idx.lastSequence) || timestampNs < idx.lastTimestampNs)
+        return makeError(
+            "{}: frame {} at {} ns after frame {} at {} ns: sequences must increase and "
+            "timestamps not decrease",
+            idx.path, sequence, timestampNs, idx.lastSequence.value_or(0), idx.lastTimestampNs);
+    const std::string file = fmt::format("{:012d}.{}", sequence, ext);
+    if (Status s = writeFileAtomic(camDir + "/" + file, encoded); !s) return s;
+    newEntries_ = true;
+    if (Status s = appendLine(
+            idx, fmt::format("{},{},{},{},{}\n", sequence, timestampNs, file, width, height));
+        !s)
+        return s;
+    idx.lastSequence = sequence;
+    idx.lastTimestampNs = timestampNs;
+    return syncIfDue();
+}
+
+Status SessionWriter::writePose(const PoseRecord& pose) {
+    if (!pose.frame) return makeError("session pose at {} ns: v2 poses need a frame", pose.timestampNs);
+    if ((pose.kind == PoseKind::Lost) == pose.worldFromCamera.has_value())
+        return makeError("session pose of frame {}: a {} pose {} a matrix", *pose.frame,
+                         poseKindName(pose.kind),
+                         pose.kind == PoseKind::Lost ? "has no" : "needs");
+    auto index = openIndex("poses.csv",
+                           fmt::format("{}{}: timestampNs,frame,kind,m00,...,m33,reprojErrorPx,"
+                                       "tags\n",
+                                       kPosesHeader, kSessionFormatVersion));
+    if (!index) return index.error();
+    std::string line = fmt::format("{},{},{}", pose.timestampNs, *pose.frame,
+                                   poseKindName(pose.kind));
+    for (int i = 0; i < 16; ++i) {
+        line += ',';
+        if (pose.worldFromCamera) {
+            if (!std::isfinite((*pose.worldFromCamera)[i]))
+                return makeError("session pose of frame {}: matrix is not finite", *pose.frame);
+            line += formatDouble((*pose.worldFromCamera)[i]);
+        }
+    }
+    line += ',';
+    if (pose.reprojErrorPx && std::isfinite(*pose.reprojErrorPx))
+        line += formatDouble(*pose.reprojErrorPx);
+    line += fmt::format(",{}\n", pose.tags);
+    if (Status s = appendLine(**index, line); !s) return s;
+    return syncIfDue();
+}
+
+Status SessionWriter::writeEvent(const SessionEvent& event) {
+    auto bad = [](const std::string& v) {
+        return v.empty() || v.find_first_of(",\n\r") != std::string::npos;
+    };
+    if (bad(event.source) || bad(event.event))
+        return makeError("session event '{}','{}': source and event must be non-empty and hold "
+                         "no comma or newline",
+                         event.source, event.event);
+    auto index = openIndex("events.csv", fmt::format("{}{}: timestampNs,source,event\n",
+                                                     kEventsHeader, kSessionFormatVersion));
+    if (!index) return index.error();
+    if (Status s = appendLine(
+            **index, fmt::format("{},{},{}\n", event.timestampNs, event.source, event.event));
+        !s)
+        return s;
+    return syncIfDue();
+}
+
+}  // namespace previs

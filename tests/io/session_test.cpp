@@ -1,0 +1,298 @@
+// The session format v2 (docs/session-format.md): what SessionWriter writes, openSession,
+// loadPoses, loadEvents and the camera index reader read back; the crash cases the format
+// promises to survive (a cut last line, a stray *.tmp) and a future version refused.
+
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "capture/recorded_source.h"
+#include "io/session.h"
+#include "tests/support/temp_dir.h"
+
+namespace previs {
+namespace {
+
+namespace fs = std::filesystem;
+
+fs::path freshDir(const std::string& name) {
+    const fs::path dir = testing::scratchDir("session_test") / name;
+    fs::remove_all(dir);
+    return dir;
+}
+
+std::string readText(const fs::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+void writeText(const fs::path& p, const std::string& text) {
+    std::ofstream out(p, std::ios::binary);
+    out << text;
+}
+
+std::array<double, 16> someMatrix(double t) {
+    // A rotation about y by an angle that needs all digits, and a translation.
+    const double c = std::cos(t), s = std::sin(t);
+    return {c, 0, s, 0.1 * t, 0, 1, 0, 0.3, -s, 0, c, -1.0 / 3.0, 0, 0, 0, 1};
+}
+
+const std::vector<uint8_t> kBytes = {1, 2, 3, 4, 5};
+
+TEST(Session, RoundTrip) {
+    const fs::path dir = freshDir("round_trip");
+    {
+        SessionWriterOptions options;
+        options.cameraRoles = {{"scene", "scene"}, {"fisheye", "fisheye"}};
+        options.configToml = "[cameras.scene]\nsource = \"session\"\n";
+        options.configDir = "..";
+        options.created = "2025-01-02T03:04:05Z";
+        auto writer = SessionWriter::create(dir.string(), options);
+        ASSERT_TRUE(writer.ok()) << writer.message();
+        for (uint64_t i = 0; i < 3; ++i) {
+            ASSERT_TRUE(writer->writeFrame("scene", 10 + i, 1000 + 66 * i, kBytes, "jpg", 64, 36));
+            PoseRecord truth;
+            truth.timestampNs = 1000 + 66 * i;
+            truth.frame = 10 + i;
+            truth.kind = PoseKind::Truth;
+            truth.worldFromCamera = someMatrix(0.1 * double(i) + 0.123456789);
+            ASSERT_TRUE(writer->writePose(truth));
+        }
+        ASSERT_TRUE(writer->writeFrame("fisheye", 0, 1000, kBytes, "png", 32, 24));
+        PoseRecord tracked;
+        tracked.timestampNs = 1066;
+        tracked.frame = 11;
+        tracked.kind = PoseKind::Tracked;
+        tracked.worldFromCamera = someMatrix(1.0);
+        tracked.reprojErrorPx = 0.25;
+        tracked.tags = 4;
+        ASSERT_TRUE(writer->writePose(tracked));
+        PoseRecord lost;
+        lost.timestampNs = 1132;
+        lost.frame = 12;
+        lost.kind = PoseKind::Lost;
+        ASSERT_TRUE(writer->writePose(lost));
+        ASSERT_TRUE(writer->writeEvent({1100, "mode-button", "short-press"}));
+        ASSERT_TRUE(writer->writeEvent({1200, "ctl", "mode=preview"}));
+        ASSERT_TRUE(writer->flush());
+        // Out of order frames are refused, as the reader would refuse them.
+        EXPECT_FALSE(writer->writeFrame("scene", 12, 2000, kBytes, "jpg", 64, 36));
+        EXPECT_FALSE(writer->writeFrame("scene", 13, 999, kBytes, "jpg", 64, 36));
+        EXPECT_FALSE(writer->writeFrame("../x", 20, 3000, kBytes, "jpg", 64, 36));
+    }
+
+    auto info = openSession(dir.string());
+    ASSERT_TRUE(info.ok()) << info.message();
+    EXPECT_EQ(info->version, 2);
+    EXPECT_EQ(info->created, "2025-01-02T03:04:05Z");
+    EXPECT_EQ(info->clock, "CLOCK_MONOTONIC");
+    EXPECT_FALSE(info->previsVersion.empty());
+    EXPECT_EQ(fs::path(info->configPath), dir / "config.toml");
+    EXPECT_EQ(readText(info->configPath), "[cameras.scene]\nsource = \"session\"\n");
+    EXPECT_EQ(fs::path(info->configDir), dir.parent_path());
+    ASSERT_EQ(info->cameras.size(), 2u);
+    EXPECT_EQ(info->cameras[0].name, "fisheye");
+    EXPECT_EQ(info->cameras[0].role, "fisheye");
+    EXPECT_EQ(info->cameras[0].frames, 1u);
+    EXPECT_EQ(info->cameras[1].name, "scene");
+    EXPECT_EQ(info->cameras[1].frames, 3u);
+    ASSERT_NE(info->cameraWithRole("scene"), nullptr);
+    EXPECT_EQ(info->cameraWithRole("scene")->dir, (dir / "cameras" / "scene").string());
+
+    // The camera index stays v1 and is read by the existing camera reader.
+    auto frames = loadCameraIndex((dir / "cameras" / "scene").string());
+    ASSERT_TRUE(frames.ok()) << frames.message();
+    ASSERT_EQ(frames->size(), 3u);
+    EXPECT_EQ((*frames)[2].sequence, 12u);
+    EXPECT_EQ((*frames)[2].timestampNs, 1132u);
+    EXPECT_EQ((*frames)[2].width, 64u);
+    EXPECT_EQ(fs::path((*frames)[2].file).filename(), "000000000012.jpg");
+    EXPECT_EQ(readText((*frames)[2].file), std::string(kBytes.begin(), kBytes.end()));
+
+    auto poses = loadPoses(dir.string());
+    ASSERT_TRUE(poses.ok()) << poses.message();
+    ASSERT_EQ(poses->size(), 5u);
+    for (int i = 0; i < 3; ++i) {
+        const PoseRecord& p = (*poses)[size_t(i)];
+        EXPECT_EQ(p.kind, PoseKind::Truth);
+        EXPECT_EQ(p.frame, uint64_t(10 + i));
+        ASSERT_TRUE(p.worldFromCamera.has_value());
+        // Exact: the writer prints the shortest text that reads back as the same double.
+        EXPECT_EQ(*p.worldFromCamera, someMatrix(0.1 * double(i) + 0.123456789));
+        EXPECT_FALSE(p.reprojErrorPx.has_value());
+    }
+    EXPECT_EQ((*poses)[3].kind, PoseKind::Tracked);
+    EXPECT_EQ((*poses)[3].reprojErrorPx, 0.25);
+    EXPECT_EQ((*poses)[3].tags, 4);
+    EXPECT_EQ((*poses)[4].kind, PoseKind::Lost);
+    EXPECT_FALSE((*poses)[4].worldFromCamera.has_value());
+    EXPECT_EQ((*poses)[4].timestampNs, 1132u);
+
+    size_t skipped = 99;
+    auto events = loadEvents(dir.string(), &skipped);
+    ASSERT_TRUE(events.ok()) << events.message();
+    EXPECT_EQ(skipped, 0u);
+    ASSERT_EQ(events->size(), 2u);
+    EXPECT_EQ((*events)[0].timestampNs, 1100u);
+    EXPECT_EQ((*events)[0].source, "mode-button");
+    EXPECT_EQ((*events)[0].event, "short-press");
+    EXPECT_EQ((*events)[1].source, "ctl");
+    EXPECT_EQ((*events)[1].event, "mode=preview");
+
+    // The same folder is never recorded over.
+    auto again = SessionWriter::create(dir.string());
+    ASSERT_FALSE(again.ok());
+    EXPECT_NE(again.message().find("already holds a session"), std::string::npos);
+}
+
+TEST(Session, TruncatedLastLineIgnoredAndMalformedLineNamed) {
+    const fs::path dir = freshDir("truncated");
+    {
+        auto writer = SessionWriter::create(dir.string());
+        ASSERT_TRUE(writer.ok()) << writer.message();
+        ASSERT_TRUE(writer->writeEvent({5, "mode-button", "short-press"}));
+        PoseRecord lost;
+        lost.frame = 0;
+        lost.kind = PoseKind::Lost;
+        ASSERT_TRUE(writer->writePose(lost));
+    }
+    // A crash mid-append: the last line has no '\n'.
+    {
+        std::ofstream events(dir / "events.csv", std::ios::app | std::ios::binary);
+        events << "9,mode-button,long-pr";
+        std::ofstream poses(dir / "poses.csv", std::ios::app | std::ios::binary);
+        poses << "10,1,tracked,1,0,0";
+    }
+    auto events = loadEvents(dir.string());
+    ASSERT_TRUE(events.ok()) << events.message();
+    ASSERT_EQ(events->size(), 1u);
+    EXPECT_EQ((*events)[0].timestampNs, 5u);
+    auto poses = loadPoses(dir.string());
+    ASSERT_TRUE(poses.ok()) << poses.message();
+    EXPECT_EQ(poses->size(), 1u);
+
+    // The same bytes completed by '\n' are a malformed line: corruption, named by file:line.
+    {
+        std::ofstream posesOut(dir / "poses.csv", std::ios::app | std::ios::binary);
+        posesOut << "\n";
+    }
+    auto bad = loadPoses(dir.string());
+    ASSERT_FALSE(bad.ok());
+    EXPECT_NE(bad.message().find("poses.csv:3:"), std::string::npos) << bad.message();
+    {
+        std::ofstream eventsOut(dir / "events.csv", std::ios::app | std::ios::binary);
+        eventsOut << "ate\nnot-a-number,ctl,mode=refine\n";
+    }
+    auto badEvents = loadEvents(dir.string());
+    ASSERT_FALSE(badEvents.ok());
+    EXPECT_NE(badEvents.message().find("events.csv:4:"), std::string::npos)
+        << badEvents.message();
+}
+
+TEST(Session, UnknownEventSourcesSkippedWithACount) {
+    const fs::path dir = freshDir("unknown_events");
+    {
+        auto writer = SessionWriter::create(dir.string());
+        ASSERT_TRUE(writer.ok()) << writer.message();
+        ASSERT_TRUE(writer->writeEvent({1, "foot-pedal", "down"}));
+        ASSERT_TRUE(writer->writeEvent({2, "mode-button", "long-press"}));
+        ASSERT_TRUE(writer->writeEvent({3, "ctl", "record=start"}));
+    }
+    size_t skipped = 0;
+    auto events = loadEvents(dir.string(), &skipped);
+    ASSERT_TRUE(events.ok()) << events.message();
+    ASSERT_EQ(events->size(), 1u);
+    EXPECT_EQ((*events)[0].event, "long-press");
+    EXPECT_EQ(skipped, 2u);
+}
+
+TEST(Session, FutureVersionRefused) {
+    const fs::path dir = freshDir("future");
+    fs::create_directories(dir);
+    writeText(dir / "session.toml",
+              "format = \"previs-session\"\nversion = 3\ncreated = \"2030-01-01T00:00:00Z\"\n");
+    auto info = openSession(dir.string());
+    ASSERT_FALSE(info.ok());
+    EXPECT_NE(info.message().find("version 3 is newer"), std::string::npos) << info.message();
+    EXPECT_NE(info.message().find("session.toml"), std::string::npos);
+
+    writeText(dir / "poses.csv", "# previs-session poses v3: something else\n1,2,3\n");
+    auto poses = loadPoses(dir.string());
+    ASSERT_FALSE(poses.ok());
+    EXPECT_NE(poses.message().find("version 3 is newer"), std::string::npos) << poses.message();
+
+    writeText(dir / "session.toml", "format = \"something\"\nversion = 1\n");
+    EXPECT_FALSE(openSession(dir.string()).ok());
+    fs::remove(dir / "session.toml");
+    auto none = openSession(dir.string());
+    ASSERT_FALSE(none.ok());
+    EXPECT_NE(none.message().find("not a session folder"), std::string::npos);
+}
+
+TEST(Session, ReadsVersion1) {
+    // v1: no config_dir, poses without the frame column and without a header.
+    const fs::path dir = freshDir("v1");
+    fs::create_directories(dir / "cameras" / "scene");
+    writeText(dir / "session.toml",
+              "format = \"previs-session\"\nversion = 1\ncreated = 2024-06-10T12:00:00Z\n"
+              "clock = \"CLOCK_MONOTONIC\"\nprevis = \"0.1\"\n");
+    writeText(dir / "config.toml", "\n");
+    writeText(dir / "cameras" / "scene" / "index.csv",
+              "# previs-session camera index v1: sequence,timestampNs,file,width,height\n"
+              "0,100,000000000000.png,4,4\n");
+    writeText(dir / "poses.csv",
+              "100,tracked,1,0,0,0,0,1,0,0,0,0,1,2,0,0,0,1,0.5,3\n"
+              "200,lost,,,,,,,,,,,,,,,,,,0\n");
+    writeText(dir / "events.csv", "150,mode-button,press\n");
+    auto info = openSession(dir.string());
+    ASSERT_TRUE(info.ok()) << info.message();
+    EXPECT_EQ(info->version, 1);
+    EXPECT_EQ(info->created, "2024-06-10T12:00:00Z");
+    EXPECT_EQ(fs::path(info->configDir), dir);  // v1: relative to the session folder
+    ASSERT_EQ(info->cameras.size(), 1u);
+    EXPECT_EQ(info->cameras[0].role, "");
+    auto poses = loadPoses(dir.string());
+    ASSERT_TRUE(poses.ok()) << poses.message();
+    ASSERT_EQ(poses->size(), 2u);
+    EXPECT_FALSE((*poses)[0].frame.has_value());
+    EXPECT_EQ((*(*poses)[0].worldFromCamera)[11], 2.0);
+    EXPECT_EQ((*poses)[0].tags, 3);
+    EXPECT_EQ((*poses)[1].kind, PoseKind::Lost);
+    auto events = loadEvents(dir.string());
+    ASSERT_TRUE(events.ok()) << events.message();
+    ASSERT_EQ(events->size(), 1u);
+    EXPECT_EQ((*events)[0].event, "press");
+}
+
+TEST(Session, TmpFilesIgnored) {
+    // A crash between writing a frame's .tmp and its rename leaves a .tmp and no index line;
+    // a crash after the rename but before the line leaves an unindexed file. Neither is a frame.
+    const fs::path dir = freshDir("tmp");
+    {
+        auto writer = SessionWriter::create(dir.string());
+        ASSERT_TRUE(writer.ok()) << writer.message();
+        ASSERT_TRUE(writer->writeFrame("scene", 0, 100, kBytes, "png", 4, 4));
+    }
+    writeText(dir / "cameras" / "scene" / "000000000001.png.tmp", "half a frame");
+    writeText(dir / "cameras" / "scene" / "index.csv.tmp", "garbage\n");
+    writeText(dir / "session.toml.tmp", "garbage");
+    auto info = openSession(dir.string());
+    ASSERT_TRUE(info.ok()) << info.message();
+    ASSERT_EQ(info->cameras.size(), 1u);
+    EXPECT_EQ(info->cameras[0].frames, 1u);
+    // Recording goes on after the crash's leftovers: the .tmp is simply overwritten.
+    {
+        auto writer = SessionWriter::create((dir / "second").string());
+        ASSERT_TRUE(writer.ok()) << writer.message();
+        writeText(dir / "second" / "cameras", "");  // not a folder: a clear error, no crash
+        EXPECT_FALSE(writer->writeFrame("scene", 0, 100, kBytes, "png", 4, 4));
+    }
+}
+
+}  // namespace
+}  // namespace previs
