@@ -1,0 +1,99 @@
+#pragma once
+
+// The mode button (DESIGN.md §1, §6): a GPIO input line watched by libgpiod (Debian's 1.6) on
+// its own thread, debounced and classified into short and long presses by PressClassifier.
+// libgpiod stays behind this header: its types are only named, never included.
+
+#include <atomic>
+#include <functional>
+#include <memory>
+#include <string>
+#include <thread>
+
+#include "base/result.h"
+#include "capture/unique_fd.h"
+#include "io/press_classifier.h"
+
+struct gpiod_chip;
+struct gpiod_line;
+
+namespace previs {
+
+struct GpiodChipCloser {
+    void operator()(gpiod_chip* chip) const;
+};
+struct GpiodLineReleaser {
+    void operator()(gpiod_line* line) const;
+};
+
+// One requested GPIO line and the chip it belongs to (a libgpiod line lives inside its chip
+// object). Members in this order so the line is released before the chip is closed.
+struct GpioLine {
+    std::unique_ptr<gpiod_chip, GpiodChipCloser> chip;
+    std::unique_ptr<gpiod_line, GpiodLineReleaser> line;
+    std::string description;  // "line 'mode-button' (3) on chip vmtest (/dev/gpiochip0)"
+};
+
+enum class GpioLineUse { BothEdges, Output };
+
+// The lookup the button and the LED share. `chip`: a path ("/dev/gpiochip0"), a chip name
+// ("gpiochip0") or a label ("vmtest"); `line`: a line name ("mode-button") or an offset ("5").
+// An output starts at logical `initialOn`. The error names what was asked for and lists what
+// exists.
+Result<GpioLine> requestGpioLine(const std::string& chip, const std::string& line,
+                                 GpioLineUse use, bool activeLow, bool initialOn = false);
+
+struct ButtonSettings {
+    std::string chip;  // path "/dev/gpiochip0", name "gpiochip0" or label "vmtest"
+    std::string line;  // name "mode-button" or offset "5"
+    bool activeLow = false;  // pressed = line low (a button to ground with a pull-up)
+    int debounceMs = 20;     // a level counts once it has been stable this long
+    int longPressMs = 1500;  // held this long: LongPress (at the threshold), no ShortPress
+};
+
+class GpioButton {
+public:
+    // Requests the line and starts the button thread. `onEvent` runs on that thread: keep it
+    // short and do not call stop() from it.
+    static Result<std::unique_ptr<GpioButton>> create(const ButtonSettings& settings,
+                                                      std::function<void(ButtonEvent)> onEvent);
+    ~GpioButton();
+
+    GpioButton(const GpioButton&) = delete;
+    GpioButton& operator=(const GpioButton&) = delete;
+
+    // Ends the thread (promptly: it waits on the line and a stop eventfd) and releases the line.
+    // Idempotent.
+    void stop();
+
+    // False while the chip is away (the thread is looking for it again).
+    bool connected() const { return connected_.load(); }
+
+    // "line 'mode-button' (0) on chip vmtest (/dev/gpiochip0)"
+    const std::string& description() const { return description_; }
+
+private:
+    GpioButton(const ButtonSettings& settings, std::function<void(ButtonEvent)> onEvent,
+               GpioLine line, UniqueFD stopFd);
+
+    void run();
+    // Reads pending edges into the classifier. False when the line is gone.
+    bool readEvents();
+    // Feeds the line's current level when it differs from the classifier's (edges the kernel's
+    // 16-event queue dropped in a long bounce train). False when the line is gone.
+    bool resync(int64_t nowNs);
+    void emit(const std::vector<ButtonEvent>& events);
+    // After the chip went away: retries every second until it is back or stop() is called.
+    bool reopen();
+
+    ButtonSettings settings_;
+    std::function<void(ButtonEvent)> onEvent_;
+    GpioLine line_;  // empty while the chip is away
+    const std::string description_;  // as first found (read by other threads)
+    UniqueFD stopFd_;  // eventfd: stop() writes, the thread's poll() wakes
+    PressClassifier classifier_;
+    std::atomic<bool> connected_{true};
+    std::thread thread_;
+};
+
+}  // namespace previs
