@@ -1,0 +1,100 @@
+#!/bin/sh
+# Checks of the installed previsd.service (tests/systemd/CMakeLists.txt registers one CTest per
+# mode). Usage: unit_check.sh install|verify|security|devices BUILD_DIR [PREVISD_BINARY]
+# Each mode installs the previs-systemd component into a scratch folder first, so what is checked
+# is the unit as `cmake --install` writes it.
+set -eu
+mode=$1
+build=$2
+previsd=${3:-}
+max_exposure=2.0
+
+tmp=$(mktemp -d /tmp/previs_unit.XXXXXX)
+trap 'rm -rf "$tmp"' EXIT
+
+fail() { echo "FAIL: $*" >&2; exit 1; }
+
+# Prefix = the scratch folder: ExecStart and the config then point into it, so they exist.
+cmake --install "$build" --component previs-systemd --prefix "$tmp" >"$tmp/install.log" ||
+    { cat "$tmp/install.log"; fail "cmake --install failed"; }
+unit=$tmp/lib/systemd/system/previsd.service
+[ -f "$unit" ] || fail "cmake --install did not write $unit"
+
+# Values of KEY= in the unit (one per line, in order).
+values() { sed -n "s/^$1=//p" "$unit"; }
+
+case $mode in
+install)
+    # The paths written into the unit follow the install prefix.
+    [ "$(values ExecStart)" = "$tmp/bin/previsd --config $tmp/etc/previs/previsd.toml" ] ||
+        fail "ExecStart is '$(values ExecStart)'"
+    for f in previsd.toml board.toml scene_camera.yaml fisheye.yaml; do
+        [ -f "$tmp/etc/previs/$f" ] || fail "example config $f not installed in $tmp/etc/previs"
+    done
+    [ -f "$tmp/lib/udev/rules.d/60-previs-gpio.rules" ] || fail "udev rule not installed"
+    [ -f "$tmp/lib/sysusers.d/previs.conf" ] || fail "sysusers.d file not installed"
+    # An operator's edited config survives a reinstall.
+    echo "# edited" >"$tmp/etc/previs/previsd.toml"
+    cmake --install "$build" --component previs-systemd --prefix "$tmp" >/dev/null
+    [ "$(cat "$tmp/etc/previs/previsd.toml")" = "# edited" ] || fail "reinstall overwrote the config"
+    # The box's layout: --prefix /usr reads its config from /etc (under DESTDIR here).
+    DESTDIR=$tmp/root cmake --install "$build" --component previs-systemd --prefix /usr >/dev/null
+    u=$tmp/root/usr/lib/systemd/system/previsd.service
+    [ "$(sed -n 's/^ExecStart=//p' "$u")" = "/usr/bin/previsd --config /etc/previs/previsd.toml" ] ||
+        fail "with --prefix /usr, ExecStart is '$(sed -n 's/^ExecStart=//p' "$u")'"
+    [ -f "$tmp/root/etc/previs/previsd.toml" ] || fail "with --prefix /usr, no /etc/previs/previsd.toml"
+    echo "install layout OK"
+    ;;
+verify)
+    mkdir -p "$tmp/bin"
+    if [ -n "$previsd" ] && [ -x "$previsd" ]; then
+        cp "$previsd" "$tmp/bin/previsd"
+    else
+        # No previsd target yet: verify needs an executable at ExecStart, any will do.
+        printf '#!/bin/sh\nexit 1\n' >"$tmp/bin/previsd"
+        chmod +x "$tmp/bin/previsd"
+        echo "note: no previsd binary given, a stub stands at ExecStart"
+    fi
+    # verify exits 0 on mere warnings (unknown keys, bad values): any line naming the unit fails.
+    status=0
+    out=$(systemd-analyze verify --man=no --generators=no "$unit" 2>&1) || status=$?
+    [ -n "$out" ] && echo "$out"
+    [ $status -eq 0 ] || fail "systemd-analyze verify exited $status"
+    if echo "$out" | grep -q previsd; then fail "systemd-analyze verify warns about the unit"; fi
+    echo "systemd-analyze verify: no warnings"
+    ;;
+security)
+    out=$(systemd-analyze security --offline=true --no-pager "$unit" 2>&1) ||
+        { echo "$out"; fail "systemd-analyze security failed"; }
+    echo "$out" | grep '✗' || true
+    level=$(echo "$out" | sed -n 's/.*Overall exposure level for previsd.service: \([0-9.]*\).*/\1/p')
+    [ -n "$level" ] || { echo "$out"; fail "no 'Overall exposure level' line"; }
+    echo "exposure: $level (limit $max_exposure)"
+    awk -v l="$level" -v m="$max_exposure" 'BEGIN { exit !(l <= m) }' ||
+        fail "exposure $level is above $max_exposure"
+    ;;
+devices)
+    # Every device class previsd opens is let through the device cgroup with the access it needs,
+    # and /dev is the real one. (The VM test devices_vm.sh checks the names against a kernel.)
+    [ "$(values PrivateDevices)" = "no" ] || fail "PrivateDevices= must be no (it hides /dev/video*)"
+    policy=$(values DevicePolicy)
+    [ "$policy" = "closed" ] || fail "DevicePolicy= is '$policy', expected closed"
+    allow=$(values DeviceAllow)
+    for need in "char-video4linux rw" "char-media rw" "char-drm rw" "char-gpiochip rw" "char-input r"; do
+        echo "$allow" | grep -qx "$need" || fail "no 'DeviceAllow=$need'"
+    done
+    groups=$(values SupplementaryGroups)
+    for g in video render input previs; do
+        echo " $groups " | grep -q " $g " || fail "SupplementaryGroups= lacks $g"
+    done
+    rule=$tmp/lib/udev/rules.d/60-previs-gpio.rules
+    grep -q 'KERNEL=="gpiochip\*".*GROUP="previs"' "$rule" || fail "$rule does not give gpiochip* to previs"
+    grep -qx 'g previs -' "$tmp/lib/sysusers.d/previs.conf" || fail "sysusers.d does not create group previs"
+    # Settings that would cut previsd off its devices or its JIT.
+    [ "$(values MemoryDenyWriteExecute)" != "yes" ] || fail "MemoryDenyWriteExecute=yes breaks llvmpipe"
+    echo "device access settings OK"
+    ;;
+*)
+    fail "unknown mode $mode"
+    ;;
+esac
