@@ -35,4 +35,20 @@ public:
     virtual std::string kind() const = 0;
 };
 
+// The service config's [output] table (docs/config-format.md).
+struct OutputSettings {
+    std::string kind = "none";  // "kms" | "files" | "none"
+    std::string folder{};       // files: where frame_NNNNNN.png go (created if missing)
+    std::string card{};         // kms: "" = first /dev/dri/card* with a connected connector;
+                                // "card0" or a path
+    std::string connector{};    // kms: "" = first connected, else a name like "Virtual-1"
+    std::string mode{};         // kms: "" = preferred, else "WIDTHxHEIGHT" or "WIDTHxHEIGHT@HZ"
+    bool forceLegacy = false;   // kms: legacy SetCrtc/PageFlip even where atomic works (tests)
+};
+
+// Builds the configured output. Errors are the user's (unknown kind, a folder that cannot be
+// created, a bad mode string, a connector or mode the present device does not have). A KMS
+// display that cannot be opened now is not an error: the output reports "lost" and retries.
+Result<std::unique_ptr<FrameOutput>> makeFrameOutput(const OutputSettings& settings);
+
 }  // namespace previs
