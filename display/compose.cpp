@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
-
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -34,8 +33,8 @@ void drawStatus(cv::Mat& image, const std::string& status) {
     const int thickness = std::max(1, static_cast<int>(std::lround(band / 20.0)));
     const cv::Size text = cv::getTextSize(status, font, scale, thickness, &baseline);
     const int y = image.rows - band + (band + text.height) / 2;
-    cv::putText(image, status, cv::Point(margin, y), font, scale,
-                cv::Scalar(255, 255, 255, 255), thickness, cv::LINE_AA);
+    cv::putText(image, status, cv::Point(margin, y), font, scale, cv::Scalar(255, 255, 255, 255),
+                thickness, cv::LINE_AA);
 }
 
 }  // namespace

@@ -18,8 +18,7 @@ Result<std::vector<uint32_t>> readScanout(const std::string& card, uint32_t* wid
     // Read-write: MAP_DUMB needs it. Not master while previsd is (and harmless if it becomes
     // one: nothing is committed).
     UniqueFD fd(::open(path.c_str(), O_RDWR | O_CLOEXEC));
-    if (!fd.isValid())
-        return makeError("{}: cannot open ({})", path, std::strerror(errno));
+    if (!fd.isValid()) return makeError("{}: cannot open ({})", path, std::strerror(errno));
     drm::ResourcesPtr res(drmModeGetResources(fd.get()));
     if (!res) return makeError("{}: not a KMS device", path);
 
@@ -32,8 +31,7 @@ Result<std::vector<uint32_t>> readScanout(const std::string& card, uint32_t* wid
 
     drm::FB2Ptr fb(drmModeGetFB2(fd.get(), fbId));
     if (!fb) return makeError("{}: GETFB2 of fb {} failed ({})", path, fbId, std::strerror(errno));
-    if (!fb->handles[0])
-        return makeError("{}: GETFB2 gave no buffer handle: run as root", path);
+    if (!fb->handles[0]) return makeError("{}: GETFB2 gave no buffer handle: run as root", path);
     // GETFB2 created a GEM handle in our file: close it whatever happens next.
     struct HandleCloser {
         int fd;
@@ -45,8 +43,7 @@ Result<std::vector<uint32_t>> readScanout(const std::string& card, uint32_t* wid
         }
     } closer{fd.get(), fb->handles[0]};
     if (fb->pixel_format != DRM_FORMAT_XRGB8888 && fb->pixel_format != DRM_FORMAT_ARGB8888)
-        return makeError("{}: fb {} has format {:#x}, not XRGB8888", path, fbId,
-                         fb->pixel_format);
+        return makeError("{}: fb {} has format {:#x}, not XRGB8888", path, fbId, fb->pixel_format);
 
     drm_mode_map_dumb map = {};
     map.handle = fb->handles[0];

@@ -7,11 +7,10 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
-#include <vector>
-
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <vector>
 
 #include "capture/unique_fd.h"
 #include "display/compose.h"
@@ -24,9 +23,10 @@ Result<std::unique_ptr<FilesOutput>> FilesOutput::create(const std::string& fold
     std::error_code ec;
     std::filesystem::create_directories(folder, ec);
     if (ec || !std::filesystem::is_directory(folder))
-        return makeError("output folder {}: cannot create it ({}): check the path and its "
-                         "permissions",
-                         folder, ec ? ec.message() : "not a directory");
+        return makeError(
+            "output folder {}: cannot create it ({}): check the path and its "
+            "permissions",
+            folder, ec ? ec.message() : "not a directory");
     return std::unique_ptr<FilesOutput>(new FilesOutput(folder));
 }
 

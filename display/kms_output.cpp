@@ -163,6 +163,12 @@ bool parseModeString(const std::string& text, uint32_t* width, uint32_t* height,
 
 // One opened display: the card's fd (DRM master), the chosen connector, CRTC, primary plane
 // and mode, and the two buffers. Declared in release order: buffers and blob before the fd.
+// Where a device reports completed flips (the output's counters outlive its devices).
+struct FlipCounters {
+    std::atomic<uint64_t>* flips;
+    std::atomic<uint32_t>* lastVblank;
+};
+
 class KmsDevice {
 public:
     enum class Failure { None, Unavailable, NoSuchConnector, UserError };
@@ -173,7 +179,7 @@ public:
     };
 
     static Opened open(const std::string& path, const OutputSettings& settings,
-                       std::vector<std::string>* connectorsSeen, std::atomic<uint64_t>* flips);
+                       std::vector<std::string>* connectorsSeen, FlipCounters counters);
     ~KmsDevice() { waitFlip(kFlipWaitMs); }
 
     // Draws and queues a flip. 0, -ETIMEDOUT (previous flip still pending: frame dropped) or
@@ -194,8 +200,8 @@ public:
     const std::string& connectorName() const { return connector_; }
 
 private:
-    KmsDevice(UniqueFD fd, std::string path, std::atomic<uint64_t>* flips)
-        : fd_(std::move(fd)), path_(std::move(path)), flips_(flips) {}
+    KmsDevice(UniqueFD fd, std::string path, FlipCounters counters)
+        : fd_(std::move(fd)), path_(std::move(path)), counters_(counters) {}
     Opened fail(Failure f, std::string message) { return {nullptr, f, std::move(message)}; }
     bool findAtomicProperties();
     int modeset();
@@ -203,7 +209,7 @@ private:
 
     UniqueFD fd_;
     std::string path_;
-    std::atomic<uint64_t>* flips_;
+    FlipCounters counters_;
     std::string connector_;
     uint32_t connectorId_ = 0;
     uint32_t crtcId_ = 0;
@@ -217,27 +223,26 @@ private:
     } prop_ = {};
     std::unique_ptr<PropertyBlob> modeBlob_;
     std::unique_ptr<DumbBuffer> buffers_[2];
-    int front_ = 0;  // the buffer being scanned out
+    int front_ = 0;           // the buffer being scanned out
     int pendingBuffer_ = -1;  // the buffer a queued flip will show, -1 = none
 };
 
 KmsDevice::Opened KmsDevice::open(const std::string& path, const OutputSettings& settings,
-                                  std::vector<std::string>* connectorsSeen,
-                                  std::atomic<uint64_t>* flips) {
+                                  std::vector<std::string>* connectorsSeen, FlipCounters counters) {
     UniqueFD fd(::open(path.c_str(), O_RDWR | O_CLOEXEC));
     if (!fd.isValid()) {
         const int err = errno;
         return {nullptr, Failure::Unavailable,
-                fmt::format("{}: cannot open ({}): connect a display or set [output] card",
-                            path, std::strerror(err))};
+                fmt::format("{}: cannot open ({}): connect a display or set [output] card", path,
+                            std::strerror(err))};
     }
-    std::unique_ptr<KmsDevice> d(new KmsDevice(std::move(fd), path, flips));
+    std::unique_ptr<KmsDevice> d(new KmsDevice(std::move(fd), path, counters));
     const int dfd = d->fd_.get();
 
     // Universal planes are what atomic commits address; without either, the legacy API.
     const bool universal = drmSetClientCap(dfd, DRM_CLIENT_CAP_UNIVERSAL_PLANES, 1) == 0;
-    d->atomic_ = !settings.forceLegacy && universal &&
-                 drmSetClientCap(dfd, DRM_CLIENT_CAP_ATOMIC, 1) == 0;
+    d->atomic_ =
+        !settings.forceLegacy && universal && drmSetClientCap(dfd, DRM_CLIENT_CAP_ATOMIC, 1) == 0;
 
     drm::ResourcesPtr res(drmModeGetResources(dfd));
     if (!res || res->count_crtcs == 0)
@@ -267,8 +272,7 @@ KmsDevice::Opened KmsDevice::open(const std::string& path, const OutputSettings&
                                        path, settings.connector));
         if (!settings.connector.empty()) return d->fail(Failure::NoSuchConnector, "");
         return d->fail(Failure::Unavailable,
-                       fmt::format("{}: no connector has a display connected: connect one",
-                                   path));
+                       fmt::format("{}: no connector has a display connected: connect one", path));
     }
     d->connector_ = drm::connectorName(*conn);
     d->connectorId_ = conn->connector_id;
@@ -294,8 +298,7 @@ KmsDevice::Opened KmsDevice::open(const std::string& path, const OutputSettings&
             }
             return d->fail(Failure::UserError,
                            fmt::format("{} {}: no mode \"{}\"; set [output] mode to one of: {}",
-                                       path, d->connector_, settings.mode,
-                                       fmt::join(names, ", ")));
+                                       path, d->connector_, settings.mode, fmt::join(names, ", ")));
         }
     }
     d->mode_ = *mode;
@@ -355,7 +358,9 @@ bool KmsDevice::findAtomicProperties() {
             planeId_ = plane->plane_id;
     }
     if (!planeId_) return false;
-    auto crtcProp = [&](const char* n) { return findProperty(fd, crtcId_, DRM_MODE_OBJECT_CRTC, n); };
+    auto crtcProp = [&](const char* n) {
+        return findProperty(fd, crtcId_, DRM_MODE_OBJECT_CRTC, n);
+    };
     auto planeProp = [&](const char* n) {
         return findProperty(fd, planeId_, DRM_MODE_OBJECT_PLANE, n);
     };
@@ -372,10 +377,9 @@ bool KmsDevice::findAtomicProperties() {
     prop_.crtcY = planeProp("CRTC_Y");
     prop_.crtcW = planeProp("CRTC_W");
     prop_.crtcH = planeProp("CRTC_H");
-    const uint32_t all[] = {prop_.crtcModeId, prop_.crtcActive, prop_.connCrtcId,
-                            prop_.planeFbId,  prop_.planeCrtcId, prop_.srcX,
-                            prop_.srcY,       prop_.srcW,        prop_.srcH,
-                            prop_.crtcX,      prop_.crtcY,       prop_.crtcW,
+    const uint32_t all[] = {prop_.crtcModeId,  prop_.crtcActive, prop_.connCrtcId, prop_.planeFbId,
+                            prop_.planeCrtcId, prop_.srcX,       prop_.srcY,       prop_.srcW,
+                            prop_.srcH,        prop_.crtcX,      prop_.crtcY,      prop_.crtcW,
                             prop_.crtcH};
     return std::all_of(std::begin(all), std::end(all), [](uint32_t id) { return id != 0; });
 }
@@ -417,11 +421,12 @@ int KmsDevice::modeset() {
     return 0;
 }
 
-void KmsDevice::onFlip(int, unsigned, unsigned, unsigned, void* data) {
+void KmsDevice::onFlip(int, unsigned sequence, unsigned, unsigned, void* data) {
     auto* d = static_cast<KmsDevice*>(data);
     if (d->pendingBuffer_ >= 0) d->front_ = d->pendingBuffer_;
     d->pendingBuffer_ = -1;
-    d->flips_->fetch_add(1);
+    d->counters_.lastVblank->store(sequence);
+    d->counters_.flips->fetch_add(1);
 }
 
 int KmsDevice::waitFlip(int timeoutMs) {
@@ -430,8 +435,8 @@ int KmsDevice::waitFlip(int timeoutMs) {
     events.version = 2;
     events.page_flip_handler = &KmsDevice::onFlip;
     while (pendingBuffer_ >= 0) {
-        const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
-            deadline - Clock::now());
+        const auto left =
+            std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now());
         if (left.count() <= 0) return -ETIMEDOUT;
         pollfd p = {fd_.get(), POLLIN, 0};
         const int n = poll(&p, 1, static_cast<int>(left.count()));
@@ -470,25 +475,26 @@ KmsOutput::~KmsOutput() = default;
 Result<std::unique_ptr<KmsOutput>> KmsOutput::create(const OutputSettings& settings) {
     uint32_t w = 0, h = 0, hz = 0;
     if (!settings.mode.empty() && !parseModeString(settings.mode, &w, &h, &hz))
-        return makeError("[output] mode \"{}\": expected \"WIDTHxHEIGHT\" or "
-                         "\"WIDTHxHEIGHT@HZ\" (e.g. \"1920x1080@60\"), or leave it out for the "
-                         "display's preferred mode",
-                         settings.mode);
+        return makeError(
+            "[output] mode \"{}\": expected \"WIDTHxHEIGHT\" or "
+            "\"WIDTHxHEIGHT@HZ\" (e.g. \"1920x1080@60\"), or leave it out for the "
+            "display's preferred mode",
+            settings.mode);
     std::unique_ptr<KmsOutput> out(new KmsOutput(settings));
     out->lastAttempt_ = Clock::now();
     out->lastConnectorCheck_ = out->lastAttempt_;
 
     const std::vector<std::string> cards =
         settings.card.empty() ? listCards() : std::vector{drm::cardPath(settings.card)};
-    std::string lastProblem = settings.card.empty()
-                                  ? "no DRM device (/dev/dri/card*): connect a display"
-                                  : "";
+    std::string lastProblem =
+        settings.card.empty() ? "no DRM device (/dev/dri/card*): connect a display" : "";
     std::vector<std::string> connectors;
     bool sawNoSuchConnector = false;
     bool sawUnavailable = false;
     for (const std::string& path : cards) {
         std::vector<std::string> seen;
-        auto opened = KmsDevice::open(path, settings, &seen, &out->flipsCompleted_);
+        auto opened =
+            KmsDevice::open(path, settings, &seen, {&out->flipsCompleted_, &out->lastVblank_});
         if (opened.device) {
             out->device_ = std::move(opened.device);
             out->lost_ = false;
@@ -530,7 +536,7 @@ void KmsOutput::retryOpen() {
         settings_.card.empty() ? listCards() : std::vector{drm::cardPath(settings_.card)};
     for (const std::string& path : cards) {
         std::vector<std::string> seen;
-        auto opened = KmsDevice::open(path, settings_, &seen, &flipsCompleted_);
+        auto opened = KmsDevice::open(path, settings_, &seen, {&flipsCompleted_, &lastVblank_});
         if (opened.device) {
             device_ = std::move(opened.device);
             lost_ = false;
@@ -551,8 +557,7 @@ Status KmsOutput::show(const DisplayFrame& frame) {
     if (now - lastConnectorCheck_ >= kConnectorCheckPeriod) {
         lastConnectorCheck_ = now;
         if (!device_->connected()) {
-            markLost(fmt::format("{}: display disconnected: reconnect it",
-                                 device_->describe()));
+            markLost(fmt::format("{}: display disconnected: reconnect it", device_->describe()));
             return {};
         }
     }

@@ -20,8 +20,10 @@ class KmsDevice;
 struct KmsCounters {
     uint64_t flipsCompleted = 0;  // vblank events for our page flips
     uint64_t framesDropped = 0;   // show() gave up: the previous flip was still pending
+    uint32_t lastVblank = 0;      // the CRTC's vblank sequence number of the last flip
 };
 
+// show() and kind() are the FrameOutput contract; counters() may be read from any thread.
 class KmsOutput : public FrameOutput {
 public:
     // Errors are the user's only: a bad mode string, or a connector or mode that the present
@@ -36,7 +38,11 @@ public:
     std::string kind() const override { return lost_ ? "lost" : "kms"; }
 
     // Thread-safe (the benchmark reads them while the display thread shows).
-    KmsCounters counters() const { return {flipsCompleted_.load(), framesDropped_.load()}; }
+    KmsCounters counters() const {
+        return {flipsCompleted_.load(), framesDropped_.load(), lastVblank_.load()};
+    }
+
+    // The methods below, like show(), belong to the thread that shows (the display thread).
 
     // Waits (bounded, ~100 ms) until no flip is pending, so what is scanned out is the last frame
     // shown. True when idle.
@@ -60,6 +66,7 @@ private:
     std::chrono::steady_clock::time_point lastConnectorCheck_;
     std::atomic<uint64_t> flipsCompleted_{0};
     std::atomic<uint64_t> framesDropped_{0};
+    std::atomic<uint32_t> lastVblank_{0};
 };
 
 // Parses an [output] mode string: "WIDTHxHEIGHT" or "WIDTHxHEIGHT@HZ" (hz 0 = any). False if

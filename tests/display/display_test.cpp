@@ -1,5 +1,4 @@
 #include <gtest/gtest.h>
-
 #include <unistd.h>
 
 #include <chrono>
@@ -8,11 +7,10 @@
 #include <fstream>
 #include <functional>
 #include <mutex>
-#include <thread>
-#include <vector>
-
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <thread>
+#include <vector>
 
 #include "display/compose.h"
 #include "display/display_thread.h"
@@ -233,8 +231,8 @@ TEST(KmsOutput, ModeStrings) {
     EXPECT_EQ(hz, 0u);
     EXPECT_TRUE(parseModeString("640x480@60", &w, &h, &hz));
     EXPECT_EQ(hz, 60u);
-    for (const char* bad : {"", "1920", "1920x", "x1080", "1920x1080@", "1920x1080@0",
-                            "1920x1080p", "0x480", "-640x480", " 640x480", "640x480@60x"})
+    for (const char* bad : {"", "1920", "1920x", "x1080", "1920x1080@", "1920x1080@0", "1920x1080p",
+                            "0x480", "-640x480", " 640x480", "640x480@60x"})
         EXPECT_FALSE(parseModeString(bad, &w, &h, &hz)) << bad;
 }
 
@@ -335,7 +333,7 @@ TEST(DisplayThread, ShowsNewestAndCountsDrops) {
     EXPECT_LE(s.lastShownNs, nowNs);
     EXPECT_EQ(output->shown(), (std::vector<uint64_t>{0, 3}));
     thread.stop();
-    thread.stop();  // idempotent
+    thread.stop();                   // idempotent
     thread.submit(indexedFrame(9));  // after stop: kept, never shown, no crash
 }
 

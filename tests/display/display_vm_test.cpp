@@ -5,10 +5,14 @@
 
 #include <gtest/gtest.h>
 
+#include <fcntl.h>
+
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <thread>
 
+#include "capture/unique_fd.h"
 #include "display/compose.h"
 #include "display/drm_readback.h"
 #include "display/kms_output.h"
@@ -96,8 +100,8 @@ void showAndCheck(KmsOutput& out, uint32_t modeW, uint32_t modeH, int salt) {
 }
 
 // N frames shown back to back: each flip waits for the previous one's vblank, so C completed
-// flips take at least (C−1) periods of 60 Hz (loose: 10% slack); a free-running loop would be
-// far faster on a 1024×768 dumb buffer.
+// flips advance the vblank counter by at least C and take at least (C−1) periods of 60 Hz
+// (10% slack for clock granularity).
 void checkPacing(KmsOutput& out, int frames) {
     const KmsCounters before = out.counters();
     const auto t0 = std::chrono::steady_clock::now();
@@ -107,16 +111,17 @@ void checkPacing(KmsOutput& out, int frames) {
         ASSERT_TRUE(out.show(f).ok());
     }
     ASSERT_TRUE(out.waitIdle());
-    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0)
-                               .count();
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     const KmsCounters after = out.counters();
     const uint64_t flips = after.flipsCompleted - before.flipsCompleted;
     const uint64_t dropped = after.framesDropped - before.framesDropped;
     std::printf("%d frames: %llu flips, %llu dropped, %.2f s (%.1f flips/s)\n", frames,
-                (unsigned long long)flips, (unsigned long long)dropped, seconds,
-                flips / seconds);
+                (unsigned long long)flips, (unsigned long long)dropped, seconds, flips / seconds);
     EXPECT_EQ(flips + dropped, uint64_t(frames));
     EXPECT_GE(flips, uint64_t(frames) / 2) << "most frames should flip";
+    // Each completed flip at a later vblank than the one before: never two flips per refresh.
+    EXPECT_GE(after.lastVblank - before.lastVblank, flips) << "two flips in one vblank";
     EXPECT_GE(seconds, 0.9 * double(flips - 1) / 60.0) << "flips faster than vblank";
     EXPECT_LT(seconds, 0.2 * frames + 5.0);
 }
@@ -149,6 +154,28 @@ TEST(KmsVm, ConfiguredMode) {
     out = open({.mode = "800x600@60", .forceLegacy = true});
     ASSERT_TRUE(out);
     showAndCheck(*out, 800, 600, 6);
+}
+
+// Another DRM master (a desktop, a second previsd) makes the output "lost" without failing;
+// when it goes, show() takes the display back on a later retry (every 2 s).
+TEST(KmsVm, LostWhileAnotherMasterThenBack) {
+    auto other = std::make_unique<UniqueFD>(::open(card().c_str(), O_RDWR | O_CLOEXEC));
+    ASSERT_TRUE(other->isValid());  // first opener: the kernel makes it master
+    auto made = KmsOutput::create({.kind = "kms", .card = card()});
+    ASSERT_TRUE(made.ok()) << made.message();
+    KmsOutput& out = **made;
+    EXPECT_EQ(out.kind(), "lost");
+    const DisplayFrame f = test::blockFrame(32, 18);
+    EXPECT_TRUE(out.show(f).ok());
+    EXPECT_EQ(out.kind(), "lost");
+    other.reset();
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+    while (out.kind() == "lost" && std::chrono::steady_clock::now() < deadline) {
+        EXPECT_TRUE(out.show(f).ok());
+        std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+    ASSERT_EQ(out.kind(), "kms");
+    showAndCheck(out, 1024, 768, 7);
 }
 
 TEST(KmsVm, AutomaticCard) {
