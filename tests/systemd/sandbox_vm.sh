@@ -1,0 +1,69 @@
+#!/bin/bash
+# In the test VM (../shared/vmtest with --udev and vimc): previsd.service's real sandbox, applied
+# by the real systemd. systemd runs as PID 1 of a fresh PID namespace (the VM's init is busybox),
+# with the unit plus a drop-in that only swaps ExecStart for sandbox_probe (and Type=oneshot, exit
+# the manager afterwards). The probe streams from a camera, queries the media device, becomes DRM
+# master, requests a GPIO line, reads an input device, and checks that the device cgroup refuses a
+# device DeviceAllow= does not list. Then `vulkaninfo --summary` runs under the same sandbox.
+# Usage: sandbox_vm.sh SOURCE_DIR PROBE_BINARY. Exits 77 outside the VM.
+set -euo pipefail
+[ -n "${VMTEST:-}" ] || { echo "not in the test VM (VMTEST unset): skipped"; exit 77; }
+src=$1
+probe=$2
+
+# What the box has after `cmake --install --prefix /usr` and systemd-sysusers: group previs and
+# the udev rule.
+getent group previs >/dev/null || groupadd --system previs
+cp "$src/systemd/60-previs-gpio.rules" /etc/udev/rules.d/
+udevadm control --reload
+udevadm trigger --action=add --subsystem-match=gpio
+udevadm settle --timeout=30
+# A node whose file mode lets anyone in: only the device cgroup can refuse it.
+chmod 0666 /dev/uinput
+
+# PrivateTmp= hides /tmp and the build tree may be unreadable for the dynamic user: /usr/local.
+install -m 755 "$probe" /usr/local/bin/previs-sandbox-probe
+cat >/usr/local/bin/previs-sandbox-check <<'EOT'
+#!/bin/sh
+echo "running as: $(id)"
+/usr/local/bin/previs-sandbox-probe || exit 1
+# The Vulkan loader reads /usr/share/vulkan, lavapipe initialises; Mesa's cache dir is writable.
+vulkaninfo --summary 2>&1 | grep -E "deviceName|driverName" || { echo "FAIL vulkaninfo"; exit 1; }
+echo "ok   vulkaninfo under the sandbox"
+touch "$MESA_SHADER_CACHE_DIR/probe" && echo "ok   $MESA_SHADER_CACHE_DIR writable" ||
+    { echo "FAIL $MESA_SHADER_CACHE_DIR not writable"; exit 1; }
+EOT
+chmod 755 /usr/local/bin/previs-sandbox-check
+
+sed -e 's|@PREVIS_BINDIR@|/usr/bin|; s|@PREVIS_CONFDIR@|/etc/previs|' \
+    -e 's|@PREVIS_DOCDIR@|/usr/share/doc/previs|' \
+    "$src/systemd/previsd.service.in" >/etc/systemd/system/previsd.service
+mkdir -p /etc/systemd/system/previsd.service.d
+cat >/etc/systemd/system/previsd.service.d/probe.conf <<'EOT'
+[Unit]
+DefaultDependencies=no
+SuccessAction=exit-force
+FailureAction=exit-force
+[Service]
+Type=oneshot
+Restart=no
+WatchdogSec=0
+ExecStart=
+ExecStart=/usr/local/bin/previs-sandbox-check
+StandardOutput=truncate:/run/previs-probe.log
+StandardError=inherit
+EOT
+
+# The manager's exit status is the service's (SuccessAction/FailureAction=exit-force).
+status=0
+container=vmtest timeout 150 unshare --pid --fork --mount-proc \
+    /lib/systemd/systemd --system --unit=previsd.service --log-target=console \
+    --log-level=warning </dev/null >/run/systemd-manager.log 2>&1 || status=$?
+cat /run/previs-probe.log 2>/dev/null || true
+if [ $status -ne 0 ]; then
+    echo "--- manager log"; cat /run/systemd-manager.log
+    echo "FAIL: previsd.service (probe) exited $status"
+    exit 1
+fi
+grep -q '^running as: uid=' /run/previs-probe.log || { echo "FAIL: the probe did not run"; exit 1; }
+echo "the unit's sandbox reaches every device: OK"
