@@ -235,28 +235,37 @@ void GpioButton::run() {
         if (!line_.line && !reopen()) return;
         const int lineFd = gpiod_line_event_get_fd(line_.line.get());
         pollfd fds[2] = {{lineFd, POLLIN, 0}, {stopFd_.get(), POLLIN, 0}};
-        // Wake at the classifier's next decision, and at least every kRetryMs to check the level.
+        // Wake at the classifier's next decision, when the level is due to be read back after a
+        // burst of edges, and at least every kRetryMs to check the line.
         int timeoutMs = kRetryMs;
-        if (auto deadline = classifier_.nextDeadlineNs()) {
+        std::optional<int64_t> deadline = classifier_.nextDeadlineNs();
+        if (resyncAtNs_ && (!deadline || *resyncAtNs_ < *deadline)) deadline = resyncAtNs_;
+        if (deadline) {
             const int64_t waitNs = *deadline - monotonicNs();
             timeoutMs = int(std::clamp<int64_t>((waitNs + 999'999) / 1'000'000, 0, kRetryMs));
         }
         const int ready = ::poll(fds, 2, timeoutMs);
         if (ready < 0 && errno == EINTR) continue;
         if (fds[1].revents) return;
-        bool lost = ready < 0 || (fds[0].revents & (POLLERR | POLLHUP | POLLNVAL));
-        errno = 0;
-        if (!lost) {
+        std::string lost;
+        if (ready < 0) {
+            lost = fmt::format("poll: {}", std::strerror(errno));
+        } else if (fds[0].revents & (POLLERR | POLLHUP | POLLNVAL)) {
+            lost = "its event fd hung up";
+        } else {
             // The clock first, then every edge queued by then: tick() never runs ahead of an
             // edge that already happened.
             const int64_t nowNs = monotonicNs();
-            const bool quiet = ready == 0;
-            lost = !readEvents() || (quiet && !resync(nowNs));
-            if (!lost) emit(classifier_.tick(nowNs));
+            if (!readEvents())
+                lost = fmt::format("reading edges: {}", std::strerror(errno));
+            else if (ready == 0 && !resync(nowNs))
+                lost = fmt::format("reading the line: {}", std::strerror(errno));
+            else
+                emit(classifier_.tick(nowNs));
         }
-        if (lost) {
+        if (!lost.empty()) {
             logWarning("button: lost {} ({}); looking for it again every {} s", description_,
-                       errno ? std::strerror(errno) : "the chip went away", kRetryMs / 1000);
+                       lost, kRetryMs / 1000);
             line_ = {};
             connected_ = false;
         }
@@ -265,7 +274,9 @@ void GpioButton::run() {
 
 bool GpioButton::readEvents() {
     gpiod_line_event events[kEventBatch];
-    for (;;) {
+    // A bounded drain: a line that never stops chattering must not keep the thread from
+    // noticing stop().
+    for (int batch = 0; batch < 8; ++batch) {
         pollfd fd{gpiod_line_event_get_fd(line_.line.get()), POLLIN, 0};
         const int ready = ::poll(&fd, 1, 0);
         if (ready < 0) return errno == EINTR;
@@ -276,14 +287,22 @@ bool GpioButton::readEvents() {
         for (int i = 0; i < n; ++i) {
             // Kernel timestamps (CLOCK_MONOTONIC since Linux 5.7), not our arrival time.
             const int64_t tsNs = int64_t(events[i].ts.tv_sec) * 1'000'000'000 + events[i].ts.tv_nsec;
+            // The last edge of a burst may be missing: the kernel's v1 queue holds 16 events,
+            // and gpio-sim (like other interrupt controllers) drops an edge that comes while the
+            // previous one is still being handled. So the level is read back once the line has
+            // been quiet for the debounce time, before anything is decided on it.
+            resyncAtNs_ = tsNs + std::max<int64_t>(int64_t(settings_.debounceMs) * 1'000'000,
+                                                   1'000'000);
             emit(classifier_.edge(tsNs, events[i].event_type == GPIOD_LINE_EVENT_RISING_EDGE));
         }
     }
+    return true;
 }
 
 bool GpioButton::resync(int64_t nowNs) {
-    // Linux 6.1 neither wakes nor fails a line's fd when its chip is removed (reads give 0);
-    // the chip fd's ioctls do fail (ENODEV), so ask it.
+    resyncAtNs_.reset();
+    // A removed chip hangs up the event fd (seen on Linux 6.1); asking the chip fd too (ENODEV
+    // once gone) catches a loss that did not wake us, at one ioctl a second.
     if (gpiod_line_update(line_.line.get()) < 0) return false;
     const int level = gpiod_line_get_value(line_.line.get());
     if (level < 0) return false;
@@ -314,7 +333,8 @@ bool GpioButton::reopen() {
         auto line = requestGpioLine(settings_.chip, settings_.line, GpioLineUse::BothEdges,
                                     settings_.activeLow);
         if (!line) {
-            if (!reported) logWarning("button: still away: {}", line.message());
+            // The loss was logged once already; the details only for debugging.
+            if (!reported) logDebug("button: still away: {}", line.message());
             reported = true;
             continue;
         }
@@ -322,6 +342,7 @@ bool GpioButton::reopen() {
         if (level < 0) continue;
         line_ = std::move(*line);
         classifier_.reset(monotonicNs(), level == 1);
+        resyncAtNs_.reset();
         connected_ = true;
         logInfo("button: {} is back", line_.description);
         return true;

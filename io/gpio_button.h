@@ -7,6 +7,7 @@
 #include <atomic>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <thread>
 
@@ -79,8 +80,8 @@ private:
     void run();
     // Reads pending edges into the classifier. False when the line is gone.
     bool readEvents();
-    // Feeds the line's current level when it differs from the classifier's (edges the kernel's
-    // 16-event queue dropped in a long bounce train). False when the line is gone.
+    // Feeds the line's current level when it differs from the classifier's (edges the kernel
+    // dropped in a bounce train). False when the line is gone.
     bool resync(int64_t nowNs);
     void emit(const std::vector<ButtonEvent>& events);
     // After the chip went away: retries every second until it is back or stop() is called.
@@ -92,6 +93,7 @@ private:
     const std::string description_;  // as first found (read by other threads)
     UniqueFD stopFd_;  // eventfd: stop() writes, the thread's poll() wakes
     PressClassifier classifier_;
+    std::optional<int64_t> resyncAtNs_;  // when to read the level back after a burst of edges
     std::atomic<bool> connected_{true};
     std::thread thread_;
 };

@@ -10,6 +10,11 @@
 #include "io/status_led.h"
 
 namespace previs {
+
+// Readable failures ("short press", not the enum's bytes); found by gtest through ADL.
+void PrintTo(ButtonEvent event, std::ostream* os);
+void PrintTo(ButtonEvent event, std::ostream* os) { *os << toString(event); }
+
 namespace {
 
 using Events = std::vector<ButtonEvent>;

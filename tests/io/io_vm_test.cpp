@@ -15,10 +15,16 @@
 #include <mutex>
 #include <thread>
 
+#include "base/log.h"
 #include "io/gpio_button.h"
 #include "io/status_led.h"
 
 namespace previs {
+
+// Readable failures ("short press", not the enum's bytes); found by gtest through ADL.
+void PrintTo(ButtonEvent event, std::ostream* os);
+void PrintTo(ButtonEvent event, std::ostream* os) { *os << toString(event); }
+
 namespace {
 
 using Clock = std::chrono::steady_clock;
@@ -241,15 +247,21 @@ TEST_F(IoVm, FiftyBouncesToggleOnce) {
                     ms(last - start), ms(longestGap));
         return longestGap;
     };
-    const auto pressGap = train(true);
-    std::this_thread::sleep_for(150ms);
-    const auto releaseGap = train(false);
-    if (std::max(pressGap, releaseGap) >= std::chrono::milliseconds(s.debounceMs))
-        GTEST_SKIP() << "the VM stalled for longer than the debounce time inside a bounce "
-                        "train: it was not a bounce train";
-    EXPECT_EQ(log.waitFor(1), Events{ButtonEvent::ShortPress});
+    // Three presses: an edge lost at the end of a train is a matter of timing, so one press
+    // could pass by luck.
+    constexpr size_t kPresses = 3;
+    auto longestGap = Clock::duration::zero();
+    for (size_t press = 1; press <= kPresses; ++press) {
+        longestGap = std::max(longestGap, train(true));
+        std::this_thread::sleep_for(150ms);
+        longestGap = std::max(longestGap, train(false));
+        if (longestGap >= std::chrono::milliseconds(s.debounceMs))
+            GTEST_SKIP() << "the VM stalled for longer than the debounce time inside a bounce "
+                            "train: it was not a bounce train";
+        EXPECT_EQ(log.waitFor(press).size(), press);
+    }
     std::this_thread::sleep_for(kQuietTime);
-    EXPECT_EQ(log.events(), Events{ButtonEvent::ShortPress});
+    EXPECT_EQ(log.events(), Events(kPresses, ButtonEvent::ShortPress));
 }
 
 TEST_F(IoVm, HoldIsALongPressAtTheThreshold) {
@@ -379,5 +391,7 @@ int main(int argc, char** argv) {
         return 77;
     }
     testing::InitGoogleTest(&argc, argv);
+    // IO_TRACE=1: the button's debug log too (presses, levels read back after dropped edges).
+    if (std::getenv("IO_TRACE")) previs::setLogLevel(previs::LogLevel::Debug);
     return RUN_ALL_TESTS();
 }
