@@ -21,7 +21,9 @@ struct DisplayStats {
     uint64_t dropped = 0;     // replaced by a newer frame before the thread took it
     uint64_t failed = 0;      // show() returned an error, or the output was lost
     std::string kind;         // the output's kind() after its last show ("kms", "lost", ...)
-    int64_t lastShownNs = 0;  // steady clock (CLOCK_MONOTONIC) when the last show() returned
+    // Steady clock (CLOCK_MONOTONIC, as captureTimestampNs) when the last show() returned; for
+    // KMS the flip is then queued and on screen at the next vblank (≤ one refresh later).
+    int64_t lastShownNs = 0;
     int64_t lastCaptureTimestampNs = 0;  // that frame's captureTimestampNs
     uint64_t lastIndex = 0;              // that frame's index
 };
