@@ -96,8 +96,8 @@ Result<ChipPtr> openChip(const std::string& name) {
         ChipPtr chip(gpiod_chip_open(name.c_str()));
         if (!chip) {
             const int err = errno;
-            return makeError("gpio: cannot open chip {}: {}{}; chips: {}", name,
-                             std::strerror(err), openHint(err), listChips());
+            return makeError("gpio: cannot open chip {}: {}{}; chips: {}", name, std::strerror(err),
+                             openHint(err), listChips());
         }
         return chip;
     }
@@ -106,8 +106,8 @@ Result<ChipPtr> openChip(const std::string& name) {
         ChipPtr chip(gpiod_chip_open(path.c_str()));
         if (!chip) {
             const int err = errno;
-            failures += fmt::format("; cannot open {}: {}{}", path, std::strerror(err),
-                                    openHint(err));
+            failures +=
+                fmt::format("; cannot open {}: {}{}", path, std::strerror(err), openHint(err));
             continue;
         }
         if (name == gpiod_chip_name(chip.get()) || name == gpiod_chip_label(chip.get()))
@@ -118,9 +118,9 @@ Result<ChipPtr> openChip(const std::string& name) {
 }
 
 Result<gpiod_line*> findLine(gpiod_chip* chip, const std::string& line) {
-    const bool isOffset = !line.empty() && line.size() <= 9 &&
-                          std::all_of(line.begin(), line.end(),
-                                      [](char c) { return c >= '0' && c <= '9'; });
+    const bool isOffset =
+        !line.empty() && line.size() <= 9 &&
+        std::all_of(line.begin(), line.end(), [](char c) { return c >= '0' && c <= '9'; });
     const unsigned count = gpiod_chip_num_lines(chip);
     if (isOffset) {
         const unsigned offset = unsigned(std::stoul(line));
@@ -168,9 +168,10 @@ Result<GpioLine> requestGpioLine(const std::string& chipName, const std::string&
         if (err == EBUSY) {
             gpiod_line_update(*line);
             const char* user = gpiod_line_consumer(*line);
-            return makeError("gpio: {} is busy (used by '{}'); stop the program holding it "
-                             "(gpioinfo lists users)",
-                             description, user ? user : "?");
+            return makeError(
+                "gpio: {} is busy (used by '{}'); stop the program holding it "
+                "(gpioinfo lists users)",
+                description, user ? user : "?");
         }
         return makeError("gpio: cannot request {} as {}: {}{}", description,
                          use == GpioLineUse::BothEdges ? "input with edge events" : "output",
@@ -186,14 +187,15 @@ Result<GpioLine> requestGpioLine(const std::string& chipName, const std::string&
 Result<std::unique_ptr<GpioButton>> GpioButton::create(const ButtonSettings& settings,
                                                        std::function<void(ButtonEvent)> onEvent) {
     if (settings.debounceMs < 0 || settings.debounceMs > 1000)
-        return makeError("button: debounce_ms {} is out of range: give 0-1000 (20 suits most "
-                         "switches)",
-                         settings.debounceMs);
+        return makeError(
+            "button: debounce_ms {} is out of range: give 0-1000 (20 suits most "
+            "switches)",
+            settings.debounceMs);
     if (settings.longPressMs <= settings.debounceMs)
         return makeError("button: long_press_ms {} must be longer than debounce_ms {}",
                          settings.longPressMs, settings.debounceMs);
-    auto line = requestGpioLine(settings.chip, settings.line, GpioLineUse::BothEdges,
-                                settings.activeLow);
+    auto line =
+        requestGpioLine(settings.chip, settings.line, GpioLineUse::BothEdges, settings.activeLow);
     if (!line) return line.error();
     UniqueFD stopFd(eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK));
     if (!stopFd.isValid())
@@ -264,8 +266,8 @@ void GpioButton::run() {
                 emit(classifier_.tick(nowNs));
         }
         if (!lost.empty()) {
-            logWarning("button: lost {} ({}); looking for it again every {} s", description_,
-                       lost, kRetryMs / 1000);
+            logWarning("button: lost {} ({}); looking for it again every {} s", description_, lost,
+                       kRetryMs / 1000);
             line_ = {};
             connected_ = false;
         }
@@ -286,13 +288,14 @@ bool GpioButton::readEvents() {
         if (n < 0) return false;
         for (int i = 0; i < n; ++i) {
             // Kernel timestamps (CLOCK_MONOTONIC since Linux 5.7), not our arrival time.
-            const int64_t tsNs = int64_t(events[i].ts.tv_sec) * 1'000'000'000 + events[i].ts.tv_nsec;
+            const int64_t tsNs =
+                int64_t(events[i].ts.tv_sec) * 1'000'000'000 + events[i].ts.tv_nsec;
             // The last edge of a burst may be missing: the kernel's v1 queue holds 16 events,
             // and gpio-sim (like other interrupt controllers) drops an edge that comes while the
             // previous one is still being handled. So the level is read back once the line has
             // been quiet for the debounce time, before anything is decided on it.
-            resyncAtNs_ = tsNs + std::max<int64_t>(int64_t(settings_.debounceMs) * 1'000'000,
-                                                   1'000'000);
+            resyncAtNs_ =
+                tsNs + std::max<int64_t>(int64_t(settings_.debounceMs) * 1'000'000, 1'000'000);
             emit(classifier_.edge(tsNs, events[i].event_type == GPIOD_LINE_EVENT_RISING_EDGE));
         }
     }

@@ -41,12 +41,12 @@ enum class GpioLineUse { BothEdges, Output };
 // ("gpiochip0") or a label ("vmtest"); `line`: a line name ("mode-button") or an offset ("5").
 // An output starts at logical `initialOn`. The error names what was asked for and lists what
 // exists.
-Result<GpioLine> requestGpioLine(const std::string& chip, const std::string& line,
-                                 GpioLineUse use, bool activeLow, bool initialOn = false);
+Result<GpioLine> requestGpioLine(const std::string& chip, const std::string& line, GpioLineUse use,
+                                 bool activeLow, bool initialOn = false);
 
 struct ButtonSettings {
-    std::string chip;  // path "/dev/gpiochip0", name "gpiochip0" or label "vmtest"
-    std::string line;  // name "mode-button" or offset "5"
+    std::string chip;        // path "/dev/gpiochip0", name "gpiochip0" or label "vmtest"
+    std::string line;        // name "mode-button" or offset "5"
     bool activeLow = false;  // pressed = line low (a button to ground with a pull-up)
     int debounceMs = 20;     // a level counts once it has been stable this long
     int longPressMs = 1500;  // held this long: LongPress (at the threshold), no ShortPress
@@ -89,9 +89,9 @@ private:
 
     ButtonSettings settings_;
     std::function<void(ButtonEvent)> onEvent_;
-    GpioLine line_;  // empty while the chip is away
+    GpioLine line_;                  // empty while the chip is away
     const std::string description_;  // as first found (read by other threads)
-    UniqueFD stopFd_;  // eventfd: stop() writes, the thread's poll() wakes
+    UniqueFD stopFd_;                // eventfd: stop() writes, the thread's poll() wakes
     PressClassifier classifier_;
     std::optional<int64_t> resyncAtNs_;  // when to read the level back after a burst of edges
     std::atomic<bool> connected_{true};

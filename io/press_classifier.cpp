@@ -8,10 +8,10 @@ namespace previs {
 
 const char* toString(ButtonEvent event) {
     switch (event) {
-    case ButtonEvent::ShortPress:
-        return "short press";
-    case ButtonEvent::LongPress:
-        return "long press";
+        case ButtonEvent::ShortPress:
+            return "short press";
+        case ButtonEvent::LongPress:
+            return "long press";
     }
     return "?";
 }
@@ -58,8 +58,8 @@ void PressClassifier::advance(int64_t nowNs, std::vector<ButtonEvent>& out) {
     if (raw_ != stable_ && nowNs >= rawSinceNs_ + debounceNs_) {
         stable_ = raw_;
         if (stable_) {
-            // The press began at its first edge, not when it was confirmed: the hold time is
-            // what the user did.
+            // The hold is timed from the edge that began the stable level, not from when it
+            // was confirmed: the hold time is what the user did.
             pressStartNs_ = rawSinceNs_;
             pressConsumed_ = false;
         } else if (!pressConsumed_) {

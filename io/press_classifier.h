@@ -50,7 +50,7 @@ private:
     bool raw_ = false;
     int64_t rawSinceNs_ = 0;  // when raw_ last changed
     bool stable_ = false;
-    int64_t pressStartNs_ = 0;  // first edge of the current debounced press
+    int64_t pressStartNs_ = 0;    // the edge that began the current debounced press
     bool pressConsumed_ = false;  // long press fired (or press ignored): its release says nothing
     int64_t lastNs_ = 0;
 };

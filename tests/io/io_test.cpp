@@ -138,9 +138,9 @@ TEST(PressClassifier, BouncesWithoutTicksAreDecidedByTheNextEdge) {
     // A loaded machine: the thread never woke at the deadlines, only edges arrive.
     PressClassifier c = makeClassifier();
     EXPECT_EQ(bounce(c, ms(100), 100 * kUs, 51, true), Events{});
-    EXPECT_EQ(c.edge(ms(300), false), Events{});  // confirms the press, starts the release
+    EXPECT_EQ(c.edge(ms(300), false), Events{});       // confirms the press, starts the release
     EXPECT_EQ(c.edge(ms(900), true), Events{kShort});  // confirms the release first
-    EXPECT_EQ(c.edge(ms(905), false), Events{});  // a 5 ms glitch: no press
+    EXPECT_EQ(c.edge(ms(905), false), Events{});       // a 5 ms glitch: no press
     EXPECT_EQ(c.tick(ms(2000)), Events{});
 }
 
@@ -207,7 +207,7 @@ TEST(PressClassifier, GlitchAcrossTheThresholdDelaysTheLongPressToTheReturn) {
     c.edge(ms(100), true);
     c.tick(ms(200));
     EXPECT_EQ(c.edge(ms(1590), false), Events{});
-    EXPECT_EQ(c.tick(ms(1600)), Events{});  // released at the threshold: undecided
+    EXPECT_EQ(c.tick(ms(1600)), Events{});             // released at the threshold: undecided
     EXPECT_EQ(c.edge(ms(1605), true), Events{kLong});  // back after 15 ms: it was a glitch
 }
 

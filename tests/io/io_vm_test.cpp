@@ -111,7 +111,8 @@ public:
         };
     }
     // Waits until `count` events have arrived (or the timeout) and returns what has.
-    std::vector<ButtonEvent> waitFor(size_t count, std::chrono::milliseconds timeout = kEventTimeout) {
+    std::vector<ButtonEvent> waitFor(size_t count,
+                                     std::chrono::milliseconds timeout = kEventTimeout) {
         std::unique_lock lock(mutex_);
         cv_.wait_for(lock, timeout, [&] { return events_.size() >= count; });
         return events_;
@@ -168,8 +169,7 @@ TEST_F(IoVm, OpensByPathAndOffset) {
     s.line = std::to_string(button_.offset());
     auto b = GpioButton::create(s, {});
     ASSERT_TRUE(b) << b.message();
-    EXPECT_NE((*b)->description().find("'mode-button'"), std::string::npos)
-        << (*b)->description();
+    EXPECT_NE((*b)->description().find("'mode-button'"), std::string::npos) << (*b)->description();
 }
 
 TEST_F(IoVm, OpensByChipName) {
@@ -243,8 +243,8 @@ TEST_F(IoVm, FiftyBouncesToggleOnce) {
             last = now;
         }
         const auto ms = [](auto d) { return std::chrono::duration<double, std::milli>(d).count(); };
-        std::printf("bounce train: 51 writes in %.2f ms, longest gap %.2f ms\n",
-                    ms(last - start), ms(longestGap));
+        std::printf("bounce train: 51 writes in %.2f ms, longest gap %.2f ms\n", ms(last - start),
+                    ms(longestGap));
         return longestGap;
     };
     // Three presses: an edge lost at the end of a train is a matter of timing, so one press
