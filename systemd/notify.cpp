@@ -1,5 +1,6 @@
 #include "systemd/notify.h"
 
+#include <fmt/format.h>
 #include <systemd/sd-daemon.h>
 
 #include <atomic>
@@ -8,8 +9,6 @@
 #include <cstring>
 #include <ctime>
 #include <string>
-
-#include <fmt/format.h>
 
 #include "base/log.h"
 
@@ -25,10 +24,11 @@ void send(const std::string& message) {
     // Atomic: the render thread feeds the watchdog while others send status.
     static std::atomic<bool> warned{false};
     if (!warned.exchange(true)) {
-        logWarning("cannot notify systemd through NOTIFY_SOCKET ({}): {}; further failures are "
-                   "not logged",
-                   std::getenv("NOTIFY_SOCKET") ? std::getenv("NOTIFY_SOCKET") : "unset",
-                   std::strerror(-ret));
+        logWarning(
+            "cannot notify systemd through NOTIFY_SOCKET ({}): {}; further failures are "
+            "not logged",
+            std::getenv("NOTIFY_SOCKET") ? std::getenv("NOTIFY_SOCKET") : "unset",
+            std::strerror(-ret));
     }
 }
 
@@ -51,8 +51,8 @@ void notifyReloading() {
     // CLOCK_MONOTONIC in microseconds, as the manager compares it with its own clock.
     timespec now{};
     clock_gettime(CLOCK_MONOTONIC, &now);
-    uint64_t usec = static_cast<uint64_t>(now.tv_sec) * 1000000u +
-                    static_cast<uint64_t>(now.tv_nsec) / 1000u;
+    uint64_t usec =
+        static_cast<uint64_t>(now.tv_sec) * 1000000u + static_cast<uint64_t>(now.tv_nsec) / 1000u;
     send(fmt::format("RELOADING=1\nMONOTONIC_USEC={}", usec));
 }
 

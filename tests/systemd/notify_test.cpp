@@ -1,6 +1,9 @@
 // The sd_notify wrapper against a real AF_UNIX datagram socket standing in for the service
 // manager's notification socket (the protocol is just datagrams on a socket: sd_notify(3)).
 
+#include "systemd/notify.h"
+
+#include <gtest/gtest.h>
 #include <sys/socket.h>
 #include <sys/un.h>
 #include <unistd.h>
@@ -11,10 +14,7 @@
 #include <optional>
 #include <string>
 
-#include <gtest/gtest.h>
-
 #include "capture/unique_fd.h"
-#include "systemd/notify.h"
 
 namespace previs {
 namespace {

@@ -95,8 +95,8 @@ void display(const char* path) {
     int master = drmSetMaster(fd.get());
     report(master == 0 && drmIsMaster(fd.get()), "display: DRM master on /dev/dri/card0",
            master ? errno : 0);
-    std::unique_ptr<drmModeRes, decltype(&drmModeFreeResources)> res(
-        drmModeGetResources(fd.get()), drmModeFreeResources);
+    std::unique_ptr<drmModeRes, decltype(&drmModeFreeResources)> res(drmModeGetResources(fd.get()),
+                                                                     drmModeFreeResources);
     report(res && res->count_connectors > 0, "display: KMS resources with a connector",
            res ? 0 : errno);
 }
@@ -137,8 +137,8 @@ void refused(const char* path) {
 // llvmpipe/lavapipe JIT-compiles shaders into writable, then executable memory: the reason the
 // unit leaves MemoryDenyWriteExecute= off.
 void jitMemory() {
-    void* p = mmap(nullptr, 4096, PROT_READ | PROT_WRITE | PROT_EXEC, MAP_PRIVATE | MAP_ANONYMOUS,
-                   -1, 0);
+    void* p =
+        mmap(nullptr, 4096, PROT_READ | PROT_WRITE | PROT_EXEC, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
     report(p != MAP_FAILED, "writable+executable memory (llvmpipe JIT)",
            p == MAP_FAILED ? errno : 0);
     if (p != MAP_FAILED) munmap(p, 4096);
