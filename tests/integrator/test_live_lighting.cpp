@@ -318,7 +318,9 @@ TEST_F(LiveLightingTest, ConeLightOnLambertianFloorIsExact) {
         double solidAngleSr;
         float radiance;
     };
-    for (Case c : {Case{1e-4, 1e4f}, Case{0.05, 20.0f}, Case{2.0 * kPi * (1.0 - std::cos(kPi / 6)), 2.0f}}) {
+    // A texel-sized cone (cos θmax rounds to 1 in float), a lamp, and a 30° half-angle cone.
+    const double wideSr = 2.0 * kPi * (1.0 - std::cos(kPi / 6));
+    for (Case c : {Case{1e-4, 1e4f}, Case{0.05, 20.0f}, Case{wideSr, 2.0f}}) {
         EstimatedLightSource light{{0.0f, 1.0f, 0.0f}, float(c.solidAngleSr),
                                    glm::vec3(c.radiance)};
         ASSERT_TRUE(r->setEstimatedLights(std::span(&light, 1)).ok());
