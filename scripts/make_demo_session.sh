@@ -1,0 +1,28 @@
+#!/bin/sh
+# Regenerates examples/demo/ — scene.gltf, scene.bin, board.png and the recorded session in
+# examples/demo/session/ — with previs's own path tracer (bench/make_demo_session.cpp). Fixed
+# seeds: the same build on the same device gives the same files. About 10-15 minutes on 2 CPU
+# cores with lavapipe.
+#
+#   scripts/make_demo_session.sh [BUILD_DIR]      (default: build)
+set -eu
+here=$(cd "$(dirname "$0")/.." && pwd)
+build=${1:-$here/build}
+data=${PREVIS_SHARED_DATA:-}
+if [ -z "$data" ]; then
+    for candidate in "$here/../shared/data" /work/shared/data; do
+        if [ -f "$candidate/README.md" ]; then data=$candidate; break; fi
+    done
+fi
+env_map=$data/envmaps/polyhaven_1k_hdr/studio_small_03_1k.hdr
+if [ ! -f "$env_map" ]; then
+    echo "make_demo_session.sh: $env_map not found (set PREVIS_SHARED_DATA to the shared data folder)" >&2
+    exit 2
+fi
+if [ ! -f "$build/CMakeCache.txt" ]; then
+    cmake -S "$here" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo
+fi
+cmake --build "$build" --target make_demo_session
+"$build/bench/make_demo_session" --demo-dir "$here/examples/demo" --env "$env_map" \
+    --env-scale 0.6 --moving-spp 16 --still-spp 128 --max-depth 3
+du -sh "$here/examples/demo"
