@@ -3,9 +3,11 @@
 
 #include "base/log.h"
 #include "cli/bench_command.h"
+#include "cli/ctl_command.h"
 #include "cli/envmap_command.h"
 #include "cli/lights_command.h"
 #include "cli/render_command.h"
+#include "cli/replay_command.h"
 #include "cli/track_command.h"
 
 int main(int argc, char** argv) {
@@ -16,6 +18,8 @@ int main(int argc, char** argv) {
     auto runEnvmap = previs::addEnvmapCommand(app);
     auto runLights = previs::addLightsCommand(app);
     auto runBench = previs::addBenchCommand(app);
+    auto runReplay = previs::addReplayCommand(app);
+    auto runCtl = previs::addCtlCommand(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
@@ -28,5 +32,7 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("envmap")) return runEnvmap();
     if (app.got_subcommand("lights")) return runLights();
     if (app.got_subcommand("bench")) return runBench();
+    if (app.got_subcommand("replay")) return runReplay();
+    if (app.got_subcommand("ctl")) return runCtl();
     return 2;
 }

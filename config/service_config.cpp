@@ -1,6 +1,9 @@
 #include "config/service_config.h"
 
+#include <cstdio>
+#include <cstdlib>
 #include <exception>
+#include <functional>
 #include <filesystem>
 #include <limits>
 
@@ -19,6 +22,7 @@ constexpr const char* kWhat = "service config";
 class ConfigReader {
 public:
     explicit ConfigReader(const std::string& path) : r_(path, kWhat) {}
+    void setFolder(const std::string& folder) { r_.setFolder(folder); }
 
     Result<ServiceConfig> read(const toml::table& root);
 
@@ -42,6 +46,13 @@ private:
                            InverseToneMapSettings& s) const;
     Status parseTracking(const toml::table& t, TrackingConfig& c) const;
     Status parseLighting(const toml::table& t, LightingConfig& c) const;
+    Status parseRender(const toml::table& t, RenderConfig& c) const;
+    Status parseRefine(const toml::table& t, RefineConfig& c) const;
+    Status parseOutput(const toml::table& t, OutputConfig& c) const;
+    Status parseButton(const toml::table& t, ButtonConfig& c) const;
+    Status parseControl(const toml::table& t, ControlConfig& c) const;
+    Status stringKey(const toml::table& t, std::string_view section, std::string_view key,
+                     std::string& value) const;
 
     TomlReader r_;
 };
@@ -380,9 +391,142 @@ Status ConfigReader::parseLighting(const toml::table& t, LightingConfig& c) cons
     return {};
 }
 
+Status ConfigReader::stringKey(const toml::table& t, std::string_view section,
+                               std::string_view key, std::string& value) const {
+    Result<std::optional<std::string>> v = r_.string(t, section, key);
+    if (!v) return v.error();
+    if (*v) value = **v;
+    return {};
+}
+
+Status ConfigReader::parseRender(const toml::table& t, RenderConfig& c) const {
+    if (Status st = r_.checkKeys(t, "render",
+                                 {"width", "height", "samples_per_frame", "max_depth", "seed"});
+        !st)
+        return st;
+    int64_t width = c.width, height = c.height, spp = c.samplesPerFrame, depth = c.maxDepth,
+            seed = c.seed;
+    if (Status st = integerIn(t, "render", "width", width, 0, 16384); !st) return st;
+    if (Status st = integerIn(t, "render", "height", height, 0, 16384); !st) return st;
+    if ((width == 0) != (height == 0))
+        return fail(&t, "[render] needs both 'width' and 'height', or neither (the scene "
+                        "camera's size)");
+    if (Status st = integerIn(t, "render", "samples_per_frame", spp, 1, 65536); !st) return st;
+    if (Status st = integerIn(t, "render", "max_depth", depth, 1, 1024); !st) return st;
+    if (Status st = integerIn(t, "render", "seed", seed, 0, 0xffffffffLL); !st) return st;
+    c.width = uint32_t(width);
+    c.height = uint32_t(height);
+    c.samplesPerFrame = uint32_t(spp);
+    c.maxDepth = uint32_t(depth);
+    c.seed = uint32_t(seed);
+    return {};
+}
+
+Status ConfigReader::parseRefine(const toml::table& t, RefineConfig& c) const {
+    if (Status st = r_.checkKeys(t, "refine",
+                                 {"samples_per_step", "max_samples", "pose_threshold_m",
+                                  "pose_threshold_deg", "lighting_threshold"});
+        !st)
+        return st;
+    int64_t step = c.samplesPerStep, maxSamples = int64_t(c.maxSamples);
+    if (Status st = integerIn(t, "refine", "samples_per_step", step, 1, 65536); !st) return st;
+    if (Status st = integerIn(t, "refine", "max_samples", maxSamples, 0, int64_t(1) << 40); !st)
+        return st;
+    c.samplesPerStep = uint32_t(step);
+    c.maxSamples = uint64_t(maxSamples);
+    if (Status st = ranged(t, "refine", "pose_threshold_m", c.poseThresholdM, 0.0, 1e6); !st)
+        return st;
+    if (Status st = ranged(t, "refine", "pose_threshold_deg", c.poseThresholdDeg, 0.0, 180.0);
+        !st)
+        return st;
+    if (Status st = ranged(t, "refine", "lighting_threshold", c.lightingThreshold, 0.0, 1e6); !st)
+        return st;
+    return {};
+}
+
+Status ConfigReader::parseOutput(const toml::table& t, OutputConfig& c) const {
+    if (Status st = r_.checkKeys(t, "output", {"kind", "folder", "card", "connector", "mode"});
+        !st)
+        return st;
+    std::string kind = "none";
+    if (Status st = stringKey(t, "output", "kind", kind); !st) return st;
+    if (kind == "none")
+        c.kind = OutputKind::None;
+    else if (kind == "files")
+        c.kind = OutputKind::Files;
+    else if (kind == "kms")
+        c.kind = OutputKind::Kms;
+    else
+        return fail(t.get("kind"), "'output.kind' is '{}'; use kms, files or none", kind);
+    for (auto [key, field] : {std::pair<const char*, std::string*>{"folder", &c.folder},
+                              std::pair<const char*, std::string*>{"card", &c.card},
+                              std::pair<const char*, std::string*>{"connector", &c.connector},
+                              std::pair<const char*, std::string*>{"mode", &c.mode}}) {
+        if (Status st = stringKey(t, "output", key, *field); !st) return st;
+    }
+    if (c.kind == OutputKind::Files) {
+        if (c.folder.empty())
+            return fail(&t, "[output] kind = \"files\" needs 'folder' (where the PNG frames go)");
+        c.folder = (r_.folder() / fs::path(c.folder)).lexically_normal().string();
+    }
+    if (!c.mode.empty()) {
+        unsigned w = 0, h = 0, hz = 0;
+        char tail = 0;
+        const int n = std::sscanf(c.mode.c_str(), "%ux%u@%u%c", &w, &h, &hz, &tail);
+        if (!(n == 2 || n == 3) || w == 0 || h == 0)
+            return fail(t.get("mode"), "'output.mode' is '{}'; use WIDTHxHEIGHT or "
+                                       "WIDTHxHEIGHT@HZ, e.g. \"1920x1080@60\"",
+                        c.mode);
+    }
+    return {};
+}
+
+Status ConfigReader::parseButton(const toml::table& t, ButtonConfig& c) const {
+    if (Status st = r_.checkKeys(t, "button",
+                                 {"chip", "line", "active_low", "debounce_ms", "long_press_ms",
+                                  "led_chip", "led_line", "led_active_low"});
+        !st)
+        return st;
+    for (auto [key, field] : {std::pair<const char*, std::string*>{"chip", &c.chip},
+                              std::pair<const char*, std::string*>{"line", &c.line},
+                              std::pair<const char*, std::string*>{"led_chip", &c.ledChip},
+                              std::pair<const char*, std::string*>{"led_line", &c.ledLine}}) {
+        if (Status st = stringKey(t, "button", key, *field); !st) return st;
+    }
+    if (c.chip.empty() || c.line.empty())
+        return fail(&t, "[button] needs 'chip' (path, name or label, e.g. \"gpiochip0\") and "
+                        "'line' (name or offset, e.g. \"mode-button\")");
+    for (auto [key, field] : {std::pair<const char*, bool*>{"active_low", &c.activeLow},
+                              std::pair<const char*, bool*>{"led_active_low", &c.ledActiveLow}}) {
+        Result<std::optional<bool>> b = r_.boolean(t, "button", key);
+        if (!b) return b.error();
+        if (*b) *field = **b;
+    }
+    int64_t debounce = c.debounceMs, longPress = c.longPressMs;
+    if (Status st = integerIn(t, "button", "debounce_ms", debounce, 0, 1000); !st) return st;
+    if (Status st = integerIn(t, "button", "long_press_ms", longPress, 100, 60000); !st) return st;
+    if (longPress <= debounce)
+        return fail(t.get("long_press_ms"), "'button.long_press_ms' ({}) must be longer than "
+                                            "'button.debounce_ms' ({})",
+                    longPress, debounce);
+    c.debounceMs = int(debounce);
+    c.longPressMs = int(longPress);
+    if (c.ledChip.empty()) c.ledChip = c.chip;
+    return {};
+}
+
+Status ConfigReader::parseControl(const toml::table& t, ControlConfig& c) const {
+    if (Status st = r_.checkKeys(t, "control", {"socket"}); !st) return st;
+    if (Status st = stringKey(t, "control", "socket", c.socketPath); !st) return st;
+    if (!c.socketPath.empty())
+        c.socketPath = (r_.folder() / fs::path(c.socketPath)).lexically_normal().string();
+    return {};
+}
+
 Result<ServiceConfig> ConfigReader::read(const toml::table& root) {
     if (Status st = r_.checkKeys(root, "",
-                                 {"version", "scene", "cameras", "tracking", "lighting"});
+                                 {"version", "scene", "cameras", "tracking", "lighting", "render",
+                                  "refine", "output", "button", "control", "session"});
         !st)
         return st.error();
     const toml::node* version = root.get("version");
@@ -448,6 +592,37 @@ Result<ServiceConfig> ConfigReader::read(const toml::table& root) {
     if (*lighting) {
         if (Status st = parseLighting(**lighting, config.lighting); !st) return st.error();
     }
+
+    // Optional sections: absent means the defaults (no button, no display).
+    struct Optional {
+        const char* key;
+        std::function<Status(const toml::table&)> parse;
+    };
+    ButtonConfig button;
+    bool hasButton = false;
+    const Optional sections[] = {
+        {"render", [&](const toml::table& t) { return parseRender(t, config.render); }},
+        {"refine", [&](const toml::table& t) { return parseRefine(t, config.refine); }},
+        {"output", [&](const toml::table& t) { return parseOutput(t, config.output); }},
+        {"button", [&](const toml::table& t) { hasButton = true; return parseButton(t, button); }},
+        {"control", [&](const toml::table& t) { return parseControl(t, config.control); }},
+        {"session",
+         [&](const toml::table& t) -> Status {
+             if (Status st = r_.checkKeys(t, "session", {"loop"}); !st) return st;
+             Result<std::optional<bool>> loop = r_.boolean(t, "session", "loop");
+             if (!loop) return loop.error();
+             config.loopSession = loop->value_or(true);
+             return {};
+         }},
+    };
+    for (const Optional& section : sections) {
+        Result<const toml::table*> t = r_.table(root, "", section.key);
+        if (!t) return t.error();
+        if (*t) {
+            if (Status st = section.parse(**t); !st) return st.error();
+        }
+    }
+    if (hasButton) config.button = std::move(button);
     return config;
 }
 
@@ -462,6 +637,27 @@ const char* toString(CameraSourceKind kind) {
     return "?";
 }
 
+const char* toString(OutputKind kind) {
+    switch (kind) {
+        case OutputKind::None: return "none";
+        case OutputKind::Files: return "files";
+        case OutputKind::Kms: return "kms";
+    }
+    return "?";
+}
+
+std::string controlSocketPath(const ControlConfig& control) {
+    if (!control.socketPath.empty()) return control.socketPath;
+    const char* runtime = std::getenv("RUNTIME_DIRECTORY");
+    // systemd may pass several folders separated by ':'; the first is ours.
+    if (runtime && *runtime) {
+        std::string first(runtime);
+        first = first.substr(0, first.find(':'));
+        return (fs::path(first) / "previsd.sock").string();
+    }
+    return "/run/previs/previsd.sock";
+}
+
 const char* toString(LightingMode mode) {
     switch (mode) {
         case LightingMode::Environment: return "environment";
@@ -470,11 +666,13 @@ const char* toString(LightingMode mode) {
     return "?";
 }
 
-Result<ServiceConfig> loadServiceConfig(const std::string& path) {
+Result<ServiceConfig> loadServiceConfig(const std::string& path, const std::string& relativeTo) {
     Result<toml::table> root = parseTomlFile(path, kWhat);
     if (!root) return root.error();
     try {
-        return ConfigReader(path).read(*root);
+        ConfigReader reader(path);
+        if (!relativeTo.empty()) reader.setFolder(relativeTo);
+        return reader.read(*root);
     } catch (const std::exception& e) {  // toml++, OpenCV and the standard library throw
         return makeError("cannot load {} '{}': {}", kWhat, path, e.what());
     }

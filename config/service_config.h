@@ -77,6 +77,53 @@ struct LightingConfig {
     LightEstimatorSettings lights;
 };
 
+// What the render thread does per frame (issue 7: preview and refinement).
+struct RenderConfig {
+    uint32_t width = 0;   // 0 = the scene camera's width (the plate's resolution)
+    uint32_t height = 0;  // 0 = the scene camera's height
+    uint32_t samplesPerFrame = 1;  // preview: samples per pixel of each live frame
+    uint32_t maxDepth = 8;
+    uint32_t seed = 0;    // preview's fixed random sequence
+};
+
+// Refinement: the frame, pose and lighting freeze and samples accumulate.
+struct RefineConfig {
+    uint32_t samplesPerStep = 4;  // samples added between two shown frames
+    uint64_t maxSamples = 4096;   // the sample target: refinement stops adding here (0 = none)
+    // Changes larger than these while refining are logged, not applied (the shot stays frozen).
+    double poseThresholdM = 0.01;
+    double poseThresholdDeg = 0.5;
+    double lightingThreshold = 0.1;  // relative change of the environment's total power
+};
+
+enum class OutputKind { None, Files, Kms };
+const char* toString(OutputKind kind);
+
+struct OutputConfig {
+    OutputKind kind = OutputKind::None;
+    std::string folder;     // files: where frame_NNNNNN.png go (resolved against the config)
+    std::string card;       // kms: "/dev/dri/card0"; "" = the first card with a connected display
+    std::string connector;  // kms: "Virtual-1", "HDMI-A-1"; "" = the first connected
+    std::string mode;       // kms: "1920x1080" or "1920x1080@60"; "" = the preferred mode
+};
+
+// The mode button and the status LED (libgpiod). Absent: no button (the socket still works).
+struct ButtonConfig {
+    std::string chip;  // "/dev/gpiochip0", "gpiochip0" or the chip's label ("vmtest")
+    std::string line;  // a line name ("mode-button") or offset ("5")
+    bool activeLow = false;
+    int debounceMs = 20;
+    int longPressMs = 1500;
+    std::string ledChip;  // "" = the button's chip
+    std::string ledLine;  // "" = no LED
+    bool ledActiveLow = false;
+};
+
+struct ControlConfig {
+    // The control socket; "" = $RUNTIME_DIRECTORY/previsd.sock, else /run/previs/previsd.sock.
+    std::string socketPath;
+};
+
 struct ServiceConfig {
     std::string path;       // the file this came from
     std::string scenePath;  // a .gltf/.glb or previs.toml scene description (resolved)
@@ -85,12 +132,26 @@ struct ServiceConfig {
     std::optional<CameraConfig> fisheyeCamera;
     TrackingConfig tracking;
     LightingConfig lighting;
+    RenderConfig render;
+    RefineConfig refine;
+    OutputConfig output;
+    std::optional<ButtonConfig> button;
+    ControlConfig control;
+    // Recorded cameras (source = "session"): start over at the end (a demo loop) or stop the
+    // service there (exit 0).
+    bool loopSession = true;
 };
+
+// The control socket the config names, or the default (DESIGN.md §3).
+std::string controlSocketPath(const ControlConfig& control);
 
 // Reads and validates the config at `path`; also loads the calibrations and the board it names
 // (not the scene: that is the renderer's, and slow). Any user error — TOML syntax, an unknown
 // key, a wrong type or range, a missing or broken file, a calibration whose image size is not
 // the camera's — is one message naming the file, the line and the key.
-Result<ServiceConfig> loadServiceConfig(const std::string& path);
+// `relativeTo`: the folder relative paths start from, when not the file's own (a session's copy
+// of its config, docs/session-format.md `config_dir`).
+Result<ServiceConfig> loadServiceConfig(const std::string& path,
+                                        const std::string& relativeTo = "");
 
 }  // namespace previs

@@ -65,6 +65,8 @@ public:
                              const char* what) const;
 
     const std::string& path() const { return path_; }
+    // Resolve relative paths against another folder (a config copied into a session).
+    void setFolder(std::filesystem::path folder) { folder_ = std::move(folder); }
     const std::filesystem::path& folder() const { return folder_; }
 
     static std::string dotted(std::string_view section, std::string_view key) {

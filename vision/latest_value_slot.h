@@ -4,6 +4,7 @@
 // one; nobody waits for anybody's work (the lock only guards a pointer swap). Values are
 // immutable snapshots shared by shared_ptr<const T>.
 
+#include <chrono>
 #include <condition_variable>
 #include <cstdint>
 #include <memory>
@@ -47,6 +48,15 @@ public:
         std::unique_lock lock(mutex_);
         changed_.wait(lock, [&] { return fresh_ || stop; });
         if (!fresh_) return nullptr;
+        fresh_ = false;
+        return value_;
+    }
+
+    // As take(), waiting up to `timeout` for a value to arrive (null on timeout).
+    template <typename Rep, typename Period>
+    std::shared_ptr<const T> waitTakeFor(std::chrono::duration<Rep, Period> timeout) {
+        std::unique_lock lock(mutex_);
+        if (!changed_.wait_for(lock, timeout, [&] { return fresh_; })) return nullptr;
         fresh_ = false;
         return value_;
     }

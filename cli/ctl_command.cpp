@@ -1,0 +1,99 @@
+#include "cli/ctl_command.h"
+
+#include <cstdio>
+#include <memory>
+
+#include <nlohmann/json.hpp>
+
+#include "base/log.h"
+#include "config/service_config.h"
+#include "daemon/control_server.h"
+
+namespace previs {
+
+namespace {
+
+struct CtlOptions {
+    std::string socket;
+    bool json = false;
+    std::string mode;
+};
+
+// The human-readable form of `previs ctl status`.
+void printStatus(const nlohmann::json& s) {
+    std::printf("mode      %s\n", s.value("mode", "?").c_str());
+    std::printf("samples   %llu\n", (unsigned long long)s.value("samples", 0ull));
+    std::printf("fps       %.2f\n", s.value("fps", 0.0));
+    std::printf("frames    %llu shown, %llu dropped\n",
+                (unsigned long long)s.value("framesShown", 0ull),
+                (unsigned long long)s.value("framesDropped", 0ull));
+    std::printf("display   %s\n", s.value("display", "?").c_str());
+    if (s.contains("pose") && s["pose"].is_object()) {
+        const auto& m = s["pose"]["worldFromCamera"];
+        std::printf("camera    at (%.3f, %.3f, %.3f) m, %d tag(s)%s\n", m[3].get<double>(),
+                    m[7].get<double>(), m[11].get<double>(), s["pose"].value("tags", 0),
+                    s["pose"].value("lost", false) ? ", tracking lost (holding)" : "");
+    } else {
+        std::printf("camera    not tracked yet\n");
+    }
+    std::printf("uptime    %.0f s\n", s.value("uptimeSeconds", 0.0));
+}
+
+int run(const CtlOptions& o, const std::string& command, bool status) {
+    ControlConfig control;
+    control.socketPath = o.socket;
+    const std::string path = controlSocketPath(control);
+    Result<std::string> reply = controlRequest(path, command);
+    if (!reply) {
+        logError("{}", reply.message());
+        return 1;
+    }
+    nlohmann::json j = nlohmann::json::parse(*reply, nullptr, false);
+    if (j.is_discarded()) {
+        logError("previsd at {} answered something that is not JSON: {}", path, *reply);
+        return 1;
+    }
+    if (j.contains("ok") && !j["ok"].get<bool>()) {
+        logError("previsd: {}", j.value("error", "failed"));
+        return 2;
+    }
+    if (status && !o.json)
+        printStatus(j);
+    else if (status)
+        std::printf("%s\n", reply->c_str());
+    else
+        std::printf("%s\n", j.value("mode", "").c_str());
+    return 0;
+}
+
+}  // namespace
+
+std::function<int()> addCtlCommand(CLI::App& app) {
+    auto o = std::make_shared<CtlOptions>();
+    CLI::App* cmd = app.add_subcommand("ctl", "talk to a running previsd");
+    cmd->add_option("--socket", o->socket,
+                    "control socket (default $RUNTIME_DIRECTORY/previsd.sock, else "
+                    "/run/previs/previsd.sock)");
+    cmd->require_subcommand(1);
+    CLI::App* status = cmd->add_subcommand("status", "mode, samples, fps, pose, drops");
+    status->add_flag("--json", o->json, "one JSON object (DESIGN.md §3)");
+    CLI::App* mode = cmd->add_subcommand("mode", "switch to preview or refinement");
+    mode->add_option("MODE", o->mode, "preview or refine")
+        ->required()
+        ->check(CLI::IsMember({"preview", "refine"}));
+    CLI::App* toggle = cmd->add_subcommand("toggle", "switch between preview and refinement");
+    CLI::App* record = cmd->add_subcommand("record", "start or stop recording (not built yet)");
+    auto recordWhat = std::make_shared<std::string>();
+    record->add_option("WHAT", *recordWhat, "start or stop")
+        ->required()
+        ->check(CLI::IsMember({"start", "stop"}));
+    return [o, status, mode, toggle, record, recordWhat] {
+        if (*status) return run(*o, "status", true);
+        if (*mode) return run(*o, "mode " + o->mode, false);
+        if (*toggle) return run(*o, "toggle", false);
+        if (*record) return run(*o, "record " + *recordWhat, false);
+        return 2;
+    };
+}
+
+}  // namespace previs

@@ -1,0 +1,12 @@
+#pragma once
+
+#include <functional>
+
+#include <CLI/CLI.hpp>
+
+namespace previs {
+
+// `previs ctl [--socket PATH] status [--json] | mode preview|refine | toggle` (DESIGN.md §3).
+std::function<int()> addCtlCommand(CLI::App& app);
+
+}  // namespace previs

@@ -1,0 +1,158 @@
+#include "daemon/pipeline_renderer.h"
+
+#include <opencv2/imgproc.hpp>
+
+#include "base/log.h"
+#include "vision/inverse_tone_map.h"
+#include "vision/lens_grid.h"
+
+namespace previs {
+
+namespace {
+
+// The calibration of the same lens sampled at another resolution: focal lengths and principal
+// point scale with the pixel size (pixel centres at x + 0.5), distortion is unitless.
+Result<CameraCalibration> scaledCalibration(const CameraCalibration& c, uint32_t width,
+                                            uint32_t height) {
+    const cv::Size size = c.imageSize();
+    if (size.width == int(width) && size.height == int(height)) return c;
+    const double sx = double(width) / size.width, sy = double(height) / size.height;
+    cv::Matx33d k = c.cameraMatrix();
+    k(0, 0) *= sx;
+    k(0, 1) *= sx;
+    k(0, 2) = (k(0, 2) + 0.5) * sx - 0.5;
+    k(1, 1) *= sy;
+    k(1, 2) = (k(1, 2) + 0.5) * sy - 0.5;
+    return CameraCalibration::create(k, c.distortion(), cv::Size(int(width), int(height)),
+                                     c.model(), "scene camera scaled to the render size");
+}
+
+ToneMapSettings forwardOf(const InverseToneMapSettings& inverse) {
+    ToneMapSettings t;
+    t.exposureStops = inverse.exposureStops;
+    t.maxRadiance = inverse.maxRadiance;
+    t.whiteLuminance = inverse.whiteLuminance;
+    switch (inverse.op) {
+        case InverseToneMapOperator::Srgb: t.op = ToneMapOperator::Clamp; break;
+        case InverseToneMapOperator::Reinhard: t.op = ToneMapOperator::Reinhard; break;
+        case InverseToneMapOperator::Banterle: t.op = ToneMapOperator::ReinhardExtended; break;
+    }
+    return t;
+}
+
+std::vector<EstimatedLightSource> toLightSources(const std::vector<EstimatedLight>& lights) {
+    std::vector<EstimatedLightSource> out;
+    out.reserve(lights.size());
+    for (const EstimatedLight& l : lights) {
+        EstimatedLightSource s;
+        s.direction = glm::normalize(glm::vec3(l.direction[0], l.direction[1], l.direction[2]));
+        s.solidAngleSr = float(l.solidAngleSr);
+        s.radiance = glm::vec3(l.radiance[0], l.radiance[1], l.radiance[2]);
+        out.push_back(s);
+    }
+    return out;
+}
+
+}  // namespace
+
+void renderSize(const ServiceConfig& config, uint32_t& width, uint32_t& height) {
+    width = config.render.width ? config.render.width : config.sceneCamera.width;
+    height = config.render.height ? config.render.height : config.sceneCamera.height;
+}
+
+Result<std::unique_ptr<PipelineRenderer>> PipelineRenderer::create(GpuContext& ctx,
+                                                                   const Scene& scene,
+                                                                   const ServiceConfig& config) {
+    std::unique_ptr<PipelineRenderer> p(new PipelineRenderer());
+    renderSize(config, p->width_, p->height_);
+    p->previewSamples_ = config.render.samplesPerFrame;
+    p->radiometry_ = config.sceneCamera.radiometry;
+    p->display_ = forwardOf(p->radiometry_);
+    p->whiteBalance_ = p->radiometry_.whiteBalance;
+
+    RenderSettings settings;
+    settings.width = p->width_;
+    settings.height = p->height_;
+    settings.maxDepth = config.render.maxDepth;
+    settings.seed = config.render.seed;
+    settings.differential = true;
+    settings.samplesPerDispatch = 64;  // the renderer lowers it inside the CPU loop limit
+    Result<CameraCalibration> calibration =
+        scaledCalibration(*config.sceneCamera.calibration, p->width_, p->height_);
+    if (!calibration) return calibration.error();
+    Result<std::vector<glm::vec2>> grid = lensRayGrid(*calibration, p->width_, p->height_);
+    if (!grid) return makeError("{}: scene camera calibration: {}", config.path, grid.message());
+    settings.lensGrid = std::move(*grid);
+    Result<std::unique_ptr<Renderer>> renderer = Renderer::create(ctx, scene, settings);
+    if (!renderer) return makeError("{}: {}", config.scenePath, renderer.message());
+    p->renderer_ = std::move(*renderer);
+    return p;
+}
+
+Status PipelineRenderer::prepare(const TrackedFrame& tracked,
+                                 const std::shared_ptr<const LiveLighting>& lighting) {
+    const Frame& frame = *tracked.frame;
+    cv::Mat rgb(int(frame.height), int(frame.width), CV_8UC3,
+                const_cast<uint8_t*>(frame.rgb.data()));
+    cv::Mat sized;
+    if (frame.width == width_ && frame.height == height_)
+        sized = rgb;
+    else
+        cv::resize(rgb, sized, cv::Size(int(width_), int(height_)), 0, 0, cv::INTER_AREA);
+    const cv::Mat linear = inverseToneMapRgb8(sized, radiometry_);
+    plate_.width = width_;
+    plate_.height = height_;
+    plate_.channels = 3;
+    plate_.ldrSrgb = false;
+    plate_.pixels.assign(linear.ptr<float>(0), linear.ptr<float>(0) + size_t(width_) * height_ * 3);
+    rendered_ = tracked.worldFromCamera.has_value();
+    if (!rendered_) return {};
+    if (Status s = renderer_->setPlate(plate_); !s) return s;
+    renderer_->setCameraPose(renderWorldFromOpenCvCamera(*tracked.worldFromCamera));
+    // Lighting reaches the GPU only when a new snapshot arrived (no BVH rebuild, ever).
+    if (lighting && lighting.get() != lightingShown_) {
+        if (Status s = renderer_->setEnvironment(lighting->environment); !s) return s;
+        const std::vector<EstimatedLightSource> sources = toLightSources(lighting->lights);
+        if (Status s = renderer_->setEstimatedLights(sources); !s) return s;
+        lightingShown_ = lighting.get();
+    }
+    return {};
+}
+
+Status PipelineRenderer::renderPreview(const TrackedFrame& frame,
+                                       const std::shared_ptr<const LiveLighting>& lighting) {
+    if (Status s = prepare(frame, lighting); !s) return s;
+    if (!rendered_) return {};
+    return renderer_->renderPreviewFrame(previewSamples_);
+}
+
+Status PipelineRenderer::beginRefine(const TrackedFrame& frame,
+                                     const std::shared_ptr<const LiveLighting>& lighting) {
+    if (Status s = prepare(frame, lighting); !s) return s;
+    if (!rendered_) return {};
+    return renderer_->reset();
+}
+
+Status PipelineRenderer::refineStep(uint32_t samples) {
+    if (!rendered_) return {};
+    return renderer_->refine(samples);
+}
+
+uint64_t PipelineRenderer::samples() const {
+    return rendered_ ? renderer_->samplesPerPixel() : 0;
+}
+
+Result<ImageF> PipelineRenderer::composite() const {
+    if (!rendered_) return plate_;
+    return renderer_->image(Aov::Composite);
+}
+
+std::vector<uint8_t> PipelineRenderer::toDisplay(const ImageF& composite) const {
+    // Undo the white balance the plate's inverse applied, then the camera's curve forward.
+    ImageF balanced = composite;
+    for (size_t i = 0; i < balanced.pixels.size(); ++i)
+        balanced.pixels[i] /= whiteBalance_[i % 3];
+    return toneMapToSrgb8(balanced, display_);
+}
+
+}  // namespace previs

@@ -1,0 +1,76 @@
+#pragma once
+
+// The render stage of the service (DESIGN.md §1): one tracked camera frame and the newest
+// lighting in, one composited frame out — a preview frame of a few samples with the fixed random
+// sequence, or the next step of a refinement. Owned by the render thread (it owns the Vulkan
+// device); `previs replay` drives the same object frame by frame.
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include "base/result.h"
+#include "config/service_config.h"
+#include "daemon/pipeline_stages.h"
+#include "gpu/context.h"
+#include "image/image.h"
+#include "render/renderer.h"
+#include "render/tonemap.h"
+#include "scene/scene.h"
+
+namespace previs {
+
+class PipelineRenderer {
+public:
+    static Result<std::unique_ptr<PipelineRenderer>> create(GpuContext& ctx, const Scene& scene,
+                                                            const ServiceConfig& config);
+
+    // Preview: this frame with its own pose and `lighting` (null = the scene's own), drawn with
+    // the same random sequence as every preview frame.
+    Status renderPreview(const TrackedFrame& frame,
+                         const std::shared_ptr<const LiveLighting>& lighting);
+    // Refinement: freezes frame, pose and lighting, and clears the accumulation.
+    Status beginRefine(const TrackedFrame& frame,
+                       const std::shared_ptr<const LiveLighting>& lighting);
+    // Adds `samples` more paths per pixel to the frozen shot.
+    Status refineStep(uint32_t samples);
+
+    // The composite so far, linear (the plate alone before the first pose).
+    Result<ImageF> composite() const;
+    // The composite as the monitor shows it: the scene camera's own curve applied forward, so
+    // the untouched parts of the picture look exactly as the camera delivered them.
+    std::vector<uint8_t> toDisplay(const ImageF& composite) const;
+
+    uint64_t samples() const;  // per pixel: this preview frame's, or the refinement's so far
+    uint32_t width() const { return width_; }
+    uint32_t height() const { return height_; }
+    uint32_t previewSamples() const { return previewSamples_; }
+    void setPreviewSamples(uint32_t spp) { previewSamples_ = spp; }
+    // Whether the last frame rendered the virtual objects (false before the first pose).
+    bool rendered() const { return rendered_; }
+    Renderer& renderer() { return *renderer_; }
+
+private:
+    PipelineRenderer() = default;
+    // Plate, pose and lighting for the next samples.
+    Status prepare(const TrackedFrame& frame,
+                   const std::shared_ptr<const LiveLighting>& lighting);
+
+    std::unique_ptr<Renderer> renderer_;
+    uint32_t width_ = 0;
+    uint32_t height_ = 0;
+    uint32_t previewSamples_ = 1;
+    InverseToneMapSettings radiometry_;
+    ToneMapSettings display_;
+    std::array<float, 3> whiteBalance_{1.0f, 1.0f, 1.0f};
+    ImageF plate_;
+    bool rendered_ = false;
+    uint64_t lightingSequence_ = UINT64_MAX;
+    const LiveLighting* lightingShown_ = nullptr;
+};
+
+// The render size a config asks for: [render] width/height, else the scene camera's.
+void renderSize(const ServiceConfig& config, uint32_t& width, uint32_t& height);
+
+}  // namespace previs

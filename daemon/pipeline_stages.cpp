@@ -1,0 +1,140 @@
+#include "daemon/pipeline_stages.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include <opencv2/imgproc.hpp>
+
+#include "vision/inverse_tone_map.h"
+
+namespace previs {
+
+namespace {
+
+double millisecondsSince(std::chrono::steady_clock::time_point start) {
+    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+        .count();
+}
+
+// ∫ luminance dω over an equirectangular map (texel solid angles exact per row).
+double luminancePower(const cv::Mat& radiance) {
+    const int w = radiance.cols, h = radiance.rows;
+    double total = 0.0;
+    for (int y = 0; y < h; ++y) {
+        const double theta0 = M_PI * y / h, theta1 = M_PI * (y + 1) / h;
+        const double texelSr = (2.0 * M_PI / w) * (std::cos(theta0) - std::cos(theta1));
+        const cv::Vec3f* row = radiance.ptr<cv::Vec3f>(y);
+        double rowSum = 0.0;
+        for (int x = 0; x < w; ++x) {
+            const double l = 0.2126 * row[x][0] + 0.7152 * row[x][1] + 0.0722 * row[x][2];
+            if (std::isfinite(l) && l > 0.0) rowSum += l;
+        }
+        total += rowSum * texelSr;
+    }
+    return total;
+}
+
+std::shared_ptr<const EnvironmentMap> toEnvironmentMap(const cv::Mat& radiance,
+                                                       uint64_t sequence) {
+    auto map = std::make_shared<EnvironmentMap>();
+    map->path = fmt::format("fisheye frame {}", sequence);
+    map->width = uint32_t(radiance.cols);
+    map->height = uint32_t(radiance.rows);
+    map->radiance.resize(size_t(map->width) * map->height);
+    for (int y = 0; y < radiance.rows; ++y) {
+        const cv::Vec3f* row = radiance.ptr<cv::Vec3f>(y);
+        for (int x = 0; x < radiance.cols; ++x)
+            map->radiance[size_t(y) * map->width + x] = glm::vec3(row[x][0], row[x][1], row[x][2]);
+    }
+    return map;
+}
+
+}  // namespace
+
+Result<TrackingStage> TrackingStage::create(const ServiceConfig& config) {
+    Result<Tracker> tracker =
+        Tracker::create(config.tracking.detector, *config.tracking.board,
+                        *config.sceneCamera.calibration, config.tracking.tracker);
+    if (!tracker) return tracker.error();
+    return TrackingStage(std::move(*tracker));
+}
+
+TrackedFrame TrackingStage::process(std::shared_ptr<const Frame> frame) {
+    const auto start = std::chrono::steady_clock::now();
+    TrackedFrame out;
+    const cv::Mat rgb(int(frame->height), int(frame->width), CV_8UC3,
+                      const_cast<uint8_t*>(frame->rgb.data()));
+    cv::Mat gray;
+    cv::cvtColor(rgb, gray, cv::COLOR_RGB2GRAY);
+    const TrackingState& state = tracker_.track(gray);
+    out.frame = std::move(frame);
+    out.lost = state.lost;
+    out.reason = state.reason;
+    if (state.pose) {
+        out.worldFromCamera = state.pose->worldFromCamera;
+        out.tags = int(state.pose->tagIds.size());
+        out.reprojErrorPx = state.pose->reprojErrorPx;
+    }
+    out.trackMs = millisecondsSince(start);
+    return out;
+}
+
+Result<LightingStage> LightingStage::create(const ServiceConfig& config) {
+    if (!config.fisheyeCamera) return makeError("{}: no [cameras.fisheye]", config.path);
+    Result<FisheyeToEquirect> toEquirect =
+        FisheyeToEquirect::create(*config.fisheyeCamera->calibration, config.lighting.fisheye);
+    if (!toEquirect) return makeError("{}: [cameras.fisheye]: {}", config.path,
+                                      toEquirect.message());
+    return LightingStage(std::move(*toEquirect), config.fisheyeCamera->radiometry,
+                         config.lighting.mode, config.lighting.lights);
+}
+
+Result<std::shared_ptr<const LiveLighting>> LightingStage::process(const Frame& frame) const {
+    const auto start = std::chrono::steady_clock::now();
+    const cv::Mat rgb(int(frame.height), int(frame.width), CV_8UC3,
+                      const_cast<uint8_t*>(frame.rgb.data()));
+    const cv::Mat linear = inverseToneMapRgb8(rgb, radiometry_);
+    Result<cv::Mat> map = toEquirect_.apply(linear);
+    if (!map) return map.error();
+    auto out = std::make_shared<LiveLighting>();
+    out->sequence = frame.sequence;
+    out->timestampNs = frame.timestampNs;
+    out->totalLuminancePower = luminancePower(*map);
+    if (mode_ == LightingMode::Lights) {
+        Result<LightingSnapshot> lights = estimator_.estimate(*map);
+        if (!lights) return lights.error();
+        out->lights = std::move(lights->lights);
+        out->environment = toEnvironmentMap(lights->residual, frame.sequence);
+    } else {
+        out->environment = toEnvironmentMap(*map, frame.sequence);
+    }
+    out->computeMs = millisecondsSince(start);
+    return std::shared_ptr<const LiveLighting>(std::move(out));
+}
+
+glm::mat4 renderWorldFromOpenCvCamera(const cv::Matx44d& m) {
+    // OpenCV's camera has y down and z forward; the renderer's has y up and looks along −z:
+    // the same frame with y and z flipped.
+    glm::mat4 out(1.0f);
+    for (int r = 0; r < 4; ++r)
+        for (int c = 0; c < 4; ++c) {
+            const double flip = (c == 1 || c == 2) ? -1.0 : 1.0;
+            out[c][r] = float(m(r, c) * flip);  // glm is column-major
+        }
+    return out;
+}
+
+PoseDelta poseDelta(const cv::Matx44d& a, const cv::Matx44d& b) {
+    PoseDelta d;
+    const cv::Vec3d ta(a(0, 3), a(1, 3), a(2, 3)), tb(b(0, 3), b(1, 3), b(2, 3));
+    d.translationM = cv::norm(ta - tb);
+    // Angle of Ra^T Rb from its trace.
+    double trace = 0.0;
+    for (int i = 0; i < 3; ++i)
+        for (int k = 0; k < 3; ++k) trace += a(k, i) * b(k, i);
+    d.rotationDeg = std::acos(std::clamp((trace - 1.0) / 2.0, -1.0, 1.0)) * 180.0 / M_PI;
+    return d;
+}
+
+}  // namespace previs

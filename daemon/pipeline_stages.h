@@ -1,0 +1,87 @@
+#pragma once
+
+// The stages between the cameras and the renderer (DESIGN.md §1), as plain objects that take a
+// frame and give an immutable snapshot. The service runs each on its own thread; `previs replay`
+// calls them in lock step on one thread, so both run the very same code.
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "base/result.h"
+#include "capture/frame.h"
+#include "config/service_config.h"
+#include "scene/scene.h"
+#include "vision/board_pose.h"
+#include "vision/fisheye_to_equirect.h"
+#include "vision/light_estimator.h"
+
+namespace previs {
+
+// A scene-camera frame with the pose tracked on that very frame: picture and pose travel
+// together, so they cannot slip against each other (no delay calibration needed).
+struct TrackedFrame {
+    std::shared_ptr<const Frame> frame;
+    // OpenCV camera axes (x right, y down, z forward), the board's world frame. The last good
+    // pose while tracking is lost; none before the first.
+    std::optional<cv::Matx44d> worldFromCamera;
+    bool lost = true;
+    int tags = 0;
+    double reprojErrorPx = 0.0;
+    std::string reason;  // why this frame gave no trusted pose
+    double trackMs = 0.0;
+};
+
+// The set's lighting from one fisheye frame: the environment map and, in the "lights" mode,
+// the light sources estimated from it (the map then holds the residual).
+struct LiveLighting {
+    std::shared_ptr<const EnvironmentMap> environment;
+    std::vector<EstimatedLight> lights;
+    double totalLuminancePower = 0.0;  // ∫ luminance dω of the whole map (change threshold)
+    uint64_t sequence = 0;             // the fisheye frame's sequence
+    uint64_t timestampNs = 0;
+    double computeMs = 0.0;
+};
+
+class TrackingStage {
+public:
+    static Result<TrackingStage> create(const ServiceConfig& config);
+    TrackedFrame process(std::shared_ptr<const Frame> frame);
+
+private:
+    explicit TrackingStage(Tracker tracker) : tracker_(std::move(tracker)) {}
+    Tracker tracker_;
+};
+
+class LightingStage {
+public:
+    // Needs config.fisheyeCamera.
+    static Result<LightingStage> create(const ServiceConfig& config);
+    Result<std::shared_ptr<const LiveLighting>> process(const Frame& fisheyeFrame) const;
+
+private:
+    LightingStage(FisheyeToEquirect toEquirect, InverseToneMapSettings radiometry,
+                  LightingMode mode, LightEstimatorSettings lights)
+        : toEquirect_(std::move(toEquirect)), radiometry_(radiometry), mode_(mode),
+          estimator_(lights) {}
+    FisheyeToEquirect toEquirect_;
+    InverseToneMapSettings radiometry_;
+    LightingMode mode_;
+    LightEstimator estimator_;
+};
+
+// The renderer's camera (looks along −Z, +Y up; DESIGN.md §4) from OpenCV's camera axes.
+glm::mat4 renderWorldFromOpenCvCamera(const cv::Matx44d& worldFromCameraCv);
+
+// How far apart two poses are: translation (metres) and rotation angle (degrees).
+struct PoseDelta {
+    double translationM = 0.0;
+    double rotationDeg = 0.0;
+};
+PoseDelta poseDelta(const cv::Matx44d& a, const cv::Matx44d& b);
+
+}  // namespace previs

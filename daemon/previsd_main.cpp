@@ -1,0 +1,70 @@
+// previsd: the on-set service (DESIGN.md §3). Exit codes: 0 clean stop, 1 runtime failure,
+// 2 bad config or usage.
+
+#include <CLI/CLI.hpp>
+
+#include "base/log.h"
+#include "config/scene_description.h"
+#include "config/service_config.h"
+#include "daemon/pipeline_stages.h"
+#include "daemon/service.h"
+
+using namespace previs;
+
+namespace {
+
+// --check: everything the config names, loaded and validated, without opening devices that may
+// legitimately be absent at check time (cameras, display, button).
+int check(const ServiceConfig& config) {
+    Result<Scene> scene = loadScene(config.scenePath);
+    if (!scene) {
+        logError("{}", scene.message());
+        return 2;
+    }
+    if (Result<TrackingStage> t = TrackingStage::create(config); !t) {
+        logError("{}", t.message());
+        return 2;
+    }
+    if (config.fisheyeCamera) {
+        if (Result<LightingStage> l = LightingStage::create(config); !l) {
+            logError("{}", l.message());
+            return 2;
+        }
+    }
+    logInfo("{}: OK (scene {} with {} triangles; output {}; button {})", config.path,
+            config.scenePath, scene->geometry.triangles.size(), toString(config.output.kind),
+            config.button ? config.button->chip + ":" + config.button->line : "none");
+    return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    CLI::App app{"previsd: the previs on-set service"};
+    std::string configPath;
+    bool checkOnly = false;
+    app.add_option("--config", configPath, "the service config (docs/config-format.md)")
+        ->required();
+    app.add_flag("--check", checkOnly, "validate the config and everything it names, then exit");
+    try {
+        app.parse(argc, argv);
+    } catch (const CLI::ParseError& e) {
+        const int code = app.exit(e);
+        return e.get_exit_code() == 0 ? 0 : (code == 0 ? 0 : 2);
+    }
+    Result<ServiceConfig> config = loadServiceConfig(configPath);
+    if (!config) {
+        logError("{}", config.message());
+        return 2;
+    }
+    if (checkOnly) return check(*config);
+
+    // Before any thread starts, so that only run()'s signalfd sees these.
+    blockServiceSignals();
+    Result<std::unique_ptr<Service>> service = Service::create(*config);
+    if (!service) {
+        logError("{}", service.message());
+        return 1;
+    }
+    return (*service)->run();
+}

@@ -1,0 +1,287 @@
+#include "daemon/replay.h"
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+
+#include "base/log.h"
+#include "capture/recorded_source.h"
+#include "config/scene_description.h"
+#include "config/service_config.h"
+#include "daemon/pipeline_renderer.h"
+#include "daemon/pipeline_stages.h"
+#include "gpu/context.h"
+#include "image/image.h"
+#include "io/session.h"
+
+namespace previs {
+
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+// The next frame of a recorded camera, or nullptr at its end.
+Result<std::shared_ptr<Frame>> nextFrame(RecordedReader& reader, uint64_t& sequence) {
+    while (!reader.finished()) {
+        auto frame = std::make_shared<Frame>();
+        Result<bool> got = reader.read(1000, *frame);
+        if (!got) return got.error();
+        if (*got) {
+            frame->sequence = sequence++;
+            return frame;
+        }
+    }
+    return std::shared_ptr<Frame>();
+}
+
+Result<std::unique_ptr<RecordedReader>> openCamera(const SessionInfo& session,
+                                                   const std::string& role) {
+    const SessionCamera* camera = session.cameraWithRole(role);
+    if (!camera) return std::unique_ptr<RecordedReader>();
+    Result<std::unique_ptr<RecordedReader>> reader =
+        RecordedReader::create(camera->dir, ReplayTiming::AsFastAsPossible);
+    if (!reader) return reader.error();
+    if (Status s = (*reader)->start(); !s) return s.error();
+    return reader;
+}
+
+}  // namespace
+
+int runReplay(const ReplayOptions& o) {
+    Result<SessionInfo> session = openSession(o.sessionDir);
+    if (!session) {
+        logError("{}", session.message());
+        return 2;
+    }
+    Result<ServiceConfig> config =
+        o.configPath.empty() ? loadServiceConfig(session->configPath, session->configDir)
+                             : loadServiceConfig(o.configPath);
+    if (!config) {
+        logError("{}", config.message());
+        return 2;
+    }
+    size_t unknownEvents = 0;
+    std::vector<SessionEvent> events;
+    if (fs::exists(fs::path(o.sessionDir) / "events.csv")) {
+        Result<std::vector<SessionEvent>> loaded = loadEvents(o.sessionDir, &unknownEvents);
+        if (!loaded) {
+            logError("{}", loaded.message());
+            return 2;
+        }
+        events = std::move(*loaded);
+    }
+
+    Result<std::unique_ptr<RecordedReader>> sceneReader = openCamera(*session, "scene");
+    if (!sceneReader) {
+        logError("{}", sceneReader.message());
+        return 2;
+    }
+    if (!*sceneReader) {
+        logError("{}: the session has no scene camera (cameras/scene or a camera with role "
+                 "\"scene\" in session.toml)",
+                 o.sessionDir);
+        return 2;
+    }
+    Result<std::unique_ptr<RecordedReader>> fisheyeReader = openCamera(*session, "fisheye");
+    if (!fisheyeReader) {
+        logError("{}", fisheyeReader.message());
+        return 2;
+    }
+    if (*fisheyeReader && !config->fisheyeCamera)
+        logWarning("{}: the session has fisheye frames but the config has no [cameras.fisheye]: "
+                   "the scene's own lighting is used",
+                   config->path);
+
+    Result<Scene> scene = loadScene(config->scenePath);
+    if (!scene) {
+        logError("{}", scene.message());
+        return 2;
+    }
+    Result<std::unique_ptr<GpuContext>> gpu = GpuContext::create({});
+    if (!gpu) {
+        logError("{}", gpu.message());
+        return 1;
+    }
+    Result<std::unique_ptr<PipelineRenderer>> renderer =
+        PipelineRenderer::create(**gpu, *scene, *config);
+    if (!renderer) {
+        logError("{}", renderer.message());
+        return 2;
+    }
+    Result<TrackingStage> tracking = TrackingStage::create(*config);
+    if (!tracking) {
+        logError("{}", tracking.message());
+        return 2;
+    }
+    std::optional<LightingStage> lighting;
+    if (*fisheyeReader && config->fisheyeCamera) {
+        Result<LightingStage> stage = LightingStage::create(*config);
+        if (!stage) {
+            logError("{}", stage.message());
+            return 2;
+        }
+        lighting.emplace(std::move(*stage));
+    }
+
+    std::error_code ec;
+    fs::create_directories(o.outDir, ec);
+    if (ec) {
+        logError("--out {}: cannot create the folder: {}", o.outDir, ec.message());
+        return 2;
+    }
+    const std::string csvPath = (fs::path(o.outDir) / "frames.csv").string();
+    std::ofstream csv(csvPath, std::ios::trunc);
+    if (!csv) {
+        logError("--out {}: cannot write {}", o.outDir, csvPath);
+        return 2;
+    }
+    csv << "frame,timestamp_ns,mode,samples,render_ms,tracking,tags";
+    for (int r = 0; r < 4; ++r)
+        for (int c = 0; c < 4; ++c) csv << ",m" << r << c;
+    csv << "\n";
+
+    ModeMachine modes(o.mode.value_or(Mode::Preview));
+    size_t nextEvent = 0;
+    uint64_t sceneSequence = 0, fisheyeSequence = 0;
+    std::shared_ptr<Frame> pendingFisheye;
+    if (*fisheyeReader) {
+        Result<std::shared_ptr<Frame>> f = nextFrame(**fisheyeReader, fisheyeSequence);
+        if (!f) {
+            logError("{}", f.message());
+            return 1;
+        }
+        pendingFisheye = *f;
+    }
+    std::shared_ptr<const LiveLighting> currentLighting;
+    bool refining = false;
+    std::optional<TrackedFrame> frozen;
+    uint64_t written = 0;
+    const Clock::time_point start = Clock::now();
+
+    for (;;) {
+        Result<std::shared_ptr<Frame>> next = nextFrame(**sceneReader, sceneSequence);
+        if (!next) {
+            logError("{}", next.message());
+            return 1;
+        }
+        if (!*next) break;
+        const std::shared_ptr<Frame> frame = *next;
+
+        // Lighting: every fisheye frame recorded up to this scene frame, in order.
+        while (pendingFisheye && pendingFisheye->timestampNs <= frame->timestampNs) {
+            if (lighting) {
+                Result<std::shared_ptr<const LiveLighting>> lit = lighting->process(*pendingFisheye);
+                if (lit)
+                    currentLighting = *lit;
+                else
+                    logWarning("replay: fisheye frame {}: {}", pendingFisheye->sequence,
+                               lit.message());
+            }
+            Result<std::shared_ptr<Frame>> f = nextFrame(**fisheyeReader, fisheyeSequence);
+            if (!f) {
+                logError("{}", f.message());
+                return 1;
+            }
+            pendingFisheye = *f;
+        }
+        // Button and ctl events up to this frame drive the mode, as they did live.
+        for (; nextEvent < events.size() && events[nextEvent].timestampNs <= frame->timestampNs;
+             ++nextEvent) {
+            const SessionEvent& e = events[nextEvent];
+            if (o.mode) continue;
+            if (e.source == "mode-button" && e.event == "short-press") {
+                modes.toggle("session button");
+            } else if (e.source == "ctl" && e.event.rfind("mode=", 0) == 0) {
+                const std::string what = e.event.substr(5);
+                if (what == "toggle")
+                    modes.toggle("session ctl");
+                else if (std::optional<Mode> m = parseMode(what))
+                    modes.set(*m, "session ctl");
+            }
+        }
+
+        TrackedFrame tracked = tracking->process(frame);
+        const Mode mode = modes.mode();
+        const Clock::time_point renderStart = Clock::now();
+        Status rendered;
+        if (mode == Mode::Preview) {
+            refining = false;
+            rendered = (*renderer)->renderPreview(tracked, currentLighting);
+        } else {
+            if (!refining) {
+                frozen = tracked;
+                rendered = (*renderer)->beginRefine(*frozen, currentLighting);
+                refining = true;
+            }
+            const uint64_t done = (*renderer)->samples();
+            const uint64_t target = config->refine.maxSamples;
+            if (rendered && (target == 0 || done < target)) {
+                const uint64_t step = target == 0 ? config->refine.samplesPerStep
+                                                  : std::min<uint64_t>(config->refine.samplesPerStep,
+                                                                       target - done);
+                rendered = (*renderer)->refineStep(uint32_t(step));
+            }
+        }
+        if (!rendered) {
+            logError("replay: frame {}: {}", frame->sequence, rendered.message());
+            return 1;
+        }
+        Result<ImageF> image = (*renderer)->composite();
+        if (!image) {
+            logError("replay: frame {}: {}", frame->sequence, image.message());
+            return 1;
+        }
+        const double renderMs =
+            std::chrono::duration<double, std::milli>(Clock::now() - renderStart).count();
+        const std::string stem =
+            (fs::path(o.outDir) / fmt::format("frame_{:06d}", written)).string();
+        if (Status s = writePng(stem + ".png", image->width, image->height,
+                                (*renderer)->toDisplay(*image));
+            !s) {
+            logError("{}", s.message());
+            return 1;
+        }
+        if (o.exr) {
+            if (Status s = writeExr(stem + ".exr", *image); !s) {
+                logError("{}", s.message());
+                return 1;
+            }
+        }
+        const TrackedFrame& used = mode == Mode::Refine ? *frozen : tracked;
+        csv << written << "," << frame->timestampNs << "," << toString(mode) << ","
+            << (*renderer)->samples() << "," << fmt::format("{:.1f}", renderMs) << ","
+            << (!used.worldFromCamera ? "none" : used.lost ? "held" : "tracked") << ","
+            << used.tags;
+        for (int r = 0; r < 4; ++r)
+            for (int c = 0; c < 4; ++c) {
+                csv << ",";
+                if (used.worldFromCamera) csv << fmt::format("{:.9g}", (*used.worldFromCamera)(r, c));
+            }
+        csv << "\n";
+        ++written;
+        if (!o.quiet)
+            std::fprintf(stderr, "\rreplay: frame %llu, %s, %llu spp, %.0f ms   ",
+                         (unsigned long long)written - 1, toString(mode),
+                         (unsigned long long)(*renderer)->samples(), renderMs);
+    }
+    csv.flush();
+    if (!csv) {
+        logError("replay: writing {} failed (disk full?)", csvPath);
+        return 1;
+    }
+    if (!o.quiet) std::fprintf(stderr, "\n");
+    if (unknownEvents > 0)
+        logInfo("replay: {} event(s) of sources this previs does not know were skipped",
+                unknownEvents);
+    if (written == 0) {
+        logError("{}: the scene camera has no frames", o.sessionDir);
+        return 2;
+    }
+    logInfo("replay: wrote {} frames to {} in {:.1f} s", written, o.outDir,
+            std::chrono::duration<double>(Clock::now() - start).count());
+    return 0;
+}
+
+}  // namespace previs

@@ -1,0 +1,595 @@
+#include "daemon/service.h"
+
+#include <poll.h>
+#include <signal.h>
+#include <sys/eventfd.h>
+#include <sys/signalfd.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+
+#include <nlohmann/json.hpp>
+
+#include "base/log.h"
+#include "capture/unique_fd.h"
+#include "config/scene_description.h"
+#include "daemon/camera_sources.h"
+#include "daemon/control_server.h"
+#include "daemon/pipeline_renderer.h"
+#include "daemon/pipeline_stages.h"
+#include "display/display_thread.h"
+#include "display/frame_output.h"
+#include "gpu/context.h"
+#include "io/gpio_button.h"
+#include "io/status_led.h"
+#include "systemd/notify.h"
+#include "vision/latest_value_slot.h"
+
+namespace previs {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+int64_t nowNs() {
+    return std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now().time_since_epoch())
+        .count();
+}
+
+// A refinement step is sized to take about this long, so that leaving refinement, a status
+// request and a stop are answered promptly however slow a sample is.
+constexpr double kRefineStepTargetMs = 250.0;
+// How long the render thread waits for a frame before it checks the mode and beats its heart.
+constexpr auto kRenderPoll = std::chrono::milliseconds(100);
+
+OutputSettings outputSettings(const OutputConfig& c) {
+    OutputSettings s;
+    s.kind = toString(c.kind);
+    s.folder = c.folder;
+    s.card = c.card;
+    s.connector = c.connector;
+    s.mode = c.mode;
+    return s;
+}
+
+}  // namespace
+
+std::string statusLine(const ServiceStatus& s) {
+    std::string line = fmt::format("{} {} spp {:.1f} fps", s.mode == Mode::Refine ? "REFINE" : "PREVIEW",
+                                   s.samples, s.fps);
+    if (s.trackingLost) line += s.worldFromCamera ? "  TRACKING LOST (holding)" : "  NO TRACKING";
+    return line;
+}
+
+std::string statusJson(const ServiceStatus& s) {
+    nlohmann::json j;
+    j["mode"] = toString(s.mode);
+    j["framesShown"] = s.framesShown;
+    j["framesDropped"] = s.framesDropped;
+    j["drops"] = {{"capture", s.droppedCapture},
+                  {"render", s.droppedRender},
+                  {"display", s.droppedDisplay}};
+    j["samples"] = s.samples;
+    j["noiseEstimate"] = nullptr;  // the convergence meter is issue 10's
+    j["etaSeconds"] = nullptr;
+    j["fps"] = std::round(s.fps * 100.0) / 100.0;
+    j["recording"] = false;
+    j["display"] = s.display;
+    if (s.worldFromCamera) {
+        nlohmann::json m = nlohmann::json::array();
+        for (int r = 0; r < 4; ++r)
+            for (int c = 0; c < 4; ++c) m.push_back((*s.worldFromCamera)(r, c));
+        j["pose"] = {{"worldFromCamera", m}, {"tags", s.tags}, {"lost", s.trackingLost}};
+    } else {
+        j["pose"] = nullptr;
+    }
+    j["uptimeSeconds"] = std::round(s.uptimeSeconds * 10.0) / 10.0;
+    j["renderMs"] = std::round(s.renderMs * 10.0) / 10.0;
+    j["cameras"] = {{"scene", s.sceneCamera}, {"fisheye", s.fisheyeCamera}};
+    j["lightingUpdates"] = s.lightingUpdates;
+    return j.dump();
+}
+
+void blockServiceSignals() {
+    sigset_t set;
+    sigemptyset(&set);
+    sigaddset(&set, SIGTERM);
+    sigaddset(&set, SIGINT);
+    sigaddset(&set, SIGHUP);
+    pthread_sigmask(SIG_BLOCK, &set, nullptr);
+}
+
+// Everything with a thread, in the order it is stopped (reverse of declaration is destruction).
+struct Service::Threads {
+    std::unique_ptr<GpuContext> gpu;
+    std::unique_ptr<PipelineRenderer> renderer;
+    std::optional<TrackingStage> tracking;
+    std::optional<LightingStage> lighting;
+
+    std::unique_ptr<CameraSource> sceneCamera;
+    std::unique_ptr<CameraSource> fisheyeCamera;
+    LatestValueSlot<TrackedFrame> trackedFrames;
+    LatestValueSlot<LiveLighting> lightingSnapshots;
+    std::unique_ptr<DisplayThread> display;
+    std::unique_ptr<GpioButton> button;
+    std::unique_ptr<StatusLed> led;
+    std::unique_ptr<ControlServer> control;
+
+    UniqueFD stopEvent{::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK)};
+    std::atomic<bool> stopping{false};
+    std::atomic<int64_t> heartbeatNs{0};
+    std::atomic<uint64_t> droppedRender{0};
+    std::atomic<uint64_t> lightingUpdates{0};
+    std::atomic<bool> renderFailed{false};
+
+    // Settings SIGHUP may change while running.
+    std::mutex settingsMutex;
+    RefineConfig refine;
+    uint32_t previewSamples = 1;
+
+    // The render thread's part of the status.
+    mutable std::mutex statusMutex;
+    ServiceStatus renderStatus;
+
+    std::thread trackingThread, lightingThread, renderThread;
+
+    void runTracking();
+    void runLighting();
+    void runRender(ModeMachine& modes);
+    void publish(const PipelineRenderer& r, const TrackedFrame& frame, Mode mode, double renderMs,
+                 double fps);
+    void stopAll();
+};
+
+void Service::Threads::runTracking() {
+    while (!stopping.load()) {
+        std::shared_ptr<const Frame> frame =
+            sceneCamera->frames().waitTake(std::chrono::milliseconds(100));
+        if (!frame) continue;
+        auto tracked = std::make_shared<TrackedFrame>(tracking->process(std::move(frame)));
+        // Replaced before the render thread took it: the renderer is the slow stage.
+        if (trackedFrames.publish(std::move(tracked))) droppedRender.fetch_add(1);
+    }
+}
+
+void Service::Threads::runLighting() {
+    uint64_t failures = 0;
+    while (!stopping.load()) {
+        std::shared_ptr<const Frame> frame =
+            fisheyeCamera->frames().waitTake(std::chrono::milliseconds(100));
+        if (!frame) continue;
+        Result<std::shared_ptr<const LiveLighting>> lit = lighting->process(*frame);
+        if (!lit) {
+            if (failures++ == 0)
+                logWarning("lighting: fisheye frame {}: {} (further failures are counted)",
+                           frame->sequence, lit.message());
+            continue;
+        }
+        lightingSnapshots.publish(*lit);
+        lightingUpdates.fetch_add(1);
+    }
+}
+
+void Service::Threads::publish(const PipelineRenderer& r, const TrackedFrame& frame, Mode mode,
+                               double renderMs, double fps) {
+    Result<ImageF> image = r.composite();
+    if (!image) {
+        logError("render: {}", image.message());
+        return;
+    }
+    auto out = std::make_shared<DisplayFrame>();
+    out->width = image->width;
+    out->height = image->height;
+    out->rgb = r.toDisplay(*image);
+    out->captureTimestampNs = int64_t(frame.frame->timestampNs);
+    ServiceStatus s;
+    {
+        std::lock_guard lock(statusMutex);
+        renderStatus.mode = mode;
+        renderStatus.samples = r.samples();
+        renderStatus.renderMs = renderMs;
+        renderStatus.fps = fps;
+        renderStatus.worldFromCamera = frame.worldFromCamera;
+        renderStatus.tags = frame.tags;
+        renderStatus.trackingLost = frame.lost;
+        out->index = renderStatus.framesRendered++;
+        s = renderStatus;
+    }
+    out->status = statusLine(s);
+    display->submit(std::move(out));
+}
+
+void Service::Threads::runRender(ModeMachine& modes) {
+    PipelineRenderer& r = *renderer;
+    std::shared_ptr<const TrackedFrame> current;  // the newest frame shown in preview
+    std::shared_ptr<const TrackedFrame> frozen;
+    std::shared_ptr<const LiveLighting> frozenLighting;
+    bool refining = false;
+    bool loggedPose = false, loggedLighting = false;
+    double msPerSample = 0.0;
+    double fps = 0.0;
+    Clock::time_point lastFrame{};
+    auto tick = [&] {
+        const Clock::time_point now = Clock::now();
+        if (lastFrame != Clock::time_point{}) {
+            const double dt = std::chrono::duration<double>(now - lastFrame).count();
+            // An exponential average over about 8 frames: steady on screen, quick to follow.
+            if (dt > 0.0) fps = fps == 0.0 ? 1.0 / dt : 0.875 * fps + 0.125 / dt;
+        }
+        lastFrame = now;
+    };
+
+    while (!stopping.load()) {
+        heartbeatNs.store(nowNs());
+        RefineConfig settings;
+        {
+            std::lock_guard lock(settingsMutex);
+            settings = refine;
+            r.setPreviewSamples(previewSamples);
+        }
+        const Mode mode = modes.mode();
+        if (mode == Mode::Refine && !refining) {
+            if (!current) current = trackedFrames.waitTakeFor(kRenderPoll);
+            if (!current) continue;  // nothing to freeze yet
+            frozen = current;
+            frozenLighting = lightingSnapshots.latest();
+            if (Status s = r.beginRefine(*frozen, frozenLighting); !s) {
+                logError("render: cannot start refinement: {}", s.message());
+                renderFailed.store(true);
+                return;
+            }
+            refining = true;
+            loggedPose = loggedLighting = false;
+            fps = 0.0;
+            lastFrame = {};
+            logInfo("refinement: frame {} frozen{}", frozen->frame->sequence,
+                    r.rendered() ? "" : " (no pose yet: showing the camera picture)");
+        } else if (mode == Mode::Preview && refining) {
+            refining = false;
+            fps = 0.0;
+            lastFrame = {};
+        }
+
+        if (!refining) {
+            std::shared_ptr<const TrackedFrame> frame = trackedFrames.waitTakeFor(kRenderPoll);
+            if (!frame) continue;
+            const Clock::time_point start = Clock::now();
+            if (Status s = r.renderPreview(*frame, lightingSnapshots.latest()); !s) {
+                logError("render: {}", s.message());
+                renderFailed.store(true);
+                return;
+            }
+            current = frame;
+            const double ms =
+                std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+            tick();
+            publish(r, *frame, Mode::Preview, ms, fps);
+            continue;
+        }
+
+        // Refining: the shot stays frozen; changes beyond the thresholds are only logged.
+        if (std::shared_ptr<const TrackedFrame> f = trackedFrames.take()) {
+            current = f;
+            if (!loggedPose && f->worldFromCamera && frozen->worldFromCamera) {
+                const PoseDelta d = poseDelta(*f->worldFromCamera, *frozen->worldFromCamera);
+                if (d.translationM > settings.poseThresholdM ||
+                    d.rotationDeg > settings.poseThresholdDeg) {
+                    logInfo("refinement: the camera moved {:.3f} m / {:.2f} deg since the shot "
+                            "froze; not applied (leave refinement to follow it)",
+                            d.translationM, d.rotationDeg);
+                    loggedPose = true;
+                }
+            }
+        }
+        if (std::shared_ptr<const LiveLighting> l = lightingSnapshots.latest();
+            !loggedLighting && l && frozenLighting && l != frozenLighting) {
+            const double change = std::abs(l->totalLuminancePower -
+                                           frozenLighting->totalLuminancePower) /
+                                  std::max(frozenLighting->totalLuminancePower, 1e-12);
+            if (change > settings.lightingThreshold) {
+                logInfo("refinement: the set's lighting changed by {:.0f} %; not applied",
+                        change * 100.0);
+                loggedLighting = true;
+            }
+        }
+        const uint64_t done = r.samples();
+        if (!r.rendered() || (settings.maxSamples > 0 && done >= settings.maxSamples)) {
+            // Converged (or nothing to refine): idle until the mode changes.
+            std::this_thread::sleep_for(kRenderPoll);
+            continue;
+        }
+        uint32_t step = settings.samplesPerStep;
+        if (msPerSample > 0.0)
+            step = std::clamp(uint32_t(kRefineStepTargetMs / msPerSample), 1u, step);
+        if (settings.maxSamples > 0) step = uint32_t(std::min<uint64_t>(step, settings.maxSamples - done));
+        const Clock::time_point start = Clock::now();
+        if (Status s = r.refineStep(step); !s) {
+            logError("render: {}", s.message());
+            renderFailed.store(true);
+            return;
+        }
+        const double ms = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+        msPerSample = ms / step;
+        tick();
+        publish(r, *frozen, Mode::Refine, ms, fps);
+        if (settings.maxSamples > 0 && r.samples() >= settings.maxSamples)
+            logInfo("refinement: reached {} samples per pixel", r.samples());
+    }
+}
+
+void Service::Threads::stopAll() {
+    control.reset();
+    button.reset();
+    stopping.store(true);
+    trackedFrames.wakeAll();
+    for (std::thread* t : {&renderThread, &trackingThread, &lightingThread})
+        if (t->joinable()) t->join();
+    if (sceneCamera) sceneCamera->stop();
+    if (fisheyeCamera) fisheyeCamera->stop();
+    if (display) display->stop();
+    if (led) led->set(false);
+}
+
+Service::Service(ServiceConfig config)
+    : config_(std::move(config)), threads_(std::make_unique<Threads>()),
+      started_(Clock::now()) {}
+
+Service::~Service() {
+    if (threads_) threads_->stopAll();
+}
+
+Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config) {
+    std::unique_ptr<Service> service(new Service(config));
+    Threads& t = *service->threads_;
+    t.refine = config.refine;
+    t.previewSamples = config.render.samplesPerFrame;
+
+    Result<Scene> scene = loadScene(config.scenePath);
+    if (!scene) return scene.error();
+    Result<std::unique_ptr<GpuContext>> gpu = GpuContext::create({});
+    if (!gpu) return gpu.error();
+    t.gpu = std::move(*gpu);
+    Result<std::unique_ptr<PipelineRenderer>> renderer =
+        PipelineRenderer::create(*t.gpu, *scene, config);
+    if (!renderer) return renderer.error();
+    t.renderer = std::move(*renderer);
+    logInfo("render: {}x{} on {}, {} spp per preview frame", t.renderer->width(),
+            t.renderer->height(), t.gpu->deviceName(), config.render.samplesPerFrame);
+
+    Result<TrackingStage> tracking = TrackingStage::create(config);
+    if (!tracking) return tracking.error();
+    t.tracking.emplace(std::move(*tracking));
+    if (config.fisheyeCamera) {
+        Result<LightingStage> lighting = LightingStage::create(config);
+        if (!lighting) return lighting.error();
+        t.lighting.emplace(std::move(*lighting));
+    }
+
+    Result<std::unique_ptr<FrameOutput>> output = makeFrameOutput(outputSettings(config.output));
+    if (!output) return output.error();
+    t.display = std::make_unique<DisplayThread>(std::move(*output));
+
+    Service* self = service.get();
+    if (config.button) {
+        const ButtonConfig& b = *config.button;
+        ButtonSettings settings;
+        settings.chip = b.chip;
+        settings.line = b.line;
+        settings.activeLow = b.activeLow;
+        settings.debounceMs = b.debounceMs;
+        settings.longPressMs = b.longPressMs;
+        Result<std::unique_ptr<GpioButton>> button =
+            GpioButton::create(settings, [self](ButtonEvent e) {
+                if (e == ButtonEvent::ShortPress) {
+                    self->setLed(self->modes_.toggle("button") == Mode::Refine);
+                } else {
+                    logInfo("button: long press (reserved for recording, which this previs "
+                            "does not have yet)");
+                }
+            });
+        if (!button) return button.error();
+        t.button = std::move(*button);
+        if (!b.ledLine.empty()) {
+            Result<std::unique_ptr<StatusLed>> led =
+                StatusLed::create(b.ledChip, b.ledLine, b.ledActiveLow);
+            if (!led) return led.error();
+            t.led = std::move(*led);
+        }
+    }
+
+    Result<std::unique_ptr<ControlServer>> control = ControlServer::create(
+        controlSocketPath(config.control),
+        [self](const std::string& command) { return self->handleCommand(command); });
+    if (!control) return control.error();
+    t.control = std::move(*control);
+
+    // Cameras last: once they stream, frames flow into the stages.
+    t.sceneCamera = makeCameraSource(config.sceneCamera, config.loopSession);
+    if (Status s = t.sceneCamera->start(); !s) return s.error();
+    if (config.fisheyeCamera) {
+        t.fisheyeCamera = makeCameraSource(*config.fisheyeCamera, config.loopSession);
+        if (Status s = t.fisheyeCamera->start(); !s) return s.error();
+        t.lightingThread = std::thread([&t] { t.runLighting(); });
+    }
+    t.trackingThread = std::thread([&t] { t.runTracking(); });
+    t.renderThread = std::thread([&t, self] { t.runRender(self->modes_); });
+    service->stopFd_ = t.stopEvent.get();
+    logInfo("previsd: serving {} (control socket {})", config.path, t.control->path());
+    return service;
+}
+
+void Service::setLed(bool on) {
+    if (threads_->led) threads_->led->set(on);
+}
+
+void Service::requestStop() {
+    const uint64_t one = 1;
+    [[maybe_unused]] ssize_t n = ::write(stopFd_, &one, sizeof(one));
+}
+
+ServiceStatus Service::status() const {
+    const Threads& t = *threads_;
+    ServiceStatus s;
+    {
+        std::lock_guard lock(t.statusMutex);
+        s = t.renderStatus;
+    }
+    s.mode = modes_.mode();
+    if (s.mode == Mode::Preview && s.samples > 0) s.samples = t.renderer->previewSamples();
+    const DisplayStats shown = t.display->stats();
+    s.framesShown = shown.shown;
+    s.droppedCapture = t.sceneCamera->frames().dropped();
+    s.droppedRender = t.droppedRender.load();
+    s.droppedDisplay = shown.dropped;
+    s.framesDropped = s.droppedCapture + s.droppedRender + s.droppedDisplay;
+    s.display = shown.kind.empty() ? t.display->output().kind() : shown.kind;
+    s.uptimeSeconds = std::chrono::duration<double>(Clock::now() - started_).count();
+    s.sceneCamera = toString(t.sceneCamera->stats().state);
+    s.fisheyeCamera = t.fisheyeCamera ? toString(t.fisheyeCamera->stats().state) : "none";
+    s.lightingUpdates = t.lightingUpdates.load();
+    return s;
+}
+
+std::string Service::handleCommand(const std::string& command) {
+    auto error = [](const std::string& what) {
+        return nlohmann::json{{"ok", false}, {"error", what}}.dump();
+    };
+    if (command == "status") return statusJson(status());
+    if (command == "toggle") {
+        const Mode m = modes_.toggle("ctl");
+        setLed(m == Mode::Refine);
+        return nlohmann::json{{"ok", true}, {"mode", toString(m)}}.dump();
+    }
+    if (command.rfind("mode ", 0) == 0) {
+        const std::optional<Mode> wanted = parseMode(command.substr(5));
+        if (!wanted) return error("mode must be preview or refine, not '" + command.substr(5) + "'");
+        const Mode m = modes_.set(*wanted, "ctl");
+        setLed(m == Mode::Refine);
+        return nlohmann::json{{"ok", true}, {"mode", toString(m)}}.dump();
+    }
+    if (command == "record start" || command == "record stop")
+        return error("recording is not built yet (the recorder is the next issue)");
+    return error("unknown command '" + command + "'; use status, mode preview|refine or toggle");
+}
+
+void Service::reload() {
+    systemd::notifyReloading();
+    Result<ServiceConfig> fresh = loadServiceConfig(config_.path);
+    if (!fresh) {
+        logError("reload: {}; keeping the running config", fresh.message());
+        systemd::notifyReady();
+        return;
+    }
+    const ServiceConfig& n = *fresh;
+    {
+        std::lock_guard lock(threads_->settingsMutex);
+        threads_->refine = n.refine;
+        threads_->previewSamples = n.render.samplesPerFrame;
+    }
+    // What the running pipeline cannot take without a restart.
+    std::vector<std::string> restart;
+    auto cameraKey = [](const CameraConfig& c) {
+        return fmt::format("{}|{}|{}x{}|{}|{}|{}", toString(c.source), c.device, c.width,
+                           c.height, c.pixelFormat, c.fps, c.calibrationPath);
+    };
+    if (n.scenePath != config_.scenePath) restart.push_back("scene");
+    if (cameraKey(n.sceneCamera) != cameraKey(config_.sceneCamera)) restart.push_back("cameras.scene");
+    if (n.fisheyeCamera.has_value() != config_.fisheyeCamera.has_value() ||
+        (n.fisheyeCamera && cameraKey(*n.fisheyeCamera) != cameraKey(*config_.fisheyeCamera)))
+        restart.push_back("cameras.fisheye");
+    if (n.tracking.boardPath != config_.tracking.boardPath) restart.push_back("tracking");
+    if (n.lighting.mode != config_.lighting.mode) restart.push_back("lighting");
+    if (n.render.width != config_.render.width || n.render.height != config_.render.height ||
+        n.render.maxDepth != config_.render.maxDepth || n.render.seed != config_.render.seed)
+        restart.push_back("render (size, max_depth, seed)");
+    if (n.output.kind != config_.output.kind || n.output.folder != config_.output.folder ||
+        n.output.card != config_.output.card || n.output.connector != config_.output.connector ||
+        n.output.mode != config_.output.mode)
+        restart.push_back("output");
+    if (n.button.has_value() != config_.button.has_value() ||
+        (n.button && (n.button->chip != config_.button->chip ||
+                      n.button->line != config_.button->line)))
+        restart.push_back("button");
+    if (controlSocketPath(n.control) != controlSocketPath(config_.control))
+        restart.push_back("control");
+    logInfo("reload: {}: applied [refine] and render.samples_per_frame = {}{}", config_.path,
+            n.render.samplesPerFrame,
+            restart.empty() ? std::string()
+                            : fmt::format("; these need a restart to apply: {}",
+                                          fmt::join(restart, ", ")));
+    systemd::notifyReady();
+}
+
+int Service::run() {
+    sigset_t set;
+    sigemptyset(&set);
+    sigaddset(&set, SIGTERM);
+    sigaddset(&set, SIGINT);
+    sigaddset(&set, SIGHUP);
+    UniqueFD signals(::signalfd(-1, &set, SFD_CLOEXEC | SFD_NONBLOCK));
+    if (!signals.isValid()) {
+        logError("previsd: signalfd: {}", std::strerror(errno));
+        return 1;
+    }
+    Threads& t = *threads_;
+    systemd::notifyReady();
+    const std::optional<std::chrono::microseconds> watchdog = systemd::watchdogInterval();
+    // Ping at a quarter of the interval, and only while the render loop's heartbeat is fresh: a
+    // hung GPU or pipeline stops the pings and systemd restarts the service.
+    const int pollMs = watchdog ? int(std::clamp<int64_t>(watchdog->count() / 4000, 50, 1000)) : 1000;
+    const int64_t staleNs = watchdog ? int64_t(watchdog->count()) * 1000 / 2 : 0;
+    int exitCode = 0;
+    Clock::time_point lastStatus{}, finishedAt{};
+    for (;;) {
+        pollfd fds[2] = {{signals.get(), POLLIN, 0}, {t.stopEvent.get(), POLLIN, 0}};
+        const int r = ::poll(fds, 2, pollMs);
+        if (r < 0 && errno != EINTR) {
+            logError("previsd: poll: {}", std::strerror(errno));
+            exitCode = 1;
+            break;
+        }
+        if (fds[1].revents) break;
+        if (r > 0 && (fds[0].revents & POLLIN)) {
+            signalfd_siginfo info{};
+            bool stop = false;
+            while (::read(signals.get(), &info, sizeof(info)) == ssize_t(sizeof(info))) {
+                if (info.ssi_signo == SIGHUP) {
+                    logInfo("previsd: SIGHUP: reloading {}", config_.path);
+                    reload();
+                } else {
+                    logInfo("previsd: {}: stopping", strsignal(int(info.ssi_signo)));
+                    stop = true;
+                }
+            }
+            if (stop) break;
+        }
+        if (t.renderFailed.load()) {
+            logError("previsd: the render thread failed; exiting so the service restarts");
+            exitCode = 1;
+            break;
+        }
+        // A session that does not loop ends the service once its last frame had time to be
+        // rendered and shown.
+        if (!config_.loopSession && t.sceneCamera->stats().state == CaptureState::Finished) {
+            if (finishedAt == Clock::time_point{}) finishedAt = Clock::now();
+            if (Clock::now() - finishedAt > std::chrono::seconds(3)) {
+                logInfo("previsd: the recorded session ended");
+                break;
+            }
+        }
+        const int64_t heartbeat = t.heartbeatNs.load();
+        if (watchdog && heartbeat != 0 && nowNs() - heartbeat < staleNs) systemd::notifyWatchdog();
+        if (Clock::now() - lastStatus > std::chrono::seconds(1)) {
+            systemd::notifyStatus(statusLine(status()));
+            lastStatus = Clock::now();
+        }
+    }
+    systemd::notifyStopping();
+    t.stopAll();
+    return exitCode;
+}
+
+}  // namespace previs

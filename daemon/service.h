@@ -1,0 +1,89 @@
+#pragma once
+
+// previsd (DESIGN.md §1, §6, issue 7): the box a film crew switches on. Threads — one per
+// camera, one for tracking, one for lighting, one render thread owning the Vulkan device, one
+// display thread, plus the button's and the control socket's — pass immutable snapshots through
+// latest-value slots: a slow stage drops frames (counted), it never stalls capture.
+
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+
+#include <opencv2/core.hpp>
+
+#include "base/result.h"
+#include "config/service_config.h"
+#include "daemon/mode_machine.h"
+
+namespace previs {
+
+// What `previs ctl status` reports (DESIGN.md §3), as one consistent snapshot.
+struct ServiceStatus {
+    Mode mode = Mode::Preview;
+    uint64_t framesShown = 0;
+    uint64_t framesDropped = 0;  // camera frames that never reached the screen, all stages
+    // capture: frames tracking never took (tracking too slow); render: tracked frames replaced
+    // before the renderer took them; display: rendered frames replaced before being shown.
+    uint64_t droppedCapture = 0, droppedRender = 0, droppedDisplay = 0;
+    uint64_t framesRendered = 0;
+    uint64_t samples = 0;  // per frame in preview, accumulated in refinement
+    double fps = 0.0;
+    std::string display = "none";
+    std::optional<cv::Matx44d> worldFromCamera;  // OpenCV camera axes, board frame
+    int tags = 0;
+    bool trackingLost = true;
+    double uptimeSeconds = 0.0;
+    double renderMs = 0.0;  // the last frame's
+    std::string sceneCamera, fisheyeCamera;  // capture states
+    uint64_t lightingUpdates = 0;
+};
+
+std::string statusJson(const ServiceStatus& status);
+// "PREVIEW 1 spp 9.8 fps" — the display overlay.
+std::string statusLine(const ServiceStatus& status);
+
+class Service {
+public:
+    // Opens everything the config names that must exist at start (scene, GPU, control socket,
+    // button); cameras and the display may be absent and come later.
+    static Result<std::unique_ptr<Service>> create(const ServiceConfig& config);
+    ~Service();
+    Service(const Service&) = delete;
+    Service& operator=(const Service&) = delete;
+
+    // Runs until SIGTERM/SIGINT (exit 0) or a fatal error (1). Speaks sd_notify, feeds the
+    // watchdog from the render loop's heartbeat, reloads on SIGHUP. The caller must have
+    // blocked SIGTERM, SIGINT and SIGHUP in every thread (blockServiceSignals()).
+    int run();
+    // Asks run() to return (tests; signals do the same).
+    void requestStop();
+
+    ServiceStatus status() const;
+    ModeMachine& modes() { return modes_; }
+    // The answer to one control-socket command line.
+    std::string handleCommand(const std::string& command);
+
+private:
+    explicit Service(ServiceConfig config);
+    struct Threads;
+    void reload();
+    void setLed(bool on);
+
+    ServiceConfig config_;
+    ModeMachine modes_;
+    std::unique_ptr<Threads> threads_;
+    std::chrono::steady_clock::time_point started_;
+    std::atomic<bool> stop_{false};
+    int stopFd_ = -1;  // eventfd owned by threads_
+};
+
+// Blocks SIGTERM, SIGINT and SIGHUP in the calling thread and the threads it starts later, so
+// only run()'s signalfd sees them.
+void blockServiceSignals();
+
+}  // namespace previs
