@@ -277,7 +277,7 @@ Status ConfigReader::parseTracking(const toml::table& t, TrackingConfig& c) cons
                                  {"board", "family", "decimate", "sigma", "refine_edges",
                                   "decode_sharpening", "threads", "max_reproj_error_px",
                                   "min_tags", "max_position_std_fraction",
-                                  "max_rotation_std_deg"});
+                                  "max_rotation_std_deg", "until_tracked"});
         !st)
         return st;
     Result<std::optional<std::string>> board = r_.string(t, "tracking", "board");
@@ -311,6 +311,18 @@ Status ConfigReader::parseTracking(const toml::table& t, TrackingConfig& c) cons
                     c.detector.family, *boardPath, loaded->family());
     c.boardPath = *boardPath;
     c.board = std::move(*loaded);
+
+    Result<std::optional<std::string>> until = r_.string(t, "tracking", "until_tracked");
+    if (!until) return until.error();
+    if (*until) {
+        if (**until == "plate")
+            c.sceneCameraUntilTracked = false;
+        else if (**until == "scene-camera")
+            c.sceneCameraUntilTracked = true;
+        else
+            return fail(t.get("until_tracked"),
+                        "'tracking.until_tracked' is '{}'; use plate or scene-camera", **until);
+    }
 
     if (Status st = ranged(t, "tracking", "decimate", c.detector.decimate, 1.0, 16.0); !st)
         return st;

@@ -63,6 +63,10 @@ struct TrackingConfig {
     std::optional<TagBoard> board;  // loaded from boardPath; always set, as calibration
     TagDetectorSettings detector;
     TrackerSettings tracker;
+    // Before the first tracked pose: false = show the camera picture alone; true = composite
+    // from the scene file's camera (a locked-off camera whose pose was measured, or a test rig
+    // whose cameras see no board).
+    bool sceneCameraUntilTracked = false;
 };
 
 enum class LightingMode {

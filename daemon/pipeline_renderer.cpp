@@ -69,6 +69,7 @@ Result<std::unique_ptr<PipelineRenderer>> PipelineRenderer::create(GpuContext& c
     p->radiometry_ = config.sceneCamera.radiometry;
     p->display_ = forwardOf(p->radiometry_);
     p->whiteBalance_ = p->radiometry_.whiteBalance;
+    p->sceneCameraUntilTracked_ = config.tracking.sceneCameraUntilTracked;
 
     RenderSettings settings;
     settings.width = p->width_;
@@ -105,10 +106,12 @@ Status PipelineRenderer::prepare(const TrackedFrame& tracked,
     plate_.channels = 3;
     plate_.ldrSrgb = false;
     plate_.pixels.assign(linear.ptr<float>(0), linear.ptr<float>(0) + size_t(width_) * height_ * 3);
-    rendered_ = tracked.worldFromCamera.has_value();
+    rendered_ = tracked.worldFromCamera.has_value() || sceneCameraUntilTracked_;
     if (!rendered_) return {};
     if (Status s = renderer_->setPlate(plate_); !s) return s;
-    renderer_->setCameraPose(renderWorldFromOpenCvCamera(*tracked.worldFromCamera));
+    // Without a pose yet the renderer keeps the scene file's camera (until_tracked).
+    if (tracked.worldFromCamera)
+        renderer_->setCameraPose(renderWorldFromOpenCvCamera(*tracked.worldFromCamera));
     // Lighting reaches the GPU only when a new snapshot arrived (no BVH rebuild, ever).
     if (lighting && lighting.get() != lightingShown_) {
         if (Status s = renderer_->setEnvironment(lighting->environment); !s) return s;

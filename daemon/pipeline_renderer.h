@@ -66,6 +66,7 @@ private:
     std::array<float, 3> whiteBalance_{1.0f, 1.0f, 1.0f};
     ImageF plate_;
     bool rendered_ = false;
+    bool sceneCameraUntilTracked_ = false;
     uint64_t lightingSequence_ = UINT64_MAX;
     const LiveLighting* lightingShown_ = nullptr;
 };

@@ -2,6 +2,7 @@
 // kind of user error (one message naming the file, the line and the key, and what to do).
 #include "config/service_config.h"
 
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -242,11 +243,85 @@ position_m = [1, 0, 0]
          {"unknown key 'mount_rotation_deg' in [cameras.scene]"}},
         {"session_without_index", minimal("source = \"session\""),
          {"not a recorded camera folder", "index.csv"}},
+        // The service's own sections (issue 7).
+        {"render_half_size", minimal("", "[render]\nwidth = 320"),
+         {"[render] needs both 'width' and 'height'"}},
+        {"render_zero_spp", minimal("", "[render]\nsamples_per_frame = 0"),
+         {"'render.samples_per_frame' is 0"}},
+        {"render_typo", minimal("", "[render]\nspp = 4"), {"unknown key 'spp' in [render]"}},
+        {"refine_negative", minimal("", "[refine]\npose_threshold_m = -1"),
+         {"'refine.pose_threshold_m' is -1"}},
+        {"output_kind", minimal("", "[output]\nkind = \"hdmi\""),
+         {"'output.kind' is 'hdmi'", "kms, files or none"}},
+        {"output_files_no_folder", minimal("", "[output]\nkind = \"files\""),
+         {"needs 'folder'"}},
+        {"output_mode", minimal("", "[output]\nkind = \"kms\"\nmode = \"big\""),
+         {"'output.mode' is 'big'", "WIDTHxHEIGHT"}},
+        {"button_no_line", minimal("", "[button]\nchip = \"gpiochip0\""),
+         {"[button] needs 'chip'", "'line'"}},
+        {"button_long_short", minimal("", "[button]\nchip = \"c\"\nline = \"l\"\n"
+                                          "debounce_ms = 200\nlong_press_ms = 150"),
+         {"'button.long_press_ms' (150) must be longer"}},
+        {"until_tracked", minimal("", "until_tracked = \"guess\""),
+         {"'tracking.until_tracked' is 'guess'"}},
+        {"session_loop_type", minimal("", "[session]\nloop = 1"), {"'session.loop'"}},
     };
 }
 
 INSTANTIATE_TEST_SUITE_P(Config, ServiceConfigErrors, ::testing::ValuesIn(badConfigs()),
                          [](const auto& p) { return std::string(p.param.name); });
+
+TEST(ServiceConfig, ServiceSectionsParse) {
+    const std::string path = writeFile("service_sections.toml", minimal("", R"(until_tracked = "scene-camera"
+[render]
+width = 320
+height = 180
+samples_per_frame = 2
+max_depth = 5
+[refine]
+samples_per_step = 8
+max_samples = 0
+pose_threshold_deg = 1.5
+[output]
+kind = "files"
+folder = "frames"
+[button]
+chip = "vmtest"
+line = "mode-button"
+led_line = "status-led"
+[control]
+socket = "ctl/previsd.sock"
+[session]
+loop = false
+)"));
+    Result<ServiceConfig> c = loadServiceConfig(path);
+    ASSERT_TRUE(c) << c.message();
+    EXPECT_TRUE(c->tracking.sceneCameraUntilTracked);
+    EXPECT_EQ(c->render.width, 320u);
+    EXPECT_EQ(c->render.samplesPerFrame, 2u);
+    EXPECT_EQ(c->render.maxDepth, 5u);
+    EXPECT_EQ(c->refine.samplesPerStep, 8u);
+    EXPECT_EQ(c->refine.maxSamples, 0u);
+    EXPECT_DOUBLE_EQ(c->refine.poseThresholdDeg, 1.5);
+    EXPECT_EQ(c->output.kind, OutputKind::Files);
+    // Relative paths start at the config's folder.
+    EXPECT_EQ(c->output.folder, (tempDir() / "frames").string());
+    ASSERT_TRUE(c->button);
+    EXPECT_EQ(c->button->ledChip, "vmtest");  // defaults to the button's chip
+    EXPECT_EQ(c->button->debounceMs, 20);
+    EXPECT_EQ(controlSocketPath(c->control), (tempDir() / "ctl/previsd.sock").string());
+    EXPECT_FALSE(c->loopSession);
+}
+
+TEST(ServiceConfig, DefaultControlSocketFollowsRuntimeDirectory) {
+    ControlConfig none;
+    ::setenv("RUNTIME_DIRECTORY", "/run/previs:/run/other", 1);
+    EXPECT_EQ(controlSocketPath(none), "/run/previs/previsd.sock");
+    ::setenv("RUNTIME_DIRECTORY", "/tmp/rt", 1);
+    EXPECT_EQ(controlSocketPath(none), "/tmp/rt/previsd.sock");
+    ::unsetenv("RUNTIME_DIRECTORY");
+    EXPECT_EQ(controlSocketPath(none), "/run/previs/previsd.sock");
+}
 
 TEST(ServiceConfig, MissingFileAndFolder) {
     Result<ServiceConfig> missing = loadServiceConfig("/nonexistent/previsd.toml");

@@ -1,0 +1,185 @@
+// Host tests of the service's pieces that need no GPU: the mode machine, the control socket,
+// the status JSON contract (DESIGN.md §3) and the camera-convention conversions.
+#include <sys/socket.h>
+#include <sys/un.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cmath>
+#include <filesystem>
+#include <thread>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "daemon/control_server.h"
+#include "daemon/mode_machine.h"
+#include "daemon/pipeline_stages.h"
+#include "daemon/service.h"
+#include "tests/support/temp_dir.h"
+
+namespace previs {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string socketPath(const std::string& name) {
+    return (testing::scratchDir("previs_daemon_test") / name).string();
+}
+
+TEST(ModeMachine, ToggleAndSetCountEveryChange) {
+    ModeMachine m;
+    EXPECT_EQ(m.mode(), Mode::Preview);
+    EXPECT_EQ(m.toggle("test"), Mode::Refine);
+    EXPECT_EQ(m.toggle("test"), Mode::Preview);
+    EXPECT_EQ(m.version(), 2u);
+    EXPECT_EQ(m.set(Mode::Preview, "test"), Mode::Preview);
+    EXPECT_EQ(m.version(), 2u) << "setting the current mode is not a change";
+    EXPECT_EQ(m.set(Mode::Refine, "test"), Mode::Refine);
+    EXPECT_EQ(m.version(), 3u);
+    EXPECT_EQ(parseMode("refine"), Mode::Refine);
+    EXPECT_EQ(parseMode("Refine"), std::nullopt);
+}
+
+TEST(ModeMachine, ConcurrentTogglesAreNeverLost) {
+    // The button thread and the socket thread drive the same machine.
+    ModeMachine m;
+    std::vector<std::thread> threads;
+    for (int t = 0; t < 4; ++t)
+        threads.emplace_back([&] {
+            for (int i = 0; i < 1001; ++i) m.toggle("test");
+        });
+    for (auto& t : threads) t.join();
+    EXPECT_EQ(m.version(), 4004u);
+    EXPECT_EQ(m.mode(), Mode::Preview);  // an even number of toggles
+}
+
+TEST(ControlServer, AnswersOneLinePerConnection) {
+    const std::string path = socketPath("answers.sock");
+    std::atomic<int> calls{0};
+    auto server = ControlServer::create(path, [&](const std::string& command) {
+        ++calls;
+        return nlohmann::json{{"echo", command}}.dump();
+    });
+    ASSERT_TRUE(server) << server.message();
+    for (const char* command : {"status", "mode refine", "toggle"}) {
+        Result<std::string> reply = controlRequest(path, command);
+        ASSERT_TRUE(reply) << reply.message();
+        EXPECT_EQ(nlohmann::json::parse(*reply)["echo"], command);
+    }
+    EXPECT_EQ(calls.load(), 3);
+    // Owner and group only: the socket changes the box's mode.
+    EXPECT_EQ(fs::status(path).permissions() & fs::perms::others_all, fs::perms::none);
+}
+
+TEST(ControlServer, SilentClientDoesNotBlockOthers) {
+    const std::string path = socketPath("silent.sock");
+    auto server = ControlServer::create(path, [](const std::string&) { return std::string("{}"); });
+    ASSERT_TRUE(server) << server.message();
+    // A client that connects and says nothing.
+    int silent = ::socket(AF_UNIX, SOCK_STREAM, 0);
+    sockaddr_un addr{};
+    addr.sun_family = AF_UNIX;
+    std::strncpy(addr.sun_path, path.c_str(), sizeof(addr.sun_path) - 1);
+    ASSERT_EQ(::connect(silent, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)), 0);
+    // The next client is served once the silent one times out (1 s), well within 10 s.
+    Result<std::string> reply = controlRequest(path, "status", 10000);
+    EXPECT_TRUE(reply) << reply.message();
+    ::close(silent);
+}
+
+TEST(ControlServer, ReplacesAStaleSocketButNotALiveOne) {
+    const std::string path = socketPath("stale.sock");
+    {
+        auto first = ControlServer::create(path, [](const std::string&) { return "{}"; });
+        ASSERT_TRUE(first) << first.message();
+        auto second = ControlServer::create(path, [](const std::string&) { return "{}"; });
+        ASSERT_FALSE(second);
+        EXPECT_NE(second.message().find("another previsd is running"), std::string::npos)
+            << second.message();
+    }
+    EXPECT_FALSE(fs::exists(path)) << "a stopped server removes its socket";
+    // A socket file left by a crash (bound, nobody listening).
+    int fd = ::socket(AF_UNIX, SOCK_STREAM, 0);
+    sockaddr_un addr{};
+    addr.sun_family = AF_UNIX;
+    std::strncpy(addr.sun_path, path.c_str(), sizeof(addr.sun_path) - 1);
+    ASSERT_EQ(::bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)), 0);
+    ::close(fd);
+    ASSERT_TRUE(fs::exists(path));
+    auto third = ControlServer::create(path, [](const std::string&) { return "{\"ok\":true}"; });
+    ASSERT_TRUE(third) << third.message();
+    EXPECT_TRUE(controlRequest(path, "status"));
+}
+
+TEST(ControlServer, ClientNamesTheSocketWhenNoServerRuns) {
+    Result<std::string> reply = controlRequest(socketPath("nobody.sock"), "status", 500);
+    ASSERT_FALSE(reply);
+    EXPECT_NE(reply.message().find("nobody.sock"), std::string::npos) << reply.message();
+    EXPECT_NE(reply.message().find("is previsd running"), std::string::npos);
+}
+
+TEST(StatusJson, HasTheDesignFields) {
+    ServiceStatus s;
+    s.mode = Mode::Refine;
+    s.framesShown = 12;
+    s.framesDropped = 3;
+    s.samples = 256;
+    s.fps = 3.14159;
+    s.display = "kms";
+    s.worldFromCamera = cv::Matx44d::eye();
+    s.worldFromCamera->operator()(0, 3) = 1.5;
+    s.tags = 4;
+    s.uptimeSeconds = 61.25;
+    const nlohmann::json j = nlohmann::json::parse(statusJson(s));
+    EXPECT_EQ(j["mode"], "refine");
+    EXPECT_EQ(j["framesShown"], 12);
+    EXPECT_EQ(j["framesDropped"], 3);
+    EXPECT_EQ(j["samples"], 256);
+    EXPECT_TRUE(j["noiseEstimate"].is_null());
+    EXPECT_TRUE(j["etaSeconds"].is_null());
+    EXPECT_NEAR(j["fps"].get<double>(), 3.14, 1e-9);
+    EXPECT_EQ(j["recording"], false);
+    EXPECT_EQ(j["display"], "kms");
+    ASSERT_EQ(j["pose"]["worldFromCamera"].size(), 16u);
+    EXPECT_EQ(j["pose"]["worldFromCamera"][3], 1.5);  // row-major: m03
+    EXPECT_EQ(j["pose"]["tags"], 4);
+    EXPECT_GT(j["uptimeSeconds"].get<double>(), 61.0);
+    s.worldFromCamera.reset();
+    EXPECT_TRUE(nlohmann::json::parse(statusJson(s))["pose"].is_null());
+    EXPECT_EQ(statusLine(s).rfind("REFINE 256 spp", 0), 0u) << statusLine(s);
+}
+
+TEST(CameraConventions, OpenCvToRendererFlipsYAndZ) {
+    // A camera at (1, 2, 3) looking along world −Z with +Y up in the renderer's convention is,
+    // in OpenCV's axes (y down, z forward), the rotation diag(1, −1, −1).
+    cv::Matx44d cv = cv::Matx44d::eye();
+    cv(1, 1) = -1;
+    cv(2, 2) = -1;
+    cv(0, 3) = 1;
+    cv(1, 3) = 2;
+    cv(2, 3) = 3;
+    const glm::mat4 m = renderWorldFromOpenCvCamera(cv);
+    for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) EXPECT_FLOAT_EQ(m[c][r], r == c ? 1.0f : 0.0f);
+    EXPECT_FLOAT_EQ(m[3][0], 1.0f);
+    EXPECT_FLOAT_EQ(m[3][1], 2.0f);
+    EXPECT_FLOAT_EQ(m[3][2], 3.0f);
+}
+
+TEST(CameraConventions, PoseDeltaMeasuresTranslationAndAngle) {
+    cv::Matx44d a = cv::Matx44d::eye(), b = cv::Matx44d::eye();
+    const double angle = 10.0 * M_PI / 180.0;
+    b(0, 0) = std::cos(angle);
+    b(0, 1) = -std::sin(angle);
+    b(1, 0) = std::sin(angle);
+    b(1, 1) = std::cos(angle);
+    b(2, 3) = 0.25;
+    const PoseDelta d = poseDelta(a, b);
+    EXPECT_NEAR(d.translationM, 0.25, 1e-12);
+    EXPECT_NEAR(d.rotationDeg, 10.0, 1e-9);
+    EXPECT_NEAR(poseDelta(b, b).rotationDeg, 0.0, 1e-6);
+}
+
+}  // namespace
+}  // namespace previs
