@@ -24,5 +24,5 @@ if [ ! -f "$build/CMakeCache.txt" ]; then
 fi
 cmake --build "$build" --target make_demo_session
 "$build/bench/make_demo_session" --demo-dir "$here/examples/demo" --env "$env_map" \
-    --env-scale 0.6 --moving-spp 16 --still-spp 128 --max-depth 3
+    --env-scale 0.6 --moving-spp 12 --still-spp 96 --max-depth 3
 du -sh "$here/examples/demo"
