@@ -8,14 +8,18 @@ namespace previs {
 
 namespace {
 std::atomic<LogLevel> gLevel{LogLevel::Info};
+std::atomic<const char*> gProgram{"previs"};
 }
 
 void setLogLevel(LogLevel level) { gLevel = level; }
 
+void setLogProgramName(const char* name) { gProgram = name; }
+
 void logMessage(LogLevel level, const std::string& message) {
     if (level < gLevel.load()) return;
     static constexpr const char* kPrefix[] = {"debug: ", "", "warning: ", "error: "};
-    std::fprintf(stderr, "previs: %s%s\n", kPrefix[static_cast<int>(level)], message.c_str());
+    std::fprintf(stderr, "%s: %s%s\n", gProgram.load(), kPrefix[static_cast<int>(level)],
+                 message.c_str());
 }
 
 void assertFailed(const char* expr, const char* file, int line) {

@@ -8,6 +8,8 @@ enum class LogLevel { Debug, Info, Warning, Error };
 
 void setLogLevel(LogLevel level);
 void logMessage(LogLevel level, const std::string& message);
+// The name log lines start with ("previs" unless set; previsd sets its own).
+void setLogProgramName(const char* name);
 
 template <typename... Args>
 void logInfo(fmt::format_string<Args...> f, Args&&... args) {

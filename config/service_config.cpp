@@ -359,7 +359,7 @@ Status ConfigReader::parseLighting(const toml::table& t, LightingConfig& c) cons
     if (Status st = r_.checkKeys(t, "lighting",
                                  {"mode", "map_width", "max_field_angle_deg", "fill_ring_deg",
                                   "mean_factor", "max_fraction", "max_lights",
-                                  "min_power_fraction"});
+                                  "min_power_fraction", "update_hz"});
         !st)
         return st;
     Result<std::optional<std::string>> mode = r_.string(t, "lighting", "mode");
@@ -393,6 +393,7 @@ Status ConfigReader::parseLighting(const toml::table& t, LightingConfig& c) cons
         return st;
     if (Status st = ranged(t, "lighting", "max_fraction", c.lights.maxFraction, 0.0, 1.0); !st)
         return st;
+    if (Status st = ranged(t, "lighting", "update_hz", c.updateHz, 0.0, 1000.0); !st) return st;
     int64_t maxLights = c.lights.maxLights;
     if (Status st = integerIn(t, "lighting", "max_lights", maxLights, 0, 256); !st) return st;
     c.lights.maxLights = int(maxLights);

@@ -79,6 +79,10 @@ struct LightingConfig {
     LightingMode mode = LightingMode::Environment;
     FisheyeToEquirectSettings fisheye;  // mount rotation, map width, field of view, fill ring
     LightEstimatorSettings lights;
+    // Lighting snapshots per second at most (0 = every fisheye frame): a room's light changes
+    // slowly, and each snapshot costs a map conversion and an upload. Timed on the frames' own
+    // timestamps, so a replay picks the same frames.
+    double updateHz = 2.0;
 };
 
 // What the render thread does per frame (issue 7: preview and refinement).

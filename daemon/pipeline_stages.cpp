@@ -87,10 +87,15 @@ Result<LightingStage> LightingStage::create(const ServiceConfig& config) {
     if (!toEquirect) return makeError("{}: [cameras.fisheye]: {}", config.path,
                                       toEquirect.message());
     return LightingStage(std::move(*toEquirect), config.fisheyeCamera->radiometry,
-                         config.lighting.mode, config.lighting.lights);
+                         config.lighting.mode, config.lighting.lights, config.lighting.updateHz);
 }
 
-Result<std::shared_ptr<const LiveLighting>> LightingStage::process(const Frame& frame) const {
+bool LightingStage::due(const Frame& frame) const {
+    return !lastNs_ || frame.timestampNs < *lastNs_ || frame.timestampNs - *lastNs_ >= periodNs_;
+}
+
+Result<std::shared_ptr<const LiveLighting>> LightingStage::process(const Frame& frame) {
+    lastNs_ = frame.timestampNs;
     const auto start = std::chrono::steady_clock::now();
     const cv::Mat rgb(int(frame.height), int(frame.width), CV_8UC3,
                       const_cast<uint8_t*>(frame.rgb.data()));

@@ -61,17 +61,21 @@ class LightingStage {
 public:
     // Needs config.fisheyeCamera.
     static Result<LightingStage> create(const ServiceConfig& config);
-    Result<std::shared_ptr<const LiveLighting>> process(const Frame& fisheyeFrame) const;
+    // Whether this frame makes a new snapshot under [lighting] update_hz (by its timestamp).
+    bool due(const Frame& fisheyeFrame) const;
+    Result<std::shared_ptr<const LiveLighting>> process(const Frame& fisheyeFrame);
 
 private:
     LightingStage(FisheyeToEquirect toEquirect, InverseToneMapSettings radiometry,
-                  LightingMode mode, LightEstimatorSettings lights)
+                  LightingMode mode, LightEstimatorSettings lights, double updateHz)
         : toEquirect_(std::move(toEquirect)), radiometry_(radiometry), mode_(mode),
-          estimator_(lights) {}
+          estimator_(lights), periodNs_(updateHz > 0.0 ? uint64_t(1e9 / updateHz) : 0) {}
     FisheyeToEquirect toEquirect_;
     InverseToneMapSettings radiometry_;
     LightingMode mode_;
     LightEstimator estimator_;
+    uint64_t periodNs_;
+    std::optional<uint64_t> lastNs_;
 };
 
 // The renderer's camera (looks along −Z, +Y up; DESIGN.md §4) from OpenCV's camera axes.

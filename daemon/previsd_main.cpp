@@ -40,6 +40,7 @@ int check(const ServiceConfig& config) {
 }  // namespace
 
 int main(int argc, char** argv) {
+    setLogProgramName("previsd");
     CLI::App app{"previsd: the previs on-set service"};
     std::string configPath;
     bool checkOnly = false;

@@ -171,7 +171,7 @@ int runReplay(const ReplayOptions& o) {
 
         // Lighting: every fisheye frame recorded up to this scene frame, in order.
         while (pendingFisheye && pendingFisheye->timestampNs <= frame->timestampNs) {
-            if (lighting) {
+            if (lighting && lighting->due(*pendingFisheye)) {
                 Result<std::shared_ptr<const LiveLighting>> lit = lighting->process(*pendingFisheye);
                 if (lit)
                     currentLighting = *lit;

@@ -160,7 +160,7 @@ void Service::Threads::runLighting() {
     while (!stopping.load()) {
         std::shared_ptr<const Frame> frame =
             fisheyeCamera->frames().waitTake(std::chrono::milliseconds(100));
-        if (!frame) continue;
+        if (!frame || !lighting->due(*frame)) continue;
         Result<std::shared_ptr<const LiveLighting>> lit = lighting->process(*frame);
         if (!lit) {
             if (failures++ == 0)

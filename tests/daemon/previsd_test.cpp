@@ -1,0 +1,372 @@
+// The service as a crew and CI run it (issue 7): the real previsd and `previs replay` binaries on
+// the bundled demo session (examples/demo), rendering small on lavapipe. previsd plays the
+// session at its recorded timing; replay runs it in lock step and must be byte-identical run to
+// run, with each frame's pose tracked on that very frame (compared with the recorded truth).
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <thread>
+
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "daemon/control_server.h"
+#include "io/session.h"
+#include "tests/daemon/process.h"
+#include "tests/support/temp_dir.h"
+
+namespace previs {
+namespace {
+
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+using testing::ChildProcess;
+
+const std::string kDemo = PREVIS_SOURCE_DIR "/examples/demo";
+
+fs::path scratch() { return testing::scratchDir("previs_previsd_test"); }
+
+// The demo's config with absolute paths, a small render, and this test's own output and socket.
+std::string demoConfig(const std::string& name, const std::string& extra = "",
+                       const std::string& output = "") {
+    std::ifstream in(kDemo + "/previsd.toml");
+    std::stringstream ss;
+    ss << in.rdbuf();
+    std::string text = ss.str();
+    auto absolute = [&](const std::string& key, const std::string& value) {
+        const std::string from = fmt::format("{} = \"{}", key, value);
+        for (size_t at = text.find(from); at != std::string::npos; at = text.find(from, at + 1))
+            text.replace(at, from.size(), fmt::format("{} = \"{}/{}", key, kDemo, value));
+    };
+    absolute("scene", "");
+    absolute("device", "");
+    absolute("calibration", "");
+    absolute("board", "");
+    // Drop the demo's own [render], [refine], [output] and [control]: this test sets its own.
+    for (const char* section : {"[render]", "[refine]", "[output]", "[control]"}) {
+        const size_t at = text.find(section);
+        if (at == std::string::npos) continue;
+        size_t end = text.find("\n[", at + 1);
+        text.erase(at, end == std::string::npos ? std::string::npos : end + 1 - at);
+    }
+    const fs::path dir = scratch() / name;
+    fs::create_directories(dir);
+    text += fmt::format(R"(
+[render]
+width = 160
+height = 90
+samples_per_frame = 1
+max_depth = 4
+
+[refine]
+samples_per_step = 4
+max_samples = 4096
+
+[output]
+{}
+
+[control]
+socket = "{}/previsd.sock"
+{}
+)",
+                        output.empty() ? fmt::format("kind = \"files\"\nfolder = \"{}/frames\"",
+                                                     dir.string())
+                                       : output,
+                        dir.string(), extra);
+    const std::string path = (dir / "previsd.toml").string();
+    std::ofstream(path) << text;
+    return path;
+}
+
+std::string socketOf(const std::string& config) {
+    return (fs::path(config).parent_path() / "previsd.sock").string();
+}
+
+std::optional<nlohmann::json> status(const std::string& socket) {
+    Result<std::string> reply = controlRequest(socket, "status", 5000);
+    if (!reply) return std::nullopt;
+    return nlohmann::json::parse(*reply);
+}
+
+// Polls until `ready(status)` or the timeout; the last status seen.
+template <typename Pred>
+std::optional<nlohmann::json> waitFor(const std::string& socket, std::chrono::seconds timeout,
+                                      Pred ready) {
+    const auto deadline = std::chrono::steady_clock::now() + timeout;
+    std::optional<nlohmann::json> last;
+    while (std::chrono::steady_clock::now() < deadline) {
+        if (auto s = status(socket)) {
+            last = s;
+            if (ready(*s)) return s;
+        }
+        std::this_thread::sleep_for(100ms);
+    }
+    return last;
+}
+
+std::string previsd() { return PREVISD_BINARY; }
+std::string previs() { return PREVIS_BINARY; }
+
+// Generous for a loaded 2-core machine and the sanitizer build: the bounds that matter (exit
+// within 5 s of SIGTERM) are asserted separately.
+constexpr auto kStartup = 180s;
+
+TEST(Previsd, CheckAcceptsTheDemoAndNamesTheKeyOfABadConfig) {
+    const std::string good = demoConfig("check");
+    EXPECT_EQ(testing::runProcess({previsd(), "--config", good, "--check"},
+                                  (scratch() / "check.log").string(), 120s),
+              0);
+    const std::string bad = demoConfig("check_bad", "[button]\nchip = \"vmtest\"\n");
+    const std::string log = (scratch() / "check_bad.log").string();
+    EXPECT_EQ(testing::runProcess({previsd(), "--config", bad, "--check"}, log, 60s), 2);
+    std::ifstream in(log);
+    std::string line;
+    std::getline(in, line);
+    EXPECT_NE(line.find(bad), std::string::npos) << line;
+    EXPECT_NE(line.find("line"), std::string::npos) << line;
+    EXPECT_NE(line.find("[button] needs"), std::string::npos) << line;
+    // Without --check too: a bad config is exit 2, never a crash.
+    EXPECT_EQ(testing::runProcess({previsd(), "--config", bad}, log, 60s), 2);
+    EXPECT_EQ(testing::runProcess({previsd(), "--config", "/nonexistent/previsd.toml"}, log, 60s),
+              2);
+}
+
+TEST(Previsd, RunsTheDemoTogglesRefinementAndStopsOnSigterm) {
+    const std::string config = demoConfig("run");
+    const std::string socket = socketOf(config);
+    ChildProcess p({previsd(), "--config", config}, (scratch() / "run.log").string());
+
+    auto shown = waitFor(socket, kStartup, [](const nlohmann::json& s) {
+        return s["framesShown"].get<int>() >= 5 && s["pose"].is_object();
+    });
+    ASSERT_TRUE(shown) << p.log();
+    ASSERT_GE((*shown)["framesShown"].get<int>(), 5) << shown->dump() << p.log();
+    EXPECT_EQ((*shown)["mode"], "preview");
+    EXPECT_EQ((*shown)["samples"], 1);
+    EXPECT_EQ((*shown)["display"], "files");
+    ASSERT_TRUE((*shown)["pose"].is_object()) << "the demo's board is tracked";
+    EXPECT_GE((*shown)["pose"]["tags"].get<int>(), 1);
+    EXPECT_FALSE(fs::is_empty(fs::path(config).parent_path() / "frames"));
+
+    // Refinement: samples accumulate (the same number cannot repeat while they grow).
+    Result<std::string> reply = controlRequest(socket, "mode refine");
+    ASSERT_TRUE(reply) << reply.message();
+    auto refining = waitFor(socket, kStartup, [](const nlohmann::json& s) {
+        return s["mode"] == "refine" && s["samples"].get<int>() >= 8;
+    });
+    ASSERT_TRUE(refining && (*refining)["samples"].get<int>() >= 8) << p.log();
+    const int before = (*refining)["samples"].get<int>();
+    auto more = waitFor(socket, kStartup,
+                        [&](const nlohmann::json& s) { return s["samples"].get<int>() > before; });
+    EXPECT_GT((*more)["samples"].get<int>(), before);
+
+    // SIGHUP reloads and keeps running.
+    p.signal(SIGHUP);
+    auto back = waitFor(socket, 30s, [](const nlohmann::json& s) { return s["mode"] == "refine"; });
+    ASSERT_TRUE(back) << "previsd died on SIGHUP: " << p.log();
+    // Leaving refinement returns to live preview frames of 1 spp.
+    ASSERT_TRUE(controlRequest(socket, "toggle"));
+    auto preview = waitFor(socket, kStartup, [](const nlohmann::json& s) {
+        return s["mode"] == "preview" && s["samples"] == 1;
+    });
+    EXPECT_TRUE(preview && (*preview)["samples"] == 1) << p.log();
+    // An unknown command is a clear error, not a crash.
+    Result<std::string> unknown = controlRequest(socket, "explode");
+    ASSERT_TRUE(unknown);
+    EXPECT_NE(unknown->find("unknown command"), std::string::npos) << *unknown;
+
+    const auto stopAt = std::chrono::steady_clock::now();
+    p.signal(SIGTERM);
+    std::optional<int> code = p.wait(30s);
+    const double stopS = std::chrono::duration<double>(std::chrono::steady_clock::now() - stopAt).count();
+    ASSERT_TRUE(code) << "still running 30 s after SIGTERM";
+    EXPECT_EQ(*code, 0) << p.log();
+    EXPECT_LT(stopS, 5.0) << "SIGTERM must stop previsd within 5 s";
+    const std::string log = p.log();
+    EXPECT_NE(log.find("mode: preview -> refine (ctl)"), std::string::npos) << log;
+    EXPECT_NE(log.find("reload:"), std::string::npos) << log;
+    EXPECT_FALSE(fs::exists(socket)) << "the socket is removed on a clean stop";
+}
+
+TEST(Previsd, SigintStopsFromRefinement) {
+    const std::string config = demoConfig("sigint");
+    const std::string socket = socketOf(config);
+    ChildProcess p({previsd(), "--config", config}, (scratch() / "sigint.log").string());
+    auto shown = waitFor(socket, kStartup,
+                         [](const nlohmann::json& s) { return s["framesShown"].get<int>() >= 1; });
+    ASSERT_TRUE(shown) << p.log();
+    ASSERT_TRUE(controlRequest(socket, "mode refine"));
+    waitFor(socket, 60s, [](const nlohmann::json& s) { return s["samples"].get<int>() >= 4; });
+    const auto stopAt = std::chrono::steady_clock::now();
+    p.signal(SIGINT);
+    std::optional<int> code = p.wait(30s);
+    ASSERT_TRUE(code);
+    EXPECT_EQ(*code, 0) << p.log();
+    EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - stopAt).count(),
+              5.0);
+}
+
+TEST(Previsd, SessionThatDoesNotLoopEndsTheService) {
+    const std::string config = demoConfig("once", "[session]\nloop = false\n",
+                                          "kind = \"none\"");
+    ChildProcess p({previsd(), "--config", config}, (scratch() / "once.log").string());
+    // The demo is about 4 s of footage; then 3 s of grace.
+    std::optional<int> code = p.wait(kStartup);
+    ASSERT_TRUE(code) << p.log();
+    EXPECT_EQ(*code, 0) << p.log();
+    EXPECT_NE(p.log().find("the recorded session ended"), std::string::npos) << p.log();
+}
+
+// frames.csv, one map per row.
+std::vector<std::map<std::string, std::string>> readCsv(const std::string& path) {
+    std::ifstream in(path);
+    std::string line;
+    std::vector<std::string> header;
+    std::vector<std::map<std::string, std::string>> rows;
+    while (std::getline(in, line)) {
+        std::vector<std::string> cells;
+        std::stringstream ss(line);
+        std::string cell;
+        while (std::getline(ss, cell, ',')) cells.push_back(cell);
+        if (!line.empty() && line.back() == ',') cells.push_back("");
+        if (header.empty()) {
+            header = cells;
+            continue;
+        }
+        std::map<std::string, std::string> row;
+        for (size_t i = 0; i < header.size() && i < cells.size(); ++i) row[header[i]] = cells[i];
+        rows.push_back(row);
+    }
+    return rows;
+}
+
+std::string fileBytes(const fs::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+}
+
+class Replay : public ::testing::Test {
+protected:
+    static void SetUpTestSuite() {
+        config_ = demoConfig("replay");
+        for (int run = 0; run < 2; ++run) {
+            const std::string out = (scratch() / fmt::format("replay_{}", run)).string();
+            codes_[run] = testing::runProcess(
+                {previs(), "replay", kDemo + "/session", "--config", config_, "--out", out,
+                 "--quiet"},
+                out + ".log", 600s);
+        }
+    }
+    static std::string out(int run) { return (scratch() / fmt::format("replay_{}", run)).string(); }
+    static inline std::string config_;
+    static inline int codes_[2] = {-1, -1};
+};
+
+TEST_F(Replay, SameSessionAndConfigGiveByteIdenticalFrames) {
+    ASSERT_EQ(codes_[0], 0) << fileBytes(out(0) + ".log");
+    ASSERT_EQ(codes_[1], 0) << fileBytes(out(1) + ".log");
+    Result<SessionInfo> session = openSession(kDemo + "/session");
+    ASSERT_TRUE(session) << session.message();
+    const size_t frames = session->cameraWithRole("scene")->frames;
+    size_t compared = 0;
+    for (size_t i = 0; i < frames; ++i) {
+        const std::string name = fmt::format("frame_{:06d}.png", i);
+        ASSERT_TRUE(fs::exists(fs::path(out(0)) / name)) << name;
+        EXPECT_EQ(fileBytes(fs::path(out(0)) / name), fileBytes(fs::path(out(1)) / name)) << name;
+        ++compared;
+    }
+    EXPECT_FALSE(fs::exists(fs::path(out(0)) / fmt::format("frame_{:06d}.png", frames)));
+    // frames.csv: identical but for render_ms, the one measured column.
+    auto a = readCsv(out(0) + "/frames.csv"), b = readCsv(out(1) + "/frames.csv");
+    ASSERT_EQ(a.size(), frames);
+    ASSERT_EQ(b.size(), frames);
+    for (size_t i = 0; i < frames; ++i) {
+        a[i].erase("render_ms");
+        b[i].erase("render_ms");
+        EXPECT_EQ(a[i], b[i]) << "row " << i;
+    }
+    EXPECT_EQ(compared, frames);
+}
+
+TEST_F(Replay, ModesFollowTheRecordedButtonAndRefinementAccumulates) {
+    ASSERT_EQ(codes_[0], 0);
+    Result<std::vector<SessionEvent>> events = loadEvents(kDemo + "/session");
+    ASSERT_TRUE(events) << events.message();
+    std::vector<uint64_t> presses;
+    for (const SessionEvent& e : *events)
+        if (e.source == "mode-button" && e.event == "short-press") presses.push_back(e.timestampNs);
+    ASSERT_EQ(presses.size(), 2u) << "the demo goes into refinement and back";
+    const auto rows = readCsv(out(0) + "/frames.csv");
+    uint64_t lastSamples = 0;
+    int refineFrames = 0;
+    for (const auto& row : rows) {
+        const uint64_t t = std::stoull(row.at("timestamp_ns"));
+        const bool refining = t >= presses[0] && t < presses[1];
+        ASSERT_EQ(row.at("mode"), refining ? "refine" : "preview") << "frame " << row.at("frame");
+        const uint64_t samples = std::stoull(row.at("samples"));
+        if (refining) {
+            // samples_per_step = 4 per frame, the shot frozen.
+            EXPECT_EQ(samples, lastSamples + 4) << "frame " << row.at("frame");
+            lastSamples = samples;
+            ++refineFrames;
+        } else {
+            EXPECT_EQ(samples, 1u);
+            lastSamples = 0;
+        }
+    }
+    EXPECT_GE(refineFrames, 10);
+}
+
+TEST_F(Replay, EachFramesPoseIsTrackedOnThatFrame) {
+    ASSERT_EQ(codes_[0], 0);
+    Result<std::vector<PoseRecord>> poses = loadPoses(kDemo + "/session");
+    ASSERT_TRUE(poses) << poses.message();
+    std::map<uint64_t, std::array<double, 16>> truth;
+    for (const PoseRecord& p : *poses)
+        if (p.kind == PoseKind::Truth && p.frame && p.worldFromCamera)
+            truth[*p.frame] = *p.worldFromCamera;
+    const auto rows = readCsv(out(0) + "/frames.csv");
+    std::vector<double> errors;
+    for (const auto& row : rows) {
+        if (row.at("mode") != "preview") continue;  // refinement shows the frozen pose
+        ASSERT_EQ(row.at("tracking"), "tracked") << "frame " << row.at("frame");
+        const auto& t = truth.at(std::stoull(row.at("frame")));
+        double d2 = 0.0;
+        for (int r = 0; r < 3; ++r) {
+            const double e = std::stod(row.at(fmt::format("m{}3", r))) - t[size_t(r * 4 + 3)];
+            d2 += e * e;
+        }
+        errors.push_back(std::sqrt(d2));
+    }
+    ASSERT_FALSE(errors.empty());
+    std::sort(errors.begin(), errors.end());
+    // The camera moves ~1 cm per frame: a pose one frame late would be off by about that much.
+    // The tracker's own error on these 640x360 renders is a few millimetres.
+    EXPECT_LT(errors[errors.size() / 2], 0.004) << "median position error, m";
+    EXPECT_LT(errors.back(), 0.015) << "largest position error, m";
+    std::printf("replay pose error vs truth: median %.2f mm, max %.2f mm over %zu frames\n",
+                errors[errors.size() / 2] * 1e3, errors.back() * 1e3, errors.size());
+}
+
+TEST(ReplayErrors, ABadSessionIsOneLineAndExit2) {
+    const fs::path empty = scratch() / "not_a_session";
+    fs::create_directories(empty);
+    const std::string log = (scratch() / "bad_session.log").string();
+    EXPECT_EQ(testing::runProcess({previs(), "replay", empty.string(), "--config",
+                                   demoConfig("bad_session"), "--out",
+                                   (scratch() / "bad_out").string()},
+                                  log, 120s),
+              2);
+    const std::string text = fileBytes(log);
+    EXPECT_NE(text.find(empty.string()), std::string::npos) << text;
+}
+
+}  // namespace
+}  // namespace previs
