@@ -63,6 +63,8 @@ Result<TrackingStage> TrackingStage::create(const ServiceConfig& config) {
 TrackedFrame TrackingStage::process(std::shared_ptr<const Frame> frame) {
     const auto start = std::chrono::steady_clock::now();
     TrackedFrame out;
+    out.receivedNs =
+        std::chrono::duration_cast<std::chrono::nanoseconds>(start.time_since_epoch()).count();
     const cv::Mat rgb(int(frame->height), int(frame->width), CV_8UC3,
                       const_cast<uint8_t*>(frame->rgb.data()));
     cv::Mat gray;

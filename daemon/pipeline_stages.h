@@ -34,6 +34,9 @@ struct TrackedFrame {
     double reprojErrorPx = 0.0;
     std::string reason;  // why this frame gave no trusted pose
     double trackMs = 0.0;
+    // When the tracking stage took the frame (steady clock, CLOCK_MONOTONIC), for latency when
+    // the frame's own timestamp is not on this machine's clock (a recording).
+    int64_t receivedNs = 0;
 };
 
 // The set's lighting from one fisheye frame: the environment map and, in the "lights" mode,

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 
 #include <nlohmann/json.hpp>
@@ -88,6 +89,10 @@ std::string statusJson(const ServiceStatus& s) {
     }
     j["uptimeSeconds"] = std::round(s.uptimeSeconds * 10.0) / 10.0;
     j["renderMs"] = std::round(s.renderMs * 10.0) / 10.0;
+    j["trackMs"] = std::round(s.trackMs * 10.0) / 10.0;
+    j["lightingMs"] = std::round(s.lightingMs * 10.0) / 10.0;
+    j["latencyMs"] = std::round(s.latencyMs * 10.0) / 10.0;
+    j["deviceBytes"] = s.deviceBytes;
     j["cameras"] = {{"scene", s.sceneCamera}, {"fisheye", s.fisheyeCamera}};
     j["lightingUpdates"] = s.lightingUpdates;
     return j.dump();
@@ -139,7 +144,8 @@ struct Service::Threads {
     void runTracking();
     void runLighting();
     void runRender(ModeMachine& modes);
-    void publish(const PipelineRenderer& r, const TrackedFrame& frame, Mode mode, double renderMs,
+    std::atomic<double> lightingMs{0.0};
+    void publish(PipelineRenderer& r, const TrackedFrame& frame, Mode mode, double renderMs,
                  double fps);
     void stopAll();
 };
@@ -168,12 +174,13 @@ void Service::Threads::runLighting() {
                            frame->sequence, lit.message());
             continue;
         }
+        lightingMs.store((*lit)->computeMs);
         lightingSnapshots.publish(*lit);
         lightingUpdates.fetch_add(1);
     }
 }
 
-void Service::Threads::publish(const PipelineRenderer& r, const TrackedFrame& frame, Mode mode,
+void Service::Threads::publish(PipelineRenderer& r, const TrackedFrame& frame, Mode mode,
                                double renderMs, double fps) {
     Result<ImageF> image = r.composite();
     if (!image) {
@@ -184,7 +191,11 @@ void Service::Threads::publish(const PipelineRenderer& r, const TrackedFrame& fr
     out->width = image->width;
     out->height = image->height;
     out->rgb = r.toDisplay(*image);
-    out->captureTimestampNs = int64_t(frame.frame->timestampNs);
+    // A live camera's timestamp is CLOCK_MONOTONIC, the display thread's clock; a recording's
+    // is not (it is hours or days old), so there the pipeline's receipt stands in for capture.
+    const int64_t captured = int64_t(frame.frame->timestampNs);
+    out->captureTimestampNs =
+        std::llabs(nowNs() - captured) < 10'000'000'000LL ? captured : frame.receivedNs;
     ServiceStatus s;
     {
         std::lock_guard lock(statusMutex);
@@ -195,6 +206,8 @@ void Service::Threads::publish(const PipelineRenderer& r, const TrackedFrame& fr
         renderStatus.worldFromCamera = frame.worldFromCamera;
         renderStatus.tags = frame.tags;
         renderStatus.trackingLost = frame.lost;
+        renderStatus.trackMs = frame.trackMs;
+        renderStatus.deviceBytes = r.renderer().deviceBytes();
         out->index = renderStatus.framesRendered++;
         s = renderStatus;
     }
@@ -444,6 +457,8 @@ ServiceStatus Service::status() const {
     s.droppedCapture = t.sceneCamera->frames().dropped();
     s.droppedRender = t.droppedRender.load();
     s.droppedDisplay = shown.dropped;
+    if (shown.shown > 0) s.latencyMs = double(shown.lastShownNs - shown.lastCaptureTimestampNs) * 1e-6;
+    s.lightingMs = t.lightingMs.load();
     s.framesDropped = s.droppedCapture + s.droppedRender + s.droppedDisplay;
     s.display = shown.kind.empty() ? t.display->output().kind() : shown.kind;
     s.uptimeSeconds = std::chrono::duration<double>(Clock::now() - started_).count();

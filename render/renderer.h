@@ -146,6 +146,13 @@ public:
     // measured on CPU devices only, 0 elsewhere).
     double loopIterationsPerSample() const { return loopIterationsPerSample_; }
     const Camera& camera() const { return camera_; }
+    // Bytes of device memory in this renderer's buffers (scene, accumulation, lighting); the
+    // staging copies of an upload or readback come and go on top.
+    uint64_t deviceBytes() const {
+        uint64_t total = 0;
+        for (const GpuBuffer& b : buffers_) total += b.size();
+        return total;
+    }
 
 private:
     Renderer() = default;
