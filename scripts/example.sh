@@ -1,9 +1,13 @@
 #!/usr/bin/env bash
-# Sets everything up, then renders the bundled example scene and says where the image went.
+# Sets everything up, then plays the bundled demo take through the service pipeline (previs
+# replay: tracking, lighting, differential rendering, compositing, preview and refinement as the
+# recorded button presses say) and says where the frames went.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 build=$("$root/scripts/setup.sh" release)
-mkdir -p "$root/out"
-"$build/cli/previs" render "$root/examples/cubes_spheres/scene.gltf" \
-    --width 640 --height 480 --spp 32 --out "$root/out/example.png"
-echo "previs: wrote $root/out/example.png"
+out="$root/out/demo"
+rm -rf "$out"
+"$build/cli/previs" replay "$root/examples/demo/session" --config "$root/examples/demo/previsd.toml" \
+    --out "$out"
+echo "previs: wrote $(ls "$out"/frame_*.png | wc -l) composited frames to $out/frame_NNNNNN.png" \
+     "and $out/frames.csv (mode, samples, tracked pose per frame)"

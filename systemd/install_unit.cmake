@@ -40,6 +40,11 @@ foreach(name ${example_files})
     if(EXISTS "$ENV{DESTDIR}${PREVIS_CONFDIR}/${name}")
         message(STATUS "Keeping: $ENV{DESTDIR}${PREVIS_CONFDIR}/${name} (exists; the example is "
                        "${PREVIS_EXAMPLE_DIR}/${name})")
+    elseif(IS_SYMLINK "${PREVIS_EXAMPLE_DIR}/${name}")
+        # A link inside the repository (examples/box/scene -> ../cubes_spheres) is installed as
+        # a copy of what it points at, so the installed config is self-contained.
+        file(REAL_PATH "${PREVIS_EXAMPLE_DIR}/${name}" target)
+        file(INSTALL "${target}/" DESTINATION "${PREVIS_CONFDIR}/${name}")
     else()
         file(INSTALL "${PREVIS_EXAMPLE_DIR}/${name}" DESTINATION "${PREVIS_CONFDIR}")
     endif()
