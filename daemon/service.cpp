@@ -45,6 +45,8 @@ int64_t nowNs() {
 constexpr double kRefineStepTargetMs = 250.0;
 // How long the render thread waits for a frame before it checks the mode and beats its heart.
 constexpr auto kRenderPoll = std::chrono::milliseconds(100);
+// Without camera frames for this long, the display says so instead of holding the last picture.
+constexpr auto kNoCameraAfter = std::chrono::seconds(2);
 
 OutputSettings outputSettings(const OutputConfig& c) {
     OutputSettings s;
@@ -121,6 +123,7 @@ struct Service::Threads {
     std::unique_ptr<DisplayThread> display;
     std::unique_ptr<GpioButton> button;
     std::unique_ptr<StatusLed> led;
+    std::mutex ledMutex;  // the button thread and the socket thread both switch it
     std::unique_ptr<ControlServer> control;
 
     UniqueFD stopEvent{::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK)};
@@ -147,6 +150,7 @@ struct Service::Threads {
     std::atomic<double> lightingMs{0.0};
     void publish(PipelineRenderer& r, const TrackedFrame& frame, Mode mode, double renderMs,
                  double fps);
+    void publishNoCamera(const PipelineRenderer& r);
     void stopAll();
 };
 
@@ -215,6 +219,20 @@ void Service::Threads::publish(PipelineRenderer& r, const TrackedFrame& frame, M
     display->submit(std::move(out));
 }
 
+void Service::Threads::publishNoCamera(const PipelineRenderer& r) {
+    auto out = std::make_shared<DisplayFrame>();
+    out->width = r.width();
+    out->height = r.height();
+    out->rgb.assign(size_t(out->width) * out->height * 3, 0);
+    out->status = fmt::format("NO CAMERA: {} is {}", sceneCamera->name(),
+                              toString(sceneCamera->stats().state));
+    {
+        std::lock_guard lock(statusMutex);
+        out->index = renderStatus.framesRendered++;
+    }
+    display->submit(std::move(out));
+}
+
 void Service::Threads::runRender(ModeMachine& modes) {
     PipelineRenderer& r = *renderer;
     std::shared_ptr<const TrackedFrame> current;  // the newest frame shown in preview
@@ -224,6 +242,7 @@ void Service::Threads::runRender(ModeMachine& modes) {
     bool loggedPose = false, loggedLighting = false;
     double msPerSample = 0.0;
     double fps = 0.0;
+    Clock::time_point lastPublished = Clock::now();
     Clock::time_point lastFrame{};
     auto tick = [&] {
         const Clock::time_point now = Clock::now();
@@ -268,7 +287,16 @@ void Service::Threads::runRender(ModeMachine& modes) {
 
         if (!refining) {
             std::shared_ptr<const TrackedFrame> frame = trackedFrames.waitTakeFor(kRenderPoll);
-            if (!frame) continue;
+            if (!frame) {
+                // A camera that delivers nothing (unplugged, never opened) must not leave the
+                // monitor frozen on an old picture: say so on a black frame, once a second.
+                if (Clock::now() - lastPublished > kNoCameraAfter) {
+                    publishNoCamera(r);
+                    lastPublished = Clock::now();
+                }
+                continue;
+            }
+            lastPublished = Clock::now();
             const Clock::time_point start = Clock::now();
             if (Status s = r.renderPreview(*frame, lightingSnapshots.latest()); !s) {
                 logError("render: {}", s.message());
@@ -435,6 +463,7 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config) {
 }
 
 void Service::setLed(bool on) {
+    std::lock_guard lock(threads_->ledMutex);
     if (threads_->led) threads_->led->set(on);
 }
 
@@ -451,7 +480,10 @@ ServiceStatus Service::status() const {
         s = t.renderStatus;
     }
     s.mode = modes_.mode();
-    if (s.mode == Mode::Preview && s.samples > 0) s.samples = t.renderer->previewSamples();
+    if (s.mode == Mode::Preview && s.samples > 0) {
+        std::lock_guard lock(threads_->settingsMutex);
+        s.samples = threads_->previewSamples;
+    }
     const DisplayStats shown = t.display->stats();
     s.framesShown = shown.shown;
     s.droppedCapture = t.sceneCamera->frames().dropped();
