@@ -148,8 +148,11 @@ TEST(PrevisdInTheVm, DisplayButtonLedHotplugAndStop) {
     {
         std::ofstream("/sys/bus/platform/drivers/vivid/unbind") << "vivid.0";
     }
-    EXPECT_TRUE(waitUntil([&] { return p.log().find("lost") != std::string::npos; }, 30s))
-        << p.log();
+    EXPECT_TRUE(waitUntil([&] {
+        auto st = status();
+        return st && (*st)["cameras"]["scene"] == "lost" &&
+               p.log().find("/dev/video0 (vivid): device vanished") != std::string::npos;
+    }, 30s)) << p.log();
     {
         std::ofstream("/sys/bus/platform/drivers/vivid/bind") << "vivid.0";
     }
