@@ -4,6 +4,8 @@
 // gpio-sim's simulated pull. Outside the VM the binary exits 77 (skipped).
 #include <fcntl.h>
 #include <gpiod.h>
+#include <linux/videodev2.h>
+#include <sys/ioctl.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -81,6 +83,26 @@ private:
     std::string dir_;
 };
 
+// A V4L2 control's current value, found by its driver name (nullopt: no such control).
+std::optional<int64_t> cameraControl(const char* device, const char* name) {
+    int fd = ::open(device, O_RDWR | O_CLOEXEC);
+    if (fd < 0) return std::nullopt;
+    std::optional<int64_t> value;
+    v4l2_query_ext_ctrl q{};
+    q.id = V4L2_CTRL_FLAG_NEXT_CTRL;
+    while (::ioctl(fd, VIDIOC_QUERY_EXT_CTRL, &q) == 0) {
+        if (std::strcmp(q.name, name) == 0) {
+            v4l2_control c{};
+            c.id = q.id;
+            if (::ioctl(fd, VIDIOC_G_CTRL, &c) == 0) value = c.value;
+            break;
+        }
+        q.id |= V4L2_CTRL_FLAG_NEXT_CTRL;
+    }
+    ::close(fd);
+    return value;
+}
+
 // What vkms scans out, as XRGB8888.
 std::vector<uint32_t> scanout() {
     uint32_t w = 0, h = 0;
@@ -113,6 +135,7 @@ TEST(PrevisdInTheVm, DisplayButtonLedHotplugAndStop) {
     // The status band changes as frames arrive (frame rate, counters), so the screen does too.
     EXPECT_TRUE(waitUntil([&] { return scanout() != first; }, 60s)) << "the display never changed";
     EXPECT_EQ(led.value(), 0);
+    EXPECT_EQ(cameraControl("/dev/video0", "OSD Text Mode"), 2) << "the config's controls";
 
     // A press: refinement, samples grow, the LED lights.
     button.press();
@@ -164,6 +187,9 @@ TEST(PrevisdInTheVm, DisplayButtonLedHotplugAndStop) {
                (*st)["framesShown"].get<int>() > shownBefore + 1;
     }, 120s)) << p.log();
     EXPECT_TRUE(p.running()) << p.log();
+    // A rebound vivid starts with its default controls (OSD text mode 0); the config's controls
+    // are applied again on every open.
+    EXPECT_EQ(cameraControl("/dev/video0", "OSD Text Mode"), 2) << "controls not re-applied";
 
     p.signal(SIGTERM);
     std::optional<int> code = p.wait(30s);
