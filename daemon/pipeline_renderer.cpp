@@ -113,11 +113,11 @@ Status PipelineRenderer::prepare(const TrackedFrame& tracked,
     if (tracked.worldFromCamera)
         renderer_->setCameraPose(renderWorldFromOpenCvCamera(*tracked.worldFromCamera));
     // Lighting reaches the GPU only when a new snapshot arrived (no BVH rebuild, ever).
-    if (lighting && lighting.get() != lightingShown_) {
+    if (lighting && lighting != lightingShown_) {
         if (Status s = renderer_->setEnvironment(lighting->environment); !s) return s;
         const std::vector<EstimatedLightSource> sources = toLightSources(lighting->lights);
         if (Status s = renderer_->setEstimatedLights(sources); !s) return s;
-        lightingShown_ = lighting.get();
+        lightingShown_ = lighting;
     }
     return {};
 }

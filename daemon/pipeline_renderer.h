@@ -67,8 +67,8 @@ private:
     ImageF plate_;
     bool rendered_ = false;
     bool sceneCameraUntilTracked_ = false;
-    uint64_t lightingSequence_ = UINT64_MAX;
-    const LiveLighting* lightingShown_ = nullptr;
+    // Held (not a raw pointer) so a new snapshot can never reuse the shown one's address.
+    std::shared_ptr<const LiveLighting> lightingShown_;
 };
 
 // The render size a config asks for: [render] width/height, else the scene camera's.
