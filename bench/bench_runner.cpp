@@ -9,6 +9,7 @@
 
 #include "base/log.h"
 #include "bench/bench_scenes.h"
+#include "bench/bench_service.h"
 #include "bench/pose_accuracy.h"
 #include "gpu/context.h"
 #include "render/renderer.h"
@@ -76,6 +77,14 @@ std::string millions(double v) { return fmt::format("{:.2f} M", v * 1e-6); }
 }  // namespace
 
 int runBenchmarks(const BenchOptions& o) {
+    // Before any Vulkan device or thread exists: the service bench forks a child per run.
+    if (o.only == "service") {
+        ServiceBenchOptions service;
+        service.examplesDir = o.examplesDir;
+        service.quick = o.quick;
+        service.csvPath = o.csvPath;
+        return runServiceBench(service);
+    }
     auto ctx = GpuContext::create({});
     if (!ctx) {
         logError("{}", ctx.message());

@@ -14,8 +14,10 @@ struct BenchOptions {
     bool quick = false;      // one repetition, fewer samples: a smoke run
     int repetitions = 3;     // timings are medians over this many runs
     uint32_t spp = 8;        // samples per pixel of the throughput runs
-    // Run one section: throughput, resolution, triangles, specialisation, differential, pose.
+    // Run one section: throughput, resolution, triangles, specialisation, differential, pose,
+    // service (bench/bench_service.h; only when asked for by name: it runs for minutes).
     std::string only;
+    std::string csvPath;  // service: also write the results as CSV here ("" = none)
 };
 
 // Returns the process exit code; writes the report to stdout, progress to stderr.
