@@ -1,6 +1,7 @@
 #include "daemon/control_server.h"
 
 #include <poll.h>
+#include <pthread.h>
 #include <sys/eventfd.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
@@ -120,6 +121,7 @@ ControlServer::~ControlServer() {
 }
 
 void ControlServer::run() {
+    pthread_setname_np(pthread_self(), "pv-control");
     for (;;) {
         pollfd fds[2] = {{listener_.get(), POLLIN, 0}, {wake_.get(), POLLIN, 0}};
         const int r = ::poll(fds, 2, -1);

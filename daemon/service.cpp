@@ -1,6 +1,7 @@
 #include "daemon/service.h"
 
 #include <poll.h>
+#include <pthread.h>
 #include <signal.h>
 #include <sys/eventfd.h>
 #include <sys/signalfd.h>
@@ -45,6 +46,12 @@ int64_t nowNs() {
 constexpr double kRefineStepTargetMs = 250.0;
 // How long the render thread waits for a frame before it checks the mode and beats its heart.
 constexpr auto kRenderPoll = std::chrono::milliseconds(100);
+// Pose updates while refining (only to notice a moved camera).
+constexpr auto kRefineTrackingPeriod = std::chrono::milliseconds(500);
+
+// Names show in top -H, perf and /proc/PID/task/*/comm (15 characters at most).
+void nameThread(const char* name) { pthread_setname_np(pthread_self(), name); }
+
 // Without camera frames for this long, the display says so instead of holding the last picture.
 constexpr auto kNoCameraAfter = std::chrono::seconds(2);
 
@@ -144,21 +151,30 @@ struct Service::Threads {
 
     std::thread trackingThread, lightingThread, renderThread;
 
-    void runTracking();
+    void runTracking(const ModeMachine& modes);
     void runLighting();
     void runRender(ModeMachine& modes);
     std::atomic<double> lightingMs{0.0};
-    void publish(PipelineRenderer& r, const TrackedFrame& frame, Mode mode, double renderMs,
-                 double fps);
+    // Sends the composite to the display; renderMs runs from `renderStart` to the tone-mapped
+    // frame (render, readback, tone map).
+    void publish(PipelineRenderer& r, const TrackedFrame& frame, Mode mode,
+                 Clock::time_point renderStart, double fps);
     void publishNoCamera(const PipelineRenderer& r);
     void stopAll();
 };
 
-void Service::Threads::runTracking() {
+void Service::Threads::runTracking(const ModeMachine& modes) {
+    nameThread("pv-tracking");
+    Clock::time_point lastTracked{};
     while (!stopping.load()) {
         std::shared_ptr<const Frame> frame =
             sceneCamera->frames().waitTake(std::chrono::milliseconds(100));
         if (!frame) continue;
+        // While refining, a pose only serves the "camera moved" log line: a few a second do,
+        // and the CPU goes to the accumulating samples instead.
+        if (modes.mode() == Mode::Refine && Clock::now() - lastTracked < kRefineTrackingPeriod)
+            continue;
+        lastTracked = Clock::now();
         auto tracked = std::make_shared<TrackedFrame>(tracking->process(std::move(frame)));
         // Replaced before the render thread took it: the renderer is the slow stage.
         if (trackedFrames.publish(std::move(tracked))) droppedRender.fetch_add(1);
@@ -166,6 +182,7 @@ void Service::Threads::runTracking() {
 }
 
 void Service::Threads::runLighting() {
+    nameThread("pv-lighting");
     uint64_t failures = 0;
     while (!stopping.load()) {
         std::shared_ptr<const Frame> frame =
@@ -185,7 +202,7 @@ void Service::Threads::runLighting() {
 }
 
 void Service::Threads::publish(PipelineRenderer& r, const TrackedFrame& frame, Mode mode,
-                               double renderMs, double fps) {
+                               Clock::time_point renderStart, double fps) {
     Result<ImageF> image = r.composite();
     if (!image) {
         logError("render: {}", image.message());
@@ -195,6 +212,8 @@ void Service::Threads::publish(PipelineRenderer& r, const TrackedFrame& frame, M
     out->width = image->width;
     out->height = image->height;
     out->rgb = r.toDisplay(*image);
+    const double renderMs =
+        std::chrono::duration<double, std::milli>(Clock::now() - renderStart).count();
     // A live camera's timestamp is CLOCK_MONOTONIC, the display thread's clock; a recording's
     // is not (it is hours or days old), so there the pipeline's receipt stands in for capture.
     const int64_t captured = int64_t(frame.frame->timestampNs);
@@ -234,6 +253,7 @@ void Service::Threads::publishNoCamera(const PipelineRenderer& r) {
 }
 
 void Service::Threads::runRender(ModeMachine& modes) {
+    nameThread("pv-render");
     PipelineRenderer& r = *renderer;
     std::shared_ptr<const TrackedFrame> current;  // the newest frame shown in preview
     std::shared_ptr<const TrackedFrame> frozen;
@@ -304,10 +324,8 @@ void Service::Threads::runRender(ModeMachine& modes) {
                 return;
             }
             current = frame;
-            const double ms =
-                std::chrono::duration<double, std::milli>(Clock::now() - start).count();
             tick();
-            publish(r, *frame, Mode::Preview, ms, fps);
+            publish(r, *frame, Mode::Preview, start, fps);
             continue;
         }
 
@@ -352,10 +370,10 @@ void Service::Threads::runRender(ModeMachine& modes) {
             renderFailed.store(true);
             return;
         }
-        const double ms = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-        msPerSample = ms / step;
+        msPerSample =
+            std::chrono::duration<double, std::milli>(Clock::now() - start).count() / step;
         tick();
-        publish(r, *frozen, Mode::Refine, ms, fps);
+        publish(r, *frozen, Mode::Refine, start, fps);
         if (settings.maxSamples > 0 && r.samples() >= settings.maxSamples)
             logInfo("refinement: reached {} samples per pixel", r.samples());
     }
@@ -455,7 +473,7 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config) {
         if (Status s = t.fisheyeCamera->start(); !s) return s.error();
         t.lightingThread = std::thread([&t] { t.runLighting(); });
     }
-    t.trackingThread = std::thread([&t] { t.runTracking(); });
+    t.trackingThread = std::thread([&t, self] { t.runTracking(self->modes_); });
     t.renderThread = std::thread([&t, self] { t.runRender(self->modes_); });
     service->stopFd_ = t.stopEvent.get();
     logInfo("previsd: serving {} (control socket {})", config.path, t.control->path());
