@@ -621,10 +621,13 @@ Result<ServiceConfig> ConfigReader::read(const toml::table& root) {
         {"control", [&](const toml::table& t) { return parseControl(t, config.control); }},
         {"session",
          [&](const toml::table& t) -> Status {
-             if (Status st = r_.checkKeys(t, "session", {"loop"}); !st) return st;
+             if (Status st = r_.checkKeys(t, "session", {"loop", "events"}); !st) return st;
              Result<std::optional<bool>> loop = r_.boolean(t, "session", "loop");
              if (!loop) return loop.error();
              config.loopSession = loop->value_or(true);
+             Result<std::optional<bool>> events = r_.boolean(t, "session", "events");
+             if (!events) return events.error();
+             config.replaySessionEvents = events->value_or(true);
              return {};
          }},
     };

@@ -148,6 +148,8 @@ struct ServiceConfig {
     // Recorded cameras (source = "session"): start over at the end (a demo loop) or stop the
     // service there (exit 0).
     bool loopSession = true;
+    // Recorded cameras: replay the session's button and ctl events (events.csv) with its frames.
+    bool replaySessionEvents = true;
 };
 
 // The control socket the config names, or the default (DESIGN.md §3).

@@ -22,6 +22,7 @@
 #include "daemon/control_server.h"
 #include "daemon/pipeline_renderer.h"
 #include "daemon/pipeline_stages.h"
+#include "daemon/recorded_events.h"
 #include "display/display_thread.h"
 #include "display/frame_output.h"
 #include "gpu/context.h"
@@ -132,6 +133,9 @@ struct Service::Threads {
     std::unique_ptr<StatusLed> led;
     std::mutex ledMutex;  // the button thread and the socket thread both switch it
     std::unique_ptr<ControlServer> control;
+    // A recorded scene camera's button and ctl events, fired as its frames arrive.
+    std::optional<RecordedEvents> recordedEvents;
+    std::function<void(const SessionEvent&)> applyEvent;
 
     UniqueFD stopEvent{::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK)};
     std::atomic<bool> stopping{false};
@@ -170,6 +174,8 @@ void Service::Threads::runTracking(const ModeMachine& modes) {
         std::shared_ptr<const Frame> frame =
             sceneCamera->frames().waitTake(std::chrono::milliseconds(100));
         if (!frame) continue;
+        if (recordedEvents)
+            for (const SessionEvent& e : recordedEvents->due(frame->deviceSequence)) applyEvent(e);
         // While refining, a pose only serves the "camera moved" log line: a few a second do,
         // and the CPU goes to the accumulating samples instead.
         if (modes.mode() == Mode::Refine && Clock::now() - lastTracked < kRefineTrackingPeriod)
@@ -465,6 +471,17 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config) {
     if (!control) return control.error();
     t.control = std::move(*control);
 
+    if (config.sceneCamera.source == CameraSourceKind::Session && config.replaySessionEvents) {
+        Result<std::optional<RecordedEvents>> events = RecordedEvents::load(config.sceneCamera.device);
+        if (!events) return events.error();
+        if (*events) {
+            t.recordedEvents = std::move(**events);
+            t.applyEvent = [self](const SessionEvent& e) { self->applyRecordedEvent(e); };
+            logInfo("previsd: {} recorded button/ctl event(s) replay with the session",
+                    t.recordedEvents->size());
+        }
+    }
+
     // Cameras last: once they stream, frames flow into the stages.
     t.sceneCamera = makeCameraSource(config.sceneCamera, config.loopSession);
     if (Status s = t.sceneCamera->start(); !s) return s.error();
@@ -478,6 +495,18 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config) {
     service->stopFd_ = t.stopEvent.get();
     logInfo("previsd: serving {} (control socket {})", config.path, t.control->path());
     return service;
+}
+
+void Service::applyRecordedEvent(const SessionEvent& e) {
+    if (e.source == "mode-button" && e.event == "short-press") {
+        setLed(modes_.toggle("session mode-button") == Mode::Refine);
+    } else if (e.source == "ctl" && e.event.rfind("mode=", 0) == 0) {
+        const std::string what = e.event.substr(5);
+        if (what == "toggle")
+            setLed(modes_.toggle("session ctl") == Mode::Refine);
+        else if (std::optional<Mode> m = parseMode(what))
+            setLed(modes_.set(*m, "session ctl") == Mode::Refine);
+    }
 }
 
 void Service::setLed(bool on) {

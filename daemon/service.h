@@ -19,6 +19,7 @@
 #include "base/result.h"
 #include "config/service_config.h"
 #include "daemon/mode_machine.h"
+#include "io/session.h"
 
 namespace previs {
 
@@ -79,6 +80,7 @@ private:
     struct Threads;
     void reload();
     void setLed(bool on);
+    void applyRecordedEvent(const SessionEvent& event);
 
     ServiceConfig config_;
     ModeMachine modes_;

@@ -15,6 +15,7 @@
 #include "daemon/control_server.h"
 #include "daemon/mode_machine.h"
 #include "daemon/pipeline_stages.h"
+#include "daemon/recorded_events.h"
 #include "daemon/service.h"
 #include "tests/support/temp_dir.h"
 
@@ -148,6 +149,33 @@ TEST(StatusJson, HasTheDesignFields) {
     s.worldFromCamera.reset();
     EXPECT_TRUE(nlohmann::json::parse(statusJson(s))["pose"].is_null());
     EXPECT_EQ(statusLine(s).rfind("REFINE 256 spp", 0), 0u) << statusLine(s);
+}
+
+TEST(RecordedEvents, FireWithTheirFrameOnEveryPass) {
+    // The demo take: presses recorded just before frames 22 and 42 (examples/demo/README.md).
+    auto loaded = RecordedEvents::load(PREVIS_SOURCE_DIR "/examples/demo/session/cameras/scene");
+    ASSERT_TRUE(loaded) << loaded.message();
+    ASSERT_TRUE(*loaded);
+    RecordedEvents events = std::move(**loaded);
+    ASSERT_EQ(events.size(), 2u);
+    std::vector<uint32_t> firedAt;
+    for (uint32_t pass = 0; pass < 2; ++pass)
+        for (uint32_t frame = 0; frame < 60; frame += (frame % 7 == 3 ? 2 : 1))  // some dropped
+            for (const SessionEvent& e : events.due(frame)) {
+                EXPECT_EQ(e.source, "mode-button");
+                EXPECT_EQ(e.event, "short-press");
+                firedAt.push_back(frame);
+            }
+    ASSERT_EQ(firedAt.size(), 4u) << "both presses, on both passes, even across dropped frames";
+    EXPECT_EQ(firedAt[0], firedAt[2]);
+    EXPECT_EQ(firedAt[1], firedAt[3]);
+    EXPECT_LT(firedAt[0], firedAt[1]);
+    // A session without events.csv has none.
+    const fs::path bare = testing::scratchDir("previs_daemon_test") / "bare/cameras/scene";
+    fs::create_directories(bare);
+    auto none = RecordedEvents::load(bare.string());
+    ASSERT_TRUE(none) << none.message();
+    EXPECT_FALSE(*none);
 }
 
 TEST(CameraConventions, OpenCvToRendererFlipsYAndZ) {

@@ -32,6 +32,8 @@ const std::string kDemo = PREVIS_SOURCE_DIR "/examples/demo";
 fs::path scratch() { return testing::scratchDir("previs_previsd_test"); }
 
 // The demo's config with absolute paths, a small render, and this test's own output and socket.
+// The session's recorded button presses are off unless `extra` has a [session] table: the tests
+// drive the mode themselves.
 std::string demoConfig(const std::string& name, const std::string& extra = "",
                        const std::string& output = "") {
     std::ifstream in(kDemo + "/previsd.toml");
@@ -77,7 +79,10 @@ socket = "{}/previsd.sock"
                         output.empty() ? fmt::format("kind = \"files\"\nfolder = \"{}/frames\"",
                                                      dir.string())
                                        : output,
-                        dir.string(), extra);
+                        dir.string(),
+                        extra.find("[session]") == std::string::npos
+                            ? extra + "\n[session]\nevents = false\n"
+                            : extra);
     const std::string path = (dir / "previsd.toml").string();
     std::ofstream(path) << text;
     return path;
@@ -220,6 +225,11 @@ TEST(Previsd, SessionThatDoesNotLoopEndsTheService) {
     ASSERT_TRUE(code) << p.log();
     EXPECT_EQ(*code, 0) << p.log();
     EXPECT_NE(p.log().find("the recorded session ended"), std::string::npos) << p.log();
+    // The session's button presses replay with its frames: into refinement and back.
+    EXPECT_NE(p.log().find("mode: preview -> refine (session mode-button)"), std::string::npos)
+        << p.log();
+    EXPECT_NE(p.log().find("mode: refine -> preview (session mode-button)"), std::string::npos)
+        << p.log();
 }
 
 // frames.csv, one map per row.
