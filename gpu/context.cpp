@@ -7,7 +7,28 @@
 
 #include "base/log.h"
 
+#if defined(__SANITIZE_ADDRESS__)
+#include <dlfcn.h>
+#endif
+
 namespace previs {
+
+namespace {
+
+// Mesa's lavapipe (22.3) allocates once per process (a pthread_once in its LLVM set-up) and
+// never frees it; when the Vulkan loader unloads the driver at vkDestroyInstance, LeakSanitizer
+// reports that block from an "<unknown module>" and fails every GPU test of the ASan build. A
+// driver that stays loaded keeps the block reachable. Sanitizer builds only: release builds
+// leave the loader's unloading alone.
+void keepLavapipeLoadedUnderSanitizers() {
+#if defined(__SANITIZE_ADDRESS__)
+    // RTLD_NOLOAD: only if the loader already loaded it; RTLD_NODELETE: never unload it.
+    if (void* lvp = dlopen("libvulkan_lvp.so", RTLD_NOW | RTLD_NOLOAD | RTLD_NODELETE))
+        dlclose(lvp);  // drops our reference; NODELETE keeps the library
+#endif
+}
+
+}  // namespace
 
 namespace {
 
@@ -94,6 +115,7 @@ Result<std::unique_ptr<GpuContext>> GpuContext::create(const GpuOptions& options
         }
 
         vk::raii::PhysicalDevices devices(ctx->instance_);
+        keepLavapipeLoadedUnderSanitizers();
         if (devices.empty()) {
             return makeError(
                 "no Vulkan device found; install a Vulkan driver (on a machine without a GPU: "
