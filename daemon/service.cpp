@@ -477,7 +477,7 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config) {
         if (*events) {
             t.recordedEvents = std::move(**events);
             t.applyEvent = [self](const SessionEvent& e) { self->applyRecordedEvent(e); };
-            logInfo("previsd: {} recorded button/ctl event(s) replay with the session",
+            logInfo("{} recorded button/ctl event(s) replay with the session",
                     t.recordedEvents->size());
         }
     }
@@ -493,7 +493,7 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config) {
     t.trackingThread = std::thread([&t, self] { t.runTracking(self->modes_); });
     t.renderThread = std::thread([&t, self] { t.runRender(self->modes_); });
     service->stopFd_ = t.stopEvent.get();
-    logInfo("previsd: serving {} (control socket {})", config.path, t.control->path());
+    logInfo("serving {} (control socket {})", config.path, t.control->path());
     return service;
 }
 
@@ -625,7 +625,7 @@ int Service::run() {
     sigaddset(&set, SIGHUP);
     UniqueFD signals(::signalfd(-1, &set, SFD_CLOEXEC | SFD_NONBLOCK));
     if (!signals.isValid()) {
-        logError("previsd: signalfd: {}", std::strerror(errno));
+        logError("signalfd: {}", std::strerror(errno));
         return 1;
     }
     Threads& t = *threads_;
@@ -641,7 +641,7 @@ int Service::run() {
         pollfd fds[2] = {{signals.get(), POLLIN, 0}, {t.stopEvent.get(), POLLIN, 0}};
         const int r = ::poll(fds, 2, pollMs);
         if (r < 0 && errno != EINTR) {
-            logError("previsd: poll: {}", std::strerror(errno));
+            logError("poll: {}", std::strerror(errno));
             exitCode = 1;
             break;
         }
@@ -651,17 +651,17 @@ int Service::run() {
             bool stop = false;
             while (::read(signals.get(), &info, sizeof(info)) == ssize_t(sizeof(info))) {
                 if (info.ssi_signo == SIGHUP) {
-                    logInfo("previsd: SIGHUP: reloading {}", config_.path);
+                    logInfo("SIGHUP: reloading {}", config_.path);
                     reload();
                 } else {
-                    logInfo("previsd: {}: stopping", strsignal(int(info.ssi_signo)));
+                    logInfo("{}: stopping", strsignal(int(info.ssi_signo)));
                     stop = true;
                 }
             }
             if (stop) break;
         }
         if (t.renderFailed.load()) {
-            logError("previsd: the render thread failed; exiting so the service restarts");
+            logError("the render thread failed; exiting so the service restarts");
             exitCode = 1;
             break;
         }
@@ -670,7 +670,7 @@ int Service::run() {
         if (!config_.loopSession && t.sceneCamera->stats().state == CaptureState::Finished) {
             if (finishedAt == Clock::time_point{}) finishedAt = Clock::now();
             if (Clock::now() - finishedAt > std::chrono::seconds(3)) {
-                logInfo("previsd: the recorded session ended");
+                logInfo("the recorded session ended");
                 break;
             }
         }
