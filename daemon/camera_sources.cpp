@@ -21,11 +21,17 @@ public:
     Status start() override { return open(); }
     Result<bool> read(int timeoutMs, Frame& frame) override {
         if (inner_->finished()) {
+            // A recording with no readable frame would otherwise be reopened in a tight loop:
+            // an error makes the capture thread log it once and retry at its slow pace.
+            if (!framesThisPass_)
+                return makeError("{}: no readable frame in the recording", dir_);
+            framesThisPass_ = 0;
             offsetNs_ += lastNs_ - firstNs_ + periodNs_;
             if (Status s = open(); !s) return s.error();
         }
         Result<bool> got = inner_->read(timeoutMs, frame);
         if (!got || !*got) return got;
+        ++framesThisPass_;
         if (!haveFirst_) {
             firstNs_ = frame.timestampNs;
             haveFirst_ = true;
@@ -53,6 +59,7 @@ private:
     std::unique_ptr<RecordedReader> inner_;
     bool haveFirst_ = false;
     int pass_ = 0;
+    uint64_t framesThisPass_ = 0;
     uint64_t firstNs_ = 0, lastNs_ = 0, periodNs_ = 33'333'333, offsetNs_ = 0;
 };
 

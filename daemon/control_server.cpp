@@ -143,7 +143,13 @@ void ControlServer::serve(int client) {
     std::optional<std::string> line = readLine(client, kClientTimeoutMs);
     if (!line) return;
     if (!line->empty() && line->back() == '\r') line->pop_back();
-    std::string reply = *line == "ping" ? std::string("{\"ok\": true}") : handler_(*line);
+    std::string reply;
+    try {
+        reply = *line == "ping" ? std::string("{\"ok\": true}") : handler_(*line);
+    } catch (const std::exception& e) {  // a handler bug must not end the service
+        logError("control socket {}: command failed: {}", path_, e.what());
+        reply = "{\"ok\": false, \"error\": \"internal error\"}";
+    }
     sendAll(client, reply + "\n", kClientTimeoutMs);
 }
 

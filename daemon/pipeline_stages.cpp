@@ -6,6 +6,7 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "base/log.h"
 #include "vision/inverse_tone_map.h"
 
 namespace previs {
@@ -57,7 +58,7 @@ Result<TrackingStage> TrackingStage::create(const ServiceConfig& config) {
         Tracker::create(config.tracking.detector, *config.tracking.board,
                         *config.sceneCamera.calibration, config.tracking.tracker);
     if (!tracker) return tracker.error();
-    return TrackingStage(std::move(*tracker));
+    return TrackingStage(std::move(*tracker), config.sceneCamera.calibration->imageSize());
 }
 
 TrackedFrame TrackingStage::process(std::shared_ptr<const Frame> frame) {
@@ -65,6 +66,19 @@ TrackedFrame TrackingStage::process(std::shared_ptr<const Frame> frame) {
     TrackedFrame out;
     out.receivedNs =
         std::chrono::duration_cast<std::chrono::nanoseconds>(start.time_since_epoch()).count();
+    if (int(frame->width) != calibrated_.width || int(frame->height) != calibrated_.height) {
+        out.reason = fmt::format("the frame is {}x{} but the calibration is for {}x{}",
+                                 frame->width, frame->height, calibrated_.width,
+                                 calibrated_.height);
+        if (!loggedSize_)
+            logError("tracking: {}; no pose is tracked (record or calibrate at one size)",
+                     out.reason);
+        loggedSize_ = true;
+        const TrackingState& held = tracker_.state();
+        if (held.pose) out.worldFromCamera = held.pose->worldFromCamera;
+        out.frame = std::move(frame);
+        return out;
+    }
     const cv::Mat rgb(int(frame->height), int(frame->width), CV_8UC3,
                       const_cast<uint8_t*>(frame->rgb.data()));
     cv::Mat gray;

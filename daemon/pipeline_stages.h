@@ -56,8 +56,11 @@ public:
     TrackedFrame process(std::shared_ptr<const Frame> frame);
 
 private:
-    explicit TrackingStage(Tracker tracker) : tracker_(std::move(tracker)) {}
+    TrackingStage(Tracker tracker, cv::Size calibrated)
+        : tracker_(std::move(tracker)), calibrated_(calibrated) {}
     Tracker tracker_;
+    cv::Size calibrated_;  // frames of another size would give plausible but wrong poses
+    bool loggedSize_ = false;
 };
 
 class LightingStage {

@@ -62,10 +62,11 @@ int main(int argc, char** argv) {
 
     // Before any thread starts, so that only run()'s signalfd sees these.
     blockServiceSignals();
-    Result<std::unique_ptr<Service>> service = Service::create(*config);
+    bool userError = false;
+    Result<std::unique_ptr<Service>> service = Service::create(*config, &userError);
     if (!service) {
         logError("{}", service.message());
-        return 1;
+        return userError ? 2 : 1;
     }
     return (*service)->run();
 }

@@ -31,6 +31,7 @@ std::vector<SessionEvent> RecordedEvents::due(uint32_t sequence) {
     std::vector<SessionEvent> out;
     // Frames since the last one seen: (last, sequence], or [0, sequence] after a restart.
     const bool restarted = last_ && sequence < *last_;
+    restarted_ = restarted;
     for (const Tied& t : events_) {
         const bool after = !last_ || restarted || t.frameSequence > *last_;
         if (after && t.frameSequence <= sequence) out.push_back(t.event);

@@ -24,6 +24,8 @@ public:
     // The events due when the frame with this recorded sequence arrives (in order; a sequence
     // lower than the last one means the recording started over).
     std::vector<SessionEvent> due(uint32_t recordedSequence);
+    // Whether the last due() call saw the recording start over (its modes start over too).
+    bool restarted() const { return restarted_; }
     size_t size() const { return events_.size(); }
 
 private:
@@ -33,6 +35,7 @@ private:
     };
     std::vector<Tied> events_;  // by frame
     std::optional<uint32_t> last_;
+    bool restarted_ = false;
 };
 
 }  // namespace previs

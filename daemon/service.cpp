@@ -53,6 +53,9 @@ constexpr auto kRefineTrackingPeriod = std::chrono::milliseconds(500);
 // Names show in top -H, perf and /proc/PID/task/*/comm (15 characters at most).
 void nameThread(const char* name) { pthread_setname_np(pthread_self(), name); }
 
+// The longest a preview frame may take (its sample count is lowered to fit).
+constexpr auto kMaxPreviewFrame = std::chrono::milliseconds(3000);
+
 // Without camera frames for this long, the display says so instead of holding the last picture.
 constexpr auto kNoCameraAfter = std::chrono::seconds(2);
 
@@ -174,8 +177,13 @@ void Service::Threads::runTracking(const ModeMachine& modes) {
         std::shared_ptr<const Frame> frame =
             sceneCamera->frames().waitTake(std::chrono::milliseconds(100));
         if (!frame) continue;
-        if (recordedEvents)
-            for (const SessionEvent& e : recordedEvents->due(frame->deviceSequence)) applyEvent(e);
+        if (recordedEvents) {
+            std::vector<SessionEvent> due = recordedEvents->due(frame->deviceSequence);
+            // Each pass of a looping take starts in preview, as the recording did: its presses
+            // are toggles, and an odd number of them would invert every other pass.
+            if (recordedEvents->restarted()) applyEvent({0, "session", "restart"});
+            for (const SessionEvent& e : due) applyEvent(e);
+        }
         // While refining, a pose only serves the "camera moved" log line: a few a second do,
         // and the CPU goes to the accumulating samples instead.
         if (modes.mode() == Mode::Refine && Clock::now() - lastTracked < kRefineTrackingPeriod)
@@ -270,6 +278,9 @@ void Service::Threads::runRender(ModeMachine& modes) {
     double fps = 0.0;
     Clock::time_point lastPublished = Clock::now();
     Clock::time_point lastFrame{};
+    uint64_t seenVersion = modes.version();
+    double previewMsPerSample = 0.0;
+    bool loggedPreviewCap = false;
     auto tick = [&] {
         const Clock::time_point now = Clock::now();
         if (lastFrame != Clock::time_point{}) {
@@ -289,6 +300,10 @@ void Service::Threads::runRender(ModeMachine& modes) {
             r.setPreviewSamples(previewSamples);
         }
         const Mode mode = modes.mode();
+        // Out of refinement and back within one step still re-freezes on the newest frame.
+        const uint64_t version = modes.version();
+        if (refining && version != seenVersion) refining = false;
+        seenVersion = version;
         if (mode == Mode::Refine && !refining) {
             if (!current) current = trackedFrames.waitTakeFor(kRenderPoll);
             if (!current) continue;  // nothing to freeze yet
@@ -324,12 +339,30 @@ void Service::Threads::runRender(ModeMachine& modes) {
             }
             lastPublished = Clock::now();
             const Clock::time_point start = Clock::now();
+            // A preview frame cannot be interrupted: keep it inside kMaxPreviewFrame so the
+            // watchdog, a mode change and SIGTERM are answered, whatever samples_per_frame says.
+            const uint32_t wanted = r.previewSamples();
+            if (previewMsPerSample > 0.0) {
+                const uint32_t fits = std::max(
+                    1u, uint32_t(double(kMaxPreviewFrame.count()) / previewMsPerSample));
+                if (fits < wanted) {
+                    if (!loggedPreviewCap)
+                        logWarning("render: {} samples per preview frame would take {:.0f} ms; "
+                                   "rendering {} (lower render.samples_per_frame)",
+                                   wanted, wanted * previewMsPerSample, fits);
+                    loggedPreviewCap = true;
+                    r.setPreviewSamples(fits);
+                }
+            }
             if (Status s = r.renderPreview(*frame, lightingSnapshots.latest()); !s) {
                 logError("render: {}", s.message());
                 renderFailed.store(true);
                 return;
             }
             current = frame;
+            previewMsPerSample =
+                std::chrono::duration<double, std::milli>(Clock::now() - start).count() /
+                r.previewSamples();
             tick();
             publish(r, *frame, Mode::Preview, start, fps);
             continue;
@@ -406,7 +439,12 @@ Service::~Service() {
     if (threads_) threads_->stopAll();
 }
 
-Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config) {
+Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config, bool* userError) {
+    // Most failures here are the config's (a scene, a connector, a GPIO line, a socket path):
+    // exit 2, which systemd does not restart. The GPU and the cameras' threads are runtime's.
+    bool ignored = false;
+    bool& configError = userError ? *userError : ignored;
+    configError = true;
     std::unique_ptr<Service> service(new Service(config));
     Threads& t = *service->threads_;
     t.refine = config.refine;
@@ -414,9 +452,11 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config) {
 
     Result<Scene> scene = loadScene(config.scenePath);
     if (!scene) return scene.error();
+    configError = false;
     Result<std::unique_ptr<GpuContext>> gpu = GpuContext::create({});
     if (!gpu) return gpu.error();
     t.gpu = std::move(*gpu);
+    configError = true;
     Result<std::unique_ptr<PipelineRenderer>> renderer =
         PipelineRenderer::create(*t.gpu, *scene, config);
     if (!renderer) return renderer.error();
@@ -465,11 +505,6 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config) {
         }
     }
 
-    Result<std::unique_ptr<ControlServer>> control = ControlServer::create(
-        controlSocketPath(config.control),
-        [self](const std::string& command) { return self->handleCommand(command); });
-    if (!control) return control.error();
-    t.control = std::move(*control);
 
     if (config.sceneCamera.source == CameraSourceKind::Session && config.replaySessionEvents) {
         Result<std::optional<RecordedEvents>> events = RecordedEvents::load(config.sceneCamera.device);
@@ -482,7 +517,8 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config) {
         }
     }
 
-    // Cameras last: once they stream, frames flow into the stages.
+    // Cameras: once they stream, frames flow into the stages.
+    configError = false;
     t.sceneCamera = makeCameraSource(config.sceneCamera, config.loopSession);
     if (Status s = t.sceneCamera->start(); !s) return s.error();
     if (config.fisheyeCamera) {
@@ -493,12 +529,23 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config) {
     t.trackingThread = std::thread([&t, self] { t.runTracking(self->modes_); });
     t.renderThread = std::thread([&t, self] { t.runRender(self->modes_); });
     service->stopFd_ = t.stopEvent.get();
+
+    // The control socket last: a status request may come the moment it listens.
+    configError = true;
+    Result<std::unique_ptr<ControlServer>> control = ControlServer::create(
+        controlSocketPath(config.control),
+        [self](const std::string& command) { return self->handleCommand(command); });
+    if (!control) return control.error();
+    t.control = std::move(*control);
+    configError = false;
     logInfo("serving {} (control socket {})", config.path, t.control->path());
     return service;
 }
 
 void Service::applyRecordedEvent(const SessionEvent& e) {
-    if (e.source == "mode-button" && e.event == "short-press") {
+    if (e.source == "session" && e.event == "restart") {
+        setLed(modes_.set(Mode::Preview, "session start over") == Mode::Refine);
+    } else if (e.source == "mode-button" && e.event == "short-press") {
         setLed(modes_.toggle("session mode-button") == Mode::Refine);
     } else if (e.source == "ctl" && e.event.rfind("mode=", 0) == 0) {
         const std::string what = e.event.substr(5);
@@ -526,8 +573,10 @@ ServiceStatus Service::status() const {
         std::lock_guard lock(t.statusMutex);
         s = t.renderStatus;
     }
+    // Just out of refinement, before the first preview frame: report preview's count.
+    const Mode rendered = s.mode;
     s.mode = modes_.mode();
-    if (s.mode == Mode::Preview && s.samples > 0) {
+    if (s.mode == Mode::Preview && rendered == Mode::Refine) {
         std::lock_guard lock(threads_->settingsMutex);
         s.samples = threads_->previewSamples;
     }
@@ -536,7 +585,9 @@ ServiceStatus Service::status() const {
     s.droppedCapture = t.sceneCamera->frames().dropped();
     s.droppedRender = t.droppedRender.load();
     s.droppedDisplay = shown.dropped;
-    if (shown.shown > 0) s.latencyMs = double(shown.lastShownNs - shown.lastCaptureTimestampNs) * 1e-6;
+    // A "NO CAMERA" frame has no capture time.
+    if (shown.shown > 0 && shown.lastCaptureTimestampNs > 0)
+        s.latencyMs = double(shown.lastShownNs - shown.lastCaptureTimestampNs) * 1e-6;
     s.lightingMs = t.lightingMs.load();
     s.framesDropped = s.droppedCapture + s.droppedRender + s.droppedDisplay;
     s.display = shown.kind.empty() ? t.display->output().kind() : shown.kind;
@@ -548,8 +599,10 @@ ServiceStatus Service::status() const {
 }
 
 std::string Service::handleCommand(const std::string& command) {
+    // A client's bytes may be anything (a Latin-1 terminal, a fuzzer): replaced, never thrown.
     auto error = [](const std::string& what) {
-        return nlohmann::json{{"ok", false}, {"error", what}}.dump();
+        return nlohmann::json{{"ok", false}, {"error", what}}.dump(
+            -1, ' ', false, nlohmann::json::error_handler_t::replace);
     };
     if (command == "status") return statusJson(status());
     if (command == "toggle") {

@@ -57,8 +57,10 @@ std::string statusLine(const ServiceStatus& status);
 class Service {
 public:
     // Opens everything the config names that must exist at start (scene, GPU, control socket,
-    // button); cameras and the display may be absent and come later.
-    static Result<std::unique_ptr<Service>> create(const ServiceConfig& config);
+    // button); cameras and the display may be absent and come later. `userError` (optional)
+    // tells a failure the config caused (exit 2) from a runtime one (exit 1).
+    static Result<std::unique_ptr<Service>> create(const ServiceConfig& config,
+                                                   bool* userError = nullptr);
     ~Service();
     Service(const Service&) = delete;
     Service& operator=(const Service&) = delete;

@@ -544,7 +544,19 @@ void KmsOutput::retryOpen() {
             logInfo("display: back on {}", device_->describe());
             return;
         }
-        logDebug("display: retry {}: {}", path, opened.message);
+        // A monitor plugged in later that lacks the configured mode or connector is the
+        // user's to fix: say so once per distinct reason, not only at debug level.
+        if (opened.failure == KmsDevice::Failure::UserError ||
+            opened.failure == KmsDevice::Failure::NoSuchConnector) {
+            const std::string why = opened.message.empty()
+                                        ? fmt::format("{}: no connector '{}'", path,
+                                                      settings_.connector)
+                                        : opened.message;
+            if (why != lastRetryWarning_) logWarning("display: {}", why);
+            lastRetryWarning_ = why;
+        } else {
+            logDebug("display: retry {}: {}", path, opened.message);
+        }
     }
 }
 

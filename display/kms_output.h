@@ -67,6 +67,7 @@ private:
     std::atomic<uint64_t> flipsCompleted_{0};
     std::atomic<uint64_t> framesDropped_{0};
     std::atomic<uint32_t> lastVblank_{0};
+    std::string lastRetryWarning_;  // the last user-caused retry failure logged
 };
 
 // Parses an [output] mode string: "WIDTHxHEIGHT" or "WIDTHxHEIGHT@HZ" (hz 0 = any). False if

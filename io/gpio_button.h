@@ -28,8 +28,20 @@ struct GpiodLineReleaser {
 };
 
 // One requested GPIO line and the chip it belongs to (a libgpiod line lives inside its chip
-// object). Members in this order so the line is released before the chip is closed.
+// object, and closing the chip frees it). Members in this order so destruction releases the line
+// before closing the chip; assignment does the same by hand (the default one would assign the
+// chip first, closing it under the still-held line).
 struct GpioLine {
+    GpioLine() = default;
+    GpioLine(GpioLine&&) noexcept = default;
+    GpioLine& operator=(GpioLine&& other) noexcept {
+        line.reset();
+        chip = std::move(other.chip);
+        line = std::move(other.line);
+        description = std::move(other.description);
+        return *this;
+    }
+
     std::unique_ptr<gpiod_chip, GpiodChipCloser> chip;
     std::unique_ptr<gpiod_line, GpiodLineReleaser> line;
     std::string description;  // "line 'mode-button' (3) on chip vmtest (/dev/gpiochip0)"

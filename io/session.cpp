@@ -123,9 +123,15 @@ Status writeFileAtomic(const std::string& path, std::span<const uint8_t> bytes) 
     const std::string tmp = path + ".tmp";
     UniqueFD fd(::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644));
     if (!fd.isValid()) return makeError("{}: cannot create: {}", tmp, errnoText());
-    if (Status s = writeAll(fd.get(), bytes.data(), bytes.size(), tmp); !s) return s;
-    if (::fdatasync(fd.get()) != 0)
+    // On failure the partial .tmp goes: a full disk must not fill further.
+    if (Status s = writeAll(fd.get(), bytes.data(), bytes.size(), tmp); !s) {
+        ::unlink(tmp.c_str());
+        return s;
+    }
+    if (::fdatasync(fd.get()) != 0) {
+        ::unlink(tmp.c_str());
         return makeError("{}: fdatasync failed: {}", tmp, errnoText());
+    }
     fd.reset();
     if (::rename(tmp.c_str(), path.c_str()) != 0)
         return makeError("{}: cannot rename to {}: {}", tmp, path, errnoText());
@@ -444,10 +450,22 @@ Status SessionWriter::appendLine(Index& index, const std::string& line) {
     PV_DCHECK(!line.empty() && line.back() == '\n');
     // One write() per line: after a crash a line is whole or cut short (and then ignored),
     // never interleaved.
+    // A short write (a full disk) is cut back off: readers skip only a cut *last* line, so a
+    // fragment that a later line were appended to would make the index unreadable.
+    const off_t before = ::lseek(index.fd.get(), 0, SEEK_END);
     ssize_t n;
     do {
         n = ::write(index.fd.get(), line.data(), line.size());
     } while (n < 0 && errno == EINTR);
+    if (n >= 0 && size_t(n) != line.size() && before >= 0) {
+        if (::ftruncate(index.fd.get(), before) != 0) {
+            // The fragment stays: no later line may follow it.
+            index.fd.reset();
+            return makeError("{}: short write and the fragment could not be removed: {}; this "
+                             "index takes no more lines",
+                             index.path, errnoText());
+        }
+    }
     if (n < 0) return makeError("{}: write failed: {} (is the disk full?)", index.path, errnoText());
     if (size_t(n) != line.size())
         return makeError("{}: short write ({} of {} bytes; is the disk full?)", index.path, n,

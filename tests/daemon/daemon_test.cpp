@@ -167,6 +167,10 @@ TEST(RecordedEvents, FireWithTheirFrameOnEveryPass) {
                 firedAt.push_back(frame);
             }
     ASSERT_EQ(firedAt.size(), 4u) << "both presses, on both passes, even across dropped frames";
+    events.due(59);
+    EXPECT_FALSE(events.restarted());
+    events.due(0);
+    EXPECT_TRUE(events.restarted()) << "the service puts the mode back to preview here";
     EXPECT_EQ(firedAt[0], firedAt[2]);
     EXPECT_EQ(firedAt[1], firedAt[3]);
     EXPECT_LT(firedAt[0], firedAt[1]);

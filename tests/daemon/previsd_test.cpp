@@ -31,6 +31,14 @@ const std::string kDemo = PREVIS_SOURCE_DIR "/examples/demo";
 
 fs::path scratch() { return testing::scratchDir("previs_previsd_test"); }
 
+std::string fileBytes(const fs::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+}
+
+
 // The demo's config with absolute paths, a small render, and this test's own output and socket.
 // The session's recorded button presses are off unless `extra` has a [session] table: the tests
 // drive the mode themselves.
@@ -139,6 +147,12 @@ TEST(Previsd, CheckAcceptsTheDemoAndNamesTheKeyOfABadConfig) {
     EXPECT_EQ(testing::runProcess({previsd(), "--config", bad}, log, 60s), 2);
     EXPECT_EQ(testing::runProcess({previsd(), "--config", "/nonexistent/previsd.toml"}, log, 60s),
               2);
+    // A config error only opening the devices finds (here: a GPIO chip that does not exist) is
+    // exit 2 too, so systemd does not restart into the same error.
+    const std::string noChip = demoConfig("no_chip", "[button]\nchip = \"nochip\"\nline = \"x\"\n");
+    const std::string chipLog = (scratch() / "no_chip.log").string();
+    EXPECT_EQ(testing::runProcess({previsd(), "--config", noChip}, chipLog, 120s), 2);
+    EXPECT_NE(fileBytes(chipLog).find("nochip"), std::string::npos) << fileBytes(chipLog);
 }
 
 TEST(Previsd, RunsTheDemoTogglesRefinementAndStopsOnSigterm) {
@@ -180,10 +194,14 @@ TEST(Previsd, RunsTheDemoTogglesRefinementAndStopsOnSigterm) {
         return s["mode"] == "preview" && s["samples"] == 1;
     });
     EXPECT_TRUE(preview && (*preview)["samples"] == 1) << p.log();
-    // An unknown command is a clear error, not a crash.
+    // An unknown command is a clear error, not a crash — also in bytes that are not UTF-8.
     Result<std::string> unknown = controlRequest(socket, "explode");
     ASSERT_TRUE(unknown);
     EXPECT_NE(unknown->find("unknown command"), std::string::npos) << *unknown;
+    Result<std::string> latin1 = controlRequest(socket, std::string("mode r") + char(0xe9) + "fine");
+    ASSERT_TRUE(latin1) << latin1.message() << p.log();
+    EXPECT_NE(latin1->find("\"ok\":false"), std::string::npos) << *latin1;
+    EXPECT_TRUE(p.running()) << p.log();
 
     const auto stopAt = std::chrono::steady_clock::now();
     p.signal(SIGTERM);
@@ -253,13 +271,6 @@ std::vector<std::map<std::string, std::string>> readCsv(const std::string& path)
         rows.push_back(row);
     }
     return rows;
-}
-
-std::string fileBytes(const fs::path& path) {
-    std::ifstream in(path, std::ios::binary);
-    std::stringstream ss;
-    ss << in.rdbuf();
-    return ss.str();
 }
 
 // One test, so the two replays of the demo run once (CTest runs every TEST in its own process).
@@ -369,6 +380,36 @@ TEST(Replay, DemoTakeIsByteIdenticalFollowsTheButtonAndTracksEveryFrame) {
                     errors[errors.size() / 2] * 1e3, errors.back() * 1e3, errors.size(),
                     closerToOwnFrame);
     }
+}
+
+TEST(ReplayErrors, FramesOfAnotherSizeThanTheCalibrationAreNotTracked) {
+    // The demo's 640x360 frames with a 1280x720 calibration: plausible but wrong poses unless
+    // refused; refused, the replay goes on and says why once.
+    std::string config = demoConfig("wrong_size");
+    {
+        std::ifstream in(config);
+        std::stringstream ss;
+        ss << in.rdbuf();
+        std::string text = ss.str();
+        const std::string from = "width = 640\nheight = 360\ncalibration = \"" + kDemo + "/scene_camera.yaml\"";
+        const size_t at = text.find(from);
+        ASSERT_NE(at, std::string::npos) << text;
+        text.replace(at, from.size(), "width = 1280\nheight = 720\ncalibration = \"" +
+                                          std::string(PREVIS_SOURCE_DIR) +
+                                          "/examples/box/scene_camera.yaml\"");
+        std::ofstream(config) << text;
+    }
+    const std::string out = (scratch() / "wrong_size_out").string();
+    const std::string log = out + ".log";
+    ASSERT_EQ(testing::runProcess({previs(), "replay", kDemo + "/session", "--config", config,
+                                   "--out", out, "--quiet", "--mode", "preview"},
+                                  log, 600s),
+              0)
+        << fileBytes(log);
+    EXPECT_NE(fileBytes(log).find("the frame is 640x360 but the calibration is for 1280x720"),
+              std::string::npos)
+        << fileBytes(log);
+    for (const auto& row : readCsv(out + "/frames.csv")) EXPECT_EQ(row.at("tracking"), "none");
 }
 
 TEST(ReplayErrors, ABadSessionIsOneLineAndExit2) {
