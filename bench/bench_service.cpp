@@ -319,6 +319,9 @@ struct Running {
         service->requestStop();
         if (thread.joinable()) thread.join();
     }
+    // Creates and runs the service, then waits for its first frame (pipeline compilation, first
+    // lighting upload); an error names `what`.
+    Status startAndWarmUp(const ServiceConfig& config, const char* what);
 };
 
 constexpr auto kPoll = std::chrono::milliseconds(100);
@@ -333,6 +336,18 @@ bool waitFor(const Service& s, double timeoutSeconds, Pred done) {
         std::this_thread::sleep_for(kPoll);
     }
     return false;
+}
+
+Status Running::startAndWarmUp(const ServiceConfig& config, const char* what) {
+    auto created = Service::create(config);
+    if (!created) return created.error();
+    service = std::move(*created);
+    start();
+    if (!waitFor(*service, 120.0, [](const ServiceStatus& st) { return st.framesShown >= 1; })) {
+        stop();
+        return makeError("{}: no frame shown within 120 s", what);
+    }
+    return {};
 }
 
 // Part 2: the live service at recorded timing.
@@ -363,16 +378,8 @@ LiveResult measureLive(const ServiceBenchOptions& o, uint32_t w, uint32_t h, boo
 
     {
         Running run;
-        auto service = Service::create(*config);
-        if (!service) return fail(service.message());
-        run.service = std::move(*service);
-        run.start();
+        if (Status st = run.startAndWarmUp(*config, "live run"); !st) return fail(st.message());
         const Service& s = *run.service;
-        // Warm-up: the first frame (pipeline compilation, first lighting upload).
-        if (!waitFor(s, 120.0, [](const ServiceStatus& st) { return st.framesShown >= 1; })) {
-            run.stop();
-            return fail("no frame shown within 120 s");
-        }
         const ServiceStatus first = s.status();
         const double cpu0 = cpuSeconds();
         const Clock::time_point start = Clock::now();
@@ -449,15 +456,8 @@ LiveResult measureLive(const ServiceBenchOptions& o, uint32_t w, uint32_t h, boo
         r.idleTarget = config->refine.maxSamples;
         r.lightingHz = config->lighting.updateHz;
         Running run;
-        auto service = Service::create(*config);
-        if (!service) return fail(service.message());
-        run.service = std::move(*service);
-        run.start();
+        if (Status st = run.startAndWarmUp(*config, "idle run"); !st) return fail(st.message());
         const Service& s = *run.service;
-        if (!waitFor(s, 120.0, [](const ServiceStatus& st) { return st.framesShown >= 1; })) {
-            run.stop();
-            return fail("idle run: no frame shown within 120 s");
-        }
         run.service->modes().set(Mode::Refine, "bench");
         if (!waitFor(s, 180.0, [&](const ServiceStatus& st) {
                 return st.mode == Mode::Refine && st.samples >= r.idleTarget;
