@@ -172,9 +172,32 @@ TEST(Previsd, RunsTheDemoTogglesRefinementAndStopsOnSigterm) {
     EXPECT_GE((*shown)["pose"]["tags"].get<int>(), 1);
     EXPECT_FALSE(fs::is_empty(fs::path(config).parent_path() / "frames"));
 
+    // `previs ctl`, as a crew member types it: status as JSON and as text, then refinement.
+    const std::string ctlLog = (fs::path(config).parent_path() / "ctl.out").string();
+    ASSERT_EQ(testing::runProcess({previs(), "ctl", "--socket", socket, "status", "--json"},
+                                  ctlLog, 30s),
+              0);
+    const nlohmann::json viaCli = nlohmann::json::parse(fileBytes(ctlLog));
+    for (const char* key : {"mode", "framesShown", "framesDropped", "samples", "noiseEstimate",
+                            "etaSeconds", "fps", "recording", "display", "pose", "uptimeSeconds"})
+        EXPECT_TRUE(viaCli.contains(key)) << key << " missing from " << viaCli.dump();
+    ASSERT_EQ(testing::runProcess({previs(), "ctl", "--socket", socket, "status"}, ctlLog, 30s), 0);
+    EXPECT_NE(fileBytes(ctlLog).find("mode      preview"), std::string::npos) << fileBytes(ctlLog);
+    EXPECT_EQ(testing::runProcess({previs(), "ctl", "--socket", socket, "record", "start"}, ctlLog,
+                                  30s),
+              2)
+        << "recording is not built yet: a clear error, exit 2";
+    EXPECT_NE(testing::runProcess({previs(), "ctl", "--socket", socket + ".nobody", "status"},
+                                  ctlLog, 30s),
+              0);
+    EXPECT_NE(fileBytes(ctlLog).find("is previsd running"), std::string::npos) << fileBytes(ctlLog);
+
     // Refinement: samples accumulate (the same number cannot repeat while they grow).
-    Result<std::string> reply = controlRequest(socket, "mode refine");
-    ASSERT_TRUE(reply) << reply.message();
+    ASSERT_EQ(testing::runProcess({previs(), "ctl", "--socket", socket, "mode", "refine"}, ctlLog,
+                                  30s),
+              0)
+        << fileBytes(ctlLog);
+    EXPECT_EQ(fileBytes(ctlLog), "refine\n");
     auto refining = waitFor(socket, kStartup, [](const nlohmann::json& s) {
         return s["mode"] == "refine" && s["samples"].get<int>() >= 8;
     });
@@ -189,7 +212,8 @@ TEST(Previsd, RunsTheDemoTogglesRefinementAndStopsOnSigterm) {
     auto back = waitFor(socket, 30s, [](const nlohmann::json& s) { return s["mode"] == "refine"; });
     ASSERT_TRUE(back) << "previsd died on SIGHUP: " << p.log();
     // Leaving refinement returns to live preview frames of 1 spp.
-    ASSERT_TRUE(controlRequest(socket, "toggle"));
+    ASSERT_EQ(testing::runProcess({previs(), "ctl", "--socket", socket, "toggle"}, ctlLog, 30s), 0);
+    EXPECT_EQ(fileBytes(ctlLog), "preview\n");
     auto preview = waitFor(socket, kStartup, [](const nlohmann::json& s) {
         return s["mode"] == "preview" && s["samples"] == 1;
     });
@@ -212,6 +236,7 @@ TEST(Previsd, RunsTheDemoTogglesRefinementAndStopsOnSigterm) {
     EXPECT_LT(stopS, 5.0) << "SIGTERM must stop previsd within 5 s";
     const std::string log = p.log();
     EXPECT_NE(log.find("mode: preview -> refine (ctl)"), std::string::npos) << log;
+    EXPECT_NE(log.find("mode: refine -> preview (ctl)"), std::string::npos) << log;
     EXPECT_NE(log.find("reload:"), std::string::npos) << log;
     EXPECT_FALSE(fs::exists(socket)) << "the socket is removed on a clean stop";
 }
