@@ -43,7 +43,9 @@ void DisplayThread::run() {
         const int64_t nowNs = std::chrono::duration_cast<std::chrono::nanoseconds>(
                                   std::chrono::steady_clock::now().time_since_epoch())
                                   .count();
-        const bool shown = status.ok() && kind != "lost";
+        const bool droppedByOutput = status.ok() && output_->lastFrameDropped();
+        if (droppedByOutput) dropped_.fetch_add(1);
+        const bool shown = status.ok() && kind != "lost" && !droppedByOutput;
         {
             std::lock_guard lock(statsMutex_);
             stats_.kind = kind;
@@ -52,7 +54,7 @@ void DisplayThread::run() {
                 stats_.lastShownNs = nowNs;
                 stats_.lastCaptureTimestampNs = frame->captureTimestampNs;
                 stats_.lastIndex = frame->index;
-            } else {
+            } else if (!droppedByOutput) {
                 ++stats_.failed;
             }
         }

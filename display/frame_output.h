@@ -33,6 +33,9 @@ public:
     virtual Status show(const DisplayFrame& frame) = 0;
     // DESIGN.md §3 status "display": "kms" | "files" | "none" | "lost".
     virtual std::string kind() const = 0;
+    // Whether the last show() succeeded without showing the frame because the output was still
+    // busy with the previous one (a page flip not yet done): a drop, not a frame shown.
+    virtual bool lastFrameDropped() const { return false; }
 };
 
 // The service config's [output] table (docs/config-format.md).

@@ -574,6 +574,7 @@ Status KmsOutput::show(const DisplayFrame& frame) {
         }
     }
     const int err = device_->present(frame);
+    lastDropped_ = err == -ETIMEDOUT;
     if (err == -ETIMEDOUT) {
         framesDropped_.fetch_add(1);
         return {};

@@ -36,6 +36,7 @@ public:
     // ~100 ms for the previous flip (else the frame is dropped and counted).
     Status show(const DisplayFrame& frame) override;
     std::string kind() const override { return lost_ ? "lost" : "kms"; }
+    bool lastFrameDropped() const override { return lastDropped_; }
 
     // Thread-safe (the benchmark reads them while the display thread shows).
     KmsCounters counters() const {
@@ -67,7 +68,8 @@ private:
     std::atomic<uint64_t> flipsCompleted_{0};
     std::atomic<uint64_t> framesDropped_{0};
     std::atomic<uint32_t> lastVblank_{0};
-    std::string lastRetryWarning_;  // the last user-caused retry failure logged
+    std::string lastRetryWarning_;
+    bool lastDropped_ = false;  // the display thread's own: set and read there only  // the last user-caused retry failure logged
 };
 
 // Parses an [output] mode string: "WIDTHxHEIGHT" or "WIDTHxHEIGHT@HZ" (hz 0 = any). False if
