@@ -23,8 +23,7 @@ public:
         if (inner_->finished()) {
             // A recording with no readable frame would otherwise be reopened in a tight loop:
             // an error makes the capture thread log it once and retry at its slow pace.
-            if (!framesThisPass_)
-                return makeError("{}: no readable frame in the recording", dir_);
+            if (!framesThisPass_) return makeError("{}: no readable frame in the recording", dir_);
             framesThisPass_ = 0;
             offsetNs_ += lastNs_ - firstNs_ + periodNs_;
             if (Status s = open(); !s) return s.error();
@@ -94,7 +93,8 @@ std::unique_ptr<CameraSource> makeCameraSource(const CameraConfig& camera, bool 
             break;
 #endif
         }
-        case CameraSourceKind::V4L2: break;
+        case CameraSourceKind::V4L2:
+            break;
     }
     if (camera.source == CameraSourceKind::Libcamera)
         logError("{}: this previs was built without libcamera; the camera stays dark",

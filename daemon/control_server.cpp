@@ -87,35 +87,41 @@ Result<std::unique_ptr<ControlServer>> ControlServer::create(const std::string& 
     // A socket file left by a crashed previsd is replaced; one that answers is another previsd.
     if (std::filesystem::exists(path, ec)) {
         if (controlRequest(path, "ping", 500))
-            return makeError("control socket {}: another previsd is running there; stop it or "
-                             "set [control] socket to another path",
-                             path);
+            return makeError(
+                "control socket {}: another previsd is running there; stop it or "
+                "set [control] socket to another path",
+                path);
         ::unlink(path.c_str());
     }
     UniqueFD fd(::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0));
     if (!fd.isValid()) return makeError("control socket: socket(): {}", std::strerror(errno));
     if (::bind(fd.get(), reinterpret_cast<const sockaddr*>(&*addr), sizeof(*addr)) != 0)
-        return makeError("control socket {}: cannot bind: {} (is the folder writable? set "
-                         "[control] socket or RUNTIME_DIRECTORY)",
-                         path, std::strerror(errno));
+        return makeError(
+            "control socket {}: cannot bind: {} (is the folder writable? set "
+            "[control] socket or RUNTIME_DIRECTORY)",
+            path, std::strerror(errno));
     // Owner and group only: the socket changes the box's mode.
     ::chmod(path.c_str(), 0660);
     if (::listen(fd.get(), 8) != 0)
         return makeError("control socket {}: listen: {}", path, std::strerror(errno));
     std::unique_ptr<ControlServer> server(
         new ControlServer(path, std::move(fd), std::move(handler)));
-    if (!server->wake_.isValid()) return makeError("control socket: eventfd: {}", std::strerror(errno));
+    if (!server->wake_.isValid())
+        return makeError("control socket: eventfd: {}", std::strerror(errno));
     server->thread_ = std::thread([s = server.get()] { s->run(); });
     return server;
 }
 
 ControlServer::ControlServer(std::string path, UniqueFD listener, Handler handler)
-    : path_(std::move(path)), listener_(std::move(listener)),
-      wake_(::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK)), handler_(std::move(handler)) {}
+    : path_(std::move(path)),
+      listener_(std::move(listener)),
+      wake_(::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK)),
+      handler_(std::move(handler)) {}
 
 ControlServer::~ControlServer() {
     const uint64_t one = 1;
-    if (wake_.isValid()) [[maybe_unused]] ssize_t n = ::write(wake_.get(), &one, sizeof(one));
+    if (wake_.isValid()) [[maybe_unused]]
+        ssize_t n = ::write(wake_.get(), &one, sizeof(one));
     if (thread_.joinable()) thread_.join();
     ::unlink(path_.c_str());
 }
@@ -160,9 +166,10 @@ Result<std::string> controlRequest(const std::string& path, const std::string& c
     UniqueFD fd(::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0));
     if (!fd.isValid()) return makeError("socket(): {}", std::strerror(errno));
     if (::connect(fd.get(), reinterpret_cast<const sockaddr*>(&*addr), sizeof(*addr)) != 0)
-        return makeError("cannot reach previsd at {}: {} (is previsd running? pass --socket "
-                         "PATH if its config names another socket)",
-                         path, std::strerror(errno));
+        return makeError(
+            "cannot reach previsd at {}: {} (is previsd running? pass --socket "
+            "PATH if its config names another socket)",
+            path, std::strerror(errno));
     if (!sendAll(fd.get(), command + "\n", timeoutMs))
         return makeError("previsd at {} did not take the command", path);
     std::optional<std::string> reply = readLine(fd.get(), timeoutMs);

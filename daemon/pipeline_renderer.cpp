@@ -33,9 +33,15 @@ ToneMapSettings forwardOf(const InverseToneMapSettings& inverse) {
     t.maxRadiance = inverse.maxRadiance;
     t.whiteLuminance = inverse.whiteLuminance;
     switch (inverse.op) {
-        case InverseToneMapOperator::Srgb: t.op = ToneMapOperator::Clamp; break;
-        case InverseToneMapOperator::Reinhard: t.op = ToneMapOperator::Reinhard; break;
-        case InverseToneMapOperator::Banterle: t.op = ToneMapOperator::ReinhardExtended; break;
+        case InverseToneMapOperator::Srgb:
+            t.op = ToneMapOperator::Clamp;
+            break;
+        case InverseToneMapOperator::Reinhard:
+            t.op = ToneMapOperator::Reinhard;
+            break;
+        case InverseToneMapOperator::Banterle:
+            t.op = ToneMapOperator::ReinhardExtended;
+            break;
     }
     return t;
 }
@@ -141,9 +147,7 @@ Status PipelineRenderer::refineStep(uint32_t samples) {
     return renderer_->refine(samples);
 }
 
-uint64_t PipelineRenderer::samples() const {
-    return rendered_ ? renderer_->samplesPerPixel() : 0;
-}
+uint64_t PipelineRenderer::samples() const { return rendered_ ? renderer_->samplesPerPixel() : 0; }
 
 Result<ImageF> PipelineRenderer::composite() const {
     if (!rendered_) return plate_;
@@ -153,8 +157,7 @@ Result<ImageF> PipelineRenderer::composite() const {
 std::vector<uint8_t> PipelineRenderer::toDisplay(const ImageF& composite) const {
     // Undo the white balance the plate's inverse applied, then the camera's curve forward.
     ImageF balanced = composite;
-    for (size_t i = 0; i < balanced.pixels.size(); ++i)
-        balanced.pixels[i] /= whiteBalance_[i % 3];
+    for (size_t i = 0; i < balanced.pixels.size(); ++i) balanced.pixels[i] /= whiteBalance_[i % 3];
     return toneMapToSrgb8(balanced, display_);
 }
 

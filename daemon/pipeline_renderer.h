@@ -54,8 +54,7 @@ public:
 private:
     PipelineRenderer() = default;
     // Plate, pose and lighting for the next samples.
-    Status prepare(const TrackedFrame& frame,
-                   const std::shared_ptr<const LiveLighting>& lighting);
+    Status prepare(const TrackedFrame& frame, const std::shared_ptr<const LiveLighting>& lighting);
 
     std::unique_ptr<Renderer> renderer_;
     uint32_t width_ = 0;

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-
 #include <opencv2/imgproc.hpp>
 
 #include "base/log.h"
@@ -36,8 +35,7 @@ double luminancePower(const cv::Mat& radiance) {
     return total;
 }
 
-std::shared_ptr<const EnvironmentMap> toEnvironmentMap(const cv::Mat& radiance,
-                                                       uint64_t sequence) {
+std::shared_ptr<const EnvironmentMap> toEnvironmentMap(const cv::Mat& radiance, uint64_t sequence) {
     auto map = std::make_shared<EnvironmentMap>();
     map->path = fmt::format("fisheye frame {}", sequence);
     map->width = uint32_t(radiance.cols);
@@ -67,9 +65,9 @@ TrackedFrame TrackingStage::process(std::shared_ptr<const Frame> frame) {
     out.receivedNs =
         std::chrono::duration_cast<std::chrono::nanoseconds>(start.time_since_epoch()).count();
     if (int(frame->width) != calibrated_.width || int(frame->height) != calibrated_.height) {
-        out.reason = fmt::format("the frame is {}x{} but the calibration is for {}x{}",
-                                 frame->width, frame->height, calibrated_.width,
-                                 calibrated_.height);
+        out.reason =
+            fmt::format("the frame is {}x{} but the calibration is for {}x{}", frame->width,
+                        frame->height, calibrated_.width, calibrated_.height);
         if (!loggedSize_)
             logError("tracking: {}; no pose is tracked (record or calibrate at one size)",
                      out.reason);
@@ -100,8 +98,8 @@ Result<LightingStage> LightingStage::create(const ServiceConfig& config) {
     if (!config.fisheyeCamera) return makeError("{}: no [cameras.fisheye]", config.path);
     Result<FisheyeToEquirect> toEquirect =
         FisheyeToEquirect::create(*config.fisheyeCamera->calibration, config.lighting.fisheye);
-    if (!toEquirect) return makeError("{}: [cameras.fisheye]: {}", config.path,
-                                      toEquirect.message());
+    if (!toEquirect)
+        return makeError("{}: [cameras.fisheye]: {}", config.path, toEquirect.message());
     return LightingStage(std::move(*toEquirect), config.fisheyeCamera->radiometry,
                          config.lighting.mode, config.lighting.lights, config.lighting.updateHz);
 }

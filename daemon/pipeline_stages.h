@@ -6,11 +6,10 @@
 
 #include <cstdint>
 #include <memory>
+#include <opencv2/core.hpp>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <opencv2/core.hpp>
 
 #include "base/result.h"
 #include "capture/frame.h"
@@ -74,8 +73,11 @@ public:
 private:
     LightingStage(FisheyeToEquirect toEquirect, InverseToneMapSettings radiometry,
                   LightingMode mode, LightEstimatorSettings lights, double updateHz)
-        : toEquirect_(std::move(toEquirect)), radiometry_(radiometry), mode_(mode),
-          estimator_(lights), periodNs_(updateHz > 0.0 ? uint64_t(1e9 / updateHz) : 0) {}
+        : toEquirect_(std::move(toEquirect)),
+          radiometry_(radiometry),
+          mode_(mode),
+          estimator_(lights),
+          periodNs_(updateHz > 0.0 ? uint64_t(1e9 / updateHz) : 0) {}
     FisheyeToEquirect toEquirect_;
     InverseToneMapSettings radiometry_;
     LightingMode mode_;

@@ -9,7 +9,8 @@ namespace previs {
 
 Result<std::optional<RecordedEvents>> RecordedEvents::load(const std::string& sceneCameraDir) {
     namespace fs = std::filesystem;
-    const fs::path session = fs::path(sceneCameraDir).lexically_normal().parent_path().parent_path();
+    const fs::path session =
+        fs::path(sceneCameraDir).lexically_normal().parent_path().parent_path();
     if (!fs::exists(session / "events.csv")) return std::optional<RecordedEvents>();
     Result<std::vector<SessionEvent>> events = loadEvents(session.string());
     if (!events) return events.error();

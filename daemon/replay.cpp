@@ -55,9 +55,9 @@ int runReplay(const ReplayOptions& o) {
         logError("{}", session.message());
         return 2;
     }
-    Result<ServiceConfig> config =
-        o.configPath.empty() ? loadServiceConfig(session->configPath, session->configDir)
-                             : loadServiceConfig(o.configPath);
+    Result<ServiceConfig> config = o.configPath.empty()
+                                       ? loadServiceConfig(session->configPath, session->configDir)
+                                       : loadServiceConfig(o.configPath);
     if (!config) {
         logError("{}", config.message());
         return 2;
@@ -79,9 +79,10 @@ int runReplay(const ReplayOptions& o) {
         return 2;
     }
     if (!*sceneReader) {
-        logError("{}: the session has no scene camera (cameras/scene or a camera with role "
-                 "\"scene\" in session.toml)",
-                 o.sessionDir);
+        logError(
+            "{}: the session has no scene camera (cameras/scene or a camera with role "
+            "\"scene\" in session.toml)",
+            o.sessionDir);
         return 2;
     }
     Result<std::unique_ptr<RecordedReader>> fisheyeReader = openCamera(*session, "fisheye");
@@ -90,9 +91,10 @@ int runReplay(const ReplayOptions& o) {
         return 2;
     }
     if (*fisheyeReader && !config->fisheyeCamera)
-        logWarning("{}: the session has fisheye frames but the config has no [cameras.fisheye]: "
-                   "the scene's own lighting is used",
-                   config->path);
+        logWarning(
+            "{}: the session has fisheye frames but the config has no [cameras.fisheye]: "
+            "the scene's own lighting is used",
+            config->path);
 
     Result<Scene> scene = loadScene(config->scenePath);
     if (!scene) {
@@ -172,7 +174,8 @@ int runReplay(const ReplayOptions& o) {
         // Lighting: every fisheye frame recorded up to this scene frame, in order.
         while (pendingFisheye && pendingFisheye->timestampNs <= frame->timestampNs) {
             if (lighting && lighting->due(*pendingFisheye)) {
-                Result<std::shared_ptr<const LiveLighting>> lit = lighting->process(*pendingFisheye);
+                Result<std::shared_ptr<const LiveLighting>> lit =
+                    lighting->process(*pendingFisheye);
                 if (lit)
                     currentLighting = *lit;
                 else
@@ -218,9 +221,9 @@ int runReplay(const ReplayOptions& o) {
             const uint64_t done = (*renderer)->samples();
             const uint64_t target = config->refine.maxSamples;
             if (rendered && (target == 0 || done < target)) {
-                const uint64_t step = target == 0 ? config->refine.samplesPerStep
-                                                  : std::min<uint64_t>(config->refine.samplesPerStep,
-                                                                       target - done);
+                const uint64_t step =
+                    target == 0 ? config->refine.samplesPerStep
+                                : std::min<uint64_t>(config->refine.samplesPerStep, target - done);
                 rendered = (*renderer)->refineStep(uint32_t(step));
             }
         }
@@ -252,12 +255,15 @@ int runReplay(const ReplayOptions& o) {
         const TrackedFrame& used = mode == Mode::Refine ? *frozen : tracked;
         csv << written << "," << frame->timestampNs << "," << toString(mode) << ","
             << (*renderer)->samples() << "," << fmt::format("{:.1f}", renderMs) << ","
-            << (!used.worldFromCamera ? "none" : used.lost ? "held" : "tracked") << ","
-            << used.tags;
+            << (!used.worldFromCamera ? "none"
+                : used.lost           ? "held"
+                                      : "tracked")
+            << "," << used.tags;
         for (int r = 0; r < 4; ++r)
             for (int c = 0; c < 4; ++c) {
                 csv << ",";
-                if (used.worldFromCamera) csv << fmt::format("{:.9g}", (*used.worldFromCamera)(r, c));
+                if (used.worldFromCamera)
+                    csv << fmt::format("{:.9g}", (*used.worldFromCamera)(r, c));
             }
         csv << "\n";
         ++written;

@@ -12,7 +12,6 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
-
 #include <nlohmann/json.hpp>
 
 #include "base/log.h"
@@ -72,8 +71,8 @@ OutputSettings outputSettings(const OutputConfig& c) {
 }  // namespace
 
 std::string statusLine(const ServiceStatus& s) {
-    std::string line = fmt::format("{} {} spp {:.1f} fps", s.mode == Mode::Refine ? "REFINE" : "PREVIEW",
-                                   s.samples, s.fps);
+    std::string line = fmt::format("{} {} spp {:.1f} fps",
+                                   s.mode == Mode::Refine ? "REFINE" : "PREVIEW", s.samples, s.fps);
     if (s.trackingLost) line += s.worldFromCamera ? "  TRACKING LOST (holding)" : "  NO TRACKING";
     return line;
 }
@@ -83,9 +82,8 @@ std::string statusJson(const ServiceStatus& s) {
     j["mode"] = toString(s.mode);
     j["framesShown"] = s.framesShown;
     j["framesDropped"] = s.framesDropped;
-    j["drops"] = {{"capture", s.droppedCapture},
-                  {"render", s.droppedRender},
-                  {"display", s.droppedDisplay}};
+    j["drops"] = {
+        {"capture", s.droppedCapture}, {"render", s.droppedRender}, {"display", s.droppedDisplay}};
     j["samples"] = s.samples;
     j["noiseEstimate"] = nullptr;  // the convergence meter is issue 10's
     j["etaSeconds"] = nullptr;
@@ -343,13 +341,14 @@ void Service::Threads::runRender(ModeMachine& modes) {
             // watchdog, a mode change and SIGTERM are answered, whatever samples_per_frame says.
             const uint32_t wanted = r.previewSamples();
             if (previewMsPerSample > 0.0) {
-                const uint32_t fits = std::max(
-                    1u, uint32_t(double(kMaxPreviewFrame.count()) / previewMsPerSample));
+                const uint32_t fits =
+                    std::max(1u, uint32_t(double(kMaxPreviewFrame.count()) / previewMsPerSample));
                 if (fits < wanted) {
                     if (!loggedPreviewCap)
-                        logWarning("render: {} samples per preview frame would take {:.0f} ms; "
-                                   "rendering {} (lower render.samples_per_frame)",
-                                   wanted, wanted * previewMsPerSample, fits);
+                        logWarning(
+                            "render: {} samples per preview frame would take {:.0f} ms; "
+                            "rendering {} (lower render.samples_per_frame)",
+                            wanted, wanted * previewMsPerSample, fits);
                     loggedPreviewCap = true;
                     r.setPreviewSamples(fits);
                 }
@@ -375,18 +374,19 @@ void Service::Threads::runRender(ModeMachine& modes) {
                 const PoseDelta d = poseDelta(*f->worldFromCamera, *frozen->worldFromCamera);
                 if (d.translationM > settings.poseThresholdM ||
                     d.rotationDeg > settings.poseThresholdDeg) {
-                    logInfo("refinement: the camera moved {:.3f} m / {:.2f} deg since the shot "
-                            "froze; not applied (leave refinement to follow it)",
-                            d.translationM, d.rotationDeg);
+                    logInfo(
+                        "refinement: the camera moved {:.3f} m / {:.2f} deg since the shot "
+                        "froze; not applied (leave refinement to follow it)",
+                        d.translationM, d.rotationDeg);
                     loggedPose = true;
                 }
             }
         }
         if (std::shared_ptr<const LiveLighting> l = lightingSnapshots.latest();
             !loggedLighting && l && frozenLighting && l != frozenLighting) {
-            const double change = std::abs(l->totalLuminancePower -
-                                           frozenLighting->totalLuminancePower) /
-                                  std::max(frozenLighting->totalLuminancePower, 1e-12);
+            const double change =
+                std::abs(l->totalLuminancePower - frozenLighting->totalLuminancePower) /
+                std::max(frozenLighting->totalLuminancePower, 1e-12);
             if (change > settings.lightingThreshold) {
                 logInfo("refinement: the set's lighting changed by {:.0f} %; not applied",
                         change * 100.0);
@@ -402,7 +402,8 @@ void Service::Threads::runRender(ModeMachine& modes) {
         uint32_t step = settings.samplesPerStep;
         if (msPerSample > 0.0)
             step = std::clamp(uint32_t(kRefineStepTargetMs / msPerSample), 1u, step);
-        if (settings.maxSamples > 0) step = uint32_t(std::min<uint64_t>(step, settings.maxSamples - done));
+        if (settings.maxSamples > 0)
+            step = uint32_t(std::min<uint64_t>(step, settings.maxSamples - done));
         const Clock::time_point start = Clock::now();
         if (Status s = r.refineStep(step); !s) {
             logError("render: {}", s.message());
@@ -432,8 +433,7 @@ void Service::Threads::stopAll() {
 }
 
 Service::Service(ServiceConfig config)
-    : config_(std::move(config)), threads_(std::make_unique<Threads>()),
-      started_(Clock::now()) {}
+    : config_(std::move(config)), threads_(std::make_unique<Threads>()), started_(Clock::now()) {}
 
 Service::~Service() {
     if (threads_) threads_->stopAll();
@@ -491,8 +491,9 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config, bo
                 if (e == ButtonEvent::ShortPress) {
                     self->setLed(self->modes_.toggle("button") == Mode::Refine);
                 } else {
-                    logInfo("button: long press (reserved for recording, which this previs "
-                            "does not have yet)");
+                    logInfo(
+                        "button: long press (reserved for recording, which this previs "
+                        "does not have yet)");
                 }
             });
         if (!button) return button.error();
@@ -505,9 +506,9 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config, bo
         }
     }
 
-
     if (config.sceneCamera.source == CameraSourceKind::Session && config.replaySessionEvents) {
-        Result<std::optional<RecordedEvents>> events = RecordedEvents::load(config.sceneCamera.device);
+        Result<std::optional<RecordedEvents>> events =
+            RecordedEvents::load(config.sceneCamera.device);
         if (!events) return events.error();
         if (*events) {
             t.recordedEvents = std::move(**events);
@@ -612,7 +613,8 @@ std::string Service::handleCommand(const std::string& command) {
     }
     if (command.rfind("mode ", 0) == 0) {
         const std::optional<Mode> wanted = parseMode(command.substr(5));
-        if (!wanted) return error("mode must be preview or refine, not '" + command.substr(5) + "'");
+        if (!wanted)
+            return error("mode must be preview or refine, not '" + command.substr(5) + "'");
         const Mode m = modes_.set(*wanted, "ctl");
         setLed(m == Mode::Refine);
         return nlohmann::json{{"ok", true}, {"mode", toString(m)}}.dump();
@@ -639,11 +641,12 @@ void Service::reload() {
     // What the running pipeline cannot take without a restart.
     std::vector<std::string> restart;
     auto cameraKey = [](const CameraConfig& c) {
-        return fmt::format("{}|{}|{}x{}|{}|{}|{}", toString(c.source), c.device, c.width,
-                           c.height, c.pixelFormat, c.fps, c.calibrationPath);
+        return fmt::format("{}|{}|{}x{}|{}|{}|{}", toString(c.source), c.device, c.width, c.height,
+                           c.pixelFormat, c.fps, c.calibrationPath);
     };
     if (n.scenePath != config_.scenePath) restart.push_back("scene");
-    if (cameraKey(n.sceneCamera) != cameraKey(config_.sceneCamera)) restart.push_back("cameras.scene");
+    if (cameraKey(n.sceneCamera) != cameraKey(config_.sceneCamera))
+        restart.push_back("cameras.scene");
     if (n.fisheyeCamera.has_value() != config_.fisheyeCamera.has_value() ||
         (n.fisheyeCamera && cameraKey(*n.fisheyeCamera) != cameraKey(*config_.fisheyeCamera)))
         restart.push_back("cameras.fisheye");
@@ -657,16 +660,16 @@ void Service::reload() {
         n.output.mode != config_.output.mode)
         restart.push_back("output");
     if (n.button.has_value() != config_.button.has_value() ||
-        (n.button && (n.button->chip != config_.button->chip ||
-                      n.button->line != config_.button->line)))
+        (n.button &&
+         (n.button->chip != config_.button->chip || n.button->line != config_.button->line)))
         restart.push_back("button");
     if (controlSocketPath(n.control) != controlSocketPath(config_.control))
         restart.push_back("control");
     logInfo("reload: {}: applied [refine] and render.samples_per_frame = {}{}", config_.path,
             n.render.samplesPerFrame,
-            restart.empty() ? std::string()
-                            : fmt::format("; these need a restart to apply: {}",
-                                          fmt::join(restart, ", ")));
+            restart.empty()
+                ? std::string()
+                : fmt::format("; these need a restart to apply: {}", fmt::join(restart, ", ")));
     systemd::notifyReady();
 }
 
@@ -686,7 +689,8 @@ int Service::run() {
     const std::optional<std::chrono::microseconds> watchdog = systemd::watchdogInterval();
     // Ping at a quarter of the interval, and only while the render loop's heartbeat is fresh: a
     // hung GPU or pipeline stops the pings and systemd restarts the service.
-    const int pollMs = watchdog ? int(std::clamp<int64_t>(watchdog->count() / 4000, 50, 1000)) : 1000;
+    const int pollMs =
+        watchdog ? int(std::clamp<int64_t>(watchdog->count() / 4000, 50, 1000)) : 1000;
     const int64_t staleNs = watchdog ? int64_t(watchdog->count()) * 1000 / 2 : 0;
     int exitCode = 0;
     Clock::time_point lastStatus{}, finishedAt{};

@@ -10,11 +10,10 @@
 #include <cstdint>
 #include <memory>
 #include <mutex>
+#include <opencv2/core.hpp>
 #include <optional>
 #include <string>
 #include <thread>
-
-#include <opencv2/core.hpp>
 
 #include "base/result.h"
 #include "config/service_config.h"
@@ -39,13 +38,13 @@ struct ServiceStatus {
     int tags = 0;
     bool trackingLost = true;
     double uptimeSeconds = 0.0;
-    double renderMs = 0.0;  // the last frame's: render + composite + tone map
-    double trackMs = 0.0;   // the last frame's detection and pose
+    double renderMs = 0.0;    // the last frame's: render + composite + tone map
+    double trackMs = 0.0;     // the last frame's detection and pose
     double lightingMs = 0.0;  // the last lighting snapshot's fisheye → map (→ lights)
     // Camera frame (its V4L2 timestamp; a recording's: when the pipeline received it) → shown
     // (page flip queued or file written), for the last frame shown.
     double latencyMs = 0.0;
-    uint64_t deviceBytes = 0;  // the renderer's device memory
+    uint64_t deviceBytes = 0;                // the renderer's device memory
     std::string sceneCamera, fisheyeCamera;  // capture states
     uint64_t lightingUpdates = 0;
 };

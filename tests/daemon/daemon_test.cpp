@@ -1,5 +1,6 @@
 // Host tests of the service's pieces that need no GPU: the mode machine, the control socket,
 // the status JSON contract (DESIGN.md §3) and the camera-convention conversions.
+#include <gtest/gtest.h>
 #include <sys/socket.h>
 #include <sys/un.h>
 #include <unistd.h>
@@ -7,10 +8,8 @@
 #include <atomic>
 #include <cmath>
 #include <filesystem>
-#include <thread>
-
-#include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
+#include <thread>
 
 #include "daemon/control_server.h"
 #include "daemon/mode_machine.h"

@@ -2,18 +2,18 @@
 // the bundled demo session (examples/demo), rendering small on lavapipe. previsd plays the
 // session at its recorded timing; replay runs it in lock step and must be byte-identical run to
 // run, with each frame's pose tracked on that very frame (compared with the recorded truth).
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <thread>
-
-#include <fmt/format.h>
-#include <gtest/gtest.h>
-#include <nlohmann/json.hpp>
 
 #include "daemon/control_server.h"
 #include "io/session.h"
@@ -37,7 +37,6 @@ std::string fileBytes(const fs::path& path) {
     ss << in.rdbuf();
     return ss.str();
 }
-
 
 // The demo's config with absolute paths, a small render, and this test's own output and socket.
 // The session's recorded button presses are off unless `extra` has a [session] table: the tests
@@ -66,7 +65,8 @@ std::string demoConfig(const std::string& name, const std::string& extra = "",
     }
     const fs::path dir = scratch() / name;
     fs::create_directories(dir);
-    text += fmt::format(R"(
+    text += fmt::format(
+        R"(
 [render]
 width = 160
 height = 90
@@ -84,13 +84,11 @@ max_samples = 4096
 socket = "{}/previsd.sock"
 {}
 )",
-                        output.empty() ? fmt::format("kind = \"files\"\nfolder = \"{}/frames\"",
-                                                     dir.string())
-                                       : output,
-                        dir.string(),
-                        extra.find("[session]") == std::string::npos
-                            ? extra + "\n[session]\nevents = false\n"
-                            : extra);
+        output.empty() ? fmt::format("kind = \"files\"\nfolder = \"{}/frames\"", dir.string())
+                       : output,
+        dir.string(),
+        extra.find("[session]") == std::string::npos ? extra + "\n[session]\nevents = false\n"
+                                                     : extra);
     const std::string path = (dir / "previsd.toml").string();
     std::ofstream(path) << text;
     return path;
@@ -174,18 +172,18 @@ TEST(Previsd, RunsTheDemoTogglesRefinementAndStopsOnSigterm) {
 
     // `previs ctl`, as a crew member types it: status as JSON and as text, then refinement.
     const std::string ctlLog = (fs::path(config).parent_path() / "ctl.out").string();
-    ASSERT_EQ(testing::runProcess({previs(), "ctl", "--socket", socket, "status", "--json"},
-                                  ctlLog, 30s),
-              0);
+    ASSERT_EQ(
+        testing::runProcess({previs(), "ctl", "--socket", socket, "status", "--json"}, ctlLog, 30s),
+        0);
     const nlohmann::json viaCli = nlohmann::json::parse(fileBytes(ctlLog));
     for (const char* key : {"mode", "framesShown", "framesDropped", "samples", "noiseEstimate",
                             "etaSeconds", "fps", "recording", "display", "pose", "uptimeSeconds"})
         EXPECT_TRUE(viaCli.contains(key)) << key << " missing from " << viaCli.dump();
     ASSERT_EQ(testing::runProcess({previs(), "ctl", "--socket", socket, "status"}, ctlLog, 30s), 0);
     EXPECT_NE(fileBytes(ctlLog).find("mode      preview"), std::string::npos) << fileBytes(ctlLog);
-    EXPECT_EQ(testing::runProcess({previs(), "ctl", "--socket", socket, "record", "start"}, ctlLog,
-                                  30s),
-              2)
+    EXPECT_EQ(
+        testing::runProcess({previs(), "ctl", "--socket", socket, "record", "start"}, ctlLog, 30s),
+        2)
         << "recording is not built yet: a clear error, exit 2";
     EXPECT_NE(testing::runProcess({previs(), "ctl", "--socket", socket + ".nobody", "status"},
                                   ctlLog, 30s),
@@ -193,9 +191,9 @@ TEST(Previsd, RunsTheDemoTogglesRefinementAndStopsOnSigterm) {
     EXPECT_NE(fileBytes(ctlLog).find("is previsd running"), std::string::npos) << fileBytes(ctlLog);
 
     // Refinement: samples accumulate (the same number cannot repeat while they grow).
-    ASSERT_EQ(testing::runProcess({previs(), "ctl", "--socket", socket, "mode", "refine"}, ctlLog,
-                                  30s),
-              0)
+    ASSERT_EQ(
+        testing::runProcess({previs(), "ctl", "--socket", socket, "mode", "refine"}, ctlLog, 30s),
+        0)
         << fileBytes(ctlLog);
     EXPECT_EQ(fileBytes(ctlLog), "refine\n");
     auto refining = waitFor(socket, kStartup, [](const nlohmann::json& s) {
@@ -222,7 +220,8 @@ TEST(Previsd, RunsTheDemoTogglesRefinementAndStopsOnSigterm) {
     Result<std::string> unknown = controlRequest(socket, "explode");
     ASSERT_TRUE(unknown);
     EXPECT_NE(unknown->find("unknown command"), std::string::npos) << *unknown;
-    Result<std::string> latin1 = controlRequest(socket, std::string("mode r") + char(0xe9) + "fine");
+    Result<std::string> latin1 =
+        controlRequest(socket, std::string("mode r") + char(0xe9) + "fine");
     ASSERT_TRUE(latin1) << latin1.message() << p.log();
     EXPECT_NE(latin1->find("\"ok\":false"), std::string::npos) << *latin1;
     EXPECT_TRUE(p.running()) << p.log();
@@ -230,7 +229,8 @@ TEST(Previsd, RunsTheDemoTogglesRefinementAndStopsOnSigterm) {
     const auto stopAt = std::chrono::steady_clock::now();
     p.signal(SIGTERM);
     std::optional<int> code = p.wait(30s);
-    const double stopS = std::chrono::duration<double>(std::chrono::steady_clock::now() - stopAt).count();
+    const double stopS =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - stopAt).count();
     ASSERT_TRUE(code) << "still running 30 s after SIGTERM";
     EXPECT_EQ(*code, 0) << p.log();
     EXPECT_LT(stopS, 5.0) << "SIGTERM must stop previsd within 5 s";
@@ -260,8 +260,7 @@ TEST(Previsd, SigintStopsFromRefinement) {
 }
 
 TEST(Previsd, SessionThatDoesNotLoopEndsTheService) {
-    const std::string config = demoConfig("once", "[session]\nloop = false\n",
-                                          "kind = \"none\"");
+    const std::string config = demoConfig("once", "[session]\nloop = false\n", "kind = \"none\"");
     ChildProcess p({previsd(), "--config", config}, (scratch() / "once.log").string());
     // The demo is about 4 s of footage; then 3 s of grace.
     std::optional<int> code = p.wait(kStartup);
@@ -381,7 +380,8 @@ TEST(Replay, DemoTakeIsByteIdenticalFollowsTheButtonAndTracksEveryFrame) {
             ASSERT_EQ(row.at("tracking"), "tracked") << "frame " << row.at("frame");
             const uint64_t frame = std::stoull(row.at("frame"));
             std::array<double, 3> position;
-            for (int r = 0; r < 3; ++r) position[size_t(r)] = std::stod(row.at(fmt::format("m{}3", r)));
+            for (int r = 0; r < 3; ++r)
+                position[size_t(r)] = std::stod(row.at(fmt::format("m{}3", r)));
             const double own = distance(position, truth.at(frame));
             errors.push_back(own);
             // While the camera moves (about 2 cm a frame in the demo), a pose that slipped one
@@ -400,10 +400,10 @@ TEST(Replay, DemoTakeIsByteIdenticalFollowsTheButtonAndTracksEveryFrame) {
         // The tracker's own error on these 640x360 renders is a few millimetres.
         EXPECT_LT(errors[errors.size() / 2], 0.004) << "median position error, m";
         EXPECT_LT(errors.back(), 0.015) << "largest position error, m";
-        std::printf("replay pose error vs truth: median %.2f mm, max %.2f mm over %zu frames; "
-                    "%d moving frames all nearer their own truth than the previous frame's\n",
-                    errors[errors.size() / 2] * 1e3, errors.back() * 1e3, errors.size(),
-                    closerToOwnFrame);
+        std::printf(
+            "replay pose error vs truth: median %.2f mm, max %.2f mm over %zu frames; "
+            "%d moving frames all nearer their own truth than the previous frame's\n",
+            errors[errors.size() / 2] * 1e3, errors.back() * 1e3, errors.size(), closerToOwnFrame);
     }
 }
 
@@ -416,12 +416,13 @@ TEST(ReplayErrors, FramesOfAnotherSizeThanTheCalibrationAreNotTracked) {
         std::stringstream ss;
         ss << in.rdbuf();
         std::string text = ss.str();
-        const std::string from = "width = 640\nheight = 360\ncalibration = \"" + kDemo + "/scene_camera.yaml\"";
+        const std::string from =
+            "width = 640\nheight = 360\ncalibration = \"" + kDemo + "/scene_camera.yaml\"";
         const size_t at = text.find(from);
         ASSERT_NE(at, std::string::npos) << text;
-        text.replace(at, from.size(), "width = 1280\nheight = 720\ncalibration = \"" +
-                                          std::string(PREVIS_SOURCE_DIR) +
-                                          "/examples/box/scene_camera.yaml\"");
+        text.replace(at, from.size(),
+                     "width = 1280\nheight = 720\ncalibration = \"" +
+                         std::string(PREVIS_SOURCE_DIR) + "/examples/box/scene_camera.yaml\"");
         std::ofstream(config) << text;
     }
     const std::string out = (scratch() / "wrong_size_out").string();
@@ -441,11 +442,11 @@ TEST(ReplayErrors, ABadSessionIsOneLineAndExit2) {
     const fs::path empty = scratch() / "not_a_session";
     fs::create_directories(empty);
     const std::string log = (scratch() / "bad_session.log").string();
-    EXPECT_EQ(testing::runProcess({previs(), "replay", empty.string(), "--config",
-                                   demoConfig("bad_session"), "--out",
-                                   (scratch() / "bad_out").string()},
-                                  log, 120s),
-              2);
+    EXPECT_EQ(
+        testing::runProcess({previs(), "replay", empty.string(), "--config",
+                             demoConfig("bad_session"), "--out", (scratch() / "bad_out").string()},
+                            log, 120s),
+        2);
     const std::string text = fileBytes(log);
     EXPECT_NE(text.find(empty.string()), std::string::npos) << text;
 }

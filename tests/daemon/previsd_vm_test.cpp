@@ -4,6 +4,7 @@
 // gpio-sim's simulated pull. Outside the VM the binary exits 77 (skipped).
 #include <fcntl.h>
 #include <gpiod.h>
+#include <gtest/gtest.h>
 #include <linux/videodev2.h>
 #include <sys/ioctl.h>
 #include <unistd.h>
@@ -13,10 +14,8 @@
 #include <cstring>
 #include <fstream>
 #include <functional>
-#include <thread>
-
-#include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
+#include <thread>
 
 #include "daemon/control_server.h"
 #include "display/drm_readback.h"
@@ -122,10 +121,13 @@ TEST(PrevisdInTheVm, DisplayButtonLedHotplugAndStop) {
     testing::ChildProcess p({PREVISD_BINARY, "--config", kConfig}, "/tmp/previsd_vm.log");
 
     // First frames on the display. An emulated CPU compiles the path tracer slowly.
-    ASSERT_TRUE(waitUntil([] {
-        auto s = status();
-        return s && (*s)["framesShown"].get<int>() >= 2;
-    }, 240s)) << p.log();
+    ASSERT_TRUE(waitUntil(
+        [] {
+            auto s = status();
+            return s && (*s)["framesShown"].get<int>() >= 2;
+        },
+        240s))
+        << p.log();
     auto s = status();
     EXPECT_EQ((*s)["display"], "kms");
     EXPECT_EQ((*s)["mode"], "preview");
@@ -139,23 +141,39 @@ TEST(PrevisdInTheVm, DisplayButtonLedHotplugAndStop) {
 
     // A press: refinement, samples grow, the LED lights.
     button.press();
-    ASSERT_TRUE(waitUntil([] { auto st = status(); return st && (*st)["mode"] == "refine"; }, 30s))
+    ASSERT_TRUE(waitUntil(
+        [] {
+            auto st = status();
+            return st && (*st)["mode"] == "refine";
+        },
+        30s))
         << p.log();
     EXPECT_TRUE(waitUntil([&] { return led.value() == 1; }, 10s));
     uint64_t before = 0;
-    ASSERT_TRUE(waitUntil([&] {
-        auto st = status();
-        before = st ? (*st)["samples"].get<uint64_t>() : 0;
-        return before >= 2;
-    }, 120s)) << p.log();
-    EXPECT_TRUE(waitUntil([&] {
-        auto st = status();
-        return st && (*st)["samples"].get<uint64_t>() > before;
-    }, 120s)) << "samples stopped growing";
+    ASSERT_TRUE(waitUntil(
+        [&] {
+            auto st = status();
+            before = st ? (*st)["samples"].get<uint64_t>() : 0;
+            return before >= 2;
+        },
+        120s))
+        << p.log();
+    EXPECT_TRUE(waitUntil(
+        [&] {
+            auto st = status();
+            return st && (*st)["samples"].get<uint64_t>() > before;
+        },
+        120s))
+        << "samples stopped growing";
 
     // A second press: back to preview, LED off.
     button.press();
-    ASSERT_TRUE(waitUntil([] { auto st = status(); return st && (*st)["mode"] == "preview"; }, 30s));
+    ASSERT_TRUE(waitUntil(
+        [] {
+            auto st = status();
+            return st && (*st)["mode"] == "preview";
+        },
+        30s));
     EXPECT_TRUE(waitUntil([&] { return led.value() == 0; }, 10s));
 
     // 50 bounces within about 10 ms, then held and released cleanly: one toggle.
@@ -168,24 +186,26 @@ TEST(PrevisdInTheVm, DisplayButtonLedHotplugAndStop) {
     EXPECT_EQ((*s)["mode"], "refine") << "a bouncing press toggles exactly once";
 
     // The cameras unplugged and back (vivid unbind/bind): logged, survived, streaming again.
-    {
-        std::ofstream("/sys/bus/platform/drivers/vivid/unbind") << "vivid.0";
-    }
-    EXPECT_TRUE(waitUntil([&] {
-        auto st = status();
-        return st && (*st)["cameras"]["scene"] == "lost" &&
-               p.log().find("/dev/video0 (vivid): device vanished") != std::string::npos;
-    }, 30s)) << p.log();
-    {
-        std::ofstream("/sys/bus/platform/drivers/vivid/bind") << "vivid.0";
-    }
+    { std::ofstream("/sys/bus/platform/drivers/vivid/unbind") << "vivid.0"; }
+    EXPECT_TRUE(waitUntil(
+        [&] {
+            auto st = status();
+            return st && (*st)["cameras"]["scene"] == "lost" &&
+                   p.log().find("/dev/video0 (vivid): device vanished") != std::string::npos;
+        },
+        30s))
+        << p.log();
+    { std::ofstream("/sys/bus/platform/drivers/vivid/bind") << "vivid.0"; }
     const int shownBefore = (*status())["framesShown"].get<int>();
     button.press();  // back to preview, so new camera frames are shown
-    EXPECT_TRUE(waitUntil([&] {
-        auto st = status();
-        return st && (*st)["cameras"]["scene"] == "streaming" &&
-               (*st)["framesShown"].get<int>() > shownBefore + 1;
-    }, 120s)) << p.log();
+    EXPECT_TRUE(waitUntil(
+        [&] {
+            auto st = status();
+            return st && (*st)["cameras"]["scene"] == "streaming" &&
+                   (*st)["framesShown"].get<int>() > shownBefore + 1;
+        },
+        120s))
+        << p.log();
     EXPECT_TRUE(p.running()) << p.log();
     // A rebound vivid starts with its default controls (OSD text mode 0); the config's controls
     // are applied again on every open.
