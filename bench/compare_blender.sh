@@ -5,8 +5,8 @@
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 spp=${1:-16}
+# The shared data beside the checkout, else where PREVIS_SHARED_DATA says.
 data=${PREVIS_SHARED_DATA:-$root/../shared/data}
-[[ -d "$data" ]] || data=/work/shared/data
 env="$data/envmaps/polyhaven_1k_hdr/rooitou_park_1k.hdr"
 mesh="$data/meshes/stanford_bunny.ply"
 if ! command -v blender >/dev/null; then

@@ -8,12 +8,8 @@
 set -eu
 here=$(cd "$(dirname "$0")/.." && pwd)
 build=${1:-$here/build}
-data=${PREVIS_SHARED_DATA:-}
-if [ -z "$data" ]; then
-    for candidate in "$here/../shared/data" /work/shared/data; do
-        if [ -f "$candidate/README.md" ]; then data=$candidate; break; fi
-    done
-fi
+# The shared data beside the checkout, else where PREVIS_SHARED_DATA says.
+data=${PREVIS_SHARED_DATA:-$here/../shared/data}
 env_map=$data/envmaps/polyhaven_1k_hdr/studio_small_03_1k.hdr
 if [ ! -f "$env_map" ]; then
     echo "make_demo_session.sh: $env_map not found (set PREVIS_SHARED_DATA to the shared data folder)" >&2
