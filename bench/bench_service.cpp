@@ -279,7 +279,7 @@ StageResult measureStages(const ServiceBenchOptions& o, uint32_t w, uint32_t h) 
         DisplayFrame out;
         out.width = image->width;
         out.height = image->height;
-        out.rgb = pr.toDisplay(*image);
+        out.rgb = pr.toDisplay(std::move(*image));
         tonemap.push_back(msSince(t));
         out.status = fmt::format("PREVIEW 1 spp {:.1f} fps", 1.0);
         out.index = i;

@@ -249,18 +249,6 @@ Result<Scene> tagBoardScene(const TagBoard& board, const std::string& family,
     return scene;
 }
 
-glm::mat4 renderWorldFromCamera(const cv::Matx44d& worldFromCameraCv) {
-    // OpenCV's camera axes (x right, y down, z forward) are the renderer's (x, −y, −z).
-    glm::mat4 out(1.0f);
-    for (int r = 0; r < 3; ++r) {
-        out[0][r] = float(worldFromCameraCv(r, 0));
-        out[1][r] = float(-worldFromCameraCv(r, 1));
-        out[2][r] = float(-worldFromCameraCv(r, 2));
-        out[3][r] = float(worldFromCameraCv(r, 3));
-    }
-    return out;
-}
-
 Result<BoardRenderer> BoardRenderer::create(GpuContext& ctx, const TagBoard& board,
                                             const std::string& family,
                                             const CameraCalibration& calibration, uint32_t spp,
@@ -284,7 +272,7 @@ Result<BoardRenderer> BoardRenderer::create(GpuContext& ctx, const TagBoard& boa
 }
 
 Result<ImageF> BoardRenderer::render(const cv::Matx44d& worldFromCameraCv, uint32_t seed) {
-    renderer_->setCameraPose(renderWorldFromCamera(worldFromCameraCv));
+    renderer_->setCameraPose(renderWorldFromOpenCvCamera(worldFromCameraCv));
     renderer_->setSeed(seed);
     if (Status s = renderer_->reset(); !s) return s.error();
     if (Status s = renderer_->render(spp_); !s) return s.error();

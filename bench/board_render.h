@@ -48,10 +48,6 @@ TagBoard posterBoard();
 Result<Scene> tagBoardScene(const TagBoard& board, const std::string& family,
                             const BoardAppearance& appearance = {});
 
-// The renderer's camera (looks along −Z, +Y up; DESIGN.md §4) from an OpenCV camera frame
-// (x right, y down, z forward), the frame BoardPose::worldFromCamera uses.
-glm::mat4 renderWorldFromCamera(const cv::Matx44d& worldFromCameraCv);
-
 // A path tracer loaded with a board scene and a calibrated lens (primary rays follow the lens
 // model: vision/lens_grid.h), re-rendered at any camera pose.
 class BoardRenderer {

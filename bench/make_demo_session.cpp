@@ -274,7 +274,7 @@ Status writeSceneGltf(const Options& o, const TagBoard& board, const cv::Matx44d
     g.addNode("ChromeBall", GltfBuilder::sphere({0.06f, 0.044f, 0.23f}, 0.045f), chrome, false);
 
     // The camera at the still view, so `previs render examples/demo/previs.toml` shows the shot.
-    const glm::mat4 m = bench::renderWorldFromCamera(cameraPose);
+    const glm::mat4 m = renderWorldFromOpenCvCamera(cameraPose);
     const glm::quat q = glm::quat_cast(glm::mat3(m));
     const double fovY = 2.0 * std::atan(0.5 * calibration.imageSize().height / calibration.fy());
     g.doc["cameras"].push_back(
@@ -509,7 +509,7 @@ int run(const Options& o) {
             linear = *still;
         } else {
             auto start = std::chrono::steady_clock::now();
-            (*renderer)->setCameraPose(bench::renderWorldFromCamera(pose));
+            (*renderer)->setCameraPose(renderWorldFromOpenCvCamera(pose));
             (*renderer)->setSeed(uint32_t(1000 + i));
             Status s = (*renderer)->setEnvironment(envAt(i));
             if (s) s = (*renderer)->reset();

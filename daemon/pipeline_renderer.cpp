@@ -154,11 +154,13 @@ Result<ImageF> PipelineRenderer::composite() const {
     return renderer_->image(Aov::Composite);
 }
 
-std::vector<uint8_t> PipelineRenderer::toDisplay(const ImageF& composite) const {
-    // Undo the white balance the plate's inverse applied, then the camera's curve forward.
-    ImageF balanced = composite;
-    for (size_t i = 0; i < balanced.pixels.size(); ++i) balanced.pixels[i] /= whiteBalance_[i % 3];
-    return toneMapToSrgb8(balanced, display_);
+std::vector<uint8_t> PipelineRenderer::toDisplay(ImageF composite) const {
+    // Undo the white balance the plate's inverse applied (in place, no copy per frame), then
+    // the camera's curve forward.
+    if (whiteBalance_ != std::array<float, 3>{1.0f, 1.0f, 1.0f})
+        for (size_t i = 0; i < composite.pixels.size(); ++i)
+            composite.pixels[i] /= whiteBalance_[i % 3];
+    return toneMapToSrgb8(composite, display_);
 }
 
 }  // namespace previs

@@ -40,7 +40,8 @@ public:
     Result<ImageF> composite() const;
     // The composite as the monitor shows it: the scene camera's own curve applied forward, so
     // the untouched parts of the picture look exactly as the camera delivered them.
-    std::vector<uint8_t> toDisplay(const ImageF& composite) const;
+    // Takes the composite by value: it is changed in place (callers move a temporary in).
+    std::vector<uint8_t> toDisplay(ImageF composite) const;
 
     uint64_t samples() const;  // per pixel: this preview frame's, or the refinement's so far
     uint32_t width() const { return width_; }

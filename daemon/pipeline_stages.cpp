@@ -6,6 +6,8 @@
 #include <opencv2/imgproc.hpp>
 
 #include "base/log.h"
+#include "scene/environment_map.h"
+#include "vision/equirect.h"
 #include "vision/inverse_tone_map.h"
 
 namespace previs {
@@ -17,36 +19,20 @@ double millisecondsSince(std::chrono::steady_clock::time_point start) {
         .count();
 }
 
-// ∫ luminance dω over an equirectangular map (texel solid angles exact per row).
+// ∫ luminance dω over an equirectangular map (exact texel solid angles per row).
 double luminancePower(const cv::Mat& radiance) {
     const int w = radiance.cols, h = radiance.rows;
     double total = 0.0;
     for (int y = 0; y < h; ++y) {
-        const double theta0 = M_PI * y / h, theta1 = M_PI * (y + 1) / h;
-        const double texelSr = (2.0 * M_PI / w) * (std::cos(theta0) - std::cos(theta1));
         const cv::Vec3f* row = radiance.ptr<cv::Vec3f>(y);
         double rowSum = 0.0;
         for (int x = 0; x < w; ++x) {
-            const double l = 0.2126 * row[x][0] + 0.7152 * row[x][1] + 0.0722 * row[x][2];
+            const double l = luminance(glm::vec3(row[x][0], row[x][1], row[x][2]));
             if (std::isfinite(l) && l > 0.0) rowSum += l;
         }
-        total += rowSum * texelSr;
+        total += rowSum * equirectTexelSolidAngle(y, w, h);
     }
     return total;
-}
-
-std::shared_ptr<const EnvironmentMap> toEnvironmentMap(const cv::Mat& radiance, uint64_t sequence) {
-    auto map = std::make_shared<EnvironmentMap>();
-    map->path = fmt::format("fisheye frame {}", sequence);
-    map->width = uint32_t(radiance.cols);
-    map->height = uint32_t(radiance.rows);
-    map->radiance.resize(size_t(map->width) * map->height);
-    for (int y = 0; y < radiance.rows; ++y) {
-        const cv::Vec3f* row = radiance.ptr<cv::Vec3f>(y);
-        for (int x = 0; x < radiance.cols; ++x)
-            map->radiance[size_t(y) * map->width + x] = glm::vec3(row[x][0], row[x][1], row[x][2]);
-    }
-    return map;
 }
 
 }  // namespace
@@ -124,24 +110,14 @@ Result<std::shared_ptr<const LiveLighting>> LightingStage::process(const Frame& 
         Result<LightingSnapshot> lights = estimator_.estimate(*map);
         if (!lights) return lights.error();
         out->lights = std::move(lights->lights);
-        out->environment = toEnvironmentMap(lights->residual, frame.sequence);
+        out->environment = std::make_shared<const EnvironmentMap>(matToEnvironmentMap(
+            lights->residual, fmt::format("fisheye frame {} (residual)", frame.sequence)));
     } else {
-        out->environment = toEnvironmentMap(*map, frame.sequence);
+        out->environment = std::make_shared<const EnvironmentMap>(
+            matToEnvironmentMap(*map, fmt::format("fisheye frame {}", frame.sequence)));
     }
     out->computeMs = millisecondsSince(start);
     return std::shared_ptr<const LiveLighting>(std::move(out));
-}
-
-glm::mat4 renderWorldFromOpenCvCamera(const cv::Matx44d& m) {
-    // OpenCV's camera has y down and z forward; the renderer's has y up and looks along −z:
-    // the same frame with y and z flipped.
-    glm::mat4 out(1.0f);
-    for (int r = 0; r < 4; ++r)
-        for (int c = 0; c < 4; ++c) {
-            const double flip = (c == 1 || c == 2) ? -1.0 : 1.0;
-            out[c][r] = float(m(r, c) * flip);  // glm is column-major
-        }
-    return out;
 }
 
 PoseDelta poseDelta(const cv::Matx44d& a, const cv::Matx44d& b) {

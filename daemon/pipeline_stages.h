@@ -86,9 +86,6 @@ private:
     std::optional<uint64_t> lastNs_;
 };
 
-// The renderer's camera (looks along −Z, +Y up; DESIGN.md §4) from OpenCV's camera axes.
-glm::mat4 renderWorldFromOpenCvCamera(const cv::Matx44d& worldFromCameraCv);
-
 // How far apart two poses are: translation (metres) and rotation angle (degrees).
 struct PoseDelta {
     double translationM = 0.0;

@@ -7,6 +7,20 @@
 
 namespace previs {
 
+void applySessionEvent(ModeMachine& modes, const SessionEvent& e) {
+    if (e.source == "session" && e.event == "restart") {
+        modes.set(Mode::Preview, "session start over");
+    } else if (e.source == "mode-button" && e.event == "short-press") {
+        modes.toggle("session mode-button");
+    } else if (e.source == "ctl" && e.event.rfind("mode=", 0) == 0) {
+        const std::string what = e.event.substr(5);
+        if (what == "toggle")
+            modes.toggle("session ctl");
+        else if (std::optional<Mode> m = parseMode(what))
+            modes.set(*m, "session ctl");
+    }
+}
+
 Result<std::optional<RecordedEvents>> RecordedEvents::load(const std::string& sceneCameraDir) {
     namespace fs = std::filesystem;
     const fs::path session =

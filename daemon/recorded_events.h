@@ -12,9 +12,15 @@
 #include <vector>
 
 #include "base/result.h"
+#include "daemon/mode_machine.h"
 #include "io/session.h"
 
 namespace previs {
+
+// A recorded event as the live machine would have seen it: a mode-button short press toggles,
+// ctl "mode=preview|refine|toggle" sets or toggles, ("session", "restart") returns to preview
+// (a looping take starts over as it was recorded). Other events are left alone.
+void applySessionEvent(ModeMachine& modes, const SessionEvent& event);
 
 class RecordedEvents {
 public:

@@ -11,6 +11,7 @@
 #include "config/service_config.h"
 #include "daemon/pipeline_renderer.h"
 #include "daemon/pipeline_stages.h"
+#include "daemon/recorded_events.h"
 #include "gpu/context.h"
 #include "image/image.h"
 #include "io/session.h"
@@ -192,17 +193,7 @@ int runReplay(const ReplayOptions& o) {
         // Button and ctl events up to this frame drive the mode, as they did live.
         for (; nextEvent < events.size() && events[nextEvent].timestampNs <= frame->timestampNs;
              ++nextEvent) {
-            const SessionEvent& e = events[nextEvent];
-            if (o.mode) continue;
-            if (e.source == "mode-button" && e.event == "short-press") {
-                modes.toggle("session button");
-            } else if (e.source == "ctl" && e.event.rfind("mode=", 0) == 0) {
-                const std::string what = e.event.substr(5);
-                if (what == "toggle")
-                    modes.toggle("session ctl");
-                else if (std::optional<Mode> m = parseMode(what))
-                    modes.set(*m, "session ctl");
-            }
+            if (!o.mode) applySessionEvent(modes, events[nextEvent]);
         }
 
         TrackedFrame tracked = tracking->process(frame);
@@ -240,17 +231,18 @@ int runReplay(const ReplayOptions& o) {
             std::chrono::duration<double, std::milli>(Clock::now() - renderStart).count();
         const std::string stem =
             (fs::path(o.outDir) / fmt::format("frame_{:06d}", written)).string();
-        if (Status s = writePng(stem + ".png", image->width, image->height,
-                                (*renderer)->toDisplay(*image));
-            !s) {
-            logError("{}", s.message());
-            return 1;
-        }
         if (o.exr) {
             if (Status s = writeExr(stem + ".exr", *image); !s) {
                 logError("{}", s.message());
                 return 1;
             }
+        }
+        const uint32_t width = image->width, height = image->height;
+        if (Status s = writePng(stem + ".png", width, height,
+                                (*renderer)->toDisplay(std::move(*image)));
+            !s) {
+            logError("{}", s.message());
+            return 1;
         }
         const TrackedFrame& used = mode == Mode::Refine ? *frozen : tracked;
         csv << written << "," << frame->timestampNs << "," << toString(mode) << ","

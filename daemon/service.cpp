@@ -223,7 +223,7 @@ void Service::Threads::publish(PipelineRenderer& r, const TrackedFrame& frame, M
     auto out = std::make_shared<DisplayFrame>();
     out->width = image->width;
     out->height = image->height;
-    out->rgb = r.toDisplay(*image);
+    out->rgb = r.toDisplay(std::move(*image));
     const double renderMs =
         std::chrono::duration<double, std::milli>(Clock::now() - renderStart).count();
     // A live camera's timestamp is CLOCK_MONOTONIC, the display thread's clock; a recording's
@@ -544,17 +544,8 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config, bo
 }
 
 void Service::applyRecordedEvent(const SessionEvent& e) {
-    if (e.source == "session" && e.event == "restart") {
-        setLed(modes_.set(Mode::Preview, "session start over") == Mode::Refine);
-    } else if (e.source == "mode-button" && e.event == "short-press") {
-        setLed(modes_.toggle("session mode-button") == Mode::Refine);
-    } else if (e.source == "ctl" && e.event.rfind("mode=", 0) == 0) {
-        const std::string what = e.event.substr(5);
-        if (what == "toggle")
-            setLed(modes_.toggle("session ctl") == Mode::Refine);
-        else if (std::optional<Mode> m = parseMode(what))
-            setLed(modes_.set(*m, "session ctl") == Mode::Refine);
-    }
+    applySessionEvent(modes_, e);
+    setLed(modes_.mode() == Mode::Refine);
 }
 
 void Service::setLed(bool on) {

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include <glm/glm.hpp>
+#include <opencv2/core.hpp>
 
 #include "base/result.h"
 #include "vision/camera_calibration.h"
@@ -21,5 +22,19 @@ namespace previs {
 // cannot represent it).
 Result<std::vector<glm::vec2>> lensRayGrid(const CameraCalibration& calibration, uint32_t width,
                                            uint32_t height);
+
+// The renderer's camera (looks along −Z, +Y up; DESIGN.md §4) from a pose in OpenCV's camera
+// axes (x right, y down, z forward; BoardPose::worldFromCamera): the same frame with y and z
+// flipped.
+inline glm::mat4 renderWorldFromOpenCvCamera(const cv::Matx44d& worldFromCameraCv) {
+    glm::mat4 out(1.0f);  // column-major
+    for (int r = 0; r < 3; ++r) {
+        out[0][r] = float(worldFromCameraCv(r, 0));
+        out[1][r] = float(-worldFromCameraCv(r, 1));
+        out[2][r] = float(-worldFromCameraCv(r, 2));
+        out[3][r] = float(worldFromCameraCv(r, 3));
+    }
+    return out;
+}
 
 }  // namespace previs

@@ -51,6 +51,21 @@ cv::Mat environmentMapToMat(const EnvironmentMap& map) {
     return out;
 }
 
+EnvironmentMap matToEnvironmentMap(const cv::Mat& radiance, std::string name) {
+    EnvironmentMap map;
+    map.path = std::move(name);
+    map.width = uint32_t(radiance.cols);
+    map.height = uint32_t(radiance.rows);
+    map.radiance.resize(size_t(map.width) * map.height);
+    for (int y = 0; y < radiance.rows; ++y) {
+        const cv::Vec3f* row = radiance.ptr<cv::Vec3f>(y);
+        for (int x = 0; x < radiance.cols; ++x)
+            map.radiance[size_t(y) * map.width + size_t(x)] =
+                glm::vec3(row[x][0], row[x][1], row[x][2]);
+    }
+    return map;
+}
+
 Result<LightingSnapshot> LightEstimator::estimate(const cv::Mat& radiance) const {
     if (radiance.type() != CV_32FC3 || radiance.cols < 2 || radiance.rows < 1)
         return makeError("light estimation: expected a linear RGB float map (got {}x{}, type {})",

@@ -8,6 +8,7 @@
 #include <atomic>
 #include <cstdint>
 #include <memory>
+#include <string>
 #include <thread>
 #include <vector>
 
@@ -65,6 +66,9 @@ private:
 
 // EnvironmentMap (scene/scene.h) → CV_32FC3 (a copy).
 cv::Mat environmentMapToMat(const EnvironmentMap& map);
+// And back: a CV_32FC3 equirectangular map (the fisheye's, a residual) as an EnvironmentMap
+// (rotation 0, scale 1), named `name` in messages.
+EnvironmentMap matToEnvironmentMap(const cv::Mat& radiance, std::string name);
 
 // An environment as the fisheye thread publishes it.
 struct EnvironmentSnapshot {

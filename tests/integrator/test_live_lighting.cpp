@@ -390,13 +390,8 @@ TEST_F(LiveLightingTest, LightsPlusResidualKeepTheMapsEnergy) {
         lights.push_back({glm::vec3(l.direction[0], l.direction[1], l.direction[2]),
                           float(l.solidAngleSr),
                           glm::vec3(l.radiance[0], l.radiance[1], l.radiance[2])});
-    auto residual = std::make_shared<EnvironmentMap>(map);
-    residual->path = "residual";
-    for (uint32_t y = 0; y < map.height; ++y)
-        for (uint32_t x = 0; x < map.width; ++x) {
-            cv::Vec3f c = split->residual.at<cv::Vec3f>(int(y), int(x));
-            residual->radiance[size_t(y) * map.width + x] = glm::vec3(c[0], c[1], c[2]);
-        }
+    auto residual = std::make_shared<EnvironmentMap>(
+        matToEnvironmentMap(split->residual, "residual"));
 
     Scene s = floorFromAbove(albedo);
     s.environment = map;
