@@ -114,7 +114,8 @@ Status PipelineRenderer::prepare(const TrackedFrame& tracked,
     plate_.pixels.assign(linear.ptr<float>(0), linear.ptr<float>(0) + size_t(width_) * height_ * 3);
     rendered_ = tracked.worldFromCamera.has_value() || sceneCameraUntilTracked_;
     if (!rendered_) return {};
-    if (Status s = renderer_->setPlate(plate_); !s) return s;
+    // The renderer keeps the plate; plate_ is needed only while there is nothing to render.
+    if (Status s = renderer_->setPlate(std::move(plate_)); !s) return s;
     // Without a pose yet the renderer keeps the scene file's camera (until_tracked).
     if (tracked.worldFromCamera)
         renderer_->setCameraPose(renderWorldFromOpenCvCamera(*tracked.worldFromCamera));

@@ -64,7 +64,7 @@ private:
     InverseToneMapSettings radiometry_;
     ToneMapSettings display_;
     std::array<float, 3> whiteBalance_{1.0f, 1.0f, 1.0f};
-    ImageF plate_;
+    ImageF plate_;  // this frame's plate until it is moved into the renderer
     bool rendered_ = false;
     bool sceneCameraUntilTracked_ = false;
     // Held (not a raw pointer) so a new snapshot can never reuse the shown one's address.

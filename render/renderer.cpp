@@ -481,12 +481,12 @@ Status Renderer::render(uint32_t samples,
     return {};
 }
 
-Status Renderer::setPlate(const ImageF& plate) {
+Status Renderer::setPlate(ImageF plate) {
     if (plate.width != settings_.width || plate.height != settings_.height || plate.channels < 3)
         return makeError("the plate is {}x{} with {} channel(s); the render is {}x{} and needs "
                          "RGB (render at the plate's resolution)", plate.width, plate.height,
                          plate.channels, settings_.width, settings_.height);
-    plate_ = plate;
+    plate_ = std::move(plate);
     return {};
 }
 

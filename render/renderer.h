@@ -125,7 +125,7 @@ public:
 
     // The camera image L_oc in linear radiance, at the render's resolution (no resampling:
     // primary rays follow the camera's lens model instead). Used by Aov::Composite.
-    Status setPlate(const ImageF& plate);
+    Status setPlate(ImageF plate);  // by value: a caller done with its plate moves it in
 
     // The mean per pixel so far (RGB linear; the mask one channel).
     Result<ImageF> image(Aov aov = Aov::Composite) const;
