@@ -7,6 +7,7 @@ namespace previs {
 namespace {
 
 constexpr vk::BufferUsageFlags kUsage = vk::BufferUsageFlagBits::eStorageBuffer |
+                                        vk::BufferUsageFlagBits::eUniformTexelBuffer |
                                         vk::BufferUsageFlagBits::eTransferSrc |
                                         vk::BufferUsageFlagBits::eTransferDst;
 

@@ -1,22 +1,42 @@
 #include "gpu/compute_pipeline.h"
 
+#include <algorithm>
+
+#include "base/log.h"
+
 namespace previs {
 
+namespace {
+
+vk::DescriptorType descriptorType(BindingKind kind) {
+    return kind == BindingKind::TexelBufferUint4 ? vk::DescriptorType::eUniformTexelBuffer
+                                                 : vk::DescriptorType::eStorageBuffer;
+}
+
+constexpr size_t kUint4TexelBytes = 16;
+
+}  // namespace
+
 Result<ComputePipeline> ComputePipeline::create(GpuContext& ctx, std::span<const uint32_t> spirv,
-                                                uint32_t bindingCount,
+                                                std::span<const BindingKind> bindings,
                                                 std::span<const uint32_t> boolSpecConstants,
                                                 const char* label) {
     ComputePipeline p;
     p.ctx_ = &ctx;
     p.label_ = label;
+    p.bindings_.assign(bindings.begin(), bindings.end());
     try {
         const auto& device = ctx.device();
-        std::vector<vk::DescriptorSetLayoutBinding> bindings;
-        for (uint32_t i = 0; i < bindingCount; ++i)
-            bindings.emplace_back(i, vk::DescriptorType::eStorageBuffer, 1,
-                                  vk::ShaderStageFlagBits::eCompute);
+        std::vector<vk::DescriptorSetLayoutBinding> layoutBindings;
+        uint32_t storageCount = 0;
+        uint32_t texelCount = 0;
+        for (uint32_t i = 0; i < bindings.size(); ++i) {
+            vk::DescriptorType type = descriptorType(bindings[i]);
+            (type == vk::DescriptorType::eStorageBuffer ? storageCount : texelCount) += 1;
+            layoutBindings.emplace_back(i, type, 1, vk::ShaderStageFlagBits::eCompute);
+        }
         p.setLayout_ = vk::raii::DescriptorSetLayout(
-            device, vk::DescriptorSetLayoutCreateInfo({}, bindings));
+            device, vk::DescriptorSetLayoutCreateInfo({}, layoutBindings));
         vk::DescriptorSetLayout setLayout = *p.setLayout_;
         p.layout_ = vk::raii::PipelineLayout(device, vk::PipelineLayoutCreateInfo({}, setLayout));
         p.module_ = vk::raii::ShaderModule(
@@ -33,10 +53,12 @@ Result<ComputePipeline> ComputePipeline::create(GpuContext& ctx, std::span<const
         p.pipeline_ = vk::raii::Pipeline(device, nullptr,
                                          vk::ComputePipelineCreateInfo({}, stage, *p.layout_));
 
-        vk::DescriptorPoolSize poolSize(vk::DescriptorType::eStorageBuffer, bindingCount);
+        std::vector<vk::DescriptorPoolSize> poolSizes;
+        if (storageCount) poolSizes.emplace_back(vk::DescriptorType::eStorageBuffer, storageCount);
+        if (texelCount) poolSizes.emplace_back(vk::DescriptorType::eUniformTexelBuffer, texelCount);
         p.pool_ = vk::raii::DescriptorPool(
             device, vk::DescriptorPoolCreateInfo(
-                        vk::DescriptorPoolCreateFlagBits::eFreeDescriptorSet, 1, poolSize));
+                        vk::DescriptorPoolCreateFlagBits::eFreeDescriptorSet, 1, poolSizes));
         vk::raii::DescriptorSets sets(device, vk::DescriptorSetAllocateInfo(*p.pool_, setLayout));
         p.set_ = std::move(sets[0]);
         if (ctx.timestampPeriodNs() > 0.0)
@@ -48,15 +70,47 @@ Result<ComputePipeline> ComputePipeline::create(GpuContext& ctx, std::span<const
     return p;
 }
 
-void ComputePipeline::bind(std::span<const GpuBuffer* const> buffers) {
+Status ComputePipeline::bind(std::span<const GpuBuffer* const> buffers) {
+    PV_ASSERT(buffers.size() == bindings_.size());
+    const uint32_t maxTexels = ctx_->physicalDevice().getProperties().limits.maxTexelBufferElements;
     std::vector<vk::DescriptorBufferInfo> infos;
+    std::vector<vk::raii::BufferView> views;
     infos.reserve(buffers.size());
-    for (const GpuBuffer* b : buffers) infos.emplace_back(b->handle(), 0, VK_WHOLE_SIZE);
+    views.reserve(buffers.size());
+    std::vector<vk::BufferView> viewHandles(buffers.size());
+    for (uint32_t i = 0; i < buffers.size(); ++i) {
+        infos.emplace_back(buffers[i]->handle(), 0, VK_WHOLE_SIZE);
+        if (bindings_[i] != BindingKind::TexelBufferUint4) continue;
+        // GpuBuffer allocates at least 16 bytes, so an empty array still has one texel.
+        const size_t texels = std::max<size_t>(1, buffers[i]->size() / kUint4TexelBytes);
+        if (texels > maxTexels)
+            return makeError("'{}' binding {} needs {} texels, more than this device's "
+                             "maxTexelBufferElements ({}): use a smaller scene or another device",
+                             label_, i, texels, maxTexels);
+        try {
+            views.emplace_back(ctx_->device(),
+                               vk::BufferViewCreateInfo({}, buffers[i]->handle(),
+                                                        vk::Format::eR32G32B32A32Uint, 0,
+                                                        texels * kUint4TexelBytes));
+        } catch (const std::exception& e) {
+            return makeError("cannot create texel buffer view for '{}' binding {}: {}", label_, i,
+                             e.what());
+        }
+        viewHandles[i] = *views.back();
+    }
     std::vector<vk::WriteDescriptorSet> writes;
-    for (uint32_t i = 0; i < infos.size(); ++i)
-        writes.emplace_back(*set_, i, 0, 1, vk::DescriptorType::eStorageBuffer, nullptr,
-                            &infos[i]);
+    for (uint32_t i = 0; i < buffers.size(); ++i) {
+        if (bindings_[i] == BindingKind::TexelBufferUint4)
+            writes.emplace_back(*set_, i, 0, 1, vk::DescriptorType::eUniformTexelBuffer, nullptr,
+                                nullptr, &viewHandles[i]);
+        else
+            writes.emplace_back(*set_, i, 0, 1, vk::DescriptorType::eStorageBuffer, nullptr,
+                                &infos[i]);
+    }
     ctx_->device().updateDescriptorSets(writes, nullptr);
+    // Dispatches wait for completion, so no submission still uses the views replaced here.
+    texelViews_ = std::move(views);
+    return {};
 }
 
 Result<double> ComputePipeline::dispatch(uint32_t groupsX, uint32_t groupsY, uint32_t groupsZ) {

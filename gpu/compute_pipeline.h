@@ -1,8 +1,9 @@
 #pragma once
 
-// A compute pipeline whose descriptor set 0 holds `bindingCount` storage buffers at bindings
-// 0..bindingCount-1, with boolean specialization constants (ids 0..n-1) selecting the variant,
-// and timestamp queries around its dispatches so benchmarks can report GPU time per pass.
+// A compute pipeline whose descriptor set 0 holds one buffer per binding 0..n-1 — a storage
+// buffer, or a uniform texel buffer of 16-byte uint texels (usamplerBuffer) where the binding
+// says so — with boolean specialization constants (ids 0..n-1) selecting the variant, and
+// timestamp queries around its dispatches so benchmarks can report GPU time per pass.
 
 #include <span>
 #include <vector>
@@ -15,18 +16,28 @@
 
 namespace previs {
 
+enum class BindingKind {
+    StorageBuffer,
+    // A read-only array read with texelFetch as R32G32B32A32_UINT. On llvmpipe a texel fetch is
+    // a gather, while a storage-buffer load whose address differs per lane is a loop over the
+    // lanes with a bounds check each: hot read-only arrays (BVH nodes, triangles) go here.
+    TexelBufferUint4,
+};
+
 class ComputePipeline {
 public:
+    // bindings[i] is the kind of binding i.
     static Result<ComputePipeline> create(GpuContext& ctx, std::span<const uint32_t> spirv,
-                                          uint32_t bindingCount,
+                                          std::span<const BindingKind> bindings,
                                           std::span<const uint32_t> boolSpecConstants,
                                           const char* label);
 
     ComputePipeline(ComputePipeline&&) = default;
     ComputePipeline& operator=(ComputePipeline&&) = default;
 
-    // Binds buffers[i] at binding i.
-    void bind(std::span<const GpuBuffer* const> buffers);
+    // Binds buffers[i] at binding i. Fails when a texel buffer holds more texels than the
+    // device's maxTexelBufferElements.
+    Status bind(std::span<const GpuBuffer* const> buffers);
 
     // Dispatches groups and waits; returns the GPU time of the dispatch in milliseconds
     // (0 when the device has no timestamps).
@@ -45,6 +56,8 @@ private:
     vk::raii::DescriptorPool pool_{nullptr};
     vk::raii::DescriptorSet set_{nullptr};
     vk::raii::QueryPool queries_{nullptr};
+    std::vector<BindingKind> bindings_;
+    std::vector<vk::raii::BufferView> texelViews_;  // of the buffers bound last
 };
 
 }  // namespace previs

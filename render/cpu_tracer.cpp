@@ -13,8 +13,7 @@ namespace {
 // interfere and the header stays the one the shaders compile.
 struct BoundScene {
     const shader::BvhNode* nodes = nullptr;
-    const glm::uvec3* triangles = nullptr;
-    const glm::vec3* positions = nullptr;
+    const glm::vec3* triangleVertices = nullptr;  // 3 per triangle, BVH order
 };
 thread_local BoundScene gBound;
 
@@ -23,8 +22,7 @@ thread_local BoundScene gBound;
 }  // namespace previs
 
 #define PV_BVH_NODE(i) (::previs::gBound.nodes[i])
-#define PV_TRIANGLE(i) (::previs::gBound.triangles[i])
-#define PV_POSITION(i) (::previs::gBound.positions[i])
+#define PV_TRIANGLE_VERTEX(i, k) (::previs::gBound.triangleVertices[3 * (i) + (k)])
 #include "shared/ray_tracing.h"
 
 namespace previs {
@@ -39,15 +37,17 @@ CpuTracer::CpuTracer(SceneBvh bvh, const Geometry& geometry)
     : bvh_(std::move(bvh)), positions_(geometry.positions) {
     PV_ASSERT(bvh_.triangleOrder.size() == geometry.triangles.size());
     triangles_.resize(geometry.triangles.size());
+    triangleVertices_.reserve(3 * triangles_.size());
     for (size_t i = 0; i < triangles_.size(); ++i) {
         uint32_t src = bvh_.triangleOrder[i];
         triangles_[i] = geometry.triangles[src];
+        for (int k = 0; k < 3; ++k) triangleVertices_.push_back(positions_[triangles_[i][k]]);
         if (!geometry.triangleIsReal.empty() && geometry.triangleIsReal[src]) realCount_ = i + 1;
     }
 }
 
 std::optional<shader::Hit> CpuTracer::closestHit(const shader::Ray& ray, bool realOnly) const {
-    gBound = {bvh_.nodes.data(), triangles_.data(), positions_.data()};
+    gBound = {bvh_.nodes.data(), triangleVertices_.data()};
     shader::Hit hit{ray.tMax, kBvhNoRoot, 0.0f, 0.0f};
     bool found = shader::traceClosest(bvh_.realRoot, ray, hit);
     if (!realOnly) found = shader::traceClosest(bvh_.virtualRoot, ray, hit) || found;
@@ -56,7 +56,7 @@ std::optional<shader::Hit> CpuTracer::closestHit(const shader::Ray& ray, bool re
 }
 
 bool CpuTracer::occluded(const shader::Ray& ray, bool realOnly) const {
-    gBound = {bvh_.nodes.data(), triangles_.data(), positions_.data()};
+    gBound = {bvh_.nodes.data(), triangleVertices_.data()};
     if (shader::traceAny(bvh_.realRoot, ray)) return true;
     return !realOnly && shader::traceAny(bvh_.virtualRoot, ray);
 }

@@ -42,6 +42,7 @@ private:
     SceneBvh bvh_;
     std::vector<glm::uvec3> triangles_;
     std::vector<glm::vec3> positions_;
+    std::vector<glm::vec3> triangleVertices_;  // what traversal reads: 3 per triangle, BVH order
     uint32_t realCount_ = 0;
 };
 

@@ -141,26 +141,27 @@ Status Renderer::specialisePipeline() {
     constants[PV_SPEC_HAS_THIN_LENS] = spec.thinLens;
     constants[PV_SPEC_HAS_TEXTURES] = spec.textures;
     constants[PV_SPEC_HAS_CONE_LIGHTS] = spec.coneLights;
-    if (pipeline_ && constants == specConstants_) {
-        bindBuffers();
-        return {};
-    }
+    if (pipeline_ && constants == specConstants_) return bindBuffers();
+    // The hot read-only arrays of traversal are texel buffers (see BindingKind).
+    std::array<BindingKind, PV_BINDING_COUNT> bindings{};
+    bindings.fill(BindingKind::StorageBuffer);
+    bindings[PV_BINDING_BVH_NODES] = BindingKind::TexelBufferUint4;
+    bindings[PV_BINDING_TRIANGLE_VERTICES] = BindingKind::TexelBufferUint4;
     auto pipeline = ComputePipeline::create(
         *ctx_, std::span<const uint32_t>(trace_paths_spv, sizeof(trace_paths_spv) / 4),
-        PV_BINDING_COUNT, constants, "trace_paths");
+        bindings, constants, "trace_paths");
     if (!pipeline) return pipeline.error();
     // Dispatches wait for completion (ComputePipeline::dispatch), so no submission can still
     // use the pipeline this replaces.
     pipeline_.emplace(std::move(pipeline.value()));
     specConstants_ = constants;
-    bindBuffers();
-    return {};
+    return bindBuffers();
 }
 
-void Renderer::bindBuffers() {
+Status Renderer::bindBuffers() {
     std::vector<const GpuBuffer*> bound;
     for (const auto& b : buffers_) bound.push_back(&b);
-    pipeline_->bind(bound);
+    return pipeline_->bind(bound);
 }
 
 Status Renderer::replaceBufferContents(int binding, const void* data, size_t bytes,
@@ -264,10 +265,14 @@ Status Renderer::buildScene(const Scene& scene) {
     size_t triCount = g.triangles.size();
     std::vector<glm::uvec3> triangles(triCount);
     std::vector<uint32_t> triMaterials(triCount);
+    // xyz = position, w unused: one 16-byte texel per vertex (PV_BINDING_TRIANGLE_VERTICES).
+    std::vector<glm::vec4> triangleVertices(3 * triCount);
     for (size_t i = 0; i < triCount; ++i) {
         uint32_t src = bvh_.triangleOrder[i];
         triangles[i] = g.triangles[src];
         triMaterials[i] = g.triangleMaterials[src];
+        for (int k = 0; k < 3; ++k)
+            triangleVertices[3 * i + k] = glm::vec4(g.positions[triangles[i][k]], 0.0f);
     }
 
     std::vector<shader::GpuMaterial> materials;
@@ -384,7 +389,7 @@ Status Renderer::buildScene(const Scene& scene) {
     Status s;
     // Order = binding numbers (PV_BINDING_*).
     if (!(s = add(GpuBuffer::createWith(*ctx_, std::span(&params_, 1), "params")))) return s;
-    if (!(s = add(GpuBuffer::createWith(*ctx_, span(g.positions), "positions")))) return s;
+    if (!(s = add(GpuBuffer::createWith(*ctx_, span(triangleVertices), "triangleVertices")))) return s;
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(g.normals), "normals")))) return s;
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(g.uvs), "uvs")))) return s;
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(triangles), "triangles")))) return s;

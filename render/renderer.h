@@ -161,7 +161,7 @@ private:
     Status specialisePipeline();
     // Uploads `bytes` into buffers_[binding], reallocating it only when its size differs.
     Status replaceBufferContents(int binding, const void* data, size_t bytes, const char* label);
-    void bindBuffers();
+    Status bindBuffers();
     uint32_t samplesForNextDispatch(uint32_t remaining) const;
 
     GpuContext* ctx_ = nullptr;

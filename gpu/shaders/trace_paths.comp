@@ -27,14 +27,28 @@ layout(constant_id = PV_SPEC_HAS_LENS_GRID) const bool kHasLensGrid = true;
 layout(constant_id = PV_SPEC_HAS_CONE_LIGHTS) const bool kHasConeLights = true;
 
 layout(binding = PV_BINDING_PARAMS, scalar) readonly buffer ParamsBuffer { FrameParams params; };
-layout(binding = PV_BINDING_POSITIONS, scalar) readonly buffer Positions { vec3 positions[]; };
 layout(binding = PV_BINDING_NORMALS, scalar) readonly buffer Normals { vec3 normals[]; };
 layout(binding = PV_BINDING_UVS, scalar) readonly buffer Uvs { vec2 uvs[]; };
 layout(binding = PV_BINDING_TRIANGLES, scalar) readonly buffer Triangles { uvec3 triangles[]; };
 layout(binding = PV_BINDING_TRIANGLE_MATERIALS, scalar) readonly buffer TriangleMaterials {
     uint triangleMaterials[];
 };
-layout(binding = PV_BINDING_BVH_NODES, scalar) readonly buffer Nodes { BvhNode bvhNodes[]; };
+// What traversal reads sits in texel buffers (BindingKind::TexelBufferUint4): on llvmpipe a
+// texel fetch is a gather, while a storage-buffer load whose address differs per lane is a loop
+// over the lanes with a bounds check each. A BVH node is two texels (BvhNode's layout), a
+// triangle three (one vertex each, w unused).
+layout(binding = PV_BINDING_BVH_NODES) uniform usamplerBuffer bvhNodeTexels;
+layout(binding = PV_BINDING_TRIANGLE_VERTICES) uniform usamplerBuffer triangleVertexTexels;
+BvhNode loadBvhNode(uint i) {
+    uvec4 lo = texelFetch(bvhNodeTexels, int(2u * i));
+    uvec4 hi = texelFetch(bvhNodeTexels, int(2u * i + 1u));
+    BvhNode n;
+    n.boundsMin = uintBitsToFloat(lo.xyz);
+    n.leftOrFirst = lo.w;
+    n.boundsMax = uintBitsToFloat(hi.xyz);
+    n.count = hi.w;
+    return n;
+}
 layout(binding = PV_BINDING_MATERIALS, scalar) readonly buffer Materials {
     GpuMaterial materials[];
 };
@@ -66,9 +80,9 @@ layout(binding = PV_BINDING_TRIANGLE_LIGHT_PDF, scalar) readonly buffer Triangle
 
 layout(binding = PV_BINDING_LENS_GRID, scalar) readonly buffer LensGrid { vec2 lensGrid[]; };
 
-#define PV_BVH_NODE(i) bvhNodes[i]
-#define PV_TRIANGLE(i) triangles[i]
-#define PV_POSITION(i) positions[i]
+#define PV_BVH_NODE(i) loadBvhNode(i)
+#define PV_TRIANGLE_VERTEX(i, k) \
+    uintBitsToFloat(texelFetch(triangleVertexTexels, int(3u * (i) + (k))).xyz)
 #include "shared/ray_tracing.h"
 
 #define PV_ENV_RADIANCE(i) envRadianceTexels[i]
@@ -189,9 +203,9 @@ struct Surface {
 Surface surfaceAt(Ray ray, Hit hit) {
     Surface s;
     uvec3 tri = triangles[hit.triangle];
-    vec3 p0 = positions[tri.x];
-    vec3 p1 = positions[tri.y];
-    vec3 p2 = positions[tri.z];
+    vec3 p0 = PV_TRIANGLE_VERTEX(hit.triangle, 0u);
+    vec3 p1 = PV_TRIANGLE_VERTEX(hit.triangle, 1u);
+    vec3 p2 = PV_TRIANGLE_VERTEX(hit.triangle, 2u);
     float b0 = 1.0 - hit.b1 - hit.b2;
     s.position = b0 * p0 + hit.b1 * p1 + hit.b2 * p2;
     vec3 ng = cross(p1 - p0, p2 - p0);
@@ -314,9 +328,9 @@ uint pickEmissiveTriangle(float u) {
 
 // Solid-angle pdf with which emissive-triangle sampling picks the point `hit` seen from `from`.
 float emissiveLightPdf(uint triangle, vec3 from, Surface lightSurface) {
-    uvec3 tri = triangles[triangle];
-    vec3 p0 = positions[tri.x];
-    float area = 0.5 * length(cross(positions[tri.y] - p0, positions[tri.z] - p0));
+    vec3 p0 = PV_TRIANGLE_VERTEX(triangle, 0u);
+    float area = 0.5 * length(cross(PV_TRIANGLE_VERTEX(triangle, 1u) - p0,
+                                    PV_TRIANGLE_VERTEX(triangle, 2u) - p0));
     vec3 d = lightSurface.position - from;
     float dist2 = dot(d, d);
     float cosLight = abs(dot(normalize(d), lightSurface.geometricNormal));
@@ -360,9 +374,9 @@ void sampleDirectLight(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint mode
         EmissiveTriangle et = emissiveTriangles[pickEmissiveTriangle(uPick)];
         uvec3 tri = triangles[et.triangle];
         vec2 b = sampleUniformTriangle(uPoint);
-        vec3 p0 = positions[tri.x];
-        vec3 p1 = positions[tri.y];
-        vec3 p2 = positions[tri.z];
+        vec3 p0 = PV_TRIANGLE_VERTEX(et.triangle, 0u);
+        vec3 p1 = PV_TRIANGLE_VERTEX(et.triangle, 1u);
+        vec3 p2 = PV_TRIANGLE_VERTEX(et.triangle, 2u);
         vec3 lightPoint = (1.0 - b.x - b.y) * p0 + b.x * p1 + b.y * p2;
         vec3 ng = normalize(cross(p1 - p0, p2 - p0));
         vec3 d = lightPoint - s.position;

@@ -5,8 +5,7 @@
 // The first part (types, intersection, offsetRayOrigin) needs nothing from the includer. The
 // traversal part is compiled only when the includer has defined the accessors first:
 //   PV_BVH_NODE(i)  -> BvhNode      node i of the flattened BVH
-//   PV_TRIANGLE(i)  -> uvec3        vertex indices of triangle i, in BVH order
-//   PV_POSITION(i)  -> vec3         vertex position i
+//   PV_TRIANGLE_VERTEX(i, k) -> vec3  vertex k (0, 1, 2) of triangle i, in BVH order
 // It has its own include guard, so a C++ file may include the first part through another header
 // and the traversal after binding the macros. In C++ the traversal sits in an anonymous
 // namespace: each translation unit binds its own accessors without breaking the ODR.
@@ -136,20 +135,23 @@ PV_INLINE bool intersectTriangle(TriangleRay r, vec3 p0, vec3 p1, vec3 p2, float
 // rounding. Writes the entry distance on a hit.
 PV_INLINE bool intersectBox(vec3 lo, vec3 hi, vec3 origin, vec3 invDir, float tMin, float tMax,
                             PV_OUT(float) tEntry) {
+    // All three axes without an early exit: on a SIMD-per-lane device (llvmpipe) a data-dependent
+    // exit inside the axis loop costs mask bookkeeping per axis; the result is the same because
+    // t0 only grows and t1 only shrinks. The comparisons (not min/max, whose NaN result GLSL
+    // leaves undefined) keep the NaN behaviour described above.
+    bvec3 negative = lessThan(invDir, vec3(0.0f));
+    vec3 tNear = (mix(lo, hi, negative) - origin) * invDir;
+    vec3 tFar = (mix(hi, lo, negative) - origin) * invDir * PV_BOX_FAR_SCALE;
     float t0 = tMin;
     float t1 = tMax * PV_BOX_FAR_SCALE;
-    for (int i = 0; i < 3; ++i) {
-        PV_COUNT_LOOP_ITERATION();
-        bool negative = invDir[i] < 0.0f;
-        float tNear = ((negative ? hi[i] : lo[i]) - origin[i]) * invDir[i];
-        float tFar = ((negative ? lo[i] : hi[i]) - origin[i]) * invDir[i];
-        tFar *= PV_BOX_FAR_SCALE;
-        if (tNear > t0) t0 = tNear;
-        if (tFar < t1) t1 = tFar;
-        if (t0 > t1) return false;
-    }
+    if (tNear.x > t0) t0 = tNear.x;
+    if (tNear.y > t0) t0 = tNear.y;
+    if (tNear.z > t0) t0 = tNear.z;
+    if (tFar.x < t1) t1 = tFar.x;
+    if (tFar.y < t1) t1 = tFar.y;
+    if (tFar.z < t1) t1 = tFar.z;
     tEntry = t0;
-    return true;
+    return t0 <= t1;
 }
 
 // Wächter & Binder, Ray Tracing Gems ch. 6, "A Fast and Robust Method for Avoiding
@@ -176,7 +178,7 @@ PV_END
 
 #endif  // PREVIS_SHARED_RAY_TRACING_H
 
-#if defined(PV_BVH_NODE) && defined(PV_TRIANGLE) && defined(PV_POSITION) && \
+#if defined(PV_BVH_NODE) && defined(PV_TRIANGLE_VERTEX) && \
     !defined(PREVIS_SHARED_RAY_TRACING_TRAVERSAL_H)
 #define PREVIS_SHARED_RAY_TRACING_TRAVERSAL_H
 
@@ -191,12 +193,11 @@ PV_INLINE bool intersectLeaf(TriangleRay tr, uint first, uint count, float tMin,
     bool found = false;
     for (uint i = first; i < first + count; ++i) {
         PV_COUNT_LOOP_ITERATION();
-        uvec3 tri = PV_TRIANGLE(i);
         float t;
         float b1;
         float b2;
-        if (intersectTriangle(tr, PV_POSITION(tri.x), PV_POSITION(tri.y), PV_POSITION(tri.z), tMin,
-                              tMax, t, b1, b2)) {
+        if (intersectTriangle(tr, PV_TRIANGLE_VERTEX(i, 0u), PV_TRIANGLE_VERTEX(i, 1u),
+                              PV_TRIANGLE_VERTEX(i, 2u), tMin, tMax, t, b1, b2)) {
             tMax = t;
             hit.t = t;
             hit.triangle = i;
@@ -279,12 +280,11 @@ PV_INLINE bool traceAny(uint root, Ray ray) {
         if (node.count > 0u) {
             for (uint i = node.leftOrFirst; i < node.leftOrFirst + node.count; ++i) {
                 PV_COUNT_LOOP_ITERATION();
-                uvec3 tri = PV_TRIANGLE(i);
                 float t;
                 float b1;
                 float b2;
-                if (intersectTriangle(tr, PV_POSITION(tri.x), PV_POSITION(tri.y),
-                                      PV_POSITION(tri.z), ray.tMin, ray.tMax, t, b1, b2))
+                if (intersectTriangle(tr, PV_TRIANGLE_VERTEX(i, 0u), PV_TRIANGLE_VERTEX(i, 1u),
+                                      PV_TRIANGLE_VERTEX(i, 2u), ray.tMin, ray.tMax, t, b1, b2))
                     return true;
             }
         } else {

@@ -9,11 +9,14 @@ PV_BEGIN
 
 // Descriptor set 0 bindings of trace_paths.comp.
 #define PV_BINDING_PARAMS 0
-#define PV_BINDING_POSITIONS 1
+// The three vertex positions of each triangle in BVH order, one 16-byte texel each (xyz, w
+// unused): traversal reads a triangle with three fetches and no index indirection.
+#define PV_BINDING_TRIANGLE_VERTICES 1
 #define PV_BINDING_NORMALS 2
 #define PV_BINDING_UVS 3
 #define PV_BINDING_TRIANGLES 4
 #define PV_BINDING_TRIANGLE_MATERIALS 5
+// BvhNode array as a texel buffer of two uint4 texels per node.
 #define PV_BINDING_BVH_NODES 6
 #define PV_BINDING_MATERIALS 7
 #define PV_BINDING_TEXTURES 8
