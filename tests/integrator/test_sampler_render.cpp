@@ -116,16 +116,17 @@ TEST_F(SamplerRenderTest, SobolIsUnbiased) {
     }
 }
 
-// Lower error per sample: at 16 spp, the mean squared error against a long reference over 8
-// seeds is lower with Sobol' than with PCG by more than the noise of that comparison — the
-// difference of the two means must exceed 3.0 standard errors (Welch, each MSE's variance
-// measured over its 8 seeds; 2.998 is Student's t one-sided 1% at 7 degrees of freedom, the
+// Lower error per sample: at 16 and 64 spp, the mean squared error against a long reference
+// over 16 seeds is lower with Sobol' than with PCG by more than the noise of that comparison —
+// the difference of the two means must exceed 2.6 standard errors (Welch, each MSE's variance
+// measured over its 16 seeds; 2.602 is Student's t one-sided 1% at 15 degrees of freedom, the
 // fewest Welch's approximation can give). The reference's own error adds the same expected
-// amount to both MSEs, so it cannot favour either sampler.
+// amount to both MSEs, so it cannot favour either sampler (at 4096 spp it is below 2% of PCG's
+// error at 64 spp).
 TEST_F(SamplerRenderTest, SobolHasLowerErrorPerSampleWithSmallAreaLights) {
     const Scene s = smallAreaLights();
-    const ImageF reference = renders(s, settingsFor(Sampler::Sobol), 8192, 1, 99)[0];
-    const int runs = 8;
+    const ImageF reference = renders(s, settingsFor(Sampler::Sobol), 4096, 1, 99)[0];
+    const int runs = 16;
     auto mses = [&](Sampler sampler, uint32_t spp) {
         std::vector<double> out;
         for (const ImageF& img : renders(s, settingsFor(sampler), spp, runs)) {
@@ -148,7 +149,7 @@ TEST_F(SamplerRenderTest, SobolHasLowerErrorPerSampleWithSmallAreaLights) {
         auto [sobol, sobolVar] = meanVar(mses(Sampler::Sobol, spp));
         auto [pcg, pcgVar] = meanVar(mses(Sampler::Independent, spp));
         const double t = (pcg - sobol) / std::sqrt(sobolVar + pcgVar);
-        EXPECT_GT(t, 2.998) << spp << " spp: MSE Sobol' " << sobol << ", PCG " << pcg;
+        EXPECT_GT(t, 2.602) << spp << " spp: MSE Sobol' " << sobol << ", PCG " << pcg;
         RecordProperty("rmseRatio" + std::to_string(spp), std::to_string(std::sqrt(sobol / pcg)));
         RecordProperty("t" + std::to_string(spp), std::to_string(t));
     }
