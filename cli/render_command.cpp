@@ -35,6 +35,7 @@ struct RenderOptions {
     std::optional<float> apertureRadiusM;
     std::optional<float> focusDistanceM;
     uint32_t seed = 0;
+    std::string sampler = "sobol";
     std::string out;
     float exposure = 0.0f;
     std::string toneMap = "clamp";
@@ -109,6 +110,7 @@ int run(const RenderOptions& o) {
     settings.height = o.height ? o.height : uint32_t(std::lround(settings.width / aspect));
     settings.maxDepth = o.maxDepth;
     settings.seed = o.seed;
+    settings.sampler = o.sampler == "independent" ? Sampler::Independent : Sampler::Sobol;
     settings.apertureRadiusM = o.apertureRadiusM;
     settings.focusDistanceM = o.focusDistanceM;
     settings.fireflyClamp = o.fireflyClamp;
@@ -269,6 +271,10 @@ std::function<int()> addRenderCommand(CLI::App& app) {
     cmd->add_option("--focus-distance", o->focusDistanceM, "thin lens focus distance, metres")
         ->check(CLI::PositiveNumber);
     cmd->add_option("--seed", o->seed, "random seed");
+    cmd->add_option("--sampler", o->sampler,
+                    "random numbers: sobol (Owen-scrambled Sobol', stratified; default) or "
+                    "independent (PCG, for comparison)")
+        ->check(CLI::IsMember({"sobol", "independent"}));
     cmd->add_option("--exposure", o->exposure, "PNG output: exposure in stops");
     cmd->add_option("--tonemap", o->toneMap, "PNG output: clamp, reinhard or reinhard-extended")
         ->check(CLI::IsMember({"clamp", "reinhard", "reinhard-extended"}));

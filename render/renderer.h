@@ -21,12 +21,21 @@
 
 namespace previs {
 
+// Where a path's random numbers come from (gpu/shaders/shared/sampler.h). Both address every
+// number by (pixel, sample, dimension), so both keep preview's fixed sequence and the
+// differential identities; Independent is the baseline for ablations.
+enum class Sampler {
+    Sobol,        // Owen-scrambled Sobol' with per-pixel shuffles (Burley 2020): stratified
+    Independent,  // one PCG stream per (pixel, sample, dimension set)
+};
+
 struct RenderSettings {
     uint32_t width = 640;
     uint32_t height = 480;
     uint32_t maxDepth = 16;            // pbrt's maxdepth: 1 = direct light only
     uint32_t rouletteStartDepth = 3;   // Russian roulette from this many bounces on
     uint32_t seed = 0;
+    Sampler sampler = Sampler::Sobol;
     int cameraIndex = 0;               // into Scene::cameras; a default camera if there is none
     std::optional<float> apertureRadiusM;  // override the camera's thin lens
     std::optional<float> focusDistanceM;

@@ -25,6 +25,8 @@ layout(constant_id = PV_SPEC_HAS_TEXTURES) const bool kHasTextures = true;
 layout(constant_id = PV_SPEC_DIFFERENTIAL) const bool kDifferential = true;
 layout(constant_id = PV_SPEC_HAS_LENS_GRID) const bool kHasLensGrid = true;
 layout(constant_id = PV_SPEC_HAS_CONE_LIGHTS) const bool kHasConeLights = true;
+// The sample generator (PV_SAMPLER_* in shared/sampler.h; the dimension layout is there).
+layout(constant_id = PV_SPEC_SAMPLER) const uint kSampler = 0u;
 
 layout(binding = PV_BINDING_PARAMS, scalar) readonly buffer ParamsBuffer { FrameParams params; };
 layout(binding = PV_BINDING_NORMALS, scalar) readonly buffer Normals { vec3 normals[]; };
@@ -92,6 +94,10 @@ layout(binding = PV_BINDING_LENS_GRID, scalar) readonly buffer LensGrid { vec2 l
 
 #include "shared/bsdf.h"
 #include "shared/sampling.h"
+#include "shared/sampler.h"
+
+// Four random numbers of dimension set `set` (shared/sampler.h's table) for sample `key`.
+vec4 draw(SampleKey key, uint set) { return sampleSet(kSampler, key, set); }
 
 #define NO_HIT 0xffffffffu
 
@@ -285,9 +291,10 @@ vec3 evaluateBsdf(BsdfParams p, vec3 wo, vec3 wi, out float pdf) {
     return bsdfEvaluate(p, wo, wi, pdf);
 }
 
-bool sampleBsdf(BsdfParams p, vec3 wo, inout uint rng, out BsdfSample s) {
-    float uLobe = rngNext(rng);
-    vec2 u = rngNext2(rng);
+// `uSet` is the vertex's PV_SET_VERTEX_BSDF set: .xy the direction, .z the lobe.
+bool sampleBsdf(BsdfParams p, vec3 wo, vec4 uSet, out BsdfSample s) {
+    float uLobe = uSet.z;
+    vec2 u = uSet.xy;
     if (!kHasSpecular && !kHasTransmission) {
         s.wi = sampleCosineHemisphere(u);
         s.pdf = s.wi.z * PV_INV_PI;
@@ -347,12 +354,13 @@ float coneLightPdf(GpuLight light, vec3 dir) {
 
 // Next-event estimation at a surface: one environment sample, one emissive-triangle sample and
 // one light of the lights buffer (punctual or cone), each added (without the path throughput) to the solutions that see it.
-void sampleDirectLight(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint mode, inout uint rng,
-                       inout vec3 toMixed, inout vec3 toReal) {
+void sampleDirectLight(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint mode, SampleKey key,
+                       uint depth, inout vec3 toMixed, inout vec3 toReal) {
     if (kHasEnv && params.envWidth > 0u) {
         float envPdfValue;
         uint texel;
-        vec3 wi = envSampleTexel(rngNext2(rng), params.envWidth, params.envHeight,
+        vec2 u = draw(key, vertexSet(depth, PV_SET_VERTEX_ENV)).xy;
+        vec3 wi = envSampleTexel(u, params.envWidth, params.envHeight,
                                  params.envRotationRad, envPdfValue, texel);
         vec3 wiLocal = toLocal(frame, wi);
         if (envPdfValue > 0.0 && consistentSide(s, wi, wiLocal)) {
@@ -369,8 +377,9 @@ void sampleDirectLight(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint mode
         }
     }
     if (kHasEmissive && params.emissiveTriangleCount > 0u) {
-        float uPick = rngNext(rng);
-        vec2 uPoint = rngNext2(rng);
+        vec4 u = draw(key, vertexSet(depth, PV_SET_VERTEX_EMISSIVE));
+        float uPick = u.z;
+        vec2 uPoint = u.xy;
         EmissiveTriangle et = emissiveTriangles[pickEmissiveTriangle(uPick)];
         uvec3 tri = triangles[et.triangle];
         vec2 b = sampleUniformTriangle(uPoint);
@@ -401,7 +410,8 @@ void sampleDirectLight(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint mode
         }
     }
     if (kHasPunctual && params.lightCount > 0u) {
-        uint index = min(uint(rngNext(rng) * float(params.lightCount)), params.lightCount - 1u);
+        vec4 u = draw(key, vertexSet(depth, PV_SET_VERTEX_LIGHT));
+        uint index = min(uint(u.z * float(params.lightCount)), params.lightCount - 1u);
         GpuLight light = lights[index];
         uint type = light.type & PV_LIGHT_TYPE_MASK;
         vec3 wi;
@@ -414,7 +424,7 @@ void sampleDirectLight(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint mode
             Frame cone;
             cone.n = -light.direction;
             buildBasis(cone.n, cone.t, cone.b);
-            wi = toWorld(cone, sampleUniformCone(rngNext2(rng), light.cosInnerCone));
+            wi = toWorld(cone, sampleUniformCone(u.xy, light.cosInnerCone));
             li = light.intensity;  // radiance
             lightPdf = uniformConePdf(light.cosInnerCone) / float(params.lightCount);
         } else if (type == PV_LIGHT_DIRECTIONAL) {
@@ -451,8 +461,8 @@ void sampleDirectLight(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint mode
     }
 }
 
-Ray cameraRay(uvec2 pixel, inout uint rng) {
-    vec2 jitter = rngNext2(rng);
+Ray cameraRay(uvec2 pixel, SampleKey key) {
+    vec2 jitter = draw(key, PV_SET_CAMERA_JITTER).xy;
     vec2 ndc = vec2((float(pixel.x) + jitter.x) / float(params.width) * 2.0 - 1.0,
                     1.0 - (float(pixel.y) + jitter.y) / float(params.height) * 2.0);
     vec3 dir = vec3(ndc * params.tanHalfFov, -1.0);
@@ -474,7 +484,8 @@ Ray cameraRay(uvec2 pixel, inout uint rng) {
         // Thin lens: the lens sits at the camera position, perpendicular to the optical axis;
         // all rays through a pixel meet on the focal plane z = -focusDistance.
         vec3 focus = dir * params.focusDistanceM;
-        origin = vec3(params.apertureRadiusM * sampleUniformDiskConcentric(rngNext2(rng)), 0.0);
+        vec2 u = draw(key, PV_SET_CAMERA_LENS).xy;
+        origin = vec3(params.apertureRadiusM * sampleUniformDiskConcentric(u), 0.0);
         dir = focus - origin;
     }
     Ray ray;
@@ -505,10 +516,11 @@ struct PathState {
 };
 
 // One camera sample: the mixed radiance lm (L_om), the real radiance lr (L_or), and whether the
-// camera ray's first hit is virtual (the sample's mask M).
-void tracePath(uvec2 pixel, inout uint rng, out vec3 lm, out vec3 lr, out bool firstHitVirtual) {
+// camera ray's first hit is virtual (the sample's mask M). Every vertex draws the dimension sets
+// of its depth, so the real pass after a split draws what a real-only render would.
+void tracePath(uvec2 pixel, SampleKey key, out vec3 lm, out vec3 lr, out bool firstHitVirtual) {
     PathState st;
-    st.ray = cameraRay(pixel, rng);
+    st.ray = cameraRay(pixel, key);
     st.throughput = vec3(1.0);
     st.prevPdf = 0.0;
     st.prevDelta = true;
@@ -598,13 +610,14 @@ void tracePath(uvec2 pixel, inout uint rng, out vec3 lm, out vec3 lr, out bool f
                 bsdfLobeProbabilities(bp, wo).z > 0.0) {
                 vec3 directMixed = vec3(0.0);
                 vec3 directReal = vec3(0.0);
-                sampleDirectLight(s, bp, frame, wo, mode, rng, directMixed, directReal);
+                sampleDirectLight(s, bp, frame, wo, mode, key, st.depth, directMixed, directReal);
                 if (mode != MODE_REAL) lm += st.throughput * directMixed;
                 if (mode != MODE_MIXED) lr += st.throughput * directReal;
             }
 
             BsdfSample bs;
-            if (!sampleBsdf(bp, wo, rng, bs)) break;
+            vec4 uBsdf = draw(key, vertexSet(st.depth, PV_SET_VERTEX_BSDF));
+            if (!sampleBsdf(bp, wo, uBsdf, bs)) break;
             vec3 wi = toWorld(frame, bs.wi);
             if (!consistentSide(s, wi, bs.wi)) break;
             st.throughput *= bs.weight;
@@ -618,7 +631,7 @@ void tracePath(uvec2 pixel, inout uint rng, out vec3 lm, out vec3 lr, out bool f
             if (st.depth >= params.rouletteStartDepth) {
                 // Russian roulette: unbiased, keeps paths whose throughput is still large.
                 float pContinue = min(1.0, maxComponent(st.throughput) * st.etaScale);
-                if (rngNext(rng) >= pContinue) break;
+                if (uBsdf.w >= pContinue) break;
                 st.throughput /= pContinue;
             }
         }
@@ -649,11 +662,11 @@ void main() {
     }
     for (uint i = 0u; i < params.samplesPerDispatch; ++i) {
         PV_COUNT_LOOP_ITERATION();
-        uint rng = rngSeed(pixelIndex, params.sampleBase + i, params.seed);
+        SampleKey key = makeSampleKey(pixelIndex, params.sampleBase + i, params.seed);
         vec3 lm;
         vec3 lr;
         bool firstHitVirtual;
-        tracePath(pixel, rng, lm, lr, firstHitVirtual);
+        tracePath(pixel, key, lm, lr, firstHitVirtual);
         if (any(isnan(lm)) || any(isinf(lm)) || any(isnan(lr)) || any(isinf(lr))) {
             // Counted, and the host reports it: never silently part of the image.
             atomicAdd(stats.nonFiniteSamples, 1u);

@@ -285,7 +285,9 @@ TEST_F(DifferentialTest, VirtualObjectsShadowReflectBleedAndAreOccluded) {
     plate.height = rs.height;
     plate.channels = 3;
     plate.pixels.assign(size_t(rs.width) * rs.height * 3, 0.5f);
-    AovEstimate e = estimateAovs(s, rs, &plate, 16, 8);
+    // 64 spp: at 16 the expected green bleed is only about 5σ of 8 runs, so its detection below
+    // passed or failed with the draw of random numbers.
+    AovEstimate e = estimateAovs(s, rs, &plate, 64, 8);
     auto at = [&](glm::ivec2 px, int c, int aov = 0) {
         return e.mean[aov][(size_t(px.y) * rs.width + px.x) * (aov == int(Aov::Mask) ? 1 : 3) +
                            (aov == int(Aov::Mask) ? 0 : c)];
@@ -307,10 +309,13 @@ TEST_F(DifferentialTest, VirtualObjectsShadowReflectBleedAndAreOccluded) {
     EXPECT_GT(bleed, 5.0 * std::hypot(sigma(beside, 0), sigma(beside, 1)));
     RecordProperty("greenBleed", std::to_string(bleed));
     // The mirror shows the real red box and the grey environment: some mirror pixels are red.
+    // Pixels at least 90% covered by the mirror (the box's reflection lies at the ball's rim, and
+    // with stratified samples a rim pixel's mask is its coverage, never 1 by chance): the rest,
+    // the grey plate and the table, cannot make a pixel 0.1 redder than green.
     double reddest = 0.0;
     for (int y = 0; y < int(rs.height); ++y)
         for (int x = 0; x < int(rs.width); ++x)
-            if (at({x, y}, 0, int(Aov::Mask)) == 1.0 && glm::length(glm::vec2(x, y) -
+            if (at({x, y}, 0, int(Aov::Mask)) >= 0.9 && glm::length(glm::vec2(x, y) -
                 glm::vec2(pixelOf(s, rs, {-0.3f, 0.15f, -0.6f}))) < 3.0f)
                 reddest = std::max(reddest, at({x, y}, 0) - at({x, y}, 1));
     EXPECT_GT(reddest, 0.1) << "the virtual mirror does not reflect the real box";

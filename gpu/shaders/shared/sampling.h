@@ -8,8 +8,9 @@
 PV_BEGIN
 
 // PCG hash (Jarzynski & Olano 2020, "Hash Functions for GPU Rendering"): a good 32-bit
-// permutation, used to seed one generator per (pixel, sample) so that a sample's random numbers
-// depend only on its indices: the same sample index gives the same path on every frame.
+// permutation, used to seed generators from (pixel, sample, dimension set) so that a sample's
+// random numbers depend only on its indices: the same sample index gives the same path on every
+// frame (shared/sampler.h addresses the dimensions).
 PV_INLINE uint pcgHash(uint v) {
     uint state = v * 747796405u + 2891336453u;
     uint word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
@@ -27,12 +28,6 @@ PV_INLINE float rngNext(PV_INOUT(uint) state) {
     word = (word >> 22u) ^ word;
     // 24 high bits give every float in [0, 1) on a uniform grid of 2^-24.
     return float(word >> 8u) * 5.9604644775390625e-8f;
-}
-
-PV_INLINE vec2 rngNext2(PV_INOUT(uint) state) {
-    float a = rngNext(state);
-    float b = rngNext(state);
-    return vec2(a, b);
 }
 
 // Concentric map of the unit square to the unit disk (Shirley & Chiu 1997): area preserving,

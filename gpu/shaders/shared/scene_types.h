@@ -58,7 +58,12 @@ PV_BEGIN
 // Cone lights (estimated from the captured environment, Renderer::setEstimatedLights): their
 // sampling branch and the test of escaped rays against them.
 #define PV_SPEC_HAS_CONE_LIGHTS 9
-#define PV_SPEC_COUNT 10
+// The sample generator, PV_SAMPLER_SOBOL or PV_SAMPLER_INDEPENDENT (shared/sampler.h): a
+// constant, so a pipeline compiles only the generator it uses.
+#define PV_SPEC_SAMPLER 10
+#define PV_SPEC_COUNT 11
+#define PV_SAMPLER_SOBOL 0u
+#define PV_SAMPLER_INDEPENDENT 1u
 
 #define PV_WORKGROUP_SIZE_X 8
 #define PV_WORKGROUP_SIZE_Y 8
