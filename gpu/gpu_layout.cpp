@@ -20,5 +20,13 @@ static_assert(offsetof(GpuLight, intensity) == 32);
 static_assert(sizeof(EmissiveTriangle) == 16);
 static_assert(offsetof(FrameParams, tanHalfFov) == 64);
 static_assert(sizeof(FrameParams) % 4 == 0);
+// Read as whole 16-byte texels (trace_paths.comp: materialAt, lightAt, emissiveTriangleAt,
+// loadBvhNode), field by field in this order.
+static_assert(sizeof(BvhNode) % 16 == 0 && sizeof(GpuMaterial) % 16 == 0);
+static_assert(sizeof(GpuLight) % 16 == 0 && sizeof(EmissiveTriangle) % 16 == 0);
+static_assert(offsetof(GpuMaterial, metallic) == 28 && offsetof(GpuMaterial, roughness) == 44);
+static_assert(offsetof(GpuMaterial, transmission) == 48 && offsetof(GpuMaterial, flags) == 76);
+static_assert(offsetof(GpuLight, type) == 12 && offsetof(GpuLight, cosOuterCone) == 28);
+static_assert(offsetof(GpuLight, cosInnerCone) == 44 && offsetof(EmissiveTriangle, pdf) == 12);
 
 }  // namespace previs::shader

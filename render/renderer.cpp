@@ -148,7 +148,10 @@ Status Renderer::specialisePipeline() {
     std::array<BindingKind, PV_BINDING_COUNT> bindings{};
     bindings.fill(BindingKind::StorageBuffer);
     bindings[PV_BINDING_BVH_NODES] = BindingKind::TexelBufferUint4;
-    bindings[PV_BINDING_TRIANGLE_VERTICES] = BindingKind::TexelBufferUint4;
+    for (int b : {PV_BINDING_TRIANGLE_VERTICES, PV_BINDING_TRIANGLES, PV_BINDING_NORMALS,
+                  PV_BINDING_UVS, PV_BINDING_MATERIALS, PV_BINDING_LIGHTS,
+                  PV_BINDING_EMISSIVE_TRIANGLES})
+        bindings[b] = BindingKind::TexelBufferUint4;
     auto pipeline = ComputePipeline::create(
         *ctx_, std::span<const uint32_t>(trace_paths_spv, sizeof(trace_paths_spv) / 4),
         bindings, constants, "trace_paths");
@@ -266,6 +269,13 @@ Status Renderer::buildScene(const Scene& scene) {
     // Triangles in BVH order, so that each leaf's triangles are contiguous.
     size_t triCount = g.triangles.size();
     std::vector<glm::uvec3> triangles(triCount);
+    // Texel layouts of the shaders (trace_paths.comp): a triangle's vertex indices + material,
+    // and per-vertex normals and uvs, one 16-byte texel each.
+    std::vector<glm::uvec4> triangleTexels(triCount);
+    std::vector<glm::vec4> normalTexels(g.normals.size());
+    std::vector<glm::vec4> uvTexels(g.uvs.size());
+    for (size_t v = 0; v < g.normals.size(); ++v) normalTexels[v] = glm::vec4(g.normals[v], 0.0f);
+    for (size_t v = 0; v < g.uvs.size(); ++v) uvTexels[v] = glm::vec4(g.uvs[v], 0.0f, 0.0f);
     std::vector<uint32_t> triMaterials(triCount);
     // xyz = position, w unused: one 16-byte texel per vertex (PV_BINDING_TRIANGLE_VERTICES).
     std::vector<glm::vec4> triangleVertices(3 * triCount);
@@ -273,6 +283,7 @@ Status Renderer::buildScene(const Scene& scene) {
         uint32_t src = bvh_.triangleOrder[i];
         triangles[i] = g.triangles[src];
         triMaterials[i] = g.triangleMaterials[src];
+        triangleTexels[i] = glm::uvec4(triangles[i], triMaterials[i]);
         for (int k = 0; k < 3; ++k)
             triangleVertices[3 * i + k] = glm::vec4(g.positions[triangles[i][k]], 0.0f);
     }
@@ -392,9 +403,9 @@ Status Renderer::buildScene(const Scene& scene) {
     // Order = binding numbers (PV_BINDING_*).
     if (!(s = add(GpuBuffer::createWith(*ctx_, std::span(&params_, 1), "params")))) return s;
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(triangleVertices), "triangleVertices")))) return s;
-    if (!(s = add(GpuBuffer::createWith(*ctx_, span(g.normals), "normals")))) return s;
-    if (!(s = add(GpuBuffer::createWith(*ctx_, span(g.uvs), "uvs")))) return s;
-    if (!(s = add(GpuBuffer::createWith(*ctx_, span(triangles), "triangles")))) return s;
+    if (!(s = add(GpuBuffer::createWith(*ctx_, span(normalTexels), "normals")))) return s;
+    if (!(s = add(GpuBuffer::createWith(*ctx_, span(uvTexels), "uvs")))) return s;
+    if (!(s = add(GpuBuffer::createWith(*ctx_, span(triangleTexels), "triangles")))) return s;
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(triMaterials), "triangleMaterials")))) return s;
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(bvh_.nodes), "bvhNodes")))) return s;
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(materials), "materials")))) return s;

@@ -29,18 +29,71 @@ layout(constant_id = PV_SPEC_HAS_CONE_LIGHTS) const bool kHasConeLights = true;
 layout(constant_id = PV_SPEC_SAMPLER) const uint kSampler = 0u;
 
 layout(binding = PV_BINDING_PARAMS, scalar) readonly buffer ParamsBuffer { FrameParams params; };
-layout(binding = PV_BINDING_NORMALS, scalar) readonly buffer Normals { vec3 normals[]; };
-layout(binding = PV_BINDING_UVS, scalar) readonly buffer Uvs { vec2 uvs[]; };
-layout(binding = PV_BINDING_TRIANGLES, scalar) readonly buffer Triangles { uvec3 triangles[]; };
-layout(binding = PV_BINDING_TRIANGLE_MATERIALS, scalar) readonly buffer TriangleMaterials {
-    uint triangleMaterials[];
-};
-// What traversal reads sits in texel buffers (BindingKind::TexelBufferUint4): on llvmpipe a
-// texel fetch is a gather, while a storage-buffer load whose address differs per lane is a loop
-// over the lanes with a bounds check each. A BVH node is two texels (BvhNode's layout), a
-// triangle three (one vertex each, w unused).
+// Every read-only scene array indexed per lane is a texel buffer (BindingKind::TexelBufferUint4):
+// on llvmpipe a texel fetch is a gather, while a storage-buffer load whose address differs per
+// lane is a loop over the lanes with a bounds check each. A BVH node is two texels (BvhNode's
+// layout), a triangle's vertices three (xyz, w unused); shared structs are read texel by texel
+// in their C++ layout (gpu/gpu_layout.cpp checks that they are whole texels).
 layout(binding = PV_BINDING_BVH_NODES) uniform usamplerBuffer bvhNodeTexels;
 layout(binding = PV_BINDING_TRIANGLE_VERTICES) uniform usamplerBuffer triangleVertexTexels;
+layout(binding = PV_BINDING_TRIANGLES) uniform usamplerBuffer triangleTexels;
+layout(binding = PV_BINDING_NORMALS) uniform usamplerBuffer normalTexels;
+layout(binding = PV_BINDING_UVS) uniform usamplerBuffer uvTexels;
+layout(binding = PV_BINDING_MATERIALS) uniform usamplerBuffer materialTexels;
+layout(binding = PV_BINDING_LIGHTS) uniform usamplerBuffer lightTexels;
+layout(binding = PV_BINDING_EMISSIVE_TRIANGLES) uniform usamplerBuffer emissiveTriangleTexels;
+
+// Vertex indices (xyz) and material (w) of triangle i in BVH order.
+uvec4 triangleAt(uint i) { return texelFetch(triangleTexels, int(i)); }
+vec3 normalAt(uint vertex) { return uintBitsToFloat(texelFetch(normalTexels, int(vertex)).xyz); }
+vec2 uvAt(uint vertex) { return uintBitsToFloat(texelFetch(uvTexels, int(vertex)).xy); }
+
+GpuMaterial materialAt(uint i) {
+    uvec4 t0 = texelFetch(materialTexels, int(5u * i));
+    uvec4 t1 = texelFetch(materialTexels, int(5u * i + 1u));
+    uvec4 t2 = texelFetch(materialTexels, int(5u * i + 2u));
+    uvec4 t3 = texelFetch(materialTexels, int(5u * i + 3u));
+    uvec4 t4 = texelFetch(materialTexels, int(5u * i + 4u));
+    GpuMaterial m;
+    m.baseColor = uintBitsToFloat(t0);
+    m.emission = uintBitsToFloat(t1.xyz);
+    m.metallic = uintBitsToFloat(t1.w);
+    m.specularColor = uintBitsToFloat(t2.xyz);
+    m.roughness = uintBitsToFloat(t2.w);
+    m.transmission = uintBitsToFloat(t3.x);
+    m.ior = uintBitsToFloat(t3.y);
+    m.specular = uintBitsToFloat(t3.z);
+    m.baseColorTexture = t3.w;
+    m.metallicRoughnessTexture = t4.x;
+    m.normalTexture = t4.y;
+    m.emissiveTexture = t4.z;
+    m.flags = t4.w;
+    return m;
+}
+
+GpuLight lightAt(uint i) {
+    uvec4 t0 = texelFetch(lightTexels, int(3u * i));
+    uvec4 t1 = texelFetch(lightTexels, int(3u * i + 1u));
+    uvec4 t2 = texelFetch(lightTexels, int(3u * i + 2u));
+    GpuLight l;
+    l.position = uintBitsToFloat(t0.xyz);
+    l.type = t0.w;
+    l.direction = uintBitsToFloat(t1.xyz);
+    l.cosOuterCone = uintBitsToFloat(t1.w);
+    l.intensity = uintBitsToFloat(t2.xyz);
+    l.cosInnerCone = uintBitsToFloat(t2.w);
+    return l;
+}
+
+EmissiveTriangle emissiveTriangleAt(uint i) {
+    uvec4 t = texelFetch(emissiveTriangleTexels, int(i));
+    EmissiveTriangle e;
+    e.triangle = t.x;
+    e.area = uintBitsToFloat(t.y);
+    e.cdf = uintBitsToFloat(t.z);
+    e.pdf = uintBitsToFloat(t.w);
+    return e;
+}
 BvhNode loadBvhNode(uint i) {
     uvec4 lo = texelFetch(bvhNodeTexels, int(2u * i));
     uvec4 hi = texelFetch(bvhNodeTexels, int(2u * i + 1u));
@@ -51,17 +104,10 @@ BvhNode loadBvhNode(uint i) {
     n.count = hi.w;
     return n;
 }
-layout(binding = PV_BINDING_MATERIALS, scalar) readonly buffer Materials {
-    GpuMaterial materials[];
-};
 layout(binding = PV_BINDING_TEXTURES, scalar) readonly buffer Textures {
     TextureInfo textures[];
 };
 layout(binding = PV_BINDING_TEXELS, scalar) readonly buffer Texels { uint texels[]; };
-layout(binding = PV_BINDING_LIGHTS, scalar) readonly buffer Lights { GpuLight lights[]; };
-layout(binding = PV_BINDING_EMISSIVE_TRIANGLES, scalar) readonly buffer EmissiveTriangles {
-    EmissiveTriangle emissiveTriangles[];
-};
 layout(binding = PV_BINDING_ENV_RADIANCE, scalar) readonly buffer EnvRadiance {
     vec3 envRadianceTexels[];
 };
@@ -208,7 +254,7 @@ struct Surface {
 
 Surface surfaceAt(Ray ray, Hit hit) {
     Surface s;
-    uvec3 tri = triangles[hit.triangle];
+    uvec4 tri = triangleAt(hit.triangle);
     vec3 p0 = PV_TRIANGLE_VERTEX(hit.triangle, 0u);
     vec3 p1 = PV_TRIANGLE_VERTEX(hit.triangle, 1u);
     vec3 p2 = PV_TRIANGLE_VERTEX(hit.triangle, 2u);
@@ -217,15 +263,15 @@ Surface surfaceAt(Ray ray, Hit hit) {
     vec3 ng = cross(p1 - p0, p2 - p0);
     float len = length(ng);
     ng = len > 0.0 ? ng / len : -ray.direction;
-    vec3 ns = b0 * normals[tri.x] + hit.b1 * normals[tri.y] + hit.b2 * normals[tri.z];
+    vec3 ns = b0 * normalAt(tri.x) + hit.b1 * normalAt(tri.y) + hit.b2 * normalAt(tri.z);
     float nsLen = length(ns);
     ns = (nsLen > 0.0 && !isnan(nsLen) && !isinf(nsLen)) ? ns / nsLen : ng;
-    s.uv = b0 * uvs[tri.x] + hit.b1 * uvs[tri.y] + hit.b2 * uvs[tri.z];
-    s.material = triangleMaterials[hit.triangle];
-    if (kHasTextures && materials[s.material].normalTexture != PV_NO_TEXTURE) {
+    s.uv = b0 * uvAt(tri.x) + hit.b1 * uvAt(tri.y) + hit.b2 * uvAt(tri.z);
+    s.material = tri.w;
+    if (kHasTextures && materialAt(s.material).normalTexture != PV_NO_TEXTURE) {
         // Tangent frame from the triangle's uv parametrisation.
-        vec2 duv1 = uvs[tri.y] - uvs[tri.x];
-        vec2 duv2 = uvs[tri.z] - uvs[tri.x];
+        vec2 duv1 = uvAt(tri.y) - uvAt(tri.x);
+        vec2 duv2 = uvAt(tri.z) - uvAt(tri.x);
         float det = duv1.x * duv2.y - duv1.y * duv2.x;
         if (abs(det) > 0.0) {
             vec3 t = ((p1 - p0) * duv2.y - (p2 - p0) * duv1.y) / det;
@@ -235,7 +281,7 @@ Surface surfaceAt(Ray ray, Hit hit) {
             if (tLen > 0.0) {
                 t /= tLen;
                 vec3 bt = cross(ns, t) * (dot(cross(ns, t), b) < 0.0 ? -1.0 : 1.0);
-                vec3 m = sampleTexture(materials[s.material].normalTexture, s.uv).xyz * 2.0 - 1.0;
+                vec3 m = sampleTexture(materialAt(s.material).normalTexture, s.uv).xyz * 2.0 - 1.0;
                 vec3 mapped = normalize(m.x * t + m.y * bt + m.z * ns);
                 if (!any(isnan(mapped))) ns = mapped;
             }
@@ -328,7 +374,7 @@ uint pickEmissiveTriangle(float u) {
     while (lo < hi) {
         PV_COUNT_LOOP_ITERATION();
         uint mid = (lo + hi) / 2u;
-        if (u < emissiveTriangles[mid].cdf) hi = mid; else lo = mid + 1u;
+        if (u < emissiveTriangleAt(mid).cdf) hi = mid; else lo = mid + 1u;
     }
     return lo;
 }
@@ -380,8 +426,8 @@ void sampleDirectLight(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint mode
         vec4 u = draw(key, vertexSet(depth, PV_SET_VERTEX_EMISSIVE));
         float uPick = u.z;
         vec2 uPoint = u.xy;
-        EmissiveTriangle et = emissiveTriangles[pickEmissiveTriangle(uPick)];
-        uvec3 tri = triangles[et.triangle];
+        EmissiveTriangle et = emissiveTriangleAt(pickEmissiveTriangle(uPick));
+        uvec4 tri = triangleAt(et.triangle);
         vec2 b = sampleUniformTriangle(uPoint);
         vec3 p0 = PV_TRIANGLE_VERTEX(et.triangle, 0u);
         vec3 p1 = PV_TRIANGLE_VERTEX(et.triangle, 1u);
@@ -392,7 +438,7 @@ void sampleDirectLight(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint mode
         float dist2 = dot(d, d);
         vec3 wi = d * inversesqrt(dist2);
         float cosLight = dot(-wi, ng);
-        GpuMaterial lm = materials[triangleMaterials[et.triangle]];
+        GpuMaterial lm = materialAt(tri.w);
         bool facing = cosLight > 0.0 || (cosLight < 0.0 && emitsToward(lm, false));
         vec3 wiLocal = toLocal(frame, wi);
         if (facing && dist2 > 0.0 && consistentSide(s, wi, wiLocal)) {
@@ -400,7 +446,7 @@ void sampleDirectLight(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint mode
             float bsdfPdf;
             vec3 f = evaluateBsdf(bp, wo, wiLocal, bsdfPdf);
             if (maxComponent(f) > 0.0 && lightPdf > 0.0) {
-                vec2 uv = (1.0 - b.x - b.y) * uvs[tri.x] + b.x * uvs[tri.y] + b.y * uvs[tri.z];
+                vec2 uv = (1.0 - b.x - b.y) * uvAt(tri.x) + b.x * uvAt(tri.y) + b.y * uvAt(tri.z);
                 vec3 c = f * abs(wiLocal.z) * emittedRadiance(lm, uv) *
                          powerHeuristic(lightPdf, bsdfPdf) / lightPdf;
                 addLightSample(c, et.triangle < params.realTriangleCount,
@@ -412,7 +458,7 @@ void sampleDirectLight(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint mode
     if (kHasPunctual && params.lightCount > 0u) {
         vec4 u = draw(key, vertexSet(depth, PV_SET_VERTEX_LIGHT));
         uint index = min(uint(u.z * float(params.lightCount)), params.lightCount - 1u);
-        GpuLight light = lights[index];
+        GpuLight light = lightAt(index);
         uint type = light.type & PV_LIGHT_TYPE_MASK;
         vec3 wi;
         vec3 li;
@@ -569,7 +615,7 @@ void tracePath(uvec2 pixel, SampleKey key, out vec3 lm, out vec3 lr, out bool fi
                     // half of their multiple importance sampling).
                     for (uint i = params.coneLightFirst; i < params.lightCount; ++i) {
                         PV_COUNT_LOOP_ITERATION();
-                        GpuLight light = lights[i];
+                        GpuLight light = lightAt(i);
                         float pdf = coneLightPdf(light, st.ray.direction);
                         if (!(pdf > 0.0)) continue;
                         float w = st.prevDelta ? 1.0 : powerHeuristic(st.prevPdf, pdf);
@@ -583,7 +629,7 @@ void tracePath(uvec2 pixel, SampleKey key, out vec3 lm, out vec3 lr, out bool fi
                 break;
             }
             Surface s = surfaceAt(st.ray, hit);
-            GpuMaterial m = materials[s.material];
+            GpuMaterial m = materialAt(s.material);
             if (kHasEmissive && maxComponent(m.emission) > 0.0 && emitsToward(m, s.frontFace)) {
                 float w = st.prevDelta ? 1.0
                                        : powerHeuristic(st.prevPdf,
