@@ -3,6 +3,7 @@
 
 #include "base/log.h"
 #include "cli/bench_command.h"
+#include "cli/compare_command.h"
 #include "cli/ctl_command.h"
 #include "cli/envmap_command.h"
 #include "cli/lights_command.h"
@@ -20,6 +21,7 @@ int main(int argc, char** argv) {
     auto runBench = previs::addBenchCommand(app);
     auto runReplay = previs::addReplayCommand(app);
     auto runCtl = previs::addCtlCommand(app);
+    auto runCompare = previs::addCompareCommand(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
@@ -34,5 +36,6 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("bench")) return runBench();
     if (app.got_subcommand("replay")) return runReplay();
     if (app.got_subcommand("ctl")) return runCtl();
+    if (app.got_subcommand("compare")) return runCompare();
     return 2;
 }

@@ -1,0 +1,54 @@
+#include "cli/compare_command.h"
+
+#include <cstdio>
+
+#include "base/log.h"
+#include "bench/image_compare.h"
+#include "image/image.h"
+
+namespace previs {
+
+namespace {
+
+struct CompareOptions {
+    std::string a;
+    std::string b;
+};
+
+int run(const CompareOptions& o) {
+    Result<ImageF> images[2] = {readImage(o.a), readImage(o.b)};
+    for (const auto& img : images) {
+        if (!img) {
+            logError("{}", img.message());
+            return 1;
+        }
+        if (img->ldrSrgb) {
+            logError("{} is 8-bit sRGB: compare linear images (.exr, .hdr)",
+                     &img == &images[0] ? o.a : o.b);
+            return 2;
+        }
+    }
+    auto d = bench::compareImages(*images[0], *images[1]);
+    if (!d) {
+        logError("{} against {}: {}", o.a, o.b, d.message());
+        return 2;
+    }
+    std::printf("rmse %.9g mean_a %.9g mean_b %.9g values %zu\n", d->rmse, d->meanA, d->meanB,
+                d->values);
+    return 0;
+}
+
+}  // namespace
+
+std::function<int()> addCompareCommand(CLI::App& app) {
+    auto o = std::make_shared<CompareOptions>();
+    CLI::App* cmd = app.add_subcommand(
+        "compare", "RMSE of two linear images over every pixel and channel, and their means");
+    cmd->add_option("A", o->a, "image (.exr or .hdr)")->required()->check(CLI::ExistingFile);
+    cmd->add_option("B", o->b, "reference image, same size and channels")
+        ->required()
+        ->check(CLI::ExistingFile);
+    return [o] { return run(*o); };
+}
+
+}  // namespace previs
