@@ -8,7 +8,9 @@ log-log space (piecewise linear, in order of sample count); at RMSE levels both 
 time each needs is read off and the ratio previs/Cycles printed (≤ 1: previs gets there first).
 Also per sample: the time one more sample costs (slope between the fewest and most samples) and
 the error per sample, RMSE·√spp at the most samples (equal for two renderers with the same noise
-per sample; lower is better).
+per sample; lower is better), and from the two the ratio in the limit of many samples, where
+fixed costs (start-up, BVH, pipeline compile) no longer count: time per sample ratio × (RMSE·√spp
+ratio)², since the samples needed for an error e are (RMSE·√spp / e)².
 """
 import csv
 import math
@@ -73,16 +75,18 @@ def main(path):
         if ratios:
             geo = math.exp(sum(math.log(r) for r in ratios) / len(ratios))
             print(f"Time to equal error, previs / Cycles: {ratios[-1]:.2f}× at the lowest common "
-                  f"RMSE, {geo:.2f}× geometric mean over the levels.\n")
-            summary.append((scene, ratios[-1], geo, per_sample[0] / per_sample[1],
-                            per_error[0] / per_error[1]))
+                  f"RMSE, {geo:.2f}× geometric mean over the levels.")
+            ts, es = per_sample[0] / per_sample[1], per_error[0] / per_error[1]
+            print(f"In the limit of many samples: {ts:.2f} × {es:.2f}² = {ts * es * es:.2f}×.\n")
+            summary.append((scene, ratios[-1], geo, ts, es))
         else:
             print()
     print("### Summary\n\n| scene | time to equal error, previs / Cycles (lowest common RMSE) | "
-          "geometric mean over levels | time per sample ratio | RMSE·√spp ratio |\n"
-          "|---|---|---|---|---|")
+          "geometric mean over levels | time per sample ratio | RMSE·√spp ratio | many-sample "
+          "limit |\n|---|---|---|---|---|---|")
     for scene, last, geo, ts, es in summary:
-        print(f"| {scene} | **{last:.2f}×** | {geo:.2f}× | {ts:.2f}× | {es:.2f}× |")
+        print(f"| {scene} | **{last:.2f}×** | {geo:.2f}× | {ts:.2f}× | {es:.2f}× | "
+              f"{ts * es * es:.2f}× |")
 
 
 if __name__ == "__main__":
