@@ -2,7 +2,8 @@
 
 Run by bench/compare_blender.sh:
   blender -b --factory-startup --python bench/blender_cycles_gltf.py -- \
-      SCENE.gltf ENV.hdr|none WIDTH HEIGHT MAX_DEPTH SEED OUT_PREFIX SPP [SPP...]
+      SCENE.gltf ENV.hdr|none WIDTH HEIGHT MAX_DEPTH SEED FILTER_GLOSSY OUT_PREFIX SPP [SPP...]
+FILTER_GLOSSY: "default" keeps Blender's (1.0), or a number (0 = off).
 writes OUT_PREFIX<SPP>.exr (linear float RGB) per sample count and prints, per render,
   CYCLES_RENDER spp=<N> seconds=<time of bpy.ops.render.render>
 That time includes Cycles' scene sync, BVH build and film readback (persistent data is off, so
@@ -41,8 +42,9 @@ if not hasattr(numpy, "bool"):
 argv = sys.argv[sys.argv.index("--") + 1:]
 scene_path, env_path = argv[0], argv[1]
 width, height, max_depth, seed = (int(v) for v in argv[2:6])
-out_prefix = argv[6]
-spp_list = [int(v) for v in argv[7:]]
+filter_glossy = argv[6]
+out_prefix = argv[7]
+spp_list = [int(v) for v in argv[8:]]
 
 bpy.ops.wm.read_factory_settings(use_empty=True)
 scene = bpy.context.scene
@@ -143,6 +145,10 @@ c.transparent_max_bounces = max_depth
 c.volume_bounces = max_depth
 c.sample_clamp_direct = 0.0
 c.sample_clamp_indirect = 0.0
+# Filter glossy (blur_glossy) roughens glossy surfaces seen after a diffuse bounce: less caustic
+# noise, at the price of bias. previs has nothing like it; Blender's default is kept unless asked.
+if filter_glossy != "default":
+    c.blur_glossy = float(filter_glossy)
 # A 1-pixel box filter: previs jitters each sample uniformly in its pixel and averages equally.
 c.filter_type = "BOX"
 c.filter_width = 1.0

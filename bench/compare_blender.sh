@@ -5,6 +5,7 @@
 # two 0.2 m emitters, a mirror sphere, no environment). 640×480, at most 8 bounces, in both.
 #
 #   bench/compare_blender.sh [--quick] [--ref-spp N] [--max-spp N] [--scenes bunny,area-lights]
+#                            [--cycles-filter-glossy X]
 #
 # For each scene and renderer: a long reference (--ref-spp, default 512; --quick 128), rendered
 # once with another seed and cached in build/compare_blender/ under a hash of the scene file and
@@ -21,7 +22,9 @@
 # and BVH build (not Blender's start, the glTF import or the EXR write). Cycles: CPU, threads =
 # nproc, adaptive sampling, denoising and clamping off, 1-px box filter (previs jitters each
 # sample uniformly in its pixel and weights all equally: a 1-px box), other settings at Blender's
-# defaults, printed (sampling pattern, caustics, filter glossy, light threshold).
+# defaults, printed (sampling pattern, caustics, filter glossy, light threshold);
+# --cycles-filter-glossy X sets Cycles' filter glossy (default 1.0: biased, less caustic noise;
+# 0 = off, as previs).
 # Needs Debian's blender and python3-numpy (its glTF importer imports numpy); installs both if
 # missing.
 set -euo pipefail
@@ -29,13 +32,16 @@ root=$(cd "$(dirname "$0")/.." && pwd)
 ref_spp=512
 max_spp=32
 scenes=bunny,area-lights
+filter_glossy=default
 while (($#)); do
     case "$1" in
         --quick) ref_spp=128; max_spp=8 ;;
         --ref-spp) ref_spp=$2; shift ;;
         --max-spp) max_spp=$2; shift ;;
         --scenes) scenes=$2; shift ;;
-        *) echo "usage: $0 [--quick] [--ref-spp N] [--max-spp N] [--scenes bunny,area-lights]" >&2
+        --cycles-filter-glossy) filter_glossy=$2; shift ;;
+        *) echo "usage: $0 [--quick] [--ref-spp N] [--max-spp N] [--scenes bunny,area-lights]" \
+               "[--cycles-filter-glossy X]" >&2
            exit 2 ;;
     esac
     shift
@@ -80,7 +86,7 @@ cycles_render() {  # scene env seed out_prefix spp...
     local scene=$1 env=$2 seed=$3 prefix=$4
     shift 4
     blender -b --factory-startup --python "$root/bench/blender_cycles_gltf.py" -- \
-        "$scene" "$env" $width $height $depth "$seed" "$prefix" "$@" >"$work/blender.log" 2>&1 || {
+        "$scene" "$env" $width $height $depth "$seed" "$filter_glossy" "$prefix" "$@" >"$work/blender.log" 2>&1 || {
         tail -30 "$work/blender.log" >&2
         return 1
     }
@@ -111,7 +117,7 @@ for name in ${scenes//,/ }; do
     esac
     key=$( { cat "$scene"; echo "$env $width $height $depth $ref_spp"; } | sha256sum | cut -c1-16)
     ref_previs="$cache/$name-$key-previs-ref.exr"
-    ref_cycles="$cache/$name-$key-cycles-ref.exr"
+    ref_cycles="$cache/$name-$key-cycles-filter-glossy-$filter_glossy-ref.exr"
     if [[ ! -f "$ref_previs" ]]; then
         echo "$name: previs reference, $ref_spp spp (once; cached)" >&2
         previs_render "$scene" "$env" "$ref_spp" 1000 "$ref_previs" >/dev/null
