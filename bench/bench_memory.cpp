@@ -73,8 +73,8 @@ int measureOne(const MemoryBenchOptions& o, uint32_t width, uint32_t height) {
         return 1;
     }
     std::printf("| %u×%u | %zu | %.0f MiB | %.0f MiB | %.0f MiB | %.0f MiB |\n", width, height,
-                scene.geometry.triangles.size(), mib(double((*renderer)->deviceBytes())),
-                sceneMiB, peakRssMiB(), baseline);
+                scene.geometry.triangles.size(), mib(double((*renderer)->deviceBytes())), sceneMiB,
+                peakRssMiB(), baseline);
     std::fflush(stdout);
     return 0;
 }
@@ -82,10 +82,12 @@ int measureOne(const MemoryBenchOptions& o, uint32_t width, uint32_t height) {
 }  // namespace
 
 int runMemoryBench(const MemoryBenchOptions& o) {
-    std::printf("## Memory: the 810K-triangle scene (dragon ×4), environment map, max depth 8, "
-                "%u spp\n\n"
-                "| resolution | triangles | device buffers | host scene | peak RSS | RSS at start |\n"
-                "|---|---|---|---|---|---|\n", o.spp);
+    std::printf(
+        "## Memory: the 810K-triangle scene (dragon ×4), environment map, max depth 8, "
+        "%u spp\n\n"
+        "| resolution | triangles | device buffers | host scene | peak RSS | RSS at start |\n"
+        "|---|---|---|---|---|---|\n",
+        o.spp);
     for (auto [w, h] : {std::pair{640u, 480u}, {1920u, 1080u}}) {
         fmt::print(stderr, "bench: memory {}x{} (forked child)\n", w, h);
         std::fflush(stdout);
@@ -105,12 +107,13 @@ int runMemoryBench(const MemoryBenchOptions& o) {
             return 1;
         }
     }
-    std::printf("\nDevice buffers: Renderer::deviceBytes(), every buffer the renderer keeps "
-                "(scene, BVH, accumulation, lighting), not the transient staging copies. Host "
-                "scene: the resident growth while the CPU scene (vertices, triangles, the map) was "
-                "built. Peak RSS: the whole child process's maximum, which on a CPU Vulkan device "
-                "(lavapipe) includes the device buffers, the staging copies and the JIT-compiled "
-                "pipeline; on a GPU the device buffers would live in video memory instead.\n\n");
+    std::printf(
+        "\nDevice buffers: Renderer::deviceBytes(), every buffer the renderer keeps "
+        "(scene, BVH, accumulation, lighting), not the transient staging copies. Host "
+        "scene: the resident growth while the CPU scene (vertices, triangles, the map) was "
+        "built. Peak RSS: the whole child process's maximum, which on a CPU Vulkan device "
+        "(lavapipe) includes the device buffers, the staging copies and the JIT-compiled "
+        "pipeline; on a GPU the device buffers would live in video memory instead.\n\n");
     return 0;
 }
 

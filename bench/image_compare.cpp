@@ -6,9 +6,10 @@ namespace previs::bench {
 
 Result<ImageDifference> compareImages(const ImageF& a, const ImageF& b) {
     if (a.width != b.width || a.height != b.height || a.channels != b.channels)
-        return makeError("images differ in size: {}x{}x{} against {}x{}x{} (render both at the "
-                         "same resolution and channel count)",
-                         a.width, a.height, a.channels, b.width, b.height, b.channels);
+        return makeError(
+            "images differ in size: {}x{}x{} against {}x{}x{} (render both at the "
+            "same resolution and channel count)",
+            a.width, a.height, a.channels, b.width, b.height, b.channels);
     if (a.pixels.empty()) return makeError("the images are empty");
     // Sums in double: 1920×1080×3 float values would lose the small differences in float.
     double sumSquared = 0.0, sumA = 0.0, sumB = 0.0;

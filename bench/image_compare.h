@@ -14,7 +14,7 @@ struct ImageDifference {
     double rmse = 0.0;   // sqrt(mean over every pixel and channel of (a − b)²)
     double meanA = 0.0;  // mean over every pixel and channel
     double meanB = 0.0;
-    size_t values = 0;   // pixels × channels compared
+    size_t values = 0;  // pixels × channels compared
 };
 
 // Every channel of every pixel; the two must have the same size and channel count and hold

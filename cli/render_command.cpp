@@ -229,10 +229,11 @@ int run(const RenderOptions& o) {
     if (o.timing) {
         // load: scene and environment files; device: Vulkan instance and device; setup: BVH
         // build, upload, pipeline compile; render: the samples; readback: the image to host.
-        std::printf("timing load_s=%.4f device_s=%.4f setup_s=%.4f render_s=%.4f "
-                    "readback_s=%.4f total_s=%.4f\n",
-                    loadSeconds, deviceSeconds, setupSeconds, renderSeconds,
-                    since(readbackStart), since(runStart));
+        std::printf(
+            "timing load_s=%.4f device_s=%.4f setup_s=%.4f render_s=%.4f readback_s=%.4f "
+            "total_s=%.4f\n",
+            loadSeconds, deviceSeconds, setupSeconds, renderSeconds, since(readbackStart),
+            since(runStart));
         std::fflush(stdout);
     }
     Status written;

@@ -1,10 +1,10 @@
 // `previs compare`'s measure (bench/image_compare.h): the RMSE and means it reports, on images
 // whose answer is known in closed form, and its refusals.
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <filesystem>
 #include <limits>
-
-#include <gtest/gtest.h>
 
 #include "bench/image_compare.h"
 #include "image/image.h"
