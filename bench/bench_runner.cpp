@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "base/log.h"
+#include "bench/bench_memory.h"
 #include "bench/bench_scenes.h"
 #include "bench/bench_service.h"
 #include "bench/pose_accuracy.h"
@@ -85,6 +86,9 @@ int runBenchmarks(const BenchOptions& o) {
         service.csvPath = o.csvPath;
         return runServiceBench(service);
     }
+    // Also before any Vulkan device: each resolution runs in a forked child (peak RSS per run).
+    if (o.only == "memory")
+        return runMemoryBench({.dataDir = o.dataDir, .spp = o.quick ? 1 : o.spp});
     auto ctx = GpuContext::create({});
     if (!ctx) {
         logError("{}", ctx.message());

@@ -15,7 +15,8 @@ struct BenchOptions {
     int repetitions = 3;     // timings are medians over this many runs
     uint32_t spp = 8;        // samples per pixel of the throughput runs
     // Run one section: throughput, resolution, triangles, specialisation, differential, pose,
-    // service (bench/bench_service.h; only when asked for by name: it runs for minutes).
+    // service (bench/bench_service.h; only when asked for by name: it runs for minutes),
+    // memory (bench/bench_memory.h; only by name: it forks a child per resolution).
     std::string only;
     std::string csvPath;  // service: also write the results as CSV here ("" = none)
 };

@@ -23,7 +23,7 @@ std::function<int()> addBenchCommand(CLI::App& app) {
     cmd->add_option("--only", o->only, "one section")
         ->check(CLI::IsMember(
             {"throughput", "resolution", "triangles", "specialisation", "differential",
-             "pose", "service"}));
+             "pose", "service", "memory"}));
     cmd->add_option("--csv", o->csvPath, "service: also write the results as CSV to this file");
     return [o] { return bench::runBenchmarks(*o); };
 }

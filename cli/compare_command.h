@@ -4,9 +4,9 @@
 
 namespace previs {
 
-// `previs compare IMAGE REFERENCE`: the error metrics of DESIGN.md §4 between two linear images
-// (RMSE and relMSE over pixels and RGB channels); registers the subcommand, the returned
-// function runs it and gives the process exit code.
+// `previs compare IMAGE REFERENCE`: DESIGN.md §4's error metrics between two linear images —
+// RMSE and relMSE over every pixel and channel — and their means, one line on stdout (the error
+// measure of bench/compare_blender.sh and bench/sampler_ablation.sh).
 std::function<int()> addCompareCommand(CLI::App& app);
 
 }  // namespace previs

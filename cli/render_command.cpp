@@ -41,6 +41,7 @@ struct RenderOptions {
     std::string toneMap = "clamp";
     float fireflyClamp = 0.0f;
     bool quiet = false;
+    bool timing = false;
     std::string plate;
     std::string plateToneMap = "srgb";
     float plateExposure = 0.0f;
@@ -69,6 +70,12 @@ int run(const RenderOptions& o) {
         logError("give either --spp or --seconds, not both");
         return 2;
     }
+    // --timing: the stages from here to the image in memory (the file write excluded).
+    using Clock = std::chrono::steady_clock;
+    const auto runStart = Clock::now();
+    auto since = [](Clock::time_point t) {
+        return std::chrono::duration<double>(Clock::now() - t).count();
+    };
     auto scene = loadScene(o.scene);
     if (!scene) {
         logError("{}", scene.message());
@@ -171,11 +178,15 @@ int run(const RenderOptions& o) {
     // The real-only solution costs extra rays: computed only when something uses it.
     settings.differential = plate.has_value() || wantsReal;
 
+    const double loadSeconds = since(runStart);
+    const auto deviceStart = Clock::now();
     auto ctx = GpuContext::create({});
     if (!ctx) {
         logError("{}", ctx.message());
         return 1;
     }
+    const double deviceSeconds = since(deviceStart);
+    const auto setupStart = Clock::now();
     auto renderer = Renderer::create(**ctx, *scene, settings);
     if (!renderer) {
         logError("{}: {}", o.scene, renderer.message());
@@ -187,6 +198,7 @@ int run(const RenderOptions& o) {
             return 2;
         }
     }
+    const double setupSeconds = since(setupStart);
     auto start = std::chrono::steady_clock::now();
     auto elapsed = [&] {
         return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -205,6 +217,8 @@ int run(const RenderOptions& o) {
         if (o.seconds > 0.0 && elapsed() >= o.seconds) break;
     }
     if (!o.quiet) std::fprintf(stderr, "\n");
+    const double renderSeconds = elapsed();
+    const auto readbackStart = Clock::now();
     auto nonFinite = (*renderer)->nonFiniteSamples();
     if (nonFinite && *nonFinite > 0)
         logWarning("{} sample(s) were NaN or infinite and were dropped", *nonFinite);
@@ -213,6 +227,16 @@ int run(const RenderOptions& o) {
     if (!image) {
         logError("{}", image.message());
         return 1;
+    }
+    if (o.timing) {
+        // load: scene and environment files; device: Vulkan instance and device; setup: BVH
+        // build, upload, pipeline compile; render: the samples; readback: the image to host.
+        std::printf(
+            "timing load_s=%.4f device_s=%.4f setup_s=%.4f render_s=%.4f readback_s=%.4f "
+            "total_s=%.4f\n",
+            loadSeconds, deviceSeconds, setupSeconds, renderSeconds, since(readbackStart),
+            since(runStart));
+        std::fflush(stdout);
     }
     Status written;
     if (endsWith(o.out, ".exr")) {
@@ -283,6 +307,9 @@ std::function<int()> addRenderCommand(CLI::App& app) {
         ->check(CLI::NonNegativeNumber);
     cmd->add_option("--out", o->out, "output: FILE.exr (linear HDR) or FILE.png")->required();
     cmd->add_flag("--quiet", o->quiet, "no progress on stderr");
+    cmd->add_flag("--timing", o->timing,
+                  "print one line on stdout: seconds spent loading, creating the device, "
+                  "building the renderer (BVH, upload, pipeline), rendering and reading back");
     cmd->add_option("--plate", o->plate,
                     "camera image to composite into: PNG/JPEG (sRGB, inverse tone mapped) or "
                     "OpenEXR (linear, used as is); sets the resolution")

@@ -1,0 +1,25 @@
+#pragma once
+
+// The error of a rendered image against a reference, for bench/compare_blender.sh's time to equal
+// error (`previs compare`).
+
+#include <cstddef>
+
+#include "base/result.h"
+#include "image/image.h"
+
+namespace previs::bench {
+
+struct ImageDifference {
+    double rmse = 0.0;    // sqrt(mean over every pixel and channel of (a − b)²)
+    double relMse = 0.0;  // mean of (a − b)² / (b² + 0.01): DESIGN.md §4, b the reference
+    double meanA = 0.0;  // mean over every pixel and channel
+    double meanB = 0.0;
+    size_t values = 0;  // pixels × channels compared
+};
+
+// Every channel of every pixel; the two must have the same size and channel count and hold
+// finite values (a NaN would make the error meaningless, so it is an error, not skipped).
+Result<ImageDifference> compareImages(const ImageF& a, const ImageF& b);
+
+}  // namespace previs::bench

@@ -1,0 +1,91 @@
+// `previs compare`'s measure (bench/image_compare.h): the RMSE and means it reports, on images
+// whose answer is known in closed form, and its refusals.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <limits>
+
+#include "bench/image_compare.h"
+#include "image/image.h"
+
+namespace previs::bench {
+namespace {
+
+ImageF constant(uint32_t w, uint32_t h, uint32_t channels, float v) {
+    ImageF img;
+    img.width = w;
+    img.height = h;
+    img.channels = channels;
+    img.pixels.assign(size_t(w) * h * channels, v);
+    return img;
+}
+
+TEST(CompareImages, IdenticalImagesHaveZeroError) {
+    ImageF a = constant(5, 3, 3, 0.25f);
+    auto d = compareImages(a, a);
+    ASSERT_TRUE(d) << d.message();
+    EXPECT_EQ(d->rmse, 0.0);
+    EXPECT_DOUBLE_EQ(d->meanA, 0.25);
+    EXPECT_EQ(d->values, 45u);
+}
+
+TEST(CompareImages, RmseOfAKnownDifference) {
+    // b = a except one channel per pixel offset by ±δ alternately: the squared error is δ² on a
+    // third of the values, so RMSE = δ/√3, and the offsets cancel in the mean.
+    const float delta = 0.5f;
+    ImageF a = constant(4, 4, 3, 1.0f);
+    ImageF b = a;
+    for (size_t p = 0; p < 16; ++p) b.pixels[p * 3 + 1] += p % 2 ? delta : -delta;
+    auto d = compareImages(b, a);
+    ASSERT_TRUE(d) << d.message();
+    EXPECT_NEAR(d->rmse, delta / std::sqrt(3.0), 1e-12);
+    EXPECT_NEAR(d->meanA, 1.0, 1e-12);
+    EXPECT_NEAR(d->meanB, 1.0, 1e-12);
+}
+
+TEST(CompareImages, EveryChannelCounts) {
+    // A difference only in alpha is still a difference.
+    ImageF a = constant(2, 2, 4, 0.0f);
+    ImageF b = a;
+    for (size_t p = 0; p < 4; ++p) b.pixels[p * 4 + 3] = 2.0f;
+    auto d = compareImages(a, b);
+    ASSERT_TRUE(d) << d.message();
+    EXPECT_NEAR(d->rmse, 1.0, 1e-12);  // sqrt(4 · 2² / 16)
+    EXPECT_NEAR(d->meanB, 0.5, 1e-12);
+}
+
+TEST(CompareImages, RefusesMismatchedOrNonFiniteImages) {
+    EXPECT_FALSE(compareImages(constant(4, 4, 3, 0), constant(4, 3, 3, 0)));
+    EXPECT_FALSE(compareImages(constant(4, 4, 3, 0), constant(4, 4, 4, 0)));
+    EXPECT_FALSE(compareImages(ImageF{}, ImageF{}));
+    ImageF nan = constant(2, 2, 3, 0);
+    nan.pixels[7] = std::numeric_limits<float>::quiet_NaN();
+    auto d = compareImages(nan, constant(2, 2, 3, 0));
+    ASSERT_FALSE(d);
+    EXPECT_NE(d.message().find("pixel 2, channel 1"), std::string::npos) << d.message();
+}
+
+TEST(CompareImages, ExrRoundTripKeepsTheError) {
+    // What the benchmark does: both images go through OpenEXR files (float32, lossless).
+    auto dir = std::filesystem::temp_directory_path() / "previs_compare_test";
+    std::filesystem::create_directories(dir);
+    ImageF a = constant(8, 6, 3, 0.0f);
+    ImageF b = a;
+    for (size_t i = 0; i < a.pixels.size(); ++i) {
+        a.pixels[i] = 0.01f * float(i);
+        b.pixels[i] = a.pixels[i] + (i % 3 == 0 ? 0.125f : 0.0f);
+    }
+    ASSERT_TRUE(writeExr((dir / "a.exr").string(), a));
+    ASSERT_TRUE(writeExr((dir / "b.exr").string(), b));
+    auto ra = readImage((dir / "a.exr").string());
+    auto rb = readImage((dir / "b.exr").string());
+    ASSERT_TRUE(ra && rb);
+    auto d = compareImages(*ra, *rb);
+    ASSERT_TRUE(d) << d.message();
+    EXPECT_NEAR(d->rmse, 0.125 / std::sqrt(3.0), 1e-7);
+    std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace previs::bench
