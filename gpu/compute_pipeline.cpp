@@ -9,11 +9,16 @@ namespace previs {
 namespace {
 
 vk::DescriptorType descriptorType(BindingKind kind) {
-    return kind == BindingKind::TexelBufferUint4 ? vk::DescriptorType::eUniformTexelBuffer
-                                                 : vk::DescriptorType::eStorageBuffer;
+    return kind == BindingKind::StorageBuffer ? vk::DescriptorType::eStorageBuffer
+                                              : vk::DescriptorType::eUniformTexelBuffer;
 }
 
-constexpr size_t kUint4TexelBytes = 16;
+size_t texelBytes(BindingKind kind) { return kind == BindingKind::TexelBufferUint4 ? 16 : 4; }
+
+vk::Format texelFormat(BindingKind kind) {
+    return kind == BindingKind::TexelBufferUint4 ? vk::Format::eR32G32B32A32Uint
+                                                 : vk::Format::eR32Uint;
+}
 
 }  // namespace
 
@@ -80,9 +85,10 @@ Status ComputePipeline::bind(std::span<const GpuBuffer* const> buffers) {
     std::vector<vk::BufferView> viewHandles(buffers.size());
     for (uint32_t i = 0; i < buffers.size(); ++i) {
         infos.emplace_back(buffers[i]->handle(), 0, VK_WHOLE_SIZE);
-        if (bindings_[i] != BindingKind::TexelBufferUint4) continue;
+        if (bindings_[i] == BindingKind::StorageBuffer) continue;
         // GpuBuffer allocates at least 16 bytes, so an empty array still has one texel.
-        const size_t texels = std::max<size_t>(1, buffers[i]->size() / kUint4TexelBytes);
+        const size_t bytesPerTexel = texelBytes(bindings_[i]);
+        const size_t texels = std::max<size_t>(1, buffers[i]->size() / bytesPerTexel);
         if (texels > maxTexels)
             return makeError("'{}' binding {} needs {} texels, more than this device's "
                              "maxTexelBufferElements ({}): use a smaller scene or another device",
@@ -90,8 +96,8 @@ Status ComputePipeline::bind(std::span<const GpuBuffer* const> buffers) {
         try {
             views.emplace_back(ctx_->device(),
                                vk::BufferViewCreateInfo({}, buffers[i]->handle(),
-                                                        vk::Format::eR32G32B32A32Uint, 0,
-                                                        texels * kUint4TexelBytes));
+                                                        texelFormat(bindings_[i]), 0,
+                                                        texels * bytesPerTexel));
         } catch (const std::exception& e) {
             return makeError("cannot create texel buffer view for '{}' binding {}: {}", label_, i,
                              e.what());
@@ -100,7 +106,7 @@ Status ComputePipeline::bind(std::span<const GpuBuffer* const> buffers) {
     }
     std::vector<vk::WriteDescriptorSet> writes;
     for (uint32_t i = 0; i < buffers.size(); ++i) {
-        if (bindings_[i] == BindingKind::TexelBufferUint4)
+        if (bindings_[i] != BindingKind::StorageBuffer)
             writes.emplace_back(*set_, i, 0, 1, vk::DescriptorType::eUniformTexelBuffer, nullptr,
                                 nullptr, &viewHandles[i]);
         else

@@ -1,8 +1,8 @@
 #pragma once
 
 // A compute pipeline whose descriptor set 0 holds one buffer per binding 0..n-1 — a storage
-// buffer, or a uniform texel buffer of 16-byte uint texels (usamplerBuffer) where the binding
-// says so — with boolean specialization constants (ids 0..n-1) selecting the variant, and
+// buffer, or a uniform texel buffer of 16- or 4-byte uint texels (usamplerBuffer) where the
+// binding says so — with boolean specialization constants (ids 0..n-1) selecting the variant, and
 // timestamp queries around its dispatches so benchmarks can report GPU time per pass.
 
 #include <span>
@@ -22,6 +22,8 @@ enum class BindingKind {
     // a gather, while a storage-buffer load whose address differs per lane is a loop over the
     // lanes with a bounds check each: hot read-only arrays (BVH nodes, triangles) go here.
     TexelBufferUint4,
+    // The same for arrays of 4-byte words (R32_UINT: floats as bits, packed texture texels).
+    TexelBufferUint,
 };
 
 class ComputePipeline {

@@ -144,14 +144,19 @@ Status Renderer::specialisePipeline() {
     constants[PV_SPEC_SAMPLER] =
         settings_.sampler == Sampler::Sobol ? PV_SAMPLER_SOBOL : PV_SAMPLER_INDEPENDENT;
     if (pipeline_ && constants == specConstants_) return bindBuffers();
-    // The hot read-only arrays of traversal are texel buffers (see BindingKind).
+    // Every read-only array the shader indexes per lane is a texel buffer (see BindingKind);
+    // params (uniform reads), the accumulators and the stats stay storage buffers.
     std::array<BindingKind, PV_BINDING_COUNT> bindings{};
     bindings.fill(BindingKind::StorageBuffer);
     bindings[PV_BINDING_BVH_NODES] = BindingKind::TexelBufferUint4;
-    for (int b : {PV_BINDING_TRIANGLE_VERTICES, PV_BINDING_TRIANGLES, PV_BINDING_NORMALS,
-                  PV_BINDING_UVS, PV_BINDING_MATERIALS, PV_BINDING_LIGHTS,
+    for (int b : {PV_BINDING_TEXTURES, PV_BINDING_TRIANGLE_VERTICES, PV_BINDING_TRIANGLES,
+                  PV_BINDING_NORMALS, PV_BINDING_UVS, PV_BINDING_MATERIALS, PV_BINDING_LIGHTS,
                   PV_BINDING_EMISSIVE_TRIANGLES})
         bindings[b] = BindingKind::TexelBufferUint4;
+    for (int b : {PV_BINDING_TEXELS, PV_BINDING_ENV_RADIANCE, PV_BINDING_ENV_MARGINAL_CDF,
+                  PV_BINDING_ENV_CONDITIONAL_CDF, PV_BINDING_TRIANGLE_LIGHT_PDF,
+                  PV_BINDING_LENS_GRID})
+        bindings[b] = BindingKind::TexelBufferUint;
     auto pipeline = ComputePipeline::create(
         *ctx_, std::span<const uint32_t>(trace_paths_spv, sizeof(trace_paths_spv) / 4),
         bindings, constants, "trace_paths");

@@ -104,38 +104,40 @@ BvhNode loadBvhNode(uint i) {
     n.count = hi.w;
     return n;
 }
-layout(binding = PV_BINDING_TEXTURES, scalar) readonly buffer Textures {
-    TextureInfo textures[];
-};
-layout(binding = PV_BINDING_TEXELS, scalar) readonly buffer Texels { uint texels[]; };
-layout(binding = PV_BINDING_ENV_RADIANCE, scalar) readonly buffer EnvRadiance {
-    vec3 envRadianceTexels[];
-};
-layout(binding = PV_BINDING_ENV_MARGINAL_CDF, scalar) readonly buffer EnvMarginal {
-    float envMarginalCdf[];
-};
-layout(binding = PV_BINDING_ENV_CONDITIONAL_CDF, scalar) readonly buffer EnvConditional {
-    float envConditionalCdf[];
-};
+// Arrays of 4-byte words read one word per fetch (BindingKind::TexelBufferUint).
+layout(binding = PV_BINDING_TEXTURES) uniform usamplerBuffer textureInfoTexels;  // uint4
+layout(binding = PV_BINDING_TEXELS) uniform usamplerBuffer textureTexels;        // RGBA8 words
+layout(binding = PV_BINDING_ENV_RADIANCE) uniform usamplerBuffer envRadianceWords;  // 3 per texel
+layout(binding = PV_BINDING_ENV_MARGINAL_CDF) uniform usamplerBuffer envMarginalWords;
+layout(binding = PV_BINDING_ENV_CONDITIONAL_CDF) uniform usamplerBuffer envConditionalWords;
+layout(binding = PV_BINDING_TRIANGLE_LIGHT_PDF) uniform usamplerBuffer triangleLightPdfWords;
+layout(binding = PV_BINDING_LENS_GRID) uniform usamplerBuffer lensGridWords;  // 2 per corner
+
+float wordAsFloat(usamplerBuffer words, uint i) {
+    return uintBitsToFloat(texelFetch(words, int(i)).x);
+}
+vec3 envRadianceAt(uint texel) {
+    return vec3(wordAsFloat(envRadianceWords, 3u * texel),
+                wordAsFloat(envRadianceWords, 3u * texel + 1u),
+                wordAsFloat(envRadianceWords, 3u * texel + 2u));
+}
+vec2 lensGridAt(uint corner) {
+    return vec2(wordAsFloat(lensGridWords, 2u * corner), wordAsFloat(lensGridWords, 2u * corner + 1u));
+}
 layout(binding = PV_BINDING_ACCUM_SUM, scalar) buffer AccumSum { vec4 accumSum[]; };
 layout(binding = PV_BINDING_ACCUM_COMPENSATION, scalar) buffer AccumCompensation {
     vec4 accumCompensation[];
 };
 layout(binding = PV_BINDING_STATS, scalar) buffer Stats { RenderStats stats; };
-layout(binding = PV_BINDING_TRIANGLE_LIGHT_PDF, scalar) readonly buffer TriangleLightPdf {
-    float triangleLightPdf[];
-};
-
-layout(binding = PV_BINDING_LENS_GRID, scalar) readonly buffer LensGrid { vec2 lensGrid[]; };
 
 #define PV_BVH_NODE(i) loadBvhNode(i)
 #define PV_TRIANGLE_VERTEX(i, k) \
     uintBitsToFloat(texelFetch(triangleVertexTexels, int(3u * (i) + (k))).xyz)
 #include "shared/ray_tracing.h"
 
-#define PV_ENV_RADIANCE(i) envRadianceTexels[i]
-#define PV_ENV_MARGINAL_CDF(i) envMarginalCdf[i]
-#define PV_ENV_CONDITIONAL_CDF(i) envConditionalCdf[i]
+#define PV_ENV_RADIANCE(i) envRadianceAt(i)
+#define PV_ENV_MARGINAL_CDF(i) wordAsFloat(envMarginalWords, i)
+#define PV_ENV_CONDITIONAL_CDF(i) wordAsFloat(envConditionalWords, i)
 #include "shared/env_sampling.h"
 
 #include "shared/bsdf.h"
@@ -224,7 +226,12 @@ vec4 unpackTexel(uint texel, bool srgb) {
 
 // Bilinear, repeat wrap (glTF's default sampler); sRGB decoded before filtering.
 vec4 sampleTexture(uint index, vec2 uv) {
-    TextureInfo info = textures[index];
+    uvec4 word = texelFetch(textureInfoTexels, int(index));
+    TextureInfo info;
+    info.offset = word.x;
+    info.width = word.y;
+    info.height = word.z;
+    info.srgb = word.w;
     vec2 p = uv * vec2(info.width, info.height) - 0.5;
     vec2 f = fract(p);
     ivec2 size = ivec2(info.width, info.height);
@@ -237,7 +244,8 @@ vec4 sampleTexture(uint index, vec2 uv) {
             ivec2 q = (i0 + ivec2(dx, dy)) % size;
             q += size * ivec2(lessThan(q, ivec2(0)));
             float w = (dx == 1 ? f.x : 1.0 - f.x) * (dy == 1 ? f.y : 1.0 - f.y);
-            c += w * unpackTexel(texels[info.offset + uint(q.y * size.x + q.x)], info.srgb != 0u);
+            c += w * unpackTexel(texelFetch(textureTexels, int(info.offset + uint(q.y * size.x + q.x))).x,
+                                 info.srgb != 0u);
         }
     }
     return c;
@@ -388,7 +396,7 @@ float emissiveLightPdf(uint triangle, vec3 from, Surface lightSurface) {
     float dist2 = dot(d, d);
     float cosLight = abs(dot(normalize(d), lightSurface.geometricNormal));
     if (!(area > 0.0) || !(cosLight > 0.0)) return 0.0;
-    return triangleLightPdf[triangle] * dist2 / (area * cosLight);
+    return wordAsFloat(triangleLightPdfWords, triangle) * dist2 / (area * cosLight);
 }
 
 // Solid-angle pdf with which light sampling picks direction `dir` from cone light `light` (0
@@ -415,7 +423,7 @@ void sampleDirectLight(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint mode
             if (maxComponent(f) > 0.0) {
                 // The sampled texel's radiance (see envSampleTexel). The captured environment
                 // is real: it lights both solutions.
-                vec3 le = params.envScale * envRadianceTexels[texel];
+                vec3 le = params.envScale * envRadianceAt(texel);
                 vec3 c = f * abs(wiLocal.z) * le * powerHeuristic(envPdfValue, bsdfPdf) / envPdfValue;
                 addLightSample(c, true, directionRay(s.position, s.geometricNormal, wi, PV_FLOAT_MAX),
                                mode, toMixed, toReal);
@@ -520,8 +528,8 @@ Ray cameraRay(uvec2 pixel, SampleKey key) {
         vec2 f = p - vec2(c);
         uint row = params.width + 1u;
         uint i00 = c.y * row + c.x;
-        vec2 top = mix(lensGrid[i00], lensGrid[i00 + 1u], f.x);
-        vec2 bottom = mix(lensGrid[i00 + row], lensGrid[i00 + row + 1u], f.x);
+        vec2 top = mix(lensGridAt(i00), lensGridAt(i00 + 1u), f.x);
+        vec2 bottom = mix(lensGridAt(i00 + row), lensGridAt(i00 + row + 1u), f.x);
         vec2 n = mix(top, bottom, f.y);
         dir = vec3(n.x, -n.y, -1.0);
     }
