@@ -209,6 +209,42 @@ PV_INLINE bool intersectLeaf(TriangleRay tr, uint first, uint count, float tMin,
     return found;
 }
 
+// Both traversals are "while-while" (Aila & Laine 2009, "Understanding the Efficiency of Ray
+// Traversal on GPUs"): an inner loop walks interior nodes until the lane holds a leaf (or has
+// nothing left), and only then are leaves intersected. On a SIMD device that runs the lanes of a
+// batch in lock step (llvmpipe, GPUs) a lane at a leaf waits for the others instead of making
+// every iteration pay for both the interior and the leaf code.
+
+// Steps from interior node `node` to the nearer child the ray enters, pushing the farther one
+// when it enters both (nearFirst) or the right one (any-hit order); returns false when it enters
+// neither.
+PV_INLINE bool stepToChild(PV_INOUT(BvhNode) node, vec3 origin, vec3 invDir, float tMin,
+                           float tMax, bool nearFirst, PV_INOUT(uint) pushed) {
+    uint left = node.leftOrFirst;
+    BvhNode leftNode = PV_BVH_NODE(left);
+    BvhNode rightNode = PV_BVH_NODE(left + 1u);
+    float tLeft;
+    float tRight;
+    bool hitLeft = intersectBox(leftNode.boundsMin, leftNode.boundsMax, origin, invDir, tMin,
+                                tMax, tLeft);
+    bool hitRight = intersectBox(rightNode.boundsMin, rightNode.boundsMax, origin, invDir, tMin,
+                                 tMax, tRight);
+    pushed = PV_BVH_NO_ROOT;
+    if (hitLeft && hitRight) {
+        if (nearFirst && tRight < tLeft) {
+            pushed = left;
+            node = rightNode;
+        } else {
+            pushed = left + 1u;
+            node = leftNode;
+        }
+        return true;
+    }
+    if (hitLeft) node = leftNode;
+    if (hitRight) node = rightNode;
+    return hitLeft || hitRight;
+}
+
 // Closest hit with t in (ray.tMin, min(ray.tMax, hit.t)) in the BVH at `root`; updates `hit` and
 // returns true if it found one. Children are visited nearest entry first and the far one is
 // pushed, so boxes behind a found hit are culled.
@@ -224,39 +260,25 @@ PV_INLINE bool traceClosest(uint root, Ray ray, PV_INOUT(Hit) hit) {
     uint stack[PV_BVH_STACK_SIZE];
     int stackSize = 0;
     bool found = false;
-    while (true) {
+    bool done = false;
+    while (!done) {
         PV_COUNT_LOOP_ITERATION();
-        if (node.count > 0u) {
-            if (intersectLeaf(tr, node.leftOrFirst, node.count, ray.tMin, tMax, hit)) found = true;
-        } else {
-            uint left = node.leftOrFirst;
-            BvhNode leftNode = PV_BVH_NODE(left);
-            BvhNode rightNode = PV_BVH_NODE(left + 1u);
-            float tLeft;
-            float tRight;
-            bool hitLeft = intersectBox(leftNode.boundsMin, leftNode.boundsMax, ray.origin, invDir,
-                                        ray.tMin, tMax, tLeft);
-            bool hitRight = intersectBox(rightNode.boundsMin, rightNode.boundsMax, ray.origin,
-                                         invDir, ray.tMin, tMax, tRight);
-            if (hitLeft && hitRight) {
-                if (tRight < tLeft) {
-                    stack[stackSize++] = left;
-                    node = rightNode;
-                } else {
-                    stack[stackSize++] = left + 1u;
-                    node = leftNode;
+        // Interior nodes until this lane holds a leaf.
+        while (node.count == 0u) {
+            PV_COUNT_LOOP_ITERATION();
+            uint pushed;
+            bool entered = stepToChild(node, ray.origin, invDir, ray.tMin, tMax, true, pushed);
+            if (pushed != PV_BVH_NO_ROOT) stack[stackSize++] = pushed;
+            if (!entered) {
+                if (stackSize == 0) {
+                    done = true;
+                    break;
                 }
-                continue;
-            }
-            if (hitLeft) {
-                node = leftNode;
-                continue;
-            }
-            if (hitRight) {
-                node = rightNode;
-                continue;
+                node = PV_BVH_NODE(stack[--stackSize]);
             }
         }
+        if (done) break;
+        if (intersectLeaf(tr, node.leftOrFirst, node.count, ray.tMin, tMax, hit)) found = true;
         if (stackSize == 0) break;
         node = PV_BVH_NODE(stack[--stackSize]);
     }
@@ -277,37 +299,30 @@ PV_INLINE bool traceAny(uint root, Ray ray) {
     int stackSize = 0;
     while (true) {
         PV_COUNT_LOOP_ITERATION();
-        if (node.count > 0u) {
-            for (uint i = node.leftOrFirst; i < node.leftOrFirst + node.count; ++i) {
-                PV_COUNT_LOOP_ITERATION();
-                float t;
-                float b1;
-                float b2;
-                if (intersectTriangle(tr, PV_TRIANGLE_VERTEX(i, 0u), PV_TRIANGLE_VERTEX(i, 1u),
-                                      PV_TRIANGLE_VERTEX(i, 2u), ray.tMin, ray.tMax, t, b1, b2))
-                    return true;
+        bool done = false;
+        while (node.count == 0u) {
+            PV_COUNT_LOOP_ITERATION();
+            uint pushed;
+            bool entered =
+                stepToChild(node, ray.origin, invDir, ray.tMin, ray.tMax, false, pushed);
+            if (pushed != PV_BVH_NO_ROOT) stack[stackSize++] = pushed;
+            if (!entered) {
+                if (stackSize == 0) {
+                    done = true;
+                    break;
+                }
+                node = PV_BVH_NODE(stack[--stackSize]);
             }
-        } else {
-            uint left = node.leftOrFirst;
-            BvhNode leftNode = PV_BVH_NODE(left);
-            BvhNode rightNode = PV_BVH_NODE(left + 1u);
-            bool hitLeft = intersectBox(leftNode.boundsMin, leftNode.boundsMax, ray.origin, invDir,
-                                        ray.tMin, ray.tMax, tEntry);
-            bool hitRight = intersectBox(rightNode.boundsMin, rightNode.boundsMax, ray.origin,
-                                         invDir, ray.tMin, ray.tMax, tEntry);
-            if (hitLeft && hitRight) {
-                stack[stackSize++] = left + 1u;
-                node = leftNode;
-                continue;
-            }
-            if (hitLeft) {
-                node = leftNode;
-                continue;
-            }
-            if (hitRight) {
-                node = rightNode;
-                continue;
-            }
+        }
+        if (done) break;
+        for (uint i = node.leftOrFirst; i < node.leftOrFirst + node.count; ++i) {
+            PV_COUNT_LOOP_ITERATION();
+            float t;
+            float b1;
+            float b2;
+            if (intersectTriangle(tr, PV_TRIANGLE_VERTEX(i, 0u), PV_TRIANGLE_VERTEX(i, 1u),
+                                  PV_TRIANGLE_VERTEX(i, 2u), ray.tMin, ray.tMax, t, b1, b2))
+                return true;
         }
         if (stackSize == 0) break;
         node = PV_BVH_NODE(stack[--stackSize]);
