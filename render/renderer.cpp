@@ -141,6 +141,7 @@ Status Renderer::specialisePipeline() {
     constants[PV_SPEC_HAS_THIN_LENS] = spec.thinLens;
     constants[PV_SPEC_HAS_TEXTURES] = spec.textures;
     constants[PV_SPEC_HAS_CONE_LIGHTS] = spec.coneLights;
+    constants[PV_SPEC_COUNT_LOOPS] = ctx_->isCpuDevice();
     constants[PV_SPEC_SAMPLER] =
         settings_.sampler == Sampler::Sobol ? PV_SAMPLER_SOBOL : PV_SAMPLER_INDEPENDENT;
     if (pipeline_ && constants == specConstants_) return bindBuffers();

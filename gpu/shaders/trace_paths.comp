@@ -6,9 +6,10 @@
 #extension GL_EXT_scalar_block_layout : require
 #extension GL_GOOGLE_include_directive : require
 
-// Loop iterations this invocation ran, all loops together (shared/prelude.h says why).
+// Loop iterations this invocation ran, all loops together (shared/prelude.h says why); counted
+// only where kCountLoops (a CPU device).
 uint gLoopIterations = 0u;
-#define PV_COUNT_LOOP_ITERATION() (++gLoopIterations)
+#define PV_COUNT_LOOP_ITERATION() (kCountLoops ? ++gLoopIterations : 0u)
 
 #include "shared/scene_types.h"
 
@@ -27,6 +28,7 @@ layout(constant_id = PV_SPEC_HAS_LENS_GRID) const bool kHasLensGrid = true;
 layout(constant_id = PV_SPEC_HAS_CONE_LIGHTS) const bool kHasConeLights = true;
 // The sample generator (PV_SAMPLER_* in shared/sampler.h; the dimension layout is there).
 layout(constant_id = PV_SPEC_SAMPLER) const uint kSampler = 0u;
+layout(constant_id = PV_SPEC_COUNT_LOOPS) const bool kCountLoops = true;
 
 layout(binding = PV_BINDING_PARAMS, scalar) readonly buffer ParamsBuffer { FrameParams params; };
 // Every read-only scene array indexed per lane is a texel buffer (BindingKind::TexelBufferUint4):
@@ -753,5 +755,5 @@ void main() {
         accumCompensation[at] = c;
     }
     // The renderer sizes later dispatches from this (lavapipe's loop budget).
-    atomicMax(stats.maxLoopIterations, gLoopIterations);
+    if (kCountLoops) atomicMax(stats.maxLoopIterations, gLoopIterations);
 }

@@ -61,7 +61,10 @@ PV_BEGIN
 // The sample generator, PV_SAMPLER_SOBOL or PV_SAMPLER_INDEPENDENT (shared/sampler.h): a
 // constant, so a pipeline compiles only the generator it uses.
 #define PV_SPEC_SAMPLER 10
-#define PV_SPEC_COUNT 11
+// Count loop iterations for the renderer's dispatch sizing (shared/prelude.h): only on a CPU
+// device, the one with llvmpipe's loop budget; a GPU compiles the counter out.
+#define PV_SPEC_COUNT_LOOPS 11
+#define PV_SPEC_COUNT 12
 #define PV_SAMPLER_SOBOL 0u
 #define PV_SAMPLER_INDEPENDENT 1u
 
