@@ -22,6 +22,7 @@ static_assert(offsetof(FrameParams, tanHalfFov) == 64);
 static_assert(sizeof(FrameParams) % 4 == 0);
 // Read as whole 16-byte texels (trace_paths.comp: materialAt, lightAt, emissiveTriangleAt,
 // loadBvhNode), field by field in this order.
+static_assert(sizeof(WideBvhNode) == 112 && offsetof(WideBvhNode, child) == 96);
 static_assert(sizeof(BvhNode) % 16 == 0 && sizeof(GpuMaterial) % 16 == 0);
 static_assert(sizeof(GpuLight) % 16 == 0 && sizeof(EmissiveTriangle) % 16 == 0);
 static_assert(offsetof(GpuMaterial, metallic) == 28 && offsetof(GpuMaterial, roughness) == 44);

@@ -17,7 +17,10 @@ using shader::BvhNode;
 // Deepest leaf (root at depth 0). Near-first traversal needs one stack entry per level, so this
 // leaves the shaders' stack a margin; at the cap a node becomes a leaf whatever its size.
 constexpr uint32_t kMaxDepth = 56;
-static_assert(kMaxDepth <= PV_BVH_STACK_SIZE, "traversal stack cannot hold the deepest path");
+// A wide node is at least one binary level below its parent, a leaf too large for one reference
+// adds at most log4(2^24 / 128) < 9 levels (leafReference), and traversal pushes at most three
+// children per level.
+static_assert(3 * (kMaxDepth + 9) <= PV_BVH_STACK_SIZE, "traversal stack cannot hold the deepest path");
 
 // Centroid bins per axis (Wald 2007, "On fast Construction of SAH-based Bounding Volume
 // Hierarchies": 16–32 bins lose little against a full sweep).
@@ -270,6 +273,92 @@ double bvhSahCost(const std::vector<BvhNode>& nodes, uint32_t root) {
     return cost;
 }
 
+namespace {
+
+shader::WideBvhNode emptyWideNode() {
+    shader::WideBvhNode w;
+    w.loX = w.loY = w.loZ = glm::vec4(PV_FLOAT_MAX);
+    w.hiX = w.hiY = w.hiZ = glm::vec4(-PV_FLOAT_MAX);
+    w.child = glm::uvec4(kBvhNoRoot);
+    return w;
+}
+
+void setSlot(shader::WideBvhNode& w, int slot, const glm::vec3& lo, const glm::vec3& hi,
+             uint32_t ref) {
+    w.loX[slot] = lo.x;
+    w.loY[slot] = lo.y;
+    w.loZ[slot] = lo.z;
+    w.hiX[slot] = hi.x;
+    w.hiY[slot] = hi.y;
+    w.hiZ[slot] = hi.z;
+    w.child[slot] = ref;
+}
+
+// The reference to triangles [first, first + count) with box (lo, hi): one leaf reference, or,
+// for a leaf larger than a reference holds (the depth cap can make one), nodes whose slots split
+// the range, all with the leaf's box.
+uint32_t leafReference(uint32_t first, uint32_t count, const glm::vec3& lo, const glm::vec3& hi,
+                       std::vector<shader::WideBvhNode>& wide) {
+    if (count <= PV_WIDE_LEAF_MAX_COUNT)
+        return PV_WIDE_LEAF | ((count - 1) << PV_WIDE_LEAF_FIRST_BITS) | first;
+    const uint32_t index = uint32_t(wide.size());
+    wide.push_back(emptyWideNode());
+    const uint32_t part = (count + 3) / 4;
+    shader::WideBvhNode w = emptyWideNode();
+    int slot = 0;
+    for (uint32_t begin = first; begin < first + count; begin += part) {
+        uint32_t n = std::min(part, first + count - begin);
+        setSlot(w, slot++, lo, hi, leafReference(begin, n, lo, hi, wide));
+    }
+    wide[index] = w;
+    return index;
+}
+
+// Collapses the binary subtree at `node` into wide nodes appended to `wide` (Wald et al. 2008,
+// "Getting Rid of Packets": open the child of largest surface area until four remain) and
+// returns the index of its root. A binary leaf at the root becomes a node with one leaf child.
+uint32_t collapseToWide(const std::vector<BvhNode>& binary, uint32_t node, uint32_t depth,
+                        std::vector<shader::WideBvhNode>& wide, uint32_t& maxDepth) {
+    maxDepth = std::max(maxDepth, depth);
+    auto area = [&](uint32_t i) {
+        Box b;
+        b.lo = binary[i].boundsMin;
+        b.hi = binary[i].boundsMax;
+        return b.halfArea();
+    };
+    std::vector<uint32_t> slots;
+    if (binary[node].count > 0) {
+        slots = {node};
+    } else {
+        slots = {binary[node].leftOrFirst, binary[node].leftOrFirst + 1};
+        while (slots.size() < 4) {
+            int open = -1;
+            for (size_t i = 0; i < slots.size(); ++i) {
+                if (binary[slots[i]].count == 0 && (open < 0 || area(slots[i]) > area(slots[open])))
+                    open = int(i);
+            }
+            if (open < 0) break;
+            uint32_t left = binary[slots[open]].leftOrFirst;
+            slots[open] = left;
+            slots.push_back(left + 1);
+        }
+    }
+    const uint32_t index = uint32_t(wide.size());
+    wide.push_back(emptyWideNode());
+    shader::WideBvhNode w = emptyWideNode();
+    for (size_t i = 0; i < slots.size(); ++i) {
+        const BvhNode& b = binary[slots[i]];
+        uint32_t ref = b.count > 0
+                           ? leafReference(b.leftOrFirst, b.count, b.boundsMin, b.boundsMax, wide)
+                           : collapseToWide(binary, slots[i], depth + 1, wide, maxDepth);
+        setSlot(w, int(i), b.boundsMin, b.boundsMax, ref);
+    }
+    wide[index] = w;  // after the recursion, which may have reallocated `wide`
+    return index;
+}
+
+}  // namespace
+
 Result<SceneBvh> buildSceneBvh(const Geometry& geometry, const BvhBuildOptions& options) {
     auto start = std::chrono::steady_clock::now();
     size_t triangleCount = geometry.triangles.size();
@@ -280,6 +369,10 @@ Result<SceneBvh> buildSceneBvh(const Geometry& geometry, const BvhBuildOptions& 
         return makeError("geometry has {} triangles but {} real/virtual flags", triangleCount,
                          geometry.triangleIsReal.size());
     if (options.maxLeafSize == 0) return makeError("BVH maxLeafSize must be at least 1");
+    // A wide leaf reference keeps its first triangle in PV_WIDE_LEAF_FIRST_BITS bits.
+    if (triangleCount > (size_t(1) << PV_WIDE_LEAF_FIRST_BITS))
+        return makeError("scene has {} triangles; the BVH supports at most {}", triangleCount,
+                         size_t(1) << PV_WIDE_LEAF_FIRST_BITS);
 
     // Real triangles first, then virtual: each tree owns one contiguous prim range.
     std::vector<PrimRef> prims(triangleCount);
@@ -331,6 +424,12 @@ Result<SceneBvh> buildSceneBvh(const Geometry& geometry, const BvhBuildOptions& 
     bvh.maxDepth = stats.maxDepth;
     bvh.maxLeafSize = stats.maxLeafSize;
     bvh.sahCost = bvhSahCost(bvh.nodes, bvh.realRoot) + bvhSahCost(bvh.nodes, bvh.virtualRoot);
+    bvh.wideNodes.reserve(bvh.nodes.size() / 2 + 2);
+    if (bvh.realRoot != kBvhNoRoot)
+        bvh.wideRealRoot = collapseToWide(bvh.nodes, bvh.realRoot, 0, bvh.wideNodes, bvh.wideMaxDepth);
+    if (bvh.virtualRoot != kBvhNoRoot)
+        bvh.wideVirtualRoot =
+            collapseToWide(bvh.nodes, bvh.virtualRoot, 0, bvh.wideNodes, bvh.wideMaxDepth);
     bvh.buildSeconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return bvh;

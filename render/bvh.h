@@ -1,9 +1,10 @@
 #pragma once
 
-// Bounding volume hierarchies over a scene's triangles, in the flattened layout the shaders
-// traverse (shader::BvhNode, gpu/shaders/shared/ray_tracing.h). Real (phantom) and virtual
-// triangles get separate trees in one node array: a ray that may only see the real world
-// traverses realRoot, a ray that sees both traverses both roots.
+// Bounding volume hierarchies over a scene's triangles: a binary SAH tree (shader::BvhNode),
+// collapsed into the 4-wide tree the shaders traverse (shader::WideBvhNode,
+// gpu/shaders/shared/ray_tracing.h). Real (phantom) and virtual triangles get separate trees in
+// one node array: a ray that may only see the real world traverses the real root, a ray that
+// sees both traverses both roots.
 
 #include <cstdint>
 #include <vector>
@@ -18,12 +19,20 @@ namespace previs {
 inline constexpr uint32_t kBvhNoRoot = 0xffffffffu;
 
 struct SceneBvh {
+    // The binary tree: what the SAH cost and the statistics below describe.
     std::vector<shader::BvhNode> nodes;
     // BVH-order index -> index into Geometry::triangles. Real triangles come first, so each
     // leaf's triangles are contiguous; shaders read triangles in this order.
     std::vector<uint32_t> triangleOrder;
     uint32_t realRoot = kBvhNoRoot;
     uint32_t virtualRoot = kBvhNoRoot;
+    // The same trees collapsed to 4 children per node (shader::WideBvhNode): what the shaders and
+    // CpuTracer traverse. Each wide child is a node or leaf of the binary tree, so leaves, triangle
+    // order and boxes are the binary tree's.
+    std::vector<shader::WideBvhNode> wideNodes;
+    uint32_t wideRealRoot = kBvhNoRoot;
+    uint32_t wideVirtualRoot = kBvhNoRoot;
+    uint32_t wideMaxDepth = 0;
     // Expected cost of a ray that traverses both trees, by the surface area heuristic with
     // traversal cost 1 and intersection cost 1, each tree normalised by its root's area (see
     // bvhSahCost). Lower is better; a single leaf costs the triangle count.

@@ -12,7 +12,7 @@ namespace {
 // pointers, which each call sets for its own thread, so tracers on different threads do not
 // interfere and the header stays the one the shaders compile.
 struct BoundScene {
-    const shader::BvhNode* nodes = nullptr;
+    const shader::WideBvhNode* nodes = nullptr;
     const glm::vec3* triangleVertices = nullptr;  // 3 per triangle, BVH order
 };
 thread_local BoundScene gBound;
@@ -47,18 +47,18 @@ CpuTracer::CpuTracer(SceneBvh bvh, const Geometry& geometry)
 }
 
 std::optional<shader::Hit> CpuTracer::closestHit(const shader::Ray& ray, bool realOnly) const {
-    gBound = {bvh_.nodes.data(), triangleVertices_.data()};
+    gBound = {bvh_.wideNodes.data(), triangleVertices_.data()};
     shader::Hit hit{ray.tMax, kBvhNoRoot, 0.0f, 0.0f};
-    bool found = shader::traceClosest(bvh_.realRoot, ray, hit);
-    if (!realOnly) found = shader::traceClosest(bvh_.virtualRoot, ray, hit) || found;
+    bool found = shader::traceClosest(bvh_.wideRealRoot, ray, hit);
+    if (!realOnly) found = shader::traceClosest(bvh_.wideVirtualRoot, ray, hit) || found;
     if (!found) return std::nullopt;
     return hit;
 }
 
 bool CpuTracer::occluded(const shader::Ray& ray, bool realOnly) const {
-    gBound = {bvh_.nodes.data(), triangleVertices_.data()};
-    if (shader::traceAny(bvh_.realRoot, ray)) return true;
-    return !realOnly && shader::traceAny(bvh_.virtualRoot, ray);
+    gBound = {bvh_.wideNodes.data(), triangleVertices_.data()};
+    if (shader::traceAny(bvh_.wideRealRoot, ray)) return true;
+    return !realOnly && shader::traceAny(bvh_.wideVirtualRoot, ray);
 }
 
 }  // namespace previs

@@ -386,8 +386,8 @@ Status Renderer::buildScene(const Scene& scene) {
     p.maxDepth = settings_.maxDepth;
     p.lightCount = uint32_t(lights.size());
     p.emissiveTriangleCount = uint32_t(emissive.size());
-    p.realRoot = bvh_.realRoot;
-    p.virtualRoot = bvh_.virtualRoot;
+    p.realRoot = bvh_.wideRealRoot;
+    p.virtualRoot = bvh_.wideVirtualRoot;
     setEnvironmentParams(p, scene.environment ? &*scene.environment : nullptr, envDist);
     p.coneLightFirst = uint32_t(lights.size());
     p.fireflyClamp = settings_.fireflyClamp;
@@ -413,7 +413,7 @@ Status Renderer::buildScene(const Scene& scene) {
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(uvTexels), "uvs")))) return s;
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(triangleTexels), "triangles")))) return s;
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(triMaterials), "triangleMaterials")))) return s;
-    if (!(s = add(GpuBuffer::createWith(*ctx_, span(bvh_.nodes), "bvhNodes")))) return s;
+    if (!(s = add(GpuBuffer::createWith(*ctx_, span(bvh_.wideNodes), "bvhNodes")))) return s;
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(materials), "materials")))) return s;
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(textureInfos), "textures")))) return s;
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(texels), "texels")))) return s;

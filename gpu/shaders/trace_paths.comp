@@ -33,8 +33,8 @@ layout(constant_id = PV_SPEC_COUNT_LOOPS) const bool kCountLoops = true;
 layout(binding = PV_BINDING_PARAMS, scalar) readonly buffer ParamsBuffer { FrameParams params; };
 // Every read-only scene array indexed per lane is a texel buffer (BindingKind::TexelBufferUint4):
 // on llvmpipe a texel fetch is a gather, while a storage-buffer load whose address differs per
-// lane is a loop over the lanes with a bounds check each. A BVH node is two texels (BvhNode's
-// layout), a triangle's vertices three (xyz, w unused); shared structs are read texel by texel
+// lane is a loop over the lanes with a bounds check each. A BVH node is seven texels
+// (WideBvhNode's layout), a triangle's vertices three (xyz, w unused); shared structs are read texel by texel
 // in their C++ layout (gpu/gpu_layout.cpp checks that they are whole texels).
 layout(binding = PV_BINDING_BVH_NODES) uniform usamplerBuffer bvhNodeTexels;
 layout(binding = PV_BINDING_TRIANGLE_VERTICES) uniform usamplerBuffer triangleVertexTexels;
@@ -96,14 +96,15 @@ EmissiveTriangle emissiveTriangleAt(uint i) {
     e.pdf = uintBitsToFloat(t.w);
     return e;
 }
-BvhNode loadBvhNode(uint i) {
-    uvec4 lo = texelFetch(bvhNodeTexels, int(2u * i));
-    uvec4 hi = texelFetch(bvhNodeTexels, int(2u * i + 1u));
-    BvhNode n;
-    n.boundsMin = uintBitsToFloat(lo.xyz);
-    n.leftOrFirst = lo.w;
-    n.boundsMax = uintBitsToFloat(hi.xyz);
-    n.count = hi.w;
+WideBvhNode loadBvhNode(uint i) {
+    WideBvhNode n;
+    n.loX = uintBitsToFloat(texelFetch(bvhNodeTexels, int(7u * i)));
+    n.loY = uintBitsToFloat(texelFetch(bvhNodeTexels, int(7u * i + 1u)));
+    n.loZ = uintBitsToFloat(texelFetch(bvhNodeTexels, int(7u * i + 2u)));
+    n.hiX = uintBitsToFloat(texelFetch(bvhNodeTexels, int(7u * i + 3u)));
+    n.hiY = uintBitsToFloat(texelFetch(bvhNodeTexels, int(7u * i + 4u)));
+    n.hiZ = uintBitsToFloat(texelFetch(bvhNodeTexels, int(7u * i + 5u)));
+    n.child = texelFetch(bvhNodeTexels, int(7u * i + 6u));
     return n;
 }
 // Arrays of 4-byte words read one word per fetch (BindingKind::TexelBufferUint).

@@ -137,6 +137,60 @@ std::vector<Ray> randomRays(int count, glm::vec3 lo, glm::vec3 hi, uint32_t seed
 
 // Structural checks: triangleOrder is a permutation, children nest in parents, leaves' triangles
 // lie in their boxes, each tree covers its contiguous range, depth fits the traversal stack.
+// The 4-wide tree the shaders traverse: every triangle in exactly one leaf reference, inside its
+// slot's box; every child node's boxes inside its slot's box; empty slots never entered; depth
+// within the traversal stack.
+void checkWideStructure(const SceneBvh& bvh, const Geometry& g) {
+    const size_t n = g.triangles.size();
+    std::vector<int> seen(n, 0);
+    const glm::vec3 lowest(-PV_FLOAT_MAX);
+    const glm::vec3 highest(PV_FLOAT_MAX);
+    for (uint32_t root : {bvh.wideRealRoot, bvh.wideVirtualRoot}) {
+        if (root == kBvhNoRoot) continue;
+        struct Visit {
+            uint32_t node;
+            uint32_t depth;
+            glm::vec3 lo;
+            glm::vec3 hi;
+        };
+        std::vector<Visit> stack{{root, 0, lowest, highest}};
+        while (!stack.empty()) {
+            Visit v = stack.back();
+            stack.pop_back();
+            ASSERT_LT(v.node, bvh.wideNodes.size());
+            ASSERT_LE(3 * (v.depth + 1), uint32_t(PV_BVH_STACK_SIZE));
+            const shader::WideBvhNode& w = bvh.wideNodes[v.node];
+            for (int i = 0; i < 4; ++i) {
+                glm::vec3 lo(w.loX[i], w.loY[i], w.loZ[i]);
+                glm::vec3 hi(w.hiX[i], w.hiY[i], w.hiZ[i]);
+                uint32_t ref = w.child[i];
+                if (ref == kBvhNoRoot) {
+                    ASSERT_TRUE(glm::all(glm::greaterThan(lo, hi))) << "empty slot must be inverted";
+                    continue;
+                }
+                ASSERT_TRUE(glm::all(glm::lessThanEqual(v.lo, lo)));
+                ASSERT_TRUE(glm::all(glm::lessThanEqual(hi, v.hi)));
+                if ((ref & PV_WIDE_LEAF) == 0u) {
+                    stack.push_back({ref, v.depth + 1, lo, hi});
+                    continue;
+                }
+                uint32_t first = ref & ((1u << PV_WIDE_LEAF_FIRST_BITS) - 1u);
+                uint32_t count = ((ref & ~PV_WIDE_LEAF) >> PV_WIDE_LEAF_FIRST_BITS) + 1u;
+                ASSERT_LE(first + count, n);
+                for (uint32_t k = first; k < first + count; ++k) {
+                    seen[k]++;
+                    for (int c = 0; c < 3; ++c) {
+                        glm::vec3 p = g.positions[g.triangles[bvh.triangleOrder[k]][c]];
+                        ASSERT_TRUE(glm::all(glm::lessThanEqual(lo, p)));
+                        ASSERT_TRUE(glm::all(glm::lessThanEqual(p, hi)));
+                    }
+                }
+            }
+        }
+    }
+    for (size_t k = 0; k < n; ++k) ASSERT_EQ(seen[k], 1) << "BVH-order triangle " << k;
+}
+
 void checkStructure(const SceneBvh& bvh, const Geometry& g) {
     size_t n = g.triangles.size();
     ASSERT_EQ(bvh.triangleOrder.size(), n);
@@ -183,6 +237,7 @@ void checkStructure(const SceneBvh& bvh, const Geometry& g) {
         }
     }
     ASSERT_EQ(covered, n);
+    checkWideStructure(bvh, g);
 }
 
 // Traversal must give the brute-force answer bit for bit: same t, and the same triangle unless
@@ -647,6 +702,34 @@ TEST(BvhDegenerate, AllTrianglesAtOnePoint) {
     EXPECT_LE(tracer->bvh().maxLeafSize, BvhBuildOptions{}.maxLeafSize);
     EXPECT_TRUE(std::isfinite(tracer->bvh().sahCost));
     EXPECT_FALSE(tracer->closestHit(rayAlong(glm::vec3(0.5f, -0.25f, 0.0f), glm::vec3(0, 0, 1))));
+}
+
+// A leaf larger than one wide reference holds (128 triangles; the depth cap can force one) is split
+// across several references with the leaf's box, and traversal still finds the nearest copy.
+TEST(BvhWide, LeavesLargerThanAReferenceAreSplit) {
+    std::vector<glm::vec3> p;
+    std::vector<glm::uvec3> t;
+    // 1000 copies of one triangle, each a little further along +z: no centroid split separates
+    // them along x or y, so with a large leaf size they stay one leaf.
+    for (uint32_t i = 0; i < 1000; ++i) {
+        float z = 2.0f + 1e-3f * float((i * 7919u) % 1000u);
+        p.push_back({-1.0f, -1.0f, z});
+        p.push_back({1.0f, -1.0f, z});
+        p.push_back({0.0f, 1.0f, z});
+        t.push_back({3 * i, 3 * i + 1, 3 * i + 2});
+    }
+    Geometry g = makeGeometry(p, t);
+    BvhBuildOptions options;
+    options.split = BvhSplit::Median;
+    options.maxLeafSize = 1000;
+    auto tracer = CpuTracer::create(g, options);
+    ASSERT_TRUE(tracer) << tracer.message();
+    checkStructure(tracer->bvh(), g);
+    EXPECT_GT(tracer->bvh().maxLeafSize, PV_WIDE_LEAF_MAX_COUNT);
+    auto hit = tracer->closestHit(rayAlong(glm::vec3(0.0f, 0.0f, 0.0f), glm::vec3(0, 0, 1)));
+    ASSERT_TRUE(hit);
+    EXPECT_FLOAT_EQ(hit->t, 2.0f);
+    EXPECT_TRUE(tracer->occluded(rayAlong(glm::vec3(0.0f, 0.0f, 0.0f), glm::vec3(0, 0, 1))));
 }
 
 // Flat (zero-thickness) boxes and needle triangles, nearly coplanar: traversal finds the

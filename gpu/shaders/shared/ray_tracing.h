@@ -4,7 +4,7 @@
 //
 // The first part (types, intersection, offsetRayOrigin) needs nothing from the includer. The
 // traversal part is compiled only when the includer has defined the accessors first:
-//   PV_BVH_NODE(i)  -> BvhNode      node i of the flattened BVH
+//   PV_BVH_NODE(i)  -> WideBvhNode  node i of the 4-wide BVH
 //   PV_TRIANGLE_VERTEX(i, k) -> vec3  vertex k (0, 1, 2) of triangle i, in BVH order
 // It has its own include guard, so a C++ file may include the first part through another header
 // and the traversal after binding the macros. In C++ the traversal sits in an anonymous
@@ -27,9 +27,10 @@
 
 // Root index of a BVH with no triangles: traversal returns "no hit" at once.
 #define PV_BVH_NO_ROOT 0xffffffffu
-// Traversal stack entries. Near-child-first traversal pushes at most one node per level, so a
-// tree of depth D (root at depth 0) needs D entries; render/bvh.cpp caps the depth below this.
-#define PV_BVH_STACK_SIZE 64
+// Traversal stack entries. Nearest-child-first traversal of the 4-wide tree pushes at most three
+// references per level, so a tree of depth D (root at depth 0) needs 3·D entries; render/bvh.cpp
+// caps the depth so that this always suffices.
+#define PV_BVH_STACK_SIZE 208
 // 1 + 2γ(3) with γ(n) = nε/(1 - nε), ε = 2^-24 (pbrt-v4 Bounds3::IntersectP; Ize 2013, "Robust
 // BVH Ray Traversal"): widens a slab's far distance by the worst rounding error of
 // (bound - origin) * invDir, so a ray that hits a triangle never misses its box.
@@ -209,78 +210,116 @@ PV_INLINE bool intersectLeaf(TriangleRay tr, uint first, uint count, float tMin,
     return found;
 }
 
-// Both traversals are "while-while" (Aila & Laine 2009, "Understanding the Efficiency of Ray
-// Traversal on GPUs"): an inner loop walks interior nodes until the lane holds a leaf (or has
-// nothing left), and only then are leaves intersected. On a SIMD device that runs the lanes of a
-// batch in lock step (llvmpipe, GPUs) a lane at a leaf waits for the others instead of making
-// every iteration pay for both the interior and the leaf code.
-
-// Steps from interior node `node` to the nearer child the ray enters, pushing the farther one
-// when it enters both (nearFirst) or the right one (any-hit order); returns false when it enters
-// neither.
-PV_INLINE bool stepToChild(PV_INOUT(BvhNode) node, vec3 origin, vec3 invDir, float tMin,
-                           float tMax, bool nearFirst, PV_INOUT(uint) pushed) {
-    uint left = node.leftOrFirst;
-    BvhNode leftNode = PV_BVH_NODE(left);
-    BvhNode rightNode = PV_BVH_NODE(left + 1u);
-    float tLeft;
-    float tRight;
-    bool hitLeft = intersectBox(leftNode.boundsMin, leftNode.boundsMax, origin, invDir, tMin,
-                                tMax, tLeft);
-    bool hitRight = intersectBox(rightNode.boundsMin, rightNode.boundsMax, origin, invDir, tMin,
-                                 tMax, tRight);
-    pushed = PV_BVH_NO_ROOT;
-    if (hitLeft && hitRight) {
-        if (nearFirst && tRight < tLeft) {
-            pushed = left;
-            node = rightNode;
-        } else {
-            pushed = left + 1u;
-            node = leftNode;
-        }
-        return true;
-    }
-    if (hitLeft) node = leftNode;
-    if (hitRight) node = rightNode;
-    return hitLeft || hitRight;
+// intersectBox for the four child boxes of a wide node at once (the same arithmetic per box, so
+// the same robustness); writes each box's entry distance and returns which boxes the ray enters.
+PV_INLINE bvec4 intersectChildBoxes(WideBvhNode n, vec3 origin, vec3 invDir, float tMin,
+                                    float tMax, PV_OUT(vec4) tEntry) {
+    bool negX = invDir.x < 0.0f;
+    bool negY = invDir.y < 0.0f;
+    bool negZ = invDir.z < 0.0f;
+    vec4 nearX = ((negX ? n.hiX : n.loX) - origin.x) * invDir.x;
+    vec4 nearY = ((negY ? n.hiY : n.loY) - origin.y) * invDir.y;
+    vec4 nearZ = ((negZ ? n.hiZ : n.loZ) - origin.z) * invDir.z;
+    vec4 farX = ((negX ? n.loX : n.hiX) - origin.x) * invDir.x * PV_BOX_FAR_SCALE;
+    vec4 farY = ((negY ? n.loY : n.hiY) - origin.y) * invDir.y * PV_BOX_FAR_SCALE;
+    vec4 farZ = ((negZ ? n.loZ : n.hiZ) - origin.z) * invDir.z * PV_BOX_FAR_SCALE;
+    // Comparisons, not min/max: a NaN distance leaves the interval unchanged (see intersectBox).
+    vec4 t0 = vec4(tMin);
+    vec4 t1 = vec4(tMax * PV_BOX_FAR_SCALE);
+    t0 = mix(t0, nearX, greaterThan(nearX, t0));
+    t0 = mix(t0, nearY, greaterThan(nearY, t0));
+    t0 = mix(t0, nearZ, greaterThan(nearZ, t0));
+    t1 = mix(t1, farX, lessThan(farX, t1));
+    t1 = mix(t1, farY, lessThan(farY, t1));
+    t1 = mix(t1, farZ, lessThan(farZ, t1));
+    tEntry = t0;
+    return lessThanEqual(t0, t1);
 }
 
+PV_INLINE void sortPair(PV_INOUT(float) ka, PV_INOUT(uint) va, PV_INOUT(float) kb,
+                        PV_INOUT(uint) vb) {
+    if (kb < ka) {
+        float k = ka;
+        ka = kb;
+        kb = k;
+        uint v = va;
+        va = vb;
+        vb = v;
+    }
+}
+
+// Visits wide node `ref`: writes the references of the children the ray enters to `children`,
+// nearest entry first, and returns how many there are (0-4).
+PV_INLINE uint enteredChildren(uint ref, vec3 origin, vec3 invDir, float tMin, float tMax,
+                               PV_OUT(uvec4) children) {
+    WideBvhNode n = PV_BVH_NODE(ref);
+    vec4 tEntry;
+    bvec4 entered = intersectChildBoxes(n, origin, invDir, tMin, tMax, tEntry);
+    // +inf: after every entry distance, the key of a child not entered.
+    float none = uintBitsToFloat(0x7f800000u);
+    float k0 = entered.x ? tEntry.x : none;
+    float k1 = entered.y ? tEntry.y : none;
+    float k2 = entered.z ? tEntry.z : none;
+    float k3 = entered.w ? tEntry.w : none;
+    uint c0 = n.child.x;
+    uint c1 = n.child.y;
+    uint c2 = n.child.z;
+    uint c3 = n.child.w;
+    // A sorting network for four.
+    sortPair(k0, c0, k1, c1);
+    sortPair(k2, c2, k3, c3);
+    sortPair(k0, c0, k2, c2);
+    sortPair(k1, c1, k3, c3);
+    sortPair(k1, c1, k2, c2);
+    children = uvec4(c0, c1, c2, c3);
+    return uint(entered.x) + uint(entered.y) + uint(entered.z) + uint(entered.w);
+}
+
+// Both traversals are "while-while" (Aila & Laine 2009, "Understanding the Efficiency of Ray
+// Traversal on GPUs"): an inner loop walks nodes until the lane holds a leaf (or has nothing
+// left), and only then are leaves intersected. On a SIMD device that runs the lanes of a batch
+// in lock step (llvmpipe, GPUs) a lane at a leaf waits for the others instead of making every
+// iteration pay for both the node and the leaf code.
+
 // Closest hit with t in (ray.tMin, min(ray.tMax, hit.t)) in the BVH at `root`; updates `hit` and
-// returns true if it found one. Children are visited nearest entry first and the far one is
-// pushed, so boxes behind a found hit are culled.
+// returns true if it found one. Children are visited nearest entry first, so boxes behind a found
+// hit are culled. (Any-hit traversal visits them in the same order.)
 PV_INLINE bool traceClosest(uint root, Ray ray, PV_INOUT(Hit) hit) {
     if (root == PV_BVH_NO_ROOT) return false;
     float tMax = min(ray.tMax, hit.t);
     vec3 invDir = 1.0f / ray.direction;
-    float tEntry;
-    BvhNode node = PV_BVH_NODE(root);
-    if (!intersectBox(node.boundsMin, node.boundsMax, ray.origin, invDir, ray.tMin, tMax, tEntry))
-        return false;
     TriangleRay tr = makeTriangleRay(ray.origin, ray.direction);
     uint stack[PV_BVH_STACK_SIZE];
     int stackSize = 0;
+    uint ref = root;
     bool found = false;
-    bool done = false;
-    while (!done) {
+    while (true) {
         PV_COUNT_LOOP_ITERATION();
-        // Interior nodes until this lane holds a leaf.
-        while (node.count == 0u) {
+        bool done = false;
+        while ((ref & PV_WIDE_LEAF) == 0u) {
             PV_COUNT_LOOP_ITERATION();
-            uint pushed;
-            bool entered = stepToChild(node, ray.origin, invDir, ray.tMin, tMax, true, pushed);
-            if (pushed != PV_BVH_NO_ROOT) stack[stackSize++] = pushed;
-            if (!entered) {
+            uvec4 children;
+            uint entered = enteredChildren(ref, ray.origin, invDir, ray.tMin, tMax, children);
+            if (entered == 0u) {
                 if (stackSize == 0) {
                     done = true;
                     break;
                 }
-                node = PV_BVH_NODE(stack[--stackSize]);
+                ref = stack[--stackSize];
+                continue;
             }
+            // Far to near, so that the nearest of the pushed is popped first.
+            if (entered > 3u) stack[stackSize++] = children.w;
+            if (entered > 2u) stack[stackSize++] = children.z;
+            if (entered > 1u) stack[stackSize++] = children.y;
+            ref = children.x;
         }
         if (done) break;
-        if (intersectLeaf(tr, node.leftOrFirst, node.count, ray.tMin, tMax, hit)) found = true;
+        uint first = ref & ((1u << PV_WIDE_LEAF_FIRST_BITS) - 1u);
+        uint count = ((ref & ~PV_WIDE_LEAF) >> PV_WIDE_LEAF_FIRST_BITS) + 1u;
+        if (intersectLeaf(tr, first, count, ray.tMin, tMax, hit)) found = true;
         if (stackSize == 0) break;
-        node = PV_BVH_NODE(stack[--stackSize]);
+        ref = stack[--stackSize];
     }
     return found;
 }
@@ -289,33 +328,35 @@ PV_INLINE bool traceClosest(uint root, Ray ray, PV_INOUT(Hit) hit) {
 PV_INLINE bool traceAny(uint root, Ray ray) {
     if (root == PV_BVH_NO_ROOT) return false;
     vec3 invDir = 1.0f / ray.direction;
-    float tEntry;
-    BvhNode node = PV_BVH_NODE(root);
-    if (!intersectBox(node.boundsMin, node.boundsMax, ray.origin, invDir, ray.tMin, ray.tMax,
-                      tEntry))
-        return false;
     TriangleRay tr = makeTriangleRay(ray.origin, ray.direction);
     uint stack[PV_BVH_STACK_SIZE];
     int stackSize = 0;
+    uint ref = root;
     while (true) {
         PV_COUNT_LOOP_ITERATION();
         bool done = false;
-        while (node.count == 0u) {
+        while ((ref & PV_WIDE_LEAF) == 0u) {
             PV_COUNT_LOOP_ITERATION();
-            uint pushed;
-            bool entered =
-                stepToChild(node, ray.origin, invDir, ray.tMin, ray.tMax, false, pushed);
-            if (pushed != PV_BVH_NO_ROOT) stack[stackSize++] = pushed;
-            if (!entered) {
+            uvec4 children;
+            uint entered = enteredChildren(ref, ray.origin, invDir, ray.tMin, ray.tMax, children);
+            if (entered == 0u) {
                 if (stackSize == 0) {
                     done = true;
                     break;
                 }
-                node = PV_BVH_NODE(stack[--stackSize]);
+                ref = stack[--stackSize];
+                continue;
             }
+            // Far to near, so that the nearest of the pushed is popped first.
+            if (entered > 3u) stack[stackSize++] = children.w;
+            if (entered > 2u) stack[stackSize++] = children.z;
+            if (entered > 1u) stack[stackSize++] = children.y;
+            ref = children.x;
         }
         if (done) break;
-        for (uint i = node.leftOrFirst; i < node.leftOrFirst + node.count; ++i) {
+        uint first = ref & ((1u << PV_WIDE_LEAF_FIRST_BITS) - 1u);
+        uint count = ((ref & ~PV_WIDE_LEAF) >> PV_WIDE_LEAF_FIRST_BITS) + 1u;
+        for (uint i = first; i < first + count; ++i) {
             PV_COUNT_LOOP_ITERATION();
             float t;
             float b1;
@@ -325,7 +366,7 @@ PV_INLINE bool traceAny(uint root, Ray ray) {
                 return true;
         }
         if (stackSize == 0) break;
-        node = PV_BVH_NODE(stack[--stackSize]);
+        ref = stack[--stackSize];
     }
     return false;
 }

@@ -16,7 +16,7 @@ PV_BEGIN
 #define PV_BINDING_UVS 3
 #define PV_BINDING_TRIANGLES 4
 #define PV_BINDING_TRIANGLE_MATERIALS 5
-// BvhNode array as a texel buffer of two uint4 texels per node.
+// WideBvhNode array as a texel buffer of seven uint4 texels per node.
 #define PV_BINDING_BVH_NODES 6
 #define PV_BINDING_MATERIALS 7
 #define PV_BINDING_TEXTURES 8
@@ -73,7 +73,8 @@ PV_BEGIN
 
 #define PV_NO_TEXTURE 0xffffffffu
 
-// A node of the flattened BVH (32 bytes). Interior: count == 0, children at leftOrFirst and
+// A node of the binary BVH the host builds (32 bytes; render/bvh.cpp), which it collapses into
+// the WideBvhNode tree the shaders traverse. Interior: count == 0, children at leftOrFirst and
 // leftOrFirst + 1. Leaf: count triangles starting at leftOrFirst in the triangle arrays.
 struct BvhNode {
     vec3 boundsMin;
@@ -81,6 +82,27 @@ struct BvhNode {
     vec3 boundsMax;
     uint count;
 };
+
+// A node of the 4-wide BVH the shaders traverse (render/bvh.cpp collapses the binary SAH tree
+// into it): the boxes of its up to four children side by side, so one visit tests four boxes with
+// seven 16-byte texel fetches. child[i] is a reference (PV_WIDE_*): another node, a leaf's
+// triangle range, or PV_BVH_NO_ROOT for an empty slot, whose box is inverted (lo = +max,
+// hi = −max) so that no ray enters it.
+struct WideBvhNode {
+    vec4 loX;
+    vec4 loY;
+    vec4 loZ;
+    vec4 hiX;
+    vec4 hiY;
+    vec4 hiZ;
+    uvec4 child;
+};
+
+// A child reference with PV_WIDE_LEAF set is a leaf: triangles [first, first + count) in BVH
+// order, first in the low 24 bits and count − 1 in the 7 bits above; otherwise a node index.
+#define PV_WIDE_LEAF 0x80000000u
+#define PV_WIDE_LEAF_FIRST_BITS 24u
+#define PV_WIDE_LEAF_MAX_COUNT 128u
 
 // glTF 2.0 metallic-roughness material with the transmission, ior, specular and
 // emissive_strength extensions. Texture fields index TextureInfo or are PV_NO_TEXTURE.
