@@ -143,6 +143,7 @@ Status Renderer::specialisePipeline() {
     constants[PV_SPEC_HAS_CONE_LIGHTS] = spec.coneLights;
     constants[PV_SPEC_SAMPLER] =
         settings_.sampler == Sampler::Sobol ? PV_SAMPLER_SOBOL : PV_SAMPLER_INDEPENDENT;
+    constants[PV_SPEC_LIGHT_SOLID_ANGLE] = settings_.lightSampling == LightSampling::SolidAngle;
     if (pipeline_ && constants == specConstants_) return bindBuffers();
     // The hot read-only arrays of traversal are texel buffers (see BindingKind).
     std::array<BindingKind, PV_BINDING_COUNT> bindings{};

@@ -27,6 +27,8 @@ layout(constant_id = PV_SPEC_HAS_LENS_GRID) const bool kHasLensGrid = true;
 layout(constant_id = PV_SPEC_HAS_CONE_LIGHTS) const bool kHasConeLights = true;
 // The sample generator (PV_SAMPLER_* in shared/sampler.h; the dimension layout is there).
 layout(constant_id = PV_SPEC_SAMPLER) const uint kSampler = 0u;
+// Emissive triangles sampled by solid angle (shared/triangle_light.h); off: by area (ablation).
+layout(constant_id = PV_SPEC_LIGHT_SOLID_ANGLE) const bool kLightSolidAngle = true;
 
 layout(binding = PV_BINDING_PARAMS, scalar) readonly buffer ParamsBuffer { FrameParams params; };
 // Every read-only scene array indexed per lane is a texel buffer (BindingKind::TexelBufferUint4):
@@ -141,6 +143,7 @@ layout(binding = PV_BINDING_LENS_GRID, scalar) readonly buffer LensGrid { vec2 l
 #include "shared/bsdf.h"
 #include "shared/sampling.h"
 #include "shared/sampler.h"
+#include "shared/triangle_light.h"
 
 // Four random numbers of dimension set `set` (shared/sampler.h's table) for sample `key`.
 vec4 draw(SampleKey key, uint set) { return sampleSet(kSampler, key, set); }
@@ -379,16 +382,15 @@ uint pickEmissiveTriangle(float u) {
     return lo;
 }
 
-// Solid-angle pdf with which emissive-triangle sampling picks the point `hit` seen from `from`.
+// Solid-angle pdf with which emissive-triangle sampling picks the point `lightSurface` seen from
+// `from`: the triangle's power share times shared/triangle_light.h's density, the very function
+// the sampler uses, so MIS weighs a BSDF-sampled hit with the light strategy's own density.
 float emissiveLightPdf(uint triangle, vec3 from, Surface lightSurface) {
-    vec3 p0 = PV_TRIANGLE_VERTEX(triangle, 0u);
-    float area = 0.5 * length(cross(PV_TRIANGLE_VERTEX(triangle, 1u) - p0,
-                                    PV_TRIANGLE_VERTEX(triangle, 2u) - p0));
-    vec3 d = lightSurface.position - from;
-    float dist2 = dot(d, d);
-    float cosLight = abs(dot(normalize(d), lightSurface.geometricNormal));
-    if (!(area > 0.0) || !(cosLight > 0.0)) return 0.0;
-    return triangleLightPdf[triangle] * dist2 / (area * cosLight);
+    return triangleLightPdf[triangle] *
+           triangleLightDirectionPdf(from, PV_TRIANGLE_VERTEX(triangle, 0u),
+                                     PV_TRIANGLE_VERTEX(triangle, 1u),
+                                     PV_TRIANGLE_VERTEX(triangle, 2u), lightSurface.position,
+                                     kLightSolidAngle);
 }
 
 // Solid-angle pdf with which light sampling picks direction `dir` from cone light `light` (0
@@ -428,10 +430,12 @@ void sampleDirectLight(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint mode
         vec2 uPoint = u.xy;
         EmissiveTriangle et = emissiveTriangleAt(pickEmissiveTriangle(uPick));
         uvec4 tri = triangleAt(et.triangle);
-        vec2 b = sampleUniformTriangle(uPoint);
         vec3 p0 = PV_TRIANGLE_VERTEX(et.triangle, 0u);
         vec3 p1 = PV_TRIANGLE_VERTEX(et.triangle, 1u);
         vec3 p2 = PV_TRIANGLE_VERTEX(et.triangle, 2u);
+        // Density of the point's direction given the triangle (solid angle or area sampling).
+        float pointPdf;
+        vec2 b = sampleTriangleLight(s.position, p0, p1, p2, uPoint, kLightSolidAngle, pointPdf);
         vec3 lightPoint = (1.0 - b.x - b.y) * p0 + b.x * p1 + b.y * p2;
         vec3 ng = normalize(cross(p1 - p0, p2 - p0));
         vec3 d = lightPoint - s.position;
@@ -442,7 +446,7 @@ void sampleDirectLight(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint mode
         bool facing = cosLight > 0.0 || (cosLight < 0.0 && emitsToward(lm, false));
         vec3 wiLocal = toLocal(frame, wi);
         if (facing && dist2 > 0.0 && consistentSide(s, wi, wiLocal)) {
-            float lightPdf = et.pdf * dist2 / (et.area * abs(cosLight));
+            float lightPdf = et.pdf * pointPdf;
             float bsdfPdf;
             vec3 f = evaluateBsdf(bp, wo, wiLocal, bsdfPdf);
             if (maxComponent(f) > 0.0 && lightPdf > 0.0) {

@@ -61,7 +61,10 @@ PV_BEGIN
 // The sample generator, PV_SAMPLER_SOBOL or PV_SAMPLER_INDEPENDENT (shared/sampler.h): a
 // constant, so a pipeline compiles only the generator it uses.
 #define PV_SPEC_SAMPLER 10
-#define PV_SPEC_COUNT 11
+// Emissive triangles sampled uniformly in the solid angle they subtend (where float precision
+// allows, shared/triangle_light.h); off: uniformly in area, the baseline for ablations.
+#define PV_SPEC_LIGHT_SOLID_ANGLE 11
+#define PV_SPEC_COUNT 12
 #define PV_SAMPLER_SOBOL 0u
 #define PV_SAMPLER_INDEPENDENT 1u
 
