@@ -115,7 +115,8 @@ glm::vec3 pointAt(const Case& c, glm::vec2 b) {
     return (1.0f - b.x - b.y) * c.p0 + b.x * c.p1 + b.y * c.p2;
 }
 
-// Chi-square of the spherical sampler's directions against uniform solid angle over 64 cells.
+// Chi-square of the spherical sampler's directions (area sampling's with `spherical` off)
+// against uniform solid angle over 64 cells.
 Chi2Result sphericalChi2(const Case& c, int samples, uint32_t seed, bool spherical = true) {
     SphericalCells cells(unitFrom(c.p, c.p0), unitFrom(c.p, c.p1), unitFrom(c.p, c.p2), 3);
     double total = 0.0;
@@ -123,10 +124,12 @@ Chi2Result sphericalChi2(const Case& c, int samples, uint32_t seed, bool spheric
     std::vector<double> observed(cells.size(), 0.0);
     std::mt19937 rng(seed);
     std::uniform_real_distribution<float> uni(0.0f, std::nextafter(1.0f, 0.0f));
+    const float omega = triangleSolidAngle(c.p, c.p0, c.p1, c.p2);
     Chi2Result r;
     for (int i = 0; i < samples; ++i) {
-        float pdf = 0.0f;
-        glm::vec2 b = sampleTriangleLight(c.p, c.p0, c.p1, c.p2, {uni(rng), uni(rng)}, spherical, pdf);
+        glm::vec2 u(uni(rng), uni(rng));
+        glm::vec2 b = spherical ? sampleSphericalTriangleLight(c.p, c.p0, c.p1, c.p2, omega, u)
+                                : sampleUniformTriangle(u);
         dvec3 w = unitFrom(c.p, pointAt(c, b));
         int cell = cells.cellOf(w, 1e-5);
         if (cell < 0) {
@@ -150,8 +153,8 @@ Chi2Result sphericalChi2(const Case& c, int samples, uint32_t seed, bool spheric
 TEST(TriangleLightTest, SphericalSamplesAreUniformInSolidAngle) {
     uint32_t seed = 10;
     for (const Case& c : kUniformCases) {
-        float omega = sphericalSamplingSolidAngle(c.p, c.p0, c.p1, c.p2);
-        ASSERT_GT(omega, 0.0f) << c.name << ": not in the spherical-sampling range";
+        float omega = triangleSolidAngle(c.p, c.p0, c.p1, c.p2);
+        ASSERT_GE(omega, PV_SPHERICAL_MIN_SOLID_ANGLE) << c.name << ": below the threshold";
         Chi2Result r = sphericalChi2(c, 400'000, seed++);
         EXPECT_GT(r.pValue, kLevel) << c.name << " (" << omega << " sr): " << r.describe();
         RecordProperty(std::string("p ") + c.name, std::to_string(r.pValue));
@@ -163,6 +166,17 @@ TEST(TriangleLightTest, SphericalSamplesAreUniformInSolidAngle) {
 TEST(TriangleLightTest, ChiSquareRejectsAreaSampling) {
     Chi2Result r = sphericalChi2(kUniformCases[6], 400'000, 30, false);
     EXPECT_LT(r.pValue, kLevel) << r.describe();
+}
+
+// Which strategy runs: spherical where the triangle is large against its plane's distance,
+// area where it is small and far, below the precision threshold, or p is in its plane.
+TEST(TriangleLightTest, ChoosesSphericalSamplingWhereItPays) {
+    const glm::vec3 p0(0, 0, 1), p1(0.2f, 0, 1), p2(0, 0.2f, 1);
+    EXPECT_GT(sphericalSamplingSolidAngle({0.05f, 0.05f, 0.9f}, p0, p1, p2), 0.0f);  // 10 cm
+    EXPECT_GT(sphericalSamplingSolidAngle({5, 0, 0.9f}, p0, p1, p2), 0.0f);  // far but grazing
+    EXPECT_EQ(sphericalSamplingSolidAngle({0.05f, 0.05f, 0.5f}, p0, p1, p2), 0.0f);  // 50 cm
+    EXPECT_EQ(sphericalSamplingSolidAngle({3000, 0, 0.9f}, p0, p1, p2), 0.0f);  // < 1e-6 sr
+    EXPECT_EQ(sphericalSamplingSolidAngle({0.5f, 0.5f, 1}, p0, p1, p2), 0.0f);  // in the plane
 }
 
 // The solid angle the sampler uses is the triangle's (double-precision reference), to float

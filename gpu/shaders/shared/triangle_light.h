@@ -40,8 +40,20 @@ PV_INLINE float triangleSolidAngle(vec3 p, vec3 p0, vec3 p1, vec3 p2) {
 }
 
 // The solid angle over which the triangle is sampled uniformly from p, or 0 where it is sampled
-// by area (below the threshold, or not finite).
+// by area. Area sampling is kept where the triangle is small against its distance: where its
+// longest edge is shorter than p's distance to its plane (Cycles' criterion), r² and the
+// emitter's cosine vary little across it, so area sampling's density is already close to
+// uniform in solid angle and the spherical construction (three transcendentals more, here and
+// in the MIS pdf) would cost time for no less noise; it is also kept below the precision
+// threshold, and where the solid angle is not finite.
 PV_INLINE float sphericalSamplingSolidAngle(vec3 p, vec3 p0, vec3 p1, vec3 p2) {
+    vec3 e1 = p1 - p0;
+    vec3 e2 = p2 - p0;
+    vec3 e3 = p2 - p1;
+    vec3 n = cross(e1, e2);
+    float planeDistance = dot(p0 - p, n);  // × |n|
+    float longestEdge2 = max(dot(e1, e1), max(dot(e2, e2), dot(e3, e3)));
+    if (!(longestEdge2 * dot(n, n) > planeDistance * planeDistance)) return 0.0f;
     float omega = triangleSolidAngle(p, p0, p1, p2);
     return omega >= PV_SPHERICAL_MIN_SOLID_ANGLE && omega <= PV_TWO_PI ? omega : 0.0f;
 }
@@ -135,6 +147,17 @@ PV_INLINE float triangleLightDirectionPdf(vec3 p, vec3 p0, vec3 p1, vec3 p2, vec
     return dist2 / (0.5f * twiceArea * cosLight);
 }
 
+// Barycentrics (b1, b2) of a point on triangle (p0, p1, p2) uniform in the solid angle `omega`
+// (triangleSolidAngle) it subtends from p.
+PV_INLINE vec2 sampleSphericalTriangleLight(vec3 p, vec3 p0, vec3 p1, vec3 p2, float omega,
+                                            vec2 u) {
+    vec3 a = normalize(p0 - p);
+    vec3 b = normalize(p1 - p);
+    vec3 c = normalize(p2 - p);
+    vec3 w = sampleSphericalTriangle(a, b, c, p2 - p0, omega, u);
+    return triangleBarycentricsAlong(p, w, p0, p1, p2);
+}
+
 // Barycentrics (b1, b2) of a point on triangle (p0, p1, p2) sampled from p with u, and in `pdf`
 // its solid-angle density given the triangle (as triangleLightDirectionPdf), 0 if none.
 // `spherical` off: area sampling only (the ablation baseline).
@@ -142,12 +165,8 @@ PV_INLINE vec2 sampleTriangleLight(vec3 p, vec3 p0, vec3 p1, vec3 p2, vec2 u, bo
                                    PV_OUT(float) pdf) {
     float omega = spherical ? sphericalSamplingSolidAngle(p, p0, p1, p2) : 0.0f;
     if (omega > 0.0f) {
-        vec3 a = normalize(p0 - p);
-        vec3 b = normalize(p1 - p);
-        vec3 c = normalize(p2 - p);
-        vec3 w = sampleSphericalTriangle(a, b, c, p2 - p0, omega, u);
         pdf = 1.0f / omega;
-        return triangleBarycentricsAlong(p, w, p0, p1, p2);
+        return sampleSphericalTriangleLight(p, p0, p1, p2, omega, u);
     }
     vec2 bary = sampleUniformTriangle(u);
     vec3 q = (1.0f - bary.x - bary.y) * p0 + bary.x * p1 + bary.y * p2;
