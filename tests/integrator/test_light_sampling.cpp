@@ -16,8 +16,8 @@ namespace {
 class LightSamplingTest : public GpuTest {
 protected:
     // Images of `runs` renders of `spp` samples, seeds firstSeed.. (one renderer, re-seeded).
-    std::vector<ImageF> renders(const Scene& s, const RenderSettings& rs, uint32_t spp,
-                                int runs, uint32_t firstSeed) {
+    std::vector<ImageF> renders(const Scene& s, const RenderSettings& rs, uint32_t spp, int runs,
+                                uint32_t firstSeed) {
         std::vector<ImageF> out;
         auto renderer = Renderer::create(ctx(), s, rs);
         EXPECT_TRUE(renderer.ok()) << renderer.message();
@@ -107,8 +107,10 @@ TEST_F(LightSamplingTest, SolidAngleSamplingIsUnbiased) {
     for (size_t i = 0; i < n; ++i) {
         const double d = solid.mean[i] - area.mean[i];
         const double v = solid.varianceOfMean[i] + area.varianceOfMean[i];
-        if (v > 0.0) worstPixel = std::max(worstPixel, std::abs(d) / std::sqrt(v));
-        else EXPECT_NEAR(d, 0.0, 1e-6) << "noise-free value " << i;
+        if (v > 0.0)
+            worstPixel = std::max(worstPixel, std::abs(d) / std::sqrt(v));
+        else
+            EXPECT_NEAR(d, 0.0, 1e-6) << "noise-free value " << i;
         channelDiff[i % 3] += d;
         channelVar[i % 3] += v;
     }
@@ -129,8 +131,7 @@ TEST_F(LightSamplingTest, SolidAngleSamplingIsUnbiased) {
 // amount to both MSEs, so it cannot favour either strategy.
 TEST_F(LightSamplingTest, SolidAngleSamplingHasLowerDirectLightError) {
     const Scene s = smallCloseEmitters();
-    const ImageF reference =
-        renders(s, settingsFor(LightSampling::SolidAngle, 1), 4096, 1, 99)[0];
+    const ImageF reference = renders(s, settingsFor(LightSampling::SolidAngle, 1), 4096, 1, 99)[0];
     const int runs = 16;
     auto mses = [&](LightSampling ls, uint32_t spp, uint32_t firstSeed) {
         std::vector<double> out;

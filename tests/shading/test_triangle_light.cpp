@@ -175,8 +175,8 @@ TEST(TriangleLightTest, ChoosesSphericalSamplingWhereItPays) {
     EXPECT_GT(sphericalSamplingSolidAngle({0.05f, 0.05f, 0.9f}, p0, p1, p2), 0.0f);  // 10 cm
     EXPECT_GT(sphericalSamplingSolidAngle({5, 0, 0.9f}, p0, p1, p2), 0.0f);  // far but grazing
     EXPECT_EQ(sphericalSamplingSolidAngle({0.05f, 0.05f, 0.5f}, p0, p1, p2), 0.0f);  // 50 cm
-    EXPECT_EQ(sphericalSamplingSolidAngle({3000, 0, 0.9f}, p0, p1, p2), 0.0f);  // < 1e-6 sr
-    EXPECT_EQ(sphericalSamplingSolidAngle({0.5f, 0.5f, 1}, p0, p1, p2), 0.0f);  // in the plane
+    EXPECT_EQ(sphericalSamplingSolidAngle({3000, 0, 0.9f}, p0, p1, p2), 0.0f);       // < 1e-6 sr
+    EXPECT_EQ(sphericalSamplingSolidAngle({0.5f, 0.5f, 1}, p0, p1, p2), 0.0f);       // in the plane
 }
 
 // The solid angle the sampler uses is the triangle's (double-precision reference), to float
@@ -214,8 +214,8 @@ TEST(TriangleLightTest, DensityIntegratesToOne) {
                 float t = glm::dot(e2, glm::cross(sv, e1)) / div;
                 double x = 0.0;
                 if (b1 >= 0 && b2 >= 0 && b1 + b2 <= 1 && t > 0)
-                    x = 4.0 * M_PI * triangleLightDirectionPdf(c.p, c.p0, c.p1, c.p2,
-                                                               c.p + t * w, spherical);
+                    x = 4.0 * M_PI *
+                        triangleLightDirectionPdf(c.p, c.p0, c.p1, c.p2, c.p + t * w, spherical);
                 sum += x;
                 sum2 += x * x;
             }
@@ -235,8 +235,8 @@ TEST(TriangleLightTest, SampledDensityIsTheEvaluatedDensity) {
     for (const Case& c : kUniformCases) {
         for (int i = 0; i < 1000; ++i) {
             float pdf = 0.0f;
-            glm::vec2 b = sampleTriangleLight(c.p, c.p0, c.p1, c.p2, {uni(rng), uni(rng)}, true,
-                                              pdf);
+            glm::vec2 b =
+                sampleTriangleLight(c.p, c.p0, c.p1, c.p2, {uni(rng), uni(rng)}, true, pdf);
             EXPECT_EQ(pdf, triangleLightDirectionPdf(c.p, c.p0, c.p1, c.p2, pointAt(c, b), true))
                 << c.name;
         }
@@ -264,8 +264,9 @@ TEST(TriangleLightTest, ExtremeTrianglesGiveFiniteSamples) {
         for (bool spherical : {true, false}) {
             for (int i = 0; i < 20000; ++i) {
                 glm::vec2 u(uni(rng), uni(rng));
-                if (i < 9) u = glm::vec2(std::array{0.0f, 0.5f, one}[i % 3],
-                                         std::array{0.0f, 0.5f, one}[i / 3]);
+                if (i < 9)
+                    u = glm::vec2(std::array{0.0f, 0.5f, one}[i % 3],
+                                  std::array{0.0f, 0.5f, one}[i / 3]);
                 float pdf = -1.0f;
                 glm::vec2 b = sampleTriangleLight(c.p, c.p0, c.p1, c.p2, u, spherical, pdf);
                 ASSERT_TRUE(std::isfinite(b.x) && std::isfinite(b.y)) << c.name;

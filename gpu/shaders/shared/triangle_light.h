@@ -99,8 +99,8 @@ PV_INLINE vec3 sampleSphericalTriangle(vec3 a, vec3 b, vec3 c, vec3 edgeAc, floa
     vec3 ab = a - b;
     float v = 2.0f * sh * (ch * cosAlpha + sh * sinAlpha) - sinAlpha * 0.5f * dot(ab, ab);
     float den = (v * s + uu * t) * sinAlpha;
-    float oneMinusQ = den != 0.0f ? clamp((v * oneMinusCosArea + uu * sinArea) / den, 0.0f, 2.0f)
-                                  : 0.0f;
+    float oneMinusQ =
+        den != 0.0f ? clamp((v * oneMinusCosArea + uu * sinArea) / den, 0.0f, 2.0f) : 0.0f;
     float sinB = sqrt(max(0.0f, oneMinusQ * (2.0f - oneMinusQ)));
     vec3 cHat = (1.0f - oneMinusQ) * a + sinB * orthogonalUnit(edgeAc, a);
     // 1 − cos θ of arc B C' as |C' − b|²/2, exact for unit vectors and free of cancellation.
