@@ -36,6 +36,7 @@ struct RenderOptions {
     std::optional<float> focusDistanceM;
     uint32_t seed = 0;
     std::string sampler = "sobol";
+    std::string lightSampling = "solid-angle";
     std::string out;
     float exposure = 0.0f;
     std::string toneMap = "clamp";
@@ -118,6 +119,8 @@ int run(const RenderOptions& o) {
     settings.maxDepth = o.maxDepth;
     settings.seed = o.seed;
     settings.sampler = o.sampler == "independent" ? Sampler::Independent : Sampler::Sobol;
+    settings.lightSampling =
+        o.lightSampling == "area" ? LightSampling::Area : LightSampling::SolidAngle;
     settings.apertureRadiusM = o.apertureRadiusM;
     settings.focusDistanceM = o.focusDistanceM;
     settings.fireflyClamp = o.fireflyClamp;
@@ -299,6 +302,10 @@ std::function<int()> addRenderCommand(CLI::App& app) {
                     "random numbers: sobol (Owen-scrambled Sobol', stratified; default) or "
                     "independent (PCG, for comparison)")
         ->check(CLI::IsMember({"sobol", "independent"}));
+    cmd->add_option("--light-sampling", o->lightSampling,
+                    "points on emissive triangles: solid-angle (uniform in the solid angle they "
+                    "subtend; default) or area (uniform in area, for comparison)")
+        ->check(CLI::IsMember({"solid-angle", "area"}));
     cmd->add_option("--exposure", o->exposure, "PNG output: exposure in stops");
     cmd->add_option("--tonemap", o->toneMap, "PNG output: clamp, reinhard or reinhard-extended")
         ->check(CLI::IsMember({"clamp", "reinhard", "reinhard-extended"}));

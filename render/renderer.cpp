@@ -144,6 +144,7 @@ Status Renderer::specialisePipeline() {
     constants[PV_SPEC_COUNT_LOOPS] = ctx_->isCpuDevice();
     constants[PV_SPEC_SAMPLER] =
         settings_.sampler == Sampler::Sobol ? PV_SAMPLER_SOBOL : PV_SAMPLER_INDEPENDENT;
+    constants[PV_SPEC_LIGHT_SOLID_ANGLE] = settings_.lightSampling == LightSampling::SolidAngle;
     if (pipeline_ && constants == specConstants_) return bindBuffers();
     // Every read-only array the shader indexes per lane is a texel buffer (see BindingKind);
     // params (uniform reads), the accumulators and the stats stay storage buffers.

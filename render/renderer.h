@@ -29,6 +29,12 @@ enum class Sampler {
     Independent,  // one PCG stream per (pixel, sample, dimension set)
 };
 
+// How a chosen emissive triangle is sampled (gpu/shaders/shared/triangle_light.h).
+enum class LightSampling {
+    SolidAngle,  // uniform in the solid angle it subtends (Arvo 1995), area where it is tiny
+    Area,        // uniform in area: the baseline for ablations
+};
+
 struct RenderSettings {
     uint32_t width = 640;
     uint32_t height = 480;
@@ -36,6 +42,7 @@ struct RenderSettings {
     uint32_t rouletteStartDepth = 3;   // Russian roulette from this many bounces on
     uint32_t seed = 0;
     Sampler sampler = Sampler::Sobol;
+    LightSampling lightSampling = LightSampling::SolidAngle;
     int cameraIndex = 0;               // into Scene::cameras; a default camera if there is none
     std::optional<float> apertureRadiusM;  // override the camera's thin lens
     std::optional<float> focusDistanceM;

@@ -29,6 +29,8 @@ layout(constant_id = PV_SPEC_HAS_CONE_LIGHTS) const bool kHasConeLights = true;
 // The sample generator (PV_SAMPLER_* in shared/sampler.h; the dimension layout is there).
 layout(constant_id = PV_SPEC_SAMPLER) const uint kSampler = 0u;
 layout(constant_id = PV_SPEC_COUNT_LOOPS) const bool kCountLoops = true;
+// Emissive triangles sampled by solid angle (shared/triangle_light.h); off: by area (ablation).
+layout(constant_id = PV_SPEC_LIGHT_SOLID_ANGLE) const bool kLightSolidAngle = true;
 
 layout(binding = PV_BINDING_PARAMS, scalar) readonly buffer ParamsBuffer { FrameParams params; };
 // Every read-only scene array indexed per lane is a texel buffer (BindingKind::TexelBufferUint4):
@@ -146,6 +148,7 @@ layout(binding = PV_BINDING_STATS, scalar) buffer Stats { RenderStats stats; };
 #include "shared/bsdf.h"
 #include "shared/sampling.h"
 #include "shared/sampler.h"
+#include "shared/triangle_light.h"
 
 // Four random numbers of dimension set `set` (shared/sampler.h's table) for sample `key`.
 vec4 draw(SampleKey key, uint set) { return sampleSet(kSampler, key, set); }
@@ -390,16 +393,15 @@ uint pickEmissiveTriangle(float u) {
     return lo;
 }
 
-// Solid-angle pdf with which emissive-triangle sampling picks the point `hit` seen from `from`.
+// Solid-angle pdf with which emissive-triangle sampling picks the point `lightSurface` seen from
+// `from`: the triangle's power share times shared/triangle_light.h's density, the very function
+// the sampler uses, so MIS weighs a BSDF-sampled hit with the light strategy's own density.
 float emissiveLightPdf(uint triangle, vec3 from, Surface lightSurface) {
-    vec3 p0 = PV_TRIANGLE_VERTEX(triangle, 0u);
-    float area = 0.5 * length(cross(PV_TRIANGLE_VERTEX(triangle, 1u) - p0,
-                                    PV_TRIANGLE_VERTEX(triangle, 2u) - p0));
-    vec3 d = lightSurface.position - from;
-    float dist2 = dot(d, d);
-    float cosLight = abs(dot(normalize(d), lightSurface.geometricNormal));
-    if (!(area > 0.0) || !(cosLight > 0.0)) return 0.0;
-    return wordAsFloat(triangleLightPdfWords, triangle) * dist2 / (area * cosLight);
+    return wordAsFloat(triangleLightPdfWords, triangle) *
+           triangleLightDirectionPdf(from, PV_TRIANGLE_VERTEX(triangle, 0u),
+                                     PV_TRIANGLE_VERTEX(triangle, 1u),
+                                     PV_TRIANGLE_VERTEX(triangle, 2u), lightSurface.position,
+                                     kLightSolidAngle);
 }
 
 // Solid-angle pdf with which light sampling picks direction `dir` from cone light `light` (0
@@ -439,10 +441,12 @@ void sampleDirectLight(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint mode
         vec2 uPoint = u.xy;
         EmissiveTriangle et = emissiveTriangleAt(pickEmissiveTriangle(uPick));
         uvec4 tri = triangleAt(et.triangle);
-        vec2 b = sampleUniformTriangle(uPoint);
         vec3 p0 = PV_TRIANGLE_VERTEX(et.triangle, 0u);
         vec3 p1 = PV_TRIANGLE_VERTEX(et.triangle, 1u);
         vec3 p2 = PV_TRIANGLE_VERTEX(et.triangle, 2u);
+        // Density of the point's direction given the triangle (solid angle or area sampling).
+        float pointPdf;
+        vec2 b = sampleTriangleLight(s.position, p0, p1, p2, uPoint, kLightSolidAngle, pointPdf);
         vec3 lightPoint = (1.0 - b.x - b.y) * p0 + b.x * p1 + b.y * p2;
         vec3 ng = normalize(cross(p1 - p0, p2 - p0));
         vec3 d = lightPoint - s.position;
@@ -453,7 +457,7 @@ void sampleDirectLight(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint mode
         bool facing = cosLight > 0.0 || (cosLight < 0.0 && emitsToward(lm, false));
         vec3 wiLocal = toLocal(frame, wi);
         if (facing && dist2 > 0.0 && consistentSide(s, wi, wiLocal)) {
-            float lightPdf = et.pdf * dist2 / (et.area * abs(cosLight));
+            float lightPdf = et.pdf * pointPdf;
             float bsdfPdf;
             vec3 f = evaluateBsdf(bp, wo, wiLocal, bsdfPdf);
             if (maxComponent(f) > 0.0 && lightPdf > 0.0) {

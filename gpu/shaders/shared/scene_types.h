@@ -64,7 +64,10 @@ PV_BEGIN
 // Count loop iterations for the renderer's dispatch sizing (shared/prelude.h): only on a CPU
 // device, the one with llvmpipe's loop budget; a GPU compiles the counter out.
 #define PV_SPEC_COUNT_LOOPS 11
-#define PV_SPEC_COUNT 12
+// Emissive triangles sampled uniformly in the solid angle they subtend (where float precision
+// allows, shared/triangle_light.h); off: uniformly in area, the baseline for ablations.
+#define PV_SPEC_LIGHT_SOLID_ANGLE 12
+#define PV_SPEC_COUNT 13
 #define PV_SAMPLER_SOBOL 0u
 #define PV_SAMPLER_INDEPENDENT 1u
 
