@@ -48,43 +48,59 @@ ImageF GpuTest::render(const Scene& scene, const RenderSettings& settings, uint3
     return std::move(image.value());
 }
 
-GpuTest::Estimate GpuTest::estimate(const Scene& scene, RenderSettings settings, uint32_t spp,
-                                    uint32_t runs) {
-    // One renderer (one pipeline compile), re-seeded for each independent run.
+MeanAndVariance perPixel(const std::vector<ImageF>& images) {
+    MeanAndVariance r;
+    if (images.empty()) return r;
+    const size_t n = images[0].pixels.size();
+    const double runs = double(images.size());
+    r.mean.assign(n, 0.0);
+    r.varianceOfMean.assign(n, 0.0);
+    for (size_t i = 0; i < n; ++i) {
+        double sum = 0.0, sum2 = 0.0;
+        for (const ImageF& img : images) {
+            sum += img.pixels[i];
+            sum2 += double(img.pixels[i]) * img.pixels[i];
+        }
+        r.mean[i] = sum / runs;
+        r.varianceOfMean[i] =
+            std::max(0.0, (sum2 - runs * r.mean[i] * r.mean[i]) / (runs - 1)) / runs;
+    }
+    return r;
+}
+
+std::vector<ImageF> GpuTest::renders(const Scene& scene, const RenderSettings& settings,
+                                     uint32_t spp, uint32_t runs, uint32_t firstSeed) {
     std::vector<ImageF> images;
     auto renderer = Renderer::create(*context_, scene, settings);
     EXPECT_TRUE(renderer.ok()) << renderer.message();
-    if (!renderer) return {};
-    for (uint32_t r = 0; r < runs; ++r) {
-        Renderer& rr = **renderer;
-        EXPECT_TRUE(rr.reset().ok());
-        rr.setSeed(1000 + r);
-        Status s = rr.render(spp);
+    if (!renderer) return images;
+    Renderer& r = **renderer;
+    for (uint32_t run = 0; run < runs; ++run) {
+        EXPECT_TRUE(r.reset().ok());
+        r.setSeed(firstSeed + run);
+        Status s = r.render(spp);
         EXPECT_TRUE(s.ok()) << s.message();
-        auto nonFinite = rr.nonFiniteSamples();
+        auto nonFinite = r.nonFiniteSamples();
         if (nonFinite) {
             EXPECT_EQ(*nonFinite, 0u) << "NaN/Inf samples";
         }
-        auto image = rr.image();
+        auto image = r.image();
         EXPECT_TRUE(image.ok());
         if (!image) return {};
         images.push_back(std::move(image.value()));
     }
+    return images;
+}
+
+GpuTest::Estimate GpuTest::estimate(const Scene& scene, RenderSettings settings, uint32_t spp,
+                                    uint32_t runs) {
+    std::vector<ImageF> images = renders(scene, settings, spp, runs, 1000);
+    if (images.size() != runs) return {};
+    MeanAndVariance mv = perPixel(images);
     Estimate e;
     e.mean = images[0];
-    size_t n = e.mean.pixels.size();
-    e.varianceOfMean.assign(n, 0.0);
-    for (size_t i = 0; i < n; ++i) {
-        double sum = 0.0, sum2 = 0.0;
-        for (const auto& img : images) {
-            sum += img.pixels[i];
-            sum2 += double(img.pixels[i]) * img.pixels[i];
-        }
-        double mean = sum / runs;
-        double var = std::max(0.0, (sum2 - runs * mean * mean) / (runs - 1));
-        e.mean.pixels[i] = float(mean);
-        e.varianceOfMean[i] = var / runs;
-    }
+    for (size_t i = 0; i < mv.mean.size(); ++i) e.mean.pixels[i] = float(mv.mean[i]);
+    e.varianceOfMean = std::move(mv.varianceOfMean);
     return e;
 }
 

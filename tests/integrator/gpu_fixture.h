@@ -13,6 +13,14 @@
 
 namespace previs::testing {
 
+// Per pixel and channel: the mean of `images` and the variance of that mean (unbiased sample
+// variance / count).
+struct MeanAndVariance {
+    std::vector<double> mean;
+    std::vector<double> varianceOfMean;
+};
+MeanAndVariance perPixel(const std::vector<ImageF>& images);
+
 class GpuTest : public ::testing::Test {
 protected:
     static void SetUpTestSuite();
@@ -26,7 +34,12 @@ protected:
     // on a NaN/Inf sample, or a non-finite pixel.
     ImageF render(const Scene& scene, const RenderSettings& settings, uint32_t spp);
 
-    // Per-pixel mean and variance of the mean over `runs` independent renders (seeds 1..runs):
+    // The images of `runs` renders of `spp` samples, seeds firstSeed, firstSeed + 1, ... (one
+    // renderer, one pipeline compile, re-seeded); fails the test on any error or NaN/Inf sample.
+    std::vector<ImageF> renders(const Scene& scene, const RenderSettings& settings, uint32_t spp,
+                                uint32_t runs, uint32_t firstSeed);
+
+    // Per-pixel mean and variance of the mean over `runs` independent renders (seeds 1000..):
     // the noise that tolerances are derived from.
     struct Estimate {
         ImageF mean;

@@ -13,26 +13,7 @@
 namespace previs::testing {
 namespace {
 
-class LightSamplingTest : public GpuTest {
-protected:
-    // Images of `runs` renders of `spp` samples, seeds firstSeed.. (one renderer, re-seeded).
-    std::vector<ImageF> renders(const Scene& s, const RenderSettings& rs, uint32_t spp, int runs,
-                                uint32_t firstSeed) {
-        std::vector<ImageF> out;
-        auto renderer = Renderer::create(ctx(), s, rs);
-        EXPECT_TRUE(renderer.ok()) << renderer.message();
-        if (!renderer) return out;
-        Renderer& r = **renderer;
-        for (int run = 0; run < runs; ++run) {
-            EXPECT_TRUE(r.reset().ok());
-            r.setSeed(firstSeed + uint32_t(run));
-            EXPECT_TRUE(r.render(spp).ok());
-            EXPECT_EQ(r.nonFiniteSamples().value(), 0u);
-            out.push_back(r.image().value());
-        }
-        return out;
-    }
-};
+class LightSamplingTest : public GpuTest {};
 
 // A floor under two 0.2 m emitters 8 and 12 cm above it — one facing down, one tilted toward
 // the floor at 60° — and a diffuse sphere between them, seen from above: the floor around the
@@ -62,29 +43,6 @@ RenderSettings settingsFor(LightSampling lightSampling, uint32_t maxDepth) {
     return rs;
 }
 
-struct MeanAndVariance {
-    std::vector<double> mean;
-    std::vector<double> varianceOfMean;
-};
-
-MeanAndVariance perPixel(const std::vector<ImageF>& images) {
-    MeanAndVariance r;
-    const size_t n = images[0].pixels.size();
-    const double runs = double(images.size());
-    r.mean.assign(n, 0.0);
-    r.varianceOfMean.assign(n, 0.0);
-    for (size_t i = 0; i < n; ++i) {
-        double sum = 0.0, sum2 = 0.0;
-        for (const ImageF& img : images) {
-            sum += img.pixels[i];
-            sum2 += double(img.pixels[i]) * img.pixels[i];
-        }
-        r.mean[i] = sum / runs;
-        r.varianceOfMean[i] =
-            std::max(0.0, (sum2 - runs * r.mean[i] * r.mean[i]) / (runs - 1)) / runs;
-    }
-    return r;
-}
 
 // Unbiased: over 16 seeds each, the solid-angle mean image equals the area-sampling one within
 // the noise, with three bounces (so BSDF-sampled hits of the emitters are weighed by MIS with

@@ -12,26 +12,7 @@
 namespace previs::testing {
 namespace {
 
-class SamplerRenderTest : public GpuTest {
-protected:
-    // Images of `runs` renders of `spp` samples, seeds 2000.. (one renderer, re-seeded).
-    std::vector<ImageF> renders(const Scene& s, const RenderSettings& rs, uint32_t spp,
-                                int runs, uint32_t firstSeed = 2000) {
-        std::vector<ImageF> out;
-        auto renderer = Renderer::create(ctx(), s, rs);
-        EXPECT_TRUE(renderer.ok()) << renderer.message();
-        if (!renderer) return out;
-        Renderer& r = **renderer;
-        for (int run = 0; run < runs; ++run) {
-            EXPECT_TRUE(r.reset().ok());
-            r.setSeed(firstSeed + uint32_t(run));
-            EXPECT_TRUE(r.render(spp).ok());
-            EXPECT_EQ(r.nonFiniteSamples().value(), 0u);
-            out.push_back(r.image().value());
-        }
-        return out;
-    }
-};
+class SamplerRenderTest : public GpuTest {};
 
 // Two small emissive quads over a floor, a diffuse sphere and a dim sky: direct light from small
 // emitters, soft shadows and a few bounces, where stratifying the light samples pays.
@@ -58,28 +39,6 @@ RenderSettings settingsFor(Sampler sampler) {
     return rs;
 }
 
-struct MeanAndVariance {
-    std::vector<double> mean;
-    std::vector<double> varianceOfMean;
-};
-
-MeanAndVariance perPixel(const std::vector<ImageF>& images) {
-    MeanAndVariance r;
-    const size_t n = images[0].pixels.size();
-    const double runs = double(images.size());
-    r.mean.assign(n, 0.0);
-    r.varianceOfMean.assign(n, 0.0);
-    for (size_t i = 0; i < n; ++i) {
-        double sum = 0.0, sum2 = 0.0;
-        for (const ImageF& img : images) {
-            sum += img.pixels[i];
-            sum2 += double(img.pixels[i]) * img.pixels[i];
-        }
-        r.mean[i] = sum / runs;
-        r.varianceOfMean[i] = std::max(0.0, (sum2 - runs * r.mean[i] * r.mean[i]) / (runs - 1)) / runs;
-    }
-    return r;
-}
 
 // Unbiased: over 16 seeds each, the Sobol' mean image equals the independent one within the noise.
 // Per pixel and channel (16×16×3 = 768 tests) |Δ|/σ with σ² the sum of both variances of the
@@ -93,8 +52,8 @@ TEST_F(SamplerRenderTest, SobolIsUnbiased) {
     const Scene s = smallAreaLights();
     const uint32_t spp = 16;
     const int runs = 16;
-    MeanAndVariance sobol = perPixel(renders(s, settingsFor(Sampler::Sobol), spp, runs));
-    MeanAndVariance pcg = perPixel(renders(s, settingsFor(Sampler::Independent), spp, runs));
+    MeanAndVariance sobol = perPixel(renders(s, settingsFor(Sampler::Sobol), spp, runs, 2000));
+    MeanAndVariance pcg = perPixel(renders(s, settingsFor(Sampler::Independent), spp, runs, 2000));
     ASSERT_EQ(sobol.mean.size(), pcg.mean.size());
     double worstPixel = 0.0;
     double channelDiff[3] = {}, channelVar[3] = {};
@@ -129,7 +88,7 @@ TEST_F(SamplerRenderTest, SobolHasLowerErrorPerSampleWithSmallAreaLights) {
     const int runs = 16;
     auto mses = [&](Sampler sampler, uint32_t spp) {
         std::vector<double> out;
-        for (const ImageF& img : renders(s, settingsFor(sampler), spp, runs)) {
+        for (const ImageF& img : renders(s, settingsFor(sampler), spp, runs, 2000)) {
             double mse = 0.0;
             for (size_t i = 0; i < img.pixels.size(); ++i) {
                 const double d = img.pixels[i] - reference.pixels[i];
