@@ -68,6 +68,46 @@ MeanAndVariance perPixel(const std::vector<ImageF>& images) {
     return r;
 }
 
+MeanDifference compareMeans(const MeanAndVariance& a, const MeanAndVariance& b) {
+    MeanDifference r;
+    EXPECT_EQ(a.mean.size(), b.mean.size());
+    double channelDiff[3] = {}, channelVar[3] = {};
+    for (size_t i = 0; i < std::min(a.mean.size(), b.mean.size()); ++i) {
+        const double d = a.mean[i] - b.mean[i];
+        const double v = a.varianceOfMean[i] + b.varianceOfMean[i];
+        if (v > 0.0)
+            r.worstPixelT = std::max(r.worstPixelT, std::abs(d) / std::sqrt(v));
+        else
+            EXPECT_NEAR(d, 0.0, 1e-6) << "noise-free value " << i;
+        channelDiff[i % 3] += d;
+        channelVar[i % 3] += v;
+    }
+    for (int c = 0; c < 3; ++c) r.channelZ[c] = std::abs(channelDiff[c]) / std::sqrt(channelVar[c]);
+    return r;
+}
+
+std::vector<double> meanSquaredErrors(const std::vector<ImageF>& images, const ImageF& reference) {
+    std::vector<double> out;
+    for (const ImageF& img : images) {
+        double mse = 0.0;
+        for (size_t i = 0; i < img.pixels.size(); ++i) {
+            const double d = img.pixels[i] - reference.pixels[i];
+            mse += d * d;
+        }
+        out.push_back(mse / double(img.pixels.size()));
+    }
+    return out;
+}
+
+std::pair<double, double> meanAndVarianceOfMean(const std::vector<double>& values) {
+    const double n = double(values.size());
+    double mean = 0.0;
+    for (double x : values) mean += x / n;
+    double ss = 0.0;
+    for (double x : values) ss += (x - mean) * (x - mean);
+    return {mean, ss / (n - 1.0) / n};
+}
+
 std::vector<ImageF> GpuTest::renders(const Scene& scene, const RenderSettings& settings,
                                      uint32_t spp, uint32_t runs, uint32_t firstSeed) {
     std::vector<ImageF> images;

@@ -21,6 +21,21 @@ struct MeanAndVariance {
 };
 MeanAndVariance perPixel(const std::vector<ImageF>& images);
 
+// How far two estimates' means are apart in units of their noise: the largest |Δ|/σ over pixels
+// and channels (σ² the sum of both variances of the mean), and per RGB channel the image mean's
+// |Δ|/σ. A value with no noise in both must agree to 1e-6 (checked here).
+struct MeanDifference {
+    double worstPixelT = 0.0;
+    double channelZ[3] = {};
+};
+MeanDifference compareMeans(const MeanAndVariance& a, const MeanAndVariance& b);
+
+// The mean squared error of each image against `reference`, over pixels and channels.
+std::vector<double> meanSquaredErrors(const std::vector<ImageF>& images, const ImageF& reference);
+
+// The mean of `values` and the variance of that mean.
+std::pair<double, double> meanAndVarianceOfMean(const std::vector<double>& values);
+
 class GpuTest : public ::testing::Test {
 protected:
     static void SetUpTestSuite();

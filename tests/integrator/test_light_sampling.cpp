@@ -5,7 +5,6 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <numeric>
 
 #include "tests/integrator/gpu_fixture.h"
 #include "tests/support/scene_builders.h"
@@ -58,26 +57,12 @@ TEST_F(LightSamplingTest, SolidAngleSamplingIsUnbiased) {
         perPixel(renders(s, settingsFor(LightSampling::SolidAngle, 3), spp, runs, 3000));
     MeanAndVariance area =
         perPixel(renders(s, settingsFor(LightSampling::Area, 3), spp, runs, 4000));
-    ASSERT_EQ(solid.mean.size(), area.mean.size());
-    double worstPixel = 0.0;
-    double channelDiff[3] = {}, channelVar[3] = {};
-    const size_t n = solid.mean.size();
-    for (size_t i = 0; i < n; ++i) {
-        const double d = solid.mean[i] - area.mean[i];
-        const double v = solid.varianceOfMean[i] + area.varianceOfMean[i];
-        if (v > 0.0)
-            worstPixel = std::max(worstPixel, std::abs(d) / std::sqrt(v));
-        else
-            EXPECT_NEAR(d, 0.0, 1e-6) << "noise-free value " << i;
-        channelDiff[i % 3] += d;
-        channelVar[i % 3] += v;
-    }
-    EXPECT_LT(worstPixel, 6.6);
-    RecordProperty("worstPixelT", std::to_string(worstPixel));
+    const MeanDifference diff = compareMeans(solid, area);
+    EXPECT_LT(diff.worstPixelT, 6.6);
+    RecordProperty("worstPixelT", std::to_string(diff.worstPixelT));
     for (int c = 0; c < 3; ++c) {
-        const double z = std::abs(channelDiff[c]) / std::sqrt(channelVar[c]);
-        EXPECT_LT(z, 2.94) << "channel " << c;
-        RecordProperty("imageMeanZ" + std::to_string(c), std::to_string(z));
+        EXPECT_LT(diff.channelZ[c], 2.94) << "channel " << c;
+        RecordProperty("imageMeanZ" + std::to_string(c), std::to_string(diff.channelZ[c]));
     }
 }
 
@@ -92,26 +77,11 @@ TEST_F(LightSamplingTest, SolidAngleSamplingHasLowerDirectLightError) {
     const ImageF reference = renders(s, settingsFor(LightSampling::SolidAngle, 1), 4096, 1, 99)[0];
     const int runs = 16;
     auto mses = [&](LightSampling ls, uint32_t spp, uint32_t firstSeed) {
-        std::vector<double> out;
-        for (const ImageF& img : renders(s, settingsFor(ls, 1), spp, runs, firstSeed)) {
-            double mse = 0.0;
-            for (size_t i = 0; i < img.pixels.size(); ++i) {
-                const double d = img.pixels[i] - reference.pixels[i];
-                mse += d * d;
-            }
-            out.push_back(mse / double(img.pixels.size()));
-        }
-        return out;
-    };
-    auto meanVar = [](const std::vector<double>& v) {
-        const double m = std::accumulate(v.begin(), v.end(), 0.0) / double(v.size());
-        double ss = 0.0;
-        for (double x : v) ss += (x - m) * (x - m);
-        return std::pair(m, ss / double(v.size() - 1) / double(v.size()));  // mean, var of mean
+        return meanSquaredErrors(renders(s, settingsFor(ls, 1), spp, runs, firstSeed), reference);
     };
     for (uint32_t spp : {16u, 64u}) {
-        auto [solid, solidVar] = meanVar(mses(LightSampling::SolidAngle, spp, 5000));
-        auto [area, areaVar] = meanVar(mses(LightSampling::Area, spp, 6000));
+        auto [solid, solidVar] = meanAndVarianceOfMean(mses(LightSampling::SolidAngle, spp, 5000));
+        auto [area, areaVar] = meanAndVarianceOfMean(mses(LightSampling::Area, spp, 6000));
         const double t = (area - solid) / std::sqrt(solidVar + areaVar);
         EXPECT_GT(t, 2.602) << spp << " spp: MSE solid angle " << solid << ", area " << area;
         RecordProperty("rmseRatio" + std::to_string(spp), std::to_string(std::sqrt(solid / area)));

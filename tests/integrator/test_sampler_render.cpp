@@ -4,7 +4,6 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <numeric>
 
 #include "tests/integrator/gpu_fixture.h"
 #include "tests/support/scene_builders.h"
@@ -54,24 +53,12 @@ TEST_F(SamplerRenderTest, SobolIsUnbiased) {
     const int runs = 16;
     MeanAndVariance sobol = perPixel(renders(s, settingsFor(Sampler::Sobol), spp, runs, 2000));
     MeanAndVariance pcg = perPixel(renders(s, settingsFor(Sampler::Independent), spp, runs, 2000));
-    ASSERT_EQ(sobol.mean.size(), pcg.mean.size());
-    double worstPixel = 0.0;
-    double channelDiff[3] = {}, channelVar[3] = {};
-    const size_t n = sobol.mean.size();
-    for (size_t i = 0; i < n; ++i) {
-        const double d = sobol.mean[i] - pcg.mean[i];
-        const double v = sobol.varianceOfMean[i] + pcg.varianceOfMean[i];
-        if (v > 0.0) worstPixel = std::max(worstPixel, std::abs(d) / std::sqrt(v));
-        else EXPECT_NEAR(d, 0.0, 1e-6) << "noise-free value " << i;
-        channelDiff[i % 3] += d;
-        channelVar[i % 3] += v;
-    }
-    EXPECT_LT(worstPixel, 6.6);
-    RecordProperty("worstPixelT", std::to_string(worstPixel));
+    const MeanDifference diff = compareMeans(sobol, pcg);
+    EXPECT_LT(diff.worstPixelT, 6.6);
+    RecordProperty("worstPixelT", std::to_string(diff.worstPixelT));
     for (int c = 0; c < 3; ++c) {
-        const double z = std::abs(channelDiff[c]) / std::sqrt(channelVar[c]);
-        EXPECT_LT(z, 2.94) << "channel " << c;
-        RecordProperty("imageMeanZ" + std::to_string(c), std::to_string(z));
+        EXPECT_LT(diff.channelZ[c], 2.94) << "channel " << c;
+        RecordProperty("imageMeanZ" + std::to_string(c), std::to_string(diff.channelZ[c]));
     }
 }
 
@@ -87,26 +74,11 @@ TEST_F(SamplerRenderTest, SobolHasLowerErrorPerSampleWithSmallAreaLights) {
     const ImageF reference = renders(s, settingsFor(Sampler::Sobol), 4096, 1, 99)[0];
     const int runs = 16;
     auto mses = [&](Sampler sampler, uint32_t spp) {
-        std::vector<double> out;
-        for (const ImageF& img : renders(s, settingsFor(sampler), spp, runs, 2000)) {
-            double mse = 0.0;
-            for (size_t i = 0; i < img.pixels.size(); ++i) {
-                const double d = img.pixels[i] - reference.pixels[i];
-                mse += d * d;
-            }
-            out.push_back(mse / double(img.pixels.size()));
-        }
-        return out;
-    };
-    auto meanVar = [](const std::vector<double>& v) {
-        const double m = std::accumulate(v.begin(), v.end(), 0.0) / double(v.size());
-        double ss = 0.0;
-        for (double x : v) ss += (x - m) * (x - m);
-        return std::pair(m, ss / double(v.size() - 1) / double(v.size()));  // mean, var of mean
+        return meanSquaredErrors(renders(s, settingsFor(sampler), spp, runs, 2000), reference);
     };
     for (uint32_t spp : {16u, 64u}) {
-        auto [sobol, sobolVar] = meanVar(mses(Sampler::Sobol, spp));
-        auto [pcg, pcgVar] = meanVar(mses(Sampler::Independent, spp));
+        auto [sobol, sobolVar] = meanAndVarianceOfMean(mses(Sampler::Sobol, spp));
+        auto [pcg, pcgVar] = meanAndVarianceOfMean(mses(Sampler::Independent, spp));
         const double t = (pcg - sobol) / std::sqrt(sobolVar + pcgVar);
         EXPECT_GT(t, 2.602) << spp << " spp: MSE Sobol' " << sobol << ", PCG " << pcg;
         RecordProperty("rmseRatio" + std::to_string(spp), std::to_string(std::sqrt(sobol / pcg)));
