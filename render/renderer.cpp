@@ -56,7 +56,9 @@ void setEnvironmentParams(shader::FrameParams& p, const EnvironmentMap* map,
     p.envWidth = map ? map->width : 0;
     p.envHeight = map ? map->height : 0;
     p.envScale = map ? map->scale : 0.0f;
-    p.envRotationRad = map ? map->rotationRad : 0.0f;
+    // As shader::envRotationCosSin (env_sampling.h), which the CPU sampler uses.
+    p.envRotationCos = map ? std::cos(map->rotationRad) : 0.0f;
+    p.envRotationSin = map ? std::sin(map->rotationRad) : 0.0f;
     p.envIntegral = map ? dist.integral : 0.0f;
 }
 

@@ -420,7 +420,7 @@ void sampleDirectLight(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint mode
         uint texel;
         vec2 u = draw(key, vertexSet(depth, PV_SET_VERTEX_ENV)).xy;
         vec3 wi = envSampleTexel(u, params.envWidth, params.envHeight,
-                                 params.envRotationRad, envPdfValue, texel);
+                                 vec2(params.envRotationCos, params.envRotationSin), envPdfValue, texel);
         vec3 wiLocal = toLocal(frame, wi);
         if (envPdfValue > 0.0 && consistentSide(s, wi, wiLocal)) {
             float bsdfPdf;
@@ -617,12 +617,12 @@ void tracePath(uvec2 pixel, SampleKey key, out vec3 lm, out vec3 lr, out bool fi
             if (!found) {
                 if (kHasEnv && params.envWidth > 0u) {
                     vec3 le = params.envScale * envRadiance(st.ray.direction, params.envWidth,
-                                                            params.envHeight, params.envRotationRad);
+                                                            params.envHeight, vec2(params.envRotationCos, params.envRotationSin));
                     float w = st.prevDelta
                                   ? 1.0
                                   : powerHeuristic(st.prevPdf,
                                                    envPdf(st.ray.direction, params.envWidth,
-                                                          params.envHeight, params.envRotationRad));
+                                                          params.envHeight, vec2(params.envRotationCos, params.envRotationSin)));
                     addRadiance(mode, st.throughput * le * w, lm, lr);
                 }
                 if (kHasConeLights) {

@@ -23,12 +23,17 @@
 
 PV_BEGIN
 
-// Rotation about +Y by `angleRad`, counter-clockwise seen from above (right-handed about +Y).
-PV_INLINE vec3 envRotateY(vec3 d, float angleRad) {
-    float c = cos(angleRad);
-    float s = sin(angleRad);
-    return vec3(c * d.x + s * d.z, d.y, -s * d.x + c * d.z);
+// The map's rotation about +Y as (cos, sin) of its angle, counter-clockwise seen from above:
+// computed once per map (FrameParams::envRotationCos/Sin), not per lookup.
+PV_INLINE vec2 envRotationCosSin(float angleRad) { return vec2(cos(angleRad), sin(angleRad)); }
+
+// Rotation about +Y by the angle whose (cos, sin) is cs (right-handed about +Y).
+PV_INLINE vec3 envRotateY(vec3 d, vec2 cs) {
+    return vec3(cs.x * d.x + cs.y * d.z, d.y, -cs.y * d.x + cs.x * d.z);
 }
+
+// The inverse rotation: world to map.
+PV_INLINE vec3 envUnrotateY(vec3 d, vec2 cs) { return envRotateY(d, vec2(cs.x, -cs.y)); }
 
 PV_INLINE vec2 envDirectionToUv(vec3 d) {
     float u = 0.5f + atan(d.z, d.x) * PV_INV_TWO_PI;
@@ -53,8 +58,8 @@ PV_INLINE uint envTexelIndex(vec2 uv, uint width, uint height) {
 }
 
 // Radiance arriving from world direction dirWorld (unscaled), nearest texel.
-PV_INLINE vec3 envRadiance(vec3 dirWorld, uint width, uint height, float rotationRad) {
-    vec3 dMap = envRotateY(dirWorld, -rotationRad);
+PV_INLINE vec3 envRadiance(vec3 dirWorld, uint width, uint height, vec2 rotationCosSin) {
+    vec3 dMap = envUnrotateY(dirWorld, rotationCosSin);
     return PV_ENV_RADIANCE(envTexelIndex(envDirectionToUv(dMap), width, height));
 }
 
@@ -106,7 +111,7 @@ PV_INLINE float envPdfFromUv(float pdfUv, float sinTheta) {
 // weight the sample by the map's radiance should read that texel rather than look the direction
 // up again: the float uv → direction → uv round trip moves samples near a texel edge (by up to
 // ~1e-3 texel) into the neighbour, which next to a bright sun loses ~0.2% of its energy.
-PV_INLINE vec3 envSampleTexel(vec2 u, uint width, uint height, float rotationRad,
+PV_INLINE vec3 envSampleTexel(vec2 u, uint width, uint height, vec2 rotationCosSin,
                               PV_OUT(float) pdfSolidAngle, PV_OUT(uint) texel) {
     vec2 w = clamp(u, vec2(0.0f), vec2(PV_ONE_MINUS_EPSILON));
     uint y = envSearchMarginal(w.y, height);
@@ -125,18 +130,18 @@ PV_INLINE vec3 envSampleTexel(vec2 u, uint width, uint height, float rotationRad
     vec3 dMap = envUvToDirection(uv);
     pdfSolidAngle = envPdfFromUv(envPdfUv(x, y, width, height), sin(uv.y * PV_PI));
     texel = y * width + x;
-    return envRotateY(dMap, rotationRad);
+    return envRotateY(dMap, rotationCosSin);
 }
 
-PV_INLINE vec3 envSample(vec2 u, uint width, uint height, float rotationRad,
+PV_INLINE vec3 envSample(vec2 u, uint width, uint height, vec2 rotationCosSin,
                          PV_OUT(float) pdfSolidAngle) {
     uint texel;
-    return envSampleTexel(u, width, height, rotationRad, pdfSolidAngle, texel);
+    return envSampleTexel(u, width, height, rotationCosSin, pdfSolidAngle, texel);
 }
 
 // Solid-angle density of envSample producing dirWorld.
-PV_INLINE float envPdf(vec3 dirWorld, uint width, uint height, float rotationRad) {
-    vec3 dMap = envRotateY(dirWorld, -rotationRad);
+PV_INLINE float envPdf(vec3 dirWorld, uint width, uint height, vec2 rotationCosSin) {
+    vec3 dMap = envUnrotateY(dirWorld, rotationCosSin);
     vec2 uv = envDirectionToUv(dMap);
     uint texel = envTexelIndex(uv, width, height);
     uint y = texel / width;

@@ -195,7 +195,8 @@ struct FrameParams {
     uint envWidth;
     uint envHeight;
     float envScale;          // multiplies the map's radiance
-    float envRotationRad;    // about +Y, counter-clockwise seen from above
+    float envRotationCos;    // the map's rotation about +Y (counter-clockwise seen from
+    float envRotationSin;    // above) as cos and sin, computed once (envRotationCosSin)
     float envIntegral;       // mean luminance·sinθ weight of the map (EnvironmentDistribution)
     float fireflyClamp;      // 0 = off (default); else the largest sample luminance kept
     uint rouletteStartDepth; // Russian roulette from this depth on
