@@ -29,6 +29,7 @@ data=${PREVIS_SHARED_DATA:-$root/../shared/data}
 env_map="$data/envmaps/polyhaven_1k_hdr/rooitou_park_1k.hdr"
 cache="$root/build/compare_blender"
 mkdir -p "$cache"
+source "$root/bench/scenes/bench_scene.sh"
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 
@@ -46,17 +47,9 @@ seconds_of() {  # binary scene env spp seed out -> wall seconds of the whole pro
 echo "| scene | build | time / sample (s) | RMSE·√spp | time ratio | error ratio | time to equal error |"
 echo "|---|---|---|---|---|---|---|"
 for name in bunny area-lights; do
-    case "$name" in
-        bunny)
-            scene="$cache/bunny.gltf"
-            [[ -f "$scene" ]] || python3 "$root/bench/scenes/make_scenes.py" bunny "$data" "$scene"
-            env=$env_map ;;
-        area-lights)
-            scene="$root/bench/scenes/area_lights_mirror.gltf"
-            env=none ;;
-    esac
+    bench_scene "$name"
     # The reference compare_blender.sh caches (same key), else rendered here by the last build.
-    key=$( { cat "$scene"; echo "$env 640 480 8 512"; } | sha256sum | cut -c1-16)
+    key=$(bench_reference_key "$scene" "$env" 640 480 8 512)
     ref="$cache/$name-$key-previs-ref.exr"
     [[ -f "$ref" ]] || seconds_of "${binaries[-1]}" "$scene" "$env" 512 1000 "$ref" >/dev/null
     declare -A times=() errors=()

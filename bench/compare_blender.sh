@@ -70,6 +70,7 @@ cmake --build "$build" --target previs -j"$(nproc)" >&2
 previs="$build/cli/previs"
 cache="$build/compare_blender"
 mkdir -p "$cache"
+source "$root/bench/scenes/bench_scene.sh"
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 
@@ -105,17 +106,8 @@ echo "device: $(vulkaninfo --summary 2>/dev/null | sed -n 's/.*deviceName *= *//
     "counts ${counts[*]}" >&2
 
 for name in ${scenes//,/ }; do
-    case "$name" in
-        bunny)
-            scene="$cache/bunny.gltf"
-            [[ -f "$scene" ]] || python3 "$root/bench/scenes/make_scenes.py" bunny "$data" "$scene"
-            env=$env_map ;;
-        area-lights)
-            scene="$root/bench/scenes/area_lights_mirror.gltf"
-            env=none ;;
-        *) echo "unknown scene $name (bunny, area-lights)" >&2; exit 2 ;;
-    esac
-    key=$( { cat "$scene"; echo "$env $width $height $depth $ref_spp"; } | sha256sum | cut -c1-16)
+    bench_scene "$name" || exit 2
+    key=$(bench_reference_key "$scene" "$env" $width $height $depth "$ref_spp")
     ref_previs="$cache/$name-$key-previs-ref.exr"
     ref_cycles="$cache/$name-$key-cycles-filter-glossy-$filter_glossy-ref.exr"
     if [[ ! -f "$ref_previs" ]]; then

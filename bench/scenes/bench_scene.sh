@@ -1,0 +1,22 @@
+# Sourced by bench/compare_blender.sh and bench/ablation.sh: the benchmark scenes by name, and the
+# cache key of a reference rendered of one. Needs $root, $data, $cache and $env_map set.
+
+# Sets $scene (a glTF) and $env (an HDR map, or "none") for scene $1: bunny or area-lights.
+bench_scene() {
+    case "$1" in
+        bunny)
+            scene="$cache/bunny.gltf"
+            [[ -f "$scene" ]] || python3 "$root/bench/scenes/make_scenes.py" bunny "$data" "$scene"
+            env=$env_map ;;
+        area-lights)
+            scene="$root/bench/scenes/area_lights_mirror.gltf"
+            env=none ;;
+        *) echo "unknown scene $1 (bunny, area-lights)" >&2; return 2 ;;
+    esac
+}
+
+# The key under which a reference of scene file $1 with map $2 at $3×$4, depth $5, $6 spp is
+# cached: the scene's bytes and the settings.
+bench_reference_key() {
+    { cat "$1"; echo "$2 $3 $4 $5 $6"; } | sha256sum | cut -c1-16
+}
