@@ -324,7 +324,9 @@ PV_INLINE bool traceClosest(uint root, Ray ray, PV_INOUT(Hit) hit) {
     return found;
 }
 
-// Any hit with t in (ray.tMin, ray.tMax) in the BVH at `root` (shadow rays).
+// Any hit with t in (ray.tMin, ray.tMax) in the BVH at `root` (shadow rays). Its descent repeats
+// traceClosest's on purpose: GLSL passes arrays by value, so a helper taking the stack would copy
+// all PV_BVH_STACK_SIZE entries in and out at every node.
 PV_INLINE bool traceAny(uint root, Ray ray) {
     if (root == PV_BVH_NO_ROOT) return false;
     vec3 invDir = 1.0f / ray.direction;
