@@ -39,10 +39,13 @@ install)
     [ "$(cat "$tmp/etc/previs/previsd.toml")" = "# edited" ] || fail "reinstall overwrote the config"
     # The box's layout: --prefix /usr reads its config from /etc (under DESTDIR here).
     DESTDIR=$tmp/root cmake --install "$build" --component previs-systemd --prefix /usr >/dev/null
-    u=$tmp/root/usr/lib/systemd/system/previsd.service
-    [ "$(sed -n 's/^ExecStart=//p' "$u")" = "/usr/bin/previsd --config /etc/previs/previsd.toml" ] ||
+    # Installed paths relative to the DESTDIR root.
+    unit_rel=usr/lib/systemd/system/previsd.service
+    config_rel=etc/previs/previsd.toml
+    u=$tmp/root/$unit_rel
+    [ "$(sed -n 's/^ExecStart=//p' "$u")" = "/usr/bin/previsd --config /$config_rel" ] ||
         fail "with --prefix /usr, ExecStart is '$(sed -n 's/^ExecStart=//p' "$u")'"
-    [ -f "$tmp/root/etc/previs/previsd.toml" ] || fail "with --prefix /usr, no /etc/previs/previsd.toml"
+    [ -f "$tmp/root/$config_rel" ] || fail "with --prefix /usr, no $config_rel under the install root"
     echo "install layout OK"
     ;;
 verify)
