@@ -37,6 +37,9 @@ struct RenderOptions {
     uint32_t seed = 0;
     std::string sampler = "sobol";
     std::string lightSampling = "solid-angle";
+    std::string photons = "auto";
+    float photonRadius = 0.0f;
+    float photonAlpha = 2.0f / 3.0f;
     std::string out;
     float exposure = 0.0f;
     std::string toneMap = "clamp";
@@ -124,6 +127,12 @@ int run(const RenderOptions& o) {
     settings.apertureRadiusM = o.apertureRadiusM;
     settings.focusDistanceM = o.focusDistanceM;
     settings.fireflyClamp = o.fireflyClamp;
+    if (Status s = applyPhotonSpec(o.photons, settings.photons); !s) {
+        logError("--photons: {}", s.message());
+        return 2;
+    }
+    settings.photons.initialRadius = o.photonRadius;
+    settings.photons.alpha = o.photonAlpha;
     settings.samplesPerDispatch = 1;
 
     // The plate: linear radiance at the render's resolution (its own resolution by default).
@@ -213,9 +222,16 @@ int run(const RenderOptions& o) {
             return 1;
         }
         if (!o.quiet) {
-            std::fprintf(stderr, "\rrender: %llu%s spp, %.1f s", 
-                         (unsigned long long)(*renderer)->samplesPerPixel(),
-                         o.spp ? fmt::format("/{}", o.spp).c_str() : "", elapsed());
+            const Renderer& r = **renderer;
+            // Photons: per iteration, and the radius the next iteration gathers with.
+            std::string photons = r.photonsActive()
+                                      ? fmt::format(", {} photons/iteration, radius {:.3g} m",
+                                                    r.photonsPerIteration(), r.nextPhotonRadius())
+                                      : "";
+            std::fprintf(stderr, "\rrender: %llu%s spp, %.1f s%s   ",
+                         (unsigned long long)r.samplesPerPixel(),
+                         o.spp ? fmt::format("/{}", o.spp).c_str() : "", elapsed(),
+                         photons.c_str());
         }
         if (o.seconds > 0.0 && elapsed() >= o.seconds) break;
     }
@@ -306,6 +322,17 @@ std::function<int()> addRenderCommand(CLI::App& app) {
                     "points on emissive triangles: solid-angle (uniform in the solid angle they "
                     "subtend; default) or area (uniform in area, for comparison)")
         ->check(CLI::IsMember({"solid-angle", "area"}));
+    cmd->add_option("--photons", o->photons,
+                    "caustics by photon mapping: auto (default: when the scene has a smooth mirror "
+                    "or glass and a light), on, off, or N photons per iteration (implies on)");
+    cmd->add_option("--photon-radius", o->photonRadius,
+                    "first gather radius, metres (default: 5% of the sphere around the specular "
+                    "objects)")
+        ->check(CLI::NonNegativeNumber);
+    cmd->add_option("--photon-alpha", o->photonAlpha,
+                    "progressive photon mapping's alpha in (0, 1]: radius ~ iteration^((alpha-1)/2); "
+                    "1 keeps it fixed (default 2/3)")
+        ->check(CLI::Range(1e-3f, 1.0f));
     cmd->add_option("--exposure", o->exposure, "PNG output: exposure in stops");
     cmd->add_option("--tonemap", o->toneMap, "PNG output: clamp, reinhard or reinhard-extended")
         ->check(CLI::IsMember({"clamp", "reinhard", "reinhard-extended"}));

@@ -2,6 +2,7 @@
 // (STYLE.md: every shared struct has static_assert(sizeof/offsetof) checks).
 #include <cstddef>
 
+#include "shared/photon_map.h"
 #include "shared/scene_types.h"
 
 namespace previs::shader {
@@ -29,5 +30,8 @@ static_assert(offsetof(GpuMaterial, metallic) == 28 && offsetof(GpuMaterial, rou
 static_assert(offsetof(GpuMaterial, transmission) == 48 && offsetof(GpuMaterial, flags) == 76);
 static_assert(offsetof(GpuLight, type) == 12 && offsetof(GpuLight, cosOuterCone) == 28);
 static_assert(offsetof(GpuLight, cosInnerCone) == 44 && offsetof(EmissiveTriangle, pdf) == 12);
+// Two texels (trace_paths.comp's gather reads position + flags, then power + direction).
+static_assert(sizeof(PhotonRecord) == 32 && offsetof(PhotonRecord, flags) == 12);
+static_assert(offsetof(PhotonRecord, power) == 16 && offsetof(PhotonRecord, direction) == 28);
 
 }  // namespace previs::shader

@@ -9,6 +9,7 @@
 
 #include "base/log.h"
 #include "scene/environment_map.h"
+#include "shared/photon_map.h"
 #include "shared/scene_types.h"
 #include "trace_paths.spv.h"
 
@@ -29,6 +30,9 @@ constexpr uint32_t kMaxSamplesPerDispatch = 1024;
 // (PV_COUNT_LOOP_ITERATION); dispatches are sized to keep the batch bound under half the limit.
 constexpr double kCpuLoopLimit = 65535.0;
 constexpr double kCpuLoopSafety = 0.5;
+
+// Specular bounces a photon follows at most (also bounded by the path depth).
+constexpr uint32_t kMaxPhotonBounces = 32;
 
 // A camera that frames the whole scene from +Z when the file has none.
 Camera defaultCamera(const Geometry& geometry) {
@@ -115,6 +119,14 @@ Result<std::unique_ptr<Renderer>> Renderer::create(GpuContext& ctx, const Scene&
         return makeError("lens grid has {} entries; a {}x{} render needs {}",
                          settings.lensGrid.size(), settings.width, settings.height,
                          size_t(settings.width + 1) * (settings.height + 1));
+    const PhotonSettings& ph = settings.photons;
+    if (ph.perIteration == 0 || ph.perIteration > kMaxPhotonsPerIteration || !(ph.alpha > 0.0f) ||
+        !(ph.alpha <= 1.0f) || !(ph.initialRadius >= 0.0f) || !std::isfinite(ph.initialRadius) ||
+        ph.gatherCap == 0)
+        return makeError("photon settings out of range ({} photons per iteration, radius {} m, "
+                         "alpha {}, gather cap {}): photons 1..{}, radius >= 0 (0 = from the "
+                         "scene), alpha in (0, 1], cap >= 1", ph.perIteration, ph.initialRadius,
+                         ph.alpha, ph.gatherCap, kMaxPhotonsPerIteration);
     if (!(r->camera_.apertureRadiusM >= 0.0f) || !(r->camera_.focusDistanceM > 0.0f))
         return makeError("thin lens needs aperture radius >= 0 and focus distance > 0 (got {} m, "
                          "{} m)", r->camera_.apertureRadiusM, r->camera_.focusDistanceM);
@@ -147,6 +159,7 @@ Status Renderer::specialisePipeline() {
     constants[PV_SPEC_SAMPLER] =
         settings_.sampler == Sampler::Sobol ? PV_SAMPLER_SOBOL : PV_SAMPLER_INDEPENDENT;
     constants[PV_SPEC_LIGHT_SOLID_ANGLE] = settings_.lightSampling == LightSampling::SolidAngle;
+    constants[PV_SPEC_PHOTONS] = photonsActive_;
     if (pipeline_ && constants == specConstants_) return bindBuffers();
     // Every read-only array the shader indexes per lane is a texel buffer (see BindingKind);
     // params (uniform reads), the accumulators and the stats stay storage buffers.
@@ -155,11 +168,11 @@ Status Renderer::specialisePipeline() {
     bindings[PV_BINDING_BVH_NODES] = BindingKind::TexelBufferUint4;
     for (int b : {PV_BINDING_TEXTURES, PV_BINDING_TRIANGLE_VERTICES, PV_BINDING_TRIANGLES,
                   PV_BINDING_NORMALS, PV_BINDING_UVS, PV_BINDING_MATERIALS, PV_BINDING_LIGHTS,
-                  PV_BINDING_EMISSIVE_TRIANGLES})
+                  PV_BINDING_EMISSIVE_TRIANGLES, PV_BINDING_PHOTON_LIGHTS, PV_BINDING_PHOTON_SORTED})
         bindings[b] = BindingKind::TexelBufferUint4;
     for (int b : {PV_BINDING_TEXELS, PV_BINDING_ENV_RADIANCE, PV_BINDING_ENV_MARGINAL_CDF,
                   PV_BINDING_ENV_CONDITIONAL_CDF, PV_BINDING_TRIANGLE_LIGHT_PDF,
-                  PV_BINDING_LENS_GRID})
+                  PV_BINDING_LENS_GRID, PV_BINDING_PHOTON_CELLS})
         bindings[b] = BindingKind::TexelBufferUint;
     auto pipeline = ComputePipeline::create(
         *ctx_, std::span<const uint32_t>(trace_paths_spv, sizeof(trace_paths_spv) / 4),
@@ -169,12 +182,21 @@ Status Renderer::specialisePipeline() {
     // use the pipeline this replaces.
     pipeline_.emplace(std::move(pipeline.value()));
     specConstants_ = constants;
+    photonPasses_.reset();
+    if (photonsActive_) {
+        // trace_photons shares trace_paths' scene bindings and feature constants.
+        auto passes = PhotonPasses::create(*ctx_, bindings, constants);
+        if (!passes) return passes.error();
+        photonPasses_.emplace(std::move(passes.value()));
+    }
     return bindBuffers();
 }
 
 Status Renderer::bindBuffers() {
     std::vector<const GpuBuffer*> bound;
     for (const auto& b : buffers_) bound.push_back(&b);
+    if (photonPasses_)
+        if (Status s = photonPasses_->bind(bound); !s) return s;
     return pipeline_->bind(bound);
 }
 
@@ -254,6 +276,10 @@ Status Renderer::setEstimatedLights(std::span<const EstimatedLightSource> estima
     Status s = replaceBufferContents(PV_BINDING_LIGHTS, lights.data(),
                                      lights.size() * sizeof(shader::GpuLight), "lights");
     const bool ok = s.ok();
+    if (Status p = updatePhotonLights(ok ? std::span<const shader::GpuLight>(lights)
+                                         : std::span<const shader::GpuLight>(sceneLights_));
+        !p)
+        return p;
     params_.lightCount = uint32_t(ok ? lights.size() : sceneLights_.size());
     features_.coneLights = ok && !estimated.empty();
     if (!ok) {
@@ -355,6 +381,9 @@ Status Renderer::buildScene(const Scene& scene) {
                                                        g.positions[triangles[i].z] - p0));
             if (!(area > 0.0f)) continue;
             emissive.push_back({i, area, 0.0f, 0.0f});
+            glm::vec3 centroid = (p0 + g.positions[triangles[i].y] + g.positions[triangles[i].z]) / 3.0f;
+            emissivePhotonSources_.push_back(
+                {i, lum, area, centroid, g.triangleIsReal[bvh_.triangleOrder[i]] != 0});
             power.push_back(double(area) * lum);
             total += power.back();
         }
@@ -398,6 +427,21 @@ Status Renderer::buildScene(const Scene& scene) {
     // The BVH puts real triangles first.
     p.realTriangleCount = uint32_t(
         std::count(g.triangleIsReal.begin(), g.triangleIsReal.end(), uint8_t(1)));
+    // Photon buffers exist only where photons may run: Auto needs a specular object (lights
+    // may still come from the captured environment).
+    photonAim_ = photonAimFor(g, scene.materials);
+    const PhotonSettings& ph = settings_.photons;
+    const bool photonsPossible =
+        ph.mode == PhotonMode::On || (ph.mode == PhotonMode::Auto && photonAim_.any);
+    // A multiple of 128: two records each fill whole 256-record sort blocks.
+    p.photonCount = photonsPossible ? (ph.perIteration + 127u) / 128u * 128u : 0u;
+    p.photonAimCenter = photonAim_.center;
+    p.photonAimRadius = photonAim_.radius;
+    p.photonSceneRadius = photonAim_.sceneRadius;
+    p.photonMaxBounces = std::min(settings_.maxDepth, kMaxPhotonBounces + 1u) - 1u;
+    p.photonGatherCap = ph.gatherCap;
+    photonInitialRadius_ =
+        ph.initialRadius > 0.0f ? ph.initialRadius : kDefaultRadiusFraction * photonAim_.radius;
 
     size_t pixels = size_t(settings_.width) * settings_.height;
     buffers_.clear();
@@ -433,13 +477,32 @@ Status Renderer::buildScene(const Scene& scene) {
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(triangleLightPdf), "triangleLightPdf"))))
         return s;
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(settings_.lensGrid), "lensGrid")))) return s;
+    if (!(s = add(GpuBuffer::create(*ctx_, 0, "photonLights")))) return s;
+    for (int b = PV_BINDING_PHOTON_RECORDS; b <= PV_BINDING_PHOTON_CELLS; ++b)
+        if (!(s = add(GpuBuffer::create(*ctx_, photonBufferBytes(b, p.photonCount), "photons"))))
+            return s;
     PV_ASSERT(buffers_.size() == PV_BINDING_COUNT);
-    return {};
+    return updatePhotonLights(lights);
+}
+
+Status Renderer::updatePhotonLights(std::span<const shader::GpuLight> lights) {
+    std::vector<glm::uvec4> table;
+    if (params_.photonCount > 0) table = buildPhotonLights(photonAim_, emissivePhotonSources_, lights);
+    Status s = replaceBufferContents(PV_BINDING_PHOTON_LIGHTS, table.data(),
+                                     table.size() * sizeof(glm::uvec4), "photonLights");
+    params_.photonLightCount = s ? uint32_t(table.size()) : 0u;
+    photonsActive_ = params_.photonLightCount > 0;
+    return s;
+}
+
+float Renderer::nextPhotonRadius() const {
+    return shader::photonRadius(photonInitialRadius_, settings_.photons.alpha, uint32_t(samples_));
 }
 
 Status Renderer::reset() {
     samples_ = 0;
     gpuMs_ = 0.0;
+    photonMs_ = 0.0;
     for (int b : {PV_BINDING_ACCUM_SUM, PV_BINDING_ACCUM_COMPENSATION, PV_BINDING_STATS}) {
         if (Status s = buffers_[b].fill(0); !s) return s;
     }
@@ -453,6 +516,8 @@ Status Renderer::renderPreviewFrame(uint32_t spp) {
 }
 
 uint32_t Renderer::samplesForNextDispatch(uint32_t remaining) const {
+    // Each sample is a photon iteration of its own (its own photon map and radius).
+    if (photonsActive_) return 1;
     uint32_t n = std::min({remaining, std::max(1u, settings_.samplesPerDispatch),
                            kMaxSamplesPerDispatch});
     if (!ctx_->isCpuDevice() || !settings_.respectCpuLoopLimit) return n;
@@ -473,6 +538,14 @@ Status Renderer::render(uint32_t samples,
         // The sample index selects the random sequence; it wraps after 2^32 samples.
         params_.sampleBase = uint32_t(samples_);
         params_.samplesPerDispatch = n;
+        if (photonsActive_) {
+            params_.photonIteration = uint32_t(samples_);
+            params_.photonRadius = nextPhotonRadius();
+            auto photonMs = photonPasses_->run(params_, buffers_);
+            if (!photonMs) return photonMs.error();
+            photonMs_ += photonMs.value();
+            gpuMs_ += photonMs.value();
+        }
         if (Status s = buffers_[PV_BINDING_PARAMS].upload(&params_, sizeof(params_)); !s) return s;
         // Only a CPU device has the loop limit: elsewhere the per-dispatch readback (a staging
         // copy on a discrete GPU) is skipped.

@@ -17,6 +17,7 @@
 #include "gpu/context.h"
 #include "image/image.h"
 #include "render/bvh.h"
+#include "render/photon_map.h"
 #include "scene/scene.h"
 
 namespace previs {
@@ -59,6 +60,8 @@ struct RenderSettings {
     // A calibrated lens (vision/lens_grid.h): (width+1)×(height+1) normalised OpenCV camera
     // coordinates of the pixel corners. Empty: a pinhole with the camera's field of view.
     std::vector<glm::vec2> lensGrid;
+    // Caustics from a photon map (render/photon_map.h); Auto runs it only where the scene needs it.
+    PhotonSettings photons;
 };
 
 // The buffers a render produces (DESIGN.md §3 --aov).
@@ -135,6 +138,16 @@ public:
     // How often this renderer built its BVH and geometry buffers (1: only in create()).
     uint64_t sceneBuildCount() const { return sceneBuilds_; }
 
+    // Whether renders run the photon pass (the settings' mode and the scene decide; estimated
+    // lights can switch an Auto renderer on), its photons per iteration and the gather radius
+    // the next sample will use (metres).
+    bool photonsActive() const { return photonsActive_; }
+    uint32_t photonsPerIteration() const { return params_.photonCount; }
+    float nextPhotonRadius() const;
+    const PhotonAim& photonAim() const { return photonAim_; }
+    // GPU time of the photon passes so far (ms; part of gpuMilliseconds()).
+    double photonMilliseconds() const { return photonMs_; }
+
     // Selects another random sequence (takes effect with the next render; call reset() first
     // unless the new samples are meant to join the old ones).
     void setSeed(uint32_t seed) { params_.seed = seed; }
@@ -179,6 +192,8 @@ private:
     Status replaceBufferContents(int binding, const void* data, size_t bytes, const char* label);
     Status bindBuffers();
     uint32_t samplesForNextDispatch(uint32_t remaining) const;
+    // Rebuilds the photon light table from `lights` and decides whether photons run.
+    Status updatePhotonLights(std::span<const shader::GpuLight> lights);
 
     GpuContext* ctx_ = nullptr;
     RenderSettings settings_;
@@ -196,6 +211,12 @@ private:
     double gpuMs_ = 0.0;
     double loopIterationsPerSample_ = 0.0;  // the most one lane ran per sample, measured
     uint64_t loopLimitRisks_ = 0;
+    PhotonAim photonAim_;
+    std::vector<EmissivePhotonSource> emissivePhotonSources_;
+    bool photonsActive_ = false;
+    float photonInitialRadius_ = 0.0f;
+    std::optional<PhotonPasses> photonPasses_;
+    double photonMs_ = 0.0;
 };
 
 }  // namespace previs

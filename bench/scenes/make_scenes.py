@@ -2,6 +2,7 @@
 """Writes the glTF scenes that bench/compare_blender.sh renders with previs and with Blender Cycles.
 
   make_scenes.py area-lights OUT.gltf        the committed bench/scenes/area_lights_mirror.gltf
+  make_scenes.py caustics OUT.gltf           the committed bench/scenes/caustics_glass.gltf
   make_scenes.py bunny DATA_DIR OUT.gltf     bench_scenes.cpp's bunnyScene() as glTF (generated
                                              into build/: the 69K-triangle mesh is not committed)
 
@@ -125,6 +126,39 @@ def area_lights_scene(out):
     g.write(out)
 
 
+def caustics_scene(out):
+    """The photon-mapping benchmark (issue 9): a virtual glass ball (IOR 1.5, smooth) and a virtual
+    Lambertian cube on a real table top with a real back wall, lit by one small real emitter
+    (4 cm × 4 cm) above and behind the ball: the ball throws a focused caustic on the table that a
+    path tracer reaches only by hitting the small emitter through the glass."""
+    g = new_builder()
+    g.gltf["extensionsUsed"] += ["KHR_materials_transmission", "KHR_materials_ior"]
+    grey = add_material(g, "table lambert", (0.6, 0.6, 0.6))
+    wall = add_material(g, "wall lambert", (0.5, 0.5, 0.5))
+    red = add_material(g, "red lambert", (0.7, 0.25, 0.2))
+    g.gltf["materials"].append({
+        "name": "glass", "pbrMetallicRoughness": {
+            "baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.0},
+        "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1.0},
+                       "KHR_materials_ior": {"ior": 1.5}}})
+    glass = len(g.gltf["materials"]) - 1
+    # Radiance 2000 over 0.0016 m²: about 1 m away it gives the table a radiance near 0.6.
+    lamp = add_material(g, "lamp", (0, 0, 0), emission=((1.0, 0.95, 0.9), 2000.0))
+    g.node("Table", real=True, mesh=g.mesh("table", *quad_xz(1.0, 0.8), grey))
+    half = math.sqrt(0.5)
+    g.node("BackWall", real=True, mesh=g.mesh("back wall", *quad_xz(1.0, 0.6), wall),
+           translation=[0.0, 0.6, -0.8], rotation=[half, 0.0, 0.0, half])
+    g.node("GlassBall", mesh=g.mesh("glass ball", *sphere(0.12, 64, 128), glass),
+           translation=[0.05, 0.12, 0.0])
+    yaw = math.radians(25.0)
+    g.node("Cube", mesh=g.mesh("cube", *box(0.08, 0.08, 0.08), red),
+           translation=[-0.35, 0.08, -0.2], rotation=[0, math.sin(yaw / 2), 0, math.cos(yaw / 2)])
+    g.node("Lamp", real=True, mesh=g.mesh("lamp", *quad_xz(0.02, 0.02), lamp),
+           translation=[-0.25, 0.9, -0.35], rotation=[1.0, 0.0, 0.0, 0.0])
+    add_camera(g, (0.0, 0.55, 1.3), (0.0, 0.1, 0.0))
+    g.write(out)
+
+
 def read_ply(path):
     """Binary little-endian PLY: float x, y, z vertices and uchar-count int/uint faces."""
     data = Path(path).read_bytes()
@@ -198,6 +232,8 @@ def bunny_scene(data_dir, out):
 if __name__ == "__main__":
     if sys.argv[1:2] == ["area-lights"] and len(sys.argv) == 3:
         area_lights_scene(sys.argv[2])
+    elif sys.argv[1:2] == ["caustics"] and len(sys.argv) == 3:
+        caustics_scene(sys.argv[2])
     elif sys.argv[1:2] == ["bunny"] and len(sys.argv) == 4:
         bunny_scene(sys.argv[2], sys.argv[3])
     else:

@@ -6,182 +6,24 @@
 #extension GL_EXT_scalar_block_layout : require
 #extension GL_GOOGLE_include_directive : require
 
-// Loop iterations this invocation ran, all loops together (shared/prelude.h says why); counted
-// only where kCountLoops (a CPU device).
-uint gLoopIterations = 0u;
-#define PV_COUNT_LOOP_ITERATION() (kCountLoops ? ++gLoopIterations : 0u)
-
-#include "shared/scene_types.h"
+#include "scene_access.glsl"
 
 layout(local_size_x = PV_WORKGROUP_SIZE_X, local_size_y = PV_WORKGROUP_SIZE_Y) in;
 
-// Scene features: a variant compiled with a feature off runs none of its code.
-layout(constant_id = PV_SPEC_HAS_ENV) const bool kHasEnv = true;
-layout(constant_id = PV_SPEC_HAS_EMISSIVE) const bool kHasEmissive = true;
-layout(constant_id = PV_SPEC_HAS_PUNCTUAL) const bool kHasPunctual = true;
-layout(constant_id = PV_SPEC_HAS_SPECULAR) const bool kHasSpecular = true;
-layout(constant_id = PV_SPEC_HAS_TRANSMISSION) const bool kHasTransmission = true;
-layout(constant_id = PV_SPEC_HAS_THIN_LENS) const bool kHasThinLens = true;
-layout(constant_id = PV_SPEC_HAS_TEXTURES) const bool kHasTextures = true;
-layout(constant_id = PV_SPEC_DIFFERENTIAL) const bool kDifferential = true;
-layout(constant_id = PV_SPEC_HAS_LENS_GRID) const bool kHasLensGrid = true;
-layout(constant_id = PV_SPEC_HAS_CONE_LIGHTS) const bool kHasConeLights = true;
-// The sample generator (PV_SAMPLER_* in shared/sampler.h; the dimension layout is there).
-layout(constant_id = PV_SPEC_SAMPLER) const uint kSampler = 0u;
-layout(constant_id = PV_SPEC_COUNT_LOOPS) const bool kCountLoops = true;
-// Emissive triangles sampled by solid angle (shared/triangle_light.h); off: by area (ablation).
-layout(constant_id = PV_SPEC_LIGHT_SOLID_ANGLE) const bool kLightSolidAngle = true;
-
-layout(binding = PV_BINDING_PARAMS, scalar) readonly buffer ParamsBuffer { FrameParams params; };
-// Every read-only scene array indexed per lane is a texel buffer (BindingKind::TexelBufferUint4):
-// on llvmpipe a texel fetch is a gather, while a storage-buffer load whose address differs per
-// lane is a loop over the lanes with a bounds check each. A BVH node is seven texels
-// (WideBvhNode's layout), a triangle's vertices three (xyz, w unused); shared structs are read texel by texel
-// in their C++ layout (gpu/gpu_layout.cpp checks that they are whole texels).
-layout(binding = PV_BINDING_BVH_NODES) uniform usamplerBuffer bvhNodeTexels;
-layout(binding = PV_BINDING_TRIANGLE_VERTICES) uniform usamplerBuffer triangleVertexTexels;
-layout(binding = PV_BINDING_TRIANGLES) uniform usamplerBuffer triangleTexels;
-layout(binding = PV_BINDING_NORMALS) uniform usamplerBuffer normalTexels;
-layout(binding = PV_BINDING_UVS) uniform usamplerBuffer uvTexels;
-layout(binding = PV_BINDING_MATERIALS) uniform usamplerBuffer materialTexels;
-layout(binding = PV_BINDING_LIGHTS) uniform usamplerBuffer lightTexels;
-layout(binding = PV_BINDING_EMISSIVE_TRIANGLES) uniform usamplerBuffer emissiveTriangleTexels;
-
-// Vertex indices (xyz) and material (w) of triangle i in BVH order.
-uvec4 triangleAt(uint i) { return texelFetch(triangleTexels, int(i)); }
-vec3 normalAt(uint vertex) { return uintBitsToFloat(texelFetch(normalTexels, int(vertex)).xyz); }
-vec2 uvAt(uint vertex) { return uintBitsToFloat(texelFetch(uvTexels, int(vertex)).xy); }
-
-GpuMaterial materialAt(uint i) {
-    uvec4 t0 = texelFetch(materialTexels, int(5u * i));
-    uvec4 t1 = texelFetch(materialTexels, int(5u * i + 1u));
-    uvec4 t2 = texelFetch(materialTexels, int(5u * i + 2u));
-    uvec4 t3 = texelFetch(materialTexels, int(5u * i + 3u));
-    uvec4 t4 = texelFetch(materialTexels, int(5u * i + 4u));
-    GpuMaterial m;
-    m.baseColor = uintBitsToFloat(t0);
-    m.emission = uintBitsToFloat(t1.xyz);
-    m.metallic = uintBitsToFloat(t1.w);
-    m.specularColor = uintBitsToFloat(t2.xyz);
-    m.roughness = uintBitsToFloat(t2.w);
-    m.transmission = uintBitsToFloat(t3.x);
-    m.ior = uintBitsToFloat(t3.y);
-    m.specular = uintBitsToFloat(t3.z);
-    m.baseColorTexture = t3.w;
-    m.metallicRoughnessTexture = t4.x;
-    m.normalTexture = t4.y;
-    m.emissiveTexture = t4.z;
-    m.flags = t4.w;
-    return m;
-}
-
-GpuLight lightAt(uint i) {
-    uvec4 t0 = texelFetch(lightTexels, int(3u * i));
-    uvec4 t1 = texelFetch(lightTexels, int(3u * i + 1u));
-    uvec4 t2 = texelFetch(lightTexels, int(3u * i + 2u));
-    GpuLight l;
-    l.position = uintBitsToFloat(t0.xyz);
-    l.type = t0.w;
-    l.direction = uintBitsToFloat(t1.xyz);
-    l.cosOuterCone = uintBitsToFloat(t1.w);
-    l.intensity = uintBitsToFloat(t2.xyz);
-    l.cosInnerCone = uintBitsToFloat(t2.w);
-    return l;
-}
-
-EmissiveTriangle emissiveTriangleAt(uint i) {
-    uvec4 t = texelFetch(emissiveTriangleTexels, int(i));
-    EmissiveTriangle e;
-    e.triangle = t.x;
-    e.area = uintBitsToFloat(t.y);
-    e.cdf = uintBitsToFloat(t.z);
-    e.pdf = uintBitsToFloat(t.w);
-    return e;
-}
-WideBvhNode loadBvhNode(uint i) {
-    WideBvhNode n;
-    n.loX = uintBitsToFloat(texelFetch(bvhNodeTexels, int(7u * i)));
-    n.loY = uintBitsToFloat(texelFetch(bvhNodeTexels, int(7u * i + 1u)));
-    n.loZ = uintBitsToFloat(texelFetch(bvhNodeTexels, int(7u * i + 2u)));
-    n.hiX = uintBitsToFloat(texelFetch(bvhNodeTexels, int(7u * i + 3u)));
-    n.hiY = uintBitsToFloat(texelFetch(bvhNodeTexels, int(7u * i + 4u)));
-    n.hiZ = uintBitsToFloat(texelFetch(bvhNodeTexels, int(7u * i + 5u)));
-    n.child = texelFetch(bvhNodeTexels, int(7u * i + 6u));
-    return n;
-}
-// Arrays of 4-byte words read one word per fetch (BindingKind::TexelBufferUint).
-layout(binding = PV_BINDING_TEXTURES) uniform usamplerBuffer textureInfoTexels;  // uint4
-layout(binding = PV_BINDING_TEXELS) uniform usamplerBuffer textureTexels;        // RGBA8 words
-layout(binding = PV_BINDING_ENV_RADIANCE) uniform usamplerBuffer envRadianceWords;  // 3 per texel
-layout(binding = PV_BINDING_ENV_MARGINAL_CDF) uniform usamplerBuffer envMarginalWords;
-layout(binding = PV_BINDING_ENV_CONDITIONAL_CDF) uniform usamplerBuffer envConditionalWords;
-layout(binding = PV_BINDING_TRIANGLE_LIGHT_PDF) uniform usamplerBuffer triangleLightPdfWords;
-layout(binding = PV_BINDING_LENS_GRID) uniform usamplerBuffer lensGridWords;  // 2 per corner
-
-float wordAsFloat(usamplerBuffer words, uint i) {
-    return uintBitsToFloat(texelFetch(words, int(i)).x);
-}
-vec3 envRadianceAt(uint texel) {
-    return vec3(wordAsFloat(envRadianceWords, 3u * texel),
-                wordAsFloat(envRadianceWords, 3u * texel + 1u),
-                wordAsFloat(envRadianceWords, 3u * texel + 2u));
-}
-vec2 lensGridAt(uint corner) {
-    return vec2(wordAsFloat(lensGridWords, 2u * corner), wordAsFloat(lensGridWords, 2u * corner + 1u));
-}
 layout(binding = PV_BINDING_ACCUM_SUM, scalar) buffer AccumSum { vec4 accumSum[]; };
 layout(binding = PV_BINDING_ACCUM_COMPENSATION, scalar) buffer AccumCompensation {
     vec4 accumCompensation[];
 };
 layout(binding = PV_BINDING_STATS, scalar) buffer Stats { RenderStats stats; };
+// This iteration's photon map (photon_grid.comp): records sorted by bucket, two texels each, and
+// each bucket's [begin, end) as two words.
+layout(binding = PV_BINDING_PHOTON_SORTED) uniform usamplerBuffer photonTexels;
+layout(binding = PV_BINDING_PHOTON_CELLS) uniform usamplerBuffer photonCellWords;
 
-#define PV_BVH_NODE(i) loadBvhNode(i)
-#define PV_TRIANGLE_VERTEX(i, k) \
-    uintBitsToFloat(texelFetch(triangleVertexTexels, int(3u * (i) + (k))).xyz)
-#include "shared/ray_tracing.h"
-
-#define PV_ENV_RADIANCE(i) envRadianceAt(i)
-#define PV_ENV_MARGINAL_CDF(i) wordAsFloat(envMarginalWords, i)
-#define PV_ENV_CONDITIONAL_CDF(i) wordAsFloat(envConditionalWords, i)
-#include "shared/env_sampling.h"
-
-#include "shared/bsdf.h"
-#include "shared/sampling.h"
-#include "shared/sampler.h"
-#include "shared/triangle_light.h"
+#include "shared/photon_map.h"
 
 // Four random numbers of dimension set `set` (shared/sampler.h's table) for sample `key`.
 vec4 draw(SampleKey key, uint set) { return sampleSet(kSampler, key, set); }
-
-#define NO_HIT 0xffffffffu
-
-// Rays this invocation traced, added to stats.raysTraced once at the end (one atomic per pixel).
-uint gRaysTraced = 0u;
-
-// The paper's ray types. A path starts SHARED (a mixed radiance ray carrying both solutions)
-// while it only meets real surfaces; where it first meets a virtual object it splits: the mixed
-// solution goes on from the virtual surface (MIXED), and the real solution continues the same
-// ray to the real surface behind it (REAL, a real radiance ray), traced after the mixed part.
-#define MODE_SHARED 0u
-#define MODE_MIXED 1u
-#define MODE_REAL 2u
-
-// Closest hit: real rays see the phantoms only, mixed and shared rays both BVHs.
-bool intersectScene(Ray ray, uint mode, out Hit hit) {
-    ++gRaysTraced;
-    hit.t = ray.tMax;
-    hit.triangle = NO_HIT;
-    hit.b1 = 0.0;
-    hit.b2 = 0.0;
-    bool found = traceClosest(params.realRoot, ray, hit);
-    if (mode != MODE_REAL) found = traceClosest(params.virtualRoot, ray, hit) || found;
-    return found;
-}
-
-bool occludedBy(uint root, Ray ray) {
-    ++gRaysTraced;
-    return traceAny(root, ray);
-}
 
 // Adds a light sample's contribution `c` along shadow ray `ray` to the solutions that see it:
 // the real shadow ray first (real geometry), and only if that is clear the mixed shadow ray
@@ -195,202 +37,6 @@ void addLightSample(vec3 c, bool lightIsReal, Ray ray, uint mode, inout vec3 toM
     if (occludedBy(params.realRoot, ray)) return;
     if (mode == MODE_SHARED && lightIsReal) toReal += c;
     if (!occludedBy(params.virtualRoot, ray)) toMixed += c;
-}
-
-// Shadow ray between two surface points, each offset off its surface toward the other.
-Ray segmentRay(vec3 from, vec3 fromNormal, vec3 to, vec3 toNormal) {
-    vec3 d = to - from;
-    vec3 origin = offsetRayOrigin(from, dot(d, fromNormal) >= 0.0 ? fromNormal : -fromNormal);
-    vec3 target = offsetRayOrigin(to, dot(d, toNormal) <= 0.0 ? toNormal : -toNormal);
-    vec3 dir = target - origin;
-    float len = length(dir);
-    Ray ray;
-    ray.origin = origin;
-    ray.direction = len > 0.0 ? dir / len : vec3(0.0, 1.0, 0.0);
-    ray.tMin = 0.0;
-    ray.tMax = len > 0.0 ? len : 0.0;
-    return ray;
-}
-
-Ray directionRay(vec3 from, vec3 fromNormal, vec3 dir, float tMax) {
-    Ray ray;
-    ray.origin = offsetRayOrigin(from, dot(dir, fromNormal) >= 0.0 ? fromNormal : -fromNormal);
-    ray.direction = dir;
-    ray.tMin = 0.0;
-    ray.tMax = tMax;
-    return ray;
-}
-
-vec4 unpackTexel(uint texel, bool srgb) {
-    vec4 c = vec4(texel & 0xffu, (texel >> 8) & 0xffu, (texel >> 16) & 0xffu, texel >> 24) / 255.0;
-    if (srgb) {
-        bvec3 low = lessThanEqual(c.rgb, vec3(0.04045));
-        c.rgb = mix(pow((c.rgb + 0.055) / 1.055, vec3(2.4)), c.rgb / 12.92, low);
-    }
-    return c;
-}
-
-// Bilinear, repeat wrap (glTF's default sampler); sRGB decoded before filtering.
-vec4 sampleTexture(uint index, vec2 uv) {
-    uvec4 word = texelFetch(textureInfoTexels, int(index));
-    TextureInfo info;
-    info.offset = word.x;
-    info.width = word.y;
-    info.height = word.z;
-    info.srgb = word.w;
-    vec2 p = uv * vec2(info.width, info.height) - 0.5;
-    vec2 f = fract(p);
-    ivec2 size = ivec2(info.width, info.height);
-    ivec2 i0 = ivec2(floor(p));
-    vec4 c = vec4(0.0);
-    for (int dy = 0; dy < 2; ++dy) {
-        PV_COUNT_LOOP_ITERATION();
-        for (int dx = 0; dx < 2; ++dx) {
-            PV_COUNT_LOOP_ITERATION();
-            ivec2 q = (i0 + ivec2(dx, dy)) % size;
-            q += size * ivec2(lessThan(q, ivec2(0)));
-            float w = (dx == 1 ? f.x : 1.0 - f.x) * (dy == 1 ? f.y : 1.0 - f.y);
-            c += w * unpackTexel(texelFetch(textureTexels, int(info.offset + uint(q.y * size.x + q.x))).x,
-                                 info.srgb != 0u);
-        }
-    }
-    return c;
-}
-
-struct Surface {
-    vec3 position;
-    vec3 geometricNormal;  // faces the side the ray came from
-    vec3 shadingNormal;    // same side as geometricNormal
-    vec2 uv;
-    bool frontFace;        // the ray hit the side the triangle's winding faces
-    uint material;
-};
-
-Surface surfaceAt(Ray ray, Hit hit) {
-    Surface s;
-    uvec4 tri = triangleAt(hit.triangle);
-    vec3 p0 = PV_TRIANGLE_VERTEX(hit.triangle, 0u);
-    vec3 p1 = PV_TRIANGLE_VERTEX(hit.triangle, 1u);
-    vec3 p2 = PV_TRIANGLE_VERTEX(hit.triangle, 2u);
-    float b0 = 1.0 - hit.b1 - hit.b2;
-    s.position = b0 * p0 + hit.b1 * p1 + hit.b2 * p2;
-    vec3 ng = cross(p1 - p0, p2 - p0);
-    float len = length(ng);
-    ng = len > 0.0 ? ng / len : -ray.direction;
-    vec3 ns = b0 * normalAt(tri.x) + hit.b1 * normalAt(tri.y) + hit.b2 * normalAt(tri.z);
-    float nsLen = length(ns);
-    ns = (nsLen > 0.0 && !isnan(nsLen) && !isinf(nsLen)) ? ns / nsLen : ng;
-    s.uv = b0 * uvAt(tri.x) + hit.b1 * uvAt(tri.y) + hit.b2 * uvAt(tri.z);
-    s.material = tri.w;
-    if (kHasTextures && materialAt(s.material).normalTexture != PV_NO_TEXTURE) {
-        // Tangent frame from the triangle's uv parametrisation.
-        vec2 duv1 = uvAt(tri.y) - uvAt(tri.x);
-        vec2 duv2 = uvAt(tri.z) - uvAt(tri.x);
-        float det = duv1.x * duv2.y - duv1.y * duv2.x;
-        if (abs(det) > 0.0) {
-            vec3 t = ((p1 - p0) * duv2.y - (p2 - p0) * duv1.y) / det;
-            vec3 b = ((p2 - p0) * duv1.x - (p1 - p0) * duv2.x) / det;
-            t = t - ns * dot(ns, t);
-            float tLen = length(t);
-            if (tLen > 0.0) {
-                t /= tLen;
-                vec3 bt = cross(ns, t) * (dot(cross(ns, t), b) < 0.0 ? -1.0 : 1.0);
-                vec3 m = sampleTexture(materialAt(s.material).normalTexture, s.uv).xyz * 2.0 - 1.0;
-                vec3 mapped = normalize(m.x * t + m.y * bt + m.z * ns);
-                if (!any(isnan(mapped))) ns = mapped;
-            }
-        }
-    }
-    s.frontFace = dot(ray.direction, ng) < 0.0;
-    s.geometricNormal = s.frontFace ? ng : -ng;
-    s.shadingNormal = dot(ns, s.geometricNormal) < 0.0 ? -ns : ns;
-    return s;
-}
-
-vec3 emittedRadiance(GpuMaterial m, vec2 uv) {
-    vec3 e = m.emission;
-    if (kHasTextures && m.emissiveTexture != PV_NO_TEXTURE) e *= sampleTexture(m.emissiveTexture, uv).rgb;
-    return e;
-}
-
-bool emitsToward(GpuMaterial m, bool frontFace) {
-    return frontFace || (m.flags & PV_MATERIAL_DOUBLE_SIDED) != 0u;
-}
-
-BsdfParams bsdfParamsAt(GpuMaterial m, Surface s) {
-    BsdfParams p;
-    p.baseColor = m.baseColor.rgb;
-    p.metallic = m.metallic;
-    float roughness = m.roughness;
-    if (kHasTextures) {
-        if (m.baseColorTexture != PV_NO_TEXTURE)
-            p.baseColor *= sampleTexture(m.baseColorTexture, s.uv).rgb;
-        if (m.metallicRoughnessTexture != PV_NO_TEXTURE) {
-            vec4 mr = sampleTexture(m.metallicRoughnessTexture, s.uv);
-            roughness *= mr.g;  // glTF: roughness in G, metalness in B
-            p.metallic *= mr.b;
-        }
-    }
-    p.alpha = roughness * roughness;
-    p.transmission = kHasTransmission ? m.transmission : 0.0;
-    p.specular = kHasSpecular ? m.specular : 0.0;
-    p.specularColor = m.specularColor;
-    if (!kHasSpecular) p.metallic = 0.0;
-    // A transmissive surface hit from inside sees the inverse relative IOR; opaque surfaces are
-    // shaded the same from both sides.
-    p.etaRel = (s.frontFace || p.transmission == 0.0) ? m.ior : 1.0 / m.ior;
-    return p;
-}
-
-// f(wo, wi) and its sampling pdf. A scene of Lambertian materials only runs the first branch.
-vec3 evaluateBsdf(BsdfParams p, vec3 wo, vec3 wi, out float pdf) {
-    if (!kHasSpecular && !kHasTransmission) {
-        pdf = wi.z > 0.0 ? wi.z * PV_INV_PI : 0.0;
-        return wi.z > 0.0 ? p.baseColor * PV_INV_PI : vec3(0.0);
-    }
-    return bsdfEvaluate(p, wo, wi, pdf);
-}
-
-// `uSet` is the vertex's PV_SET_VERTEX_BSDF set: .xy the direction, .z the lobe.
-bool sampleBsdf(BsdfParams p, vec3 wo, vec4 uSet, out BsdfSample s) {
-    float uLobe = uSet.z;
-    vec2 u = uSet.xy;
-    if (!kHasSpecular && !kHasTransmission) {
-        s.wi = sampleCosineHemisphere(u);
-        s.pdf = s.wi.z * PV_INV_PI;
-        s.weight = p.baseColor;
-        s.lobe = PV_LOBE_DIFFUSE;
-        s.isDelta = false;
-        return s.pdf > 0.0 && maxComponent(p.baseColor) > 0.0;
-    }
-    return bsdfSample(p, wo, uLobe, u, s);
-}
-
-struct Frame {
-    vec3 t;
-    vec3 b;
-    vec3 n;
-};
-
-vec3 toLocal(Frame f, vec3 v) { return vec3(dot(v, f.t), dot(v, f.b), dot(v, f.n)); }
-vec3 toWorld(Frame f, vec3 v) { return v.x * f.t + v.y * f.b + v.z * f.n; }
-
-// A direction is usable only on the geometric side its local z promises; shading normals would
-// otherwise let light leak through surfaces.
-bool consistentSide(Surface s, vec3 wiWorld, vec3 wiLocal) {
-    float g = dot(wiWorld, s.geometricNormal);
-    return wiLocal.z > 0.0 ? g > 0.0 : g < 0.0;
-}
-
-uint pickEmissiveTriangle(float u) {
-    uint lo = 0u;
-    uint hi = params.emissiveTriangleCount - 1u;
-    while (lo < hi) {
-        PV_COUNT_LOOP_ITERATION();
-        uint mid = (lo + hi) / 2u;
-        if (u < emissiveTriangleAt(mid).cdf) hi = mid; else lo = mid + 1u;
-    }
-    return lo;
 }
 
 // Solid-angle pdf with which emissive-triangle sampling picks the point `lightSurface` seen from
@@ -557,6 +203,81 @@ Ray cameraRay(uvec2 pixel, SampleKey key) {
     return ray;
 }
 
+// Sums in 32.32 fixed point per channel: integer additions give the same total in any order, so
+// a density estimate does not depend on the order of a bucket's records, and two solutions that
+// gathered the same photons get the same bits. Values are clamped to [0, 2^31).
+struct FixedRgb {
+    uvec3 whole;
+    uvec3 fraction;
+};
+
+void fixedAdd(inout FixedRgb sum, vec3 v) {
+    v = clamp(v, vec3(0.0), vec3(2147483520.0));
+    vec3 w = floor(v);
+    uvec3 carry;
+    sum.fraction = uaddCarry(sum.fraction, uvec3((v - w) * 4294967296.0), carry);
+    sum.whole += uvec3(w) + carry;
+}
+
+vec3 fixedValue(FixedRgb sum) { return vec3(sum.whole) + vec3(sum.fraction) * 2.3283064365386963e-10; }
+
+// The photon map's estimate of the caustic radiance leaving gather vertex `s` toward wo, for the
+// mixed and the real solution: Σ f(wo, wi_p)·Φ_p / (π r²) over the photons within r whose
+// specular chain fits in the depth left (depth: scatterings before this vertex). A bucket holding
+// more than photonGatherCap records is subsampled — a window of that many at a random start,
+// weighted by the ratio — which keeps the estimate unbiased and a lane's loop count bounded
+// (llvmpipe's loop budget, shared/prelude.h).
+void gatherPhotons(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint depth, float uWindow,
+                   out vec3 toMixed, out vec3 toReal) {
+    float r = params.photonRadius;
+    float r2 = r * r;
+    float norm = 1.0 / (PV_PI * r2);
+    uint maxBounces = params.maxDepth - depth - 1u;
+    // The 2×2×2 cells (edge 2r) that the sphere of radius r around the point overlaps.
+    ivec3 first = photonCell(s.position - vec3(r), 2.0 * r);
+    FixedRgb sumMixed = FixedRgb(uvec3(0u), uvec3(0u));
+    FixedRgb sumReal = FixedRgb(uvec3(0u), uvec3(0u));
+    uint buckets[8];
+    for (uint c = 0u; c < 8u; ++c) {
+        PV_COUNT_LOOP_ITERATION();
+        uint bucket = photonBucket(first + ivec3(c & 1u, (c >> 1u) & 1u, c >> 2u));
+        buckets[c] = bucket;
+        // Two cells hashed to one bucket: its records are summed once.
+        bool seen = false;
+        for (uint k = 0u; k < c; ++k) seen = seen || buckets[k] == bucket;
+        if (seen) continue;
+        uint begin = texelFetch(photonCellWords, int(2u * bucket)).x;
+        uint n = texelFetch(photonCellWords, int(2u * bucket + 1u)).x - begin;
+        if (n == 0u) continue;
+        uint examined = min(n, params.photonGatherCap);
+        uint start = examined < n ? min(uint(uWindow * float(n)), n - 1u) : 0u;
+        float weight = norm * float(n) / float(examined);
+        for (uint k = 0u; k < examined; ++k) {
+            PV_COUNT_LOOP_ITERATION();
+            uint at = begin + (start + k) % n;
+            uvec4 t0 = texelFetch(photonTexels, int(2u * at));
+            vec3 d = uintBitsToFloat(t0.xyz) - s.position;
+            if (dot(d, d) >= r2 || (t0.w >> PV_PHOTON_BOUNCES_SHIFT) > maxBounces) continue;
+            uvec4 t1 = texelFetch(photonTexels, int(2u * at + 1u));
+            vec3 wi = octahedralDecode(unpackSnorm2x16(t1.w));
+            vec3 wiLocal = toLocal(frame, wi);
+            if (!consistentSide(s, wi, wiLocal)) continue;
+            float pdf;
+            vec3 c = evaluateBsdf(bp, wo, wiLocal, pdf) * uintBitsToFloat(t1.xyz) * weight;
+            if ((t0.w & PV_PHOTON_IN_MIXED) != 0u) fixedAdd(sumMixed, c);
+            if ((t0.w & PV_PHOTON_IN_REAL) != 0u) fixedAdd(sumReal, c);
+        }
+    }
+    toMixed = fixedValue(sumMixed);
+    toReal = fixedValue(sumReal);
+}
+
+// Where a path stands with respect to the photon map's paths (shared/photon_map.h's rule).
+#define CAUSTIC_BEFORE_GATHER 0u   // no vertex that is not purely specular yet
+#define CAUSTIC_LEFT_GATHER 1u     // the gather vertex scattered through a non-delta lobe
+#define CAUSTIC_SPECULAR_CHAIN 2u  // ... then only purely specular vertices (causticBounces)
+#define CAUSTIC_NONE 3u            // anything else: the path tracer's own
+
 // Adds radiance to the solutions the path carries in `mode`, in the same order for both, so that
 // where the two solutions followed the same path L_om − L_or is exactly zero.
 void addRadiance(uint mode, vec3 l, inout vec3 lm, inout vec3 lr) {
@@ -574,7 +295,16 @@ struct PathState {
     // throughput·etaScale, so radiance compressed inside glass does not get paths killed (pbrt).
     float etaScale;
     uint depth;         // scattering events so far
+    uint causticState;  // CAUSTIC_*: which emitters the photon map already carries
+    uint causticBounces;
 };
+
+// An emitter of a photon light reached now is light the photon map carries: the path tracer
+// leaves it out.
+bool photonMapCarries(PathState st) {
+    return kPhotons && st.causticState == CAUSTIC_SPECULAR_CHAIN &&
+           st.causticBounces <= params.photonMaxBounces;
+}
 
 // One camera sample: the mixed radiance lm (L_om), the real radiance lr (L_or), and whether the
 // camera ray's first hit is virtual (the sample's mask M). Every vertex draws the dimension sets
@@ -588,6 +318,8 @@ void tracePath(uvec2 pixel, SampleKey key, out vec3 lm, out vec3 lr, out bool fi
     st.prevPosition = st.ray.origin;
     st.etaScale = 1.0;
     st.depth = 0u;
+    st.causticState = CAUSTIC_BEFORE_GATHER;
+    st.causticBounces = 0u;
     lm = vec3(0.0);
     lr = vec3(0.0);
     firstHitVirtual = false;
@@ -632,7 +364,7 @@ void tracePath(uvec2 pixel, SampleKey key, out vec3 lm, out vec3 lr, out bool fi
                         PV_COUNT_LOOP_ITERATION();
                         GpuLight light = lightAt(i);
                         float pdf = coneLightPdf(light, st.ray.direction);
-                        if (!(pdf > 0.0)) continue;
+                        if (!(pdf > 0.0) || photonMapCarries(st)) continue;
                         float w = st.prevDelta ? 1.0 : powerHeuristic(st.prevPdf, pdf);
                         // Estimated lights are part of the captured (real) environment; a cone
                         // light without PV_LIGHT_REAL lights only the mixed solution.
@@ -645,7 +377,8 @@ void tracePath(uvec2 pixel, SampleKey key, out vec3 lm, out vec3 lr, out bool fi
             }
             Surface s = surfaceAt(st.ray, hit);
             GpuMaterial m = materialAt(s.material);
-            if (kHasEmissive && maxComponent(m.emission) > 0.0 && emitsToward(m, s.frontFace)) {
+            if (kHasEmissive && maxComponent(m.emission) > 0.0 && emitsToward(m, s.frontFace) &&
+                !photonMapCarries(st)) {
                 float w = st.prevDelta ? 1.0
                                        : powerHeuristic(st.prevPdf,
                                                         emissiveLightPdf(hit.triangle,
@@ -665,6 +398,24 @@ void tracePath(uvec2 pixel, SampleKey key, out vec3 lm, out vec3 lr, out bool fi
                 wo = toLocal(frame, -st.ray.direction);
             }
             BsdfParams bp = bsdfParamsAt(m, s);
+            bool gatherVertex = false;
+            if (kPhotons) {
+                bool purelySpecular = bsdfIsPurelySpecular(bp);
+                if (st.causticState == CAUSTIC_BEFORE_GATHER && !purelySpecular) {
+                    gatherVertex = true;
+                    vec3 causticMixed;
+                    vec3 causticReal;
+                    // The light set's fourth number is otherwise unused.
+                    float uWindow = draw(key, vertexSet(st.depth, PV_SET_VERTEX_LIGHT)).w;
+                    gatherPhotons(s, bp, frame, wo, st.depth, uWindow, causticMixed, causticReal);
+                    if (mode != MODE_REAL) lm += st.throughput * causticMixed;
+                    if (mode != MODE_MIXED) lr += st.throughput * causticReal;
+                } else if (st.causticState == CAUSTIC_LEFT_GATHER ||
+                           st.causticState == CAUSTIC_SPECULAR_CHAIN) {
+                    st.causticState = purelySpecular ? CAUSTIC_SPECULAR_CHAIN : CAUSTIC_NONE;
+                    st.causticBounces += 1u;
+                }
+            }
             // Light sampling only where some lobe is not a delta (a smooth mirror or glass
             // can only see lights through its one reflected or refracted ray).
             if (!(kHasSpecular || kHasTransmission) || !bsdfIsDelta(bp) ||
@@ -683,6 +434,7 @@ void tracePath(uvec2 pixel, SampleKey key, out vec3 lm, out vec3 lr, out bool fi
             if (!consistentSide(s, wi, bs.wi)) break;
             st.throughput *= bs.weight;
             if (bs.lobe == PV_LOBE_TRANSMISSION) st.etaScale *= bp.etaRel * bp.etaRel;
+            if (gatherVertex) st.causticState = bs.isDelta ? CAUSTIC_NONE : CAUSTIC_LEFT_GATHER;
             st.prevPdf = bs.pdf;
             st.prevDelta = bs.isDelta;
             st.prevPosition = s.position;

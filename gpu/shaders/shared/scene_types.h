@@ -39,7 +39,20 @@ PV_BEGIN
 // (width+1)×(height+1) vec2: normalised OpenCV camera coordinates of each pixel corner
 // (vision/lens_grid.h), when the camera has a calibrated lens.
 #define PV_BINDING_LENS_GRID 19
-#define PV_BINDING_COUNT 20
+// Photon mapping (shared/photon_map.h). Lights photons leave from, one texel each.
+#define PV_BINDING_PHOTON_LIGHTS 20
+// The iteration's photon records in photon order (PhotonRecord, 2 per photon) as traced, and the
+// same records sorted by grid bucket, which the gather reads.
+#define PV_BINDING_PHOTON_RECORDS 21
+#define PV_BINDING_PHOTON_SORTED 22
+// Radix sort ping-pong arrays of (bucket key, record index) pairs.
+#define PV_BINDING_PHOTON_SORT_A 23
+#define PV_BINDING_PHOTON_SORT_B 24
+// Per sort block, the count (then the scanned offset) of each 8-bit digit, digit-major.
+#define PV_BINDING_PHOTON_BLOCK_COUNTS 25
+// Per bucket, the [begin, end) range of its records in the sorted array (2 words).
+#define PV_BINDING_PHOTON_CELLS 26
+#define PV_BINDING_COUNT 27
 
 // Specialization constant ids: scene features that select pipeline variants, so a scene runs
 // none of the code it does not need ("model only what the scene requires").
@@ -67,7 +80,10 @@ PV_BEGIN
 // Emissive triangles sampled uniformly in the solid angle they subtend (where float precision
 // allows, shared/triangle_light.h); off: uniformly in area, the baseline for ablations.
 #define PV_SPEC_LIGHT_SOLID_ANGLE 12
-#define PV_SPEC_COUNT 13
+// Caustics from a photon map (shared/photon_map.h): the gather at the path's first non-specular
+// vertex and the exclusion of the paths the photons carry. Off: the path tracer alone.
+#define PV_SPEC_PHOTONS 13
+#define PV_SPEC_COUNT 14
 #define PV_SAMPLER_SOBOL 0u
 #define PV_SAMPLER_INDEPENDENT 1u
 
@@ -202,6 +218,17 @@ struct FrameParams {
     uint rouletteStartDepth; // Russian roulette from this depth on
     uint realTriangleCount;  // triangles [0, this) in BVH order are real (phantoms)
     uint coneLightFirst;     // lights [this, lightCount) are cone lights (PV_LIGHT_CONE)
+    // Photon mapping (shared/photon_map.h); unused when the pipeline has no photons.
+    uint photonCount;        // photons traced this iteration (a multiple of 128)
+    uint photonIteration;    // the iteration: seeds its photons (the sample index it serves)
+    float photonRadius;      // this iteration's gather radius (metres)
+    uint photonLightCount;
+    vec3 photonAimCenter;    // photons are aimed at this sphere, which holds every purely
+    float photonAimRadius;   // specular triangle (so none is wasted on the rest of the scene)
+    float photonSceneRadius; // from photonAimCenter, a sphere holding the scene: distant lights' photons start on it
+    uint photonMaxBounces;   // specular bounces a photon follows at most (≤ maxDepth − 1)
+    uint photonSortShift;    // the radix pass photon_grid.comp runs: 0 or 8 (bits of the key)
+    uint photonGatherCap;    // records examined per bucket at most; a fuller bucket is subsampled
 };
 
 PV_END

@@ -1,0 +1,116 @@
+// photon_grid: sorts the iteration's photon records by grid bucket and records each bucket's
+// range, so the gather finds a bucket's photons contiguous. A stable least-significant-digit radix
+// sort of the 16-bit bucket keys, two passes of 8 bits (params.photonSortShift), each three
+// dispatches — per-block digit histograms, one scan over them, a stable scatter — then the cell
+// pass. Stable and free of order-dependent atomics, so a bucket's records come out in photon order
+// on every run: the gather's bucket subsampling, and with it every pixel, is deterministic.
+#version 460
+#extension GL_EXT_scalar_block_layout : require
+#extension GL_GOOGLE_include_directive : require
+
+#include "shared/scene_types.h"
+#include "shared/photon_map.h"
+
+#define STAGE_HISTOGRAM 0u
+#define STAGE_SCAN 1u
+#define STAGE_SCATTER 2u
+#define STAGE_CELLS 3u
+layout(constant_id = 0) const uint kStage = STAGE_HISTOGRAM;
+
+// The scan runs in one workgroup of PV_PHOTON_SCAN_GROUP; the other stages in blocks of
+// PV_PHOTON_SORT_BLOCK records.
+layout(local_size_x_id = 1) in;
+
+layout(binding = PV_BINDING_PARAMS, scalar) readonly buffer ParamsBuffer { FrameParams params; };
+layout(binding = PV_BINDING_PHOTON_RECORDS, scalar) readonly buffer Records { PhotonRecord records[]; };
+layout(binding = PV_BINDING_PHOTON_SORTED, scalar) writeonly buffer Sorted { PhotonRecord sorted[]; };
+layout(binding = PV_BINDING_PHOTON_SORT_A, scalar) buffer SortA { uvec2 sortA[]; };
+layout(binding = PV_BINDING_PHOTON_SORT_B, scalar) buffer SortB { uvec2 sortB[]; };
+layout(binding = PV_BINDING_PHOTON_BLOCK_COUNTS, scalar) buffer BlockCounts { uint blockCounts[]; };
+layout(binding = PV_BINDING_PHOTON_CELLS, scalar) buffer Cells { uvec2 cells[]; };
+
+shared uint sharedWords[PV_PHOTON_SCAN_GROUP];
+
+uint recordCount() { return PV_PHOTON_RECORDS_PER_PHOTON * params.photonCount; }
+uint blockCount() { return recordCount() / PV_PHOTON_SORT_BLOCK; }
+
+// Pass 0 sorts A into B, pass 1 B back into A.
+uvec2 sortInput(uint i) { return params.photonSortShift == 0u ? sortA[i] : sortB[i]; }
+void sortOutput(uint i, uvec2 v) {
+    if (params.photonSortShift == 0u) sortB[i] = v; else sortA[i] = v;
+}
+uint digitOf(uvec2 pair) { return (pair.x >> params.photonSortShift) & 0xffu; }
+
+void histogram() {
+    uint t = gl_LocalInvocationID.x;
+    uint block = gl_WorkGroupID.x;
+    sharedWords[t] = 0u;
+    barrier();
+    // Counts are the same whatever order the additions happen in.
+    atomicAdd(sharedWords[digitOf(sortInput(block * PV_PHOTON_SORT_BLOCK + t))], 1u);
+    barrier();
+    blockCounts[t * blockCount() + block] = sharedWords[t];
+}
+
+// Exclusive scan of the 256 × blocks counts, digit-major: each entry becomes where that block's
+// records of that digit start in the output.
+void scan() {
+    uint t = gl_LocalInvocationID.x;
+    uint total = 256u * blockCount();
+    uint chunk = (total + PV_PHOTON_SCAN_GROUP - 1u) / PV_PHOTON_SCAN_GROUP;
+    uint begin = min(t * chunk, total);
+    uint end = min(begin + chunk, total);
+    uint sum = 0u;
+    for (uint i = begin; i < end; ++i) sum += blockCounts[i];
+    sharedWords[t] = sum;
+    barrier();
+    if (t == 0u) {
+        uint running = 0u;
+        for (uint i = 0u; i < PV_PHOTON_SCAN_GROUP; ++i) {
+            uint v = sharedWords[i];
+            sharedWords[i] = running;
+            running += v;
+        }
+    }
+    barrier();
+    uint running = sharedWords[t];
+    for (uint i = begin; i < end; ++i) {
+        uint v = blockCounts[i];
+        blockCounts[i] = running;
+        running += v;
+    }
+}
+
+// Stable: a record's place among its block's records of the same digit is the number of them
+// before it in the block.
+void scatter() {
+    uint t = gl_LocalInvocationID.x;
+    uint block = gl_WorkGroupID.x;
+    uvec2 pair = sortInput(block * PV_PHOTON_SORT_BLOCK + t);
+    uint digit = digitOf(pair);
+    sharedWords[t] = digit;
+    barrier();
+    uint rank = 0u;
+    for (uint j = 0u; j < t; ++j) rank += sharedWords[j] == digit ? 1u : 0u;
+    sortOutput(blockCounts[digit * blockCount() + block] + rank, pair);
+}
+
+// After both passes the pairs in A are in key order: copy the records into that order and mark
+// where each bucket begins and ends (the host zeroed the cells).
+void buildCells() {
+    uint i = gl_GlobalInvocationID.x;
+    uint n = recordCount();
+    if (i >= n) return;
+    uvec2 pair = sortA[i];
+    sorted[i] = records[pair.y];
+    if (pair.x == PV_PHOTON_EMPTY_KEY) return;
+    if (i == 0u || sortA[i - 1u].x != pair.x) cells[pair.x].x = i;
+    if (i + 1u == n || sortA[i + 1u].x != pair.x) cells[pair.x].y = i + 1u;
+}
+
+void main() {
+    if (kStage == STAGE_HISTOGRAM) histogram();
+    else if (kStage == STAGE_SCAN) scan();
+    else if (kStage == STAGE_SCATTER) scatter();
+    else buildCells();
+}

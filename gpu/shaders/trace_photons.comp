@@ -1,0 +1,230 @@
+// trace_photons: the photon pass of one iteration. Each invocation emits one photon from a
+// photon light (chosen by the power it sends toward the specular objects), aimed at the sphere
+// that holds every purely specular triangle, follows its purely specular scatterings and stores
+// it where it first lands on anything else after at least one of them (L S+ D, shared/
+// photon_map.h). Like the path tracer's paths, a photon from a real light starts in both
+// solutions and splits where it first meets a virtual object: the mixed photon goes on from the
+// virtual surface, the real one continues the same ray behind it. Output: two records per photon
+// in photon order and their (bucket, record) sort pairs; photon_grid.comp sorts them.
+#version 460
+#extension GL_EXT_scalar_block_layout : require
+#extension GL_GOOGLE_include_directive : require
+
+#include "scene_access.glsl"
+#include "shared/photon_map.h"
+
+layout(local_size_x = PV_PHOTON_GROUP_SIZE) in;
+
+layout(binding = PV_BINDING_PHOTON_LIGHTS) uniform usamplerBuffer photonLightTexels;
+layout(binding = PV_BINDING_PHOTON_RECORDS, scalar) writeonly buffer Records {
+    PhotonRecord records[];
+};
+layout(binding = PV_BINDING_PHOTON_SORT_A, scalar) writeonly buffer SortPairs { uvec2 sortPairs[]; };
+
+// The photon light whose inclusive cdf first exceeds u (binary search).
+uint pickPhotonLight(float u) {
+    uint lo = 0u;
+    uint hi = params.photonLightCount - 1u;
+    while (lo < hi) {
+        PV_COUNT_LOOP_ITERATION();
+        uint mid = (lo + hi) / 2u;
+        if (u < uintBitsToFloat(texelFetch(photonLightTexels, int(mid)).z)) hi = mid; else lo = mid + 1u;
+    }
+    return lo;
+}
+
+// A direction from `from` uniform in the cone that the aim sphere subtends (every direction when
+// `from` is inside it); `solidAngle` is that cone's (the inverse of the direction's pdf).
+vec3 sampleTowardAim(vec3 from, vec2 u, out float solidAngle) {
+    vec3 d = params.photonAimCenter - from;
+    float dist2 = dot(d, d);
+    float r2 = params.photonAimRadius * params.photonAimRadius;
+    if (dist2 <= r2) {
+        solidAngle = 2.0 * PV_TWO_PI;
+        return sampleUniformSphere(u);
+    }
+    // 1 − cos θmax as sin²/(1 + cos): no cancellation for a small, distant sphere.
+    float sin2 = r2 / dist2;
+    float oneMinusCos = sin2 / (1.0 + sqrt(max(0.0, 1.0 - sin2)));
+    solidAngle = PV_TWO_PI * oneMinusCos;
+    Frame f;
+    f.n = d * inversesqrt(dist2);
+    buildBasis(f.n, f.t, f.b);
+    return toWorld(f, sampleUniformCone(u, oneMinusCos));
+}
+
+// A ray of a distant light travelling along `dir`: it starts outside the scene on a disk
+// perpendicular to `dir` the size of the aim sphere's cross-section (area π R²).
+Ray distantPhotonRay(vec3 dir, vec2 u) {
+    Frame f;
+    f.n = dir;
+    buildBasis(f.n, f.t, f.b);
+    vec2 disk = params.photonAimRadius * sampleUniformDiskConcentric(u);
+    Ray ray;
+    ray.origin = params.photonAimCenter + disk.x * f.t + disk.y * f.b - dir * params.photonSceneRadius;
+    ray.direction = dir;
+    ray.tMin = 0.0;
+    ray.tMax = PV_FLOAT_MAX;
+    return ray;
+}
+
+// Emits photon `photon`: its first ray and its power (flux, over the iteration's photon count).
+// False when the sample carries nothing (a back face, outside a spot's cone).
+bool emitPhoton(inout uint rng, out Ray ray, out vec3 power, out bool real) {
+    uvec4 entry = texelFetch(photonLightTexels, int(pickPhotonLight(rngNext(rng))));
+    float pick = uintBitsToFloat(entry.w) * float(params.photonCount);
+    real = (entry.x & PV_PHOTON_LIGHT_REAL) != 0u;
+    vec2 uPoint = vec2(rngNext(rng), rngNext(rng));
+    vec2 uDir = vec2(rngNext(rng), rngNext(rng));
+    ray.tMin = 0.0;
+    ray.tMax = PV_FLOAT_MAX;
+    power = vec3(0.0);
+    if ((entry.x & 0xffu) == PV_PHOTON_LIGHT_TRIANGLE) {
+        uint t = entry.y;
+        uvec4 tri = triangleAt(t);
+        vec3 p0 = PV_TRIANGLE_VERTEX(t, 0u);
+        vec3 p1 = PV_TRIANGLE_VERTEX(t, 1u);
+        vec3 p2 = PV_TRIANGLE_VERTEX(t, 2u);
+        vec2 b = sampleUniformTriangle(uPoint);
+        vec3 p = (1.0 - b.x - b.y) * p0 + b.x * p1 + b.y * p2;
+        vec3 n = cross(p1 - p0, p2 - p0);
+        float area = 0.5 * length(n);
+        if (!(area > 0.0)) return false;
+        n = normalize(n);
+        float solidAngle;
+        vec3 dir = sampleTowardAim(p, uDir, solidAngle);
+        float cosLight = dot(dir, n);
+        GpuMaterial m = materialAt(tri.w);
+        if (cosLight == 0.0 || !emitsToward(m, cosLight > 0.0)) return false;
+        vec2 uv = (1.0 - b.x - b.y) * uvAt(tri.x) + b.x * uvAt(tri.y) + b.y * uvAt(tri.z);
+        // Φ = Le·|cos θ| / (p_area · p_dir) with p_area = 1/area and p_dir = 1/solidAngle.
+        power = emittedRadiance(m, uv) * abs(cosLight) * area * solidAngle / pick;
+        ray.origin = offsetRayOrigin(p, cosLight > 0.0 ? n : -n);
+        ray.direction = dir;
+        return maxComponent(power) > 0.0;
+    }
+    GpuLight light = lightAt(entry.y);
+    uint type = light.type & PV_LIGHT_TYPE_MASK;
+    float crossSection = PV_PI * params.photonAimRadius * params.photonAimRadius;
+    if (type == PV_LIGHT_DIRECTIONAL) {
+        // Illuminance E (lux) over the disk: Φ = E · π R².
+        ray = distantPhotonRay(light.direction, uPoint);
+        power = light.intensity * crossSection / pick;
+    } else if (type == PV_LIGHT_CONE) {
+        // Radiance L over a cone of solid angle Ω: Φ = L · Ω · π R² (direction, then the disk).
+        Frame f;
+        f.n = light.direction;
+        buildBasis(f.n, f.t, f.b);
+        vec3 dir = toWorld(f, sampleUniformCone(uDir, light.cosInnerCone));
+        ray = distantPhotonRay(dir, uPoint);
+        power = light.intensity * (PV_TWO_PI * light.cosInnerCone) * crossSection / pick;
+    } else {
+        // Point and spot: intensity I (W/sr) over the cone toward the aim sphere: Φ = I · Ω.
+        float solidAngle;
+        vec3 dir = sampleTowardAim(light.position, uDir, solidAngle);
+        vec3 intensity = light.intensity;
+        if (type == PV_LIGHT_SPOT) {
+            // The same smooth falloff as the path tracer's light sampling.
+            float cd = dot(light.direction, dir);
+            float scale = 1.0 / max(0.001, light.cosInnerCone - light.cosOuterCone);
+            float a = clamp((cd - light.cosOuterCone) * scale, 0.0, 1.0);
+            intensity *= a * a;
+        }
+        ray.origin = light.position;
+        ray.direction = dir;
+        power = intensity * solidAngle / pick;
+    }
+    return maxComponent(power) > 0.0;
+}
+
+struct PhotonState {
+    Ray ray;
+    vec3 power;
+    uint bounces;  // purely specular scatterings so far
+    uint rng;
+};
+
+void main() {
+    uint photon = gl_GlobalInvocationID.x;
+    if (photon >= params.photonCount) return;
+    PhotonRecord stored[2];
+    for (uint k = 0u; k < 2u; ++k) {
+        stored[k].position = vec3(0.0);
+        stored[k].flags = 0u;
+        stored[k].power = vec3(0.0);
+        stored[k].direction = 0u;
+    }
+    PhotonState st;
+    st.rng = rngSeed(photon, params.photonIteration, params.seed ^ 0x9e3779b9u);
+    st.bounces = 0u;
+    bool real;
+    bool emitted = params.photonLightCount > 0u && emitPhoton(st.rng, st.ray, st.power, real);
+    uint mode = kDifferential && real ? MODE_SHARED : MODE_MIXED;
+    PhotonState realContinuation = st;
+    bool haveRealContinuation = false;
+    for (uint pass = 0u; pass < 2u && emitted; ++pass) {
+        PV_COUNT_LOOP_ITERATION();
+        if (pass == 1u) {
+            if (!haveRealContinuation) break;
+            st = realContinuation;
+            mode = MODE_REAL;
+        }
+        for (;;) {
+            PV_COUNT_LOOP_ITERATION();
+            Hit hit;
+            if (!intersectScene(st.ray, mode, hit)) break;
+            if (hit.triangle >= params.realTriangleCount && mode == MODE_SHARED) {
+                realContinuation = st;
+                haveRealContinuation = true;
+                mode = MODE_MIXED;
+            }
+            Surface s = surfaceAt(st.ray, hit);
+            BsdfParams bp = bsdfParamsAt(materialAt(s.material), s);
+            if (!bsdfIsPurelySpecular(bp)) {
+                if (st.bounces > 0u) {
+                    uint slot = mode == MODE_REAL ? 1u : 0u;
+                    uint solutions = mode == MODE_SHARED ? PV_PHOTON_IN_MIXED | PV_PHOTON_IN_REAL
+                                     : mode == MODE_MIXED ? PV_PHOTON_IN_MIXED
+                                                          : PV_PHOTON_IN_REAL;
+                    stored[slot].position = s.position;
+                    stored[slot].flags = solutions | (st.bounces << PV_PHOTON_BOUNCES_SHIFT);
+                    stored[slot].power = st.power;
+                    stored[slot].direction = packSnorm2x16(octahedralEncode(-st.ray.direction));
+                }
+                break;
+            }
+            if (st.bounces >= params.photonMaxBounces) break;
+            Frame frame;
+            frame.n = s.shadingNormal;
+            buildBasis(frame.n, frame.t, frame.b);
+            vec3 wo = toLocal(frame, -st.ray.direction);
+            if (wo.z <= 0.0) {
+                frame.n = s.geometricNormal;
+                buildBasis(frame.n, frame.t, frame.b);
+                wo = toLocal(frame, -st.ray.direction);
+            }
+            BsdfSample bs;
+            vec4 u = vec4(rngNext(st.rng), rngNext(st.rng), rngNext(st.rng), 0.0);
+            if (!sampleBsdf(bp, wo, u, bs)) break;
+            vec3 wi = toWorld(frame, bs.wi);
+            if (!consistentSide(s, wi, bs.wi)) break;
+            // Flux is not rescaled by 1/η² across a refraction (radiance is; the sample weight
+            // holds that factor for the path tracer's radiance): the adjoint BSDF (Veach 1997).
+            vec3 weight = bs.weight;
+            if (bs.lobe == PV_LOBE_TRANSMISSION) weight *= bp.etaRel * bp.etaRel;
+            st.power *= weight;
+            st.bounces += 1u;
+            st.ray = directionRay(s.position, s.geometricNormal * (bs.wi.z > 0.0 ? 1.0 : -1.0),
+                                  wi, PV_FLOAT_MAX);
+        }
+    }
+    float cellSize = 2.0 * params.photonRadius;
+    for (uint k = 0u; k < 2u; ++k) {
+        uint record = PV_PHOTON_RECORDS_PER_PHOTON * photon + k;
+        records[record] = stored[k];
+        uint key = stored[k].flags == 0u
+                       ? PV_PHOTON_EMPTY_KEY
+                       : photonBucket(photonCell(stored[k].position, cellSize));
+        sortPairs[record] = uvec2(key, record);
+    }
+}

@@ -1,0 +1,210 @@
+#include "render/photon_map.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cctype>
+#include <cstdlib>
+#include <cstring>
+
+#include "photon_grid.spv.h"
+#include "shared/photon_map.h"
+#include "shared/sampling.h"
+#include "trace_photons.spv.h"
+
+namespace previs {
+
+namespace {
+
+constexpr float kPi = 3.14159265358979f;
+
+// photon_grid.comp's stages (its constant_id 0) and workgroup sizes (constant_id 1).
+enum GridStage : uint32_t { kHistogram = 0, kScan = 1, kScatter = 2, kCells = 3 };
+
+// Solid angle of the aim sphere seen from p (the whole sphere of directions from inside).
+float aimSolidAngle(const PhotonAim& aim, const glm::vec3& p) {
+    float d2 = glm::dot(aim.center - p, aim.center - p);
+    float r2 = aim.radius * aim.radius;
+    if (d2 <= r2) return 4.0f * kPi;
+    float sin2 = r2 / d2;
+    return 2.0f * kPi * sin2 / (1.0f + std::sqrt(std::max(0.0f, 1.0f - sin2)));
+}
+
+uint32_t bits(float f) {
+    uint32_t u;
+    std::memcpy(&u, &f, sizeof(u));
+    return u;
+}
+
+}  // namespace
+
+Status applyPhotonSpec(const std::string& spec, PhotonSettings& settings) {
+    if (spec == "auto" || spec == "on" || spec == "off") {
+        settings.mode = spec == "auto" ? PhotonMode::Auto
+                        : spec == "on"  ? PhotonMode::On
+                                        : PhotonMode::Off;
+        return {};
+    }
+    char* end = nullptr;
+    unsigned long long n = std::strtoull(spec.c_str(), &end, 10);
+    if (spec.empty() || !std::isdigit(static_cast<unsigned char>(spec[0])) || *end != '\0' ||
+        n == 0 || n > kMaxPhotonsPerIteration)
+        return makeError("photons '{}' is not auto, on, off or a count of photons per iteration "
+                         "(1..{})", spec, kMaxPhotonsPerIteration);
+    settings.mode = PhotonMode::On;
+    settings.perIteration = uint32_t(n);
+    return {};
+}
+
+bool mayBePurelySpecular(const Material& m) {
+    // shader::bsdfIsPurelySpecular: alpha = roughness² below PV_DELTA_ALPHA, and no diffuse
+    // base. Textures scale roughness, metalness and base colour, so a textured factor may reach it.
+    bool smooth = m.roughness * m.roughness < PV_DELTA_ALPHA || m.metallicRoughnessTexture >= 0;
+    float base = std::max({m.baseColor.r, m.baseColor.g, m.baseColor.b});
+    bool noDiffuse = m.metallic >= 1.0f || m.transmission >= 1.0f || base <= 0.0f ||
+                     m.baseColorTexture >= 0;
+    return smooth && noDiffuse;
+}
+
+PhotonAim photonAimFor(const Geometry& g, std::span<const Material> materials) {
+    PhotonAim aim;
+    glm::vec3 lo(INFINITY), hi(-INFINITY), sceneLo(INFINITY), sceneHi(-INFINITY);
+    for (size_t t = 0; t < g.triangles.size(); ++t) {
+        uint32_t mat = g.triangleMaterials[t];
+        bool specular = mat < materials.size() && mayBePurelySpecular(materials[mat]);
+        for (int k = 0; k < 3; ++k) {
+            const glm::vec3& p = g.positions[g.triangles[t][k]];
+            sceneLo = glm::min(sceneLo, p);
+            sceneHi = glm::max(sceneHi, p);
+            if (!specular) continue;
+            lo = glm::min(lo, p);
+            hi = glm::max(hi, p);
+            aim.any = true;
+        }
+    }
+    if (!aim.any) {
+        if (g.triangles.empty()) return aim;
+        lo = sceneLo;  // photons forced on without a specular object: aim at everything
+        hi = sceneHi;
+    }
+    aim.center = 0.5f * (lo + hi);
+    // A little margin: the boxes of the triangles are in float, so are the photons' rays.
+    aim.radius = std::max(0.5f * glm::length(hi - lo) * 1.001f, 1e-6f);
+    float scene = 0.0f;
+    for (int c = 0; c < 8; ++c) {
+        glm::vec3 corner((c & 1) ? sceneHi.x : sceneLo.x, (c & 2) ? sceneHi.y : sceneLo.y,
+                         (c & 4) ? sceneHi.z : sceneLo.z);
+        scene = std::max(scene, glm::length(corner - aim.center));
+    }
+    aim.sceneRadius = (std::max(scene, aim.radius) + 1e-3f) * 1.01f;
+    return aim;
+}
+
+std::vector<glm::uvec4> buildPhotonLights(const PhotonAim& aim,
+                                          std::span<const EmissivePhotonSource> emissive,
+                                          std::span<const shader::GpuLight> lights) {
+    std::vector<glm::uvec4> table;
+    std::vector<double> weight;
+    const double crossSection = kPi * double(aim.radius) * aim.radius;
+    for (const EmissivePhotonSource& e : emissive) {
+        // Flux toward the aim ≈ L · area · Ω (the cosine left out: any positive weight is
+        // unbiased, the photon's power divides by the actual probability).
+        double w = double(e.luminance) * e.area * aimSolidAngle(aim, e.centroid);
+        if (!(w > 0.0)) continue;
+        table.emplace_back(PV_PHOTON_LIGHT_TRIANGLE | (e.real ? PV_PHOTON_LIGHT_REAL : 0u),
+                           e.triangle, 0u, 0u);
+        weight.push_back(w);
+    }
+    for (uint32_t i = 0; i < lights.size(); ++i) {
+        const shader::GpuLight& l = lights[i];
+        double lum = shader::luminance(l.intensity);
+        uint32_t type = l.type & PV_LIGHT_TYPE_MASK;
+        double w = type == PV_LIGHT_DIRECTIONAL ? lum * crossSection
+                   : type == PV_LIGHT_CONE ? lum * 2.0 * kPi * l.cosInnerCone * crossSection
+                                            : lum * aimSolidAngle(aim, l.position);
+        if (!(w > 0.0) || !std::isfinite(w)) continue;
+        table.emplace_back(PV_PHOTON_LIGHT_PUNCTUAL |
+                               ((l.type & PV_LIGHT_REAL) ? PV_PHOTON_LIGHT_REAL : 0u),
+                           i, 0u, 0u);
+        weight.push_back(w);
+    }
+    double total = 0.0;
+    for (double w : weight) total += w;
+    double running = 0.0;
+    for (size_t k = 0; k < table.size(); ++k) {
+        running += weight[k];
+        table[k].z = bits(k + 1 == table.size() ? 1.0f : float(running / total));
+        table[k].w = bits(float(weight[k] / total));
+    }
+    return table;
+}
+
+size_t photonBufferBytes(int binding, uint32_t photons) {
+    const size_t records = size_t(PV_PHOTON_RECORDS_PER_PHOTON) * photons;
+    switch (binding) {
+    case PV_BINDING_PHOTON_RECORDS:
+    case PV_BINDING_PHOTON_SORTED: return records * sizeof(shader::PhotonRecord);
+    case PV_BINDING_PHOTON_SORT_A:
+    case PV_BINDING_PHOTON_SORT_B: return records * sizeof(glm::uvec2);
+    case PV_BINDING_PHOTON_BLOCK_COUNTS: return records * sizeof(uint32_t);  // 256 words a block
+    case PV_BINDING_PHOTON_CELLS: return photons ? size_t(PV_PHOTON_BUCKETS) * sizeof(glm::uvec2) : 0;
+    default: return 0;
+    }
+}
+
+Result<PhotonPasses> PhotonPasses::create(GpuContext& ctx, std::span<const BindingKind> bindings,
+                                          std::span<const uint32_t> sceneConstants) {
+    PhotonPasses p;
+    auto trace = ComputePipeline::create(
+        ctx, std::span<const uint32_t>(trace_photons_spv, sizeof(trace_photons_spv) / 4),
+        bindings, sceneConstants, "trace_photons");
+    if (!trace) return trace.error();
+    p.trace_.emplace(std::move(trace.value()));
+    std::vector<BindingKind> storage(PV_BINDING_COUNT, BindingKind::StorageBuffer);
+    for (uint32_t stage : {kHistogram, kScan, kScatter, kCells}) {
+        std::array<uint32_t, 2> constants{stage, stage == kScan ? PV_PHOTON_SCAN_GROUP
+                                                                : PV_PHOTON_SORT_BLOCK};
+        auto grid = ComputePipeline::create(
+            ctx, std::span<const uint32_t>(photon_grid_spv, sizeof(photon_grid_spv) / 4), storage,
+            constants, "photon_grid");
+        if (!grid) return grid.error();
+        p.grid_[stage].emplace(std::move(grid.value()));
+    }
+    return p;
+}
+
+Status PhotonPasses::bind(std::span<const GpuBuffer* const> buffers) {
+    if (Status s = trace_->bind(buffers); !s) return s;
+    for (auto& g : grid_)
+        if (Status s = g->bind(buffers); !s) return s;
+    return {};
+}
+
+Result<double> PhotonPasses::run(shader::FrameParams& params, std::span<GpuBuffer> buffers) {
+    const uint32_t blocks = PV_PHOTON_RECORDS_PER_PHOTON * params.photonCount / PV_PHOTON_SORT_BLOCK;
+    double ms = 0.0;
+    auto dispatch = [&](ComputePipeline& p, uint32_t groups) -> Status {
+        auto t = p.dispatch(groups, 1);
+        if (!t) return t.error();
+        ms += t.value();
+        return {};
+    };
+    auto uploadParams = [&]() {
+        return buffers[PV_BINDING_PARAMS].upload(&params, sizeof(params));
+    };
+    params.photonSortShift = 0;
+    if (Status s = uploadParams(); !s) return s.error();
+    if (Status s = buffers[PV_BINDING_PHOTON_CELLS].fill(0); !s) return s.error();
+    if (Status s = dispatch(*trace_, params.photonCount / PV_PHOTON_GROUP_SIZE); !s)
+        return s.error();
+    for (uint32_t shift : {0u, 8u}) {
+        params.photonSortShift = shift;
+        if (Status s = uploadParams(); !s) return s.error();
+        if (Status s = dispatch(*grid_[kHistogram], blocks); !s) return s.error();
+        if (Status s = dispatch(*grid_[kScan], 1); !s) return s.error();
+        if (Status s = dispatch(*grid_[kScatter], blocks); !s) return s.error();
+    }
+    if (Status s = dispatch(*grid_[kCells], blocks); !s) return s.error();
+    return ms;
+}
+
+}  // namespace previs

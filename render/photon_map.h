@@ -1,0 +1,105 @@
+#pragma once
+
+// Caustics by progressive photon mapping (gpu/shaders/shared/photon_map.h has the rule that
+// splits light paths between the photon map and the path tracer): what the scene needs (whether
+// photons run at all, where they are aimed, which lights emit them) and the GPU passes of one
+// iteration — trace_photons.comp, then photon_grid.comp's radix sort into the hashed grid that
+// trace_paths.comp gathers from.
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "base/result.h"
+#include "gpu/buffer.h"
+#include "gpu/compute_pipeline.h"
+#include "gpu/context.h"
+#include "scene/scene.h"
+#include "shared/scene_types.h"
+
+namespace previs {
+
+enum class PhotonMode {
+    Auto,  // when the scene has a purely specular object and a light that photons leave from
+    On,
+    Off,
+};
+
+struct PhotonSettings {
+    PhotonMode mode = PhotonMode::Auto;
+    uint32_t perIteration = 1u << 16;  // photons per iteration (rounded up to a multiple of 128)
+    // Gather radius of the first iteration (metres); 0: kDefaultRadiusFraction of the radius of
+    // the sphere that holds the specular objects.
+    float initialRadius = 0.0f;
+    // Progressive photon mapping's α in (0, 1): the radius shrinks as (i + 1)^((α − 1)/2).
+    // 1 keeps the radius fixed (preview: a fixed, biased but steady estimate).
+    float alpha = 2.0f / 3.0f;
+    // Records examined per grid bucket at most; fuller buckets are subsampled without bias.
+    uint32_t gatherCap = 256;
+};
+
+inline constexpr float kDefaultRadiusFraction = 0.05f;
+
+// Applies a `--photons` / config value: "auto", "on", "off", or a photon count per iteration
+// (which also turns photons on). The error names the accepted values.
+Status applyPhotonSpec(const std::string& spec, PhotonSettings& settings);
+inline constexpr uint32_t kMaxPhotonsPerIteration = 1u << 20;
+
+// A material that may be purely specular (every lobe a delta) on some texel: the photons' aim
+// must include it. Errs on the side of yes — a larger aim costs photons, a smaller one bias.
+bool mayBePurelySpecular(const Material& m);
+
+// The sphere photons are aimed at: it holds every triangle that may be purely specular.
+struct PhotonAim {
+    bool any = false;         // the scene has such a triangle
+    glm::vec3 center{0.0f};
+    float radius = 0.0f;
+    float sceneRadius = 0.0f; // from center, a sphere that holds the whole scene
+};
+
+PhotonAim photonAimFor(const Geometry& geometry, std::span<const Material> materials);
+
+// An emissive triangle as a photon light (BVH order index, as the shaders see it).
+struct EmissivePhotonSource {
+    uint32_t triangle;
+    float luminance;  // of the emitted radiance
+    float area;
+    glm::vec3 centroid;
+    bool real;
+};
+
+// The photon light table (PV_BINDING_PHOTON_LIGHTS texels): every light that can send photons,
+// picked in proportion to an estimate of the flux it sends toward the aim sphere.
+std::vector<glm::uvec4> buildPhotonLights(const PhotonAim& aim,
+                                          std::span<const EmissivePhotonSource> emissive,
+                                          std::span<const shader::GpuLight> lights);
+
+// The GPU passes of one photon iteration. Uses the renderer's buffers, indexed by PV_BINDING_*.
+class PhotonPasses {
+public:
+    // `bindings` and `sceneConstants` are trace_paths'; trace_photons shares its scene layout.
+    static Result<PhotonPasses> create(GpuContext& ctx, std::span<const BindingKind> bindings,
+                                       std::span<const uint32_t> sceneConstants);
+
+    // Binds the renderer's buffers (after any of them was replaced).
+    Status bind(std::span<const GpuBuffer* const> buffers);
+
+    // Traces params.photonCount photons for params.photonIteration at params.photonRadius and
+    // builds the grid. Uploads params (the sort passes change photonSortShift). Returns GPU ms.
+    Result<double> run(shader::FrameParams& params, std::span<GpuBuffer> buffers);
+
+private:
+    PhotonPasses() = default;
+    std::optional<ComputePipeline> trace_;
+    std::array<std::optional<ComputePipeline>, 4> grid_;  // photon_grid.comp's stages
+};
+
+// Bytes of the photon buffers for `photons` per iteration, by binding.
+size_t photonBufferBytes(int binding, uint32_t photons);
+
+}  // namespace previs
