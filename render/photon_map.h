@@ -20,6 +20,7 @@
 #include "gpu/compute_pipeline.h"
 #include "gpu/context.h"
 #include "scene/scene.h"
+#include "shared/photon_map.h"
 #include "shared/scene_types.h"
 
 namespace previs {

@@ -638,6 +638,16 @@ Result<uint32_t> Renderer::nonFiniteSamples() const {
     return stats.nonFiniteSamples;
 }
 
+Result<std::vector<shader::PhotonRecord>> Renderer::photonRecords() const {
+    std::vector<shader::PhotonRecord> records(size_t(PV_PHOTON_RECORDS_PER_PHOTON) *
+                                              params_.photonCount);
+    if (Status s = buffers_[PV_BINDING_PHOTON_RECORDS].download(
+            records.data(), records.size() * sizeof(shader::PhotonRecord));
+        !s)
+        return s.error();
+    return records;
+}
+
 Result<uint32_t> Renderer::raysTraced() const {
     shader::RenderStats stats{};
     if (Status s = buffers_[PV_BINDING_STATS].download(&stats, sizeof(stats)); !s)

@@ -145,6 +145,9 @@ public:
     uint32_t photonsPerIteration() const { return params_.photonCount; }
     float nextPhotonRadius() const;
     const PhotonAim& photonAim() const { return photonAim_; }
+    // The last photon iteration's records (two per photon, PV_PHOTON_* flags; empty slots have
+    // flags 0), for tests and benchmarks.
+    Result<std::vector<shader::PhotonRecord>> photonRecords() const;
     // GPU time of the photon passes so far (ms; part of gpuMilliseconds()).
     double photonMilliseconds() const { return photonMs_; }
 

@@ -1,0 +1,371 @@
+// Photon mapping for caustics (render/photon_map.h, gpu/shaders/shared/photon_map.h): the flux
+// photons deposit, the split of light paths between the photon map and the path tracer (their
+// sum equals a pure path trace where that converges), progressive convergence, the differential
+// identities, and that a scene without a caustic pays nothing. Seeds are fixed; tolerances come
+// from the measured noise.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+
+#include "tests/integrator/gpu_fixture.h"
+#include "shared/bsdf.h"
+#include "tests/support/scene_builders.h"
+
+namespace previs::testing {
+namespace {
+
+constexpr float kPi = 3.14159265358979f;
+
+PunctualLight pointLight(glm::vec3 position, float candela, bool real) {
+    PunctualLight l;
+    l.type = LightType::Point;
+    l.position = position;
+    l.intensity = candela;
+    l.isReal = real;
+    return l;
+}
+
+RenderSettings photonSettings(uint32_t width, uint32_t height, PhotonMode mode) {
+    RenderSettings rs;
+    rs.width = width;
+    rs.height = height;
+    rs.photons.mode = mode;
+    return rs;
+}
+
+// Sum of the power of the records in `solution` (PV_PHOTON_IN_*), green channel.
+double depositedPower(const std::vector<shader::PhotonRecord>& records, uint32_t solution) {
+    double sum = 0.0;
+    for (const auto& r : records)
+        if (r.flags & solution) sum += r.power.g;
+    return sum;
+}
+
+class PhotonTest : public GpuTest {};
+
+// A point light above a smooth glass ball in a closed white room: Fresnel splits every photon
+// between reflection and refraction without loss, and the room catches all of it, so the flux
+// the photons deposit is the flux the ball intercepts, I·Ω (Ω its solid angle from the light).
+// Photons are aimed at the ball's bounding sphere, larger than the ball: the hit fraction is
+// binomial, which sets the tolerance. (Refracted flux keeps no 1/η² factor: with it the deposit
+// would fall to 1/η⁴ ≈ 0.2 of this.)
+TEST_F(PhotonTest, GlassBallDepositsTheFluxItIntercepts) {
+    Scene scene;
+    uint32_t white = addMaterial(scene, lambert(glm::vec3(0.8f)));
+    uint32_t glassMat = addMaterial(scene, glass(1.5f));
+    addBox(scene, glm::vec3(-2.0f), glm::vec3(2.0f), white, true, true);
+    const float radius = 0.3f;
+    const glm::vec3 light(0.0f, 1.2f, 0.0f);
+    addSphere(scene, glm::vec3(0.0f), radius, glassMat, true, 96, 192);
+    const float candela = 10.0f;
+    scene.lights.push_back(pointLight(light, candela, true));
+    scene.cameras.push_back(lookAt(glm::vec3(0, 0, 1.9f), glm::vec3(0), glm::vec3(0, 1, 0), 1.0f));
+
+    RenderSettings rs = photonSettings(16, 16, PhotonMode::Auto);
+    rs.photons.perIteration = 1u << 16;
+    auto renderer = Renderer::create(ctx(), scene, rs);
+    ASSERT_TRUE(renderer.ok()) << renderer.message();
+    Renderer& r = **renderer;
+    ASSERT_TRUE(r.photonsActive());
+    const int iterations = 16;
+    std::vector<double> perIteration;
+    size_t stored = 0;
+    for (int i = 0; i < iterations; ++i) {
+        ASSERT_TRUE(r.render(1).ok());
+        auto records = r.photonRecords();
+        ASSERT_TRUE(records.ok()) << records.message();
+        perIteration.push_back(depositedPower(*records, PV_PHOTON_IN_MIXED));
+        for (const auto& rec : *records) stored += rec.flags != 0;
+    }
+    auto [mean, varianceOfMean] = meanAndVarianceOfMean(perIteration);
+    const double d = glm::length(light);
+    const double solidAngle = 2.0 * kPi * (1.0 - std::sqrt(1.0 - radius * radius / (d * d)));
+    const double expected = candela * solidAngle;
+    // Statistical: 4.5σ of the measured iteration-to-iteration noise. Geometric: the tessellated
+    // ball's outline is a 192-gon inscribed in the circle, whose area is cos²(π/192) ≥ 0.9997 of it.
+    const double tolerance = 4.5 * std::sqrt(varianceOfMean) + 3e-4 * expected;
+    EXPECT_NEAR(mean, expected, tolerance)
+        << "deposited " << mean << " W (σ " << std::sqrt(varianceOfMean) << "), intercepted "
+        << expected;
+    EXPECT_GT(stored, size_t(iterations) * 10000u);
+}
+
+// Flux is not rescaled by 1/η² when it refracts (radiance is). A diffuse square across the
+// equator of a glass ball, lit by a point light on the axis above: every photon that refracts into
+// the upper half lands on the square with no other bounce, and a reflected one lands on it where
+// its ray meets the square outside the ball. The expected deposit is ∫ I·(1 − F(θ) + F(θ)·[the
+// reflection reaches the square]) dω over the ball as seen from the light — numerically, over the
+// angle ψ off the axis and the azimuth, on the exact sphere. With the radiance factor the refracted
+// part would be 1/η² = 0.44 of itself.
+TEST_F(PhotonTest, RefractedFluxIsNotScaledByEtaSquared) {
+    Scene scene;
+    uint32_t white = addMaterial(scene, lambert(glm::vec3(0.8f)));
+    uint32_t glassMat = addMaterial(scene, glass(1.5f));
+    const float radius = 0.3f;
+    const float d = 1.2f;
+    addSphere(scene, glm::vec3(0.0f), radius, glassMat, true, 96, 192);
+    addQuad(scene, glm::vec3(0.0f), glm::vec3(0.5f, 0, 0), glm::vec3(0, 0, -0.5f), white, true);
+    const float candela = 10.0f;
+    scene.lights.push_back(pointLight(glm::vec3(0.0f, d, 0.0f), candela, true));
+    scene.cameras.push_back(lookAt(glm::vec3(0, 1, 1.5f), glm::vec3(0), glm::vec3(0, 1, 0), 1.0f));
+    RenderSettings rs = photonSettings(16, 16, PhotonMode::Auto);
+    auto renderer = Renderer::create(ctx(), scene, rs);
+    ASSERT_TRUE(renderer.ok()) << renderer.message();
+    ASSERT_TRUE((*renderer)->photonsActive());
+    std::vector<double> perIteration;
+    for (int i = 0; i < 16; ++i) {
+        ASSERT_TRUE((*renderer)->render(1).ok());
+        auto records = (*renderer)->photonRecords();
+        ASSERT_TRUE(records.ok());
+        perIteration.push_back(depositedPower(*records, PV_PHOTON_IN_MIXED));
+    }
+    auto [mean, varianceOfMean] = meanAndVarianceOfMean(perIteration);
+    // Midpoint rule in ψ and azimuth, fine enough that its error is far below the noise.
+    const double psiMax = std::asin(radius / d);
+    const int steps = 4000;
+    const int azimuths = 256;
+    const double half = 0.5;  // the square's half size
+    double expected = 0.0;
+    for (int k = 0; k < steps; ++k) {
+        const double psi = (k + 0.5) * psiMax / steps;
+        const double dOmega = 2.0 * kPi * std::sin(psi) * psiMax / steps / azimuths;
+        for (int a = 0; a < azimuths; ++a) {
+            const double phi = (a + 0.5) * 2.0 * kPi / azimuths;
+            const glm::dvec3 dir(std::sin(psi) * std::cos(phi), -std::cos(psi),
+                                 std::sin(psi) * std::sin(phi));
+            const double t = d * std::cos(psi) -
+                             std::sqrt(std::max(0.0, radius * radius - d * d * std::sin(psi) * std::sin(psi)));
+            const glm::dvec3 p = glm::dvec3(0.0, d, 0.0) + t * dir;
+            const glm::dvec3 n = p / double(radius);
+            const double cosTheta = -glm::dot(dir, n);
+            const double fresnel = shader::fresnelDielectric(float(cosTheta), 1.5f);
+            double landed = 1.0 - fresnel;
+            const glm::dvec3 r = dir + 2.0 * cosTheta * n;
+            if (r.y < 0.0) {
+                const glm::dvec3 q = p - p.y / r.y * r;
+                if (std::abs(q.x) < half && std::abs(q.z) < half) landed += fresnel;
+            }
+            expected += candela * landed * dOmega;
+        }
+    }
+    // Geometry: a 192-gon outline and interpolated normals on 96 rings; 0.3 % covers both (the
+    // η² error this test guards against is 56 %).
+    const double tolerance = 4.5 * std::sqrt(varianceOfMean) + 3e-3 * expected;
+    EXPECT_NEAR(mean, expected, tolerance) << "deposited " << mean << " W, expected " << expected;
+    std::printf("deposited %.5f W (sigma %.5f), expected %.5f\n", mean, std::sqrt(varianceOfMean), expected);
+}
+
+// A scene whose light reaches the floor only through a glass ball is a caustic; the photon map
+// carries it and the path tracer leaves those paths out. With a light large enough for the path
+// tracer to converge, the two must agree: the image mean (where blur by the gather radius cannot
+// move energy, as the density estimate conserves it on a plane) within the noise of both, and per
+// pixel the error must shrink as iterations shrink the radius.
+class CausticAgreementTest : public PhotonTest {
+protected:
+    static Scene scene() {
+        Scene s;
+        uint32_t floorMat = addMaterial(s, lambert(glm::vec3(0.7f)));
+        uint32_t glassMat = addMaterial(s, glass(1.5f));
+        uint32_t lamp = addMaterial(s, emitter(glm::vec3(30.0f)));
+        addQuad(s, glm::vec3(0.0f), glm::vec3(1.5f, 0, 0), glm::vec3(0, 0, -1.5f), floorMat, true);
+        addSphere(s, glm::vec3(0.0f, 0.35f, 0.0f), 0.25f, glassMat, false);
+        // A 0.3 m square facing down, 1.1 m above the floor.
+        addQuad(s, glm::vec3(0.0f, 1.1f, 0.0f), glm::vec3(0.15f, 0, 0), glm::vec3(0, 0, 0.15f),
+                lamp, true);
+        s.cameras.push_back(
+            lookAt(glm::vec3(0, 1.6f, 1.2f), glm::vec3(0, 0, 0), glm::vec3(0, 1, 0), 0.9f));
+        return s;
+    }
+};
+
+TEST_F(CausticAgreementTest, PhotonsPlusPathsEqualPathTracing) {
+    const Scene s = scene();
+    RenderSettings pathOnly = photonSettings(48, 36, PhotonMode::Off);
+    RenderSettings withPhotons = photonSettings(48, 36, PhotonMode::Auto);
+    withPhotons.photons.perIteration = 1u << 15;
+    constexpr uint32_t kRuns = 8;
+    std::vector<ImageF> reference = renders(s, pathOnly, 512, kRuns, 100);
+    std::vector<ImageF> photon = renders(s, withPhotons, 64, kRuns, 200);
+    ASSERT_EQ(reference.size(), kRuns);
+    ASSERT_EQ(photon.size(), kRuns);
+    auto imageMean = [](const ImageF& img) {
+        double sum = 0.0;
+        for (size_t i = 1; i < img.pixels.size(); i += 3) sum += img.pixels[i];  // green
+        return sum / double(img.pixels.size() / 3);
+    };
+    std::vector<double> refMeans, photonMeans;
+    for (const ImageF& img : reference) refMeans.push_back(imageMean(img));
+    for (const ImageF& img : photon) photonMeans.push_back(imageMean(img));
+    auto [refMean, refVar] = meanAndVarianceOfMean(refMeans);
+    auto [photonMean, photonVar] = meanAndVarianceOfMean(photonMeans);
+    const double z = std::abs(photonMean - refMean) / std::sqrt(refVar + photonVar);
+    std::printf("photon+path image mean %.5f, path tracing %.5f, z %.2f\n", photonMean, refMean, z);
+    // Student's t, 14 dof, two-sided 0.1 %.
+    EXPECT_LT(z, 4.1) << "photon+path mean " << photonMean << ", path tracing " << refMean;
+    // Not vacuous: the photons carry a real share of the light on the floor.
+    auto r = Renderer::create(ctx(), s, withPhotons);
+    ASSERT_TRUE(r.ok());
+    ASSERT_TRUE((*r)->photonsActive());
+    ASSERT_TRUE((*r)->render(1).ok());
+    auto records = (*r)->photonRecords();
+    ASSERT_TRUE(records.ok());
+    EXPECT_GT(depositedPower(*records, PV_PHOTON_IN_MIXED), 0.1);
+}
+
+TEST_F(CausticAgreementTest, ErrorFallsAsTheRadiusShrinks) {
+    const Scene s = scene();
+    RenderSettings pathOnly = photonSettings(48, 36, PhotonMode::Off);
+    ImageF reference = render(s, pathOnly, 4096);
+    RenderSettings withPhotons = photonSettings(48, 36, PhotonMode::Auto);
+    withPhotons.photons.perIteration = 1u << 15;
+    auto renderer = Renderer::create(ctx(), s, withPhotons);
+    ASSERT_TRUE(renderer.ok()) << renderer.message();
+    Renderer& r = **renderer;
+    std::vector<std::pair<uint32_t, double>> errors;
+    for (uint32_t iterations : {4u, 16u, 64u, 256u}) {
+        ASSERT_TRUE(r.render(iterations - uint32_t(r.samplesPerPixel())).ok());
+        auto image = r.image();
+        ASSERT_TRUE(image.ok());
+        errors.emplace_back(iterations, std::sqrt(meanSquaredErrors({*image}, reference)[0]));
+    }
+    for (auto [n, e] : errors) std::printf("iterations %u: RMSE %.5f\n", n, e);
+    const double rate = std::log(errors.back().second / errors.front().second) /
+                        std::log(double(errors.back().first) / errors.front().first);
+    std::printf("measured rate: RMSE ~ iterations^%.2f (the reference's own noise included)\n",
+                rate);
+    // Progressive photon mapping with α = 2/3 converges as N^(−1/3) (variance and bias² both
+    // N^(−2/3)); the reference's noise flattens the curve at the end. The error must fall at
+    // every step and by at least half of the asymptotic rate overall.
+    for (size_t i = 1; i < errors.size(); ++i) EXPECT_LT(errors[i].second, errors[i - 1].second);
+    EXPECT_LT(rate, -1.0 / 6.0);
+}
+
+// The differential identity with photons: when no photon path meets virtual geometry (the only
+// virtual object is outside the closed real room), both maps hold the same photons and
+// L_om − L_or is exactly 0 in every pixel — caustic included.
+TEST_F(PhotonTest, NoVirtualObjectOnTheirPathGivesZeroDifferenceBitForBit) {
+    Scene scene;
+    uint32_t white = addMaterial(scene, lambert(glm::vec3(0.7f)));
+    uint32_t glassMat = addMaterial(scene, glass(1.5f));
+    uint32_t lamp = addMaterial(scene, emitter(glm::vec3(200.0f)));
+    addBox(scene, glm::vec3(-1.0f, 0.0f, -1.0f), glm::vec3(1.0f, 1.5f, 1.0f), white, true, true);
+    addSphere(scene, glm::vec3(0.1f, 0.25f, 0.0f), 0.2f, glassMat, true);
+    addQuad(scene, glm::vec3(-0.2f, 1.2f, -0.1f), glm::vec3(0.05f, 0, 0), glm::vec3(0, 0, 0.05f),
+            lamp, true);
+    addBox(scene, glm::vec3(3.0f), glm::vec3(3.5f), white, false);  // virtual, outside the room
+    scene.cameras.push_back(
+        lookAt(glm::vec3(0, 0.9f, 0.9f), glm::vec3(0, 0.1f, 0), glm::vec3(0, 1, 0), 1.2f));
+    RenderSettings rs = photonSettings(32, 24, PhotonMode::Auto);
+    rs.differential = true;
+    rs.photons.perIteration = 1u << 14;
+    auto renderer = Renderer::create(ctx(), scene, rs);
+    ASSERT_TRUE(renderer.ok()) << renderer.message();
+    Renderer& r = **renderer;
+    ASSERT_TRUE(r.photonsActive());
+    ASSERT_TRUE(r.render(8).ok());
+    auto records = r.photonRecords();
+    ASSERT_TRUE(records.ok());
+    size_t both = 0, one = 0;
+    for (const auto& rec : *records) {
+        uint32_t s = rec.flags & (PV_PHOTON_IN_MIXED | PV_PHOTON_IN_REAL);
+        both += s == (PV_PHOTON_IN_MIXED | PV_PHOTON_IN_REAL);
+        one += s == PV_PHOTON_IN_MIXED || s == PV_PHOTON_IN_REAL;
+    }
+    EXPECT_GT(both, 1000u);
+    EXPECT_EQ(one, 0u);
+    auto mixed = r.image(Aov::Mixed);
+    auto real = r.image(Aov::Real);
+    ASSERT_TRUE(mixed.ok() && real.ok());
+    ASSERT_EQ(mixed->pixels.size(), real->pixels.size());
+    EXPECT_EQ(0, std::memcmp(mixed->pixels.data(), real->pixels.data(),
+                             mixed->pixels.size() * sizeof(float)));
+}
+
+// A virtual glass ball on the real floor: its caustic and its shadow exist in the mixed solution
+// only. The real solution has no specular object, so it holds no photon at all, and every mixed
+// photon landed after passing the virtual ball.
+TEST_F(PhotonTest, VirtualGlassBallCausticIsMixedOnly) {
+    Scene scene;
+    uint32_t white = addMaterial(scene, lambert(glm::vec3(0.7f)));
+    uint32_t glassMat = addMaterial(scene, glass(1.5f));
+    addQuad(scene, glm::vec3(0.0f), glm::vec3(2, 0, 0), glm::vec3(0, 0, -2), white, true);
+    addSphere(scene, glm::vec3(0.0f, 0.3f, 0.0f), 0.2f, glassMat, false);
+    scene.lights.push_back(pointLight(glm::vec3(0.0f, 1.5f, 0.0f), 20.0f, true));
+    scene.cameras.push_back(
+        lookAt(glm::vec3(0, 1.0f, 1.5f), glm::vec3(0, 0.1f, 0), glm::vec3(0, 1, 0), 1.0f));
+    RenderSettings rs = photonSettings(32, 24, PhotonMode::Auto);
+    rs.differential = true;
+    rs.photons.perIteration = 1u << 14;
+    auto renderer = Renderer::create(ctx(), scene, rs);
+    ASSERT_TRUE(renderer.ok()) << renderer.message();
+    ASSERT_TRUE((*renderer)->photonsActive());
+    ASSERT_TRUE((*renderer)->render(2).ok());
+    auto records = (*renderer)->photonRecords();
+    ASSERT_TRUE(records.ok());
+    size_t mixedOnly = 0, withReal = 0;
+    for (const auto& rec : *records) {
+        mixedOnly += rec.flags != 0 && (rec.flags & PV_PHOTON_IN_REAL) == 0;
+        withReal += (rec.flags & PV_PHOTON_IN_REAL) != 0;
+    }
+    EXPECT_GT(mixedOnly, 1000u);
+    EXPECT_EQ(withReal, 0u);
+    // The point light's flux through the ball, focused below it: the floor under the ball is
+    // brighter in the mixed solution than in the real one.
+    EXPECT_GT(depositedPower(*records, PV_PHOTON_IN_MIXED), 0.5 * 20.0 * 2.0 * kPi *
+                                                                (1.0 - std::sqrt(1.0 - 0.04 / 1.44)));
+}
+
+// Model only what the scene requires: no purely specular object (or no light) ⇒ no photon pass,
+// no photon buffers; forcing it off turns it off; a bad photon setting is refused.
+TEST_F(PhotonTest, OnlyScenesWithACausticRunPhotons) {
+    Scene diffuse;
+    uint32_t white = addMaterial(diffuse, lambert(glm::vec3(0.7f)));
+    addQuad(diffuse, glm::vec3(0.0f), glm::vec3(1, 0, 0), glm::vec3(0, 0, -1), white, true);
+    diffuse.lights.push_back(pointLight(glm::vec3(0, 1, 0), 5.0f, true));
+    diffuse.cameras.push_back(lookAt(glm::vec3(0, 1, 1), glm::vec3(0), glm::vec3(0, 1, 0), 1.0f));
+    auto plain = Renderer::create(ctx(), diffuse, photonSettings(8, 8, PhotonMode::Auto));
+    ASSERT_TRUE(plain.ok());
+    EXPECT_FALSE((*plain)->photonsActive());
+    auto plainOff = Renderer::create(ctx(), diffuse, photonSettings(8, 8, PhotonMode::Off));
+    ASSERT_TRUE(plainOff.ok());
+    EXPECT_EQ((*plain)->deviceBytes(), (*plainOff)->deviceBytes());
+
+    Scene caustic = diffuse;
+    uint32_t glassMat = addMaterial(caustic, glass(1.5f));
+    addSphere(caustic, glm::vec3(0, 0.3f, 0), 0.2f, glassMat, false, 8, 16);
+    auto on = Renderer::create(ctx(), caustic, photonSettings(8, 8, PhotonMode::Auto));
+    ASSERT_TRUE(on.ok());
+    EXPECT_TRUE((*on)->photonsActive());
+    EXPECT_GT((*on)->deviceBytes(), (*plain)->deviceBytes());
+    auto off = Renderer::create(ctx(), caustic, photonSettings(8, 8, PhotonMode::Off));
+    ASSERT_TRUE(off.ok());
+    EXPECT_FALSE((*off)->photonsActive());
+
+    Scene unlit = caustic;
+    unlit.lights.clear();
+    auto dark = Renderer::create(ctx(), unlit, photonSettings(8, 8, PhotonMode::Auto));
+    ASSERT_TRUE(dark.ok());
+    EXPECT_FALSE((*dark)->photonsActive());
+    // An estimated light (the captured sun) makes the caustic possible: photons switch on.
+    EstimatedLightSource sun;
+    sun.direction = glm::vec3(0.2f, 1.0f, 0.1f);
+    sun.solidAngleSr = 6.8e-5f;
+    sun.radiance = glm::vec3(1e4f);
+    ASSERT_TRUE((*dark)->setEstimatedLights(std::span(&sun, 1)).ok());
+    EXPECT_TRUE((*dark)->photonsActive());
+    ASSERT_TRUE((*dark)->render(1).ok());
+
+    RenderSettings bad = photonSettings(8, 8, PhotonMode::On);
+    bad.photons.alpha = 0.0f;
+    EXPECT_FALSE(Renderer::create(ctx(), caustic, bad).ok());
+    PhotonSettings parsed;
+    EXPECT_TRUE(applyPhotonSpec("5000", parsed).ok());
+    EXPECT_EQ(parsed.mode, PhotonMode::On);
+    EXPECT_EQ(parsed.perIteration, 5000u);
+    EXPECT_FALSE(applyPhotonSpec("many", parsed).ok());
+    EXPECT_FALSE(applyPhotonSpec("0", parsed).ok());
+}
+
+}  // namespace
+}  // namespace previs::testing
