@@ -249,12 +249,14 @@ int run(const RenderOptions& o) {
     }
     if (o.timing) {
         // load: scene and environment files; device: Vulkan instance and device; setup: BVH
-        // build, upload, pipeline compile; render: the samples; readback: the image to host.
+        // build, upload, pipeline compile; render: the samples; readback: the image to host;
+        // gpu: the dispatches' GPU time, photon_gpu: of which the photon passes.
         std::printf(
             "timing load_s=%.4f device_s=%.4f setup_s=%.4f render_s=%.4f readback_s=%.4f "
-            "total_s=%.4f\n",
+            "total_s=%.4f gpu_s=%.4f photon_gpu_s=%.4f\n",
             loadSeconds, deviceSeconds, setupSeconds, renderSeconds, since(readbackStart),
-            since(runStart));
+            since(runStart), (*renderer)->gpuMilliseconds() * 1e-3,
+            (*renderer)->photonMilliseconds() * 1e-3);
         std::fflush(stdout);
     }
     Status written;

@@ -414,7 +414,8 @@ Status ConfigReader::stringKey(const toml::table& t, std::string_view section,
 
 Status ConfigReader::parseRender(const toml::table& t, RenderConfig& c) const {
     if (Status st = r_.checkKeys(t, "render",
-                                 {"width", "height", "samples_per_frame", "max_depth", "seed"});
+                                 {"width", "height", "samples_per_frame", "max_depth", "seed",
+                                  "photons", "photon_radius_m", "photon_alpha"});
         !st)
         return st;
     int64_t width = c.width, height = c.height, spp = c.samplesPerFrame, depth = c.maxDepth,
@@ -432,6 +433,20 @@ Status ConfigReader::parseRender(const toml::table& t, RenderConfig& c) const {
     c.samplesPerFrame = uint32_t(spp);
     c.maxDepth = uint32_t(depth);
     c.seed = uint32_t(seed);
+    // photons: "auto" | "on" | "off" | a count per iteration (a TOML integer or string).
+    if (const toml::node* node = t.get("photons")) {
+        std::string spec;
+        if (auto n = node->value_exact<int64_t>())
+            spec = std::to_string(*n);
+        else if (Status st = stringKey(t, "render", "photons", spec); !st)
+            return st;
+        if (Status st = applyPhotonSpec(spec, c.photons); !st)
+            return fail(node, "'render.photons': {}", st.message());
+    }
+    if (Status st = ranged(t, "render", "photon_radius_m", c.photons.initialRadius, 0.0, 1e3); !st)
+        return st;
+    if (Status st = ranged(t, "render", "photon_alpha", c.photons.alpha, 0.0, 1.0, true); !st)
+        return st;
     return {};
 }
 

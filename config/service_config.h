@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "base/result.h"
+#include "render/photon_map.h"
 #include "vision/board_pose.h"
 #include "vision/camera_calibration.h"
 #include "vision/fisheye_to_equirect.h"
@@ -92,6 +93,8 @@ struct RenderConfig {
     uint32_t samplesPerFrame = 1;  // preview: samples per pixel of each live frame
     uint32_t maxDepth = 8;
     uint32_t seed = 0;    // preview's fixed random sequence
+    // Caustics (render/photon_map.h): mode and photons per iteration, first radius, alpha.
+    PhotonSettings photons;
 };
 
 // Refinement: the frame, pose and lighting freeze and samples accumulate.

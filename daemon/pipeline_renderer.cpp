@@ -82,6 +82,7 @@ Result<std::unique_ptr<PipelineRenderer>> PipelineRenderer::create(GpuContext& c
     settings.height = p->height_;
     settings.maxDepth = config.render.maxDepth;
     settings.seed = config.render.seed;
+    settings.photons = config.render.photons;
     settings.differential = true;
     settings.samplesPerDispatch = 64;  // the renderer lowers it inside the CPU loop limit
     Result<CameraCalibration> calibration =

@@ -644,8 +644,9 @@ void Service::reload() {
     if (n.tracking.boardPath != config_.tracking.boardPath) restart.push_back("tracking");
     if (n.lighting.mode != config_.lighting.mode) restart.push_back("lighting");
     if (n.render.width != config_.render.width || n.render.height != config_.render.height ||
-        n.render.maxDepth != config_.render.maxDepth || n.render.seed != config_.render.seed)
-        restart.push_back("render (size, max_depth, seed)");
+        n.render.maxDepth != config_.render.maxDepth || n.render.seed != config_.render.seed ||
+        !(n.render.photons == config_.render.photons))
+        restart.push_back("render (size, max_depth, seed, photons)");
     if (n.output.kind != config_.output.kind || n.output.folder != config_.output.folder ||
         n.output.card != config_.output.card || n.output.connector != config_.output.connector ||
         n.output.mode != config_.output.mode)

@@ -42,6 +42,8 @@ struct PhotonSettings {
     float alpha = 2.0f / 3.0f;
     // Records examined per grid bucket at most; fuller buckets are subsampled without bias.
     uint32_t gatherCap = 256;
+
+    bool operator==(const PhotonSettings&) const = default;
 };
 
 inline constexpr float kDefaultRadiusFraction = 0.05f;

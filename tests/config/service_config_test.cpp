@@ -249,6 +249,10 @@ position_m = [1, 0, 0]
         {"render_zero_spp", minimal("", "[render]\nsamples_per_frame = 0"),
          {"'render.samples_per_frame' is 0"}},
         {"render_typo", minimal("", "[render]\nspp = 4"), {"unknown key 'spp' in [render]"}},
+        {"render_photons", minimal("", "[render]\nphotons = \"lots\""),
+         {"'render.photons'", "auto, on, off or a count"}},
+        {"render_photon_alpha", minimal("", "[render]\nphoton_alpha = 0"),
+         {"'render.photon_alpha' is 0"}},
         {"refine_negative", minimal("", "[refine]\npose_threshold_m = -1"),
          {"'refine.pose_threshold_m' is -1"}},
         {"output_kind", minimal("", "[output]\nkind = \"hdmi\""),
@@ -278,6 +282,9 @@ width = 320
 height = 180
 samples_per_frame = 2
 max_depth = 5
+photons = 20000
+photon_radius_m = 0.004
+photon_alpha = 0.75
 [refine]
 samples_per_step = 8
 max_samples = 0
@@ -300,6 +307,10 @@ loop = false
     EXPECT_EQ(c->render.width, 320u);
     EXPECT_EQ(c->render.samplesPerFrame, 2u);
     EXPECT_EQ(c->render.maxDepth, 5u);
+    EXPECT_EQ(c->render.photons.mode, PhotonMode::On);
+    EXPECT_EQ(c->render.photons.perIteration, 20000u);
+    EXPECT_FLOAT_EQ(c->render.photons.initialRadius, 0.004f);
+    EXPECT_FLOAT_EQ(c->render.photons.alpha, 0.75f);
     EXPECT_EQ(c->refine.samplesPerStep, 8u);
     EXPECT_EQ(c->refine.maxSamples, 0u);
     EXPECT_DOUBLE_EQ(c->refine.poseThresholdDeg, 1.5);
