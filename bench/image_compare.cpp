@@ -4,16 +4,27 @@
 
 namespace previs::bench {
 
-Result<ImageDifference> compareImages(const ImageF& a, const ImageF& b) {
+Result<ImageDifference> compareImages(const ImageF& a, const ImageF& b,
+                                      const std::optional<PixelRegion>& region) {
     if (a.width != b.width || a.height != b.height || a.channels != b.channels)
         return makeError(
             "images differ in size: {}x{}x{} against {}x{}x{} (render both at the "
             "same resolution and channel count)",
             a.width, a.height, a.channels, b.width, b.height, b.channels);
     if (a.pixels.empty()) return makeError("the images are empty");
+    PixelRegion r = region.value_or(PixelRegion{0, 0, a.width, a.height});
+    if (r.x0 >= r.x1 || r.y0 >= r.y1 || r.x1 > a.width || r.y1 > a.height)
+        return makeError("region {},{},{},{} is empty or outside the {}x{} image (x0,y0,x1,y1 "
+                         "with x0 < x1 <= width, y0 < y1 <= height)", r.x0, r.y0, r.x1, r.y1,
+                         a.width, a.height);
     // Sums in double: 1920×1080×3 float values would lose the small differences in float.
     double sumSquared = 0.0, sumRelative = 0.0, sumA = 0.0, sumB = 0.0;
-    for (size_t i = 0; i < a.pixels.size(); ++i) {
+    size_t values = 0;
+    for (uint32_t y = r.y0; y < r.y1; ++y)
+    for (uint32_t x = r.x0; x < r.x1; ++x)
+    for (uint32_t c = 0; c < a.channels; ++c) {
+        const size_t i = (size_t(y) * a.width + x) * a.channels + c;
+        ++values;
         double va = a.pixels[i], vb = b.pixels[i];
         if (!std::isfinite(va) || !std::isfinite(vb))
             return makeError("value {} (pixel {}, channel {}) is not finite: {} against {}", i,
@@ -24,7 +35,7 @@ Result<ImageDifference> compareImages(const ImageF& a, const ImageF& b) {
         sumB += vb;
     }
     ImageDifference d;
-    d.values = a.pixels.size();
+    d.values = values;
     d.rmse = std::sqrt(sumSquared / double(d.values));
     d.relMse = sumRelative / double(d.values);
     d.meanA = sumA / double(d.values);

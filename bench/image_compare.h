@@ -4,6 +4,8 @@
 // error (`previs compare`).
 
 #include <cstddef>
+#include <cstdint>
+#include <optional>
 
 #include "base/result.h"
 #include "image/image.h"
@@ -18,8 +20,15 @@ struct ImageDifference {
     size_t values = 0;  // pixels × channels compared
 };
 
-// Every channel of every pixel; the two must have the same size and channel count and hold
-// finite values (a NaN would make the error meaningless, so it is an error, not skipped).
-Result<ImageDifference> compareImages(const ImageF& a, const ImageF& b);
+// Pixels [x0, x1) × [y0, y1): a part of the image, e.g. the caustic of bench/caustics.sh.
+struct PixelRegion {
+    uint32_t x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+};
+
+// Every channel of every pixel (of `region`, if given); the two must have the same size and
+// channel count and hold finite values (a NaN would make the error meaningless, so it is an
+// error, not skipped).
+Result<ImageDifference> compareImages(const ImageF& a, const ImageF& b,
+                                      const std::optional<PixelRegion>& region = std::nullopt);
 
 }  // namespace previs::bench

@@ -13,6 +13,7 @@ namespace {
 struct CompareOptions {
     std::string a;
     std::string b;
+    std::vector<uint32_t> region;
 };
 
 int run(const CompareOptions& o) {
@@ -28,7 +29,10 @@ int run(const CompareOptions& o) {
             return 2;
         }
     }
-    auto d = bench::compareImages(*images[0], *images[1]);
+    std::optional<bench::PixelRegion> region;
+    if (!o.region.empty())
+        region = bench::PixelRegion{o.region[0], o.region[1], o.region[2], o.region[3]};
+    auto d = bench::compareImages(*images[0], *images[1], region);
     if (!d) {
         logError("{} against {}: {}", o.a, o.b, d.message());
         return 2;
@@ -50,6 +54,10 @@ std::function<int()> addCompareCommand(CLI::App& app) {
     cmd->add_option("REFERENCE", o->b, "reference image, same size and channels, e.g. a long render")
         ->required()
         ->check(CLI::ExistingFile);
+    cmd->add_option("--region", o->region,
+                    "only pixels x0 <= x < x1, y0 <= y < y1 (e.g. a caustic): X0,Y0,X1,Y1")
+        ->delimiter(',')
+        ->expected(4);
     return [o] { return run(*o); };
 }
 

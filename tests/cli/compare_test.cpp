@@ -55,6 +55,28 @@ TEST(CompareImages, EveryChannelCounts) {
     EXPECT_NEAR(d->meanB, 0.5, 1e-12);
 }
 
+TEST(CompareImages, RegionCountsOnlyItsPixels) {
+    // A 6x4 image differing by 1 only in pixels x in [2, 4), y in [1, 3): inside that region the
+    // RMSE is 1, over the whole image sqrt(4·3/72); a region off it sees no difference.
+    ImageF a = constant(6, 4, 3, 0.0f);
+    ImageF b = a;
+    for (uint32_t y = 1; y < 3; ++y)
+        for (uint32_t x = 2; x < 4; ++x)
+            for (uint32_t c = 0; c < 3; ++c) b.pixels[(y * 6 + x) * 3 + c] = 1.0f;
+    auto inside = compareImages(b, a, PixelRegion{2, 1, 4, 3});
+    ASSERT_TRUE(inside) << inside.message();
+    EXPECT_NEAR(inside->rmse, 1.0, 1e-12);
+    EXPECT_EQ(inside->values, 12u);
+    auto whole = compareImages(b, a);
+    ASSERT_TRUE(whole);
+    EXPECT_NEAR(whole->rmse, std::sqrt(12.0 / 72.0), 1e-12);
+    auto outside = compareImages(b, a, PixelRegion{0, 0, 2, 4});
+    ASSERT_TRUE(outside);
+    EXPECT_EQ(outside->rmse, 0.0);
+    EXPECT_FALSE(compareImages(b, a, PixelRegion{4, 0, 4, 4}));  // empty
+    EXPECT_FALSE(compareImages(b, a, PixelRegion{0, 0, 7, 4}));  // outside
+}
+
 TEST(CompareImages, RefusesMismatchedOrNonFiniteImages) {
     EXPECT_FALSE(compareImages(constant(4, 4, 3, 0), constant(4, 3, 3, 0)));
     EXPECT_FALSE(compareImages(constant(4, 4, 3, 0), constant(4, 4, 4, 0)));
