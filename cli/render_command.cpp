@@ -1,5 +1,6 @@
 #include "cli/render_command.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -53,6 +54,7 @@ struct RenderOptions {
     float plateWhite = 16.0f;
     std::vector<std::string> aovs;
     std::string calibration;
+    std::vector<uint32_t> checkpoints;  // also write the image at these sample counts
 };
 
 // `--out dir/name.exr` → `dir/name.<aov>.exr` (DESIGN.md §3).
@@ -233,6 +235,23 @@ int run(const RenderOptions& o) {
                          o.spp ? fmt::format("/{}", o.spp).c_str() : "", elapsed(),
                          photons.c_str());
         }
+        const uint64_t done = (*renderer)->samplesPerPixel();
+        if (std::find(o.checkpoints.begin(), o.checkpoints.end(), done) != o.checkpoints.end()) {
+            // For convergence curves in one run: the image so far and the time it took (from
+            // the start of the run, so device creation, BVH build and compile count).
+            auto snapshot = (*renderer)->image();
+            std::filesystem::path p(o.out);
+            std::string path = (p.parent_path() / fmt::format("{}.spp{}.exr", p.stem().string(),
+                                                                done)).string();
+            Status s = snapshot ? writeExr(path, *snapshot) : Status(snapshot.error());
+            if (!s) {
+                logError("{}", s.message());
+                return 1;
+            }
+            std::printf("checkpoint spp=%llu total_s=%.4f file=%s\n", (unsigned long long)done,
+                        since(runStart), path.c_str());
+            std::fflush(stdout);
+        }
         if (o.seconds > 0.0 && elapsed() >= o.seconds) break;
     }
     if (!o.quiet) std::fprintf(stderr, "\n");
@@ -335,6 +354,10 @@ std::function<int()> addRenderCommand(CLI::App& app) {
                     "progressive photon mapping's alpha in (0, 1]: radius ~ iteration^((alpha-1)/2); "
                     "1 keeps it fixed (default 2/3)")
         ->check(CLI::Range(1e-3f, 1.0f));
+    cmd->add_option("--checkpoints", o->checkpoints,
+                    "also write OUT_STEM.sppN.exr at these sample counts (N1,N2,...), and print "
+                    "each one's time since start: a convergence curve from one run")
+        ->delimiter(',');
     cmd->add_option("--exposure", o->exposure, "PNG output: exposure in stops");
     cmd->add_option("--tonemap", o->toneMap, "PNG output: clamp, reinhard or reinhard-extended")
         ->check(CLI::IsMember({"clamp", "reinhard", "reinhard-extended"}));

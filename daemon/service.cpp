@@ -73,6 +73,9 @@ OutputSettings outputSettings(const OutputConfig& c) {
 std::string statusLine(const ServiceStatus& s) {
     std::string line = fmt::format("{} {} spp {:.1f} fps",
                                    s.mode == Mode::Refine ? "REFINE" : "PREVIEW", s.samples, s.fps);
+    if (s.photonsPerIteration > 0)
+        line += fmt::format("  {}K photons r {:.1f} mm", (s.photonsPerIteration + 512) / 1024,
+                            s.photonRadiusM * 1e3f);
     if (s.trackingLost) line += s.worldFromCamera ? "  TRACKING LOST (holding)" : "  NO TRACKING";
     return line;
 }
@@ -104,6 +107,10 @@ std::string statusJson(const ServiceStatus& s) {
     j["lightingMs"] = std::round(s.lightingMs * 10.0) / 10.0;
     j["latencyMs"] = std::round(s.latencyMs * 10.0) / 10.0;
     j["deviceBytes"] = s.deviceBytes;
+    if (s.photonsPerIteration > 0)
+        j["photons"] = {{"perIteration", s.photonsPerIteration}, {"radiusM", s.photonRadiusM}};
+    else
+        j["photons"] = nullptr;
     j["cameras"] = {{"scene", s.sceneCamera}, {"fisheye", s.fisheyeCamera}};
     j["lightingUpdates"] = s.lightingUpdates;
     return j.dump();
@@ -243,6 +250,9 @@ void Service::Threads::publish(PipelineRenderer& r, const TrackedFrame& frame, M
         renderStatus.trackingLost = frame.lost;
         renderStatus.trackMs = frame.trackMs;
         renderStatus.deviceBytes = r.renderer().deviceBytes();
+        const bool photons = r.renderer().photonsActive();
+        renderStatus.photonsPerIteration = photons ? r.renderer().photonsPerIteration() : 0;
+        renderStatus.photonRadiusM = photons ? r.renderer().nextPhotonRadius() : 0.0f;
         out->index = renderStatus.framesRendered++;
         s = renderStatus;
     }

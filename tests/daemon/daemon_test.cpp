@@ -149,6 +149,14 @@ TEST(StatusJson, HasTheDesignFields) {
     s.worldFromCamera.reset();
     EXPECT_TRUE(nlohmann::json::parse(statusJson(s))["pose"].is_null());
     EXPECT_EQ(statusLine(s).rfind("REFINE 256 spp", 0), 0u) << statusLine(s);
+    EXPECT_TRUE(nlohmann::json::parse(statusJson(s))["photons"].is_null());
+    // With a photon pass: its budget and radius, in the JSON and on the overlay.
+    s.photonsPerIteration = 65536;
+    s.photonRadiusM = 0.0042f;
+    const nlohmann::json p = nlohmann::json::parse(statusJson(s));
+    EXPECT_EQ(p["photons"]["perIteration"], 65536);
+    EXPECT_NEAR(p["photons"]["radiusM"].get<double>(), 0.0042, 1e-6);
+    EXPECT_NE(statusLine(s).find("64K photons r 4.2 mm"), std::string::npos) << statusLine(s);
 }
 
 TEST(RecordedEvents, FireWithTheirFrameOnEveryPass) {
