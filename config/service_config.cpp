@@ -415,7 +415,8 @@ Status ConfigReader::stringKey(const toml::table& t, std::string_view section,
 Status ConfigReader::parseRender(const toml::table& t, RenderConfig& c) const {
     if (Status st = r_.checkKeys(t, "render",
                                  {"width", "height", "samples_per_frame", "max_depth", "seed",
-                                  "photons", "photon_radius_m", "photon_alpha"});
+                                  "photons", "preview_photons", "photon_radius_m",
+                                  "photon_alpha"});
         !st)
         return st;
     int64_t width = c.width, height = c.height, spp = c.samplesPerFrame, depth = c.maxDepth,
@@ -443,6 +444,12 @@ Status ConfigReader::parseRender(const toml::table& t, RenderConfig& c) const {
         if (Status st = applyPhotonSpec(spec, c.photons); !st)
             return fail(node, "'render.photons': {}", st.message());
     }
+    int64_t previewPhotons = c.photons.previewPerIteration;
+    if (Status st = integerIn(t, "render", "preview_photons", previewPhotons, 128,
+                              kMaxPhotonsPerIteration);
+        !st)
+        return st;
+    c.photons.previewPerIteration = uint32_t(previewPhotons);
     if (Status st = ranged(t, "render", "photon_radius_m", c.photons.initialRadius, 0.0, 1e3); !st)
         return st;
     if (Status st = ranged(t, "render", "photon_alpha", c.photons.alpha, 0.0, 1.0, true); !st)

@@ -34,6 +34,9 @@ enum class PhotonMode {
 struct PhotonSettings {
     PhotonMode mode = PhotonMode::Auto;
     uint32_t perIteration = 1u << 16;  // photons per iteration (rounded up to a multiple of 128)
+    // Preview frames (Renderer::renderPreviewFrame) trace at most this many: a fixed budget for
+    // speed; the radius of a preview frame is the first iterations' (it restarts every frame).
+    uint32_t previewPerIteration = 1u << 14;
     // Gather radius of the first iteration (metres); 0: kDefaultRadiusFraction of the radius of
     // the sphere that holds the specular objects.
     float initialRadius = 0.0f;

@@ -120,7 +120,8 @@ Result<std::unique_ptr<Renderer>> Renderer::create(GpuContext& ctx, const Scene&
                          settings.lensGrid.size(), settings.width, settings.height,
                          size_t(settings.width + 1) * (settings.height + 1));
     const PhotonSettings& ph = settings.photons;
-    if (ph.perIteration == 0 || ph.perIteration > kMaxPhotonsPerIteration || !(ph.alpha > 0.0f) ||
+    if (ph.perIteration == 0 || ph.perIteration > kMaxPhotonsPerIteration ||
+        ph.previewPerIteration == 0 || !(ph.alpha > 0.0f) ||
         !(ph.alpha <= 1.0f) || !(ph.initialRadius >= 0.0f) || !std::isfinite(ph.initialRadius) ||
         ph.gatherCap == 0)
         return makeError("photon settings out of range ({} photons per iteration, radius {} m, "
@@ -512,7 +513,13 @@ Status Renderer::reset() {
 Status Renderer::renderPreviewFrame(uint32_t spp) {
     if (Status s = reset(); !s) return s;
     params_.seed = settings_.seed;
-    return render(spp);
+    // The preview's photon budget (never more than the buffers hold), then refinement's again.
+    const uint32_t full = params_.photonCount;
+    params_.photonCount =
+        std::min(full, (settings_.photons.previewPerIteration + 127u) / 128u * 128u);
+    Status s = render(spp);
+    params_.photonCount = full;
+    return s;
 }
 
 uint32_t Renderer::samplesForNextDispatch(uint32_t remaining) const {

@@ -283,6 +283,7 @@ height = 180
 samples_per_frame = 2
 max_depth = 5
 photons = 20000
+preview_photons = 4096
 photon_radius_m = 0.004
 photon_alpha = 0.75
 [refine]
@@ -309,6 +310,7 @@ loop = false
     EXPECT_EQ(c->render.maxDepth, 5u);
     EXPECT_EQ(c->render.photons.mode, PhotonMode::On);
     EXPECT_EQ(c->render.photons.perIteration, 20000u);
+    EXPECT_EQ(c->render.photons.previewPerIteration, 4096u);
     EXPECT_FLOAT_EQ(c->render.photons.initialRadius, 0.004f);
     EXPECT_FLOAT_EQ(c->render.photons.alpha, 0.75f);
     EXPECT_EQ(c->refine.samplesPerStep, 8u);
