@@ -273,10 +273,9 @@ void gatherPhotons(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint depth, f
 }
 
 // Where a path stands with respect to the photon map's paths (shared/photon_map.h's rule).
-#define CAUSTIC_BEFORE_GATHER 0u   // no vertex that is not purely specular yet
-#define CAUSTIC_LEFT_GATHER 1u     // the gather vertex scattered through a non-delta lobe
+#define CAUSTIC_NONE 0u            // the path tracer's own: from the camera, or after a delta lobe
+#define CAUSTIC_LEFT_GATHER 1u     // the last gather vertex scattered through a non-delta lobe
 #define CAUSTIC_SPECULAR_CHAIN 2u  // ... then only purely specular vertices (causticBounces)
-#define CAUSTIC_NONE 3u            // anything else: the path tracer's own
 
 // Adds radiance to the solutions the path carries in `mode`, in the same order for both, so that
 // where the two solutions followed the same path L_om − L_or is exactly zero.
@@ -318,7 +317,7 @@ void tracePath(uvec2 pixel, SampleKey key, out vec3 lm, out vec3 lr, out bool fi
     st.prevPosition = st.ray.origin;
     st.etaScale = 1.0;
     st.depth = 0u;
-    st.causticState = CAUSTIC_BEFORE_GATHER;
+    st.causticState = CAUSTIC_NONE;
     st.causticBounces = 0u;
     lm = vec3(0.0);
     lr = vec3(0.0);
@@ -401,7 +400,10 @@ void tracePath(uvec2 pixel, SampleKey key, out vec3 lm, out vec3 lr, out bool fi
             bool gatherVertex = false;
             if (kPhotons) {
                 bool purelySpecular = bsdfIsPurelySpecular(bp);
-                if (st.causticState == CAUSTIC_BEFORE_GATHER && !purelySpecular) {
+                if (!purelySpecular) {
+                    // Every vertex that is not purely specular gathers: at later vertices too,
+                    // a caustic lighting what the camera sees only indirectly (the wall beside a
+                    // glass) would otherwise be the path tracer's rare, bright samples.
                     gatherVertex = true;
                     vec3 causticMixed;
                     vec3 causticReal;
@@ -410,9 +412,8 @@ void tracePath(uvec2 pixel, SampleKey key, out vec3 lm, out vec3 lr, out bool fi
                     gatherPhotons(s, bp, frame, wo, st.depth, uWindow, causticMixed, causticReal);
                     if (mode != MODE_REAL) lm += st.throughput * causticMixed;
                     if (mode != MODE_MIXED) lr += st.throughput * causticReal;
-                } else if (st.causticState == CAUSTIC_LEFT_GATHER ||
-                           st.causticState == CAUSTIC_SPECULAR_CHAIN) {
-                    st.causticState = purelySpecular ? CAUSTIC_SPECULAR_CHAIN : CAUSTIC_NONE;
+                } else if (st.causticState != CAUSTIC_NONE) {
+                    st.causticState = CAUSTIC_SPECULAR_CHAIN;
                     st.causticBounces += 1u;
                 }
             }
@@ -434,7 +435,10 @@ void tracePath(uvec2 pixel, SampleKey key, out vec3 lm, out vec3 lr, out bool fi
             if (!consistentSide(s, wi, bs.wi)) break;
             st.throughput *= bs.weight;
             if (bs.lobe == PV_LOBE_TRANSMISSION) st.etaScale *= bp.etaRel * bp.etaRel;
-            if (gatherVertex) st.causticState = bs.isDelta ? CAUSTIC_NONE : CAUSTIC_LEFT_GATHER;
+            if (gatherVertex) {
+                st.causticState = bs.isDelta ? CAUSTIC_NONE : CAUSTIC_LEFT_GATHER;
+                st.causticBounces = 0u;
+            }
             st.prevPdf = bs.pdf;
             st.prevDelta = bs.isDelta;
             st.prevPosition = s.position;

@@ -5,12 +5,12 @@
 // What the photon map carries (and the path tracer therefore leaves out): light from a photon
 // light — an emissive triangle, a punctual light or an estimated (cone) light, never the
 // environment map — that reached a surface through one or more purely specular scatterings
-// (L S+ D). It is gathered at the camera path's first vertex that is not purely specular (the
+// (L S+ D). It is gathered at every vertex of a camera path that is not purely specular (a
 // "gather vertex"), through the non-delta part of that vertex's BSDF. The path tracer drops
-// exactly those paths: an emitter of a photon light reached from the gather vertex through a
+// exactly those paths: an emitter of a photon light reached from a gather vertex through a
 // non-delta scattering followed only by 1..photonMaxBounces purely specular ones. Everything else
-// (direct light, diffuse interreflection, caustics seen through a second diffuse bounce,
-// environment light through glass) stays with the path tracer.
+// (direct light, diffuse interreflection, environment light through glass) stays with the path
+// tracer.
 #ifndef PREVIS_SHARED_PHOTON_MAP_H
 #define PREVIS_SHARED_PHOTON_MAP_H
 
