@@ -347,7 +347,7 @@ std::function<int()> addRenderCommand(CLI::App& app) {
                     "caustics by photon mapping: auto (default: when the scene has a smooth mirror "
                     "or glass and a light), on, off, or N photons per iteration (implies on)");
     cmd->add_option("--photon-radius", o->photonRadius,
-                    "first gather radius, metres (default: 5% of the sphere around the specular "
+                    "first gather radius, metres (default: 2.5% of the sphere around the specular "
                     "objects)")
         ->check(CLI::NonNegativeNumber);
     cmd->add_option("--photon-alpha", o->photonAlpha,
