@@ -260,7 +260,7 @@ vec4 sampleTexture(uint index, vec2 uv) {
 struct Surface {
     vec3 position;
     vec3 geometricNormal;  // faces the side the ray came from
-    vec3 shadingNormal;    // same side as geometricNormal
+    vec3 shadingNormal;    // same side as geometricNormal, adapted to the ray (bsdf.h)
     vec2 uv;
     bool frontFace;        // the ray hit the side the triangle's winding faces
     uint material;
@@ -303,7 +303,8 @@ Surface surfaceAt(Ray ray, Hit hit) {
     }
     s.frontFace = dot(ray.direction, ng) < 0.0;
     s.geometricNormal = s.frontFace ? ng : -ng;
-    s.shadingNormal = dot(ns, s.geometricNormal) < 0.0 ? -ns : ns;
+    s.shadingNormal = adaptShadingNormal(-ray.direction, s.geometricNormal,
+                                         dot(ns, s.geometricNormal) < 0.0 ? -ns : ns);
     return s;
 }
 
@@ -658,12 +659,6 @@ void tracePath(uvec2 pixel, SampleKey key, out vec3 lm, out vec3 lr, out bool fi
             frame.n = s.shadingNormal;
             buildBasis(frame.n, frame.t, frame.b);
             vec3 wo = toLocal(frame, -st.ray.direction);
-            if (wo.z <= 0.0) {
-                // Seen from below its shading normal: shade with the geometric normal instead.
-                frame.n = s.geometricNormal;
-                buildBasis(frame.n, frame.t, frame.b);
-                wo = toLocal(frame, -st.ray.direction);
-            }
             BsdfParams bp = bsdfParamsAt(m, s);
             // Light sampling only where some lobe is not a delta (a smooth mirror or glass
             // can only see lights through its one reflected or refracted ray).
@@ -680,7 +675,14 @@ void tracePath(uvec2 pixel, SampleKey key, out vec3 lm, out vec3 lr, out bool fi
             vec4 uBsdf = draw(key, vertexSet(st.depth, PV_SET_VERTEX_BSDF));
             if (!sampleBsdf(bp, wo, uBsdf, bs)) break;
             vec3 wi = toWorld(frame, bs.wi);
-            if (!consistentSide(s, wi, bs.wi)) break;
+            if (!consistentSide(s, wi, bs.wi)) {
+                // The adapted normal keeps every mirror direction above the surface; a smooth
+                // refraction leaving at grazing angles can still point back into its facet. A
+                // delta direction is moved to the nearest one on its promised side (its weight
+                // stays exact); a sampled non-delta direction would break its pdf, so it ends.
+                if (!bs.isDelta) break;
+                wi = nearestDirectionOnSide(wi, s.geometricNormal, bs.wi.z > 0.0 ? 1.0 : -1.0);
+            }
             st.throughput *= bs.weight;
             if (bs.lobe == PV_LOBE_TRANSMISSION) st.etaScale *= bp.etaRel * bp.etaRel;
             st.prevPdf = bs.pdf;

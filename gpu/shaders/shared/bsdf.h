@@ -303,6 +303,40 @@ PV_INLINE bool bsdfSample(BsdfParams p, vec3 wo, float uLobe, vec2 u, PV_OUT(Bsd
     return true;
 }
 
+// The reflection of wo about an adapted shading normal leaves the geometric surface at least at
+// this cosine: above the tangent plane, and far enough from it that the reflected ray, offset
+// from the surface, does not graze the facet it leaves.
+#define PV_ADAPTED_REFLECTION_COSINE 1.0e-3f
+
+// Shading-normal adaptation (Keller et al. 2017, "The Iray Light Transport Simulation and
+// Rendering System", §A.3): where the mirror direction of wo about the interpolated (or normal-
+// mapped) normal ns points below the geometric surface, ns is tilted toward the geometric normal
+// ng just enough that it does not: the new normal is the half vector of wo and the nearest
+// direction above the surface. A smooth mirror or glass then never sends a path into the facet
+// it reflects from, which killed paths at the silhouettes of smooth-shaded meshes (and shading
+// with ng instead, where wo is below ns, made a visible seam). World space; wo and ns on ng's
+// side (wo·ng > 0, ns·ng ≥ 0), all unit vectors.
+// The unit direction nearest to w on the side `side` (+1 or −1) of the plane normal to ng, at
+// least PV_ADAPTED_REFLECTION_COSINE away from it; w itself when it already is. ng unit.
+PV_INLINE vec3 nearestDirectionOnSide(vec3 w, vec3 ng, float side) {
+    const float c = PV_ADAPTED_REFLECTION_COSINE;
+    float a = dot(w, ng) * side;
+    if (a >= c) return w;
+    vec3 t = w - dot(w, ng) * ng;
+    float tLen = length(t);
+    if (!(tLen > 1.0e-6f)) return ng * side;
+    return t * (sqrt(1.0f - c * c) / tLen) + (c * side) * ng;
+}
+
+PV_INLINE vec3 adaptShadingNormal(vec3 wo, vec3 ng, vec3 ns) {
+    vec3 r = 2.0f * dot(wo, ns) * ns - wo;
+    float a = dot(r, ng);
+    if (a >= PV_ADAPTED_REFLECTION_COSINE) return ns;
+    // Grazing wo: wo + r below cancels; the answer tends to ng anyway.
+    if (dot(wo, ng) < 2.0f * PV_ADAPTED_REFLECTION_COSINE) return ng;
+    return normalize(wo + nearestDirectionOnSide(r, ng, 1.0f));
+}
+
 PV_END
 
 #endif
