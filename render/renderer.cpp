@@ -313,7 +313,13 @@ Status Renderer::buildScene(const Scene& scene) {
         gm.metallicRoughnessTexture = tex(m.metallicRoughnessTexture);
         gm.normalTexture = tex(m.normalTexture);
         gm.emissiveTexture = tex(m.emissiveTexture);
-        gm.flags = m.doubleSided ? PV_MATERIAL_DOUBLE_SIDED : 0u;
+        gm.flags = (m.doubleSided ? PV_MATERIAL_DOUBLE_SIDED : 0u) |
+                   (m.thinWalled ? PV_MATERIAL_THIN_WALLED : 0u);
+        // Beer–Lambert: attenuationColor remains after attenuationDistanceM, so the absorption
+        // coefficient is −ln(colour) / distance (a black colour absorbs within a micrometre).
+        if (!m.thinWalled && std::isfinite(m.attenuationDistanceM))
+            gm.attenuation = -glm::log(glm::max(m.attenuationColor, glm::vec3(1e-6f))) /
+                             m.attenuationDistanceM;
         materials.push_back(gm);
     }
 

@@ -53,11 +53,12 @@ vec3 normalAt(uint vertex) { return uintBitsToFloat(texelFetch(normalTexels, int
 vec2 uvAt(uint vertex) { return uintBitsToFloat(texelFetch(uvTexels, int(vertex)).xy); }
 
 GpuMaterial materialAt(uint i) {
-    uvec4 t0 = texelFetch(materialTexels, int(5u * i));
-    uvec4 t1 = texelFetch(materialTexels, int(5u * i + 1u));
-    uvec4 t2 = texelFetch(materialTexels, int(5u * i + 2u));
-    uvec4 t3 = texelFetch(materialTexels, int(5u * i + 3u));
-    uvec4 t4 = texelFetch(materialTexels, int(5u * i + 4u));
+    uvec4 t0 = texelFetch(materialTexels, int(6u * i));
+    uvec4 t1 = texelFetch(materialTexels, int(6u * i + 1u));
+    uvec4 t2 = texelFetch(materialTexels, int(6u * i + 2u));
+    uvec4 t3 = texelFetch(materialTexels, int(6u * i + 3u));
+    uvec4 t4 = texelFetch(materialTexels, int(6u * i + 4u));
+    uvec4 t5 = texelFetch(materialTexels, int(6u * i + 5u));
     GpuMaterial m;
     m.baseColor = uintBitsToFloat(t0);
     m.emission = uintBitsToFloat(t1.xyz);
@@ -72,6 +73,8 @@ GpuMaterial materialAt(uint i) {
     m.normalTexture = t4.y;
     m.emissiveTexture = t4.z;
     m.flags = t4.w;
+    m.attenuation = uintBitsToFloat(t5.xyz);
+    m.reserved = t5.w;
     return m;
 }
 
@@ -337,9 +340,10 @@ BsdfParams bsdfParamsAt(GpuMaterial m, Surface s) {
     p.specular = kHasSpecular ? m.specular : 0.0;
     p.specularColor = m.specularColor;
     if (!kHasSpecular) p.metallic = 0.0;
-    // A transmissive surface hit from inside sees the inverse relative IOR; opaque surfaces are
-    // shaded the same from both sides.
-    p.etaRel = (s.frontFace || p.transmission == 0.0) ? m.ior : 1.0 / m.ior;
+    p.thinWalled = (m.flags & PV_MATERIAL_THIN_WALLED) != 0u;
+    // A transmissive surface hit from inside sees the inverse relative IOR; opaque surfaces and
+    // thin walls are shaded the same from both sides.
+    p.etaRel = (s.frontFace || p.transmission == 0.0 || p.thinWalled) ? m.ior : 1.0 / m.ior;
     return p;
 }
 
@@ -646,6 +650,11 @@ void tracePath(uvec2 pixel, SampleKey key, out vec3 lm, out vec3 lr, out bool fi
             }
             Surface s = surfaceAt(st.ray, hit);
             GpuMaterial m = materialAt(s.material);
+            if (kHasTransmission && !s.frontFace && maxComponent(m.attenuation) > 0.0) {
+                // Beer–Lambert (KHR_materials_volume): the segment just travelled ran inside
+                // this material's volume, from where the path entered it to this back face.
+                st.throughput *= exp(-m.attenuation * hit.t);
+            }
             if (kHasEmissive && maxComponent(m.emission) > 0.0 && emitsToward(m, s.frontFace)) {
                 float w = st.prevDelta ? 1.0
                                        : powerHeuristic(st.prevPdf,
@@ -684,7 +693,8 @@ void tracePath(uvec2 pixel, SampleKey key, out vec3 lm, out vec3 lr, out bool fi
                 wi = nearestDirectionOnSide(wi, s.geometricNormal, bs.wi.z > 0.0 ? 1.0 : -1.0);
             }
             st.throughput *= bs.weight;
-            if (bs.lobe == PV_LOBE_TRANSMISSION) st.etaScale *= bp.etaRel * bp.etaRel;
+            if (bs.lobe == PV_LOBE_TRANSMISSION && !bp.thinWalled)
+                st.etaScale *= bp.etaRel * bp.etaRel;
             st.prevPdf = bs.pdf;
             st.prevDelta = bs.isDelta;
             st.prevPosition = s.position;

@@ -16,7 +16,7 @@ namespace {
 using namespace previs::shader;
 
 // All chi-square tests in this file share one overall significance of 1%.
-constexpr int kChi2Tests = 2 + 4 * 3;
+constexpr int kChi2Tests = 2 + 5 * 3;
 const double kLevel = sidakLevel(0.01, kChi2Tests);
 
 BsdfParams material(glm::vec3 color, float metallic, float roughness, float transmission = 0.0f,
@@ -29,6 +29,12 @@ BsdfParams material(glm::vec3 color, float metallic, float roughness, float tran
     p.transmission = transmission;
     p.etaRel = ior;
     p.specular = specular;
+    p.thinWalled = false;
+    return p;
+}
+
+BsdfParams thinWalled(BsdfParams p) {
+    p.thinWalled = true;
     return p;
 }
 
@@ -89,6 +95,7 @@ TEST(BsdfTest, MixtureSamplingMatchesReportedPdf) {
         {"glossy plastic", material(glm::vec3(0.2f, 0.5f, 0.8f), 0.0f, 0.3f)},
         {"rough glass", material(glm::vec3(1.0f), 0.0f, 0.5f, 1.0f, 1.5f)},
         {"rough glass from inside", material(glm::vec3(1.0f), 0.0f, 0.6f, 1.0f, 1.0f / 1.5f)},
+        {"rough thin-walled glass", thinWalled(material(glm::vec3(1.0f), 0.0f, 0.4f, 1.0f, 1.5f))},
     };
     for (const LobeCase& c : cases) {
         for (float thetaO : {10.0f, 50.0f, 80.0f}) {
@@ -311,6 +318,70 @@ TEST(ShadingNormalTest, AdaptedNormalReflectsAboveTheSurface) {
         }
     }
     EXPECT_GT(adapted, 1000);  // the cases above do exercise the adaptation
+}
+
+// A thin wall (glTF transmission without KHR_materials_volume): the transmitted ray keeps its
+// direction, reflection and transmission share the slab's Fresnel 2F/(1 + F), and the energy
+// is all kept (no 1/η²: the light leaves into the medium it came from).
+TEST(BsdfTest, ThinWalledGlassDoesNotBendAndKeepsEnergy) {
+    BsdfParams sheet = thinWalled(material(glm::vec3(1.0f), 0.0f, 0.0f, 1.0f, 1.5f));
+    for (float thetaO : {0.0f, 30.0f, 60.0f, 85.0f}) {
+        glm::vec3 wo = direction(thetaO, 40.0f);
+        float f = fresnelDielectric(wo.z, 1.5f);
+        float slab = 2.0f * f / (1.0f + f);
+        BsdfSample s;
+        ASSERT_TRUE(bsdfSample(sheet, wo, 0.5f * slab, {0.3f, 0.6f}, s));
+        EXPECT_EQ(s.lobe, PV_LOBE_DIELECTRIC_REFLECTION);
+        EXPECT_NEAR(s.weight.x, 1.0f, 1e-6f);
+        ASSERT_TRUE(bsdfSample(sheet, wo, slab + 0.5f * (1.0f - slab), {0.3f, 0.6f}, s));
+        EXPECT_EQ(s.lobe, PV_LOBE_TRANSMISSION);
+        EXPECT_TRUE(s.isDelta);
+        EXPECT_NEAR(s.weight.x, 1.0f, 1e-6f) << "θo " << thetaO;
+        // The ray is not shifted in direction: it continues exactly along −wo.
+        EXPECT_EQ(s.wi, -wo);
+        // Energy: the sampler's weights average to exactly 1.
+        EXPECT_NEAR(albedo(sheet, wo, 20000).x, 1.0f, 1e-5f);
+    }
+    // At normal incidence a pane of n = 1.5 reflects 2·0.04/1.04 = 7.7%, twice one face.
+    EXPECT_NEAR(bsdfLobeProbabilities(sheet, glm::vec3(0, 0, 1)).y, 1.0f, 1e-6f);
+    EXPECT_NEAR(dielectricFresnel(sheet, 1.0f).x, 0.08f / 1.04f, 1e-6f);
+    // Rough: the transmitted lobe is the reflected one mirrored through the sheet, so its
+    // directional albedo is that of a white rough mirror (Fresnel 1) of the same roughness,
+    // computed with the metal lobe: the same single-scattering loss, and nothing else.
+    for (float rough : {0.2f, 0.5f, 0.8f}) {
+        for (float thetaO : {0.0f, 45.0f, 75.0f}) {
+            glm::vec3 wo = direction(thetaO, 40.0f);
+            BsdfParams rs = thinWalled(material(glm::vec3(1.0f), 0.0f, rough, 1.0f, 1.5f));
+            Estimate got = estimate(200000, 5, [&](std::mt19937& rng, auto& uni) {
+                BsdfSample s;
+                return bsdfSample(rs, wo, uni(rng), {uni(rng), uni(rng)}, s) ? double(s.weight.x)
+                                                                             : 0.0;
+            });
+            Estimate mirror = estimate(200000, 6, [&](std::mt19937& rng, auto& uni) {
+                BsdfSample s;
+                BsdfParams m = material(glm::vec3(1.0f), 1.0f, rough);
+                return bsdfSample(m, wo, uni(rng), {uni(rng), uni(rng)}, s) ? double(s.weight.x)
+                                                                            : 0.0;
+            });
+            EXPECT_NEAR(got.mean, mirror.mean, 4.0 * std::hypot(got.stdError, mirror.stdError))
+                << "roughness " << rough << " θo " << thetaO;
+            // Transmission is centred on −wo: mean transmitted direction ≈ −wo.
+            glm::dvec3 meanDir(0.0);
+            std::mt19937 rng(8);
+            std::uniform_real_distribution<float> uni(0.0f, std::nextafter(1.0f, 0.0f));
+            for (int i = 0; i < 20000; ++i) {
+                BsdfSample s;
+                if (bsdfSample(rs, wo, 0.999f, {uni(rng), uni(rng)}, s) &&
+                    s.lobe == PV_LOBE_TRANSMISSION)
+                    meanDir += glm::dvec3(s.wi) * double(s.weight.x);
+            }
+            glm::dvec3 axis = glm::normalize(meanDir);
+            // Symmetric about the plane of incidence (y' = 0 in wo's azimuth frame).
+            glm::dvec3 side(-std::sin(glm::radians(40.0)), std::cos(glm::radians(40.0)), 0.0);
+            EXPECT_NEAR(glm::dot(axis, side), 0.0, 0.02) << "roughness " << rough;
+            EXPECT_LT(axis.z, 0.0);
+        }
+    }
 }
 
 // Metals and Lambert are reciprocal; the diffuse base under a specular layer is not, by design

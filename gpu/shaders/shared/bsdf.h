@@ -1,5 +1,6 @@
-// The glTF 2.0 metallic-roughness BSDF with KHR_materials_transmission, _ior and _specular, in a
-// local shading frame (normal +Z). Shared by trace_paths.comp and the C++ tests.
+// The glTF 2.0 metallic-roughness BSDF with KHR_materials_transmission, _ior, _specular and
+// _volume (thin walls or solids), in a local shading frame (normal +Z). Shared by
+// trace_paths.comp and the C++ tests.
 //
 // The material is a mixture of four lobes:
 //   f = m·f_metal + (1−m)·[ f_dielectricReflection + (1−t)(1−F(n·wo))·c/π + t·f_transmission ]
@@ -27,6 +28,12 @@
 //   0.3        0.999 0.999 0.994 0.948     0.991 0.988 0.971 0.894
 //   0.5        0.992 0.988 0.961 0.913     0.930 0.907 0.829 0.797
 //   1.0        0.894 0.855 0.742 0.709     0.418 0.455 0.513 0.497
+//
+// A thin-walled material (glTF: transmission without KHR_materials_volume, or thickness 0) is a
+// slab too thin to see: light crosses both faces and leaves along its incoming direction (rough:
+// the mirror image of the reflection lobe, as the glTF specification's thin-walled BTDF), the
+// interface reflectance is the slab's, 2F/(1 + F), and radiance is not scaled by 1/η² (it ends
+// in the medium it started in). The caller passes etaRel = ior from both sides.
 //
 // Convention: the caller flips the frame so that wo.z > 0 and passes etaRel, the IOR of the side
 // a transmitted ray enters over the IOR of the side wo is on (ior when hitting a front face).
@@ -60,6 +67,7 @@ struct BsdfParams {
     float transmission;
     float etaRel;        // see the convention above
     float specular;
+    bool thinWalled;     // transmission through a thin slab, not into a volume (see above)
 };
 
 struct BsdfSample {
@@ -83,8 +91,14 @@ PV_INLINE float fresnelDielectric(float cosThetaI, float eta) {
     return 0.5f * (rParl * rParl + rPerp * rPerp);
 }
 
+// The reflectance of the dielectric interface: one boundary, or for a thin wall the slab's two
+// boundaries with the light bouncing between them, R + T²R/(1 − R²) = 2R/(1 + R) (the two
+// faces have the same Fresnel term: the angle inside is the same on both, and Fresnel is
+// symmetric under reversing the ray).
 PV_INLINE vec3 dielectricFresnel(BsdfParams p, float cosThetaI) {
-    return p.specular * min(p.specularColor * fresnelDielectric(cosThetaI, p.etaRel), vec3(1.0f));
+    float f = fresnelDielectric(cosThetaI, p.etaRel);
+    if (p.thinWalled) f = 2.0f * f / (1.0f + f);
+    return p.specular * min(p.specularColor * f, vec3(1.0f));
 }
 
 PV_INLINE vec3 schlickFresnel(vec3 f0, float cosTheta) {
@@ -204,6 +218,19 @@ PV_INLINE vec3 bsdfEvaluate(BsdfParams p, vec3 wo, vec3 wi, PV_OUT(float) pdf) {
             f += (1.0f - p.metallic) * fd * dg;
             pdf += (prob.x + prob.y * dielectricReflectionProbability(p, hDotO)) * reflectionPdf;
         }
+    } else if (!delta && p.transmission > 0.0f && prob.y > 0.0f && p.thinWalled) {
+        // A thin wall transmits into the mirror image of the reflection lobe: the light crosses
+        // both faces of the slab, and the bending of the first is undone by the second.
+        vec3 wr = vec3(wi.x, wi.y, -wi.z);
+        vec3 h = normalize(wo + wr);
+        float hDotO = dot(h, wo);
+        if (hDotO > 0.0f) {
+            vec3 fd = dielectricFresnel(p, hDotO);
+            float dg = ggxD(h, p.alpha) * ggxG2(wo, wr, p.alpha) / (4.0f * wo.z * wr.z);
+            f += (1.0f - p.metallic) * p.transmission * (vec3(1.0f) - fd) * p.baseColor * dg;
+            pdf += prob.y * (1.0f - dielectricReflectionProbability(p, hDotO)) *
+                   ggxVisibleNormalPdf(wo, h, p.alpha) / (4.0f * hDotO);
+        }
     } else if (!delta && p.transmission > 0.0f && prob.y > 0.0f) {
         // Rough transmission (Walter et al. 2007), in pbrt-v4's form: wm is the generalised
         // half vector, and the pair (wo, wi) exists only through a microfacet that refracts.
@@ -271,10 +298,17 @@ PV_INLINE bool bsdfSample(BsdfParams p, vec3 wo, float uLobe, vec2 u, PV_OUT(Bsd
             s.weight = (1.0f - p.metallic) * fd / (prob.y * pReflect);
         } else {
             s.lobe = PV_LOBE_TRANSMISSION;
-            if (!refractDirection(wo, vec3(0.0f, 0.0f, 1.0f), p.etaRel, s.wi)) return false;
-            // Radiance is scaled by 1/η² across the boundary (non-symmetric scattering, Veach).
             s.weight = (1.0f - p.metallic) * p.transmission * (vec3(1.0f) - fd) * p.baseColor /
-                       (prob.y * (1.0f - pReflect) * p.etaRel * p.etaRel);
+                       (prob.y * (1.0f - pReflect));
+            if (p.thinWalled) {
+                // Straight through the slab, back into the medium it came from.
+                s.wi = -wo;
+            } else {
+                if (!refractDirection(wo, vec3(0.0f, 0.0f, 1.0f), p.etaRel, s.wi)) return false;
+                // Radiance is scaled by 1/η² across the boundary (non-symmetric scattering,
+                // Veach 1997).
+                s.weight /= p.etaRel * p.etaRel;
+            }
         }
         return maxComponent(s.weight) > 0.0f;
     }
@@ -286,7 +320,12 @@ PV_INLINE bool bsdfSample(BsdfParams p, vec3 wo, float uLobe, vec2 u, PV_OUT(Bsd
         if (lobe == PV_LOBE_DIELECTRIC_REFLECTION &&
             uDielectric >= dielectricReflectionProbability(p, dot(wo, h))) {
             s.lobe = PV_LOBE_TRANSMISSION;
-            if (!refractDirection(wo, h, p.etaRel, s.wi)) return false;
+            if (p.thinWalled) {
+                s.wi = reflect(-wo, h);
+                s.wi.z = -s.wi.z;
+            } else if (!refractDirection(wo, h, p.etaRel, s.wi)) {
+                return false;
+            }
         } else {
             s.wi = reflect(-wo, h);
         }
