@@ -4,12 +4,14 @@
 #include <array>
 #include <cmath>
 #include <cstddef>
+#include <cstring>
 
 #include <glm/gtc/matrix_transform.hpp>
 
 #include "base/log.h"
 #include "scene/environment_map.h"
 #include "shared/scene_types.h"
+#include "shared/specular_albedo.h"
 #include "trace_paths.spv.h"
 
 namespace previs {
@@ -423,7 +425,14 @@ Status Renderer::buildScene(const Scene& scene) {
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(triangleTexels), "triangles")))) return s;
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(triMaterials), "triangleMaterials")))) return s;
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(bvh_.wideNodes), "bvhNodes")))) return s;
-    if (!(s = add(GpuBuffer::createWith(*ctx_, span(materials), "materials")))) return s;
+    // The specular albedo table (shared/specular_albedo.h) first, then the materials.
+    static_assert(sizeof(shader::kSpecularAlbedo) == 16 * PV_SPECULAR_ALBEDO_TEXELS);
+    std::vector<uint32_t> materialWords((sizeof(shader::kSpecularAlbedo) +
+                                         materials.size() * sizeof(shader::GpuMaterial)) / 4);
+    std::memcpy(materialWords.data(), shader::kSpecularAlbedo, sizeof(shader::kSpecularAlbedo));
+    std::memcpy(materialWords.data() + sizeof(shader::kSpecularAlbedo) / 4, materials.data(),
+                materials.size() * sizeof(shader::GpuMaterial));
+    if (!(s = add(GpuBuffer::createWith(*ctx_, span(materialWords), "materials")))) return s;
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(textureInfos), "textures")))) return s;
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(texels), "texels")))) return s;
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(lights), "lights")))) return s;

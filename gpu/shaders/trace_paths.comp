@@ -44,6 +44,10 @@ layout(binding = PV_BINDING_TRIANGLES) uniform usamplerBuffer triangleTexels;
 layout(binding = PV_BINDING_NORMALS) uniform usamplerBuffer normalTexels;
 layout(binding = PV_BINDING_UVS) uniform usamplerBuffer uvTexels;
 layout(binding = PV_BINDING_MATERIALS) uniform usamplerBuffer materialTexels;
+// The materials buffer starts with the specular albedo table (render/renderer.cpp).
+#define PV_SPECULAR_ALBEDO(index) \
+    uintBitsToFloat(texelFetch(materialTexels, (index) / 4)[(index) % 4])
+#include "shared/specular_albedo.h"
 layout(binding = PV_BINDING_LIGHTS) uniform usamplerBuffer lightTexels;
 layout(binding = PV_BINDING_EMISSIVE_TRIANGLES) uniform usamplerBuffer emissiveTriangleTexels;
 
@@ -53,12 +57,13 @@ vec3 normalAt(uint vertex) { return uintBitsToFloat(texelFetch(normalTexels, int
 vec2 uvAt(uint vertex) { return uintBitsToFloat(texelFetch(uvTexels, int(vertex)).xy); }
 
 GpuMaterial materialAt(uint i) {
-    uvec4 t0 = texelFetch(materialTexels, int(6u * i));
-    uvec4 t1 = texelFetch(materialTexels, int(6u * i + 1u));
-    uvec4 t2 = texelFetch(materialTexels, int(6u * i + 2u));
-    uvec4 t3 = texelFetch(materialTexels, int(6u * i + 3u));
-    uvec4 t4 = texelFetch(materialTexels, int(6u * i + 4u));
-    uvec4 t5 = texelFetch(materialTexels, int(6u * i + 5u));
+    int at = PV_SPECULAR_ALBEDO_TEXELS + int(6u * i);
+    uvec4 t0 = texelFetch(materialTexels, at);
+    uvec4 t1 = texelFetch(materialTexels, at + 1);
+    uvec4 t2 = texelFetch(materialTexels, at + 2);
+    uvec4 t3 = texelFetch(materialTexels, at + 3);
+    uvec4 t4 = texelFetch(materialTexels, at + 4);
+    uvec4 t5 = texelFetch(materialTexels, at + 5);
     GpuMaterial m;
     m.baseColor = uintBitsToFloat(t0);
     m.emission = uintBitsToFloat(t1.xyz);

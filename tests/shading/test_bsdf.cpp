@@ -5,9 +5,11 @@
 
 #include <cmath>
 #include <random>
+#include <vector>
 
 #include "shared/bsdf.h"
 #include "shared/sampling.h"
+#include "shared/specular_albedo.h"
 #include "tests/support/chi2.h"
 
 namespace previs::testing {
@@ -380,6 +382,187 @@ TEST(BsdfTest, ThinWalledGlassDoesNotBendAndKeepsEnergy) {
             glm::dvec3 side(-std::sin(glm::radians(40.0)), std::cos(glm::radians(40.0)), 0.0);
             EXPECT_NEAR(glm::dot(axis, side), 0.0, 0.02) << "roughness " << rough;
             EXPECT_LT(axis.z, 0.0);
+        }
+    }
+}
+
+// E(μ, α, η) of shared/specular_albedo.h at one point, by a stratified quadrature over the
+// visible normals seen from wo: a visible microfacet reflects F(h·wo) and the reflection escapes
+// with probability G2/G1 (the same model as singleScatteringAlbedo, specular reflection only).
+double integrateSpecularAlbedo(double mu, double alpha, double eta, int n = 128) {
+    if (alpha < PV_DELTA_ALPHA) return fresnelDielectric(float(mu), float(eta));
+    mu = std::max(mu, 1e-3);
+    glm::vec3 wo(float(std::sqrt(1.0 - mu * mu)), 0.0f, float(mu));
+    double sum = 0.0;
+    for (int a = 0; a < n; ++a) {
+        for (int b = 0; b < n; ++b) {
+            glm::vec2 u((a + 0.5f) / n, (b + 0.5f) / n);
+            glm::vec3 h = sampleGgxVisibleNormal(wo, float(alpha), u);
+            float cosH = glm::dot(wo, h);
+            glm::vec3 wr = 2.0f * cosH * h - wo;
+            if (wr.z <= 0.0f) continue;
+            sum += fresnelDielectric(cosH, float(eta)) * ggxG2(wo, wr, float(alpha)) /
+                   ggxG1(wo, float(alpha));
+        }
+    }
+    return sum / (double(n) * n);
+}
+
+// Writes shared/specular_albedo_table.inc's contents (one line per (α, η) row of μ values).
+// Each node holds E there, raised by the largest amount trilinear interpolation falls below E
+// (sampled on a 4× finer grid) in the cells it is a corner of: interpolation then never falls
+// below E, so the diffuse weight 1 − E errs on the side of losing energy, never creating it.
+TEST(BsdfTest, DISABLED_PrintSpecularAlbedoTable) {
+    const int nm = PV_SPECULAR_ALBEDO_MU, na = PV_SPECULAR_ALBEDO_ALPHA, ne = PV_SPECULAR_ALBEDO_ETA;
+    const int sub = 4;
+    const int fm = (nm - 1) * sub + 1, fa = (na - 1) * sub + 1, fe = (ne - 1) * sub + 1;
+    std::vector<double> fine(size_t(fm) * fa * fe);
+    auto fineAt = [&](int i, int j, int k) -> double& {
+        return fine[(size_t(k) * fa + j) * fm + i];
+    };
+    for (int k = 0; k < fe; ++k) {
+        for (int j = 0; j < fa; ++j) {
+            for (int i = 0; i < fm; ++i) {
+                double x = double(i) / (fm - 1), y = double(j) / (fa - 1);
+                double eta = PV_SPECULAR_ALBEDO_ETA_MIN +
+                             (PV_SPECULAR_ALBEDO_ETA_MAX - PV_SPECULAR_ALBEDO_ETA_MIN) * k / (fe - 1);
+                fineAt(i, j, k) = integrateSpecularAlbedo(x * x, y * y, eta, 64);
+            }
+        }
+    }
+    auto node = [&](int i, int j, int k) { return fineAt(i * sub, j * sub, k * sub); };
+    std::vector<double> raise(size_t(nm) * na * ne, 0.0);
+    for (int k = 0; k < fe; ++k) {
+        for (int j = 0; j < fa; ++j) {
+            for (int i = 0; i < fm; ++i) {
+                int ci = std::min(i / sub, nm - 2), cj = std::min(j / sub, na - 2),
+                    ck = std::min(k / sub, ne - 2);
+                double fx = double(i - ci * sub) / sub, fy = double(j - cj * sub) / sub,
+                       fz = double(k - ck * sub) / sub;
+                double interp = 0.0;
+                for (int c = 0; c < 8; ++c) {
+                    int dx = c & 1, dy = (c >> 1) & 1, dz = c >> 2;
+                    interp += (dx ? fx : 1 - fx) * (dy ? fy : 1 - fy) * (dz ? fz : 1 - fz) *
+                              node(ci + dx, cj + dy, ck + dz);
+                }
+                double under = fineAt(i, j, k) - interp;
+                for (int c = 0; c < 8; ++c) {
+                    size_t at = (size_t(ck + (c >> 2)) * na + cj + ((c >> 1) & 1)) * nm + ci +
+                                (c & 1);
+                    raise[at] = std::max(raise[at], under);
+                }
+            }
+        }
+    }
+    for (int k = 0; k < ne; ++k) {
+        for (int j = 0; j < na; ++j) {
+            for (int i = 0; i < nm; ++i) {
+                bool last = k == ne - 1 && j == na - 1 && i == nm - 1;
+                std::printf("%.6ff%s", node(i, j, k) + raise[(size_t(k) * na + j) * nm + i],
+                            last ? "\n" : (i == nm - 1 ? ",\n" : ", "));
+            }
+        }
+    }
+}
+
+// The committed table is an upper envelope of E (DISABLED_PrintSpecularAlbedoTable): checked at
+// random points (squared uniform numbers, as the nodes: grazing and near-smooth as often as
+// elsewhere) against a fresh integration, it may exceed E but never fall below it by more than
+// the quadrature's error (64² visible normals: below 2e-4 against 1024²). How much it exceeds
+// E is the energy the diffuse base loses to the table's resolution, printed here.
+TEST(BsdfTest, SpecularAlbedoTableBoundsTheIntegral) {
+    std::mt19937 rng(31);
+    std::uniform_real_distribution<double> uni(0.0, 1.0);
+    double worstBelow = 0.0, worstAbove = 0.0, worstAboveModerate = 0.0;
+    for (int n = 0; n < 1000; ++n) {
+        double m = std::pow(uni(rng), 2.0), a = std::pow(uni(rng), 2.0);
+        double e = PV_SPECULAR_ALBEDO_ETA_MIN +
+                   (PV_SPECULAR_ALBEDO_ETA_MAX - PV_SPECULAR_ALBEDO_ETA_MIN) * uni(rng);
+        double d = specularAlbedo(float(m), float(a), float(e)) -
+                   integrateSpecularAlbedo(m, a, e, 64);
+        EXPECT_GT(d, -2e-4) << "μ " << m << " α " << a << " η " << e;
+        worstBelow = std::max(worstBelow, -d);
+        worstAbove = std::max(worstAbove, d);
+        // θo ≤ 80° and roughness ≥ 0.1: where the white furnace below asks for 1.
+        if (m >= std::cos(80.0 * M_PI / 180.0) && a >= 0.01)
+            worstAboveModerate = std::max(worstAboveModerate, d);
+    }
+    std::printf("specular albedo table: below E by %.5f at most; above by %.4f (%.4f for θo ≤ "
+                "80°, roughness ≥ 0.1)\n",
+                worstBelow, worstAbove, worstAboveModerate);
+}
+
+// The diffuse base's weight, decided by the white furnace of white plastic (white base, metallic
+// 0, IOR 1.5): nothing absorbs, so the layered material should reflect all light, and never
+// more. Three rules, integrated over the hemisphere for rough 1.0 (and smooth for the first):
+//   glTF sample BRDF, 1 − F(h·wo): 1.21 at roughness 0.3, θo 80° (1.83 smooth at 89°):
+//     creates energy.
+//   1 − F(n·wo) (previous previs): 0.66 at roughness 1, θo 80° (0.18 at 89°): dark rims on
+//     rough objects, since a rough layer reflects far less than F(n·wo) at grazing angles.
+//   1 − E(wo), E the rough layer's albedo (albedo scaling, the rule chosen): never above 1;
+//     below it only by the tabulated E's excess over the true one (measured: ≥ 0.996 up to
+//     θo 60°; at 80° 0.958, 0.973, 0.990, 1.000 for roughness 0.1, 0.3, 0.5, 1.0).
+// The first two are computed here from bsdfEvaluate's specular lobe, so the test shows the
+// reason for the choice, not only the choice.
+TEST(BsdfTest, WhitePlasticFurnaceDecidesTheDiffuseWeight) {
+    auto specularOnly = [](float rough) {
+        return material(glm::vec3(0.0f), 0.0f, rough);  // black base: the specular lobe alone
+    };
+    // ∫ over the hemisphere by a midpoint rule in (cos θ, φ), of g(wi) cos θi.
+    auto hemisphere = [](auto g) {
+        const int n = 600;
+        double sum = 0.0;
+        for (int i = 0; i < n; ++i) {
+            for (int j = 0; j < 2 * n; ++j) {
+                double z = (i + 0.5) / n, phi = M_PI * (j + 0.5) / n, r = std::sqrt(1 - z * z);
+                sum += g(glm::vec3(float(r * std::cos(phi)), float(r * std::sin(phi)), float(z))) *
+                       z;
+            }
+        }
+        return sum * (2.0 * M_PI) / (2.0 * n * n);
+    };
+    for (float rough : {0.3f, 1.0f}) {
+        glm::vec3 wo = direction(80.0f, 0.0f);
+        double spec = hemisphere([&](glm::vec3 wi) {
+            float pdf;
+            return double(bsdfEvaluate(specularOnly(rough), wo, wi, pdf).x);
+        });
+        double diffuseH = hemisphere([&](glm::vec3 wi) {
+            glm::vec3 h = glm::normalize(wo + wi);
+            return (1.0 - fresnelDielectric(glm::dot(h, wo), 1.5f)) / M_PI;
+        });
+        double diffuseN = 1.0 - fresnelDielectric(wo.z, 1.5f);
+        std::printf("white plastic, roughness %.1f, θo 80°: 1 − F(h·wo) %.4f, 1 − F(n·wo) %.4f\n",
+                    rough, spec + diffuseH, spec + diffuseN);
+        // The specification's rule creates energy at moderate roughness; the previous rule
+        // loses it, most at high roughness.
+        if (rough == 0.3f) {
+            EXPECT_GT(spec + diffuseH, 1.1);
+        } else {
+            EXPECT_LT(spec + diffuseN, 0.75);
+        }
+    }
+    // The rule chosen: white plastic reflects E + (1 − E_table) = 1 − (E_table − E), where the
+    // table's excess over the true E (its resolution, never negative) is the only loss. The
+    // sampler's estimate must match that prediction within its noise.
+    for (float rough : {0.0f, 0.1f, 0.3f, 0.5f, 1.0f}) {
+        for (float thetaO : {0.0f, 30.0f, 60.0f, 80.0f, 89.0f}) {
+            BsdfParams p = material(glm::vec3(1.0f), 0.0f, rough);
+            glm::vec3 wo = direction(thetaO, 0.0f);
+            Estimate e = estimate(200000, 9, [&](std::mt19937& rng, auto& uni) {
+                BsdfSample s;
+                return bsdfSample(p, wo, uni(rng), {uni(rng), uni(rng)}, s) ? double(s.weight.x)
+                                                                            : 0.0;
+            });
+            double alpha = double(rough) * rough;
+            double excess = alpha < PV_DELTA_ALPHA
+                                ? 0.0
+                                : specularAlbedo(wo.z, float(alpha), 1.5f) -
+                                      integrateSpecularAlbedo(wo.z, alpha, 1.5, 256);
+            EXPECT_NEAR(e.mean, 1.0 - excess, 4.0 * e.stdError + 2e-4)
+                << "roughness " << rough << " θo " << thetaO;
+            EXPECT_LE(e.mean, 1.0 + 4.0 * e.stdError + 1e-6);
+            std::printf("white plastic, roughness %.1f, θo %2.0f°: %.4f\n", rough, thetaO, e.mean);
         }
     }
 }
