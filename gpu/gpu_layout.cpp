@@ -11,7 +11,7 @@ static_assert(sizeof(vec3) == 12 && alignof(vec3) == 4, "GLM vec3 must be packed
 static_assert(sizeof(BvhNode) == 32);
 static_assert(offsetof(BvhNode, leftOrFirst) == 12);
 static_assert(offsetof(BvhNode, count) == 28);
-static_assert(sizeof(GpuMaterial) == 80);
+static_assert(sizeof(GpuMaterial) == 96);
 static_assert(offsetof(GpuMaterial, emission) == 16);
 static_assert(offsetof(GpuMaterial, specularColor) == 32);
 static_assert(offsetof(GpuMaterial, baseColorTexture) == 60);
@@ -28,6 +28,7 @@ static_assert(sizeof(BvhNode) % 16 == 0 && sizeof(GpuMaterial) % 16 == 0);
 static_assert(sizeof(GpuLight) % 16 == 0 && sizeof(EmissiveTriangle) % 16 == 0);
 static_assert(offsetof(GpuMaterial, metallic) == 28 && offsetof(GpuMaterial, roughness) == 44);
 static_assert(offsetof(GpuMaterial, transmission) == 48 && offsetof(GpuMaterial, flags) == 76);
+static_assert(offsetof(GpuMaterial, attenuation) == 80);
 static_assert(offsetof(GpuLight, type) == 12 && offsetof(GpuLight, cosOuterCone) == 28);
 static_assert(offsetof(GpuLight, cosInnerCone) == 44 && offsetof(EmissiveTriangle, pdf) == 12);
 // Two texels (trace_paths.comp's gather reads position + flags, then power + direction).

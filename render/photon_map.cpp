@@ -8,6 +8,7 @@
 
 #include "photon_grid.spv.h"
 #include "shared/photon_map.h"
+#include "shared/bsdf.h"
 #include "shared/sampling.h"
 #include "trace_photons.spv.h"
 

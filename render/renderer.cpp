@@ -4,6 +4,7 @@
 #include <array>
 #include <cmath>
 #include <cstddef>
+#include <cstring>
 
 #include <glm/gtc/matrix_transform.hpp>
 
@@ -11,6 +12,7 @@
 #include "scene/environment_map.h"
 #include "shared/photon_map.h"
 #include "shared/scene_types.h"
+#include "shared/specular_albedo.h"
 #include "trace_paths.spv.h"
 
 namespace previs {
@@ -340,7 +342,13 @@ Status Renderer::buildScene(const Scene& scene) {
         gm.metallicRoughnessTexture = tex(m.metallicRoughnessTexture);
         gm.normalTexture = tex(m.normalTexture);
         gm.emissiveTexture = tex(m.emissiveTexture);
-        gm.flags = m.doubleSided ? PV_MATERIAL_DOUBLE_SIDED : 0u;
+        gm.flags = (m.doubleSided ? PV_MATERIAL_DOUBLE_SIDED : 0u) |
+                   (m.thinWalled ? PV_MATERIAL_THIN_WALLED : 0u);
+        // Beer–Lambert: attenuationColor remains after attenuationDistanceM, so the absorption
+        // coefficient is −ln(colour) / distance (a black colour absorbs within a micrometre).
+        if (!m.thinWalled && std::isfinite(m.attenuationDistanceM))
+            gm.attenuation = -glm::log(glm::max(m.attenuationColor, glm::vec3(1e-6f))) /
+                             m.attenuationDistanceM;
         materials.push_back(gm);
     }
 
@@ -462,7 +470,14 @@ Status Renderer::buildScene(const Scene& scene) {
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(triangleTexels), "triangles")))) return s;
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(triMaterials), "triangleMaterials")))) return s;
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(bvh_.wideNodes), "bvhNodes")))) return s;
-    if (!(s = add(GpuBuffer::createWith(*ctx_, span(materials), "materials")))) return s;
+    // The specular albedo table (shared/specular_albedo.h) first, then the materials.
+    static_assert(sizeof(shader::kSpecularAlbedo) == 16 * PV_SPECULAR_ALBEDO_TEXELS);
+    std::vector<uint32_t> materialWords((sizeof(shader::kSpecularAlbedo) +
+                                         materials.size() * sizeof(shader::GpuMaterial)) / 4);
+    std::memcpy(materialWords.data(), shader::kSpecularAlbedo, sizeof(shader::kSpecularAlbedo));
+    std::memcpy(materialWords.data() + sizeof(shader::kSpecularAlbedo) / 4, materials.data(),
+                materials.size() * sizeof(shader::GpuMaterial));
+    if (!(s = add(GpuBuffer::createWith(*ctx_, span(materialWords), "materials")))) return s;
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(textureInfos), "textures")))) return s;
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(texels), "texels")))) return s;
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(lights), "lights")))) return s;

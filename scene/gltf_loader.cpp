@@ -30,7 +30,7 @@ namespace {
 // deliberately absent: silently ignoring it would misplace textures.
 const std::set<std::string> kSupportedRequiredExtensions = {
     "KHR_materials_transmission", "KHR_materials_ior",   "KHR_materials_specular",
-    "KHR_materials_emissive_strength", "KHR_lights_punctual",
+    "KHR_materials_emissive_strength", "KHR_materials_volume", "KHR_lights_punctual",
 };
 
 // Deeper hierarchies than this are treated as malformed (a cycle, or a hostile file trying to
@@ -171,7 +171,8 @@ Status Loader::checkRequiredExtensions() const {
         if (!kSupportedRequiredExtensions.count(ext))
             return fail("it requires the unsupported extension '{}' (supported: "
                         "KHR_materials_transmission, KHR_materials_ior, KHR_materials_specular, "
-                        "KHR_materials_emissive_strength, KHR_lights_punctual); re-export "
+                        "KHR_materials_emissive_strength, KHR_materials_volume, "
+                        "KHR_lights_punctual); re-export "
                         "without it",
                         ext);
     }
@@ -249,6 +250,22 @@ Status Loader::loadMaterials() {
         out.specular = numberOr(specular, "specularFactor", 1.0f);
         out.specularColor = vec3Or(specular, "specularColorFactor", glm::vec3(1.0f));
         out.doubleSided = m.doubleSided;
+        // glTF: transmission without a volume (no KHR_materials_volume, or thicknessFactor 0)
+        // is a thin wall; with a thickness the mesh is the boundary of a refracting solid.
+        // thicknessFactor's value only matters to rasterisers (a path tracer has the mesh).
+        const tinygltf::Value* volume = findExtension(m.extensions, "KHR_materials_volume");
+        out.thinWalled = !(numberOr(volume, "thicknessFactor", 0.0f) > 0.0f);
+        if (!out.thinWalled) {
+            out.attenuationColor = vec3Or(volume, "attenuationColor", glm::vec3(1.0f));
+            out.attenuationDistanceM = numberOr(volume, "attenuationDistance",
+                                                std::numeric_limits<float>::infinity());
+            if (!(out.attenuationDistanceM > 0.0f) || glm::any(glm::lessThan(
+                    out.attenuationColor, glm::vec3(0.0f))) ||
+                glm::any(glm::greaterThan(out.attenuationColor, glm::vec3(1.0f))))
+                return fail("material '{}': KHR_materials_volume needs attenuationDistance > 0 "
+                            "and attenuationColor in [0, 1]",
+                            out.name);
+        }
 
         // Colour textures hold sRGB-encoded values, data textures linear ones (glTF 2.0 §3.9).
         struct Slot {

@@ -6,6 +6,7 @@
 // metres; cameras look along -Z of their node.
 
 #include <cstdint>
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -24,6 +25,12 @@ struct Material {
     float ior = 1.5f;
     float specular = 1.0f;
     glm::vec3 specularColor{1.0f};
+    // KHR_materials_volume. Transmission through a thin wall (no volume: glTF's default) or
+    // into a solid whose inside absorbs by Beer–Lambert, attenuationColor being the colour
+    // white light has after attenuationDistance metres inside (infinite: clear).
+    bool thinWalled = false;
+    glm::vec3 attenuationColor{1.0f};
+    float attenuationDistanceM = std::numeric_limits<float>::infinity();
     int baseColorTexture = -1;            // index into Scene::textures, -1 = none
     int metallicRoughnessTexture = -1;
     int normalTexture = -1;

@@ -20,7 +20,8 @@ class Builder:
         self.gltf = {
             "asset": {"version": "2.0", "generator": "previs make_example_scene.py"},
             "extensionsUsed": ["KHR_lights_punctual", "KHR_materials_transmission",
-                               "KHR_materials_ior", "KHR_materials_emissive_strength"],
+                               "KHR_materials_ior", "KHR_materials_volume",
+                               "KHR_materials_emissive_strength"],
             "scene": 0, "scenes": [{"nodes": []}], "nodes": [], "meshes": [], "materials": [],
             "accessors": [], "bufferViews": [], "buffers": [],
             "cameras": [], "extensions": {"KHR_lights_punctual": {"lights": []}},
@@ -64,6 +65,9 @@ class Builder:
         if "transmission" in kw:
             ext["KHR_materials_transmission"] = {"transmissionFactor": kw["transmission"]}
             ext["KHR_materials_ior"] = {"ior": kw.get("ior", 1.5)}
+        if "thickness" in kw:
+            # A solid that refracts; without KHR_materials_volume glTF means a thin wall.
+            ext["KHR_materials_volume"] = {"thicknessFactor": kw["thickness"]}
         if "emission" in kw:
             m["emissiveFactor"] = [1.0, 1.0, 1.0]
             ext["KHR_materials_emissive_strength"] = {"emissiveStrength": kw["emission"]}
@@ -130,7 +134,8 @@ def main(out):
     table = g.material("table", color=[0.7, 0.62, 0.5, 1.0], roughness=0.9)
     paper = g.material("paper", color=[0.85, 0.85, 0.82, 1.0], roughness=1.0)
     metal = g.material("metal", color=[0.95, 0.93, 0.88, 1.0], metallic=1.0, roughness=0.05)
-    glass = g.material("glass", color=[1.0, 1.0, 1.0, 1.0], roughness=0.0, transmission=1.0)
+    glass = g.material("glass", color=[1.0, 1.0, 1.0, 1.0], roughness=0.0, transmission=1.0,
+                       thickness=0.12)
     red = g.material("red plastic", color=[0.8, 0.1, 0.08, 1.0], roughness=0.4)
     lamp = g.material("softbox", color=[0.0, 0.0, 0.0, 1.0], emission=12.0)
 

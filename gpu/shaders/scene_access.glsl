@@ -39,6 +39,10 @@ layout(binding = PV_BINDING_TRIANGLES) uniform usamplerBuffer triangleTexels;
 layout(binding = PV_BINDING_NORMALS) uniform usamplerBuffer normalTexels;
 layout(binding = PV_BINDING_UVS) uniform usamplerBuffer uvTexels;
 layout(binding = PV_BINDING_MATERIALS) uniform usamplerBuffer materialTexels;
+// The materials buffer starts with the specular albedo table (render/renderer.cpp).
+#define PV_SPECULAR_ALBEDO(index) \
+    uintBitsToFloat(texelFetch(materialTexels, (index) / 4)[(index) % 4])
+#include "shared/specular_albedo.h"
 layout(binding = PV_BINDING_LIGHTS) uniform usamplerBuffer lightTexels;
 layout(binding = PV_BINDING_EMISSIVE_TRIANGLES) uniform usamplerBuffer emissiveTriangleTexels;
 
@@ -48,11 +52,13 @@ vec3 normalAt(uint vertex) { return uintBitsToFloat(texelFetch(normalTexels, int
 vec2 uvAt(uint vertex) { return uintBitsToFloat(texelFetch(uvTexels, int(vertex)).xy); }
 
 GpuMaterial materialAt(uint i) {
-    uvec4 t0 = texelFetch(materialTexels, int(5u * i));
-    uvec4 t1 = texelFetch(materialTexels, int(5u * i + 1u));
-    uvec4 t2 = texelFetch(materialTexels, int(5u * i + 2u));
-    uvec4 t3 = texelFetch(materialTexels, int(5u * i + 3u));
-    uvec4 t4 = texelFetch(materialTexels, int(5u * i + 4u));
+    int at = PV_SPECULAR_ALBEDO_TEXELS + int(6u * i);
+    uvec4 t0 = texelFetch(materialTexels, at);
+    uvec4 t1 = texelFetch(materialTexels, at + 1);
+    uvec4 t2 = texelFetch(materialTexels, at + 2);
+    uvec4 t3 = texelFetch(materialTexels, at + 3);
+    uvec4 t4 = texelFetch(materialTexels, at + 4);
+    uvec4 t5 = texelFetch(materialTexels, at + 5);
     GpuMaterial m;
     m.baseColor = uintBitsToFloat(t0);
     m.emission = uintBitsToFloat(t1.xyz);
@@ -67,6 +73,8 @@ GpuMaterial materialAt(uint i) {
     m.normalTexture = t4.y;
     m.emissiveTexture = t4.z;
     m.flags = t4.w;
+    m.attenuation = uintBitsToFloat(t5.xyz);
+    m.reserved = t5.w;
     return m;
 }
 
@@ -229,7 +237,7 @@ vec4 sampleTexture(uint index, vec2 uv) {
 struct Surface {
     vec3 position;
     vec3 geometricNormal;  // faces the side the ray came from
-    vec3 shadingNormal;    // same side as geometricNormal
+    vec3 shadingNormal;    // same side as geometricNormal, adapted to the ray (bsdf.h)
     vec2 uv;
     bool frontFace;        // the ray hit the side the triangle's winding faces
     uint material;
@@ -272,7 +280,8 @@ Surface surfaceAt(Ray ray, Hit hit) {
     }
     s.frontFace = dot(ray.direction, ng) < 0.0;
     s.geometricNormal = s.frontFace ? ng : -ng;
-    s.shadingNormal = dot(ns, s.geometricNormal) < 0.0 ? -ns : ns;
+    s.shadingNormal = adaptShadingNormal(-ray.direction, s.geometricNormal,
+                                         dot(ns, s.geometricNormal) < 0.0 ? -ns : ns);
     return s;
 }
 
@@ -305,9 +314,10 @@ BsdfParams bsdfParamsAt(GpuMaterial m, Surface s) {
     p.specular = kHasSpecular ? m.specular : 0.0;
     p.specularColor = m.specularColor;
     if (!kHasSpecular) p.metallic = 0.0;
-    // A transmissive surface hit from inside sees the inverse relative IOR; opaque surfaces are
-    // shaded the same from both sides.
-    p.etaRel = (s.frontFace || p.transmission == 0.0) ? m.ior : 1.0 / m.ior;
+    p.thinWalled = (m.flags & PV_MATERIAL_THIN_WALLED) != 0u;
+    // A transmissive surface hit from inside sees the inverse relative IOR; opaque surfaces and
+    // thin walls are shaded the same from both sides.
+    p.etaRel = (s.frontFace || p.transmission == 0.0 || p.thinWalled) ? m.ior : 1.0 / m.ior;
     return p;
 }
 

@@ -376,6 +376,11 @@ void tracePath(uvec2 pixel, SampleKey key, out vec3 lm, out vec3 lr, out bool fi
             }
             Surface s = surfaceAt(st.ray, hit);
             GpuMaterial m = materialAt(s.material);
+            if (kHasTransmission && !s.frontFace && maxComponent(m.attenuation) > 0.0) {
+                // Beer–Lambert (KHR_materials_volume): the segment just travelled ran inside
+                // this material's volume, from where the path entered it to this back face.
+                st.throughput *= exp(-m.attenuation * hit.t);
+            }
             if (kHasEmissive && maxComponent(m.emission) > 0.0 && emitsToward(m, s.frontFace) &&
                 !photonMapCarries(st)) {
                 float w = st.prevDelta ? 1.0
@@ -390,12 +395,6 @@ void tracePath(uvec2 pixel, SampleKey key, out vec3 lm, out vec3 lr, out bool fi
             frame.n = s.shadingNormal;
             buildBasis(frame.n, frame.t, frame.b);
             vec3 wo = toLocal(frame, -st.ray.direction);
-            if (wo.z <= 0.0) {
-                // Seen from below its shading normal: shade with the geometric normal instead.
-                frame.n = s.geometricNormal;
-                buildBasis(frame.n, frame.t, frame.b);
-                wo = toLocal(frame, -st.ray.direction);
-            }
             BsdfParams bp = bsdfParamsAt(m, s);
             bool gatherVertex = false;
             if (kPhotons) {
@@ -432,9 +431,17 @@ void tracePath(uvec2 pixel, SampleKey key, out vec3 lm, out vec3 lr, out bool fi
             vec4 uBsdf = draw(key, vertexSet(st.depth, PV_SET_VERTEX_BSDF));
             if (!sampleBsdf(bp, wo, uBsdf, bs)) break;
             vec3 wi = toWorld(frame, bs.wi);
-            if (!consistentSide(s, wi, bs.wi)) break;
+            if (!consistentSide(s, wi, bs.wi)) {
+                // The adapted normal keeps every mirror direction above the surface; a smooth
+                // refraction leaving at grazing angles can still point back into its facet. A
+                // delta direction is moved to the nearest one on its promised side (its weight
+                // stays exact); a sampled non-delta direction would break its pdf, so it ends.
+                if (!bs.isDelta) break;
+                wi = nearestDirectionOnSide(wi, s.geometricNormal, bs.wi.z > 0.0 ? 1.0 : -1.0);
+            }
             st.throughput *= bs.weight;
-            if (bs.lobe == PV_LOBE_TRANSMISSION) st.etaScale *= bp.etaRel * bp.etaRel;
+            if (bs.lobe == PV_LOBE_TRANSMISSION && !bp.thinWalled)
+                st.etaScale *= bp.etaRel * bp.etaRel;
             if (gatherVertex) {
                 st.causticState = bs.isDelta ? CAUSTIC_NONE : CAUSTIC_LEFT_GATHER;
                 st.causticBounces = 0u;

@@ -179,7 +179,10 @@ void main() {
                 mode = MODE_MIXED;
             }
             Surface s = surfaceAt(st.ray, hit);
-            BsdfParams bp = bsdfParamsAt(materialAt(s.material), s);
+            GpuMaterial m = materialAt(s.material);
+            if (kHasTransmission && !s.frontFace && maxComponent(m.attenuation) > 0.0)
+                st.power *= exp(-m.attenuation * hit.t);  // Beer–Lambert, as trace_paths
+            BsdfParams bp = bsdfParamsAt(m, s);
             if (!bsdfIsPurelySpecular(bp)) {
                 if (st.bounces > 0u) {
                     uint slot = mode == MODE_REAL ? 1u : 0u;
@@ -198,20 +201,17 @@ void main() {
             frame.n = s.shadingNormal;
             buildBasis(frame.n, frame.t, frame.b);
             vec3 wo = toLocal(frame, -st.ray.direction);
-            if (wo.z <= 0.0) {
-                frame.n = s.geometricNormal;
-                buildBasis(frame.n, frame.t, frame.b);
-                wo = toLocal(frame, -st.ray.direction);
-            }
             BsdfSample bs;
             vec4 u = vec4(rngNext(st.rng), rngNext(st.rng), rngNext(st.rng), 0.0);
             if (!sampleBsdf(bp, wo, u, bs)) break;
             vec3 wi = toWorld(frame, bs.wi);
-            if (!consistentSide(s, wi, bs.wi)) break;
+            if (!consistentSide(s, wi, bs.wi))  // as trace_paths: only delta lobes come here
+                wi = nearestDirectionOnSide(wi, s.geometricNormal, bs.wi.z > 0.0 ? 1.0 : -1.0);
             // Flux is not rescaled by 1/η² across a refraction (radiance is; the sample weight
             // holds that factor for the path tracer's radiance): the adjoint BSDF (Veach 1997).
+            // A thin wall does not refract, and its weight has no such factor.
             vec3 weight = bs.weight;
-            if (bs.lobe == PV_LOBE_TRANSMISSION) weight *= bp.etaRel * bp.etaRel;
+            if (bs.lobe == PV_LOBE_TRANSMISSION && !bp.thinWalled) weight *= bp.etaRel * bp.etaRel;
             st.power *= weight;
             st.bounces += 1u;
             st.ray = directionRay(s.position, s.geometricNormal * (bs.wi.z > 0.0 ? 1.0 : -1.0),

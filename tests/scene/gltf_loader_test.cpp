@@ -346,6 +346,52 @@ TEST(GltfLoader, MaterialsWithExtensionsAndTextures) {
     EXPECT_EQ(scene->geometry.triangleMaterials, (std::vector<uint32_t>{0, 1}));
 }
 
+// glTF: transmission without KHR_materials_volume (or with thicknessFactor 0) is thin-walled;
+// with a thickness it is a solid, with Beer–Lambert attenuation when given.
+TEST(GltfLoader, TransmissionIsThinWalledUnlessItHasAVolume) {
+    GltfBuilder b;
+    json& d = b.doc();
+    d["extensionsUsed"] = {"KHR_materials_transmission", "KHR_materials_volume"};
+    d["extensionsRequired"] = {"KHR_materials_volume"};
+    const json transmission = {{"transmissionFactor", 1.0}};
+    d["materials"] = json::array(
+        {{{"name", "pane"}, {"extensions", {{"KHR_materials_transmission", transmission}}}},
+         {{"name", "zeroThickness"},
+          {"extensions",
+           {{"KHR_materials_transmission", transmission},
+            {"KHR_materials_volume", {{"thicknessFactor", 0.0}}}}}},
+         {{"name", "tintedSolid"},
+          {"extensions",
+           {{"KHR_materials_transmission", transmission},
+            {"KHR_materials_volume",
+             {{"thicknessFactor", 0.2},
+              {"attenuationColor", {0.5, 0.8, 1.0}},
+              {"attenuationDistance", 0.05}}}}}},
+         {{"name", "clearSolid"},
+          {"extensions",
+           {{"KHR_materials_transmission", transmission},
+            {"KHR_materials_volume", {{"thicknessFactor", 1.0}}}}}}});
+    for (int i = 0; i < 4; ++i) b.addNode({{"mesh", b.addTriangleMesh(i)}});
+    Result<Scene> scene = loadGltf(b.writeGltf("volume.gltf"));
+    ASSERT_TRUE(scene.ok()) << scene.message();
+    ASSERT_EQ(scene->materials.size(), 4u);
+    EXPECT_TRUE(scene->materials[0].thinWalled);
+    EXPECT_TRUE(scene->materials[1].thinWalled);
+    const Material& tinted = scene->materials[2];
+    EXPECT_FALSE(tinted.thinWalled);
+    expectNear(tinted.attenuationColor, {0.5f, 0.8f, 1.0f});
+    EXPECT_FLOAT_EQ(tinted.attenuationDistanceM, 0.05f);
+    EXPECT_FALSE(scene->materials[3].thinWalled);
+    EXPECT_TRUE(std::isinf(scene->materials[3].attenuationDistanceM));
+
+    d["materials"][2]["extensions"]["KHR_materials_volume"]["attenuationDistance"] = 0.0;
+    const std::string bad = b.writeGltf("volume_bad.gltf");
+    Result<Scene> refused = loadGltf(bad);
+    ASSERT_FALSE(refused.ok());
+    EXPECT_NE(refused.message().find("attenuationDistance"), std::string::npos)
+        << refused.message();
+}
+
 TEST(GltfLoader, LightsAndCameras) {
     GltfBuilder b;
     json& d = b.doc();

@@ -1,8 +1,9 @@
-// The glTF 2.0 metallic-roughness BSDF with KHR_materials_transmission, _ior and _specular, in a
-// local shading frame (normal +Z). Shared by trace_paths.comp and the C++ tests.
+// The glTF 2.0 metallic-roughness BSDF with KHR_materials_transmission, _ior, _specular and
+// _volume (thin walls or solids), in a local shading frame (normal +Z). Shared by
+// trace_paths.comp and the C++ tests.
 //
 // The material is a mixture of four lobes:
-//   f = m·f_metal + (1−m)·[ f_dielectricReflection + (1−t)(1−F(n·wo))·c/π + t·f_transmission ]
+//   f = m·f_metal + (1−m)·[ f_dielectricReflection + (1−t)(1−E(wo))·c/π + t·f_transmission ]
 // with m metallic, t transmission, c base colour, F the dielectric Fresnel term (exact Fresnel
 // of the IOR, scaled by specularFactor and tinted by specularColor as KHR_materials_specular
 // does), metal Fresnel by Schlick with F0 = c, microfacets by GGX with Smith height-correlated
@@ -11,10 +12,33 @@
 // roughness 0 give a smooth Fresnel dielectric.
 //
 // One departure from the glTF specification's sample BRDF: the diffuse base is weighted by
-// 1 − F(n·wo), the light the specular layer lets through seen from wo, instead of 1 − F(h·wo).
-// The specification's form reflects up to 1.4× the incident energy at grazing angles (measured
-// by BsdfTest.EnergyIsConserved); this one never exceeds 1, at the price of reciprocity of the
-// diffuse term (which a path tracer does not rely on).
+// 1 − E(wo), the light the specular layer does not reflect, E being the layer's directional
+// albedo (albedo scaling, Kulla & Conty 2017, the technique glTF's clearcoat and sheen
+// extensions prescribe; tabulated in specular_albedo.h), instead of 1 − F(h·wo). Decided by
+// BsdfTest.WhitePlasticFurnaceDecidesTheDiffuseWeight, a white base under a clear coat that
+// should reflect all light: the specification's 1 − F(h·wo) reflects up to 1.21× at roughness
+// 0.3 (1.83× smooth at grazing), and 1 − F(n·wo), used before, only 0.66 at roughness 1 and 80°
+// (dark rims on rough objects: a rough layer reflects far less than F(n·wo) at grazing angles).
+// 1 − E never exceeds 1 (the table bounds E from above) and is exact when smooth, where
+// E = F(n·wo); it is not reciprocal, which a path tracer does not rely on.
+//
+// Rough dielectrics follow pbrt-v4's DielectricBxDF: a visible microfacet is sampled first and
+// reflects or refracts with its own Fresnel term (always reflects on total internal reflection),
+// so glass seen from inside beyond the critical angle still transmits through tilted microfacets.
+// Single-scattering GGX still loses the light a microfacet sends back into the surface; the
+// white furnace of clear glass (∫ f |cos| with refraction's 1/η² undone) measured by
+// BsdfTest.RoughGlassFurnaceMatchesSingleScatteringGgx, at θo = 0°, 30°, 60°, 80°:
+//   roughness  from outside (η 1.5)        from inside (η 1/1.5)
+//   0.1        1.000 1.000 1.000 0.999     1.000 1.000 1.000 0.998
+//   0.3        0.999 0.999 0.994 0.948     0.991 0.988 0.971 0.894
+//   0.5        0.992 0.988 0.961 0.913     0.930 0.907 0.829 0.797
+//   1.0        0.894 0.855 0.742 0.709     0.418 0.455 0.513 0.497
+//
+// A thin-walled material (glTF: transmission without KHR_materials_volume, or thickness 0) is a
+// slab too thin to see: light crosses both faces and leaves along its incoming direction (rough:
+// the mirror image of the reflection lobe, as the glTF specification's thin-walled BTDF), the
+// interface reflectance is the slab's, 2F/(1 + F), and radiance is not scaled by 1/η² (it ends
+// in the medium it started in). The caller passes etaRel = ior from both sides.
 //
 // Convention: the caller flips the frame so that wo.z > 0 and passes etaRel, the IOR of the side
 // a transmitted ray enters over the IOR of the side wo is on (ior when hitting a front face).
@@ -24,6 +48,7 @@
 
 #include "shared/prelude.h"
 #include "shared/sampling.h"
+#include "shared/specular_albedo.h"
 
 PV_BEGIN
 
@@ -48,6 +73,7 @@ struct BsdfParams {
     float transmission;
     float etaRel;        // see the convention above
     float specular;
+    bool thinWalled;     // transmission through a thin slab, not into a volume (see above)
 };
 
 struct BsdfSample {
@@ -71,8 +97,35 @@ PV_INLINE float fresnelDielectric(float cosThetaI, float eta) {
     return 0.5f * (rParl * rParl + rPerp * rPerp);
 }
 
+// The reflectance of the dielectric interface: one boundary, or for a thin wall the slab's two
+// boundaries with the light bouncing between them, R + T²R/(1 − R²) = 2R/(1 + R) (the two
+// faces have the same Fresnel term: the angle inside is the same on both, and Fresnel is
+// symmetric under reversing the ray).
 PV_INLINE vec3 dielectricFresnel(BsdfParams p, float cosThetaI) {
-    return p.specular * min(p.specularColor * fresnelDielectric(cosThetaI, p.etaRel), vec3(1.0f));
+    float f = fresnelDielectric(cosThetaI, p.etaRel);
+    if (p.thinWalled) f = 2.0f * f / (1.0f + f);
+    return p.specular * min(p.specularColor * f, vec3(1.0f));
+}
+
+PV_INLINE bool bsdfIsDelta(BsdfParams p) { return p.alpha < PV_DELTA_ALPHA; }
+
+// Every lobe a delta (a smooth mirror, smooth glass without a diffuse base): photons pass
+// through such a surface, and a camera path gathers photons at every vertex that is not one
+// (shared/photon_map.h).
+PV_INLINE bool bsdfIsPurelySpecular(BsdfParams p) {
+    return bsdfIsDelta(p) &&
+           (p.metallic >= 1.0f || p.transmission >= 1.0f || maxComponent(p.baseColor) <= 0.0f);
+}
+
+// The share of light the specular layer lets through to the diffuse base seen from wo: one
+// minus the layer's directional albedo (albedo scaling). Smooth, the albedo is F(n·wo); rough,
+// it is the tabulated integral of the GGX lobe (specular_albedo.h), since the light a rough
+// layer does not reflect is 1 − E, not 1 − F(n·wo). A thin wall keeps 1 − F(n·wo) of its slab
+// Fresnel (the table holds one interface).
+PV_INLINE vec3 diffuseWeight(BsdfParams p, float cosThetaO) {
+    if (bsdfIsDelta(p) || p.thinWalled) return vec3(1.0f) - dielectricFresnel(p, cosThetaO);
+    float e = specularAlbedo(cosThetaO, p.alpha, p.etaRel);
+    return vec3(1.0f) - min(p.specular * p.specularColor * e, vec3(1.0f));
 }
 
 PV_INLINE vec3 schlickFresnel(vec3 f0, float cosTheta) {
@@ -139,26 +192,40 @@ PV_INLINE bool refractDirection(vec3 wo, vec3 n, float eta, PV_OUT(vec3) wi) {
 }
 
 // Lobe selection probabilities from the lobe coefficients seen from wo (a scalar estimate; the
-// sample weight uses the exact coefficients, so the choice only affects variance).
-PV_INLINE vec4 bsdfLobeProbabilities(BsdfParams p, vec3 wo) {
+// sample weight uses the exact coefficients, so the choice only affects variance): .x metal,
+// .y the dielectric interface (reflection and transmission together), .z the diffuse base.
+// Reflection and transmission are one lobe because the choice between them belongs to the
+// microfacet, not to the macro surface: from inside glass beyond the critical angle the macro
+// Fresnel term is 1, yet tilted microfacets still transmit (Walter et al. 2007).
+PV_INLINE vec3 bsdfLobeProbabilities(BsdfParams p, vec3 wo) {
     float fe = maxComponent(dielectricFresnel(p, wo.z));
     float metal = p.metallic * maxComponent(schlickFresnel(p.baseColor, wo.z));
-    float dielectricReflection = (1.0f - p.metallic) * fe;
     float base = (1.0f - p.metallic) * (1.0f - fe) * maxComponent(p.baseColor);
-    vec4 w = vec4(metal, dielectricReflection, base * (1.0f - p.transmission),
-                  base * p.transmission);
-    float sum = w.x + w.y + w.z + w.w;
-    return sum > 0.0f ? w / sum : vec4(0.0f);
+    float diffuse = (1.0f - p.metallic) * (1.0f - p.transmission) *
+                    maxComponent(diffuseWeight(p, wo.z) * p.baseColor);
+    vec3 w = vec3(metal, (1.0f - p.metallic) * fe + base * p.transmission, diffuse);
+    float sum = w.x + w.y + w.z;
+    return sum > 0.0f ? w / sum : vec3(0.0f);
 }
 
-PV_INLINE bool bsdfIsDelta(BsdfParams p) { return p.alpha < PV_DELTA_ALPHA; }
+// Within the dielectric lobe, the probability of reflecting off a microfacet seen at cosine
+// cosThetaH from wo: its reflection over its reflection plus transmission coefficient, as
+// pbrt-v4's DielectricBxDF. Total internal reflection on the microfacet gives 1, so no sample
+// is lost to a refraction that cannot happen.
+PV_INLINE float dielectricReflectionProbability(BsdfParams p, float cosThetaH) {
+    if (fresnelDielectric(cosThetaH, p.etaRel) >= 1.0f) return 1.0f;
+    vec3 fd = dielectricFresnel(p, cosThetaH);
+    float r = maxComponent(fd);
+    float t = p.transmission * maxComponent((vec3(1.0f) - fd) * p.baseColor);
+    return r + t > 0.0f ? r / (r + t) : 1.0f;
+}
 
 // The non-delta part of the BSDF: f(wo, wi) (without the cosine) and the mixture pdf of
 // sampling wi with bsdfSample. Delta lobes contribute nothing here.
 PV_INLINE vec3 bsdfEvaluate(BsdfParams p, vec3 wo, vec3 wi, PV_OUT(float) pdf) {
     pdf = 0.0f;
     if (wo.z < PV_MIN_COSINE || abs(wi.z) < PV_MIN_COSINE) return vec3(0.0f);
-    vec4 prob = bsdfLobeProbabilities(p, wo);
+    vec3 prob = bsdfLobeProbabilities(p, wo);
     bool delta = bsdfIsDelta(p);
     vec3 f = vec3(0.0f);
     if (wi.z > 0.0f) {
@@ -166,8 +233,8 @@ PV_INLINE vec3 bsdfEvaluate(BsdfParams p, vec3 wo, vec3 wi, PV_OUT(float) pdf) {
         float hDotO = max(dot(h, wo), 0.0f);
         vec3 fd = dielectricFresnel(p, hDotO);
         if (prob.z > 0.0f) {
-            vec3 through = vec3(1.0f) - dielectricFresnel(p, wo.z);
-            f += (1.0f - p.metallic) * (1.0f - p.transmission) * through * p.baseColor * PV_INV_PI;
+            f += (1.0f - p.metallic) * (1.0f - p.transmission) * diffuseWeight(p, wo.z) *
+                 p.baseColor * PV_INV_PI;
             pdf += prob.z * cosineHemispherePdf(wi.z);
         }
         if (!delta && hDotO > 0.0f) {
@@ -175,10 +242,24 @@ PV_INLINE vec3 bsdfEvaluate(BsdfParams p, vec3 wo, vec3 wi, PV_OUT(float) pdf) {
             float reflectionPdf = ggxVisibleNormalPdf(wo, h, p.alpha) / (4.0f * hDotO);
             f += p.metallic * schlickFresnel(p.baseColor, hDotO) * dg;
             f += (1.0f - p.metallic) * fd * dg;
-            pdf += (prob.x + prob.y) * reflectionPdf;
+            pdf += (prob.x + prob.y * dielectricReflectionProbability(p, hDotO)) * reflectionPdf;
         }
-    } else if (!delta && prob.w > 0.0f) {
-        // Rough transmission (Walter et al. 2007), in pbrt-v4's form.
+    } else if (!delta && p.transmission > 0.0f && prob.y > 0.0f && p.thinWalled) {
+        // A thin wall transmits into the mirror image of the reflection lobe: the light crosses
+        // both faces of the slab, and the bending of the first is undone by the second.
+        vec3 wr = vec3(wi.x, wi.y, -wi.z);
+        vec3 h = normalize(wo + wr);
+        float hDotO = dot(h, wo);
+        if (hDotO > 0.0f) {
+            vec3 fd = dielectricFresnel(p, hDotO);
+            float dg = ggxD(h, p.alpha) * ggxG2(wo, wr, p.alpha) / (4.0f * wo.z * wr.z);
+            f += (1.0f - p.metallic) * p.transmission * (vec3(1.0f) - fd) * p.baseColor * dg;
+            pdf += prob.y * (1.0f - dielectricReflectionProbability(p, hDotO)) *
+                   ggxVisibleNormalPdf(wo, h, p.alpha) / (4.0f * hDotO);
+        }
+    } else if (!delta && p.transmission > 0.0f && prob.y > 0.0f) {
+        // Rough transmission (Walter et al. 2007), in pbrt-v4's form: wm is the generalised
+        // half vector, and the pair (wo, wi) exists only through a microfacet that refracts.
         float etap = p.etaRel;
         vec3 wm = normalize(wi * etap + wo);
         if (wm.z < 0.0f) wm = -wm;
@@ -192,7 +273,8 @@ PV_INLINE vec3 bsdfEvaluate(BsdfParams p, vec3 wo, vec3 wi, PV_OUT(float) pdf) {
                 float ft = ggxD(wm, p.alpha) * ggxG2(wo, wi, p.alpha) *
                            abs(dotIM * dotOM / (wi.z * wo.z * denom2)) / (etap * etap);
                 f += (1.0f - p.metallic) * p.transmission * (vec3(1.0f) - fd) * p.baseColor * ft;
-                pdf += prob.w * ggxVisibleNormalPdf(wo, wm, p.alpha) * abs(dotIM) / denom2;
+                pdf += prob.y * (1.0f - dielectricReflectionProbability(p, dotOM)) *
+                       ggxVisibleNormalPdf(wo, wm, p.alpha) * abs(dotIM) / denom2;
             }
         }
     }
@@ -200,7 +282,7 @@ PV_INLINE vec3 bsdfEvaluate(BsdfParams p, vec3 wo, vec3 wi, PV_OUT(float) pdf) {
 }
 
 // Samples wi from the lobe mixture; false when no direction could be generated (black material,
-// total internal reflection on a sampled microfacet) — the path ends there.
+// a microfacet that reflects below the surface or refracts above it) — the path ends there.
 PV_INLINE bool bsdfSample(BsdfParams p, vec3 wo, float uLobe, vec2 u, PV_OUT(BsdfSample) s) {
     s.wi = vec3(0.0f, 0.0f, 1.0f);
     s.pdf = 0.0f;
@@ -208,21 +290,22 @@ PV_INLINE bool bsdfSample(BsdfParams p, vec3 wo, float uLobe, vec2 u, PV_OUT(Bsd
     s.lobe = PV_LOBE_DIFFUSE;
     s.isDelta = false;
     if (wo.z < PV_MIN_COSINE) return false;
-    vec4 prob = bsdfLobeProbabilities(p, wo);
+    vec3 prob = bsdfLobeProbabilities(p, wo);
     bool delta = bsdfIsDelta(p);
+    // uDielectric re-uses uLobe, rescaled to [0, 1) within the dielectric lobe's interval, to
+    // choose reflection or transmission on the microfacet.
     uint lobe;
+    float uDielectric = 0.0f;
     if (uLobe < prob.x) {
         lobe = PV_LOBE_METAL;
     } else if (uLobe < prob.x + prob.y) {
         lobe = PV_LOBE_DIELECTRIC_REFLECTION;
-    } else if (uLobe < prob.x + prob.y + prob.z) {
+        uDielectric = min((uLobe - prob.x) / prob.y, 0.99999994f);
+    } else if (prob.z > 0.0f) {
         lobe = PV_LOBE_DIFFUSE;
-    } else if (prob.w > 0.0f) {
-        lobe = PV_LOBE_TRANSMISSION;
     } else {
         return false;
     }
-    s.lobe = lobe;
     if (delta && lobe != PV_LOBE_DIFFUSE) {
         // Perfect specular: the weight is the lobe's coefficient over its choice probability.
         s.isDelta = true;
@@ -231,36 +314,92 @@ PV_INLINE bool bsdfSample(BsdfParams p, vec3 wo, float uLobe, vec2 u, PV_OUT(Bsd
         if (lobe == PV_LOBE_METAL) {
             s.wi = vec3(-wo.x, -wo.y, wo.z);
             s.weight = p.metallic * schlickFresnel(p.baseColor, cosO) / prob.x;
-        } else if (lobe == PV_LOBE_DIELECTRIC_REFLECTION) {
+            s.lobe = lobe;
+            return maxComponent(s.weight) > 0.0f;
+        }
+        float pReflect = dielectricReflectionProbability(p, cosO);
+        if (uDielectric < pReflect) {
+            s.lobe = PV_LOBE_DIELECTRIC_REFLECTION;
             s.wi = vec3(-wo.x, -wo.y, wo.z);
-            s.weight = (1.0f - p.metallic) * fd / prob.y;
+            s.weight = (1.0f - p.metallic) * fd / (prob.y * pReflect);
         } else {
-            if (!refractDirection(wo, vec3(0.0f, 0.0f, 1.0f), p.etaRel, s.wi)) return false;
-            // Radiance is scaled by 1/η² across the boundary (non-symmetric scattering, Veach).
+            s.lobe = PV_LOBE_TRANSMISSION;
             s.weight = (1.0f - p.metallic) * p.transmission * (vec3(1.0f) - fd) * p.baseColor /
-                       (prob.w * p.etaRel * p.etaRel);
+                       (prob.y * (1.0f - pReflect));
+            if (p.thinWalled) {
+                // Straight through the slab, back into the medium it came from.
+                s.wi = -wo;
+            } else {
+                if (!refractDirection(wo, vec3(0.0f, 0.0f, 1.0f), p.etaRel, s.wi)) return false;
+                // Radiance is scaled by 1/η² across the boundary (non-symmetric scattering,
+                // Veach 1997).
+                s.weight /= p.etaRel * p.etaRel;
+            }
         }
         return maxComponent(s.weight) > 0.0f;
     }
+    s.lobe = lobe;
     if (lobe == PV_LOBE_DIFFUSE) {
         s.wi = sampleCosineHemisphere(u);
     } else {
         vec3 h = sampleGgxVisibleNormal(wo, p.alpha, u);
-        if (lobe == PV_LOBE_TRANSMISSION) {
-            if (!refractDirection(wo, h, p.etaRel, s.wi)) return false;
+        if (lobe == PV_LOBE_DIELECTRIC_REFLECTION &&
+            uDielectric >= dielectricReflectionProbability(p, dot(wo, h))) {
+            s.lobe = PV_LOBE_TRANSMISSION;
+            if (p.thinWalled) {
+                s.wi = reflect(-wo, h);
+                s.wi.z = -s.wi.z;
+            } else if (!refractDirection(wo, h, p.etaRel, s.wi)) {
+                return false;
+            }
         } else {
             s.wi = reflect(-wo, h);
         }
     }
     // A microfacet can send a reflection below the surface or a refraction above it; such
-    // samples are discarded, so bsdfEvaluate's pdf (which counts each lobe only on its own
-    // side) is exactly the density of the directions returned.
-    bool reflection = lobe != PV_LOBE_TRANSMISSION;
+    // samples are discarded (single-scattering microfacets lose that energy), so bsdfEvaluate's
+    // pdf (which counts each lobe only on its own side) is exactly the density of the
+    // directions returned.
+    bool reflection = s.lobe != PV_LOBE_TRANSMISSION;
     if (reflection ? s.wi.z < PV_MIN_COSINE : s.wi.z > -PV_MIN_COSINE) return false;
     vec3 f = bsdfEvaluate(p, wo, s.wi, s.pdf);
     if (!(s.pdf > 0.0f)) return false;
     s.weight = f * abs(s.wi.z) / s.pdf;
     return true;
+}
+
+// The reflection of wo about an adapted shading normal leaves the geometric surface at least at
+// this cosine: above the tangent plane, and far enough from it that the reflected ray, offset
+// from the surface, does not graze the facet it leaves.
+#define PV_ADAPTED_REFLECTION_COSINE 1.0e-3f
+
+// Shading-normal adaptation (Keller et al. 2017, "The Iray Light Transport Simulation and
+// Rendering System", §A.3): where the mirror direction of wo about the interpolated (or normal-
+// mapped) normal ns points below the geometric surface, ns is tilted toward the geometric normal
+// ng just enough that it does not: the new normal is the half vector of wo and the nearest
+// direction above the surface. A smooth mirror or glass then never sends a path into the facet
+// it reflects from, which killed paths at the silhouettes of smooth-shaded meshes (and shading
+// with ng instead, where wo is below ns, made a visible seam). World space; wo and ns on ng's
+// side (wo·ng > 0, ns·ng ≥ 0), all unit vectors.
+// The unit direction nearest to w on the side `side` (+1 or −1) of the plane normal to ng, at
+// least PV_ADAPTED_REFLECTION_COSINE away from it; w itself when it already is. ng unit.
+PV_INLINE vec3 nearestDirectionOnSide(vec3 w, vec3 ng, float side) {
+    const float c = PV_ADAPTED_REFLECTION_COSINE;
+    float a = dot(w, ng) * side;
+    if (a >= c) return w;
+    vec3 t = w - dot(w, ng) * ng;
+    float tLen = length(t);
+    if (!(tLen > 1.0e-6f)) return ng * side;
+    return t * (sqrt(1.0f - c * c) / tLen) + (c * side) * ng;
+}
+
+PV_INLINE vec3 adaptShadingNormal(vec3 wo, vec3 ng, vec3 ns) {
+    vec3 r = 2.0f * dot(wo, ns) * ns - wo;
+    float a = dot(r, ng);
+    if (a >= PV_ADAPTED_REFLECTION_COSINE) return ns;
+    // Grazing wo: wo + r below cancels; the answer tends to ng anyway.
+    if (dot(wo, ng) < 2.0f * PV_ADAPTED_REFLECTION_COSINE) return ng;
+    return normalize(wo + nearestDirectionOnSide(r, ng, 1.0f));
 }
 
 PV_END

@@ -15,7 +15,6 @@
 #define PREVIS_SHARED_PHOTON_MAP_H
 
 #include "shared/prelude.h"
-#include "shared/bsdf.h"
 
 PV_BEGIN
 
@@ -54,13 +53,6 @@ struct PhotonRecord {
     vec3 power;
     uint direction;  // packSnorm2x16(octahedralEncode(toward where the photon came from))
 };
-
-// A material whose every lobe is a delta (smooth mirror, smooth glass without a diffuse base):
-// photons pass through it, and the path tracer's gather vertex is the first one that is not.
-PV_INLINE bool bsdfIsPurelySpecular(BsdfParams p) {
-    return bsdfIsDelta(p) &&
-           (p.metallic >= 1.0f || p.transmission >= 1.0f || maxComponent(p.baseColor) <= 0.0f);
-}
 
 // The grid cell of p for cells of edge `cellSize` (twice the gather radius, so that a gather
 // sphere overlaps at most 2×2×2 cells).

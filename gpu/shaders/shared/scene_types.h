@@ -139,9 +139,13 @@ struct GpuMaterial {
     uint normalTexture;
     uint emissiveTexture;
     uint flags;              // PV_MATERIAL_* bits
+    vec3 attenuation;        // KHR_materials_volume absorption coefficient inside, 1/m
+    uint reserved;           // keeps the struct a whole number of 16-byte texels
 };
 
 #define PV_MATERIAL_DOUBLE_SIDED 1u
+// Transmission through a thin wall, not into a volume (KHR_materials_volume absent).
+#define PV_MATERIAL_THIN_WALLED 2u
 
 // A texture stored as packed RGBA8 texels at `offset` in the texel buffer.
 struct TextureInfo {
