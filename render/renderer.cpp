@@ -475,8 +475,9 @@ Status Renderer::buildScene(const Scene& scene) {
     std::vector<uint32_t> materialWords((sizeof(shader::kSpecularAlbedo) +
                                          materials.size() * sizeof(shader::GpuMaterial)) / 4);
     std::memcpy(materialWords.data(), shader::kSpecularAlbedo, sizeof(shader::kSpecularAlbedo));
-    std::memcpy(materialWords.data() + sizeof(shader::kSpecularAlbedo) / 4, materials.data(),
-                materials.size() * sizeof(shader::GpuMaterial));
+    if (!materials.empty())  // memcpy from an empty vector's null data() is undefined
+        std::memcpy(materialWords.data() + sizeof(shader::kSpecularAlbedo) / 4, materials.data(),
+                    materials.size() * sizeof(shader::GpuMaterial));
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(materialWords), "materials")))) return s;
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(textureInfos), "textures")))) return s;
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(texels), "texels")))) return s;
