@@ -123,6 +123,9 @@ PV_INLINE bool bsdfIsPurelySpecular(BsdfParams p) {
 // layer does not reflect is 1 − E, not 1 − F(n·wo). A thin wall keeps 1 − F(n·wo) of its slab
 // Fresnel (the table holds one interface).
 PV_INLINE vec3 diffuseWeight(BsdfParams p, float cosThetaO) {
+    // No specular layer (specularFactor 0: a plain Lambertian): everything reaches the base.
+    // Exact, and it spares the photon gather a table lookup per photon.
+    if (p.specular <= 0.0f) return vec3(1.0f);
     if (bsdfIsDelta(p) || p.thinWalled) return vec3(1.0f) - dielectricFresnel(p, cosThetaO);
     float e = specularAlbedo(cosThetaO, p.alpha, p.etaRel);
     return vec3(1.0f) - min(p.specular * p.specularColor * e, vec3(1.0f));
