@@ -38,14 +38,14 @@ install)
     cmake --install "$build" --component previs-systemd --prefix "$tmp" >/dev/null
     [ "$(cat "$tmp/etc/previs/previsd.toml")" = "# edited" ] || fail "reinstall overwrote the config"
     # The box's layout: --prefix /usr reads its config from /etc (under DESTDIR here).
-    DESTDIR=$tmp/root cmake --install "$build" --component previs-systemd --prefix /usr >/dev/null
+    DESTDIR=$tmp/destdir cmake --install "$build" --component previs-systemd --prefix /usr >/dev/null
     # Installed paths relative to the DESTDIR root.
     unit_rel=usr/lib/systemd/system/previsd.service
     config_rel=etc/previs/previsd.toml
-    u=$tmp/root/$unit_rel
+    u=$tmp/destdir/$unit_rel
     [ "$(sed -n 's/^ExecStart=//p' "$u")" = "/usr/bin/previsd --config /$config_rel" ] ||
         fail "with --prefix /usr, ExecStart is '$(sed -n 's/^ExecStart=//p' "$u")'"
-    [ -f "$tmp/root/$config_rel" ] || fail "with --prefix /usr, no $config_rel under the install root"
+    [ -f "$tmp/destdir/$config_rel" ] || fail "with --prefix /usr, no $config_rel under the install root"
     echo "install layout OK"
     ;;
 verify)
