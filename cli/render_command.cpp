@@ -368,7 +368,8 @@ std::function<int()> addRenderCommand(CLI::App& app) {
     cmd->add_flag("--quiet", o->quiet, "no progress on stderr");
     cmd->add_flag("--timing", o->timing,
                   "print one line on stdout: seconds spent loading, creating the device, "
-                  "building the renderer (BVH, upload, pipeline), rendering and reading back");
+                  "building the renderer (BVH, upload, pipeline), rendering and reading back, "
+                  "and the GPU time of all dispatches and of the photon passes");
     cmd->add_option("--plate", o->plate,
                     "camera image to composite into: PNG/JPEG (sRGB, inverse tone mapped) or "
                     "OpenEXR (linear, used as is); sets the resolution")

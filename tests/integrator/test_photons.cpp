@@ -42,7 +42,27 @@ double depositedPower(const std::vector<shader::PhotonRecord>& records, uint32_t
     return sum;
 }
 
-class PhotonTest : public GpuTest {};
+class PhotonTest : public GpuTest {
+protected:
+    // A differential 32×24 renderer of `scene` (16384 photons per iteration) after `iterations`
+    // samples; null, with the test failed, if it cannot render or runs no photons.
+    std::unique_ptr<Renderer> differentialPhotonRenderer(const Scene& scene, uint32_t iterations) {
+        RenderSettings rs = photonSettings(32, 24, PhotonMode::Auto);
+        rs.differential = true;
+        rs.photons.perIteration = 1u << 14;
+        auto renderer = Renderer::create(ctx(), scene, rs);
+        if (!renderer) {
+            ADD_FAILURE() << renderer.message();
+            return nullptr;
+        }
+        std::unique_ptr<Renderer> r = std::move(renderer.value());
+        if (!r->photonsActive() || !r->render(iterations).ok()) {
+            ADD_FAILURE() << "no photon pass, or the render failed";
+            return nullptr;
+        }
+        return r;
+    }
+};
 
 // A point light above a smooth glass ball in a closed white room: Fresnel splits every photon
 // between reflection and refraction without loss, and the room catches all of it, so the flux
@@ -256,14 +276,9 @@ TEST_F(PhotonTest, NoVirtualObjectOnTheirPathGivesZeroDifferenceBitForBit) {
     addBox(scene, glm::vec3(3.0f), glm::vec3(3.5f), white, false);  // virtual, outside the room
     scene.cameras.push_back(
         lookAt(glm::vec3(0, 0.9f, 0.9f), glm::vec3(0, 0.1f, 0), glm::vec3(0, 1, 0), 1.2f));
-    RenderSettings rs = photonSettings(32, 24, PhotonMode::Auto);
-    rs.differential = true;
-    rs.photons.perIteration = 1u << 14;
-    auto renderer = Renderer::create(ctx(), scene, rs);
-    ASSERT_TRUE(renderer.ok()) << renderer.message();
-    Renderer& r = **renderer;
-    ASSERT_TRUE(r.photonsActive());
-    ASSERT_TRUE(r.render(8).ok());
+    std::unique_ptr<Renderer> renderer = differentialPhotonRenderer(scene, 8);
+    ASSERT_TRUE(renderer);
+    Renderer& r = *renderer;
     auto records = r.photonRecords();
     ASSERT_TRUE(records.ok());
     size_t both = 0, one = 0;
@@ -294,14 +309,9 @@ TEST_F(PhotonTest, VirtualGlassBallCausticIsMixedOnly) {
     scene.lights.push_back(pointLight(glm::vec3(0.0f, 1.5f, 0.0f), 20.0f, true));
     scene.cameras.push_back(
         lookAt(glm::vec3(0, 1.0f, 1.5f), glm::vec3(0, 0.1f, 0), glm::vec3(0, 1, 0), 1.0f));
-    RenderSettings rs = photonSettings(32, 24, PhotonMode::Auto);
-    rs.differential = true;
-    rs.photons.perIteration = 1u << 14;
-    auto renderer = Renderer::create(ctx(), scene, rs);
-    ASSERT_TRUE(renderer.ok()) << renderer.message();
-    ASSERT_TRUE((*renderer)->photonsActive());
-    ASSERT_TRUE((*renderer)->render(2).ok());
-    auto records = (*renderer)->photonRecords();
+    std::unique_ptr<Renderer> renderer = differentialPhotonRenderer(scene, 2);
+    ASSERT_TRUE(renderer);
+    auto records = renderer->photonRecords();
     ASSERT_TRUE(records.ok());
     size_t mixedOnly = 0, withReal = 0;
     for (const auto& rec : *records) {
