@@ -5,6 +5,7 @@
 #include <opencv2/core/utils/logger.hpp>
 
 #include "base/log.h"
+#include "base/strings.h"
 #include "image/image.h"
 #include "vision/camera_calibration.h"
 #include "vision/fisheye_to_equirect.h"
@@ -26,11 +27,6 @@ struct EnvmapOptions {
     double maxFieldAngleDeg = 95.0;
     bool quiet = false;
 };
-
-bool endsWith(const std::string& s, const std::string& suffix) {
-    return s.size() >= suffix.size() &&
-           s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
-}
 
 int run(const EnvmapOptions& o) {
     cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);

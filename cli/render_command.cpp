@@ -8,6 +8,7 @@
 #include <optional>
 
 #include "base/log.h"
+#include "base/strings.h"
 #include "config/scene_description.h"
 #include "gpu/context.h"
 #include "image/image.h"
@@ -61,10 +62,6 @@ struct RenderOptions {
 std::string aovPath(const std::string& out, const std::string& aov) {
     std::filesystem::path p(out);
     return (p.parent_path() / (p.stem().string() + "." + aov + ".exr")).string();
-}
-
-bool endsWith(const std::string& s, const std::string& suffix) {
-    return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
 }
 
 int run(const RenderOptions& o) {

@@ -28,7 +28,7 @@
 #include "io/gpio_button.h"
 #include "io/status_led.h"
 #include "systemd/notify.h"
-#include "vision/latest_value_slot.h"
+#include "base/latest_value_slot.h"
 
 namespace previs {
 
@@ -180,7 +180,7 @@ void Service::Threads::runTracking(const ModeMachine& modes) {
     Clock::time_point lastTracked{};
     while (!stopping.load()) {
         std::shared_ptr<const Frame> frame =
-            sceneCamera->frames().waitTake(std::chrono::milliseconds(100));
+            sceneCamera->frames().waitTakeFor(std::chrono::milliseconds(100));
         if (!frame) continue;
         if (recordedEvents) {
             std::vector<SessionEvent> due = recordedEvents->due(frame->deviceSequence);
@@ -205,7 +205,7 @@ void Service::Threads::runLighting() {
     uint64_t failures = 0;
     while (!stopping.load()) {
         std::shared_ptr<const Frame> frame =
-            fisheyeCamera->frames().waitTake(std::chrono::milliseconds(100));
+            fisheyeCamera->frames().waitTakeFor(std::chrono::milliseconds(100));
         if (!frame || !lighting->due(*frame)) continue;
         Result<std::shared_ptr<const LiveLighting>> lit = lighting->process(*frame);
         if (!lit) {

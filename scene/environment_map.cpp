@@ -5,14 +5,13 @@
 #include <filesystem>
 
 #include "base/log.h"
+#include "base/strings.h"
 #include "image/image.h"
 
 namespace previs {
 
 Result<EnvironmentMap> loadEnvironmentMap(const std::string& path) {
-    std::string ext = std::filesystem::path(path).extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(),
-                   [](unsigned char c) { return char(std::tolower(c)); });
+    const std::string ext = lowerExtension(path);
     if (ext != ".exr" && ext != ".hdr")
         return makeError(
             "cannot load environment map '{}': unsupported extension '{}' (use a linear HDR "

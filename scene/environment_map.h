@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "base/luminance.h"
 #include "base/result.h"
 #include "scene/scene.h"
 
@@ -32,9 +33,7 @@ struct EnvironmentDistribution {
 // everywhere gets weights sin θ, i.e. uniform directions on the sphere, so the tables stay valid.
 EnvironmentDistribution buildEnvironmentDistribution(const EnvironmentMap& map);
 
-// Rec. 709 luminance of linear RGB.
-inline float luminance(const glm::vec3& rgb) {
-    return 0.2126f * rgb.r + 0.7152f * rgb.g + 0.0722f * rgb.b;
-}
+// Rec. 709 luminance of linear RGB (base/luminance.h).
+inline float luminance(const glm::vec3& rgb) { return luminance(rgb.r, rgb.g, rgb.b); }
 
 }  // namespace previs

@@ -21,6 +21,7 @@
 #include <tiny_gltf.h>
 
 #include "base/log.h"
+#include "base/strings.h"
 
 namespace previs {
 namespace {
@@ -846,9 +847,7 @@ Result<Scene> loadGltf(const std::string& path, const GltfLoadOptions& options) 
         return makeError("cannot load glTF '{}': no such file (check the path)", path);
     if (std::filesystem::is_directory(path, ec))
         return makeError("cannot load glTF '{}': it is a folder, not a .gltf/.glb file", path);
-    std::string ext = std::filesystem::path(path).extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(),
-                   [](unsigned char c) { return char(std::tolower(c)); });
+    const std::string ext = lowerExtension(path);
     if (ext != ".gltf" && ext != ".glb")
         return makeError("cannot load glTF '{}': unsupported extension '{}' (use .gltf or .glb)",
                          path, ext);

@@ -7,13 +7,13 @@
 #include <opencv2/imgproc.hpp>
 
 #include "base/log.h"
+#include "base/luminance.h"
 #include "vision/equirect.h"
 
 namespace previs {
 
 namespace {
 
-double rec709(const cv::Vec3f& c) { return 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]; }
 
 struct UnionFind {
     std::vector<int> parent;
@@ -90,7 +90,7 @@ Result<LightingSnapshot> LightEstimator::estimate(const cv::Mat& radiance) const
             for (int k = 0; k < 3; ++k)
                 if (!(c[k] >= 0.0f) || !std::isfinite(c[k])) c[k] = 0.0f;
             res[x] = c;
-            lum[x] = rec709(c);
+            lum[x] = previs::luminance(double(c[0]), double(c[1]), double(c[2]));
             maxLuminance = std::max(maxLuminance, lum[x]);
             luminancePower += lum[x] * rowSolidAngle[y];
             for (int k = 0; k < 3; ++k) snap.totalPower[k] += double(c[k]) * rowSolidAngle[y];

@@ -19,7 +19,7 @@
 #include <thread>
 
 #include "capture/camera_source.h"
-#include "capture/frame_slot.h"
+#include "base/latest_value_slot.h"
 #include "capture/pixel_format.h"
 #include "capture/recorded_source.h"
 #include "capture/unique_fd.h"
@@ -191,7 +191,7 @@ TEST(FrameSlot, SlowConsumerDropsAndCounts) {
     EXPECT_EQ(got->sequence, 9u);
     EXPECT_EQ(slot.take(), nullptr);
     ASSERT_NE(slot.latest(), nullptr);  // latest() survives take()
-    EXPECT_EQ(slot.waitTake(std::chrono::milliseconds(5)), nullptr);
+    EXPECT_EQ(slot.waitTakeFor(std::chrono::milliseconds(5)), nullptr);
     slot.publish(std::make_shared<Frame>());
     EXPECT_EQ(slot.dropped(), 9u);  // the previous one was taken: no drop
 }
@@ -284,7 +284,7 @@ TEST(CaptureThread, WaitsForAbsentDeviceThenRecoversFromLoss) {
 
     uint64_t lastSeq = 0, lastTs = 0;
     for (int i = 0; i < 5; ++i) {
-        auto f = capture.frames().waitTake(std::chrono::milliseconds(500));
+        auto f = capture.frames().waitTakeFor(std::chrono::milliseconds(500));
         ASSERT_NE(f, nullptr);
         if (i > 0) {
             EXPECT_GT(f->sequence, lastSeq);
