@@ -8,7 +8,10 @@
 #include <optional>
 
 #include "base/log.h"
+#include "base/output_path.h"
+#include "base/progress.h"
 #include "base/strings.h"
+#include "cli/tone_curve_options.h"
 #include "config/scene_description.h"
 #include "gpu/context.h"
 #include "image/image.h"
@@ -43,16 +46,12 @@ struct RenderOptions {
     float photonRadius = 0.0f;
     float photonAlpha = 2.0f / 3.0f;
     std::string out;
-    float exposure = 0.0f;
-    std::string toneMap = "clamp";
+    ToneCurveOptions output;  // PNG output
     float fireflyClamp = 0.0f;
     bool quiet = false;
     bool timing = false;
     std::string plate;
-    std::string plateToneMap = "srgb";
-    float plateExposure = 0.0f;
-    float plateMaxRadiance = 16.0f;
-    float plateWhite = 16.0f;
+    ToneCurveOptions plateCurve;
     std::vector<std::string> aovs;
     std::string calibration;
     std::vector<uint32_t> checkpoints;  // also write the image at these sample counts
@@ -73,6 +72,10 @@ int run(const RenderOptions& o) {
         logError("give either --spp or --seconds, not both");
         return 2;
     }
+    if (Status s = checkOutputFile("--out", o.out); !s) {
+        logError("{}", s.message());
+        return 2;
+    }
     // --timing: the stages from here to the image in memory (the file write excluded).
     using Clock = std::chrono::steady_clock;
     const auto runStart = Clock::now();
@@ -82,13 +85,13 @@ int run(const RenderOptions& o) {
     auto scene = loadScene(o.scene);
     if (!scene) {
         logError("{}", scene.message());
-        return 1;
+        return 2;
     }
     if (!o.env.empty()) {
         auto env = loadEnvironmentMap(o.env);
         if (!env) {
             logError("{}", env.message());
-            return 1;
+            return 2;
         }
         // --env replaces the description's whole [environment]: its rotation and scale were
         // set for its own map, not for this one.
@@ -140,20 +143,10 @@ int run(const RenderOptions& o) {
         auto img = readImage(o.plate);
         if (!img) {
             logError("{}", img.message());
-            return 1;
+            return 2;
         }
         if (img->ldrSrgb) {
-            InverseToneMapSettings itm;
-            auto op = parseInverseToneMapOperator(o.plateToneMap);
-            if (!op) {
-                logError("--plate-tonemap {}: not available in this build", o.plateToneMap);
-                return 2;
-            }
-            itm.op = *op;
-            itm.exposureStops = o.plateExposure;
-            itm.maxRadiance = o.plateMaxRadiance;
-            itm.whiteLuminance = o.plateWhite;
-            plate = inverseToneMap(*img, itm);
+            plate = inverseToneMap(*img, o.plateCurve.inverse());
         } else {
             plate = std::move(img.value());
         }
@@ -215,22 +208,22 @@ int run(const RenderOptions& o) {
         return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     };
     uint32_t target = o.spp ? o.spp : (o.seconds > 0.0 ? UINT32_MAX : 64);
+    ProgressLine progress("render", o.quiet);
     while ((*renderer)->samplesPerPixel() < target) {
         if (Status s = (*renderer)->render(1); !s) {
             logError("{}", s.message());
             return 1;
         }
-        if (!o.quiet) {
+        {
             const Renderer& r = **renderer;
             // Photons: per iteration, and the radius the next iteration gathers with.
             std::string photons = r.photonsActive()
                                       ? fmt::format(", {} photons/iteration, radius {:.3g} m",
                                                     r.photonsPerIteration(), r.nextPhotonRadius())
                                       : "";
-            std::fprintf(stderr, "\rrender: %llu%s spp, %.1f s%s   ",
-                         (unsigned long long)r.samplesPerPixel(),
-                         o.spp ? fmt::format("/{}", o.spp).c_str() : "", elapsed(),
-                         photons.c_str());
+            progress.update(fmt::format("{}{} spp, {:.1f} s{}", r.samplesPerPixel(),
+                                        o.spp ? fmt::format("/{}", o.spp) : "", elapsed(),
+                                        photons));
         }
         const uint64_t done = (*renderer)->samplesPerPixel();
         if (std::find(o.checkpoints.begin(), o.checkpoints.end(), done) != o.checkpoints.end()) {
@@ -251,7 +244,7 @@ int run(const RenderOptions& o) {
         }
         if (o.seconds > 0.0 && elapsed() >= o.seconds) break;
     }
-    if (!o.quiet) std::fprintf(stderr, "\n");
+    progress.finish();
     const double renderSeconds = elapsed();
     const auto readbackStart = Clock::now();
     auto nonFinite = (*renderer)->nonFiniteSamples();
@@ -279,10 +272,8 @@ int run(const RenderOptions& o) {
     if (endsWith(o.out, ".exr")) {
         written = writeExr(o.out, *image);
     } else {
-        ToneMapSettings tm;
-        tm.exposureStops = o.exposure;
-        tm.op = *parseToneMapOperator(o.toneMap);
-        written = writePng(o.out, image->width, image->height, toneMapToSrgb8(*image, tm));
+        written = writePng(o.out, image->width, image->height,
+                           toneMapToSrgb8(*image, o.output.forward()));
     }
     if (!written) {
         logError("{}", written.message());
@@ -355,9 +346,7 @@ std::function<int()> addRenderCommand(CLI::App& app) {
                     "also write OUT_STEM.sppN.exr at these sample counts (N1,N2,...), and print "
                     "each one's time since start: a convergence curve from one run")
         ->delimiter(',');
-    cmd->add_option("--exposure", o->exposure, "PNG output: exposure in stops");
-    cmd->add_option("--tonemap", o->toneMap, "PNG output: clamp, reinhard or reinhard-extended")
-        ->check(CLI::IsMember({"clamp", "reinhard", "reinhard-extended"}));
+    o->output.addTo(cmd, "", "PNG output", false);
     cmd->add_option("--firefly-clamp", o->fireflyClamp,
                     "clamp each sample's luminance to this (biased; off by default)")
         ->check(CLI::NonNegativeNumber);
@@ -371,15 +360,7 @@ std::function<int()> addRenderCommand(CLI::App& app) {
                     "camera image to composite into: PNG/JPEG (sRGB, inverse tone mapped) or "
                     "OpenEXR (linear, used as is); sets the resolution")
         ->check(CLI::ExistingFile);
-    cmd->add_option("--plate-tonemap", o->plateToneMap,
-                    "inverse tone mapping of an LDR plate: srgb, reinhard or banterle")
-        ->check(CLI::IsMember({"srgb", "reinhard", "banterle"}));
-    cmd->add_option("--plate-exposure", o->plateExposure, "LDR plate exposure, stops");
-    cmd->add_option("--plate-max-radiance", o->plateMaxRadiance,
-                    "banterle: radiance that 8-bit white maps to (L_max)")
-        ->check(CLI::PositiveNumber);
-    cmd->add_option("--plate-white", o->plateWhite, "banterle: Reinhard white point L_white")
-        ->check(CLI::PositiveNumber);
+    o->plateCurve.addTo(cmd, "plate-", "LDR plate", true);
     cmd->add_option("--aov", o->aovs,
                     "also write buffers as OUT.<aov>.exr: composite, mixed, real, mask")
         ->delimiter(',')

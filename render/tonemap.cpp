@@ -9,9 +9,11 @@
 namespace previs {
 
 std::optional<ToneMapOperator> parseToneMapOperator(const std::string& name) {
-    if (name == "clamp") return ToneMapOperator::Clamp;
+    // srgb and banterle: the names of the inverse operators (vision/inverse_tone_map.h), so one
+    // curve name serves both directions.
+    if (name == "clamp" || name == "srgb") return ToneMapOperator::Clamp;
     if (name == "reinhard") return ToneMapOperator::Reinhard;
-    if (name == "reinhard-extended") return ToneMapOperator::ReinhardExtended;
+    if (name == "reinhard-extended" || name == "banterle") return ToneMapOperator::ReinhardExtended;
     return std::nullopt;
 }
 
