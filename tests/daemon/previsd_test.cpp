@@ -17,7 +17,7 @@
 
 #include "daemon/control_server.h"
 #include "io/session.h"
-#include "tests/daemon/process.h"
+#include "tests/support/process.h"
 #include "tests/support/temp_dir.h"
 
 namespace previs {

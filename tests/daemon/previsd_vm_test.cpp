@@ -19,7 +19,7 @@
 
 #include "daemon/control_server.h"
 #include "display/drm_readback.h"
-#include "tests/daemon/process.h"
+#include "tests/support/process.h"
 
 namespace previs {
 namespace {
