@@ -6,6 +6,7 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "base/guarded_thread.h"
 #include "base/log.h"
 #include "base/luminance.h"
 #include "vision/equirect.h"
@@ -188,7 +189,17 @@ Result<LightingSnapshot> LightEstimator::estimate(const cv::Mat& radiance) const
 }
 
 LightingEstimator::LightingEstimator(const LightEstimatorSettings& settings)
-    : estimator_(settings), thread_([this] { run(); }) {}
+    : estimator_(settings), thread_([this] {
+          // run() returns only when stopping; after an exception (counted as a failed
+          // estimate) the last good lighting stays and the loop goes on.
+          for (bool failed = true; failed;) {
+              failed = false;
+              runGuarded("lighting estimation", [this] { run(); }, [&](const std::string&) {
+                  failed = true;
+                  ++failed_;
+              });
+          }
+      }) {}
 
 LightingEstimator::~LightingEstimator() {
     {

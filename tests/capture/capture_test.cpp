@@ -16,6 +16,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <random>
+#include <stdexcept>
 #include <thread>
 
 #include "capture/camera_source.h"
@@ -293,6 +294,49 @@ TEST(CaptureThread, WaitsForAbsentDeviceThenRecoversFromLoss) {
         lastSeq = f->sequence;
         lastTs = f->timestampNs;
     }
+    capture.stop();
+    EXPECT_EQ(capture.state(), CaptureState::Stopped);
+}
+
+// A reader that throws (a library bug, an allocation failure) does not end the capture thread:
+// it counts as losing the device, logged in one line, and the device is reopened.
+class ThrowingReader : public FrameReader {
+public:
+    explicit ThrowingReader(std::atomic<int>& throwsLeft) : throwsLeft_(throwsLeft) {}
+    Status start() override { return {}; }
+    Result<bool> read(int, Frame& frame) override {
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+        if (++reads_ == 5 && throwsLeft_.fetch_sub(1) > 0)
+            throw std::runtime_error("scripted exception inside the driver wrapper");
+        frame.width = 2;
+        frame.height = 1;
+        frame.rgb.assign(6, 7);
+        frame.timestampNs = reads_ * 1000;
+        frame.deviceSequence = uint32_t(reads_);
+        return true;
+    }
+
+private:
+    std::atomic<int>& throwsLeft_;
+    int reads_ = 0;
+};
+
+TEST(CaptureThread, ExceptionInAReaderIsALossNotACrash) {
+    std::atomic<int> throwsLeft{2};
+    std::atomic<int> opens{0};
+    CaptureOptions options;
+    options.name = "throwing";
+    options.retryIntervalMs = 5;
+    CaptureThread capture(
+        [&]() -> Result<std::unique_ptr<FrameReader>> {
+            ++opens;
+            return std::unique_ptr<FrameReader>(new ThrowingReader(throwsLeft));
+        },
+        options);
+    ASSERT_TRUE(capture.start());
+    ASSERT_TRUE(waitFor([&] { return throwsLeft.load() <= 0 && capture.stats().delivered >= 20; }));
+    EXPECT_EQ(capture.state(), CaptureState::Streaming);
+    EXPECT_GE(opens.load(), 3);  // reopened after each of the two exceptions
     capture.stop();
     EXPECT_EQ(capture.state(), CaptureState::Stopped);
 }
