@@ -458,6 +458,32 @@ TEST(RecordedSource, ReplaysAtRecordedTiming) {
     std::filesystem::remove_all(dir);
 }
 
+// Timestamps 190 years apart (a broken clock, a hand-edited index): the replay pauses at most
+// kMaxReplayGap per gap instead of waiting for centuries, and no duration overflows.
+TEST(RecordedSource, AbsurdGapsAreCappedNotWaitedFor) {
+    const uint64_t periodNs = 6'000'000'000'000'000'000ull;
+    const std::string dir = writeRecordedCamera("absurd", 3, periodNs);
+    auto reader = RecordedReader::create(dir, ReplayTiming::Recorded);
+    ASSERT_TRUE(reader) << reader.message();
+    ASSERT_TRUE((*reader)->start());
+    const auto t0 = std::chrono::steady_clock::now();
+    const auto limit = t0 + 2 * kMaxReplayGap + std::chrono::seconds(20);
+    int frames = 0;
+    while (!(*reader)->finished() && std::chrono::steady_clock::now() < limit) {
+        Frame f;
+        Result<bool> got = (*reader)->read(100, f);
+        ASSERT_TRUE(got);
+        if (*got) {
+            ++frames;
+            EXPECT_EQ(f.timestampNs, 5'000'000'000ull + uint64_t(frames - 1) * periodNs);
+        }
+    }
+    const auto elapsed = std::chrono::steady_clock::now() - t0;
+    EXPECT_EQ(frames, 3);
+    EXPECT_GE(elapsed, 2 * kMaxReplayGap - std::chrono::milliseconds(5));
+    std::filesystem::remove_all(dir);
+}
+
 TEST(RecordedSource, BadIndexAndFramesAreReported) {
     auto missing = RecordedReader::create("/nonexistent/session/cameras/scene",
                                           ReplayTiming::AsFastAsPossible);
