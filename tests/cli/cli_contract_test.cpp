@@ -16,6 +16,7 @@
 #include "image/image.h"
 #include "tests/support/process.h"
 #include "tests/support/temp_dir.h"
+#include "tests/support/test_data.h"
 
 namespace previs {
 namespace {
@@ -27,7 +28,7 @@ using std::chrono::seconds;
 
 const std::string kPrevis = PREVIS_BINARY;
 const std::string kPrevisd = PREVISD_BINARY;
-const std::string kExamples = PREVIS_SOURCE_DIR "/examples";
+const std::string kExamples = testing::sourcePath("examples");
 
 CommandResult previs(std::vector<std::string> args, seconds timeout = seconds(120),
                      bool terminal = false) {

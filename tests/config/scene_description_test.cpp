@@ -17,6 +17,7 @@
 
 #include "image/image.h"
 #include "scene/gltf_loader.h"
+#include "tests/support/test_data.h"
 
 namespace previs {
 namespace {
@@ -133,7 +134,7 @@ std::string writeEnvMap(const std::string& name) {
 }
 
 TEST(SceneDescription, ExampleRoundTrip) {
-    const std::string dir = std::string(PREVIS_SOURCE_DIR) + "/examples/cubes_spheres/";
+    const std::string dir = testing::sourcePath("examples/cubes_spheres/");
     Result<Scene> plain = loadGltf(dir + "scene.gltf");
     ASSERT_TRUE(plain.ok()) << plain.message();
     Result<Scene> described = loadScene(dir + "previs.toml");

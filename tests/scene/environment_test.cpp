@@ -13,11 +13,12 @@
 #include "image/image.h"
 #include "scene/environment_map.h"
 #include "scene/environment_sampler.h"
+#include "tests/support/test_data.h"
 
 namespace previs {
 namespace {
 
-const std::string kEnvDir = std::string(PREVIS_SHARED_DATA) + "/envmaps/";
+const std::string kEnvDir = testing::sharedDataDir() + "envmaps/";
 
 // Two chi-square tests (real map, synthetic sun map) share the 1% family-wise significance.
 constexpr int kChiSquareTests = 2;
@@ -78,6 +79,7 @@ glm::dvec3 weightedMean(const EnvironmentMap& map) {
 }
 
 TEST(EnvironmentMap, RealMapsMatchStats) {
+    PREVIS_SKIP_WITHOUT_SHARED_DATA();
     std::ifstream f(kEnvDir + "envmap_stats.json");
     ASSERT_TRUE(f) << "missing " << kEnvDir << "envmap_stats.json";
     const nlohmann::json stats = nlohmann::json::parse(f);
@@ -201,6 +203,7 @@ double integratePdfAligned(const EnvironmentSampler& sampler, int sub) {
 }
 
 TEST(EnvironmentSampling, PdfIntegratesToOne) {
+    PREVIS_SKIP_WITHOUT_SHARED_DATA();
     // Texel-aligned quadrature is exact for this pdf: only float rounding of the CDFs (~1e-7
     // per entry) and of sinθ remains; 1e-4 is generous.
     EnvironmentSampler sun(sunMap());
@@ -335,6 +338,7 @@ void expectGoodFit(const EnvironmentSampler& sampler, uint32_t seed) {
 }
 
 TEST(EnvironmentSampling, ChiSquareRealMap) {
+    PREVIS_SKIP_WITHOUT_SHARED_DATA();
     EnvironmentMap map = loadOrDie("blender_studiolights_world/city.exr");
     map.rotationRad = 0.0f;
     expectGoodFit(EnvironmentSampler(std::move(map)), 1234u);
@@ -370,6 +374,7 @@ TEST(EnvironmentSampling, SamplePdfMatchesPdfFunction) {
 }
 
 TEST(EnvironmentSampling, RotationConsistency) {
+    PREVIS_SKIP_WITHOUT_SHARED_DATA();
     EnvironmentMap map = loadOrDie("polyhaven_1k_hdr/rooitou_park_1k.hdr");
     EnvironmentMap rotatedMap = map;
     const float r = 1.1f;
