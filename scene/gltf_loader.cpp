@@ -385,7 +385,8 @@ void Loader::clampToSpecification(Material& m, glm::vec3& emissive, float& stren
         clampValue(m.specularColor[c], 0.0f, kInf, 1.0f,
                    std::string("specularColorFactor") + kRgba[c]);
     if (m.ior == 0.0f) {
-        note("ior (0: a Fresnel term of 1, not supported)", 0.0f, 1.5f);
+        changes += std::string(changes.empty() ? "" : ", ") +
+                   "ior 0 → 1.5 (0 means a Fresnel term of 1, which previs does not support)";
         m.ior = 1.5f;
     } else {
         clampValue(m.ior, 1.0f, kInf, 1.5f, "ior");
