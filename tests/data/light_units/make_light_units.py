@@ -35,7 +35,7 @@ os.makedirs(out_dir, exist_ok=True)
 
 ALBEDO = 0.8
 WIDTH = HEIGHT = 32
-SEEDS = 4
+SEEDS = 16
 SPP = 64
 CAMERA_HEIGHT_M = 3.0
 LIGHT_HEIGHT_M = 1.0
