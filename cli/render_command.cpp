@@ -97,6 +97,11 @@ int run(const RenderOptions& o) {
         // set for its own map, not for this one.
         scene->environment = std::move(env.value());
     }
+    if (!scene->environment && !hasLightSource(*scene))
+        logWarning("{}: the scene has no light source (no KHR_lights_punctual light, no emissive "
+                   "material) and no environment map, so it renders black; add --env studio for "
+                   "neutral studio lighting, or --env MAP.exr",
+                   o.scene);
     if (scene->environment) {
         if (o.envRotationDeg)
             scene->environment->rotationRad = *o.envRotationDeg * float(M_PI / 180.0);
@@ -305,8 +310,14 @@ std::function<int()> addRenderCommand(CLI::App& app) {
     cmd->add_option("SCENE", o->scene, "scene: .gltf, .glb or previs.toml")
         ->required()
         ->check(CLI::ExistingFile);
-    cmd->add_option("--env", o->env, "equirectangular HDR environment map (.exr or .hdr)")
-        ->check(CLI::ExistingFile);
+    cmd->add_option("--env", o->env,
+                    "equirectangular HDR environment map (.exr or .hdr), or 'studio' for the "
+                    "bundled neutral studio lighting")
+        ->check(CLI::Validator(
+            [](std::string& value) {
+                return value == kStudioEnvironment ? std::string() : CLI::ExistingFile(value);
+            },
+            "FILE|studio"));
     cmd->add_option("--env-rotation", o->envRotationDeg,
                     "rotate the map about +Y, degrees (counter-clockwise seen from above)");
     cmd->add_option("--env-scale", o->envScale, "multiply the map's radiance")

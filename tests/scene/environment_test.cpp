@@ -114,6 +114,38 @@ TEST(EnvironmentMap, RealMapsMatchStats) {
     }
 }
 
+// `--env studio`: generated, not read from a file (nothing to install or find); neutral grey, lit
+// from above by its key softbox, valid for importance sampling.
+TEST(EnvironmentMap, StudioIsBuiltInNeutralAndLitFromAbove) {
+    Result<EnvironmentMap> map = loadEnvironmentMap(kStudioEnvironment);
+    ASSERT_TRUE(map.ok()) << map.message();
+    ASSERT_EQ(map->width, 2 * map->height);
+    ASSERT_EQ(map->radiance.size(), size_t(map->width) * map->height);
+    // Irradiance on a surface facing up and on one facing down, E = Σ L cosθ dω.
+    double up = 0.0, down = 0.0;
+    for (uint32_t y = 0; y < map->height; ++y) {
+        const double elevation = (0.5 - (y + 0.5) / map->height) * M_PI;
+        const double dOmega = (2.0 * M_PI / map->width) * (M_PI / map->height) * std::cos(elevation);
+        for (uint32_t x = 0; x < map->width; ++x) {
+            const glm::vec3 l = map->radiance[size_t(y) * map->width + x];
+            ASSERT_TRUE(std::isfinite(l.r) && l.r >= 0.0f);
+            ASSERT_EQ(l.r, l.g);  // colourless
+            ASSERT_EQ(l.r, l.b);
+            (elevation > 0.0 ? up : down) += l.r * std::abs(std::sin(elevation)) * dOmega;
+        }
+    }
+    std::printf("studio: irradiance from above %.3f, from below %.3f\n", up, down);
+    EXPECT_GT(up, 4.0 * down);
+    // A white Lambertian surface facing up has radiance E/π: about 1, neither black nor blown out.
+    EXPECT_GT(up / M_PI, 0.5);
+    EXPECT_LT(up / M_PI, 3.0);
+    // The key softbox sits 45° up toward u = 0.625 (azimuth +45°, DESIGN.md §4).
+    const uint32_t keyX = uint32_t(0.625 * map->width);
+    const uint32_t keyY = uint32_t(0.25 * map->height);
+    EXPECT_EQ(map->radiance[size_t(keyY) * map->width + keyX].r, 8.0f);
+    EXPECT_GT(buildEnvironmentDistribution(*map).integral, 0.0f);
+}
+
 TEST(EnvironmentMap, ErrorsNameTheFile) {
     Result<EnvironmentMap> missing = loadEnvironmentMap("/nonexistent/sky.exr");
     ASSERT_FALSE(missing.ok());
