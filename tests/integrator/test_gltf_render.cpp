@@ -13,6 +13,7 @@
 #include "scene/gltf_loader.h"
 #include "tests/integrator/gpu_fixture.h"
 #include "tests/support/temp_dir.h"
+#include "tests/support/test_data.h"
 
 namespace previs::testing {
 namespace {
@@ -43,7 +44,7 @@ glm::vec3 cameraDirection(const Camera& c, uint32_t w, uint32_t h, float px, flo
 // ratio of 1 for point and sun, and for the spot the window average of d / h (Cycles' extra cos).
 // The issue reported previs at 683× Cycles.
 TEST_F(GltfRenderTest, BlenderLightUnitsMatchCycles) {
-    const std::string dir = std::string(PREVIS_SOURCE_DIR) + "/tests/data/light_units/";
+    const std::string dir = testing::sourcePath("tests/data/light_units/");
     json cycles;
     std::ifstream(dir + "cycles.json") >> cycles;
     const double rho = cycles["albedo"].get<double>();

@@ -16,6 +16,7 @@
 #include <nlohmann/json.hpp>
 
 #include "image/image.h"
+#include "tests/support/test_data.h"
 
 namespace previs {
 namespace {
@@ -539,7 +540,7 @@ TEST(GltfLoader, UndecodableTextureFallsBackToNoTexture) {
 // point light of P watts must have Blender's radiant intensity P / 4π W/sr, a spot the same (Blender
 // spots are specified "as if they were points"), a sun its irradiance in W/m².
 TEST(GltfLoader, LightUnitsOfBlenderExportsAreRadiometric) {
-    const std::string dir = std::string(PREVIS_SOURCE_DIR) + "/tests/data/light_units/";
+    const std::string dir = testing::sourcePath("tests/data/light_units/");
     const double wattsPerSr = 100.0 / (4.0 * M_PI);
     for (const char* name : {"point", "spot", "sun"}) {
         Result<Scene> scene = loadGltf(dir + name + ".gltf");
