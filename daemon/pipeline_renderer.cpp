@@ -116,7 +116,8 @@ Status PipelineRenderer::prepare(const TrackedFrame& tracked,
     rendered_ = tracked.worldFromCamera.has_value() || sceneCameraUntilTracked_;
     if (!rendered_) return {};
     // The renderer keeps the plate; plate_ is needed only while there is nothing to render.
-    if (Status s = renderer_->setPlate(std::move(plate_)); !s) return s;
+    if (Status s = renderer_->setPlate(std::move(plate_), "scene camera frame"); !s)
+        return s;
     // Without a pose yet the renderer keeps the scene file's camera (until_tracked).
     if (tracked.worldFromCamera)
         renderer_->setCameraPose(renderWorldFromOpenCvCamera(*tracked.worldFromCamera));

@@ -9,6 +9,7 @@
 #include <glm/gtc/matrix_transform.hpp>
 
 #include "base/log.h"
+#include "render/plate.h"
 #include "scene/environment_map.h"
 #include "shared/photon_map.h"
 #include "shared/scene_types.h"
@@ -604,11 +605,17 @@ Status Renderer::render(uint32_t samples,
     return {};
 }
 
-Status Renderer::setPlate(ImageF plate) {
+Status Renderer::setPlate(ImageF plate, std::string_view source) {
     if (plate.width != settings_.width || plate.height != settings_.height || plate.channels < 3)
         return makeError("the plate is {}x{} with {} channel(s); the render is {}x{} and needs "
                          "RGB (render at the plate's resolution)", plate.width, plate.height,
                          plate.channels, settings_.width, settings_.height);
+    const PlateRepair repair = repairPlate(plate);
+    if (repair.total() > 0 && plateValuesRepaired_ == 0)
+        logWarning("{}: {} NaN/infinite value(s) replaced by their finite neighbours' mean (0 "
+                   "where there is none) and {} negative value(s) by 0; they are never "
+                   "composited (docs/plates.md)", source, repair.nonFinite, repair.negative);
+    plateValuesRepaired_ += repair.total();
     plate_ = std::move(plate);
     return {};
 }
@@ -626,11 +633,14 @@ Result<ImageF> Renderer::image(Aov aov) const {
     img.height = settings_.height;
     img.channels = aov == Aov::Mask ? 1 : 3;
     img.pixels.resize(pixels * img.channels);
-    double inv = samples_ > 0 ? 1.0 / double(samples_) : 0.0;
-    // The mean of a compensated sum: (sum − compensation) / n, in double.
+    // The mean of a compensated sum: (sum − compensation) / n, in double, where n counts the
+    // pixel's samples that were not dropped (NaN/Inf, stats().nonFiniteSamples): a dropped
+    // sample neither darkens the pixel nor lets the plate through. A pixel with none is 0
+    // (mask 0: the plate).
+    auto compensated = [&](size_t at, int c) { return double(sum[at][c]) - double(comp[at][c]); };
     auto mean = [&](size_t i, uint32_t k, int c) {
-        size_t at = i * PV_ACCUM_COUNT + k;
-        return (double(sum[at][c]) - double(comp[at][c])) * inv;
+        const double n = compensated(i * PV_ACCUM_COUNT + PV_ACCUM_MIXED, 3);
+        return n > 0.0 ? compensated(i * PV_ACCUM_COUNT + k, c) / n : 0.0;
     };
     bool withPlate = aov == Aov::Composite && plate_ && settings_.differential;
     for (size_t i = 0; i < pixels; ++i) {
@@ -654,11 +664,17 @@ Result<ImageF> Renderer::image(Aov aov) const {
     return img;
 }
 
-Result<uint32_t> Renderer::nonFiniteSamples() const {
+Result<shader::RenderStats> Renderer::stats() const {
     shader::RenderStats stats{};
     if (Status s = buffers_[PV_BINDING_STATS].download(&stats, sizeof(stats)); !s)
         return s.error();
-    return stats.nonFiniteSamples;
+    return stats;
+}
+
+Result<uint32_t> Renderer::nonFiniteSamples() const {
+    auto s = stats();
+    if (!s) return s.error();
+    return s->nonFiniteSamples;
 }
 
 Result<std::vector<shader::PhotonRecord>> Renderer::photonRecords() const {

@@ -9,6 +9,7 @@
 #include <memory>
 #include <optional>
 #include <span>
+#include <string_view>
 #include <vector>
 
 #include "base/result.h"
@@ -156,8 +157,13 @@ public:
     void setSeed(uint32_t seed) { params_.seed = seed; }
 
     // The camera image L_oc in linear radiance, at the render's resolution (no resampling:
-    // primary rays follow the camera's lens model instead). Used by Aov::Composite.
-    Status setPlate(ImageF plate);  // by value: a caller done with its plate moves it in
+    // primary rays follow the camera's lens model instead). Used by Aov::Composite. NaN, Inf and
+    // negative values are never composited: repairPlate (render/plate.h) replaces them, with
+    // one warning naming `source` (the first time only: the service sets a plate every frame).
+    // By value: a caller done with its plate moves it in.
+    Status setPlate(ImageF plate, std::string_view source = "plate");
+    // Plate values setPlate has replaced so far (NaN/Inf and negative).
+    uint64_t plateValuesRepaired() const { return plateValuesRepaired_; }
 
     // The mean per pixel so far (RGB linear; the mask one channel).
     Result<ImageF> image(Aov aov = Aov::Composite) const;
@@ -167,8 +173,13 @@ public:
     const SceneBvh& bvh() const { return bvh_; }
     // GPU time of all dispatches so far (ms), and of the last one.
     double gpuMilliseconds() const { return gpuMs_; }
-    // Samples the shader found NaN or infinite and dropped (should be 0; tests check it).
+    // Samples the shader found NaN or infinite, or that cast a ray with a NaN/Inf origin or
+    // direction, and dropped (should be 0; tests check it). Pixel means are over the samples
+    // that were kept (image()).
     Result<uint32_t> nonFiniteSamples() const;
+    // The shader's counters since the last reset (RenderStats: dropped samples, culled
+    // non-finite rays, rays traced).
+    Result<shader::RenderStats> stats() const;
     // Rays traced since the last reset (closest-hit and shadow; wraps at 2^32).
     Result<uint32_t> raysTraced() const;
     // Dispatches whose loop iterations may have reached llvmpipe's limit (work silently lost);
@@ -210,6 +221,7 @@ private:
     std::vector<shader::GpuLight> sceneLights_;  // the scene's own; estimated ones follow them
     uint64_t sceneBuilds_ = 0;
     std::optional<ImageF> plate_;
+    uint64_t plateValuesRepaired_ = 0;
     uint64_t samples_ = 0;
     double gpuMs_ = 0.0;
     double loopIterationsPerSample_ = 0.0;  // the most one lane ran per sample, measured
