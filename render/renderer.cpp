@@ -80,7 +80,10 @@ constexpr float kFourPi = 4.0f * 3.14159265358979f;
 // grid, so that renderers created at nearby poses share it (the same float positions: the same
 // pixels), and a set at the world origin seen from within half a cell keeps origin 0 (GPU
 // positions are then the scene's own, bit for bit).
-glm::dvec3 renderOriginFor(const glm::dvec3& positionM) {
+// A camera at a NaN or infinite position (a bad pose) gets none: its rays are culled anyway.
+std::optional<glm::dvec3> renderOriginFor(const glm::dvec3& positionM) {
+    if (!std::isfinite(positionM.x) || !std::isfinite(positionM.y) || !std::isfinite(positionM.z))
+        return std::nullopt;
     return glm::round(positionM / Renderer::kRecentreGridM) * Renderer::kRecentreGridM;
 }
 
@@ -157,7 +160,8 @@ Result<std::unique_ptr<Renderer>> Renderer::create(GpuContext& ctx, const Scene&
     r->worldFromCameraM_ =
         glm::translate(glm::dmat4(1.0), scene.originM) * glm::dmat4(r->camera_.worldFromCamera);
     r->camera_.worldFromCamera = glm::mat4(r->worldFromCameraM_);
-    r->renderOriginM_ = renderOriginFor(glm::dvec3(r->worldFromCameraM_[3]));
+    r->renderOriginM_ =
+        renderOriginFor(glm::dvec3(r->worldFromCameraM_[3])).value_or(glm::dvec3(0.0));
 
     r->features_ = detectSceneFeatures(scene, r->camera_);
     if (Status s = r->buildScene(scene); !s) return s.error();
@@ -638,12 +642,12 @@ Status Renderer::render(uint32_t samples,
     uint32_t groupsX = (settings_.width + PV_WORKGROUP_SIZE_X - 1) / PV_WORKGROUP_SIZE_X;
     uint32_t groupsY = (settings_.height + PV_WORKGROUP_SIZE_Y - 1) / PV_WORKGROUP_SIZE_Y;
     constexpr size_t kMaxLoopOffset = offsetof(shader::RenderStats, maxLoopIterations);
-    // Camera-relative rendering: the GPU's origin follows the camera, with hysteresis (a NaN
-    // pose compares false and leaves it).
+    // Camera-relative rendering: the GPU's origin follows the camera, with hysteresis.
     const glm::dvec3 cameraM(worldFromCameraM_[3]);
     const glm::dvec3 away = glm::abs(cameraM - renderOriginM_);
-    if (std::max({away.x, away.y, away.z}) > kRecentreDistanceM)
-        if (Status s = recentre(renderOriginFor(cameraM)); !s) return s;
+    const std::optional<glm::dvec3> origin = renderOriginFor(cameraM);
+    if (origin && std::max({away.x, away.y, away.z}) > kRecentreDistanceM)
+        if (Status s = recentre(*origin); !s) return s;
     uint32_t done = 0;
     while (done < samples) {
         const uint32_t n = samplesForNextDispatch(samples - done);
@@ -719,7 +723,7 @@ Result<ImageF> Renderer::image(Aov aov) const {
     ImageF img;
     img.width = settings_.width;
     img.height = settings_.height;
-    img.channels = aov == Aov::Mask ? 1 : 3;
+    img.channels = aov == Aov::Mask || aov == Aov::SampleCount ? 1 : 3;
     img.pixels.resize(pixels * img.channels);
     // The mean of a compensated sum: (sum − compensation) / n, in double, where n counts the
     // pixel's samples that were not dropped (NaN/Inf, stats().nonFiniteSamples): a dropped
@@ -734,6 +738,10 @@ Result<ImageF> Renderer::image(Aov aov) const {
     for (size_t i = 0; i < pixels; ++i) {
         if (aov == Aov::Mask) {
             img.pixels[i] = float(mean(i, PV_ACCUM_COMPOSITE, 3));
+            continue;
+        }
+        if (aov == Aov::SampleCount) {
+            img.pixels[i] = float(compensated(i * PV_ACCUM_COUNT + PV_ACCUM_MIXED, 3));
             continue;
         }
         uint32_t k = aov == Aov::Real ? PV_ACCUM_REAL

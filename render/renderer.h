@@ -71,6 +71,9 @@ enum class Aov {
     Mixed,      // L_om: real phantoms and virtual objects
     Real,       // L_or: phantoms only (differential renders)
     Mask,       // fraction of camera samples whose first hit is virtual (one channel)
+    // Samples that count in each pixel's mean (one channel): samplesPerPixel() less those
+    // dropped as NaN/Inf, or lost when a CPU device cut a dispatch short. Not a file AOV.
+    SampleCount,
 };
 
 // What the scene uses; each off feature is compiled out of the pipeline.
