@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <tuple>
@@ -16,6 +17,7 @@
 #include <nlohmann/json.hpp>
 
 #include "render/plate.h"
+#include "image/image.h"
 #include "scene/gltf_loader.h"
 #include "tests/integrator/gpu_fixture.h"
 #include "tests/support/scene_builders.h"
@@ -173,6 +175,63 @@ TEST_F(NumericsTest, NonFinitePlateValuesNeverReachTheComposite) {
     }
 }
 
+
+// An EXR plate as another tool writes it, with NaN, ±Inf and negative values: after the repair
+// (docs/plates.md) every value is finite and non-negative, NaN/Inf became their neighbours'
+// mean, negatives 0, and everything else is untouched.
+TEST(PlateFile, NonFiniteAndNegativeValuesAreRepaired) {
+    ImageF written;
+    written.width = 4;
+    written.height = 3;
+    written.channels = 3;
+    for (uint32_t i = 0; i < 4 * 3 * 3; ++i) written.pixels.push_back(0.1f * float(i % 7) + 0.2f);
+    const float inf = std::numeric_limits<float>::infinity();
+    written.pixels[3 * 5 + 1] = kNaN;   // (1, 1) green: 8 finite neighbours
+    written.pixels[3 * 0 + 0] = inf;    // (0, 0) red: a corner, 3 neighbours
+    written.pixels[3 * 6 + 2] = -inf;   // (2, 1) blue
+    written.pixels[3 * 11 + 0] = -0.5f; // (3, 2) red: negative
+    written.pixels[3 * 11 + 1] = -0.0f; // -0 is not negative: kept
+    const std::string path = (scratchDir("previs_numerics_test") / "bad_plate.exr").string();
+    ASSERT_TRUE(writeExr(path, written));
+    auto plate = readImage(path);
+    ASSERT_TRUE(plate) << plate.message();
+    ASSERT_TRUE(std::isnan(plate->pixels[3 * 5 + 1]));  // the file really holds them
+    const ImageF given = *plate;
+    const PlateRepair repair = repairPlate(*plate);
+    EXPECT_EQ(repair.nonFinite, 3u);
+    EXPECT_EQ(repair.negative, 1u);
+    auto neighbourMean = [&](int x, int y, int c) {
+        double sum = 0.0;
+        int n = 0;
+        for (int dy = -1; dy <= 1; ++dy)
+            for (int dx = -1; dx <= 1; ++dx) {
+                const int nx = x + dx, ny = y + dy;
+                if ((dx == 0 && dy == 0) || nx < 0 || ny < 0 || nx >= 4 || ny >= 3) continue;
+                const float v = given.at(uint32_t(nx), uint32_t(ny), uint32_t(c));
+                if (std::isfinite(v) && v >= 0.0f) {
+                    sum += v;
+                    ++n;
+                }
+            }
+        return float(sum / n);
+    };
+    EXPECT_FLOAT_EQ(plate->at(1, 1, 1), neighbourMean(1, 1, 1));
+    EXPECT_FLOAT_EQ(plate->at(0, 0, 0), neighbourMean(0, 0, 0));
+    EXPECT_FLOAT_EQ(plate->at(2, 1, 2), neighbourMean(2, 1, 2));
+    EXPECT_EQ(plate->at(3, 2, 0), 0.0f);
+    for (size_t i = 0; i < plate->pixels.size(); ++i) {
+        EXPECT_TRUE(std::isfinite(plate->pixels[i]) && plate->pixels[i] >= 0.0f) << i;
+        if (std::isfinite(given.pixels[i]) && given.pixels[i] >= 0.0f) {
+            EXPECT_EQ(std::memcmp(&plate->pixels[i], &given.pixels[i], 4), 0) << i;
+        }
+    }
+    // A clean plate comes back bit for bit.
+    ImageF clean = written;
+    for (float& v : clean.pixels) v = std::abs(v) < inf ? std::abs(v) : 1.0f;
+    const ImageF before = clean;
+    EXPECT_EQ(repairPlate(clean).total(), 0u);
+    EXPECT_EQ(std::memcmp(clean.pixels.data(), before.pixels.data(), 4 * before.pixels.size()), 0);
+}
 
 // ---- Scale: a set far from the world origin renders as it does at the origin. ----
 
