@@ -34,10 +34,10 @@ class NumericsTest : public GpuTest {};
 
 // A black virtual emitter filling the view behind a virtual triangle that emits infinite
 // radiance: every sample that meets the triangle is infinite and dropped; every other sample
-// sees exactly the emitter's radiance and mask 1. So each pixel is either exactly the emitter (the mean of its
-// kept samples, however many were dropped) or, with no sample kept, the plate; never a blend,
-// which is what dividing by all samples (or counting dropped ones as mask 0) gives on the
-// triangle's edge.
+// sees exactly the emitter's radiance and mask 1. So each pixel is either exactly the emitter
+// (the mean of its kept samples, however many were dropped) or, with no sample kept, the plate;
+// never a blend, which is what dividing by all samples (or counting dropped ones as mask 0)
+// gives on the triangle's edge.
 TEST_F(NumericsTest, DroppedSamplesNeitherDarkenNorShowThePlate) {
     Scene scene;
     const glm::vec3 le(0.25f, 0.5f, 1.0f);
