@@ -202,7 +202,7 @@ int run(const RenderOptions& o) {
         return 1;
     }
     if (plate) {
-        if (Status s = (*renderer)->setPlate(*plate); !s) {
+        if (Status s = (*renderer)->setPlate(*plate, fmt::format("--plate {}", o.plate)); !s) {
             logError("--plate {}: {}", o.plate, s.message());
             return 2;
         }
@@ -252,9 +252,16 @@ int run(const RenderOptions& o) {
     progress.finish();
     const double renderSeconds = elapsed();
     const auto readbackStart = Clock::now();
-    auto nonFinite = (*renderer)->nonFiniteSamples();
-    if (nonFinite && *nonFinite > 0)
-        logWarning("{} sample(s) were NaN or infinite and were dropped", *nonFinite);
+    auto stats = (*renderer)->stats();
+    if (!stats) {
+        logError("{}", stats.message());
+        return 1;
+    }
+    const uint32_t dropped = stats->nonFiniteSamples;
+    if (dropped > 0)
+        logWarning("{} sample(s) were NaN or infinite ({} ray(s) with a NaN/Inf origin or "
+                   "direction culled) and were dropped: each pixel is the mean of its remaining "
+                   "samples", dropped, stats->nonFiniteRays);
 
     auto image = (*renderer)->image();
     if (!image) {
@@ -264,13 +271,14 @@ int run(const RenderOptions& o) {
     if (o.timing) {
         // load: scene and environment files; device: Vulkan instance and device; setup: BVH
         // build, upload, pipeline compile; render: the samples; readback: the image to host;
-        // gpu: the dispatches' GPU time, photon_gpu: of which the photon passes.
+        // gpu: the dispatches' GPU time, photon_gpu: of which the photon passes; dropped: the
+        // NaN/Inf samples left out of the pixel means.
         std::printf(
             "timing load_s=%.4f device_s=%.4f setup_s=%.4f render_s=%.4f readback_s=%.4f "
-            "total_s=%.4f gpu_s=%.4f photon_gpu_s=%.4f\n",
+            "total_s=%.4f gpu_s=%.4f photon_gpu_s=%.4f dropped_samples=%u\n",
             loadSeconds, deviceSeconds, setupSeconds, renderSeconds, since(readbackStart),
             since(runStart), (*renderer)->gpuMilliseconds() * 1e-3,
-            (*renderer)->photonMilliseconds() * 1e-3);
+            (*renderer)->photonMilliseconds() * 1e-3, dropped);
         std::fflush(stdout);
     }
     Status written;
@@ -297,8 +305,9 @@ int run(const RenderOptions& o) {
         }
     }
     if (!o.quiet)
-        logInfo("wrote {} ({}x{}, {} spp, {:.1f} s on {})", o.out, image->width, image->height,
-                (*renderer)->samplesPerPixel(), elapsed(), (*ctx)->deviceName());
+        logInfo("wrote {} ({}x{}, {} spp, {:.1f} s on {}{})", o.out, image->width, image->height,
+                (*renderer)->samplesPerPixel(), elapsed(), (*ctx)->deviceName(),
+                dropped > 0 ? fmt::format(", {} NaN/Inf sample(s) dropped", dropped) : "");
     return 0;
 }
 

@@ -116,10 +116,16 @@ Status PipelineRenderer::prepare(const TrackedFrame& tracked,
     rendered_ = tracked.worldFromCamera.has_value() || sceneCameraUntilTracked_;
     if (!rendered_) return {};
     // The renderer keeps the plate; plate_ is needed only while there is nothing to render.
-    if (Status s = renderer_->setPlate(std::move(plate_)); !s) return s;
+    if (Status s = renderer_->setPlate(std::move(plate_), "scene camera frame"); !s)
+        return s;
     // Without a pose yet the renderer keeps the scene file's camera (until_tracked).
-    if (tracked.worldFromCamera)
-        renderer_->setCameraPose(renderWorldFromOpenCvCamera(*tracked.worldFromCamera));
+    if (tracked.worldFromCamera) {
+        // The translation in double: it keeps its millimetres however far the board's world
+        // is from the origin (camera-relative rendering, Renderer::setCameraPose).
+        glm::dmat4 pose(renderWorldFromOpenCvCamera(*tracked.worldFromCamera));
+        for (int r = 0; r < 3; ++r) pose[3][r] = (*tracked.worldFromCamera)(r, 3);
+        renderer_->setCameraPose(pose);
+    }
     // Lighting reaches the GPU only when a new snapshot arrived (no BVH rebuild, ever).
     if (lighting && lighting != lightingShown_) {
         if (Status s = renderer_->setEnvironment(lighting->environment); !s) return s;

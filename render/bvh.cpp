@@ -6,6 +6,7 @@
 #include <cmath>
 #include <thread>
 
+#include "base/log.h"
 #include "shared/ray_tracing.h"
 
 namespace previs {
@@ -433,6 +434,48 @@ Result<SceneBvh> buildSceneBvh(const Geometry& geometry, const BvhBuildOptions& 
     bvh.buildSeconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return bvh;
+}
+
+namespace {
+
+struct RefitBox {
+    glm::vec3 lo{PV_FLOAT_MAX};
+    glm::vec3 hi{-PV_FLOAT_MAX};
+};
+
+// The box of the wide reference `ref` from the vertices, refitting the nodes below it.
+RefitBox refitReference(SceneBvh& bvh, const std::vector<glm::vec4>& vertices, uint32_t ref,
+                        uint32_t depth) {
+    RefitBox box;
+    if (ref & PV_WIDE_LEAF) {
+        const uint32_t first = ref & ((1u << PV_WIDE_LEAF_FIRST_BITS) - 1u);
+        const uint32_t count = ((ref & ~PV_WIDE_LEAF) >> PV_WIDE_LEAF_FIRST_BITS) + 1u;
+        for (uint32_t i = 3 * first; i < 3 * (first + count); ++i) {
+            box.lo = glm::min(box.lo, glm::vec3(vertices[i]));
+            box.hi = glm::max(box.hi, glm::vec3(vertices[i]));
+        }
+        return box;
+    }
+    PV_ASSERT(depth <= 4 * PV_BVH_STACK_SIZE);
+    // Copy: the recursion writes other nodes of the same array.
+    shader::WideBvhNode node = bvh.wideNodes[ref];
+    for (int slot = 0; slot < 4; ++slot) {
+        if (node.child[slot] == kBvhNoRoot) continue;
+        const RefitBox child = refitReference(bvh, vertices, node.child[slot], depth + 1);
+        setSlot(node, slot, child.lo, child.hi, node.child[slot]);
+        box.lo = glm::min(box.lo, child.lo);
+        box.hi = glm::max(box.hi, child.hi);
+    }
+    bvh.wideNodes[ref] = node;
+    return box;
+}
+
+}  // namespace
+
+void refitWideBvh(SceneBvh& bvh, const std::vector<glm::vec4>& triangleVertices) {
+    PV_ASSERT(triangleVertices.size() == 3 * bvh.triangleOrder.size());
+    for (uint32_t root : {bvh.wideRealRoot, bvh.wideVirtualRoot})
+        if (root != kBvhNoRoot) refitReference(bvh, triangleVertices, root, 0);
 }
 
 }  // namespace previs

@@ -58,6 +58,12 @@ struct BvhBuildOptions {
 // means every triangle is virtual.
 Result<SceneBvh> buildSceneBvh(const Geometry& geometry, const BvhBuildOptions& options = {});
 
+// Recomputes every box of the wide trees from `triangleVertices` (3 per triangle, BVH order),
+// keeping the topology: after the renderer moves its frame (camera-relative rendering,
+// render/renderer.cpp) the same triangles sit at other float coordinates. The boxes are the
+// exact bounds of their triangles' vertices, so traversal stays conservative.
+void refitWideBvh(SceneBvh& bvh, const std::vector<glm::vec4>& triangleVertices);
+
 // SAH cost of the tree at `root` (MacDonald & Booth 1990): sum over interior nodes of
 // kTraversal·A(n)/A(root) plus over leaves of kIntersection·count·A(n)/A(root), with
 // kTraversal = kIntersection = 1. 0 for an empty tree; a root of zero area counts every node

@@ -9,6 +9,7 @@
 #include <glm/gtc/matrix_transform.hpp>
 
 #include "base/log.h"
+#include "render/plate.h"
 #include "scene/environment_map.h"
 #include "shared/photon_map.h"
 #include "shared/scene_types.h"
@@ -76,6 +77,27 @@ bool finiteNonNegative(const glm::vec3& v) {
 
 constexpr float kFourPi = 4.0f * 3.14159265358979f;
 
+// The GPU's origin for a camera at `positionM` (world; Renderer::setCameraPose): snapped to a
+// grid, so that renderers created at nearby poses share it (the same float positions: the same
+// pixels), and a set at the world origin seen from within half a cell keeps origin 0 (GPU
+// positions are then the scene's own, bit for bit).
+// A camera at a NaN or infinite position (a bad pose) gets none: its rays are culled anyway.
+std::optional<glm::dvec3> renderOriginFor(const glm::dvec3& positionM) {
+    if (!std::isfinite(positionM.x) || !std::isfinite(positionM.y) || !std::isfinite(positionM.z))
+        return std::nullopt;
+    return glm::round(positionM / Renderer::kRecentreGridM) * Renderer::kRecentreGridM;
+}
+
+// A scene-frame position in the GPU's frame: the offset (scene origin − render origin) is added
+// in double, then rounded once to float.
+glm::vec3 toRenderFrame(const glm::vec3& p, const glm::dvec3& offset) {
+    return glm::vec3(glm::dvec3(p) + offset);
+}
+
+glm::mat4 renderFromCamera(const glm::dvec3& renderOriginM, const glm::dmat4& worldFromCamera) {
+    return glm::mat4(glm::translate(glm::dmat4(1.0), -renderOriginM) * worldFromCamera);
+}
+
 }  // namespace
 
 SceneFeatures detectSceneFeatures(const Scene& scene, const Camera& camera) {
@@ -134,6 +156,13 @@ Result<std::unique_ptr<Renderer>> Renderer::create(GpuContext& ctx, const Scene&
     if (!(r->camera_.apertureRadiusM >= 0.0f) || !(r->camera_.focusDistanceM > 0.0f))
         return makeError("thin lens needs aperture radius >= 0 and focus distance > 0 (got {} m, "
                          "{} m)", r->camera_.apertureRadiusM, r->camera_.focusDistanceM);
+
+    r->sceneOriginM_ = scene.originM;
+    r->worldFromCameraM_ =
+        glm::translate(glm::dmat4(1.0), scene.originM) * glm::dmat4(r->camera_.worldFromCamera);
+    r->camera_.worldFromCamera = glm::mat4(r->worldFromCameraM_);
+    r->renderOriginM_ =
+        renderOriginFor(glm::dvec3(r->worldFromCameraM_[3])).value_or(glm::dvec3(0.0));
 
     r->features_ = detectSceneFeatures(scene, r->camera_);
     if (Status s = r->buildScene(scene); !s) return s.error();
@@ -259,6 +288,7 @@ Status Renderer::setEnvironment(std::shared_ptr<const EnvironmentMap> map) {
 
 Status Renderer::setEstimatedLights(std::span<const EstimatedLightSource> estimated) {
     std::vector<shader::GpuLight> lights = sceneLights_;
+    std::vector<shader::GpuLight> cones;
     for (size_t i = 0; i < estimated.size(); ++i) {
         const EstimatedLightSource& e = estimated[i];
         float len = glm::length(e.direction);
@@ -276,10 +306,12 @@ Status Renderer::setEstimatedLights(std::span<const EstimatedLightSource> estima
         gl.cosInnerCone = e.solidAngleSr / (2.0f * 3.14159265358979f);
         gl.cosOuterCone = 1.0f - gl.cosInnerCone;
         lights.push_back(gl);
+        cones.push_back(gl);
     }
     Status s = replaceBufferContents(PV_BINDING_LIGHTS, lights.data(),
                                      lights.size() * sizeof(shader::GpuLight), "lights");
     const bool ok = s.ok();
+    estimatedLights_ = ok ? std::move(cones) : std::vector<shader::GpuLight>{};
     if (Status p = updatePhotonLights(ok ? std::span<const shader::GpuLight>(lights)
                                          : std::span<const shader::GpuLight>(sceneLights_));
         !p)
@@ -300,7 +332,14 @@ Status Renderer::setEstimatedLights(std::span<const EstimatedLightSource> estima
 
 Status Renderer::buildScene(const Scene& scene) {
     ++sceneBuilds_;
-    const Geometry& g = scene.geometry;
+    // Positions in the GPU's frame (setCameraPose); a copy only where the frames differ.
+    const glm::dvec3 offset = sceneOriginM_ - renderOriginM_;
+    Geometry shifted;
+    if (offset != glm::dvec3(0.0)) {
+        shifted = scene.geometry;
+        for (glm::vec3& p : shifted.positions) p = toRenderFrame(p, offset);
+    }
+    const Geometry& g = offset != glm::dvec3(0.0) ? shifted : scene.geometry;
     auto bvh = buildSceneBvh(g);
     if (!bvh) return bvh.error();
     bvh_ = std::move(bvh.value());
@@ -318,13 +357,16 @@ Status Renderer::buildScene(const Scene& scene) {
     std::vector<uint32_t> triMaterials(triCount);
     // xyz = position, w unused: one 16-byte texel per vertex (PV_BINDING_TRIANGLE_VERTICES).
     std::vector<glm::vec4> triangleVertices(3 * triCount);
+    sceneTriangleVertices_.resize(3 * triCount);
     for (size_t i = 0; i < triCount; ++i) {
         uint32_t src = bvh_.triangleOrder[i];
         triangles[i] = g.triangles[src];
         triMaterials[i] = g.triangleMaterials[src];
         triangleTexels[i] = glm::uvec4(triangles[i], triMaterials[i]);
-        for (int k = 0; k < 3; ++k)
+        for (int k = 0; k < 3; ++k) {
             triangleVertices[3 * i + k] = glm::vec4(g.positions[triangles[i][k]], 0.0f);
+            sceneTriangleVertices_[3 * i + k] = scene.geometry.positions[triangles[i][k]];
+        }
     }
 
     std::vector<shader::GpuMaterial> materials;
@@ -372,7 +414,8 @@ Status Renderer::buildScene(const Scene& scene) {
     std::vector<shader::GpuLight> lights;
     for (const PunctualLight& l : scene.lights) {
         shader::GpuLight gl{};
-        gl.position = l.position;
+        gl.position = toRenderFrame(l.position, offset);
+        sceneLightPositions_.push_back(l.position);
         gl.type = l.type == LightType::Point ? PV_LIGHT_POINT
                   : l.type == LightType::Spot ? PV_LIGHT_SPOT
                                               : PV_LIGHT_DIRECTIONAL;
@@ -426,7 +469,7 @@ Status Renderer::buildScene(const Scene& scene) {
 
     // Parameters that do not change between dispatches.
     shader::FrameParams& p = params_;
-    p.worldFromCamera = camera_.worldFromCamera;
+    p.worldFromCamera = renderFromCamera(renderOriginM_, worldFromCameraM_);
     float tanY = std::tan(0.5f * camera_.fovYRad);
     p.tanHalfFov = glm::vec2(tanY * float(settings_.width) / float(settings_.height), tanY);
     p.apertureRadiusM = camera_.apertureRadiusM;
@@ -512,6 +555,50 @@ Status Renderer::buildScene(const Scene& scene) {
     return updatePhotonLights(lights);
 }
 
+void Renderer::setCameraPose(const glm::dmat4& worldFromCamera) {
+    worldFromCameraM_ = worldFromCamera;
+    camera_.worldFromCamera = glm::mat4(worldFromCamera);
+    params_.worldFromCamera = renderFromCamera(renderOriginM_, worldFromCamera);
+}
+
+std::vector<shader::GpuLight> Renderer::allLights() const {
+    std::vector<shader::GpuLight> lights = sceneLights_;
+    lights.insert(lights.end(), estimatedLights_.begin(), estimatedLights_.end());
+    return lights;
+}
+
+Status Renderer::recentre(const glm::dvec3& originM) {
+    // What moves by `shift` in the GPU's frame; exact geometry comes from the scene frame.
+    const glm::dvec3 shift = renderOriginM_ - originM;
+    renderOriginM_ = originM;
+    ++recentres_;
+    const glm::dvec3 offset = sceneOriginM_ - renderOriginM_;
+    std::vector<glm::vec4> vertices(sceneTriangleVertices_.size());
+    for (size_t i = 0; i < vertices.size(); ++i)
+        vertices[i] = glm::vec4(toRenderFrame(sceneTriangleVertices_[i], offset), 0.0f);
+    refitWideBvh(bvh_, vertices);
+    for (size_t i = 0; i < sceneLights_.size(); ++i)
+        sceneLights_[i].position = toRenderFrame(sceneLightPositions_[i], offset);
+    // The aim sphere and emitter centroids only steer photons (they bound, never define, the
+    // geometry): moved in double from where they were.
+    photonAim_.center = toRenderFrame(photonAim_.center, shift);
+    for (EmissivePhotonSource& e : emissivePhotonSources_)
+        e.centroid = toRenderFrame(e.centroid, shift);
+    params_.photonAimCenter = photonAim_.center;
+    params_.worldFromCamera = renderFromCamera(renderOriginM_, worldFromCameraM_);
+    const std::vector<shader::GpuLight> lights = allLights();
+    Status s = replaceBufferContents(PV_BINDING_TRIANGLE_VERTICES, vertices.data(),
+                                     vertices.size() * sizeof(glm::vec4), "triangleVertices");
+    if (s)
+        s = replaceBufferContents(PV_BINDING_BVH_NODES, bvh_.wideNodes.data(),
+                                  bvh_.wideNodes.size() * sizeof(shader::WideBvhNode), "bvhNodes");
+    if (s)
+        s = replaceBufferContents(PV_BINDING_LIGHTS, lights.data(),
+                                  lights.size() * sizeof(shader::GpuLight), "lights");
+    if (s) s = updatePhotonLights(lights);
+    return s;
+}
+
 Status Renderer::updatePhotonLights(std::span<const shader::GpuLight> lights) {
     std::vector<glm::uvec4> table;
     if (params_.photonCount > 0) table = buildPhotonLights(photonAim_, emissivePhotonSources_, lights);
@@ -565,6 +652,12 @@ Status Renderer::render(uint32_t samples,
     uint32_t groupsX = (settings_.width + PV_WORKGROUP_SIZE_X - 1) / PV_WORKGROUP_SIZE_X;
     uint32_t groupsY = (settings_.height + PV_WORKGROUP_SIZE_Y - 1) / PV_WORKGROUP_SIZE_Y;
     constexpr size_t kMaxLoopOffset = offsetof(shader::RenderStats, maxLoopIterations);
+    // Camera-relative rendering: the GPU's origin follows the camera, with hysteresis.
+    const glm::dvec3 cameraM(worldFromCameraM_[3]);
+    const glm::dvec3 away = glm::abs(cameraM - renderOriginM_);
+    const std::optional<glm::dvec3> origin = renderOriginFor(cameraM);
+    if (origin && std::max({away.x, away.y, away.z}) > kRecentreDistanceM)
+        if (Status s = recentre(*origin); !s) return s;
     uint32_t done = 0;
     while (done < samples) {
         const uint32_t n = samplesForNextDispatch(samples - done);
@@ -614,11 +707,17 @@ Status Renderer::render(uint32_t samples,
     return {};
 }
 
-Status Renderer::setPlate(ImageF plate) {
+Status Renderer::setPlate(ImageF plate, std::string_view source) {
     if (plate.width != settings_.width || plate.height != settings_.height || plate.channels < 3)
         return makeError("the plate is {}x{} with {} channel(s); the render is {}x{} and needs "
                          "RGB (render at the plate's resolution)", plate.width, plate.height,
                          plate.channels, settings_.width, settings_.height);
+    const PlateRepair repair = repairPlate(plate);
+    if (repair.total() > 0 && plateValuesRepaired_ == 0)
+        logWarning("{}: {} NaN/infinite value(s) replaced by their finite neighbours' mean (0 "
+                   "where there is none) and {} negative value(s) by 0; they are never "
+                   "composited (docs/plates.md)", source, repair.nonFinite, repair.negative);
+    plateValuesRepaired_ += repair.total();
     plate_ = std::move(plate);
     return {};
 }
@@ -634,18 +733,25 @@ Result<ImageF> Renderer::image(Aov aov) const {
     ImageF img;
     img.width = settings_.width;
     img.height = settings_.height;
-    img.channels = aov == Aov::Mask ? 1 : 3;
+    img.channels = aov == Aov::Mask || aov == Aov::SampleCount ? 1 : 3;
     img.pixels.resize(pixels * img.channels);
-    double inv = samples_ > 0 ? 1.0 / double(samples_) : 0.0;
-    // The mean of a compensated sum: (sum − compensation) / n, in double.
+    // The mean of a compensated sum: (sum − compensation) / n, in double, where n counts the
+    // pixel's samples that were not dropped (NaN/Inf, stats().nonFiniteSamples): a dropped
+    // sample neither darkens the pixel nor lets the plate through. A pixel with none is 0
+    // (mask 0: the plate).
+    auto compensated = [&](size_t at, int c) { return double(sum[at][c]) - double(comp[at][c]); };
     auto mean = [&](size_t i, uint32_t k, int c) {
-        size_t at = i * PV_ACCUM_COUNT + k;
-        return (double(sum[at][c]) - double(comp[at][c])) * inv;
+        const double n = compensated(i * PV_ACCUM_COUNT + PV_ACCUM_MIXED, 3);
+        return n > 0.0 ? compensated(i * PV_ACCUM_COUNT + k, c) / n : 0.0;
     };
     bool withPlate = aov == Aov::Composite && plate_ && settings_.differential;
     for (size_t i = 0; i < pixels; ++i) {
         if (aov == Aov::Mask) {
             img.pixels[i] = float(mean(i, PV_ACCUM_COMPOSITE, 3));
+            continue;
+        }
+        if (aov == Aov::SampleCount) {
+            img.pixels[i] = float(compensated(i * PV_ACCUM_COUNT + PV_ACCUM_MIXED, 3));
             continue;
         }
         uint32_t k = aov == Aov::Real ? PV_ACCUM_REAL
@@ -664,11 +770,17 @@ Result<ImageF> Renderer::image(Aov aov) const {
     return img;
 }
 
-Result<uint32_t> Renderer::nonFiniteSamples() const {
+Result<shader::RenderStats> Renderer::stats() const {
     shader::RenderStats stats{};
     if (Status s = buffers_[PV_BINDING_STATS].download(&stats, sizeof(stats)); !s)
         return s.error();
-    return stats.nonFiniteSamples;
+    return stats;
+}
+
+Result<uint32_t> Renderer::nonFiniteSamples() const {
+    auto s = stats();
+    if (!s) return s.error();
+    return s->nonFiniteSamples;
 }
 
 Result<std::vector<shader::PhotonRecord>> Renderer::photonRecords() const {

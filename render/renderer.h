@@ -9,6 +9,7 @@
 #include <memory>
 #include <optional>
 #include <span>
+#include <string_view>
 #include <vector>
 
 #include "base/result.h"
@@ -70,6 +71,9 @@ enum class Aov {
     Mixed,      // L_om: real phantoms and virtual objects
     Real,       // L_or: phantoms only (differential renders)
     Mask,       // fraction of camera samples whose first hit is virtual (one channel)
+    // Samples that count in each pixel's mean (one channel): samplesPerPixel() less those
+    // dropped as NaN/Inf, or lost when a CPU device cut a dispatch short. Not a file AOV.
+    SampleCount,
 };
 
 // What the scene uses; each off feature is compiled out of the pipeline.
@@ -118,11 +122,26 @@ public:
     // Refinement mode: adds `spp` more samples to the accumulation, continuing the sequence, so
     // the image converges frame after frame (exact over millions of samples).
     Status refine(uint32_t spp) { return render(spp); }
-    // The tracked camera pose for the next frames (world from camera, looking along −Z).
+    // The tracked camera pose for the next frames (world from camera, looking along −Z; world
+    // coordinates, i.e. Scene::originM + the scene's own). Double keeps a far set's millimetres.
+    //
+    // Camera-relative rendering: the GPU sees positions relative to renderOriginM(), a point
+    // near the camera, converted to float from double on the host, so precision (and the
+    // self-intersection offset, which grows with the distance from the GPU's origin) is that
+    // of a scene at the world origin wherever the set is. The origin is the camera position
+    // snapped to a kRecentreGridM grid; it moves only when the camera gets more than
+    // kRecentreDistanceM (per axis) from it, and then the next render re-uploads vertices, BVH
+    // boxes and lights once (no BVH rebuild): a camera moving about a set never re-uploads
+    // every frame.
+    void setCameraPose(const glm::dmat4& worldFromCamera);
     void setCameraPose(const glm::mat4& worldFromCamera) {
-        camera_.worldFromCamera = worldFromCamera;
-        params_.worldFromCamera = worldFromCamera;
+        setCameraPose(glm::dmat4(worldFromCamera));
     }
+    static constexpr double kRecentreGridM = 16.0;
+    static constexpr double kRecentreDistanceM = 12.0;
+    // The world position of the GPU's coordinate origin, and how often it moved since create().
+    glm::dvec3 renderOriginM() const { return renderOriginM_; }
+    uint64_t recentreCount() const { return recentres_; }
 
     // Live lighting: each fisheye snapshot replaces the environment and the estimated lights
     // without touching the scene's geometry or BVH. Like setCameraPose, they take effect with
@@ -156,8 +175,13 @@ public:
     void setSeed(uint32_t seed) { params_.seed = seed; }
 
     // The camera image L_oc in linear radiance, at the render's resolution (no resampling:
-    // primary rays follow the camera's lens model instead). Used by Aov::Composite.
-    Status setPlate(ImageF plate);  // by value: a caller done with its plate moves it in
+    // primary rays follow the camera's lens model instead). Used by Aov::Composite. NaN, Inf and
+    // negative values are never composited: repairPlate (render/plate.h) replaces them, with
+    // one warning naming `source` (the first time only: the service sets a plate every frame).
+    // By value: a caller done with its plate moves it in.
+    Status setPlate(ImageF plate, std::string_view source = "plate");
+    // Plate values setPlate has replaced so far (NaN/Inf and negative).
+    uint64_t plateValuesRepaired() const { return plateValuesRepaired_; }
 
     // The mean per pixel so far (RGB linear; the mask one channel).
     Result<ImageF> image(Aov aov = Aov::Composite) const;
@@ -167,8 +191,13 @@ public:
     const SceneBvh& bvh() const { return bvh_; }
     // GPU time of all dispatches so far (ms), and of the last one.
     double gpuMilliseconds() const { return gpuMs_; }
-    // Samples the shader found NaN or infinite and dropped (should be 0; tests check it).
+    // Samples the shader found NaN or infinite, or that cast a ray with a NaN/Inf origin or
+    // direction, and dropped (should be 0; tests check it). Pixel means are over the samples
+    // that were kept (image()).
     Result<uint32_t> nonFiniteSamples() const;
+    // The shader's counters since the last reset (RenderStats: dropped samples, culled
+    // non-finite rays, rays traced).
+    Result<shader::RenderStats> stats() const;
     // Rays traced since the last reset (closest-hit and shadow; wraps at 2^32).
     Result<uint32_t> raysTraced() const;
     // Dispatches whose loop iterations may have reached llvmpipe's limit (work silently lost);
@@ -177,7 +206,9 @@ public:
     // The most loop iterations one invocation ran per sample (the dispatch sizing measure;
     // measured on CPU devices only, 0 elsewhere).
     double loopIterationsPerSample() const { return loopIterationsPerSample_; }
+    // The camera, its pose in world coordinates in float (worldFromCameraM() in double).
     const Camera& camera() const { return camera_; }
+    const glm::dmat4& worldFromCameraM() const { return worldFromCameraM_; }
     // Bytes of device memory in this renderer's buffers (scene, accumulation, lighting); the
     // staging copies of an upload or readback come and go on top.
     uint64_t deviceBytes() const {
@@ -195,6 +226,10 @@ private:
     Status replaceBufferContents(int binding, const void* data, size_t bytes, const char* label);
     Status bindBuffers();
     uint32_t samplesForNextDispatch(uint32_t remaining) const;
+    // Moves the GPU's origin to `originM` (world): re-uploads vertices, BVH boxes, lights.
+    Status recentre(const glm::dvec3& originM);
+    // The lights buffer: the scene's lights, then the estimated (cone) lights.
+    std::vector<shader::GpuLight> allLights() const;
     // Rebuilds the photon light table from `lights` and decides whether photons run.
     Status updatePhotonLights(std::span<const shader::GpuLight> lights);
 
@@ -208,8 +243,18 @@ private:
     std::optional<ComputePipeline> pipeline_;
     std::array<uint32_t, PV_SPEC_COUNT> specConstants_{};
     std::vector<shader::GpuLight> sceneLights_;  // the scene's own; estimated ones follow them
+    std::vector<shader::GpuLight> estimatedLights_;  // cone lights (directions only)
+    // Camera-relative rendering (setCameraPose): world = sceneOriginM_ + scene position;
+    // GPU position = float(world − renderOriginM_), computed in double.
+    glm::dvec3 sceneOriginM_{0.0};
+    glm::dvec3 renderOriginM_{0.0};
+    glm::dmat4 worldFromCameraM_{1.0};
+    std::vector<glm::vec3> sceneTriangleVertices_;  // scene frame, 3 per triangle, BVH order
+    std::vector<glm::vec3> sceneLightPositions_;    // scene frame, per scene light
+    uint64_t recentres_ = 0;
     uint64_t sceneBuilds_ = 0;
     std::optional<ImageF> plate_;
+    uint64_t plateValuesRepaired_ = 0;
     uint64_t samples_ = 0;
     double gpuMs_ = 0.0;
     double loopIterationsPerSample_ = 0.0;  // the most one lane ran per sample, measured

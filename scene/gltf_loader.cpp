@@ -7,6 +7,7 @@
 #include <exception>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <memory>
 #include <optional>
@@ -193,13 +194,17 @@ private:
     Status loadMaterials();
     void clampToSpecification(Material& m, glm::vec3& emissive, float& strength) const;
     Result<int> textureFor(int gltfTexture, bool srgb, const std::string& materialName);
-    Status visitNode(int nodeIndex, const glm::mat4& parentWorld, bool parentReal, int depth);
-    Status loadMesh(int meshIndex, const glm::mat4& worldFromMesh, bool real);
+    // Transforms are composed in double and are relative to scene_.originM (the "world" of
+    // these names is the scene's frame): float keeps precision far from the world origin.
+    Status visitNode(int nodeIndex, const glm::dmat4& parentWorld, bool parentReal, int depth);
+    Status loadMesh(int meshIndex, const glm::dmat4& worldFromMesh, bool real);
     Status loadPrimitive(const tinygltf::Mesh& mesh, int meshIndex, size_t primIndex,
-                         const glm::mat4& worldFromMesh, bool real);
-    Status loadCamera(const tinygltf::Node& node, const glm::mat4& world);
+                         const glm::dmat4& worldFromMesh, bool real);
+    Status loadCamera(const tinygltf::Node& node, const glm::dmat4& world);
     void shiftTextureCoordinates(std::vector<float>& uvs, const Material& material) const;
-    Status loadLight(const tinygltf::Node& node, const glm::mat4& world, bool real);
+    Status loadLight(const tinygltf::Node& node, const glm::dmat4& world, bool real);
+    // Scene::originM for the nodes under `roots` (see its definition).
+    glm::dvec3 chooseOrigin(const std::vector<int>& roots) const;
 
     // Reads `count` elements of `components` floats (float, or normalized unsigned integer types
     // when allowNormalized) or of 1 unsigned integer (indices).
@@ -582,31 +587,35 @@ Status Loader::readIndices(int accessorIndex, const std::string& what,
     return {};
 }
 
-glm::mat4 localTransform(const tinygltf::Node& node) {
+// In double, as the file stores it: a translation of 1000 km keeps its millimetres.
+glm::dmat4 localTransform(const tinygltf::Node& node) {
     if (node.matrix.size() == 16) {
-        glm::mat4 m;
-        for (int i = 0; i < 16; ++i) glm::value_ptr(m)[i] = float(node.matrix[i]);  // column-major
+        glm::dmat4 m;
+        for (int i = 0; i < 16; ++i) glm::value_ptr(m)[i] = node.matrix[i];  // column-major
         return m;
     }
-    glm::mat4 t(1.0f);
+    glm::dmat4 t(1.0);
     if (node.translation.size() == 3)
-        t = glm::translate(glm::mat4(1.0f), glm::vec3(node.translation[0], node.translation[1],
-                                                      node.translation[2]));
-    glm::mat4 r(1.0f);
+        t = glm::translate(glm::dmat4(1.0), glm::dvec3(node.translation[0], node.translation[1],
+                                                       node.translation[2]));
+    glm::dmat4 r(1.0);
     if (node.rotation.size() == 4) {
-        // glTF stores (x, y, z, w); glm::quat's constructor takes w first.
-        glm::quat q(float(node.rotation[3]), float(node.rotation[0]), float(node.rotation[1]),
-                    float(node.rotation[2]));
+        // glTF stores (x, y, z, w); glm::dquat's constructor takes w first.
+        glm::dquat q(node.rotation[3], node.rotation[0], node.rotation[1], node.rotation[2]);
         r = glm::mat4_cast(glm::normalize(q));
     }
-    glm::mat4 s(1.0f);
+    glm::dmat4 s(1.0);
     if (node.scale.size() == 3)
-        s = glm::scale(glm::mat4(1.0f),
-                       glm::vec3(node.scale[0], node.scale[1], node.scale[2]));
+        s = glm::scale(glm::dmat4(1.0), glm::dvec3(node.scale[0], node.scale[1], node.scale[2]));
     return t * r * s;
 }
 
-bool finiteMatrix(const glm::mat4& m) {
+// Scene::originM is a multiple of this (metres): a scene within about half of it from the world
+// origin keeps origin 0 (positions are world positions, as before), and float positions
+// relative to the origin stay within ~500 m plus the set's size (float spacing ~30 µm there).
+constexpr double kOriginGridM = 1024.0;
+
+bool finiteMatrix(const glm::dmat4& m) {
     for (int c = 0; c < 4; ++c)
         for (int r = 0; r < 4; ++r)
             if (!std::isfinite(m[c][r])) return false;
@@ -633,7 +642,31 @@ Result<std::optional<bool>> Loader::roleByName(const tinygltf::Node& node, int n
     return role;
 }
 
-Status Loader::visitNode(int nodeIndex, const glm::mat4& parentWorld, bool parentReal,
+glm::dvec3 Loader::chooseOrigin(const std::vector<int>& roots) const {
+    // The centre of the box around the origins of the nodes that place something (their world
+    // translations), snapped to kOriginGridM. Malformed hierarchies are left to visitNode.
+    glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi = -lo;
+    std::vector<std::pair<int, glm::dmat4>> stack;
+    for (int root : roots) stack.emplace_back(root, glm::dmat4(1.0));
+    size_t visited = 0;
+    while (!stack.empty() && visited++ < 16 * model_.nodes.size() + 16) {
+        auto [index, parent] = stack.back();
+        stack.pop_back();
+        if (index < 0 || size_t(index) >= model_.nodes.size()) continue;
+        const tinygltf::Node& node = model_.nodes[index];
+        const glm::dmat4 world = parent * localTransform(node);
+        if (!finiteMatrix(world)) continue;
+        if (node.mesh >= 0 || node.camera >= 0 || !node.extensions.empty()) {
+            lo = glm::min(lo, glm::dvec3(world[3]));
+            hi = glm::max(hi, glm::dvec3(world[3]));
+        }
+        for (int child : node.children) stack.emplace_back(child, world);
+    }
+    if (!(lo.x <= hi.x)) return glm::dvec3(0.0);
+    return glm::round(0.5 * (lo + hi) / kOriginGridM) * kOriginGridM;
+}
+
+Status Loader::visitNode(int nodeIndex, const glm::dmat4& parentWorld, bool parentReal,
                          int depth) {
     if (nodeIndex < 0 || size_t(nodeIndex) >= model_.nodes.size())
         return fail("node index {} is out of range (the file has {} nodes)", nodeIndex,
@@ -642,7 +675,7 @@ Status Loader::visitNode(int nodeIndex, const glm::mat4& parentWorld, bool paren
         return fail("the node hierarchy is deeper than {} at node {} (a cycle?)", kMaxNodeDepth,
                     nodeIndex);
     const tinygltf::Node& node = model_.nodes[nodeIndex];
-    const glm::mat4 world = parentWorld * localTransform(node);
+    const glm::dmat4 world = parentWorld * localTransform(node);
     if (!finiteMatrix(world))
         return fail("node {} ('{}') has a non-finite transform", nodeIndex, node.name);
 
@@ -678,7 +711,7 @@ Status Loader::visitNode(int nodeIndex, const glm::mat4& parentWorld, bool paren
     return {};
 }
 
-Status Loader::loadMesh(int meshIndex, const glm::mat4& worldFromMesh, bool real) {
+Status Loader::loadMesh(int meshIndex, const glm::dmat4& worldFromMesh, bool real) {
     if (size_t(meshIndex) >= model_.meshes.size())
         return fail("mesh index {} is out of range (the file has {} meshes)", meshIndex,
                     model_.meshes.size());
@@ -690,7 +723,7 @@ Status Loader::loadMesh(int meshIndex, const glm::mat4& worldFromMesh, bool real
 }
 
 Status Loader::loadPrimitive(const tinygltf::Mesh& mesh, int meshIndex, size_t primIndex,
-                             const glm::mat4& worldFromMesh, bool real) {
+                             const glm::dmat4& worldFromMesh, bool real) {
     const tinygltf::Primitive& prim = mesh.primitives[primIndex];
     const std::string what =
         fmt::format("mesh {} ('{}') primitive {}", meshIndex, mesh.name, primIndex);
@@ -776,7 +809,7 @@ Status Loader::loadPrimitive(const tinygltf::Mesh& mesh, int meshIndex, size_t p
 
     shiftTextureCoordinates(uvs, scene_.materials[material]);
 
-    const glm::mat3 linear(worldFromMesh);
+    const glm::mat3 linear{glm::dmat3(worldFromMesh)};
     const glm::mat3 normalMatrix = glm::transpose(glm::inverse(linear));
     // A mirroring transform flips the winding; swap two indices so the geometric normal
     // (counter-clockwise, glTF §3.7.2.1) still points to the front face.
@@ -790,7 +823,7 @@ Status Loader::loadPrimitive(const tinygltf::Mesh& mesh, int meshIndex, size_t p
     };
     std::vector<glm::vec3> world(vertexCount);
     for (size_t i = 0; i < vertexCount; ++i)
-        world[i] = glm::vec3(worldFromMesh * glm::vec4(localPosition(uint32_t(i)), 1.0f));
+        world[i] = glm::vec3(worldFromMesh * glm::dvec4(localPosition(uint32_t(i)), 1.0));
 
     // |cross| in double: exact zero for collinear or coincident authored data; the relative
     // threshold also catches float-rounded collinear points whose normal would be noise. Slivers
@@ -919,7 +952,8 @@ void Loader::shiftTextureCoordinates(std::vector<float>& uvs, const Material& ma
     }
 }
 
-Status Loader::loadCamera(const tinygltf::Node& node, const glm::mat4& world) {
+Status Loader::loadCamera(const tinygltf::Node& node, const glm::dmat4& worldD) {
+    const glm::mat4 world(worldD);  // relative to Scene::originM: small
     if (size_t(node.camera) >= model_.cameras.size())
         return fail("node '{}' refers to camera {}, but the file has {} cameras", node.name,
                     node.camera, model_.cameras.size());
@@ -957,7 +991,8 @@ Status Loader::loadCamera(const tinygltf::Node& node, const glm::mat4& world) {
     return {};
 }
 
-Status Loader::loadLight(const tinygltf::Node& node, const glm::mat4& world, bool real) {
+Status Loader::loadLight(const tinygltf::Node& node, const glm::dmat4& worldD, bool real) {
+    const glm::mat4 world(worldD);  // relative to Scene::originM: small
     const tinygltf::Value* ext = findExtension(node.extensions, "KHR_lights_punctual");
     const tinygltf::Value* index = ext ? findPath(*ext, {"light"}) : nullptr;
     if (!index || !index->IsNumber())
@@ -1020,8 +1055,10 @@ Result<Scene> Loader::run() {
         for (size_t i = 0; i < model_.nodes.size(); ++i)
             if (!isChild[i]) roots.push_back(int(i));
     }
+    scene_.originM = chooseOrigin(roots);
+    const glm::dmat4 sceneFromWorld = glm::translate(glm::dmat4(1.0), -scene_.originM);
     for (int root : roots) {
-        if (Status s = visitNode(root, glm::mat4(1.0f), false, 0); !s) return s.error();
+        if (Status s = visitNode(root, sceneFromWorld, false, 0); !s) return s.error();
     }
     for (size_t i = 0; i < ruleMatched_.size(); ++i) {
         if (!ruleMatched_[i])

@@ -105,6 +105,12 @@ struct EnvironmentMap {
 
 struct Scene {
     std::string path;
+    // Where this scene's frame sits in the world (metres, double): every position below
+    // (geometry, lights, cameras) is relative to it, world = originM + p, so that float keeps
+    // sub-millimetre precision for a set far from the world origin (a georeferenced model).
+    // The glTF loader composes node transforms in double and sets it (gltf_loader.h); 0 for
+    // scenes within about 500 m of the origin, whose positions are then world positions.
+    glm::dvec3 originM{0.0};
     Geometry geometry;
     std::vector<Material> materials;
     std::vector<Texture> textures;

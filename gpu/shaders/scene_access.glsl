@@ -151,6 +151,9 @@ vec2 lensGridAt(uint corner) {
 
 // Rays this invocation traced, added to stats.raysTraced once at the end (one atomic per pixel).
 uint gRaysTraced = 0u;
+// Rays with a NaN or infinite origin or direction (a NaN material parameter, say), culled
+// before traversal; a camera sample that cast one is dropped (trace_paths.comp).
+uint gNonFiniteRays = 0u;
 
 // The paper's ray types. A path starts SHARED (a mixed radiance ray carrying both solutions)
 // while it only meets real surfaces; where it first meets a virtual object it splits: the mixed
@@ -167,6 +170,10 @@ bool intersectScene(Ray ray, uint mode, out Hit hit) {
     hit.triangle = NO_HIT;
     hit.b1 = 0.0;
     hit.b2 = 0.0;
+    if (!rayIsFinite(ray.origin, ray.direction)) {
+        ++gNonFiniteRays;
+        return false;
+    }
     bool found = traceClosest(params.realRoot, ray, hit);
     if (mode != MODE_REAL) found = traceClosest(params.virtualRoot, ray, hit) || found;
     return found;
@@ -174,6 +181,10 @@ bool intersectScene(Ray ray, uint mode, out Hit hit) {
 
 bool occludedBy(uint root, Ray ray) {
     ++gRaysTraced;
+    if (!rayIsFinite(ray.origin, ray.direction)) {
+        ++gNonFiniteRays;
+        return true;  // no light through it; its sample is dropped anyway
+    }
     return traceAny(root, ray);
 }
 // Shadow ray between two surface points, each offset off its surface toward the other.

@@ -490,9 +490,13 @@ void main() {
         vec3 lm;
         vec3 lr;
         bool firstHitVirtual;
+        const uint nonFiniteRaysBefore = gNonFiniteRays;
         tracePath(pixel, key, lm, lr, firstHitVirtual);
-        if (any(isnan(lm)) || any(isinf(lm)) || any(isnan(lr)) || any(isinf(lr))) {
-            // Counted, and the host reports it: never silently part of the image.
+        if (gNonFiniteRays != nonFiniteRaysBefore || any(isnan(lm)) || any(isinf(lm)) ||
+            any(isnan(lr)) || any(isinf(lr))) {
+            // Counted, and the host reports it: never silently part of the image. Dropped
+            // samples are not in the pixel's sample count (the mixed sum's w), so the mean is
+            // over the samples that count and the pixel is not darkened.
             atomicAdd(stats.nonFiniteSamples, 1u);
             continue;
         }
@@ -509,10 +513,11 @@ void main() {
         // mean mask: where both solutions followed the same path lm − lr is exactly 0.
         vec3 composite = firstHitVirtual ? lm : lm - lr;
         kahanAdd(sum[PV_ACCUM_COMPOSITE], comp[PV_ACCUM_COMPOSITE], vec4(composite, mask));
-        kahanAdd(sum[PV_ACCUM_MIXED], comp[PV_ACCUM_MIXED], vec4(lm, 0.0));
+        kahanAdd(sum[PV_ACCUM_MIXED], comp[PV_ACCUM_MIXED], vec4(lm, 1.0));
         if (kDifferential) kahanAdd(sum[PV_ACCUM_REAL], comp[PV_ACCUM_REAL], vec4(lr, 0.0));
     }
     atomicAdd(stats.raysTraced, gRaysTraced);
+    if (gNonFiniteRays > 0u) atomicAdd(stats.nonFiniteRays, gNonFiniteRays);
     for (uint k = 0u; k < PV_ACCUM_COUNT; ++k) {
         PV_COUNT_LOOP_ITERATION();
         uint at = pixelIndex * PV_ACCUM_COUNT + k;

@@ -175,6 +175,15 @@ PV_INLINE vec3 offsetRayOrigin(vec3 p, vec3 n) {
     return result;
 }
 
+// False for a ray with a NaN or infinite origin or direction component. The slab test lets a
+// NaN through on every axis (see intersectBox), so such a ray would visit every node of the BVH
+// and hit nothing: traversal culls it at once. NaN fails every ordered comparison, so one
+// comparison per component catches NaN and infinity alike.
+PV_INLINE bool rayIsFinite(vec3 origin, vec3 direction) {
+    return all(lessThanEqual(abs(origin), vec3(PV_FLOAT_MAX))) &&
+           all(lessThanEqual(abs(direction), vec3(PV_FLOAT_MAX)));
+}
+
 PV_END
 
 #endif  // PREVIS_SHARED_RAY_TRACING_H
@@ -285,7 +294,7 @@ PV_INLINE uint enteredChildren(uint ref, vec3 origin, vec3 invDir, float tMin, f
 // returns true if it found one. Children are visited nearest entry first, so boxes behind a found
 // hit are culled. (Any-hit traversal visits them in the same order.)
 PV_INLINE bool traceClosest(uint root, Ray ray, PV_INOUT(Hit) hit) {
-    if (root == PV_BVH_NO_ROOT) return false;
+    if (root == PV_BVH_NO_ROOT || !rayIsFinite(ray.origin, ray.direction)) return false;
     float tMax = min(ray.tMax, hit.t);
     vec3 invDir = 1.0f / ray.direction;
     TriangleRay tr = makeTriangleRay(ray.origin, ray.direction);
@@ -328,7 +337,7 @@ PV_INLINE bool traceClosest(uint root, Ray ray, PV_INOUT(Hit) hit) {
 // traceClosest's on purpose: GLSL passes arrays by value, so a helper taking the stack would copy
 // all PV_BVH_STACK_SIZE entries in and out at every node.
 PV_INLINE bool traceAny(uint root, Ray ray) {
-    if (root == PV_BVH_NO_ROOT) return false;
+    if (root == PV_BVH_NO_ROOT || !rayIsFinite(ray.origin, ray.direction)) return false;
     vec3 invDir = 1.0f / ray.direction;
     TriangleRay tr = makeTriangleRay(ray.origin, ray.direction);
     uint stack[PV_BVH_STACK_SIZE];

@@ -26,8 +26,9 @@ PV_BEGIN
 #define PV_BINDING_ENV_RADIANCE 12
 #define PV_BINDING_ENV_MARGINAL_CDF 13
 #define PV_BINDING_ENV_CONDITIONAL_CDF 14
-// Accumulations: 3 vec4 per pixel, [composite | mask], [mixed L_om | 0], [real L_or | 0];
-// composite = M ? L_om : L_om − L_or per sample (the plate is added on readback).
+// Accumulations: 3 vec4 per pixel, [composite | mask], [mixed L_om | samples that count],
+// [real L_or | 0]; composite = M ? L_om : L_om − L_or per sample (the plate is added on
+// readback). Dropped (NaN/Inf) samples are in none of them: means divide by the count.
 #define PV_BINDING_ACCUM_SUM 15
 #define PV_BINDING_ACCUM_COMPENSATION 16
 #define PV_ACCUM_COMPOSITE 0u
@@ -193,7 +194,7 @@ struct RenderStats {
     uint nonFiniteSamples;   // samples dropped because they were NaN or infinite
     uint raysTraced;         // closest-hit and shadow rays (wraps at 2^32; benchmarks only)
     uint maxLoopIterations;  // the most loop iterations one invocation ran in a dispatch
-    uint pad2;
+    uint nonFiniteRays;      // rays with a NaN/Inf origin or direction: culled, sample dropped
 };
 
 // Per-dispatch parameters (binding PV_BINDING_PARAMS).
