@@ -20,8 +20,8 @@
 
 #include "base/log.h"
 #include "capture/recorded_source.h"
-#include "config/scene_description.h"
-#include "config/service_config.h"
+#include "scene/scene_description.h"
+#include "daemon/service_config.h"
 #include "daemon/pipeline_renderer.h"
 #include "daemon/pipeline_stages.h"
 #include "daemon/service.h"

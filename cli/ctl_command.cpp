@@ -5,7 +5,7 @@
 #include <nlohmann/json.hpp>
 
 #include "base/log.h"
-#include "config/service_config.h"
+#include "daemon/service_config.h"
 #include "daemon/control_server.h"
 
 namespace previs {

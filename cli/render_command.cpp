@@ -12,7 +12,7 @@
 #include "base/progress.h"
 #include "base/strings.h"
 #include "cli/tone_curve_options.h"
-#include "config/scene_description.h"
+#include "scene/scene_description.h"
 #include "gpu/context.h"
 #include "image/image.h"
 #include "render/renderer.h"

@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "base/result.h"
-#include "config/service_config.h"
+#include "daemon/service_config.h"
 #include "daemon/pipeline_stages.h"
 #include "gpu/context.h"
 #include "image/image.h"

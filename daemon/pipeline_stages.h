@@ -13,7 +13,7 @@
 
 #include "base/result.h"
 #include "capture/frame.h"
-#include "config/service_config.h"
+#include "daemon/service_config.h"
 #include "scene/scene.h"
 #include "vision/board_pose.h"
 #include "vision/fisheye_to_equirect.h"

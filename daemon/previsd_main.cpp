@@ -5,8 +5,8 @@
 
 #include "base/command_line.h"
 #include "base/log.h"
-#include "config/scene_description.h"
-#include "config/service_config.h"
+#include "scene/scene_description.h"
+#include "daemon/service_config.h"
 #include "daemon/pipeline_stages.h"
 #include "daemon/service.h"
 

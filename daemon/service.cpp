@@ -17,7 +17,7 @@
 #include "base/guarded_thread.h"
 #include "base/log.h"
 #include "capture/unique_fd.h"
-#include "config/scene_description.h"
+#include "scene/scene_description.h"
 #include "daemon/camera_sources.h"
 #include "daemon/control_server.h"
 #include "daemon/pipeline_renderer.h"

@@ -16,7 +16,7 @@
 #include <thread>
 
 #include "base/result.h"
-#include "config/service_config.h"
+#include "daemon/service_config.h"
 #include "daemon/mode_machine.h"
 #include "io/session.h"
 

@@ -1,4 +1,4 @@
-#include "config/service_config.h"
+#include "daemon/service_config.h"
 
 #include <cstdio>
 #include <cstdlib>

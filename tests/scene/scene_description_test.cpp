@@ -2,7 +2,7 @@
 // camera and environment overrides, the dispatcher, and every kind of bad input (each must give
 // one message naming the description file and the offending key).
 #include "tests/support/temp_dir.h"
-#include "config/scene_description.h"
+#include "scene/scene_description.h"
 #include "scene/environment_map.h"
 
 #include <cmath>

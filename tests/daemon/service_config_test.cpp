@@ -1,6 +1,6 @@
 // Service config tests: the shipped example box config, the defaults of a minimal file, and each
 // kind of user error (one message naming the file, the line and the key, and what to do).
-#include "config/service_config.h"
+#include "daemon/service_config.h"
 
 #include <cstdlib>
 #include <filesystem>

@@ -1,4 +1,4 @@
-#include "config/scene_description.h"
+#include "scene/scene_description.h"
 
 #include <algorithm>
 #include <cctype>
