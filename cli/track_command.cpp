@@ -8,6 +8,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "base/log.h"
+#include "config/board_file.h"
 #include "vision/board_pose.h"
 #include "vision/camera_calibration.h"
 #include "vision/tag_board.h"
@@ -70,7 +71,7 @@ int run(TrackOptions& o) {
     }
     std::optional<TagBoard> board;
     if (!o.board.empty()) {
-        auto loaded = TagBoard::load(o.board);
+        auto loaded = loadTagBoard(o.board);
         if (!loaded) {
             logError("--board: {}", loaded.message());
             return 2;

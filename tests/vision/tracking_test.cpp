@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "config/board_file.h"
 #include "vision/board_pose.h"
 #include "vision/camera_calibration.h"
 #include "vision/tag_board.h"
@@ -338,7 +339,7 @@ TEST(VispRbtSequence, BoardPoseMatchesGroundTruth) {
     const std::string dir = kData + "video/visp_rbt_sequence/";
     auto calib = CameraCalibration::load(kTestData + "visp_rbt.yaml");
     ASSERT_TRUE(calib.ok()) << calib.message();
-    auto board = TagBoard::load(kTestData + "visp_rbt_board.toml");
+    auto board = loadTagBoard(kTestData + "visp_rbt_board.toml");
     ASSERT_TRUE(board.ok()) << board.message();
     auto tracker = Tracker::create(TagDetectorSettings{.decimate = 1.0f}, *board, *calib);
     ASSERT_TRUE(tracker.ok()) << tracker.message();
@@ -383,7 +384,7 @@ TEST(VispRbtSequence, BoardPoseMatchesGroundTruth) {
 
 TEST(Tracker, HoldsLastGoodPoseWhenLost) {
     auto calib = CameraCalibration::load(kTestData + "visp_rbt.yaml");
-    auto board = TagBoard::load(kTestData + "visp_rbt_board.toml");
+    auto board = loadTagBoard(kTestData + "visp_rbt_board.toml");
     ASSERT_TRUE(calib.ok() && board.ok());
     auto tracker = Tracker::create(TagDetectorSettings{.decimate = 1.0f}, *board, *calib);
     ASSERT_TRUE(tracker.ok());
@@ -457,7 +458,7 @@ TEST(TagBoard, RejectsDuplicateIds) {
     auto path = std::filesystem::temp_directory_path() / "previs_dup_board.toml";
     std::ofstream(path) << "tag_size_m = 0.1\n[[tag]]\nid = 3\nposition_m = [0,0,0]\n"
                            "[[tag]]\nid = 3\nposition_m = [1,0,0]\n";
-    auto board = TagBoard::load(path.string());
+    auto board = loadTagBoard(path.string());
     ASSERT_FALSE(board.ok());
     EXPECT_NE(board.message().find("tag id 3 appears more than once"), std::string::npos)
         << board.message();
@@ -471,13 +472,13 @@ TEST(TagBoard, RejectsMalformedFiles) {
                              "tag_size_m = -1\n[[tag]]\nid = 1\nposition_m = [0,0,0]\n",
                              "tag_size_m = 0.1\n[[tag]]\nid = 1\nposition_m = [0,0]\n"}) {
         std::ofstream(path) << text;
-        auto board = TagBoard::load(path.string());
+        auto board = loadTagBoard(path.string());
         EXPECT_FALSE(board.ok()) << text;
         if (!board.ok()) {
             EXPECT_NE(board.message().find(path.string()), std::string::npos);
         }
     }
-    EXPECT_FALSE(TagBoard::load("/nonexistent/board.toml").ok());
+    EXPECT_FALSE(loadTagBoard("/nonexistent/board.toml").ok());
     std::filesystem::remove(path);
 }
 
