@@ -390,6 +390,50 @@ Result<ImageF> readHdr(std::span<const uint8_t> bytes, const std::string& path,
 
 // --- PNG / JPEG ----------------------------------------------------------------------------
 
+// Debian's stb_image (2022-09) does not check that a JPEG Huffman table holds at most 256 codes
+// and writes past its table when one does (found by fuzz/fuzz_image). So every marker segment
+// of the file is walked here first (ITU T.81 B.1.1.4, B.2.4.2), every length bounded, skipping
+// entropy-coded data after each start of scan (progressive files define tables between scans),
+// and a table with more than 256 codes is refused. A file that ends early is left to stb, which
+// reads a cut-short scan as zeros.
+Status checkJpegTables(std::span<const uint8_t> bytes, const std::string& path) {
+    auto corrupt = [&](const char* what) {
+        return makeError("cannot decode image '{}': a JPEG image with {} (corrupt file)", path,
+                         what);
+    };
+    const size_t size = bytes.size();
+    size_t at = 2;  // after SOI
+    while (true) {
+        while (at + 1 < size && bytes[at] == 0xff && bytes[at + 1] == 0xff) ++at;  // fill bytes
+        if (size - at < 4) return {};
+        if (bytes[at] != 0xff) return corrupt("a malformed header");
+        const uint8_t marker = bytes[at + 1];
+        if (marker == 0xd9) return {};  // end of image
+        const size_t length = size_t(bytes[at + 2]) << 8 | bytes[at + 3];
+        if (length < 2) return corrupt("a malformed header segment");
+        if (length > size - at - 2) return {};
+        if (marker == 0xc4) {  // DHT: tables of (class/id, 16 counts, the codes)
+            size_t t = at + 4;
+            const size_t end = at + 2 + length;
+            while (t < end) {
+                if (end - t < 17) return corrupt("a cut-short Huffman table");
+                size_t codes = 0;
+                for (size_t i = 1; i <= 16; ++i) codes += bytes[t + i];
+                if (codes > 256) return corrupt("a Huffman table of more than 256 codes");
+                if (end - t - 17 < codes) return corrupt("a cut-short Huffman table");
+                t += 17 + codes;
+            }
+        }
+        at += 2 + length;
+        if (marker == 0xda) {  // start of scan: entropy-coded data up to the next real marker
+            while (at + 1 < size &&
+                   !(bytes[at] == 0xff && bytes[at + 1] != 0 && bytes[at + 1] != 0xff &&
+                     (bytes[at + 1] < 0xd0 || bytes[at + 1] > 0xd7)))
+                ++at;
+        }
+    }
+}
+
 struct Decoded8 {
     std::unique_ptr<unsigned char, decltype(&stbi_image_free)> data{nullptr, &stbi_image_free};
     int width = 0;
@@ -417,6 +461,8 @@ Result<Decoded8> decode8(std::span<const uint8_t> bytes, const Sniffed& what,
         if (Status s = checkSize(path, what.name, be32(16), be32(20), limits); !s)
             return s.error();
     }
+    if (what.type == ContentType::Jpeg)
+        if (Status s = checkJpegTables(bytes, path); !s) return s.error();
     if (!stbi_info_from_memory(bytes.data(), size, &out.width, &out.height, &out.channels))
         return makeError("cannot decode image '{}': {} with a corrupt header ({})", path,
                          what.name, stbi_failure_reason() ? stbi_failure_reason() : "unknown");

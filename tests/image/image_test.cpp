@@ -216,6 +216,22 @@ TEST(Image, HdrRunLengthFileDecodes) {
     EXPECT_FLOAT_EQ(r->at(1, 0, 2), 0x40 / 128.0f);
 }
 
+// Found by fuzz/fuzz_image: a Huffman table of more than 256 codes made stb_image write past
+// its table. Refused before stb sees it, as a file and as a glTF texture.
+TEST(Image, JpegWithOversizedHuffmanTableIsRefused) {
+    const std::string path =
+        std::string(PREVIS_SOURCE_DIR) + "/tests/image/data/jpeg_huffman_overflow.jpg";
+    expectOneLineNaming(readImage(path), "jpeg_huffman_overflow.jpg",
+                        "Huffman table of more than 256 codes");
+    const std::string bytes = readBytes(path);
+    Result<ImageRgba8> texture = decodePngOrJpeg(
+        std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()),
+        "image 0");
+    ASSERT_FALSE(texture.ok());
+    EXPECT_NE(texture.message().find("more than 256 codes"), std::string::npos)
+        << texture.message();
+}
+
 TEST(Image, ContentMustMatchTheExtension) {
     const auto dir = tempDir();
     ASSERT_TRUE(writePng((dir / "plate.png").string(), 2, 2, std::vector<uint8_t>(12, 7)).ok());

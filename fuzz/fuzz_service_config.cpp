@@ -1,0 +1,24 @@
+// loadServiceConfig on a previsd.toml. The folder holds the demo's calibrations and board
+// (copied from examples/demo at start) so inputs naming them get past the file checks.
+#include <filesystem>
+
+#include "config/service_config.h"
+#include "fuzz/fuzz_support.h"
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+    using namespace previs;
+    static const bool fixtures = [] {
+        const std::filesystem::path demo = std::filesystem::path(PREVIS_SOURCE_DIR) / "examples/demo";
+        for (const char* name : {"scene_camera.yaml", "fisheye.yaml", "board.toml", "previs.toml"}) {
+            std::error_code ec;
+            std::filesystem::copy_file(demo / name, fuzz::scratchDir() / name,
+                                       std::filesystem::copy_options::overwrite_existing, ec);
+        }
+        return true;
+    }();
+    (void)fixtures;
+    const std::string path = fuzz::writeScratch("previsd.toml", fuzz::asText(data, size));
+    Result<ServiceConfig> config = loadServiceConfig(path);
+    (void)config.ok();
+    return 0;
+}
