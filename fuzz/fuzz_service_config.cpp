@@ -1,5 +1,6 @@
 // loadServiceConfig on a previsd.toml. The folder holds the demo's calibrations and board
-// (copied from examples/demo at start) so inputs naming them get past the file checks.
+// (copied from examples/demo at start) and empty recorded camera folders, so inputs naming them
+// get past the file checks. Devices are only named in a config, never opened by the loader.
 #include <filesystem>
 
 #include "config/service_config.h"
@@ -14,6 +15,10 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
             std::filesystem::copy_file(demo / name, fuzz::scratchDir() / name,
                                        std::filesystem::copy_options::overwrite_existing, ec);
         }
+        for (const char* camera : {"scene", "fisheye"})
+            fuzz::writeScratch(std::string("session/cameras/") + camera + "/index.csv",
+                               "# previs-session camera index v1: sequence,timestampNs,file,"
+                               "width,height\n");
         return true;
     }();
     (void)fixtures;

@@ -223,6 +223,11 @@ TEST(Image, JpegWithOversizedHuffmanTableIsRefused) {
         std::string(PREVIS_SOURCE_DIR) + "/tests/image/data/jpeg_huffman_overflow.jpg";
     expectOneLineNaming(readImage(path), "jpeg_huffman_overflow.jpg",
                         "Huffman table of more than 256 codes");
+    // The same in a table defined between the scans of a progressive JPEG.
+    const std::string progressive = std::string(PREVIS_SOURCE_DIR) +
+                                    "/tests/image/data/jpeg_progressive_huffman_overflow.jpg";
+    expectOneLineNaming(readImage(progressive), "jpeg_progressive_huffman_overflow.jpg",
+                        "Huffman table of more than 256 codes");
     const std::string bytes = readBytes(path);
     Result<ImageRgba8> texture = decodePngOrJpeg(
         std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()),
