@@ -70,6 +70,24 @@ bool decodeImage(tinygltf::Image* image, const int imageIndex, std::string* /*er
     return true;
 }
 
+// External buffers and images are read from regular files only. tinygltf's own callbacks open
+// whatever a URI names (even to test that it exists): a broken or hostile file naming a FIFO
+// blocked the loader forever, one naming a device would open it.
+bool fileExists(const std::string& path, void*) {
+    std::error_code ec;
+    return std::filesystem::exists(path, ec);
+}
+
+bool readRegularFile(std::vector<unsigned char>* out, std::string* err, const std::string& path,
+                     void* user) {
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(path, ec)) {
+        if (err) *err += "'" + path + "' is not a regular file\n";
+        return false;
+    }
+    return tinygltf::ReadWholeFile(out, err, path, user);
+}
+
 // tinygltf reports several problems as newline-separated text; one line reads better.
 std::string oneLine(std::string text) {
     while (!text.empty() && (text.back() == '\n' || text.back() == ' ')) text.pop_back();
@@ -857,6 +875,8 @@ Result<Scene> loadGltf(const std::string& path, const GltfLoadOptions& options) 
     tinygltf::TinyGLTF gltf;
     ImageLoadContext images;
     gltf.SetImageLoader(&decodeImage, &images);
+    gltf.SetFsCallbacks({&fileExists, &tinygltf::ExpandFilePath, &readRegularFile,
+                         &tinygltf::WriteWholeFile, nullptr});
     tinygltf::Model model;
     std::string err;
     std::string warn;
