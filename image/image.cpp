@@ -394,8 +394,8 @@ Result<ImageF> readHdr(std::span<const uint8_t> bytes, const std::string& path,
 // and writes past its table when one does (found by fuzz/fuzz_image). So every marker segment
 // of the file is walked here first (ITU T.81 B.1.1.4, B.2.4.2), every length bounded, skipping
 // entropy-coded data after each start of scan (progressive files define tables between scans),
-// and a table with more than 256 codes is refused. A file that ends early is left to stb, which
-// reads a cut-short scan as zeros.
+// and a table with more than 256 codes is refused, as is a segment cut short. A file that ends
+// inside a scan is left to stb, which reads the rest of the scan as zeros.
 Status checkJpegTables(std::span<const uint8_t> bytes, const std::string& path) {
     auto corrupt = [&](const char* what) {
         return makeError("cannot decode image '{}': a JPEG image with {} (corrupt file)", path,
@@ -411,7 +411,8 @@ Status checkJpegTables(std::span<const uint8_t> bytes, const std::string& path) 
         if (marker == 0xd9) return {};  // end of image
         const size_t length = size_t(bytes[at + 2]) << 8 | bytes[at + 3];
         if (length < 2) return corrupt("a malformed header segment");
-        if (length > size - at - 2) return {};
+        // stb reads a segment past the end of the file as zeros, tables included.
+        if (length > size - at - 2) return corrupt("a header segment cut short (truncated file)");
         if (marker == 0xc4) {  // DHT: tables of (class/id, 16 counts, the codes)
             size_t t = at + 4;
             const size_t end = at + 2 + length;

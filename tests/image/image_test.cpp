@@ -228,6 +228,12 @@ TEST(Image, JpegWithOversizedHuffmanTableIsRefused) {
                                     "/tests/image/data/jpeg_progressive_huffman_overflow.jpg";
     expectOneLineNaming(readImage(progressive), "jpeg_progressive_huffman_overflow.jpg",
                         "Huffman table of more than 256 codes");
+    // A table segment claiming more bytes than the file has (stb read the rest as zeros and
+    // its counts past the table).
+    const std::string cut =
+        std::string(PREVIS_SOURCE_DIR) + "/tests/image/data/jpeg_cut_short_huffman_segment.jpg";
+    expectOneLineNaming(readImage(cut), "jpeg_cut_short_huffman_segment.jpg",
+                        "segment cut short");
     const std::string bytes = readBytes(path);
     Result<ImageRgba8> texture = decodePngOrJpeg(
         std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()),
