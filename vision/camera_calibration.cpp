@@ -1,6 +1,7 @@
 #include "vision/camera_calibration.h"
 
 #include <cmath>
+#include <exception>
 
 #include <opencv2/calib3d.hpp>
 
@@ -97,6 +98,9 @@ Result<CameraCalibration> CameraCalibration::load(const std::string& path) {
         return create(km, std::move(dist), cv::Size(width, height), model, path);
     } catch (const cv::Exception& e) {
         return makeError("cannot parse camera calibration '{}': {} (expected OpenCV YAML/XML)", path, e.err);
+    } catch (const std::exception& e) {  // std::bad_alloc from a hostile size, and the like
+        return makeError("cannot parse camera calibration '{}': {} (expected OpenCV YAML/XML)",
+                         path, e.what());
     }
 }
 
