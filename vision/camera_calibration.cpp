@@ -1,7 +1,9 @@
 #include "vision/camera_calibration.h"
 
 #include <cmath>
+#include <cstdint>
 #include <exception>
+#include <utility>
 
 #include <opencv2/calib3d.hpp>
 
@@ -61,6 +63,21 @@ Result<CameraCalibration> CameraCalibration::load(const std::string& path) {
             return makeError(
                 "cannot read camera calibration '{}': not found or not an OpenCV YAML/XML file",
                 path);
+        // OpenCV allocates a matrix of the declared rows x cols before reading its data, so a
+        // hostile file declaring billions of elements exhausted memory (found by
+        // fuzz/fuzz_camera_calibration): the declared size is checked first.
+        for (const auto& [key, maxElements] : {std::pair<const char*, int64_t>{"camera_matrix", 9},
+                                               {"distortion_coefficients", 14}}) {
+            const cv::FileNode node = fs[key];
+            if (node.empty() || !node.isMap()) continue;  // absent, or not a matrix: below
+            const cv::FileNode rows = node["rows"];
+            const cv::FileNode cols = node["cols"];
+            if (!rows.isInt() || !cols.isInt() || int(rows) < 0 || int(cols) < 0 ||
+                int64_t(int(rows)) * int(cols) > maxElements)
+                return makeError("{}: {} must be an !!opencv-matrix of at most {} elements with "
+                                 "integer rows and cols",
+                                 path, key, maxElements);
+        }
         cv::Mat k;
         cv::Mat d;
         fs["camera_matrix"] >> k;

@@ -243,6 +243,19 @@ TEST(Image, JpegWithOversizedHuffmanTableIsRefused) {
         << texture.message();
 }
 
+// Found by fuzz/fuzz_image (see tests/image/data/README.md): read without a crash.
+TEST(Image, PngWithEmptyFirstIdatIsRead) {
+    const std::string path =
+        std::string(PREVIS_SOURCE_DIR) + "/tests/image/data/png_empty_first_idat.png";
+    Result<ImageF> r = readImage(path);
+    if (!r.ok()) {
+        EXPECT_NE(r.message().find("png_empty_first_idat.png"), std::string::npos) << r.message();
+        EXPECT_EQ(r.message().find('\n'), std::string::npos) << r.message();
+    } else {
+        EXPECT_EQ(r->pixels.size(), size_t(r->width) * r->height * r->channels);
+    }
+}
+
 TEST(Image, ContentMustMatchTheExtension) {
     const auto dir = tempDir();
     ASSERT_TRUE(writePng((dir / "plate.png").string(), 2, 2, std::vector<uint8_t>(12, 7)).ok());

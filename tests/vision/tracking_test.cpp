@@ -501,6 +501,30 @@ TEST(CameraCalibration, RejectsBadFiles) {
     std::filesystem::remove(path);
 }
 
+// Found by fuzz/fuzz_camera_calibration: OpenCV allocated a matrix of the size a file declares
+// before reading its data (48 GB for the checked-in input; 80 GB below), so the declared size is
+// checked first. Under ASan the allocation itself aborts, so this fails there without the check.
+TEST(CameraCalibration, RefusesHugeDeclaredMatrices) {
+    auto fuzzed = CameraCalibration::load(kTestData + "fuzz_bad_matrix_cols.yaml");
+    ASSERT_FALSE(fuzzed.ok());
+    EXPECT_NE(fuzzed.message().find("fuzz_bad_matrix_cols.yaml: camera_matrix must be"),
+              std::string::npos)
+        << fuzzed.message();
+    auto path = std::filesystem::temp_directory_path() / "previs_huge_calib.yaml";
+    std::ofstream(path) << "%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\n"
+                           "camera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n"
+                           "   data: [ 500., 0., 320., 0., 500., 240., 0., 0., 1. ]\n"
+                           "distortion_coefficients: !!opencv-matrix\n   rows: 100000\n"
+                           "   cols: 100000\n   dt: d\n   data: [ 0. ]\n";
+    auto huge = CameraCalibration::load(path.string());
+    ASSERT_FALSE(huge.ok());
+    EXPECT_NE(huge.message().find("distortion_coefficients must be an !!opencv-matrix of at most "
+                                  "14 elements"),
+              std::string::npos)
+        << huge.message();
+    std::filesystem::remove(path);
+}
+
 TEST(TagDetector, RejectsUnknownFamilyAndSettings) {
     EXPECT_FALSE(TagDetector::create({.family = "tag99h99"}).ok());
     EXPECT_FALSE(TagDetector::create({.decimate = 0.5f}).ok());
