@@ -8,6 +8,7 @@ target=$1 seconds=${2:-600}
 work="$root/build-fuzz/fuzz-long/$target"
 mkdir -p "$work/corpus" "$work/artifacts"
 cd "$work"
+export OPENCV_LOG_LEVEL=ERROR  # OpenCV logs every frame it cannot decode
 nice -n 10 "$root/build-fuzz/fuzz/fuzz_$target" -max_total_time="$seconds" -timeout=10 \
     -rss_limit_mb=2048 -print_final_stats=1 -artifact_prefix="$work/artifacts/" \
     "$work/corpus" "$root/fuzz/corpus/fuzz_$target" > "$work/log.txt" 2>&1 || true
