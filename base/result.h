@@ -1,5 +1,7 @@
 #pragma once
 
+#include <cstdio>
+#include <cstdlib>
 #include <string>
 #include <utility>
 #include <variant>
@@ -19,6 +21,14 @@ Error makeError(fmt::format_string<Args...> format, Args&&... args) {
     return Error{fmt::format(format, std::forward<Args>(args)...)};
 }
 
+// Taking the value of a Result that holds an error is a programming mistake: it stops the
+// program with the error's own message instead of an anonymous bad_variant_access.
+[[noreturn]] inline void failedValueAccess(const Error& error) {
+    std::fprintf(stderr, "previs: internal error: the value of a failed result was used: %s\n",
+                 error.message.c_str());
+    std::abort();
+}
+
 // Value or error, for loading and initialisation (gcc 12 has no std::expected).
 template <typename T>
 class [[nodiscard]] Result {
@@ -29,18 +39,25 @@ public:
     bool ok() const { return v_.index() == 0; }
     explicit operator bool() const { return ok(); }
 
-    T& value() & { return std::get<0>(v_); }
-    const T& value() const& { return std::get<0>(v_); }
-    T&& value() && { return std::get<0>(std::move(v_)); }
+    T& value() & { return checked(), *std::get_if<0>(&v_); }
+    const T& value() const& { return checked(), *std::get_if<0>(&v_); }
+    T&& value() && { return checked(), std::move(*std::get_if<0>(&v_)); }
     T& operator*() & { return value(); }
     const T& operator*() const& { return value(); }
     T* operator->() { return &value(); }
     const T* operator->() const { return &value(); }
 
-    const Error& error() const { return std::get<1>(v_); }
+    const Error& error() const {
+        if (ok()) failedValueAccess(Error{"error() of a result that holds a value"});
+        return *std::get_if<1>(&v_);
+    }
     const std::string& message() const { return error().message; }
 
 private:
+    void checked() const {
+        if (!ok()) failedValueAccess(std::get<1>(v_));
+    }
+
     std::variant<T, Error> v_;
 };
 

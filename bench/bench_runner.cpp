@@ -78,6 +78,15 @@ std::string millions(double v) { return fmt::format("{:.2f} M", v * 1e-6); }
 }  // namespace
 
 int runBenchmarks(const BenchOptions& o) {
+    if (o.examplesDir.empty()) {
+        logError("bench: the project's examples/ folder was not found beside or above previs");
+        return 2;
+    }
+    if (o.only != "service" && o.dataDir.empty()) {
+        logError("bench: no shared data found (meshes, environment maps): pass --data DIR or set "
+                 "PREVIS_DATA_DIR");
+        return 2;
+    }
     // Before any Vulkan device or thread exists: the service bench forks a child per run.
     if (o.only == "service") {
         ServiceBenchOptions service;

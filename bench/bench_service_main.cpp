@@ -5,11 +5,12 @@
 
 #include <CLI/CLI.hpp>
 
+#include "base/data_paths.h"
 #include "bench/bench_service.h"
 
 int main(int argc, char** argv) {
     previs::bench::ServiceBenchOptions o;
-    o.examplesDir = PREVIS_EXAMPLES_DIR;
+    if (auto root = previs::projectDataDir()) o.examplesDir = (*root / "examples").string();
     std::vector<std::string> sizes;
     CLI::App app("bench_service: previsd's frame rate, latency, stage costs, CPU and memory on the "
                  "demo session (Markdown on stdout)");

@@ -49,8 +49,8 @@ done
 width=640
 height=480
 depth=8
-# The shared data beside the checkout, else where PREVIS_SHARED_DATA says.
-data=${PREVIS_SHARED_DATA:-$root/../shared/data}
+# The shared data beside the checkout, else where PREVIS_DATA_DIR says.
+data=${PREVIS_DATA_DIR:-${PREVIS_SHARED_DATA:-$root/../shared/data}}
 env_map="$data/envmaps/polyhaven_1k_hdr/rooitou_park_1k.hdr"
 
 missing=()

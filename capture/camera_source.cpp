@@ -2,6 +2,7 @@
 
 #include <utility>
 
+#include "base/guarded_thread.h"
 #include "base/log.h"
 
 namespace previs {
@@ -35,7 +36,19 @@ Status CaptureThread::start() {
         stopRequested_ = false;
     }
     state_ = CaptureState::Opening;
-    thread_ = std::thread([this] { run(); });
+    thread_ = std::thread([this] {
+        // Whatever escapes the loop counts as losing the device: reopen after the retry
+        // interval, as for a camera that was unplugged.
+        for (;;) {
+            bool failed = false;
+            runGuarded(options_.name.c_str(), [this] { run(); },
+                       [&](const std::string& why) {
+                           failed = true;
+                           setState(CaptureState::Lost, why);
+                       });
+            if (!failed || waitForStop(options_.retryIntervalMs)) break;
+        }
+    });
     return {};
 }
 

@@ -13,11 +13,14 @@
 #include <string>
 #include <thread>
 
+#include "base/latest_value_slot.h"
 #include "base/result.h"
 #include "capture/frame.h"
-#include "capture/frame_slot.h"
 
 namespace previs {
+
+// The hand-over between a capture thread and its consumer (DESIGN.md §6).
+using FrameSlot = LatestValueSlot<Frame>;
 
 // A device-level frame producer, driven by one thread: a V4L2 device, a recorded session. It
 // may fail at any read (a camera unplugged); the owner then destroys it and builds a new one.

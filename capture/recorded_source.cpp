@@ -89,7 +89,29 @@ Result<std::vector<RecordedFrameEntry>> loadCameraIndex(const std::string& camer
 }
 
 RecordedReader::RecordedReader(std::vector<RecordedFrameEntry> entries, ReplayTiming timing)
-    : entries_(std::move(entries)), timing_(timing) {}
+    : entries_(std::move(entries)), timing_(timing) {
+    // Gaps in unsigned arithmetic (timestamps only grow, loadCameraIndex checks it), capped
+    // before they become durations, so no timestamp can overflow the schedule.
+    const uint64_t maxGapNs =
+        uint64_t(std::chrono::duration_cast<std::chrono::nanoseconds>(kMaxReplayGap).count());
+    std::chrono::nanoseconds at{0};
+    size_t capped = 0;
+    for (size_t i = 0; i < entries_.size(); ++i) {
+        if (i > 0) {
+            uint64_t gap = entries_[i].timestampNs - entries_[i - 1].timestampNs;
+            if (gap > maxGapNs) {
+                if (capped++ == 0 && timing_ == ReplayTiming::Recorded)
+                    logWarning("{}: {:.3g} s between frames {} and {}; replayed as {} s (and any "
+                               "other such gap)", entries_[i].file, double(gap) * 1e-9,
+                               entries_[i - 1].sequence, entries_[i].sequence,
+                               kMaxReplayGap.count());
+                gap = maxGapNs;
+            }
+            at += std::chrono::nanoseconds(int64_t(gap));
+        }
+        due_.push_back(at);
+    }
+}
 
 Result<std::unique_ptr<RecordedReader>> RecordedReader::create(const std::string& cameraDir,
                                                                ReplayTiming timing) {
@@ -108,8 +130,7 @@ Result<bool> RecordedReader::read(int timeoutMs, Frame& frame) {
     while (next_ < entries_.size()) {
         const RecordedFrameEntry& e = entries_[next_];
         if (timing_ == ReplayTiming::Recorded) {
-            const auto due =
-                startTime_ + std::chrono::nanoseconds(e.timestampNs - entries_.front().timestampNs);
+            const auto due = startTime_ + due_[next_];
             const auto now = std::chrono::steady_clock::now();
             if (due > now + std::chrono::milliseconds(timeoutMs)) {
                 std::this_thread::sleep_for(std::chrono::milliseconds(timeoutMs));

@@ -27,8 +27,13 @@ struct RecordedFrameEntry {
 // ignored, a malformed complete line is an error naming file and line.
 Result<std::vector<RecordedFrameEntry>> loadCameraIndex(const std::string& cameraDir);
 
+// The longest pause a Recorded replay keeps between two frames: a longer recorded gap (a camera
+// that was off for a while, or a broken clock: timestamps years apart) is replayed as this, with
+// a warning, instead of a box that waits for years.
+inline constexpr std::chrono::seconds kMaxReplayGap{2};
+
 enum class ReplayTiming {
-    Recorded,          // frames at their recorded intervals (a live-like replay)
+    Recorded,          // frames at their recorded intervals (gaps capped at kMaxReplayGap)
     AsFastAsPossible,  // deterministic CI runs, offline rendering
 };
 
@@ -47,6 +52,8 @@ private:
     RecordedReader(std::vector<RecordedFrameEntry> entries, ReplayTiming timing);
 
     std::vector<RecordedFrameEntry> entries_;
+    // When each frame is due, from start(): the recorded intervals, each capped at kMaxReplayGap.
+    std::vector<std::chrono::nanoseconds> due_;
     ReplayTiming timing_;
     size_t next_ = 0;
     std::chrono::steady_clock::time_point startTime_;

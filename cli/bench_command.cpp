@@ -2,18 +2,20 @@
 
 #include <memory>
 
+#include "base/data_paths.h"
 #include "bench/bench_runner.h"
 
 namespace previs {
 
 std::function<int()> addBenchCommand(CLI::App& app) {
     auto o = std::make_shared<bench::BenchOptions>();
-    o->dataDir = PREVIS_DEFAULT_DATA_DIR;
-    o->examplesDir = PREVIS_EXAMPLES_DIR;
+    // Found at run time (base/data_paths.h): no machine path is compiled into the binary.
+    if (auto shared = sharedDataDir()) o->dataDir = shared->string();
+    if (auto root = projectDataDir()) o->examplesDir = (*root / "examples").string();
     CLI::App* cmd = app.add_subcommand(
         "bench", "speed measurements: paths/s, rays/s, BVH build, scaling; pose accuracy on "
                "rendered boards (Markdown on stdout)");
-    cmd->add_option("--data", o->dataDir, "test data folder (default: ../shared/data)")
+    cmd->add_option("--data", o->dataDir, "test data folder (default: $PREVIS_DATA_DIR, else shared/data in a folder above previs)")
         ->check(CLI::ExistingDirectory);
     cmd->add_flag("--quick", o->quick, "one repetition at 1 spp: a smoke run");
     cmd->add_option("--repetitions", o->repetitions, "timings are medians over this many runs")

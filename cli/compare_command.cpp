@@ -21,7 +21,7 @@ int run(const CompareOptions& o) {
     for (const auto& img : images) {
         if (!img) {
             logError("{}", img.message());
-            return 1;
+            return 2;
         }
         if (img->ldrSrgb) {
             logError("{} is 8-bit sRGB: compare linear images (.exr, .hdr)",

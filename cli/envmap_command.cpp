@@ -5,6 +5,9 @@
 #include <opencv2/core/utils/logger.hpp>
 
 #include "base/log.h"
+#include "base/output_path.h"
+#include "base/strings.h"
+#include "cli/tone_curve_options.h"
 #include "image/image.h"
 #include "vision/camera_calibration.h"
 #include "vision/fisheye_to_equirect.h"
@@ -20,23 +23,20 @@ struct EnvmapOptions {
     std::vector<double> mountRotationDeg{-90.0, 0.0, 0.0};
     int width = 1024;
     std::string out;
-    std::string toneMap = "srgb";
-    float exposureStops = 0.0f;
-    std::vector<float> whiteBalance{1.0f, 1.0f, 1.0f};
+    ToneCurveOptions curve;  // of an LDR input
     double maxFieldAngleDeg = 95.0;
     bool quiet = false;
 };
-
-bool endsWith(const std::string& s, const std::string& suffix) {
-    return s.size() >= suffix.size() &&
-           s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
-}
 
 int run(const EnvmapOptions& o) {
     cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);
     if (!endsWith(o.out, ".exr")) {
         logError("--out {}: the environment map is written as linear HDR OpenEXR; use a .exr name",
                  o.out);
+        return 2;
+    }
+    if (Status s = checkOutputFile("--out", o.out); !s) {
+        logError("{}", s.message());
         return 2;
     }
     auto calib = CameraCalibration::load(o.camera);
@@ -62,14 +62,10 @@ int run(const EnvmapOptions& o) {
     auto image = readImage(o.image);
     if (!image) {
         logError("{}", image.message());
-        return 1;
+        return 2;
     }
-    InverseToneMapSettings itm;
-    itm.op = *parseInverseToneMapOperator(o.toneMap);
-    itm.exposureStops = o.exposureStops;
-    itm.whiteBalance = {o.whiteBalance[0], o.whiteBalance[1], o.whiteBalance[2]};
     // LDR (PNG/JPEG) is display-referred: back to linear radiance as for plates. EXR is used as is.
-    ImageF linear = inverseToneMap(*image, itm);
+    ImageF linear = inverseToneMap(*image, o.curve.inverse());
 
     cv::Mat frame(int(linear.height), int(linear.width), CV_32FC3);
     for (uint32_t y = 0; y < linear.height; ++y) {
@@ -121,15 +117,7 @@ std::function<int()> addEnvmapCommand(CLI::App& app) {
     cmd->add_option("--width", o->width, "map width in pixels, height = width/2 (default 1024)")
         ->check(CLI::Range(8, 16384));
     cmd->add_option("--out", o->out, "output ENV.exr (linear float RGB)")->required();
-    cmd->add_option("--tonemap", o->toneMap,
-                    "LDR input: tone curve to invert, srgb (default) or reinhard")
-        ->check(CLI::IsMember({"srgb", "clamp", "reinhard"}));
-    cmd->add_option("--exposure", o->exposureStops,
-                    "LDR input: exposure (stops) the frame was made with; radiance = "
-                    "linear / 2^stops");
-    cmd->add_option("--white-balance", o->whiteBalance, "LDR input: R,G,B gains (default 1,1,1)")
-        ->delimiter(',')
-        ->expected(3);
+    o->curve.addTo(cmd, "", "LDR input", true);
     cmd->add_option("--max-angle", o->maxFieldAngleDeg,
                     "largest angle from the optical axis taken as seen, degrees (default 95)")
         ->check(CLI::Range(1.0, 180.0));

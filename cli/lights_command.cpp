@@ -24,7 +24,7 @@ int run(const LightsOptions& o) {
     auto map = loadEnvironmentMap(o.env);
     if (!map) {
         logError("{}", map.message());
-        return 1;
+        return 2;
     }
     auto snap = LightEstimator(o.settings).estimate(environmentMapToMat(*map));
     if (!snap) {

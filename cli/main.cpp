@@ -1,7 +1,15 @@
-// previs: the command line (DESIGN.md §3).
+// previs: the command line (DESIGN.md §3). Exit codes: 0 success, 1 runtime failure, 2 bad usage
+// or input (base/command_line.h), the same in every subcommand.
+#include <algorithm>
+#include <cstdio>
+#include <string>
+#include <vector>
+
 #include <CLI/CLI.hpp>
 
+#include "base/command_line.h"
 #include "base/log.h"
+#include "base/strings.h"
 #include "cli/bench_command.h"
 #include "cli/compare_command.h"
 #include "cli/ctl_command.h"
@@ -11,31 +19,43 @@
 #include "cli/replay_command.h"
 #include "cli/track_command.h"
 
+#ifndef PREVIS_VERSION
+#define PREVIS_VERSION "unknown"
+#endif
+
 int main(int argc, char** argv) {
-    CLI::App app("previs: on-set AR previsualization (differential progressive path tracing)");
+    using namespace previs;
+    CLI::App app("previs: on-set AR previsualization (differential progressive path tracing)",
+                 "previs");
+    app.set_version_flag("--version", "previs " PREVIS_VERSION);
     app.require_subcommand(1);
-    auto runRender = previs::addRenderCommand(app);
-    auto runTrack = previs::addTrackCommand(app);
-    auto runEnvmap = previs::addEnvmapCommand(app);
-    auto runLights = previs::addLightsCommand(app);
-    auto runBench = previs::addBenchCommand(app);
-    auto runReplay = previs::addReplayCommand(app);
-    auto runCtl = previs::addCtlCommand(app);
-    auto runCompare = previs::addCompareCommand(app);
-    try {
-        app.parse(argc, argv);
-    } catch (const CLI::ParseError& e) {
-        // Usage errors exit with 2 (DESIGN.md §3), --help with 0.
-        int code = app.exit(e);
-        return code == 0 ? 0 : 2;
+    useOneLineUsageErrors(app);
+    auto runRender = addRenderCommand(app);
+    auto runTrack = addTrackCommand(app);
+    auto runEnvmap = addEnvmapCommand(app);
+    auto runLights = addLightsCommand(app);
+    auto runBench = addBenchCommand(app);
+    auto runReplay = addReplayCommand(app);
+    auto runCtl = addCtlCommand(app);
+    auto runCompare = addCompareCommand(app);
+    std::vector<std::string> names;
+    for (const CLI::App* sub : app.get_subcommands({})) names.push_back(sub->get_name());
+    if (argc > 1 && argv[1][0] != '-' &&
+        std::find(names.begin(), names.end(), argv[1]) == names.end()) {
+        std::fprintf(stderr, "previs: '%s' is not a command (%s); see previs --help\n", argv[1],
+                     joined(names).c_str());
+        return kExitUsage;
     }
-    if (app.got_subcommand("render")) return runRender();
-    if (app.got_subcommand("track")) return runTrack();
-    if (app.got_subcommand("envmap")) return runEnvmap();
-    if (app.got_subcommand("lights")) return runLights();
-    if (app.got_subcommand("bench")) return runBench();
-    if (app.got_subcommand("replay")) return runReplay();
-    if (app.got_subcommand("ctl")) return runCtl();
-    if (app.got_subcommand("compare")) return runCompare();
-    return 2;
+    if (auto exitCode = parseCommandLine(app, argc, argv)) return *exitCode;
+    return runReportingExceptions("previs", [&] {
+        if (app.got_subcommand("render")) return runRender();
+        if (app.got_subcommand("track")) return runTrack();
+        if (app.got_subcommand("envmap")) return runEnvmap();
+        if (app.got_subcommand("lights")) return runLights();
+        if (app.got_subcommand("bench")) return runBench();
+        if (app.got_subcommand("replay")) return runReplay();
+        if (app.got_subcommand("ctl")) return runCtl();
+        if (app.got_subcommand("compare")) return runCompare();
+        return kExitUsage;
+    });
 }

@@ -8,6 +8,10 @@
 #include <optional>
 
 #include "base/log.h"
+#include "base/output_path.h"
+#include "base/progress.h"
+#include "base/strings.h"
+#include "cli/tone_curve_options.h"
 #include "config/scene_description.h"
 #include "gpu/context.h"
 #include "image/image.h"
@@ -42,16 +46,12 @@ struct RenderOptions {
     float photonRadius = 0.0f;
     float photonAlpha = 2.0f / 3.0f;
     std::string out;
-    float exposure = 0.0f;
-    std::string toneMap = "clamp";
+    ToneCurveOptions output;  // PNG output
     float fireflyClamp = 0.0f;
     bool quiet = false;
     bool timing = false;
     std::string plate;
-    std::string plateToneMap = "srgb";
-    float plateExposure = 0.0f;
-    float plateMaxRadiance = 16.0f;
-    float plateWhite = 16.0f;
+    ToneCurveOptions plateCurve;
     std::vector<std::string> aovs;
     std::string calibration;
     std::vector<uint32_t> checkpoints;  // also write the image at these sample counts
@@ -63,10 +63,6 @@ std::string aovPath(const std::string& out, const std::string& aov) {
     return (p.parent_path() / (p.stem().string() + "." + aov + ".exr")).string();
 }
 
-bool endsWith(const std::string& s, const std::string& suffix) {
-    return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
-}
-
 int run(const RenderOptions& o) {
     if (!endsWith(o.out, ".exr") && !endsWith(o.out, ".png")) {
         logError("--out {}: the output must end in .exr (linear HDR) or .png (tone mapped)", o.out);
@@ -74,6 +70,10 @@ int run(const RenderOptions& o) {
     }
     if (o.spp > 0 && o.seconds > 0.0) {
         logError("give either --spp or --seconds, not both");
+        return 2;
+    }
+    if (Status s = checkOutputFile("--out", o.out); !s) {
+        logError("{}", s.message());
         return 2;
     }
     // --timing: the stages from here to the image in memory (the file write excluded).
@@ -85,18 +85,23 @@ int run(const RenderOptions& o) {
     auto scene = loadScene(o.scene);
     if (!scene) {
         logError("{}", scene.message());
-        return 1;
+        return 2;
     }
     if (!o.env.empty()) {
         auto env = loadEnvironmentMap(o.env);
         if (!env) {
             logError("{}", env.message());
-            return 1;
+            return 2;
         }
         // --env replaces the description's whole [environment]: its rotation and scale were
         // set for its own map, not for this one.
         scene->environment = std::move(env.value());
     }
+    if (!scene->environment && !hasLightSource(*scene))
+        logWarning("{}: the scene has no light source (no KHR_lights_punctual light, no emissive "
+                   "material) and no environment map, so it renders black; add --env studio for "
+                   "neutral studio lighting, or --env MAP.exr",
+                   o.scene);
     if (scene->environment) {
         if (o.envRotationDeg)
             scene->environment->rotationRad = *o.envRotationDeg * float(M_PI / 180.0);
@@ -143,20 +148,10 @@ int run(const RenderOptions& o) {
         auto img = readImage(o.plate);
         if (!img) {
             logError("{}", img.message());
-            return 1;
+            return 2;
         }
         if (img->ldrSrgb) {
-            InverseToneMapSettings itm;
-            auto op = parseInverseToneMapOperator(o.plateToneMap);
-            if (!op) {
-                logError("--plate-tonemap {}: not available in this build", o.plateToneMap);
-                return 2;
-            }
-            itm.op = *op;
-            itm.exposureStops = o.plateExposure;
-            itm.maxRadiance = o.plateMaxRadiance;
-            itm.whiteLuminance = o.plateWhite;
-            plate = inverseToneMap(*img, itm);
+            plate = inverseToneMap(*img, o.plateCurve.inverse());
         } else {
             plate = std::move(img.value());
         }
@@ -218,22 +213,22 @@ int run(const RenderOptions& o) {
         return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     };
     uint32_t target = o.spp ? o.spp : (o.seconds > 0.0 ? UINT32_MAX : 64);
+    ProgressLine progress("render", o.quiet);
     while ((*renderer)->samplesPerPixel() < target) {
         if (Status s = (*renderer)->render(1); !s) {
             logError("{}", s.message());
             return 1;
         }
-        if (!o.quiet) {
+        {
             const Renderer& r = **renderer;
             // Photons: per iteration, and the radius the next iteration gathers with.
             std::string photons = r.photonsActive()
                                       ? fmt::format(", {} photons/iteration, radius {:.3g} m",
                                                     r.photonsPerIteration(), r.nextPhotonRadius())
                                       : "";
-            std::fprintf(stderr, "\rrender: %llu%s spp, %.1f s%s   ",
-                         (unsigned long long)r.samplesPerPixel(),
-                         o.spp ? fmt::format("/{}", o.spp).c_str() : "", elapsed(),
-                         photons.c_str());
+            progress.update(fmt::format("{}{} spp, {:.1f} s{}", r.samplesPerPixel(),
+                                        o.spp ? fmt::format("/{}", o.spp) : "", elapsed(),
+                                        photons));
         }
         const uint64_t done = (*renderer)->samplesPerPixel();
         if (std::find(o.checkpoints.begin(), o.checkpoints.end(), done) != o.checkpoints.end()) {
@@ -254,7 +249,7 @@ int run(const RenderOptions& o) {
         }
         if (o.seconds > 0.0 && elapsed() >= o.seconds) break;
     }
-    if (!o.quiet) std::fprintf(stderr, "\n");
+    progress.finish();
     const double renderSeconds = elapsed();
     const auto readbackStart = Clock::now();
     auto nonFinite = (*renderer)->nonFiniteSamples();
@@ -282,10 +277,8 @@ int run(const RenderOptions& o) {
     if (endsWith(o.out, ".exr")) {
         written = writeExr(o.out, *image);
     } else {
-        ToneMapSettings tm;
-        tm.exposureStops = o.exposure;
-        tm.op = *parseToneMapOperator(o.toneMap);
-        written = writePng(o.out, image->width, image->height, toneMapToSrgb8(*image, tm));
+        written = writePng(o.out, image->width, image->height,
+                           toneMapToSrgb8(*image, o.output.forward()));
     }
     if (!written) {
         logError("{}", written.message());
@@ -317,8 +310,14 @@ std::function<int()> addRenderCommand(CLI::App& app) {
     cmd->add_option("SCENE", o->scene, "scene: .gltf, .glb or previs.toml")
         ->required()
         ->check(CLI::ExistingFile);
-    cmd->add_option("--env", o->env, "equirectangular HDR environment map (.exr or .hdr)")
-        ->check(CLI::ExistingFile);
+    cmd->add_option("--env", o->env,
+                    "equirectangular HDR environment map (.exr or .hdr), or 'studio' for the "
+                    "bundled neutral studio lighting")
+        ->check(CLI::Validator(
+            [](std::string& value) {
+                return value == kStudioEnvironment ? std::string() : CLI::ExistingFile(value);
+            },
+            "FILE|studio"));
     cmd->add_option("--env-rotation", o->envRotationDeg,
                     "rotate the map about +Y, degrees (counter-clockwise seen from above)");
     cmd->add_option("--env-scale", o->envScale, "multiply the map's radiance")
@@ -358,9 +357,7 @@ std::function<int()> addRenderCommand(CLI::App& app) {
                     "also write OUT_STEM.sppN.exr at these sample counts (N1,N2,...), and print "
                     "each one's time since start: a convergence curve from one run")
         ->delimiter(',');
-    cmd->add_option("--exposure", o->exposure, "PNG output: exposure in stops");
-    cmd->add_option("--tonemap", o->toneMap, "PNG output: clamp, reinhard or reinhard-extended")
-        ->check(CLI::IsMember({"clamp", "reinhard", "reinhard-extended"}));
+    o->output.addTo(cmd, "", "PNG output", false);
     cmd->add_option("--firefly-clamp", o->fireflyClamp,
                     "clamp each sample's luminance to this (biased; off by default)")
         ->check(CLI::NonNegativeNumber);
@@ -374,15 +371,7 @@ std::function<int()> addRenderCommand(CLI::App& app) {
                     "camera image to composite into: PNG/JPEG (sRGB, inverse tone mapped) or "
                     "OpenEXR (linear, used as is); sets the resolution")
         ->check(CLI::ExistingFile);
-    cmd->add_option("--plate-tonemap", o->plateToneMap,
-                    "inverse tone mapping of an LDR plate: srgb, reinhard or banterle")
-        ->check(CLI::IsMember({"srgb", "reinhard", "banterle"}));
-    cmd->add_option("--plate-exposure", o->plateExposure, "LDR plate exposure, stops");
-    cmd->add_option("--plate-max-radiance", o->plateMaxRadiance,
-                    "banterle: radiance that 8-bit white maps to (L_max)")
-        ->check(CLI::PositiveNumber);
-    cmd->add_option("--plate-white", o->plateWhite, "banterle: Reinhard white point L_white")
-        ->check(CLI::PositiveNumber);
+    o->plateCurve.addTo(cmd, "plate-", "LDR plate", true);
     cmd->add_option("--aov", o->aovs,
                     "also write buffers as OUT.<aov>.exr: composite, mixed, real, mask")
         ->delimiter(',')

@@ -7,7 +7,9 @@
 #include <opencv2/core/utils/logger.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "base/command_line.h"
 #include "base/log.h"
+#include "base/progress.h"
 #include "config/board_file.h"
 #include "vision/board_pose.h"
 #include "vision/camera_calibration.h"
@@ -96,6 +98,7 @@ int run(TrackOptions& o) {
     }
 
     int failures = 0;
+    ProgressLine progress("track", o.quiet);
     for (size_t n = 0; n < o.images.size(); ++n) {
         const std::string& path = o.images[n];
         cv::Mat gray;
@@ -161,10 +164,10 @@ int run(TrackOptions& o) {
             printText(path, detections, tagPoses, pose);
         }
         std::fflush(stdout);
-        if (!o.quiet && o.images.size() > 1)
-            std::fprintf(stderr, "track: %zu/%zu %s\n", n + 1, o.images.size(), path.c_str());
+        if (o.images.size() > 1)
+            progress.update(fmt::format("{}/{} {}", n + 1, o.images.size(), path));
     }
-    return failures > 0 ? 1 : 0;
+    return failures > 0 ? kExitUsage : kExitOk;  // an image that cannot be read is bad input
 }
 
 }  // namespace

@@ -125,10 +125,14 @@ Status DescriptionReader::parse(const toml::table& root, Description& d) const {
         if (!map) return map.error();
         if (!*map)
             return fail(env, "[environment] needs 'map' (an equirectangular .exr or .hdr file)");
-        Result<std::string> mapPath =
-            r_.file(*env->get("map"), "environment.map", **map, {".exr", ".hdr"}, "linear HDR");
-        if (!mapPath) return mapPath.error();
-        d.environmentPath = std::move(*mapPath);
+        if (**map == kStudioEnvironment) {
+            d.environmentPath = kStudioEnvironment;  // the bundled one, not a file
+        } else {
+            Result<std::string> mapPath = r_.file(*env->get("map"), "environment.map", **map,
+                                                  {".exr", ".hdr"}, "linear HDR");
+            if (!mapPath) return mapPath.error();
+            d.environmentPath = std::move(*mapPath);
+        }
         d.environmentNode = env->get("map");
 
         Result<std::optional<double>> rotation = r_.number(*env, "environment", "rotation_deg");

@@ -39,22 +39,6 @@ std::optional<double> asNumber(const toml::node& node) {
 
 }  // namespace
 
-std::string lowerExtension(const std::string& path) {
-    std::string ext = fs::path(path).extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(),
-                   [](unsigned char c) { return char(std::tolower(c)); });
-    return ext;
-}
-
-std::string joined(std::initializer_list<std::string_view> items) {
-    std::string out;
-    for (std::string_view item : items) {
-        if (!out.empty()) out += ", ";
-        out += item;
-    }
-    return out;
-}
-
 TomlReader::TomlReader(std::string path, std::string what)
     : path_(std::move(path)), what_(std::move(what)), folder_(fs::path(path_).parent_path()) {}
 

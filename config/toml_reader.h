@@ -18,6 +18,7 @@
 #include <toml++/toml.h>
 
 #include "base/result.h"
+#include "base/strings.h"
 
 
 namespace previs {
@@ -86,9 +87,5 @@ Result<toml::table> parseTomlFile(const std::string& path, const std::string& wh
 
 // "a string", "an integer", ... for messages.
 const char* tomlTypeName(const toml::node& node);
-// Lower-case extension with its dot ("" when none).
-std::string lowerExtension(const std::string& path);
-// "a, b, c".
-std::string joined(std::initializer_list<std::string_view> items);
 
 }  // namespace previs

@@ -14,6 +14,7 @@
 #include <filesystem>
 #include <optional>
 
+#include "base/guarded_thread.h"
 #include "base/log.h"
 
 namespace previs {
@@ -108,7 +109,8 @@ Result<std::unique_ptr<ControlServer>> ControlServer::create(const std::string& 
         new ControlServer(path, std::move(fd), std::move(handler)));
     if (!server->wake_.isValid())
         return makeError("control socket: eventfd: {}", std::strerror(errno));
-    server->thread_ = std::thread([s = server.get()] { s->run(); });
+    server->thread_ =
+        std::thread([s = server.get()] { runGuarded("control socket", [s] { s->run(); }); });
     return server;
 }
 

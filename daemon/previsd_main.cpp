@@ -3,6 +3,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "base/command_line.h"
 #include "base/log.h"
 #include "config/scene_description.h"
 #include "config/service_config.h"
@@ -37,22 +38,7 @@ int check(const ServiceConfig& config) {
     return 0;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-    setLogProgramName("previsd");
-    CLI::App app{"previsd: the previs on-set service"};
-    std::string configPath;
-    bool checkOnly = false;
-    app.add_option("--config", configPath, "the service config (docs/config-format.md)")
-        ->required();
-    app.add_flag("--check", checkOnly, "validate the config and everything it names, then exit");
-    try {
-        app.parse(argc, argv);
-    } catch (const CLI::ParseError& e) {
-        const int code = app.exit(e);
-        return e.get_exit_code() == 0 ? 0 : (code == 0 ? 0 : 2);
-    }
+int run(const std::string& configPath, bool checkOnly) {
     Result<ServiceConfig> config = loadServiceConfig(configPath);
     if (!config) {
         logError("{}", config.message());
@@ -69,4 +55,20 @@ int main(int argc, char** argv) {
         return userError ? 2 : 1;
     }
     return (*service)->run();
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    setLogProgramName("previsd");
+    CLI::App app{"previsd: the previs on-set service", "previsd"};
+    app.set_version_flag("--version", "previsd " PREVIS_VERSION);
+    useOneLineUsageErrors(app);
+    std::string configPath;
+    bool checkOnly = false;
+    app.add_option("--config", configPath, "the service config (docs/config-format.md)")
+        ->required();
+    app.add_flag("--check", checkOnly, "validate the config and everything it names, then exit");
+    if (auto exitCode = parseCommandLine(app, argc, argv)) return *exitCode;
+    return runReportingExceptions("previsd", [&] { return run(configPath, checkOnly); });
 }

@@ -6,6 +6,7 @@
 #include <fstream>
 
 #include "base/log.h"
+#include "base/progress.h"
 #include "capture/recorded_source.h"
 #include "config/scene_description.h"
 #include "config/service_config.h"
@@ -162,6 +163,7 @@ int runReplay(const ReplayOptions& o) {
     std::optional<TrackedFrame> frozen;
     uint64_t written = 0;
     const Clock::time_point start = Clock::now();
+    ProgressLine progress("replay", o.quiet);
 
     for (;;) {
         Result<std::shared_ptr<Frame>> next = nextFrame(**sceneReader, sceneSequence);
@@ -259,17 +261,15 @@ int runReplay(const ReplayOptions& o) {
             }
         csv << "\n";
         ++written;
-        if (!o.quiet)
-            std::fprintf(stderr, "\rreplay: frame %llu, %s, %llu spp, %.0f ms   ",
-                         (unsigned long long)written - 1, toString(mode),
-                         (unsigned long long)(*renderer)->samples(), renderMs);
+        progress.update(fmt::format("frame {}, {}, {} spp, {:.0f} ms", written - 1,
+                                    toString(mode), (*renderer)->samples(), renderMs));
     }
     csv.flush();
     if (!csv) {
         logError("replay: writing {} failed (disk full?)", csvPath);
         return 1;
     }
-    if (!o.quiet) std::fprintf(stderr, "\n");
+    progress.finish();
     if (unknownEvents > 0)
         logInfo("replay: {} event(s) of sources this previs does not know were skipped",
                 unknownEvents);

@@ -14,6 +14,7 @@
 #include <cstring>
 #include <nlohmann/json.hpp>
 
+#include "base/guarded_thread.h"
 #include "base/log.h"
 #include "capture/unique_fd.h"
 #include "config/scene_description.h"
@@ -28,7 +29,7 @@
 #include "io/gpio_button.h"
 #include "io/status_led.h"
 #include "systemd/notify.h"
-#include "vision/latest_value_slot.h"
+#include "base/latest_value_slot.h"
 
 namespace previs {
 
@@ -150,7 +151,10 @@ struct Service::Threads {
     std::atomic<int64_t> heartbeatNs{0};
     std::atomic<uint64_t> droppedRender{0};
     std::atomic<uint64_t> lightingUpdates{0};
-    std::atomic<bool> renderFailed{false};
+    // Set by a stage thread that cannot go on (its reason logged); run() then exits 1 so that
+    // systemd restarts the service.
+    std::atomic<bool> pipelineFailed{false};
+    void stageFailed(const std::string&) { pipelineFailed.store(true); }
 
     // Settings SIGHUP may change while running.
     std::mutex settingsMutex;
@@ -180,7 +184,7 @@ void Service::Threads::runTracking(const ModeMachine& modes) {
     Clock::time_point lastTracked{};
     while (!stopping.load()) {
         std::shared_ptr<const Frame> frame =
-            sceneCamera->frames().waitTake(std::chrono::milliseconds(100));
+            sceneCamera->frames().waitTakeFor(std::chrono::milliseconds(100));
         if (!frame) continue;
         if (recordedEvents) {
             std::vector<SessionEvent> due = recordedEvents->due(frame->deviceSequence);
@@ -205,7 +209,7 @@ void Service::Threads::runLighting() {
     uint64_t failures = 0;
     while (!stopping.load()) {
         std::shared_ptr<const Frame> frame =
-            fisheyeCamera->frames().waitTake(std::chrono::milliseconds(100));
+            fisheyeCamera->frames().waitTakeFor(std::chrono::milliseconds(100));
         if (!frame || !lighting->due(*frame)) continue;
         Result<std::shared_ptr<const LiveLighting>> lit = lighting->process(*frame);
         if (!lit) {
@@ -319,7 +323,7 @@ void Service::Threads::runRender(ModeMachine& modes) {
             frozenLighting = lightingSnapshots.latest();
             if (Status s = r.beginRefine(*frozen, frozenLighting); !s) {
                 logError("render: cannot start refinement: {}", s.message());
-                renderFailed.store(true);
+                pipelineFailed.store(true);
                 return;
             }
             refining = true;
@@ -365,7 +369,7 @@ void Service::Threads::runRender(ModeMachine& modes) {
             }
             if (Status s = r.renderPreview(*frame, lightingSnapshots.latest()); !s) {
                 logError("render: {}", s.message());
-                renderFailed.store(true);
+                pipelineFailed.store(true);
                 return;
             }
             current = frame;
@@ -417,7 +421,7 @@ void Service::Threads::runRender(ModeMachine& modes) {
         const Clock::time_point start = Clock::now();
         if (Status s = r.refineStep(step); !s) {
             logError("render: {}", s.message());
-            renderFailed.store(true);
+            pipelineFailed.store(true);
             return;
         }
         msPerSample =
@@ -535,10 +539,19 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config, bo
     if (config.fisheyeCamera) {
         t.fisheyeCamera = makeCameraSource(*config.fisheyeCamera, config.loopSession);
         if (Status s = t.fisheyeCamera->start(); !s) return s.error();
-        t.lightingThread = std::thread([&t] { t.runLighting(); });
+        t.lightingThread = std::thread([&t] {
+            runGuarded("lighting", [&t] { t.runLighting(); },
+                       [&t](const std::string& why) { t.stageFailed(why); });
+        });
     }
-    t.trackingThread = std::thread([&t, self] { t.runTracking(self->modes_); });
-    t.renderThread = std::thread([&t, self] { t.runRender(self->modes_); });
+    t.trackingThread = std::thread([&t, self] {
+        runGuarded("tracking", [&t, self] { t.runTracking(self->modes_); },
+                   [&t](const std::string& why) { t.stageFailed(why); });
+    });
+    t.renderThread = std::thread([&t, self] {
+        runGuarded("render", [&t, self] { t.runRender(self->modes_); },
+                   [&t](const std::string& why) { t.stageFailed(why); });
+    });
     service->stopFd_ = t.stopEvent.get();
 
     // The control socket last: a status request may come the moment it listens.
@@ -719,8 +732,8 @@ int Service::run() {
             }
             if (stop) break;
         }
-        if (t.renderFailed.load()) {
-            logError("the render thread failed; exiting so the service restarts");
+        if (t.pipelineFailed.load()) {
+            logError("a pipeline thread failed (see above); exiting so the service restarts");
             exitCode = 1;
             break;
         }

@@ -2,13 +2,25 @@
 
 #include <chrono>
 
+#include "base/guarded_thread.h"
 #include "base/log.h"
 
 namespace previs {
 
 DisplayThread::DisplayThread(std::unique_ptr<FrameOutput> output) : output_(std::move(output)) {
     stats_.kind = output_->kind();
-    thread_ = std::thread([this] { run(); });
+    thread_ = std::thread([this] {
+        // run() returns only when stopping; an exception from an output counts as a failed
+        // frame and the loop goes on with the next one.
+        for (bool failed = true; failed;) {
+            failed = false;
+            runGuarded("display", [this] { run(); }, [&](const std::string&) {
+                failed = true;
+                std::lock_guard lock(statsMutex_);
+                ++stats_.failed;
+            });
+        }
+    });
 }
 
 DisplayThread::~DisplayThread() { stop(); }

@@ -12,7 +12,7 @@
 #include <thread>
 
 #include "display/frame_output.h"
-#include "vision/latest_value_slot.h"
+#include "base/latest_value_slot.h"
 
 namespace previs {
 

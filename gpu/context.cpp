@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "base/log.h"
+#include "base/strings.h"
 
 #if defined(__SANITIZE_ADDRESS__)
 #include <dlfcn.h>
@@ -31,11 +32,6 @@ void keepLavapipeLoadedUnderSanitizers() {
 }  // namespace
 
 namespace {
-
-std::string lowercase(std::string s) {
-    std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
-    return s;
-}
 
 // Higher is preferred: discrete, integrated, virtual, then CPU.
 int deviceTypeRank(vk::PhysicalDeviceType type) {

@@ -27,16 +27,11 @@
 #include <png.h>
 #include <stb_image.h>
 
+#include "base/strings.h"
+
 namespace previs {
 
 namespace {
-
-std::string lowerExtension(const std::string& path) {
-    std::string ext = std::filesystem::path(path).extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(),
-                   [](unsigned char c) { return char(std::tolower(c)); });
-    return ext;
-}
 
 // A missing file or folder gets its own message: it is the most common mistake and the library
 // messages for it are cryptic.

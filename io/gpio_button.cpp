@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <vector>
 
+#include "base/guarded_thread.h"
 #include "base/log.h"
 
 namespace previs {
@@ -206,7 +207,9 @@ Result<std::unique_ptr<GpioButton>> GpioButton::create(const ButtonSettings& set
     if (level < 0)
         return makeError("gpio: cannot read {}: {}", button->description_, std::strerror(errno));
     button->classifier_.reset(monotonicNs(), level == 1);
-    button->thread_ = std::thread([b = button.get()] { b->run(); });
+    // A failure here leaves the box without its button (the control socket still works): said
+    // once, in the log, by runGuarded.
+    button->thread_ = std::thread([b = button.get()] { runGuarded("button", [b] { b->run(); }); });
     logInfo("button: watching {}{}", button->description_,
             settings.activeLow ? " (active low)" : "");
     return button;

@@ -13,6 +13,7 @@
 #include "shared/photon_map.h"
 #include "shared/scene_types.h"
 #include "shared/specular_albedo.h"
+#include "shared/texture_sampling.h"
 #include "trace_paths.spv.h"
 
 namespace previs {
@@ -355,7 +356,16 @@ Status Renderer::buildScene(const Scene& scene) {
     std::vector<shader::TextureInfo> textureInfos;
     std::vector<uint32_t> texels;
     for (const Texture& t : scene.textures) {
-        textureInfos.push_back({uint32_t(texels.size()), t.width, t.height, t.srgb ? 1u : 0u});
+        auto wrap = [](TextureWrap w) {
+            return w == TextureWrap::MirroredRepeat ? PV_WRAP_MIRRORED_REPEAT
+                   : w == TextureWrap::ClampToEdge  ? PV_WRAP_CLAMP_TO_EDGE
+                                                    : PV_WRAP_REPEAT;
+        };
+        const uint32_t flags = (t.srgb ? PV_TEXTURE_SRGB : 0u) |
+                               wrap(t.wrapS) << PV_TEXTURE_WRAP_S_SHIFT |
+                               wrap(t.wrapT) << PV_TEXTURE_WRAP_T_SHIFT |
+                               (t.nearest ? PV_TEXTURE_NEAREST : 0u);
+        textureInfos.push_back({uint32_t(texels.size()), t.width, t.height, flags});
         texels.insert(texels.end(), t.rgba8.begin(), t.rgba8.end());
     }
 

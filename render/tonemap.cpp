@@ -4,13 +4,16 @@
 #include <cmath>
 
 #include "base/log.h"
+#include "base/luminance.h"
 
 namespace previs {
 
 std::optional<ToneMapOperator> parseToneMapOperator(const std::string& name) {
-    if (name == "clamp") return ToneMapOperator::Clamp;
+    // srgb and banterle: the names of the inverse operators (vision/inverse_tone_map.h), so one
+    // curve name serves both directions.
+    if (name == "clamp" || name == "srgb") return ToneMapOperator::Clamp;
     if (name == "reinhard") return ToneMapOperator::Reinhard;
-    if (name == "reinhard-extended") return ToneMapOperator::ReinhardExtended;
+    if (name == "reinhard-extended" || name == "banterle") return ToneMapOperator::ReinhardExtended;
     return std::nullopt;
 }
 
@@ -33,7 +36,7 @@ inline float reinhardExtendedRatio(float lw, float maxRadiance, float whiteLumin
 // Exposed radiance (finite, ≥ 0) → linear display values, in place.
 inline void tonemap(float rgb[3], const ToneMapSettings& settings) {
     if (settings.op == ToneMapOperator::Clamp) return;
-    const float lum = 0.2126f * rgb[0] + 0.7152f * rgb[1] + 0.0722f * rgb[2];
+    const float lum = luminance(rgb[0], rgb[1], rgb[2]);
     float k = 1.0f;
     if (settings.op == ToneMapOperator::Reinhard)
         k = lum > 0.0f ? 1.0f / (1.0f + lum) : 1.0f;

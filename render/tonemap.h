@@ -22,7 +22,7 @@ enum class ToneMapOperator {
     ReinhardExtended,
 };
 
-// "clamp", "reinhard", "reinhard-extended".
+// "srgb" (or "clamp"), "reinhard", "banterle" (or "reinhard-extended").
 std::optional<ToneMapOperator> parseToneMapOperator(const std::string& name);
 
 struct ToneMapSettings {

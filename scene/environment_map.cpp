@@ -5,14 +5,46 @@
 #include <filesystem>
 
 #include "base/log.h"
+#include "base/strings.h"
 #include "image/image.h"
 
 namespace previs {
 
+EnvironmentMap studioEnvironment() {
+    EnvironmentMap map;
+    map.path = kStudioEnvironment;
+    map.width = 256;
+    map.height = 128;
+    map.radiance.resize(size_t(map.width) * map.height);
+    struct Softbox {
+        float azimuthRad, elevationRad, halfWidthRad, halfHeightRad, radiance;
+    };
+    const float deg = float(M_PI / 180.0);
+    // Azimuth as DESIGN.md §4's u: 0 along +X, growing toward +Z.
+    const Softbox boxes[] = {{45.0f * deg, 45.0f * deg, 20.0f * deg, 12.5f * deg, 8.0f},
+                             {-135.0f * deg, 20.0f * deg, 25.0f * deg, 15.0f * deg, 3.0f}};
+    for (uint32_t y = 0; y < map.height; ++y) {
+        // Texel centres; v = 0.5 − elevation / π, u = 0.5 + azimuth / 2π (DESIGN.md §4).
+        const float elevation = (0.5f - (float(y) + 0.5f) / float(map.height)) * float(M_PI);
+        for (uint32_t x = 0; x < map.width; ++x) {
+            const float azimuth = ((float(x) + 0.5f) / float(map.width) - 0.5f) * float(2.0 * M_PI);
+            float value = elevation < 0.0f ? 0.15f
+                                           : 0.5f + 0.3f * std::sin(elevation);
+            for (const Softbox& b : boxes) {
+                float da = std::remainder(azimuth - b.azimuthRad, float(2.0 * M_PI));
+                if (std::abs(da) < b.halfWidthRad &&
+                    std::abs(elevation - b.elevationRad) < b.halfHeightRad)
+                    value = b.radiance;
+            }
+            map.radiance[size_t(y) * map.width + x] = glm::vec3(value);
+        }
+    }
+    return map;
+}
+
 Result<EnvironmentMap> loadEnvironmentMap(const std::string& path) {
-    std::string ext = std::filesystem::path(path).extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(),
-                   [](unsigned char c) { return char(std::tolower(c)); });
+    if (path == kStudioEnvironment) return studioEnvironment();
+    const std::string ext = lowerExtension(path);
     if (ext != ".exr" && ext != ".hdr")
         return makeError(
             "cannot load environment map '{}': unsupported extension '{}' (use a linear HDR "

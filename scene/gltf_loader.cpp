@@ -6,11 +6,13 @@
 #include <cstring>
 #include <exception>
 #include <filesystem>
+#include <fstream>
 #include <map>
 #include <memory>
 #include <optional>
 #include <set>
 #include <span>
+#include <tuple>
 #include <utility>
 
 #include <fnmatch.h>
@@ -21,18 +23,28 @@
 #include <tiny_gltf.h>
 
 #include "base/log.h"
+#include "base/strings.h"
 #include "image/image.h"
 
 namespace previs {
 namespace {
 
-// Extensions this loader implements; any other one listed in extensionsRequired means the file
-// cannot be shown correctly, so loading fails (glTF 2.0 spec §3.12). KHR_texture_transform is
-// deliberately absent: silently ignoring it would misplace textures.
-const std::set<std::string> kSupportedRequiredExtensions = {
+// Extensions this loader implements. Any other one listed in extensionsRequired means the file
+// cannot be shown correctly, so loading fails (glTF 2.0 spec §3.12); any other one merely used is
+// ignored, with one warning listing them all. KHR_texture_transform is deliberately absent:
+// ignoring it misplaces textures, which the warning says.
+const std::set<std::string> kSupportedExtensions = {
     "KHR_materials_transmission", "KHR_materials_ior",   "KHR_materials_specular",
     "KHR_materials_emissive_strength", "KHR_materials_volume", "KHR_lights_punctual",
 };
+
+// KHR_lights_punctual gives photometric intensities (candela for point and spot lights, lux for
+// directional ones); previs renders radiometric ones (W/sr, W/m², DESIGN.md §4 "radiance in the
+// scene's units"). 683 lm/W is the factor Blender's glTF importer and exporter use
+// (io_scene_gltf2 PBR_WATTS_TO_LUMENS, lighting mode "Standard", their default): a Blender point
+// light of P watts is exported as P / 4π × 683 cd, a sun of S W/m² as S × 683 lx, so dividing by
+// 683 gives back Blender's P / 4π W/sr and S W/m² (docs/scene-format.md, "Units of light").
+constexpr double kLumensPerWatt = 683.0;
 
 // Deeper hierarchies than this are treated as malformed (a cycle, or a hostile file trying to
 // exhaust the stack).
@@ -70,22 +82,48 @@ bool decodeImage(tinygltf::Image* image, const int imageIndex, std::string* /*er
     return true;
 }
 
-// External buffers and images are read from regular files only. tinygltf's own callbacks open
-// whatever a URI names (even to test that it exists): a broken or hostile file naming a FIFO
-// blocked the loader forever, one naming a device would open it.
-bool fileExists(const std::string& path, void*) {
+// tinygltf's default file callbacks read a folder as if it were a file, of absurd size: an image
+// URI that decodes to a NUL byte ("%!Q...", tinygltf's tests/issue-416.gltf) names the glTF's own
+// folder and ends in std::bad_alloc. They also expand `~` and `$VARIABLES` in URIs. These take a
+// URI's name literally and read regular files only, up to kMaxExternalFileBytes (a GLB's 32-bit
+// limit: no valid buffer or image is larger).
+constexpr uint64_t kMaxExternalFileBytes = uint64_t(1) << 32;
+
+bool externalFileExists(const std::string& path, void* /*user*/) {
     std::error_code ec;
-    return std::filesystem::exists(path, ec);
+    return path.find('\0') == std::string::npos && std::filesystem::is_regular_file(path, ec);
 }
 
-bool readRegularFile(std::vector<unsigned char>* out, std::string* err, const std::string& path,
-                     void* user) {
+std::string expandNothing(const std::string& path, void* /*user*/) { return path; }
+
+bool readExternalFile(std::vector<unsigned char>* out, std::string* err, const std::string& path,
+                      void* /*user*/) {
     std::error_code ec;
-    if (!std::filesystem::is_regular_file(path, ec)) {
-        if (err) *err += "'" + path + "' is not a regular file\n";
+    if (path.find('\0') != std::string::npos) {
+        *err = "the URI decodes to a name containing a NUL byte";
         return false;
     }
-    return tinygltf::ReadWholeFile(out, err, path, user);
+    if (!std::filesystem::is_regular_file(path, ec)) {
+        *err = "not a regular file";
+        return false;
+    }
+    const uint64_t size = std::filesystem::file_size(path, ec);
+    if (ec) {
+        *err = ec.message();
+        return false;
+    }
+    if (size > kMaxExternalFileBytes) {
+        *err = fmt::format("{} bytes, more than the {} a glTF buffer or image can have", size,
+                           kMaxExternalFileBytes);
+        return false;
+    }
+    std::ifstream file(path, std::ios::binary);
+    out->resize(size);
+    if (!file.read(reinterpret_cast<char*>(out->data()), std::streamsize(size))) {
+        *err = "read error";
+        return false;
+    }
+    return true;
 }
 
 // tinygltf reports several problems as newline-separated text; one line reads better.
@@ -151,15 +189,17 @@ private:
         return options_.roleRulesOrigin.empty() ? std::string()
                                                 : " in " + options_.roleRulesOrigin;
     }
-    Status checkRequiredExtensions() const;
+    Status checkExtensions() const;
     Result<std::optional<bool>> roleByName(const tinygltf::Node& node, int nodeIndex);
     Status loadMaterials();
+    void clampToSpecification(Material& m, glm::vec3& emissive, float& strength) const;
     Result<int> textureFor(int gltfTexture, bool srgb, const std::string& materialName);
     Status visitNode(int nodeIndex, const glm::mat4& parentWorld, bool parentReal, int depth);
     Status loadMesh(int meshIndex, const glm::mat4& worldFromMesh, bool real);
     Status loadPrimitive(const tinygltf::Mesh& mesh, int meshIndex, size_t primIndex,
                          const glm::mat4& worldFromMesh, bool real);
     Status loadCamera(const tinygltf::Node& node, const glm::mat4& world);
+    void shiftTextureCoordinates(std::vector<float>& uvs, const Material& material) const;
     Status loadLight(const tinygltf::Node& node, const glm::mat4& world, bool real);
 
     // Reads `count` elements of `components` floats (float, or normalized unsigned integer types
@@ -178,23 +218,58 @@ private:
     std::vector<uint8_t> ruleMatched_;  // per role rule: did it match any visited node
     Scene scene_;
     int defaultMaterial_ = -1;
-    std::map<std::pair<int, bool>, int> textureMap_;  // (glTF image, srgb) -> Scene texture
+    // (glTF image, srgb, wrapS, wrapT, nearest) -> Scene texture
+    using TextureKey = std::tuple<int, bool, int, int, bool>;
+    std::map<TextureKey, int> textureMap_;
     std::set<int> warnedImages_;
     size_t degenerateTriangles_ = 0;
     size_t skippedPrimitives_ = 0;
     size_t replacedNormals_ = 0;
 };
 
-Status Loader::checkRequiredExtensions() const {
+std::string supportedExtensionList() {
+    std::string list;
+    for (const std::string& e : kSupportedExtensions) list += (list.empty() ? "" : ", ") + e;
+    return list;
+}
+
+Status Loader::checkExtensions() const {
     for (const std::string& ext : model_.extensionsRequired) {
-        if (!kSupportedRequiredExtensions.count(ext))
-            return fail("it requires the unsupported extension '{}' (supported: "
-                        "KHR_materials_transmission, KHR_materials_ior, KHR_materials_specular, "
-                        "KHR_materials_emissive_strength, KHR_materials_volume, "
-                        "KHR_lights_punctual); re-export "
-                        "without it",
-                        ext);
+        if (!kSupportedExtensions.count(ext))
+            return fail("it requires the extension '{}', which previs does not support "
+                        "(supported: {}); re-export without it",
+                        ext, supportedExtensionList());
     }
+    // extensionsUsed should list every extension the file uses, but exporters forget (tinygltf's
+    // Cube-textransform.gltf uses KHR_texture_transform without listing it): the objects that
+    // carry extensions are searched too.
+    std::set<std::string> used(model_.extensionsUsed.begin(), model_.extensionsUsed.end());
+    auto collect = [&](const tinygltf::ExtensionMap& extensions) {
+        for (const auto& [name, value] : extensions) used.insert(name);
+    };
+    collect(model_.extensions);
+    for (const tinygltf::Material& m : model_.materials) {
+        collect(m.extensions);
+        collect(m.pbrMetallicRoughness.baseColorTexture.extensions);
+        collect(m.pbrMetallicRoughness.metallicRoughnessTexture.extensions);
+        collect(m.normalTexture.extensions);
+        collect(m.occlusionTexture.extensions);
+        collect(m.emissiveTexture.extensions);
+    }
+    for (const tinygltf::Mesh& mesh : model_.meshes) {
+        collect(mesh.extensions);
+        for (const tinygltf::Primitive& prim : mesh.primitives) collect(prim.extensions);
+    }
+    for (const tinygltf::Node& n : model_.nodes) collect(n.extensions);
+    for (const tinygltf::Texture& t : model_.textures) collect(t.extensions);
+    for (const tinygltf::Image& i : model_.images) collect(i.extensions);
+    std::string ignored;
+    for (const std::string& ext : used)
+        if (!kSupportedExtensions.count(ext)) ignored += (ignored.empty() ? "" : ", ") + ext;
+    if (!ignored.empty())
+        logWarning("glTF '{}': ignoring the extensions it uses that previs does not support: {} "
+                   "(the file renders as if they were absent)",
+                   path_, ignored);
     return {};
 }
 
@@ -208,6 +283,39 @@ Result<int> Loader::textureFor(int gltfTexture, bool srgb, const std::string& ma
     if (size_t(source) >= model_.images.size())
         return fail("texture {} refers to image {}, but the file has {} images", gltfTexture,
                     source, model_.images.size());
+    // glTF 2.0 §5.26: a texture without a sampler repeats and filters as the viewer likes
+    // (bilinear here); magFilter NEAREST, or no magFilter and a NEAREST* minFilter, is nearest.
+    TextureWrap wrapS = TextureWrap::Repeat;
+    TextureWrap wrapT = TextureWrap::Repeat;
+    bool nearest = false;
+    if (const int samplerIndex = model_.textures[gltfTexture].sampler; samplerIndex >= 0) {
+        if (size_t(samplerIndex) >= model_.samplers.size())
+            return fail("texture {} refers to sampler {}, but the file has {} samplers",
+                        gltfTexture, samplerIndex, model_.samplers.size());
+        const tinygltf::Sampler& sampler = model_.samplers[samplerIndex];
+        auto wrap = [&](int mode, const char* axis) -> Result<TextureWrap> {
+            switch (mode) {
+                case TINYGLTF_TEXTURE_WRAP_REPEAT: return TextureWrap::Repeat;
+                case TINYGLTF_TEXTURE_WRAP_MIRRORED_REPEAT: return TextureWrap::MirroredRepeat;
+                case TINYGLTF_TEXTURE_WRAP_CLAMP_TO_EDGE: return TextureWrap::ClampToEdge;
+                default:
+                    return fail("sampler {} has {} {} (glTF allows 10497 REPEAT, 33648 "
+                                "MIRRORED_REPEAT, 33071 CLAMP_TO_EDGE)",
+                                samplerIndex, axis, mode);
+            }
+        };
+        Result<TextureWrap> s = wrap(sampler.wrapS, "wrapS");
+        if (!s) return s.error();
+        Result<TextureWrap> t = wrap(sampler.wrapT, "wrapT");
+        if (!t) return t.error();
+        wrapS = *s;
+        wrapT = *t;
+        nearest = sampler.magFilter == TINYGLTF_TEXTURE_FILTER_NEAREST ||
+                  (sampler.magFilter < 0 &&
+                   (sampler.minFilter == TINYGLTF_TEXTURE_FILTER_NEAREST ||
+                    sampler.minFilter == TINYGLTF_TEXTURE_FILTER_NEAREST_MIPMAP_NEAREST ||
+                    sampler.minFilter == TINYGLTF_TEXTURE_FILTER_NEAREST_MIPMAP_LINEAR));
+    }
     const tinygltf::Image& image = model_.images[source];
     if (image.image.empty() || image.width <= 0 || image.height <= 0 ||
         image.image.size() != size_t(image.width) * size_t(image.height) * 4) {
@@ -224,7 +332,7 @@ Result<int> Loader::textureFor(int gltfTexture, bool srgb, const std::string& ma
         }
         return -1;
     }
-    auto key = std::make_pair(source, srgb);
+    const TextureKey key{source, srgb, int(wrapS), int(wrapT), nearest};
     if (auto it = textureMap_.find(key); it != textureMap_.end()) return it->second;
 
     Texture texture;
@@ -232,6 +340,9 @@ Result<int> Loader::textureFor(int gltfTexture, bool srgb, const std::string& ma
     texture.width = uint32_t(image.width);
     texture.height = uint32_t(image.height);
     texture.srgb = srgb;
+    texture.wrapS = wrapS;
+    texture.wrapT = wrapT;
+    texture.nearest = nearest;
     texture.rgba8.resize(size_t(image.width) * size_t(image.height));
     for (size_t i = 0; i < texture.rgba8.size(); ++i) {
         const unsigned char* p = image.image.data() + i * 4;
@@ -242,6 +353,50 @@ Result<int> Loader::textureFor(int gltfTexture, bool srgb, const std::string& ma
     scene_.textures.push_back(std::move(texture));
     textureMap_[key] = index;
     return index;
+}
+
+// Each factor's range in the glTF 2.0 schema (material.pbrMetallicRoughness, material) and in the
+// extensions' schemas: colours and factors in [0, 1], specularColorFactor and emissiveStrength
+// >= 0, ior >= 1 or exactly 0. A value outside is clamped to the nearest end of its range, a
+// non-finite one (JSON numbers too large for a float) becomes the default; one warning per
+// material lists every change. ior 0 is valid glTF (a Fresnel term of 1 at every angle, for
+// specular-glossiness files), which previs's Fresnel cannot express: it is rendered with the
+// default 1.5, and the warning says so.
+void Loader::clampToSpecification(Material& m, glm::vec3& emissive, float& strength) const {
+    std::string changes;
+    auto note = [&](const std::string& what, float from, float to) {
+        changes += fmt::format("{}{} {} → {}", changes.empty() ? "" : ", ", what, from, to);
+    };
+    auto clampValue = [&](float& v, float lo, float hi, float fallback, const std::string& what) {
+        const float fixed = std::isfinite(v) ? std::clamp(v, lo, hi) : fallback;
+        if (fixed != v) note(what, v, fixed);
+        v = fixed;
+    };
+    const float kInf = std::numeric_limits<float>::infinity();
+    static const char* const kRgba[] = {"[0]", "[1]", "[2]", "[3]"};
+    for (int c = 0; c < 4; ++c)
+        clampValue(m.baseColor[c], 0.0f, 1.0f, 1.0f, std::string("baseColorFactor") + kRgba[c]);
+    clampValue(m.metallic, 0.0f, 1.0f, 1.0f, "metallicFactor");
+    clampValue(m.roughness, 0.0f, 1.0f, 1.0f, "roughnessFactor");
+    for (int c = 0; c < 3; ++c)
+        clampValue(emissive[c], 0.0f, 1.0f, 0.0f, std::string("emissiveFactor") + kRgba[c]);
+    clampValue(strength, 0.0f, kInf, 1.0f, "emissiveStrength");
+    clampValue(m.transmission, 0.0f, 1.0f, 0.0f, "transmissionFactor");
+    clampValue(m.specular, 0.0f, 1.0f, 1.0f, "specularFactor");
+    for (int c = 0; c < 3; ++c)
+        clampValue(m.specularColor[c], 0.0f, kInf, 1.0f,
+                   std::string("specularColorFactor") + kRgba[c]);
+    if (m.ior == 0.0f) {
+        changes += std::string(changes.empty() ? "" : ", ") +
+                   "ior 0 → 1.5 (0 means a Fresnel term of 1, which previs does not support)";
+        m.ior = 1.5f;
+    } else {
+        clampValue(m.ior, 1.0f, kInf, 1.5f, "ior");
+    }
+    if (!changes.empty())
+        logWarning("glTF '{}': material '{}' has values outside the glTF specification's "
+                   "ranges; using {}",
+                   path_, m.name, changes);
 }
 
 Status Loader::loadMaterials() {
@@ -258,16 +413,17 @@ Status Loader::loadMaterials() {
         glm::vec3 emissive(0.0f);
         if (m.emissiveFactor.size() == 3)
             emissive = glm::vec3(m.emissiveFactor[0], m.emissiveFactor[1], m.emissiveFactor[2]);
-        const float strength = numberOr(
+        float strength = numberOr(
             findExtension(m.extensions, "KHR_materials_emissive_strength"), "emissiveStrength",
             1.0f);
-        out.emission = emissive * strength;
         out.transmission = numberOr(findExtension(m.extensions, "KHR_materials_transmission"),
                                     "transmissionFactor", 0.0f);
         out.ior = numberOr(findExtension(m.extensions, "KHR_materials_ior"), "ior", 1.5f);
         const tinygltf::Value* specular = findExtension(m.extensions, "KHR_materials_specular");
         out.specular = numberOr(specular, "specularFactor", 1.0f);
         out.specularColor = vec3Or(specular, "specularColorFactor", glm::vec3(1.0f));
+        clampToSpecification(out, emissive, strength);
+        out.emission = emissive * strength;
         out.doubleSided = m.doubleSided;
         // glTF: transmission without a volume (no KHR_materials_volume, or thicknessFactor 0)
         // is a thin wall; with a thickness the mesh is the boundary of a refracting solid.
@@ -302,13 +458,6 @@ Status Loader::loadMaterials() {
             *slot.target = *t;
         }
 
-        const float values[] = {out.baseColor.r, out.baseColor.g, out.baseColor.b,
-                                out.baseColor.a, out.metallic,    out.roughness,
-                                out.transmission, out.ior,        out.specular,
-                                out.emission.r,  out.emission.g,  out.emission.b};
-        for (float v : values)
-            if (!std::isfinite(v))
-                return fail("material '{}' has a non-finite factor", out.name);
         scene_.materials.push_back(std::move(out));
     }
     return {};
@@ -626,6 +775,8 @@ Status Loader::loadPrimitive(const tinygltf::Mesh& mesh, int meshIndex, size_t p
         material = uint32_t(defaultMaterial_);
     }
 
+    shiftTextureCoordinates(uvs, scene_.materials[material]);
+
     const glm::mat3 linear(worldFromMesh);
     const glm::mat3 normalMatrix = glm::transpose(glm::inverse(linear));
     // A mirroring transform flips the winding; swap two indices so the geometric normal
@@ -742,6 +893,33 @@ Status Loader::loadPrimitive(const tinygltf::Mesh& mesh, int meshIndex, size_t p
     return {};
 }
 
+// Far from the origin a float texture coordinate keeps few fraction bits (at 1e7 none), and the
+// interpolation at a hit point rounds to them. Shifting a primitive's coordinates by an even
+// integer — a whole period of both REPEAT (1) and MIRRORED_REPEAT (2) — changes no texel a
+// sampler reads and brings them near 0, where the interpolation keeps its precision. An axis that
+// a CLAMP_TO_EDGE texture of the material reads is left as it is (there the shift would matter).
+void Loader::shiftTextureCoordinates(std::vector<float>& uvs, const Material& material) const {
+    if (uvs.empty()) return;
+    bool clampS = false;
+    bool clampT = false;
+    for (int t : {material.baseColorTexture, material.metallicRoughnessTexture,
+                  material.normalTexture, material.emissiveTexture}) {
+        if (t < 0) continue;
+        clampS |= scene_.textures[t].wrapS == TextureWrap::ClampToEdge;
+        clampT |= scene_.textures[t].wrapT == TextureWrap::ClampToEdge;
+    }
+    for (int axis = 0; axis < 2; ++axis) {
+        if (axis == 0 ? clampS : clampT) continue;
+        double lowest = std::numeric_limits<double>::infinity();
+        for (size_t i = axis; i < uvs.size(); i += 2)
+            if (std::isfinite(uvs[i])) lowest = std::min(lowest, double(uvs[i]));
+        if (!std::isfinite(lowest)) continue;
+        const double shift = 2.0 * std::floor(0.5 * lowest);
+        if (shift == 0.0) continue;
+        for (size_t i = axis; i < uvs.size(); i += 2) uvs[i] = float(double(uvs[i]) - shift);
+    }
+}
+
 Status Loader::loadCamera(const tinygltf::Node& node, const glm::mat4& world) {
     if (size_t(node.camera) >= model_.cameras.size())
         return fail("node '{}' refers to camera {}, but the file has {} cameras", node.name,
@@ -803,7 +981,8 @@ Status Loader::loadLight(const tinygltf::Node& node, const glm::mat4& world, boo
         return fail("light node '{}' has a degenerate transform", node.name);
     light.direction = len > 0.0f ? dir / len : glm::vec3(0.0f, 0.0f, -1.0f);
     if (l.color.size() == 3) light.color = glm::vec3(l.color[0], l.color[1], l.color[2]);
-    light.intensity = float(l.intensity);
+    // Photometric (cd, lx) to radiometric (W/sr, W/m²), as Blender's importer reads them.
+    light.intensity = float(l.intensity / kLumensPerWatt);
     light.range = float(l.range);
     light.innerConeAngleRad = float(l.spot.innerConeAngle);
     light.outerConeAngleRad = float(l.spot.outerConeAngle);
@@ -817,7 +996,12 @@ Status Loader::loadLight(const tinygltf::Node& node, const glm::mat4& world, boo
 
 Result<Scene> Loader::run() {
     scene_.path = path_;
-    if (Status s = checkRequiredExtensions(); !s) return s.error();
+    // glTF 2.0 §5.2: asset.version is required; "2.0" (or a later 2.x) is what this reads.
+    if (model_.asset.version.rfind("2.", 0) != 0)
+        return fail("asset.version is '{}', but previs reads glTF 2.0 files (version \"2.0\"); "
+                    "is it a glTF 1.0 file or not a glTF file at all?",
+                    model_.asset.version);
+    if (Status s = checkExtensions(); !s) return s.error();
     if (Status s = loadMaterials(); !s) return s.error();
 
     std::vector<int> roots;
@@ -865,9 +1049,7 @@ Result<Scene> loadGltf(const std::string& path, const GltfLoadOptions& options) 
         return makeError("cannot load glTF '{}': no such file (check the path)", path);
     if (std::filesystem::is_directory(path, ec))
         return makeError("cannot load glTF '{}': it is a folder, not a .gltf/.glb file", path);
-    std::string ext = std::filesystem::path(path).extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(),
-                   [](unsigned char c) { return char(std::tolower(c)); });
+    const std::string ext = lowerExtension(path);
     if (ext != ".gltf" && ext != ".glb")
         return makeError("cannot load glTF '{}': unsupported extension '{}' (use .gltf or .glb)",
                          path, ext);
@@ -875,8 +1057,8 @@ Result<Scene> loadGltf(const std::string& path, const GltfLoadOptions& options) 
     tinygltf::TinyGLTF gltf;
     ImageLoadContext images;
     gltf.SetImageLoader(&decodeImage, &images);
-    gltf.SetFsCallbacks({&fileExists, &tinygltf::ExpandFilePath, &readRegularFile,
-                         &tinygltf::WriteWholeFile, nullptr});
+    gltf.SetFsCallbacks(tinygltf::FsCallbacks{&externalFileExists, &expandNothing,
+                                              &readExternalFile, nullptr, nullptr});
     tinygltf::Model model;
     std::string err;
     std::string warn;

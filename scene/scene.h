@@ -38,12 +38,19 @@ struct Material {
     bool doubleSided = false;
 };
 
-// 8-bit RGBA texels, row 0 at the top (glTF UV origin).
+// How texture coordinates outside [0, 1] map to texels: glTF's sampler wrapS/wrapT.
+enum class TextureWrap { Repeat, MirroredRepeat, ClampToEdge };
+
+// 8-bit RGBA texels, row 0 at the top (glTF UV origin), with the glTF sampler's wrap modes and
+// filter (no mipmaps: a minification filter only chooses nearest or linear).
 struct Texture {
     std::string name;
     uint32_t width = 0;
     uint32_t height = 0;
     bool srgb = true;                     // colour data; false for linear data
+    TextureWrap wrapS = TextureWrap::Repeat;  // glTF's default sampler
+    TextureWrap wrapT = TextureWrap::Repeat;
+    bool nearest = false;                 // true: nearest texel; false: bilinear
     std::vector<uint32_t> rgba8;          // packed R | G<<8 | B<<16 | A<<24
 };
 
@@ -66,7 +73,9 @@ struct PunctualLight {
     glm::vec3 position{0.0f};
     glm::vec3 direction{0.0f, 0.0f, -1.0f};  // where it points (unit)
     glm::vec3 color{1.0f};
-    float intensity = 1.0f;                  // candela (point/spot) or lux (directional)
+    // Radiometric: W/sr (point/spot) or W/m² (directional). glTF files give candela or lux;
+    // loadGltf divides by 683 lm/W as Blender's glTF importer does (docs/scene-format.md).
+    float intensity = 1.0f;
     float innerConeAngleRad = 0.0f;
     float outerConeAngleRad = 0.7853981633974483f;
     float range = 0.0f;                      // 0 = infinite
@@ -106,5 +115,17 @@ struct Scene {
     // camera.name, already checked to exist in `cameras`); empty: the first camera.
     std::string cameraName;
 };
+
+// Whether anything in the scene emits light: a punctual light or a triangle with an emissive
+// material (the environment map aside).
+inline bool hasLightSource(const Scene& scene) {
+    for (const PunctualLight& l : scene.lights)
+        if (l.intensity > 0.0f && glm::any(glm::greaterThan(l.color, glm::vec3(0.0f)))) return true;
+    for (uint32_t m : scene.geometry.triangleMaterials)
+        if (m < scene.materials.size() &&
+            glm::any(glm::greaterThan(scene.materials[m].emission, glm::vec3(0.0f))))
+            return true;
+    return false;
+}
 
 }  // namespace previs

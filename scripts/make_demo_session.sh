@@ -8,11 +8,11 @@
 set -eu
 here=$(cd "$(dirname "$0")/.." && pwd)
 build=${1:-$here/build}
-# The shared data beside the checkout, else where PREVIS_SHARED_DATA says.
-data=${PREVIS_SHARED_DATA:-$here/../shared/data}
+# The shared data beside the checkout, else where PREVIS_DATA_DIR says.
+data=${PREVIS_DATA_DIR:-${PREVIS_SHARED_DATA:-$here/../shared/data}}
 env_map=$data/envmaps/polyhaven_1k_hdr/studio_small_03_1k.hdr
 if [ ! -f "$env_map" ]; then
-    echo "make_demo_session.sh: $env_map not found (set PREVIS_SHARED_DATA to the shared data folder)" >&2
+    echo "make_demo_session.sh: $env_map not found (set PREVIS_DATA_DIR to the shared data folder)" >&2
     exit 2
 fi
 if [ ! -f "$build/CMakeCache.txt" ]; then

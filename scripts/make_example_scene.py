@@ -156,8 +156,9 @@ def main(out):
     # The set's lights are real: they light the real-only solution too.
     g.node("Softbox", real=True, mesh=g.mesh("softbox", *box(0.25, 0.005, 0.15), lamp),
            translation=[0.0, 0.9, 0.1])
+    # KHR_lights_punctual intensities are candela: 0.6 W/sr × 683 lm/W (docs/scene-format.md).
     g.gltf["extensions"]["KHR_lights_punctual"]["lights"].append(
-        {"name": "key", "type": "point", "color": [1.0, 0.9, 0.8], "intensity": 0.6})
+        {"name": "key", "type": "point", "color": [1.0, 0.9, 0.8], "intensity": 409.8})
     g.node("KeyLight", real=True, extensions={"KHR_lights_punctual": {"light": 0}},
            translation=[0.6, 0.7, 0.6])
     g.gltf["cameras"].append({"name": "SceneCamera", "type": "perspective", "perspective":

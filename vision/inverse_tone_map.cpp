@@ -4,12 +4,12 @@
 #include <cmath>
 
 #include "base/log.h"
+#include "base/luminance.h"
 
 namespace previs {
 
 namespace {
 
-float rec709Luminance(float r, float g, float b) { return 0.2126f * r + 0.7152f * g + 0.0722f * b; }
 
 // L_w / L_d of banterleInverseCurve. The paper's form L_d − 1 + √((1 − L_d)² + 4·L_d/L_white²)
 // cancels catastrophically for small L_d (two terms ≈ ±1; in float the relative error is
@@ -28,13 +28,13 @@ inline void untonemap(float rgb[3], const InverseToneMapSettings& s, float expos
     if (s.op == InverseToneMapOperator::Banterle) {
         // On luminance, colour ratios kept: rgb = rgb_d · L_w/L_d. Rec.709 weights sum to 1, so
         // L_d ≤ 1 for decoded values; the clamp only absorbs rounding.
-        const float ld = std::clamp(rec709Luminance(rgb[0], rgb[1], rgb[2]), 0.0f, 1.0f);
+        const float ld = std::clamp(luminance(rgb[0], rgb[1], rgb[2]), 0.0f, 1.0f);
         const float k = banterleRatio(ld, s.maxRadiance, s.whiteLuminance);
         for (int c = 0; c < 3; ++c) rgb[c] *= k;
     } else if (s.op == InverseToneMapOperator::Reinhard) {
         // Forward: rgb_d = rgb / (1 + L) with L the luminance of rgb, so L_d = L / (1 + L) and
         // rgb = rgb_d / (1 − L_d).
-        float ld = rec709Luminance(rgb[0], rgb[1], rgb[2]);
+        float ld = luminance(rgb[0], rgb[1], rgb[2]);
         ld = std::clamp(ld, 0.0f, s.maxDisplayLuminance);
         const float k = 1.0f / (1.0f - ld);
         for (int c = 0; c < 3; ++c) rgb[c] *= k;

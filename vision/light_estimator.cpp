@@ -6,14 +6,15 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "base/guarded_thread.h"
 #include "base/log.h"
+#include "base/luminance.h"
 #include "vision/equirect.h"
 
 namespace previs {
 
 namespace {
 
-double rec709(const cv::Vec3f& c) { return 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]; }
 
 struct UnionFind {
     std::vector<int> parent;
@@ -90,7 +91,7 @@ Result<LightingSnapshot> LightEstimator::estimate(const cv::Mat& radiance) const
             for (int k = 0; k < 3; ++k)
                 if (!(c[k] >= 0.0f) || !std::isfinite(c[k])) c[k] = 0.0f;
             res[x] = c;
-            lum[x] = rec709(c);
+            lum[x] = previs::luminance(double(c[0]), double(c[1]), double(c[2]));
             maxLuminance = std::max(maxLuminance, lum[x]);
             luminancePower += lum[x] * rowSolidAngle[y];
             for (int k = 0; k < 3; ++k) snap.totalPower[k] += double(c[k]) * rowSolidAngle[y];
@@ -188,7 +189,17 @@ Result<LightingSnapshot> LightEstimator::estimate(const cv::Mat& radiance) const
 }
 
 LightingEstimator::LightingEstimator(const LightEstimatorSettings& settings)
-    : estimator_(settings), thread_([this] { run(); }) {}
+    : estimator_(settings), thread_([this] {
+          // run() returns only when stopping; after an exception (counted as a failed
+          // estimate) the last good lighting stays and the loop goes on.
+          for (bool failed = true; failed;) {
+              failed = false;
+              runGuarded("lighting estimation", [this] { run(); }, [&](const std::string&) {
+                  failed = true;
+                  ++failed_;
+              });
+          }
+      }) {}
 
 LightingEstimator::~LightingEstimator() {
     {

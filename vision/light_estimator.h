@@ -16,7 +16,7 @@
 
 #include "base/result.h"
 #include "scene/scene.h"
-#include "vision/latest_value_slot.h"
+#include "base/latest_value_slot.h"
 
 namespace previs {
 

@@ -8,6 +8,7 @@
 uint gLoopIterations = 0u;
 #define PV_COUNT_LOOP_ITERATION() (kCountLoops ? ++gLoopIterations : 0u)
 #include "shared/scene_types.h"
+#include "shared/texture_sampling.h"
 // Scene features: a variant compiled with a feature off runs none of its code.
 layout(constant_id = PV_SPEC_HAS_ENV) const bool kHasEnv = true;
 layout(constant_id = PV_SPEC_HAS_EMISSIVE) const bool kHasEmissive = true;
@@ -207,28 +208,35 @@ vec4 unpackTexel(uint texel, bool srgb) {
     return c;
 }
 
-// Bilinear, repeat wrap (glTF's default sampler); sRGB decoded before filtering.
+// The glTF sampler's wrap modes and filter (shared/texture_sampling.h); sRGB decoded before
+// filtering.
 vec4 sampleTexture(uint index, vec2 uv) {
     uvec4 word = texelFetch(textureInfoTexels, int(index));
-    TextureInfo info;
-    info.offset = word.x;
-    info.width = word.y;
-    info.height = word.z;
-    info.srgb = word.w;
-    vec2 p = uv * vec2(info.width, info.height) - 0.5;
-    vec2 f = fract(p);
-    ivec2 size = ivec2(info.width, info.height);
-    ivec2 i0 = ivec2(floor(p));
+    uint offset = word.x;
+    ivec2 size = ivec2(word.y, word.z);
+    uint flags = word.w;
+    bool srgb = (flags & PV_TEXTURE_SRGB) != 0u;
+    uint wrapS = (flags >> PV_TEXTURE_WRAP_S_SHIFT) & 3u;
+    uint wrapT = (flags >> PV_TEXTURE_WRAP_T_SHIFT) & 3u;
+    if ((flags & PV_TEXTURE_NEAREST) != 0u) {
+        ivec2 q = ivec2(nearestTexel(uv.x, size.x, wrapS), nearestTexel(uv.y, size.y, wrapT));
+        return unpackTexel(texelFetch(textureTexels, int(offset + uint(q.y * size.x + q.x))).x,
+                           srgb);
+    }
+    ivec2 i0;
+    ivec2 i1;
+    vec2 f;
+    linearTexels(uv.x, size.x, wrapS, i0.x, i1.x, f.x);
+    linearTexels(uv.y, size.y, wrapT, i0.y, i1.y, f.y);
     vec4 c = vec4(0.0);
     for (int dy = 0; dy < 2; ++dy) {
         PV_COUNT_LOOP_ITERATION();
         for (int dx = 0; dx < 2; ++dx) {
             PV_COUNT_LOOP_ITERATION();
-            ivec2 q = (i0 + ivec2(dx, dy)) % size;
-            q += size * ivec2(lessThan(q, ivec2(0)));
+            ivec2 q = ivec2(dx == 1 ? i1.x : i0.x, dy == 1 ? i1.y : i0.y);
             float w = (dx == 1 ? f.x : 1.0 - f.x) * (dy == 1 ? f.y : 1.0 - f.y);
-            c += w * unpackTexel(texelFetch(textureTexels, int(info.offset + uint(q.y * size.x + q.x))).x,
-                                 info.srgb != 0u);
+            c += w * unpackTexel(texelFetch(textureTexels, int(offset + uint(q.y * size.x + q.x))).x,
+                                 srgb);
         }
     }
     return c;

@@ -16,10 +16,11 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <random>
+#include <stdexcept>
 #include <thread>
 
 #include "capture/camera_source.h"
-#include "capture/frame_slot.h"
+#include "base/latest_value_slot.h"
 #include "capture/pixel_format.h"
 #include "capture/recorded_source.h"
 #include "capture/unique_fd.h"
@@ -191,7 +192,7 @@ TEST(FrameSlot, SlowConsumerDropsAndCounts) {
     EXPECT_EQ(got->sequence, 9u);
     EXPECT_EQ(slot.take(), nullptr);
     ASSERT_NE(slot.latest(), nullptr);  // latest() survives take()
-    EXPECT_EQ(slot.waitTake(std::chrono::milliseconds(5)), nullptr);
+    EXPECT_EQ(slot.waitTakeFor(std::chrono::milliseconds(5)), nullptr);
     slot.publish(std::make_shared<Frame>());
     EXPECT_EQ(slot.dropped(), 9u);  // the previous one was taken: no drop
 }
@@ -284,7 +285,7 @@ TEST(CaptureThread, WaitsForAbsentDeviceThenRecoversFromLoss) {
 
     uint64_t lastSeq = 0, lastTs = 0;
     for (int i = 0; i < 5; ++i) {
-        auto f = capture.frames().waitTake(std::chrono::milliseconds(500));
+        auto f = capture.frames().waitTakeFor(std::chrono::milliseconds(500));
         ASSERT_NE(f, nullptr);
         if (i > 0) {
             EXPECT_GT(f->sequence, lastSeq);
@@ -293,6 +294,49 @@ TEST(CaptureThread, WaitsForAbsentDeviceThenRecoversFromLoss) {
         lastSeq = f->sequence;
         lastTs = f->timestampNs;
     }
+    capture.stop();
+    EXPECT_EQ(capture.state(), CaptureState::Stopped);
+}
+
+// A reader that throws (a library bug, an allocation failure) does not end the capture thread:
+// it counts as losing the device, logged in one line, and the device is reopened.
+class ThrowingReader : public FrameReader {
+public:
+    explicit ThrowingReader(std::atomic<int>& throwsLeft) : throwsLeft_(throwsLeft) {}
+    Status start() override { return {}; }
+    Result<bool> read(int, Frame& frame) override {
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+        if (++reads_ == 5 && throwsLeft_.fetch_sub(1) > 0)
+            throw std::runtime_error("scripted exception inside the driver wrapper");
+        frame.width = 2;
+        frame.height = 1;
+        frame.rgb.assign(6, 7);
+        frame.timestampNs = reads_ * 1000;
+        frame.deviceSequence = uint32_t(reads_);
+        return true;
+    }
+
+private:
+    std::atomic<int>& throwsLeft_;
+    int reads_ = 0;
+};
+
+TEST(CaptureThread, ExceptionInAReaderIsALossNotACrash) {
+    std::atomic<int> throwsLeft{2};
+    std::atomic<int> opens{0};
+    CaptureOptions options;
+    options.name = "throwing";
+    options.retryIntervalMs = 5;
+    CaptureThread capture(
+        [&]() -> Result<std::unique_ptr<FrameReader>> {
+            ++opens;
+            return std::unique_ptr<FrameReader>(new ThrowingReader(throwsLeft));
+        },
+        options);
+    ASSERT_TRUE(capture.start());
+    ASSERT_TRUE(waitFor([&] { return throwsLeft.load() <= 0 && capture.stats().delivered >= 20; }));
+    EXPECT_EQ(capture.state(), CaptureState::Streaming);
+    EXPECT_GE(opens.load(), 3);  // reopened after each of the two exceptions
     capture.stop();
     EXPECT_EQ(capture.state(), CaptureState::Stopped);
 }
@@ -411,6 +455,32 @@ TEST(RecordedSource, ReplaysAtRecordedTiming) {
     EXPECT_GE(elapsedMs, 5 * 40 - 2);  // the last frame is due 200 ms after the first
     // Generous: only "not replayed as fast as possible, not stuck"; a loaded CI machine is slow.
     EXPECT_LT(elapsedMs, 5 * 40 + 2000);
+    std::filesystem::remove_all(dir);
+}
+
+// Timestamps 190 years apart (a broken clock, a hand-edited index): the replay pauses at most
+// kMaxReplayGap per gap instead of waiting for centuries, and no duration overflows.
+TEST(RecordedSource, AbsurdGapsAreCappedNotWaitedFor) {
+    const uint64_t periodNs = 6'000'000'000'000'000'000ull;
+    const std::string dir = writeRecordedCamera("absurd", 3, periodNs);
+    auto reader = RecordedReader::create(dir, ReplayTiming::Recorded);
+    ASSERT_TRUE(reader) << reader.message();
+    ASSERT_TRUE((*reader)->start());
+    const auto t0 = std::chrono::steady_clock::now();
+    const auto limit = t0 + 2 * kMaxReplayGap + std::chrono::seconds(20);
+    int frames = 0;
+    while (!(*reader)->finished() && std::chrono::steady_clock::now() < limit) {
+        Frame f;
+        Result<bool> got = (*reader)->read(100, f);
+        ASSERT_TRUE(got);
+        if (*got) {
+            ++frames;
+            EXPECT_EQ(f.timestampNs, 5'000'000'000ull + uint64_t(frames - 1) * periodNs);
+        }
+    }
+    const auto elapsed = std::chrono::steady_clock::now() - t0;
+    EXPECT_EQ(frames, 3);
+    EXPECT_GE(elapsed, 2 * kMaxReplayGap - std::chrono::milliseconds(5));
     std::filesystem::remove_all(dir);
 }
 

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include "tests/support/temp_dir.h"
+#include "tests/support/test_data.h"
 
 namespace previs {
 namespace {
@@ -32,7 +33,7 @@ constexpr const char* kTag = "[[tag]]\nid = 1\nposition_m = [0.0, 0.0, 0.0]\n";
 
 TEST(BoardFile, ReadsTheDemoBoard) {
     Result<TagBoard> board =
-        loadTagBoard(std::string(PREVIS_SOURCE_DIR) + "/examples/demo/board.toml");
+        loadTagBoard(testing::sourcePath("examples/demo/board.toml"));
     ASSERT_TRUE(board.ok()) << board.message();
     EXPECT_EQ(board->tags().size(), 6u);
     EXPECT_EQ(board->family(), "tag36h11");

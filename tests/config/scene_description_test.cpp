@@ -3,6 +3,7 @@
 // one message naming the description file and the offending key).
 #include "tests/support/temp_dir.h"
 #include "config/scene_description.h"
+#include "scene/environment_map.h"
 
 #include <cmath>
 #include <cstring>
@@ -17,6 +18,7 @@
 
 #include "image/image.h"
 #include "scene/gltf_loader.h"
+#include "tests/support/test_data.h"
 
 namespace previs {
 namespace {
@@ -133,7 +135,7 @@ std::string writeEnvMap(const std::string& name) {
 }
 
 TEST(SceneDescription, ExampleRoundTrip) {
-    const std::string dir = std::string(PREVIS_SOURCE_DIR) + "/examples/cubes_spheres/";
+    const std::string dir = testing::sourcePath("examples/cubes_spheres/");
     Result<Scene> plain = loadGltf(dir + "scene.gltf");
     ASSERT_TRUE(plain.ok()) << plain.message();
     Result<Scene> described = loadScene(dir + "previs.toml");
@@ -292,6 +294,22 @@ focus_distance_m = 3.5
     EXPECT_TRUE(lens->cameraName.empty());
     EXPECT_FLOAT_EQ(lens->cameras[0].focusDistanceM, 3.5f);
     EXPECT_EQ(lens->cameras[1].focusDistanceM, 1.0f);
+}
+
+TEST(SceneDescription, StudioEnvironmentIsBuiltIn) {
+    writeRoleGltf();
+    const std::string toml = writeFile("studio.toml", R"(version = 1
+gltf = "roles.gltf"
+[environment]
+map = "studio"
+scale = 0.5
+)");
+    Result<Scene> scene = loadSceneDescription(toml);
+    ASSERT_TRUE(scene.ok()) << scene.message();
+    ASSERT_TRUE(scene->environment.has_value());
+    EXPECT_EQ(scene->environment->path, "studio");
+    EXPECT_EQ(scene->environment->width, studioEnvironment().width);
+    EXPECT_FLOAT_EQ(scene->environment->scale, 0.5f);
 }
 
 TEST(SceneDescription, AbsolutePathsAndDefaults) {

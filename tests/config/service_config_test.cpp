@@ -11,13 +11,14 @@
 #include <gtest/gtest.h>
 
 #include "tests/support/temp_dir.h"
+#include "tests/support/test_data.h"
 
 namespace previs {
 namespace {
 
 namespace fs = std::filesystem;
 
-const std::string kExamples = PREVIS_SOURCE_DIR "/examples/box";
+const std::string kExamples = testing::sourcePath("examples/box");
 
 fs::path tempDir() { return previs::testing::scratchDir("previs_service_config_test"); }
 

@@ -18,6 +18,7 @@
 #include "vision/lens_grid.h"
 #include "daemon/service.h"
 #include "tests/support/temp_dir.h"
+#include "tests/support/test_data.h"
 
 namespace previs {
 namespace {
@@ -161,7 +162,7 @@ TEST(StatusJson, HasTheDesignFields) {
 
 TEST(RecordedEvents, FireWithTheirFrameOnEveryPass) {
     // The demo take: presses recorded just before frames 22 and 42 (examples/demo/README.md).
-    auto loaded = RecordedEvents::load(PREVIS_SOURCE_DIR "/examples/demo/session/cameras/scene");
+    auto loaded = RecordedEvents::load(testing::sourcePath("examples/demo/session/cameras/scene"));
     ASSERT_TRUE(loaded) << loaded.message();
     ASSERT_TRUE(*loaded);
     RecordedEvents events = std::move(**loaded);

@@ -17,8 +17,9 @@
 
 #include "daemon/control_server.h"
 #include "io/session.h"
-#include "tests/daemon/process.h"
+#include "tests/support/process.h"
 #include "tests/support/temp_dir.h"
+#include "tests/support/test_data.h"
 
 namespace previs {
 namespace {
@@ -27,7 +28,7 @@ namespace fs = std::filesystem;
 using namespace std::chrono_literals;
 using testing::ChildProcess;
 
-const std::string kDemo = PREVIS_SOURCE_DIR "/examples/demo";
+const std::string kDemo = testing::sourcePath("examples/demo");
 
 fs::path scratch() { return testing::scratchDir("previs_previsd_test"); }
 
@@ -422,7 +423,7 @@ TEST(ReplayErrors, FramesOfAnotherSizeThanTheCalibrationAreNotTracked) {
         ASSERT_NE(at, std::string::npos) << text;
         text.replace(at, from.size(),
                      "width = 1280\nheight = 720\ncalibration = \"" +
-                         std::string(PREVIS_SOURCE_DIR) + "/examples/box/scene_camera.yaml\"");
+                         testing::sourcePath("examples/box/scene_camera.yaml")+"\"");
         std::ofstream(config) << text;
     }
     const std::string out = (scratch() / "wrong_size_out").string();

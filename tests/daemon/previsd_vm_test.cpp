@@ -19,14 +19,15 @@
 
 #include "daemon/control_server.h"
 #include "display/drm_readback.h"
-#include "tests/daemon/process.h"
+#include "tests/support/process.h"
+#include "tests/support/test_data.h"
 
 namespace previs {
 namespace {
 
 using namespace std::chrono_literals;
 
-const std::string kConfig = PREVIS_SOURCE_DIR "/examples/vm/previsd.toml";
+const std::string kConfig = testing::sourcePath("examples/vm/previsd.toml");
 // The default socket (RUNTIME_DIRECTORY is unset in the VM), where a plain `previs ctl` looks.
 const std::string kSocket = "/run/previs/previsd.sock";
 

@@ -1,4 +1,5 @@
 #include "tests/support/temp_dir.h"
+#include "tests/support/test_data.h"
 #include "image/image.h"
 
 #include <chrono>
@@ -152,7 +153,7 @@ std::string hdrHeader(int w, int h) {
 TEST(Image, TruncatedHdrIsRefusedNotAHang) {
     const auto start = std::chrono::steady_clock::now();
     const std::string checkedIn =
-        std::string(PREVIS_SOURCE_DIR) + "/tests/image/data/truncated_studio_small_03.hdr";
+        testing::sourcePath("tests/image/data/truncated_studio_small_03.hdr");
     expectOneLineNaming(readImage(checkedIn), "truncated_studio_small_03.hdr", "ends early");
 
     // Cut the checked-in file at every byte past the header: each is refused.
@@ -170,9 +171,9 @@ TEST(Image, TruncatedHdrIsRefusedNotAHang) {
 
 // The case issue 11 reports: the first 47 KB of a 1.5 MB map from the shared data.
 TEST(Image, TruncatedSharedHdrMapIsRefused) {
-    const std::filesystem::path map = std::string(PREVIS_SHARED_DATA) +
-                                      "/envmaps/polyhaven_1k_hdr/studio_small_03_1k.hdr";
-    if (!std::filesystem::exists(map)) GTEST_SKIP() << "shared data absent: " << map;
+    PREVIS_SKIP_WITHOUT_SHARED_DATA();
+    const std::filesystem::path map =
+        testing::sharedDataDir() + "envmaps/polyhaven_1k_hdr/studio_small_03_1k.hdr";
     const std::string whole = readBytes(map);
     Result<ImageF> full = readImage(map.string());
     ASSERT_TRUE(full.ok()) << full.message();
@@ -220,18 +221,18 @@ TEST(Image, HdrRunLengthFileDecodes) {
 // its table. Refused before stb sees it, as a file and as a glTF texture.
 TEST(Image, JpegWithOversizedHuffmanTableIsRefused) {
     const std::string path =
-        std::string(PREVIS_SOURCE_DIR) + "/tests/image/data/jpeg_huffman_overflow.jpg";
+        testing::sourcePath("tests/image/data/jpeg_huffman_overflow.jpg");
     expectOneLineNaming(readImage(path), "jpeg_huffman_overflow.jpg",
                         "Huffman table of more than 256 codes");
     // The same in a table defined between the scans of a progressive JPEG.
-    const std::string progressive = std::string(PREVIS_SOURCE_DIR) +
-                                    "/tests/image/data/jpeg_progressive_huffman_overflow.jpg";
+    const std::string progressive =
+        testing::sourcePath("tests/image/data/jpeg_progressive_huffman_overflow.jpg");
     expectOneLineNaming(readImage(progressive), "jpeg_progressive_huffman_overflow.jpg",
                         "Huffman table of more than 256 codes");
     // A table segment claiming more bytes than the file has (stb read the rest as zeros and
     // its counts past the table).
     const std::string cut =
-        std::string(PREVIS_SOURCE_DIR) + "/tests/image/data/jpeg_cut_short_huffman_segment.jpg";
+        testing::sourcePath("tests/image/data/jpeg_cut_short_huffman_segment.jpg");
     expectOneLineNaming(readImage(cut), "jpeg_cut_short_huffman_segment.jpg",
                         "segment cut short");
     const std::string bytes = readBytes(path);
@@ -246,7 +247,7 @@ TEST(Image, JpegWithOversizedHuffmanTableIsRefused) {
 // Found by fuzz/fuzz_image (see tests/image/data/README.md): read without a crash.
 TEST(Image, PngWithEmptyFirstIdatIsRead) {
     const std::string path =
-        std::string(PREVIS_SOURCE_DIR) + "/tests/image/data/png_empty_first_idat.png";
+        testing::sourcePath("tests/image/data/png_empty_first_idat.png");
     Result<ImageF> r = readImage(path);
     if (!r.ok()) {
         EXPECT_NE(r.message().find("png_empty_first_idat.png"), std::string::npos) << r.message();

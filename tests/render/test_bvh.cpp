@@ -12,6 +12,7 @@
 #include "render/bvh.h"
 #include "render/cpu_tracer.h"
 #include "render/ply_reader.h"
+#include "tests/support/test_data.h"
 
 namespace previs::testing {
 namespace {
@@ -38,7 +39,7 @@ constexpr const char* kDragon = "dragon_vrip_res4.ply";
 #endif
 
 std::string meshPath(const char* name) {
-    return std::string(PREVIS_SHARED_DATA) + "/meshes/" + name;
+    return testing::sharedDataDir() + "meshes/" + name;
 }
 
 uint32_t floatBits(float f) {
@@ -301,6 +302,7 @@ TEST(BvhTraversal, MatchesBruteForceAtTinyAndHugeScales) {
 
 // A real mesh, split into a real half (x < centre) and a virtual half.
 TEST(BvhTraversal, MatchesBruteForceOnMesh) {
+    PREVIS_SKIP_WITHOUT_SHARED_DATA();
     auto mesh = readPly(meshPath("suzanne_blender.ply"));
     ASSERT_TRUE(mesh) << mesh.message();
     Geometry g = makeGeometry(mesh->positions, mesh->triangles);
@@ -599,6 +601,7 @@ TEST(OffsetRayOrigin, NoSelfIntersectionAtAnyScale) {
 double oneLeafCost(size_t triangles) { return double(triangles); }
 
 TEST(BvhBuild, SahBeatsMedianAndOneLeafOnBunny) {
+    PREVIS_SKIP_WITHOUT_SHARED_DATA();
     auto mesh = readPly(meshPath(kBunny));
     ASSERT_TRUE(mesh) << mesh.message();
     Geometry g = makeGeometry(mesh->positions, mesh->triangles);
@@ -624,6 +627,7 @@ TEST(BvhBuild, SahBeatsMedianAndOneLeafOnBunny) {
 }
 
 TEST(BvhBuild, DragonBuildTime) {
+    PREVIS_SKIP_WITHOUT_SHARED_DATA();
     auto mesh = readPly(meshPath(kDragon));
     ASSERT_TRUE(mesh) << mesh.message();
     Geometry g = makeGeometry(mesh->positions, mesh->triangles);

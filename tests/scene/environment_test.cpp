@@ -13,11 +13,12 @@
 #include "image/image.h"
 #include "scene/environment_map.h"
 #include "scene/environment_sampler.h"
+#include "tests/support/test_data.h"
 
 namespace previs {
 namespace {
 
-const std::string kEnvDir = std::string(PREVIS_SHARED_DATA) + "/envmaps/";
+const std::string kEnvDir = testing::sharedDataDir() + "envmaps/";
 
 // Two chi-square tests (real map, synthetic sun map) share the 1% family-wise significance.
 constexpr int kChiSquareTests = 2;
@@ -78,6 +79,7 @@ glm::dvec3 weightedMean(const EnvironmentMap& map) {
 }
 
 TEST(EnvironmentMap, RealMapsMatchStats) {
+    PREVIS_SKIP_WITHOUT_SHARED_DATA();
     std::ifstream f(kEnvDir + "envmap_stats.json");
     ASSERT_TRUE(f) << "missing " << kEnvDir << "envmap_stats.json";
     const nlohmann::json stats = nlohmann::json::parse(f);
@@ -110,6 +112,38 @@ TEST(EnvironmentMap, RealMapsMatchStats) {
         for (const glm::vec3& r : map.radiance)
             ASSERT_TRUE(r.r >= 0.0f && r.g >= 0.0f && r.b >= 0.0f && std::isfinite(r.r + r.g + r.b));
     }
+}
+
+// `--env studio`: generated, not read from a file (nothing to install or find); neutral grey, lit
+// from above by its key softbox, valid for importance sampling.
+TEST(EnvironmentMap, StudioIsBuiltInNeutralAndLitFromAbove) {
+    Result<EnvironmentMap> map = loadEnvironmentMap(kStudioEnvironment);
+    ASSERT_TRUE(map.ok()) << map.message();
+    ASSERT_EQ(map->width, 2 * map->height);
+    ASSERT_EQ(map->radiance.size(), size_t(map->width) * map->height);
+    // Irradiance on a surface facing up and on one facing down, E = Σ L cosθ dω.
+    double up = 0.0, down = 0.0;
+    for (uint32_t y = 0; y < map->height; ++y) {
+        const double elevation = (0.5 - (y + 0.5) / map->height) * M_PI;
+        const double dOmega = (2.0 * M_PI / map->width) * (M_PI / map->height) * std::cos(elevation);
+        for (uint32_t x = 0; x < map->width; ++x) {
+            const glm::vec3 l = map->radiance[size_t(y) * map->width + x];
+            ASSERT_TRUE(std::isfinite(l.r) && l.r >= 0.0f);
+            ASSERT_EQ(l.r, l.g);  // colourless
+            ASSERT_EQ(l.r, l.b);
+            (elevation > 0.0 ? up : down) += l.r * std::abs(std::sin(elevation)) * dOmega;
+        }
+    }
+    std::printf("studio: irradiance from above %.3f, from below %.3f\n", up, down);
+    EXPECT_GT(up, 4.0 * down);
+    // A white Lambertian surface facing up has radiance E/π: about 1, neither black nor blown out.
+    EXPECT_GT(up / M_PI, 0.5);
+    EXPECT_LT(up / M_PI, 3.0);
+    // The key softbox sits 45° up toward u = 0.625 (azimuth +45°, DESIGN.md §4).
+    const uint32_t keyX = uint32_t(0.625 * map->width);
+    const uint32_t keyY = uint32_t(0.25 * map->height);
+    EXPECT_EQ(map->radiance[size_t(keyY) * map->width + keyX].r, 8.0f);
+    EXPECT_GT(buildEnvironmentDistribution(*map).integral, 0.0f);
 }
 
 TEST(EnvironmentMap, ErrorsNameTheFile) {
@@ -201,6 +235,7 @@ double integratePdfAligned(const EnvironmentSampler& sampler, int sub) {
 }
 
 TEST(EnvironmentSampling, PdfIntegratesToOne) {
+    PREVIS_SKIP_WITHOUT_SHARED_DATA();
     // Texel-aligned quadrature is exact for this pdf: only float rounding of the CDFs (~1e-7
     // per entry) and of sinθ remains; 1e-4 is generous.
     EnvironmentSampler sun(sunMap());
@@ -335,6 +370,7 @@ void expectGoodFit(const EnvironmentSampler& sampler, uint32_t seed) {
 }
 
 TEST(EnvironmentSampling, ChiSquareRealMap) {
+    PREVIS_SKIP_WITHOUT_SHARED_DATA();
     EnvironmentMap map = loadOrDie("blender_studiolights_world/city.exr");
     map.rotationRad = 0.0f;
     expectGoodFit(EnvironmentSampler(std::move(map)), 1234u);
@@ -370,6 +406,7 @@ TEST(EnvironmentSampling, SamplePdfMatchesPdfFunction) {
 }
 
 TEST(EnvironmentSampling, RotationConsistency) {
+    PREVIS_SKIP_WITHOUT_SHARED_DATA();
     EnvironmentMap map = loadOrDie("polyhaven_1k_hdr/rooitou_park_1k.hdr");
     EnvironmentMap rotatedMap = map;
     const float r = 1.1f;

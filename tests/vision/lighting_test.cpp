@@ -20,12 +20,13 @@
 #include "vision/inverse_tone_map.h"
 #include "vision/light_estimator.h"
 #include "vision/tag_board.h"
+#include "tests/support/test_data.h"
 
 namespace previs {
 namespace {
 
-const std::string kData = std::string(PREVIS_SHARED_DATA) + "/";
-const std::string kTestData = std::string(PREVIS_SOURCE_DIR) + "/tests/vision/data/";
+const std::string kData = testing::sharedDataDir();
+const std::string kTestData = testing::sourcePath("tests/vision/data/");
 
 double angleDeg(const cv::Vec3d& a, const cv::Vec3d& b) {
     return std::acos(std::clamp(a.dot(b) / (cv::norm(a) * cv::norm(b)), -1.0, 1.0)) * 180.0 / M_PI;
@@ -44,7 +45,7 @@ struct MountCase {
     cv::Vec3d mountDeg;
 };
 
-class FisheyeLookup : public testing::TestWithParam<MountCase> {};
+class FisheyeLookup : public ::testing::TestWithParam<MountCase> {};
 
 // The lookup must agree with OpenCV's own fisheye projection of the same directions.
 // cv::fisheye::projectPoints works through x/z, so only directions in front of the lens
@@ -83,7 +84,7 @@ TEST_P(FisheyeLookup, AgreesWithOpenCvProjectPoints) {
 
 INSTANTIATE_TEST_SUITE_P(
     Vision, FisheyeLookup,
-    testing::Values(MountCase{"boofcv_fisheye_kb.yaml", {-90, 0, 0}},
+    ::testing::Values(MountCase{"boofcv_fisheye_kb.yaml", {-90, 0, 0}},
                     MountCase{"boofcv_fisheye_kb.yaml", {180, 0, 0}},
                     MountCase{"theta_front_kb.yaml", {30, -20, 70}}),
     [](const auto& p) {
@@ -115,6 +116,7 @@ TEST(FisheyeToEquirect, DefaultMountOrientation) {
 // reprojects at 0.198 px RMS; our own projection of the same model (the code that builds the
 // lookup) must do as well, out to the ~88° off axis the views reach.
 TEST(FisheyeToEquirect, ChessboardCornersOnRealFisheyeViews) {
+    PREVIS_SKIP_WITHOUT_SHARED_DATA();
     std::ifstream in(kData + "fisheye/boofcv_chessboard/kb_opencv_calibration_from_shared_images.json");
     nlohmann::json j = nlohmann::json::parse(in);
     CameraCalibration calib = loadCalib("boofcv_fisheye_kb.yaml");
@@ -162,6 +164,7 @@ cv::Mat loadLinear(const std::string& path) {
 }
 
 TEST(FisheyeToEquirect, RealFrameAndFillRule) {
+    PREVIS_SKIP_WITHOUT_SHARED_DATA();
     CameraCalibration calib = loadCalib("theta_front_kb.yaml");
     auto f = FisheyeToEquirect::create(calib, {.mountRotationDeg = {180, 0, 0}, .width = 512});
     ASSERT_TRUE(f.ok());
@@ -263,7 +266,7 @@ struct SunCase {
     cv::Vec3d direction;
 };
 
-class SyntheticSun : public testing::TestWithParam<SunCase> {};
+class SyntheticSun : public ::testing::TestWithParam<SunCase> {};
 
 TEST_P(SyntheticSun, FindsTheSunAndPreservesPower) {
     const cv::Vec3d dir = GetParam().direction / cv::norm(GetParam().direction);
@@ -288,7 +291,7 @@ TEST_P(SyntheticSun, FindsTheSunAndPreservesPower) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Vision, SyntheticSun,
-                         testing::Values(SunCase{"afternoon", {0.5, 0.6, -0.3}},
+                         ::testing::Values(SunCase{"afternoon", {0.5, 0.6, -0.3}},
                                          SunCase{"seam", {-1.0, 0.3, 0.0}},
                                          SunCase{"zenith", {0.01, 1.0, 0.0}},
                                          SunCase{"low", {0.2, 0.03, 0.9}}),
@@ -312,9 +315,10 @@ TEST(LightEstimator, BlackMapAndBadInput) {
 // Real maps: total power matches the derived statistics (a loader/orientation check), energy is
 // preserved, the brightest texel ends in a light, and on the four maps with the sun in view the
 // dominant light points at the sun (the brightest pixel of envmap_stats.json) within 1°.
-class RealMaps : public testing::TestWithParam<std::string> {};
+class RealMaps : public ::testing::TestWithParam<std::string> {};
 
 TEST_P(RealMaps, DominantLightAndEnergy) {
+    PREVIS_SKIP_WITHOUT_SHARED_DATA();
     std::ifstream in(kData + "envmaps/envmap_stats.json");
     nlohmann::json stats = nlohmann::json::parse(in)["maps"][GetParam()];
     auto map = loadEnvironmentMap(kData + "envmaps/" + GetParam());
@@ -349,7 +353,7 @@ TEST_P(RealMaps, DominantLightAndEnergy) {
 
 INSTANTIATE_TEST_SUITE_P(
     Vision, RealMaps,
-    testing::Values("blender_studiolights_world/city.exr", "blender_studiolights_world/courtyard.exr",
+    ::testing::Values("blender_studiolights_world/city.exr", "blender_studiolights_world/courtyard.exr",
                     "blender_studiolights_world/forest.exr", "blender_studiolights_world/interior.exr",
                     "blender_studiolights_world/night.exr", "blender_studiolights_world/studio.exr",
                     "blender_studiolights_world/sunrise.exr", "blender_studiolights_world/sunset.exr",

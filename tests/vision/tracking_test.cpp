@@ -18,12 +18,13 @@
 #include "vision/camera_calibration.h"
 #include "vision/tag_board.h"
 #include "vision/tag_detector.h"
+#include "tests/support/test_data.h"
 
 namespace previs {
 namespace {
 
-const std::string kData = std::string(PREVIS_SHARED_DATA) + "/";
-const std::string kTestData = std::string(PREVIS_SOURCE_DIR) + "/tests/vision/data/";
+const std::string kData = testing::sharedDataDir();
+const std::string kTestData = testing::sourcePath("tests/vision/data/");
 
 struct ExpectedTag {
     int id = -1;
@@ -149,9 +150,10 @@ std::vector<TagDetection> detect(const std::string& image, TagDetectorSettings s
 
 // ---- upstream NASA photos: the AprilTag authors' expected detections -------------------------
 
-class NasaImages : public testing::TestWithParam<std::string> {};
+class NasaImages : public ::testing::TestWithParam<std::string> {};
 
 TEST_P(NasaImages, MatchesUpstreamDetections) {
+    PREVIS_SKIP_WITHOUT_SHARED_DATA();
     const std::string base = kData + "apriltag/apriltag_upstream_nasa/" + GetParam();
     // Upstream test_detection.c settings; README: 0.25 px when decoded with libjpeg, not pjpeg.
     TagDetectorSettings s;
@@ -169,7 +171,7 @@ TEST_P(NasaImages, MatchesUpstreamDetections) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Apriltag, NasaImages,
-                         testing::Values("33369213973_9d9bb4cc96_c", "34139872896_defdb2f8d9_c"),
+                         ::testing::Values("33369213973_9d9bb4cc96_c", "34139872896_defdb2f8d9_c"),
                          [](const auto& p) { return "img_" + p.param.substr(0, 11); });
 
 // ---- ViSP synthetic benchmark: 6 families, true render poses ---------------------------------
@@ -182,9 +184,10 @@ struct VispCase {
 
 void PrintTo(const VispCase& c, std::ostream* os) { *os << c.file; }
 
-class VispBenchmark : public testing::TestWithParam<VispCase> {};
+class VispBenchmark : public ::testing::TestWithParam<VispCase> {};
 
 TEST_P(VispBenchmark, CornersAndPoseMatchTruth) {
+    PREVIS_SKIP_WITHOUT_SHARED_DATA();
     const VispCase& c = GetParam();
     const std::string dir = kData + "apriltag/visp_benchmark_synthetic/";
     TagDetectorSettings s;
@@ -231,7 +234,7 @@ TEST_P(VispBenchmark, CornersAndPoseMatchTruth) {
 
 INSTANTIATE_TEST_SUITE_P(
     Apriltag, VispBenchmark,
-    testing::Values(VispCase{"tag21_07", "tagCircle21h7", 5.0 / 9.0},
+    ::testing::Values(VispCase{"tag21_07", "tagCircle21h7", 5.0 / 9.0},
                     VispCase{"tag36_11", "tag36h11", 8.0 / 10.0},
                     VispCase{"tag41_12", "tagStandard41h12", 5.0 / 9.0},
                     VispCase{"tag48_12", "tagCustom48h12", 6.0 / 10.0},
@@ -247,9 +250,10 @@ struct DuckieCase {
     std::string calib;
 };
 
-class DuckietownImages : public testing::TestWithParam<DuckieCase> {};
+class DuckietownImages : public ::testing::TestWithParam<DuckieCase> {};
 
 TEST_P(DuckietownImages, MatchesReference) {
+    PREVIS_SKIP_WITHOUT_SHARED_DATA();
     const DuckieCase& c = GetParam();
     const std::string base = kData + "apriltag/" + c.folder + "/" + c.name;
     TagDetectorSettings s;
@@ -296,7 +300,7 @@ std::vector<DuckieCase> duckieCases() {
     return cases;
 }
 
-INSTANTIATE_TEST_SUITE_P(Apriltag, DuckietownImages, testing::ValuesIn(duckieCases()),
+INSTANTIATE_TEST_SUITE_P(Apriltag, DuckietownImages, ::testing::ValuesIn(duckieCases()),
                          [](const auto& p) {
                              std::string n = p.param.name;
                              std::replace(n.begin(), n.end(), '-', 'm');
@@ -306,6 +310,7 @@ INSTANTIATE_TEST_SUITE_P(Apriltag, DuckietownImages, testing::ValuesIn(duckieCas
 // Upstream ground truth: the tag turns about the vertical by the angle in the file name (hand
 // placed, a few degrees). Relative yaw between two images = their angle difference within 6°.
 TEST(DuckietownRotation, RelativeYawFollowsFileAngle) {
+    PREVIS_SKIP_WITHOUT_SHARED_DATA();
     auto calib = CameraCalibration::load(kTestData + "duckietown_rotation.yaml");
     ASSERT_TRUE(calib.ok()) << calib.message();
     TagDetectorSettings s;
@@ -336,6 +341,7 @@ TEST(DuckietownRotation, RelativeYawFollowsFileAngle) {
 // ---- ViSP RBT sequence: board pose against the per-frame ground truth -------------------------
 
 TEST(VispRbtSequence, BoardPoseMatchesGroundTruth) {
+    PREVIS_SKIP_WITHOUT_SHARED_DATA();
     const std::string dir = kData + "video/visp_rbt_sequence/";
     auto calib = CameraCalibration::load(kTestData + "visp_rbt.yaml");
     ASSERT_TRUE(calib.ok()) << calib.message();
@@ -383,6 +389,7 @@ TEST(VispRbtSequence, BoardPoseMatchesGroundTruth) {
 // ---- failure handling -------------------------------------------------------------------------
 
 TEST(Tracker, HoldsLastGoodPoseWhenLost) {
+    PREVIS_SKIP_WITHOUT_SHARED_DATA();
     auto calib = CameraCalibration::load(kTestData + "visp_rbt.yaml");
     auto board = loadTagBoard(kTestData + "visp_rbt_board.toml");
     ASSERT_TRUE(calib.ok() && board.ok());

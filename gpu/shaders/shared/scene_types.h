@@ -152,7 +152,7 @@ struct TextureInfo {
     uint offset;
     uint width;
     uint height;
-    uint srgb;  // 1: colour data, decoded from sRGB; 0: linear data (roughness, normals)
+    uint flags;  // PV_TEXTURE_* (shared/texture_sampling.h): sRGB, wrap modes, filter
 };
 
 #define PV_LIGHT_POINT 0u

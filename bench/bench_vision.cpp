@@ -1,4 +1,4 @@
-#include "vision/bench_vision.h"
+#include "bench/bench_vision.h"
 
 #include <algorithm>
 #include <chrono>

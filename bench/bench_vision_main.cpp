@@ -1,12 +1,18 @@
-// previs_bench_vision [DATA_DIR] [RUNS]: prints the vision timings (vision/bench_vision.h).
+// previs_bench_vision [DATA_DIR] [RUNS]: prints the vision timings (bench/bench_vision.h).
 #include <cstdio>
 #include <cstdlib>
 
+#include "base/data_paths.h"
 #include "base/log.h"
-#include "vision/bench_vision.h"
+#include "bench/bench_vision.h"
 
 int main(int argc, char** argv) {
-    const std::string data = argc > 1 ? argv[1] : PREVIS_DEFAULT_DATA_DIR;
+    const auto shared = previs::sharedDataDir();
+    if (argc <= 1 && !shared) {
+        previs::logError("no shared data found: pass DATA_DIR or set PREVIS_DATA_DIR");
+        return 2;
+    }
+    const std::string data = argc > 1 ? argv[1] : shared->string();
     const int runs = argc > 2 ? std::atoi(argv[2]) : 30;
     auto timings = previs::benchVision(data, runs);
     if (!timings) {

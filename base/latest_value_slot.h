@@ -2,28 +2,34 @@
 
 // A latest-value slot (DESIGN.md §6): the producer replaces the value, consumers read the newest
 // one; nobody waits for anybody's work (the lock only guards a pointer swap). Values are
-// immutable snapshots shared by shared_ptr<const T>.
+// immutable snapshots shared by shared_ptr<const T>. A value replaced before anyone took it is
+// a drop; drops are counted, so a slow consumer shows up in the logs instead of stalling its
+// producer. Capture frames, tracked frames, lighting snapshots and display frames all use it.
 
 #include <chrono>
 #include <condition_variable>
 #include <cstdint>
 #include <memory>
 #include <mutex>
+#include <utility>
 
 namespace previs {
 
 template <typename T>
 class LatestValueSlot {
 public:
-    // Replaces the value; returns true when the previous one had not been taken (dropped).
+    // Replaces the value; returns true when the previous one had not been taken (dropped). The
+    // replaced value is released after unlocking, so a large free never runs under the lock.
     bool publish(std::shared_ptr<const T> value) {
+        std::shared_ptr<const T> replaced;
         bool dropped = false;
         {
             std::lock_guard lock(mutex_);
             dropped = fresh_;
-            value_ = std::move(value);
+            replaced = std::exchange(value_, std::move(value));
             fresh_ = true;
             ++version_;
+            if (dropped) ++dropped_;
         }
         changed_.notify_all();
         return dropped;
@@ -65,9 +71,16 @@ public:
     void wakeAll() { changed_.notify_all(); }
     std::mutex& mutex() { return mutex_; }
 
-    uint64_t version() const {
+    // Values published so far.
+    uint64_t published() const {
         std::lock_guard lock(mutex_);
         return version_;
+    }
+    uint64_t version() const { return published(); }
+    // Values replaced before any take(): the consumer never saw them.
+    uint64_t dropped() const {
+        std::lock_guard lock(mutex_);
+        return dropped_;
     }
 
 private:
@@ -76,6 +89,7 @@ private:
     std::shared_ptr<const T> value_;
     bool fresh_ = false;
     uint64_t version_ = 0;
+    uint64_t dropped_ = 0;
 };
 
 }  // namespace previs
