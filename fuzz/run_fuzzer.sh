@@ -6,7 +6,8 @@ set -euo pipefail
 fuzzer=$1 seeds=$2 work=$3 seconds=$4
 # OpenCV logs every frame it cannot decode; the fuzzer output should show findings only.
 export OPENCV_LOG_LEVEL=ERROR
-rm -rf "$work"
+# Crash inputs of earlier runs are kept (artifacts/) for a look after a failure.
+rm -rf "$work/corpus"
 mkdir -p "$work/corpus" "$work/artifacts"
 exec "$fuzzer" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -print_final_stats=1 \
     -artifact_prefix="$work/artifacts/" "$work/corpus" "$seeds"
