@@ -32,6 +32,7 @@
 
 #include "base/log.h"
 #include "bench/board_render.h"
+#include "vision/board_file.h"
 #include "gpu/context.h"
 #include "image/image.h"
 #include "io/session.h"
@@ -413,7 +414,7 @@ Result<ImageF> fisheyeImage(const CameraCalibration& cal, const EnvironmentSampl
 // --- main -------------------------------------------------------------------------------------
 
 int run(const Options& o) {
-    auto board = TagBoard::load(o.demoDir + "/board.toml");
+    auto board = loadTagBoard(o.demoDir + "/board.toml");
     auto sceneCal = CameraCalibration::load(o.demoDir + "/scene_camera.yaml");
     auto fisheyeCal = CameraCalibration::load(o.demoDir + "/fisheye.yaml");
     for (const std::string* err : {board ? nullptr : &board.message(),

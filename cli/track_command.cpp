@@ -10,6 +10,7 @@
 #include "base/command_line.h"
 #include "base/log.h"
 #include "base/progress.h"
+#include "vision/board_file.h"
 #include "vision/board_pose.h"
 #include "vision/camera_calibration.h"
 #include "vision/tag_board.h"
@@ -72,7 +73,7 @@ int run(TrackOptions& o) {
     }
     std::optional<TagBoard> board;
     if (!o.board.empty()) {
-        auto loaded = TagBoard::load(o.board);
+        auto loaded = loadTagBoard(o.board);
         if (!loaded) {
             logError("--board: {}", loaded.message());
             return 2;

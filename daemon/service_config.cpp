@@ -8,6 +8,7 @@
 #include <limits>
 
 #include "capture/pixel_format.h"
+#include "vision/board_file.h"
 #include "config/toml_reader.h"
 
 namespace previs {
@@ -288,7 +289,7 @@ Status ConfigReader::parseTracking(const toml::table& t, TrackingConfig& c) cons
     Result<std::string> boardPath =
         r_.file(*t.get("board"), "tracking.board", **board, {".toml"}, "tag board");
     if (!boardPath) return boardPath.error();
-    Result<TagBoard> loaded = TagBoard::load(*boardPath);
+    Result<TagBoard> loaded = loadTagBoard(*boardPath);
     if (!loaded) return fail(t.get("board"), "'tracking.board': {}", loaded.message());
 
     Result<std::optional<std::string>> family = r_.string(t, "tracking", "family");

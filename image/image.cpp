@@ -1,16 +1,27 @@
 #include "image/image.h"
 
 #include <algorithm>
+#include <array>
 #include <cerrno>
+#include <cinttypes>
+#include <cstdio>
 #include <cstring>
 #include <exception>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <limits>
 #include <memory>
+#include <optional>
+#include <string_view>
+
+#include <OpenEXR/Iex.h>
 
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfCompression.h>
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfIO.h>
 #include <OpenEXR/ImfInputFile.h>
 #include <OpenEXR/ImfOutputFile.h>
 #include <png.h>
@@ -33,6 +44,12 @@ Status checkReadable(const std::string& path) {
     return {};
 }
 
+// Library messages may span lines; a user sees one.
+std::string oneLine(std::string text) {
+    std::replace(text.begin(), text.end(), '\n', ' ');
+    return text;
+}
+
 Status checkWritableFolder(const std::string& path) {
     std::filesystem::path parent = std::filesystem::path(path).parent_path();
     if (parent.empty()) parent = ".";
@@ -43,15 +60,147 @@ Status checkWritableFolder(const std::string& path) {
     return {};
 }
 
-Result<ImageF> readExr(const std::string& path) {
+// What a file's first bytes say it is. Formats we cannot read are named too, so a refusal can
+// say what the file actually is.
+enum class ContentType { Exr, Hdr, Png, Jpeg, Other };
+
+struct Sniffed {
+    ContentType type = ContentType::Other;
+    const char* name = "";  // "a PNG image", ...
+};
+
+bool startsWith(std::span<const uint8_t> bytes, std::string_view magic) {
+    return bytes.size() >= magic.size() &&
+           std::memcmp(bytes.data(), magic.data(), magic.size()) == 0;
+}
+
+Sniffed sniff(std::span<const uint8_t> bytes) {
+    using namespace std::string_view_literals;
+    if (startsWith(bytes, "\x76\x2f\x31\x01"sv)) return {ContentType::Exr, "an OpenEXR image"};
+    if (startsWith(bytes, "#?RADIANCE\n"sv) || startsWith(bytes, "#?RGBE\n"sv))
+        return {ContentType::Hdr, "a Radiance HDR image"};
+    if (startsWith(bytes, "\x89PNG\r\n\x1a\n"sv)) return {ContentType::Png, "a PNG image"};
+    if (startsWith(bytes, "\xff\xd8\xff"sv)) return {ContentType::Jpeg, "a JPEG image"};
+    struct Other {
+        std::string_view magic;
+        const char* name;
+    };
+    static const Other kOthers[] = {
+        {"GIF8"sv, "a GIF image"},
+        {"BM"sv, "a BMP image"},
+        {"8BPS"sv, "a Photoshop image"},
+        {"II*\0"sv, "a TIFF image"},
+        {"MM\0*"sv, "a TIFF image"},
+        {"glTF"sv, "a binary glTF file"},
+        {"#?"sv, "a Radiance file without a valid first line"},
+        {"\x1f\x8b"sv, "a gzip archive"},
+        {"PK\x03\x04"sv, "a zip archive"},
+    };
+    for (const Other& o : kOthers)
+        if (startsWith(bytes, o.magic)) return {ContentType::Other, o.name};
+    if (bytes.size() >= 12 && startsWith(bytes, "RIFF"sv) &&
+        std::memcmp(bytes.data() + 8, "WEBP", 4) == 0)
+        return {ContentType::Other, "a WebP image"};
+    if (bytes.empty()) return {ContentType::Other, "an empty file"};
+    return {ContentType::Other, "not an image this reader knows"};
+}
+
+Result<std::vector<uint8_t>> readFileBytes(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) return makeError("cannot read image '{}': {}", path, std::strerror(errno));
+    std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)),
+                               std::istreambuf_iterator<char>());
+    if (in.bad()) return makeError("cannot read image '{}': read error", path);
+    return bytes;
+}
+
+Status checkSize(const std::string& path, const char* format, int64_t w, int64_t h,
+                 const ImageLimits& limits) {
+    if (w <= 0 || h <= 0)
+        return makeError("cannot read image '{}': its header says {}x{} pixels (corrupt file)",
+                         path, w, h);
+    if (w > int64_t(limits.maxWidth) || h > int64_t(limits.maxHeight))
+        return makeError(
+            "cannot read image '{}': {} is {}x{} pixels, larger than the limit {}x{} (scale it "
+            "down)",
+            path, format, w, h, limits.maxWidth, limits.maxHeight);
+    return {};
+}
+
+// --- OpenEXR -------------------------------------------------------------------------------
+
+// The data window from the first header (OpenEXR file layout: magic, version, then attributes
+// `name\0 type\0 int32 size, value` up to an empty name), read before OpenEXR sees the file so
+// the size limit holds before anything is allocated for it.
+Result<std::array<int32_t, 4>> exrDataWindow(std::span<const uint8_t> bytes,
+                                             const std::string& path) {
+    size_t at = 8;
+    auto cString = [&](std::string& out) {
+        out.clear();
+        while (at < bytes.size() && bytes[at] != 0 && out.size() < 256) out += char(bytes[at++]);
+        if (at >= bytes.size() || bytes[at] != 0) return false;
+        ++at;
+        return true;
+    };
+    auto int32At = [&](size_t offset) {
+        uint32_t v = 0;
+        for (int i = 3; i >= 0; --i) v = (v << 8) | bytes[offset + size_t(i)];
+        return int32_t(v);
+    };
+    std::string name;
+    std::string type;
+    while (cString(name) && !name.empty()) {  // an empty name ends the header
+        if (!cString(type) || bytes.size() - at < 4) break;
+        const int32_t size = int32At(at);
+        at += 4;
+        if (size < 0 || size_t(size) > bytes.size() - at) break;
+        if (name == "dataWindow" && type == "box2i" && size == 16)
+            return std::array<int32_t, 4>{int32At(at), int32At(at + 4), int32At(at + 8),
+                                          int32At(at + 12)};
+        at += size_t(size);
+    }
+    return makeError("cannot read image '{}': the OpenEXR header is truncated or has no data "
+                     "window (corrupt file)",
+                     path);
+}
+
+// Lets OpenEXR read from the bytes already in memory; reading past the end throws, as reading
+// a short file does.
+class MemoryIStream : public Imf::IStream {
+public:
+    MemoryIStream(std::span<const uint8_t> bytes, const std::string& path)
+        : Imf::IStream(path.c_str()), bytes_(bytes) {}
+    bool read(char c[], int n) override {
+        if (n < 0 || pos_ > bytes_.size() || uint64_t(n) > bytes_.size() - pos_)
+            throw Iex::InputExc("unexpected end of file");
+        std::memcpy(c, bytes_.data() + pos_, size_t(n));
+        pos_ += uint64_t(n);
+        return pos_ < bytes_.size();
+    }
+    uint64_t tellg() override { return pos_; }
+    void seekg(uint64_t pos) override { pos_ = pos; }
+
+private:
+    std::span<const uint8_t> bytes_;
+    uint64_t pos_ = 0;
+};
+
+Result<ImageF> readExr(std::span<const uint8_t> bytes, const std::string& path,
+                       const ImageLimits& limits) {
+    Result<std::array<int32_t, 4>> window = exrDataWindow(bytes, path);
+    if (!window) return window.error();
+    const int64_t w = int64_t((*window)[2]) - (*window)[0] + 1;
+    const int64_t h = int64_t((*window)[3]) - (*window)[1] + 1;
+    if (Status s = checkSize(path, "the OpenEXR image", w, h, limits); !s) return s.error();
     try {
-        Imf::InputFile file(path.c_str());
+        MemoryIStream stream(bytes, path);
+        Imf::InputFile file(stream);
         const Imf::Header& header = file.header();
         const Imath::Box2i dw = header.dataWindow();
-        const int64_t w = int64_t(dw.max.x) - dw.min.x + 1;
-        const int64_t h = int64_t(dw.max.y) - dw.min.y + 1;
-        if (w <= 0 || h <= 0 || w > 65536 || h > 65536)
-            return makeError("cannot read image '{}': unsupported EXR size {}x{}", path, w, h);
+        if (dw.min.x != (*window)[0] || dw.min.y != (*window)[1] || dw.max.x != (*window)[2] ||
+            dw.max.y != (*window)[3])
+            return makeError("cannot read image '{}': inconsistent OpenEXR header (corrupt file)",
+                             path);
 
         const Imf::ChannelList& channels = header.channels();
         std::vector<const char*> names;
@@ -88,61 +237,323 @@ Result<ImageF> readExr(const std::string& path) {
         file.readPixels(dw.min.y, dw.max.y);
         return image;
     } catch (const std::exception& e) {
-        return makeError("cannot read EXR image '{}': {}", path, e.what());
+        return makeError("cannot read EXR image '{}': {}", path, oneLine(e.what()));
     }
 }
 
-Result<ImageF> readStb(const std::string& path, bool hdr) {
-    int w = 0;
-    int h = 0;
-    int n = 0;
-    ImageF image;
-    if (hdr) {
-        std::unique_ptr<float, decltype(&stbi_image_free)> data(
-            stbi_loadf(path.c_str(), &w, &h, &n, 3), &stbi_image_free);
-        if (!data)
-            return makeError("cannot decode Radiance HDR image '{}': {}", path,
-                             stbi_failure_reason() ? stbi_failure_reason() : "unknown error");
-        image.channels = 3;
-        image.pixels.assign(data.get(), data.get() + size_t(w) * size_t(h) * 3);
-    } else {
-        std::unique_ptr<unsigned char, decltype(&stbi_image_free)> data(
-            stbi_load(path.c_str(), &w, &h, &n, 0), &stbi_image_free);
-        if (!data)
-            return makeError("cannot decode image '{}': {} (is it a valid PNG/JPEG?)", path,
-                             stbi_failure_reason() ? stbi_failure_reason() : "unknown error");
-        // Grey+alpha becomes RGBA so callers see 1, 3 or 4 channels only.
-        const int outChannels = n == 2 ? 4 : n;
-        image.channels = uint32_t(outChannels);
-        image.ldrSrgb = true;
-        image.pixels.resize(size_t(w) * size_t(h) * size_t(outChannels));
-        for (size_t p = 0; p < size_t(w) * size_t(h); ++p) {
-            const unsigned char* src = data.get() + p * size_t(n);
-            float* dst = image.pixels.data() + p * size_t(outChannels);
-            if (n == 2) {
-                dst[0] = dst[1] = dst[2] = src[0] / 255.0f;
-                dst[3] = src[1] / 255.0f;
-            } else {
-                for (int c = 0; c < n; ++c) dst[c] = src[c] / 255.0f;
+// --- Radiance .hdr -------------------------------------------------------------------------
+
+// Debian's stb_image loops forever on some truncated or corrupt Radiance files (end of file
+// inside an RLE scanline reads as a zero-length run, again and again; so does a real zero-length
+// run). So the file's structure is walked here first, every read bounded, exactly as stb will
+// read it; stb only ever sees a file it decodes without reaching the end.
+struct HdrLayout {
+    int64_t width = 0;
+    int64_t height = 0;
+    size_t dataOffset = 0;
+};
+
+Result<HdrLayout> parseHdrHeader(std::span<const uint8_t> bytes, const std::string& path) {
+    size_t at = 0;
+    // One header line without its '\n'; nullopt at end of file (a header line ends in '\n') or
+    // past stb's 1023-character line buffer.
+    auto line = [&]() -> std::optional<std::string> {
+        std::string out;
+        while (at < bytes.size() && bytes[at] != '\n') {
+            out += char(bytes[at++]);
+            if (out.size() >= 1023) return std::nullopt;
+        }
+        if (at >= bytes.size()) return std::nullopt;
+        ++at;
+        return out;
+    };
+    std::optional<std::string> l = line();  // "#?RADIANCE", checked by sniff()
+    bool rgbe = false;
+    while (true) {
+        l = line();
+        if (!l)
+            return makeError(
+                "cannot read image '{}': the Radiance HDR header is truncated or corrupt", path);
+        if (l->empty()) break;
+        if (*l == "FORMAT=32-bit_rle_rgbe") rgbe = true;
+    }
+    if (!rgbe)
+        return makeError("cannot read image '{}': not an RGBE Radiance file (only "
+                         "FORMAT=32-bit_rle_rgbe is read)",
+                         path);
+    l = line();
+    int64_t h = 0;
+    int64_t w = 0;
+    char tail = 0;
+    // The only orientation stb reads: "-Y height +X width".
+    if (!l || l->find('\0') != std::string::npos ||
+        std::sscanf(l->c_str(), "-Y %" SCNd64 " +X %" SCNd64 "%c", &h, &w, &tail) != 2)
+        return makeError("cannot read image '{}': unsupported Radiance HDR resolution line "
+                         "(only '-Y H +X W' is read)",
+                         path);
+    return HdrLayout{w, h, at};
+}
+
+Status checkHdrScanlines(std::span<const uint8_t> bytes, const HdrLayout& layout,
+                         const std::string& path) {
+    const uint64_t w = uint64_t(layout.width);
+    const uint64_t h = uint64_t(layout.height);
+    const size_t size = bytes.size();
+    size_t at = layout.dataOffset;
+    auto truncated = [&](uint64_t row) {
+        return makeError("cannot read image '{}': the Radiance HDR file ends early, at scanline "
+                         "{} of {} (truncated: copy it again)",
+                         path, row, h);
+    };
+    auto corrupt = [&](uint64_t row) {
+        return makeError("cannot read image '{}': bad run length in Radiance HDR scanline {} "
+                         "(corrupt file)",
+                         path, row);
+    };
+    // Pixels stored flat (4 bytes each) from `from` to the end of the image.
+    auto flat = [&](size_t from) -> Status {
+        if (uint64_t(size - from) < w * h * 4) return truncated((size - from) / (w * 4));
+        return {};
+    };
+    // stb's rule: widths outside [8, 32768) are stored flat; so is a file whose first scanline
+    // does not start with the RLE marker (2, 2, length < 32768).
+    if (w < 8 || w >= 32768) return flat(at);
+    for (uint64_t row = 0; row < h; ++row) {
+        if (size - at < 4) return truncated(row);
+        const uint8_t* p = bytes.data() + at;
+        if (p[0] != 2 || p[1] != 2 || (p[2] & 0x80)) {
+            if (row == 0) return flat(at);
+            return makeError("cannot read image '{}': Radiance HDR scanline {} is not run-length "
+                             "encoded like those before it (corrupt file)",
+                             path, row);
+        }
+        const uint64_t length = uint64_t(p[2]) << 8 | p[3];
+        if (length != w)
+            return makeError("cannot read image '{}': Radiance HDR scanline {} has length {}, not "
+                             "the width {} (corrupt file)",
+                             path, row, length, w);
+        at += 4;
+        for (int channel = 0; channel < 4; ++channel) {
+            for (uint64_t x = 0; x < w;) {
+                if (at >= size) return truncated(row);
+                const uint8_t count = bytes[at++];
+                if (count > 128) {  // a run: one value repeated count - 128 times
+                    if (at >= size) return truncated(row);
+                    ++at;
+                    if (uint64_t(count - 128) > w - x) return corrupt(row);
+                    x += count - 128;
+                } else {  // count literal values
+                    if (count == 0 || count > w - x) return corrupt(row);
+                    if (size - at < count) return truncated(row);
+                    at += count;
+                    x += count;
+                }
             }
         }
     }
+    return {};
+}
+
+Result<ImageF> readHdr(std::span<const uint8_t> bytes, const std::string& path,
+                       const ImageLimits& limits) {
+    Result<HdrLayout> layout = parseHdrHeader(bytes, path);
+    if (!layout) return layout.error();
+    if (Status s = checkSize(path, "the Radiance HDR image", layout->width, layout->height,
+                             limits);
+        !s)
+        return s.error();
+    if (Status s = checkHdrScanlines(bytes, *layout, path); !s) return s.error();
+    if (bytes.size() > size_t(std::numeric_limits<int>::max()))
+        return makeError("cannot read image '{}': the file is larger than 2 GiB", path);
+    int w = 0;
+    int h = 0;
+    int n = 0;
+    std::unique_ptr<float, decltype(&stbi_image_free)> data(
+        stbi_loadf_from_memory(bytes.data(), int(bytes.size()), &w, &h, &n, 3), &stbi_image_free);
+    if (!data)
+        return makeError("cannot decode Radiance HDR image '{}': {}", path,
+                         stbi_failure_reason() ? stbi_failure_reason() : "unknown error");
+    if (w != layout->width || h != layout->height)
+        return makeError("cannot decode Radiance HDR image '{}': inconsistent size", path);
+    ImageF image;
     image.width = uint32_t(w);
     image.height = uint32_t(h);
+    image.channels = 3;
+    image.pixels.assign(data.get(), data.get() + size_t(w) * size_t(h) * 3);
+    return image;
+}
+
+// --- PNG / JPEG ----------------------------------------------------------------------------
+
+// Debian's stb_image (2022-09) does not check that a JPEG Huffman table holds at most 256 codes
+// and writes past its table when one does (found by fuzz/fuzz_image). So every marker segment
+// of the file is walked here first (ITU T.81 B.1.1.4, B.2.4.2), every length bounded, skipping
+// entropy-coded data after each start of scan (progressive files define tables between scans),
+// and a table with more than 256 codes is refused, as is a segment cut short. A file that ends
+// inside a scan is left to stb, which reads the rest of the scan as zeros.
+Status checkJpegTables(std::span<const uint8_t> bytes, const std::string& path) {
+    auto corrupt = [&](const char* what) {
+        return makeError("cannot decode image '{}': a JPEG image with {} (corrupt file)", path,
+                         what);
+    };
+    const size_t size = bytes.size();
+    size_t at = 2;  // after SOI
+    while (true) {
+        while (at + 1 < size && bytes[at] == 0xff && bytes[at + 1] == 0xff) ++at;  // fill bytes
+        if (size - at < 4) return {};
+        if (bytes[at] != 0xff) return corrupt("a malformed header");
+        const uint8_t marker = bytes[at + 1];
+        if (marker == 0xd9) return {};  // end of image
+        const size_t length = size_t(bytes[at + 2]) << 8 | bytes[at + 3];
+        if (length < 2) return corrupt("a malformed header segment");
+        // stb reads a segment past the end of the file as zeros, tables included.
+        if (length > size - at - 2) return corrupt("a header segment cut short (truncated file)");
+        if (marker == 0xc4) {  // DHT: tables of (class/id, 16 counts, the codes)
+            size_t t = at + 4;
+            const size_t end = at + 2 + length;
+            while (t < end) {
+                if (end - t < 17) return corrupt("a cut-short Huffman table");
+                size_t codes = 0;
+                for (size_t i = 1; i <= 16; ++i) codes += bytes[t + i];
+                if (codes > 256) return corrupt("a Huffman table of more than 256 codes");
+                if (end - t - 17 < codes) return corrupt("a cut-short Huffman table");
+                t += 17 + codes;
+            }
+        }
+        at += 2 + length;
+        if (marker == 0xda) {  // start of scan: entropy-coded data up to the next real marker
+            while (at + 1 < size &&
+                   !(bytes[at] == 0xff && bytes[at + 1] != 0 && bytes[at + 1] != 0xff &&
+                     (bytes[at + 1] < 0xd0 || bytes[at + 1] > 0xd7)))
+                ++at;
+        }
+    }
+}
+
+struct Decoded8 {
+    std::unique_ptr<unsigned char, decltype(&stbi_image_free)> data{nullptr, &stbi_image_free};
+    int width = 0;
+    int height = 0;
+    int channels = 0;  // in the file
+};
+
+// The header's size through stb's info reader (no pixel decoded yet), then the pixels.
+Result<Decoded8> decode8(std::span<const uint8_t> bytes, const Sniffed& what,
+                         const std::string& path, int wantChannels, const ImageLimits& limits) {
+    if (bytes.size() > size_t(std::numeric_limits<int>::max()))
+        return makeError("cannot read image '{}': the file is larger than 2 GiB", path);
+    const int size = int(bytes.size());
+    Decoded8 out;
+    if (what.type == ContentType::Png) {
+        // IHDR comes first (PNG spec 5.2): length, "IHDR", width, height, big-endian.
+        auto be32 = [&](size_t at) {
+            return uint32_t(bytes[at]) << 24 | uint32_t(bytes[at + 1]) << 16 |
+                   uint32_t(bytes[at + 2]) << 8 | uint32_t(bytes[at + 3]);
+        };
+        if (bytes.size() < 33 || std::memcmp(bytes.data() + 12, "IHDR", 4) != 0)
+            return makeError("cannot decode image '{}': a PNG image without its IHDR header "
+                             "(truncated or corrupt)",
+                             path);
+        if (Status s = checkSize(path, what.name, be32(16), be32(20), limits); !s)
+            return s.error();
+    }
+    if (what.type == ContentType::Jpeg)
+        if (Status s = checkJpegTables(bytes, path); !s) return s.error();
+    if (!stbi_info_from_memory(bytes.data(), size, &out.width, &out.height, &out.channels))
+        return makeError("cannot decode image '{}': {} with a corrupt header ({})", path,
+                         what.name, stbi_failure_reason() ? stbi_failure_reason() : "unknown");
+    if (Status s = checkSize(path, what.name, out.width, out.height, limits); !s)
+        return s.error();
+    int w = 0;
+    int h = 0;
+    out.data.reset(
+        stbi_load_from_memory(bytes.data(), size, &w, &h, &out.channels, wantChannels));
+    if (!out.data)
+        return makeError("cannot decode image '{}': {} that is corrupt or truncated ({})", path,
+                         what.name, stbi_failure_reason() ? stbi_failure_reason() : "unknown");
+    if (w != out.width || h != out.height)
+        return makeError("cannot decode image '{}': inconsistent size", path);
+    return out;
+}
+
+Result<ImageF> readLdr(std::span<const uint8_t> bytes, const Sniffed& what,
+                       const std::string& path, const ImageLimits& limits) {
+    Result<Decoded8> decoded = decode8(bytes, what, path, 0, limits);
+    if (!decoded) return decoded.error();
+    const int n = decoded->channels;
+    const size_t pixels = size_t(decoded->width) * size_t(decoded->height);
+    // Grey+alpha becomes RGBA so callers see 1, 3 or 4 channels only.
+    const int outChannels = n == 2 ? 4 : n;
+    ImageF image;
+    image.width = uint32_t(decoded->width);
+    image.height = uint32_t(decoded->height);
+    image.channels = uint32_t(outChannels);
+    image.ldrSrgb = true;
+    image.pixels.resize(pixels * size_t(outChannels));
+    for (size_t p = 0; p < pixels; ++p) {
+        const unsigned char* src = decoded->data.get() + p * size_t(n);
+        float* dst = image.pixels.data() + p * size_t(outChannels);
+        if (n == 2) {
+            dst[0] = dst[1] = dst[2] = src[0] / 255.0f;
+            dst[3] = src[1] / 255.0f;
+        } else {
+            for (int c = 0; c < n; ++c) dst[c] = src[c] / 255.0f;
+        }
+    }
     return image;
 }
 
 }  // namespace
 
-Result<ImageF> readImage(const std::string& path) {
+Result<ImageF> readImage(const std::string& path, const ImageLimits& limits) {
     if (Status s = checkReadable(path); !s) return s.error();
     const std::string ext = lowerExtension(path);
-    if (ext == ".exr") return readExr(path);
-    if (ext == ".hdr") return readStb(path, true);
-    if (ext == ".png" || ext == ".jpg" || ext == ".jpeg") return readStb(path, false);
-    return makeError(
-        "cannot read image '{}': unsupported extension '{}' (use .exr, .hdr, .png, .jpg)", path,
-        ext);
+    ContentType expected = ContentType::Other;
+    if (ext == ".exr")
+        expected = ContentType::Exr;
+    else if (ext == ".hdr")
+        expected = ContentType::Hdr;
+    else if (ext == ".png")
+        expected = ContentType::Png;
+    else if (ext == ".jpg" || ext == ".jpeg")
+        expected = ContentType::Jpeg;
+    else
+        return makeError(
+            "cannot read image '{}': unsupported extension '{}' (use .exr, .hdr, .png, .jpg)",
+            path, ext);
+    Result<std::vector<uint8_t>> bytes = readFileBytes(path);
+    if (!bytes) return bytes.error();
+    const Sniffed what = sniff(*bytes);
+    if (what.type != expected) {
+        // Indexed by ContentType.
+        static const char* const kFormat[] = {"OpenEXR", "Radiance HDR", "PNG", "JPEG"};
+        static const char* const kExtension[] = {".exr", ".hdr", ".png", ".jpg"};
+        return makeError("cannot read image '{}': the name says {} but the file is {}{}", path,
+                         kFormat[int(expected)], what.name,
+                         what.type == ContentType::Other
+                             ? std::string(" (damaged, or not an image)")
+                             : fmt::format(" (rename it to {})", kExtension[int(what.type)]));
+    }
+    switch (what.type) {
+        case ContentType::Exr: return readExr(*bytes, path, limits);
+        case ContentType::Hdr: return readHdr(*bytes, path, limits);
+        default: return readLdr(*bytes, what, path, limits);
+    }
+}
+
+Result<ImageRgba8> decodePngOrJpeg(std::span<const uint8_t> bytes, const std::string& name,
+                                   const ImageLimits& limits) {
+    const Sniffed what = sniff(bytes);
+    if (what.type != ContentType::Png && what.type != ContentType::Jpeg)
+        return makeError("cannot decode image '{}': it is {}, not PNG or JPEG", name, what.name);
+    Result<Decoded8> decoded = decode8(bytes, what, name, 4, limits);
+    if (!decoded) return decoded.error();
+    ImageRgba8 image;
+    image.width = uint32_t(decoded->width);
+    image.height = uint32_t(decoded->height);
+    image.pixels.assign(decoded->data.get(),
+                        decoded->data.get() + size_t(image.width) * image.height * 4);
+    return image;
 }
 
 Status writeExr(const std::string& path, const ImageF& image) {

@@ -4,6 +4,7 @@
 // Every error names the file, what is wrong and what to do.
 
 #include <cstdint>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -26,8 +27,31 @@ struct ImageF {
     }
 };
 
-// Reads .exr (float; channels R,G,B[,A] or Y), .hdr (Radiance RGBE), .png/.jpg/.jpeg.
-Result<ImageF> readImage(const std::string& path);
+// The largest image a reader decodes, per axis. Checked against the header before any pixel is
+// decoded, so a hostile or mistaken file (a 100000 x 100000 PNG is a few kilobytes) cannot
+// exhaust memory (DESIGN.md §7). 16384 x 16384 RGBA float is 4 GiB, the most the box can hold.
+struct ImageLimits {
+    uint32_t maxWidth = 16384;
+    uint32_t maxHeight = 16384;
+};
+
+// Reads .exr (float; channels R,G,B[,A] or Y), .hdr (Radiance RGBE), .png/.jpg/.jpeg. The
+// content must be what the extension says (a PNG named .exr is refused, naming what it is),
+// the header's size must be within `limits`, and a truncated or corrupt file is an error,
+// never a hang or a crash.
+Result<ImageF> readImage(const std::string& path, const ImageLimits& limits = {});
+
+// An 8-bit RGBA image, row 0 at the top (a decoded glTF texture).
+struct ImageRgba8 {
+    uint32_t width = 0;
+    uint32_t height = 0;
+    std::vector<uint8_t> pixels;  // width * height * 4
+};
+
+// Decodes a PNG or JPEG held in memory (glTF allows only these two for textures), with the
+// same checks as readImage; `name` names the image in errors.
+Result<ImageRgba8> decodePngOrJpeg(std::span<const uint8_t> bytes, const std::string& name,
+                                   const ImageLimits& limits = {});
 
 // Writes float32 (never half: linear HDR must survive a round trip bit-exactly), lossless ZIP
 // compression. 1 channel is written as "Y", 3 as RGB, 4 as RGBA.

@@ -277,11 +277,14 @@ Result<SessionInfo> openSession(const std::string& dir) {
     }
     std::sort(info.cameras.begin(), info.cameras.end(),
               [](const SessionCamera& a, const SessionCamera& b) { return a.name < b.name; });
-    for (const auto& [name, role] : roles)
+    // Not a structured binding: clang 14 (the fuzz build) cannot capture one in a lambda.
+    for (const auto& entry : roles) {
+        const std::string& name = entry.first;
         if (std::none_of(info.cameras.begin(), info.cameras.end(),
                          [&](const SessionCamera& c) { return c.name == name; }))
             logWarning("{}: camera '{}' ({}) has no frames (no cameras/{}/index.csv)", path, name,
-                       role, name);
+                       entry.second, name);
+    }
     return info;
 }
 

@@ -12,6 +12,7 @@
 #include <memory>
 #include <optional>
 #include <set>
+#include <span>
 #include <tuple>
 #include <utility>
 
@@ -20,11 +21,11 @@
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/quaternion.hpp>
 #include <glm/gtc/type_ptr.hpp>
-#include <stb_image.h>
 #include <tiny_gltf.h>
 
 #include "base/log.h"
 #include "base/strings.h"
+#include "image/image.h"
 
 namespace previs {
 namespace {
@@ -61,24 +62,24 @@ bool decodeImage(tinygltf::Image* image, const int imageIndex, std::string* /*er
                  std::string* /*warn*/, int /*reqWidth*/, int /*reqHeight*/,
                  const unsigned char* bytes, int size, void* user) {
     auto* context = static_cast<ImageLoadContext*>(user);
-    int w = 0;
-    int h = 0;
-    int comp = 0;
-    std::unique_ptr<unsigned char, decltype(&stbi_image_free)> data(
-        stbi_load_from_memory(bytes, size, &w, &h, &comp, 4), &stbi_image_free);
-    if (!data || w <= 0 || h <= 0) {
-        context->failures[imageIndex] =
-            stbi_failure_reason() ? stbi_failure_reason() : "unknown error";
+    // Through image/'s checks (content type, size limit from the header), not straight to stb:
+    // a hostile texture must not hang or exhaust the loader.
+    Result<ImageRgba8> decoded =
+        size > 0 ? decodePngOrJpeg(std::span<const uint8_t>(bytes, size_t(size)),
+                                   fmt::format("image {}", imageIndex))
+                 : Result<ImageRgba8>(makeError("image {} is empty", imageIndex));
+    if (!decoded) {
+        context->failures[imageIndex] = decoded.message();
         image->image.clear();
         image->width = image->height = 0;
         return true;
     }
-    image->width = w;
-    image->height = h;
+    image->width = int(decoded->width);
+    image->height = int(decoded->height);
     image->component = 4;
     image->bits = 8;
     image->pixel_type = TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE;
-    image->image.assign(data.get(), data.get() + size_t(w) * size_t(h) * 4);
+    image->image = std::move(decoded->pixels);
     return true;
 }
 

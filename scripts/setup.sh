@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Installs the Debian packages previs needs (skipping those present), then configures and
-# builds one configuration. Usage: scripts/setup.sh [release|asan]   (default release)
+# builds one configuration. Usage: scripts/setup.sh [release|asan|fuzz]   (default release)
+# fuzz: clang-14 with libFuzzer+ASan+UBSan in build-fuzz, only the fuzz targets (docs/fuzzing.md).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 config=${1:-release}
@@ -22,8 +23,13 @@ fi
 case "$config" in
     release) build="$root/build"; flags=(-DCMAKE_BUILD_TYPE=RelWithDebInfo) ;;
     asan) build="$root/build-asan"; flags=(-DCMAKE_BUILD_TYPE=Debug -DPREVIS_SANITIZE=ON) ;;
-    *) echo "setup: unknown configuration '$config' (use release or asan)" >&2; exit 2 ;;
+    fuzz) build="$root/build-fuzz"
+          flags=(-DCMAKE_BUILD_TYPE=RelWithDebInfo -DPREVIS_FUZZ=ON -DCMAKE_C_COMPILER=clang-14
+                 -DCMAKE_CXX_COMPILER=clang++-14) ;;
+    *) echo "setup: unknown configuration '$config' (use release, asan or fuzz)" >&2; exit 2 ;;
 esac
 cmake -S "$root" -B "$build" -G Ninja -DPREVIS_WERROR=${PREVIS_WERROR:-OFF} "${flags[@]}" >&2
-cmake --build "$build" -j"$(nproc)" >&2
+targets=()
+[[ $config == fuzz ]] && targets=(--target previs_fuzzers)
+cmake --build "$build" -j"$(nproc)" "${targets[@]}" >&2
 echo "$build"

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Sets everything up, then builds and runs the whole test suite twice: an optimised build and an
-# ASan+UBSan build. Warnings are errors here.
+# ASan+UBSan build; then every fuzz target for a few seconds on its seed corpus (a clang build of
+# the parsers only; docs/fuzzing.md). Warnings are errors here.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 export PREVIS_WERROR=ON
@@ -13,3 +14,7 @@ for config in release asan; do
     [[ $config == asan ]] && exclude=(-LE vm-release)
     ctest --test-dir "$build" --output-on-failure -j"$(nproc)" --timeout 600 "${exclude[@]}"
 done
+build=$("$root/scripts/setup.sh" fuzz)
+echo "== fuzz targets on their seed corpora ==" >&2
+# Each target runs PREVIS_FUZZ_SECONDS (fuzz/CMakeLists.txt) on one core.
+ctest --test-dir "$build" --output-on-failure -j"$(nproc)" -L fuzz

@@ -1,12 +1,59 @@
 #include "vision/camera_calibration.h"
 
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <chrono>
 #include <cmath>
+#include <cstdint>
+#include <exception>
+#include <thread>
+#include <utility>
 
 #include <opencv2/calib3d.hpp>
 
 namespace previs {
 
 namespace {
+
+// OpenCV 4.6's YAML parser loops forever on some malformed files (fuzz/fuzz_camera_calibration
+// found a 91-byte one, tests/vision/data/fuzz_opencv_yaml_hang.yaml), and a box must not hang on
+// a half-written file. So the file is first parsed in a forked child with a time limit; only a
+// file that parses there in time is parsed again here. Parsing is deterministic, so the second
+// parse ends too. The child only parses and exits (_exit: no atexit handlers, no flushes).
+constexpr int kParseTimeLimitMs = 5000;
+
+Status parsesInBoundedTime(const std::string& path) {
+    const pid_t child = ::fork();
+    if (child < 0) return {};  // cannot fork: parse in-process as before
+    if (child == 0) {
+        int code = 0;
+        try {
+            cv::FileStorage fs(path, cv::FileStorage::READ);
+        } catch (...) {
+            code = 1;  // the in-process parse reports it
+        }
+        ::_exit(code);
+    }
+    const auto deadline =
+        std::chrono::steady_clock::now() + std::chrono::milliseconds(kParseTimeLimitMs);
+    for (;;) {
+        int status = 0;
+        const pid_t r = ::waitpid(child, &status, WNOHANG);
+        if (r == child || (r < 0 && errno != EINTR)) return {};
+        if (std::chrono::steady_clock::now() > deadline) {
+            ::kill(child, SIGKILL);
+            ::waitpid(child, &status, 0);
+            return makeError(
+                "cannot read camera calibration '{}': OpenCV's parser did not finish within {} s "
+                "(a malformed or truncated YAML/XML file?); check or rewrite the file",
+                path, kParseTimeLimitMs / 1000);
+        }
+        std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+}
 
 bool validCoefficientCount(DistortionModel model, size_t n) {
     if (model == DistortionModel::Fisheye) return n == 4;
@@ -53,6 +100,7 @@ Result<CameraCalibration> CameraCalibration::create(const cv::Matx33d& cameraMat
 }
 
 Result<CameraCalibration> CameraCalibration::load(const std::string& path) {
+    if (Status bounded = parsesInBoundedTime(path); !bounded) return bounded.error();
     // cv::FileStorage throws cv::Exception on malformed files: caught here, at the module edge.
     try {
         cv::FileStorage fs(path, cv::FileStorage::READ);
@@ -60,6 +108,21 @@ Result<CameraCalibration> CameraCalibration::load(const std::string& path) {
             return makeError(
                 "cannot read camera calibration '{}': not found or not an OpenCV YAML/XML file",
                 path);
+        // OpenCV allocates a matrix of the declared rows x cols before reading its data, so a
+        // hostile file declaring billions of elements exhausted memory (found by
+        // fuzz/fuzz_camera_calibration): the declared size is checked first.
+        for (const auto& [key, maxElements] : {std::pair<const char*, int64_t>{"camera_matrix", 9},
+                                               {"distortion_coefficients", 14}}) {
+            const cv::FileNode node = fs[key];
+            if (node.empty() || !node.isMap()) continue;  // absent, or not a matrix: below
+            const cv::FileNode rows = node["rows"];
+            const cv::FileNode cols = node["cols"];
+            if (!rows.isInt() || !cols.isInt() || int(rows) < 0 || int(cols) < 0 ||
+                int64_t(int(rows)) * int(cols) > maxElements)
+                return makeError("{}: {} must be an !!opencv-matrix of at most {} elements with "
+                                 "integer rows and cols",
+                                 path, key, maxElements);
+        }
         cv::Mat k;
         cv::Mat d;
         fs["camera_matrix"] >> k;
@@ -97,6 +160,9 @@ Result<CameraCalibration> CameraCalibration::load(const std::string& path) {
         return create(km, std::move(dist), cv::Size(width, height), model, path);
     } catch (const cv::Exception& e) {
         return makeError("cannot parse camera calibration '{}': {} (expected OpenCV YAML/XML)", path, e.err);
+    } catch (const std::exception& e) {  // std::bad_alloc from a hostile size, and the like
+        return makeError("cannot parse camera calibration '{}': {} (expected OpenCV YAML/XML)",
+                         path, e.what());
     }
 }
 

@@ -1,7 +1,7 @@
 #pragma once
 
-// A board of AprilTags with known poses in the world frame, read from a TOML file
-// (docs/board-format.md).
+// A board of AprilTags with known poses in the world frame. Its file (docs/board-format.md) is
+// read by vision/board_file.h.
 
 #include <array>
 #include <optional>
@@ -22,7 +22,6 @@ struct BoardTag {
 
 class TagBoard {
 public:
-    static Result<TagBoard> load(const std::string& path);
     // Validates tags built in memory; `source` names them in errors (duplicate ids, bad sizes).
     static Result<TagBoard> create(std::vector<BoardTag> tags, const std::string& source,
                                    std::string family = {});

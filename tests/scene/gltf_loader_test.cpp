@@ -3,12 +3,16 @@
 #include "tests/support/temp_dir.h"
 #include "scene/gltf_loader.h"
 
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <future>
 #include <limits>
 
+#include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <glm/gtc/matrix_transform.hpp>
@@ -533,6 +537,30 @@ TEST(GltfLoader, UndecodableTextureFallsBackToNoTexture) {
     EXPECT_EQ(scene->materials[0].baseColorTexture, -1);
     EXPECT_EQ(scene->materials[0].emissiveTexture, -1);
     EXPECT_TRUE(scene->textures.empty());
+}
+
+// A URI naming a FIFO blocked tinygltf's reader forever (and one naming a device opened it):
+// only regular files are read.
+TEST(GltfLoader, BufferUriNamingAFifoIsRefused) {
+    const auto fifo = tempDir() / "pipe.bin";
+    std::filesystem::remove(fifo);
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+    GltfBuilder b;
+    b.addNode({{"mesh", b.addTriangleMesh()}});
+    b.doc()["buffers"] = json::array({{{"byteLength", 64}, {"uri", "pipe.bin"}}});
+    const std::string path = (tempDir() / "fifo_buffer.gltf").string();
+    std::ofstream(path) << b.doc().dump(1);
+    auto loading = std::async(std::launch::async, [&] { return loadGltf(path); });
+    if (loading.wait_for(std::chrono::seconds(10)) != std::future_status::ready) {
+        // Release the blocked reader before failing, so the test ends.
+        const int fd = ::open(fifo.c_str(), O_WRONLY);
+        if (fd >= 0) ::close(fd);
+        FAIL() << "loadGltf blocked on a FIFO";
+    }
+    Result<Scene> r = loading.get();
+    ASSERT_FALSE(r.ok());
+    EXPECT_NE(r.message().find("fifo_buffer.gltf"), std::string::npos) << r.message();
+    EXPECT_NE(r.message().find("pipe.bin"), std::string::npos) << r.message();
 }
 
 // Blender 3.4's own exporter, default lighting mode (tests/data/light_units/make_light_units.py):

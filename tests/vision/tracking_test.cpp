@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -13,6 +14,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "vision/board_file.h"
 #include "vision/board_pose.h"
 #include "vision/camera_calibration.h"
 #include "vision/tag_board.h"
@@ -344,7 +346,7 @@ TEST(VispRbtSequence, BoardPoseMatchesGroundTruth) {
     const std::string dir = kData + "video/visp_rbt_sequence/";
     auto calib = CameraCalibration::load(kTestData + "visp_rbt.yaml");
     ASSERT_TRUE(calib.ok()) << calib.message();
-    auto board = TagBoard::load(kTestData + "visp_rbt_board.toml");
+    auto board = loadTagBoard(kTestData + "visp_rbt_board.toml");
     ASSERT_TRUE(board.ok()) << board.message();
     auto tracker = Tracker::create(TagDetectorSettings{.decimate = 1.0f}, *board, *calib);
     ASSERT_TRUE(tracker.ok()) << tracker.message();
@@ -390,7 +392,7 @@ TEST(VispRbtSequence, BoardPoseMatchesGroundTruth) {
 TEST(Tracker, HoldsLastGoodPoseWhenLost) {
     PREVIS_SKIP_WITHOUT_SHARED_DATA();
     auto calib = CameraCalibration::load(kTestData + "visp_rbt.yaml");
-    auto board = TagBoard::load(kTestData + "visp_rbt_board.toml");
+    auto board = loadTagBoard(kTestData + "visp_rbt_board.toml");
     ASSERT_TRUE(calib.ok() && board.ok());
     auto tracker = Tracker::create(TagDetectorSettings{.decimate = 1.0f}, *board, *calib);
     ASSERT_TRUE(tracker.ok());
@@ -464,7 +466,7 @@ TEST(TagBoard, RejectsDuplicateIds) {
     auto path = std::filesystem::temp_directory_path() / "previs_dup_board.toml";
     std::ofstream(path) << "tag_size_m = 0.1\n[[tag]]\nid = 3\nposition_m = [0,0,0]\n"
                            "[[tag]]\nid = 3\nposition_m = [1,0,0]\n";
-    auto board = TagBoard::load(path.string());
+    auto board = loadTagBoard(path.string());
     ASSERT_FALSE(board.ok());
     EXPECT_NE(board.message().find("tag id 3 appears more than once"), std::string::npos)
         << board.message();
@@ -478,13 +480,13 @@ TEST(TagBoard, RejectsMalformedFiles) {
                              "tag_size_m = -1\n[[tag]]\nid = 1\nposition_m = [0,0,0]\n",
                              "tag_size_m = 0.1\n[[tag]]\nid = 1\nposition_m = [0,0]\n"}) {
         std::ofstream(path) << text;
-        auto board = TagBoard::load(path.string());
+        auto board = loadTagBoard(path.string());
         EXPECT_FALSE(board.ok()) << text;
         if (!board.ok()) {
             EXPECT_NE(board.message().find(path.string()), std::string::npos);
         }
     }
-    EXPECT_FALSE(TagBoard::load("/nonexistent/board.toml").ok());
+    EXPECT_FALSE(loadTagBoard("/nonexistent/board.toml").ok());
     std::filesystem::remove(path);
 }
 
@@ -505,6 +507,46 @@ TEST(CameraCalibration, RejectsBadFiles) {
     }
     EXPECT_FALSE(CameraCalibration::load("/nonexistent.yaml").ok());
     std::filesystem::remove(path);
+}
+
+// Found by fuzz/fuzz_camera_calibration: OpenCV allocated a matrix of the size a file declares
+// before reading its data (48 GB for the checked-in input; 80 GB below), so the declared size is
+// checked first. Under ASan the allocation itself aborts, so this fails there without the check.
+TEST(CameraCalibration, RefusesHugeDeclaredMatrices) {
+    auto fuzzed = CameraCalibration::load(kTestData + "fuzz_bad_matrix_cols.yaml");
+    ASSERT_FALSE(fuzzed.ok());
+    EXPECT_NE(fuzzed.message().find("fuzz_bad_matrix_cols.yaml: camera_matrix must be"),
+              std::string::npos)
+        << fuzzed.message();
+    auto path = std::filesystem::temp_directory_path() / "previs_huge_calib.yaml";
+    std::ofstream(path) << "%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\n"
+                           "camera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n"
+                           "   data: [ 500., 0., 320., 0., 500., 240., 0., 0., 1. ]\n"
+                           "distortion_coefficients: !!opencv-matrix\n   rows: 100000\n"
+                           "   cols: 100000\n   dt: d\n   data: [ 0. ]\n";
+    auto huge = CameraCalibration::load(path.string());
+    ASSERT_FALSE(huge.ok());
+    EXPECT_NE(huge.message().find("distortion_coefficients must be an !!opencv-matrix of at most "
+                                  "14 elements"),
+              std::string::npos)
+        << huge.message();
+    std::filesystem::remove(path);
+}
+
+// A 91-byte file on which OpenCV 4.6's YAML parser loops forever (found by
+// fuzz/fuzz_camera_calibration): refused after the parse time limit, with one line naming it.
+TEST(CameraCalibration, ParserHangIsRefusedInBoundedTime) {
+    const auto start = std::chrono::steady_clock::now();
+    auto hang = CameraCalibration::load(kTestData + "fuzz_opencv_yaml_hang.yaml");
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    ASSERT_FALSE(hang.ok());
+    EXPECT_NE(hang.message().find("fuzz_opencv_yaml_hang.yaml': OpenCV's parser did not finish"),
+              std::string::npos)
+        << hang.message();
+    EXPECT_LT(seconds, 60.0);  // the limit is 5 s; generous for a loaded machine
+    // A good file still loads (the bounded parse does not refuse what parses).
+    EXPECT_TRUE(CameraCalibration::load(testing::sourcePath("examples/demo/scene_camera.yaml")));
 }
 
 TEST(TagDetector, RejectsUnknownFamilyAndSettings) {

@@ -1,0 +1,12 @@
+// loadTagBoard on a board .toml (docs/board-format.md).
+#include "vision/board_file.h"
+#include "fuzz/fuzz_support.h"
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+    using namespace previs;
+    const std::string path = fuzz::writeScratch("board.toml", fuzz::asText(data, size));
+    Result<TagBoard> board = loadTagBoard(path);
+    if (board.ok())
+        for (const BoardTag& tag : board->tags()) (void)board->worldCorners(tag);
+    return 0;
+}
