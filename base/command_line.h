@@ -4,13 +4,12 @@
 // line naming the command and the option, exit code 2; --help and --version exit 0; anything a
 // command throws is caught at the top, reported in one line, exit 1.
 
+#include <CLI/CLI.hpp>
 #include <cstdio>
 #include <exception>
 #include <new>
 #include <optional>
 #include <string>
-
-#include <CLI/CLI.hpp>
 
 namespace previs {
 
@@ -44,14 +43,18 @@ int runReportingExceptions(const char* program, Body&& body) {
     try {
         return body();
     } catch (const std::bad_alloc&) {
-        std::fprintf(stderr, "%s: error: out of memory (the input may be larger than this "
-                             "machine can hold; try a smaller resolution or scene)\n", program);
+        std::fprintf(stderr,
+                     "%s: error: out of memory (the input may be larger than this "
+                     "machine can hold; try a smaller resolution or scene)\n",
+                     program);
     } catch (const std::exception& e) {
         std::fprintf(stderr, "%s: internal error: %s (please report it with the command line)\n",
                      program, e.what());
     } catch (...) {
-        std::fprintf(stderr, "%s: internal error: unknown exception (please report it with the "
-                             "command line)\n", program);
+        std::fprintf(stderr,
+                     "%s: internal error: unknown exception (please report it with the "
+                     "command line)\n",
+                     program);
     }
     return kExitFailure;
 }

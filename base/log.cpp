@@ -9,7 +9,7 @@ namespace previs {
 namespace {
 std::atomic<LogLevel> gLevel{LogLevel::Info};
 std::atomic<const char*> gProgram{"previs"};
-}
+}  // namespace
 
 void setLogLevel(LogLevel level) { gLevel = level; }
 

@@ -31,9 +31,9 @@ void logDebug(fmt::format_string<Args...> f, Args&&... args) {
 }  // namespace previs
 
 // Bugs only (STYLE.md error channel 1): never for input a user can get wrong.
-#define PV_ASSERT(cond)                                                                  \
-    do {                                                                                 \
-        if (!(cond)) ::previs::assertFailed(#cond, __FILE__, __LINE__);                  \
+#define PV_ASSERT(cond)                                                 \
+    do {                                                                \
+        if (!(cond)) ::previs::assertFailed(#cond, __FILE__, __LINE__); \
     } while (0)
 #ifdef NDEBUG
 #define PV_DCHECK(cond) ((void)0)

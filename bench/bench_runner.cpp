@@ -33,8 +33,8 @@ double median(std::vector<double> v) {
 }
 
 struct Measurement {
-    double seconds = 0.0;      // median wall time of `spp` samples per pixel
-    double gpuMs = 0.0;        // median GPU (timestamp) time of the same
+    double seconds = 0.0;  // median wall time of `spp` samples per pixel
+    double gpuMs = 0.0;    // median GPU (timestamp) time of the same
     double pathsPerSecond = 0.0;
     double raysPerSecond = 0.0;
     double bvhSeconds = 0.0;
@@ -56,7 +56,8 @@ Result<Measurement> measure(GpuContext& ctx, const Scene& scene, RenderSettings 
         double gpuBefore = r.gpuMilliseconds();
         auto start = std::chrono::steady_clock::now();
         if (Status s = r.render(spp); !s) return s.error();
-        wall.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+        wall.push_back(
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
         gpu.push_back(r.gpuMilliseconds() - gpuBefore);
         auto traced = r.raysTraced();
         rays.push_back(traced ? double(*traced) : 0.0);
@@ -83,8 +84,9 @@ int runBenchmarks(const BenchOptions& o) {
         return 2;
     }
     if (o.only != "service" && o.dataDir.empty()) {
-        logError("bench: no shared data found (meshes, environment maps): pass --data DIR or set "
-                 "PREVIS_DATA_DIR");
+        logError(
+            "bench: no shared data found (meshes, environment maps): pass --data DIR or set "
+            "PREVIS_DATA_DIR");
         return 2;
     }
     // Before any Vulkan device or thread exists: the service bench forks a child per run.
@@ -120,8 +122,9 @@ int runBenchmarks(const BenchOptions& o) {
 
     if (want("throughput")) {
         std::printf("## Throughput, 640×480, %u spp, environment map, max depth 8\n\n", spp);
-        std::printf("| scene | triangles | BVH build | SAH cost | ms / spp | paths/s | rays/s | "
-                    "peak RSS |\n|---|---|---|---|---|---|---|---|\n");
+        std::printf(
+            "| scene | triangles | BVH build | SAH cost | ms / spp | paths/s | rays/s | "
+            "peak RSS |\n|---|---|---|---|---|---|---|---|\n");
         auto bunny = bunnyScene(o.dataDir, env);
         if (!bunny) return fail(bunny.error());
         auto dragon = loadMesh("dragon_vrip_res2.ply");
@@ -150,12 +153,13 @@ int runBenchmarks(const BenchOptions& o) {
         auto mesh = loadMesh("dragon_vrip_res3.ply");
         if (!mesh) return fail(mesh.error());
         Scene scene = meshOnPlaneScene(*mesh, env, 0.3f);
-        std::printf("## Rendering time against resolution (paper's figure 4): %zu triangles, "
-                    "1 spp, max depth 4\n\n| resolution | ms / frame | GPU ms | paths/s |\n"
-                    "|---|---|---|---|\n",
-                    scene.geometry.triangles.size());
-        for (auto [w, h] : {std::pair{320u, 240u}, {640u, 480u}, {800u, 600u}, {1280u, 720u},
-                            {1920u, 1080u}}) {
+        std::printf(
+            "## Rendering time against resolution (paper's figure 4): %zu triangles, "
+            "1 spp, max depth 4\n\n| resolution | ms / frame | GPU ms | paths/s |\n"
+            "|---|---|---|---|\n",
+            scene.geometry.triangles.size());
+        for (auto [w, h] :
+             {std::pair{320u, 240u}, {640u, 480u}, {800u, 600u}, {1280u, 720u}, {1920u, 1080u}}) {
             RenderSettings rs;
             rs.width = w;
             rs.height = h;
@@ -171,11 +175,14 @@ int runBenchmarks(const BenchOptions& o) {
     }
 
     if (want("triangles")) {
-        std::printf("## Rendering time against triangle count: 640×480, %u spp, max depth 4\n\n"
-                    "| mesh | triangles | BVH build | ms / spp | paths/s | rays/s |\n"
-                    "|---|---|---|---|---|---|\n", spp);
-        for (const char* name : {"teapot_newell.ply", "dragon_vrip_res4.ply", "dragon_vrip_res3.ply",
-                                 "stanford_bunny.ply", "dragon_vrip_res2.ply", "dragon ×4"}) {
+        std::printf(
+            "## Rendering time against triangle count: 640×480, %u spp, max depth 4\n\n"
+            "| mesh | triangles | BVH build | ms / spp | paths/s | rays/s |\n"
+            "|---|---|---|---|---|---|\n",
+            spp);
+        for (const char* name :
+             {"teapot_newell.ply", "dragon_vrip_res4.ply", "dragon_vrip_res3.ply",
+              "stanford_bunny.ply", "dragon_vrip_res2.ply", "dragon ×4"}) {
             bool subdivided = std::string(name) == "dragon ×4";
             auto mesh = loadMesh(subdivided ? "dragon_vrip_res2.ply" : name);
             if (!mesh) return fail(mesh.error());
@@ -198,9 +205,11 @@ int runBenchmarks(const BenchOptions& o) {
     if (want("specialisation")) {
         auto bunny = bunnyScene(o.dataDir, env);
         if (!bunny) return fail(bunny.error());
-        std::printf("## Specialised against general pipeline: the Lambertian bunny scene, "
-                    "640×480, %u spp, max depth 8\n\n| pipeline | ms / spp | paths/s |\n"
-                    "|---|---|---|\n", spp);
+        std::printf(
+            "## Specialised against general pipeline: the Lambertian bunny scene, "
+            "640×480, %u spp, max depth 8\n\n| pipeline | ms / spp | paths/s |\n"
+            "|---|---|---|\n",
+            spp);
         double times[2] = {};
         for (int general = 0; general < 2; ++general) {
             RenderSettings rs;
@@ -212,18 +221,21 @@ int runBenchmarks(const BenchOptions& o) {
             auto m = measure(**ctx, *bunny, rs, spp, reps);
             if (!m) return fail(m.error());
             times[general] = m->seconds;
-            std::printf("| %s | %.1f | %s |\n", general ? "general (every feature compiled in)"
-                                                        : "specialised (environment only)",
-                        m->seconds * 1e3 / spp, millions(m->pathsPerSecond).c_str());
+            std::printf(
+                "| %s | %.1f | %s |\n",
+                general ? "general (every feature compiled in)" : "specialised (environment only)",
+                m->seconds * 1e3 / spp, millions(m->pathsPerSecond).c_str());
         }
         std::printf("\nGeneral / specialised time: %.2f×\n\n", times[1] / times[0]);
     }
     if (want("differential")) {
-        std::printf("## Differential pass against a plain path trace of the mixed scene: "
-                    "640×480, %u spp, max depth 8. Rays: closest-hit and shadow rays traced, "
-                    "a measure of work that the machine's load does not change.\n\n"
-                    "| scene | plain ms / spp | differential ms / spp | time ratio | rays ratio |\n"
-                    "|---|---|---|---|---|\n", spp);
+        std::printf(
+            "## Differential pass against a plain path trace of the mixed scene: "
+            "640×480, %u spp, max depth 8. Rays: closest-hit and shadow rays traced, "
+            "a measure of work that the machine's load does not change.\n\n"
+            "| scene | plain ms / spp | differential ms / spp | time ratio | rays ratio |\n"
+            "|---|---|---|---|---|\n",
+            spp);
         auto bunny = bunnyScene(o.dataDir, env);
         if (!bunny) return fail(bunny.error());
         // Bunny box: the floor is the real set, the bunny virtual.
@@ -231,9 +243,9 @@ int runBenchmarks(const BenchOptions& o) {
         for (size_t t = 0; t < 2; ++t) bunnyBox.geometry.triangleIsReal[t] = 1;
         auto cubes = loadGltf(o.examplesDir + "/cubes_spheres/scene.gltf");
         if (!cubes) return fail(cubes.error());
-        std::pair<const char*, const Scene*> list[] = {{"bunny on a real floor", &bunnyBox},
-                                                       {"cubes (real) and spheres (virtual)",
-                                                        &cubes.value()}};
+        std::pair<const char*, const Scene*> list[] = {
+            {"bunny on a real floor", &bunnyBox},
+            {"cubes (real) and spheres (virtual)", &cubes.value()}};
         for (auto [name, scene] : list) {
             double t[2] = {}, rays[2] = {};
             for (int differential = 0; differential < 2; ++differential) {

@@ -9,11 +9,11 @@
 namespace previs::bench {
 
 struct BenchOptions {
-    std::string dataDir;     // ../shared/data
-    std::string examplesDir; // the repository's examples/
-    bool quick = false;      // one repetition, fewer samples: a smoke run
-    int repetitions = 3;     // timings are medians over this many runs
-    uint32_t spp = 8;        // samples per pixel of the throughput runs
+    std::string dataDir;      // ../shared/data
+    std::string examplesDir;  // the repository's examples/
+    bool quick = false;       // one repetition, fewer samples: a smoke run
+    int repetitions = 3;      // timings are medians over this many runs
+    uint32_t spp = 8;         // samples per pixel of the throughput runs
     // Run one section: throughput, resolution, triangles, specialisation, differential, pose,
     // service (bench/bench_service.h; only when asked for by name: it runs for minutes),
     // memory (bench/bench_memory.h; only by name: it forks a child per resolution).

@@ -2,9 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
-#include <map>
-
 #include <glm/gtc/matrix_transform.hpp>
+#include <map>
 
 #include "scene/environment_map.h"
 
@@ -94,9 +93,9 @@ Scene meshOnPlaneScene(const TriangleMesh& mesh, const std::string& envPath, flo
     Camera cam;
     cam.name = "bench";
     cam.fovYRad = glm::radians(40.0f);
-    cam.worldFromCamera = glm::inverse(glm::lookAt(glm::vec3(0, 0.55f, 1.45f) * heightM,
-                                                   glm::vec3(0, 0.45f, 0) * heightM,
-                                                   glm::vec3(0, 1, 0)));
+    cam.worldFromCamera =
+        glm::inverse(glm::lookAt(glm::vec3(0, 0.55f, 1.45f) * heightM,
+                                 glm::vec3(0, 0.45f, 0) * heightM, glm::vec3(0, 1, 0)));
     s.cameras.push_back(cam);
     if (!envPath.empty()) {
         auto env = loadEnvironmentMap(envPath);
@@ -127,8 +126,8 @@ Result<Scene> bunnyScene(const std::string& dataDir, const std::string& envPath)
     cam.name = "bench";
     cam.fovYRad = glm::radians(40.0f);
     // Same eye and target as bench/blender_cycles_bunny.py.
-    cam.worldFromCamera = glm::inverse(
-        glm::lookAt(glm::vec3(0.0f, 0.16f, 0.42f), glm::vec3(-0.015f, 0.1f, 0.0f), glm::vec3(0, 1, 0)));
+    cam.worldFromCamera = glm::inverse(glm::lookAt(
+        glm::vec3(0.0f, 0.16f, 0.42f), glm::vec3(-0.015f, 0.1f, 0.0f), glm::vec3(0, 1, 0)));
     s.cameras.push_back(cam);
     auto env = loadEnvironmentMap(envPath);
     if (!env) return env.error();

@@ -20,14 +20,14 @@
 
 #include "base/log.h"
 #include "capture/recorded_source.h"
-#include "scene/scene_description.h"
-#include "daemon/service_config.h"
 #include "daemon/pipeline_renderer.h"
 #include "daemon/pipeline_stages.h"
 #include "daemon/service.h"
+#include "daemon/service_config.h"
 #include "display/compose.h"
 #include "display/files_output.h"
 #include "gpu/context.h"
+#include "scene/scene_description.h"
 
 namespace previs::bench {
 
@@ -496,9 +496,10 @@ std::string ms(const Stat& s) {
 int runServiceBench(const ServiceBenchOptions& o) {
     std::vector<std::pair<uint32_t, uint32_t>> sizes = o.sizes;
     if (sizes.empty()) sizes = {{640, 480}, {1280, 720}};
-    std::printf("## previsd (issue 7): the demo session (examples/demo, 640×360 scene frames at "
-                "15 fps, fisheye at 3.75 fps), preview 1 spp, max depth 4%s\n\n",
-                o.quick ? " (quick run)" : "");
+    std::printf(
+        "## previsd (issue 7): the demo session (examples/demo, 640×360 scene frames at "
+        "15 fps, fisheye at 3.75 fps), preview 1 spp, max depth 4%s\n\n",
+        o.quick ? " (quick run)" : "");
 
     std::vector<StageResult> stages;
     for (auto [w, h] : sizes) {
@@ -510,17 +511,19 @@ int runServiceBench(const ServiceBenchOptions& o) {
         }
         stages.push_back(*r);
     }
-    std::printf("### Cost per frame of each stage, lock step (ms, median / p90)\n\n"
-                "| render size | frames | JPEG decode 640×360 | tracking 640×360 | lighting "
-                "(fisheye → map) | preview render 1 spp | composite readback | tone map | "
-                "compose to 1920×1080 | PNG write | peak RSS | device memory |\n"
-                "|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    std::printf(
+        "### Cost per frame of each stage, lock step (ms, median / p90)\n\n"
+        "| render size | frames | JPEG decode 640×360 | tracking 640×360 | lighting "
+        "(fisheye → map) | preview render 1 spp | composite readback | tone map | "
+        "compose to 1920×1080 | PNG write | peak RSS | device memory |\n"
+        "|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     for (const StageResult& s : stages)
-        std::printf("| %u×%u | %u | %s | %s | %s | %s | %s | %s | %s | %s | %.0f MiB | %.0f MiB |\n",
-                    s.width, s.height, s.frames, ms(s.decode).c_str(), ms(s.track).c_str(),
-                    ms(s.lighting).c_str(), ms(s.render).c_str(), ms(s.composite).c_str(),
-                    ms(s.tonemap).c_str(), ms(s.compose1080).c_str(), ms(s.png).c_str(),
-                    s.peakRssMiB, s.deviceMiB);
+        std::printf(
+            "| %u×%u | %u | %s | %s | %s | %s | %s | %s | %s | %s | %.0f MiB | %.0f MiB |\n",
+            s.width, s.height, s.frames, ms(s.decode).c_str(), ms(s.track).c_str(),
+            ms(s.lighting).c_str(), ms(s.render).c_str(), ms(s.composite).c_str(),
+            ms(s.tonemap).c_str(), ms(s.compose1080).c_str(), ms(s.png).c_str(), s.peakRssMiB,
+            s.deviceMiB);
     std::printf("\nFirst preview frame (warm-up, not in the render column): %s.\n\n",
                 [&] {
                     std::string t;
@@ -528,7 +531,8 @@ int runServiceBench(const ServiceBenchOptions& o) {
                         t += fmt::format("{}{}×{} {:.0f} ms", t.empty() ? "" : ", ", s.width,
                                          s.height, s.firstRenderMs);
                     return t;
-                }().c_str());
+                }()
+                    .c_str());
     std::fflush(stdout);
 
     std::vector<LiveResult> live;
@@ -543,17 +547,19 @@ int runServiceBench(const ServiceBenchOptions& o) {
             }
             live.push_back(*r);
         }
-    std::printf("### The live service (recorded timing, looping; ms as median / p90)\n\n"
-                "| render size | output | seconds | fps (status) | fps (shown/s) | latency ms | "
-                "render ms | drops capture / render / display | CPU (preview) | peak RSS | "
-                "device memory |\n|---|---|---|---|---|---|---|---|---|---|---|\n");
+    std::printf(
+        "### The live service (recorded timing, looping; ms as median / p90)\n\n"
+        "| render size | output | seconds | fps (status) | fps (shown/s) | latency ms | "
+        "render ms | drops capture / render / display | CPU (preview) | peak RSS | "
+        "device memory |\n|---|---|---|---|---|---|---|---|---|---|---|\n");
     for (const LiveResult& l : live)
-        std::printf("| %u×%u | %s | %.0f | %.2f | %.2f | %s | %s | %llu / %llu / %llu | %.0f %% | "
-                    "%.0f MiB | %.0f MiB |\n",
-                    l.width, l.height, l.files ? "files" : "none", l.previewSeconds, l.fpsStatus,
-                    l.fpsShown, ms(l.latency).c_str(), ms(l.renderMs).c_str(),
-                    (unsigned long long)l.dropCapture, (unsigned long long)l.dropRender,
-                    (unsigned long long)l.dropDisplay, l.previewCpuPct, l.peakRssMiB, l.deviceMiB);
+        std::printf(
+            "| %u×%u | %s | %.0f | %.2f | %.2f | %s | %s | %llu / %llu / %llu | %.0f %% | "
+            "%.0f MiB | %.0f MiB |\n",
+            l.width, l.height, l.files ? "files" : "none", l.previewSeconds, l.fpsStatus,
+            l.fpsShown, ms(l.latency).c_str(), ms(l.renderMs).c_str(),
+            (unsigned long long)l.dropCapture, (unsigned long long)l.dropRender,
+            (unsigned long long)l.dropDisplay, l.previewCpuPct, l.peakRssMiB, l.deviceMiB);
     // What the stages that keep running while refinement idles should cost, from the lock-step
     // medians: every scene frame decoded and tracked, lighting at its update rate.
     auto idleEstimatePct = [&](const LiveResult& l) {
@@ -563,10 +569,11 @@ int runServiceBench(const ServiceBenchOptions& o) {
                        s.lighting.median * l.lightingHz / 10.0;
         return double(NAN);
     };
-    std::printf("\n| render size | refinement spp/s | paths/s | idle at %llu spp: CPU of one core "
-                "| expected from decode + tracking at %.0f fps + lighting (lock-step medians) | "
-                "peak RSS incl. idle run | VmRSS at end |\n|---|---|---|---|---|---|---|\n",
-                (unsigned long long)(live.empty() ? 8 : live.front().idleTarget), kSceneFps);
+    std::printf(
+        "\n| render size | refinement spp/s | paths/s | idle at %llu spp: CPU of one core "
+        "| expected from decode + tracking at %.0f fps + lighting (lock-step medians) | "
+        "peak RSS incl. idle run | VmRSS at end |\n|---|---|---|---|---|---|---|\n",
+        (unsigned long long)(live.empty() ? 8 : live.front().idleTarget), kSceneFps);
     for (const LiveResult& l : live) {
         if (l.files) continue;
         std::printf("| %u×%u | %.2f%s | %.2f M | %.0f %% | %.0f %% | %.0f MiB | %.0f MiB |\n",
@@ -589,9 +596,9 @@ int runServiceBench(const ServiceBenchOptions& o) {
         };
         for (const StageResult& s : stages) {
             std::pair<const char*, const Stat*> list[] = {
-                {"decode_ms", &s.decode},       {"track_ms", &s.track},
-                {"lighting_ms", &s.lighting},   {"render_ms", &s.render},
-                {"composite_ms", &s.composite}, {"tonemap_ms", &s.tonemap},
+                {"decode_ms", &s.decode},           {"track_ms", &s.track},
+                {"lighting_ms", &s.lighting},       {"render_ms", &s.render},
+                {"composite_ms", &s.composite},     {"tonemap_ms", &s.tonemap},
                 {"compose1080_ms", &s.compose1080}, {"png_ms", &s.png}};
             for (auto [name, st] : list)
                 row("stages", s.width, s.height, "", name, st->median, st->p90, st->n);
@@ -618,9 +625,11 @@ int runServiceBench(const ServiceBenchOptions& o) {
             row("live", l.width, l.height, out, "device_mib", l.deviceMiB, NAN, 1);
             if (l.files) continue;
             row("live", l.width, l.height, out, "refine_spp_per_s", l.refineSppPerSecond, NAN, 1);
-            row("live", l.width, l.height, out, "refine_paths_per_s", l.refinePathsPerSecond, NAN, 1);
+            row("live", l.width, l.height, out, "refine_paths_per_s", l.refinePathsPerSecond, NAN,
+                1);
             row("live", l.width, l.height, out, "idle_cpu_pct", l.idleCpuPct, NAN, 1);
-            row("live", l.width, l.height, out, "idle_cpu_expected_pct", idleEstimatePct(l), NAN, 1);
+            row("live", l.width, l.height, out, "idle_cpu_expected_pct", idleEstimatePct(l), NAN,
+                1);
             row("live", l.width, l.height, out, "idle_peak_rss_mib", l.idlePeakRssMiB, NAN, 1);
             row("live", l.width, l.height, out, "vmrss_end_mib", l.vmRssEndMiB, NAN, 1);
         }

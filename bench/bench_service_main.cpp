@@ -1,9 +1,8 @@
 // bench_service: the service benchmark (bench/bench_service.h) as its own program, the same code
 // `previs bench --only service` runs, with the options the section needs to be split up: one
 // render size per invocation, shorter or longer live phases.
-#include <cstdio>
-
 #include <CLI/CLI.hpp>
+#include <cstdio>
 
 #include "base/data_paths.h"
 #include "bench/bench_service.h"
@@ -12,8 +11,9 @@ int main(int argc, char** argv) {
     previs::bench::ServiceBenchOptions o;
     if (auto root = previs::projectDataDir()) o.examplesDir = (*root / "examples").string();
     std::vector<std::string> sizes;
-    CLI::App app("bench_service: previsd's frame rate, latency, stage costs, CPU and memory on the "
-                 "demo session (Markdown on stdout)");
+    CLI::App app(
+        "bench_service: previsd's frame rate, latency, stage costs, CPU and memory on the "
+        "demo session (Markdown on stdout)");
     app.add_option("--examples", o.examplesDir, "the repository's examples/ folder")
         ->check(CLI::ExistingDirectory);
     app.add_flag("--quick", o.quick, "8 s live runs and 10 frames per stage: a smoke run");

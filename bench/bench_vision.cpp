@@ -1,9 +1,9 @@
 #include "bench/bench_vision.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <chrono>
-
-#include <fmt/format.h>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -59,8 +59,8 @@ Result<std::vector<VisionTiming>> benchVision(const std::string& dataDir, int ru
     std::vector<BoardTag> tags;
     for (int id = 0; id < 12; ++id) {
         BoardTag t{id, 0.0955};
-        t.worldFromTag = cv::Matx44d(0, 1, 0, 0.05 + 0.12 * (id / 4), 1, 0, 0, 0.045 + 0.12 * (id % 4),
-                                     0, 0, -1, 0, 0, 0, 0, 1);
+        t.worldFromTag = cv::Matx44d(0, 1, 0, 0.05 + 0.12 * (id / 4), 1, 0, 0,
+                                     0.045 + 0.12 * (id % 4), 0, 0, -1, 0, 0, 0, 0, 1);
         tags.push_back(t);
     }
     auto board = TagBoard::create(tags, "bench board");
@@ -107,9 +107,8 @@ Result<std::vector<VisionTiming>> benchVision(const std::string& dataDir, int ru
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - built).count();
     LightEstimator estimator;
     cv::Mat env;
-    out.push_back(measure("inverse tone map 960x1080 (8-bit sRGB)", runs, [&](std::string&) {
-        (void)inverseToneMapRgb8(rgb8, {});
-    }));
+    out.push_back(measure("inverse tone map 960x1080 (8-bit sRGB)", runs,
+                          [&](std::string&) { (void)inverseToneMapRgb8(rgb8, {}); }));
     cv::Mat linear = inverseToneMapRgb8(rgb8, {});
     out.push_back(measure("fisheye 960x1080 -> env 1024x512", runs, [&](std::string& note) {
         env = *resampler->apply(linear);
@@ -120,11 +119,10 @@ Result<std::vector<VisionTiming>> benchVision(const std::string& dataDir, int ru
     }));
     out.push_back(measure("fisheye frame -> env -> lights (total)", runs, [&](std::string& note) {
         cv::Mat l = inverseToneMapRgb8(rgb8, {});
-        note = fmt::format("{} light(s)",
-                           estimator.estimate(*resampler->apply(l))->lights.size());
+        note = fmt::format("{} light(s)", estimator.estimate(*resampler->apply(l))->lights.size());
     }));
-    cv::Mat city = cv::imread(dataDir + "/envmaps/polyhaven_1k_hdr/rooitou_park_1k.hdr",
-                              cv::IMREAD_UNCHANGED);
+    cv::Mat city =
+        cv::imread(dataDir + "/envmaps/polyhaven_1k_hdr/rooitou_park_1k.hdr", cv::IMREAD_UNCHANGED);
     if (!city.empty()) {
         cv::cvtColor(city, city, cv::COLOR_BGR2RGB);
         out.push_back(measure("lights on rooitou_park_1k.hdr (sun)", runs, [&](std::string& note) {

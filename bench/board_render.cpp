@@ -1,14 +1,14 @@
 #include "bench/board_render.h"
 
-#include <algorithm>
-#include <cmath>
-#include <cstdlib>
-
 #include <apriltag/apriltag.h>
 #include <apriltag/tag16h5.h>
 #include <apriltag/tag25h9.h>
 #include <apriltag/tag36h11.h>
 #include <apriltag/tagStandard41h12.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 

@@ -6,11 +6,10 @@
 // Used by `previs bench --only pose` and tests/vision/rendered_pose_test.cpp.
 
 #include <cstdint>
-#include <memory>
-#include <string>
-
 #include <glm/glm.hpp>
+#include <memory>
 #include <opencv2/core.hpp>
+#include <string>
 
 #include "base/result.h"
 #include "gpu/context.h"

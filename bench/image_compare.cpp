@@ -14,26 +14,27 @@ Result<ImageDifference> compareImages(const ImageF& a, const ImageF& b,
     if (a.pixels.empty()) return makeError("the images are empty");
     PixelRegion r = region.value_or(PixelRegion{0, 0, a.width, a.height});
     if (r.x0 >= r.x1 || r.y0 >= r.y1 || r.x1 > a.width || r.y1 > a.height)
-        return makeError("region {},{},{},{} is empty or outside the {}x{} image (x0,y0,x1,y1 "
-                         "with x0 < x1 <= width, y0 < y1 <= height)", r.x0, r.y0, r.x1, r.y1,
-                         a.width, a.height);
+        return makeError(
+            "region {},{},{},{} is empty or outside the {}x{} image (x0,y0,x1,y1 "
+            "with x0 < x1 <= width, y0 < y1 <= height)",
+            r.x0, r.y0, r.x1, r.y1, a.width, a.height);
     // Sums in double: 1920×1080×3 float values would lose the small differences in float.
     double sumSquared = 0.0, sumRelative = 0.0, sumA = 0.0, sumB = 0.0;
     size_t values = 0;
     for (uint32_t y = r.y0; y < r.y1; ++y)
-    for (uint32_t x = r.x0; x < r.x1; ++x)
-    for (uint32_t c = 0; c < a.channels; ++c) {
-        const size_t i = (size_t(y) * a.width + x) * a.channels + c;
-        ++values;
-        double va = a.pixels[i], vb = b.pixels[i];
-        if (!std::isfinite(va) || !std::isfinite(vb))
-            return makeError("value {} (pixel {}, channel {}) is not finite: {} against {}", i,
-                             i / a.channels, i % a.channels, va, vb);
-        sumSquared += (va - vb) * (va - vb);
-        sumRelative += (va - vb) * (va - vb) / (vb * vb + 0.01);
-        sumA += va;
-        sumB += vb;
-    }
+        for (uint32_t x = r.x0; x < r.x1; ++x)
+            for (uint32_t c = 0; c < a.channels; ++c) {
+                const size_t i = (size_t(y) * a.width + x) * a.channels + c;
+                ++values;
+                double va = a.pixels[i], vb = b.pixels[i];
+                if (!std::isfinite(va) || !std::isfinite(vb))
+                    return makeError("value {} (pixel {}, channel {}) is not finite: {} against {}",
+                                     i, i / a.channels, i % a.channels, va, vb);
+                sumSquared += (va - vb) * (va - vb);
+                sumRelative += (va - vb) * (va - vb) / (vb * vb + 0.01);
+                sumA += va;
+                sumB += vb;
+            }
     ImageDifference d;
     d.values = values;
     d.rmse = std::sqrt(sumSquared / double(d.values));

@@ -15,7 +15,7 @@ namespace previs::bench {
 struct ImageDifference {
     double rmse = 0.0;    // sqrt(mean over every pixel and channel of (a − b)²)
     double relMse = 0.0;  // mean of (a − b)² / (b² + 0.01): DESIGN.md §4, b the reference
-    double meanA = 0.0;  // mean over every pixel and channel
+    double meanA = 0.0;   // mean over every pixel and channel
     double meanB = 0.0;
     size_t values = 0;  // pixels × channels compared
 };

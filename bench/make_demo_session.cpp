@@ -10,6 +10,9 @@
 // The fisheye (fisheye.yaml, looking up) sees the environment map; the map turns a few degrees
 // while the camera moves, so live lighting is visible.
 
+#include <apriltag/apriltag.h>
+#include <apriltag/tag36h11.h>
+
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -18,21 +21,17 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <glm/gtc/quaternion.hpp>
 #include <memory>
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <optional>
 #include <string>
 #include <vector>
 
-#include <apriltag/apriltag.h>
-#include <apriltag/tag36h11.h>
-#include <glm/gtc/quaternion.hpp>
-#include <nlohmann/json.hpp>
-#include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
-
 #include "base/log.h"
 #include "bench/board_render.h"
-#include "vision/board_file.h"
 #include "gpu/context.h"
 #include "image/image.h"
 #include "io/session.h"
@@ -41,6 +40,7 @@
 #include "scene/environment_map.h"
 #include "scene/environment_sampler.h"
 #include "scene/gltf_loader.h"
+#include "vision/board_file.h"
 #include "vision/camera_calibration.h"
 #include "vision/lens_grid.h"
 #include "vision/tag_board.h"
@@ -89,14 +89,14 @@ struct GltfBuilder {
 
     GltfBuilder() {
         doc["asset"] = {{"version", "2.0"}, {"generator", "previs make_demo_session"}};
-        for (const char* k : {"buffers", "bufferViews", "accessors", "meshes", "nodes",
-                              "materials", "images", "textures", "samplers", "cameras"})
+        for (const char* k : {"buffers", "bufferViews", "accessors", "meshes", "nodes", "materials",
+                              "images", "textures", "samplers", "cameras"})
             doc[k] = nlohmann::json::array();
     }
 
     template <typename T>
-    int addAccessor(const std::vector<T>& data, int components, int componentType,
-                    const char* type, int target, bool minMax = false) {
+    int addAccessor(const std::vector<T>& data, int components, int componentType, const char* type,
+                    int target, bool minMax = false) {
         while (bin.size() % 4) bin.push_back(0);
         const size_t offset = bin.size();
         const auto* p = reinterpret_cast<const uint8_t*>(data.data());
@@ -218,7 +218,8 @@ Result<std::vector<uint8_t>> boardTexture(const TagBoard& board, uint32_t& width
         return makeError("make_demo_session draws tag36h11 boards only, not {}", board.family());
     for (const BoardTag& tag : board.tags()) {
         // Flat on the table, readable from above: tag x = world +X, tag y = world +Z.
-        if (std::abs(tag.worldFromTag(1, 3)) > 1e-9 || std::abs(tag.worldFromTag(1, 2) + 1.0) > 1e-9)
+        if (std::abs(tag.worldFromTag(1, 3)) > 1e-9 ||
+            std::abs(tag.worldFromTag(1, 2) + 1.0) > 1e-9)
             return makeError("board tag {} does not lie flat at y = 0", tag.id);
         image_u8_t* bits = apriltag_to_image(fam.get(), tag.id);
         if (!bits) return makeError("libapriltag could not draw tag {}", tag.id);
@@ -264,13 +265,12 @@ Status writeSceneGltf(const Options& o, const TagBoard& board, const cv::Matx44d
     paper.quad({-hx, 0, hz}, {hx, 0, hz}, {hx, 0, -hz}, {-hx, 0, -hz});
     g.addNode("Board", paper, boardMat, true);
     // The table top 1 mm under the print, so the two never fight for a pixel.
-    g.addNode("Table", GltfBuilder::box({-0.6f, -0.75f, -0.4f}, {0.6f, -0.001f, 0.4f}), wood,
-              true);
+    g.addNode("Table", GltfBuilder::box({-0.6f, -0.75f, -0.4f}, {0.6f, -0.001f, 0.4f}), wood, true);
     GltfBuilder::Mesh floorMesh;
     floorMesh.quad({-4, -0.75f, 4}, {4, -0.75f, 4}, {4, -0.75f, -4}, {-4, -0.75f, -4});
     g.addNode("Floor", floorMesh, floor, true);
-    g.addNode("Box", GltfBuilder::box({0.26f, -0.001f, -0.2f}, {0.44f, 0.139f, -0.06f}),
-              cardboard, true);
+    g.addNode("Box", GltfBuilder::box({0.26f, -0.001f, -0.2f}, {0.44f, 0.139f, -0.06f}), cardboard,
+              true);
     g.addNode("RedBall", GltfBuilder::sphere({-0.33f, 0.054f, 0.06f}, 0.055f), red, false);
     g.addNode("ChromeBall", GltfBuilder::sphere({0.06f, 0.044f, 0.23f}, 0.045f), chrome, false);
 
@@ -330,7 +330,8 @@ cv::Matx44d cameraPose(int i) {
     Key k;
     auto mix = [](const Key& p, const Key& q, double t) {
         return Key{p.azimuthDeg + (q.azimuthDeg - p.azimuthDeg) * t,
-                   p.radiusM + (q.radiusM - p.radiusM) * t, p.heightM + (q.heightM - p.heightM) * t};
+                   p.radiusM + (q.radiusM - p.radiusM) * t,
+                   p.heightM + (q.heightM - p.heightM) * t};
     };
     if (i < kStillFirst)
         k = mix(a, b, smooth(double(i) / kStillFirst));
@@ -339,7 +340,8 @@ cv::Matx44d cameraPose(int i) {
     else
         k = mix(b, c, smooth(double(i - kStillLast) / (kFrames - 1 - kStillLast)));
     const double az = k.azimuthDeg * kPi / 180.0;
-    return lookAt({k.radiusM * std::sin(az), k.heightM, k.radiusM * std::cos(az)}, {0.0, 0.03, 0.0});
+    return lookAt({k.radiusM * std::sin(az), k.heightM, k.radiusM * std::cos(az)},
+                  {0.0, 0.03, 0.0});
 }
 
 // The environment turns while the camera moves and holds still while it does (refinement needs
@@ -369,8 +371,8 @@ std::vector<uint8_t> encodeFrame(const ImageF& linear, uint64_t seed, int& width
             const std::array<float, 3> enc = toneMapRgb({p[0], p[1], p[2]}, tm);
             cv::Vec3b& out = bgr.at<cv::Vec3b>(y, x);
             for (int c = 0; c < 3; ++c)
-                out[2 - c] = cv::saturate_cast<uint8_t>(255.0 * enc[c] +
-                                                        rng.gaussian(kNoiseSigmaLevels));
+                out[2 - c] =
+                    cv::saturate_cast<uint8_t>(255.0 * enc[c] + rng.gaussian(kNoiseSigmaLevels));
         }
     std::vector<uint8_t> jpeg;
     cv::imencode(".jpg", bgr, jpeg, {cv::IMWRITE_JPEG_QUALITY, 92});
@@ -417,9 +419,9 @@ int run(const Options& o) {
     auto board = loadTagBoard(o.demoDir + "/board.toml");
     auto sceneCal = CameraCalibration::load(o.demoDir + "/scene_camera.yaml");
     auto fisheyeCal = CameraCalibration::load(o.demoDir + "/fisheye.yaml");
-    for (const std::string* err : {board ? nullptr : &board.message(),
-                                   sceneCal ? nullptr : &sceneCal.message(),
-                                   fisheyeCal ? nullptr : &fisheyeCal.message()})
+    for (const std::string* err :
+         {board ? nullptr : &board.message(), sceneCal ? nullptr : &sceneCal.message(),
+          fisheyeCal ? nullptr : &fisheyeCal.message()})
         if (err) {
             logError("{}", *err);
             return 2;
@@ -491,7 +493,7 @@ int run(const Options& o) {
     SessionWriterOptions wo;
     wo.cameraRoles = {{"scene", "scene"}, {"fisheye", "fisheye"}};
     wo.configToml = config;
-    wo.configDir = "..";  // previsd.toml's folder, relative to the session
+    wo.configDir = "..";                  // previsd.toml's folder, relative to the session
     wo.created = "2025-01-01T12:00:00Z";  // fixed: regeneration is byte-identical
     auto writer = SessionWriter::create(sessionDir, wo);
     if (!writer) {
@@ -526,15 +528,15 @@ int run(const Options& o) {
             }
             linear = std::move(img).value();
             if (isStill) still = linear;
-            logInfo("frame {}/{}: rendered {} spp in {:.1f} s", i + 1, o.frames,
-                    isStill ? o.stillSpp : o.movingSpp,
-                    std::chrono::duration<double>(std::chrono::steady_clock::now() - start)
-                        .count());
+            logInfo(
+                "frame {}/{}: rendered {} spp in {:.1f} s", i + 1, o.frames,
+                isStill ? o.stillSpp : o.movingSpp,
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
         }
         int w = 0, h = 0;
         const std::vector<uint8_t> jpeg = encodeFrame(linear, uint64_t(7919 + i), w, h);
-        if (Status s = writer->writeFrame("scene", uint64_t(i), t, jpeg, "jpg", uint32_t(w),
-                                          uint32_t(h));
+        if (Status s =
+                writer->writeFrame("scene", uint64_t(i), t, jpeg, "jpg", uint32_t(w), uint32_t(h));
             !s) {
             logError("{}", s.message());
             return 1;
@@ -560,8 +562,8 @@ int run(const Options& o) {
             }
             const std::vector<uint8_t> fjpeg = encodeFrame(*fish, uint64_t(104729 + i), w, h);
             // 1 ms after the scene frame: the two cameras are not synchronised.
-            if (Status s = writer->writeFrame("fisheye", fisheyeSeq++, t + 1'000'000, fjpeg,
-                                              "jpg", uint32_t(w), uint32_t(h));
+            if (Status s = writer->writeFrame("fisheye", fisheyeSeq++, t + 1'000'000, fjpeg, "jpg",
+                                              uint32_t(w), uint32_t(h));
                 !s) {
                 logError("{}", s.message());
                 return 1;

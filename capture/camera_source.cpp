@@ -41,11 +41,12 @@ Status CaptureThread::start() {
         // interval, as for a camera that was unplugged.
         for (;;) {
             bool failed = false;
-            runGuarded(options_.name.c_str(), [this] { run(); },
-                       [&](const std::string& why) {
-                           failed = true;
-                           setState(CaptureState::Lost, why);
-                       });
+            runGuarded(
+                options_.name.c_str(), [this] { run(); },
+                [&](const std::string& why) {
+                    failed = true;
+                    setState(CaptureState::Lost, why);
+                });
             if (!failed || waitForStop(options_.retryIntervalMs)) break;
         }
     });

@@ -101,10 +101,11 @@ RecordedReader::RecordedReader(std::vector<RecordedFrameEntry> entries, ReplayTi
             uint64_t gap = entries_[i].timestampNs - entries_[i - 1].timestampNs;
             if (gap > maxGapNs) {
                 if (capped++ == 0 && timing_ == ReplayTiming::Recorded)
-                    logWarning("{}: {:.3g} s between frames {} and {}; replayed as {} s (and any "
-                               "other such gap)", entries_[i].file, double(gap) * 1e-9,
-                               entries_[i - 1].sequence, entries_[i].sequence,
-                               kMaxReplayGap.count());
+                    logWarning(
+                        "{}: {:.3g} s between frames {} and {}; replayed as {} s (and any "
+                        "other such gap)",
+                        entries_[i].file, double(gap) * 1e-9, entries_[i - 1].sequence,
+                        entries_[i].sequence, kMaxReplayGap.count());
                 gap = maxGapNs;
             }
             at += std::chrono::nanoseconds(int64_t(gap));

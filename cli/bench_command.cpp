@@ -13,9 +13,12 @@ std::function<int()> addBenchCommand(CLI::App& app) {
     if (auto shared = sharedDataDir()) o->dataDir = shared->string();
     if (auto root = projectDataDir()) o->examplesDir = (*root / "examples").string();
     CLI::App* cmd = app.add_subcommand(
-        "bench", "speed measurements: paths/s, rays/s, BVH build, scaling; pose accuracy on "
-               "rendered boards (Markdown on stdout)");
-    cmd->add_option("--data", o->dataDir, "test data folder (default: $PREVIS_DATA_DIR, else shared/data in a folder above previs)")
+        "bench",
+        "speed measurements: paths/s, rays/s, BVH build, scaling; pose accuracy on "
+        "rendered boards (Markdown on stdout)");
+    cmd->add_option("--data", o->dataDir,
+                    "test data folder (default: $PREVIS_DATA_DIR, else shared/data in a folder "
+                    "above previs)")
         ->check(CLI::ExistingDirectory);
     cmd->add_flag("--quick", o->quick, "one repetition at 1 spp: a smoke run");
     cmd->add_option("--repetitions", o->repetitions, "timings are medians over this many runs")
@@ -23,9 +26,8 @@ std::function<int()> addBenchCommand(CLI::App& app) {
     cmd->add_option("--spp", o->spp, "samples per pixel of the throughput runs")
         ->check(CLI::Range(1, 4096));
     cmd->add_option("--only", o->only, "one section")
-        ->check(CLI::IsMember(
-            {"throughput", "resolution", "triangles", "specialisation", "differential",
-             "pose", "service", "memory"}));
+        ->check(CLI::IsMember({"throughput", "resolution", "triangles", "specialisation",
+                               "differential", "pose", "service", "memory"}));
     cmd->add_option("--csv", o->csvPath, "service: also write the results as CSV to this file");
     return [o] { return bench::runBenchmarks(*o); };
 }

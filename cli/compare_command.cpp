@@ -37,8 +37,8 @@ int run(const CompareOptions& o) {
         logError("{} against {}: {}", o.a, o.b, d.message());
         return 2;
     }
-    std::printf("rmse %.9g relMse %.9g mean_a %.9g mean_b %.9g values %zu\n", d->rmse,
-                d->relMse, d->meanA, d->meanB, d->values);
+    std::printf("rmse %.9g relMse %.9g mean_a %.9g mean_b %.9g values %zu\n", d->rmse, d->relMse,
+                d->meanA, d->meanB, d->values);
     return 0;
 }
 
@@ -51,7 +51,8 @@ std::function<int()> addCompareCommand(CLI::App& app) {
         "RMSE and relMSE (DESIGN.md §4) of a linear image against a reference, over every "
         "pixel and channel, and their means");
     cmd->add_option("IMAGE", o->a, "image (.exr or .hdr)")->required()->check(CLI::ExistingFile);
-    cmd->add_option("REFERENCE", o->b, "reference image, same size and channels, e.g. a long render")
+    cmd->add_option("REFERENCE", o->b,
+                    "reference image, same size and channels, e.g. a long render")
         ->required()
         ->check(CLI::ExistingFile);
     cmd->add_option("--region", o->region,

@@ -1,7 +1,6 @@
 #include "cli/envmap_command.h"
 
 #include <cmath>
-
 #include <opencv2/core/utils/logger.hpp>
 
 #include "base/log.h"
@@ -45,9 +44,10 @@ int run(const EnvmapOptions& o) {
         return 2;
     }
     if (calib->model() != DistortionModel::Fisheye)
-        logWarning("--camera {}: not a fisheye calibration (no distortion_model: fisheye); only "
-                   "directions within 90° of its axis can be seen",
-                   o.camera);
+        logWarning(
+            "--camera {}: not a fisheye calibration (no distortion_model: fisheye); only "
+            "directions within 90° of its axis can be seen",
+            o.camera);
     FisheyeToEquirectSettings settings;
     settings.mountRotationDeg =
         cv::Vec3d(o.mountRotationDeg[0], o.mountRotationDeg[1], o.mountRotationDeg[2]);
@@ -90,9 +90,10 @@ int run(const EnvmapOptions& o) {
         return 1;
     }
     if (!o.quiet)
-        logInfo("wrote {} ({}x{}); the lens sees {:.1f}% of the sphere, the rest is the mean of "
-                "its outermost 5° ring",
-                o.out, out.width, out.height, 100.0 * resampler->seenFraction());
+        logInfo(
+            "wrote {} ({}x{}); the lens sees {:.1f}% of the sphere, the rest is the mean of "
+            "its outermost 5° ring",
+            o.out, out.width, out.height, 100.0 * resampler->seenFraction());
     return 0;
 }
 

@@ -1,7 +1,6 @@
 #include "cli/lights_command.h"
 
 #include <cstdio>
-
 #include <nlohmann/json.hpp>
 
 #include "base/log.h"
@@ -43,13 +42,14 @@ int run(const LightsOptions& o) {
         std::printf("%s\n", out.dump().c_str());
         return 0;
     }
-    std::printf("%s: %zu light(s), threshold luminance %.4g\n", o.env.c_str(),
-                snap->lights.size(), snap->thresholdLuminance);
+    std::printf("%s: %zu light(s), threshold luminance %.4g\n", o.env.c_str(), snap->lights.size(),
+                snap->thresholdLuminance);
     for (const EstimatedLight& l : snap->lights)
-        std::printf("  direction (%.4f, %.4f, %.4f)  solid angle %.4g sr  radiance (%.4g, %.4g, "
-                    "%.4g)  %d texels\n",
-                    l.direction[0], l.direction[1], l.direction[2], l.solidAngleSr,
-                    l.radiance[0], l.radiance[1], l.radiance[2], l.texels);
+        std::printf(
+            "  direction (%.4f, %.4f, %.4f)  solid angle %.4g sr  radiance (%.4g, %.4g, "
+            "%.4g)  %d texels\n",
+            l.direction[0], l.direction[1], l.direction[2], l.solidAngleSr, l.radiance[0],
+            l.radiance[1], l.radiance[2], l.texels);
     std::printf("  residual power (%.6g, %.6g, %.6g)\n  total power    (%.6g, %.6g, %.6g)\n",
                 snap->residualPower[0], snap->residualPower[1], snap->residualPower[2],
                 snap->totalPower[0], snap->totalPower[1], snap->totalPower[2]);

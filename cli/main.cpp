@@ -1,11 +1,10 @@
 // previs: the command line (DESIGN.md §3). Exit codes: 0 success, 1 runtime failure, 2 bad usage
 // or input (base/command_line.h), the same in every subcommand.
+#include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cstdio>
 #include <string>
 #include <vector>
-
-#include <CLI/CLI.hpp>
 
 #include "base/command_line.h"
 #include "base/log.h"

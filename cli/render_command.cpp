@@ -12,14 +12,14 @@
 #include "base/progress.h"
 #include "base/strings.h"
 #include "cli/tone_curve_options.h"
-#include "scene/scene_description.h"
 #include "gpu/context.h"
 #include "image/image.h"
 #include "render/renderer.h"
-#include "vision/inverse_tone_map.h"
-#include "vision/lens_grid.h"
 #include "render/tonemap.h"
 #include "scene/environment_map.h"
+#include "scene/scene_description.h"
+#include "vision/inverse_tone_map.h"
+#include "vision/lens_grid.h"
 
 namespace previs {
 
@@ -98,10 +98,11 @@ int run(const RenderOptions& o) {
         scene->environment = std::move(env.value());
     }
     if (!scene->environment && !hasLightSource(*scene))
-        logWarning("{}: the scene has no light source (no KHR_lights_punctual light, no emissive "
-                   "material) and no environment map, so it renders black; add --env studio for "
-                   "neutral studio lighting, or --env MAP.exr",
-                   o.scene);
+        logWarning(
+            "{}: the scene has no light source (no KHR_lights_punctual light, no emissive "
+            "material) and no environment map, so it renders black; add --env studio for "
+            "neutral studio lighting, or --env MAP.exr",
+            o.scene);
     if (scene->environment) {
         if (o.envRotationDeg)
             scene->environment->rotationRad = *o.envRotationDeg * float(M_PI / 180.0);
@@ -124,7 +125,8 @@ int run(const RenderOptions& o) {
     float aspect = 4.0f / 3.0f;
     if (!scene->cameras.empty() && scene->cameras[settings.cameraIndex].aspectRatio > 0.0f)
         aspect = scene->cameras[settings.cameraIndex].aspectRatio;
-    settings.width = o.width ? o.width : (o.height ? uint32_t(std::lround(o.height * aspect)) : 640);
+    settings.width =
+        o.width ? o.width : (o.height ? uint32_t(std::lround(o.height * aspect)) : 640);
     settings.height = o.height ? o.height : uint32_t(std::lround(settings.width / aspect));
     settings.maxDepth = o.maxDepth;
     settings.seed = o.seed;
@@ -160,9 +162,10 @@ int run(const RenderOptions& o) {
             settings.height = plate->height;
         }
         if (plate->width != settings.width || plate->height != settings.height) {
-            logError("--plate {} is {}x{} but the render is {}x{}: render at the plate's "
-                     "resolution (omit --width/--height)", o.plate, plate->width, plate->height,
-                     settings.width, settings.height);
+            logError(
+                "--plate {} is {}x{} but the render is {}x{}: render at the plate's "
+                "resolution (omit --width/--height)",
+                o.plate, plate->width, plate->height, settings.width, settings.height);
             return 2;
         }
     }
@@ -236,8 +239,8 @@ int run(const RenderOptions& o) {
             // the start of the run, so device creation, BVH build and compile count).
             auto snapshot = (*renderer)->image();
             std::filesystem::path p(o.out);
-            std::string path = (p.parent_path() / fmt::format("{}.spp{}.exr", p.stem().string(),
-                                                                done)).string();
+            std::string path =
+                (p.parent_path() / fmt::format("{}.spp{}.exr", p.stem().string(), done)).string();
             Status s = snapshot ? writeExr(path, *snapshot) : Status(snapshot.error());
             if (!s) {
                 logError("{}", s.message());
@@ -259,9 +262,11 @@ int run(const RenderOptions& o) {
     }
     const uint32_t dropped = stats->nonFiniteSamples;
     if (dropped > 0)
-        logWarning("{} sample(s) were NaN or infinite ({} ray(s) with a NaN/Inf origin or "
-                   "direction culled) and were dropped: each pixel is the mean of its remaining "
-                   "samples", dropped, stats->nonFiniteRays);
+        logWarning(
+            "{} sample(s) were NaN or infinite ({} ray(s) with a NaN/Inf origin or "
+            "direction culled) and were dropped: each pixel is the mean of its remaining "
+            "samples",
+            dropped, stats->nonFiniteRays);
 
     auto image = (*renderer)->image();
     if (!image) {
@@ -293,7 +298,7 @@ int run(const RenderOptions& o) {
         return 1;
     }
     for (const std::string& name : o.aovs) {
-        Aov aov = name == "mixed" ? Aov::Mixed
+        Aov aov = name == "mixed"  ? Aov::Mixed
                   : name == "real" ? Aov::Real
                   : name == "mask" ? Aov::Mask
                                    : Aov::Composite;
@@ -358,9 +363,10 @@ std::function<int()> addRenderCommand(CLI::App& app) {
                     "first gather radius, metres (default: 2.5% of the sphere around the specular "
                     "objects)")
         ->check(CLI::NonNegativeNumber);
-    cmd->add_option("--photon-alpha", o->photonAlpha,
-                    "progressive photon mapping's alpha in (0, 1]: radius ~ iteration^((alpha-1)/2); "
-                    "1 keeps it fixed (default 2/3)")
+    cmd->add_option(
+           "--photon-alpha", o->photonAlpha,
+           "progressive photon mapping's alpha in (0, 1]: radius ~ iteration^((alpha-1)/2); "
+           "1 keeps it fixed (default 2/3)")
         ->check(CLI::Range(1e-3f, 1.0f));
     cmd->add_option("--checkpoints", o->checkpoints,
                     "also write OUT_STEM.sppN.exr at these sample counts (N1,N2,...), and print "

@@ -5,9 +5,10 @@ namespace previs {
 void ToneCurveOptions::addTo(CLI::App* cmd, const std::string& prefix, const std::string& what,
                              bool withWhiteBalance) {
     cmd->add_option("--" + prefix + "tone-curve", curve,
-                    what + ": srgb (default; linear, clipped), reinhard or banterle (Reinhard's "
-                           "extended curve with --" + prefix + "max-radiance and --" + prefix +
-                           "white-luminance)")
+                    what +
+                        ": srgb (default; linear, clipped), reinhard or banterle (Reinhard's "
+                        "extended curve with --" +
+                        prefix + "max-radiance and --" + prefix + "white-luminance)")
         ->check(CLI::IsMember({"srgb", "reinhard", "banterle"}));
     cmd->add_option("--" + prefix + "exposure-stops", exposureStops,
                     what + ": exposure in stops (display = curve(radiance · 2^stops))");

@@ -7,10 +7,9 @@
 // previs writes an 8-bit image, inverted when it reads one (a plate, a fisheye frame). render
 // gives the plate's with the prefix "plate-".
 
+#include <CLI/CLI.hpp>
 #include <string>
 #include <vector>
-
-#include <CLI/CLI.hpp>
 
 #include "render/tonemap.h"
 #include "vision/inverse_tone_map.h"

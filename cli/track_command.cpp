@@ -1,11 +1,10 @@
 #include "cli/track_command.h"
 
 #include <cstdio>
-#include <optional>
-
 #include <nlohmann/json.hpp>
 #include <opencv2/core/utils/logger.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <optional>
 
 #include "base/command_line.h"
 #include "base/log.h"
@@ -35,8 +34,7 @@ struct TrackOptions {
 
 nlohmann::ordered_json matrixJson(const cv::Matx44d& m) {
     nlohmann::ordered_json rows = nlohmann::ordered_json::array();
-    for (int r = 0; r < 4; ++r)
-        rows.push_back({m(r, 0), m(r, 1), m(r, 2), m(r, 3)});
+    for (int r = 0; r < 4; ++r) rows.push_back({m(r, 0), m(r, 1), m(r, 2), m(r, 3)});
     return rows;
 }
 
@@ -81,9 +79,10 @@ int run(TrackOptions& o) {
         board = std::move(loaded).value();
         if (!board->family().empty()) {
             if (o.familyGiven && board->family() != o.family) {
-                logError("--family {} disagrees with the board file {} (family = \"{}\"); drop "
-                         "--family or fix the board",
-                         o.family, o.board, board->family());
+                logError(
+                    "--family {} disagrees with the board file {} (family = \"{}\"); drop "
+                    "--family or fix the board",
+                    o.family, o.board, board->family());
                 return 2;
             }
             o.family = board->family();
@@ -109,16 +108,16 @@ int run(TrackOptions& o) {
             gray.release();
         }
         if (gray.empty()) {
-            logError("{}: cannot decode the image (not found, or not a format OpenCV reads)",
-                     path);
+            logError("{}: cannot decode the image (not found, or not a format OpenCV reads)", path);
             ++failures;
             continue;
         }
         if (gray.size() != calib->imageSize())
-            logWarning("{}: image is {}x{} but {} was calibrated at {}x{}; the pose will be wrong "
-                       "unless the calibration is scaled",
-                       path, gray.cols, gray.rows, o.camera, calib->imageSize().width,
-                       calib->imageSize().height);
+            logWarning(
+                "{}: image is {}x{} but {} was calibrated at {}x{}; the pose will be wrong "
+                "unless the calibration is scaled",
+                path, gray.cols, gray.rows, o.camera, calib->imageSize().width,
+                calib->imageSize().height);
         std::vector<TagDetection> detections = detector->detect(gray);
 
         std::vector<std::optional<cv::Matx44d>> tagPoses(detections.size());

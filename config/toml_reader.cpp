@@ -14,16 +14,26 @@ namespace fs = std::filesystem;
 
 const char* tomlTypeName(const toml::node& node) {
     switch (node.type()) {
-        case toml::node_type::table: return "a table";
-        case toml::node_type::array: return "an array";
-        case toml::node_type::string: return "a string";
-        case toml::node_type::integer: return "an integer";
-        case toml::node_type::floating_point: return "a floating-point number";
-        case toml::node_type::boolean: return "a boolean";
-        case toml::node_type::date: return "a date";
-        case toml::node_type::time: return "a time";
-        case toml::node_type::date_time: return "a date-time";
-        case toml::node_type::none: break;
+        case toml::node_type::table:
+            return "a table";
+        case toml::node_type::array:
+            return "an array";
+        case toml::node_type::string:
+            return "a string";
+        case toml::node_type::integer:
+            return "an integer";
+        case toml::node_type::floating_point:
+            return "a floating-point number";
+        case toml::node_type::boolean:
+            return "a boolean";
+        case toml::node_type::date:
+            return "a date";
+        case toml::node_type::time:
+            return "a time";
+        case toml::node_type::date_time:
+            return "a date-time";
+        case toml::node_type::none:
+            break;
     }
     return "nothing";
 }
@@ -44,8 +54,8 @@ TomlReader::TomlReader(std::string path, std::string what)
 
 Error TomlReader::failMessage(const toml::node* at, const std::string& what) const {
     if (at && at->source().begin.line > 0)
-        return makeError("cannot load {} '{}': line {}: {}", what_, path_,
-                         at->source().begin.line, what);
+        return makeError("cannot load {} '{}': line {}: {}", what_, path_, at->source().begin.line,
+                         what);
     return makeError("cannot load {} '{}': {}", what_, path_, what);
 }
 
@@ -80,18 +90,19 @@ Result<std::optional<std::string>> TomlReader::string(const toml::table& table,
     if (!node) return std::optional<std::string>();
     const toml::value<std::string>* s = node->as_string();
     if (!s)
-        return fail(node, "'{}' must be a string, not {}", dotted(section, key), tomlTypeName(*node));
+        return fail(node, "'{}' must be a string, not {}", dotted(section, key),
+                    tomlTypeName(*node));
     return std::optional<std::string>(s->get());
 }
 
-Result<std::optional<double>> TomlReader::number(const toml::table& table,
-                                                 std::string_view section,
+Result<std::optional<double>> TomlReader::number(const toml::table& table, std::string_view section,
                                                  std::string_view key) const {
     const toml::node* node = table.get(key);
     if (!node) return std::optional<double>();
     const std::optional<double> v = asNumber(*node);
     if (!v)
-        return fail(node, "'{}' must be a number, not {}", dotted(section, key), tomlTypeName(*node));
+        return fail(node, "'{}' must be a number, not {}", dotted(section, key),
+                    tomlTypeName(*node));
     if (!std::isfinite(*v))
         return fail(node, "'{}' is {}; it must be a finite number", dotted(section, key), *v);
     return v;
@@ -109,8 +120,7 @@ Result<std::optional<int64_t>> TomlReader::integer(const toml::table& table,
     return std::optional<int64_t>(i->get());
 }
 
-Result<std::optional<bool>> TomlReader::boolean(const toml::table& table,
-                                                std::string_view section,
+Result<std::optional<bool>> TomlReader::boolean(const toml::table& table, std::string_view section,
                                                 std::string_view key) const {
     const toml::node* node = table.get(key);
     if (!node) return std::optional<bool>();
@@ -136,8 +146,8 @@ Result<std::optional<std::vector<double>>> TomlReader::numbers(const toml::table
         const toml::node& element = *array->get(i);
         const std::optional<double> v = asNumber(element);
         if (!v || !std::isfinite(*v))
-            return fail(&element, "'{}[{}]' must be a finite number, not {}",
-                        dotted(section, key), i, v ? fmt::format("{}", *v) : tomlTypeName(element));
+            return fail(&element, "'{}[{}]' must be a finite number, not {}", dotted(section, key),
+                        i, v ? fmt::format("{}", *v) : tomlTypeName(element));
         values.push_back(*v);
     }
     return std::optional<std::vector<double>>(std::move(values));
@@ -173,8 +183,8 @@ Result<toml::table> parseTomlFile(const std::string& path, const std::string& wh
     try {
         return toml::parse_file(path);
     } catch (const toml::parse_error& e) {
-        return makeError("cannot load {} '{}': line {}, column {}: not valid TOML: {}", what,
-                         path, e.source().begin.line, e.source().begin.column, e.description());
+        return makeError("cannot load {} '{}': line {}, column {}: not valid TOML: {}", what, path,
+                         e.source().begin.line, e.source().begin.column, e.description());
     } catch (const std::exception& e) {
         return makeError("cannot load {} '{}': {}", what, path, e.what());
     }

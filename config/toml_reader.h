@@ -5,6 +5,9 @@
 // description, the service config). Every failure is one message naming the file, the line and
 // the dotted key, and what to change (DESIGN.md §7: a bad config never crashes anything).
 
+#include <fmt/format.h>
+#include <toml++/toml.h>
+
 #include <cstdint>
 #include <filesystem>
 #include <initializer_list>
@@ -14,12 +17,8 @@
 #include <utility>
 #include <vector>
 
-#include <fmt/format.h>
-#include <toml++/toml.h>
-
 #include "base/result.h"
 #include "base/strings.h"
-
 
 namespace previs {
 
@@ -60,8 +59,7 @@ public:
                                                        std::string_view key, size_t count) const;
     // An existing regular file with one of `extensions` (lower case, with the dot); relative
     // paths start at the file's folder. Returns the resolved path.
-    Result<std::string> file(const toml::node& node, std::string_view key,
-                             const std::string& value,
+    Result<std::string> file(const toml::node& node, std::string_view key, const std::string& value,
                              std::initializer_list<std::string_view> extensions,
                              const char* what) const;
 

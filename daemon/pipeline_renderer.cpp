@@ -116,8 +116,7 @@ Status PipelineRenderer::prepare(const TrackedFrame& tracked,
     rendered_ = tracked.worldFromCamera.has_value() || sceneCameraUntilTracked_;
     if (!rendered_) return {};
     // The renderer keeps the plate; plate_ is needed only while there is nothing to render.
-    if (Status s = renderer_->setPlate(std::move(plate_), "scene camera frame"); !s)
-        return s;
+    if (Status s = renderer_->setPlate(std::move(plate_), "scene camera frame"); !s) return s;
     // Without a pose yet the renderer keeps the scene file's camera (until_tracked).
     if (tracked.worldFromCamera) {
         // The translation in double: it keeps its millimetres however far the board's world

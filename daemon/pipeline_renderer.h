@@ -11,8 +11,8 @@
 #include <vector>
 
 #include "base/result.h"
-#include "daemon/service_config.h"
 #include "daemon/pipeline_stages.h"
+#include "daemon/service_config.h"
 #include "gpu/context.h"
 #include "image/image.h"
 #include "render/renderer.h"

@@ -5,10 +5,10 @@
 
 #include "base/command_line.h"
 #include "base/log.h"
-#include "scene/scene_description.h"
-#include "daemon/service_config.h"
 #include "daemon/pipeline_stages.h"
 #include "daemon/service.h"
+#include "daemon/service_config.h"
+#include "scene/scene_description.h"
 
 using namespace previs;
 

@@ -8,14 +8,14 @@
 #include "base/log.h"
 #include "base/progress.h"
 #include "capture/recorded_source.h"
-#include "scene/scene_description.h"
-#include "daemon/service_config.h"
 #include "daemon/pipeline_renderer.h"
 #include "daemon/pipeline_stages.h"
 #include "daemon/recorded_events.h"
+#include "daemon/service_config.h"
 #include "gpu/context.h"
 #include "image/image.h"
 #include "io/session.h"
+#include "scene/scene_description.h"
 
 namespace previs {
 
@@ -240,8 +240,8 @@ int runReplay(const ReplayOptions& o) {
             }
         }
         const uint32_t width = image->width, height = image->height;
-        if (Status s = writePng(stem + ".png", width, height,
-                                (*renderer)->toDisplay(std::move(*image)));
+        if (Status s =
+                writePng(stem + ".png", width, height, (*renderer)->toDisplay(std::move(*image)));
             !s) {
             logError("{}", s.message());
             return 1;
@@ -261,8 +261,8 @@ int runReplay(const ReplayOptions& o) {
             }
         csv << "\n";
         ++written;
-        progress.update(fmt::format("frame {}, {}, {} spp, {:.0f} ms", written - 1,
-                                    toString(mode), (*renderer)->samples(), renderMs));
+        progress.update(fmt::format("frame {}, {}, {} spp, {:.0f} ms", written - 1, toString(mode),
+                                    (*renderer)->samples(), renderMs));
     }
     csv.flush();
     if (!csv) {

@@ -15,9 +15,9 @@
 #include <nlohmann/json.hpp>
 
 #include "base/guarded_thread.h"
+#include "base/latest_value_slot.h"
 #include "base/log.h"
 #include "capture/unique_fd.h"
-#include "scene/scene_description.h"
 #include "daemon/camera_sources.h"
 #include "daemon/control_server.h"
 #include "daemon/pipeline_renderer.h"
@@ -28,8 +28,8 @@
 #include "gpu/context.h"
 #include "io/gpio_button.h"
 #include "io/status_led.h"
+#include "scene/scene_description.h"
 #include "systemd/notify.h"
-#include "base/latest_value_slot.h"
 
 namespace previs {
 
@@ -540,17 +540,20 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config, bo
         t.fisheyeCamera = makeCameraSource(*config.fisheyeCamera, config.loopSession);
         if (Status s = t.fisheyeCamera->start(); !s) return s.error();
         t.lightingThread = std::thread([&t] {
-            runGuarded("lighting", [&t] { t.runLighting(); },
-                       [&t](const std::string& why) { t.stageFailed(why); });
+            runGuarded(
+                "lighting", [&t] { t.runLighting(); },
+                [&t](const std::string& why) { t.stageFailed(why); });
         });
     }
     t.trackingThread = std::thread([&t, self] {
-        runGuarded("tracking", [&t, self] { t.runTracking(self->modes_); },
-                   [&t](const std::string& why) { t.stageFailed(why); });
+        runGuarded(
+            "tracking", [&t, self] { t.runTracking(self->modes_); },
+            [&t](const std::string& why) { t.stageFailed(why); });
     });
     t.renderThread = std::thread([&t, self] {
-        runGuarded("render", [&t, self] { t.runRender(self->modes_); },
-                   [&t](const std::string& why) { t.stageFailed(why); });
+        runGuarded(
+            "render", [&t, self] { t.runRender(self->modes_); },
+            [&t](const std::string& why) { t.stageFailed(why); });
     });
     service->stopFd_ = t.stopEvent.get();
 

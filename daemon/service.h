@@ -16,8 +16,8 @@
 #include <thread>
 
 #include "base/result.h"
-#include "daemon/service_config.h"
 #include "daemon/mode_machine.h"
+#include "daemon/service_config.h"
 #include "io/session.h"
 
 namespace previs {

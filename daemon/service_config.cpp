@@ -3,13 +3,13 @@
 #include <cstdio>
 #include <cstdlib>
 #include <exception>
-#include <functional>
 #include <filesystem>
+#include <functional>
 #include <limits>
 
 #include "capture/pixel_format.h"
-#include "vision/board_file.h"
 #include "config/toml_reader.h"
+#include "vision/board_file.h"
 
 namespace previs {
 namespace {
@@ -72,9 +72,8 @@ Status ConfigReader::ranged(const toml::table& t, std::string_view section, std:
     return {};
 }
 
-Status ConfigReader::integerIn(const toml::table& t, std::string_view section,
-                               std::string_view key, int64_t& value, int64_t lo,
-                               int64_t hi) const {
+Status ConfigReader::integerIn(const toml::table& t, std::string_view section, std::string_view key,
+                               int64_t& value, int64_t lo, int64_t hi) const {
     Result<std::optional<int64_t>> v = r_.integer(t, section, key);
     if (!v) return v.error();
     if (!*v) return {};
@@ -87,9 +86,9 @@ Status ConfigReader::integerIn(const toml::table& t, std::string_view section,
 
 Status ConfigReader::parseRadiometry(const toml::table& t, std::string_view section,
                                      InverseToneMapSettings& s) const {
-    if (Status st = r_.checkKeys(t, section,
-                                 {"tone_curve", "exposure_stops", "white_balance", "max_radiance",
-                                  "white_luminance"});
+    if (Status st = r_.checkKeys(
+            t, section,
+            {"tone_curve", "exposure_stops", "white_balance", "max_radiance", "white_luminance"});
         !st)
         return st;
     Result<std::optional<std::string>> curve = r_.string(t, section, "tone_curve");
@@ -140,8 +139,9 @@ Status ConfigReader::parseLibcameraControls(const toml::table& t, const std::str
     if (!gains) return gains.error();
     if (*gains) {
         if (!((**gains)[0] > 0.0 && (**gains)[1] > 0.0))
-            return fail(t.get("colour_gains"), "'{}.colour_gains' must be two gains > 0 (red, "
-                                               "blue)",
+            return fail(t.get("colour_gains"),
+                        "'{}.colour_gains' must be two gains > 0 (red, "
+                        "blue)",
                         section);
         c.colourGains = std::array<float, 2>{float((**gains)[0]), float((**gains)[1])};
     }
@@ -152,13 +152,13 @@ Status ConfigReader::parseCamera(const toml::table& t, const std::string& name,
                                  CameraConfig& c) const {
     const std::string section = "cameras." + name;
     const bool fisheye = name == "fisheye";
-    Status keys = fisheye ? r_.checkKeys(t, section,
-                                         {"source", "device", "width", "height", "format", "fps",
-                                          "controls", "calibration", "radiometry",
-                                          "mount_rotation_deg"})
-                          : r_.checkKeys(t, section,
-                                         {"source", "device", "width", "height", "format", "fps",
-                                          "controls", "calibration", "radiometry"});
+    Status keys =
+        fisheye ? r_.checkKeys(t, section,
+                               {"source", "device", "width", "height", "format", "fps", "controls",
+                                "calibration", "radiometry", "mount_rotation_deg"})
+                : r_.checkKeys(t, section,
+                               {"source", "device", "width", "height", "format", "fps", "controls",
+                                "calibration", "radiometry"});
     if (!keys) return keys;
     c.name = name;
 
@@ -172,14 +172,13 @@ Status ConfigReader::parseCamera(const toml::table& t, const std::string& name,
     else if (kind == "session")
         c.source = CameraSourceKind::Session;
     else
-        return fail(t.get("source"), "'{}.source' is '{}'; use v4l2, libcamera or session",
-                    section, kind);
+        return fail(t.get("source"), "'{}.source' is '{}'; use v4l2, libcamera or session", section,
+                    kind);
 
     Result<std::optional<std::string>> device = r_.string(t, section, "device");
     if (!device) return device.error();
     if (c.source != CameraSourceKind::Libcamera && (!*device || (*device)->empty()))
-        return fail(*device ? t.get("device") : &t,
-                    "[{}] needs 'device' ({})", section,
+        return fail(*device ? t.get("device") : &t, "[{}] needs 'device' ({})", section,
                     c.source == CameraSourceKind::V4L2
                         ? "the V4L2 node, e.g. device = \"/dev/video0\""
                         : "the recorded camera folder, e.g. device = \"session/cameras/scene\"");
@@ -225,8 +224,7 @@ Status ConfigReader::parseCamera(const toml::table& t, const std::string& name,
     if (!controls) return controls.error();
     if (*controls) {
         if (c.source == CameraSourceKind::Session)
-            return fail(*controls, "'{}.controls' has no meaning for a recorded camera",
-                        section);
+            return fail(*controls, "'{}.controls' has no meaning for a recorded camera", section);
         if (c.source == CameraSourceKind::Libcamera) {
             if (Status st = parseLibcameraControls(**controls, section + ".controls", c); !st)
                 return st;
@@ -234,8 +232,8 @@ Status ConfigReader::parseCamera(const toml::table& t, const std::string& name,
             for (auto&& [key, node] : **controls) {
                 const toml::value<int64_t>* v = node.as_integer();
                 if (!v)
-                    return fail(&node, "'{}.controls.\"{}\"' must be an integer, not {}",
-                                section, key.str(), tomlTypeName(node));
+                    return fail(&node, "'{}.controls.\"{}\"' must be an integer, not {}", section,
+                                key.str(), tomlTypeName(node));
                 c.controls.emplace_back(std::string(key.str()), v->get());
             }
         }
@@ -244,16 +242,17 @@ Status ConfigReader::parseCamera(const toml::table& t, const std::string& name,
     Result<std::optional<std::string>> calibration = r_.string(t, section, "calibration");
     if (!calibration) return calibration.error();
     if (!*calibration)
-        return fail(&t, "[{}] needs 'calibration' (an OpenCV calibration .yaml; "
-                        "docs/camera-calibration.md)",
+        return fail(&t,
+                    "[{}] needs 'calibration' (an OpenCV calibration .yaml; "
+                    "docs/camera-calibration.md)",
                     section);
-    Result<std::string> calibrationPath = r_.file(*t.get("calibration"), section + ".calibration",
-                                                  **calibration, {".yaml", ".yml", ".xml"},
-                                                  "OpenCV calibration");
+    Result<std::string> calibrationPath =
+        r_.file(*t.get("calibration"), section + ".calibration", **calibration,
+                {".yaml", ".yml", ".xml"}, "OpenCV calibration");
     if (!calibrationPath) return calibrationPath.error();
     Result<CameraCalibration> loaded = CameraCalibration::load(*calibrationPath);
-    if (!loaded) return fail(t.get("calibration"), "'{}.calibration': {}", section,
-                             loaded.message());
+    if (!loaded)
+        return fail(t.get("calibration"), "'{}.calibration': {}", section, loaded.message());
     const cv::Size size = loaded->imageSize();
     if (size.width != int(c.width) || size.height != int(c.height))
         return fail(t.get("calibration"),
@@ -274,18 +273,19 @@ Status ConfigReader::parseCamera(const toml::table& t, const std::string& name,
 }
 
 Status ConfigReader::parseTracking(const toml::table& t, TrackingConfig& c) const {
-    if (Status st = r_.checkKeys(t, "tracking",
-                                 {"board", "family", "decimate", "sigma", "refine_edges",
-                                  "decode_sharpening", "threads", "max_reproj_error_px",
-                                  "min_tags", "max_position_std_fraction",
-                                  "max_rotation_std_deg", "until_tracked"});
+    if (Status st =
+            r_.checkKeys(t, "tracking",
+                         {"board", "family", "decimate", "sigma", "refine_edges",
+                          "decode_sharpening", "threads", "max_reproj_error_px", "min_tags",
+                          "max_position_std_fraction", "max_rotation_std_deg", "until_tracked"});
         !st)
         return st;
     Result<std::optional<std::string>> board = r_.string(t, "tracking", "board");
     if (!board) return board.error();
     if (!*board)
-        return fail(&t, "[tracking] needs 'board' (the tag board layout .toml; "
-                        "docs/board-format.md)");
+        return fail(&t,
+                    "[tracking] needs 'board' (the tag board layout .toml; "
+                    "docs/board-format.md)");
     Result<std::string> boardPath =
         r_.file(*t.get("board"), "tracking.board", **board, {".toml"}, "tag board");
     if (!boardPath) return boardPath.error();
@@ -331,8 +331,8 @@ Status ConfigReader::parseTracking(const toml::table& t, TrackingConfig& c) cons
     Result<std::optional<bool>> refine = r_.boolean(t, "tracking", "refine_edges");
     if (!refine) return refine.error();
     c.detector.refineEdges = refine->value_or(c.detector.refineEdges);
-    if (Status st = ranged(t, "tracking", "decode_sharpening", c.detector.decodeSharpening, 0.0,
-                           16.0);
+    if (Status st =
+            ranged(t, "tracking", "decode_sharpening", c.detector.decodeSharpening, 0.0, 16.0);
         !st)
         return st;
     int64_t threads = c.detector.threads;
@@ -349,18 +349,18 @@ Status ConfigReader::parseTracking(const toml::table& t, TrackingConfig& c) cons
                            c.tracker.maxPositionStdFraction, 0.0, 1e6, true);
         !st)
         return st;
-    if (Status st = ranged(t, "tracking", "max_rotation_std_deg", c.tracker.maxRotationStdDeg,
-                           0.0, 1e6, true);
+    if (Status st = ranged(t, "tracking", "max_rotation_std_deg", c.tracker.maxRotationStdDeg, 0.0,
+                           1e6, true);
         !st)
         return st;
     return {};
 }
 
 Status ConfigReader::parseLighting(const toml::table& t, LightingConfig& c) const {
-    if (Status st = r_.checkKeys(t, "lighting",
-                                 {"mode", "map_width", "max_field_angle_deg", "fill_ring_deg",
-                                  "mean_factor", "max_fraction", "max_lights",
-                                  "min_power_fraction", "update_hz"});
+    if (Status st = r_.checkKeys(
+            t, "lighting",
+            {"mode", "map_width", "max_field_angle_deg", "fill_ring_deg", "mean_factor",
+             "max_fraction", "max_lights", "min_power_fraction", "update_hz"});
         !st)
         return st;
     Result<std::optional<std::string>> mode = r_.string(t, "lighting", "mode");
@@ -377,8 +377,9 @@ Status ConfigReader::parseLighting(const toml::table& t, LightingConfig& c) cons
     int64_t width = c.fisheye.width;
     if (Status st = integerIn(t, "lighting", "map_width", width, 16, 16384); !st) return st;
     if (width % 2 != 0)
-        return fail(t.get("map_width"), "'lighting.map_width' is {}; it must be even (the map "
-                                        "is width x width/2)",
+        return fail(t.get("map_width"),
+                    "'lighting.map_width' is {}; it must be even (the map "
+                    "is width x width/2)",
                     width);
     c.fisheye.width = int(width);
     if (Status st = ranged(t, "lighting", "max_field_angle_deg", c.fisheye.maxFieldAngleDeg, 0.0,
@@ -389,8 +390,7 @@ Status ConfigReader::parseLighting(const toml::table& t, LightingConfig& c) cons
                            c.fisheye.maxFieldAngleDeg, true);
         !st)
         return st;
-    if (Status st = ranged(t, "lighting", "mean_factor", c.lights.meanFactor, 0.0, 1e12, true);
-        !st)
+    if (Status st = ranged(t, "lighting", "mean_factor", c.lights.meanFactor, 0.0, 1e12, true); !st)
         return st;
     if (Status st = ranged(t, "lighting", "max_fraction", c.lights.maxFraction, 0.0, 1.0); !st)
         return st;
@@ -398,15 +398,15 @@ Status ConfigReader::parseLighting(const toml::table& t, LightingConfig& c) cons
     int64_t maxLights = c.lights.maxLights;
     if (Status st = integerIn(t, "lighting", "max_lights", maxLights, 0, 256); !st) return st;
     c.lights.maxLights = int(maxLights);
-    if (Status st = ranged(t, "lighting", "min_power_fraction", c.lights.minPowerFraction, 0.0,
-                           1.0);
+    if (Status st =
+            ranged(t, "lighting", "min_power_fraction", c.lights.minPowerFraction, 0.0, 1.0);
         !st)
         return st;
     return {};
 }
 
-Status ConfigReader::stringKey(const toml::table& t, std::string_view section,
-                               std::string_view key, std::string& value) const {
+Status ConfigReader::stringKey(const toml::table& t, std::string_view section, std::string_view key,
+                               std::string& value) const {
     Result<std::optional<std::string>> v = r_.string(t, section, key);
     if (!v) return v.error();
     if (*v) value = **v;
@@ -416,8 +416,7 @@ Status ConfigReader::stringKey(const toml::table& t, std::string_view section,
 Status ConfigReader::parseRender(const toml::table& t, RenderConfig& c) const {
     if (Status st = r_.checkKeys(t, "render",
                                  {"width", "height", "samples_per_frame", "max_depth", "seed",
-                                  "photons", "preview_photons", "photon_radius_m",
-                                  "photon_alpha"});
+                                  "photons", "preview_photons", "photon_radius_m", "photon_alpha"});
         !st)
         return st;
     int64_t width = c.width, height = c.height, spp = c.samplesPerFrame, depth = c.maxDepth,
@@ -425,8 +424,9 @@ Status ConfigReader::parseRender(const toml::table& t, RenderConfig& c) const {
     if (Status st = integerIn(t, "render", "width", width, 0, 16384); !st) return st;
     if (Status st = integerIn(t, "render", "height", height, 0, 16384); !st) return st;
     if ((width == 0) != (height == 0))
-        return fail(&t, "[render] needs both 'width' and 'height', or neither (the scene "
-                        "camera's size)");
+        return fail(&t,
+                    "[render] needs both 'width' and 'height', or neither (the scene "
+                    "camera's size)");
     if (Status st = integerIn(t, "render", "samples_per_frame", spp, 1, 65536); !st) return st;
     if (Status st = integerIn(t, "render", "max_depth", depth, 1, 1024); !st) return st;
     if (Status st = integerIn(t, "render", "seed", seed, 0, 0xffffffffLL); !st) return st;
@@ -446,8 +446,8 @@ Status ConfigReader::parseRender(const toml::table& t, RenderConfig& c) const {
             return fail(node, "'render.photons': {}", st.message());
     }
     int64_t previewPhotons = c.photons.previewPerIteration;
-    if (Status st = integerIn(t, "render", "preview_photons", previewPhotons, 128,
-                              kMaxPhotonsPerIteration);
+    if (Status st =
+            integerIn(t, "render", "preview_photons", previewPhotons, 128, kMaxPhotonsPerIteration);
         !st)
         return st;
     c.photons.previewPerIteration = uint32_t(previewPhotons);
@@ -472,8 +472,7 @@ Status ConfigReader::parseRefine(const toml::table& t, RefineConfig& c) const {
     c.maxSamples = uint64_t(maxSamples);
     if (Status st = ranged(t, "refine", "pose_threshold_m", c.poseThresholdM, 0.0, 1e6); !st)
         return st;
-    if (Status st = ranged(t, "refine", "pose_threshold_deg", c.poseThresholdDeg, 0.0, 180.0);
-        !st)
+    if (Status st = ranged(t, "refine", "pose_threshold_deg", c.poseThresholdDeg, 0.0, 180.0); !st)
         return st;
     if (Status st = ranged(t, "refine", "lighting_threshold", c.lightingThreshold, 0.0, 1e6); !st)
         return st;
@@ -481,8 +480,7 @@ Status ConfigReader::parseRefine(const toml::table& t, RefineConfig& c) const {
 }
 
 Status ConfigReader::parseOutput(const toml::table& t, OutputConfig& c) const {
-    if (Status st = r_.checkKeys(t, "output", {"kind", "folder", "card", "connector", "mode"});
-        !st)
+    if (Status st = r_.checkKeys(t, "output", {"kind", "folder", "card", "connector", "mode"}); !st)
         return st;
     std::string kind = "none";
     if (Status st = stringKey(t, "output", "kind", kind); !st) return st;
@@ -510,8 +508,9 @@ Status ConfigReader::parseOutput(const toml::table& t, OutputConfig& c) const {
         char tail = 0;
         const int n = std::sscanf(c.mode.c_str(), "%ux%u@%u%c", &w, &h, &hz, &tail);
         if (!(n == 2 || n == 3) || w == 0 || h == 0)
-            return fail(t.get("mode"), "'output.mode' is '{}'; use WIDTHxHEIGHT or "
-                                       "WIDTHxHEIGHT@HZ, e.g. \"1920x1080@60\"",
+            return fail(t.get("mode"),
+                        "'output.mode' is '{}'; use WIDTHxHEIGHT or "
+                        "WIDTHxHEIGHT@HZ, e.g. \"1920x1080@60\"",
                         c.mode);
     }
     return {};
@@ -530,8 +529,9 @@ Status ConfigReader::parseButton(const toml::table& t, ButtonConfig& c) const {
         if (Status st = stringKey(t, "button", key, *field); !st) return st;
     }
     if (c.chip.empty() || c.line.empty())
-        return fail(&t, "[button] needs 'chip' (path, name or label, e.g. \"gpiochip0\") and "
-                        "'line' (name or offset, e.g. \"mode-button\")");
+        return fail(&t,
+                    "[button] needs 'chip' (path, name or label, e.g. \"gpiochip0\") and "
+                    "'line' (name or offset, e.g. \"mode-button\")");
     for (auto [key, field] : {std::pair<const char*, bool*>{"active_low", &c.activeLow},
                               std::pair<const char*, bool*>{"led_active_low", &c.ledActiveLow}}) {
         Result<std::optional<bool>> b = r_.boolean(t, "button", key);
@@ -542,8 +542,9 @@ Status ConfigReader::parseButton(const toml::table& t, ButtonConfig& c) const {
     if (Status st = integerIn(t, "button", "debounce_ms", debounce, 0, 1000); !st) return st;
     if (Status st = integerIn(t, "button", "long_press_ms", longPress, 100, 60000); !st) return st;
     if (longPress <= debounce)
-        return fail(t.get("long_press_ms"), "'button.long_press_ms' ({}) must be longer than "
-                                            "'button.debounce_ms' ({})",
+        return fail(t.get("long_press_ms"),
+                    "'button.long_press_ms' ({}) must be longer than "
+                    "'button.debounce_ms' ({})",
                     longPress, debounce);
     c.debounceMs = int(debounce);
     c.longPressMs = int(longPress);
@@ -579,8 +580,9 @@ Result<ServiceConfig> ConfigReader::read(const toml::table& root) {
     Result<std::optional<std::string>> scene = r_.string(root, "", "scene");
     if (!scene) return scene.error();
     if (!*scene)
-        return fail(nullptr, "missing key 'scene' (a .gltf/.glb or previs.toml scene, e.g. "
-                             "scene = \"scene/previs.toml\")");
+        return fail(nullptr,
+                    "missing key 'scene' (a .gltf/.glb or previs.toml scene, e.g. "
+                    "scene = \"scene/previs.toml\")");
     Result<std::string> scenePath =
         r_.file(*root.get("scene"), "scene", **scene, {".gltf", ".glb", ".toml"}, "scene");
     if (!scenePath) return scenePath.error();
@@ -588,16 +590,14 @@ Result<ServiceConfig> ConfigReader::read(const toml::table& root) {
 
     Result<const toml::table*> cameras = r_.table(root, "", "cameras");
     if (!cameras) return cameras.error();
-    if (!*cameras)
-        return fail(nullptr, "missing [cameras.scene] (the camera that films the set)");
+    if (!*cameras) return fail(nullptr, "missing [cameras.scene] (the camera that films the set)");
     if (Status st = r_.checkKeys(**cameras, "cameras", {"scene", "fisheye"}); !st)
         return st.error();
     Result<const toml::table*> sceneCamera = r_.table(**cameras, "cameras", "scene");
     if (!sceneCamera) return sceneCamera.error();
     if (!*sceneCamera)
         return fail(*cameras, "missing [cameras.scene] (the camera that films the set)");
-    if (Status st = parseCamera(**sceneCamera, "scene", config.sceneCamera); !st)
-        return st.error();
+    if (Status st = parseCamera(**sceneCamera, "scene", config.sceneCamera); !st) return st.error();
     Result<const toml::table*> fisheye = r_.table(**cameras, "cameras", "fisheye");
     if (!fisheye) return fisheye.error();
     if (*fisheye) {
@@ -610,8 +610,9 @@ Result<ServiceConfig> ConfigReader::read(const toml::table& root) {
             config.lighting.fisheye.mountRotationDeg = {(**mount)[0], (**mount)[1], (**mount)[2]};
         if (!config.sceneCamera.device.empty() && camera.source == config.sceneCamera.source &&
             camera.device == config.sceneCamera.device)
-            return fail(*fisheye, "[cameras.fisheye] and [cameras.scene] both use '{}'; each "
-                                   "camera needs its own device",
+            return fail(*fisheye,
+                        "[cameras.fisheye] and [cameras.scene] both use '{}'; each "
+                        "camera needs its own device",
                         camera.device);
         config.fisheyeCamera = std::move(camera);
     }
@@ -619,8 +620,9 @@ Result<ServiceConfig> ConfigReader::read(const toml::table& root) {
     Result<const toml::table*> tracking = r_.table(root, "", "tracking");
     if (!tracking) return tracking.error();
     if (!*tracking)
-        return fail(nullptr, "missing [tracking] (at least board = \"board.toml\", the tag "
-                             "layout; docs/board-format.md)");
+        return fail(nullptr,
+                    "missing [tracking] (at least board = \"board.toml\", the tag "
+                    "layout; docs/board-format.md)");
     if (Status st = parseTracking(**tracking, config.tracking); !st) return st.error();
 
     Result<const toml::table*> lighting = r_.table(root, "", "lighting");
@@ -640,7 +642,11 @@ Result<ServiceConfig> ConfigReader::read(const toml::table& root) {
         {"render", [&](const toml::table& t) { return parseRender(t, config.render); }},
         {"refine", [&](const toml::table& t) { return parseRefine(t, config.refine); }},
         {"output", [&](const toml::table& t) { return parseOutput(t, config.output); }},
-        {"button", [&](const toml::table& t) { hasButton = true; return parseButton(t, button); }},
+        {"button",
+         [&](const toml::table& t) {
+             hasButton = true;
+             return parseButton(t, button);
+         }},
         {"control", [&](const toml::table& t) { return parseControl(t, config.control); }},
         {"session",
          [&](const toml::table& t) -> Status {
@@ -669,18 +675,24 @@ Result<ServiceConfig> ConfigReader::read(const toml::table& root) {
 
 const char* toString(CameraSourceKind kind) {
     switch (kind) {
-        case CameraSourceKind::V4L2: return "v4l2";
-        case CameraSourceKind::Libcamera: return "libcamera";
-        case CameraSourceKind::Session: return "session";
+        case CameraSourceKind::V4L2:
+            return "v4l2";
+        case CameraSourceKind::Libcamera:
+            return "libcamera";
+        case CameraSourceKind::Session:
+            return "session";
     }
     return "?";
 }
 
 const char* toString(OutputKind kind) {
     switch (kind) {
-        case OutputKind::None: return "none";
-        case OutputKind::Files: return "files";
-        case OutputKind::Kms: return "kms";
+        case OutputKind::None:
+            return "none";
+        case OutputKind::Files:
+            return "files";
+        case OutputKind::Kms:
+            return "kms";
     }
     return "?";
 }
@@ -699,8 +711,10 @@ std::string controlSocketPath(const ControlConfig& control) {
 
 const char* toString(LightingMode mode) {
     switch (mode) {
-        case LightingMode::Environment: return "environment";
-        case LightingMode::Lights: return "lights";
+        case LightingMode::Environment:
+            return "environment";
+        case LightingMode::Lights:
+            return "lights";
     }
     return "?";
 }

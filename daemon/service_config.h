@@ -88,11 +88,11 @@ struct LightingConfig {
 
 // What the render thread does per frame (issue 7: preview and refinement).
 struct RenderConfig {
-    uint32_t width = 0;   // 0 = the scene camera's width (the plate's resolution)
-    uint32_t height = 0;  // 0 = the scene camera's height
+    uint32_t width = 0;            // 0 = the scene camera's width (the plate's resolution)
+    uint32_t height = 0;           // 0 = the scene camera's height
     uint32_t samplesPerFrame = 1;  // preview: samples per pixel of each live frame
     uint32_t maxDepth = 8;
-    uint32_t seed = 0;    // preview's fixed random sequence
+    uint32_t seed = 0;  // preview's fixed random sequence
     // Caustics (render/photon_map.h): mode and photons per iteration, first radius, alpha.
     PhotonSettings photons;
 };

@@ -14,11 +14,13 @@ DisplayThread::DisplayThread(std::unique_ptr<FrameOutput> output) : output_(std:
         // frame and the loop goes on with the next one.
         for (bool failed = true; failed;) {
             failed = false;
-            runGuarded("display", [this] { run(); }, [&](const std::string&) {
-                failed = true;
-                std::lock_guard lock(statsMutex_);
-                ++stats_.failed;
-            });
+            runGuarded(
+                "display", [this] { run(); },
+                [&](const std::string&) {
+                    failed = true;
+                    std::lock_guard lock(statsMutex_);
+                    ++stats_.failed;
+                });
         }
     });
 }

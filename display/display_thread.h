@@ -11,17 +11,17 @@
 #include <string>
 #include <thread>
 
-#include "display/frame_output.h"
 #include "base/latest_value_slot.h"
+#include "display/frame_output.h"
 
 namespace previs {
 
 struct DisplayStats {
-    uint64_t shown = 0;       // show() succeeded on a live output
-    uint64_t dropped = 0;     // replaced by a newer frame before the thread took it, or the
-                              // output was still busy with the previous one (lastFrameDropped)
-    uint64_t failed = 0;      // show() returned an error, or the output was lost
-    std::string kind;         // the output's kind() after its last show ("kms", "lost", ...)
+    uint64_t shown = 0;    // show() succeeded on a live output
+    uint64_t dropped = 0;  // replaced by a newer frame before the thread took it, or the
+                           // output was still busy with the previous one (lastFrameDropped)
+    uint64_t failed = 0;   // show() returned an error, or the output was lost
+    std::string kind;      // the output's kind() after its last show ("kms", "lost", ...)
     // Steady clock (CLOCK_MONOTONIC, as captureTimestampNs) when the last show() returned; for
     // KMS the flip is then queued and on screen at the next vblank (≤ one refresh later).
     int64_t lastShownNs = 0;

@@ -548,10 +548,9 @@ void KmsOutput::retryOpen() {
         // user's to fix: say so once per distinct reason, not only at debug level.
         if (opened.failure == KmsDevice::Failure::UserError ||
             opened.failure == KmsDevice::Failure::NoSuchConnector) {
-            const std::string why = opened.message.empty()
-                                        ? fmt::format("{}: no connector '{}'", path,
-                                                      settings_.connector)
-                                        : opened.message;
+            const std::string why = opened.message.empty() ? fmt::format("{}: no connector '{}'",
+                                                                         path, settings_.connector)
+                                                           : opened.message;
             if (why != lastRetryWarning_) logWarning("display: {}", why);
             lastRetryWarning_ = why;
         } else {

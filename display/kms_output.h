@@ -69,7 +69,8 @@ private:
     std::atomic<uint64_t> framesDropped_{0};
     std::atomic<uint32_t> lastVblank_{0};
     std::string lastRetryWarning_;
-    bool lastDropped_ = false;  // the display thread's own: set and read there only  // the last user-caused retry failure logged
+    bool lastDropped_ = false;  // the display thread's own: set and read there only  // the last
+                                // user-caused retry failure logged
 };
 
 // Parses an [output] mode string: "WIDTHxHEIGHT" or "WIDTHxHEIGHT@HZ" (hz 0 = any). False if

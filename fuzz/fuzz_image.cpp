@@ -24,10 +24,11 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     limits.maxWidth = 2048;
     limits.maxHeight = 2048;
     Result<ImageF> image = readImage(path, limits);
-    if (image.ok() && image->pixels.size() != size_t(image->width) * image->height * image->channels)
+    if (image.ok() &&
+        image->pixels.size() != size_t(image->width) * image->height * image->channels)
         __builtin_trap();
-    Result<ImageRgba8> texture = decodePngOrJpeg(std::span<const uint8_t>(data, size), "fuzz",
-                                                 limits);
+    Result<ImageRgba8> texture =
+        decodePngOrJpeg(std::span<const uint8_t>(data, size), "fuzz", limits);
     if (texture.ok() && texture->pixels.size() != size_t(texture->width) * texture->height * 4)
         __builtin_trap();
     return 0;

@@ -1,7 +1,7 @@
 // loadSceneDescription on a previs.toml. The folder holds a tiny valid glTF (scene.gltf) and
 // environment map (env.hdr) so inputs naming them get past the file checks.
-#include "scene/scene_description.h"
 #include "fuzz/fuzz_support.h"
+#include "scene/scene_description.h"
 
 namespace {
 
@@ -17,8 +17,8 @@ constexpr std::string_view kGltf = R"({"asset":{"version":"2.0"},"scene":0,
 {"bufferView":1,"componentType":5123,"count":3,"type":"SCALAR"}]})";
 
 // An 8x1 Radiance map, stored flat.
-const std::string kHdr = std::string("#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 1 +X 8\n") +
-                         std::string(32, '\x80');
+const std::string kHdr =
+    std::string("#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 1 +X 8\n") + std::string(32, '\x80');
 
 }  // namespace
 

@@ -12,7 +12,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     static const bool fixtures = [] {
         const std::filesystem::path demo =
             projectDataDir().value_or(std::filesystem::path(".")) / "examples/demo";
-        for (const char* name : {"scene_camera.yaml", "fisheye.yaml", "board.toml", "previs.toml"}) {
+        for (const char* name :
+             {"scene_camera.yaml", "fisheye.yaml", "board.toml", "previs.toml"}) {
             std::error_code ec;
             std::filesystem::copy_file(demo / name, fuzz::scratchDir() / name,
                                        std::filesystem::copy_options::overwrite_existing, ec);

@@ -20,8 +20,8 @@ namespace previs::fuzz {
 
 inline const std::filesystem::path& scratchDir() {
     static const std::filesystem::path dir = [] {
-        auto d = std::filesystem::temp_directory_path() /
-                 ("previs_fuzz_" + std::to_string(::getpid()));
+        auto d =
+            std::filesystem::temp_directory_path() / ("previs_fuzz_" + std::to_string(::getpid()));
         std::filesystem::create_directories(d);
         // The parsers' warnings would flood the fuzzer's output.
         setLogLevel(LogLevel::Error);

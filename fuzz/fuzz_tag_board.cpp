@@ -1,6 +1,6 @@
 // loadTagBoard on a board .toml (docs/board-format.md).
-#include "vision/board_file.h"
 #include "fuzz/fuzz_support.h"
+#include "vision/board_file.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     using namespace previs;

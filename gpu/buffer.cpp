@@ -6,10 +6,9 @@ namespace previs {
 
 namespace {
 
-constexpr vk::BufferUsageFlags kUsage = vk::BufferUsageFlagBits::eStorageBuffer |
-                                        vk::BufferUsageFlagBits::eUniformTexelBuffer |
-                                        vk::BufferUsageFlagBits::eTransferSrc |
-                                        vk::BufferUsageFlagBits::eTransferDst;
+constexpr vk::BufferUsageFlags kUsage =
+    vk::BufferUsageFlagBits::eStorageBuffer | vk::BufferUsageFlagBits::eUniformTexelBuffer |
+    vk::BufferUsageFlagBits::eTransferSrc | vk::BufferUsageFlagBits::eTransferDst;
 
 struct Staging {
     vk::raii::Buffer buffer{nullptr};
@@ -21,10 +20,10 @@ Staging makeStaging(GpuContext& ctx, size_t bytes) {
     Staging s;
     s.buffer = vk::raii::Buffer(ctx.device(), vk::BufferCreateInfo({}, bytes, kUsage));
     auto req = s.buffer.getMemoryRequirements();
-    uint32_t type = ctx.findMemoryType(req.memoryTypeBits,
-                                       vk::MemoryPropertyFlagBits::eHostVisible |
-                                           vk::MemoryPropertyFlagBits::eHostCoherent,
-                                       vk::MemoryPropertyFlagBits::eHostCached);
+    uint32_t type = ctx.findMemoryType(
+        req.memoryTypeBits,
+        vk::MemoryPropertyFlagBits::eHostVisible | vk::MemoryPropertyFlagBits::eHostCoherent,
+        vk::MemoryPropertyFlagBits::eHostCached);
     s.memory = vk::raii::DeviceMemory(ctx.device(), vk::MemoryAllocateInfo(req.size, type));
     s.buffer.bindMemory(*s.memory, 0);
     s.mapped = s.memory.mapMemory(0, VK_WHOLE_SIZE);
@@ -45,8 +44,7 @@ Result<GpuBuffer> GpuBuffer::create(GpuContext& ctx, size_t sizeBytes, const cha
             vk::MemoryPropertyFlagBits::eHostVisible | vk::MemoryPropertyFlagBits::eHostCoherent;
         uint32_t type = ctx.findMemoryType(req.memoryTypeBits,
                                            vk::MemoryPropertyFlagBits::eDeviceLocal, hostVisible);
-        if (type == UINT32_MAX)
-            type = ctx.findMemoryType(req.memoryTypeBits, {}, hostVisible);
+        if (type == UINT32_MAX) type = ctx.findMemoryType(req.memoryTypeBits, {}, hostVisible);
         if (type == UINT32_MAX)
             return makeError("no memory type for GPU buffer '{}' ({} bytes)", label, sizeBytes);
         b.memory_ = vk::raii::DeviceMemory(ctx.device(), vk::MemoryAllocateInfo(req.size, type));

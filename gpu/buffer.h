@@ -7,7 +7,6 @@
 #include <cstddef>
 #include <span>
 #include <vector>
-
 #include <vulkan/vulkan_raii.hpp>
 
 #include "base/result.h"
@@ -21,8 +20,7 @@ public:
     static Result<GpuBuffer> create(GpuContext& ctx, size_t sizeBytes, const char* label);
 
     template <typename T, size_t N>
-    static Result<GpuBuffer> createWith(GpuContext& ctx, std::span<T, N> data,
-                                        const char* label) {
+    static Result<GpuBuffer> createWith(GpuContext& ctx, std::span<T, N> data, const char* label) {
         auto buffer = create(ctx, data.size_bytes(), label);
         if (!buffer) return buffer;
         if (Status s = buffer->upload(data.data(), data.size_bytes()); !s) return s.error();

@@ -90,14 +90,14 @@ Status ComputePipeline::bind(std::span<const GpuBuffer* const> buffers) {
         const size_t bytesPerTexel = texelBytes(bindings_[i]);
         const size_t texels = std::max<size_t>(1, buffers[i]->size() / bytesPerTexel);
         if (texels > maxTexels)
-            return makeError("'{}' binding {} needs {} texels, more than this device's "
-                             "maxTexelBufferElements ({}): use a smaller scene or another device",
-                             label_, i, texels, maxTexels);
+            return makeError(
+                "'{}' binding {} needs {} texels, more than this device's "
+                "maxTexelBufferElements ({}): use a smaller scene or another device",
+                label_, i, texels, maxTexels);
         try {
-            views.emplace_back(ctx_->device(),
-                               vk::BufferViewCreateInfo({}, buffers[i]->handle(),
-                                                        texelFormat(bindings_[i]), 0,
-                                                        texels * bytesPerTexel));
+            views.emplace_back(ctx_->device(), vk::BufferViewCreateInfo({}, buffers[i]->handle(),
+                                                                        texelFormat(bindings_[i]),
+                                                                        0, texels * bytesPerTexel));
         } catch (const std::exception& e) {
             return makeError("cannot create texel buffer view for '{}' binding {}: {}", label_, i,
                              e.what());

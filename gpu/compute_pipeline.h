@@ -7,7 +7,6 @@
 
 #include <span>
 #include <vector>
-
 #include <vulkan/vulkan_raii.hpp>
 
 #include "base/result.h"

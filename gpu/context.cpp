@@ -36,11 +36,16 @@ namespace {
 // Higher is preferred: discrete, integrated, virtual, then CPU.
 int deviceTypeRank(vk::PhysicalDeviceType type) {
     switch (type) {
-        case vk::PhysicalDeviceType::eDiscreteGpu: return 4;
-        case vk::PhysicalDeviceType::eIntegratedGpu: return 3;
-        case vk::PhysicalDeviceType::eVirtualGpu: return 2;
-        case vk::PhysicalDeviceType::eCpu: return 1;
-        default: return 0;
+        case vk::PhysicalDeviceType::eDiscreteGpu:
+            return 4;
+        case vk::PhysicalDeviceType::eIntegratedGpu:
+            return 3;
+        case vk::PhysicalDeviceType::eVirtualGpu:
+            return 2;
+        case vk::PhysicalDeviceType::eCpu:
+            return 1;
+        default:
+            return 0;
     }
 }
 
@@ -53,8 +58,8 @@ std::optional<uint32_t> computeQueueFamily(const vk::raii::PhysicalDevice& devic
 }
 
 bool supportsRequiredFeatures(const vk::raii::PhysicalDevice& device) {
-    auto chain = device.getFeatures2<vk::PhysicalDeviceFeatures2,
-                                     vk::PhysicalDeviceVulkan12Features>();
+    auto chain =
+        device.getFeatures2<vk::PhysicalDeviceFeatures2, vk::PhysicalDeviceVulkan12Features>();
     const auto& f12 = chain.get<vk::PhysicalDeviceVulkan12Features>();
     return f12.scalarBlockLayout && device.getProperties().apiVersion >= VK_API_VERSION_1_2;
 }
@@ -127,9 +132,9 @@ Result<std::unique_ptr<GpuContext>> GpuContext::create(const GpuOptions& options
                                        [](unsigned char c) { return std::isdigit(c); });
             for (size_t i = 0; i < devices.size(); ++i) {
                 std::string name = devices[i].getProperties().deviceName;
-                bool match = isIndex ? std::stoul(override) == i
-                                     : lowercase(name).find(lowercase(override)) !=
-                                           std::string::npos;
+                bool match = isIndex
+                                 ? std::stoul(override) == i
+                                 : lowercase(name).find(lowercase(override)) != std::string::npos;
                 if (match) {
                     chosen = static_cast<int>(i);
                     break;
@@ -143,9 +148,10 @@ Result<std::unique_ptr<GpuContext>> GpuContext::create(const GpuOptions& options
                                  override, names);
             }
             if (!computeQueueFamily(devices[chosen]) || !supportsRequiredFeatures(devices[chosen]))
-                return makeError("Vulkan device '{}' lacks a compute queue or Vulkan 1.2 scalar "
-                                 "block layout; choose another with PREVIS_VK_DEVICE",
-                                 std::string(devices[chosen].getProperties().deviceName));
+                return makeError(
+                    "Vulkan device '{}' lacks a compute queue or Vulkan 1.2 scalar "
+                    "block layout; choose another with PREVIS_VK_DEVICE",
+                    std::string(devices[chosen].getProperties().deviceName));
         } else {
             int bestRank = 0;
             for (size_t i = 0; i < devices.size(); ++i) {
@@ -158,20 +164,21 @@ Result<std::unique_ptr<GpuContext>> GpuContext::create(const GpuOptions& options
                 }
             }
             if (chosen < 0)
-                return makeError("no Vulkan device with a compute queue and Vulkan 1.2 scalar "
-                                 "block layout was found");
+                return makeError(
+                    "no Vulkan device with a compute queue and Vulkan 1.2 scalar "
+                    "block layout was found");
         }
         ctx->physicalDevice_ = std::move(devices[chosen]);
         auto props = ctx->physicalDevice_.getProperties();
         ctx->deviceName_ = props.deviceName.data();
         ctx->isCpu_ = props.deviceType == vk::PhysicalDeviceType::eCpu;
-        auto properties = ctx->physicalDevice_.getProperties2<vk::PhysicalDeviceProperties2,
-                                                          vk::PhysicalDeviceSubgroupProperties>();
+        auto properties =
+            ctx->physicalDevice_.getProperties2<vk::PhysicalDeviceProperties2,
+                                                vk::PhysicalDeviceSubgroupProperties>();
         ctx->subgroupSize_ = properties.get<vk::PhysicalDeviceSubgroupProperties>().subgroupSize;
         ctx->queueFamily_ = *computeQueueFamily(ctx->physicalDevice_);
         auto family = ctx->physicalDevice_.getQueueFamilyProperties()[ctx->queueFamily_];
-        if (family.timestampValidBits > 0)
-            ctx->timestampPeriodNs_ = props.limits.timestampPeriod;
+        if (family.timestampValidBits > 0) ctx->timestampPeriodNs_ = props.limits.timestampPeriod;
 
         float priority = 1.0f;
         vk::DeviceQueueCreateInfo queueInfo({}, ctx->queueFamily_, 1, &priority);
@@ -183,8 +190,9 @@ Result<std::unique_ptr<GpuContext>> GpuContext::create(const GpuOptions& options
         ctx->device_ = vk::raii::Device(ctx->physicalDevice_, chain.get<vk::DeviceCreateInfo>());
         ctx->queue_ = vk::raii::Queue(ctx->device_, ctx->queueFamily_, 0);
         ctx->commandPool_ = vk::raii::CommandPool(
-            ctx->device_, vk::CommandPoolCreateInfo(
-                              vk::CommandPoolCreateFlagBits::eResetCommandBuffer, ctx->queueFamily_));
+            ctx->device_,
+            vk::CommandPoolCreateInfo(vk::CommandPoolCreateFlagBits::eResetCommandBuffer,
+                                      ctx->queueFamily_));
         ctx->fence_ = vk::raii::Fence(ctx->device_, vk::FenceCreateInfo());
         logDebug("Vulkan device: {}", ctx->deviceName_);
     } catch (const std::exception& e) {
@@ -213,7 +221,8 @@ Status GpuContext::submitAndWait(
     const std::function<void(const vk::raii::CommandBuffer&)>& record) {
     try {
         vk::raii::CommandBuffers buffers(
-            device_, vk::CommandBufferAllocateInfo(*commandPool_, vk::CommandBufferLevel::ePrimary, 1));
+            device_,
+            vk::CommandBufferAllocateInfo(*commandPool_, vk::CommandBufferLevel::ePrimary, 1));
         const vk::raii::CommandBuffer& cmd = buffers[0];
         cmd.begin(vk::CommandBufferBeginInfo(vk::CommandBufferUsageFlagBits::eOneTimeSubmit));
         record(cmd);

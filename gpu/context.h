@@ -9,7 +9,6 @@
 #include <memory>
 #include <optional>
 #include <string>
-
 #include <vulkan/vulkan_raii.hpp>
 
 #include "base/result.h"

@@ -7,7 +7,8 @@
 
 namespace previs::shader {
 
-static_assert(sizeof(vec3) == 12 && alignof(vec3) == 4, "GLM vec3 must be packed as in scalar layout");
+static_assert(sizeof(vec3) == 12 && alignof(vec3) == 4,
+              "GLM vec3 must be packed as in scalar layout");
 static_assert(sizeof(BvhNode) == 32);
 static_assert(offsetof(BvhNode, leftOrFirst) == 12);
 static_assert(offsetof(BvhNode, count) == 28);

@@ -1,5 +1,16 @@
 #include "image/image.h"
 
+#include <OpenEXR/Iex.h>
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfCompression.h>
+#include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfIO.h>
+#include <OpenEXR/ImfInputFile.h>
+#include <OpenEXR/ImfOutputFile.h>
+#include <png.h>
+#include <stb_image.h>
+
 #include <algorithm>
 #include <array>
 #include <cerrno>
@@ -14,18 +25,6 @@
 #include <memory>
 #include <optional>
 #include <string_view>
-
-#include <OpenEXR/Iex.h>
-
-#include <OpenEXR/ImfChannelList.h>
-#include <OpenEXR/ImfCompression.h>
-#include <OpenEXR/ImfFrameBuffer.h>
-#include <OpenEXR/ImfHeader.h>
-#include <OpenEXR/ImfIO.h>
-#include <OpenEXR/ImfInputFile.h>
-#include <OpenEXR/ImfOutputFile.h>
-#include <png.h>
-#include <stb_image.h>
 
 #include "base/strings.h"
 
@@ -159,9 +158,10 @@ Result<std::array<int32_t, 4>> exrDataWindow(std::span<const uint8_t> bytes,
                                           int32At(at + 12)};
         at += size_t(size);
     }
-    return makeError("cannot read image '{}': the OpenEXR header is truncated or has no data "
-                     "window (corrupt file)",
-                     path);
+    return makeError(
+        "cannot read image '{}': the OpenEXR header is truncated or has no data "
+        "window (corrupt file)",
+        path);
 }
 
 // Lets OpenEXR read from the bytes already in memory; reading past the end throws, as reading
@@ -229,9 +229,8 @@ Result<ImageF> readExr(std::span<const uint8_t> bytes, const std::string& path,
         const size_t yStride = xStride * size_t(w);
         for (size_t c = 0; c < names.size(); ++c) {
             // Slice::Make offsets the base pointer by the data window origin for us.
-            frameBuffer.insert(names[c],
-                               Imf::Slice::Make(Imf::FLOAT, image.pixels.data() + c, dw, xStride,
-                                                yStride));
+            frameBuffer.insert(names[c], Imf::Slice::Make(Imf::FLOAT, image.pixels.data() + c, dw,
+                                                          xStride, yStride));
         }
         file.setFrameBuffer(frameBuffer);
         file.readPixels(dw.min.y, dw.max.y);
@@ -278,9 +277,10 @@ Result<HdrLayout> parseHdrHeader(std::span<const uint8_t> bytes, const std::stri
         if (*l == "FORMAT=32-bit_rle_rgbe") rgbe = true;
     }
     if (!rgbe)
-        return makeError("cannot read image '{}': not an RGBE Radiance file (only "
-                         "FORMAT=32-bit_rle_rgbe is read)",
-                         path);
+        return makeError(
+            "cannot read image '{}': not an RGBE Radiance file (only "
+            "FORMAT=32-bit_rle_rgbe is read)",
+            path);
     l = line();
     int64_t h = 0;
     int64_t w = 0;
@@ -288,9 +288,10 @@ Result<HdrLayout> parseHdrHeader(std::span<const uint8_t> bytes, const std::stri
     // The only orientation stb reads: "-Y height +X width".
     if (!l || l->find('\0') != std::string::npos ||
         std::sscanf(l->c_str(), "-Y %" SCNd64 " +X %" SCNd64 "%c", &h, &w, &tail) != 2)
-        return makeError("cannot read image '{}': unsupported Radiance HDR resolution line "
-                         "(only '-Y H +X W' is read)",
-                         path);
+        return makeError(
+            "cannot read image '{}': unsupported Radiance HDR resolution line "
+            "(only '-Y H +X W' is read)",
+            path);
     return HdrLayout{w, h, at};
 }
 
@@ -301,14 +302,16 @@ Status checkHdrScanlines(std::span<const uint8_t> bytes, const HdrLayout& layout
     const size_t size = bytes.size();
     size_t at = layout.dataOffset;
     auto truncated = [&](uint64_t row) {
-        return makeError("cannot read image '{}': the Radiance HDR file ends early, at scanline "
-                         "{} of {} (truncated: copy it again)",
-                         path, row, h);
+        return makeError(
+            "cannot read image '{}': the Radiance HDR file ends early, at scanline "
+            "{} of {} (truncated: copy it again)",
+            path, row, h);
     };
     auto corrupt = [&](uint64_t row) {
-        return makeError("cannot read image '{}': bad run length in Radiance HDR scanline {} "
-                         "(corrupt file)",
-                         path, row);
+        return makeError(
+            "cannot read image '{}': bad run length in Radiance HDR scanline {} "
+            "(corrupt file)",
+            path, row);
     };
     // Pixels stored flat (4 bytes each) from `from` to the end of the image.
     auto flat = [&](size_t from) -> Status {
@@ -323,15 +326,17 @@ Status checkHdrScanlines(std::span<const uint8_t> bytes, const HdrLayout& layout
         const uint8_t* p = bytes.data() + at;
         if (p[0] != 2 || p[1] != 2 || (p[2] & 0x80)) {
             if (row == 0) return flat(at);
-            return makeError("cannot read image '{}': Radiance HDR scanline {} is not run-length "
-                             "encoded like those before it (corrupt file)",
-                             path, row);
+            return makeError(
+                "cannot read image '{}': Radiance HDR scanline {} is not run-length "
+                "encoded like those before it (corrupt file)",
+                path, row);
         }
         const uint64_t length = uint64_t(p[2]) << 8 | p[3];
         if (length != w)
-            return makeError("cannot read image '{}': Radiance HDR scanline {} has length {}, not "
-                             "the width {} (corrupt file)",
-                             path, row, length, w);
+            return makeError(
+                "cannot read image '{}': Radiance HDR scanline {} has length {}, not "
+                "the width {} (corrupt file)",
+                path, row, length, w);
         at += 4;
         for (int channel = 0; channel < 4; ++channel) {
             for (uint64_t x = 0; x < w;) {
@@ -358,8 +363,7 @@ Result<ImageF> readHdr(std::span<const uint8_t> bytes, const std::string& path,
                        const ImageLimits& limits) {
     Result<HdrLayout> layout = parseHdrHeader(bytes, path);
     if (!layout) return layout.error();
-    if (Status s = checkSize(path, "the Radiance HDR image", layout->width, layout->height,
-                             limits);
+    if (Status s = checkSize(path, "the Radiance HDR image", layout->width, layout->height, limits);
         !s)
         return s.error();
     if (Status s = checkHdrScanlines(bytes, *layout, path); !s) return s.error();
@@ -451,23 +455,21 @@ Result<Decoded8> decode8(std::span<const uint8_t> bytes, const Sniffed& what,
                    uint32_t(bytes[at + 2]) << 8 | uint32_t(bytes[at + 3]);
         };
         if (bytes.size() < 33 || std::memcmp(bytes.data() + 12, "IHDR", 4) != 0)
-            return makeError("cannot decode image '{}': a PNG image without its IHDR header "
-                             "(truncated or corrupt)",
-                             path);
-        if (Status s = checkSize(path, what.name, be32(16), be32(20), limits); !s)
-            return s.error();
+            return makeError(
+                "cannot decode image '{}': a PNG image without its IHDR header "
+                "(truncated or corrupt)",
+                path);
+        if (Status s = checkSize(path, what.name, be32(16), be32(20), limits); !s) return s.error();
     }
     if (what.type == ContentType::Jpeg)
         if (Status s = checkJpegTables(bytes, path); !s) return s.error();
     if (!stbi_info_from_memory(bytes.data(), size, &out.width, &out.height, &out.channels))
-        return makeError("cannot decode image '{}': {} with a corrupt header ({})", path,
-                         what.name, stbi_failure_reason() ? stbi_failure_reason() : "unknown");
-    if (Status s = checkSize(path, what.name, out.width, out.height, limits); !s)
-        return s.error();
+        return makeError("cannot decode image '{}': {} with a corrupt header ({})", path, what.name,
+                         stbi_failure_reason() ? stbi_failure_reason() : "unknown");
+    if (Status s = checkSize(path, what.name, out.width, out.height, limits); !s) return s.error();
     int w = 0;
     int h = 0;
-    out.data.reset(
-        stbi_load_from_memory(bytes.data(), size, &w, &h, &out.channels, wantChannels));
+    out.data.reset(stbi_load_from_memory(bytes.data(), size, &w, &h, &out.channels, wantChannels));
     if (!out.data)
         return makeError("cannot decode image '{}': {} that is corrupt or truncated ({})", path,
                          what.name, stbi_failure_reason() ? stbi_failure_reason() : "unknown");
@@ -476,8 +478,8 @@ Result<Decoded8> decode8(std::span<const uint8_t> bytes, const Sniffed& what,
     return out;
 }
 
-Result<ImageF> readLdr(std::span<const uint8_t> bytes, const Sniffed& what,
-                       const std::string& path, const ImageLimits& limits) {
+Result<ImageF> readLdr(std::span<const uint8_t> bytes, const Sniffed& what, const std::string& path,
+                       const ImageLimits& limits) {
     Result<Decoded8> decoded = decode8(bytes, what, path, 0, limits);
     if (!decoded) return decoded.error();
     const int n = decoded->channels;
@@ -519,8 +521,8 @@ Result<ImageF> readImage(const std::string& path, const ImageLimits& limits) {
         expected = ContentType::Jpeg;
     else
         return makeError(
-            "cannot read image '{}': unsupported extension '{}' (use .exr, .hdr, .png, .jpg)",
-            path, ext);
+            "cannot read image '{}': unsupported extension '{}' (use .exr, .hdr, .png, .jpg)", path,
+            ext);
     Result<std::vector<uint8_t>> bytes = readFileBytes(path);
     if (!bytes) return bytes.error();
     const Sniffed what = sniff(*bytes);
@@ -535,9 +537,12 @@ Result<ImageF> readImage(const std::string& path, const ImageLimits& limits) {
                              : fmt::format(" (rename it to {})", kExtension[int(what.type)]));
     }
     switch (what.type) {
-        case ContentType::Exr: return readExr(*bytes, path, limits);
-        case ContentType::Hdr: return readHdr(*bytes, path, limits);
-        default: return readLdr(*bytes, what, path, limits);
+        case ContentType::Exr:
+            return readExr(*bytes, path, limits);
+        case ContentType::Hdr:
+            return readHdr(*bytes, path, limits);
+        default:
+            return readLdr(*bytes, what, path, limits);
     }
 }
 
@@ -565,9 +570,15 @@ Status writeExr(const std::string& path, const ImageF& image) {
                          path);
     std::vector<const char*> names;
     switch (image.channels) {
-        case 1: names = {"Y"}; break;
-        case 3: names = {"R", "G", "B"}; break;
-        case 4: names = {"R", "G", "B", "A"}; break;
+        case 1:
+            names = {"Y"};
+            break;
+        case 3:
+            names = {"R", "G", "B"};
+            break;
+        case 4:
+            names = {"R", "G", "B", "A"};
+            break;
         default:
             return makeError("cannot write EXR image '{}': {} channels (use 1, 3 or 4)", path,
                              image.channels);

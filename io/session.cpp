@@ -2,6 +2,7 @@
 
 #include <fcntl.h>
 #include <sys/stat.h>
+#include <toml++/toml.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -16,8 +17,6 @@
 #include <functional>
 #include <sstream>
 #include <string_view>
-
-#include <toml++/toml.h>
 
 #include "base/log.h"
 #include "capture/recorded_source.h"
@@ -139,8 +138,8 @@ Status writeFileAtomic(const std::string& path, std::span<const uint8_t> bytes) 
 }
 
 Status writeTextAtomic(const std::string& path, const std::string& text) {
-    return writeFileAtomic(path, std::span(reinterpret_cast<const uint8_t*>(text.data()),
-                                           text.size()));
+    return writeFileAtomic(path,
+                           std::span(reinterpret_cast<const uint8_t*>(text.data()), text.size()));
 }
 
 // A rename or a new file is durable once its folder is.
@@ -252,8 +251,8 @@ Result<SessionInfo> openSession(const std::string& dir) {
         for (const auto& [key, node] : *cams) {
             const toml::table* cam = node.as_table();
             const std::string name(key.str());
-            std::optional<std::string> role = cam ? (*cam)["role"].value<std::string>()
-                                                  : std::nullopt;
+            std::optional<std::string> role =
+                cam ? (*cam)["role"].value<std::string>() : std::nullopt;
             if (!role || (*role != "scene" && *role != "fisheye"))
                 return makeError("{}: [cameras.{}] needs role = \"scene\" or \"fisheye\"", path,
                                  name);
@@ -290,12 +289,12 @@ Result<SessionInfo> openSession(const std::string& dir) {
 
 const char* poseKindName(PoseKind kind) {
     switch (kind) {
-    case PoseKind::Tracked:
-        return "tracked";
-    case PoseKind::Lost:
-        return "lost";
-    case PoseKind::Truth:
-        return "truth";
+        case PoseKind::Tracked:
+            return "tracked";
+        case PoseKind::Lost:
+            return "lost";
+        case PoseKind::Truth:
+            return "truth";
     }
     return "?";
 }
@@ -366,9 +365,9 @@ Result<std::vector<SessionEvent>> loadEvents(const std::string& dir, size_t* ski
         const std::vector<std::string_view> f = splitFields(line);
         SessionEvent e;
         if (f.size() < 3 || !parseNumber(f[0], e.timestampNs) || f[1].empty() || f[2].empty())
-            return Status(makeError(
-                "{}:{}: malformed event line '{}' (expected timestampNs,source,event)", path,
-                lineNo, line));
+            return Status(
+                makeError("{}:{}: malformed event line '{}' (expected timestampNs,source,event)",
+                          path, lineNo, line));
         // Later issues add sources; an old reader replays what it knows.
         if (!knownEvent(f[1], f[2], version)) {
             ++skipped;
@@ -396,11 +395,9 @@ Result<SessionWriter> SessionWriter::create(const std::string& dir,
         return makeError("{}: cannot create the session folder: {}", dir, errnoText());
     for (const auto& [name, role] : options.cameraRoles) {
         if (!validCameraName(name))
-            return makeError("session camera name '{}': use letters, digits, '-', '_', '.'",
-                             name);
+            return makeError("session camera name '{}': use letters, digits, '-', '_', '.'", name);
         if (role != "scene" && role != "fisheye")
-            return makeError("session camera '{}': role '{}' is not scene or fisheye", name,
-                             role);
+            return makeError("session camera '{}': role '{}' is not scene or fisheye", name, role);
     }
 
     std::string toml = fmt::format(
@@ -435,8 +432,8 @@ Result<SessionWriter::Index*> SessionWriter::openIndex(const std::string& relPat
     if (auto it = indices_.find(relPath); it != indices_.end()) return &it->second;
     Index index;
     index.path = dir_ + "/" + relPath;
-    index.fd = UniqueFD(
-        ::open(index.path.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644));
+    index.fd =
+        UniqueFD(::open(index.path.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644));
     if (!index.fd.isValid())
         return makeError("{}: cannot open for appending: {}", index.path, errnoText());
     struct stat st {};
@@ -464,12 +461,14 @@ Status SessionWriter::appendLine(Index& index, const std::string& line) {
         if (::ftruncate(index.fd.get(), before) != 0) {
             // The fragment stays: no later line may follow it.
             index.fd.reset();
-            return makeError("{}: short write and the fragment could not be removed: {}; this "
-                             "index takes no more lines",
-                             index.path, errnoText());
+            return makeError(
+                "{}: short write and the fragment could not be removed: {}; this "
+                "index takes no more lines",
+                index.path, errnoText());
         }
     }
-    if (n < 0) return makeError("{}: write failed: {} (is the disk full?)", index.path, errnoText());
+    if (n < 0)
+        return makeError("{}: write failed: {} (is the disk full?)", index.path, errnoText());
     if (size_t(n) != line.size())
         return makeError("{}: short write ({} of {} bytes; is the disk full?)", index.path, n,
                          line.size());
@@ -503,9 +502,9 @@ Status SessionWriter::flush() {
     return result;
 }
 
-Status SessionWriter::writeFrame(const std::string& camera, uint64_t sequence,
-                                 uint64_t timestampNs, std::span<const uint8_t> encoded,
-                                 const std::string& ext, uint32_t width, uint32_t height) {
+Status SessionWriter::writeFrame(const std::string& camera, uint64_t sequence, uint64_t timestampNs,
+                                 std::span<const uint8_t> encoded, const std::string& ext,
+                                 uint32_t width, uint32_t height) {
     if (!validCameraName(camera))
         return makeError("session camera name '{}': use letters, digits, '-', '_', '.'", camera);
     if (ext != "png" && ext != "jpg")
@@ -543,18 +542,18 @@ Status SessionWriter::writeFrame(const std::string& camera, uint64_t sequence,
 }
 
 Status SessionWriter::writePose(const PoseRecord& pose) {
-    if (!pose.frame) return makeError("session pose at {} ns: v2 poses need a frame", pose.timestampNs);
+    if (!pose.frame)
+        return makeError("session pose at {} ns: v2 poses need a frame", pose.timestampNs);
     if ((pose.kind == PoseKind::Lost) == pose.worldFromCamera.has_value())
         return makeError("session pose of frame {}: a {} pose {} a matrix", *pose.frame,
-                         poseKindName(pose.kind),
-                         pose.kind == PoseKind::Lost ? "has no" : "needs");
-    auto index = openIndex("poses.csv",
-                           fmt::format("{}{}: timestampNs,frame,kind,m00,...,m33,reprojErrorPx,"
-                                       "tags\n",
-                                       kPosesHeader, kSessionFormatVersion));
+                         poseKindName(pose.kind), pose.kind == PoseKind::Lost ? "has no" : "needs");
+    auto index =
+        openIndex("poses.csv", fmt::format("{}{}: timestampNs,frame,kind,m00,...,m33,reprojErrorPx,"
+                                           "tags\n",
+                                           kPosesHeader, kSessionFormatVersion));
     if (!index) return index.error();
-    std::string line = fmt::format("{},{},{}", pose.timestampNs, *pose.frame,
-                                   poseKindName(pose.kind));
+    std::string line =
+        fmt::format("{},{},{}", pose.timestampNs, *pose.frame, poseKindName(pose.kind));
     for (int i = 0; i < 16; ++i) {
         line += ',';
         if (pose.worldFromCamera) {
@@ -576,9 +575,10 @@ Status SessionWriter::writeEvent(const SessionEvent& event) {
         return v.empty() || v.find_first_of(",\n\r") != std::string::npos;
     };
     if (bad(event.source) || bad(event.event))
-        return makeError("session event '{}','{}': source and event must be non-empty and hold "
-                         "no comma or newline",
-                         event.source, event.event);
+        return makeError(
+            "session event '{}','{}': source and event must be non-empty and hold "
+            "no comma or newline",
+            event.source, event.event);
     auto index = openIndex("events.csv", fmt::format("{}{}: timestampNs,source,event\n",
                                                      kEventsHeader, kSessionFormatVersion));
     if (!index) return index.error();

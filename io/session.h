@@ -22,10 +22,10 @@ namespace previs {
 constexpr int kSessionFormatVersion = 2;
 
 struct SessionCamera {
-    std::string name;    // the folder under cameras/
-    std::string role;    // "scene", "fisheye" or empty (not named in session.toml)
-    std::string dir;     // SESSION/cameras/<name>
-    size_t frames = 0;   // complete lines of its index.csv
+    std::string name;   // the folder under cameras/
+    std::string role;   // "scene", "fisheye" or empty (not named in session.toml)
+    std::string dir;    // SESSION/cameras/<name>
+    size_t frames = 0;  // complete lines of its index.csv
 };
 
 struct SessionInfo {
@@ -86,7 +86,7 @@ struct SessionWriterOptions {
     // the folder its relative paths start at: absolute, or relative to the session folder.
     std::string configToml;
     std::string configDir;
-    std::string created;  // RFC 3339; empty: now (UTC)
+    std::string created;        // RFC 3339; empty: now (UTC)
     std::string previsVersion;  // empty: this build's
 };
 

@@ -21,7 +21,8 @@ constexpr uint32_t kMaxDepth = 56;
 // A wide node is at least one binary level below its parent, a leaf too large for one reference
 // adds at most log4(2^24 / 128) < 9 levels (leafReference), and traversal pushes at most three
 // children per level.
-static_assert(3 * (kMaxDepth + 9) <= PV_BVH_STACK_SIZE, "traversal stack cannot hold the deepest path");
+static_assert(3 * (kMaxDepth + 9) <= PV_BVH_STACK_SIZE,
+              "traversal stack cannot hold the deepest path");
 
 // Centroid bins per axis (Wald 2007, "On fast Construction of SAH-based Bounding Volume
 // Hierarchies": 16–32 bins lose little against a full sweep).
@@ -102,7 +103,8 @@ void Builder::makeLeaf(uint32_t node, uint32_t begin, uint32_t end, uint32_t dep
 
 uint32_t Builder::splitMedian(uint32_t begin, uint32_t end, const Box& centroids) {
     glm::vec3 extent = centroids.hi - centroids.lo;
-    int axis = extent.x >= extent.y ? (extent.x >= extent.z ? 0 : 2) : (extent.y >= extent.z ? 1 : 2);
+    int axis =
+        extent.x >= extent.y ? (extent.x >= extent.z ? 0 : 2) : (extent.y >= extent.z ? 1 : 2);
     uint32_t mid = begin + (end - begin) / 2;
     if (extent[axis] > 0.0f) {
         std::nth_element(prims_.begin() + begin, prims_.begin() + mid, prims_.begin() + end,
@@ -182,11 +184,11 @@ uint32_t Builder::splitSah(uint32_t begin, uint32_t end, const Box& bounds, cons
     if (count <= options_.maxLeafSize && !(splitCost < leafCost)) return 0;
     float lo = centroids.lo[bestAxis];
     float s = scale[bestAxis];
-    auto midIt = std::partition(prims_.begin() + begin, prims_.begin() + end,
-                                [&](const PrimRef& p) {
-                                    int b = std::min(kBins - 1, int((centroid(p)[bestAxis] - lo) * s));
-                                    return b < bestBin;
-                                });
+    auto midIt =
+        std::partition(prims_.begin() + begin, prims_.begin() + end, [&](const PrimRef& p) {
+            int b = std::min(kBins - 1, int((centroid(p)[bestAxis] - lo) * s));
+            return b < bestBin;
+        });
     uint32_t mid = uint32_t(midIt - prims_.begin());
     // Binning and partitioning use the same expression, so both sides are non-empty.
     if (mid == begin || mid == end) mid = begin + count / 2;
@@ -394,9 +396,10 @@ Result<SceneBvh> buildSceneBvh(const Geometry& geometry, const BvhBuildOptions& 
                                  t[k], geometry.positions.size());
             glm::vec3 v = geometry.positions[t[k]];
             if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z))
-                return makeError("triangle {} has a non-finite vertex {} ({}, {}, {}); the scene "
-                                 "loader should have rejected it",
-                                 i, t[k], v.x, v.y, v.z);
+                return makeError(
+                    "triangle {} has a non-finite vertex {} ({}, {}, {}); the scene "
+                    "loader should have rejected it",
+                    i, t[k], v.x, v.y, v.z);
             p.lo = glm::min(p.lo, v);
             p.hi = glm::max(p.hi, v);
         }
@@ -427,7 +430,8 @@ Result<SceneBvh> buildSceneBvh(const Geometry& geometry, const BvhBuildOptions& 
     bvh.sahCost = bvhSahCost(bvh.nodes, bvh.realRoot) + bvhSahCost(bvh.nodes, bvh.virtualRoot);
     bvh.wideNodes.reserve(bvh.nodes.size() / 2 + 2);
     if (bvh.realRoot != kBvhNoRoot)
-        bvh.wideRealRoot = collapseToWide(bvh.nodes, bvh.realRoot, 0, bvh.wideNodes, bvh.wideMaxDepth);
+        bvh.wideRealRoot =
+            collapseToWide(bvh.nodes, bvh.realRoot, 0, bvh.wideNodes, bvh.wideMaxDepth);
     if (bvh.virtualRoot != kBvhNoRoot)
         bvh.wideVirtualRoot =
             collapseToWide(bvh.nodes, bvh.virtualRoot, 0, bvh.wideNodes, bvh.wideMaxDepth);

@@ -37,9 +37,9 @@ struct SceneBvh {
     // traversal cost 1 and intersection cost 1, each tree normalised by its root's area (see
     // bvhSahCost). Lower is better; a single leaf costs the triangle count.
     double sahCost = 0.0;
-    uint32_t maxDepth = 0;     // of the deeper tree; the root is at depth 0
-    uint32_t maxLeafSize = 0;  // most triangles in one leaf
-    double buildSeconds = 0.0; // wall time of buildSceneBvh
+    uint32_t maxDepth = 0;      // of the deeper tree; the root is at depth 0
+    uint32_t maxLeafSize = 0;   // most triangles in one leaf
+    double buildSeconds = 0.0;  // wall time of buildSceneBvh
 };
 
 enum class BvhSplit {

@@ -5,10 +5,9 @@
 // Tests of the BVH and of the GPU path tracer compare against it.
 
 #include <cstdint>
+#include <glm/glm.hpp>
 #include <optional>
 #include <vector>
-
-#include <glm/glm.hpp>
 
 #include "base/result.h"
 #include "render/bvh.h"

@@ -1,14 +1,14 @@
 #include "render/photon_map.h"
 
 #include <algorithm>
-#include <cmath>
 #include <cctype>
+#include <cmath>
 #include <cstdlib>
 #include <cstring>
 
 #include "photon_grid.spv.h"
-#include "shared/photon_map.h"
 #include "shared/bsdf.h"
+#include "shared/photon_map.h"
 #include "shared/sampling.h"
 #include "trace_photons.spv.h"
 
@@ -41,16 +41,18 @@ uint32_t bits(float f) {
 Status applyPhotonSpec(const std::string& spec, PhotonSettings& settings) {
     if (spec == "auto" || spec == "on" || spec == "off") {
         settings.mode = spec == "auto" ? PhotonMode::Auto
-                        : spec == "on"  ? PhotonMode::On
-                                        : PhotonMode::Off;
+                        : spec == "on" ? PhotonMode::On
+                                       : PhotonMode::Off;
         return {};
     }
     char* end = nullptr;
     unsigned long long n = std::strtoull(spec.c_str(), &end, 10);
     if (spec.empty() || !std::isdigit(static_cast<unsigned char>(spec[0])) || *end != '\0' ||
         n == 0 || n > kMaxPhotonsPerIteration)
-        return makeError("photons '{}' is not auto, on, off or a count of photons per iteration "
-                         "(1..{})", spec, kMaxPhotonsPerIteration);
+        return makeError(
+            "photons '{}' is not auto, on, off or a count of photons per iteration "
+            "(1..{})",
+            spec, kMaxPhotonsPerIteration);
     settings.mode = PhotonMode::On;
     settings.perIteration = uint32_t(n);
     return {};
@@ -61,8 +63,8 @@ bool mayBePurelySpecular(const Material& m) {
     // base. Textures scale roughness, metalness and base colour, so a textured factor may reach it.
     bool smooth = m.roughness * m.roughness < PV_DELTA_ALPHA || m.metallicRoughnessTexture >= 0;
     float base = std::max({m.baseColor.r, m.baseColor.g, m.baseColor.b});
-    bool noDiffuse = m.metallic >= 1.0f || m.transmission >= 1.0f || base <= 0.0f ||
-                     m.baseColorTexture >= 0;
+    bool noDiffuse =
+        m.metallic >= 1.0f || m.transmission >= 1.0f || base <= 0.0f || m.baseColorTexture >= 0;
     return smooth && noDiffuse;
 }
 
@@ -120,12 +122,12 @@ std::vector<glm::uvec4> buildPhotonLights(const PhotonAim& aim,
         double lum = shader::luminance(l.intensity);
         uint32_t type = l.type & PV_LIGHT_TYPE_MASK;
         double w = type == PV_LIGHT_DIRECTIONAL ? lum * crossSection
-                   : type == PV_LIGHT_CONE ? lum * 2.0 * kPi * l.cosInnerCone * crossSection
-                                            : lum * aimSolidAngle(aim, l.position);
+                   : type == PV_LIGHT_CONE      ? lum * 2.0 * kPi * l.cosInnerCone * crossSection
+                                                : lum * aimSolidAngle(aim, l.position);
         if (!(w > 0.0) || !std::isfinite(w)) continue;
-        table.emplace_back(PV_PHOTON_LIGHT_PUNCTUAL |
-                               ((l.type & PV_LIGHT_REAL) ? PV_PHOTON_LIGHT_REAL : 0u),
-                           i, 0u, 0u);
+        table.emplace_back(
+            PV_PHOTON_LIGHT_PUNCTUAL | ((l.type & PV_LIGHT_REAL) ? PV_PHOTON_LIGHT_REAL : 0u), i,
+            0u, 0u);
         weight.push_back(w);
     }
     double total = 0.0;
@@ -142,13 +144,18 @@ std::vector<glm::uvec4> buildPhotonLights(const PhotonAim& aim,
 size_t photonBufferBytes(int binding, uint32_t photons) {
     const size_t records = size_t(PV_PHOTON_RECORDS_PER_PHOTON) * photons;
     switch (binding) {
-    case PV_BINDING_PHOTON_RECORDS:
-    case PV_BINDING_PHOTON_SORTED: return records * sizeof(shader::PhotonRecord);
-    case PV_BINDING_PHOTON_SORT_A:
-    case PV_BINDING_PHOTON_SORT_B: return records * sizeof(glm::uvec2);
-    case PV_BINDING_PHOTON_BLOCK_COUNTS: return records * sizeof(uint32_t);  // 256 words a block
-    case PV_BINDING_PHOTON_CELLS: return photons ? size_t(PV_PHOTON_BUCKETS) * sizeof(glm::uvec2) : 0;
-    default: return 0;
+        case PV_BINDING_PHOTON_RECORDS:
+        case PV_BINDING_PHOTON_SORTED:
+            return records * sizeof(shader::PhotonRecord);
+        case PV_BINDING_PHOTON_SORT_A:
+        case PV_BINDING_PHOTON_SORT_B:
+            return records * sizeof(glm::uvec2);
+        case PV_BINDING_PHOTON_BLOCK_COUNTS:
+            return records * sizeof(uint32_t);  // 256 words a block
+        case PV_BINDING_PHOTON_CELLS:
+            return photons ? size_t(PV_PHOTON_BUCKETS) * sizeof(glm::uvec2) : 0;
+        default:
+            return 0;
     }
 }
 
@@ -156,14 +163,14 @@ Result<PhotonPasses> PhotonPasses::create(GpuContext& ctx, std::span<const Bindi
                                           std::span<const uint32_t> sceneConstants) {
     PhotonPasses p;
     auto trace = ComputePipeline::create(
-        ctx, std::span<const uint32_t>(trace_photons_spv, sizeof(trace_photons_spv) / 4),
-        bindings, sceneConstants, "trace_photons");
+        ctx, std::span<const uint32_t>(trace_photons_spv, sizeof(trace_photons_spv) / 4), bindings,
+        sceneConstants, "trace_photons");
     if (!trace) return trace.error();
     p.trace_.emplace(std::move(trace.value()));
     std::vector<BindingKind> storage(PV_BINDING_COUNT, BindingKind::StorageBuffer);
     for (uint32_t stage : {kHistogram, kScan, kScatter, kCells}) {
-        std::array<uint32_t, 2> constants{stage, stage == kScan ? PV_PHOTON_SCAN_GROUP
-                                                                : PV_PHOTON_SORT_BLOCK};
+        std::array<uint32_t, 2> constants{
+            stage, stage == kScan ? PV_PHOTON_SCAN_GROUP : PV_PHOTON_SORT_BLOCK};
         auto grid = ComputePipeline::create(
             ctx, std::span<const uint32_t>(photon_grid_spv, sizeof(photon_grid_spv) / 4), storage,
             constants, "photon_grid");
@@ -181,7 +188,8 @@ Status PhotonPasses::bind(std::span<const GpuBuffer* const> buffers) {
 }
 
 Result<double> PhotonPasses::run(shader::FrameParams& params, std::span<GpuBuffer> buffers) {
-    const uint32_t blocks = PV_PHOTON_RECORDS_PER_PHOTON * params.photonCount / PV_PHOTON_SORT_BLOCK;
+    const uint32_t blocks =
+        PV_PHOTON_RECORDS_PER_PHOTON * params.photonCount / PV_PHOTON_SORT_BLOCK;
     double ms = 0.0;
     auto dispatch = [&](ComputePipeline& p, uint32_t groups) -> Status {
         auto t = p.dispatch(groups, 1);

@@ -8,12 +8,11 @@
 
 #include <array>
 #include <cstdint>
+#include <glm/glm.hpp>
 #include <optional>
 #include <span>
 #include <string>
 #include <vector>
-
-#include <glm/glm.hpp>
 
 #include "base/result.h"
 #include "gpu/buffer.h"
@@ -65,10 +64,10 @@ bool mayBePurelySpecular(const Material& m);
 
 // The sphere photons are aimed at: it holds every triangle that may be purely specular.
 struct PhotonAim {
-    bool any = false;         // the scene has such a triangle
+    bool any = false;  // the scene has such a triangle
     glm::vec3 center{0.0f};
     float radius = 0.0f;
-    float sceneRadius = 0.0f; // from center, a sphere that holds the whole scene
+    float sceneRadius = 0.0f;  // from center, a sphere that holds the whole scene
 };
 
 PhotonAim photonAimFor(const Geometry& geometry, std::span<const Material> materials);

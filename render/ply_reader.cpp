@@ -27,14 +27,18 @@ std::optional<PlyType> parseType(const std::string& s) {
 
 size_t typeSize(PlyType t) {
     switch (t) {
-    case PlyType::Int8:
-    case PlyType::UInt8: return 1;
-    case PlyType::Int16:
-    case PlyType::UInt16: return 2;
-    case PlyType::Int32:
-    case PlyType::UInt32:
-    case PlyType::Float32: return 4;
-    case PlyType::Float64: return 8;
+        case PlyType::Int8:
+        case PlyType::UInt8:
+            return 1;
+        case PlyType::Int16:
+        case PlyType::UInt16:
+            return 2;
+        case PlyType::Int32:
+        case PlyType::UInt32:
+        case PlyType::Float32:
+            return 4;
+        case PlyType::Float64:
+            return 8;
     }
     return 0;
 }
@@ -55,7 +59,8 @@ struct Element {
 // Reads values one at a time from the body, binary little endian or ascii.
 class Reader {
 public:
-    Reader(const std::string& data, size_t pos, bool ascii) : data_(data), pos_(pos), ascii_(ascii) {
+    Reader(const std::string& data, size_t pos, bool ascii)
+        : data_(data), pos_(pos), ascii_(ascii) {
         if (ascii_) text_.str(data_.substr(pos_));
     }
 
@@ -71,14 +76,22 @@ public:
         pos_ += n;
         // x86-64 and the target ARM boards are little endian, like the files.
         switch (t) {
-        case PlyType::Int8: return double(int8_t(*p));
-        case PlyType::UInt8: return double(uint8_t(*p));
-        case PlyType::Int16: return double(load<int16_t>(p));
-        case PlyType::UInt16: return double(load<uint16_t>(p));
-        case PlyType::Int32: return double(load<int32_t>(p));
-        case PlyType::UInt32: return double(load<uint32_t>(p));
-        case PlyType::Float32: return double(load<float>(p));
-        case PlyType::Float64: return load<double>(p);
+            case PlyType::Int8:
+                return double(int8_t(*p));
+            case PlyType::UInt8:
+                return double(uint8_t(*p));
+            case PlyType::Int16:
+                return double(load<int16_t>(p));
+            case PlyType::UInt16:
+                return double(load<uint16_t>(p));
+            case PlyType::Int32:
+                return double(load<int32_t>(p));
+            case PlyType::UInt32:
+                return double(load<uint32_t>(p));
+            case PlyType::Float32:
+                return double(load<float>(p));
+            case PlyType::Float64:
+                return load<double>(p);
         }
         return std::nullopt;
     }
@@ -125,8 +138,10 @@ Result<PlyMesh> readPly(const std::string& path) {
             if (format == "ascii") {
                 ascii = true;
             } else if (format != "binary_little_endian") {
-                return makeError("{}: PLY format '{}' is not supported (ascii or "
-                                 "binary_little_endian)", path, format);
+                return makeError(
+                    "{}: PLY format '{}' is not supported (ascii or "
+                    "binary_little_endian)",
+                    path, format);
             }
         } else if (keyword == "element") {
             Element e;

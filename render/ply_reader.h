@@ -4,10 +4,9 @@
 // x, y, z and face vertex-index lists; polygons are fan-triangulated, other properties and
 // elements are skipped.
 
+#include <glm/glm.hpp>
 #include <string>
 #include <vector>
-
-#include <glm/glm.hpp>
 
 #include "base/result.h"
 

@@ -5,7 +5,6 @@
 #include <cmath>
 #include <cstddef>
 #include <cstring>
-
 #include <glm/gtc/matrix_transform.hpp>
 
 #include "base/log.h"
@@ -146,16 +145,18 @@ Result<std::unique_ptr<Renderer>> Renderer::create(GpuContext& ctx, const Scene&
                          size_t(settings.width + 1) * (settings.height + 1));
     const PhotonSettings& ph = settings.photons;
     if (ph.perIteration == 0 || ph.perIteration > kMaxPhotonsPerIteration ||
-        ph.previewPerIteration == 0 || !(ph.alpha > 0.0f) ||
-        !(ph.alpha <= 1.0f) || !(ph.initialRadius >= 0.0f) || !std::isfinite(ph.initialRadius) ||
-        ph.gatherCap == 0)
-        return makeError("photon settings out of range ({} photons per iteration, radius {} m, "
-                         "alpha {}, gather cap {}): photons 1..{}, radius >= 0 (0 = from the "
-                         "scene), alpha in (0, 1], cap >= 1", ph.perIteration, ph.initialRadius,
-                         ph.alpha, ph.gatherCap, kMaxPhotonsPerIteration);
+        ph.previewPerIteration == 0 || !(ph.alpha > 0.0f) || !(ph.alpha <= 1.0f) ||
+        !(ph.initialRadius >= 0.0f) || !std::isfinite(ph.initialRadius) || ph.gatherCap == 0)
+        return makeError(
+            "photon settings out of range ({} photons per iteration, radius {} m, "
+            "alpha {}, gather cap {}): photons 1..{}, radius >= 0 (0 = from the "
+            "scene), alpha in (0, 1], cap >= 1",
+            ph.perIteration, ph.initialRadius, ph.alpha, ph.gatherCap, kMaxPhotonsPerIteration);
     if (!(r->camera_.apertureRadiusM >= 0.0f) || !(r->camera_.focusDistanceM > 0.0f))
-        return makeError("thin lens needs aperture radius >= 0 and focus distance > 0 (got {} m, "
-                         "{} m)", r->camera_.apertureRadiusM, r->camera_.focusDistanceM);
+        return makeError(
+            "thin lens needs aperture radius >= 0 and focus distance > 0 (got {} m, "
+            "{} m)",
+            r->camera_.apertureRadiusM, r->camera_.focusDistanceM);
 
     r->sceneOriginM_ = scene.originM;
     r->worldFromCameraM_ =
@@ -199,17 +200,18 @@ Status Renderer::specialisePipeline() {
     std::array<BindingKind, PV_BINDING_COUNT> bindings{};
     bindings.fill(BindingKind::StorageBuffer);
     bindings[PV_BINDING_BVH_NODES] = BindingKind::TexelBufferUint4;
-    for (int b : {PV_BINDING_TEXTURES, PV_BINDING_TRIANGLE_VERTICES, PV_BINDING_TRIANGLES,
-                  PV_BINDING_NORMALS, PV_BINDING_UVS, PV_BINDING_MATERIALS, PV_BINDING_LIGHTS,
-                  PV_BINDING_EMISSIVE_TRIANGLES, PV_BINDING_PHOTON_LIGHTS, PV_BINDING_PHOTON_SORTED})
+    for (int b :
+         {PV_BINDING_TEXTURES, PV_BINDING_TRIANGLE_VERTICES, PV_BINDING_TRIANGLES,
+          PV_BINDING_NORMALS, PV_BINDING_UVS, PV_BINDING_MATERIALS, PV_BINDING_LIGHTS,
+          PV_BINDING_EMISSIVE_TRIANGLES, PV_BINDING_PHOTON_LIGHTS, PV_BINDING_PHOTON_SORTED})
         bindings[b] = BindingKind::TexelBufferUint4;
     for (int b : {PV_BINDING_TEXELS, PV_BINDING_ENV_RADIANCE, PV_BINDING_ENV_MARGINAL_CDF,
                   PV_BINDING_ENV_CONDITIONAL_CDF, PV_BINDING_TRIANGLE_LIGHT_PDF,
                   PV_BINDING_LENS_GRID, PV_BINDING_PHOTON_CELLS})
         bindings[b] = BindingKind::TexelBufferUint;
     auto pipeline = ComputePipeline::create(
-        *ctx_, std::span<const uint32_t>(trace_paths_spv, sizeof(trace_paths_spv) / 4),
-        bindings, constants, "trace_paths");
+        *ctx_, std::span<const uint32_t>(trace_paths_spv, sizeof(trace_paths_spv) / 4), bindings,
+        constants, "trace_paths");
     if (!pipeline) return pipeline.error();
     // Dispatches wait for completion (ComputePipeline::dispatch), so no submission can still
     // use the pipeline this replaces.
@@ -251,9 +253,10 @@ Status Renderer::setEnvironment(std::shared_ptr<const EnvironmentMap> map) {
     if (map && map->width == 0 && map->height == 0) map.reset();
     if (map && (map->width == 0 || map->height == 0 ||
                 map->radiance.size() != size_t(map->width) * map->height))
-        return makeError("environment map '{}' is {}x{} but has {} texels; expected width x "
-                         "height RGB texels", map->path, map->width, map->height,
-                         map->radiance.size());
+        return makeError(
+            "environment map '{}' is {}x{} but has {} texels; expected width x "
+            "height RGB texels",
+            map->path, map->width, map->height, map->radiance.size());
     // NaN, Inf or negative texels (a bad camera frame) would poison every pixel that samples
     // them: they become 0 in a copy, as loadEnvironmentMap does for files.
     if (map) {
@@ -294,10 +297,11 @@ Status Renderer::setEstimatedLights(std::span<const EstimatedLightSource> estima
         float len = glm::length(e.direction);
         if (!(len > 0.0f) || !std::isfinite(len) || !(e.solidAngleSr > 0.0f) ||
             !(e.solidAngleSr <= kFourPi) || !finiteNonNegative(e.radiance))
-            return makeError("estimated light {} is invalid (direction length {}, solid angle {} "
-                             "sr, radiance {} {} {}): it needs a direction, a solid angle in "
-                             "(0, 4pi] and finite non-negative radiance", i, len, e.solidAngleSr,
-                             e.radiance.r, e.radiance.g, e.radiance.b);
+            return makeError(
+                "estimated light {} is invalid (direction length {}, solid angle {} "
+                "sr, radiance {} {} {}): it needs a direction, a solid angle in "
+                "(0, 4pi] and finite non-negative radiance",
+                i, len, e.solidAngleSr, e.radiance.r, e.radiance.g, e.radiance.b);
         shader::GpuLight gl{};
         gl.type = PV_LIGHT_CONE | PV_LIGHT_REAL;
         gl.direction = -e.direction / len;  // where the light points
@@ -320,9 +324,9 @@ Status Renderer::setEstimatedLights(std::span<const EstimatedLightSource> estima
     features_.coneLights = ok && !estimated.empty();
     if (!ok) {
         // Keep at least the scene's lights.
-        if (Status r = replaceBufferContents(PV_BINDING_LIGHTS, sceneLights_.data(),
-                                             sceneLights_.size() * sizeof(shader::GpuLight),
-                                             "lights");
+        if (Status r =
+                replaceBufferContents(PV_BINDING_LIGHTS, sceneLights_.data(),
+                                      sceneLights_.size() * sizeof(shader::GpuLight), "lights");
             !r)
             params_.lightCount = 0;
     }
@@ -390,8 +394,8 @@ Status Renderer::buildScene(const Scene& scene) {
         // Beer–Lambert: attenuationColor remains after attenuationDistanceM, so the absorption
         // coefficient is −ln(colour) / distance (a black colour absorbs within a micrometre).
         if (!m.thinWalled && std::isfinite(m.attenuationDistanceM))
-            gm.attenuation = -glm::log(glm::max(m.attenuationColor, glm::vec3(1e-6f))) /
-                             m.attenuationDistanceM;
+            gm.attenuation =
+                -glm::log(glm::max(m.attenuationColor, glm::vec3(1e-6f))) / m.attenuationDistanceM;
         materials.push_back(gm);
     }
 
@@ -403,10 +407,9 @@ Status Renderer::buildScene(const Scene& scene) {
                    : w == TextureWrap::ClampToEdge  ? PV_WRAP_CLAMP_TO_EDGE
                                                     : PV_WRAP_REPEAT;
         };
-        const uint32_t flags = (t.srgb ? PV_TEXTURE_SRGB : 0u) |
-                               wrap(t.wrapS) << PV_TEXTURE_WRAP_S_SHIFT |
-                               wrap(t.wrapT) << PV_TEXTURE_WRAP_T_SHIFT |
-                               (t.nearest ? PV_TEXTURE_NEAREST : 0u);
+        const uint32_t flags =
+            (t.srgb ? PV_TEXTURE_SRGB : 0u) | wrap(t.wrapS) << PV_TEXTURE_WRAP_S_SHIFT |
+            wrap(t.wrapT) << PV_TEXTURE_WRAP_T_SHIFT | (t.nearest ? PV_TEXTURE_NEAREST : 0u);
         textureInfos.push_back({uint32_t(texels.size()), t.width, t.height, flags});
         texels.insert(texels.end(), t.rgba8.begin(), t.rgba8.end());
     }
@@ -416,7 +419,7 @@ Status Renderer::buildScene(const Scene& scene) {
         shader::GpuLight gl{};
         gl.position = toRenderFrame(l.position, offset);
         sceneLightPositions_.push_back(l.position);
-        gl.type = l.type == LightType::Point ? PV_LIGHT_POINT
+        gl.type = l.type == LightType::Point  ? PV_LIGHT_POINT
                   : l.type == LightType::Spot ? PV_LIGHT_SPOT
                                               : PV_LIGHT_DIRECTIONAL;
         if (l.isReal) gl.type |= PV_LIGHT_REAL;
@@ -443,7 +446,8 @@ Status Renderer::buildScene(const Scene& scene) {
                                                        g.positions[triangles[i].z] - p0));
             if (!(area > 0.0f)) continue;
             emissive.push_back({i, area, 0.0f, 0.0f});
-            glm::vec3 centroid = (p0 + g.positions[triangles[i].y] + g.positions[triangles[i].z]) / 3.0f;
+            glm::vec3 centroid =
+                (p0 + g.positions[triangles[i].y] + g.positions[triangles[i].z]) / 3.0f;
             emissivePhotonSources_.push_back(
                 {i, lum, area, centroid, g.triangleIsReal[bvh_.triangleOrder[i]] != 0});
             power.push_back(double(area) * lum);
@@ -487,8 +491,8 @@ Status Renderer::buildScene(const Scene& scene) {
     p.fireflyClamp = settings_.fireflyClamp;
     p.rouletteStartDepth = settings_.rouletteStartDepth;
     // The BVH puts real triangles first.
-    p.realTriangleCount = uint32_t(
-        std::count(g.triangleIsReal.begin(), g.triangleIsReal.end(), uint8_t(1)));
+    p.realTriangleCount =
+        uint32_t(std::count(g.triangleIsReal.begin(), g.triangleIsReal.end(), uint8_t(1)));
     // Photon buffers exist only where photons may run: Auto needs a specular object (lights
     // may still come from the captured environment).
     photonAim_ = photonAimFor(g, scene.materials);
@@ -517,7 +521,8 @@ Status Renderer::buildScene(const Scene& scene) {
     Status s;
     // Order = binding numbers (PV_BINDING_*).
     if (!(s = add(GpuBuffer::createWith(*ctx_, std::span(&params_, 1), "params")))) return s;
-    if (!(s = add(GpuBuffer::createWith(*ctx_, span(triangleVertices), "triangleVertices")))) return s;
+    if (!(s = add(GpuBuffer::createWith(*ctx_, span(triangleVertices), "triangleVertices"))))
+        return s;
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(normalTexels), "normals")))) return s;
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(uvTexels), "uvs")))) return s;
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(triangleTexels), "triangles")))) return s;
@@ -525,8 +530,8 @@ Status Renderer::buildScene(const Scene& scene) {
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(bvh_.wideNodes), "bvhNodes")))) return s;
     // The specular albedo table (shared/specular_albedo.h) first, then the materials.
     static_assert(sizeof(shader::kSpecularAlbedo) == 16 * PV_SPECULAR_ALBEDO_TEXELS);
-    std::vector<uint32_t> materialWords((sizeof(shader::kSpecularAlbedo) +
-                                         materials.size() * sizeof(shader::GpuMaterial)) / 4);
+    std::vector<uint32_t> materialWords(
+        (sizeof(shader::kSpecularAlbedo) + materials.size() * sizeof(shader::GpuMaterial)) / 4);
     std::memcpy(materialWords.data(), shader::kSpecularAlbedo, sizeof(shader::kSpecularAlbedo));
     if (!materials.empty())  // memcpy from an empty vector's null data() is undefined
         std::memcpy(materialWords.data() + sizeof(shader::kSpecularAlbedo) / 4, materials.data(),
@@ -537,7 +542,8 @@ Status Renderer::buildScene(const Scene& scene) {
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(lights), "lights")))) return s;
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(emissive), "emissiveTriangles")))) return s;
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(envRadiance), "envRadiance")))) return s;
-    if (!(s = add(GpuBuffer::createWith(*ctx_, span(envDist.marginalCdf), "envMarginal")))) return s;
+    if (!(s = add(GpuBuffer::createWith(*ctx_, span(envDist.marginalCdf), "envMarginal"))))
+        return s;
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(envDist.conditionalCdf), "envConditional"))))
         return s;
     size_t accumBytes = pixels * PV_ACCUM_COUNT * sizeof(glm::vec4);
@@ -601,7 +607,8 @@ Status Renderer::recentre(const glm::dvec3& originM) {
 
 Status Renderer::updatePhotonLights(std::span<const shader::GpuLight> lights) {
     std::vector<glm::uvec4> table;
-    if (params_.photonCount > 0) table = buildPhotonLights(photonAim_, emissivePhotonSources_, lights);
+    if (params_.photonCount > 0)
+        table = buildPhotonLights(photonAim_, emissivePhotonSources_, lights);
     Status s = replaceBufferContents(PV_BINDING_PHOTON_LIGHTS, table.data(),
                                      table.size() * sizeof(glm::uvec4), "photonLights");
     params_.photonLightCount = s ? uint32_t(table.size()) : 0u;
@@ -638,8 +645,8 @@ Status Renderer::renderPreviewFrame(uint32_t spp) {
 uint32_t Renderer::samplesForNextDispatch(uint32_t remaining) const {
     // Each sample is a photon iteration of its own (its own photon map and radius).
     if (photonsActive_) return 1;
-    uint32_t n = std::min({remaining, std::max(1u, settings_.samplesPerDispatch),
-                           kMaxSamplesPerDispatch});
+    uint32_t n =
+        std::min({remaining, std::max(1u, settings_.samplesPerDispatch), kMaxSamplesPerDispatch});
     if (!ctx_->isCpuDevice() || !settings_.respectCpuLoopLimit) return n;
     // Until one sample has been measured, one at a time.
     if (loopIterationsPerSample_ <= 0.0) return 1;
@@ -686,8 +693,8 @@ Status Renderer::render(uint32_t samples,
         if (!ms) return ms.error();
         uint32_t maxLoop = 0;
         if (watchLoops) {
-            if (Status s = buffers_[PV_BINDING_STATS].download(&maxLoop, sizeof(maxLoop),
-                                                               kMaxLoopOffset);
+            if (Status s =
+                    buffers_[PV_BINDING_STATS].download(&maxLoop, sizeof(maxLoop), kMaxLoopOffset);
                 !s)
                 return s;
         }
@@ -695,10 +702,11 @@ Status Renderer::render(uint32_t samples,
         loopIterationsPerSample_ = std::max(loopIterationsPerSample_, double(maxLoop) / n);
         const double batchBound = double(maxLoop) * ctx_->subgroupSize();
         if (watchLoops && batchBound >= kCpuLoopLimit && loopLimitRisks_++ == 0)
-            logWarning("{}: a dispatch of {} sample(s) may have reached the CPU device's loop "
-                       "limit ({} iterations per lane x {} lanes >= {}): parts of paths may be "
-                       "missing",
-                       ctx_->deviceName(), n, maxLoop, ctx_->subgroupSize(), kCpuLoopLimit);
+            logWarning(
+                "{}: a dispatch of {} sample(s) may have reached the CPU device's loop "
+                "limit ({} iterations per lane x {} lanes >= {}): parts of paths may be "
+                "missing",
+                ctx_->deviceName(), n, maxLoop, ctx_->subgroupSize(), kCpuLoopLimit);
         gpuMs_ += ms.value();
         samples_ += n;
         done += n;
@@ -709,14 +717,17 @@ Status Renderer::render(uint32_t samples,
 
 Status Renderer::setPlate(ImageF plate, std::string_view source) {
     if (plate.width != settings_.width || plate.height != settings_.height || plate.channels < 3)
-        return makeError("the plate is {}x{} with {} channel(s); the render is {}x{} and needs "
-                         "RGB (render at the plate's resolution)", plate.width, plate.height,
-                         plate.channels, settings_.width, settings_.height);
+        return makeError(
+            "the plate is {}x{} with {} channel(s); the render is {}x{} and needs "
+            "RGB (render at the plate's resolution)",
+            plate.width, plate.height, plate.channels, settings_.width, settings_.height);
     const PlateRepair repair = repairPlate(plate);
     if (repair.total() > 0 && plateValuesRepaired_ == 0)
-        logWarning("{}: {} NaN/infinite value(s) replaced by their finite neighbours' mean (0 "
-                   "where there is none) and {} negative value(s) by 0; they are never "
-                   "composited (docs/plates.md)", source, repair.nonFinite, repair.negative);
+        logWarning(
+            "{}: {} NaN/infinite value(s) replaced by their finite neighbours' mean (0 "
+            "where there is none) and {} negative value(s) by 0; they are never "
+            "composited (docs/plates.md)",
+            source, repair.nonFinite, repair.negative);
     plateValuesRepaired_ += repair.total();
     plate_ = std::move(plate);
     return {};
@@ -726,8 +737,7 @@ Result<ImageF> Renderer::image(Aov aov) const {
     size_t pixels = size_t(settings_.width) * settings_.height;
     std::vector<glm::vec4> sum(pixels * PV_ACCUM_COUNT), comp(pixels * PV_ACCUM_COUNT);
     size_t bytes = sum.size() * sizeof(glm::vec4);
-    if (Status s = buffers_[PV_BINDING_ACCUM_SUM].download(sum.data(), bytes); !s)
-        return s.error();
+    if (Status s = buffers_[PV_BINDING_ACCUM_SUM].download(sum.data(), bytes); !s) return s.error();
     if (Status s = buffers_[PV_BINDING_ACCUM_COMPENSATION].download(comp.data(), bytes); !s)
         return s.error();
     ImageF img;
@@ -754,7 +764,7 @@ Result<ImageF> Renderer::image(Aov aov) const {
             img.pixels[i] = float(compensated(i * PV_ACCUM_COUNT + PV_ACCUM_MIXED, 3));
             continue;
         }
-        uint32_t k = aov == Aov::Real ? PV_ACCUM_REAL
+        uint32_t k = aov == Aov::Real                  ? PV_ACCUM_REAL
                      : aov == Aov::Mixed || !withPlate ? PV_ACCUM_MIXED
                                                        : PV_ACCUM_COMPOSITE;
         double plateWeight = withPlate ? 1.0 - mean(i, PV_ACCUM_COMPOSITE, 3) : 0.0;
@@ -772,8 +782,7 @@ Result<ImageF> Renderer::image(Aov aov) const {
 
 Result<shader::RenderStats> Renderer::stats() const {
     shader::RenderStats stats{};
-    if (Status s = buffers_[PV_BINDING_STATS].download(&stats, sizeof(stats)); !s)
-        return s.error();
+    if (Status s = buffers_[PV_BINDING_STATS].download(&stats, sizeof(stats)); !s) return s.error();
     return stats;
 }
 
@@ -795,8 +804,7 @@ Result<std::vector<shader::PhotonRecord>> Renderer::photonRecords() const {
 
 Result<uint32_t> Renderer::raysTraced() const {
     shader::RenderStats stats{};
-    if (Status s = buffers_[PV_BINDING_STATS].download(&stats, sizeof(stats)); !s)
-        return s.error();
+    if (Status s = buffers_[PV_BINDING_STATS].download(&stats, sizeof(stats)); !s) return s.error();
     return stats.raysTraced;
 }
 

@@ -40,21 +40,21 @@ enum class LightSampling {
 struct RenderSettings {
     uint32_t width = 640;
     uint32_t height = 480;
-    uint32_t maxDepth = 16;            // pbrt's maxdepth: 1 = direct light only
-    uint32_t rouletteStartDepth = 3;   // Russian roulette from this many bounces on
+    uint32_t maxDepth = 16;           // pbrt's maxdepth: 1 = direct light only
+    uint32_t rouletteStartDepth = 3;  // Russian roulette from this many bounces on
     uint32_t seed = 0;
     Sampler sampler = Sampler::Sobol;
     LightSampling lightSampling = LightSampling::SolidAngle;
-    int cameraIndex = 0;               // into Scene::cameras; a default camera if there is none
+    int cameraIndex = 0;                   // into Scene::cameras; a default camera if there is none
     std::optional<float> apertureRadiusM;  // override the camera's thin lens
     std::optional<float> focusDistanceM;
-    float fireflyClamp = 0.0f;         // 0 = off (default): no hidden clamping
+    float fireflyClamp = 0.0f;  // 0 = off (default): no hidden clamping
     // Paths per pixel in one GPU dispatch (fewer dispatches, less overhead). On a CPU device
     // the renderer lowers it to stay inside llvmpipe's loop limit (renderer.cpp).
     uint32_t samplesPerDispatch = 1;
     // Off only to demonstrate what happens without it (tests): llvmpipe drops work.
     bool respectCpuLoopLimit = true;
-    bool generalPipeline = false;      // run every feature's code (benchmarks the saving)
+    bool generalPipeline = false;  // run every feature's code (benchmarks the saving)
     // Differential rendering (the paper): also compute the real-only solution L_or in the same
     // pass, for compositing with the camera image. Off: a plain CG render of the mixed scene.
     bool differential = false;
@@ -81,11 +81,11 @@ struct SceneFeatures {
     bool environment = false;
     bool emissive = false;
     bool punctual = false;
-    bool specular = false;      // any metal or specular (Fresnel) reflection
+    bool specular = false;  // any metal or specular (Fresnel) reflection
     bool transmission = false;
     bool thinLens = false;
     bool textures = false;
-    bool coneLights = false;    // estimated lights (Renderer::setEstimatedLights)
+    bool coneLights = false;  // estimated lights (Renderer::setEstimatedLights)
 };
 
 // A distant light estimated from the captured environment (vision/light_estimator.h's
@@ -242,7 +242,7 @@ private:
     std::vector<GpuBuffer> buffers_;  // indexed by PV_BINDING_*
     std::optional<ComputePipeline> pipeline_;
     std::array<uint32_t, PV_SPEC_COUNT> specConstants_{};
-    std::vector<shader::GpuLight> sceneLights_;  // the scene's own; estimated ones follow them
+    std::vector<shader::GpuLight> sceneLights_;      // the scene's own; estimated ones follow them
     std::vector<shader::GpuLight> estimatedLights_;  // cone lights (directions only)
     // Camera-relative rendering (setCameraPose): world = sceneOriginM_ + scene position;
     // GPU position = float(world − renderOriginM_), computed in double.

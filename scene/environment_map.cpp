@@ -28,8 +28,7 @@ EnvironmentMap studioEnvironment() {
         const float elevation = (0.5f - (float(y) + 0.5f) / float(map.height)) * float(M_PI);
         for (uint32_t x = 0; x < map.width; ++x) {
             const float azimuth = ((float(x) + 0.5f) / float(map.width) - 0.5f) * float(2.0 * M_PI);
-            float value = elevation < 0.0f ? 0.15f
-                                           : 0.5f + 0.3f * std::sin(elevation);
+            float value = elevation < 0.0f ? 0.15f : 0.5f + 0.3f * std::sin(elevation);
             for (const Softbox& b : boxes) {
                 float da = std::remainder(azimuth - b.azimuthRad, float(2.0 * M_PI));
                 if (std::abs(da) < b.halfWidthRad &&
@@ -54,8 +53,8 @@ Result<EnvironmentMap> loadEnvironmentMap(const std::string& path) {
     Result<ImageF> image = readImage(path);
     if (!image) return Error{"environment map: " + image.message()};
     if (image->width < 2 || image->height < 1)
-        return makeError("cannot load environment map '{}': {}x{} is too small", path,
-                         image->width, image->height);
+        return makeError("cannot load environment map '{}': {}x{} is too small", path, image->width,
+                         image->height);
     if (image->width != 2 * image->height)
         logWarning("environment map '{}' is {}x{}, not 2:1; it is used as equirectangular anyway",
                    path, image->width, image->height);

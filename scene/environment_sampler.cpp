@@ -49,20 +49,23 @@ EnvironmentSampler::Sample EnvironmentSampler::sample(glm::vec2 u) const {
     if (map_.width == 0) return {glm::vec3(0.0f, 1.0f, 0.0f), 0.0f};
     TablesScope scope(map_, distribution_);
     Sample s;
-    s.direction = shader::envSample(u, map_.width, map_.height, shader::envRotationCosSin(map_.rotationRad), s.pdfSolidAngle);
+    s.direction = shader::envSample(u, map_.width, map_.height,
+                                    shader::envRotationCosSin(map_.rotationRad), s.pdfSolidAngle);
     return s;
 }
 
 float EnvironmentSampler::pdf(const glm::vec3& dirWorld) const {
     if (map_.width == 0) return 0.0f;
     TablesScope scope(map_, distribution_);
-    return shader::envPdf(dirWorld, map_.width, map_.height, shader::envRotationCosSin(map_.rotationRad));
+    return shader::envPdf(dirWorld, map_.width, map_.height,
+                          shader::envRotationCosSin(map_.rotationRad));
 }
 
 glm::vec3 EnvironmentSampler::radiance(const glm::vec3& dirWorld) const {
     if (map_.width == 0) return glm::vec3(0.0f);
     TablesScope scope(map_, distribution_);
-    return shader::envRadiance(dirWorld, map_.width, map_.height, shader::envRotationCosSin(map_.rotationRad));
+    return shader::envRadiance(dirWorld, map_.width, map_.height,
+                               shader::envRotationCosSin(map_.rotationRad));
 }
 
 glm::vec2 EnvironmentSampler::directionToUv(const glm::vec3& d) {

@@ -4,9 +4,8 @@
 // sampling math on them (tests, CPU reference paths). Immutable after creation, so one instance
 // may be shared between threads.
 
-#include <memory>
-
 #include <glm/glm.hpp>
+#include <memory>
 
 #include "scene/environment_map.h"
 

@@ -1,5 +1,8 @@
 #include "scene/gltf_loader.h"
 
+#include <fnmatch.h>
+#include <tiny_gltf.h>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -7,6 +10,9 @@
 #include <exception>
 #include <filesystem>
 #include <fstream>
+#include <glm/gtc/matrix_transform.hpp>
+#include <glm/gtc/quaternion.hpp>
+#include <glm/gtc/type_ptr.hpp>
 #include <limits>
 #include <map>
 #include <memory>
@@ -15,13 +21,6 @@
 #include <span>
 #include <tuple>
 #include <utility>
-
-#include <fnmatch.h>
-
-#include <glm/gtc/matrix_transform.hpp>
-#include <glm/gtc/quaternion.hpp>
-#include <glm/gtc/type_ptr.hpp>
-#include <tiny_gltf.h>
 
 #include "base/log.h"
 #include "base/strings.h"
@@ -35,7 +34,7 @@ namespace {
 // ignored, with one warning listing them all. KHR_texture_transform is deliberately absent:
 // ignoring it misplaces textures, which the warning says.
 const std::set<std::string> kSupportedExtensions = {
-    "KHR_materials_transmission", "KHR_materials_ior",   "KHR_materials_specular",
+    "KHR_materials_transmission",      "KHR_materials_ior",    "KHR_materials_specular",
     "KHR_materials_emissive_strength", "KHR_materials_volume", "KHR_lights_punctual",
 };
 
@@ -134,7 +133,8 @@ std::string oneLine(std::string text) {
     return text;
 }
 
-const tinygltf::Value* findPath(const tinygltf::Value& root, std::initializer_list<const char*> keys) {
+const tinygltf::Value* findPath(const tinygltf::Value& root,
+                                std::initializer_list<const char*> keys) {
     const tinygltf::Value* v = &root;
     for (const char* key : keys) {
         if (!v->IsObject() || !v->Has(key)) return nullptr;
@@ -187,8 +187,7 @@ private:
     }
 
     std::string originSuffix() const {
-        return options_.roleRulesOrigin.empty() ? std::string()
-                                                : " in " + options_.roleRulesOrigin;
+        return options_.roleRulesOrigin.empty() ? std::string() : " in " + options_.roleRulesOrigin;
     }
     Status checkExtensions() const;
     Result<std::optional<bool>> roleByName(const tinygltf::Node& node, int nodeIndex);
@@ -241,9 +240,10 @@ std::string supportedExtensionList() {
 Status Loader::checkExtensions() const {
     for (const std::string& ext : model_.extensionsRequired) {
         if (!kSupportedExtensions.count(ext))
-            return fail("it requires the extension '{}', which previs does not support "
-                        "(supported: {}); re-export without it",
-                        ext, supportedExtensionList());
+            return fail(
+                "it requires the extension '{}', which previs does not support "
+                "(supported: {}); re-export without it",
+                ext, supportedExtensionList());
     }
     // extensionsUsed should list every extension the file uses, but exporters forget (tinygltf's
     // Cube-textransform.gltf uses KHR_texture_transform without listing it): the objects that
@@ -272,9 +272,10 @@ Status Loader::checkExtensions() const {
     for (const std::string& ext : used)
         if (!kSupportedExtensions.count(ext)) ignored += (ignored.empty() ? "" : ", ") + ext;
     if (!ignored.empty())
-        logWarning("glTF '{}': ignoring the extensions it uses that previs does not support: {} "
-                   "(the file renders as if they were absent)",
-                   path_, ignored);
+        logWarning(
+            "glTF '{}': ignoring the extensions it uses that previs does not support: {} "
+            "(the file renders as if they were absent)",
+            path_, ignored);
     return {};
 }
 
@@ -300,13 +301,17 @@ Result<int> Loader::textureFor(int gltfTexture, bool srgb, const std::string& ma
         const tinygltf::Sampler& sampler = model_.samplers[samplerIndex];
         auto wrap = [&](int mode, const char* axis) -> Result<TextureWrap> {
             switch (mode) {
-                case TINYGLTF_TEXTURE_WRAP_REPEAT: return TextureWrap::Repeat;
-                case TINYGLTF_TEXTURE_WRAP_MIRRORED_REPEAT: return TextureWrap::MirroredRepeat;
-                case TINYGLTF_TEXTURE_WRAP_CLAMP_TO_EDGE: return TextureWrap::ClampToEdge;
+                case TINYGLTF_TEXTURE_WRAP_REPEAT:
+                    return TextureWrap::Repeat;
+                case TINYGLTF_TEXTURE_WRAP_MIRRORED_REPEAT:
+                    return TextureWrap::MirroredRepeat;
+                case TINYGLTF_TEXTURE_WRAP_CLAMP_TO_EDGE:
+                    return TextureWrap::ClampToEdge;
                 default:
-                    return fail("sampler {} has {} {} (glTF allows 10497 REPEAT, 33648 "
-                                "MIRRORED_REPEAT, 33071 CLAMP_TO_EDGE)",
-                                samplerIndex, axis, mode);
+                    return fail(
+                        "sampler {} has {} {} (glTF allows 10497 REPEAT, 33648 "
+                        "MIRRORED_REPEAT, 33071 CLAMP_TO_EDGE)",
+                        samplerIndex, axis, mode);
             }
         };
         Result<TextureWrap> s = wrap(sampler.wrapS, "wrapS");
@@ -327,13 +332,14 @@ Result<int> Loader::textureFor(int gltfTexture, bool srgb, const std::string& ma
         // Fallback documented at decodeImage: the material keeps its factors only.
         if (warnedImages_.insert(source).second) {
             auto failure = imageFailures_.find(source);
-            logWarning("glTF '{}': image {} ('{}') {}; material '{}' is rendered without that "
-                       "texture",
-                       path_, source, image.uri.size() > 64 ? image.name : image.uri,
-                       failure != imageFailures_.end()
-                           ? "does not decode (" + failure->second + ")"
-                           : std::string("could not be loaded (missing file?)"),
-                       materialName);
+            logWarning(
+                "glTF '{}': image {} ('{}') {}; material '{}' is rendered without that "
+                "texture",
+                path_, source, image.uri.size() > 64 ? image.name : image.uri,
+                failure != imageFailures_.end()
+                    ? "does not decode (" + failure->second + ")"
+                    : std::string("could not be loaded (missing file?)"),
+                materialName);
         }
         return -1;
     }
@@ -351,8 +357,8 @@ Result<int> Loader::textureFor(int gltfTexture, bool srgb, const std::string& ma
     texture.rgba8.resize(size_t(image.width) * size_t(image.height));
     for (size_t i = 0; i < texture.rgba8.size(); ++i) {
         const unsigned char* p = image.image.data() + i * 4;
-        texture.rgba8[i] = uint32_t(p[0]) | uint32_t(p[1]) << 8 | uint32_t(p[2]) << 16 |
-                           uint32_t(p[3]) << 24;
+        texture.rgba8[i] =
+            uint32_t(p[0]) | uint32_t(p[1]) << 8 | uint32_t(p[2]) << 16 | uint32_t(p[3]) << 24;
     }
     const int index = int(scene_.textures.size());
     scene_.textures.push_back(std::move(texture));
@@ -399,9 +405,10 @@ void Loader::clampToSpecification(Material& m, glm::vec3& emissive, float& stren
         clampValue(m.ior, 1.0f, kInf, 1.5f, "ior");
     }
     if (!changes.empty())
-        logWarning("glTF '{}': material '{}' has values outside the glTF specification's "
-                   "ranges; using {}",
-                   path_, m.name, changes);
+        logWarning(
+            "glTF '{}': material '{}' has values outside the glTF specification's "
+            "ranges; using {}",
+            path_, m.name, changes);
 }
 
 Status Loader::loadMaterials() {
@@ -418,9 +425,8 @@ Status Loader::loadMaterials() {
         glm::vec3 emissive(0.0f);
         if (m.emissiveFactor.size() == 3)
             emissive = glm::vec3(m.emissiveFactor[0], m.emissiveFactor[1], m.emissiveFactor[2]);
-        float strength = numberOr(
-            findExtension(m.extensions, "KHR_materials_emissive_strength"), "emissiveStrength",
-            1.0f);
+        float strength = numberOr(findExtension(m.extensions, "KHR_materials_emissive_strength"),
+                                  "emissiveStrength", 1.0f);
         out.transmission = numberOr(findExtension(m.extensions, "KHR_materials_transmission"),
                                     "transmissionFactor", 0.0f);
         out.ior = numberOr(findExtension(m.extensions, "KHR_materials_ior"), "ior", 1.5f);
@@ -437,14 +443,15 @@ Status Loader::loadMaterials() {
         out.thinWalled = !(numberOr(volume, "thicknessFactor", 0.0f) > 0.0f);
         if (!out.thinWalled) {
             out.attenuationColor = vec3Or(volume, "attenuationColor", glm::vec3(1.0f));
-            out.attenuationDistanceM = numberOr(volume, "attenuationDistance",
-                                                std::numeric_limits<float>::infinity());
-            if (!(out.attenuationDistanceM > 0.0f) || glm::any(glm::lessThan(
-                    out.attenuationColor, glm::vec3(0.0f))) ||
+            out.attenuationDistanceM =
+                numberOr(volume, "attenuationDistance", std::numeric_limits<float>::infinity());
+            if (!(out.attenuationDistanceM > 0.0f) ||
+                glm::any(glm::lessThan(out.attenuationColor, glm::vec3(0.0f))) ||
                 glm::any(glm::greaterThan(out.attenuationColor, glm::vec3(1.0f))))
-                return fail("material '{}': KHR_materials_volume needs attenuationDistance > 0 "
-                            "and attenuationColor in [0, 1]",
-                            out.name);
+                return fail(
+                    "material '{}': KHR_materials_volume needs attenuationDistance > 0 "
+                    "and attenuationColor in [0, 1]",
+                    out.name);
         }
 
         // Colour textures hold sRGB-encoded values, data textures linear ones (glTF 2.0 §3.9).
@@ -453,11 +460,11 @@ Status Loader::loadMaterials() {
             bool srgb;
             int* target;
         };
-        for (Slot slot : {Slot{pbr.baseColorTexture.index, true, &out.baseColorTexture},
-                          Slot{pbr.metallicRoughnessTexture.index, false,
-                               &out.metallicRoughnessTexture},
-                          Slot{m.normalTexture.index, false, &out.normalTexture},
-                          Slot{m.emissiveTexture.index, true, &out.emissiveTexture}}) {
+        for (Slot slot :
+             {Slot{pbr.baseColorTexture.index, true, &out.baseColorTexture},
+              Slot{pbr.metallicRoughnessTexture.index, false, &out.metallicRoughnessTexture},
+              Slot{m.normalTexture.index, false, &out.normalTexture},
+              Slot{m.emissiveTexture.index, true, &out.emissiveTexture}}) {
             Result<int> t = textureFor(slot.gltf, slot.srgb, out.name);
             if (!t) return t.error();
             *slot.target = *t;
@@ -498,16 +505,16 @@ Result<const unsigned char*> Loader::accessorData(int accessorIndex, const std::
         const uint64_t need =
             uint64_t(a.byteOffset) + uint64_t(stride) * (uint64_t(a.count) - 1) + elementSize;
         if (need > view.byteLength)
-            return fail("{}: accessor {} is out of range ({} elements need {} bytes, buffer view "
-                        "{} has {})",
-                        what, accessorIndex, a.count, need, a.bufferView, view.byteLength);
+            return fail(
+                "{}: accessor {} is out of range ({} elements need {} bytes, buffer view "
+                "{} has {})",
+                what, accessorIndex, a.count, need, a.bufferView, view.byteLength);
     }
     return buffer.data.data() + view.byteOffset + a.byteOffset;
 }
 
 Status Loader::readFloats(int accessorIndex, int type, bool allowNormalized,
-                          const std::string& what, std::vector<float>& out,
-                          size_t& count) const {
+                          const std::string& what, std::vector<float>& out, size_t& count) const {
     if (accessorIndex < 0 || size_t(accessorIndex) >= model_.accessors.size())
         return fail("{} uses accessor {}, but the file has {} accessors", what, accessorIndex,
                     model_.accessors.size());
@@ -518,10 +525,17 @@ Status Loader::readFloats(int accessorIndex, int type, bool allowNormalized,
     const int components = tinygltf::GetNumComponentsInType(uint32_t(type));
     size_t componentSize = 0;
     switch (a.componentType) {
-        case TINYGLTF_COMPONENT_TYPE_FLOAT: componentSize = 4; break;
-        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: componentSize = 1; break;
-        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: componentSize = 2; break;
-        default: break;
+        case TINYGLTF_COMPONENT_TYPE_FLOAT:
+            componentSize = 4;
+            break;
+        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE:
+            componentSize = 1;
+            break;
+        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT:
+            componentSize = 2;
+            break;
+        default:
+            break;
     }
     const bool isFloat = a.componentType == TINYGLTF_COMPONENT_TYPE_FLOAT;
     if (componentSize == 0 || (!isFloat && !(allowNormalized && a.normalized)))
@@ -555,14 +569,20 @@ Status Loader::readFloats(int accessorIndex, int type, bool allowNormalized,
 Status Loader::readIndices(int accessorIndex, const std::string& what,
                            std::vector<uint32_t>& out) const {
     if (accessorIndex < 0 || size_t(accessorIndex) >= model_.accessors.size())
-        return fail("{} uses index accessor {}, but the file has {} accessors", what,
-                    accessorIndex, model_.accessors.size());
+        return fail("{} uses index accessor {}, but the file has {} accessors", what, accessorIndex,
+                    model_.accessors.size());
     const tinygltf::Accessor& a = model_.accessors[accessorIndex];
     size_t size = 0;
     switch (a.componentType) {
-        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: size = 1; break;
-        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: size = 2; break;
-        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: size = 4; break;
+        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE:
+            size = 1;
+            break;
+        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT:
+            size = 2;
+            break;
+        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT:
+            size = 4;
+            break;
         default:
             return fail("{}: index accessor {} has component type {} (need an unsigned integer)",
                         what, accessorIndex, a.componentType);
@@ -632,10 +652,11 @@ Result<std::optional<bool>> Loader::roleByName(const tinygltf::Node& node, int n
         ruleMatched_[i] = 1;
         if (role && *role != real) {
             const auto& other = options_.roleRules[first];
-            return fail("node {} ('{}') matches both the {} role pattern '{}' and the {} role "
-                        "pattern '{}'{}; make the patterns exclusive",
-                        nodeIndex, node.name, other.second ? "real" : "virtual", other.first,
-                        real ? "real" : "virtual", pattern, originSuffix());
+            return fail(
+                "node {} ('{}') matches both the {} role pattern '{}' and the {} role "
+                "pattern '{}'{}; make the patterns exclusive",
+                nodeIndex, node.name, other.second ? "real" : "virtual", other.first,
+                real ? "real" : "virtual", pattern, originSuffix());
         }
         if (!role) first = i;
         role = real;
@@ -667,8 +688,7 @@ glm::dvec3 Loader::chooseOrigin(const std::vector<int>& roots) const {
     return glm::round(0.5 * (lo + hi) / kOriginGridM) * kOriginGridM;
 }
 
-Status Loader::visitNode(int nodeIndex, const glm::dmat4& parentWorld, bool parentReal,
-                         int depth) {
+Status Loader::visitNode(int nodeIndex, const glm::dmat4& parentWorld, bool parentReal, int depth) {
     if (nodeIndex < 0 || size_t(nodeIndex) >= model_.nodes.size())
         return fail("node index {} is out of range (the file has {} nodes)", nodeIndex,
                     model_.nodes.size());
@@ -685,11 +705,15 @@ Status Loader::visitNode(int nodeIndex, const glm::dmat4& parentWorld, bool pare
     if (const tinygltf::Value* role = findPath(node.extras, {"previs", "role"});
         role && role->IsString()) {
         const std::string& r = role->Get<std::string>();
-        if (r == "real") real = true;
-        else if (r == "virtual") real = false;
-        else logWarning("glTF '{}': node '{}' has unknown role '{}' (use \"real\" or "
-                        "\"virtual\"); it inherits its parent's",
-                        path_, node.name, r);
+        if (r == "real")
+            real = true;
+        else if (r == "virtual")
+            real = false;
+        else
+            logWarning(
+                "glTF '{}': node '{}' has unknown role '{}' (use \"real\" or "
+                "\"virtual\"); it inherits its parent's",
+                path_, node.name, r);
     }
     // Name rules come from the scene description, written for this shot by the person who
     // knows the set; they win over whatever the modelling tool exported.
@@ -750,16 +774,17 @@ Status Loader::loadPrimitive(const tinygltf::Mesh& mesh, int meshIndex, size_t p
         return s;
     for (float v : positions)
         if (!std::isfinite(v))
-            return fail("mesh '{}' (mesh {}) has NaN or infinite vertex positions; fix the "
-                        "mesh in the modelling tool",
-                        mesh.name, meshIndex);
+            return fail(
+                "mesh '{}' (mesh {}) has NaN or infinite vertex positions; fix the "
+                "mesh in the modelling tool",
+                mesh.name, meshIndex);
 
     std::vector<float> normals;
     const int normalAccessor = attribute("NORMAL");
     if (normalAccessor >= 0) {
         size_t n = 0;
-        if (Status s = readFloats(normalAccessor, TINYGLTF_TYPE_VEC3, false, what + " NORMAL",
-                                  normals, n);
+        if (Status s =
+                readFloats(normalAccessor, TINYGLTF_TYPE_VEC3, false, what + " NORMAL", normals, n);
             !s)
             return s;
         if (n != vertexCount)
@@ -769,8 +794,8 @@ Status Loader::loadPrimitive(const tinygltf::Mesh& mesh, int meshIndex, size_t p
     const int uvAccessor = attribute("TEXCOORD_0");
     if (uvAccessor >= 0) {
         size_t n = 0;
-        if (Status s = readFloats(uvAccessor, TINYGLTF_TYPE_VEC2, true, what + " TEXCOORD_0", uvs,
-                                  n);
+        if (Status s =
+                readFloats(uvAccessor, TINYGLTF_TYPE_VEC2, true, what + " TEXCOORD_0", uvs, n);
             !s)
             return s;
         if (n != vertexCount)
@@ -833,8 +858,7 @@ Status Loader::loadPrimitive(const tinygltf::Mesh& mesh, int meshIndex, size_t p
         const glm::dvec3 e1 = glm::dvec3(b) - glm::dvec3(a);
         const glm::dvec3 e2 = glm::dvec3(c) - glm::dvec3(a);
         const glm::dvec3 e3 = glm::dvec3(c) - glm::dvec3(b);
-        const double maxEdge2 =
-            std::max({glm::dot(e1, e1), glm::dot(e2, e2), glm::dot(e3, e3)});
+        const double maxEdge2 = std::max({glm::dot(e1, e1), glm::dot(e2, e2), glm::dot(e3, e3)});
         const double area2 = glm::length(glm::cross(e1, e2));
         return !(area2 > 1e-14 * maxEdge2) || maxEdge2 == 0.0;
     };
@@ -885,8 +909,8 @@ Status Loader::loadPrimitive(const tinygltf::Mesh& mesh, int meshIndex, size_t p
     std::vector<glm::vec3> worldNormals(vertexCount);
     std::vector<uint8_t> bad(vertexCount, 0);
     for (size_t i = 0; i < vertexCount; ++i) {
-        const glm::vec3 n = normalMatrix * glm::vec3(normals[3 * i], normals[3 * i + 1],
-                                                     normals[3 * i + 2]);
+        const glm::vec3 n =
+            normalMatrix * glm::vec3(normals[3 * i], normals[3 * i + 1], normals[3 * i + 2]);
         const float len = glm::length(n);
         if (std::isfinite(len) && len > 0.0f && std::isfinite(n.x + n.y + n.z)) {
             worldNormals[i] = n / len;
@@ -908,8 +932,8 @@ Status Loader::loadPrimitive(const tinygltf::Mesh& mesh, int meshIndex, size_t p
         if (!bad[i]) continue;
         ++replaced;
         const float len = glm::length(worldNormals[i]);
-        worldNormals[i] = std::isfinite(len) && len > 0.0f ? worldNormals[i] / len
-                                                            : glm::vec3(0.0f, 1.0f, 0.0f);
+        worldNormals[i] =
+            std::isfinite(len) && len > 0.0f ? worldNormals[i] / len : glm::vec3(0.0f, 1.0f, 0.0f);
     }
     replacedNormals_ += replaced;
 
@@ -969,8 +993,7 @@ Status Loader::loadCamera(const tinygltf::Node& node, const glm::dmat4& worldD) 
     camera.fovYRad = float(c.perspective.yfov);
     camera.aspectRatio = float(c.perspective.aspectRatio);
     if (!(camera.fovYRad > 0.0f && camera.fovYRad < 3.14159f))
-        return fail("camera '{}' has yfov {} rad (need 0 < yfov < π)", camera.name,
-                    camera.fovYRad);
+        return fail("camera '{}' has yfov {} rad (need 0 < yfov < π)", camera.name, camera.fovYRad);
     // Cameras ignore scale (glTF §3.10.4 "camera ... transform ... shall not contain scale"
     // in spirit): rays need an orthonormal frame, so the columns are normalised.
     camera.worldFromCamera = world;
@@ -985,9 +1008,10 @@ Status Loader::loadCamera(const tinygltf::Node& node, const glm::dmat4& worldD) 
     camera.focusDistanceM = numberOr(previs, "focusDistanceM", 1.0f);
     if (!(camera.apertureRadiusM >= 0.0f) || !(camera.focusDistanceM > 0.0f) ||
         !std::isfinite(camera.apertureRadiusM) || !std::isfinite(camera.focusDistanceM))
-        return fail("camera node '{}' has invalid extras.previs apertureRadiusM {} / "
-                    "focusDistanceM {} (need >= 0 and > 0)",
-                    node.name, camera.apertureRadiusM, camera.focusDistanceM);
+        return fail(
+            "camera node '{}' has invalid extras.previs apertureRadiusM {} / "
+            "focusDistanceM {} (need >= 0 and > 0)",
+            node.name, camera.apertureRadiusM, camera.focusDistanceM);
     scene_.cameras.push_back(camera);
     return {};
 }
@@ -1005,10 +1029,14 @@ Status Loader::loadLight(const tinygltf::Node& node, const glm::dmat4& worldD, b
     const tinygltf::Light& l = model_.lights[i];
     PunctualLight light;
     light.name = !l.name.empty() ? l.name : node.name;
-    if (l.type == "point") light.type = LightType::Point;
-    else if (l.type == "spot") light.type = LightType::Spot;
-    else if (l.type == "directional") light.type = LightType::Directional;
-    else return fail("light '{}' has unknown type '{}'", light.name, l.type);
+    if (l.type == "point")
+        light.type = LightType::Point;
+    else if (l.type == "spot")
+        light.type = LightType::Spot;
+    else if (l.type == "directional")
+        light.type = LightType::Directional;
+    else
+        return fail("light '{}' has unknown type '{}'", light.name, l.type);
     light.position = glm::vec3(world[3]);
     const glm::vec3 dir = -glm::vec3(world[2]);
     const float len = glm::length(dir);
@@ -1033,9 +1061,10 @@ Result<Scene> Loader::run() {
     scene_.path = path_;
     // glTF 2.0 §5.2: asset.version is required; "2.0" (or a later 2.x) is what this reads.
     if (model_.asset.version.rfind("2.", 0) != 0)
-        return fail("asset.version is '{}', but previs reads glTF 2.0 files (version \"2.0\"); "
-                    "is it a glTF 1.0 file or not a glTF file at all?",
-                    model_.asset.version);
+        return fail(
+            "asset.version is '{}', but previs reads glTF 2.0 files (version \"2.0\"); "
+            "is it a glTF 1.0 file or not a glTF file at all?",
+            model_.asset.version);
     if (Status s = checkExtensions(); !s) return s.error();
     if (Status s = loadMaterials(); !s) return s.error();
 
@@ -1063,18 +1092,20 @@ Result<Scene> Loader::run() {
     }
     for (size_t i = 0; i < ruleMatched_.size(); ++i) {
         if (!ruleMatched_[i])
-            logWarning("glTF '{}': the {} role pattern '{}'{} matches no node name; check its "
-                       "spelling (names are case-sensitive)",
-                       path_, options_.roleRules[i].second ? "real" : "virtual",
-                       options_.roleRules[i].first, originSuffix());
+            logWarning(
+                "glTF '{}': the {} role pattern '{}'{} matches no node name; check its "
+                "spelling (names are case-sensitive)",
+                path_, options_.roleRules[i].second ? "real" : "virtual",
+                options_.roleRules[i].first, originSuffix());
     }
     if (degenerateTriangles_ > 0)
         logWarning("glTF '{}': dropped {} degenerate triangles (zero area or repeated index)",
                    path_, degenerateTriangles_);
     if (replacedNormals_ > 0)
-        logWarning("glTF '{}': {} vertex normals were NaN, infinite or zero; replaced by the "
-                   "geometric normal",
-                   path_, replacedNormals_);
+        logWarning(
+            "glTF '{}': {} vertex normals were NaN, infinite or zero; replaced by the "
+            "geometric normal",
+            path_, replacedNormals_);
     return std::move(scene_);
 }
 

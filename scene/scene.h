@@ -6,20 +6,19 @@
 // metres; cameras look along -Z of their node.
 
 #include <cstdint>
+#include <glm/glm.hpp>
 #include <limits>
 #include <optional>
 #include <string>
 #include <vector>
 
-#include <glm/glm.hpp>
-
 namespace previs {
 
 struct Material {
     std::string name;
-    glm::vec4 baseColor{1.0f};            // linear
-    glm::vec3 emission{0.0f};             // emissiveFactor * emissive_strength
-    float metallic = 1.0f;                // glTF defaults
+    glm::vec4 baseColor{1.0f};  // linear
+    glm::vec3 emission{0.0f};   // emissiveFactor * emissive_strength
+    float metallic = 1.0f;      // glTF defaults
     float roughness = 1.0f;
     float transmission = 0.0f;
     float ior = 1.5f;
@@ -31,7 +30,7 @@ struct Material {
     bool thinWalled = false;
     glm::vec3 attenuationColor{1.0f};
     float attenuationDistanceM = std::numeric_limits<float>::infinity();
-    int baseColorTexture = -1;            // index into Scene::textures, -1 = none
+    int baseColorTexture = -1;  // index into Scene::textures, -1 = none
     int metallicRoughnessTexture = -1;
     int normalTexture = -1;
     int emissiveTexture = -1;
@@ -47,11 +46,11 @@ struct Texture {
     std::string name;
     uint32_t width = 0;
     uint32_t height = 0;
-    bool srgb = true;                     // colour data; false for linear data
+    bool srgb = true;                         // colour data; false for linear data
     TextureWrap wrapS = TextureWrap::Repeat;  // glTF's default sampler
     TextureWrap wrapT = TextureWrap::Repeat;
-    bool nearest = false;                 // true: nearest texel; false: bilinear
-    std::vector<uint32_t> rgba8;          // packed R | G<<8 | B<<16 | A<<24
+    bool nearest = false;         // true: nearest texel; false: bilinear
+    std::vector<uint32_t> rgba8;  // packed R | G<<8 | B<<16 | A<<24
 };
 
 // Triangles of all meshes, transformed to world space. Vertex attributes are per vertex;
@@ -78,7 +77,7 @@ struct PunctualLight {
     float intensity = 1.0f;
     float innerConeAngleRad = 0.0f;
     float outerConeAngleRad = 0.7853981633974483f;
-    float range = 0.0f;                      // 0 = infinite
+    float range = 0.0f;  // 0 = infinite
     // A light of the real set (its node's role is real): it lights both solutions of
     // differential rendering. Otherwise a virtual (artistic) light: the mixed solution only.
     bool isReal = false;
@@ -88,7 +87,7 @@ struct Camera {
     std::string name;
     glm::mat4 worldFromCamera{1.0f};
     float fovYRad = 0.8f;
-    float aspectRatio = 0.0f;                // 0 = from the image size
+    float aspectRatio = 0.0f;  // 0 = from the image size
     float apertureRadiusM = 0.0f;
     float focusDistanceM = 1.0f;
 };

@@ -12,14 +12,12 @@
 #include <utility>
 #include <vector>
 
-
 #include "config/toml_reader.h"
 #include "scene/environment_map.h"
 #include "scene/gltf_loader.h"
 
 namespace previs {
 namespace {
-
 
 // The only format version so far; a file must say which one it is written for, so a later
 // format can change meanings without old files silently rendering differently.
@@ -71,8 +69,9 @@ Status DescriptionReader::parseRoles(const toml::table& roles, Description& d) c
         if (!node) continue;
         const toml::array* patterns = node->as_array();
         if (!patterns)
-            return fail(node, "'roles.{}' must be an array of glob patterns (e.g. {} = "
-                              "[\"Table*\"]), not {}",
+            return fail(node,
+                        "'roles.{}' must be an array of glob patterns (e.g. {} = "
+                        "[\"Table*\"]), not {}",
                         key, key, tomlTypeName(*node));
         for (size_t i = 0; i < patterns->size(); ++i) {
             const toml::node& element = *patterns->get(i);
@@ -90,7 +89,8 @@ Status DescriptionReader::parseRoles(const toml::table& roles, Description& d) c
 }
 
 Status DescriptionReader::parse(const toml::table& root, Description& d) const {
-    if (Status s = r_.checkKeys(root, "", {"version", "gltf", "environment", "roles", "camera"}); !s)
+    if (Status s = r_.checkKeys(root, "", {"version", "gltf", "environment", "roles", "camera"});
+        !s)
         return s;
 
     const toml::node* version = root.get("version");
@@ -98,8 +98,7 @@ Status DescriptionReader::parse(const toml::table& root, Description& d) const {
         return fail(nullptr, "missing key 'version' (start the file with `version = {}`)",
                     kFormatVersion);
     const toml::value<int64_t>* v = version->as_integer();
-    if (!v)
-        return fail(version, "'version' must be an integer, not {}", tomlTypeName(*version));
+    if (!v) return fail(version, "'version' must be an integer, not {}", tomlTypeName(*version));
     if (v->get() != kFormatVersion)
         return fail(version,
                     "'version' is {}, but this previs reads version {} only (write the file for "
@@ -109,8 +108,9 @@ Status DescriptionReader::parse(const toml::table& root, Description& d) const {
     Result<std::optional<std::string>> gltf = r_.string(root, "", "gltf");
     if (!gltf) return gltf.error();
     if (!*gltf)
-        return fail(nullptr, "missing key 'gltf' (the scene's .gltf/.glb file, e.g. "
-                             "gltf = \"scene.gltf\")");
+        return fail(nullptr,
+                    "missing key 'gltf' (the scene's .gltf/.glb file, e.g. "
+                    "gltf = \"scene.gltf\")");
     d.gltfNode = root.get("gltf");
     Result<std::string> gltfPath = r_.file(*d.gltfNode, "gltf", **gltf, {".gltf", ".glb"}, "glTF");
     if (!gltfPath) return gltfPath.error();
@@ -128,8 +128,8 @@ Status DescriptionReader::parse(const toml::table& root, Description& d) const {
         if (**map == kStudioEnvironment) {
             d.environmentPath = kStudioEnvironment;  // the bundled one, not a file
         } else {
-            Result<std::string> mapPath = r_.file(*env->get("map"), "environment.map", **map,
-                                                  {".exr", ".hdr"}, "linear HDR");
+            Result<std::string> mapPath =
+                r_.file(*env->get("map"), "environment.map", **map, {".exr", ".hdr"}, "linear HDR");
             if (!mapPath) return mapPath.error();
             d.environmentPath = std::move(*mapPath);
         }
@@ -159,7 +159,8 @@ Status DescriptionReader::parse(const toml::table& root, Description& d) const {
     if (!camera) return camera.error();
     if (const toml::table* cam = *camera) {
         d.cameraTable = cam;
-        if (Status s = r_.checkKeys(*cam, "camera", {"name", "aperture_radius_m", "focus_distance_m"});
+        if (Status s =
+                r_.checkKeys(*cam, "camera", {"name", "aperture_radius_m", "focus_distance_m"});
             !s)
             return s;
         Result<std::optional<std::string>> name = r_.string(*cam, "camera", "name");
@@ -167,8 +168,9 @@ Status DescriptionReader::parse(const toml::table& root, Description& d) const {
         d.cameraName = std::move(*name);
         d.cameraNameNode = cam->get("name");
         if (d.cameraName && d.cameraName->empty())
-            return fail(d.cameraNameNode, "'camera.name' is empty; name a camera of the glTF "
-                                          "file or leave the key out");
+            return fail(d.cameraNameNode,
+                        "'camera.name' is empty; name a camera of the glTF "
+                        "file or leave the key out");
 
         Result<std::optional<double>> aperture = r_.number(*cam, "camera", "aperture_radius_m");
         if (!aperture) return aperture.error();
@@ -253,9 +255,10 @@ Result<Scene> loadScene(const std::string& path) {
     const std::string ext = lowerExtension(path);
     if (ext == ".gltf" || ext == ".glb") return loadGltf(path);
     if (ext == ".toml") return loadSceneDescription(path);
-    return makeError("cannot load scene '{}': unsupported file type '{}' (accepted: .gltf, .glb "
-                     "or a previs.toml scene description)",
-                     path, ext.empty() ? std::string("(none)") : ext);
+    return makeError(
+        "cannot load scene '{}': unsupported file type '{}' (accepted: .gltf, .glb "
+        "or a previs.toml scene description)",
+        path, ext.empty() ? std::string("(none)") : ext);
 }
 
 }  // namespace previs

@@ -28,8 +28,7 @@ Result<std::optional<double>> numberIn(const TomlReader& r, const toml::table& t
 }
 
 // `count` numbers each within [-limit, limit].
-Result<std::optional<std::vector<double>>> numbersWithin(const TomlReader& r,
-                                                         const toml::table& t,
+Result<std::optional<std::vector<double>>> numbersWithin(const TomlReader& r, const toml::table& t,
                                                          std::string_view section,
                                                          std::string_view key, size_t count,
                                                          double limit) {
@@ -54,8 +53,8 @@ Result<BoardTag> readTag(const TomlReader& r, const toml::table& t, size_t index
     if (!id) return id.error();
     if (!*id) return r.fail(&t, "[[tag]] number {} has no 'id' (an integer)", index + 1);
     if (**id < 0 || **id > kMaxBoardTagId)
-        return r.fail(t.get("id"), "'{}.id' is {}; it must be an integer in [0, {}]", section,
-                      **id, kMaxBoardTagId);
+        return r.fail(t.get("id"), "'{}.id' is {}; it must be an integer in [0, {}]", section, **id,
+                      kMaxBoardTagId);
     tag.id = int(**id);
 
     Result<std::optional<double>> size = numberIn(r, t, section, "size_m", 0.0, kMaxTagSizeM, true);
@@ -67,8 +66,9 @@ Result<BoardTag> readTag(const TomlReader& r, const toml::table& t, size_t index
 
     const bool hasMatrix = t.contains("world_from_tag");
     if (hasMatrix && (t.contains("position_m") || t.contains("rotation_deg")))
-        return r.fail(&t, "tag {}: give either 'world_from_tag' or 'position_m'/'rotation_deg', "
-                          "not both",
+        return r.fail(&t,
+                      "tag {}: give either 'world_from_tag' or 'position_m'/'rotation_deg', "
+                      "not both",
                       tag.id);
     if (hasMatrix) {
         Result<std::optional<std::vector<double>>> m =

@@ -4,7 +4,6 @@
 #include <cmath>
 #include <limits>
 #include <map>
-
 #include <opencv2/calib3d.hpp>
 
 #include "base/log.h"
@@ -177,13 +176,10 @@ Result<Tracker> Tracker::create(const TagDetectorSettings& detectorSettings, Tag
                                 CameraCalibration calibration, TrackerSettings settings) {
     Result<TagDetector> detector = TagDetector::create(detectorSettings);
     if (!detector) return detector.error();
-    return Tracker(std::move(detector).value(), std::move(board), std::move(calibration),
-                   settings);
+    return Tracker(std::move(detector).value(), std::move(board), std::move(calibration), settings);
 }
 
-const TrackingState& Tracker::track(const cv::Mat& gray) {
-    return update(detector_.detect(gray));
-}
+const TrackingState& Tracker::track(const cv::Mat& gray) { return update(detector_.detect(gray)); }
 
 const TrackingState& Tracker::update(const std::vector<TagDetection>& detections) {
     std::optional<BoardPose> pose = estimateBoardPose(detections, board_, calibration_);
@@ -191,18 +187,18 @@ const TrackingState& Tracker::update(const std::vector<TagDetection>& detections
     if (!pose)
         reason = detections.empty() ? "no tags detected" : "no tag of the board detected";
     else if (int(pose->tagIds.size()) < settings_.minTags)
-        reason = fmt::format("{} board tag(s) seen, {} needed", pose->tagIds.size(),
-                             settings_.minTags);
+        reason =
+            fmt::format("{} board tag(s) seen, {} needed", pose->tagIds.size(), settings_.minTags);
     else if (pose->reprojErrorPx > settings_.maxReprojErrorPx)
         reason = fmt::format("reprojection error {:.2f} px over the {:.2f} px limit",
                              pose->reprojErrorPx, settings_.maxReprojErrorPx);
     else if (!(pose->positionStdM <= settings_.maxPositionStdFraction * pose->distanceM) ||
              !(pose->rotationStdDeg <= settings_.maxRotationStdDeg))
-        reason = fmt::format("pose ill-conditioned ({} tag(s) seen): uncertain by {:.1f}% of "
-                             "the distance and {:.2f} deg, limits {:.1f}% and {:.2f} deg",
-                             pose->tagIds.size(), 100.0 * pose->positionStdM / pose->distanceM,
-                             pose->rotationStdDeg, 100.0 * settings_.maxPositionStdFraction,
-                             settings_.maxRotationStdDeg);
+        reason = fmt::format(
+            "pose ill-conditioned ({} tag(s) seen): uncertain by {:.1f}% of "
+            "the distance and {:.2f} deg, limits {:.1f}% and {:.2f} deg",
+            pose->tagIds.size(), 100.0 * pose->positionStdM / pose->distanceM, pose->rotationStdDeg,
+            100.0 * settings_.maxPositionStdFraction, settings_.maxRotationStdDeg);
 
     if (reason.empty()) {
         if (state_.lost && everGood_)
@@ -213,8 +209,7 @@ const TrackingState& Tracker::update(const std::vector<TagDetection>& detections
         state_.framesSinceGood = 0;
         state_.reason.clear();
     } else {
-        if (!state_.lost)
-            logWarning("tracking lost ({}); holding the last good pose", reason);
+        if (!state_.lost) logWarning("tracking lost ({}); holding the last good pose", reason);
         state_.lost = true;
         ++state_.framesSinceGood;
         state_.reason = std::move(reason);

@@ -4,11 +4,10 @@
 // refinement), and a Tracker that holds the last good pose when tracking is lost.
 
 #include <cstdint>
+#include <opencv2/core.hpp>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <opencv2/core.hpp>
 
 #include "base/result.h"
 #include "vision/camera_calibration.h"

@@ -9,10 +9,9 @@
 #include <cmath>
 #include <cstdint>
 #include <exception>
+#include <opencv2/calib3d.hpp>
 #include <thread>
 #include <utility>
-
-#include <opencv2/calib3d.hpp>
 
 namespace previs {
 
@@ -119,9 +118,10 @@ Result<CameraCalibration> CameraCalibration::load(const std::string& path) {
             const cv::FileNode cols = node["cols"];
             if (!rows.isInt() || !cols.isInt() || int(rows) < 0 || int(cols) < 0 ||
                 int64_t(int(rows)) * int(cols) > maxElements)
-                return makeError("{}: {} must be an !!opencv-matrix of at most {} elements with "
-                                 "integer rows and cols",
-                                 path, key, maxElements);
+                return makeError(
+                    "{}: {} must be an !!opencv-matrix of at most {} elements with "
+                    "integer rows and cols",
+                    path, key, maxElements);
         }
         cv::Mat k;
         cv::Mat d;
@@ -151,7 +151,8 @@ Result<CameraCalibration> CameraCalibration::load(const std::string& path) {
         std::vector<double> dist;
         if (!d.empty()) {
             if (d.rows != 1 && d.cols != 1)
-                return makeError("{}: distortion_coefficients must be a row or column vector", path);
+                return makeError("{}: distortion_coefficients must be a row or column vector",
+                                 path);
             cv::Mat d64;
             d.convertTo(d64, CV_64F);
             d64 = d64.reshape(1, 1);
@@ -159,7 +160,8 @@ Result<CameraCalibration> CameraCalibration::load(const std::string& path) {
         }
         return create(km, std::move(dist), cv::Size(width, height), model, path);
     } catch (const cv::Exception& e) {
-        return makeError("cannot parse camera calibration '{}': {} (expected OpenCV YAML/XML)", path, e.err);
+        return makeError("cannot parse camera calibration '{}': {} (expected OpenCV YAML/XML)",
+                         path, e.err);
     } catch (const std::exception& e) {  // std::bad_alloc from a hostile size, and the like
         return makeError("cannot parse camera calibration '{}': {} (expected OpenCV YAML/XML)",
                          path, e.what());

@@ -4,10 +4,9 @@
 // a YAML/XML file with camera_matrix, distortion_coefficients, image_width, image_height and, for
 // the Kannala–Brandt fisheye model of cv::fisheye, `distortion_model: fisheye`.
 
+#include <opencv2/core.hpp>
 #include <string>
 #include <vector>
-
-#include <opencv2/core.hpp>
 
 #include "base/result.h"
 

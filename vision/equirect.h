@@ -6,7 +6,6 @@
 
 #include <algorithm>
 #include <cmath>
-
 #include <opencv2/core.hpp>
 
 namespace previs {

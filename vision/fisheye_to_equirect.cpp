@@ -1,7 +1,6 @@
 #include "vision/fisheye_to_equirect.h"
 
 #include <cmath>
-
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -68,8 +67,7 @@ Result<FisheyeToEquirect> FisheyeToEquirect::create(const CameraCalibration& cal
         if (!std::isfinite(settings.mountRotationDeg[i]))
             return makeError("--mount-rotation: angles must be finite numbers (degrees)");
     if (!(settings.maxFieldAngleDeg > 0.0 && settings.maxFieldAngleDeg <= 180.0))
-        return makeError("max field angle {}°: must be within (0, 180]",
-                         settings.maxFieldAngleDeg);
+        return makeError("max field angle {}°: must be within (0, 180]", settings.maxFieldAngleDeg);
 
     FisheyeToEquirect f;
     f.cameraMatrix_ = calibration.cameraMatrix();
@@ -77,9 +75,8 @@ Result<FisheyeToEquirect> FisheyeToEquirect::create(const CameraCalibration& cal
     f.model_ = calibration.model();
     f.imageSize_ = calibration.imageSize();
     f.settings_ = settings;
-    f.worldFromFisheye_ = rotationFromEulerDeg(settings.mountRotationDeg[0],
-                                               settings.mountRotationDeg[1],
-                                               settings.mountRotationDeg[2]);
+    f.worldFromFisheye_ = rotationFromEulerDeg(
+        settings.mountRotationDeg[0], settings.mountRotationDeg[1], settings.mountRotationDeg[2]);
     f.maxThetaRad_ = settings.maxFieldAngleDeg * M_PI / 180.0;
     if (f.model_ == DistortionModel::Fisheye) {
         // Past the angle where θd(θ) stops growing, two directions share a pixel: stop there.
@@ -137,9 +134,10 @@ Result<cv::Mat> FisheyeToEquirect::apply(const cv::Mat& linearRgb) const {
     if (linearRgb.type() != CV_32FC3)
         return makeError("fisheye frame: expected linear float RGB (CV_32FC3)");
     if (linearRgb.size() != imageSize_)
-        return makeError("fisheye frame is {}x{} but the calibration is for {}x{}; use the "
-                         "calibration of this camera mode",
-                         linearRgb.cols, linearRgb.rows, imageSize_.width, imageSize_.height);
+        return makeError(
+            "fisheye frame is {}x{} but the calibration is for {}x{}; use the "
+            "calibration of this camera mode",
+            linearRgb.cols, linearRgb.rows, imageSize_.width, imageSize_.height);
     cv::Mat clean = linearRgb.clone();
     for (int y = 0; y < clean.rows; ++y) {
         float* p = clean.ptr<float>(y);

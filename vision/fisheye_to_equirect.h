@@ -3,10 +3,9 @@
 // Fisheye frame → equirectangular environment map (DESIGN.md §3 `previs envmap`, §4
 // orientation) through a lookup built once per calibration, mount and size.
 
+#include <opencv2/core.hpp>
 #include <optional>
 #include <vector>
-
-#include <opencv2/core.hpp>
 
 #include "base/result.h"
 #include "vision/camera_calibration.h"
@@ -45,7 +44,7 @@ public:
     // pixel centre), -1 where unseen.
     const cv::Mat& mapX() const { return mapX_; }
     const cv::Mat& mapY() const { return mapY_; }
-    const cv::Mat& seenMask() const { return seen_; }  // CV_8U, 255 = seen
+    const cv::Mat& seenMask() const { return seen_; }      // CV_8U, 255 = seen
     double seenFraction() const { return seenFraction_; }  // of the sphere's solid angle
     const cv::Matx33d& worldFromFisheye() const { return worldFromFisheye_; }
     int width() const { return mapX_.cols; }
@@ -74,8 +73,8 @@ private:
     cv::Mat fixedMap1_;  // the lookup as cv::convertMaps fixed point, for remap's fast path
     cv::Mat fixedMap2_;
     double seenFraction_ = 0.0;
-    std::vector<int> ringTexels_;       // map texel indices in the fill ring
-    std::vector<float> ringWeights_;    // their solid angles
+    std::vector<int> ringTexels_;     // map texel indices in the fill ring
+    std::vector<float> ringWeights_;  // their solid angles
 };
 
 }  // namespace previs

@@ -10,7 +10,6 @@ namespace previs {
 
 namespace {
 
-
 // L_w / L_d of banterleInverseCurve. The paper's form L_d − 1 + √((1 − L_d)² + 4·L_d/L_white²)
 // cancels catastrophically for small L_d (two terms ≈ ±1; in float the relative error is
 // ~1e-7/L_d, 1e-3 at L_d = 1e-4); multiplying by the conjugate gives
@@ -89,8 +88,7 @@ ImageF inverseToneMap(const ImageF& image, const InverseToneMapSettings& setting
     for (size_t i = 0; i < n; ++i) {
         const float* p = image.pixels.data() + i * image.channels;
         float rgb[3];
-        for (int c = 0; c < 3; ++c)
-            rgb[c] = srgbDecode(sanitize(p[image.channels >= 3 ? c : 0]));
+        for (int c = 0; c < 3; ++c) rgb[c] = srgbDecode(sanitize(p[image.channels >= 3 ? c : 0]));
         untonemap(rgb, settings, exposureScale);
         float* q = out.pixels.data() + i * out.channels;
         q[0] = rgb[0];

@@ -7,10 +7,9 @@
 // (previs envmap) and for plates, so both end in the same units (docs/radiometric-calibration.md).
 
 #include <array>
+#include <opencv2/core.hpp>
 #include <optional>
 #include <string>
-
-#include <opencv2/core.hpp>
 
 #include "image/image.h"
 

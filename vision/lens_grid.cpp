@@ -1,7 +1,6 @@
 #include "vision/lens_grid.h"
 
 #include <cmath>
-
 #include <opencv2/calib3d.hpp>
 
 namespace previs {
@@ -10,8 +9,10 @@ Result<std::vector<glm::vec2>> lensRayGrid(const CameraCalibration& calibration,
                                            uint32_t height) {
     cv::Size size = calibration.imageSize();
     if (size.width != int(width) || size.height != int(height))
-        return makeError("the camera calibration is for {}x{} images but the render is {}x{}; "
-                         "render at the calibrated size", size.width, size.height, width, height);
+        return makeError(
+            "the camera calibration is for {}x{} images but the render is {}x{}; "
+            "render at the calibrated size",
+            size.width, size.height, width, height);
     std::vector<cv::Point2d> corners;
     corners.reserve(size_t(width + 1) * (height + 1));
     for (uint32_t j = 0; j <= height; ++j)
@@ -24,10 +25,9 @@ Result<std::vector<glm::vec2>> lensRayGrid(const CameraCalibration& calibration,
         } else {
             // Iterate to convergence: the default 5 iterations leave pixel-sized errors at the
             // corners of wide lenses.
-            cv::undistortPoints(corners, normalised, k, calibration.distortion(), cv::noArray(),
-                                cv::noArray(),
-                                cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS,
-                                                 200, 1e-14));
+            cv::undistortPoints(
+                corners, normalised, k, calibration.distortion(), cv::noArray(), cv::noArray(),
+                cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 200, 1e-14));
         }
     } catch (const cv::Exception& e) {
         return makeError("cannot invert the lens model: {}", e.what());
@@ -36,8 +36,9 @@ Result<std::vector<glm::vec2>> lensRayGrid(const CameraCalibration& calibration,
     grid.reserve(normalised.size());
     for (const auto& p : normalised) {
         if (!std::isfinite(p.x) || !std::isfinite(p.y))
-            return makeError("the lens model has no ray for some image corner (field of view at "
-                             "or beyond 180°?)");
+            return makeError(
+                "the lens model has no ray for some image corner (field of view at "
+                "or beyond 180°?)");
         grid.emplace_back(float(p.x), float(p.y));
     }
     return grid;

@@ -6,10 +6,9 @@
 // line up with the camera image without resampling it (issue: "real camera lenses").
 
 #include <cstdint>
-#include <vector>
-
 #include <glm/glm.hpp>
 #include <opencv2/core.hpp>
+#include <vector>
 
 #include "base/result.h"
 #include "vision/camera_calibration.h"

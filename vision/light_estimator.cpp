@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
-
 #include <opencv2/imgproc.hpp>
 
 #include "base/guarded_thread.h"
@@ -14,7 +13,6 @@
 namespace previs {
 
 namespace {
-
 
 struct UnionFind {
     std::vector<int> parent;
@@ -98,8 +96,8 @@ Result<LightingSnapshot> LightEstimator::estimate(const cv::Mat& radiance) const
         }
     }
     const double meanLuminance = luminancePower / (4.0 * M_PI);
-    snap.thresholdLuminance = std::max(settings_.meanFactor * meanLuminance,
-                                       settings_.maxFraction * maxLuminance);
+    snap.thresholdLuminance =
+        std::max(settings_.meanFactor * meanLuminance, settings_.maxFraction * maxLuminance);
 
     if (maxLuminance > 0.0) {
         cv::Mat mask = luminance > snap.thresholdLuminance;
@@ -194,10 +192,12 @@ LightingEstimator::LightingEstimator(const LightEstimatorSettings& settings)
           // estimate) the last good lighting stays and the loop goes on.
           for (bool failed = true; failed;) {
               failed = false;
-              runGuarded("lighting estimation", [this] { run(); }, [&](const std::string&) {
-                  failed = true;
-                  ++failed_;
-              });
+              runGuarded(
+                  "lighting estimation", [this] { run(); },
+                  [&](const std::string&) {
+                      failed = true;
+                      ++failed_;
+                  });
           }
       }) {}
 

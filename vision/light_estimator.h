@@ -8,15 +8,14 @@
 #include <atomic>
 #include <cstdint>
 #include <memory>
+#include <opencv2/core.hpp>
 #include <string>
 #include <thread>
 #include <vector>
 
-#include <opencv2/core.hpp>
-
+#include "base/latest_value_slot.h"
 #include "base/result.h"
 #include "scene/scene.h"
-#include "base/latest_value_slot.h"
 
 namespace previs {
 
@@ -49,7 +48,7 @@ struct LightingSnapshot {
     cv::Vec3d residualPower;
     cv::Vec3d totalPower;
     double thresholdLuminance = 0.0;
-    uint64_t sequence = 0;               // of the environment snapshot it was computed from
+    uint64_t sequence = 0;  // of the environment snapshot it was computed from
 };
 
 class LightEstimator {

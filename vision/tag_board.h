@@ -4,11 +4,10 @@
 // read by vision/board_file.h.
 
 #include <array>
+#include <opencv2/core.hpp>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <opencv2/core.hpp>
 
 #include "base/result.h"
 
@@ -16,7 +15,7 @@ namespace previs {
 
 struct BoardTag {
     int id = -1;
-    double sizeM = 0.0;                          // edge of the black square, metres
+    double sizeM = 0.0;                             // edge of the black square, metres
     cv::Matx44d worldFromTag = cv::Matx44d::eye();  // tag frame as estimateTagPose's
 };
 

@@ -1,10 +1,5 @@
 #include "vision/tag_detector.h"
 
-#include <cmath>
-#include <cstdlib>
-#include <cstring>
-#include <utility>
-
 #include <apriltag/apriltag.h>
 #include <apriltag/apriltag_pose.h>
 #include <apriltag/tag16h5.h>
@@ -15,7 +10,12 @@
 #include <apriltag/tagCustom48h12.h>
 #include <apriltag/tagStandard41h12.h>
 #include <apriltag/tagStandard52h13.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
 #include <opencv2/imgproc.hpp>
+#include <utility>
 
 #include "base/log.h"
 #include "vision/camera_calibration.h"
@@ -89,7 +89,8 @@ Result<TagDetector> TagDetector::create(const TagDetectorSettings& settings) {
         if (settings.family == f.name) entry = &f;
     if (!entry) {
         std::string list;
-        for (const FamilyEntry& f : kFamilies) list += std::string(list.empty() ? "" : ", ") + f.name;
+        for (const FamilyEntry& f : kFamilies)
+            list += std::string(list.empty() ? "" : ", ") + f.name;
         return makeError("--family {}: unknown AprilTag family (supported: {})", settings.family,
                          list);
     }
@@ -151,8 +152,7 @@ std::array<cv::Point3d, 4> tagCornersInTagFrame(double tagSizeM) {
 }
 
 std::optional<cv::Matx44d> estimateTagPose(const TagDetection& detection,
-                                           const CameraCalibration& calibration,
-                                           double tagSizeM) {
+                                           const CameraCalibration& calibration, double tagSizeM) {
     // estimate_tag_pose assumes an ideal pinhole camera: it back-projects p[] with fx, fy, cx, cy
     // only. So the corners are undistorted with the calibration first, and the homography it
     // starts from is recomputed from the undistorted corners (det->H of the raw corners would
@@ -183,8 +183,8 @@ std::optional<cv::Matx44d> estimateTagPose(const TagDetection& detection,
     det.c[0] = MATD_EL(hm.get(), 0, 2) / MATD_EL(hm.get(), 2, 2);
     det.c[1] = MATD_EL(hm.get(), 1, 2) / MATD_EL(hm.get(), 2, 2);
 
-    apriltag_detection_info_t info{&det, tagSizeM, calibration.fx(), calibration.fy(),
-                                   calibration.cx(), calibration.cy()};
+    apriltag_detection_info_t info{
+        &det, tagSizeM, calibration.fx(), calibration.fy(), calibration.cx(), calibration.cy()};
     apriltag_pose_t pose{nullptr, nullptr};
     estimate_tag_pose(&info, &pose);
     MatdPtr rotation(pose.R);

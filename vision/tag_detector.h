@@ -4,11 +4,10 @@
 
 #include <array>
 #include <memory>
+#include <opencv2/core.hpp>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <opencv2/core.hpp>
 
 #include "base/result.h"
 
@@ -22,12 +21,12 @@ class CameraCalibration;
 // Defaults are libapriltag's own (apriltag_detector_create and apriltag_detector_add_family).
 struct TagDetectorSettings {
     std::string family = "tag36h11";
-    float decimate = 2.0f;          // quad_decimate
-    float sigma = 0.0f;             // quad_sigma, Gaussian blur before segmentation, pixels
-    bool refineEdges = true;        // refine_edges
-    double decodeSharpening = 0.25; // decode_sharpening
-    int threads = 1;                // nthreads
-    int bitsCorrected = 2;          // hamming errors corrected (memory grows steeply above 2)
+    float decimate = 2.0f;           // quad_decimate
+    float sigma = 0.0f;              // quad_sigma, Gaussian blur before segmentation, pixels
+    bool refineEdges = true;         // refine_edges
+    double decodeSharpening = 0.25;  // decode_sharpening
+    int threads = 1;                 // nthreads
+    int bitsCorrected = 2;           // hamming errors corrected (memory grows steeply above 2)
 };
 
 // Families Debian's libapriltag 3.3 ships.

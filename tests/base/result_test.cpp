@@ -1,8 +1,8 @@
 // Result: the value of a failed result is a checked programming error, reported with the
 // error's own message (issue 11: never a bare bad_variant_access).
-#include <gtest/gtest.h>
-
 #include "base/result.h"
+
+#include <gtest/gtest.h>
 
 namespace previs {
 namespace {

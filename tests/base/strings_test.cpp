@@ -1,10 +1,11 @@
+#include "base/strings.h"
+
 #include <gtest/gtest.h>
 
 #include <string>
 #include <vector>
 
 #include "base/luminance.h"
-#include "base/strings.h"
 
 namespace previs {
 namespace {

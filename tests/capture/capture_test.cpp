@@ -19,8 +19,8 @@
 #include <stdexcept>
 #include <thread>
 
-#include "capture/camera_source.h"
 #include "base/latest_value_slot.h"
+#include "capture/camera_source.h"
 #include "capture/pixel_format.h"
 #include "capture/recorded_source.h"
 #include "capture/unique_fd.h"

@@ -55,7 +55,8 @@ Result<std::unique_ptr<V4L2Device>> openVivid(const std::string& path, uint32_t 
     if (!dev) return dev;
     // Deterministic frames: a fixed pattern and no timestamp text (vmtest README).
     if (Status s = (*dev)->setControl("Test Pattern", 1); !s) return s.error();
-    if (Status s = (*dev)->setControl("osd_text_mode", 2); !s) return s.error();  // v4l2-ctl's name form
+    if (Status s = (*dev)->setControl("osd_text_mode", 2); !s)
+        return s.error();  // v4l2-ctl's name form
     return dev;
 }
 

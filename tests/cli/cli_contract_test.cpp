@@ -5,11 +5,10 @@
 // terminal), --quiet and --version.
 #include <gtest/gtest.h>
 
-#include <nlohmann/json.hpp>
-
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
@@ -22,9 +21,9 @@ namespace previs {
 namespace {
 
 namespace fs = std::filesystem;
+using std::chrono::seconds;
 using testing::CommandResult;
 using testing::runCommand;
-using std::chrono::seconds;
 
 const std::string kPrevis = PREVIS_BINARY;
 const std::string kPrevisd = PREVISD_BINARY;
@@ -85,9 +84,9 @@ TEST(CommandLine, UsageErrorsExitTwoWithOneLineNamingTheOption) {
         std::vector<std::string> args;
         std::string named;
     } cases[] = {
-        {{"render", scene}, "--out"},                                        // missing
-        {{"render", scene, "--out", "x.png", "--width", "0"}, "--width"},    // out of range
-        {{"render", scene, "--out", "x.png", "--spp", "ten"}, "--spp"},      // not a number
+        {{"render", scene}, "--out"},                                           // missing
+        {{"render", scene, "--out", "x.png", "--width", "0"}, "--width"},       // out of range
+        {{"render", scene, "--out", "x.png", "--spp", "ten"}, "--spp"},         // not a number
         {{"render", scene, "--out", "x.png", "--frobnicate"}, "--frobnicate"},  // unknown
         {{"render", scene, "--out", "x.png", "--tone-curve", "aces"}, "--tone-curve"},
         {{"envmap", kExamples + "/demo/board.png", "--camera", kExamples + "/demo/fisheye.yaml"},
@@ -137,8 +136,8 @@ TEST(CommandLine, OutputPathIsCheckedBeforeRendering) {
     const std::string scene = kExamples + "/cubes_spheres/scene.gltf";
     const std::string intoMissingFolder = (dir / "no_such_folder" / "out.png").string();
     // The check comes before the device and the BVH: the answer is immediate, no render runs.
-    CommandResult r = previs({"render", scene, "--out", intoMissingFolder, "--spp", "100000"},
-                             seconds(60));
+    CommandResult r =
+        previs({"render", scene, "--out", intoMissingFolder, "--spp", "100000"}, seconds(60));
     EXPECT_EQ(r.exitCode, 2);
     expectOneLineError(r, "no_such_folder");
     CommandResult bad = previs({"render", scene, "--out", (dir / "out.tiff").string()});
@@ -162,8 +161,9 @@ TEST(CommandLine, ProgressIsPlainUnlessOnATerminalAndQuietSilencesIt) {
     const fs::path dir = testing::scratchDir("previs_cli");
     const std::string scene = kExamples + "/cubes_spheres/scene.gltf";
     auto render = [&](bool quiet, bool terminal) {
-        std::vector<std::string> args = {"render", scene, "--width", "32", "--height", "24",
-                                         "--spp", "4", "--out", (dir / "p.png").string()};
+        std::vector<std::string> args = {
+            "render", scene,   "--width", "32",    "--height",
+            "24",     "--spp", "4",       "--out", (dir / "p.png").string()};
         if (quiet) args.push_back("--quiet");
         return previs(args, seconds(300), terminal);
     };
@@ -195,7 +195,8 @@ TEST(CommandLine, LightsJsonHasTheDesignedFieldsAndConservesEnergy) {
     env.pixels.assign(size_t(env.width) * env.height * 3, 0.1f);
     for (uint32_t y = 0; y < 2; ++y)  // the two rows nearest the zenith: θ < 5.6°
         for (uint32_t x = 0; x < env.width; ++x)
-            for (uint32_t c = 0; c < 3; ++c) env.pixels[(size_t(y) * env.width + x) * 3 + c] = 100.0f;
+            for (uint32_t c = 0; c < 3; ++c)
+                env.pixels[(size_t(y) * env.width + x) * 3 + c] = 100.0f;
     const std::string path = (dir / "sun.exr").string();
     ASSERT_TRUE(writeExr(path, env));
 
@@ -226,9 +227,9 @@ TEST(CommandLine, LightsJsonHasTheDesignedFieldsAndConservesEnergy) {
 // view): one object per image, detections with 4 corners, a pose with a 4×4 matrix.
 TEST(CommandLine, TrackJsonHasTheDesignedFields) {
     const std::string frame = kExamples + "/demo/session/cameras/scene/000000000000.jpg";
-    CommandResult r = previs({"track", frame, frame, "--camera", kExamples +
-                              "/demo/scene_camera.yaml", "--board", kExamples + "/demo/board.toml",
-                              "--json", "--quiet"});
+    CommandResult r =
+        previs({"track", frame, frame, "--camera", kExamples + "/demo/scene_camera.yaml", "--board",
+                kExamples + "/demo/board.toml", "--json", "--quiet"});
     ASSERT_EQ(r.exitCode, 0) << r.err;
     EXPECT_EQ(r.err, "");
     EXPECT_EQ(lineCount(r.out), 2u);  // one object per image

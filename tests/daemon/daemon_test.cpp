@@ -15,10 +15,10 @@
 #include "daemon/mode_machine.h"
 #include "daemon/pipeline_stages.h"
 #include "daemon/recorded_events.h"
-#include "vision/lens_grid.h"
 #include "daemon/service.h"
 #include "tests/support/temp_dir.h"
 #include "tests/support/test_data.h"
+#include "vision/lens_grid.h"
 
 namespace previs {
 namespace {

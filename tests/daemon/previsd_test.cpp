@@ -423,7 +423,7 @@ TEST(ReplayErrors, FramesOfAnotherSizeThanTheCalibrationAreNotTracked) {
         ASSERT_NE(at, std::string::npos) << text;
         text.replace(at, from.size(),
                      "width = 1280\nheight = 720\ncalibration = \"" +
-                         testing::sourcePath("examples/box/scene_camera.yaml")+"\"");
+                         testing::sourcePath("examples/box/scene_camera.yaml") + "\"");
         std::ofstream(config) << text;
     }
     const std::string out = (scratch() / "wrong_size_out").string();

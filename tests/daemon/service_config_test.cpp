@@ -2,13 +2,13 @@
 // kind of user error (one message naming the file, the line and the key, and what to do).
 #include "daemon/service_config.h"
 
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <string>
-
-#include <fmt/format.h>
-#include <gtest/gtest.h>
 
 #include "tests/support/temp_dir.h"
 #include "tests/support/test_data.h"
@@ -128,10 +128,10 @@ board = "{0}/board.toml"
 }
 
 TEST(ServiceConfig, LibcameraCameraTakesItsTypedControls) {
-    const std::string text = replaced(
-        minimal("format = \"BGR888\"\n[cameras.scene.controls]\nexposure_time_us = 8000\n"
-                "analogue_gain = 2.5\ncolour_gains = [1.9, 1.4]"),
-        "device = \"/dev/video0\"", "source = \"libcamera\"\ndevice = \"imx477\"");
+    const std::string text =
+        replaced(minimal("format = \"BGR888\"\n[cameras.scene.controls]\nexposure_time_us = 8000\n"
+                         "analogue_gain = 2.5\ncolour_gains = [1.9, 1.4]"),
+                 "device = \"/dev/video0\"", "source = \"libcamera\"\ndevice = \"imx477\"");
     Result<ServiceConfig> c = loadServiceConfig(writeFile("libcamera.toml", text));
     ASSERT_TRUE(c) << c.message();
     const CameraConfig& camera = c->sceneCamera;
@@ -177,7 +177,8 @@ TEST_P(ServiceConfigErrors, NameTheFileTheKeyAndTheFix) {
 std::vector<BadConfig> badConfigs() {
     const std::string e = kExamples;
     // A calibration that exists but is broken, and a board with a duplicate id.
-    const std::string brokenCalibration = writeFile("broken.yaml", "%YAML:1.0\n---\nimage_width: 3\n");
+    const std::string brokenCalibration =
+        writeFile("broken.yaml", "%YAML:1.0\n---\nimage_width: 3\n");
     const std::string duplicateBoard = writeFile("dup_board.toml", R"(tag_size_m = 0.1
 [[tag]]
 id = 4
@@ -192,82 +193,112 @@ position_m = [1, 0, 0]
         {"new_version", replaced(minimal(), "version = 1", "version = 2"), {"line 1", "'version'"}},
         {"typo_top", "sceen = 1\n" + minimal(), {"unknown key 'sceen'", "valid top-level"}},
         {"typo_camera", minimal("widht = 3"), {"line 8", "unknown key 'widht' in [cameras.scene]"}},
-        {"no_scene_camera", fmt::format("version = 1\nscene = \"{}/../cubes_spheres/scene.gltf\"\n",
-                                        e),
+        {"no_scene_camera",
+         fmt::format("version = 1\nscene = \"{}/../cubes_spheres/scene.gltf\"\n", e),
          {"missing [cameras.scene]"}},
-        {"missing_scene_file", replaced(minimal(), "scene.gltf", "nothere.gltf"),
+        {"missing_scene_file",
+         replaced(minimal(), "scene.gltf", "nothere.gltf"),
          {"'scene'", "does not exist"}},
         {"bad_source", minimal("source = \"usb\""), {"'cameras.scene.source' is 'usb'", "v4l2"}},
-        {"no_device", replaced(minimal(), "device = \"/dev/video0\"", ""),
+        {"no_device",
+         replaced(minimal(), "device = \"/dev/video0\"", ""),
          {"[cameras.scene] needs 'device'"}},
-        {"zero_width", replaced(minimal(), "width = 1280", "width = 0"),
+        {"zero_width",
+         replaced(minimal(), "width = 1280", "width = 0"),
          {"'cameras.scene.width' is 0"}},
-        {"string_width", replaced(minimal(), "width = 1280", "width = \"1280\""),
+        {"string_width",
+         replaced(minimal(), "width = 1280", "width = \"1280\""),
          {"'cameras.scene.width' must be an integer, not a string"}},
-        {"bad_format", minimal("format = \"RGGB\""),
+        {"bad_format",
+         minimal("format = \"RGGB\""),
          {"'cameras.scene.format' is 'RGGB'", "supported:"}},
         {"negative_fps", minimal("fps = -1"), {"'cameras.scene.fps' is -1"}},
-        {"control_not_int", minimal("controls = { Gain = \"high\" }"),
+        {"control_not_int",
+         minimal("controls = { Gain = \"high\" }"),
          {"'cameras.scene.controls.\"Gain\"' must be an integer"}},
-        {"no_calibration", replaced(minimal(), fmt::format("calibration = \"{}/scene_camera.yaml\"", e), ""),
+        {"no_calibration",
+         replaced(minimal(), fmt::format("calibration = \"{}/scene_camera.yaml\"", e), ""),
          {"[cameras.scene] needs 'calibration'"}},
         {"broken_calibration",
          replaced(minimal(), fmt::format("{}/scene_camera.yaml", e), brokenCalibration),
          {"'cameras.scene.calibration'", brokenCalibration}},
-        {"calibration_size", replaced(minimal(), "width = 1280", "width = 1920"),
+        {"calibration_size",
+         replaced(minimal(), "width = 1280", "width = 1920"),
          {"made at 1280x720", "configured 1920x720", "calibrate at the capture size"}},
-        {"bad_tone_curve", minimal("[cameras.scene.radiometry]\ntone_curve = \"aces\""),
+        {"bad_tone_curve",
+         minimal("[cameras.scene.radiometry]\ntone_curve = \"aces\""),
          {"'cameras.scene.radiometry.tone_curve' is 'aces'", "banterle"}},
-        {"negative_gain", minimal("[cameras.scene.radiometry]\nwhite_balance = [1, -1, 1]"),
+        {"negative_gain",
+         minimal("[cameras.scene.radiometry]\nwhite_balance = [1, -1, 1]"),
          {"'cameras.scene.radiometry.white_balance'", "for G", "> 0"}},
-        {"short_gain", minimal("[cameras.scene.radiometry]\nwhite_balance = [1, 1]"),
+        {"short_gain",
+         minimal("[cameras.scene.radiometry]\nwhite_balance = [1, 1]"),
          {"array of 3 numbers", "2 elements"}},
-        {"zero_max_radiance", minimal("[cameras.scene.radiometry]\nmax_radiance = 0"),
+        {"zero_max_radiance",
+         minimal("[cameras.scene.radiometry]\nmax_radiance = 0"),
          {"'cameras.scene.radiometry.max_radiance' is 0", "(0,"}},
-        {"no_board", replaced(minimal(), fmt::format("board = \"{}/board.toml\"", e), ""),
+        {"no_board",
+         replaced(minimal(), fmt::format("board = \"{}/board.toml\"", e), ""),
          {"[tracking] needs 'board'"}},
-        {"duplicate_board", replaced(minimal(), fmt::format("{}/board.toml", e), duplicateBoard),
+        {"duplicate_board",
+         replaced(minimal(), fmt::format("{}/board.toml", e), duplicateBoard),
          {"'tracking.board'", "id 4"}},
-        {"unknown_family", minimal("", "family = \"tag99h99\""),
+        {"unknown_family",
+         minimal("", "family = \"tag99h99\""),
          {"'tracking.family' is 'tag99h99'", "tag36h11"}},
-        {"family_mismatch", minimal("", "family = \"tag25h9\""),
-         {"made of tag36h11 tags"}},
+        {"family_mismatch", minimal("", "family = \"tag25h9\""), {"made of tag36h11 tags"}},
         {"bad_decimate", minimal("", "decimate = 0.5"), {"'tracking.decimate' is 0.5"}},
-        {"bad_lighting_mode", minimal("", "[lighting]\nmode = \"sun\""),
+        {"bad_lighting_mode",
+         minimal("", "[lighting]\nmode = \"sun\""),
          {"'lighting.mode' is 'sun'", "environment or lights"}},
-        {"odd_map", minimal("", "[lighting]\nmap_width = 511"), {"'lighting.map_width' is 511", "even"}},
+        {"odd_map",
+         minimal("", "[lighting]\nmap_width = 511"),
+         {"'lighting.map_width' is 511", "even"}},
         {"same_device",
          minimal("[cameras.fisheye]\ndevice = \"/dev/video0\"\nwidth = 640\nheight = 480\n"
-                 "calibration = \"" + e + "/fisheye.yaml\""),
+                 "calibration = \"" +
+                 e + "/fisheye.yaml\""),
          {"both use '/dev/video0'"}},
-        {"mount_on_scene", minimal("mount_rotation_deg = [0, 0, 0]"),
+        {"mount_on_scene",
+         minimal("mount_rotation_deg = [0, 0, 0]"),
          {"unknown key 'mount_rotation_deg' in [cameras.scene]"}},
-        {"session_without_index", minimal("source = \"session\""),
+        {"session_without_index",
+         minimal("source = \"session\""),
          {"not a recorded camera folder", "index.csv"}},
         // The service's own sections (issue 7).
-        {"render_half_size", minimal("", "[render]\nwidth = 320"),
+        {"render_half_size",
+         minimal("", "[render]\nwidth = 320"),
          {"[render] needs both 'width' and 'height'"}},
-        {"render_zero_spp", minimal("", "[render]\nsamples_per_frame = 0"),
+        {"render_zero_spp",
+         minimal("", "[render]\nsamples_per_frame = 0"),
          {"'render.samples_per_frame' is 0"}},
         {"render_typo", minimal("", "[render]\nspp = 4"), {"unknown key 'spp' in [render]"}},
-        {"render_photons", minimal("", "[render]\nphotons = \"lots\""),
+        {"render_photons",
+         minimal("", "[render]\nphotons = \"lots\""),
          {"'render.photons'", "auto, on, off or a count"}},
-        {"render_photon_alpha", minimal("", "[render]\nphoton_alpha = 0"),
+        {"render_photon_alpha",
+         minimal("", "[render]\nphoton_alpha = 0"),
          {"'render.photon_alpha' is 0"}},
-        {"refine_negative", minimal("", "[refine]\npose_threshold_m = -1"),
+        {"refine_negative",
+         minimal("", "[refine]\npose_threshold_m = -1"),
          {"'refine.pose_threshold_m' is -1"}},
-        {"output_kind", minimal("", "[output]\nkind = \"hdmi\""),
+        {"output_kind",
+         minimal("", "[output]\nkind = \"hdmi\""),
          {"'output.kind' is 'hdmi'", "kms, files or none"}},
-        {"output_files_no_folder", minimal("", "[output]\nkind = \"files\""),
-         {"needs 'folder'"}},
-        {"output_mode", minimal("", "[output]\nkind = \"kms\"\nmode = \"big\""),
+        {"output_files_no_folder", minimal("", "[output]\nkind = \"files\""), {"needs 'folder'"}},
+        {"output_mode",
+         minimal("", "[output]\nkind = \"kms\"\nmode = \"big\""),
          {"'output.mode' is 'big'", "WIDTHxHEIGHT"}},
-        {"button_no_line", minimal("", "[button]\nchip = \"gpiochip0\""),
+        {"button_no_line",
+         minimal("", "[button]\nchip = \"gpiochip0\""),
          {"[button] needs 'chip'", "'line'"}},
-        {"button_long_short", minimal("", "[button]\nchip = \"c\"\nline = \"l\"\n"
-                                          "debounce_ms = 200\nlong_press_ms = 150"),
+        {"button_long_short",
+         minimal("",
+                 "[button]\nchip = \"c\"\nline = \"l\"\n"
+                 "debounce_ms = 200\nlong_press_ms = 150"),
          {"'button.long_press_ms' (150) must be longer"}},
-        {"until_tracked", minimal("", "until_tracked = \"guess\""),
+        {"until_tracked",
+         minimal("", "until_tracked = \"guess\""),
          {"'tracking.until_tracked' is 'guess'"}},
         {"session_loop_type", minimal("", "[session]\nloop = 1"), {"'session.loop'"}},
     };
@@ -277,7 +308,8 @@ INSTANTIATE_TEST_SUITE_P(Config, ServiceConfigErrors, ::testing::ValuesIn(badCon
                          [](const auto& p) { return std::string(p.param.name); });
 
 TEST(ServiceConfig, ServiceSectionsParse) {
-    const std::string path = writeFile("service_sections.toml", minimal("", R"(until_tracked = "scene-camera"
+    const std::string path =
+        writeFile("service_sections.toml", minimal("", R"(until_tracked = "scene-camera"
 [render]
 width = 320
 height = 180

@@ -3,9 +3,8 @@
 // (readScanout: GETFB2 + MAP_DUMB), as the daemon's VM test reads previsd's screen.
 // Exits 77 (skipped) outside the VM.
 
-#include <gtest/gtest.h>
-
 #include <fcntl.h>
+#include <gtest/gtest.h>
 
 #include <chrono>
 #include <cstdio>

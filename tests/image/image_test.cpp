@@ -1,6 +1,7 @@
-#include "tests/support/temp_dir.h"
-#include "tests/support/test_data.h"
 #include "image/image.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <chrono>
 #include <cstring>
@@ -8,9 +9,8 @@
 #include <fstream>
 #include <limits>
 
-#include <unistd.h>
-
-#include <gtest/gtest.h>
+#include "tests/support/temp_dir.h"
+#include "tests/support/test_data.h"
 
 namespace previs {
 namespace {
@@ -73,7 +73,11 @@ TEST(Image, ErrorsNameTheFileAndProblem) {
     EXPECT_NE(missing.message().find("no such file"), std::string::npos);
 
     const std::string tga = (dir / "x.tga").string();
-    { FILE* f = std::fopen(tga.c_str(), "wb"); std::fputs("x", f); std::fclose(f); }
+    {
+        FILE* f = std::fopen(tga.c_str(), "wb");
+        std::fputs("x", f);
+        std::fclose(f);
+    }
     Result<ImageF> unsupported = readImage(tga);
     ASSERT_FALSE(unsupported.ok());
     EXPECT_NE(unsupported.message().find("x.tga"), std::string::npos);
@@ -95,8 +99,7 @@ TEST(Image, ErrorsNameTheFileAndProblem) {
     EXPECT_NE(noFolder.message().find("out.exr"), std::string::npos);
     EXPECT_NE(noFolder.message().find("does not exist"), std::string::npos);
 
-    Status pngNoFolder =
-        writePng((dir / "no_such_dir" / "out.png").string(), 1, 1, {1, 2, 3});
+    Status pngNoFolder = writePng((dir / "no_such_dir" / "out.png").string(), 1, 1, {1, 2, 3});
     ASSERT_FALSE(pngNoFolder.ok());
     EXPECT_NE(pngNoFolder.message().find("out.png"), std::string::npos);
 
@@ -110,8 +113,8 @@ TEST(Image, ErrorsNameTheFileAndProblem) {
     if (::geteuid() != 0) {
         const auto ro = dir / "readonly";
         std::filesystem::create_directories(ro);
-        std::filesystem::permissions(ro, std::filesystem::perms::owner_read |
-                                             std::filesystem::perms::owner_exec);
+        std::filesystem::permissions(
+            ro, std::filesystem::perms::owner_read | std::filesystem::perms::owner_exec);
         Status denied = writeExr((ro / "x.exr").string(), image);
         ASSERT_FALSE(denied.ok());
         EXPECT_NE(denied.message().find("x.exr"), std::string::npos) << denied.message();
@@ -121,7 +124,6 @@ TEST(Image, ErrorsNameTheFileAndProblem) {
         std::filesystem::permissions(ro, std::filesystem::perms::owner_all);
     }
 }
-
 
 void writeBytes(const std::filesystem::path& path, const std::string& bytes) {
     std::ofstream out(path, std::ios::binary);
@@ -220,8 +222,7 @@ TEST(Image, HdrRunLengthFileDecodes) {
 // Found by fuzz/fuzz_image: a Huffman table of more than 256 codes made stb_image write past
 // its table. Refused before stb sees it, as a file and as a glTF texture.
 TEST(Image, JpegWithOversizedHuffmanTableIsRefused) {
-    const std::string path =
-        testing::sourcePath("tests/image/data/jpeg_huffman_overflow.jpg");
+    const std::string path = testing::sourcePath("tests/image/data/jpeg_huffman_overflow.jpg");
     expectOneLineNaming(readImage(path), "jpeg_huffman_overflow.jpg",
                         "Huffman table of more than 256 codes");
     // The same in a table defined between the scans of a progressive JPEG.
@@ -233,8 +234,7 @@ TEST(Image, JpegWithOversizedHuffmanTableIsRefused) {
     // its counts past the table).
     const std::string cut =
         testing::sourcePath("tests/image/data/jpeg_cut_short_huffman_segment.jpg");
-    expectOneLineNaming(readImage(cut), "jpeg_cut_short_huffman_segment.jpg",
-                        "segment cut short");
+    expectOneLineNaming(readImage(cut), "jpeg_cut_short_huffman_segment.jpg", "segment cut short");
     const std::string bytes = readBytes(path);
     Result<ImageRgba8> texture = decodePngOrJpeg(
         std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()),
@@ -246,8 +246,7 @@ TEST(Image, JpegWithOversizedHuffmanTableIsRefused) {
 
 // Found by fuzz/fuzz_image (see tests/image/data/README.md): read without a crash.
 TEST(Image, PngWithEmptyFirstIdatIsRead) {
-    const std::string path =
-        testing::sourcePath("tests/image/data/png_empty_first_idat.png");
+    const std::string path = testing::sourcePath("tests/image/data/png_empty_first_idat.png");
     Result<ImageF> r = readImage(path);
     if (!r.ok()) {
         EXPECT_NE(r.message().find("png_empty_first_idat.png"), std::string::npos) << r.message();
@@ -280,8 +279,8 @@ TEST(Image, ContentMustMatchTheExtension) {
 // header claiming 100000 x 100000 pixels (40 GB of float RGBA) costs nothing.
 TEST(Image, OversizedImagesAreRefusedBeforeDecoding) {
     const auto dir = tempDir();
-    ASSERT_TRUE(writePng((dir / "wide.png").string(), 64, 8, std::vector<uint8_t>(64 * 8 * 3, 9))
-                    .ok());
+    ASSERT_TRUE(
+        writePng((dir / "wide.png").string(), 64, 8, std::vector<uint8_t>(64 * 8 * 3, 9)).ok());
     ImageLimits small;
     small.maxWidth = 32;
     small.maxHeight = 32;
@@ -312,8 +311,8 @@ TEST(Image, OversizedImagesAreRefusedBeforeDecoding) {
     const std::string key = std::string("dataWindow\0box2i\0", 17);
     const size_t at = exr.find(key);
     ASSERT_NE(at, std::string::npos);
-    const char window[16] = {0, 0, 0, 0, 0, 0, 0, 0, char(0x9f), char(0x86), 1, 0,
-                             char(0x9f), char(0x86), 1, 0};
+    const char window[16] = {0,          0,          0, 0, 0,          0,          0, 0,
+                             char(0x9f), char(0x86), 1, 0, char(0x9f), char(0x86), 1, 0};
     exr.replace(at + key.size() + 4, 16, window, 16);
     writeBytes(dir / "huge.exr", exr);
     expectOneLineNaming(readImage((dir / "huge.exr").string()), "huge.exr",
@@ -325,8 +324,7 @@ TEST(Image, DecodePngOrJpegChecksContentAndSize) {
     const auto dir = tempDir();
     ASSERT_TRUE(writePng((dir / "t.png").string(), 3, 2, std::vector<uint8_t>(18, 200)).ok());
     const std::string png = readBytes(dir / "t.png");
-    const std::span<const uint8_t> bytes(reinterpret_cast<const uint8_t*>(png.data()),
-                                         png.size());
+    const std::span<const uint8_t> bytes(reinterpret_cast<const uint8_t*>(png.data()), png.size());
     Result<ImageRgba8> ok = decodePngOrJpeg(bytes, "texture 0");
     ASSERT_TRUE(ok.ok()) << ok.message();
     EXPECT_EQ(ok->width, 3u);

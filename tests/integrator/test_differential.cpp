@@ -5,9 +5,8 @@
 
 #include <cmath>
 #include <cstring>
-#include <random>
-
 #include <glm/gtc/matrix_transform.hpp>
+#include <random>
 
 #include "render/tonemap.h"
 #include "tests/integrator/gpu_fixture.h"
@@ -132,7 +131,8 @@ TEST_F(DifferentialTest, NoVirtualObjectsGivesThePlateBitForBit) {
         ImageF composite = take((*renderer)->image(Aov::Composite));
         ASSERT_EQ(composite.pixels.size(), plate.pixels.size());
         EXPECT_EQ(std::memcmp(composite.pixels.data(), plate.pixels.data(),
-                              plate.pixels.size() * sizeof(float)), 0)
+                              plate.pixels.size() * sizeof(float)),
+                  0)
             << "at " << spp << " spp";
         ImageF mask = take((*renderer)->image(Aov::Mask));
         for (float m : mask.pixels) ASSERT_EQ(m, 0.0f);
@@ -218,8 +218,8 @@ TEST_F(DifferentialTest, OnePassEqualsTwoIndependentRenders) {
     };
     compare(onePass.mean[int(Aov::Mixed)], onePass.var[int(Aov::Mixed)],
             mixed.mean[int(Aov::Mixed)], mixed.var[int(Aov::Mixed)], "mixed");
-    compare(onePass.mean[int(Aov::Real)], onePass.var[int(Aov::Real)],
-            real.mean[int(Aov::Mixed)], real.var[int(Aov::Mixed)], "real");
+    compare(onePass.mean[int(Aov::Real)], onePass.var[int(Aov::Real)], real.mean[int(Aov::Mixed)],
+            real.var[int(Aov::Mixed)], "real");
 }
 
 // With this renderer's own converged real-only image as the plate, the composite equals its
@@ -248,8 +248,10 @@ TEST_F(DifferentialTest, CompositeOverOwnRealRenderEqualsMixedRender) {
             double sigma = std::sqrt(composite.var[0][i] + mixed.var[int(Aov::Mixed)][i] +
                                      real.var[int(Aov::Mixed)][i]);
             double d = std::abs(composite.mean[0][i] - mixed.mean[int(Aov::Mixed)][i]);
-            if (sigma > 0.0) worst = std::max(worst, d / sigma);
-            else EXPECT_NEAR(d, 0.0, 1e-6);
+            if (sigma > 0.0)
+                worst = std::max(worst, d / sigma);
+            else
+                EXPECT_NEAR(d, 0.0, 1e-6);
         }
     }
     EXPECT_GT(tested, 300);
@@ -264,7 +266,8 @@ glm::ivec2 pixelOf(const Scene& s, const RenderSettings& rs, glm::vec3 p) {
     float t = std::tan(0.5f * c.fovYRad);
     float ndcX = q.x / -q.z / (t * float(rs.width) / float(rs.height));
     float ndcY = q.y / -q.z / t;
-    return {int((ndcX + 1.0f) * 0.5f * float(rs.width)), int((1.0f - ndcY) * 0.5f * float(rs.height))};
+    return {int((ndcX + 1.0f) * 0.5f * float(rs.width)),
+            int((1.0f - ndcY) * 0.5f * float(rs.height))};
 }
 
 // The effects a virtual object has on the real set, measured in the composite.
@@ -315,8 +318,9 @@ TEST_F(DifferentialTest, VirtualObjectsShadowReflectBleedAndAreOccluded) {
     double reddest = 0.0;
     for (int y = 0; y < int(rs.height); ++y)
         for (int x = 0; x < int(rs.width); ++x)
-            if (at({x, y}, 0, int(Aov::Mask)) >= 0.9 && glm::length(glm::vec2(x, y) -
-                glm::vec2(pixelOf(s, rs, {-0.3f, 0.15f, -0.6f}))) < 3.0f)
+            if (at({x, y}, 0, int(Aov::Mask)) >= 0.9 &&
+                glm::length(glm::vec2(x, y) - glm::vec2(pixelOf(s, rs, {-0.3f, 0.15f, -0.6f}))) <
+                    3.0f)
                 reddest = std::max(reddest, at({x, y}, 0) - at({x, y}, 1));
     EXPECT_GT(reddest, 0.1) << "the virtual mirror does not reflect the real box";
     // Occlusion: the ball under the box is hidden, the box's pixels keep the plate.
@@ -346,7 +350,8 @@ TEST(LensGridTest, RaysProjectBackToTheirPixels) {
     Camera cam;
     cam.fovYRad = glm::radians(60.0f);
     const uint32_t w = 64, h = 48;
-    for (auto distortion : {std::vector<double>{}, std::vector<double>{-0.3, 0.1, 0.001, -0.002, 0.0}}) {
+    for (auto distortion :
+         {std::vector<double>{}, std::vector<double>{-0.3, 0.1, 0.001, -0.002, 0.0}}) {
         CameraCalibration calib = pinholeFor(cam, w, h, distortion);
         auto grid = lensRayGrid(calib, w, h);
         ASSERT_TRUE(grid.ok()) << grid.message();
@@ -372,8 +377,8 @@ TEST_F(LensTest, IdealLensMatchesPinhole) {
     RenderSettings rs = differentialSettings(32, 24);
     rs.differential = false;
     ImageF pinhole = render(s, rs, 4);
-    rs.lensGrid = lensRayGrid(pinholeFor(s.cameras[0], rs.width, rs.height, {}), rs.width,
-                              rs.height).value();
+    rs.lensGrid =
+        lensRayGrid(pinholeFor(s.cameras[0], rs.width, rs.height, {}), rs.width, rs.height).value();
     ImageF lens = render(s, rs, 4);
     double sumDiff = 0.0, sum = 0.0;
     for (size_t i = 0; i < lens.pixels.size(); ++i) {

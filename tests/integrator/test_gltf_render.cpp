@@ -6,7 +6,6 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
-
 #include <nlohmann/json.hpp>
 
 #include "image/image.h"
@@ -95,8 +94,9 @@ TEST_F(GltfRenderTest, BlenderLightUnitsMatchCycles) {
                         const double dist = glm::length(glm::dvec3(light.position) - p);
                         const double cosAxis = h / dist;
                         if (spot && cosAxis < cosInner) inInnerCone = false;
-                        const double value = sun ? rho / kPi * sunIrradiance
-                                                 : rho / kPi * wattsPerSr * h / (dist * dist * dist);
+                        const double value =
+                            sun ? rho / kPi * sunIrradiance
+                                : rho / kPi * wattsPerSr * h / (dist * dist * dist);
                         expected += value / (n * n);
                         cyclesModel += value * (spot ? cosAxis : 1.0) / (n * n);
                     }
@@ -127,13 +127,13 @@ TEST_F(GltfRenderTest, BlenderLightUnitsMatchCycles) {
             << "Cycles no longer follows the Blender definitions stated above";
         // Cycles' spot cosine divided out (1 for point and sun).
         const double ratio = windowPrevis / cyclesMean * (windowCyclesModel / windowExpected);
-        const double ratioSigma =
-            std::sqrt(windowVariance / (windowPrevis * windowPrevis) +
-                      cyclesError * cyclesError / (cyclesMean * cyclesMean));
-        std::printf("%s: previs %.6f, Cycles %.6f ± %.6f, previs / Cycles %.5f (%.5f after "
-                    "Cycles' spot cosine), σ of the ratio %.2g\n",
-                    name, windowPrevis, cyclesMean, cyclesError, windowPrevis / cyclesMean, ratio,
-                    ratioSigma);
+        const double ratioSigma = std::sqrt(windowVariance / (windowPrevis * windowPrevis) +
+                                            cyclesError * cyclesError / (cyclesMean * cyclesMean));
+        std::printf(
+            "%s: previs %.6f, Cycles %.6f ± %.6f, previs / Cycles %.5f (%.5f after "
+            "Cycles' spot cosine), σ of the ratio %.2g\n",
+            name, windowPrevis, cyclesMean, cyclesError, windowPrevis / cyclesMean, ratio,
+            ratioSigma);
         RecordProperty(std::string(name) + "PrevisOverCycles", std::to_string(ratio));
         EXPECT_NEAR(ratio, 1.0, kT * ratioSigma + 2e-4);
     }
@@ -191,8 +191,12 @@ TEST_F(GltfRenderTest, FarAndNegativeTextureCoordinatesWrapAsTheSamplerSays) {
               {{"buffer", 0}, {"byteOffset", 96}, {"byteLength", 32}},
               {{"buffer", 0}, {"byteOffset", 128}, {"byteLength", 12}}}},
             {"accessors",
-             {{{"bufferView", 0}, {"componentType", 5126}, {"count", 4}, {"type", "VEC3"},
-               {"min", {-1, -1, 0}}, {"max", {1, 1, 0}}},
+             {{{"bufferView", 0},
+               {"componentType", 5126},
+               {"count", 4},
+               {"type", "VEC3"},
+               {"min", {-1, -1, 0}},
+               {"max", {1, 1, 0}}},
               {{"bufferView", 1}, {"componentType", 5126}, {"count", 4}, {"type", "VEC3"}},
               {{"bufferView", 2}, {"componentType", 5126}, {"count", 4}, {"type", "VEC2"}},
               {{"bufferView", 3}, {"componentType", 5123}, {"count", 6}, {"type", "SCALAR"}}}}};

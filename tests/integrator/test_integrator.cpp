@@ -5,9 +5,8 @@
 
 #include <algorithm>
 #include <cmath>
-#include <numeric>
-
 #include <glm/gtc/matrix_transform.hpp>
+#include <numeric>
 
 #include "shared/bsdf.h"
 #include "tests/integrator/gpu_fixture.h"
@@ -185,14 +184,15 @@ TEST_F(IntegratorTest, ThinWalledPaneDoesNotShiftWhatIsBehindIt) {
                 EXPECT_EQ(got, 0.0) << "pixel " << x << "," << y;
             } else if (b == le) {
                 ++covered;
-                double expected = le * pixelAverage(x, y, 4, [&](float px, float py) {
-                    float c = std::abs(glm::dot(cameraDirection(cam, rs.width, rs.height, px, py),
-                                                paneNormal));
-                    float f = previs::shader::fresnelDielectric(c, 1.5f);
-                    return 1.0 - 2.0 * f / (1.0 + f);
-                });
-                worstT = std::max(worstT, std::abs(got - expected) /
-                                              std::sqrt(e.varianceOfMean[i]));
+                double expected =
+                    le * pixelAverage(x, y, 4, [&](float px, float py) {
+                        float c = std::abs(glm::dot(
+                            cameraDirection(cam, rs.width, rs.height, px, py), paneNormal));
+                        float f = previs::shader::fresnelDielectric(c, 1.5f);
+                        return 1.0 - 2.0 * f / (1.0 + f);
+                    });
+                worstT =
+                    std::max(worstT, std::abs(got - expected) / std::sqrt(e.varianceOfMean[i]));
             }
         }
     }
@@ -232,11 +232,10 @@ TEST_F(IntegratorTest, AbsorbingSlabFollowsBeerLambert) {
     for (uint32_t y = 0; y < rs.height; ++y) {
         for (uint32_t x = 0; x < rs.width; ++x) {
             for (int c = 0; c < 3; ++c) {
-                double sigma = -std::log(double(slab.attenuationColor[c])) /
-                               slab.attenuationDistanceM;
+                double sigma =
+                    -std::log(double(slab.attenuationColor[c])) / slab.attenuationDistanceM;
                 double expected = pixelAverage(x, y, 4, [&](float px, float py) {
-                    double cosI = std::abs(
-                        cameraDirection(cam, rs.width, rs.height, px, py).z);
+                    double cosI = std::abs(cameraDirection(cam, rs.width, rs.height, px, py).z);
                     double r = previs::shader::fresnelDielectric(float(cosI), 1.5f);
                     double sinT = std::sqrt(1.0 - cosI * cosI) / 1.5;
                     double a = std::exp(-sigma * thicknessM / std::sqrt(1.0 - sinT * sinT));
@@ -245,8 +244,8 @@ TEST_F(IntegratorTest, AbsorbingSlabFollowsBeerLambert) {
                 size_t i = (size_t(y) * rs.width + x) * 3 + c;
                 double got = e.mean.pixels[i];
                 if (e.varianceOfMean[i] > 0.0)
-                    worstT = std::max(worstT,
-                                      std::abs(got - expected) / std::sqrt(e.varianceOfMean[i]));
+                    worstT =
+                        std::max(worstT, std::abs(got - expected) / std::sqrt(e.varianceOfMean[i]));
                 else
                     EXPECT_NEAR(got, expected, 1e-5) << "noise-free pixel " << x << "," << y;
                 if (c == 2) {
@@ -306,9 +305,10 @@ TEST_F(IntegratorTest, DispatchesStayInsideTheCpuDeviceLoopLimit) {
     Result<ImageF> counts = unsized->image(Aov::SampleCount);
     ASSERT_TRUE(counts.ok());
     const float fewest = *std::min_element(counts->pixels.begin(), counts->pixels.end());
-    std::printf("%.0f loop iterations per sample; unsized 1024-sample dispatches: worst error "
-                "%.3g, fewest samples in a pixel %.0f of %u\n",
-                sized->loopIterationsPerSample(), lost, fewest, spp);
+    std::printf(
+        "%.0f loop iterations per sample; unsized 1024-sample dispatches: worst error "
+        "%.3g, fewest samples in a pixel %.0f of %u\n",
+        sized->loopIterationsPerSample(), lost, fewest, spp);
     EXPECT_LT(fewest, float(spp)) << "llvmpipe no longer cuts long loops? (then the guard can go)";
     EXPECT_GT(unsized->loopLimitRisks(), 0u);
     Result<ImageF> sizedCounts = sized->image(Aov::SampleCount);
@@ -556,8 +556,10 @@ TEST_F(IntegratorTest, NoAcneOrLeaksFromMillimetreToKilometre) {
         addQuad(s, {0, 0, 0}, {0, 0, 100 * scale}, {100 * scale, 0, 0},
                 addMaterial(s, lambert(glm::vec3(rho))));
         // A sliver and a zero-area triangle nearby must not disturb anything either.
-        addMesh(s, {{0, 0.1f * scale, 0}, {10 * scale, 0.1f * scale, 1e-6f * scale},
-                    {20 * scale, 0.1f * scale, 0}},
+        addMesh(s,
+                {{0, 0.1f * scale, 0},
+                 {10 * scale, 0.1f * scale, 1e-6f * scale},
+                 {20 * scale, 0.1f * scale, 0}},
                 {{0, 1, 0}, {0, 1, 0}, {0, 1, 0}}, {{0, 1, 2}, {0, 0, 1}}, 0, false);
         PunctualLight sun;
         sun.type = LightType::Directional;
@@ -607,7 +609,8 @@ TEST_F(IntegratorTest, EnvironmentWithIntenseSunMatchesIrradianceSum) {
     double irradiance = 0.0;
     for (uint32_t row = 0; row < hgt / 2; ++row) {
         double t0 = kPi * row / hgt, t1 = kPi * (row + 1) / hgt;
-        double band = (2.0 * kPi / w) * 0.5 * (std::sin(t1) * std::sin(t1) - std::sin(t0) * std::sin(t0));
+        double band =
+            (2.0 * kPi / w) * 0.5 * (std::sin(t1) * std::sin(t1) - std::sin(t0) * std::sin(t0));
         for (uint32_t col = 0; col < w; ++col) irradiance += env.radiance[row * w + col].x * band;
     }
     double expected = irradiance / kPi;

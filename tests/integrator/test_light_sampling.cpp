@@ -42,7 +42,6 @@ RenderSettings settingsFor(LightSampling lightSampling, uint32_t maxDepth) {
     return rs;
 }
 
-
 // Unbiased: over 16 seeds each, the solid-angle mean image equals the area-sampling one within
 // the noise, with three bounces (so BSDF-sampled hits of the emitters are weighed by MIS with
 // the solid-angle pdf). Bounds as in test_sampler_render.cpp: per pixel and channel (768 tests)

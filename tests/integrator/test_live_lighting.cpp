@@ -44,8 +44,8 @@ EnvironmentMap skyMap(uint32_t width, float azimuthDeg, float elevationDeg, glm:
     for (uint32_t y = 0; y < map.height; ++y) {
         for (uint32_t x = 0; x < map.width; ++x) {
             float v = (y + 0.5f) / float(map.height);
-            glm::vec3 c = v < 0.5f ? glm::vec3(0.4f, 0.6f, 1.0f) * (1.5f - v)
-                                   : glm::vec3(0.3f, 0.25f, 0.2f);
+            glm::vec3 c =
+                v < 0.5f ? glm::vec3(0.4f, 0.6f, 1.0f) * (1.5f - v) : glm::vec3(0.3f, 0.25f, 0.2f);
             // Two by two texels around the lamp's direction.
             float du = std::abs((x + 0.5f) / float(map.width) - u0) * float(map.width);
             float dv = std::abs((y + 0.5f) / float(map.height) - v0) * float(map.height);
@@ -321,8 +321,8 @@ TEST_F(LiveLightingTest, ConeLightOnLambertianFloorIsExact) {
     // A texel-sized cone (cos θmax rounds to 1 in float), a lamp, and a 30° half-angle cone.
     const double wideSr = 2.0 * kPi * (1.0 - std::cos(kPi / 6));
     for (Case c : {Case{1e-4, 1e4f}, Case{0.05, 20.0f}, Case{wideSr, 2.0f}}) {
-        EstimatedLightSource light{{0.0f, 1.0f, 0.0f}, float(c.solidAngleSr),
-                                   glm::vec3(c.radiance)};
+        EstimatedLightSource light{
+            {0.0f, 1.0f, 0.0f}, float(c.solidAngleSr), glm::vec3(c.radiance)};
         ASSERT_TRUE(r->setEstimatedLights(std::span(&light, 1)).ok());
         ASSERT_TRUE(r->renderPreviewFrame(64).ok());
         ASSERT_EQ(nonFinite(*r), 0u);
@@ -390,8 +390,8 @@ TEST_F(LiveLightingTest, LightsPlusResidualKeepTheMapsEnergy) {
         lights.push_back({glm::vec3(l.direction[0], l.direction[1], l.direction[2]),
                           float(l.solidAngleSr),
                           glm::vec3(l.radiance[0], l.radiance[1], l.radiance[2])});
-    auto residual = std::make_shared<EnvironmentMap>(
-        matToEnvironmentMap(split->residual, "residual"));
+    auto residual =
+        std::make_shared<EnvironmentMap>(matToEnvironmentMap(split->residual, "residual"));
 
     Scene s = floorFromAbove(albedo);
     s.environment = map;
@@ -414,8 +414,10 @@ TEST_F(LiveLightingTest, LightsPlusResidualKeepTheMapsEnergy) {
         PixelMean a = pixelMean(whole, c);
         PixelMean b = pixelMean(parts, c);
         double exact = albedo / kPi * upwardIrradiance(map, c);
-        std::printf("channel %d: whole map %.6g ± %.2g, lights + residual %.6g ± %.2g, "
-                    "exact %.6g\n", c, a.mean, a.stdErr, b.mean, b.stdErr, exact);
+        std::printf(
+            "channel %d: whole map %.6g ± %.2g, lights + residual %.6g ± %.2g, "
+            "exact %.6g\n",
+            c, a.mean, a.stdErr, b.mean, b.stdErr, exact);
         EXPECT_NEAR(a.mean, b.mean, kMeanZ * std::hypot(a.stdErr, b.stdErr)) << "channel " << c;
         EXPECT_NEAR(a.mean, exact, kMeanZ * a.stdErr + 1e-5 * exact) << "channel " << c;
     }
@@ -435,8 +437,7 @@ TEST_F(LiveLightingTest, SetEnvironmentCostAgainstCreate) {
     t0 = Clock::now();
     ASSERT_TRUE(r->setEnvironment(next).ok());
     double setMs = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-    std::printf("512x256 map: setEnvironment %.2f ms, Renderer::create %.2f ms\n", setMs,
-                createMs);
+    std::printf("512x256 map: setEnvironment %.2f ms, Renderer::create %.2f ms\n", setMs, createMs);
     RecordProperty("setEnvironmentMs", std::to_string(setMs));
     RecordProperty("createMs", std::to_string(createMs));
     EXPECT_EQ(r->sceneBuildCount(), 1u);

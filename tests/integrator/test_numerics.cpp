@@ -10,14 +10,13 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <tuple>
-#include <limits>
-
 #include <glm/gtc/matrix_transform.hpp>
+#include <limits>
 #include <nlohmann/json.hpp>
+#include <tuple>
 
-#include "render/plate.h"
 #include "image/image.h"
+#include "render/plate.h"
 #include "scene/gltf_loader.h"
 #include "tests/integrator/gpu_fixture.h"
 #include "tests/support/scene_builders.h"
@@ -175,7 +174,6 @@ TEST_F(NumericsTest, NonFinitePlateValuesNeverReachTheComposite) {
     }
 }
 
-
 // An EXR plate as another tool writes it, with NaN, ±Inf and negative values: after the repair
 // (docs/plates.md) every value is finite and non-negative, NaN/Inf became their neighbours'
 // mean, negatives 0, and everything else is untouched.
@@ -186,11 +184,11 @@ TEST(PlateFile, NonFiniteAndNegativeValuesAreRepaired) {
     written.channels = 3;
     for (uint32_t i = 0; i < 4 * 3 * 3; ++i) written.pixels.push_back(0.1f * float(i % 7) + 0.2f);
     const float inf = std::numeric_limits<float>::infinity();
-    written.pixels[3 * 5 + 1] = kNaN;   // (1, 1) green: 8 finite neighbours
-    written.pixels[3 * 0 + 0] = inf;    // (0, 0) red: a corner, 3 neighbours
-    written.pixels[3 * 6 + 2] = -inf;   // (2, 1) blue
-    written.pixels[3 * 11 + 0] = -0.5f; // (3, 2) red: negative
-    written.pixels[3 * 11 + 1] = -0.0f; // -0 is not negative: kept
+    written.pixels[3 * 5 + 1] = kNaN;    // (1, 1) green: 8 finite neighbours
+    written.pixels[3 * 0 + 0] = inf;     // (0, 0) red: a corner, 3 neighbours
+    written.pixels[3 * 6 + 2] = -inf;    // (2, 1) blue
+    written.pixels[3 * 11 + 0] = -0.5f;  // (3, 2) red: negative
+    written.pixels[3 * 11 + 1] = -0.0f;  // -0 is not negative: kept
     const std::string path = (scratchDir("previs_numerics_test") / "bad_plate.exr").string();
     ASSERT_TRUE(writeExr(path, written));
     auto plate = readImage(path);
@@ -285,34 +283,35 @@ MeshData unitSphere(int rings = 16, int segments = 32) {  // radius 1, smooth no
 // sphere, a 1 cm cube resting on the floor, a point light, a wide camera and a close-up of the
 // small cube's contact shadow.
 std::string writeSet(const std::string& name, const glm::dvec3& offsetM) {
-    json doc = {{"asset", {{"version", "2.0"}}},
-                {"extensionsUsed", {"KHR_lights_punctual"}},
-                {"scene", 0},
-                {"scenes", {{{"nodes", {0}}}}},
-                {"nodes", {{{"name", "set"},
-                            {"translation", {offsetM.x, offsetM.y, offsetM.z}},
-                            {"children", json::array()}}}},
-                {"materials",
-                 {{{"name", "grey"},
-                   {"pbrMetallicRoughness", {{"baseColorFactor", {0.6, 0.6, 0.6, 1}},
-                                             {"metallicFactor", 0.0}}}},
-                  {{"name", "red"},
-                   {"pbrMetallicRoughness", {{"baseColorFactor", {0.7, 0.2, 0.1, 1}},
-                                             {"metallicFactor", 0.0}}}},
-                  {{"name", "mirror"},
-                   {"pbrMetallicRoughness",
-                    {{"baseColorFactor", {1, 1, 1, 1}}, {"metallicFactor", 1.0},
-                     {"roughnessFactor", 0.0}}}}}},
-                {"meshes", json::array()},
-                {"accessors", json::array()},
-                {"bufferViews", json::array()},
-                {"cameras", {{{"type", "perspective"},
-                              {"perspective", {{"yfov", 0.7}, {"znear", 0.01}}}},
-                             {{"type", "perspective"},
-                              {"perspective", {{"yfov", 0.5}, {"znear", 0.001}}}}}},
-                {"extensions",
-                 {{"KHR_lights_punctual",
-                   {{"lights", {{{"type", "point"}, {"intensity", 40.0}}}}}}}}};
+    json doc = {
+        {"asset", {{"version", "2.0"}}},
+        {"extensionsUsed", {"KHR_lights_punctual"}},
+        {"scene", 0},
+        {"scenes", {{{"nodes", {0}}}}},
+        {"nodes",
+         {{{"name", "set"},
+           {"translation", {offsetM.x, offsetM.y, offsetM.z}},
+           {"children", json::array()}}}},
+        {"materials",
+         {{{"name", "grey"},
+           {"pbrMetallicRoughness",
+            {{"baseColorFactor", {0.6, 0.6, 0.6, 1}}, {"metallicFactor", 0.0}}}},
+          {{"name", "red"},
+           {"pbrMetallicRoughness",
+            {{"baseColorFactor", {0.7, 0.2, 0.1, 1}}, {"metallicFactor", 0.0}}}},
+          {{"name", "mirror"},
+           {"pbrMetallicRoughness",
+            {{"baseColorFactor", {1, 1, 1, 1}},
+             {"metallicFactor", 1.0},
+             {"roughnessFactor", 0.0}}}}}},
+        {"meshes", json::array()},
+        {"accessors", json::array()},
+        {"bufferViews", json::array()},
+        {"cameras",
+         {{{"type", "perspective"}, {"perspective", {{"yfov", 0.7}, {"znear", 0.01}}}},
+          {{"type", "perspective"}, {"perspective", {{"yfov", 0.5}, {"znear", 0.001}}}}}},
+        {"extensions",
+         {{"KHR_lights_punctual", {{"lights", {{{"type", "point"}, {"intensity", 40.0}}}}}}}}};
     std::vector<uint8_t> bin;
     auto accessor = [&](const void* data, size_t bytes, int componentType, const char* type,
                         size_t count) {
@@ -338,16 +337,16 @@ std::string writeSet(const std::string& name, const glm::dvec3& offsetM) {
         return doc["accessors"].size() - 1;
     };
     auto mesh = [&](const MeshData& m, int material) {
-        const size_t p = accessor(m.positions.data(), m.positions.size() * 12, 5126, "VEC3",
-                                  m.positions.size());
+        const size_t p =
+            accessor(m.positions.data(), m.positions.size() * 12, 5126, "VEC3", m.positions.size());
         const size_t n =
             accessor(m.normals.data(), m.normals.size() * 12, 5126, "VEC3", m.normals.size());
         const size_t i =
             accessor(m.indices.data(), m.indices.size() * 2, 5123, "SCALAR", m.indices.size());
-        doc["meshes"].push_back(
-            {{"primitives",
-              {{{"attributes", {{"POSITION", p}, {"NORMAL", n}}}, {"indices", i},
-                {"material", material}}}}});
+        doc["meshes"].push_back({{"primitives",
+                                  {{{"attributes", {{"POSITION", p}, {"NORMAL", n}}},
+                                    {"indices", i},
+                                    {"material", material}}}}});
         return doc["meshes"].size() - 1;
     };
     const size_t cube = mesh(unitCube(), 0), redCube = mesh(unitCube(), 1);
@@ -356,17 +355,29 @@ std::string writeSet(const std::string& name, const glm::dvec3& offsetM) {
         doc["nodes"].push_back(node);
         doc["nodes"][0]["children"].push_back(doc["nodes"].size() - 1);
     };
-    child({{"name", "floor"}, {"mesh", cube}, {"translation", {0, -0.05, 0}},
+    child({{"name", "floor"},
+           {"mesh", cube},
+           {"translation", {0, -0.05, 0}},
            {"scale", {4, 0.1, 4}}});
-    child({{"name", "box"}, {"mesh", redCube}, {"translation", {-0.6, 0.25, -0.1}},
-           {"rotation", {0, 0.2588190451, 0, 0.9659258263}}, {"scale", {0.5, 0.5, 0.5}}});
-    child({{"name", "ball"}, {"mesh", sphere}, {"translation", {0.1, 0.25, 0.55}},
+    child({{"name", "box"},
+           {"mesh", redCube},
+           {"translation", {-0.6, 0.25, -0.1}},
+           {"rotation", {0, 0.2588190451, 0, 0.9659258263}},
+           {"scale", {0.5, 0.5, 0.5}}});
+    child({{"name", "ball"},
+           {"mesh", sphere},
+           {"translation", {0.1, 0.25, 0.55}},
            {"scale", {0.25, 0.25, 0.25}}});
-    child({{"name", "mirror"}, {"mesh", mirror}, {"translation", {0.55, 0.35, -0.25}},
+    child({{"name", "mirror"},
+           {"mesh", mirror},
+           {"translation", {0.55, 0.35, -0.25}},
            {"scale", {0.35, 0.35, 0.35}}});
-    child({{"name", "tiny"}, {"mesh", cube}, {"translation", {0.0, 0.005, 0.25}},
+    child({{"name", "tiny"},
+           {"mesh", cube},
+           {"translation", {0.0, 0.005, 0.25}},
            {"scale", {0.01, 0.01, 0.01}}});
-    child({{"name", "lamp"}, {"translation", {1.0, 2.5, 1.5}},
+    child({{"name", "lamp"},
+           {"translation", {1.0, 2.5, 1.5}},
            {"extensions", {{"KHR_lights_punctual", {{"light", 0}}}}}});
     // glm::lookAt gives cameraFromWorld; the node wants worldFromCamera.
     auto cameraNode = [&](const char* nodeName, int camera, glm::dvec3 eye, glm::dvec3 target) {

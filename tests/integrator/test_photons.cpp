@@ -8,8 +8,8 @@
 #include <cmath>
 #include <cstring>
 
-#include "tests/integrator/gpu_fixture.h"
 #include "shared/bsdf.h"
+#include "tests/integrator/gpu_fixture.h"
 #include "tests/support/scene_builders.h"
 
 namespace previs::testing {
@@ -103,7 +103,8 @@ TEST_F(PhotonTest, GlassBallDepositsTheFluxItIntercepts) {
     const double solidAngle = 2.0 * kPi * (1.0 - std::sqrt(1.0 - radius * radius / (d * d)));
     const double expected = candela * solidAngle;
     // Statistical: 4.5σ of the measured iteration-to-iteration noise. Geometric: the tessellated
-    // ball's outline is a 192-gon inscribed in the circle, whose area is cos²(π/192) ≥ 0.9997 of it.
+    // ball's outline is a 192-gon inscribed in the circle, whose area is cos²(π/192) ≥ 0.9997 of
+    // it.
     const double tolerance = 4.5 * std::sqrt(varianceOfMean) + 3e-4 * expected;
     EXPECT_NEAR(mean, expected, tolerance)
         << "deposited " << mean << " W (σ " << std::sqrt(varianceOfMean) << "), intercepted "
@@ -154,8 +155,9 @@ TEST_F(PhotonTest, RefractedFluxIsNotScaledByEtaSquared) {
             const double phi = (a + 0.5) * 2.0 * kPi / azimuths;
             const glm::dvec3 dir(std::sin(psi) * std::cos(phi), -std::cos(psi),
                                  std::sin(psi) * std::sin(phi));
-            const double t = d * std::cos(psi) -
-                             std::sqrt(std::max(0.0, radius * radius - d * d * std::sin(psi) * std::sin(psi)));
+            const double t =
+                d * std::cos(psi) -
+                std::sqrt(std::max(0.0, radius * radius - d * d * std::sin(psi) * std::sin(psi)));
             const glm::dvec3 p = glm::dvec3(0.0, d, 0.0) + t * dir;
             const glm::dvec3 n = p / double(radius);
             const double cosTheta = -glm::dot(dir, n);
@@ -173,7 +175,8 @@ TEST_F(PhotonTest, RefractedFluxIsNotScaledByEtaSquared) {
     // η² error this test guards against is 56 %).
     const double tolerance = 4.5 * std::sqrt(varianceOfMean) + 3e-3 * expected;
     EXPECT_NEAR(mean, expected, tolerance) << "deposited " << mean << " W, expected " << expected;
-    std::printf("deposited %.5f W (sigma %.5f), expected %.5f\n", mean, std::sqrt(varianceOfMean), expected);
+    std::printf("deposited %.5f W (sigma %.5f), expected %.5f\n", mean, std::sqrt(varianceOfMean),
+                expected);
 }
 
 // A scene whose light reaches the floor only through a glass ball is a caustic; the photon map
@@ -322,8 +325,8 @@ TEST_F(PhotonTest, VirtualGlassBallCausticIsMixedOnly) {
     EXPECT_EQ(withReal, 0u);
     // The point light's flux through the ball, focused below it: the floor under the ball is
     // brighter in the mixed solution than in the real one.
-    EXPECT_GT(depositedPower(*records, PV_PHOTON_IN_MIXED), 0.5 * 20.0 * 2.0 * kPi *
-                                                                (1.0 - std::sqrt(1.0 - 0.04 / 1.44)));
+    EXPECT_GT(depositedPower(*records, PV_PHOTON_IN_MIXED),
+              0.5 * 20.0 * 2.0 * kPi * (1.0 - std::sqrt(1.0 - 0.04 / 1.44)));
 }
 
 // Preview's fixed random sequence holds with photons: every preview frame of an unchanged scene

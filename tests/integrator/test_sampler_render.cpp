@@ -38,7 +38,6 @@ RenderSettings settingsFor(Sampler sampler) {
     return rs;
 }
 
-
 // Unbiased: over 16 seeds each, the Sobol' mean image equals the independent one within the noise.
 // Per pixel and channel (16×16×3 = 768 tests) |Δ|/σ with σ² the sum of both variances of the
 // mean: each variance has 15 degrees of freedom, so the statistic is at least as concentrated as

@@ -2,6 +2,8 @@
 // loadPoses, loadEvents and the camera index reader read back; the crash cases the format
 // promises to survive (a cut last line, a stray *.tmp) and a future version refused.
 
+#include "io/session.h"
+
 #include <gtest/gtest.h>
 
 #include <array>
@@ -12,7 +14,6 @@
 #include <vector>
 
 #include "capture/recorded_source.h"
-#include "io/session.h"
 #include "tests/support/temp_dir.h"
 
 namespace previs {
@@ -190,8 +191,7 @@ TEST(Session, TruncatedLastLineIgnoredAndMalformedLineNamed) {
     }
     auto badEvents = loadEvents(dir.string());
     ASSERT_FALSE(badEvents.ok());
-    EXPECT_NE(badEvents.message().find("events.csv:4:"), std::string::npos)
-        << badEvents.message();
+    EXPECT_NE(badEvents.message().find("events.csv:4:"), std::string::npos) << badEvents.message();
 }
 
 TEST(Session, UnknownEventSourcesSkippedWithACount) {

@@ -38,9 +38,7 @@ constexpr const char* kBunny = "bunny_npm.ply";
 constexpr const char* kDragon = "dragon_vrip_res4.ply";
 #endif
 
-std::string meshPath(const char* name) {
-    return testing::sharedDataDir() + "meshes/" + name;
-}
+std::string meshPath(const char* name) { return testing::sharedDataDir() + "meshes/" + name; }
 
 uint32_t floatBits(float f) {
     uint32_t u;
@@ -101,8 +99,8 @@ std::optional<Hit> bruteForce(const CpuTracer& tracer, const Ray& ray, bool real
     for (uint32_t i = 0; i < tris.size(); ++i) {
         if (realOnly && !tracer.isReal(i)) continue;
         float t, b1, b2;
-        if (shader::intersectTriangle(tr, pos[tris[i].x], pos[tris[i].y], pos[tris[i].z],
-                                      ray.tMin, tMax, t, b1, b2)) {
+        if (shader::intersectTriangle(tr, pos[tris[i].x], pos[tris[i].y], pos[tris[i].z], ray.tMin,
+                                      tMax, t, b1, b2)) {
             tMax = t;
             best = Hit{t, i, b1, b2};
         }
@@ -166,7 +164,8 @@ void checkWideStructure(const SceneBvh& bvh, const Geometry& g) {
                 glm::vec3 hi(w.hiX[i], w.hiY[i], w.hiZ[i]);
                 uint32_t ref = w.child[i];
                 if (ref == kBvhNoRoot) {
-                    ASSERT_TRUE(glm::all(glm::greaterThan(lo, hi))) << "empty slot must be inverted";
+                    ASSERT_TRUE(glm::all(glm::greaterThan(lo, hi)))
+                        << "empty slot must be inverted";
                     continue;
                 }
                 ASSERT_TRUE(glm::all(glm::lessThanEqual(v.lo, lo)));
@@ -230,8 +229,10 @@ void checkStructure(const SceneBvh& bvh, const Geometry& g) {
             } else {
                 for (uint32_t c : {node.leftOrFirst, node.leftOrFirst + 1}) {
                     ASSERT_LT(c, bvh.nodes.size());
-                    ASSERT_TRUE(glm::all(glm::lessThanEqual(node.boundsMin, bvh.nodes[c].boundsMin)));
-                    ASSERT_TRUE(glm::all(glm::lessThanEqual(bvh.nodes[c].boundsMax, node.boundsMax)));
+                    ASSERT_TRUE(
+                        glm::all(glm::lessThanEqual(node.boundsMin, bvh.nodes[c].boundsMin)));
+                    ASSERT_TRUE(
+                        glm::all(glm::lessThanEqual(bvh.nodes[c].boundsMax, node.boundsMax)));
                     stack.push_back({c, depth + 1});
                 }
             }
@@ -281,22 +282,21 @@ TEST(BvhTraversal, MatchesBruteForceOnRandomSoup) {
     auto tracer = CpuTracer::create(g);
     ASSERT_TRUE(tracer) << tracer.message();
     checkStructure(tracer->bvh(), g);
-    expectMatchesBruteForce(*tracer, randomRays(5000 * kRayScale, glm::vec3(-1.2f),
-                                                glm::vec3(1.2f), 2));
+    expectMatchesBruteForce(*tracer,
+                            randomRays(5000 * kRayScale, glm::vec3(-1.2f), glm::vec3(1.2f), 2));
 }
 
 TEST(BvhTraversal, MatchesBruteForceAtTinyAndHugeScales) {
-    for (auto [scale, center] : {std::pair{1e-3f, glm::vec3(0.0f)},
-                                 std::pair{1e-3f, glm::vec3(0.5f, -2.0f, 1.0f)},
-                                 std::pair{1e3f, glm::vec3(0.0f)},
-                                 std::pair{1e3f, glm::vec3(1e4f, 0.0f, -2e4f)}}) {
+    for (auto [scale, center] :
+         {std::pair{1e-3f, glm::vec3(0.0f)}, std::pair{1e-3f, glm::vec3(0.5f, -2.0f, 1.0f)},
+          std::pair{1e3f, glm::vec3(0.0f)}, std::pair{1e3f, glm::vec3(1e4f, 0.0f, -2e4f)}}) {
         SCOPED_TRACE(::testing::Message() << "scale " << scale << " center " << center.x);
         Geometry g = randomSoup(200, scale, center, 3);
         auto tracer = CpuTracer::create(g);
         ASSERT_TRUE(tracer) << tracer.message();
         checkStructure(tracer->bvh(), g);
-        expectMatchesBruteForce(*tracer, randomRays(1000 * kRayScale, center - 1.2f * scale,
-                                                    center + 1.2f * scale, 4));
+        expectMatchesBruteForce(
+            *tracer, randomRays(1000 * kRayScale, center - 1.2f * scale, center + 1.2f * scale, 4));
     }
 }
 
@@ -330,12 +330,13 @@ struct Mesh {
 Mesh icosphere(int levels) {
     const float t = (1.0f + std::sqrt(5.0f)) / 2.0f;
     Mesh m;
-    m.positions = {{-1, t, 0}, {1, t, 0},  {-1, -t, 0}, {1, -t, 0}, {0, -1, t},  {0, 1, t},
+    m.positions = {{-1, t, 0},  {1, t, 0},  {-1, -t, 0}, {1, -t, 0}, {0, -1, t},  {0, 1, t},
                    {0, -1, -t}, {0, 1, -t}, {t, 0, -1},  {t, 0, 1},  {-t, 0, -1}, {-t, 0, 1}};
     for (auto& p : m.positions) p = glm::normalize(p);
-    m.triangles = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
-                   {11, 10, 2}, {10, 7, 6}, {7, 1, 8},  {3, 9, 4},  {3, 4, 2},   {3, 2, 6}, {3, 6, 8},
-                   {3, 8, 9},  {4, 9, 5},  {2, 4, 11}, {6, 2, 10}, {8, 6, 7},   {9, 8, 1}};
+    m.triangles = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11},
+                   {1, 5, 9},  {5, 11, 4}, {11, 10, 2}, {10, 7, 6}, {7, 1, 8},
+                   {3, 9, 4},  {3, 4, 2},  {3, 2, 6},   {3, 6, 8},  {3, 8, 9},
+                   {4, 9, 5},  {2, 4, 11}, {6, 2, 10},  {8, 6, 7},  {9, 8, 1}};
     for (int l = 0; l < levels; ++l) {
         std::map<std::pair<uint32_t, uint32_t>, uint32_t> mid;
         auto midpoint = [&](uint32_t a, uint32_t b) {
@@ -347,7 +348,8 @@ Mesh icosphere(int levels) {
         };
         std::vector<glm::uvec3> next;
         for (glm::uvec3 tri : m.triangles) {
-            uint32_t a = midpoint(tri.x, tri.y), b = midpoint(tri.y, tri.z), c = midpoint(tri.z, tri.x);
+            uint32_t a = midpoint(tri.x, tri.y), b = midpoint(tri.y, tri.z),
+                     c = midpoint(tri.z, tri.x);
             next.insert(next.end(), {{tri.x, a, c}, {tri.y, b, a}, {tri.z, c, b}, {a, b, c}});
         }
         m.triangles = next;
@@ -439,17 +441,17 @@ TEST(Watertight, IcosphereEdgesAndVertices) {
     Mesh m = icosphere(3);
     std::mt19937 rng(7);
     int rays = 0;
-    for (auto [scale, offset] : {std::pair{1.0f, glm::vec3(0.0f)},
-                                 std::pair{1e-3f, glm::vec3(0.003f, -0.001f, 0.002f)},
-                                 std::pair{1e3f, glm::vec3(1e4f, 2e3f, -5e3f)}}) {
+    for (auto [scale, offset] :
+         {std::pair{1.0f, glm::vec3(0.0f)}, std::pair{1e-3f, glm::vec3(0.003f, -0.001f, 0.002f)},
+          std::pair{1e3f, glm::vec3(1e4f, 2e3f, -5e3f)}}) {
         std::vector<glm::vec3> p;
         for (glm::vec3 v : m.positions) p.push_back(offset + scale * v);
         Geometry g = makeGeometry(p, m.triangles);
         auto tracer = CpuTracer::create(g);
         ASSERT_TRUE(tracer) << tracer.message();
         std::vector<glm::vec3> targets = edgeAndVertexTargets(p, m.triangles);
-        std::vector<std::vector<glm::vec3>> normals = incidentNormals(m.positions, m.triangles,
-                                                                      glm::vec3(0.0f));
+        std::vector<std::vector<glm::vec3>> normals =
+            incidentNormals(m.positions, m.triangles, glm::vec3(0.0f));
         ASSERT_EQ(normals.size(), targets.size());
         int perTarget = 4 * kRayScale;
         for (size_t i = 0; i < targets.size(); ++i) {
@@ -467,7 +469,8 @@ TEST(Watertight, IcosphereEdgesAndVertices) {
                 r.tMin = 0.0f;
                 r.tMax = PV_FLOAT_MAX;
                 auto hit = tracer->closestHit(r);
-                ASSERT_TRUE(hit.has_value()) << "scale " << scale << " target " << i << " ray " << k;
+                ASSERT_TRUE(hit.has_value())
+                    << "scale " << scale << " target " << i << " ray " << k;
                 ASSERT_LE(hit->t, 1.0f + 1e-4f);
                 ASSERT_TRUE(tracer->occluded(r));
                 ++rays;
@@ -484,9 +487,9 @@ TEST(Watertight, GridCubeEdgesAndVerticesIncludingAxisAlignedRays) {
     const int n = 6;
     Mesh m = gridCube(n);
     std::mt19937 rng(8);
-    for (auto [scale, offset] : {std::pair{1.0f, glm::vec3(0.0f)},
-                                 std::pair{1e-3f / n, glm::vec3(-0.01f, 0.02f, 0.0f)},
-                                 std::pair{1e3f / n, glm::vec3(1e4f, 0.0f, 3e3f)}}) {
+    for (auto [scale, offset] :
+         {std::pair{1.0f, glm::vec3(0.0f)}, std::pair{1e-3f / n, glm::vec3(-0.01f, 0.02f, 0.0f)},
+          std::pair{1e3f / n, glm::vec3(1e4f, 0.0f, 3e3f)}}) {
         std::vector<glm::vec3> p;
         for (glm::vec3 v : m.positions) p.push_back(offset + scale * v);
         Geometry g = makeGeometry(p, m.triangles);
@@ -532,10 +535,9 @@ TEST(Watertight, GridCubeEdgesAndVerticesIncludingAxisAlignedRays) {
 TEST(OffsetRayOrigin, NoSelfIntersectionAtAnyScale) {
     Mesh m = icosphere(3);
     std::mt19937 rng(9);
-    for (auto [radius, center] : {std::pair{0.5e-3f, glm::vec3(0.0f)},
-                                  std::pair{0.5e-3f, glm::vec3(1.0f, -2.0f, 0.5f)},
-                                  std::pair{500.0f, glm::vec3(0.0f)},
-                                  std::pair{500.0f, glm::vec3(1e4f, -1e4f, 1e4f)}}) {
+    for (auto [radius, center] :
+         {std::pair{0.5e-3f, glm::vec3(0.0f)}, std::pair{0.5e-3f, glm::vec3(1.0f, -2.0f, 0.5f)},
+          std::pair{500.0f, glm::vec3(0.0f)}, std::pair{500.0f, glm::vec3(1e4f, -1e4f, 1e4f)}}) {
         SCOPED_TRACE(::testing::Message() << "radius " << radius << " center " << center.x);
         std::vector<glm::vec3> p;
         for (glm::vec3 v : m.positions) p.push_back(center + radius * v);
@@ -615,10 +617,11 @@ TEST(BvhBuild, SahBeatsMedianAndOneLeafOnBunny) {
     checkStructure(*median, g);
     RecordProperty("sah_cost", std::to_string(sah->sahCost));
     RecordProperty("median_cost", std::to_string(median->sahCost));
-    std::printf("%s (%zu triangles): SAH cost %.2f (median split %.2f, one leaf %.0f), depth %u, "
-                "largest leaf %u, %zu nodes, built in %.3f s\n",
-                kBunny, g.triangles.size(), sah->sahCost, median->sahCost, oneLeafCost(g.triangles.size()),
-                sah->maxDepth, sah->maxLeafSize, sah->nodes.size(), sah->buildSeconds);
+    std::printf(
+        "%s (%zu triangles): SAH cost %.2f (median split %.2f, one leaf %.0f), depth %u, "
+        "largest leaf %u, %zu nodes, built in %.3f s\n",
+        kBunny, g.triangles.size(), sah->sahCost, median->sahCost, oneLeafCost(g.triangles.size()),
+        sah->maxDepth, sah->maxLeafSize, sah->nodes.size(), sah->buildSeconds);
     EXPECT_LT(sah->sahCost, median->sahCost);
     EXPECT_LT(sah->sahCost, oneLeafCost(g.triangles.size()));
     EXPECT_LE(sah->maxDepth, uint32_t(PV_BVH_STACK_SIZE));
@@ -634,10 +637,11 @@ TEST(BvhBuild, DragonBuildTime) {
     auto bvh = buildSceneBvh(g);
     ASSERT_TRUE(bvh) << bvh.message();
     checkStructure(*bvh, g);
-    std::printf("%s (%zu triangles): SAH cost %.2f, depth %u, largest leaf %u, "
-                "built in %.3f s\n",
-                kDragon, g.triangles.size(), bvh->sahCost, bvh->maxDepth, bvh->maxLeafSize,
-                bvh->buildSeconds);
+    std::printf(
+        "%s (%zu triangles): SAH cost %.2f, depth %u, largest leaf %u, "
+        "built in %.3f s\n",
+        kDragon, g.triangles.size(), bvh->sahCost, bvh->maxDepth, bvh->maxLeafSize,
+        bvh->buildSeconds);
     RecordProperty("build_seconds", std::to_string(bvh->buildSeconds));
 #ifdef NDEBUG
     EXPECT_LT(bvh->buildSeconds, 2.0);
@@ -747,7 +751,7 @@ TEST(BvhDegenerate, SliversAndFlatBoxes) {
         glm::vec3 a(u(rng), u(rng), 0.0f);
         glm::vec3 b = a + glm::vec3(u(rng), u(rng), 0.0f);
         glm::vec3 c = i % 2 ? a + (b - a) * 0.5f + glm::vec3(0.0f, 0.0f, 1e-6f)  // needle
-                            : glm::vec3(u(rng), a.y, 0.0f);                          // flat box
+                            : glm::vec3(u(rng), a.y, 0.0f);                      // flat box
         p.insert(p.end(), {a, b, c});
         t.push_back({3 * i, 3 * i + 1, 3 * i + 2});
     }
@@ -756,8 +760,8 @@ TEST(BvhDegenerate, SliversAndFlatBoxes) {
     auto tracer = CpuTracer::create(g);
     ASSERT_TRUE(tracer) << tracer.message();
     checkStructure(tracer->bvh(), g);
-    std::vector<Ray> rays = randomRays(2000 * kRayScale, glm::vec3(-2, -2, -0.5f),
-                                       glm::vec3(2, 2, 0.5f), 13);
+    std::vector<Ray> rays =
+        randomRays(2000 * kRayScale, glm::vec3(-2, -2, -0.5f), glm::vec3(2, 2, 0.5f), 13);
     int hits = 0;
     for (const Ray& r : rays) {
         for (bool realOnly : {false, true}) {
@@ -803,11 +807,16 @@ TEST(Intersection, BoxTestHandlesZeroAndNegativeZeroDirections) {
         glm::vec3 inv = 1.0f / d;
         float t;
         // Inside the slab, on its boundary planes, and outside.
-        EXPECT_TRUE(shader::intersectBox(lo, hi, glm::vec3(0.5f, 0.5f, -1.0f), inv, 0.0f, 10.0f, t));
-        EXPECT_TRUE(shader::intersectBox(lo, hi, glm::vec3(0.0f, 1.0f, -1.0f), inv, 0.0f, 10.0f, t));
-        EXPECT_TRUE(shader::intersectBox(lo, hi, glm::vec3(1.0f, 0.0f, -1.0f), inv, 0.0f, 10.0f, t));
-        EXPECT_FALSE(shader::intersectBox(lo, hi, glm::vec3(1.5f, 0.5f, -1.0f), inv, 0.0f, 10.0f, t));
-        EXPECT_FALSE(shader::intersectBox(lo, hi, glm::vec3(-0.5f, 0.5f, -1.0f), inv, 0.0f, 10.0f, t));
+        EXPECT_TRUE(
+            shader::intersectBox(lo, hi, glm::vec3(0.5f, 0.5f, -1.0f), inv, 0.0f, 10.0f, t));
+        EXPECT_TRUE(
+            shader::intersectBox(lo, hi, glm::vec3(0.0f, 1.0f, -1.0f), inv, 0.0f, 10.0f, t));
+        EXPECT_TRUE(
+            shader::intersectBox(lo, hi, glm::vec3(1.0f, 0.0f, -1.0f), inv, 0.0f, 10.0f, t));
+        EXPECT_FALSE(
+            shader::intersectBox(lo, hi, glm::vec3(1.5f, 0.5f, -1.0f), inv, 0.0f, 10.0f, t));
+        EXPECT_FALSE(
+            shader::intersectBox(lo, hi, glm::vec3(-0.5f, 0.5f, -1.0f), inv, 0.0f, 10.0f, t));
         // A flat box (zero thickness along the ray) is still hit.
         EXPECT_TRUE(shader::intersectBox(glm::vec3(0, 0, 2), glm::vec3(1, 1, 2),
                                          glm::vec3(0.5f, 0.5f, 0.0f), inv, 0.0f, 10.0f, t));

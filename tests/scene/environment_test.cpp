@@ -2,13 +2,13 @@
 // sampling math of gpu/shaders/shared/env_sampling.h run on the CPU: uv <-> direction round trip,
 // the pdf integrating to 1, chi-square goodness of fit of envSample against envPdf (pbrt-v4
 // sampling_test.cpp style), rotation consistency and robustness at the poles.
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <fstream>
-#include <random>
-
-#include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
+#include <random>
 
 #include "image/image.h"
 #include "scene/environment_map.h"
@@ -110,7 +110,8 @@ TEST(EnvironmentMap, RealMapsMatchStats) {
         EXPECT_EQ(best % map.width, s["brightest_pixel_xy"][0].get<size_t>());
         EXPECT_EQ(best / map.width, s["brightest_pixel_xy"][1].get<size_t>());
         for (const glm::vec3& r : map.radiance)
-            ASSERT_TRUE(r.r >= 0.0f && r.g >= 0.0f && r.b >= 0.0f && std::isfinite(r.r + r.g + r.b));
+            ASSERT_TRUE(r.r >= 0.0f && r.g >= 0.0f && r.b >= 0.0f &&
+                        std::isfinite(r.r + r.g + r.b));
     }
 }
 
@@ -125,7 +126,8 @@ TEST(EnvironmentMap, StudioIsBuiltInNeutralAndLitFromAbove) {
     double up = 0.0, down = 0.0;
     for (uint32_t y = 0; y < map->height; ++y) {
         const double elevation = (0.5 - (y + 0.5) / map->height) * M_PI;
-        const double dOmega = (2.0 * M_PI / map->width) * (M_PI / map->height) * std::cos(elevation);
+        const double dOmega =
+            (2.0 * M_PI / map->width) * (M_PI / map->height) * std::cos(elevation);
         for (uint32_t x = 0; x < map->width; ++x) {
             const glm::vec3 l = map->radiance[size_t(y) * map->width + x];
             ASSERT_TRUE(std::isfinite(l.r) && l.r >= 0.0f);
@@ -437,12 +439,12 @@ TEST(EnvironmentSampling, RotationConsistency) {
 TEST(EnvironmentSampling, NoNaNAtThePoles) {
     EnvironmentMap map = sunMap(64, 32);
     for (uint32_t x = 0; x < 64; ++x) {
-        map.radiance[x] = glm::vec3(50.0f);             // bright zenith row
-        map.radiance[31 * 64 + x] = glm::vec3(20.0f);   // bright nadir row
+        map.radiance[x] = glm::vec3(50.0f);            // bright zenith row
+        map.radiance[31 * 64 + x] = glm::vec3(20.0f);  // bright nadir row
     }
     EnvironmentSampler sampler(std::move(map));
-    for (const glm::vec3& d : {glm::vec3(0, 1, 0), glm::vec3(0, -1, 0),
-                               glm::vec3(1e-8f, 1, 0), glm::vec3(0, -1, -1e-8f)}) {
+    for (const glm::vec3& d : {glm::vec3(0, 1, 0), glm::vec3(0, -1, 0), glm::vec3(1e-8f, 1, 0),
+                               glm::vec3(0, -1, -1e-8f)}) {
         const float p = sampler.pdf(d);
         EXPECT_TRUE(std::isfinite(p) && p >= 0.0f) << p;
         const glm::vec3 l = sampler.radiance(d);

@@ -1,7 +1,11 @@
 // Loader tests on small glTF files written here: geometry, transforms, roles, materials, lights,
 // cameras, .glb, and every kind of bad input (each must give one error naming the file).
-#include "tests/support/temp_dir.h"
 #include "scene/gltf_loader.h"
+
+#include <fcntl.h>
+#include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include <chrono>
 #include <cmath>
@@ -9,17 +13,12 @@
 #include <filesystem>
 #include <fstream>
 #include <future>
-#include <limits>
-
-#include <fcntl.h>
-#include <sys/stat.h>
-#include <unistd.h>
-
 #include <glm/gtc/matrix_transform.hpp>
-#include <gtest/gtest.h>
+#include <limits>
 #include <nlohmann/json.hpp>
 
 #include "image/image.h"
+#include "tests/support/temp_dir.h"
 #include "tests/support/test_data.h"
 
 namespace previs {
@@ -90,8 +89,8 @@ public:
         return addAccessor(i.data(), i.size() * 2, 5123, "SCALAR", i.size());
     }
     int addMesh(json primitives) {
-        doc_["meshes"].push_back({{"name", "mesh" + std::to_string(doc_["meshes"].size())},
-                                  {"primitives", primitives}});
+        doc_["meshes"].push_back(
+            {{"name", "mesh" + std::to_string(doc_["meshes"].size())}, {"primitives", primitives}});
         return int(doc_["meshes"].size() - 1);
     }
     // A unit right triangle in the XY plane, indexed.
@@ -121,9 +120,9 @@ public:
         if (bin.empty()) {
             // No geometry: glTF forbids empty buffers.
         } else if (dataUri) {
-            d["buffers"] = json::array(
-                {{{"byteLength", bin.size()},
-                  {"uri", "data:application/octet-stream;base64," + base64(bin)}}});
+            d["buffers"] =
+                json::array({{{"byteLength", bin.size()},
+                              {"uri", "data:application/octet-stream;base64," + base64(bin)}}});
         } else {
             const std::string binName = std::filesystem::path(name).stem().string() + ".bin";
             std::ofstream(tempDir() / binName, std::ios::binary)
@@ -180,8 +179,7 @@ void expectErrorNamesFile(const std::string& path, const std::string& fragment) 
     Result<Scene> r = loadGltf(path);
     ASSERT_FALSE(r.ok()) << "expected an error for " << path;
     std::printf("%s\n", r.message().c_str());
-    EXPECT_NE(r.message().find(std::filesystem::path(path).filename().string()),
-              std::string::npos)
+    EXPECT_NE(r.message().find(std::filesystem::path(path).filename().string()), std::string::npos)
         << r.message();
     EXPECT_NE(r.message().find(fragment), std::string::npos)
         << "message '" << r.message() << "' lacks '" << fragment << "'";
@@ -191,8 +189,8 @@ TEST(GltfLoader, TrianglesAndWorldTransforms) {
     GltfBuilder b;
     const int mesh = b.addTriangleMesh();
     // Non-indexed quad: two triangles, six vertices.
-    const int quadPos = b.addPositions({{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 0, 0}, {1, 1, 0},
-                                        {0, 1, 0}});
+    const int quadPos =
+        b.addPositions({{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 0, 0}, {1, 1, 0}, {0, 1, 0}});
     const int quad = b.addMesh(json::array({{{"attributes", {{"POSITION", quadPos}}}}}));
     const int parent = b.addNode({{"name", "parent"},
                                   {"mesh", mesh},
@@ -253,8 +251,8 @@ TEST(GltfLoader, NormalsTransformedByInverseTransposeAndMirroringKeepsFront) {
     // Mirror in z: the geometric normal of the stored winding still agrees with the shading
     // normal's side.
     const glm::uvec3 t = g.triangles[1];
-    const glm::vec3 geo = glm::cross(g.positions[t.y] - g.positions[t.x],
-                                     g.positions[t.z] - g.positions[t.x]);
+    const glm::vec3 geo =
+        glm::cross(g.positions[t.y] - g.positions[t.x], g.positions[t.z] - g.positions[t.x]);
     EXPECT_GT(glm::dot(geo, g.normals[t.x]), 0.0f);
 }
 
@@ -288,25 +286,25 @@ TEST(GltfLoader, MaterialsWithExtensionsAndTextures) {
     d["extensionsRequired"] = {"KHR_materials_transmission"};
     d["images"] = json::array({{{"uri", "tex.png"}}});
     d["textures"] = json::array({{{"source", 0}}});
-    d["materials"] = json::array(
-        {{{"name", "glass"},
-          {"pbrMetallicRoughness",
-           {{"baseColorFactor", {0.5, 0.25, 1.0, 0.75}},
-            {"metallicFactor", 0.0},
-            {"roughnessFactor", 0.1},
-            {"baseColorTexture", {{"index", 0}}},
-            {"metallicRoughnessTexture", {{"index", 0}}}}},
-          {"normalTexture", {{"index", 0}}},
-          {"emissiveTexture", {{"index", 0}}},
-          {"emissiveFactor", {1.0, 0.5, 0.0}},
-          {"doubleSided", true},
-          {"extensions",
-           {{"KHR_materials_transmission", {{"transmissionFactor", 0.9}}},
-            {"KHR_materials_ior", {{"ior", 1.33}}},
-            {"KHR_materials_specular",
-             {{"specularFactor", 0.3}, {"specularColorFactor", {0.1, 0.2, 0.3}}}},
-            {"KHR_materials_emissive_strength", {{"emissiveStrength", 4.0}}}}}},
-         {{"name", "plain"}}});
+    d["materials"] =
+        json::array({{{"name", "glass"},
+                      {"pbrMetallicRoughness",
+                       {{"baseColorFactor", {0.5, 0.25, 1.0, 0.75}},
+                        {"metallicFactor", 0.0},
+                        {"roughnessFactor", 0.1},
+                        {"baseColorTexture", {{"index", 0}}},
+                        {"metallicRoughnessTexture", {{"index", 0}}}}},
+                      {"normalTexture", {{"index", 0}}},
+                      {"emissiveTexture", {{"index", 0}}},
+                      {"emissiveFactor", {1.0, 0.5, 0.0}},
+                      {"doubleSided", true},
+                      {"extensions",
+                       {{"KHR_materials_transmission", {{"transmissionFactor", 0.9}}},
+                        {"KHR_materials_ior", {{"ior", 1.33}}},
+                        {"KHR_materials_specular",
+                         {{"specularFactor", 0.3}, {"specularColorFactor", {0.1, 0.2, 0.3}}}},
+                        {"KHR_materials_emissive_strength", {{"emissiveStrength", 4.0}}}}}},
+                     {{"name", "plain"}}});
     b.addNode({{"mesh", b.addTriangleMesh(0)}});
     b.addNode({{"mesh", b.addTriangleMesh(1)}});
     Result<Scene> scene = loadGltf(b.writeGltf("materials.gltf", false));
@@ -481,14 +479,14 @@ TEST(GltfLoader, DegenerateTrianglesDroppedSliversKept) {
     const int pos = b.addPositions({{0, 0, 0},
                                     {1, 0, 0},
                                     {0, 1, 0},
-                                    {2, 0, 0},        // collinear with 0 and 1
-                                    {1, 1e-5f, 0},    // sliver with 0 and 3
-                                    {0, 0, 0}});      // coincident with 0
-    const int idx = b.addIndices({0, 1, 2,   // good
-                                  0, 0, 2,   // repeated index
-                                  0, 1, 3,   // zero area (collinear)
-                                  0, 3, 4,   // sliver: kept
-                                  0, 5, 1}); // coincident vertices: zero area
+                                    {2, 0, 0},      // collinear with 0 and 1
+                                    {1, 1e-5f, 0},  // sliver with 0 and 3
+                                    {0, 0, 0}});    // coincident with 0
+    const int idx = b.addIndices({0, 1, 2,          // good
+                                  0, 0, 2,          // repeated index
+                                  0, 1, 3,          // zero area (collinear)
+                                  0, 3, 4,          // sliver: kept
+                                  0, 5, 1});        // coincident vertices: zero area
     b.addNode({{"mesh", b.addMesh(json::array(
                             {{{"attributes", {{"POSITION", pos}}}, {"indices", idx}}}))}});
     Result<Scene> scene = loadGltf(b.writeGltf("degenerate.gltf"));
@@ -505,8 +503,8 @@ TEST(GltfLoader, NonFiniteNormalsReplacedByGeometric) {
     const float nan = std::numeric_limits<float>::quiet_NaN();
     const int pos = b.addPositions({{0, 0, 0}, {1, 0, 0}, {0, 1, 0}});
     const int nrm = b.addVec3({{nan, 0, 0}, {0, 0, 0}, {0, 0, 1}});
-    b.addNode({{"mesh", b.addMesh(json::array(
-                            {{{"attributes", {{"POSITION", pos}, {"NORMAL", nrm}}}}}))}});
+    b.addNode({{"mesh",
+                b.addMesh(json::array({{{"attributes", {{"POSITION", pos}, {"NORMAL", nrm}}}}}))}});
     Result<Scene> scene = loadGltf(b.writeGltf("nan_normals.gltf"));
     ASSERT_TRUE(scene.ok()) << scene.message();
     for (const glm::vec3& n : scene->geometry.normals) expectNear(n, {0, 0, 1});
@@ -525,9 +523,9 @@ TEST(GltfLoader, SkipsNonTrianglePrimitives) {
 TEST(GltfLoader, UndecodableTextureFallsBackToNoTexture) {
     GltfBuilder b;
     json& d = b.doc();
-    d["images"] = json::array(
-        {{{"uri", "data:image/png;base64," + base64({1, 2, 3, 4, 5, 6, 7, 8})}},
-         {{"uri", "missing_texture.png"}}});
+    d["images"] =
+        json::array({{{"uri", "data:image/png;base64," + base64({1, 2, 3, 4, 5, 6, 7, 8})}},
+                     {{"uri", "missing_texture.png"}}});
     d["textures"] = json::array({{{"source", 0}}, {{"source", 1}}});
     d["materials"] = json::array({{{"pbrMetallicRoughness", {{"baseColorTexture", {{"index", 0}}}}},
                                    {"emissiveTexture", {{"index", 1}}}}});
@@ -565,8 +563,8 @@ TEST(GltfLoader, BufferUriNamingAFifoIsRefused) {
 
 // Blender 3.4's own exporter, default lighting mode (tests/data/light_units/make_light_units.py):
 // a 100 W point light is written as 100 / 4π × 683 cd, a 3 W/m² sun as 3 × 683 lx. Read back, a
-// point light of P watts must have Blender's radiant intensity P / 4π W/sr, a spot the same (Blender
-// spots are specified "as if they were points"), a sun its irradiance in W/m².
+// point light of P watts must have Blender's radiant intensity P / 4π W/sr, a spot the same
+// (Blender spots are specified "as if they were points"), a sun its irradiance in W/m².
 TEST(GltfLoader, LightUnitsOfBlenderExportsAreRadiometric) {
     const std::string dir = testing::sourcePath("tests/data/light_units/");
     const double wattsPerSr = 100.0 / (4.0 * M_PI);
@@ -593,25 +591,25 @@ TEST(GltfLoader, MaterialValuesOutOfRangeAreClampedWithOneWarning) {
     json& d = b.doc();
     d["extensionsUsed"] = {"KHR_materials_ior", "KHR_materials_transmission",
                            "KHR_materials_emissive_strength", "KHR_materials_specular"};
-    d["materials"] = json::array(
-        {{{"name", "wild"},
-          {"pbrMetallicRoughness",
-           {{"baseColorFactor", {-0.5, 0.5, 2.0, 1.0}},
-            {"metallicFactor", 1.5},
-            {"roughnessFactor", -0.25}}},
-          {"emissiveFactor", {2.0, 0.5, -1.0}},
-          {"extensions",
-           {{"KHR_materials_ior", {{"ior", 0.5}}},
-            {"KHR_materials_transmission", {{"transmissionFactor", 2.0}}},
-            {"KHR_materials_emissive_strength", {{"emissiveStrength", 4.0}}},
-            {"KHR_materials_specular",
-             {{"specularFactor", 3.0}, {"specularColorFactor", {2.0, -1.0, 0.5}}}}}}},
-         {{"name", "fresnelOne"},
-          {"emissiveFactor", {1.0, 1.0, 1.0}},
-          {"extensions",
-           {{"KHR_materials_ior", {{"ior", 0.0}}},
-            {"KHR_materials_emissive_strength", {{"emissiveStrength", -2.0}}}}}},
-         {{"name", "fine"}, {"extensions", {{"KHR_materials_ior", {{"ior", 1.0}}}}}}});
+    d["materials"] =
+        json::array({{{"name", "wild"},
+                      {"pbrMetallicRoughness",
+                       {{"baseColorFactor", {-0.5, 0.5, 2.0, 1.0}},
+                        {"metallicFactor", 1.5},
+                        {"roughnessFactor", -0.25}}},
+                      {"emissiveFactor", {2.0, 0.5, -1.0}},
+                      {"extensions",
+                       {{"KHR_materials_ior", {{"ior", 0.5}}},
+                        {"KHR_materials_transmission", {{"transmissionFactor", 2.0}}},
+                        {"KHR_materials_emissive_strength", {{"emissiveStrength", 4.0}}},
+                        {"KHR_materials_specular",
+                         {{"specularFactor", 3.0}, {"specularColorFactor", {2.0, -1.0, 0.5}}}}}}},
+                     {{"name", "fresnelOne"},
+                      {"emissiveFactor", {1.0, 1.0, 1.0}},
+                      {"extensions",
+                       {{"KHR_materials_ior", {{"ior", 0.0}}},
+                        {"KHR_materials_emissive_strength", {{"emissiveStrength", -2.0}}}}}},
+                     {{"name", "fine"}, {"extensions", {{"KHR_materials_ior", {{"ior", 1.0}}}}}}});
     b.addNode({{"mesh", b.addTriangleMesh(0)}});
     const std::string path = b.writeGltf("clamped.gltf");
     // 1e39 overflows a float: the JSON is valid, the value non-finite once read.
@@ -669,9 +667,8 @@ TEST(GltfLoader, SamplerWrapAndFilterAreRead) {
     d["samplers"] = json::array({{{"wrapS", 33648}, {"wrapT", 33071}, {"magFilter", 9728}},
                                  {{"minFilter", 9986}},
                                  {{"wrapS", 12345}}});
-    d["textures"] = json::array({{{"source", 0}, {"sampler", 0}},
-                                 {{"source", 0}, {"sampler", 1}},
-                                 {{"source", 0}}});
+    d["textures"] = json::array(
+        {{{"source", 0}, {"sampler", 0}}, {{"source", 0}, {"sampler", 1}}, {{"source", 0}}});
     d["materials"] = json::array(
         {{{"pbrMetallicRoughness",
            {{"baseColorTexture", {{"index", 0}}}, {"metallicRoughnessTexture", {{"index", 1}}}}},
@@ -743,9 +740,9 @@ TEST(GltfLoader, TinygltfIssue416IsRefusedByName) {
     GltfBuilder b;
     b.doc()["images"] = json::array({{{"uri", "%!QAAAQAAA5"}}, {{"uri", "."}}});
     b.doc()["textures"] = json::array({{{"source", 0}}, {{"source", 1}}});
-    b.doc()["materials"] = json::array({{{"pbrMetallicRoughness",
-                                          {{"baseColorTexture", {{"index", 0}}},
-                                           {"metallicRoughnessTexture", {{"index", 1}}}}}}});
+    b.doc()["materials"] = json::array(
+        {{{"pbrMetallicRoughness",
+           {{"baseColorTexture", {{"index", 0}}}, {"metallicRoughnessTexture", {{"index", 1}}}}}}});
     b.addNode({{"mesh", b.addTriangleMesh(0)}});
     Result<Scene> scene = loadGltf(b.writeGltf("nul_uri.gltf"));
     ASSERT_TRUE(scene.ok()) << scene.message();
@@ -761,12 +758,12 @@ TEST(GltfLoader, IgnoredExtensionsAreListedInOneWarning) {
     json& d = b.doc();
     d["extensionsUsed"] = {"KHR_materials_volume", "KHR_draco_mesh_compression",
                            "KHR_materials_clearcoat"};
-    d["materials"] = json::array(
-        {{{"pbrMetallicRoughness",
-           {{"baseColorTexture",
-             {{"index", 0},
-              {"extensions", {{"KHR_texture_transform", {{"offset", {0.5, 0.0}}}}}}}}}},
-          {"extensions", {{"KHR_materials_clearcoat", {{"clearcoatFactor", 1.0}}}}}}});
+    d["materials"] =
+        json::array({{{"pbrMetallicRoughness",
+                       {{"baseColorTexture",
+                         {{"index", 0},
+                          {"extensions", {{"KHR_texture_transform", {{"offset", {0.5, 0.0}}}}}}}}}},
+                      {"extensions", {{"KHR_materials_clearcoat", {{"clearcoatFactor", 1.0}}}}}}});
     d["textures"] = json::array({{{"source", 0}}});
     d["images"] = json::array({{{"uri", "absent.png"}}});
     b.addNode({{"mesh", b.addTriangleMesh(0)}});
@@ -786,8 +783,8 @@ TEST(GltfLoader, IgnoredExtensionsAreListedInOneWarning) {
     }
     ASSERT_FALSE(line.empty()) << log;
     EXPECT_NE(line.find("extensions.gltf"), std::string::npos) << line;
-    for (const char* ext : {"KHR_draco_mesh_compression", "KHR_materials_clearcoat",
-                            "KHR_texture_transform"})
+    for (const char* ext :
+         {"KHR_draco_mesh_compression", "KHR_materials_clearcoat", "KHR_texture_transform"})
         EXPECT_NE(line.find(ext), std::string::npos) << ext << ": " << line;
     EXPECT_EQ(line.find("KHR_materials_volume"), std::string::npos) << "supported: " << line;
 }

@@ -1,23 +1,22 @@
 // Scene description tests: the shipped example, role patterns on small glTF files written here,
 // camera and environment overrides, the dispatcher, and every kind of bad input (each must give
 // one message naming the description file and the offending key).
-#include "tests/support/temp_dir.h"
 #include "scene/scene_description.h"
-#include "scene/environment_map.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <numbers>
 
-#include <unistd.h>
-
-#include <gtest/gtest.h>
-#include <nlohmann/json.hpp>
-
 #include "image/image.h"
+#include "scene/environment_map.h"
 #include "scene/gltf_loader.h"
+#include "tests/support/temp_dir.h"
 #include "tests/support/test_data.h"
 
 namespace previs {
@@ -57,29 +56,30 @@ public:
         const float positions[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
         std::vector<uint8_t> bytes(sizeof positions);
         std::memcpy(bytes.data(), positions, sizeof positions);
-        doc_ = {{"asset", {{"version", "2.0"}}},
-                {"scene", 0},
-                {"scenes", json::array({json{{"nodes", json::array()}}})},
-                {"nodes", json::array()},
-                {"meshes", json::array({{{"primitives", json::array({{{"attributes",
-                                                                      {{"POSITION", 0}}}}})}}})},
-                {"accessors", json::array({{{"bufferView", 0},
-                                            {"componentType", 5126},
-                                            {"type", "VEC3"},
-                                            {"count", 3},
-                                            {"min", {0, 0, 0}},
-                                            {"max", {1, 1, 0}}}})},
-                {"bufferViews",
-                 json::array({{{"buffer", 0}, {"byteOffset", 0}, {"byteLength", bytes.size()}}})},
-                {"buffers", json::array({{{"byteLength", bytes.size()},
-                                          {"uri", "data:application/octet-stream;base64," +
-                                                      base64(bytes)}}})},
-                {"cameras", json::array({{{"name", "CamA"},
-                                          {"type", "perspective"},
-                                          {"perspective", {{"yfov", 0.8}, {"znear", 0.01}}}},
-                                         {{"name", "CamB"},
-                                          {"type", "perspective"},
-                                          {"perspective", {{"yfov", 0.5}, {"znear", 0.01}}}}})}};
+        doc_ = {
+            {"asset", {{"version", "2.0"}}},
+            {"scene", 0},
+            {"scenes", json::array({json{{"nodes", json::array()}}})},
+            {"nodes", json::array()},
+            {"meshes",
+             json::array({{{"primitives", json::array({{{"attributes", {{"POSITION", 0}}}}})}}})},
+            {"accessors", json::array({{{"bufferView", 0},
+                                        {"componentType", 5126},
+                                        {"type", "VEC3"},
+                                        {"count", 3},
+                                        {"min", {0, 0, 0}},
+                                        {"max", {1, 1, 0}}}})},
+            {"bufferViews",
+             json::array({{{"buffer", 0}, {"byteOffset", 0}, {"byteLength", bytes.size()}}})},
+            {"buffers",
+             json::array({{{"byteLength", bytes.size()},
+                           {"uri", "data:application/octet-stream;base64," + base64(bytes)}}})},
+            {"cameras", json::array({{{"name", "CamA"},
+                                      {"type", "perspective"},
+                                      {"perspective", {{"yfov", 0.8}, {"znear", 0.01}}}},
+                                     {{"name", "CamB"},
+                                      {"type", "perspective"},
+                                      {"perspective", {{"yfov", 0.5}, {"znear", 0.01}}}}})}};
         addNode({{"name", "CamNodeA"}, {"camera", 0}});
         addNode({{"name", "CamNodeB"}, {"camera", 1}});
     }
@@ -91,9 +91,7 @@ public:
         return addNode(node, parent);
     }
 
-    std::string write(const std::string& name) const {
-        return writeFile(name, doc_.dump());
-    }
+    std::string write(const std::string& name) const { return writeFile(name, doc_.dump()); }
 
 private:
     int addNode(json node, int parent = -1) {
@@ -321,7 +319,7 @@ gltf = "{}"
 [environment]
 map = "{}"
 )",
-                                                                  gltf, env));
+                                                                   gltf, env));
     Result<Scene> scene = loadSceneDescription(toml);
     ASSERT_TRUE(scene.ok()) << scene.message();
     ASSERT_TRUE(scene->environment.has_value());
@@ -361,31 +359,40 @@ TEST_P(BadDescription, OneMessageNamingFileAndKey) {
 }
 
 const BadCase kBadCases[] = {
-    {"unknown_key", "version = 1\ngltf = \"roles.gltf\"\ngltff = \"x\"\n",
+    {"unknown_key",
+     "version = 1\ngltf = \"roles.gltf\"\ngltff = \"x\"\n",
      {"line 3", "'gltff'", "version, gltf, environment, roles, camera"}},
     {"unknown_environment_key",
      "version = 1\ngltf = \"roles.gltf\"\n[environment]\nmap = \"env.exr\"\nrotation = 3\n",
      {"line 5", "'rotation'", "[environment]", "map, rotation_deg, scale"}},
-    {"unknown_camera_key", "version = 1\ngltf = \"roles.gltf\"\n[camera]\nfov = 1\n",
+    {"unknown_camera_key",
+     "version = 1\ngltf = \"roles.gltf\"\n[camera]\nfov = 1\n",
      {"'fov'", "name, aperture_radius_m, focus_distance_m"}},
-    {"unknown_roles_key", "version = 1\ngltf = \"roles.gltf\"\n[roles]\nreel = [\"A\"]\n",
+    {"unknown_roles_key",
+     "version = 1\ngltf = \"roles.gltf\"\n[roles]\nreel = [\"A\"]\n",
      {"'reel'", "real, virtual"}},
-    {"version_string", "version = \"1\"\ngltf = \"roles.gltf\"\n",
+    {"version_string",
+     "version = \"1\"\ngltf = \"roles.gltf\"\n",
      {"line 1", "'version'", "integer", "a string"}},
-    {"version_unsupported", "version = 2\ngltf = \"roles.gltf\"\n",
+    {"version_unsupported",
+     "version = 2\ngltf = \"roles.gltf\"\n",
      {"'version' is 2", "version 1"}},
     {"version_missing", "gltf = \"roles.gltf\"\n", {"'version'", "version = 1"}},
     {"gltf_missing_key", "version = 1\n", {"'gltf'"}},
     {"gltf_wrong_type", "version = 1\ngltf = 3\n", {"'gltf'", "string", "an integer"}},
-    {"gltf_missing_file", "version = 1\ngltf = \"nowhere.gltf\"\n",
+    {"gltf_missing_file",
+     "version = 1\ngltf = \"nowhere.gltf\"\n",
      {"line 2", "'gltf'", "nowhere.gltf", "does not exist"}},
-    {"gltf_wrong_extension", "version = 1\ngltf = \"scene.obj\"\n",
+    {"gltf_wrong_extension",
+     "version = 1\ngltf = \"scene.obj\"\n",
      {"'gltf'", "scene.obj", ".gltf, .glb"}},
     {"gltf_empty", "version = 1\ngltf = \"\"\n", {"'gltf'", "empty"}},
     {"gltf_malformed", "version = 1\ngltf = \"broken.gltf\"\n", {"broken.gltf", "JSON"}},
-    {"environment_not_table", "version = 1\ngltf = \"roles.gltf\"\nenvironment = \"env.exr\"\n",
+    {"environment_not_table",
+     "version = 1\ngltf = \"roles.gltf\"\nenvironment = \"env.exr\"\n",
      {"'environment'", "table", "a string"}},
-    {"environment_no_map", "version = 1\ngltf = \"roles.gltf\"\n[environment]\nscale = 1\n",
+    {"environment_no_map",
+     "version = 1\ngltf = \"roles.gltf\"\n[environment]\nscale = 1\n",
      {"[environment]", "'map'"}},
     {"environment_missing_map",
      "version = 1\ngltf = \"roles.gltf\"\n[environment]\nmap = \"gone.exr\"\n",
@@ -405,23 +412,30 @@ const BadCase kBadCases[] = {
     {"environment_rotation_nan",
      "version = 1\ngltf = \"roles.gltf\"\n[environment]\nmap = \"env.exr\"\nrotation_deg = nan\n",
      {"'environment.rotation_deg'", "finite"}},
-    {"roles_not_array", "version = 1\ngltf = \"roles.gltf\"\n[roles]\nreal = \"Table\"\n",
+    {"roles_not_array",
+     "version = 1\ngltf = \"roles.gltf\"\n[roles]\nreal = \"Table\"\n",
      {"line 4", "'roles.real'", "array"}},
-    {"roles_element_not_string", "version = 1\ngltf = \"roles.gltf\"\n[roles]\nvirtual = [\"A\", 1]\n",
+    {"roles_element_not_string",
+     "version = 1\ngltf = \"roles.gltf\"\n[roles]\nvirtual = [\"A\", 1]\n",
      {"'roles.virtual[1]'", "string", "an integer"}},
-    {"roles_empty_pattern", "version = 1\ngltf = \"roles.gltf\"\n[roles]\nreal = [\"\"]\n",
+    {"roles_empty_pattern",
+     "version = 1\ngltf = \"roles.gltf\"\n[roles]\nreal = [\"\"]\n",
      {"'roles.real[0]'", "empty"}},
-    {"camera_unknown_name", "version = 1\ngltf = \"roles.gltf\"\n[camera]\nname = \"Nope\"\n",
+    {"camera_unknown_name",
+     "version = 1\ngltf = \"roles.gltf\"\n[camera]\nname = \"Nope\"\n",
      {"line 4", "'camera.name'", "'Nope'", "'CamA', 'CamB'"}},
     {"camera_negative_aperture",
      "version = 1\ngltf = \"roles.gltf\"\n[camera]\naperture_radius_m = -0.1\n",
      {"'camera.aperture_radius_m'", ">= 0"}},
-    {"camera_zero_focus", "version = 1\ngltf = \"roles.gltf\"\n[camera]\nfocus_distance_m = 0\n",
+    {"camera_zero_focus",
+     "version = 1\ngltf = \"roles.gltf\"\n[camera]\nfocus_distance_m = 0\n",
      {"'camera.focus_distance_m'", "> 0"}},
-    {"camera_not_table", "version = 1\ngltf = \"roles.gltf\"\ncamera = \"CamA\"\n",
+    {"camera_not_table",
+     "version = 1\ngltf = \"roles.gltf\"\ncamera = \"CamA\"\n",
      {"'camera'", "table"}},
     {"syntax_error", "version = 1\ngltf = \n", {"line 2", "not valid TOML"}},
-    {"duplicate_key", "version = 1\nversion = 1\ngltf = \"roles.gltf\"\n",
+    {"duplicate_key",
+     "version = 1\nversion = 1\ngltf = \"roles.gltf\"\n",
      {"line 2", "not valid TOML"}},
     {"binary_garbage", "\x01\x02\xff\xfe version", {"not valid TOML"}},
 };

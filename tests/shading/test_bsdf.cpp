@@ -47,8 +47,8 @@ glm::vec3 direction(float thetaDeg, float phiDeg) {
 
 TEST(SamplingTest, CosineHemisphereMatchesItsDensity) {
     auto r = chi2DirectionTest([](glm::vec2 u) { return std::optional(sampleCosineHemisphere(u)); },
-                               [](glm::vec3 d) { return double(cosineHemispherePdf(d.z)); }, 16,
-                               32, 1'000'000, 1);
+                               [](glm::vec3 d) { return double(cosineHemispherePdf(d.z)); }, 16, 32,
+                               1'000'000, 1);
     EXPECT_GT(r.pValue, kLevel) << r.describe();
 }
 
@@ -294,8 +294,7 @@ TEST(BsdfTest, RoughGlassFurnaceMatchesSingleScatteringGgx) {
 // geometric surface, wo is above the adapted normal, and a normal that needs no change keeps it.
 TEST(ShadingNormalTest, AdaptedNormalReflectsAboveTheSurface) {
     std::mt19937 rng(21);
-    std::uniform_real_distribution<float> theta(0.0f, 89.99f), tilt(0.0f, 60.0f),
-        phi(0.0f, 360.0f);
+    std::uniform_real_distribution<float> theta(0.0f, 89.99f), tilt(0.0f, 60.0f), phi(0.0f, 360.0f);
     const glm::vec3 ng(0.0f, 0.0f, 1.0f);
     int adapted = 0;
     for (int i = 0; i < 100000; ++i) {
@@ -413,7 +412,8 @@ double integrateSpecularAlbedo(double mu, double alpha, double eta, int n = 128)
 // (sampled on a 4× finer grid) in the cells it is a corner of: interpolation then never falls
 // below E, so the diffuse weight 1 − E errs on the side of losing energy, never creating it.
 TEST(BsdfTest, DISABLED_PrintSpecularAlbedoTable) {
-    const int nm = PV_SPECULAR_ALBEDO_MU, na = PV_SPECULAR_ALBEDO_ALPHA, ne = PV_SPECULAR_ALBEDO_ETA;
+    const int nm = PV_SPECULAR_ALBEDO_MU, na = PV_SPECULAR_ALBEDO_ALPHA,
+              ne = PV_SPECULAR_ALBEDO_ETA;
     const int sub = 4;
     const int fm = (nm - 1) * sub + 1, fa = (na - 1) * sub + 1, fe = (ne - 1) * sub + 1;
     std::vector<double> fine(size_t(fm) * fa * fe);
@@ -424,8 +424,9 @@ TEST(BsdfTest, DISABLED_PrintSpecularAlbedoTable) {
         for (int j = 0; j < fa; ++j) {
             for (int i = 0; i < fm; ++i) {
                 double x = double(i) / (fm - 1), y = double(j) / (fa - 1);
-                double eta = PV_SPECULAR_ALBEDO_ETA_MIN +
-                             (PV_SPECULAR_ALBEDO_ETA_MAX - PV_SPECULAR_ALBEDO_ETA_MIN) * k / (fe - 1);
+                double eta =
+                    PV_SPECULAR_ALBEDO_ETA_MIN +
+                    (PV_SPECULAR_ALBEDO_ETA_MAX - PV_SPECULAR_ALBEDO_ETA_MIN) * k / (fe - 1);
                 fineAt(i, j, k) = integrateSpecularAlbedo(x * x, y * y, eta, 64);
             }
         }
@@ -447,8 +448,8 @@ TEST(BsdfTest, DISABLED_PrintSpecularAlbedoTable) {
                 }
                 double under = fineAt(i, j, k) - interp;
                 for (int c = 0; c < 8; ++c) {
-                    size_t at = (size_t(ck + (c >> 2)) * na + cj + ((c >> 1) & 1)) * nm + ci +
-                                (c & 1);
+                    size_t at =
+                        (size_t(ck + (c >> 2)) * na + cj + ((c >> 1) & 1)) * nm + ci + (c & 1);
                     raise[at] = std::max(raise[at], under);
                 }
             }
@@ -478,8 +479,8 @@ TEST(BsdfTest, SpecularAlbedoTableBoundsTheIntegral) {
         double m = std::pow(uni(rng), 2.0), a = std::pow(uni(rng), 2.0);
         double e = PV_SPECULAR_ALBEDO_ETA_MIN +
                    (PV_SPECULAR_ALBEDO_ETA_MAX - PV_SPECULAR_ALBEDO_ETA_MIN) * uni(rng);
-        double d = specularAlbedo(float(m), float(a), float(e)) -
-                   integrateSpecularAlbedo(m, a, e, 64);
+        double d =
+            specularAlbedo(float(m), float(a), float(e)) - integrateSpecularAlbedo(m, a, e, 64);
         EXPECT_GT(d, -2e-4) << "μ " << m << " α " << a << " η " << e;
         worstBelow = std::max(worstBelow, -d);
         worstAbove = std::max(worstAbove, d);
@@ -487,9 +488,10 @@ TEST(BsdfTest, SpecularAlbedoTableBoundsTheIntegral) {
         if (m >= std::cos(80.0 * M_PI / 180.0) && a >= 0.01)
             worstAboveModerate = std::max(worstAboveModerate, d);
     }
-    std::printf("specular albedo table: below E by %.5f at most; above by %.4f (%.4f for θo ≤ "
-                "80°, roughness ≥ 0.1)\n",
-                worstBelow, worstAbove, worstAboveModerate);
+    std::printf(
+        "specular albedo table: below E by %.5f at most; above by %.4f (%.4f for θo ≤ "
+        "80°, roughness ≥ 0.1)\n",
+        worstBelow, worstAbove, worstAboveModerate);
 }
 
 // The diffuse base's weight, decided by the white furnace of white plastic (white base, metallic
@@ -515,8 +517,8 @@ TEST(BsdfTest, WhitePlasticFurnaceDecidesTheDiffuseWeight) {
         for (int i = 0; i < n; ++i) {
             for (int j = 0; j < 2 * n; ++j) {
                 double z = (i + 0.5) / n, phi = M_PI * (j + 0.5) / n, r = std::sqrt(1 - z * z);
-                sum += g(glm::vec3(float(r * std::cos(phi)), float(r * std::sin(phi)), float(z))) *
-                       z;
+                sum +=
+                    g(glm::vec3(float(r * std::cos(phi)), float(r * std::sin(phi)), float(z))) * z;
             }
         }
         return sum * (2.0 * M_PI) / (2.0 * n * n);
@@ -585,8 +587,8 @@ TEST(BsdfTest, GrazingAndDegenerateDirectionsStayFinite) {
     BsdfParams cases[] = {material(glm::vec3(1.0f), 1.0f, 0.01f),
                           material(glm::vec3(1.0f), 0.0f, 1.0f, 1.0f, 1.5f),
                           material(glm::vec3(0.5f), 0.5f, 0.5f, 0.5f, 1.0f / 1.5f)};
-    glm::vec3 dirs[] = {{1, 0, 0}, {0, 0, 1}, glm::normalize(glm::vec3(1, 0, 1e-7f)),
-                        {0, 1, 1e-30f}};
+    glm::vec3 dirs[] = {
+        {1, 0, 0}, {0, 0, 1}, glm::normalize(glm::vec3(1, 0, 1e-7f)), {0, 1, 1e-30f}};
     for (const BsdfParams& p : cases) {
         for (glm::vec3 wo : dirs) {
             for (glm::vec3 wi : dirs) {

@@ -97,8 +97,8 @@ TEST(SobolTest, EveryPowerOfTwoBlockIsANetInEachSet) {
                         z.push_back(u.z);
                         w.push_back(u.w);
                     }
-                    ASSERT_TRUE(isNet2D(xy, m)) << "pixel " << pixel << " set " << set << " 2^"
-                                                << m << " samples from " << first;
+                    ASSERT_TRUE(isNet2D(xy, m)) << "pixel " << pixel << " set " << set << " 2^" << m
+                                                << " samples from " << first;
                     ASSERT_TRUE(isNet1D(z, m)) << "z, set " << set << " 2^" << m;
                     ASSERT_TRUE(isNet1D(w, m)) << "w, set " << set << " 2^" << m;
                 }

@@ -69,7 +69,8 @@ TEST(TextureSampling, BilinearTexelsAndWeightsMatchOpenGl) {
                 float w1 = -1.0f;
                 linearTexels(float(u), size, mode, i0, i1, w1);
                 // Texel centres at (i + 0.5) / size; clamping first for CLAMP_TO_EDGE.
-                const double c = mode == PV_WRAP_CLAMP_TO_EDGE ? std::min(std::max(u, 0.0), 1.0) : u;
+                const double c =
+                    mode == PV_WRAP_CLAMP_TO_EDGE ? std::min(std::max(u, 0.0), 1.0) : u;
                 const double p = c * size - 0.5;
                 const int64_t i = int64_t(std::floor(p));
                 EXPECT_EQ(i0, referenceWrap(i, size, mode)) << u;
@@ -86,9 +87,23 @@ TEST(TextureSampling, BilinearTexelsAndWeightsMatchOpenGl) {
 TEST(TextureSampling, AnyCoordinateStaysInsideTheImage) {
     const float inf = std::numeric_limits<float>::infinity();
     const float nan = std::numeric_limits<float>::quiet_NaN();
-    std::vector<float> extremes = {0.0f,   -0.0f, 1.0f,   -1e-9f, 1e-9f,  1e7f,  -1e7f,
-                                   3e9f,   -3e9f, 1e30f, -1e30f, 3.4e38f, -3.4e38f, inf,
-                                   -inf,   nan,   std::numeric_limits<float>::denorm_min()};
+    std::vector<float> extremes = {0.0f,
+                                   -0.0f,
+                                   1.0f,
+                                   -1e-9f,
+                                   1e-9f,
+                                   1e7f,
+                                   -1e7f,
+                                   3e9f,
+                                   -3e9f,
+                                   1e30f,
+                                   -1e30f,
+                                   3.4e38f,
+                                   -3.4e38f,
+                                   inf,
+                                   -inf,
+                                   nan,
+                                   std::numeric_limits<float>::denorm_min()};
     for (int k = -40; k <= 40; ++k) extremes.push_back(std::ldexp(1.37f, k) * (k % 2 ? -1 : 1));
     for (int size : {1, 3, 64, 16384}) {
         for (uint32_t mode : kModes) {

@@ -1,11 +1,11 @@
 #include "tests/support/chi2.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 #include <random>
 #include <vector>
-
-#include <fmt/format.h>
 
 namespace previs::testing {
 
@@ -87,7 +87,8 @@ Chi2Result chi2DirectionTest(const std::function<std::optional<glm::vec3>(glm::v
     // Merge cells with small expectations, in order of expectation (pbrt-v4's chi2test).
     std::vector<size_t> order(observed.size());
     for (size_t i = 0; i < order.size(); ++i) order[i] = i;
-    std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return expected[a] < expected[b]; });
+    std::sort(order.begin(), order.end(),
+              [&](size_t a, size_t b) { return expected[a] < expected[b]; });
     Chi2Result r;
     double pooledObs = 0.0, pooledExp = 0.0;
     int cells = 0;
@@ -116,7 +117,9 @@ Chi2Result chi2DirectionTest(const std::function<std::optional<glm::vec3>(glm::v
         ++cells;
     }
     r.degreesOfFreedom = cells - 1;
-    r.pValue = r.degreesOfFreedom > 0 ? incompleteGammaQ(0.5 * r.degreesOfFreedom, 0.5 * r.statistic) : 1.0;
+    r.pValue = r.degreesOfFreedom > 0
+                   ? incompleteGammaQ(0.5 * r.degreesOfFreedom, 0.5 * r.statistic)
+                   : 1.0;
     return r;
 }
 

@@ -5,10 +5,9 @@
 // area, expected counts from integrating the pdf over each cell, cells with expected < 5 merged.
 
 #include <functional>
+#include <glm/glm.hpp>
 #include <optional>
 #include <string>
-
-#include <glm/glm.hpp>
 
 namespace previs::testing {
 

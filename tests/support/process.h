@@ -96,8 +96,8 @@ struct CommandResult {
 
 // Runs argv to completion with stdin closed. stderrTerminal: stderr is a pseudo-terminal (as
 // when a user runs the command by hand) instead of a pipe.
-inline CommandResult runCommand(const std::vector<std::string>& argv,
-                                std::chrono::seconds timeout, bool stderrTerminal = false) {
+inline CommandResult runCommand(const std::vector<std::string>& argv, std::chrono::seconds timeout,
+                                bool stderrTerminal = false) {
     CommandResult result;
     int outPipe[2], errPipe[2];
     if (::pipe2(outPipe, O_CLOEXEC) != 0) return result;

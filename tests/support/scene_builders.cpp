@@ -1,7 +1,6 @@
 #include "tests/support/scene_builders.h"
 
 #include <cmath>
-
 #include <glm/gtc/matrix_transform.hpp>
 
 namespace previs::testing {

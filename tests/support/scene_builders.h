@@ -8,10 +8,10 @@
 
 namespace previs::testing {
 
-Material lambert(glm::vec3 albedo);            // metallic 0, specular 0: exactly Lambertian
-Material mirror();                             // metallic 1, roughness 0, white
-Material glass(float ior);                     // transmission 1, roughness 0, white
-Material emitter(glm::vec3 radiance);          // black, emitting `radiance` from its front side
+Material lambert(glm::vec3 albedo);    // metallic 0, specular 0: exactly Lambertian
+Material mirror();                     // metallic 1, roughness 0, white
+Material glass(float ior);             // transmission 1, roughness 0, white
+Material emitter(glm::vec3 radiance);  // black, emitting `radiance` from its front side
 
 uint32_t addMaterial(Scene& scene, const Material& material);
 

@@ -7,10 +7,10 @@
 // location in the build tree. A test that needs the shared data skips, saying why, when they are
 // absent (PREVIS_SKIP_WITHOUT_SHARED_DATA); CTest shows it as skipped, not passed.
 
+#include <gtest/gtest.h>
+
 #include <cstdlib>
 #include <string>
-
-#include <gtest/gtest.h>
 
 #include "base/data_paths.h"
 
@@ -43,7 +43,7 @@ inline const std::string& sharedDataDir() {
 }  // namespace previs::testing
 
 // First statement of a test that reads the shared data.
-#define PREVIS_SKIP_WITHOUT_SHARED_DATA()                                                   \
-    if (::previs::testing::sharedDataDir().empty())                                         \
+#define PREVIS_SKIP_WITHOUT_SHARED_DATA()                                                     \
+    if (::previs::testing::sharedDataDir().empty())                                           \
     GTEST_SKIP() << "the shared data were not found: set PREVIS_DATA_DIR or put shared/data " \
                     "beside the checkout"

@@ -5,22 +5,21 @@
 #include <chrono>
 #include <cmath>
 #include <fstream>
-#include <random>
-#include <sstream>
-
 #include <nlohmann/json.hpp>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <random>
+#include <sstream>
 
 #include "scene/environment_map.h"
+#include "tests/support/test_data.h"
 #include "vision/camera_calibration.h"
 #include "vision/equirect.h"
 #include "vision/fisheye_to_equirect.h"
 #include "vision/inverse_tone_map.h"
 #include "vision/light_estimator.h"
 #include "vision/tag_board.h"
-#include "tests/support/test_data.h"
 
 namespace previs {
 namespace {
@@ -82,14 +81,13 @@ TEST_P(FisheyeLookup, AgreesWithOpenCvProjectPoints) {
     EXPECT_LT(worst, 1e-3);  // float32 storage of the map: ~3e-5 px at 640 px
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    Vision, FisheyeLookup,
-    ::testing::Values(MountCase{"boofcv_fisheye_kb.yaml", {-90, 0, 0}},
-                    MountCase{"boofcv_fisheye_kb.yaml", {180, 0, 0}},
-                    MountCase{"theta_front_kb.yaml", {30, -20, 70}}),
-    [](const auto& p) {
-        return p.param.calib.substr(0, 6) + "_mount" + std::to_string(p.index);
-    });
+INSTANTIATE_TEST_SUITE_P(Vision, FisheyeLookup,
+                         ::testing::Values(MountCase{"boofcv_fisheye_kb.yaml", {-90, 0, 0}},
+                                           MountCase{"boofcv_fisheye_kb.yaml", {180, 0, 0}},
+                                           MountCase{"theta_front_kb.yaml", {30, -20, 70}}),
+                         [](const auto& p) {
+                             return p.param.calib.substr(0, 6) + "_mount" + std::to_string(p.index);
+                         });
 
 // DESIGN.md §3: the default mount looks at the zenith with the image's bottom edge toward −Z.
 TEST(FisheyeToEquirect, DefaultMountOrientation) {
@@ -106,7 +104,7 @@ TEST(FisheyeToEquirect, DefaultMountOrientation) {
     EXPECT_GT(towardMinusZ->y, calib.cy() + 50.0);  // below the centre: toward the bottom edge
     auto towardPlusX = f->pixelForDirection({1, 0.5, 0});
     ASSERT_TRUE(towardPlusX.has_value());
-    EXPECT_GT(towardPlusX->x, calib.cx() + 50.0);  // image x = world +X
+    EXPECT_GT(towardPlusX->x, calib.cx() + 50.0);                // image x = world +X
     EXPECT_FALSE(f->pixelForDirection({0, -1, 0}).has_value());  // nadir: unseen
     EXPECT_NEAR(f->seenFraction(), (1.0 - std::cos(95.0 * M_PI / 180.0)) / 2.0, 0.01);
 }
@@ -117,7 +115,8 @@ TEST(FisheyeToEquirect, DefaultMountOrientation) {
 // lookup) must do as well, out to the ~88° off axis the views reach.
 TEST(FisheyeToEquirect, ChessboardCornersOnRealFisheyeViews) {
     PREVIS_SKIP_WITHOUT_SHARED_DATA();
-    std::ifstream in(kData + "fisheye/boofcv_chessboard/kb_opencv_calibration_from_shared_images.json");
+    std::ifstream in(kData +
+                     "fisheye/boofcv_chessboard/kb_opencv_calibration_from_shared_images.json");
     nlohmann::json j = nlohmann::json::parse(in);
     CameraCalibration calib = loadCalib("boofcv_fisheye_kb.yaml");
     FisheyeToEquirectSettings s;
@@ -246,7 +245,8 @@ cv::Mat syntheticSky(int width, const cv::Vec3d& sunDir, double radiusDeg, float
             cv::Vec3d d = equirectTexelDirection(x, y, width, h);
             float sky = float(0.3 + 0.7 * std::max(0.0, d[1]));
             cv::Vec3f c(0.6f * sky, 0.8f * sky, 1.0f * sky);
-            if (d.dot(s) >= cosR) c = cv::Vec3f(sunRadiance, 0.9f * sunRadiance, 0.8f * sunRadiance);
+            if (d.dot(s) >= cosR)
+                c = cv::Vec3f(sunRadiance, 0.9f * sunRadiance, 0.8f * sunRadiance);
             m.at<cv::Vec3f>(y, x) = c;
         }
     return m;
@@ -292,9 +292,9 @@ TEST_P(SyntheticSun, FindsTheSunAndPreservesPower) {
 
 INSTANTIATE_TEST_SUITE_P(Vision, SyntheticSun,
                          ::testing::Values(SunCase{"afternoon", {0.5, 0.6, -0.3}},
-                                         SunCase{"seam", {-1.0, 0.3, 0.0}},
-                                         SunCase{"zenith", {0.01, 1.0, 0.0}},
-                                         SunCase{"low", {0.2, 0.03, 0.9}}),
+                                           SunCase{"seam", {-1.0, 0.3, 0.0}},
+                                           SunCase{"zenith", {0.01, 1.0, 0.0}},
+                                           SunCase{"low", {0.2, 0.03, 0.9}}),
                          [](const auto& p) { return p.param.name; });
 
 TEST(LightEstimator, BlackMapAndBadInput) {
@@ -353,14 +353,14 @@ TEST_P(RealMaps, DominantLightAndEnergy) {
 
 INSTANTIATE_TEST_SUITE_P(
     Vision, RealMaps,
-    ::testing::Values("blender_studiolights_world/city.exr", "blender_studiolights_world/courtyard.exr",
-                    "blender_studiolights_world/forest.exr", "blender_studiolights_world/interior.exr",
-                    "blender_studiolights_world/night.exr", "blender_studiolights_world/studio.exr",
-                    "blender_studiolights_world/sunrise.exr", "blender_studiolights_world/sunset.exr",
-                    "polyhaven_1k_hdr/empty_warehouse_01_1k.hdr",
-                    "polyhaven_1k_hdr/potsdamer_platz_1k.hdr", "polyhaven_1k_hdr/rooitou_park_1k.hdr",
-                    "polyhaven_1k_hdr/st_fagans_interior_1k.hdr",
-                    "polyhaven_1k_hdr/studio_small_03_1k.hdr"),
+    ::testing::Values(
+        "blender_studiolights_world/city.exr", "blender_studiolights_world/courtyard.exr",
+        "blender_studiolights_world/forest.exr", "blender_studiolights_world/interior.exr",
+        "blender_studiolights_world/night.exr", "blender_studiolights_world/studio.exr",
+        "blender_studiolights_world/sunrise.exr", "blender_studiolights_world/sunset.exr",
+        "polyhaven_1k_hdr/empty_warehouse_01_1k.hdr", "polyhaven_1k_hdr/potsdamer_platz_1k.hdr",
+        "polyhaven_1k_hdr/rooitou_park_1k.hdr", "polyhaven_1k_hdr/st_fagans_interior_1k.hdr",
+        "polyhaven_1k_hdr/studio_small_03_1k.hdr"),
     [](const auto& p) {
         std::string n = p.param.substr(p.param.find('/') + 1);
         n = n.substr(0, n.find('.'));
@@ -381,9 +381,9 @@ TEST(LightingEstimator, NeverBlocksAndPublishesTheLatest) {
         env->sequence = uint64_t(i);
         auto t0 = std::chrono::steady_clock::now();
         estimator.submit(std::move(env));
-        worstSubmitMs = std::max(
-            worstSubmitMs,
-            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+        worstSubmitMs = std::max(worstSubmitMs, std::chrono::duration<double, std::milli>(
+                                                    std::chrono::steady_clock::now() - t0)
+                                                    .count());
     }
     // The estimate takes milliseconds; submitting must not wait for it. Shown without timing
     // (a timed assertion flakes on a loaded machine): the producer outran the estimator, so

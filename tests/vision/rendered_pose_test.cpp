@@ -23,9 +23,8 @@
 
 #include <cmath>
 #include <cstdio>
-#include <optional>
-
 #include <opencv2/calib3d.hpp>
+#include <optional>
 
 #include "bench/board_render.h"
 #include "tests/integrator/gpu_fixture.h"

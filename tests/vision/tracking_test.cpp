@@ -8,18 +8,17 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <regex>
 #include <sstream>
 
-#include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
-
+#include "tests/support/test_data.h"
 #include "vision/board_file.h"
 #include "vision/board_pose.h"
 #include "vision/camera_calibration.h"
 #include "vision/tag_board.h"
 #include "vision/tag_detector.h"
-#include "tests/support/test_data.h"
 
 namespace previs {
 namespace {
@@ -217,8 +216,9 @@ TEST_P(VispBenchmark, CornersAndPoseMatchTruth) {
         cv::Matx44d truth = readMatrix4(dir + "cMo_" + std::to_string(e->id) + ".txt");
         double dt = cv::norm(translationOf(*pose) - translationOf(truth));
         double dr = rotationAngleDeg(rotationOf(*pose) * flip, rotationOf(truth));
-        std::printf("%s id %d: translation error %.1f mm (distance %.2f m), rotation error %.2f deg\n",
-                    c.family.c_str(), e->id, dt * 1e3, cv::norm(translationOf(truth)), dr);
+        std::printf(
+            "%s id %d: translation error %.1f mm (distance %.2f m), rotation error %.2f deg\n",
+            c.family.c_str(), e->id, dt * 1e3, cv::norm(translationOf(truth)), dr);
         // ViSP's own thresholds for this benchmark (testAprilTag.cpp, README): RMS over x, y, z
         // of the translation and over the θu vector of the rotation, per id.
         const double tRms[5] = {0.025, 0.09, 0.05, 0.13, 0.09};
@@ -233,15 +233,14 @@ TEST_P(VispBenchmark, CornersAndPoseMatchTruth) {
     }
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    Apriltag, VispBenchmark,
-    ::testing::Values(VispCase{"tag21_07", "tagCircle21h7", 5.0 / 9.0},
-                    VispCase{"tag36_11", "tag36h11", 8.0 / 10.0},
-                    VispCase{"tag41_12", "tagStandard41h12", 5.0 / 9.0},
-                    VispCase{"tag48_12", "tagCustom48h12", 6.0 / 10.0},
-                    VispCase{"tag49_12", "tagCircle49h12", 5.0 / 11.0},
-                    VispCase{"tag52_13", "tagStandard52h13", 6.0 / 10.0}),
-    [](const auto& p) { return p.param.file; });
+INSTANTIATE_TEST_SUITE_P(Apriltag, VispBenchmark,
+                         ::testing::Values(VispCase{"tag21_07", "tagCircle21h7", 5.0 / 9.0},
+                                           VispCase{"tag36_11", "tag36h11", 8.0 / 10.0},
+                                           VispCase{"tag41_12", "tagStandard41h12", 5.0 / 9.0},
+                                           VispCase{"tag48_12", "tagCustom48h12", 6.0 / 10.0},
+                                           VispCase{"tag49_12", "tagCircle49h12", 5.0 / 11.0},
+                                           VispCase{"tag52_13", "tagStandard52h13", 6.0 / 10.0}),
+                         [](const auto& p) { return p.param.file; });
 
 // ---- Duckietown photos: derived Debian 3.3 references (corners, and poses for rotation) -------
 
@@ -296,8 +295,8 @@ std::vector<DuckieCase> duckieCases() {
                          "duckietown_rotation.yaml"});
     cases.push_back({"duckietown_multi", "test_image", "duckietown_sample.yaml"});
     for (const char* n : {"01", "02", "03", "06", "07", "08"})
-        cases.push_back({"duckietown_multi", std::string("test_image_multiple_") + n,
-                         "duckietown_multi.yaml"});
+        cases.push_back(
+            {"duckietown_multi", std::string("test_image_multiple_") + n, "duckietown_multi.yaml"});
     return cases;
 }
 
@@ -318,9 +317,10 @@ TEST(DuckietownRotation, RelativeYawFollowsFileAngle) {
     s.decimate = 1.0f;
     std::vector<std::pair<int, double>> yaw;  // file angle, measured yaw of the tag normal
     for (int a : {-70, -40, 0, 40, 70}) {
-        std::vector<TagDetection> d = detect(kData + "apriltag/duckietown_rotation/" +
-                                                 "test_image_rotation_" + std::to_string(a) + ".png",
-                                             s);
+        std::vector<TagDetection> d =
+            detect(kData + "apriltag/duckietown_rotation/" + "test_image_rotation_" +
+                       std::to_string(a) + ".png",
+                   s);
         ASSERT_EQ(d.size(), 1u);
         auto pose = estimateTagPose(d[0], *calib, 0.065);
         ASSERT_TRUE(pose.has_value());
@@ -375,12 +375,12 @@ TEST(VispRbtSequence, BoardPoseMatchesGroundTruth) {
         std::sort(v.begin(), v.end());
         return v[std::min(v.size() - 1, size_t(q * double(v.size())))];
     };
-    std::printf("%zu frames: camera position error median %.1f mm, p90 %.1f mm, max %.1f mm; "
-                "rotation error median %.2f deg, p90 %.2f, max %.2f; reprojection RMS median "
-                "%.2f px, max %.2f\n",
-                dts.size(), stat(dts, 0.5) * 1e3, stat(dts, 0.9) * 1e3, stat(dts, 1.0) * 1e3,
-                stat(drs, 0.5), stat(drs, 0.9), stat(drs, 1.0), stat(reproj, 0.5),
-                stat(reproj, 1.0));
+    std::printf(
+        "%zu frames: camera position error median %.1f mm, p90 %.1f mm, max %.1f mm; "
+        "rotation error median %.2f deg, p90 %.2f, max %.2f; reprojection RMS median "
+        "%.2f px, max %.2f\n",
+        dts.size(), stat(dts, 0.5) * 1e3, stat(dts, 0.9) * 1e3, stat(dts, 1.0) * 1e3,
+        stat(drs, 0.5), stat(drs, 0.9), stat(drs, 1.0), stat(reproj, 0.5), stat(reproj, 1.0));
     EXPECT_LT(stat(dts, 0.5), 0.010);
     EXPECT_LT(stat(dts, 1.0), 0.030);
     EXPECT_LT(stat(drs, 0.5), 1.0);
@@ -398,8 +398,8 @@ TEST(Tracker, HoldsLastGoodPoseWhenLost) {
     ASSERT_TRUE(tracker.ok());
     EXPECT_TRUE(tracker->state().lost);
     EXPECT_FALSE(tracker->state().pose.has_value());
-    cv::Mat frame = cv::imread(kData + "video/visp_rbt_sequence/color_image_0000.png",
-                               cv::IMREAD_GRAYSCALE);
+    cv::Mat frame =
+        cv::imread(kData + "video/visp_rbt_sequence/color_image_0000.png", cv::IMREAD_GRAYSCALE);
     ASSERT_FALSE(tracker->track(frame).lost);
     cv::Matx44d good = tracker->state().pose->worldFromCamera;
     const TrackingState& st = tracker->track(cv::Mat(480, 640, CV_8UC1, cv::Scalar(128)));
@@ -415,9 +415,9 @@ TEST(Tracker, HoldsLastGoodPoseWhenLost) {
 // the tracker judges the pose by its uncertainty. Exact corners of a 12-tag board at 1 m give a
 // well-determined pose; one 100 mm tag at 6 m, the same corners, an ill-conditioned one.
 TEST(Tracker, RejectsIllConditionedPoses) {
-    auto calib = CameraCalibration::create(cv::Matx33d(900, 0, 639.5, 0, 900, 359.5, 0, 0, 1),
-                                           {}, cv::Size(1280, 720), DistortionModel::Pinhole,
-                                           "test camera");
+    auto calib =
+        CameraCalibration::create(cv::Matx33d(900, 0, 639.5, 0, 900, 359.5, 0, 0, 1), {},
+                                  cv::Size(1280, 720), DistortionModel::Pinhole, "test camera");
     ASSERT_TRUE(calib.ok()) << calib.message();
     std::vector<BoardTag> tags;
     for (int i = 0; i < 12; ++i) {
@@ -437,7 +437,8 @@ TEST(Tracker, RejectsIllConditionedPoses) {
         for (int i = 0; i < count; ++i) {
             const std::array<cv::Point3d, 4> world = board->worldCorners(*board->find(i));
             std::vector<cv::Point3d> camera;
-            for (const cv::Point3d& p : world) camera.push_back(p + cv::Point3d(0.02, 0.01, distance));
+            for (const cv::Point3d& p : world)
+                camera.push_back(p + cv::Point3d(0.02, 0.01, distance));
             const std::vector<cv::Point2d> pixels = calib->projectPoints(camera);
             TagDetection d;
             d.id = i;
