@@ -297,10 +297,8 @@ Status ConfigReader::parseTracking(const toml::table& t, TrackingConfig& c) cons
     if (*family) {
         const std::vector<std::string>& known = supportedTagFamilies();
         if (std::find(known.begin(), known.end(), **family) == known.end()) {
-            std::string list;
-            for (const std::string& f : known) list += (list.empty() ? "" : ", ") + f;
             return fail(t.get("family"), "'tracking.family' is '{}'; supported: {}", **family,
-                        list);
+                        joined(known));
         }
         c.detector.family = **family;
     } else if (!loaded->family().empty()) {

@@ -112,9 +112,8 @@ Result<TagBoard> loadTagBoard(const std::string& path) {
     if (*family) {
         const std::vector<std::string>& known = supportedTagFamilies();
         if (std::find(known.begin(), known.end(), **family) == known.end()) {
-            std::string list;
-            for (const std::string& f : known) list += (list.empty() ? "" : ", ") + f;
-            return r.fail(root.get("family"), "'family' is '{}'; supported: {}", **family, list);
+            return r.fail(root.get("family"), "'family' is '{}'; supported: {}", **family,
+                          joined(known));
         }
     }
     Result<std::optional<double>> defaultSize =

@@ -346,7 +346,13 @@ TEST(InverseToneMap, OperatorNames) {
     EXPECT_FALSE(parseInverseToneMapOperator("Banterle"));
     EXPECT_EQ(parseToneMapOperator("reinhard-extended"), ToneMapOperator::ReinhardExtended);
     EXPECT_EQ(parseToneMapOperator("reinhard"), ToneMapOperator::Reinhard);
-    EXPECT_FALSE(parseToneMapOperator("banterle"));
+    // One curve name for both directions (--tone-curve): each inverse's name selects its forward
+    // operator, and every forward name its inverse.
+    EXPECT_EQ(parseToneMapOperator("banterle"), ToneMapOperator::ReinhardExtended);
+    EXPECT_EQ(parseToneMapOperator("srgb"), ToneMapOperator::Clamp);
+    EXPECT_EQ(parseInverseToneMapOperator("clamp"), InverseToneMapOperator::Srgb);
+    EXPECT_FALSE(parseToneMapOperator("Banterle"));
+    EXPECT_FALSE(parseToneMapOperator("aces"));
 }
 
 // toneMapToSrgb8 (the PNG writer's path) is toneMapRgb rounded, for the new operator too.
