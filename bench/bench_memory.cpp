@@ -10,6 +10,7 @@
 #include <fstream>
 
 #include "base/log.h"
+#include "bench/bench_progress.h"
 #include "bench/bench_scenes.h"
 #include "gpu/context.h"
 #include "render/renderer.h"
@@ -89,7 +90,7 @@ int runMemoryBench(const MemoryBenchOptions& o) {
         "|---|---|---|---|---|---|\n",
         o.spp);
     for (auto [w, h] : {std::pair{640u, 480u}, {1920u, 1080u}}) {
-        fmt::print(stderr, "bench: memory {}x{} (forked child)\n", w, h);
+        benchProgress("memory {}x{} (forked child)", w, h);
         std::fflush(stdout);
         std::fflush(stderr);
         const pid_t pid = ::fork();

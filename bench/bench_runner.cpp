@@ -9,6 +9,7 @@
 
 #include "base/log.h"
 #include "bench/bench_memory.h"
+#include "bench/bench_progress.h"
 #include "bench/bench_scenes.h"
 #include "bench/bench_service.h"
 #include "bench/pose_accuracy.h"
@@ -137,7 +138,7 @@ int runBenchmarks(const BenchOptions& o) {
             rs.width = 640;
             rs.height = 480;
             rs.maxDepth = 8;
-            fmt::print(stderr, "bench: throughput {}\n", name);
+            benchProgress("throughput {}", name);
             auto m = measure(**ctx, *scene, rs, spp, reps);
             if (!m) return fail(m.error());
             std::printf("| %s | %zu | %.3f s | %.1f | %.1f | %s | %s | %.0f MiB |\n", name,
@@ -164,7 +165,7 @@ int runBenchmarks(const BenchOptions& o) {
             rs.width = w;
             rs.height = h;
             rs.maxDepth = 4;
-            fmt::print(stderr, "bench: resolution {}x{}\n", w, h);
+            benchProgress("resolution {}x{}", w, h);
             auto m = measure(**ctx, scene, rs, 1, reps);
             if (!m) return fail(m.error());
             std::printf("| %u×%u | %.1f | %.1f | %s |\n", w, h, m->seconds * 1e3, m->gpuMs,
@@ -191,7 +192,7 @@ int runBenchmarks(const BenchOptions& o) {
             rs.width = 640;
             rs.height = 480;
             rs.maxDepth = 4;
-            fmt::print(stderr, "bench: triangles {}\n", name);
+            benchProgress("triangles {}", name);
             auto m = measure(**ctx, scene, rs, spp, reps);
             if (!m) return fail(m.error());
             std::printf("| %s | %zu | %.3f s | %.1f | %s | %s |\n", name, m->triangles,
@@ -217,7 +218,7 @@ int runBenchmarks(const BenchOptions& o) {
             rs.height = 480;
             rs.maxDepth = 8;
             rs.generalPipeline = general == 1;
-            fmt::print(stderr, "bench: {} pipeline\n", general ? "general" : "specialised");
+            benchProgress("{} pipeline", general ? "general" : "specialised");
             auto m = measure(**ctx, *bunny, rs, spp, reps);
             if (!m) return fail(m.error());
             times[general] = m->seconds;
@@ -254,7 +255,7 @@ int runBenchmarks(const BenchOptions& o) {
                 rs.height = 480;
                 rs.maxDepth = 8;
                 rs.differential = differential == 1;
-                fmt::print(stderr, "bench: {} {}\n", name, differential ? "differential" : "plain");
+                benchProgress("{} {}", name, differential ? "differential" : "plain");
                 auto m = measure(**ctx, *scene, rs, spp, reps);
                 if (!m) return fail(m.error());
                 t[differential] = m->seconds;

@@ -19,6 +19,7 @@
 #include <type_traits>
 
 #include "base/log.h"
+#include "bench/bench_progress.h"
 #include "capture/recorded_source.h"
 #include "daemon/pipeline_renderer.h"
 #include "daemon/pipeline_stages.h"
@@ -249,7 +250,8 @@ StageResult measureStages(const ServiceBenchOptions& o, uint32_t w, uint32_t h) 
     size_t nextFisheye = 0;
     for (size_t i = 0; i < frames; ++i) {
         const std::shared_ptr<Frame>& frame = (*scenes)[i];
-        fmt::print(stderr, "\rbench: stages {}x{} frame {}/{}   ", w, h, i + 1, frames);
+        if (i == 0 || i + 1 == frames || (i + 1) % 10 == 0)
+            benchProgress("stages {}x{} frame {}/{}", w, h, i + 1, frames);
         // Every fisheye frame recorded up to this one is converted (not only those [lighting]
         // update_hz would pick): more samples of the stage's cost.
         for (; nextFisheye < fisheyes->size() &&
@@ -290,7 +292,6 @@ StageResult measureStages(const ServiceBenchOptions& o, uint32_t w, uint32_t h) 
         if (Status s = (*files)->show(out); !s) return fail(s.message());
         png.push_back(msSince(t));
     }
-    fmt::print(stderr, "\n");
     decode.resize(std::min(decode.size(), frames));
     r.frames = uint32_t(frames);
     r.decode = stat(decode);
@@ -503,7 +504,7 @@ int runServiceBench(const ServiceBenchOptions& o) {
 
     std::vector<StageResult> stages;
     for (auto [w, h] : sizes) {
-        fmt::print(stderr, "bench: stages {}x{} (forked child)\n", w, h);
+        benchProgress("stages {}x{} (forked child)", w, h);
         auto r = inChild<StageResult>([&] { return measureStages(o, w, h); });
         if (!r) {
             logError("bench service: the stage run at {}x{} failed (see above)", w, h);
@@ -538,8 +539,8 @@ int runServiceBench(const ServiceBenchOptions& o) {
     std::vector<LiveResult> live;
     for (auto [w, h] : sizes)
         for (bool files : {false, true}) {
-            fmt::print(stderr, "bench: live service {}x{} output {} (forked child)\n", w, h,
-                       files ? "files" : "none");
+            benchProgress("live service {}x{} output {} (forked child)", w, h,
+                          files ? "files" : "none");
             auto r = inChild<LiveResult>([&] { return measureLive(o, w, h, files); });
             if (!r) {
                 logError("bench service: the live run at {}x{} failed (see above)", w, h);
@@ -637,7 +638,7 @@ int runServiceBench(const ServiceBenchOptions& o) {
             logError("--csv {}: cannot write the file", o.csvPath);
             return 1;
         }
-        fmt::print(stderr, "bench: wrote {}\n", o.csvPath);
+        benchProgress("wrote {}", o.csvPath);
     }
     return 0;
 }

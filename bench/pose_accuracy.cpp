@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "base/log.h"
+#include "bench/bench_progress.h"
 #include "bench/board_render.h"
 #include "vision/board_pose.h"
 #include "vision/tag_detector.h"
@@ -182,8 +183,8 @@ int runPoseSweep(GpuContext& ctx, const PoseSweepOptions& o) {
                     view.distanceM = d;
                     view.angleDeg = a;
                     const cv::Matx44d truth = cameraViewingBoard(view);
-                    fmt::print(stderr, "bench: pose {} lens, {} m, {}°, view {}/{}\n", lens.name, d,
-                               a, v + 1, views.size());
+                    benchProgress("pose {} lens, {} m, {}°, view {}/{}", lens.name, d, a, v + 1,
+                                  views.size());
                     auto linear = renderer->render(truth, renderSeed++);
                     if (!linear) {
                         setLogLevel(LogLevel::Info);

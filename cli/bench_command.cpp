@@ -3,6 +3,7 @@
 #include <memory>
 
 #include "base/data_paths.h"
+#include "bench/bench_progress.h"
 #include "bench/bench_runner.h"
 
 namespace previs {
@@ -29,7 +30,12 @@ std::function<int()> addBenchCommand(CLI::App& app) {
         ->check(CLI::IsMember({"throughput", "resolution", "triangles", "specialisation",
                                "differential", "pose", "service", "memory"}));
     cmd->add_option("--csv", o->csvPath, "service: also write the results as CSV to this file");
-    return [o] { return bench::runBenchmarks(*o); };
+    auto quiet = std::make_shared<bool>(false);
+    cmd->add_flag("--quiet", *quiet, "no progress lines on stderr");
+    return [o, quiet] {
+        bench::benchQuiet() = *quiet;
+        return bench::runBenchmarks(*o);
+    };
 }
 
 }  // namespace previs
