@@ -12,6 +12,7 @@
 #include "bench/bench_progress.h"
 #include "bench/bench_scenes.h"
 #include "bench/bench_service.h"
+#include "bench/bench_trade.h"
 #include "bench/pose_accuracy.h"
 #include "gpu/context.h"
 #include "render/renderer.h"
@@ -98,6 +99,12 @@ int runBenchmarks(const BenchOptions& o) {
         service.csvPath = o.csvPath;
         return runServiceBench(service);
     }
+    if (o.only == "trade")
+        return runTradeBench({.dataDir = o.dataDir,
+                              .outDir = o.outDir,
+                              .plotter = o.plotter,
+                              .quick = o.quick,
+                              .repetitions = o.repetitions});
     // Also before any Vulkan device: each resolution runs in a forked child (peak RSS per run).
     if (o.only == "memory")
         return runMemoryBench({.dataDir = o.dataDir, .spp = o.quick ? 1 : o.spp});

@@ -12,7 +12,10 @@ std::function<int()> addBenchCommand(CLI::App& app) {
     auto o = std::make_shared<bench::BenchOptions>();
     // Found at run time (base/data_paths.h): no machine path is compiled into the binary.
     if (auto shared = sharedDataDir()) o->dataDir = shared->string();
-    if (auto root = projectDataDir()) o->examplesDir = (*root / "examples").string();
+    if (auto root = projectDataDir()) {
+        o->examplesDir = (*root / "examples").string();
+        o->plotter = (*root / "bench" / "plot_trade.py").string();
+    }
     CLI::App* cmd = app.add_subcommand(
         "bench",
         "speed measurements: paths/s, rays/s, BVH build, scaling; pose accuracy on "
@@ -28,8 +31,10 @@ std::function<int()> addBenchCommand(CLI::App& app) {
         ->check(CLI::Range(1, 4096));
     cmd->add_option("--only", o->only, "one section")
         ->check(CLI::IsMember({"throughput", "resolution", "triangles", "specialisation",
-                               "differential", "pose", "service", "memory"}));
+                               "differential", "pose", "service", "memory", "trade"}));
     cmd->add_option("--csv", o->csvPath, "service: also write the results as CSV to this file");
+    cmd->add_option("--out-dir", o->outDir,
+                    "trade: folder for its CSVs, frames and plots (default bench-trade)");
     auto quiet = std::make_shared<bool>(false);
     cmd->add_flag("--quiet", *quiet, "no progress lines on stderr");
     return [o, quiet] {

@@ -75,8 +75,10 @@ Result<ComputePipeline> ComputePipeline::create(GpuContext& ctx, std::span<const
     return p;
 }
 
-Status ComputePipeline::bind(std::span<const GpuBuffer* const> buffers) {
+Status ComputePipeline::bind(std::span<const GpuBuffer* const> buffers,
+                             std::span<const BufferRange> ranges) {
     PV_ASSERT(buffers.size() == bindings_.size());
+    PV_ASSERT(ranges.empty() || ranges.size() == buffers.size());
     const uint32_t maxTexels = ctx_->physicalDevice().getProperties().limits.maxTexelBufferElements;
     std::vector<vk::DescriptorBufferInfo> infos;
     std::vector<vk::raii::BufferView> views;
@@ -84,7 +86,8 @@ Status ComputePipeline::bind(std::span<const GpuBuffer* const> buffers) {
     views.reserve(buffers.size());
     std::vector<vk::BufferView> viewHandles(buffers.size());
     for (uint32_t i = 0; i < buffers.size(); ++i) {
-        infos.emplace_back(buffers[i]->handle(), 0, VK_WHOLE_SIZE);
+        const BufferRange range = ranges.empty() ? BufferRange{} : ranges[i];
+        infos.emplace_back(buffers[i]->handle(), range.offset, range.size);
         if (bindings_[i] == BindingKind::StorageBuffer) continue;
         // GpuBuffer allocates at least 16 bytes, so an empty array still has one texel.
         const size_t bytesPerTexel = texelBytes(bindings_[i]);

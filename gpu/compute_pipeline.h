@@ -25,6 +25,12 @@ enum class BindingKind {
     TexelBufferUint,
 };
 
+// The bytes [offset, offset + size) of a buffer; size VK_WHOLE_SIZE: to its end.
+struct BufferRange {
+    uint64_t offset = 0;
+    uint64_t size = VK_WHOLE_SIZE;
+};
+
 class ComputePipeline {
 public:
     // bindings[i] is the kind of binding i.
@@ -36,9 +42,12 @@ public:
     ComputePipeline(ComputePipeline&&) = default;
     ComputePipeline& operator=(ComputePipeline&&) = default;
 
-    // Binds buffers[i] at binding i. Fails when a texel buffer holds more texels than the
-    // device's maxTexelBufferElements.
-    Status bind(std::span<const GpuBuffer* const> buffers);
+    // Binds buffers[i] at binding i: all of it, or for a storage buffer the part `ranges[i]`
+    // when `ranges` is given (a buffer larger than the device's maxStorageBufferRange can only
+    // be bound in parts). Fails when a texel buffer holds more texels than the device's
+    // maxTexelBufferElements.
+    Status bind(std::span<const GpuBuffer* const> buffers,
+                std::span<const BufferRange> ranges = {});
 
     // Dispatches groups and waits; returns the GPU time of the dispatch in milliseconds
     // (0 when the device has no timestamps).

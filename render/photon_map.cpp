@@ -180,10 +180,11 @@ Result<PhotonPasses> PhotonPasses::create(GpuContext& ctx, std::span<const Bindi
     return p;
 }
 
-Status PhotonPasses::bind(std::span<const GpuBuffer* const> buffers) {
-    if (Status s = trace_->bind(buffers); !s) return s;
+Status PhotonPasses::bind(std::span<const GpuBuffer* const> buffers,
+                          std::span<const BufferRange> ranges) {
+    if (Status s = trace_->bind(buffers, ranges); !s) return s;
     for (auto& g : grid_)
-        if (Status s = g->bind(buffers); !s) return s;
+        if (Status s = g->bind(buffers, ranges); !s) return s;
     return {};
 }
 

@@ -95,7 +95,8 @@ public:
                                        std::span<const uint32_t> sceneConstants);
 
     // Binds the renderer's buffers (after any of them was replaced).
-    Status bind(std::span<const GpuBuffer* const> buffers);
+    Status bind(std::span<const GpuBuffer* const> buffers,
+                std::span<const BufferRange> ranges = {});
 
     // Traces params.photonCount photons for params.photonIteration at params.photonRadius and
     // builds the grid. Uploads params (the sort passes change photonSortShift). Returns GPU ms.

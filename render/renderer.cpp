@@ -227,12 +227,22 @@ Status Renderer::specialisePipeline() {
     return bindBuffers();
 }
 
-Status Renderer::bindBuffers() {
+std::vector<BufferRange> Renderer::accumulationBand(uint32_t firstRow) const {
+    std::vector<BufferRange> ranges(PV_BINDING_COUNT);
+    const uint64_t bytesPerRow = uint64_t(settings_.width) * PV_ACCUM_COUNT * sizeof(glm::vec4);
+    const uint32_t rows = std::min(bandRows_, settings_.height - firstRow);
+    for (int b : {PV_BINDING_ACCUM_SUM, PV_BINDING_ACCUM_COMPENSATION})
+        ranges[b] = {firstRow * bytesPerRow, rows * bytesPerRow};
+    return ranges;
+}
+
+Status Renderer::bindBuffers(uint32_t bandFirstRow) {
     std::vector<const GpuBuffer*> bound;
     for (const auto& b : buffers_) bound.push_back(&b);
+    const std::vector<BufferRange> ranges = accumulationBand(bandFirstRow);
     if (photonPasses_)
-        if (Status s = photonPasses_->bind(bound); !s) return s;
-    return pipeline_->bind(bound);
+        if (Status s = photonPasses_->bind(bound, ranges); !s) return s;
+    return pipeline_->bind(bound, ranges);
 }
 
 Status Renderer::replaceBufferContents(int binding, const void* data, size_t bytes,
@@ -548,6 +558,21 @@ Status Renderer::buildScene(const Scene& scene) {
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(envDist.conditionalCdf), "envConditional"))))
         return s;
     size_t accumBytes = pixels * PV_ACCUM_COUNT * sizeof(glm::vec4);
+    // A device binds at most maxStorageBufferRange bytes of a storage buffer (128 MiB on
+    // lavapipe: 1.4 Mpixel of accumulation); a larger frame renders in bands of rows, each
+    // dispatch binding its band's part. Bands are whole workgroups tall, which also keeps their
+    // offsets aligned (a multiple of 8 rows of 96-byte pixels is a multiple of 256 bytes).
+    {
+        const uint64_t limit = ctx_->physicalDevice().getProperties().limits.maxStorageBufferRange;
+        const uint64_t bytesPerRow = uint64_t(settings_.width) * PV_ACCUM_COUNT * sizeof(glm::vec4);
+        const uint64_t rows = limit / bytesPerRow / PV_WORKGROUP_SIZE_Y * PV_WORKGROUP_SIZE_Y;
+        if (rows == 0)
+            return makeError(
+                "a {}-pixel-wide frame needs {} bytes of accumulation per row of 8, more than "
+                "this device binds at once ({}): render narrower",
+                settings_.width, bytesPerRow * PV_WORKGROUP_SIZE_Y, limit);
+        bandRows_ = uint32_t(std::min<uint64_t>(rows, settings_.height));
+    }
     if (!(s = add(GpuBuffer::create(*ctx_, accumBytes, "accumSum")))) return s;
     if (!(s = add(GpuBuffer::create(*ctx_, accumBytes, "accumCompensation")))) return s;
     if (!(s = add(GpuBuffer::create(*ctx_, sizeof(shader::RenderStats), "stats")))) return s;
@@ -658,7 +683,6 @@ uint32_t Renderer::samplesForNextDispatch(uint32_t remaining) const {
 Status Renderer::render(uint32_t samples,
                         const std::function<void(const RenderProgress&)>& progress) {
     uint32_t groupsX = (settings_.width + PV_WORKGROUP_SIZE_X - 1) / PV_WORKGROUP_SIZE_X;
-    uint32_t groupsY = (settings_.height + PV_WORKGROUP_SIZE_Y - 1) / PV_WORKGROUP_SIZE_Y;
     constexpr size_t kMaxLoopOffset = offsetof(shader::RenderStats, maxLoopIterations);
     // Camera-relative rendering: the GPU's origin follows the camera, with hysteresis.
     const glm::dvec3 cameraM(worldFromCameraM_[3]);
@@ -690,8 +714,24 @@ Status Renderer::render(uint32_t samples,
                 !s)
                 return s;
         }
-        auto ms = pipeline_->dispatch(groupsX, groupsY);
-        if (!ms) return ms.error();
+        double ms = 0.0;
+        for (uint32_t first = 0; first < settings_.height; first += bandRows_) {
+            if (bandRows_ < settings_.height) {
+                params_.bandFirstRow = first;
+                if (Status s = buffers_[PV_BINDING_PARAMS].upload(&params_, sizeof(params_)); !s)
+                    return s;
+                if (Status s = bindBuffers(first); !s) return s;
+            }
+            const uint32_t rows = std::min(bandRows_, settings_.height - first);
+            auto bandMs = pipeline_->dispatch(
+                groupsX, (rows + PV_WORKGROUP_SIZE_Y - 1) / PV_WORKGROUP_SIZE_Y);
+            if (!bandMs) return bandMs.error();
+            ms += bandMs.value();
+        }
+        if (bandRows_ < settings_.height) {
+            params_.bandFirstRow = 0;
+            if (Status s = bindBuffers(0); !s) return s;
+        }
         uint32_t maxLoop = 0;
         if (watchLoops) {
             if (Status s =
@@ -708,7 +748,7 @@ Status Renderer::render(uint32_t samples,
                 "limit ({} iterations per lane x {} lanes >= {}): parts of paths may be "
                 "missing",
                 ctx_->deviceName(), n, maxLoop, ctx_->subgroupSize(), kCpuLoopLimit);
-        gpuMs_ += ms.value();
+        gpuMs_ += ms;
         samples_ += n;
         done += n;
         if (progress) progress({done, samples});

@@ -244,7 +244,11 @@ private:
     Status specialisePipeline();
     // Uploads `bytes` into buffers_[binding], reallocating it only when its size differs.
     Status replaceBufferContents(int binding, const void* data, size_t bytes, const char* label);
-    Status bindBuffers();
+    // Binds buffers_, the accumulation from row `bandFirstRow` on (accumulationBand).
+    Status bindBuffers(uint32_t bandFirstRow = 0);
+    // The accumulation's part for the band of rows from `firstRow` (bandRows_ rows, fewer at
+    // the bottom); the other bindings whole.
+    std::vector<BufferRange> accumulationBand(uint32_t firstRow) const;
     uint32_t samplesForNextDispatch(uint32_t remaining) const;
     // Moves the GPU's origin to `originM` (world): re-uploads vertices, BVH boxes, lights.
     Status recentre(const glm::dvec3& originM);
@@ -276,6 +280,7 @@ private:
     std::optional<ImageF> plate_;
     uint64_t plateValuesRepaired_ = 0;
     uint64_t samples_ = 0;
+    uint32_t bandRows_ = 0;  // rows per dispatch: the storage-buffer range limits it
     double gpuMs_ = 0.0;
     double loopIterationsPerSample_ = 0.0;  // the most one lane ran per sample, measured
     uint64_t loopLimitRisks_ = 0;

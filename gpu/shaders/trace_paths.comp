@@ -472,7 +472,7 @@ void kahanAdd(inout vec4 sum, inout vec4 c, vec4 x) {
 }
 
 void main() {
-    uvec2 pixel = gl_GlobalInvocationID.xy;
+    uvec2 pixel = gl_GlobalInvocationID.xy + uvec2(0u, params.bandFirstRow);
     if (pixel.x >= params.width || pixel.y >= params.height) return;
     uint pixelIndex = pixel.y * params.width + pixel.x;
     // Compensated sums, within the dispatch and across dispatches: the mean stays exact over
@@ -532,7 +532,8 @@ void main() {
     if (gNonFiniteRays > 0u) atomicAdd(stats.nonFiniteRays, gNonFiniteRays);
     for (uint k = 0u; k < PV_ACCUM_COUNT; ++k) {
         PV_COUNT_LOOP_ITERATION();
-        uint at = pixelIndex * PV_ACCUM_COUNT + k;
+        // The accumulation is bound from this band's first row on.
+        uint at = (pixelIndex - params.bandFirstRow * params.width) * PV_ACCUM_COUNT + k;
         vec4 total = accumSum[at];
         vec4 c = accumCompensation[at];
         kahanAdd(total, c, sum[k] - comp[k]);

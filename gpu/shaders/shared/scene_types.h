@@ -214,6 +214,10 @@ struct FrameParams {
     // 2: samples alternate between two independently randomised sequences, which the
     // convergence meter compares (shared/sampler.h); 1: one sequence, no meter.
     uint replicates;
+    // The dispatch covers rows [bandFirstRow, bandFirstRow + rows dispatched): the renderer
+    // splits a frame whose accumulation exceeds the device's storage-buffer range into bands,
+    // binding each band's part of the accumulation (Renderer::render).
+    uint bandFirstRow;
     uint maxDepth;           // most scattering events on a path (pbrt's maxdepth)
     uint lightCount;
     uint emissiveTriangleCount;

@@ -1,0 +1,280 @@
+#include "bench/bench_trade.h"
+
+#include <spawn.h>
+#include <sys/wait.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <vector>
+
+#include "base/log.h"
+#include "bench/bench_progress.h"
+#include "bench/bench_scenes.h"
+#include "bench/image_compare.h"
+#include "gpu/context.h"
+#include "image/image.h"
+#include "render/renderer.h"
+#include "render/tonemap.h"
+
+namespace previs::bench {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double secondsSince(Clock::time_point start) {
+    return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+double median(std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    const size_t n = v.size();
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+// One line of settings the trade is measured under.
+struct TradeSetting {
+    std::string name;  // e.g. "refinement depth 8"
+    std::string mode;  // "refinement" or "preview"
+    uint32_t maxDepth = 8;
+};
+
+// One measured point of a curve.
+struct TradePoint {
+    uint64_t spp = 0;
+    double seconds = 0.0;  // wall time of the renders so far (readbacks and meter excluded)
+    double rmse = 0.0;
+    double relMse = 0.0;
+    double noiseEstimate = -1.0;  // the meter's √relMSE estimate; -1 below 2 spp
+};
+
+RenderSettings baseSettings(uint32_t width, uint32_t height, uint32_t maxDepth) {
+    RenderSettings rs;
+    rs.width = width;
+    rs.height = height;
+    rs.maxDepth = maxDepth;
+    rs.differential = true;
+    rs.samplesPerDispatch = 64;  // lowered inside lavapipe's loop limit by the renderer
+    return rs;
+}
+
+// The composite so far against the reference, and the meter.
+Result<TradePoint> measurePoint(const Renderer& r, const ImageF& reference, double seconds) {
+    auto image = r.image(Aov::Composite);
+    if (!image) return image.error();
+    auto difference = compareImages(*image, reference);
+    if (!difference) return difference.error();
+    auto meter = r.convergence();
+    if (!meter) return meter.error();
+    TradePoint p;
+    p.spp = r.samplesPerPixel();
+    p.seconds = seconds;
+    p.rmse = difference->rmse;
+    p.relMse = difference->relMse;
+    p.noiseEstimate = meter->composite.relativeRmse.value_or(-1.0);
+    return p;
+}
+
+// Progressive rendering to `maxSpp`, a point at every power of two (and at the figure-2 frame
+// counts when `frames` is set, whose composites are written as PNGs).
+Result<std::vector<TradePoint>> measureCurve(GpuContext& ctx, const Scene& scene,
+                                             const RenderSettings& rs, const ImageF& plate,
+                                             const ImageF& reference, uint32_t maxSpp,
+                                             const std::vector<uint32_t>& frames,
+                                             const std::filesystem::path& frameStem) {
+    auto created = Renderer::create(ctx, scene, rs);
+    if (!created) return created.error();
+    Renderer& r = **created;
+    if (Status s = r.setPlate(plate, "the set's real-only render"); !s) return s.error();
+    // Warm-up: the first dispatch also sizes dispatches to the CPU loop limit.
+    if (Status s = r.render(1); !s) return s.error();
+    if (Status s = r.reset(); !s) return s.error();
+    std::vector<uint32_t> stops;
+    for (uint32_t n = 1; n <= maxSpp; n *= 2) stops.push_back(n);
+    stops.insert(stops.end(), frames.begin(), frames.end());
+    std::sort(stops.begin(), stops.end());
+    stops.erase(std::unique(stops.begin(), stops.end()), stops.end());
+    std::vector<TradePoint> curve;
+    double seconds = 0.0;
+    for (uint32_t stop : stops) {
+        const auto start = Clock::now();
+        if (Status s = r.render(uint32_t(stop - r.samplesPerPixel())); !s) return s.error();
+        seconds += secondsSince(start);
+        if (std::find(frames.begin(), frames.end(), stop) != frames.end()) {
+            auto image = r.image(Aov::Composite);
+            if (!image) return image.error();
+            const std::string path = frameStem.string() + fmt::format("_{:04d}.png", stop);
+            if (Status s = writePng(path, image->width, image->height,
+                                    toneMapToSrgb8(*image, ToneMapSettings{}));
+                !s)
+                return s.error();
+        }
+        if ((stop & (stop - 1)) != 0) continue;  // a figure-2 frame only
+        auto point = measurePoint(r, reference, seconds);
+        if (!point) return point.error();
+        curve.push_back(*point);
+    }
+    return curve;
+}
+
+extern "C" char** environ;
+
+// Runs `python3 script dir` and waits: posix_spawn, as the process holds a Vulkan device's
+// threads (no fork). Debian's own interpreter, which has Debian's matplotlib, where there is
+// one: a python3 earlier on PATH (a virtualenv, pyenv) may not.
+Status runPlotter(const std::filesystem::path& script, const std::filesystem::path& dir) {
+    std::string python =
+        std::filesystem::exists("/usr/bin/python3") ? "/usr/bin/python3" : "python3";
+    std::string scriptArg = script.string(), dirArg = dir.string();
+    char* argv[] = {python.data(), scriptArg.data(), dirArg.data(), nullptr};
+    pid_t pid = 0;
+    if (int e = posix_spawnp(&pid, python.c_str(), nullptr, nullptr, argv, environ); e != 0)
+        return makeError("cannot run python3 {}: {}", scriptArg, std::strerror(e));
+    int status = 0;
+    while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+    }
+    if (!WIFEXITED(status) || WEXITSTATUS(status) != 0)
+        return makeError(
+            "python3 {} {} failed (is python3-matplotlib installed? scripts/setup.sh installs "
+            "it)",
+            scriptArg, dirArg);
+    return {};
+}
+
+// Figure 4: median wall time of one 1-spp frame at each resolution.
+Result<std::vector<std::pair<std::string, double>>> measureResolutions(
+    GpuContext& ctx, const Scene& scene, const std::vector<std::pair<uint32_t, uint32_t>>& sizes,
+    uint32_t maxDepth, int reps) {
+    std::vector<std::pair<std::string, double>> out;
+    for (auto [w, h] : sizes) {
+        benchProgress("trade: figure 4, {}x{}", w, h);
+        auto created = Renderer::create(ctx, scene, baseSettings(w, h, maxDepth));
+        if (!created) return created.error();
+        Renderer& r = **created;
+        if (Status s = r.renderPreviewFrame(1); !s) return s.error();  // warm-up
+        std::vector<double> times;
+        for (int i = 0; i < reps; ++i) {
+            const auto start = Clock::now();
+            if (Status s = r.renderPreviewFrame(1); !s) return s.error();
+            times.push_back(secondsSince(start));
+        }
+        out.emplace_back(fmt::format("{}x{}", w, h), median(times));
+    }
+    return out;
+}
+
+}  // namespace
+
+int runTradeBench(const TradeBenchOptions& o) {
+    auto fail = [](const Error& e) {
+        logError("bench trade: {}", e.message);
+        return 1;
+    };
+    std::error_code ec;
+    std::filesystem::create_directories(o.outDir, ec);
+    if (ec) {
+        logError("bench trade: cannot create {}: {}", o.outDir.string(), ec.message());
+        return 1;
+    }
+    auto ctx = GpuContext::create({});
+    if (!ctx) return fail(ctx.error());
+
+    // The bunny (virtual) on the floor (real), as the differential section has it.
+    const std::string env = o.dataDir + "/envmaps/polyhaven_1k_hdr/rooitou_park_1k.hdr";
+    auto bunny = bunnyScene(o.dataDir, env);
+    if (!bunny) return fail(bunny.error());
+    Scene scene = *bunny;
+    for (size_t t = 0; t < 2; ++t) scene.geometry.triangleIsReal[t] = 1;
+
+    const uint32_t width = o.quick ? 48 : 96, height = o.quick ? 36 : 72;
+    const uint32_t referenceSpp = o.quick ? 256 : 4096, maxSpp = o.quick ? 64 : 1024;
+    const uint32_t referenceDepth = 16;
+    std::printf(
+        "## The speed/accuracy trade: bunny (virtual) on a real floor, environment light, "
+        "%ux%u, against a %u-spp reference at max depth %u (CSV and plots in %s)\n\n",
+        width, height, referenceSpp, referenceDepth, o.outDir.string().c_str());
+
+    // The reference, and the plate: the converged real-only solution, so the composite is what
+    // a camera filming that set would see with the bunny added.
+    benchProgress("trade: reference, {} spp", referenceSpp);
+    ImageF plate, reference;
+    {
+        auto created = Renderer::create(**ctx, scene, baseSettings(width, height, referenceDepth));
+        if (!created) return fail(created.error());
+        (*created)->setSeed(0x5eed);
+        if (Status s = (*created)->render(referenceSpp); !s) return fail(s.error());
+        auto real = (*created)->image(Aov::Real);
+        if (!real) return fail(real.error());
+        plate = *real;
+        if (Status s = (*created)->setPlate(plate, "the set's real-only render"); !s)
+            return fail(s.error());
+        auto composite = (*created)->image(Aov::Composite);
+        if (!composite) return fail(composite.error());
+        reference = *composite;
+        if (Status s = writeExr((o.outDir / "reference.exr").string(), reference); !s)
+            return fail(s.error());
+    }
+
+    std::vector<TradeSetting> settings;
+    for (uint32_t depth : {1u, 2u, 4u, 8u, 16u})
+        settings.push_back({fmt::format("refinement depth {}", depth), "refinement", depth});
+    settings.push_back({"preview depth 2", "preview", 2});
+    const std::vector<uint32_t> figure2Frames =
+        o.quick ? std::vector<uint32_t>{1, 10} : std::vector<uint32_t>{1, 10, 100, 1000};
+
+    std::ofstream csv(o.outDir / "trade.csv");
+    csv << "setting,mode,width,height,max_depth,spp,seconds,rmse,relmse,noise_estimate\n";
+    std::printf("| setting | spp | seconds | RMSE | √relMSE | meter's estimate |\n");
+    std::printf("|---|---|---|---|---|---|\n");
+    for (const TradeSetting& s : settings) {
+        benchProgress("trade: {}", s.name);
+        const bool figure2 = s.mode == "refinement" && s.maxDepth == 8;
+        auto curve = measureCurve(
+            **ctx, scene, baseSettings(width, height, s.maxDepth), plate, reference, maxSpp,
+            figure2 ? figure2Frames : std::vector<uint32_t>{}, o.outDir / "figure2");
+        if (!curve) return fail(curve.error());
+        for (const TradePoint& p : *curve) {
+            csv << fmt::format("{},{},{},{},{},{},{:.6f},{:.6g},{:.6g},{:.6g}\n", s.name, s.mode,
+                               width, height, s.maxDepth, p.spp, p.seconds, p.rmse, p.relMse,
+                               p.noiseEstimate);
+            if ((p.spp & 0x55555555u) != 0 || p.spp == 1)  // 1, 4, 16, 64, 256, 1024
+                std::printf(
+                    "| %s | %llu | %.3f | %.4f | %.4f | %s |\n", s.name.c_str(),
+                    (unsigned long long)p.spp, p.seconds, p.rmse, std::sqrt(p.relMse),
+                    p.noiseEstimate < 0 ? "-" : fmt::format("{:.4f}", p.noiseEstimate).c_str());
+        }
+        std::fflush(stdout);
+    }
+    csv.close();
+
+    const std::vector<std::pair<uint32_t, uint32_t>> sizes =
+        o.quick ? std::vector<std::pair<uint32_t, uint32_t>>{{80, 60}, {160, 120}}
+                : std::vector<std::pair<uint32_t, uint32_t>>{
+                      {160, 120}, {320, 240}, {640, 480}, {1280, 720}, {1920, 1080}};
+    auto times = measureResolutions(**ctx, scene, sizes, 8, o.quick ? 1 : o.repetitions);
+    if (!times) return fail(times.error());
+    std::ofstream resolution(o.outDir / "resolution.csv");
+    resolution << "resolution,pixels,seconds_per_frame\n";
+    std::printf("\n| resolution | ms per 1-spp frame (median) |\n|---|---|\n");
+    for (size_t i = 0; i < times->size(); ++i) {
+        const auto& [name, seconds] = (*times)[i];
+        resolution << fmt::format("{},{},{:.6f}\n", name,
+                                  uint64_t(sizes[i].first) * sizes[i].second, seconds);
+        std::printf("| %s | %.1f |\n", name.c_str(), seconds * 1e3);
+    }
+    resolution.close();
+
+    if (!o.plotter.empty()) {
+        benchProgress("trade: plots");
+        if (Status s = runPlotter(o.plotter, o.outDir); !s) return fail(s.error());
+    }
+    std::printf("\n");
+    return 0;
+}
+
+}  // namespace previs::bench

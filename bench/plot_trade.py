@@ -1,0 +1,148 @@
+#!/usr/bin/python3
+"""Plots of the speed/accuracy trade (matplotlib, Debian's python3-matplotlib).
+
+    plot_trade.py DIR                  the files `previs bench --only trade` wrote into DIR
+    plot_trade.py --blender CSV OUT    bench/compare_blender.sh's curves: previs and Cycles
+
+From DIR: trade.csv → trade_rmse.png and trade_relmse.png (error against wall time, log-log,
+one line per setting), meter.png (the convergence meter's estimate against the true √relMSE);
+figure2_NNNN.png → figure2.png (the paper's figure 2: the composite after 1, 10, 100, 1000
+frames); resolution.csv → figure4.png (the paper's figure 4: time of a frame against pixels).
+"""
+import csv
+import glob
+import math
+import os
+import sys
+from collections import defaultdict
+
+import matplotlib
+
+matplotlib.use("Agg")  # headless: files only
+import matplotlib.image as mpimg  # noqa: E402
+import matplotlib.pyplot as plt  # noqa: E402
+
+
+def read_csv(path):
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def curves(rows, key):
+    """Rows grouped by `key`, in first-seen order."""
+    out = defaultdict(list)
+    for r in rows:
+        out[r[key]].append(r)
+    return out
+
+
+def error_plot(rows, column, label, path, transform=lambda v: v):
+    fig, ax = plt.subplots(figsize=(7, 5))
+    for name, pts in curves(rows, "setting").items():
+        style = "--" if pts[0]["mode"] == "preview" else "-"
+        ax.loglog([float(p["seconds"]) for p in pts],
+                  [transform(float(p[column])) for p in pts], style, marker="o", ms=3,
+                  label=name)
+    ax.set_xlabel("wall time (s)")
+    ax.set_ylabel(label)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title(f"{label} against time ({rows[0]['width']}x{rows[0]['height']})")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def meter_plot(rows, path):
+    fig, ax = plt.subplots(figsize=(7, 5))
+    for name, pts in curves(rows, "setting").items():
+        pts = [p for p in pts if float(p["noise_estimate"]) >= 0]
+        if not pts:
+            continue
+        spp = [int(p["spp"]) for p in pts]
+        line, = ax.loglog(spp, [math.sqrt(float(p["relmse"])) for p in pts], "-", label=name)
+        ax.loglog(spp, [float(p["noise_estimate"]) for p in pts], ":", marker="x", ms=4,
+                  color=line.get_color())
+    ax.set_xlabel("samples per pixel")
+    ax.set_ylabel("√relMSE: true (solid, includes depth bias) and estimated (dotted)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def figure2(directory, path):
+    frames = sorted(glob.glob(os.path.join(directory, "figure2_*.png")))
+    if not frames:
+        return
+    fig, axes = plt.subplots(1, len(frames), figsize=(3.2 * len(frames), 2.8))
+    for ax, frame in zip(axes if len(frames) > 1 else [axes], frames):
+        ax.imshow(mpimg.imread(frame))
+        n = int(os.path.basename(frame)[len("figure2_"):-len(".png")])
+        ax.set_title(f"{n} frame{'s' if n > 1 else ''}")
+        ax.axis("off")
+    fig.suptitle("Refinement: the composite after 1, 10, 100 and 1000 frames (1 spp each)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def figure4(rows, path):
+    fig, ax = plt.subplots(figsize=(6, 4.5))
+    pixels = [int(r["pixels"]) for r in rows]
+    ms = [1e3 * float(r["seconds_per_frame"]) for r in rows]
+    ax.loglog(pixels, ms, "-o")
+    for r, x, y in zip(rows, pixels, ms):
+        ax.annotate(r["resolution"], (x, y), textcoords="offset points", xytext=(4, -10),
+                    fontsize=8)
+    ax.set_xlabel("pixels")
+    ax.set_ylabel("ms per 1-spp frame (median)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.set_title("Time against resolution")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def blender(csv_path, path):
+    """compare_blender.sh's last_results.csv: scene,renderer,spp,seconds,rmse."""
+    rows = read_csv(csv_path)
+    scenes = curves(rows, "scene")
+    fig, axes = plt.subplots(1, len(scenes), figsize=(6 * len(scenes), 4.5), squeeze=False)
+    for ax, (scene, pts) in zip(axes[0], scenes.items()):
+        for renderer, rp in curves(pts, "renderer").items():
+            ax.loglog([float(p["seconds"]) for p in rp], [float(p["rmse"]) for p in rp],
+                      "-o", ms=3, label=renderer)
+        ax.set_title(scene)
+        ax.set_xlabel("wall time (s)")
+        ax.set_ylabel("RMSE against the reference")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def main(argv):
+    if len(argv) == 4 and argv[1] == "--blender":
+        blender(argv[2], argv[3])
+        return 0
+    if len(argv) != 2:
+        print(__doc__, file=sys.stderr)
+        return 2
+    directory = argv[1]
+    rows = read_csv(os.path.join(directory, "trade.csv"))
+    error_plot(rows, "rmse", "RMSE", os.path.join(directory, "trade_rmse.png"))
+    error_plot(rows, "relmse", "√relMSE", os.path.join(directory, "trade_relmse.png"),
+               math.sqrt)
+    meter_plot(rows, os.path.join(directory, "meter.png"))
+    figure2(directory, os.path.join(directory, "figure2.png"))
+    resolution = os.path.join(directory, "resolution.csv")
+    if os.path.exists(resolution):
+        figure4(read_csv(resolution), os.path.join(directory, "figure4.png"))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv))
