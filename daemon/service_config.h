@@ -109,7 +109,7 @@ struct RefineConfig {
     // the accumulation (daemon/refine_watch.h). Defaults: docs/config-format.md.
     double poseThresholdM = 0.01;
     double poseThresholdDeg = 0.5;
-    double lightingThreshold = 0.1;  // relative change of the lighting (LightingDelta::change)
+    double lightingThreshold = 0.06;  // relative change of the lighting (LightingDelta::change)
     int restartAfter = 3;
 };
 
