@@ -55,46 +55,42 @@ void RefineWatch::freeze(const TrackedFrame& frame,
 
 std::optional<std::string> RefineWatch::observeFrame(const TrackedFrame& frame) {
     if (frame.lost || !frame.worldFromCamera) return std::nullopt;
-    std::string why;
-    if (!frozenPose_) {
-        why = "the first pose arrived";
-    } else {
-        const PoseDelta d = poseDelta(*frame.worldFromCamera, *frozenPose_);
-        if (d.translationM <= config_.poseThresholdM && d.rotationDeg <= config_.poseThresholdDeg) {
-            poseBeyond_ = 0;
-            return std::nullopt;
-        }
-        why = fmt::format("the camera moved {:.1f} mm / {:.2f} deg (thresholds {:.1f} mm / {:.2f} deg)",
-                          d.translationM * 1e3, d.rotationDeg, config_.poseThresholdM * 1e3,
-                          config_.poseThresholdDeg);
+    // Virtual objects appear with the first pose: no noise to wait out, the shot was only
+    // the camera picture.
+    if (!frozenPose_) return std::string("the first pose arrived");
+    const PoseDelta d = poseDelta(*frame.worldFromCamera, *frozenPose_);
+    if (d.translationM <= config_.poseThresholdM && d.rotationDeg <= config_.poseThresholdDeg) {
+        poseBeyond_ = 0;
+        return std::nullopt;
     }
     if (++poseBeyond_ < std::max(1, config_.restartAfter)) return std::nullopt;
-    return fmt::format("{}, {} tracked frame(s) in a row", why, poseBeyond_);
+    return fmt::format(
+        "the camera moved {:.1f} mm / {:.2f} deg (thresholds {:.1f} mm / {:.2f} deg), {} tracked "
+        "frames in a row",
+        d.translationM * 1e3, d.rotationDeg, config_.poseThresholdM * 1e3,
+        config_.poseThresholdDeg, poseBeyond_);
 }
 
 std::optional<std::string> RefineWatch::observeLighting(
     const std::shared_ptr<const LiveLighting>& lighting) {
     if (!lighting || lighting == lastLighting_) return std::nullopt;
     lastLighting_ = lighting;
-    std::string why;
-    if (!frozenLighting_) {
-        why = "the first lighting snapshot arrived";
-    } else {
-        const LightingDelta d = lightingDelta(*lighting, *frozenLighting_);
-        if (d.change <= config_.lightingThreshold) {
-            lightingBeyond_ = 0;
-            return std::nullopt;
-        }
-        why = fmt::format("the lighting changed {:.1f} % (threshold {:.1f} %; power {:+.1f} %{})",
-                          d.change * 100.0, config_.lightingThreshold * 100.0,
-                          d.powerChange * 100.0,
-                          std::isnan(d.directionDeg)
-                              ? std::string()
-                              : fmt::format(", dominant direction turned {:.1f} deg",
-                                            d.directionDeg));
+    // The set's lighting replaces the scene's own: a change of kind, not a measurement.
+    if (!frozenLighting_) return std::string("the first lighting snapshot arrived");
+    const LightingDelta d = lightingDelta(*lighting, *frozenLighting_);
+    if (d.change <= config_.lightingThreshold) {
+        lightingBeyond_ = 0;
+        return std::nullopt;
     }
     if (++lightingBeyond_ < std::max(1, config_.restartAfter)) return std::nullopt;
-    return fmt::format("{}, {} snapshot(s) in a row", why, lightingBeyond_);
+    return fmt::format(
+        "the lighting changed {:.1f} % (threshold {:.1f} %; power {:+.1f} %{}), {} snapshots in "
+        "a row",
+        d.change * 100.0, config_.lightingThreshold * 100.0, d.powerChange * 100.0,
+        std::isnan(d.directionDeg)
+            ? std::string()
+            : fmt::format(", dominant direction turned {:.1f} deg", d.directionDeg),
+        lightingBeyond_);
 }
 
 std::optional<double> refineEtaSeconds(uint64_t samples, std::optional<double> noise,

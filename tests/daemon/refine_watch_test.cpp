@@ -84,14 +84,17 @@ TEST(RefineWatch, APersistentMoveRestartsOnItsThirdFrame) {
     }
 }
 
-TEST(RefineWatch, TheFirstPoseRestartsAShotFrozenWithoutOne) {
+TEST(RefineWatch, TheFirstPoseOrLightingRestartsAtOnce) {
     RefineWatch watch(config());
     TrackedFrame none;
     watch.freeze(none, nullptr);
     EXPECT_FALSE(watch.observeFrame(none));
-    EXPECT_FALSE(watch.observeFrame(tracked(pose(0.0))));
-    EXPECT_FALSE(watch.observeFrame(tracked(pose(0.0))));
+    // No noise to wait out: the virtual objects appear at once.
     EXPECT_TRUE(watch.observeFrame(tracked(pose(0.0))));
+    // Likewise the set's first lighting snapshot replaces the scene's own at once.
+    watch.freeze(tracked(pose(0.0)), nullptr);
+    EXPECT_FALSE(watch.observeLighting(nullptr));
+    EXPECT_TRUE(watch.observeLighting(std::make_shared<const LiveLighting>()));
 }
 
 // The SH projection of an environment: a uniform sky of luminance `ambient` plus a Gaussian lobe
