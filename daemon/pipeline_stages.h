@@ -50,7 +50,7 @@ struct LiveLighting {
     // of the lighting (Ramamoorthi & Hanrahan 2001), and what a refinement restart compares —
     // unlike the total power it moves when the lighting turns (daemon/refine_watch.h).
     std::array<double, 9> luminanceSh{};
-    uint64_t sequence = 0;             // the fisheye frame's sequence
+    uint64_t sequence = 0;  // the fisheye frame's sequence
     uint64_t timestampNs = 0;
     double computeMs = 0.0;
 };

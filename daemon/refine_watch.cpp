@@ -31,10 +31,10 @@ LightingDelta lightingDelta(const LiveLighting& to, const LiveLighting& from) {
     const double base = norm(from.luminanceSh), moved = norm(diff);
     // Lighting out of darkness is a change of any size; darkness to darkness is none.
     d.change = base > 0.0 ? moved / base : (moved > 0.0 ? HUGE_VAL : 0.0);
-    d.powerChange = from.totalLuminancePower > 0.0
-                        ? (to.totalLuminancePower - from.totalLuminancePower) /
-                              from.totalLuminancePower
-                        : 0.0;
+    d.powerChange =
+        from.totalLuminancePower > 0.0
+            ? (to.totalLuminancePower - from.totalLuminancePower) / from.totalLuminancePower
+            : 0.0;
     const cv::Vec3d a = bandOne(to.luminanceSh), b = bandOne(from.luminanceSh);
     const double na = cv::norm(a), nb = cv::norm(b);
     if (na > kMinDirectional * std::abs(to.luminanceSh[0]) &&
@@ -67,8 +67,8 @@ std::optional<std::string> RefineWatch::observeFrame(const TrackedFrame& frame) 
     return fmt::format(
         "the camera moved {:.1f} mm / {:.2f} deg (thresholds {:.1f} mm / {:.2f} deg), {} tracked "
         "frames in a row",
-        d.translationM * 1e3, d.rotationDeg, config_.poseThresholdM * 1e3,
-        config_.poseThresholdDeg, poseBeyond_);
+        d.translationM * 1e3, d.rotationDeg, config_.poseThresholdM * 1e3, config_.poseThresholdDeg,
+        poseBeyond_);
 }
 
 std::optional<std::string> RefineWatch::observeLighting(

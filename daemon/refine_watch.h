@@ -68,8 +68,7 @@ private:
 // the target needs samples·(noise/target)². 0 once reached; nullopt when nothing can be said
 // (no samples yet, no estimate, no cost measured, or no stopping point at all). Never NaN or Inf.
 std::optional<double> refineEtaSeconds(uint64_t samples, std::optional<double> noise,
-                                       double targetNoise, uint64_t maxSamples,
-                                       double msPerSample);
+                                       double targetNoise, uint64_t maxSamples, double msPerSample);
 
 class Renderer;
 // The convergence meter's relative RMSE of the composite so far (DESIGN.md §4), if it has one.

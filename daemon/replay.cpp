@@ -226,7 +226,8 @@ int runReplay(const ReplayOptions& o) {
             }
             const uint64_t done = (*renderer)->samples();
             const uint64_t target = config->refine.maxSamples;
-            if (rendered && (target == 0 || done < target)) {
+            if (rendered && !refineConverged(done, refineNoiseEstimate((*renderer)->renderer()),
+                                             config->refine)) {
                 const uint64_t step =
                     target == 0 ? config->refine.samplesPerStep
                                 : std::min<uint64_t>(config->refine.samplesPerStep, target - done);

@@ -441,7 +441,8 @@ void Service::Threads::runRender(ModeMachine& modes) {
             pipelineFailed.store(true);
             return;
         }
-        const double stepMs = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+        const double stepMs =
+            std::chrono::duration<double, std::milli>(Clock::now() - start).count();
         msPerSample = stepMs / step;
         refineStepMs += stepMs;
         tick();

@@ -457,10 +457,10 @@ Status ConfigReader::parseRender(const toml::table& t, RenderConfig& c) const {
 }
 
 Status ConfigReader::parseRefine(const toml::table& t, RefineConfig& c) const {
-    if (Status st = r_.checkKeys(t, "refine",
-                                 {"samples_per_step", "max_samples", "pose_threshold_m",
-                                  "pose_threshold_deg", "lighting_threshold", "restart_after",
-                                  "target_noise"});
+    if (Status st = r_.checkKeys(
+            t, "refine",
+            {"samples_per_step", "max_samples", "pose_threshold_m", "pose_threshold_deg",
+             "lighting_threshold", "restart_after", "target_noise"});
         !st)
         return st;
     int64_t step = c.samplesPerStep, maxSamples = int64_t(c.maxSamples),

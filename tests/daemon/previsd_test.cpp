@@ -449,14 +449,16 @@ fs::path editedSession(const std::string& name, const std::vector<Shot>& shots,
     fs::create_directories(dir / "cameras/fisheye");
     fs::copy_file(demo / "session.toml", dir / "session.toml");
     fs::copy_file(demo / "config.toml", dir / "config.toml");
-    const std::string header = "# previs-session camera index v1: sequence,timestampNs,file,width,height\n";
+    const std::string header =
+        "# previs-session camera index v1: sequence,timestampNs,file,width,height\n";
     // The demo camera's intrinsics (scene_camera.yaml: fx = fy, no distortion).
     const cv::Matx33d K(554.25625842204079, 0, 319.5, 0, 554.25625842204079, 179.5, 0, 0, 1);
     std::ofstream scene(dir / "cameras/scene/index.csv");
     scene << header;
     for (size_t i = 0; i < shots.size(); ++i) {
         const std::string file = fmt::format("{:012d}.jpg", i);
-        const fs::path from = demo / "cameras/scene" / fmt::format("{:012d}.jpg", shots[i].demoFrame);
+        const fs::path from =
+            demo / "cameras/scene" / fmt::format("{:012d}.jpg", shots[i].demoFrame);
         if (shots[i].panDeg == 0.0) {
             fs::copy_file(from, dir / "cameras/scene" / file);
         } else {
@@ -478,7 +480,8 @@ fs::path editedSession(const std::string& name, const std::vector<Shot>& shots,
         const std::string file = fmt::format("{:012d}.jpg", j);
         fs::copy_file(demo / "cameras/fisheye" / fmt::format("{:012d}.jpg", fisheye(int(j))),
                       dir / "cameras/fisheye" / file);
-        fish << fmt::format("{},{},{},640,480\n", j, kT0 + 4 * j * kFramePeriodNs - 1'000'000, file);
+        fish << fmt::format("{},{},{},640,480\n", j, kT0 + 4 * j * kFramePeriodNs - 1'000'000,
+                            file);
     }
     return dir;
 }
@@ -532,7 +535,8 @@ std::vector<size_t> restartFrames(const RefineRun& run) {
 std::array<double, 16> poseOf(const std::map<std::string, std::string>& row) {
     std::array<double, 16> m{};
     for (int r = 0; r < 4; ++r)
-        for (int c = 0; c < 4; ++c) m[size_t(r * 4 + c)] = std::stod(row.at(fmt::format("m{}{}", r, c)));
+        for (int c = 0; c < 4; ++c)
+            m[size_t(r * 4 + c)] = std::stod(row.at(fmt::format("m{}{}", r, c)));
     return m;
 }
 
@@ -550,7 +554,8 @@ TEST(ReplayRefine, ACameraThatMovesRestartsOnceOnTheNewView) {
     // 25 still frames, then the same view panned by 2° (4× the rotation threshold) for 25 more.
     std::vector<Shot> shots = stillShots(50);
     for (size_t i = 25; i < shots.size(); ++i) shots[i].panDeg = 2.0;
-    const RefineRun run = replayRefine(editedSession("refine_moved", shots, heldFisheye), "refine_moved");
+    const RefineRun run =
+        replayRefine(editedSession("refine_moved", shots, heldFisheye), "refine_moved");
     ASSERT_EQ(run.rows.size(), 50u) << run.log;
     // On the third panned frame (restart_after = 3), and never again.
     EXPECT_EQ(restartFrames(run), std::vector<size_t>{27}) << run.log;
@@ -580,11 +585,12 @@ TEST(ReplayRefine, ASingleFrameOutlierDoesNotRestart) {
 
 TEST(ReplayRefine, LightingThatTurnsRestartsOnce) {
     // A still camera; from the 7th fisheye frame (scene frame 24) on, the environment has turned
-    // by 8° (10° → 18°) — the total power stays within 1 %, so only a direction-sensitive measure sees it.
-    const RefineRun run = replayRefine(
-        editedSession("refine_light", stillShots(75),
-                      [](int j) { return j < 6 ? heldFisheye(j) : 14; }),
-        "refine_light");
+    // by 8° (10° → 18°) — the total power stays within 1 %, so only a direction-sensitive measure
+    // sees it.
+    const RefineRun run =
+        replayRefine(editedSession("refine_light", stillShots(75),
+                                   [](int j) { return j < 6 ? heldFisheye(j) : 14; }),
+                     "refine_light");
     ASSERT_EQ(run.rows.size(), 75u) << run.log;
     // [lighting] update_hz = 2 takes every other fisheye frame (8 scene frames apart): the
     // changed ones at scene frames 24, 32 and 40; the third restarts.

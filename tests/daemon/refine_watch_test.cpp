@@ -2,6 +2,8 @@
 // input: poses with a tracker's jitter, outliers and real moves; lighting that brightens or turns;
 // the ETA over the whole range of sample counts and at its edges. The recorded sessions check
 // the same rule end to end (previsd_test.cpp, Replay.Refine*).
+#include "daemon/refine_watch.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -9,7 +11,6 @@
 #include <random>
 
 #include "capture/recorded_source.h"
-#include "daemon/refine_watch.h"
 #include "tests/support/test_data.h"
 #include "vision/equirect.h"
 
@@ -174,14 +175,16 @@ TEST(RefineWatch, LightingRestartsOnlyOnAPersistentChange) {
     const double turnedChange = lightingDelta(sky(0.2, 20.0, 40.0, 20.0), *base).change;
     ASSERT_GT(turnedChange, 0.05) << "a 20° turn of a strong sun is beyond the test's threshold";
     // One odd snapshot (a person walking past the fisheye), then the old light: no restart.
-    EXPECT_FALSE(watch.observeLighting(std::make_shared<const LiveLighting>(sky(0.2, 20.0, 40.0, 20.0))));
+    EXPECT_FALSE(
+        watch.observeLighting(std::make_shared<const LiveLighting>(sky(0.2, 20.0, 40.0, 20.0))));
     EXPECT_FALSE(watch.observeLighting(std::make_shared<const LiveLighting>(*base)));
     EXPECT_EQ(watch.pendingLighting(), 0);
     // A turn that persists: the third snapshot restarts.
     std::optional<std::string> why;
     for (int i = 0; i < 3; ++i) {
         EXPECT_FALSE(why) << i;
-        why = watch.observeLighting(std::make_shared<const LiveLighting>(sky(0.2, 20.0, 40.0, 20.0)));
+        why =
+            watch.observeLighting(std::make_shared<const LiveLighting>(sky(0.2, 20.0, 40.0, 20.0)));
     }
     ASSERT_TRUE(why);
     EXPECT_NE(why->find("dominant direction turned"), std::string::npos) << *why;
@@ -258,8 +261,9 @@ TEST(RefineEta, ConvergedAtTheTargetOrTheSampleLimit) {
 // Every frame of one of the demo session's cameras, in order.
 std::vector<std::shared_ptr<Frame>> demoFrames(const std::string& camera) {
     std::vector<std::shared_ptr<Frame>> frames;
-    Result<std::unique_ptr<RecordedReader>> reader = RecordedReader::create(
-        testing::sourcePath("examples/demo/session/cameras/" + camera), ReplayTiming::AsFastAsPossible);
+    Result<std::unique_ptr<RecordedReader>> reader =
+        RecordedReader::create(testing::sourcePath("examples/demo/session/cameras/" + camera),
+                               ReplayTiming::AsFastAsPossible);
     if (!reader || !(*reader)->start()) return frames;
     while (!(*reader)->finished()) {
         auto f = std::make_shared<Frame>();
@@ -307,10 +311,11 @@ TEST(RefineDefaults, SitAboveTheDemoTakesStillFrameNoise) {
             sumDeg += d.rotationDeg;
             ++pairs;
         }
-    std::printf("still-frame pose jitter over %d pairs: mean %.3f mm / %.4f deg, max %.3f mm / "
-                "%.4f deg (thresholds %.1f mm / %.2f deg); tracking %.0f ms a frame\n",
-                pairs, sumM / pairs * 1e3, sumDeg / pairs, worst.translationM * 1e3,
-                worst.rotationDeg, defaults.poseThresholdM * 1e3, defaults.poseThresholdDeg, trackMs / double(still.size()));
+    std::printf(
+        "still-frame pose jitter over %d pairs: mean %.3f mm / %.4f deg, max %.3f mm / "
+        "%.4f deg (thresholds %.1f mm / %.2f deg); tracking %.0f ms a frame\n",
+        pairs, sumM / pairs * 1e3, sumDeg / pairs, worst.translationM * 1e3, worst.rotationDeg,
+        defaults.poseThresholdM * 1e3, defaults.poseThresholdDeg, trackMs / double(still.size()));
     // The defaults keep at least 5× the largest jitter seen (real footage jitters more than a
     // render with Gaussian sensor noise; docs/config-format.md).
     EXPECT_LT(worst.translationM * 5.0, defaults.poseThresholdM);
@@ -336,8 +341,8 @@ TEST(RefineDefaults, SitAboveTheDemoTakesStillFrameNoise) {
         std::printf("fisheye %2zu vs 8: change %.4f, power %+.4f, direction %.2f deg\n", k,
                     d.change, d.powerChange, d.directionDeg);
     }
-    std::printf("still fisheye frames: largest lighting change %.5f (threshold %.3f)\n",
-                stillWorst, defaults.lightingThreshold);
+    std::printf("still fisheye frames: largest lighting change %.5f (threshold %.3f)\n", stillWorst,
+                defaults.lightingThreshold);
     EXPECT_LT(stillWorst * 3.0, defaults.lightingThreshold);
     // ...and below what the environment's turn while the camera moves gives: fisheye 2 (4.2°)
     // against fisheye 8 (10°) is beyond it; the 1.6° the demo's own refinement sees (frozen on
