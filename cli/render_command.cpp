@@ -14,6 +14,7 @@
 #include "cli/tone_curve_options.h"
 #include "gpu/context.h"
 #include "image/image.h"
+#include "render/convergence.h"
 #include "render/renderer.h"
 #include "render/tonemap.h"
 #include "scene/environment_map.h"
@@ -36,6 +37,8 @@ struct RenderOptions {
     uint32_t height = 0;
     uint32_t spp = 0;
     double seconds = 0.0;
+    double targetNoise = 0.0;  // 0: none
+    bool noMeter = false;
     uint32_t maxDepth = 16;
     std::optional<float> apertureRadiusM;
     std::optional<float> focusDistanceM;
@@ -57,6 +60,11 @@ struct RenderOptions {
     std::vector<uint32_t> checkpoints;  // also write the image at these sample counts
 };
 
+// A --timing field: the value, or "none".
+std::string number(std::optional<double> v) {
+    return v ? fmt::format("{:.6g}", *v) : std::string("none");
+}
+
 // `--out dir/name.exr` → `dir/name.<aov>.exr` (DESIGN.md §3).
 std::string aovPath(const std::string& out, const std::string& aov) {
     std::filesystem::path p(out);
@@ -66,6 +74,10 @@ std::string aovPath(const std::string& out, const std::string& aov) {
 int run(const RenderOptions& o) {
     if (!endsWith(o.out, ".exr") && !endsWith(o.out, ".png")) {
         logError("--out {}: the output must end in .exr (linear HDR) or .png (tone mapped)", o.out);
+        return 2;
+    }
+    if (o.noMeter && o.targetNoise > 0.0) {
+        logError("--target-noise needs the convergence meter: drop --no-meter");
         return 2;
     }
     if (o.spp > 0 && o.seconds > 0.0) {
@@ -189,6 +201,7 @@ int run(const RenderOptions& o) {
     bool wantsReal = std::find(o.aovs.begin(), o.aovs.end(), "real") != o.aovs.end();
     // The real-only solution costs extra rays: computed only when something uses it.
     settings.differential = plate.has_value() || wantsReal;
+    settings.convergenceMeter = !o.noMeter;
 
     const double loadSeconds = since(runStart);
     const auto deviceStart = Clock::now();
@@ -215,12 +228,22 @@ int run(const RenderOptions& o) {
     auto elapsed = [&] {
         return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     };
-    uint32_t target = o.spp ? o.spp : (o.seconds > 0.0 ? UINT32_MAX : 64);
+    // --target-noise alone runs until the meter says so; with --spp or --seconds those cap it.
+    uint32_t target = o.spp ? o.spp : (o.seconds > 0.0 || o.targetNoise > 0.0 ? UINT32_MAX : 64);
     ProgressLine progress("render", o.quiet);
+    NoiseSchedule meter(o.targetNoise);
     while ((*renderer)->samplesPerPixel() < target) {
         if (Status s = (*renderer)->render(1); !s) {
             logError("{}", s.message());
             return 1;
+        }
+        if (meter.due((*renderer)->samplesPerPixel())) {
+            auto c = (*renderer)->convergence();
+            if (!c) {
+                logError("{}", c.message());
+                return 1;
+            }
+            meter.looked((*renderer)->samplesPerPixel(), c->composite.relativeRmse);
         }
         {
             const Renderer& r = **renderer;
@@ -229,10 +252,23 @@ int run(const RenderOptions& o) {
                                       ? fmt::format(", {} photons/iteration, radius {:.3g} m",
                                                     r.photonsPerIteration(), r.nextPhotonRadius())
                                       : "";
-            progress.update(fmt::format("{}{} spp, {:.1f} s{}", r.samplesPerPixel(),
-                                        o.spp ? fmt::format("/{}", o.spp) : "", elapsed(),
+            std::string noise;
+            if (meter.noise()) {
+                noise = fmt::format(", noise {:.2f} %", *meter.noise() * 100.0);
+                const std::optional<double> eta =
+                    o.targetNoise > 0.0
+                        ? etaSeconds(meter.noise(), r.samplesPerPixel(), o.targetNoise,
+                                     elapsed() / double(r.samplesPerPixel()))
+                        : std::nullopt;
+                if (eta)
+                    noise += fmt::format(" (target {:.2f} %, ETA {:.0f} s)", o.targetNoise * 100.0,
+                                         *eta);
+            }
+            progress.update(fmt::format("{}{} spp, {:.1f} s{}{}", r.samplesPerPixel(),
+                                        o.spp ? fmt::format("/{}", o.spp) : "", elapsed(), noise,
                                         photons));
         }
+        if (meter.reached()) break;
         const uint64_t done = (*renderer)->samplesPerPixel();
         if (std::find(o.checkpoints.begin(), o.checkpoints.end(), done) != o.checkpoints.end()) {
             // For convergence curves in one run: the image so far and the time it took (from
@@ -254,6 +290,15 @@ int run(const RenderOptions& o) {
     }
     progress.finish();
     const double renderSeconds = elapsed();
+    auto convergence = (*renderer)->convergence();
+    if (!convergence) {
+        logError("{}", convergence.message());
+        return 1;
+    }
+    const std::optional<double> noise = convergence->composite.relativeRmse;
+    auto percent = [](std::optional<double> v) {
+        return v ? fmt::format("{:.2f} %", *v * 100.0) : std::string("unknown");
+    };
     const auto readbackStart = Clock::now();
     auto stats = (*renderer)->stats();
     if (!stats) {
@@ -277,13 +322,17 @@ int run(const RenderOptions& o) {
         // load: scene and environment files; device: Vulkan instance and device; setup: BVH
         // build, upload, pipeline compile; render: the samples; readback: the image to host;
         // gpu: the dispatches' GPU time, photon_gpu: of which the photon passes; dropped: the
-        // NaN/Inf samples left out of the pixel means.
+        // NaN/Inf samples left out of the pixel means; noise, differential_noise: the
+        // convergence meter's relative RMSE estimates ("none" below 2 spp).
         std::printf(
             "timing load_s=%.4f device_s=%.4f setup_s=%.4f render_s=%.4f readback_s=%.4f "
-            "total_s=%.4f gpu_s=%.4f photon_gpu_s=%.4f dropped_samples=%u\n",
+            "total_s=%.4f gpu_s=%.4f photon_gpu_s=%.4f dropped_samples=%u spp=%llu noise=%s "
+            "differential_noise=%s\n",
             loadSeconds, deviceSeconds, setupSeconds, renderSeconds, since(readbackStart),
             since(runStart), (*renderer)->gpuMilliseconds() * 1e-3,
-            (*renderer)->photonMilliseconds() * 1e-3, dropped);
+            (*renderer)->photonMilliseconds() * 1e-3, dropped,
+            (unsigned long long)(*renderer)->samplesPerPixel(), number(noise).c_str(),
+            number(convergence->differential.relativeRmse).c_str());
         std::fflush(stdout);
     }
     Status written;
@@ -310,8 +359,9 @@ int run(const RenderOptions& o) {
         }
     }
     if (!o.quiet)
-        logInfo("wrote {} ({}x{}, {} spp, {:.1f} s on {}{})", o.out, image->width, image->height,
-                (*renderer)->samplesPerPixel(), elapsed(), (*ctx)->deviceName(),
+        logInfo("wrote {} ({}x{}, {} spp, {:.1f} s on {}, noise {}{})", o.out, image->width,
+                image->height, (*renderer)->samplesPerPixel(), elapsed(), (*ctx)->deviceName(),
+                percent(noise),
                 dropped > 0 ? fmt::format(", {} NaN/Inf sample(s) dropped", dropped) : "");
     return 0;
 }
@@ -342,6 +392,13 @@ std::function<int()> addRenderCommand(CLI::App& app) {
     cmd->add_option("--spp", o->spp, "samples per pixel (default 64)")->check(CLI::PositiveNumber);
     cmd->add_option("--seconds", o->seconds, "render for this long instead of --spp")
         ->check(CLI::PositiveNumber);
+    cmd->add_option("--target-noise", o->targetNoise,
+                    "stop when the convergence meter's estimate of the relative RMSE (DESIGN.md "
+                    "§4, e.g. 0.01 = 1 %) reaches this; --spp or --seconds cap it")
+        ->check(CLI::PositiveNumber);
+    cmd->add_flag("--no-meter", o->noMeter,
+                  "one random sequence instead of the convergence meter's two (a little less "
+                  "noise at equal samples; no noise estimate, no --target-noise)");
     cmd->add_option("--max-depth", o->maxDepth, "most scattering events on a path (1 = direct)");
     cmd->add_option("--aperture-radius", o->apertureRadiusM, "thin lens aperture radius, metres")
         ->check(CLI::NonNegativeNumber);

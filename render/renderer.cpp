@@ -481,6 +481,7 @@ Status Renderer::buildScene(const Scene& scene) {
     p.width = settings_.width;
     p.height = settings_.height;
     p.seed = settings_.seed;
+    p.replicates = settings_.convergenceMeter ? 2u : 1u;  // shared/sampler.h
     p.maxDepth = settings_.maxDepth;
     p.lightCount = uint32_t(lights.size());
     p.emissiveTriangleCount = uint32_t(emissive.size());
@@ -733,13 +734,64 @@ Status Renderer::setPlate(ImageF plate, std::string_view source) {
     return {};
 }
 
-Result<ImageF> Renderer::image(Aov aov) const {
-    size_t pixels = size_t(settings_.width) * settings_.height;
-    std::vector<glm::vec4> sum(pixels * PV_ACCUM_COUNT), comp(pixels * PV_ACCUM_COUNT);
-    size_t bytes = sum.size() * sizeof(glm::vec4);
-    if (Status s = buffers_[PV_BINDING_ACCUM_SUM].download(sum.data(), bytes); !s) return s.error();
-    if (Status s = buffers_[PV_BINDING_ACCUM_COMPENSATION].download(comp.data(), bytes); !s)
+Result<Renderer::Accumulation> Renderer::readAccumulation() const {
+    const size_t values = size_t(settings_.width) * settings_.height * PV_ACCUM_COUNT;
+    Accumulation a;
+    a.sum.resize(values);
+    a.compensation.resize(values);
+    const size_t bytes = values * sizeof(glm::vec4);
+    if (Status s = buffers_[PV_BINDING_ACCUM_SUM].download(a.sum.data(), bytes); !s)
         return s.error();
+    if (Status s = buffers_[PV_BINDING_ACCUM_COMPENSATION].download(a.compensation.data(), bytes);
+        !s)
+        return s.error();
+    return a;
+}
+
+Result<Convergence> Renderer::convergence() const {
+    Result<Accumulation> read = readAccumulation();
+    if (!read) return read.error();
+    const Accumulation& a = *read;
+    const size_t pixels = size_t(settings_.width) * settings_.height;
+    const bool withPlate = plate_ && settings_.differential;
+    std::vector<MeterPixel> composite(pixels), differential(pixels);
+    for (size_t i = 0; i < pixels; ++i) {
+        // Slot `k` of all samples and of replicate 1's.
+        auto total = [&](uint32_t k, int c) { return a.value(i, k, c); };
+        auto half = [&](uint32_t k, int c) { return a.value(i, PV_ACCUM_REPLICATE_1 + k, c); };
+        MeterPixel& m = composite[i];
+        MeterPixel& d = differential[i];
+        m.count = d.count = total(PV_ACCUM_MIXED, 3);
+        m.halfCount = d.halfCount = half(PV_ACCUM_MIXED, 3);
+        for (int c = 0; c < 3; ++c) {
+            if (withPlate) {
+                // Eq. 1 per sample, summed: M·L_om + (1−M)(L_om − L_or) + (1 − M)·L_oc.
+                const double plate = plate_->pixels[i * plate_->channels + c];
+                m.sum[c] =
+                    total(PV_ACCUM_COMPOSITE, c) + (m.count - total(PV_ACCUM_COMPOSITE, 3)) * plate;
+                m.halfSum[c] = half(PV_ACCUM_COMPOSITE, c) +
+                               (m.halfCount - half(PV_ACCUM_COMPOSITE, 3)) * plate;
+            } else {
+                // What image(Aov::Composite) shows without a plate: the mixed scene.
+                m.sum[c] = total(PV_ACCUM_MIXED, c);
+                m.halfSum[c] = half(PV_ACCUM_MIXED, c);
+            }
+            d.sum[c] = total(PV_ACCUM_MIXED, c) - total(PV_ACCUM_REAL, c);
+            d.halfSum[c] = half(PV_ACCUM_MIXED, c) - half(PV_ACCUM_REAL, c);
+        }
+    }
+    Convergence out;
+    out.composite = estimateNoise(composite);
+    out.differential = estimateNoise(differential);
+    out.samplesPerPixel = samples_;
+    return out;
+}
+
+Result<ImageF> Renderer::image(Aov aov) const {
+    Result<Accumulation> read = readAccumulation();
+    if (!read) return read.error();
+    const Accumulation& a = *read;
+    size_t pixels = size_t(settings_.width) * settings_.height;
     ImageF img;
     img.width = settings_.width;
     img.height = settings_.height;
@@ -749,10 +801,9 @@ Result<ImageF> Renderer::image(Aov aov) const {
     // pixel's samples that were not dropped (NaN/Inf, stats().nonFiniteSamples): a dropped
     // sample neither darkens the pixel nor lets the plate through. A pixel with none is 0
     // (mask 0: the plate).
-    auto compensated = [&](size_t at, int c) { return double(sum[at][c]) - double(comp[at][c]); };
     auto mean = [&](size_t i, uint32_t k, int c) {
-        const double n = compensated(i * PV_ACCUM_COUNT + PV_ACCUM_MIXED, 3);
-        return n > 0.0 ? compensated(i * PV_ACCUM_COUNT + k, c) / n : 0.0;
+        const double n = a.value(i, PV_ACCUM_MIXED, 3);
+        return n > 0.0 ? a.value(i, k, c) / n : 0.0;
     };
     bool withPlate = aov == Aov::Composite && plate_ && settings_.differential;
     for (size_t i = 0; i < pixels; ++i) {
@@ -761,7 +812,7 @@ Result<ImageF> Renderer::image(Aov aov) const {
             continue;
         }
         if (aov == Aov::SampleCount) {
-            img.pixels[i] = float(compensated(i * PV_ACCUM_COUNT + PV_ACCUM_MIXED, 3));
+            img.pixels[i] = float(a.value(i, PV_ACCUM_MIXED, 3));
             continue;
         }
         uint32_t k = aov == Aov::Real                  ? PV_ACCUM_REAL

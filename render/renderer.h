@@ -18,6 +18,7 @@
 #include "gpu/context.h"
 #include "image/image.h"
 #include "render/bvh.h"
+#include "render/convergence.h"
 #include "render/photon_map.h"
 #include "scene/scene.h"
 
@@ -58,6 +59,10 @@ struct RenderSettings {
     // Differential rendering (the paper): also compute the real-only solution L_or in the same
     // pass, for compositing with the camera image. Off: a plain CG render of the mixed scene.
     bool differential = false;
+    // The convergence meter (convergence()): samples alternate between two independently
+    // randomised sequences, whose difference measures the error. It costs some stratification
+    // (BENCHMARKS.md: about 8 % more RMSE at equal samples); off, one sequence and no meter.
+    bool convergenceMeter = true;
     // A calibrated lens (vision/lens_grid.h): (width+1)×(height+1) normalised OpenCV camera
     // coordinates of the pixel corners. Empty: a pinhole with the camera's field of view.
     std::vector<glm::vec2> lensGrid;
@@ -185,6 +190,10 @@ public:
 
     // The mean per pixel so far (RGB linear; the mask one channel).
     Result<ImageF> image(Aov aov = Aov::Composite) const;
+    // The convergence meter (render/convergence.h): the estimated relative RMSE of the
+    // composite and of L_om − L_or so far, from the two interleaved replicates (none without
+    // RenderSettings::convergenceMeter). One readback of the accumulation, as image() does.
+    Result<Convergence> convergence() const;
 
     uint64_t samplesPerPixel() const { return samples_; }
     const SceneFeatures& features() const { return features_; }
@@ -218,6 +227,17 @@ public:
     }
 
 private:
+    // The accumulation buffers read back: value(pixel, PV_ACCUM_*, channel) is the compensated
+    // sum in double.
+    struct Accumulation {
+        std::vector<glm::vec4> sum, compensation;
+        double value(size_t pixel, uint32_t slot, int channel) const {
+            const size_t at = pixel * PV_ACCUM_COUNT + slot;
+            return double(sum[at][channel]) - double(compensation[at][channel]);
+        }
+    };
+    Result<Accumulation> readAccumulation() const;
+
     Renderer() = default;
     Status buildScene(const Scene& scene);
     // (Re)creates the pipeline when the specialization constants changed, and binds buffers_.

@@ -486,7 +486,9 @@ void main() {
     }
     for (uint i = 0u; i < params.samplesPerDispatch; ++i) {
         PV_COUNT_LOOP_ITERATION();
-        SampleKey key = makeSampleKey(pixelIndex, params.sampleBase + i, params.seed);
+        const uint sampleIndex = params.sampleBase + i;
+        SampleKey key =
+            interleavedSampleKey(pixelIndex, sampleIndex, params.seed, params.replicates);
         vec3 lm;
         vec3 lr;
         bool firstHitVirtual;
@@ -515,6 +517,16 @@ void main() {
         kahanAdd(sum[PV_ACCUM_COMPOSITE], comp[PV_ACCUM_COMPOSITE], vec4(composite, mask));
         kahanAdd(sum[PV_ACCUM_MIXED], comp[PV_ACCUM_MIXED], vec4(lm, 1.0));
         if (kDifferential) kahanAdd(sum[PV_ACCUM_REAL], comp[PV_ACCUM_REAL], vec4(lr, 0.0));
+        // Replicate 1's samples (sampler.h) also into its own sums: the convergence meter
+        // compares the two replicates' means.
+        if (sampleIndex % params.replicates == 1u) {
+            const uint r = PV_ACCUM_REPLICATE_1;
+            kahanAdd(sum[r + PV_ACCUM_COMPOSITE], comp[r + PV_ACCUM_COMPOSITE],
+                     vec4(composite, mask));
+            kahanAdd(sum[r + PV_ACCUM_MIXED], comp[r + PV_ACCUM_MIXED], vec4(lm, 1.0));
+            if (kDifferential)
+                kahanAdd(sum[r + PV_ACCUM_REAL], comp[r + PV_ACCUM_REAL], vec4(lr, 0.0));
+        }
     }
     atomicAdd(stats.raysTraced, gRaysTraced);
     if (gNonFiniteRays > 0u) atomicAdd(stats.nonFiniteRays, gNonFiniteRays);

@@ -78,33 +78,35 @@ bool isNet1D(const std::vector<float>& values, int m) {
 
 // Every aligned power-of-two block of samples is a (0,m,2)-net in each set's .xy and stratifies
 // .z and .w, for any pixel, seed and set — also the first block of the second 2^16 samples, whose
-// scramble is new. Exact: no point may share an elementary interval with another.
+// scramble is new — in each replicate (the interleaved halves). Exact: no point may share an
+// elementary interval with another.
 TEST(SobolTest, EveryPowerOfTwoBlockIsANetInEachSet) {
     const uint32_t pixels[] = {0u, 1u, 641u, 307199u};
     const uint32_t sets[] = {PV_SET_CAMERA_JITTER, PV_SET_CAMERA_LENS,
                              vertexSet(0, PV_SET_VERTEX_EMISSIVE),
                              vertexSet(3, PV_SET_VERTEX_BSDF)};
-    for (uint32_t pixel : pixels) {
-        for (uint32_t set : sets) {
-            for (int m = 0; m <= 12; ++m) {
-                const uint32_t n = 1u << m;
-                for (uint32_t first : {0u, 5u * n, 1u << 16}) {
-                    std::vector<vec2> xy;
-                    std::vector<float> z, w;
-                    for (uint32_t i = first; i < first + n; ++i) {
-                        vec4 u = sobolSet(makeSampleKey(pixel, i, 7u), set);
-                        xy.push_back(vec2(u.x, u.y));
-                        z.push_back(u.z);
-                        w.push_back(u.w);
+    for (uint32_t replicate = 0; replicate < PV_MAX_REPLICATES; ++replicate)
+        for (uint32_t pixel : pixels) {
+            for (uint32_t set : sets) {
+                for (int m = 0; m <= 12; ++m) {
+                    const uint32_t n = 1u << m;
+                    for (uint32_t first : {0u, 5u * n, 1u << 16}) {
+                        std::vector<vec2> xy;
+                        std::vector<float> z, w;
+                        for (uint32_t i = first; i < first + n; ++i) {
+                            vec4 u = sobolSet(makeSampleKey(pixel, i, 7u, replicate), set);
+                            xy.push_back(vec2(u.x, u.y));
+                            z.push_back(u.z);
+                            w.push_back(u.w);
+                        }
+                        ASSERT_TRUE(isNet2D(xy, m)) << "pixel " << pixel << " set " << set << " 2^"
+                                                    << m << " samples from " << first;
+                        ASSERT_TRUE(isNet1D(z, m)) << "z, set " << set << " 2^" << m;
+                        ASSERT_TRUE(isNet1D(w, m)) << "w, set " << set << " 2^" << m;
                     }
-                    ASSERT_TRUE(isNet2D(xy, m)) << "pixel " << pixel << " set " << set << " 2^" << m
-                                                << " samples from " << first;
-                    ASSERT_TRUE(isNet1D(z, m)) << "z, set " << set << " 2^" << m;
-                    ASSERT_TRUE(isNet1D(w, m)) << "w, set " << set << " 2^" << m;
                 }
             }
         }
-    }
 }
 
 // Values stay in [0, 1), up to the largest fraction; both generators and the deep-vertex fallback.
@@ -115,7 +117,7 @@ TEST(SamplerTest, ValuesAreInTheUnitInterval) {
     for (uint32_t generator : {PV_SAMPLER_SOBOL, PV_SAMPLER_INDEPENDENT}) {
         for (uint32_t pixel = 0; pixel < 64; ++pixel) {
             for (uint32_t i = 0; i < 256; ++i) {
-                SampleKey key = makeSampleKey(pixel, i, 3u);
+                SampleKey key = interleavedSampleKey(pixel, i, 3u, 2u);
                 for (uint32_t set : {0u, 5u, vertexSet(PV_SOBOL_MAX_DEPTH + 2, 1)}) {
                     vec4 u = sampleSet(generator, key, set);
                     for (int d = 0; d < 4; ++d) {
@@ -135,8 +137,8 @@ TEST(SamplerTest, ValuesAreInTheUnitInterval) {
 // The same (pixel, sample, seed, set) always gives the same numbers (preview's fixed sequence),
 // and vertices past PV_SOBOL_MAX_DEPTH use the independent generator.
 TEST(SamplerTest, NumbersDependOnlyOnTheirAddress) {
-    SampleKey a = makeSampleKey(12, 34, 5);
-    SampleKey b = makeSampleKey(12, 34, 5);
+    SampleKey a = interleavedSampleKey(12, 34, 5, 2u);
+    SampleKey b = interleavedSampleKey(12, 34, 5, 2u);
     for (uint32_t set = 0; set < 40; ++set)
         for (uint32_t g : {PV_SAMPLER_SOBOL, PV_SAMPLER_INDEPENDENT})
             EXPECT_EQ(sampleSet(g, a, set), sampleSet(g, b, set));
@@ -156,7 +158,9 @@ TEST(SobolTest, EachSampleIsUniformOverScrambles) {
             for (int d = 0; d < 4; ++d) {
                 std::vector<int> count(bins, 0);
                 for (int p = 0; p < pixels; ++p)
-                    ++count[int(sobolSet(makeSampleKey(uint32_t(p), index, 11u), set)[d] * bins)];
+                    ++count[int(
+                        sobolSet(interleavedSampleKey(uint32_t(p), index, 11u, 2u), set)[d] *
+                        bins)];
                 double chi2 = 0.0, expected = double(pixels) / bins;
                 for (int c : count) chi2 += (c - expected) * (c - expected) / expected;
                 double p = incompleteGammaQ(0.5 * (bins - 1), 0.5 * chi2);
@@ -169,13 +173,15 @@ TEST(SobolTest, EachSampleIsUniformOverScrambles) {
 // Pixels draw decorrelated sequences, and so do the sets of one pixel (padding): the sample
 // correlation of two independent sequences of n values is ≈ N(0, 1/n), so |r|·√n stays below
 // the Šidák-corrected 1% two-sided normal bound for the pairs tested (here 4.0 covers 3·60
-// pairs: Φ⁻¹(1 − 0.01/(2·180)) = 3.45, with margin for the normal approximation of r).
-TEST(SobolTest, PixelsAndSetsAreDecorrelated) {
+// pairs: Φ⁻¹(1 − 0.01/(2·240)) = 3.53, with margin for the normal approximation of r). The
+// two replicates of one pixel are decorrelated too: the convergence meter assumes they are
+// independent estimates.
+TEST(SobolTest, PixelsSetsAndReplicatesAreDecorrelated) {
     const int n = 4096;
-    auto sequence = [&](uint32_t pixel, uint32_t set, int d) {
+    auto sequence = [&](uint32_t pixel, uint32_t set, int d, uint32_t replicate = 0) {
         std::vector<double> v;
         for (int i = 0; i < n; ++i)
-            v.push_back(sobolSet(makeSampleKey(pixel, uint32_t(i), 0u), set)[d]);
+            v.push_back(sobolSet(makeSampleKey(pixel, uint32_t(i), 0u, replicate), set)[d]);
         return v;
     };
     auto correlation = [](const std::vector<double>& a, const std::vector<double>& b) {
@@ -203,7 +209,10 @@ TEST(SobolTest, PixelsAndSetsAreDecorrelated) {
         // Pixel jitter x of a pixel against its neighbour's y.
         double r3 = correlation(sequence(p, PV_SET_CAMERA_JITTER, 0),
                                 sequence(p + 640, PV_SET_CAMERA_JITTER, 1));
-        worst = std::max({worst, std::abs(r1), std::abs(r2), std::abs(r3)});
+        // One pixel, one set, the two replicates.
+        double r4 = correlation(sequence(p, PV_SET_CAMERA_JITTER, 0, 0),
+                                sequence(p, PV_SET_CAMERA_JITTER, 0, 1));
+        worst = std::max({worst, std::abs(r1), std::abs(r2), std::abs(r3), std::abs(r4)});
     }
     RecordProperty("worstCorrelationTimesSqrtN", std::to_string(worst * std::sqrt(double(n))));
     EXPECT_LT(worst, bound);
@@ -211,6 +220,10 @@ TEST(SobolTest, PixelsAndSetsAreDecorrelated) {
     auto a = sequence(3, PV_SET_CAMERA_JITTER, 0), b = sequence(4, PV_SET_CAMERA_JITTER, 0);
     int equal = 0;
     for (int i = 0; i < n; ++i) equal += a[i] == b[i];
+    EXPECT_LT(equal, 4);
+    auto c = sequence(3, PV_SET_CAMERA_JITTER, 0, 1);
+    equal = 0;
+    for (int i = 0; i < n; ++i) equal += a[i] == c[i];
     EXPECT_LT(equal, 4);
 }
 

@@ -63,20 +63,30 @@ PV_INLINE uint vertexSet(uint depth, uint which) {
 // What a sample's draws depend on, computed once per (pixel, sample).
 struct SampleKey {
     uint streamSeed;  // independent generator and deep-vertex fallback: hash of (pixel, i, seed)
-    uint blockSeed;   // Sobol': hash of (pixel, seed, i / 2^16)
+    uint blockSeed;   // Sobol': hash of (pixel, seed, replicate, i / 2^16)
     uint sobolIndex;  // Sobol': i mod 2^16
 };
-
-PV_INLINE SampleKey makeSampleKey(uint pixelIndex, uint sampleIndex, uint seed) {
+// Replicates: with the convergence meter on, the path tracer interleaves two independently
+// randomised sequences, sample n of a pixel being sample n / 2 of replicate n mod 2. Each
+// replicate alone is a complete shuffled, scrambled Sobol' sequence; the two are statistically
+// independent, so the difference of their means measures the image's error, stratification
+// gains included (randomised quasi-Monte Carlo with independent replicates;
+// render/convergence.h). The price: two nets of n/2 points stratify less than one of n.
+#define PV_MAX_REPLICATES 2u
+PV_INLINE SampleKey makeSampleKey(uint pixelIndex, uint sampleIndex, uint seed, uint replicate) {
     SampleKey k;
-    k.streamSeed = rngSeed(pixelIndex, sampleIndex, seed);
-    // Salted so the two generators' seeds differ.
+    // Salted so the two generators' seeds differ, and so do the replicates'.
+    uint replicateSeed = seed ^ (replicate * 0x9e3779b9u);
+    k.streamSeed = rngSeed(pixelIndex, sampleIndex, replicateSeed);
     uint block = sampleIndex >> PV_SOBOL_BITS;
-    k.blockSeed = pcgHash(pixelIndex ^ pcgHash(block ^ pcgHash(seed ^ 0x5ab1e5u)));
+    k.blockSeed = pcgHash(pixelIndex ^ pcgHash(block ^ pcgHash(replicateSeed ^ 0x5ab1e5u)));
     k.sobolIndex = sampleIndex & ((1u << PV_SOBOL_BITS) - 1u);
     return k;
 }
-
+// The key of a pixel's sample `n` when `replicates` (1 or 2) sequences are interleaved.
+PV_INLINE SampleKey interleavedSampleKey(uint pixelIndex, uint n, uint seed, uint replicates) {
+    return makeSampleKey(pixelIndex, n / replicates, seed, n % replicates);
+}
 // Laine & Karras 2011's hash as Burley 2020 uses it: add and xor-multiply by even constants, so
 // output bit k depends only on input bits 0..k and the seed. Applied to a bit-reversed number
 // (bit 0 = the most significant binary digit of the fraction) that is an Owen scramble: each digit

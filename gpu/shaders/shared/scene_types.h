@@ -26,15 +26,18 @@ PV_BEGIN
 #define PV_BINDING_ENV_RADIANCE 12
 #define PV_BINDING_ENV_MARGINAL_CDF 13
 #define PV_BINDING_ENV_CONDITIONAL_CDF 14
-// Accumulations: 3 vec4 per pixel, [composite | mask], [mixed L_om | samples that count],
+// Accumulations: 6 vec4 per pixel, [composite | mask], [mixed L_om | samples that count],
 // [real L_or | 0]; composite = M ? L_om : L_om − L_or per sample (the plate is added on
 // readback). Dropped (NaN/Inf) samples are in none of them: means divide by the count.
+// Then the same three over replicate 1's samples only (odd sample indices; sampler.h), for the
+// convergence meter (render/convergence.h): replicate 0's are the totals minus these.
 #define PV_BINDING_ACCUM_SUM 15
 #define PV_BINDING_ACCUM_COMPENSATION 16
 #define PV_ACCUM_COMPOSITE 0u
 #define PV_ACCUM_MIXED 1u
 #define PV_ACCUM_REAL 2u
-#define PV_ACCUM_COUNT 3u
+#define PV_ACCUM_REPLICATE_1 3u  // + PV_ACCUM_COMPOSITE, _MIXED or _REAL
+#define PV_ACCUM_COUNT 6u
 #define PV_BINDING_STATS 17
 #define PV_BINDING_TRIANGLE_LIGHT_PDF 18
 // (width+1)×(height+1) vec2: normalised OpenCV camera coordinates of each pixel corner
@@ -208,6 +211,9 @@ struct FrameParams {
     uint sampleBase;         // index of the first sample of this dispatch
     uint samplesPerDispatch;
     uint seed;
+    // 2: samples alternate between two independently randomised sequences, which the
+    // convergence meter compares (shared/sampler.h); 1: one sequence, no meter.
+    uint replicates;
     uint maxDepth;           // most scattering events on a path (pbrt's maxdepth)
     uint lightCount;
     uint emissiveTriangleCount;
