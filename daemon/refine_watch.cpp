@@ -112,8 +112,26 @@ std::optional<double> refineEtaSeconds(uint64_t samples, std::optional<double> n
     return std::isfinite(seconds) ? std::optional<double>(seconds) : std::nullopt;
 }
 
-std::optional<double> refineNoiseEstimate(const Renderer&) {
-    return std::nullopt;  // wired to Renderer::convergence() when the meter lands
+void RefineMeter::restart(double targetNoise) {
+    schedule_ = NoiseSchedule(targetNoise);
+    lookSamples_ = 0;
+}
+
+Status RefineMeter::update(const Renderer& renderer) {
+    const uint64_t samples = renderer.samplesPerPixel();
+    if (!schedule_.due(samples)) return {};
+    Result<Convergence> c = renderer.convergence();
+    if (!c) return c.error();
+    schedule_.looked(samples, c->composite.relativeRmse);
+    lookSamples_ = samples;
+    return {};
+}
+
+std::optional<double> RefineMeter::at(uint64_t samples) const {
+    const std::optional<double> noise = measured();
+    if (!noise || !std::isfinite(*noise) || lookSamples_ == 0 || samples <= lookSamples_)
+        return noise;
+    return *noise * std::sqrt(double(lookSamples_) / double(samples));
 }
 
 bool refineConverged(uint64_t samples, std::optional<double> noise, const RefineConfig& config) {

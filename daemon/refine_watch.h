@@ -16,8 +16,11 @@
 #include <optional>
 #include <string>
 
+#include "base/result.h"
 #include "daemon/pipeline_stages.h"
 #include "daemon/service_config.h"
+#include "render/convergence.h"
+#include "render/renderer.h"
 
 namespace previs {
 
@@ -70,9 +73,26 @@ private:
 std::optional<double> refineEtaSeconds(uint64_t samples, std::optional<double> noise,
                                        double targetNoise, uint64_t maxSamples, double msPerSample);
 
-class Renderer;
-// The convergence meter's relative RMSE of the composite so far (DESIGN.md §4), if it has one.
-std::optional<double> refineNoiseEstimate(const Renderer& renderer);
+// The convergence meter (render/convergence.h) during one refinement. Each look reads the
+// accumulation back, so it looks at NoiseSchedule's counts (growing by half, and no later than
+// where the target should be reached); between looks the estimate is carried forward at the
+// Monte Carlo rate, 1/√samples — conservative, as stratified sampling converges at least that
+// fast — so the overlay and the ETA move every step. Stopping at the target waits for a look.
+class RefineMeter {
+public:
+    // The shot froze: looks start over, aiming at `targetNoise` (0: none).
+    void restart(double targetNoise);
+    // After a step: reads the meter if a look is due.
+    Status update(const Renderer& renderer);
+    // The last look's estimate of the composite's relative RMSE (DESIGN.md §4), measured.
+    std::optional<double> measured() const { return schedule_.noise(); }
+    // That estimate carried to `samples` (≥ the look's): what the status shows.
+    std::optional<double> at(uint64_t samples) const;
+
+private:
+    NoiseSchedule schedule_;
+    uint64_t lookSamples_ = 0;
+};
 
 // Whether refinement has stopped adding samples: max_samples reached, or the estimate at or
 // below target_noise.

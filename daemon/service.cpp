@@ -308,6 +308,7 @@ void Service::Threads::runRender(ModeMachine& modes) {
     std::shared_ptr<const LiveLighting> frozenLighting;
     bool refining = false;
     RefineWatch watch;
+    RefineMeter meter;
     double refineStepMs = 0.0;  // time in refineStep since the shot froze (the ETA's cost)
     double msPerSample = 0.0;
     double fps = 0.0;
@@ -352,6 +353,7 @@ void Service::Threads::runRender(ModeMachine& modes) {
             }
             refining = true;
             watch.freeze(*frozen, frozenLighting);
+            meter.restart(settings.targetNoise);
             refineStepMs = 0.0;
             fps = 0.0;
             lastFrame = {};
@@ -424,8 +426,7 @@ void Service::Threads::runRender(ModeMachine& modes) {
             continue;
         }
         const uint64_t done = r.samples();
-        const std::optional<double> noise = refineNoiseEstimate(r.renderer());
-        if (!r.rendered() || refineConverged(done, noise, settings)) {
+        if (!r.rendered() || refineConverged(done, meter.measured(), settings)) {
             // Converged (or nothing to refine): idle until the mode changes.
             std::this_thread::sleep_for(kRenderPoll);
             continue;
@@ -446,14 +447,18 @@ void Service::Threads::runRender(ModeMachine& modes) {
         msPerSample = stepMs / step;
         refineStepMs += stepMs;
         tick();
+        if (Status s = meter.update(r.renderer()); !s)
+            logWarning("render: convergence meter: {}", s.message());
         const uint64_t total = r.samples();
-        const std::optional<double> estimate = refineNoiseEstimate(r.renderer());
+        const std::optional<double> estimate = meter.at(total);
         publish(r, *frozen, Mode::Refine, start, fps, estimate,
                 refineEtaSeconds(total, estimate, settings.targetNoise, settings.maxSamples,
                                  refineStepMs / double(std::max<uint64_t>(total, 1))));
-        if (refineConverged(total, estimate, settings))
+        if (refineConverged(total, meter.measured(), settings))
             logInfo("refinement: reached {} samples per pixel{}", total,
-                    estimate ? fmt::format(", noise estimate {:.2f} %", *estimate * 100.0) : "");
+                    meter.measured()
+                        ? fmt::format(", noise estimate {:.2f} %", *meter.measured() * 100.0)
+                        : "");
     }
 }
 
