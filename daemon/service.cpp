@@ -626,6 +626,8 @@ ServiceStatus Service::status() const {
     if (s.mode == Mode::Preview && rendered == Mode::Refine) {
         std::lock_guard lock(threads_->settingsMutex);
         s.samples = threads_->previewSamples;
+        s.noiseEstimate.reset();
+        s.etaSeconds.reset();
     }
     const DisplayStats shown = t.display->stats();
     s.framesShown = shown.shown;
