@@ -309,7 +309,9 @@ void Service::Threads::runRender(ModeMachine& modes) {
     bool refining = false;
     RefineWatch watch;
     RefineMeter meter;
-    double refineStepMs = 0.0;  // time in refineStep since the shot froze (the ETA's cost)
+    // When the shot froze: the ETA's cost per sample is the wall time since then (steps, meter
+    // looks, composite and tone map, tracking on the other core) over the samples.
+    Clock::time_point frozeAt{};
     double msPerSample = 0.0;
     double fps = 0.0;
     Clock::time_point lastPublished = Clock::now();
@@ -354,7 +356,7 @@ void Service::Threads::runRender(ModeMachine& modes) {
             refining = true;
             watch.freeze(*frozen, frozenLighting);
             meter.restart(settings.targetNoise);
-            refineStepMs = 0.0;
+            frozeAt = Clock::now();
             fps = 0.0;
             lastFrame = {};
             logInfo("refinement: frame {} frozen{}", frozen->frame->sequence,
@@ -442,18 +444,18 @@ void Service::Threads::runRender(ModeMachine& modes) {
             pipelineFailed.store(true);
             return;
         }
-        const double stepMs =
-            std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-        msPerSample = stepMs / step;
-        refineStepMs += stepMs;
+        msPerSample =
+            std::chrono::duration<double, std::milli>(Clock::now() - start).count() / step;
         tick();
         if (Status s = meter.update(r.renderer()); !s)
             logWarning("render: convergence meter: {}", s.message());
         const uint64_t total = r.samples();
         const std::optional<double> estimate = meter.at(total);
         publish(r, *frozen, Mode::Refine, start, fps, estimate,
-                refineEtaSeconds(total, estimate, settings.targetNoise, settings.maxSamples,
-                                 refineStepMs / double(std::max<uint64_t>(total, 1))));
+                refineEtaSeconds(
+                    total, estimate, settings.targetNoise, settings.maxSamples,
+                    std::chrono::duration<double, std::milli>(Clock::now() - frozeAt).count() /
+                        double(std::max<uint64_t>(total, 1))));
         if (refineConverged(total, meter.measured(), settings))
             logInfo("refinement: reached {} samples per pixel{}", total,
                     meter.measured()
