@@ -19,18 +19,26 @@ double millisecondsSince(std::chrono::steady_clock::time_point start) {
         .count();
 }
 
-// ∫ luminance dω over an equirectangular map (exact texel solid angles per row).
-double luminancePower(const cv::Mat& radiance) {
+// ∫ luminance dω over an equirectangular map (exact texel solid angles per row), and the
+// luminance's projection ∫ L(ω) Y_lm(ω) dω on the real spherical harmonics of bands 0–2 (texel
+// centres as quadrature points).
+double luminanceMoments(const cv::Mat& radiance, std::array<double, 9>& sh) {
     const int w = radiance.cols, h = radiance.rows;
     double total = 0.0;
+    sh.fill(0.0);
     for (int y = 0; y < h; ++y) {
         const cv::Vec3f* row = radiance.ptr<cv::Vec3f>(y);
+        const double texel = equirectTexelSolidAngle(y, w, h);
         double rowSum = 0.0;
         for (int x = 0; x < w; ++x) {
             const double l = luminance(glm::vec3(row[x][0], row[x][1], row[x][2]));
-            if (std::isfinite(l) && l > 0.0) rowSum += l;
+            if (!std::isfinite(l) || l <= 0.0) continue;
+            rowSum += l;
+            const cv::Vec3d d = equirectTexelDirection(x, y, w, h);
+            const std::array<double, 9> basis = realShBand2(d);
+            for (size_t i = 0; i < sh.size(); ++i) sh[i] += l * texel * basis[i];
         }
-        total += rowSum * equirectTexelSolidAngle(y, w, h);
+        total += rowSum * texel;
     }
     return total;
 }
@@ -105,7 +113,7 @@ Result<std::shared_ptr<const LiveLighting>> LightingStage::process(const Frame& 
     auto out = std::make_shared<LiveLighting>();
     out->sequence = frame.sequence;
     out->timestampNs = frame.timestampNs;
-    out->totalLuminancePower = luminancePower(*map);
+    out->totalLuminancePower = luminanceMoments(*map, out->luminanceSh);
     if (mode_ == LightingMode::Lights) {
         Result<LightingSnapshot> lights = estimator_.estimate(*map);
         if (!lights) return lights.error();
@@ -130,6 +138,19 @@ PoseDelta poseDelta(const cv::Matx44d& a, const cv::Matx44d& b) {
         for (int k = 0; k < 3; ++k) trace += a(k, i) * b(k, i);
     d.rotationDeg = std::acos(std::clamp((trace - 1.0) / 2.0, -1.0, 1.0)) * 180.0 / M_PI;
     return d;
+}
+
+std::array<double, 9> realShBand2(const cv::Vec3d& d) {
+    const double x = d[0], y = d[1], z = d[2];
+    return {0.282094791773878,
+            0.488602511902920 * y,
+            0.488602511902920 * z,
+            0.488602511902920 * x,
+            1.092548430592079 * x * y,
+            1.092548430592079 * y * z,
+            0.315391565252520 * (3.0 * z * z - 1.0),
+            1.092548430592079 * x * z,
+            0.546274215296040 * (x * x - y * y)};
 }
 
 }  // namespace previs

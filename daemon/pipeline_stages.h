@@ -4,6 +4,7 @@
 // frame and give an immutable snapshot. The service runs each on its own thread; `previs replay`
 // calls them in lock step on one thread, so both run the very same code.
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <opencv2/core.hpp>
@@ -43,8 +44,13 @@ struct TrackedFrame {
 struct LiveLighting {
     std::shared_ptr<const EnvironmentMap> environment;
     std::vector<EstimatedLight> lights;
-    double totalLuminancePower = 0.0;  // ∫ luminance dω of the whole map (change threshold)
-    uint64_t sequence = 0;             // the fisheye frame's sequence
+    double totalLuminancePower = 0.0;  // ∫ luminance dω of the whole map
+    // The map's luminance projected on the real spherical harmonics of bands 0–2 (world frame,
+    // coefficient index l² + l + m), before any light is split off: what a diffuse surface sees
+    // of the lighting (Ramamoorthi & Hanrahan 2001), and what a refinement restart compares —
+    // unlike the total power it moves when the lighting turns (daemon/refine_watch.h).
+    std::array<double, 9> luminanceSh{};
+    uint64_t sequence = 0;  // the fisheye frame's sequence
     uint64_t timestampNs = 0;
     double computeMs = 0.0;
 };
@@ -92,5 +98,9 @@ struct PoseDelta {
     double rotationDeg = 0.0;
 };
 PoseDelta poseDelta(const cv::Matx44d& a, const cv::Matx44d& b);
+
+// The nine orthonormal real spherical harmonics of bands 0–2 at unit direction d, index
+// l² + l + m (Sloan's "Stupid SH tricks" table; any axis order keeps each band's norm).
+std::array<double, 9> realShBand2(const cv::Vec3d& d);
 
 }  // namespace previs

@@ -11,6 +11,7 @@
 #include "daemon/pipeline_renderer.h"
 #include "daemon/pipeline_stages.h"
 #include "daemon/recorded_events.h"
+#include "daemon/refine_watch.h"
 #include "daemon/service_config.h"
 #include "gpu/context.h"
 #include "image/image.h"
@@ -141,7 +142,7 @@ int runReplay(const ReplayOptions& o) {
         logError("--out {}: cannot write {}", o.outDir, csvPath);
         return 2;
     }
-    csv << "frame,timestamp_ns,mode,samples,render_ms,tracking,tags";
+    csv << "frame,timestamp_ns,mode,samples,render_ms,tracking,tags,restarts,noise_estimate";
     for (int r = 0; r < 4; ++r)
         for (int c = 0; c < 4; ++c) csv << ",m" << r << c;
     csv << "\n";
@@ -161,6 +162,9 @@ int runReplay(const ReplayOptions& o) {
     std::shared_ptr<const LiveLighting> currentLighting;
     bool refining = false;
     std::optional<TrackedFrame> frozen;
+    RefineWatch watch(config->refine);
+    RefineMeter meter;
+    uint64_t restarts = 0;  // refinements started over on a changed pose or lighting
     uint64_t written = 0;
     const Clock::time_point start = Clock::now();
     ProgressLine progress("replay", o.quiet);
@@ -206,18 +210,30 @@ int runReplay(const ReplayOptions& o) {
             refining = false;
             rendered = (*renderer)->renderPreview(tracked, currentLighting);
         } else {
-            if (!refining) {
+            std::optional<std::string> restart;
+            if (refining) {
+                restart = watch.observeFrame(tracked);
+                if (!restart) restart = watch.observeLighting(currentLighting);
+                if (restart) {
+                    logInfo("replay: frame {}: refinement restarts: {}", frame->sequence, *restart);
+                    ++restarts;
+                }
+            }
+            if (!refining || restart) {
                 frozen = tracked;
                 rendered = (*renderer)->beginRefine(*frozen, currentLighting);
+                watch.freeze(*frozen, currentLighting);
+                meter.restart(config->refine.targetNoise);
                 refining = true;
             }
             const uint64_t done = (*renderer)->samples();
             const uint64_t target = config->refine.maxSamples;
-            if (rendered && (target == 0 || done < target)) {
+            if (rendered && !refineConverged(done, meter.measured(), config->refine)) {
                 const uint64_t step =
                     target == 0 ? config->refine.samplesPerStep
                                 : std::min<uint64_t>(config->refine.samplesPerStep, target - done);
                 rendered = (*renderer)->refineStep(uint32_t(step));
+                if (rendered) rendered = meter.update((*renderer)->renderer());
             }
         }
         if (!rendered) {
@@ -252,7 +268,9 @@ int runReplay(const ReplayOptions& o) {
             << (!used.worldFromCamera ? "none"
                 : used.lost           ? "held"
                                       : "tracked")
-            << "," << used.tags;
+            << "," << used.tags << "," << restarts << ",";
+        if (mode == Mode::Refine && meter.measured())
+            csv << fmt::format("{:.6g}", *meter.measured());
         for (int r = 0; r < 4; ++r)
             for (int c = 0; c < 4; ++c) {
                 csv << ",";

@@ -23,6 +23,7 @@
 #include "daemon/pipeline_renderer.h"
 #include "daemon/pipeline_stages.h"
 #include "daemon/recorded_events.h"
+#include "daemon/refine_watch.h"
 #include "display/display_thread.h"
 #include "display/frame_output.h"
 #include "gpu/context.h"
@@ -47,8 +48,9 @@ int64_t nowNs() {
 constexpr double kRefineStepTargetMs = 250.0;
 // How long the render thread waits for a frame before it checks the mode and beats its heart.
 constexpr auto kRenderPoll = std::chrono::milliseconds(100);
-// Pose updates while refining (only to notice a moved camera).
-constexpr auto kRefineTrackingPeriod = std::chrono::milliseconds(500);
+// Pose updates while refining (only to notice a moved camera: a move restarts after
+// [refine] restart_after of them, so this period times that many is the restart's delay).
+constexpr auto kRefineTrackingPeriod = std::chrono::milliseconds(250);
 
 // Names show in top -H, perf and /proc/PID/task/*/comm (15 characters at most).
 void nameThread(const char* name) { pthread_setname_np(pthread_self(), name); }
@@ -69,11 +71,22 @@ OutputSettings outputSettings(const OutputConfig& c) {
     return s;
 }
 
+// "12 s", "4.5 min", "2.1 h": an ETA at the precision it has.
+std::string etaText(double seconds) {
+    if (seconds < 59.5) return fmt::format("{:.0f} s", seconds);
+    if (seconds < 3600.0) return fmt::format("{:.1f} min", seconds / 60.0);
+    return fmt::format("{:.1f} h", seconds / 3600.0);
+}
+
 }  // namespace
 
 std::string statusLine(const ServiceStatus& s) {
-    std::string line = fmt::format("{} {} spp {:.1f} fps",
-                                   s.mode == Mode::Refine ? "REFINE" : "PREVIEW", s.samples, s.fps);
+    std::string line =
+        fmt::format("{} {} spp ", s.mode == Mode::Refine ? "REFINE" : "PREVIEW", s.samples);
+    if (s.mode == Mode::Refine && s.noiseEstimate)
+        line += fmt::format("noise {:.1f}% ", *s.noiseEstimate * 100.0);
+    if (s.mode == Mode::Refine && s.etaSeconds) line += "ETA " + etaText(*s.etaSeconds) + " ";
+    line += fmt::format("{:.1f} fps", s.fps);
     if (s.photonsPerIteration > 0)
         line += fmt::format("  {}K photons r {:.1f} mm", (s.photonsPerIteration + 512) / 1024,
                             s.photonRadiusM * 1e3f);
@@ -89,8 +102,12 @@ std::string statusJson(const ServiceStatus& s) {
     j["drops"] = {
         {"capture", s.droppedCapture}, {"render", s.droppedRender}, {"display", s.droppedDisplay}};
     j["samples"] = s.samples;
-    j["noiseEstimate"] = nullptr;  // the convergence meter is issue 10's
-    j["etaSeconds"] = nullptr;
+    auto number = [](std::optional<double> v, double scale) {
+        return v ? nlohmann::json(std::round(*v * scale) / scale) : nlohmann::json(nullptr);
+    };
+    j["noiseEstimate"] = number(s.noiseEstimate, 1e6);
+    j["etaSeconds"] = number(s.etaSeconds, 10.0);
+    j["refineRestarts"] = s.refineRestarts;
     j["fps"] = std::round(s.fps * 100.0) / 100.0;
     j["recording"] = false;
     j["display"] = s.display;
@@ -174,7 +191,8 @@ struct Service::Threads {
     // Sends the composite to the display; renderMs runs from `renderStart` to the tone-mapped
     // frame (render, readback, tone map).
     void publish(PipelineRenderer& r, const TrackedFrame& frame, Mode mode,
-                 Clock::time_point renderStart, double fps);
+                 Clock::time_point renderStart, double fps,
+                 std::optional<double> noiseEstimate = {}, std::optional<double> etaSeconds = {});
     void publishNoCamera(const PipelineRenderer& r);
     void stopAll();
 };
@@ -225,7 +243,9 @@ void Service::Threads::runLighting() {
 }
 
 void Service::Threads::publish(PipelineRenderer& r, const TrackedFrame& frame, Mode mode,
-                               Clock::time_point renderStart, double fps) {
+                               Clock::time_point renderStart, double fps,
+                               std::optional<double> noiseEstimate,
+                               std::optional<double> etaSeconds) {
     Result<ImageF> image = r.composite();
     if (!image) {
         logError("render: {}", image.message());
@@ -247,6 +267,8 @@ void Service::Threads::publish(PipelineRenderer& r, const TrackedFrame& frame, M
         std::lock_guard lock(statusMutex);
         renderStatus.mode = mode;
         renderStatus.samples = r.samples();
+        renderStatus.noiseEstimate = noiseEstimate;
+        renderStatus.etaSeconds = etaSeconds;
         renderStatus.renderMs = renderMs;
         renderStatus.fps = fps;
         renderStatus.worldFromCamera = frame.worldFromCamera;
@@ -285,7 +307,11 @@ void Service::Threads::runRender(ModeMachine& modes) {
     std::shared_ptr<const TrackedFrame> frozen;
     std::shared_ptr<const LiveLighting> frozenLighting;
     bool refining = false;
-    bool loggedPose = false, loggedLighting = false;
+    RefineWatch watch;
+    RefineMeter meter;
+    // When the shot froze: the ETA's cost per sample is the wall time since then (steps, meter
+    // looks, composite and tone map, tracking on the other core) over the samples.
+    Clock::time_point frozeAt{};
     double msPerSample = 0.0;
     double fps = 0.0;
     Clock::time_point lastPublished = Clock::now();
@@ -311,6 +337,7 @@ void Service::Threads::runRender(ModeMachine& modes) {
             settings = refine;
             r.setPreviewSamples(previewSamples);
         }
+        watch.setConfig(settings);
         const Mode mode = modes.mode();
         // Out of refinement and back within one step still re-freezes on the newest frame.
         const uint64_t version = modes.version();
@@ -327,7 +354,9 @@ void Service::Threads::runRender(ModeMachine& modes) {
                 return;
             }
             refining = true;
-            loggedPose = loggedLighting = false;
+            watch.freeze(*frozen, frozenLighting);
+            meter.restart(settings.targetNoise);
+            frozeAt = Clock::now();
             fps = 0.0;
             lastFrame = {};
             logInfo("refinement: frame {} frozen{}", frozen->frame->sequence,
@@ -381,34 +410,25 @@ void Service::Threads::runRender(ModeMachine& modes) {
             continue;
         }
 
-        // Refining: the shot stays frozen; changes beyond the thresholds are only logged.
+        // Refining: a change of pose or lighting that persists re-freezes the shot on the newest
+        // frame and lighting and starts the accumulation over; anything smaller is noise.
+        std::optional<std::string> restart;
         if (std::shared_ptr<const TrackedFrame> f = trackedFrames.take()) {
             current = f;
-            if (!loggedPose && f->worldFromCamera && frozen->worldFromCamera) {
-                const PoseDelta d = poseDelta(*f->worldFromCamera, *frozen->worldFromCamera);
-                if (d.translationM > settings.poseThresholdM ||
-                    d.rotationDeg > settings.poseThresholdDeg) {
-                    logInfo(
-                        "refinement: the camera moved {:.3f} m / {:.2f} deg since the shot "
-                        "froze; not applied (leave refinement to follow it)",
-                        d.translationM, d.rotationDeg);
-                    loggedPose = true;
-                }
-            }
+            restart = watch.observeFrame(*f);
         }
-        if (std::shared_ptr<const LiveLighting> l = lightingSnapshots.latest();
-            !loggedLighting && l && frozenLighting && l != frozenLighting) {
-            const double change =
-                std::abs(l->totalLuminancePower - frozenLighting->totalLuminancePower) /
-                std::max(frozenLighting->totalLuminancePower, 1e-12);
-            if (change > settings.lightingThreshold) {
-                logInfo("refinement: the set's lighting changed by {:.0f} %; not applied",
-                        change * 100.0);
-                loggedLighting = true;
+        if (!restart) restart = watch.observeLighting(lightingSnapshots.latest());
+        if (restart) {
+            logInfo("refinement: restarting on frame {}: {}", current->frame->sequence, *restart);
+            {
+                std::lock_guard lock(statusMutex);
+                ++renderStatus.refineRestarts;
             }
+            refining = false;
+            continue;
         }
         const uint64_t done = r.samples();
-        if (!r.rendered() || (settings.maxSamples > 0 && done >= settings.maxSamples)) {
+        if (!r.rendered() || refineConverged(done, meter.measured(), settings)) {
             // Converged (or nothing to refine): idle until the mode changes.
             std::this_thread::sleep_for(kRenderPoll);
             continue;
@@ -427,9 +447,20 @@ void Service::Threads::runRender(ModeMachine& modes) {
         msPerSample =
             std::chrono::duration<double, std::milli>(Clock::now() - start).count() / step;
         tick();
-        publish(r, *frozen, Mode::Refine, start, fps);
-        if (settings.maxSamples > 0 && r.samples() >= settings.maxSamples)
-            logInfo("refinement: reached {} samples per pixel", r.samples());
+        if (Status s = meter.update(r.renderer()); !s)
+            logWarning("render: convergence meter: {}", s.message());
+        const uint64_t total = r.samples();
+        const std::optional<double> estimate = meter.at(total);
+        publish(r, *frozen, Mode::Refine, start, fps, estimate,
+                refineEtaSeconds(
+                    total, estimate, settings.targetNoise, settings.maxSamples,
+                    std::chrono::duration<double, std::milli>(Clock::now() - frozeAt).count() /
+                        double(std::max<uint64_t>(total, 1))));
+        if (refineConverged(total, meter.measured(), settings))
+            logInfo("refinement: reached {} samples per pixel{}", total,
+                    meter.measured()
+                        ? fmt::format(", noise estimate {:.2f} %", *meter.measured() * 100.0)
+                        : "");
     }
 }
 
@@ -597,6 +628,8 @@ ServiceStatus Service::status() const {
     if (s.mode == Mode::Preview && rendered == Mode::Refine) {
         std::lock_guard lock(threads_->settingsMutex);
         s.samples = threads_->previewSamples;
+        s.noiseEstimate.reset();
+        s.etaSeconds.reset();
     }
     const DisplayStats shown = t.display->stats();
     s.framesShown = shown.shown;

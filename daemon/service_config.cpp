@@ -457,12 +457,14 @@ Status ConfigReader::parseRender(const toml::table& t, RenderConfig& c) const {
 }
 
 Status ConfigReader::parseRefine(const toml::table& t, RefineConfig& c) const {
-    if (Status st = r_.checkKeys(t, "refine",
-                                 {"samples_per_step", "max_samples", "pose_threshold_m",
-                                  "pose_threshold_deg", "lighting_threshold"});
+    if (Status st = r_.checkKeys(
+            t, "refine",
+            {"samples_per_step", "max_samples", "pose_threshold_m", "pose_threshold_deg",
+             "lighting_threshold", "restart_after", "target_noise"});
         !st)
         return st;
-    int64_t step = c.samplesPerStep, maxSamples = int64_t(c.maxSamples);
+    int64_t step = c.samplesPerStep, maxSamples = int64_t(c.maxSamples),
+            restartAfter = c.restartAfter;
     if (Status st = integerIn(t, "refine", "samples_per_step", step, 1, 65536); !st) return st;
     if (Status st = integerIn(t, "refine", "max_samples", maxSamples, 0, int64_t(1) << 40); !st)
         return st;
@@ -474,6 +476,9 @@ Status ConfigReader::parseRefine(const toml::table& t, RefineConfig& c) const {
         return st;
     if (Status st = ranged(t, "refine", "lighting_threshold", c.lightingThreshold, 0.0, 1e6); !st)
         return st;
+    if (Status st = integerIn(t, "refine", "restart_after", restartAfter, 1, 1000); !st) return st;
+    c.restartAfter = int(restartAfter);
+    if (Status st = ranged(t, "refine", "target_noise", c.targetNoise, 0.0, 1e6); !st) return st;
     return {};
 }
 

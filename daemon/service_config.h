@@ -101,10 +101,16 @@ struct RenderConfig {
 struct RefineConfig {
     uint32_t samplesPerStep = 4;  // samples added between two shown frames
     uint64_t maxSamples = 4096;   // the sample target: refinement stops adding here (0 = none)
-    // Changes larger than these while refining are logged, not applied (the shot stays frozen).
+    // The convergence meter's relative RMSE (DESIGN.md §4) at which refinement stops adding
+    // samples, if before max_samples (0 = none).
+    double targetNoise = 0.01;
+    // A change beyond these, seen in `restartAfter` consecutive observations (tracked frames;
+    // lighting snapshots), re-freezes the shot on the newest frame and lighting and restarts
+    // the accumulation (daemon/refine_watch.h). Defaults: docs/config-format.md.
     double poseThresholdM = 0.01;
     double poseThresholdDeg = 0.5;
-    double lightingThreshold = 0.1;  // relative change of the environment's total power
+    double lightingThreshold = 0.06;  // relative change of the lighting (LightingDelta::change)
+    int restartAfter = 3;
 };
 
 enum class OutputKind { None, Files, Kms };

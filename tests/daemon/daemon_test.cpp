@@ -151,6 +151,28 @@ TEST(StatusJson, HasTheDesignFields) {
     EXPECT_TRUE(nlohmann::json::parse(statusJson(s))["pose"].is_null());
     EXPECT_EQ(statusLine(s).rfind("REFINE 256 spp", 0), 0u) << statusLine(s);
     EXPECT_TRUE(nlohmann::json::parse(statusJson(s))["photons"].is_null());
+    // Refinement with the meter's estimate: the JSON has numbers, the overlay the line.
+    s.noiseEstimate = 0.0183;
+    s.etaSeconds = 12.34;
+    s.fps = 2.0;
+    s.trackingLost = false;
+    const nlohmann::json m = nlohmann::json::parse(statusJson(s));
+    EXPECT_NEAR(m["noiseEstimate"].get<double>(), 0.0183, 1e-9);
+    EXPECT_NEAR(m["etaSeconds"].get<double>(), 12.3, 1e-9);
+    EXPECT_EQ(statusLine(s), "REFINE 256 spp noise 1.8% ETA 12 s 2.0 fps");
+    s.etaSeconds = 0.0;
+    EXPECT_EQ(statusLine(s), "REFINE 256 spp noise 1.8% ETA 0 s 2.0 fps");
+    s.etaSeconds = 754.0;
+    EXPECT_NE(statusLine(s).find("ETA 12.6 min"), std::string::npos) << statusLine(s);
+    s.etaSeconds = 9000.0;
+    EXPECT_NE(statusLine(s).find("ETA 2.5 h"), std::string::npos) << statusLine(s);
+    // In preview the overlay has neither (a stale estimate would mislead).
+    s.mode = Mode::Preview;
+    EXPECT_EQ(statusLine(s), "PREVIEW 256 spp 2.0 fps");
+    s.mode = Mode::Refine;
+    s.noiseEstimate.reset();
+    s.etaSeconds.reset();
+    s.trackingLost = true;
     // With a photon pass: its budget and radius, in the JSON and on the overlay.
     s.photonsPerIteration = 65536;
     s.photonRadiusM = 0.0042f;

@@ -282,6 +282,12 @@ position_m = [1, 0, 0]
         {"refine_negative",
          minimal("", "[refine]\npose_threshold_m = -1"),
          {"'refine.pose_threshold_m' is -1"}},
+        {"refine_restart_after_zero",
+         minimal("", "[refine]\nrestart_after = 0"),
+         {"'refine.restart_after' is 0"}},
+        {"refine_target_noise_negative",
+         minimal("", "[refine]\ntarget_noise = -0.01"),
+         {"'refine.target_noise' is -0.01"}},
         {"output_kind",
          minimal("", "[output]\nkind = \"hdmi\""),
          {"'output.kind' is 'hdmi'", "kms, files or none"}},
@@ -323,6 +329,8 @@ photon_alpha = 0.75
 samples_per_step = 8
 max_samples = 0
 pose_threshold_deg = 1.5
+target_noise = 0.02
+restart_after = 5
 [output]
 kind = "files"
 folder = "frames"
@@ -349,6 +357,8 @@ loop = false
     EXPECT_EQ(c->refine.samplesPerStep, 8u);
     EXPECT_EQ(c->refine.maxSamples, 0u);
     EXPECT_DOUBLE_EQ(c->refine.poseThresholdDeg, 1.5);
+    EXPECT_DOUBLE_EQ(c->refine.targetNoise, 0.02);
+    EXPECT_EQ(c->refine.restartAfter, 5);
     EXPECT_EQ(c->output.kind, OutputKind::Files);
     // Relative paths start at the config's folder.
     EXPECT_EQ(c->output.folder, (tempDir() / "frames").string());
