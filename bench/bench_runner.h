@@ -16,9 +16,10 @@ struct BenchOptions {
     uint32_t spp = 8;         // samples per pixel of the throughput runs
     // Run one section: throughput, resolution, triangles, specialisation, differential, pose,
     // service (bench/bench_service.h; only when asked for by name: it runs for minutes),
-    // memory (bench/bench_memory.h; only by name: it forks a child per resolution).
+    // memory (bench/bench_memory.h; only by name: it forks a child per resolution),
+    // preview (bench/bench_preview.h; only by name: it renders a long reference first).
     std::string only;
-    std::string csvPath;  // service: also write the results as CSV here ("" = none)
+    std::string csvPath;  // service, preview: also write the results as CSV here ("" = none)
 };
 
 // Returns the process exit code; writes the report to stdout, progress to stderr.

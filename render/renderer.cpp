@@ -152,6 +152,10 @@ Result<std::unique_ptr<Renderer>> Renderer::create(GpuContext& ctx, const Scene&
             "alpha {}, gather cap {}): photons 1..{}, radius >= 0 (0 = from the "
             "scene), alpha in (0, 1], cap >= 1",
             ph.perIteration, ph.initialRadius, ph.alpha, ph.gatherCap, kMaxPhotonsPerIteration);
+    if (!(settings.resolutionScale > 0.0f) || !(settings.resolutionScale <= 1.0f))
+        return makeError("resolution scale {} is out of range: it must be in (0, 1] (1 traces "
+                         "every output pixel)",
+                         settings.resolutionScale);
     if (!(r->camera_.apertureRadiusM >= 0.0f) || !(r->camera_.focusDistanceM > 0.0f))
         return makeError(
             "thin lens needs aperture radius >= 0 and focus distance > 0 (got {} m, "
@@ -169,6 +173,9 @@ Result<std::unique_ptr<Renderer>> Renderer::create(GpuContext& ctx, const Scene&
     if (Status s = r->buildScene(scene); !s) return s.error();
 
     if (Status s = r->specialisePipeline(); !s) return s.error();
+    // buildScene sized the accumulation for the output; a fraction shrinks it.
+    r->settings_.resolutionScale = 1.0f;
+    if (Status s = r->setResolutionScale(settings.resolutionScale); !s) return s.error();
     if (Status s = r->reset(); !s) return s.error();
     return Result<std::unique_ptr<Renderer>>(std::move(r));
 }
@@ -620,6 +627,73 @@ float Renderer::nextPhotonRadius() const {
     return shader::photonRadius(photonInitialRadius_, settings_.photons.alpha, uint32_t(samples_));
 }
 
+void Renderer::traceSize(float scale, uint32_t& width, uint32_t& height) const {
+    auto scaled = [scale](uint32_t n) {
+        return std::clamp(uint32_t(std::lround(double(n) * scale)), 1u, n);
+    };
+    width = scaled(settings_.width);
+    height = scaled(settings_.height);
+}
+
+std::vector<glm::vec2> Renderer::traceLensGrid(uint32_t width, uint32_t height) const {
+    const uint32_t fullW = settings_.width, fullH = settings_.height;
+    if (settings_.lensGrid.empty() || (width == fullW && height == fullH))
+        return settings_.lensGrid;
+    // Traced pixel corner (i, j) is the output's corner (i·W/w, j·H/h): bilinear in the
+    // output's corner grid (exact where that lands on an output corner, as at 1/2 of 640×480).
+    const auto& g = settings_.lensGrid;
+    const uint32_t row = fullW + 1;
+    std::vector<glm::vec2> out(size_t(width + 1) * (height + 1));
+    for (uint32_t j = 0; j <= height; ++j) {
+        const double y = double(j) * fullH / height;
+        const uint32_t y0 = std::min(uint32_t(y), fullH - 1);
+        const double fy = y - y0;
+        for (uint32_t i = 0; i <= width; ++i) {
+            const double x = double(i) * fullW / width;
+            const uint32_t x0 = std::min(uint32_t(x), fullW - 1);
+            const double fx = x - x0;
+            const size_t k = size_t(y0) * row + x0;
+            const glm::dvec2 top = glm::mix(glm::dvec2(g[k]), glm::dvec2(g[k + 1]), fx);
+            const glm::dvec2 bottom =
+                glm::mix(glm::dvec2(g[k + row]), glm::dvec2(g[k + row + 1]), fx);
+            out[size_t(j) * (width + 1) + i] = glm::vec2(glm::mix(top, bottom, fy));
+        }
+    }
+    return out;
+}
+
+Status Renderer::setResolutionScale(float scale) {
+    if (!(scale > 0.0f) || !(scale <= 1.0f))
+        return makeError("resolution scale {} is out of range: it must be in (0, 1] (1 traces "
+                         "every output pixel)",
+                         scale);
+    uint32_t width = 0, height = 0;
+    traceSize(scale, width, height);
+    settings_.resolutionScale = scale;
+    if (width == params_.width && height == params_.height) return {};
+    // Dispatches are synchronous (ComputePipeline::dispatch waits): the GPU is done with the
+    // buffers replaced here.
+    const size_t accumBytes = size_t(width) * height * PV_ACCUM_COUNT * sizeof(glm::vec4);
+    for (auto [binding, label] : {std::pair{PV_BINDING_ACCUM_SUM, "accumSum"},
+                                  std::pair{PV_BINDING_ACCUM_COMPENSATION, "accumCompensation"}}) {
+        auto fresh = GpuBuffer::create(*ctx_, accumBytes, label);
+        if (!fresh) return fresh.error();
+        buffers_[binding] = std::move(fresh.value());
+    }
+    if (!settings_.lensGrid.empty()) {
+        const std::vector<glm::vec2> grid = traceLensGrid(width, height);
+        if (Status s = replaceBufferContents(PV_BINDING_LENS_GRID, grid.data(),
+                                             grid.size() * sizeof(glm::vec2), "lensGrid");
+            !s)
+            return s;
+    }
+    // The pinhole keeps tanHalfFov: the traced pixels span the same image plane.
+    params_.width = width;
+    params_.height = height;
+    if (Status s = bindBuffers(); !s) return s;
+    return reset();
+}
+
 Status Renderer::reset() {
     samples_ = 0;
     gpuMs_ = 0.0;
@@ -656,8 +730,8 @@ uint32_t Renderer::samplesForNextDispatch(uint32_t remaining) const {
 
 Status Renderer::render(uint32_t samples,
                         const std::function<void(const RenderProgress&)>& progress) {
-    uint32_t groupsX = (settings_.width + PV_WORKGROUP_SIZE_X - 1) / PV_WORKGROUP_SIZE_X;
-    uint32_t groupsY = (settings_.height + PV_WORKGROUP_SIZE_Y - 1) / PV_WORKGROUP_SIZE_Y;
+    uint32_t groupsX = (params_.width + PV_WORKGROUP_SIZE_X - 1) / PV_WORKGROUP_SIZE_X;
+    uint32_t groupsY = (params_.height + PV_WORKGROUP_SIZE_Y - 1) / PV_WORKGROUP_SIZE_Y;
     constexpr size_t kMaxLoopOffset = offsetof(shader::RenderStats, maxLoopIterations);
     // Camera-relative rendering: the GPU's origin follows the camera, with hysteresis.
     const glm::dvec3 cameraM(worldFromCameraM_[3]);
@@ -734,17 +808,18 @@ Status Renderer::setPlate(ImageF plate, std::string_view source) {
 }
 
 Result<ImageF> Renderer::image(Aov aov) const {
-    size_t pixels = size_t(settings_.width) * settings_.height;
+    // The traced pixels (the output's at resolution scale 1).
+    const bool scaled = params_.width != settings_.width || params_.height != settings_.height;
+    size_t pixels = size_t(params_.width) * params_.height;
     std::vector<glm::vec4> sum(pixels * PV_ACCUM_COUNT), comp(pixels * PV_ACCUM_COUNT);
     size_t bytes = sum.size() * sizeof(glm::vec4);
     if (Status s = buffers_[PV_BINDING_ACCUM_SUM].download(sum.data(), bytes); !s) return s.error();
     if (Status s = buffers_[PV_BINDING_ACCUM_COMPENSATION].download(comp.data(), bytes); !s)
         return s.error();
     ImageF img;
-    img.width = settings_.width;
-    img.height = settings_.height;
+    img.width = params_.width;
+    img.height = params_.height;
     img.channels = aov == Aov::Mask || aov == Aov::SampleCount ? 1 : 3;
-    img.pixels.resize(pixels * img.channels);
     // The mean of a compensated sum: (sum − compensation) / n, in double, where n counts the
     // pixel's samples that were not dropped (NaN/Inf, stats().nonFiniteSamples): a dropped
     // sample neither darkens the pixel nor lets the plate through. A pixel with none is 0
@@ -755,7 +830,16 @@ Result<ImageF> Renderer::image(Aov aov) const {
         return n > 0.0 ? compensated(i * PV_ACCUM_COUNT + k, c) / n : 0.0;
     };
     bool withPlate = aov == Aov::Composite && plate_ && settings_.differential;
+    // At a fraction of the output: Eq. 1's plate-free terms, the mean composite sum and the
+    // mean mask, are upsampled first; the plate term is added at full resolution below.
+    const bool upsampleComposite = scaled && withPlate;
+    if (upsampleComposite) img.channels = 4;
+    img.pixels.resize(pixels * img.channels);
     for (size_t i = 0; i < pixels; ++i) {
+        if (upsampleComposite) {
+            for (int c = 0; c < 4; ++c) img.pixels[i * 4 + c] = float(mean(i, PV_ACCUM_COMPOSITE, c));
+            continue;
+        }
         if (aov == Aov::Mask) {
             img.pixels[i] = float(mean(i, PV_ACCUM_COMPOSITE, 3));
             continue;
@@ -777,7 +861,25 @@ Result<ImageF> Renderer::image(Aov aov) const {
             img.pixels[i * 3 + c] = float(v);
         }
     }
-    return img;
+    if (!scaled) return img;
+    ImageF up = jointBilateralUpsample(img, settings_.width, settings_.height,
+                                       plate_ ? &*plate_ : nullptr, upsample_);
+    if (!upsampleComposite) return up;
+    ImageF out;
+    out.width = settings_.width;
+    out.height = settings_.height;
+    out.channels = 3;
+    out.pixels.resize(size_t(out.width) * out.height * 3);
+    for (size_t i = 0; i < size_t(out.width) * out.height; ++i) {
+        // As above, Eq. 1 with the upsampled terms: where no traced sample near the pixel met
+        // a virtual object both are exactly 0 and the pixel is the plate, bit for bit.
+        const double plateWeight = 1.0 - double(up.pixels[i * 4 + 3]);
+        for (int c = 0; c < 3; ++c)
+            out.pixels[i * 3 + c] =
+                float(double(up.pixels[i * 4 + c]) +
+                      plateWeight * double(plate_->pixels[i * plate_->channels + c]));
+    }
+    return out;
 }
 
 Result<shader::RenderStats> Renderer::stats() const {
