@@ -38,9 +38,13 @@ double median(std::vector<double> v) {
 // One preview frame's stages, in the order the service's render thread runs them
 // (daemon/pipeline_renderer.cpp, daemon/service.cpp's publish) and the display's compose.
 enum Stage { kPlate, kSetPlate, kRender, kComposite, kToneMap, kCompose, kTotal, kStageCount };
-constexpr const char* kStageNames[kStageCount] = {
-    "plate_inverse_tonemap_ms", "set_plate_ms", "render_ms", "composite_ms",
-    "tonemap_ms",               "compose_ms",   "total_ms"};
+constexpr const char* kStageNames[kStageCount] = {"plate_inverse_tonemap_ms",
+                                                  "set_plate_ms",
+                                                  "render_ms",
+                                                  "composite_ms",
+                                                  "tonemap_ms",
+                                                  "compose_ms",
+                                                  "total_ms"};
 
 struct ScaleRun {
     float scale = 1.0f;
@@ -236,10 +240,10 @@ int runPreviewBench(const PreviewBenchOptions& o) {
         const Clock::time_point t = Clock::now();
         std::vector<uint8_t> out(size_t(kWidth) * kHeight * 3);
         for (size_t i = 0; i < size_t(kWidth) * kHeight; ++i) {
-            const std::array<float, 3> e = toneMapRgb(
-                {refComposite->pixels[i * 3], refComposite->pixels[i * 3 + 1],
-                 refComposite->pixels[i * 3 + 2]},
-                camera);
+            const std::array<float, 3> e =
+                toneMapRgb({refComposite->pixels[i * 3], refComposite->pixels[i * 3 + 1],
+                            refComposite->pixels[i * 3 + 2]},
+                           camera);
             for (int c = 0; c < 3; ++c) out[i * 3 + c] = uint8_t(std::lround(e[c] * 255.0f));
         }
         perPixelToneMap.push_back(msSince(t));
@@ -256,8 +260,8 @@ int runPreviewBench(const PreviewBenchOptions& o) {
         "upsample + composite | tone map | compose 1920×1080 | total | fps | RMSE | relMSE "
         "| RMSE affected | relMSE affected |\n"
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
-        kWidth, kHeight, o.maxDepth, (*ctx)->deviceName().c_str(), rounds * framesPerRound,
-        rounds, framesPerRound, referenceSpp, referenceSeconds, affectedCount,
+        kWidth, kHeight, o.maxDepth, (*ctx)->deviceName().c_str(), rounds * framesPerRound, rounds,
+        framesPerRound, referenceSpp, referenceSeconds, affectedCount,
         100.0 * double(affectedCount) / double(affected.size()));
     std::ofstream csv;
     if (!o.csvPath.empty()) {
@@ -272,10 +276,9 @@ int runPreviewBench(const PreviewBenchOptions& o) {
         std::printf(
             "| %s | %u×%u | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.4f | "
             "%.4f | %.4f | %.4f |\n",
-            scaleName(run.scale).c_str(), run.renderer->traceWidth(),
-            run.renderer->traceHeight(), m[kPlate], m[kSetPlate], m[kRender], m[kComposite],
-            m[kToneMap], m[kCompose], m[kTotal], 1000.0 / m[kTotal], all.rmse, all.relMse,
-            part.rmse, part.relMse);
+            scaleName(run.scale).c_str(), run.renderer->traceWidth(), run.renderer->traceHeight(),
+            m[kPlate], m[kSetPlate], m[kRender], m[kComposite], m[kToneMap], m[kCompose], m[kTotal],
+            1000.0 / m[kTotal], all.rmse, all.relMse, part.rmse, part.relMse);
         if (csv.is_open()) {
             for (int k = 0; k < kStageCount; ++k)
                 csv << run.scale << "," << kStageNames[k] << "," << m[k] << "\n";
@@ -286,9 +289,10 @@ int runPreviewBench(const PreviewBenchOptions& o) {
             csv << run.scale << ",relmse_affected," << part.relMse << "\n";
         }
     }
-    std::printf("\nTone map of the same 640×480 composite, per pixel through toneMapRgb (the "
-                "code before the threshold table): %.1f ms (median of 5).\n\n",
-                median(perPixelToneMap));
+    std::printf(
+        "\nTone map of the same 640×480 composite, per pixel through toneMapRgb (the "
+        "code before the threshold table): %.1f ms (median of 5).\n\n",
+        median(perPixelToneMap));
     if (csv.is_open() && !csv) {
         logError("--csv {}: cannot write the file", o.csvPath);
         return 1;

@@ -14,11 +14,11 @@ namespace previs::bench {
 
 struct PreviewBenchOptions {
     std::string dataDir;
-    bool quick = false;               // 1 round of 3 frames, a 16-spp reference: a smoke run
-    int rounds = 3;                   // the scales alternate within each round (A/B/C/D, …)
-    int framesPerRound = 5;           // frames per scale per round
-    uint32_t referenceSpp = 256;      // the full-resolution reference
-    uint32_t maxDepth = 4;            // as the demo's [render] max_depth
+    bool quick = false;           // 1 round of 3 frames, a 16-spp reference: a smoke run
+    int rounds = 3;               // the scales alternate within each round (A/B/C/D, …)
+    int framesPerRound = 5;       // frames per scale per round
+    uint32_t referenceSpp = 256;  // the full-resolution reference
+    uint32_t maxDepth = 4;        // as the demo's [render] max_depth
     std::vector<float> scales = {1.0f, 1.0f / 2.0f, 1.0f / 3.0f, 1.0f / 4.0f};
     std::string csvPath;  // also write the results as CSV ("" = none)
 };

@@ -29,7 +29,8 @@ std::function<int()> addBenchCommand(CLI::App& app) {
     cmd->add_option("--only", o->only, "one section")
         ->check(CLI::IsMember({"throughput", "resolution", "triangles", "specialisation",
                                "differential", "pose", "service", "memory", "preview"}));
-    cmd->add_option("--csv", o->csvPath, "service, preview: also write the results as CSV to this file");
+    cmd->add_option("--csv", o->csvPath,
+                    "service, preview: also write the results as CSV to this file");
     auto quiet = std::make_shared<bool>(false);
     cmd->add_flag("--quiet", *quiet, "no progress lines on stderr");
     return [o, quiet] {

@@ -153,9 +153,10 @@ Result<std::unique_ptr<Renderer>> Renderer::create(GpuContext& ctx, const Scene&
             "scene), alpha in (0, 1], cap >= 1",
             ph.perIteration, ph.initialRadius, ph.alpha, ph.gatherCap, kMaxPhotonsPerIteration);
     if (!(settings.resolutionScale > 0.0f) || !(settings.resolutionScale <= 1.0f))
-        return makeError("resolution scale {} is out of range: it must be in (0, 1] (1 traces "
-                         "every output pixel)",
-                         settings.resolutionScale);
+        return makeError(
+            "resolution scale {} is out of range: it must be in (0, 1] (1 traces "
+            "every output pixel)",
+            settings.resolutionScale);
     if (!(r->camera_.apertureRadiusM >= 0.0f) || !(r->camera_.focusDistanceM > 0.0f))
         return makeError(
             "thin lens needs aperture radius >= 0 and focus distance > 0 (got {} m, "
@@ -664,9 +665,10 @@ std::vector<glm::vec2> Renderer::traceLensGrid(uint32_t width, uint32_t height) 
 
 Status Renderer::setResolutionScale(float scale) {
     if (!(scale > 0.0f) || !(scale <= 1.0f))
-        return makeError("resolution scale {} is out of range: it must be in (0, 1] (1 traces "
-                         "every output pixel)",
-                         scale);
+        return makeError(
+            "resolution scale {} is out of range: it must be in (0, 1] (1 traces "
+            "every output pixel)",
+            scale);
     uint32_t width = 0, height = 0;
     traceSize(scale, width, height);
     settings_.resolutionScale = scale;
@@ -837,7 +839,8 @@ Result<ImageF> Renderer::image(Aov aov) const {
     img.pixels.resize(pixels * img.channels);
     for (size_t i = 0; i < pixels; ++i) {
         if (upsampleComposite) {
-            for (int c = 0; c < 4; ++c) img.pixels[i * 4 + c] = float(mean(i, PV_ACCUM_COMPOSITE, c));
+            for (int c = 0; c < 4; ++c)
+                img.pixels[i * 4 + c] = float(mean(i, PV_ACCUM_COMPOSITE, c));
             continue;
         }
         if (aov == Aov::Mask) {

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <vector>
 
 #include "base/log.h"
 #include "base/luminance.h"
@@ -75,13 +76,48 @@ const std::array<float, 256>& srgb8Thresholds() {
     return table;
 }
 
+// The code at the start of each bucket of floats sharing exponent and 8 leading mantissa bits,
+// from 2⁻¹⁶ (below the first step, 1.5e-4) to 1: a bucket holds at most a step or two, so the
+// code is this start plus the thresholds passed inside the bucket (exact: same table).
+constexpr int kMinExponent = -16;
+constexpr int kBucketShift = 15;  // 23 mantissa bits − 8
+struct Srgb8Buckets {
+    uint32_t firstBits;
+    std::vector<uint8_t> start;
+};
+const Srgb8Buckets& srgb8Buckets() {
+    static const Srgb8Buckets buckets = [] {
+        const std::array<float, 256>& t = srgb8Thresholds();
+        Srgb8Buckets b;
+        const float first = std::ldexp(1.0f, kMinExponent), one = 1.0f;
+        uint32_t lastBits;
+        std::memcpy(&b.firstBits, &first, 4);
+        std::memcpy(&lastBits, &one, 4);
+        b.start.resize(((lastBits - b.firstBits) >> kBucketShift) + 1);
+        for (size_t k = 0; k < b.start.size(); ++k) {
+            const uint32_t bits = b.firstBits + (uint32_t(k) << kBucketShift);
+            float v;
+            std::memcpy(&v, &bits, 4);
+            b.start[k] = uint8_t(std::upper_bound(t.begin() + 1, t.end(), v) - (t.begin() + 1));
+        }
+        return b;
+    }();
+    return buckets;
+}
+
 }  // namespace
 
 uint8_t encodeSrgb8(float linear) {
     if (!(linear > 0.0f)) return 0;
     if (linear >= 1.0f) return 255;
     const std::array<float, 256>& t = srgb8Thresholds();
-    return uint8_t(std::upper_bound(t.begin() + 1, t.end(), linear) - (t.begin() + 1));
+    const Srgb8Buckets& b = srgb8Buckets();
+    uint32_t bits;
+    std::memcpy(&bits, &linear, 4);
+    if (bits < b.firstBits) return linear >= t[1] ? 1 : 0;  // t[1] is above 2⁻¹⁶: never
+    uint32_t code = b.start[(bits - b.firstBits) >> kBucketShift];
+    while (code < 255 && linear >= t[code + 1]) ++code;
+    return uint8_t(code);
 }
 
 float reinhardExtendedCurve(float luminance, float maxRadiance, float whiteLuminance) {

@@ -170,8 +170,8 @@ ImageF jointBilateralUpsample(const ImageF& low, uint32_t width, uint32_t height
                     mean[(size_t(j) * w + i) * 3 + c] = v;
                     total += v;
                 }
-        epsilon = std::max(float(settings.logEpsilonFraction * total / double(mean.size())),
-                           1e-12f);
+        epsilon =
+            std::max(float(settings.logEpsilonFraction * total / double(mean.size())), 1e-12f);
         lowGuide.resize(mean.size());
         for (size_t k = 0; k < mean.size(); ++k)
             lowGuide[k] = fastLog2(std::max(float(mean[k]), 0.0f) + epsilon);
@@ -200,35 +200,38 @@ ImageF jointBilateralUpsample(const ImageF& low, uint32_t width, uint32_t height
                     const float* g = &guide->pixels[(size_t(y) * width + x) * guide->channels];
                     for (int c = 0; c < 3; ++c) gp[c] = fastLog2(std::max(g[c], 0.0f) + epsilon);
                 }
-                double acc[4] = {}, accSpatial[4] = {};
+                // Pass 0 with the range kernel; pass 1, rarely, the spatial kernel alone.
+                double acc[4] = {};
                 double weight = 0.0, spatial = 0.0;
-                for (int b = 0; b < 4; ++b) {
-                    if (wy[b] == 0.0) continue;
-                    const size_t rowBase = size_t(j0 + b) * w;
-                    for (int a = 0; a < 4; ++a) {
-                        if (wx[a] == 0.0) continue;
-                        const size_t q = rowBase + size_t(i0 + a);
-                        const double ws = wx[a] * wy[b];
-                        double r = 1.0;
-                        if (ranged) {
-                            const float* gq = &lowGuide[q * 3];
-                            const float d0 = gp[0] - gq[0], d1 = gp[1] - gq[1], d2 = gp[2] - gq[2];
-                            const float t = (d0 * d0 + d1 * d1 + d2 * d2) * toTable;
-                            r = t < float(kRangeTable) ? rangeTable[int(t)] : 0.0f;
+                for (int pass = 0; pass < 2; ++pass) {
+                    for (int b = 0; b < 4; ++b) {
+                        if (wy[b] == 0.0) continue;
+                        const size_t rowBase = size_t(j0 + b) * w;
+                        for (int a = 0; a < 4; ++a) {
+                            if (wx[a] == 0.0) continue;
+                            const size_t q = rowBase + size_t(i0 + a);
+                            const double ws = wx[a] * wy[b];
+                            double r = 1.0;
+                            if (ranged && pass == 0) {
+                                const float* gq = &lowGuide[q * 3];
+                                const float d0 = gp[0] - gq[0], d1 = gp[1] - gq[1],
+                                            d2 = gp[2] - gq[2];
+                                const float t = (d0 * d0 + d1 * d1 + d2 * d2) * toTable;
+                                r = t < float(kRangeTable) ? rangeTable[int(t)] : 0.0f;
+                            }
+                            const float* v = &low.pixels[q * nc];
+                            for (uint32_t c = 0; c < nc; ++c) acc[c] += ws * r * double(v[c]);
+                            weight += ws * r;
+                            spatial += ws;
                         }
-                        const float* v = &low.pixels[q * nc];
-                        for (uint32_t c = 0; c < nc; ++c) {
-                            acc[c] += ws * r * double(v[c]);
-                            accSpatial[c] += ws * double(v[c]);
-                        }
-                        weight += ws * r;
-                        spatial += ws;
                     }
+                    if (weight > kMinRangeWeightFraction * spatial) break;
+                    acc[0] = acc[1] = acc[2] = acc[3] = 0.0;
+                    weight = spatial = 0.0;
+                    PV_DCHECK(pass == 0);
                 }
                 float* o = &out.pixels[(size_t(y) * width + x) * nc];
-                const bool useRange = weight > kMinRangeWeightFraction * spatial;
-                for (uint32_t c = 0; c < nc; ++c)
-                    o[c] = useRange ? float(acc[c] / weight) : float(accSpatial[c] / spatial);
+                for (uint32_t c = 0; c < nc; ++c) o[c] = float(acc[c] / weight);
             }
         }
     });

@@ -115,8 +115,7 @@ TEST_F(ResolutionScaleTest, ScaleOneIsTodaysRenderBitForBit) {
     for (Aov aov : {Aov::Composite, Aov::Mixed, Aov::Real, Aov::Mask}) {
         const ImageF a = take(today->image(aov)), b = take(switched->image(aov));
         ASSERT_EQ(a.pixels.size(), b.pixels.size());
-        EXPECT_EQ(std::memcmp(a.pixels.data(), b.pixels.data(), a.pixels.size() * sizeof(float)),
-                  0)
+        EXPECT_EQ(std::memcmp(a.pixels.data(), b.pixels.data(), a.pixels.size() * sizeof(float)), 0)
             << int(aov);
     }
 }

@@ -82,7 +82,8 @@ TEST(Upsample, StepEdgeInTheGuideDoesNotBleed) {
     ImageF guide = makeImage(w, h, 3);
     for (uint32_t y = 0; y < h; ++y)
         for (uint32_t x = 0; x < w; ++x)
-            for (int c = 0; c < 3; ++c) guide.pixels[(size_t(y) * w + x) * 3 + c] = x < 32 ? 0.05f : 1.0f;
+            for (int c = 0; c < 3; ++c)
+                guide.pixels[(size_t(y) * w + x) * 3 + c] = x < 32 ? 0.05f : 1.0f;
     const float left = -0.02f, right = -0.4f;  // a shadow's difference, proportional to albedo
     ImageF low = makeImage(lw, lh, 1);
     for (uint32_t j = 0; j < lh; ++j)
