@@ -9,6 +9,7 @@
 
 #include "base/log.h"
 #include "bench/bench_memory.h"
+#include "bench/bench_preview.h"
 #include "bench/bench_progress.h"
 #include "bench/bench_scenes.h"
 #include "bench/bench_service.h"
@@ -108,6 +109,14 @@ int runBenchmarks(const BenchOptions& o) {
     // Also before any Vulkan device: each resolution runs in a forked child (peak RSS per run).
     if (o.only == "memory")
         return runMemoryBench({.dataDir = o.dataDir, .spp = o.quick ? 1 : o.spp});
+    if (o.only == "preview") {
+        PreviewBenchOptions preview;
+        preview.dataDir = o.dataDir;
+        preview.quick = o.quick;
+        preview.rounds = o.repetitions;
+        preview.csvPath = o.csvPath;
+        return runPreviewBench(preview);
+    }
     auto ctx = GpuContext::create({});
     if (!ctx) {
         logError("{}", ctx.message());

@@ -15,13 +15,13 @@ struct BenchOptions {
     int repetitions = 3;      // timings are medians over this many runs
     uint32_t spp = 8;         // samples per pixel of the throughput runs
     // Run one section: throughput, resolution, triangles, specialisation, differential, pose,
-    // service (bench/bench_service.h; only when asked for by name: it runs for minutes), trade
-    // (bench/bench_trade.h; only by name),
-    // memory (bench/bench_memory.h; only by name: it forks a child per resolution).
+    // service (bench/bench_service.h; only when asked for by name: it runs for minutes),
+    // memory (bench/bench_memory.h; only by name: it forks a child per resolution),
+    // preview (bench/bench_preview.h; only by name: it renders a long reference first),
+    // trade (bench/bench_trade.h; only by name: it runs for minutes).
     std::string only;
-    std::string csvPath;  // service: also write the results as CSV here ("" = none)
-    // trade (bench/bench_trade.h; only by name: it runs for minutes): its CSVs, frames and
-    // plots go here, drawn by this script.
+    std::string csvPath;  // service, preview: also write the results as CSV here ("" = none)
+    // trade: its CSVs, frames and plots go here, drawn by this script.
     std::string outDir = "bench-trade";
     std::string plotter;
 };

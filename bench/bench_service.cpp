@@ -182,11 +182,12 @@ struct TempDir {
     }
 };
 
-Result<ServiceConfig> demoConfig(const std::string& examplesDir, uint32_t w, uint32_t h) {
-    Result<ServiceConfig> config = loadServiceConfig(examplesDir + "/demo/previsd.toml");
+Result<ServiceConfig> demoConfig(const ServiceBenchOptions& o, uint32_t w, uint32_t h) {
+    Result<ServiceConfig> config = loadServiceConfig(o.examplesDir + "/demo/previsd.toml");
     if (!config) return config;
     config->render.width = w;
     config->render.height = h;
+    config->render.resolutionScale = o.resolutionScale;
     return config;
 }
 
@@ -220,7 +221,7 @@ StageResult measureStages(const ServiceBenchOptions& o, uint32_t w, uint32_t h) 
         logError("bench service stages {}x{}: {}", w, h, what);
         return r;
     };
-    Result<ServiceConfig> config = demoConfig(o.examplesDir, w, h);
+    Result<ServiceConfig> config = demoConfig(o, w, h);
     if (!config) return fail(config.message());
     if (!config->fisheyeCamera) return fail("the demo config has no fisheye camera");
     std::vector<double> decode;
@@ -366,7 +367,7 @@ LiveResult measureLive(const ServiceBenchOptions& o, uint32_t w, uint32_t h, boo
     const double idleSeconds = o.idleSeconds > 0 ? o.idleSeconds : o.quick ? 4.0 : 10.0;
     TempDir tmp;
     if (tmp.path.empty()) return fail("cannot create a temporary folder in /tmp");
-    Result<ServiceConfig> config = demoConfig(o.examplesDir, w, h);
+    Result<ServiceConfig> config = demoConfig(o, w, h);
     if (!config) return fail(config.message());
     config->control.socketPath = tmp.path + "/previsd.sock";
     config->loopSession = true;
@@ -499,8 +500,8 @@ int runServiceBench(const ServiceBenchOptions& o) {
     if (sizes.empty()) sizes = {{640, 480}, {1280, 720}};
     std::printf(
         "## previsd (issue 7): the demo session (examples/demo, 640×360 scene frames at "
-        "15 fps, fisheye at 3.75 fps), preview 1 spp, max depth 4%s\n\n",
-        o.quick ? " (quick run)" : "");
+        "15 fps, fisheye at 3.75 fps), preview 1 spp, max depth 4, resolution scale %.3g%s\n\n",
+        o.resolutionScale, o.quick ? " (quick run)" : "");
 
     std::vector<StageResult> stages;
     for (auto [w, h] : sizes) {

@@ -25,6 +25,8 @@ struct ServiceBenchOptions {
     double previewSeconds = 0.0;
     double refineSeconds = 0.0;
     double idleSeconds = 0.0;
+    // [render] resolution_scale for every run (preview traces this fraction; refinement all).
+    float resolutionScale = 1.0f;
 };
 
 // Prints a Markdown report on stdout (progress on stderr); returns the process exit code.

@@ -18,6 +18,9 @@ int main(int argc, char** argv) {
         ->check(CLI::ExistingDirectory);
     app.add_flag("--quick", o.quick, "8 s live runs and 10 frames per stage: a smoke run");
     app.add_option("--csv", o.csvPath, "also write the results as CSV to this file");
+    app.add_option("--resolution-scale", o.resolutionScale,
+                   "[render] resolution_scale: preview traces this fraction, (0, 1]")
+        ->check(CLI::Range(1e-4f, 1.0f));
     app.add_option("--size", sizes, "render size WxH (repeatable; default 640x480 and 1280x720)");
     app.add_option("--preview-seconds", o.previewSeconds, "live preview window per run")
         ->check(CLI::Range(1.0, 3600.0));

@@ -72,6 +72,7 @@ Result<std::unique_ptr<PipelineRenderer>> PipelineRenderer::create(GpuContext& c
     std::unique_ptr<PipelineRenderer> p(new PipelineRenderer());
     renderSize(config, p->width_, p->height_);
     p->previewSamples_ = config.render.samplesPerFrame;
+    p->previewResolutionScale_ = config.render.resolutionScale;
     p->radiometry_ = config.sceneCamera.radiometry;
     p->display_ = forwardOf(p->radiometry_);
     p->whiteBalance_ = p->radiometry_.whiteBalance;
@@ -139,6 +140,8 @@ Status PipelineRenderer::renderPreview(const TrackedFrame& frame,
                                        const std::shared_ptr<const LiveLighting>& lighting) {
     if (Status s = prepare(frame, lighting); !s) return s;
     if (!rendered_) return {};
+    // Nothing happens unless the traced size changes (entering preview from refinement).
+    if (Status s = renderer_->setResolutionScale(previewResolutionScale_); !s) return s;
     return renderer_->renderPreviewFrame(previewSamples_);
 }
 
@@ -146,6 +149,8 @@ Status PipelineRenderer::beginRefine(const TrackedFrame& frame,
                                      const std::shared_ptr<const LiveLighting>& lighting) {
     if (Status s = prepare(frame, lighting); !s) return s;
     if (!rendered_) return {};
+    // Refinement converges to the full-resolution image: every pixel traced.
+    if (Status s = renderer_->setResolutionScale(1.0f); !s) return s;
     return renderer_->reset();
 }
 

@@ -61,6 +61,7 @@ private:
     uint32_t width_ = 0;
     uint32_t height_ = 0;
     uint32_t previewSamples_ = 1;
+    float previewResolutionScale_ = 1.0f;  // refinement traces every pixel
     InverseToneMapSettings radiometry_;
     ToneMapSettings display_;
     std::array<float, 3> whiteBalance_{1.0f, 1.0f, 1.0f};

@@ -93,6 +93,9 @@ struct RenderConfig {
     uint32_t samplesPerFrame = 1;  // preview: samples per pixel of each live frame
     uint32_t maxDepth = 8;
     uint32_t seed = 0;  // preview's fixed random sequence
+    // Preview traces this fraction of the width and height and upsamples it guided by the plate
+    // (RenderSettings::resolutionScale); refinement always traces every pixel. (0, 1].
+    float resolutionScale = 1.0f;
     // Caustics (render/photon_map.h): mode and photons per iteration, first radius, alpha.
     PhotonSettings photons;
 };

@@ -152,6 +152,11 @@ Result<std::unique_ptr<Renderer>> Renderer::create(GpuContext& ctx, const Scene&
             "alpha {}, gather cap {}): photons 1..{}, radius >= 0 (0 = from the "
             "scene), alpha in (0, 1], cap >= 1",
             ph.perIteration, ph.initialRadius, ph.alpha, ph.gatherCap, kMaxPhotonsPerIteration);
+    if (!(settings.resolutionScale > 0.0f) || !(settings.resolutionScale <= 1.0f))
+        return makeError(
+            "resolution scale {} is out of range: it must be in (0, 1] (1 traces "
+            "every output pixel)",
+            settings.resolutionScale);
     if (!(r->camera_.apertureRadiusM >= 0.0f) || !(r->camera_.focusDistanceM > 0.0f))
         return makeError(
             "thin lens needs aperture radius >= 0 and focus distance > 0 (got {} m, "
@@ -169,6 +174,9 @@ Result<std::unique_ptr<Renderer>> Renderer::create(GpuContext& ctx, const Scene&
     if (Status s = r->buildScene(scene); !s) return s.error();
 
     if (Status s = r->specialisePipeline(); !s) return s.error();
+    // buildScene sized the accumulation for the output; a fraction shrinks it.
+    r->settings_.resolutionScale = 1.0f;
+    if (Status s = r->setResolutionScale(settings.resolutionScale); !s) return s.error();
     if (Status s = r->reset(); !s) return s.error();
     return Result<std::unique_ptr<Renderer>>(std::move(r));
 }
@@ -227,10 +235,27 @@ Status Renderer::specialisePipeline() {
     return bindBuffers();
 }
 
+Status Renderer::sizeBands(uint32_t width, uint32_t height) {
+    // A device binds at most maxStorageBufferRange bytes of a storage buffer (128 MiB on
+    // lavapipe: 1.4 Mpixel of accumulation); a larger frame renders in bands of rows, each
+    // dispatch binding its band's part. Bands are whole workgroups tall, which also keeps their
+    // offsets aligned (a multiple of 8 rows of 96-byte pixels is a multiple of 256 bytes).
+    const uint64_t limit = ctx_->physicalDevice().getProperties().limits.maxStorageBufferRange;
+    const uint64_t bytesPerRow = uint64_t(width) * PV_ACCUM_COUNT * sizeof(glm::vec4);
+    const uint64_t rows = limit / bytesPerRow / PV_WORKGROUP_SIZE_Y * PV_WORKGROUP_SIZE_Y;
+    if (rows == 0)
+        return makeError(
+            "a {}-pixel-wide frame needs {} bytes of accumulation per row of 8, more than "
+            "this device binds at once ({}): render narrower",
+            width, bytesPerRow * PV_WORKGROUP_SIZE_Y, limit);
+    bandRows_ = uint32_t(std::min<uint64_t>(rows, height));
+    return {};
+}
+
 std::vector<BufferRange> Renderer::accumulationBand(uint32_t firstRow) const {
     std::vector<BufferRange> ranges(PV_BINDING_COUNT);
-    const uint64_t bytesPerRow = uint64_t(settings_.width) * PV_ACCUM_COUNT * sizeof(glm::vec4);
-    const uint32_t rows = std::min(bandRows_, settings_.height - firstRow);
+    const uint64_t bytesPerRow = uint64_t(params_.width) * PV_ACCUM_COUNT * sizeof(glm::vec4);
+    const uint32_t rows = std::min(bandRows_, params_.height - firstRow);
     for (int b : {PV_BINDING_ACCUM_SUM, PV_BINDING_ACCUM_COMPENSATION})
         ranges[b] = {firstRow * bytesPerRow, rows * bytesPerRow};
     return ranges;
@@ -558,21 +583,7 @@ Status Renderer::buildScene(const Scene& scene) {
     if (!(s = add(GpuBuffer::createWith(*ctx_, span(envDist.conditionalCdf), "envConditional"))))
         return s;
     size_t accumBytes = pixels * PV_ACCUM_COUNT * sizeof(glm::vec4);
-    // A device binds at most maxStorageBufferRange bytes of a storage buffer (128 MiB on
-    // lavapipe: 1.4 Mpixel of accumulation); a larger frame renders in bands of rows, each
-    // dispatch binding its band's part. Bands are whole workgroups tall, which also keeps their
-    // offsets aligned (a multiple of 8 rows of 96-byte pixels is a multiple of 256 bytes).
-    {
-        const uint64_t limit = ctx_->physicalDevice().getProperties().limits.maxStorageBufferRange;
-        const uint64_t bytesPerRow = uint64_t(settings_.width) * PV_ACCUM_COUNT * sizeof(glm::vec4);
-        const uint64_t rows = limit / bytesPerRow / PV_WORKGROUP_SIZE_Y * PV_WORKGROUP_SIZE_Y;
-        if (rows == 0)
-            return makeError(
-                "a {}-pixel-wide frame needs {} bytes of accumulation per row of 8, more than "
-                "this device binds at once ({}): render narrower",
-                settings_.width, bytesPerRow * PV_WORKGROUP_SIZE_Y, limit);
-        bandRows_ = uint32_t(std::min<uint64_t>(rows, settings_.height));
-    }
+    if (!(s = sizeBands(settings_.width, settings_.height))) return s;
     if (!(s = add(GpuBuffer::create(*ctx_, accumBytes, "accumSum")))) return s;
     if (!(s = add(GpuBuffer::create(*ctx_, accumBytes, "accumCompensation")))) return s;
     if (!(s = add(GpuBuffer::create(*ctx_, sizeof(shader::RenderStats), "stats")))) return s;
@@ -646,6 +657,75 @@ float Renderer::nextPhotonRadius() const {
     return shader::photonRadius(photonInitialRadius_, settings_.photons.alpha, uint32_t(samples_));
 }
 
+void Renderer::traceSize(float scale, uint32_t& width, uint32_t& height) const {
+    auto scaled = [scale](uint32_t n) {
+        return std::clamp(uint32_t(std::lround(double(n) * scale)), 1u, n);
+    };
+    width = scaled(settings_.width);
+    height = scaled(settings_.height);
+}
+
+std::vector<glm::vec2> Renderer::traceLensGrid(uint32_t width, uint32_t height) const {
+    const uint32_t fullW = settings_.width, fullH = settings_.height;
+    if (settings_.lensGrid.empty() || (width == fullW && height == fullH))
+        return settings_.lensGrid;
+    // Traced pixel corner (i, j) is the output's corner (i·W/w, j·H/h): bilinear in the
+    // output's corner grid (exact where that lands on an output corner, as at 1/2 of 640×480).
+    const auto& g = settings_.lensGrid;
+    const uint32_t row = fullW + 1;
+    std::vector<glm::vec2> out(size_t(width + 1) * (height + 1));
+    for (uint32_t j = 0; j <= height; ++j) {
+        const double y = double(j) * fullH / height;
+        const uint32_t y0 = std::min(uint32_t(y), fullH - 1);
+        const double fy = y - y0;
+        for (uint32_t i = 0; i <= width; ++i) {
+            const double x = double(i) * fullW / width;
+            const uint32_t x0 = std::min(uint32_t(x), fullW - 1);
+            const double fx = x - x0;
+            const size_t k = size_t(y0) * row + x0;
+            const glm::dvec2 top = glm::mix(glm::dvec2(g[k]), glm::dvec2(g[k + 1]), fx);
+            const glm::dvec2 bottom =
+                glm::mix(glm::dvec2(g[k + row]), glm::dvec2(g[k + row + 1]), fx);
+            out[size_t(j) * (width + 1) + i] = glm::vec2(glm::mix(top, bottom, fy));
+        }
+    }
+    return out;
+}
+
+Status Renderer::setResolutionScale(float scale) {
+    if (!(scale > 0.0f) || !(scale <= 1.0f))
+        return makeError(
+            "resolution scale {} is out of range: it must be in (0, 1] (1 traces "
+            "every output pixel)",
+            scale);
+    uint32_t width = 0, height = 0;
+    traceSize(scale, width, height);
+    settings_.resolutionScale = scale;
+    if (width == params_.width && height == params_.height) return {};
+    // Dispatches are synchronous (ComputePipeline::dispatch waits): the GPU is done with the
+    // buffers replaced here.
+    const size_t accumBytes = size_t(width) * height * PV_ACCUM_COUNT * sizeof(glm::vec4);
+    for (auto [binding, label] : {std::pair{PV_BINDING_ACCUM_SUM, "accumSum"},
+                                  std::pair{PV_BINDING_ACCUM_COMPENSATION, "accumCompensation"}}) {
+        auto fresh = GpuBuffer::create(*ctx_, accumBytes, label);
+        if (!fresh) return fresh.error();
+        buffers_[binding] = std::move(fresh.value());
+    }
+    if (!settings_.lensGrid.empty()) {
+        const std::vector<glm::vec2> grid = traceLensGrid(width, height);
+        if (Status s = replaceBufferContents(PV_BINDING_LENS_GRID, grid.data(),
+                                             grid.size() * sizeof(glm::vec2), "lensGrid");
+            !s)
+            return s;
+    }
+    // The pinhole keeps tanHalfFov: the traced pixels span the same image plane.
+    params_.width = width;
+    params_.height = height;
+    if (Status s = sizeBands(width, height); !s) return s;
+    if (Status s = bindBuffers(); !s) return s;
+    return reset();
+}
+
 Status Renderer::reset() {
     samples_ = 0;
     gpuMs_ = 0.0;
@@ -682,7 +762,7 @@ uint32_t Renderer::samplesForNextDispatch(uint32_t remaining) const {
 
 Status Renderer::render(uint32_t samples,
                         const std::function<void(const RenderProgress&)>& progress) {
-    uint32_t groupsX = (settings_.width + PV_WORKGROUP_SIZE_X - 1) / PV_WORKGROUP_SIZE_X;
+    uint32_t groupsX = (params_.width + PV_WORKGROUP_SIZE_X - 1) / PV_WORKGROUP_SIZE_X;
     constexpr size_t kMaxLoopOffset = offsetof(shader::RenderStats, maxLoopIterations);
     // Camera-relative rendering: the GPU's origin follows the camera, with hysteresis.
     const glm::dvec3 cameraM(worldFromCameraM_[3]);
@@ -715,20 +795,20 @@ Status Renderer::render(uint32_t samples,
                 return s;
         }
         double ms = 0.0;
-        for (uint32_t first = 0; first < settings_.height; first += bandRows_) {
-            if (bandRows_ < settings_.height) {
+        for (uint32_t first = 0; first < params_.height; first += bandRows_) {
+            if (bandRows_ < params_.height) {
                 params_.bandFirstRow = first;
                 if (Status s = buffers_[PV_BINDING_PARAMS].upload(&params_, sizeof(params_)); !s)
                     return s;
                 if (Status s = bindBuffers(first); !s) return s;
             }
-            const uint32_t rows = std::min(bandRows_, settings_.height - first);
+            const uint32_t rows = std::min(bandRows_, params_.height - first);
             auto bandMs = pipeline_->dispatch(
                 groupsX, (rows + PV_WORKGROUP_SIZE_Y - 1) / PV_WORKGROUP_SIZE_Y);
             if (!bandMs) return bandMs.error();
             ms += bandMs.value();
         }
-        if (bandRows_ < settings_.height) {
+        if (bandRows_ < params_.height) {
             params_.bandFirstRow = 0;
             if (Status s = bindBuffers(0); !s) return s;
         }
@@ -775,7 +855,8 @@ Status Renderer::setPlate(ImageF plate, std::string_view source) {
 }
 
 Result<Renderer::Accumulation> Renderer::readAccumulation() const {
-    const size_t values = size_t(settings_.width) * settings_.height * PV_ACCUM_COUNT;
+    // The traced pixels (the output's at resolution scale 1).
+    const size_t values = size_t(params_.width) * params_.height * PV_ACCUM_COUNT;
     Accumulation a;
     a.sum.resize(values);
     a.compensation.resize(values);
@@ -792,7 +873,17 @@ Result<Convergence> Renderer::convergence() const {
     Result<Accumulation> read = readAccumulation();
     if (!read) return read.error();
     const Accumulation& a = *read;
-    const size_t pixels = size_t(settings_.width) * settings_.height;
+    // At a resolution scale below 1 the meter measures the traced pixels, each with the plate
+    // pixel at its centre (the upsampled image is smoother: this errs high).
+    const size_t pixels = size_t(params_.width) * params_.height;
+    auto platePixel = [&](size_t i) {
+        const size_t x = (i % params_.width) * settings_.width / params_.width +
+                         settings_.width / (2 * params_.width);
+        const size_t y = (i / params_.width) * settings_.height / params_.height +
+                         settings_.height / (2 * params_.height);
+        return std::min(y, size_t(settings_.height) - 1) * settings_.width +
+               std::min(x, size_t(settings_.width) - 1);
+    };
     const bool withPlate = plate_ && settings_.differential;
     std::vector<MeterPixel> composite(pixels), differential(pixels);
     for (size_t i = 0; i < pixels; ++i) {
@@ -806,7 +897,7 @@ Result<Convergence> Renderer::convergence() const {
         for (int c = 0; c < 3; ++c) {
             if (withPlate) {
                 // Eq. 1 per sample, summed: M·L_om + (1−M)(L_om − L_or) + (1 − M)·L_oc.
-                const double plate = plate_->pixels[i * plate_->channels + c];
+                const double plate = plate_->pixels[platePixel(i) * plate_->channels + c];
                 m.sum[c] =
                     total(PV_ACCUM_COMPOSITE, c) + (m.count - total(PV_ACCUM_COMPOSITE, 3)) * plate;
                 m.halfSum[c] = half(PV_ACCUM_COMPOSITE, c) +
@@ -831,12 +922,12 @@ Result<ImageF> Renderer::image(Aov aov) const {
     Result<Accumulation> read = readAccumulation();
     if (!read) return read.error();
     const Accumulation& a = *read;
-    size_t pixels = size_t(settings_.width) * settings_.height;
+    const bool scaled = params_.width != settings_.width || params_.height != settings_.height;
+    const size_t pixels = size_t(params_.width) * params_.height;
     ImageF img;
-    img.width = settings_.width;
-    img.height = settings_.height;
+    img.width = params_.width;
+    img.height = params_.height;
     img.channels = aov == Aov::Mask || aov == Aov::SampleCount ? 1 : 3;
-    img.pixels.resize(pixels * img.channels);
     // The mean of a compensated sum: (sum − compensation) / n, in double, where n counts the
     // pixel's samples that were not dropped (NaN/Inf, stats().nonFiniteSamples): a dropped
     // sample neither darkens the pixel nor lets the plate through. A pixel with none is 0
@@ -846,7 +937,17 @@ Result<ImageF> Renderer::image(Aov aov) const {
         return n > 0.0 ? a.value(i, k, c) / n : 0.0;
     };
     bool withPlate = aov == Aov::Composite && plate_ && settings_.differential;
+    // At a fraction of the output: Eq. 1's plate-free terms, the mean composite sum and the
+    // mean mask, are upsampled first; the plate term is added at full resolution below.
+    const bool upsampleComposite = scaled && withPlate;
+    if (upsampleComposite) img.channels = 4;
+    img.pixels.resize(pixels * img.channels);
     for (size_t i = 0; i < pixels; ++i) {
+        if (upsampleComposite) {
+            for (int c = 0; c < 4; ++c)
+                img.pixels[i * 4 + c] = float(mean(i, PV_ACCUM_COMPOSITE, c));
+            continue;
+        }
         if (aov == Aov::Mask) {
             img.pixels[i] = float(mean(i, PV_ACCUM_COMPOSITE, 3));
             continue;
@@ -868,7 +969,25 @@ Result<ImageF> Renderer::image(Aov aov) const {
             img.pixels[i * 3 + c] = float(v);
         }
     }
-    return img;
+    if (!scaled) return img;
+    ImageF up = jointBilateralUpsample(img, settings_.width, settings_.height,
+                                       plate_ ? &*plate_ : nullptr, upsample_);
+    if (!upsampleComposite) return up;
+    ImageF out;
+    out.width = settings_.width;
+    out.height = settings_.height;
+    out.channels = 3;
+    out.pixels.resize(size_t(out.width) * out.height * 3);
+    for (size_t i = 0; i < size_t(out.width) * out.height; ++i) {
+        // As above, Eq. 1 with the upsampled terms: where no traced sample near the pixel met
+        // a virtual object both are exactly 0 and the pixel is the plate, bit for bit.
+        const double plateWeight = 1.0 - double(up.pixels[i * 4 + 3]);
+        for (int c = 0; c < 3; ++c)
+            out.pixels[i * 3 + c] =
+                float(double(up.pixels[i * 4 + c]) +
+                      plateWeight * double(plate_->pixels[i * plate_->channels + c]));
+    }
+    return out;
 }
 
 Result<shader::RenderStats> Renderer::stats() const {

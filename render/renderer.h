@@ -20,6 +20,7 @@
 #include "render/bvh.h"
 #include "render/convergence.h"
 #include "render/photon_map.h"
+#include "render/upsample.h"
 #include "scene/scene.h"
 
 namespace previs {
@@ -68,6 +69,11 @@ struct RenderSettings {
     std::vector<glm::vec2> lensGrid;
     // Caustics from a photon map (render/photon_map.h); Auto runs it only where the scene needs it.
     PhotonSettings photons;
+    // Preview speed: the path tracer traces max(1, round(width·s)) × max(1, round(height·s))
+    // pixels, each covering 1/s × 1/s output pixels, and image() upsamples them to width ×
+    // height guided by the plate (render/upsample.h); the plate is never resampled. In (0, 1];
+    // 1 traces every output pixel (and image() is what it was without this setting, bit for bit).
+    float resolutionScale = 1.0f;
 };
 
 // The buffers a render produces (DESIGN.md §3 --aov).
@@ -175,6 +181,17 @@ public:
     // GPU time of the photon passes so far (ms; part of gpuMilliseconds()).
     double photonMilliseconds() const { return photonMs_; }
 
+    // Changes RenderSettings::resolutionScale (preview renders at a fraction, refinement at 1).
+    // When the traced size changes, the accumulation is reallocated and cleared; otherwise
+    // nothing happens. An out-of-range scale is an error and changes nothing.
+    Status setResolutionScale(float scale);
+    float resolutionScale() const { return settings_.resolutionScale; }
+    // The pixels the path tracer traces (the output size at resolution scale 1).
+    uint32_t traceWidth() const { return params_.width; }
+    uint32_t traceHeight() const { return params_.height; }
+    // How image() brings a traced buffer to the output size (resolution scale < 1).
+    UpsampleSettings& upsampleSettings() { return upsample_; }
+
     // Selects another random sequence (takes effect with the next render; call reset() first
     // unless the new samples are meant to join the old ones).
     void setSeed(uint32_t seed) { params_.seed = seed; }
@@ -188,7 +205,11 @@ public:
     // Plate values setPlate has replaced so far (NaN/Inf and negative).
     uint64_t plateValuesRepaired() const { return plateValuesRepaired_; }
 
-    // The mean per pixel so far (RGB linear; the mask one channel).
+    // The mean per pixel so far (RGB linear; the mask one channel), at the output size. At a
+    // resolution scale below 1 the traced means are upsampled (render/upsample.h; guided by the
+    // plate when there is one); the composite upsamples its two plate-free terms of Eq. 1, the
+    // mean of M·L_om + (1−M)(L_om − L_or) and the mask M, and adds (1 − M)·L_oc with the
+    // full-resolution plate.
     Result<ImageF> image(Aov aov = Aov::Composite) const;
     // The convergence meter (render/convergence.h): the estimated relative RMSE of the
     // composite and of L_om − L_or so far, from the two interleaved replicates (none without
@@ -246,6 +267,9 @@ private:
     Status replaceBufferContents(int binding, const void* data, size_t bytes, const char* label);
     // Binds buffers_, the accumulation from row `bandFirstRow` on (accumulationBand).
     Status bindBuffers(uint32_t bandFirstRow = 0);
+    // Sets bandRows_ for a traced frame of width × height (an error when one row of
+    // workgroups is already more than the device binds).
+    Status sizeBands(uint32_t width, uint32_t height);
     // The accumulation's part for the band of rows from `firstRow` (bandRows_ rows, fewer at
     // the bottom); the other bindings whole.
     std::vector<BufferRange> accumulationBand(uint32_t firstRow) const;
@@ -256,6 +280,9 @@ private:
     std::vector<shader::GpuLight> allLights() const;
     // Rebuilds the photon light table from `lights` and decides whether photons run.
     Status updatePhotonLights(std::span<const shader::GpuLight> lights);
+    // The traced size for a resolution scale, and the lens grid resampled to it.
+    void traceSize(float scale, uint32_t& width, uint32_t& height) const;
+    std::vector<glm::vec2> traceLensGrid(uint32_t width, uint32_t height) const;
 
     GpuContext* ctx_ = nullptr;
     RenderSettings settings_;
@@ -277,6 +304,7 @@ private:
     std::vector<glm::vec3> sceneLightPositions_;    // scene frame, per scene light
     uint64_t recentres_ = 0;
     uint64_t sceneBuilds_ = 0;
+    UpsampleSettings upsample_;
     std::optional<ImageF> plate_;
     uint64_t plateValuesRepaired_ = 0;
     uint64_t samples_ = 0;

@@ -36,6 +36,9 @@ struct ToneMapSettings {
 };
 
 float srgbEncode(float linear);
+// lround(255 · srgbEncode(linear)), the 8-bit display code, without the pow (a table of the
+// 255 values where the code steps): equal to it for every float.
+uint8_t encodeSrgb8(float linear);
 
 // Reinhard's extended global curve: luminance L_w ≥ 0 (after exposure) → display luminance
 //   L_d = L · (1 + L/L_white²) / (1 + L),  L = L_w · L_white / L_max.

@@ -279,6 +279,12 @@ position_m = [1, 0, 0]
         {"render_photon_alpha",
          minimal("", "[render]\nphoton_alpha = 0"),
          {"'render.photon_alpha' is 0"}},
+        {"render_resolution_scale_zero",
+         minimal("", "[render]\nresolution_scale = 0"),
+         {"'render.resolution_scale' is 0"}},
+        {"render_resolution_scale_above_one",
+         minimal("", "[render]\nresolution_scale = 1.5"),
+         {"'render.resolution_scale' is 1.5"}},
         {"refine_negative",
          minimal("", "[refine]\npose_threshold_m = -1"),
          {"'refine.pose_threshold_m' is -1"}},
@@ -325,6 +331,7 @@ photons = 20000
 preview_photons = 4096
 photon_radius_m = 0.004
 photon_alpha = 0.75
+resolution_scale = 0.3333
 [refine]
 samples_per_step = 8
 max_samples = 0
@@ -354,6 +361,7 @@ loop = false
     EXPECT_EQ(c->render.photons.previewPerIteration, 4096u);
     EXPECT_FLOAT_EQ(c->render.photons.initialRadius, 0.004f);
     EXPECT_FLOAT_EQ(c->render.photons.alpha, 0.75f);
+    EXPECT_FLOAT_EQ(c->render.resolutionScale, 0.3333f);
     EXPECT_EQ(c->refine.samplesPerStep, 8u);
     EXPECT_EQ(c->refine.maxSamples, 0u);
     EXPECT_DOUBLE_EQ(c->refine.poseThresholdDeg, 1.5);

@@ -1,0 +1,164 @@
+// Joint bilateral upsampling (render/upsample.h) and the 8-bit encode table (render/tonemap.h):
+// the cases that must be exact, and the edge-keeping the plate guide is there for.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <random>
+
+#include "render/tonemap.h"
+#include "render/upsample.h"
+
+namespace previs {
+namespace {
+
+ImageF makeImage(uint32_t w, uint32_t h, uint32_t channels, float value = 0.0f) {
+    ImageF img;
+    img.width = w;
+    img.height = h;
+    img.channels = channels;
+    img.pixels.assign(size_t(w) * h * channels, value);
+    return img;
+}
+
+ImageF randomGuide(uint32_t w, uint32_t h, uint32_t seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> u(0.0f, 4.0f);
+    ImageF g = makeImage(w, h, 3);
+    for (float& v : g.pixels) v = u(rng);
+    return g;
+}
+
+struct Size {
+    uint32_t lowW, lowH, w, h;
+};
+// Integer and fractional ratios (640×480 at 1/3 traces 213×160).
+const Size kSizes[] = {{32, 24, 64, 48}, {21, 16, 64, 48}, {16, 12, 64, 48}, {23, 17, 50, 40}};
+
+TEST(Upsample, ConstantIsReproducedExactlyWhateverTheGuide) {
+    for (const Size& s : kSizes) {
+        const ImageF low = makeImage(s.lowW, s.lowH, 4, 0.3f);
+        const ImageF guide = randomGuide(s.w, s.h, 7);
+        for (const ImageF* g : {&guide, static_cast<const ImageF*>(nullptr)}) {
+            const ImageF up = jointBilateralUpsample(low, s.w, s.h, g);
+            ASSERT_EQ(up.pixels.size(), size_t(s.w) * s.h * 4);
+            // The weights are normalised in double: a constant comes back bit for bit.
+            for (float v : up.pixels) ASSERT_EQ(v, 0.3f) << s.lowW << "x" << s.lowH;
+        }
+    }
+}
+
+TEST(Upsample, LinearRampIsReproducedUnderAConstantGuide) {
+    for (const Size& s : kSizes) {
+        // f(u, v) = a + b·u + c·v on the low grid (pixel centres at integers).
+        const double a = 0.25, b = 0.05, c = -0.03;
+        ImageF low = makeImage(s.lowW, s.lowH, 1);
+        for (uint32_t j = 0; j < s.lowH; ++j)
+            for (uint32_t i = 0; i < s.lowW; ++i)
+                low.pixels[size_t(j) * s.lowW + i] = float(a + b * i + c * j);
+        const ImageF guide = makeImage(s.w, s.h, 3, 0.7f);
+        const ImageF up = jointBilateralUpsample(low, s.w, s.h, &guide);
+        const double sx = double(s.lowW) / s.w, sy = double(s.lowH) / s.h;
+        int checked = 0;
+        for (uint32_t y = 0; y < s.h; ++y)
+            for (uint32_t x = 0; x < s.w; ++x) {
+                const double u = (x + 0.5) * sx - 0.5, v = (y + 0.5) * sy - 0.5;
+                // The cubic B-spline reaches 2 low pixels out: only there is the ramp whole.
+                if (u < 1.0 || v < 1.0 || u > s.lowW - 3.0 || v > s.lowH - 3.0) continue;
+                const double expected = a + b * u + c * v;
+                // The low values are floats: their rounding (≤ 2⁻²⁴ relative) is all that is left.
+                ASSERT_NEAR(up.pixels[size_t(y) * s.w + x], expected, 1e-6)
+                    << x << "," << y << " at " << s.lowW << "x" << s.lowH;
+                ++checked;
+            }
+        EXPECT_GT(checked, int(s.w * s.h / 4));
+    }
+}
+
+TEST(Upsample, StepEdgeInTheGuideDoesNotBleed) {
+    // 64×48 output, 16×12 traced (1/4): the guide and the traced signal both step at output
+    // column 32 = traced column 8. Dark floor on the left (0.05), bright on the right (1.0).
+    const uint32_t w = 64, h = 48, lw = 16, lh = 12;
+    ImageF guide = makeImage(w, h, 3);
+    for (uint32_t y = 0; y < h; ++y)
+        for (uint32_t x = 0; x < w; ++x)
+            for (int c = 0; c < 3; ++c)
+                guide.pixels[(size_t(y) * w + x) * 3 + c] = x < 32 ? 0.05f : 1.0f;
+    const float left = -0.02f, right = -0.4f;  // a shadow's difference, proportional to albedo
+    ImageF low = makeImage(lw, lh, 1);
+    for (uint32_t j = 0; j < lh; ++j)
+        for (uint32_t i = 0; i < lw; ++i) low.pixels[size_t(j) * lw + i] = i < 8 ? left : right;
+    const ImageF up = jointBilateralUpsample(low, w, h, &guide);
+    const ImageF spatial = jointBilateralUpsample(low, w, h, nullptr);
+    const float step = std::abs(right - left);
+    float worstSpatial = 0.0f;
+    for (uint32_t y = 0; y < h; ++y)
+        for (uint32_t x = 0; x < w; ++x) {
+            const float expected = x < 32 ? left : right;
+            // ln(1/0.05) = 3 per channel: e^(−3·3²/(2·0.5²)) = e^-54, below the table's cut.
+            EXPECT_NEAR(up.pixels[size_t(y) * w + x], expected, 1e-4f * step) << x << "," << y;
+            worstSpatial =
+                std::max(worstSpatial, std::abs(spatial.pixels[size_t(y) * w + x] - expected));
+        }
+    // Without the guide the same step is smeared: the test above can fail.
+    EXPECT_GT(worstSpatial, 0.1f * step);
+}
+
+TEST(Upsample, ZeroNeighbourhoodStaysExactlyZero) {
+    const uint32_t w = 60, h = 45, lw = 20, lh = 15;
+    ImageF low = makeImage(lw, lh, 4);
+    // One non-zero traced pixel at (3, 3): it reaches output pixels within 2 traced pixels.
+    for (int c = 0; c < 4; ++c) low.pixels[(size_t(3) * lw + 3) * 4 + c] = 0.5f;
+    const ImageF guide = randomGuide(w, h, 11);
+    const ImageF up = jointBilateralUpsample(low, w, h, &guide);
+    int zeros = 0;
+    for (uint32_t y = 0; y < h; ++y)
+        for (uint32_t x = 0; x < w; ++x) {
+            const double u = (x + 0.5) / 3.0 - 0.5, v = (y + 0.5) / 3.0 - 0.5;
+            if (std::abs(u - 3.0) < 2.0 && std::abs(v - 3.0) < 2.0) continue;
+            for (int c = 0; c < 4; ++c) ASSERT_EQ(up.pixels[(size_t(y) * w + x) * 4 + c], 0.0f);
+            ++zeros;
+        }
+    EXPECT_GT(zeros, int(w * h) / 2);
+}
+
+TEST(Upsample, MaskStaysInsideZeroOne) {
+    // Non-negative weights: the upsampled mask is a convex combination of the traced masks.
+    std::mt19937 rng(3);
+    std::bernoulli_distribution coin(0.5);
+    ImageF low = makeImage(21, 16, 1);
+    for (float& v : low.pixels) v = coin(rng) ? 1.0f : 0.0f;
+    const ImageF guide = randomGuide(64, 48, 5);
+    for (float v : jointBilateralUpsample(low, 64, 48, &guide).pixels) {
+        ASSERT_GE(v, 0.0f);
+        ASSERT_LE(v, 1.0f);
+    }
+}
+
+int referenceCode(float v) { return int(std::lround(srgbEncode(v) * 255.0f)); }
+
+TEST(EncodeSrgb8, EqualsTheRoundedEncodeAtEveryStepAndElsewhere) {
+    // Around every value where the code steps (found by scanning a dense grid), ±64 floats.
+    int steps = 0;
+    for (int k = 1; k < 4096 * 64; ++k) {
+        const float a = float(k - 1) / (4096 * 64), b = float(k) / (4096 * 64);
+        if (referenceCode(a) == referenceCode(b)) continue;
+        ++steps;
+        float v = b;
+        for (int n = 0; n < 64; ++n) v = std::nextafter(v, 0.0f);
+        for (int n = 0; n < 128; ++n, v = std::nextafter(v, 2.0f))
+            ASSERT_EQ(encodeSrgb8(v), referenceCode(v)) << v;
+    }
+    EXPECT_EQ(steps, 255);
+    std::mt19937 rng(1);
+    std::uniform_real_distribution<float> u(-0.5f, 1.5f);
+    for (int i = 0; i < 1000000; ++i) {
+        const float v = u(rng);
+        ASSERT_EQ(encodeSrgb8(v), referenceCode(v)) << v;
+    }
+    for (float v : {0.0f, -0.0f, 1.0f, 1e-30f, std::nanf(""), INFINITY, -INFINITY})
+        EXPECT_EQ(encodeSrgb8(v), referenceCode(v)) << v;
+}
+
+}  // namespace
+}  // namespace previs
