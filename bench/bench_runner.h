@@ -16,7 +16,8 @@ struct BenchOptions {
     uint32_t spp = 8;         // samples per pixel of the throughput runs
     // Run one section: throughput, resolution, triangles, specialisation, differential, pose,
     // service (bench/bench_service.h; only when asked for by name: it runs for minutes),
-    // memory (bench/bench_memory.h; only by name: it forks a child per resolution).
+    // memory (bench/bench_memory.h; only by name: it forks a child per resolution),
+    // denoise (bench/bench_denoise.h; only by name: a long reference render).
     std::string only;
     std::string csvPath;  // service: also write the results as CSV here ("" = none)
 };

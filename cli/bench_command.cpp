@@ -28,7 +28,7 @@ std::function<int()> addBenchCommand(CLI::App& app) {
         ->check(CLI::Range(1, 4096));
     cmd->add_option("--only", o->only, "one section")
         ->check(CLI::IsMember({"throughput", "resolution", "triangles", "specialisation",
-                               "differential", "pose", "service", "memory"}));
+                               "differential", "pose", "service", "memory", "denoise"}));
     cmd->add_option("--csv", o->csvPath, "service: also write the results as CSV to this file");
     auto quiet = std::make_shared<bool>(false);
     cmd->add_flag("--quiet", *quiet, "no progress lines on stderr");

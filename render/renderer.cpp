@@ -10,6 +10,7 @@
 #include "base/log.h"
 #include "render/plate.h"
 #include "scene/environment_map.h"
+#include "shared/denoise.h"
 #include "shared/photon_map.h"
 #include "shared/scene_types.h"
 #include "shared/specular_albedo.h"
@@ -170,6 +171,12 @@ Result<std::unique_ptr<Renderer>> Renderer::create(GpuContext& ctx, const Scene&
 
     if (Status s = r->specialisePipeline(); !s) return s.error();
     if (Status s = r->reset(); !s) return s.error();
+    if (settings.denoise) {
+        auto denoiser =
+            Denoiser::create(ctx, settings.width, settings.height, settings.denoiseSettings);
+        if (!denoiser) return denoiser.error();
+        r->denoiser_.emplace(std::move(denoiser.value()));
+    }
     return Result<std::unique_ptr<Renderer>>(std::move(r));
 }
 
@@ -194,6 +201,7 @@ Status Renderer::specialisePipeline() {
         settings_.sampler == Sampler::Sobol ? PV_SAMPLER_SOBOL : PV_SAMPLER_INDEPENDENT;
     constants[PV_SPEC_LIGHT_SOLID_ANGLE] = settings_.lightSampling == LightSampling::SolidAngle;
     constants[PV_SPEC_PHOTONS] = photonsActive_;
+    constants[PV_SPEC_DENOISE_GUIDES] = settings_.denoise;
     if (pipeline_ && constants == specConstants_) return bindBuffers();
     // Every read-only array the shader indexes per lane is a texel buffer (see BindingKind);
     // params (uniform reads), the accumulators and the stats stay storage buffers.
@@ -557,6 +565,9 @@ Status Renderer::buildScene(const Scene& scene) {
     for (int b = PV_BINDING_PHOTON_RECORDS; b <= PV_BINDING_PHOTON_CELLS; ++b)
         if (!(s = add(GpuBuffer::create(*ctx_, photonBufferBytes(b, p.photonCount), "photons"))))
             return s;
+    const size_t guideBytes =
+        settings_.denoise ? pixels * PV_GUIDE_COUNT * sizeof(glm::vec4) : size_t(0);
+    if (!(s = add(GpuBuffer::create(*ctx_, guideBytes, "guides")))) return s;
     PV_ASSERT(buffers_.size() == PV_BINDING_COUNT);
     return updatePhotonLights(lights);
 }
@@ -624,7 +635,8 @@ Status Renderer::reset() {
     samples_ = 0;
     gpuMs_ = 0.0;
     photonMs_ = 0.0;
-    for (int b : {PV_BINDING_ACCUM_SUM, PV_BINDING_ACCUM_COMPENSATION, PV_BINDING_STATS}) {
+    for (int b : {PV_BINDING_ACCUM_SUM, PV_BINDING_ACCUM_COMPENSATION, PV_BINDING_STATS,
+                  PV_BINDING_GUIDES}) {
         if (Status s = buffers_[b].fill(0); !s) return s;
     }
     return {};
@@ -733,43 +745,87 @@ Status Renderer::setPlate(ImageF plate, std::string_view source) {
     return {};
 }
 
+// The accumulation as read back: per pixel PV_ACCUM_COUNT compensated (Kahan) sums.
+struct Renderer::Means {
+    std::vector<glm::vec4> sum;
+    std::vector<glm::vec4> comp;
+    double compensated(size_t at, int c) const { return double(sum[at][c]) - double(comp[at][c]); }
+    // The samples of pixel i that count: those not dropped (NaN/Inf, stats().nonFiniteSamples),
+    // so a dropped sample neither darkens the pixel nor lets the plate through.
+    double count(size_t i) const { return compensated(i * PV_ACCUM_COUNT + PV_ACCUM_MIXED, 3); }
+    // The mean of a compensated sum: (sum − compensation) / n, in double; 0 (mask 0: the plate)
+    // for a pixel without samples.
+    double mean(size_t i, uint32_t k, int c) const {
+        const double n = count(i);
+        return n > 0.0 ? compensated(i * PV_ACCUM_COUNT + k, c) / n : 0.0;
+    }
+};
+
+Result<Renderer::Means> Renderer::means() const {
+    const size_t values = size_t(settings_.width) * settings_.height * PV_ACCUM_COUNT;
+    Means m;
+    m.sum.resize(values);
+    m.comp.resize(values);
+    const size_t bytes = values * sizeof(glm::vec4);
+    if (Status s = buffers_[PV_BINDING_ACCUM_SUM].download(m.sum.data(), bytes); !s)
+        return s.error();
+    if (Status s = buffers_[PV_BINDING_ACCUM_COMPENSATION].download(m.comp.data(), bytes); !s)
+        return s.error();
+    return m;
+}
+
+Result<std::vector<glm::vec4>> Renderer::guides() const {
+    if (!settings_.denoise)
+        return makeError(
+            "the denoiser's guides (albedo, normal, depth) exist only in a renderer created with "
+            "denoising on");
+    std::vector<glm::vec4> g(size_t(settings_.width) * settings_.height * PV_GUIDE_COUNT);
+    if (Status s = buffers_[PV_BINDING_GUIDES].download(g.data(), g.size() * sizeof(glm::vec4)); !s)
+        return s.error();
+    return g;
+}
+
 Result<ImageF> Renderer::image(Aov aov) const {
     size_t pixels = size_t(settings_.width) * settings_.height;
-    std::vector<glm::vec4> sum(pixels * PV_ACCUM_COUNT), comp(pixels * PV_ACCUM_COUNT);
-    size_t bytes = sum.size() * sizeof(glm::vec4);
-    if (Status s = buffers_[PV_BINDING_ACCUM_SUM].download(sum.data(), bytes); !s) return s.error();
-    if (Status s = buffers_[PV_BINDING_ACCUM_COMPENSATION].download(comp.data(), bytes); !s)
-        return s.error();
     ImageF img;
     img.width = settings_.width;
     img.height = settings_.height;
+    if (aov == Aov::Albedo || aov == Aov::Normal || aov == Aov::Depth) {
+        auto g = guides();
+        if (!g) return g.error();
+        const bool depth = aov == Aov::Depth;
+        img.channels = depth ? 1 : 3;
+        img.pixels.resize(pixels * img.channels);
+        const uint32_t slot = aov == Aov::Normal ? PV_GUIDE_NORMAL : PV_GUIDE_ALBEDO_DEPTH;
+        for (size_t i = 0; i < pixels; ++i) {
+            const glm::vec4& v = (*g)[i * PV_GUIDE_COUNT + slot];
+            if (depth)
+                img.pixels[i] = v.w;
+            else
+                for (int c = 0; c < 3; ++c) img.pixels[i * 3 + c] = v[c];
+        }
+        return img;
+    }
+    auto m = means();
+    if (!m) return m.error();
     img.channels = aov == Aov::Mask || aov == Aov::SampleCount ? 1 : 3;
     img.pixels.resize(pixels * img.channels);
-    // The mean of a compensated sum: (sum − compensation) / n, in double, where n counts the
-    // pixel's samples that were not dropped (NaN/Inf, stats().nonFiniteSamples): a dropped
-    // sample neither darkens the pixel nor lets the plate through. A pixel with none is 0
-    // (mask 0: the plate).
-    auto compensated = [&](size_t at, int c) { return double(sum[at][c]) - double(comp[at][c]); };
-    auto mean = [&](size_t i, uint32_t k, int c) {
-        const double n = compensated(i * PV_ACCUM_COUNT + PV_ACCUM_MIXED, 3);
-        return n > 0.0 ? compensated(i * PV_ACCUM_COUNT + k, c) / n : 0.0;
-    };
     bool withPlate = aov == Aov::Composite && plate_ && settings_.differential;
     for (size_t i = 0; i < pixels; ++i) {
         if (aov == Aov::Mask) {
-            img.pixels[i] = float(mean(i, PV_ACCUM_COMPOSITE, 3));
+            img.pixels[i] = float(m->mean(i, PV_ACCUM_COMPOSITE, 3));
             continue;
         }
         if (aov == Aov::SampleCount) {
-            img.pixels[i] = float(compensated(i * PV_ACCUM_COUNT + PV_ACCUM_MIXED, 3));
+            img.pixels[i] = float(m->count(i));
             continue;
         }
         uint32_t k = aov == Aov::Real                  ? PV_ACCUM_REAL
                      : aov == Aov::Mixed || !withPlate ? PV_ACCUM_MIXED
                                                        : PV_ACCUM_COMPOSITE;
-        double plateWeight = withPlate ? 1.0 - mean(i, PV_ACCUM_COMPOSITE, 3) : 0.0;
+        double plateWeight = withPlate ? 1.0 - m->mean(i, PV_ACCUM_COMPOSITE, 3) : 0.0;
         for (int c = 0; c < 3; ++c) {
-            double v = mean(i, k, c);
+            double v = m->mean(i, k, c);
             // Eq. 1 averaged over the pixel's samples: mean(M·L_om + (1−M)(L_om − L_or)) plus
             // (1 − mean M)·L_oc. Where no sample met a virtual object this is 0 + 1·L_oc: the
             // plate, bit for bit.
@@ -778,6 +834,61 @@ Result<ImageF> Renderer::image(Aov aov) const {
         }
     }
     return img;
+}
+
+Result<ImageF> Renderer::image(Aov aov, bool denoised) {
+    if (!denoised || !(aov == Aov::Composite || aov == Aov::Mixed || aov == Aov::Real))
+        return image(aov);
+    if (!denoiser_)
+        return makeError(
+            "a denoised image needs a renderer created with denoising on (--denoise on|auto)");
+    auto m = means();
+    if (!m) return m.error();
+    auto g = guides();
+    if (!g) return g.error();
+    const size_t pixels = size_t(settings_.width) * settings_.height;
+    const bool withPlate = aov == Aov::Composite && plate_ && settings_.differential;
+    // The signal the filter sees: the composite without its plate term, L_om or L_or. Its slot
+    // in the accumulation is also its luminance moment's component in PV_GUIDE_MOMENTS.
+    const uint32_t k = aov == Aov::Real                  ? PV_ACCUM_REAL
+                       : aov == Aov::Mixed || !withPlate ? PV_ACCUM_MIXED
+                                                         : PV_ACCUM_COMPOSITE;
+    // A pixel's own variance needs a few samples (SVGF switches to its spatial estimate below
+    // 4 frames of history); below that the shader estimates it from the neighbourhood.
+    // HOOK for the convergence meter: its per-pixel variance can replace this one.
+    constexpr double kMinSamplesForVariance = 4.0;
+    ImageF signal;
+    signal.width = settings_.width;
+    signal.height = settings_.height;
+    signal.channels = 3;
+    signal.pixels.resize(pixels * 3);
+    std::vector<float> variance(pixels);
+    for (size_t i = 0; i < pixels; ++i) {
+        glm::dvec3 mean(0.0);
+        for (int c = 0; c < 3; ++c) {
+            mean[c] = m->mean(i, k, c);
+            signal.pixels[i * 3 + c] = float(mean[c]);
+        }
+        const double n = m->count(i);
+        const double y = glm::dot(mean, glm::dvec3(0.2126, 0.7152, 0.0722));  // luminance()
+        const double y2 = (*g)[i * PV_GUIDE_COUNT + PV_GUIDE_MOMENTS][k];
+        // The variance of the mean: the samples' unbiased variance over n.
+        variance[i] =
+            n >= kMinSamplesForVariance ? float(std::max(0.0, y2 - y * y) / (n - 1.0)) : -1.0f;
+    }
+    auto filtered = denoiser_->apply(signal, *g, variance);
+    if (!filtered) return filtered.error();
+    if (withPlate) {
+        for (size_t i = 0; i < pixels; ++i) {
+            const double plateWeight = 1.0 - m->mean(i, PV_ACCUM_COMPOSITE, 3);
+            for (int c = 0; c < 3; ++c) {
+                float& v = filtered->pixels[i * 3 + c];
+                v = float(double(v) +
+                          plateWeight * double(plate_->pixels[i * plate_->channels + c]));
+            }
+        }
+    }
+    return filtered;
 }
 
 Result<shader::RenderStats> Renderer::stats() const {

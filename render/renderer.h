@@ -18,6 +18,7 @@
 #include "gpu/context.h"
 #include "image/image.h"
 #include "render/bvh.h"
+#include "render/denoiser.h"
 #include "render/photon_map.h"
 #include "scene/scene.h"
 
@@ -63,6 +64,10 @@ struct RenderSettings {
     std::vector<glm::vec2> lensGrid;
     // Caustics from a photon map (render/photon_map.h); Auto runs it only where the scene needs it.
     PhotonSettings photons;
+    // The denoiser (render/denoiser.h): the first hit writes its guide buffers and
+    // image(aov, true) filters. Off: neither the guides' code nor their memory is paid for.
+    bool denoise = false;
+    DenoiseSettings denoiseSettings;
 };
 
 // The buffers a render produces (DESIGN.md §3 --aov).
@@ -74,6 +79,13 @@ enum class Aov {
     // Samples that count in each pixel's mean (one channel): samplesPerPixel() less those
     // dropped as NaN/Inf, or lost when a CPU device cut a dispatch short. Not a file AOV.
     SampleCount,
+    // The denoiser's guides (RenderSettings::denoise), means over the pixel's samples of the
+    // camera ray's first hit: base colour (1 for a miss or an emitter), shading normal facing
+    // the camera (RGB = xyz, not normalised), camera distance in metres (one channel; misses
+    // PV_GUIDE_MISS_DEPTH_M).
+    Albedo,
+    Normal,
+    Depth,
 };
 
 // What the scene uses; each off feature is compiled out of the pipeline.
@@ -185,6 +197,14 @@ public:
 
     // The mean per pixel so far (RGB linear; the mask one channel).
     Result<ImageF> image(Aov aov = Aov::Composite) const;
+    // The same, denoised where `denoised` (needs RenderSettings::denoise): Composite, Mixed and
+    // Real are filtered, the composite before Eq. 1 adds the plate term (1 − M)·L_oc, so the
+    // camera image itself is never filtered; the other AOVs are returned as image(aov).
+    Result<ImageF> image(Aov aov, bool denoised);
+    // GPU time of the last denoised image()'s filter dispatches (ms).
+    double denoiseMilliseconds() const {
+        return denoiser_ ? denoiser_->lastGpuMilliseconds() : 0.0;
+    }
 
     uint64_t samplesPerPixel() const { return samples_; }
     const SceneFeatures& features() const { return features_; }
@@ -225,6 +245,10 @@ private:
     // Uploads `bytes` into buffers_[binding], reallocating it only when its size differs.
     Status replaceBufferContents(int binding, const void* data, size_t bytes, const char* label);
     Status bindBuffers();
+    // The accumulation's means read back (one download for every AOV of a pixel).
+    struct Means;
+    Result<Means> means() const;
+    Result<std::vector<glm::vec4>> guides() const;
     uint32_t samplesForNextDispatch(uint32_t remaining) const;
     // Moves the GPU's origin to `originM` (world): re-uploads vertices, BVH boxes, lights.
     Status recentre(const glm::dvec3& originM);
@@ -265,6 +289,7 @@ private:
     float photonInitialRadius_ = 0.0f;
     std::optional<PhotonPasses> photonPasses_;
     double photonMs_ = 0.0;
+    std::optional<Denoiser> denoiser_;
 };
 
 }  // namespace previs
