@@ -12,12 +12,13 @@ Result<Denoiser> Denoiser::create(GpuContext& ctx, uint32_t width, uint32_t heig
     if (width == 0 || height == 0)
         return makeError("denoiser image size {}x{} is empty", width, height);
     if (settings.iterations == 0 || settings.iterations > 10 || !(settings.sigmaLuminance > 0.0f) ||
-        !(settings.sigmaNormal >= 0.0f) || !(settings.sigmaDepth > 0.0f))
+        !(settings.sigmaNormal >= 0.0f) || !(settings.sigmaDepth > 0.0f) ||
+        !(settings.sigmaMask >= 0.0f))
         return makeError(
             "denoiser settings out of range ({} iterations, sigma luminance {}, normal {}, "
-            "depth {}): iterations 1..10, sigmas > 0 (normal >= 0)",
-            settings.iterations, settings.sigmaLuminance, settings.sigmaNormal,
-            settings.sigmaDepth);
+            "depth {}, mask {}): iterations 1..10, sigmas > 0 (normal and mask >= 0)",
+            settings.iterations, settings.sigmaLuminance, settings.sigmaNormal, settings.sigmaDepth,
+            settings.sigmaMask);
     Denoiser d;
     d.width_ = width;
     d.height_ = height;
@@ -90,6 +91,7 @@ Result<ImageF> Denoiser::apply(const ImageF& signal, std::span<const glm::vec4> 
     params.sigmaLuminance = settings_.sigmaLuminance;
     params.sigmaNormal = settings_.sigmaNormal;
     params.sigmaDepth = settings_.sigmaDepth;
+    params.sigmaMask = settings_.sigmaMask;
     GpuBuffer& paramsBuffer = buffers_[PV_DENOISE_BINDING_PARAMS];
     // Dispatches wait for completion (ComputePipeline::dispatch), so each iteration's parameters
     // can be uploaded into the one buffer between them.

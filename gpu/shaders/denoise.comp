@@ -34,6 +34,7 @@ uint indexOf(ivec2 p) { return uint(p.y) * params.width + uint(p.x); }
 bool inside(ivec2 p) { return all(greaterThanEqual(p, ivec2(0))) && all(lessThan(p, ivec2(params.width, params.height))); }
 vec3 albedoAt(ivec2 p) { return max(guides[indexOf(p) * PV_GUIDE_COUNT + PV_GUIDE_ALBEDO_DEPTH].rgb, vec3(kMinAlbedo)); }
 float depthAt(ivec2 p) { return guides[indexOf(p) * PV_GUIDE_COUNT + PV_GUIDE_ALBEDO_DEPTH].w; }
+float maskAt(ivec2 p) { return guides[indexOf(p) * PV_GUIDE_COUNT + PV_GUIDE_MOMENTS].w; }
 vec3 normalAt(ivec2 p) {
     vec3 n = guides[indexOf(p) * PV_GUIDE_COUNT + PV_GUIDE_NORMAL].xyz;
     float len = length(n);
@@ -51,12 +52,14 @@ float depthSlope(ivec2 p, ivec2 axis) {
     return slope == PV_FLOAT_MAX ? 0.0 : slope;
 }
 
-// SVGF's geometric edge-stopping weight between p and q = p + offset (Eq. 4 and 5).
+// SVGF's geometric edge-stopping weight between p and q = p + offset (Eq. 4 and 5), and the
+// mask's (shared/denoise.h: virtual objects and the real set are different signals).
 float geometryWeight(ivec2 p, ivec2 q, ivec2 offset, vec2 slope, vec3 np) {
     float tolerance = params.sigmaDepth * dot(slope, abs(vec2(offset))) + kEpsilon;
     float wz = abs(depthAt(p) - depthAt(q)) / tolerance;
+    float wm = params.sigmaMask * abs(maskAt(p) - maskAt(q));
     float wn = pow(max(0.0, dot(np, normalAt(q))), params.sigmaNormal);
-    return exp(-wz) * wn;
+    return exp(-wz - wm) * wn;
 }
 
 void prepare(ivec2 p) {

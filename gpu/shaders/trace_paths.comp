@@ -541,7 +541,7 @@ void main() {
             guideSum[PV_GUIDE_ALBEDO_DEPTH] += vec4(gGuideAlbedo, gGuideDepthM);
             guideSum[PV_GUIDE_NORMAL] += vec4(gGuideNormal, 1.0);
             vec3 y = vec3(luminance(composite), luminance(lm), luminance(lr));
-            guideSum[PV_GUIDE_MOMENTS] += vec4(y * y, 0.0);
+            guideSum[PV_GUIDE_MOMENTS] += vec4(y * y, mask);
         }
     }
     atomicAdd(stats.raysTraced, gRaysTraced);

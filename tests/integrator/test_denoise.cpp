@@ -207,7 +207,7 @@ TEST_F(DenoiseTest, DepthEdgeDoesNotBleed) {
     addQuad(s, {0, 0, -3.0f}, {3.0f, 0, 0}, {0, 3.0f, 0}, grey, false);
     PunctualLight lamp;
     lamp.position = {-0.4f, 0.0f, -0.7f};
-    lamp.intensity = 1.0f;
+    lamp.intensity = 5.0f;
     s.lights.push_back(lamp);
     s.environment = uniformEnvironment(glm::vec3(0.5f));
     s.cameras.push_back(lookAt({0, 0, 0}, {0, 0, -1}, {0, 1, 0}, glm::radians(40.0f)));
@@ -273,7 +273,8 @@ TEST_F(DenoiseTest, ConvergesToTheUndenoisedImageAtHighSampleCounts) {
 }
 
 // At 4 spp the denoiser cuts the RMSE against a long reference. Measured over seeds 300..303
-// when this test was written: by a factor of (see kMinGain) — asserted with margin below.
+// when this test was written: 1.48×, 1.63×, 1.45×, 1.59× (printed); the mean gain is asserted
+// above 1.3, below the smallest seed's with room for other devices' float differences.
 TEST_F(DenoiseTest, ReducesTheErrorAtLowSampleCounts) {
     Scene s = differentialSet(true);
     RenderSettings rs = settingsFor(64, 64, 4);
@@ -296,7 +297,7 @@ TEST_F(DenoiseTest, ReducesTheErrorAtLowSampleCounts) {
         before += b;
         after += a;
     }
-    constexpr double kMinGain = 1.0;
+    constexpr double kMinGain = 1.3;
     EXPECT_GT(before / after, kMinGain);
 }
 

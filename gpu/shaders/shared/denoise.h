@@ -16,7 +16,10 @@ PV_BEGIN
 #define PV_GUIDE_ALBEDO_DEPTH 0u  // first-hit base colour (1 for a miss or an emitter), camera distance (m)
 #define PV_GUIDE_NORMAL 1u        // first-hit shading normal facing the camera; w = samples in the means
 // Second moments of the luminance of each accumulated signal per sample: the composite without
-// the plate, L_om, L_or. With the means they give each pixel's variance (SVGF's moments).
+// the plate, L_om, L_or. With the means they give each pixel's variance (SVGF's moments). w: the
+// mask M (the fraction of samples whose first hit is virtual): Eq. 1 composites two different
+// signals on either side of M's edge (L_om on a virtual object, L_om − L_or on the real set),
+// which the filter must not mix even where depth and normal would let it.
 #define PV_GUIDE_MOMENTS 2u
 #define PV_GUIDE_COUNT 3u
 // The camera distance recorded for a ray that hits nothing: far beyond any set, finite so that
@@ -51,6 +54,7 @@ struct DenoiseParams {
     float sigmaLuminance;  // SVGF's σ_l: luminance tolerance in standard deviations of the noise
     float sigmaNormal;     // SVGF's σ_n: exponent of the normals' cosine
     float sigmaDepth;      // SVGF's σ_z: depth tolerance in units of the local depth gradient
+    float sigmaMask;       // weight exp(−σ_m·|ΔM|) between pixels of different mask
 };
 
 PV_END
