@@ -24,20 +24,26 @@ Result<Denoiser> Denoiser::create(GpuContext& ctx, uint32_t width, uint32_t heig
     d.height_ = height;
     d.settings_ = settings;
     const size_t pixels = size_t(width) * height;
-    const size_t sizes[PV_DENOISE_BINDING_COUNT] = {
+    // Bindings 0..4; the work buffer is bound again as PV_DENOISE_BINDING_WORK_TEXELS.
+    const size_t sizes[PV_DENOISE_BINDING_WORK_TEXELS] = {
         sizeof(shader::DenoiseParams), pixels * sizeof(glm::vec4),
         pixels * PV_GUIDE_COUNT * sizeof(glm::vec4), 3 * pixels * sizeof(glm::vec4),
         pixels * sizeof(glm::vec4)};
-    const char* labels[PV_DENOISE_BINDING_COUNT] = {
+    const char* labels[PV_DENOISE_BINDING_WORK_TEXELS] = {
         "denoiseParams", "denoiseColor", "denoiseGuides", "denoiseWork", "denoiseOutput"};
-    for (int b = 0; b < PV_DENOISE_BINDING_COUNT; ++b) {
+    for (int b = 0; b < PV_DENOISE_BINDING_WORK_TEXELS; ++b) {
         auto buffer = GpuBuffer::create(ctx, sizes[b], labels[b]);
         if (!buffer) return buffer.error();
         d.buffers_.push_back(std::move(buffer.value()));
     }
     std::vector<const GpuBuffer*> bound;
     for (const GpuBuffer& b : d.buffers_) bound.push_back(&b);
-    const std::array<BindingKind, PV_DENOISE_BINDING_COUNT> kinds{};  // all storage buffers
+    bound.push_back(&d.buffers_[PV_DENOISE_BINDING_WORK]);
+    std::array<BindingKind, PV_DENOISE_BINDING_COUNT> kinds{};
+    kinds.fill(BindingKind::StorageBuffer);
+    for (int b :
+         {PV_DENOISE_BINDING_COLOR, PV_DENOISE_BINDING_GUIDES, PV_DENOISE_BINDING_WORK_TEXELS})
+        kinds[b] = BindingKind::TexelBufferUint4;
     auto make = [&](uint32_t stage, std::optional<ComputePipeline>& out) -> Status {
         const std::array<uint32_t, 1> constants{stage};
         auto p = ComputePipeline::create(

@@ -18,9 +18,11 @@ layout(constant_id = 0) const uint kStage = PV_DENOISE_STAGE_PREPARE;
 layout(local_size_x = PV_DENOISE_GROUP_SIZE, local_size_y = PV_DENOISE_GROUP_SIZE) in;
 
 layout(binding = PV_DENOISE_BINDING_PARAMS, scalar) readonly buffer Params { DenoiseParams params; };
-layout(binding = PV_DENOISE_BINDING_COLOR, scalar) readonly buffer Color { vec4 color[]; };
-layout(binding = PV_DENOISE_BINDING_GUIDES, scalar) readonly buffer Guides { vec4 guides[]; };
-layout(binding = PV_DENOISE_BINDING_WORK, scalar) buffer Work { vec4 work[]; };
+// Read-only arrays are texel buffers (shared/denoise.h says why).
+layout(binding = PV_DENOISE_BINDING_COLOR) uniform usamplerBuffer colorTexels;
+layout(binding = PV_DENOISE_BINDING_GUIDES) uniform usamplerBuffer guideTexels;
+layout(binding = PV_DENOISE_BINDING_WORK, scalar) writeonly buffer Work { vec4 work[]; };
+layout(binding = PV_DENOISE_BINDING_WORK_TEXELS) uniform usamplerBuffer workTexels;
 layout(binding = PV_DENOISE_BINDING_OUTPUT, scalar) writeonly buffer Output { vec4 outColor[]; };
 
 // Demodulation divides by at least this albedo: a black surface's signal is not blown up.
@@ -31,16 +33,19 @@ const float kEpsilon = 1e-10;
 const float kKernel[3] = float[3](3.0 / 8.0, 1.0 / 4.0, 1.0 / 16.0);
 
 uint indexOf(ivec2 p) { return uint(p.y) * params.width + uint(p.x); }
+vec4 fetch(usamplerBuffer b, uint i) { return uintBitsToFloat(texelFetch(b, int(i))); }
+vec4 colorAt(ivec2 p) { return fetch(colorTexels, indexOf(p)); }
+vec4 guideAt(ivec2 p, uint slot) { return fetch(guideTexels, indexOf(p) * PV_GUIDE_COUNT + slot); }
 bool inside(ivec2 p) { return all(greaterThanEqual(p, ivec2(0))) && all(lessThan(p, ivec2(params.width, params.height))); }
-vec3 albedoAt(ivec2 p) { return max(guides[indexOf(p) * PV_GUIDE_COUNT + PV_GUIDE_ALBEDO_DEPTH].rgb, vec3(kMinAlbedo)); }
-float depthAt(ivec2 p) { return guides[indexOf(p) * PV_GUIDE_COUNT + PV_GUIDE_ALBEDO_DEPTH].w; }
-float maskAt(ivec2 p) { return guides[indexOf(p) * PV_GUIDE_COUNT + PV_GUIDE_MOMENTS].w; }
+vec3 albedoAt(ivec2 p) { return max(guideAt(p, PV_GUIDE_ALBEDO_DEPTH).rgb, vec3(kMinAlbedo)); }
+float depthAt(ivec2 p) { return guideAt(p, PV_GUIDE_ALBEDO_DEPTH).w; }
+float maskAt(ivec2 p) { return guideAt(p, PV_GUIDE_MOMENTS).w; }
 vec3 normalAt(ivec2 p) {
-    vec3 n = guides[indexOf(p) * PV_GUIDE_COUNT + PV_GUIDE_NORMAL].xyz;
+    vec3 n = guideAt(p, PV_GUIDE_NORMAL).xyz;
     float len = length(n);
     return len > 0.0 ? n / len : vec3(0.0);
 }
-vec4 workAt(uint image, ivec2 p) { return work[image * params.width * params.height + indexOf(p)]; }
+vec4 workAt(uint image, ivec2 p) { return fetch(workTexels, image * params.width * params.height + indexOf(p)); }
 
 // The depth change per pixel along `axis`: the smaller one-sided difference, so a pixel on a
 // silhouette takes its own surface's slope, not the jump to the other surface.
@@ -63,7 +68,7 @@ float geometryWeight(ivec2 p, ivec2 q, ivec2 offset, vec2 slope, vec3 np) {
 }
 
 void prepare(ivec2 p) {
-    vec4 c = color[indexOf(p)];
+    vec4 c = colorAt(p);
     vec3 a = albedoAt(p);
     float variance = c.w / (luminance(a) * luminance(a));
     if (c.w < 0.0) {
@@ -78,7 +83,7 @@ void prepare(ivec2 p) {
                 ivec2 q = p + ivec2(dx, dy);
                 if (!inside(q)) continue;
                 float w = geometryWeight(p, q, ivec2(dx, dy), slope, np);
-                float l = luminance(color[indexOf(q)].rgb / albedoAt(q));
+                float l = luminance(colorAt(q).rgb / albedoAt(q));
                 sumW += w;
                 m1 += w * l;
                 m2 += w * l * l;
@@ -134,7 +139,7 @@ void atrous(ivec2 p) {
 
 void finish(ivec2 p) {
     vec3 change = workAt(params.inImage, p).rgb - workAt(0u, p).rgb;
-    outColor[indexOf(p)] = vec4(color[indexOf(p)].rgb + change * albedoAt(p), 0.0);
+    outColor[indexOf(p)] = vec4(colorAt(p).rgb + change * albedoAt(p), 0.0);
 }
 
 void main() {

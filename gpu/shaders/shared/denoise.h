@@ -29,14 +29,18 @@ PV_BEGIN
 // Descriptor set 0 of denoise.comp.
 #define PV_DENOISE_BINDING_PARAMS 0
 // Per pixel: the signal to filter (RGB) and the variance of its mean's luminance (w; negative:
-// unknown, the prepare stage estimates it spatially).
+// unknown, the prepare stage estimates it spatially). A texel buffer.
 #define PV_DENOISE_BINDING_COLOR 1
-#define PV_DENOISE_BINDING_GUIDES 2  // PV_GUIDE_COUNT vec4 per pixel, as above
+#define PV_DENOISE_BINDING_GUIDES 2  // PV_GUIDE_COUNT vec4 per pixel, as above (texel buffer)
 // Three images of vec4 (demodulated RGB, its luminance variance): the prepared input, then two
 // for the iterations' ping-pong.
 #define PV_DENOISE_BINDING_WORK 3
 #define PV_DENOISE_BINDING_OUTPUT 4  // the filtered signal, vec4 per pixel (w unused)
-#define PV_DENOISE_BINDING_COUNT 5
+// The work buffer again, as a texel buffer the stages read (on llvmpipe a texel fetch is a
+// gather, a storage-buffer load with per-lane addresses a loop over the lanes). A dispatch reads
+// only images it does not write.
+#define PV_DENOISE_BINDING_WORK_TEXELS 5
+#define PV_DENOISE_BINDING_COUNT 6
 
 // Specialization constant 0 of denoise.comp: which stage the pipeline runs.
 #define PV_DENOISE_STAGE_PREPARE 0u
