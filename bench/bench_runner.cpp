@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "base/log.h"
+#include "bench/bench_denoise.h"
 #include "bench/bench_memory.h"
 #include "bench/bench_preview.h"
 #include "bench/bench_progress.h"
@@ -122,6 +123,10 @@ int runBenchmarks(const BenchOptions& o) {
         logError("{}", ctx.message());
         return 1;
     }
+    // Only by name: its reference render runs for minutes.
+    if (o.only == "denoise")
+        return runDenoiseBench(
+            **ctx, {.dataDir = o.dataDir, .quick = o.quick, .repetitions = o.repetitions});
     const int reps = o.quick ? 1 : o.repetitions;
     const uint32_t spp = o.quick ? 1 : o.spp;
     const std::string env = o.dataDir + "/envmaps/polyhaven_1k_hdr/rooitou_park_1k.hdr";

@@ -59,11 +59,16 @@ struct RenderOptions {
     std::vector<std::string> aovs;
     std::string calibration;
     std::vector<uint32_t> checkpoints;  // also write the image at these sample counts
+    std::string denoise = "off";        // on | off | auto (render/denoiser.h: autoDenoise)
 };
 
 // A --timing field: the value, or "none".
 std::string number(std::optional<double> v) {
     return v ? fmt::format("{:.6g}", *v) : std::string("none");
+}
+
+bool isGuideAov(const std::string& name) {
+    return name == "albedo" || name == "normal" || name == "depth";
 }
 
 // `--out dir/name.exr` → `dir/name.<aov>.exr` (DESIGN.md §3).
@@ -204,6 +209,8 @@ int run(const RenderOptions& o) {
     // The real-only solution costs extra rays: computed only when something uses it.
     settings.differential = plate.has_value() || wantsReal;
     settings.convergenceMeter = !o.noMeter;
+    // Guides are written only when something may use them: the denoiser, or a guide AOV.
+    settings.denoise = o.denoise != "off" || std::any_of(o.aovs.begin(), o.aovs.end(), isGuideAov);
 
     const double loadSeconds = since(runStart);
     const auto deviceStart = Clock::now();
@@ -315,7 +322,10 @@ int run(const RenderOptions& o) {
             "samples",
             dropped, stats->nonFiniteRays);
 
-    auto image = (*renderer)->image();
+    // The one place --denoise auto decides (autoDenoise, render/denoiser.h).
+    const bool denoised =
+        o.denoise == "on" || (o.denoise == "auto" && autoDenoise((*renderer)->samplesPerPixel()));
+    auto image = (*renderer)->image(Aov::Composite, denoised);
     if (!image) {
         logError("{}", image.message());
         return 1;
@@ -349,11 +359,14 @@ int run(const RenderOptions& o) {
         return 1;
     }
     for (const std::string& name : o.aovs) {
-        Aov aov = name == "mixed"  ? Aov::Mixed
-                  : name == "real" ? Aov::Real
-                  : name == "mask" ? Aov::Mask
-                                   : Aov::Composite;
-        auto buffer = (*renderer)->image(aov);
+        Aov aov = name == "mixed"    ? Aov::Mixed
+                  : name == "real"   ? Aov::Real
+                  : name == "mask"   ? Aov::Mask
+                  : name == "albedo" ? Aov::Albedo
+                  : name == "normal" ? Aov::Normal
+                  : name == "depth"  ? Aov::Depth
+                                     : Aov::Composite;
+        auto buffer = (*renderer)->image(aov, denoised);
         Status s = buffer ? writeExr(aovPath(o.out, name), *buffer) : Status(buffer.error());
         if (!s) {
             logError("{}", s.message());
@@ -361,9 +374,9 @@ int run(const RenderOptions& o) {
         }
     }
     if (!o.quiet)
-        logInfo("wrote {} ({}x{}, {} spp, {:.1f} s on {}, noise {}{})", o.out, image->width,
-                image->height, (*renderer)->samplesPerPixel(), elapsed(), (*ctx)->deviceName(),
-                percent(noise),
+        logInfo("wrote {} ({}x{}, {} spp{}, {:.1f} s on {}, noise {}{})", o.out, image->width,
+                image->height, (*renderer)->samplesPerPixel(), denoised ? ", denoised" : "",
+                elapsed(), (*ctx)->deviceName(), percent(noise),
                 dropped > 0 ? fmt::format(", {} NaN/Inf sample(s) dropped", dropped) : "");
     return 0;
 }
@@ -451,9 +464,16 @@ std::function<int()> addRenderCommand(CLI::App& app) {
         ->check(CLI::ExistingFile);
     o->plateCurve.addTo(cmd, "plate-", "LDR plate", true);
     cmd->add_option("--aov", o->aovs,
-                    "also write buffers as OUT.<aov>.exr: composite, mixed, real, mask")
+                    "also write buffers as OUT.<aov>.exr: composite, mixed, real, mask, and the "
+                    "denoiser's guides albedo, normal, depth (first hit, mean over the samples)")
         ->delimiter(',')
-        ->check(CLI::IsMember({"composite", "mixed", "real", "mask"}));
+        ->check(CLI::IsMember({"composite", "mixed", "real", "mask", "albedo", "normal", "depth"}));
+    cmd->add_option("--denoise", o->denoise,
+                    "edge-avoiding a-trous denoiser on the rendered signal, never on the plate: "
+                    "on, off (default), or auto (on below " +
+                        std::to_string(kAutoDenoiseBelowSpp) +
+                        " spp); composite, mixed and real AOVs are denoised with it")
+        ->check(CLI::IsMember({"on", "off", "auto"}));
     cmd->add_option("--calibration", o->calibration,
                     "OpenCV calibration YAML of the scene camera: primary rays follow its lens "
                     "(pinhole + radial-tangential or fisheye) so the plate needs no resampling")

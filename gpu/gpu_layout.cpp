@@ -2,6 +2,7 @@
 // (STYLE.md: every shared struct has static_assert(sizeof/offsetof) checks).
 #include <cstddef>
 
+#include "shared/denoise.h"
 #include "shared/photon_map.h"
 #include "shared/scene_types.h"
 
@@ -35,5 +36,6 @@ static_assert(offsetof(GpuLight, cosInnerCone) == 44 && offsetof(EmissiveTriangl
 // Two texels (trace_paths.comp's gather reads position + flags, then power + direction).
 static_assert(sizeof(PhotonRecord) == 32 && offsetof(PhotonRecord, flags) == 12);
 static_assert(offsetof(PhotonRecord, power) == 16 && offsetof(PhotonRecord, direction) == 28);
+static_assert(sizeof(DenoiseParams) == 36 && offsetof(DenoiseParams, sigmaLuminance) == 20);
 
 }  // namespace previs::shader

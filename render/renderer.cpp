@@ -10,6 +10,7 @@
 #include "base/log.h"
 #include "render/plate.h"
 #include "scene/environment_map.h"
+#include "shared/denoise.h"
 #include "shared/photon_map.h"
 #include "shared/scene_types.h"
 #include "shared/specular_albedo.h"
@@ -178,6 +179,12 @@ Result<std::unique_ptr<Renderer>> Renderer::create(GpuContext& ctx, const Scene&
     r->settings_.resolutionScale = 1.0f;
     if (Status s = r->setResolutionScale(settings.resolutionScale); !s) return s.error();
     if (Status s = r->reset(); !s) return s.error();
+    if (settings.denoise) {
+        auto denoiser =
+            Denoiser::create(ctx, settings.width, settings.height, settings.denoiseSettings);
+        if (!denoiser) return denoiser.error();
+        r->denoiser_.emplace(std::move(denoiser.value()));
+    }
     return Result<std::unique_ptr<Renderer>>(std::move(r));
 }
 
@@ -202,6 +209,7 @@ Status Renderer::specialisePipeline() {
         settings_.sampler == Sampler::Sobol ? PV_SAMPLER_SOBOL : PV_SAMPLER_INDEPENDENT;
     constants[PV_SPEC_LIGHT_SOLID_ANGLE] = settings_.lightSampling == LightSampling::SolidAngle;
     constants[PV_SPEC_PHOTONS] = photonsActive_;
+    constants[PV_SPEC_DENOISE_GUIDES] = settings_.denoise;
     if (pipeline_ && constants == specConstants_) return bindBuffers();
     // Every read-only array the shader indexes per lane is a texel buffer (see BindingKind);
     // params (uniform reads), the accumulators and the stats stay storage buffers.
@@ -258,6 +266,12 @@ std::vector<BufferRange> Renderer::accumulationBand(uint32_t firstRow) const {
     const uint32_t rows = std::min(bandRows_, params_.height - firstRow);
     for (int b : {PV_BINDING_ACCUM_SUM, PV_BINDING_ACCUM_COMPENSATION})
         ranges[b] = {firstRow * bytesPerRow, rows * bytesPerRow};
+    // The denoiser's guides, half as many bytes a pixel, in the same bands.
+    if (settings_.denoise) {
+        const uint64_t guideBytesPerRow =
+            uint64_t(params_.width) * PV_GUIDE_COUNT * sizeof(glm::vec4);
+        ranges[PV_BINDING_GUIDES] = {firstRow * guideBytesPerRow, rows * guideBytesPerRow};
+    }
     return ranges;
 }
 
@@ -594,6 +608,9 @@ Status Renderer::buildScene(const Scene& scene) {
     for (int b = PV_BINDING_PHOTON_RECORDS; b <= PV_BINDING_PHOTON_CELLS; ++b)
         if (!(s = add(GpuBuffer::create(*ctx_, photonBufferBytes(b, p.photonCount), "photons"))))
             return s;
+    const size_t guideBytes =
+        settings_.denoise ? pixels * PV_GUIDE_COUNT * sizeof(glm::vec4) : size_t(0);
+    if (!(s = add(GpuBuffer::create(*ctx_, guideBytes, "guides")))) return s;
     PV_ASSERT(buffers_.size() == PV_BINDING_COUNT);
     return updatePhotonLights(lights);
 }
@@ -711,6 +728,12 @@ Status Renderer::setResolutionScale(float scale) {
         if (!fresh) return fresh.error();
         buffers_[binding] = std::move(fresh.value());
     }
+    if (settings_.denoise) {
+        auto fresh = GpuBuffer::create(
+            *ctx_, size_t(width) * height * PV_GUIDE_COUNT * sizeof(glm::vec4), "guides");
+        if (!fresh) return fresh.error();
+        buffers_[PV_BINDING_GUIDES] = std::move(fresh.value());
+    }
     if (!settings_.lensGrid.empty()) {
         const std::vector<glm::vec2> grid = traceLensGrid(width, height);
         if (Status s = replaceBufferContents(PV_BINDING_LENS_GRID, grid.data(),
@@ -730,7 +753,8 @@ Status Renderer::reset() {
     samples_ = 0;
     gpuMs_ = 0.0;
     photonMs_ = 0.0;
-    for (int b : {PV_BINDING_ACCUM_SUM, PV_BINDING_ACCUM_COMPENSATION, PV_BINDING_STATS}) {
+    for (int b : {PV_BINDING_ACCUM_SUM, PV_BINDING_ACCUM_COMPENSATION, PV_BINDING_STATS,
+                  PV_BINDING_GUIDES}) {
         if (Status s = buffers_[b].fill(0); !s) return s;
     }
     return {};
@@ -918,15 +942,44 @@ Result<Convergence> Renderer::convergence() const {
     return out;
 }
 
+Result<std::vector<glm::vec4>> Renderer::guides() const {
+    if (!settings_.denoise)
+        return makeError(
+            "the denoiser's guides (albedo, normal, depth) exist only in a renderer created with "
+            "denoising on");
+    std::vector<glm::vec4> g(size_t(params_.width) * params_.height * PV_GUIDE_COUNT);
+    if (Status s = buffers_[PV_BINDING_GUIDES].download(g.data(), g.size() * sizeof(glm::vec4)); !s)
+        return s.error();
+    return g;
+}
+
 Result<ImageF> Renderer::image(Aov aov) const {
-    Result<Accumulation> read = readAccumulation();
-    if (!read) return read.error();
-    const Accumulation& a = *read;
     const bool scaled = params_.width != settings_.width || params_.height != settings_.height;
     const size_t pixels = size_t(params_.width) * params_.height;
     ImageF img;
     img.width = params_.width;
     img.height = params_.height;
+    if (aov == Aov::Albedo || aov == Aov::Normal || aov == Aov::Depth) {
+        auto g = guides();
+        if (!g) return g.error();
+        const bool depth = aov == Aov::Depth;
+        img.channels = depth ? 1 : 3;
+        img.pixels.resize(pixels * img.channels);
+        const uint32_t slot = aov == Aov::Normal ? PV_GUIDE_NORMAL : PV_GUIDE_ALBEDO_DEPTH;
+        for (size_t i = 0; i < pixels; ++i) {
+            const glm::vec4& v = (*g)[i * PV_GUIDE_COUNT + slot];
+            if (depth)
+                img.pixels[i] = v.w;
+            else
+                for (int c = 0; c < 3; ++c) img.pixels[i * 3 + c] = v[c];
+        }
+        return scaled ? jointBilateralUpsample(img, settings_.width, settings_.height,
+                                               plate_ ? &*plate_ : nullptr, upsample_)
+                      : img;
+    }
+    Result<Accumulation> read = readAccumulation();
+    if (!read) return read.error();
+    const Accumulation& a = *read;
     img.channels = aov == Aov::Mask || aov == Aov::SampleCount ? 1 : 3;
     // The mean of a compensated sum: (sum − compensation) / n, in double, where n counts the
     // pixel's samples that were not dropped (NaN/Inf, stats().nonFiniteSamples): a dropped
@@ -988,6 +1041,65 @@ Result<ImageF> Renderer::image(Aov aov) const {
                       plateWeight * double(plate_->pixels[i * plate_->channels + c]));
     }
     return out;
+}
+
+Result<ImageF> Renderer::image(Aov aov, bool denoised) {
+    if (!denoised || !(aov == Aov::Composite || aov == Aov::Mixed || aov == Aov::Real))
+        return image(aov);
+    if (!denoiser_)
+        return makeError(
+            "a denoised image needs a renderer created with denoising on (--denoise on|auto)");
+    if (params_.width != settings_.width || params_.height != settings_.height)
+        return makeError(
+            "denoising at a resolution scale below 1 is not supported: denoise at scale 1, or "
+            "upsample without denoising");
+    auto m = readAccumulation();
+    if (!m) return m.error();
+    auto g = guides();
+    if (!g) return g.error();
+    const size_t pixels = size_t(params_.width) * params_.height;
+    const bool withPlate = aov == Aov::Composite && plate_ && settings_.differential;
+    // The signal the filter sees: the composite without its plate term, L_om or L_or. Its slot
+    // in the accumulation is also its luminance moment's component in PV_GUIDE_MOMENTS.
+    const uint32_t k = aov == Aov::Real                  ? PV_ACCUM_REAL
+                       : aov == Aov::Mixed || !withPlate ? PV_ACCUM_MIXED
+                                                         : PV_ACCUM_COMPOSITE;
+    // A pixel's own variance needs a few samples (SVGF switches to its spatial estimate below
+    // 4 frames of history); below that the shader estimates it from the neighbourhood.
+    // HOOK for the convergence meter: its per-pixel variance can replace this one.
+    constexpr double kMinSamplesForVariance = 4.0;
+    ImageF signal;
+    signal.width = settings_.width;
+    signal.height = settings_.height;
+    signal.channels = 3;
+    signal.pixels.resize(pixels * 3);
+    std::vector<float> variance(pixels);
+    for (size_t i = 0; i < pixels; ++i) {
+        glm::dvec3 mean(0.0);
+        for (int c = 0; c < 3; ++c) {
+            mean[c] = m->mean(i, k, c);
+            signal.pixels[i * 3 + c] = float(mean[c]);
+        }
+        const double n = m->count(i);
+        const double y = glm::dot(mean, glm::dvec3(0.2126, 0.7152, 0.0722));  // luminance()
+        const double y2 = (*g)[i * PV_GUIDE_COUNT + PV_GUIDE_MOMENTS][k];
+        // The variance of the mean: the samples' unbiased variance over n.
+        variance[i] =
+            n >= kMinSamplesForVariance ? float(std::max(0.0, y2 - y * y) / (n - 1.0)) : -1.0f;
+    }
+    auto filtered = denoiser_->apply(signal, *g, variance);
+    if (!filtered) return filtered.error();
+    if (withPlate) {
+        for (size_t i = 0; i < pixels; ++i) {
+            const double plateWeight = 1.0 - m->mean(i, PV_ACCUM_COMPOSITE, 3);
+            for (int c = 0; c < 3; ++c) {
+                float& v = filtered->pixels[i * 3 + c];
+                v = float(double(v) +
+                          plateWeight * double(plate_->pixels[i * plate_->channels + c]));
+            }
+        }
+    }
+    return filtered;
 }
 
 Result<shader::RenderStats> Renderer::stats() const {

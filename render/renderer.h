@@ -19,6 +19,7 @@
 #include "image/image.h"
 #include "render/bvh.h"
 #include "render/convergence.h"
+#include "render/denoiser.h"
 #include "render/photon_map.h"
 #include "render/upsample.h"
 #include "scene/scene.h"
@@ -74,6 +75,10 @@ struct RenderSettings {
     // height guided by the plate (render/upsample.h); the plate is never resampled. In (0, 1];
     // 1 traces every output pixel (and image() is what it was without this setting, bit for bit).
     float resolutionScale = 1.0f;
+    // The denoiser (render/denoiser.h): the first hit writes its guide buffers and
+    // image(aov, true) filters. Off: neither the guides' code nor their memory is paid for.
+    bool denoise = false;
+    DenoiseSettings denoiseSettings;
 };
 
 // The buffers a render produces (DESIGN.md §3 --aov).
@@ -85,6 +90,13 @@ enum class Aov {
     // Samples that count in each pixel's mean (one channel): samplesPerPixel() less those
     // dropped as NaN/Inf, or lost when a CPU device cut a dispatch short. Not a file AOV.
     SampleCount,
+    // The denoiser's guides (RenderSettings::denoise), means over the pixel's samples of the
+    // camera ray's first hit: base colour (1 for a miss or an emitter), shading normal facing
+    // the camera (RGB = xyz, not normalised), camera distance in metres (one channel; misses
+    // PV_GUIDE_MISS_DEPTH_M).
+    Albedo,
+    Normal,
+    Depth,
 };
 
 // What the scene uses; each off feature is compiled out of the pipeline.
@@ -215,6 +227,14 @@ public:
     // composite and of L_om − L_or so far, from the two interleaved replicates (none without
     // RenderSettings::convergenceMeter). One readback of the accumulation, as image() does.
     Result<Convergence> convergence() const;
+    // The same, denoised where `denoised` (needs RenderSettings::denoise): Composite, Mixed and
+    // Real are filtered, the composite before Eq. 1 adds the plate term (1 − M)·L_oc, so the
+    // camera image itself is never filtered; the other AOVs are returned as image(aov).
+    Result<ImageF> image(Aov aov, bool denoised);
+    // GPU time of the last denoised image()'s filter dispatches (ms).
+    double denoiseMilliseconds() const {
+        return denoiser_ ? denoiser_->lastGpuMilliseconds() : 0.0;
+    }
 
     uint64_t samplesPerPixel() const { return samples_; }
     const SceneFeatures& features() const { return features_; }
@@ -256,6 +276,15 @@ private:
             const size_t at = pixel * PV_ACCUM_COUNT + slot;
             return double(sum[at][channel]) - double(compensation[at][channel]);
         }
+        // The samples of pixel i that count: those not dropped (NaN/Inf,
+        // stats().nonFiniteSamples), so a dropped sample neither darkens the pixel nor lets the
+        // plate through.
+        double count(size_t pixel) const { return value(pixel, PV_ACCUM_MIXED, 3); }
+        // The mean of a slot; 0 (mask 0: the plate) for a pixel without samples.
+        double mean(size_t pixel, uint32_t slot, int channel) const {
+            const double n = count(pixel);
+            return n > 0.0 ? value(pixel, slot, channel) / n : 0.0;
+        }
     };
     Result<Accumulation> readAccumulation() const;
 
@@ -273,6 +302,7 @@ private:
     // The accumulation's part for the band of rows from `firstRow` (bandRows_ rows, fewer at
     // the bottom); the other bindings whole.
     std::vector<BufferRange> accumulationBand(uint32_t firstRow) const;
+    Result<std::vector<glm::vec4>> guides() const;
     uint32_t samplesForNextDispatch(uint32_t remaining) const;
     // Moves the GPU's origin to `originM` (world): re-uploads vertices, BVH boxes, lights.
     Status recentre(const glm::dvec3& originM);
@@ -318,6 +348,7 @@ private:
     float photonInitialRadius_ = 0.0f;
     std::optional<PhotonPasses> photonPasses_;
     double photonMs_ = 0.0;
+    std::optional<Denoiser> denoiser_;
 };
 
 }  // namespace previs

@@ -15,12 +15,21 @@ layout(binding = PV_BINDING_ACCUM_COMPENSATION, scalar) buffer AccumCompensation
     vec4 accumCompensation[];
 };
 layout(binding = PV_BINDING_STATS, scalar) buffer Stats { RenderStats stats; };
+// The denoiser's guides (shared/denoise.h), written only where kDenoiseGuides.
+layout(constant_id = PV_SPEC_DENOISE_GUIDES) const bool kDenoiseGuides = false;
+layout(binding = PV_BINDING_GUIDES, scalar) buffer Guides { vec4 guides[]; };
 // This iteration's photon map (photon_grid.comp): records sorted by bucket, two texels each, and
 // each bucket's [begin, end) as two words.
 layout(binding = PV_BINDING_PHOTON_SORTED) uniform usamplerBuffer photonTexels;
 layout(binding = PV_BINDING_PHOTON_CELLS) uniform usamplerBuffer photonCellWords;
 
 #include "shared/photon_map.h"
+#include "shared/denoise.h"
+
+// What the camera ray's first hit shows the denoiser (tracePath sets them where kDenoiseGuides).
+vec3 gGuideAlbedo;
+vec3 gGuideNormal;
+float gGuideDepthM;
 
 // Four random numbers of dimension set `set` (shared/sampler.h's table) for sample `key`.
 vec4 draw(SampleKey key, uint set) { return sampleSet(kSampler, key, set); }
@@ -322,6 +331,11 @@ void tracePath(uvec2 pixel, SampleKey key, out vec3 lm, out vec3 lr, out bool fi
     lm = vec3(0.0);
     lr = vec3(0.0);
     firstHitVirtual = false;
+    if (kDenoiseGuides) {
+        gGuideAlbedo = vec3(1.0);
+        gGuideNormal = -st.ray.direction;
+        gGuideDepthM = PV_GUIDE_MISS_DEPTH_M;
+    }
     uint mode = kDifferential ? MODE_SHARED : MODE_MIXED;
     PathState realContinuation = st;
     bool haveRealContinuation = false;
@@ -396,6 +410,12 @@ void tracePath(uvec2 pixel, SampleKey key, out vec3 lm, out vec3 lr, out bool fi
             buildBasis(frame.n, frame.t, frame.b);
             vec3 wo = toLocal(frame, -st.ray.direction);
             BsdfParams bp = bsdfParamsAt(m, s);
+            if (kDenoiseGuides && pass == 0u && st.depth == 0u) {
+                // An emitter's light is not modulated by its base colour: albedo 1, as a miss.
+                gGuideAlbedo = maxComponent(m.emission) > 0.0 ? vec3(1.0) : bp.baseColor;
+                gGuideNormal = faceforward(s.shadingNormal, st.ray.direction, s.shadingNormal);
+                gGuideDepthM = hit.t;  // the camera ray's direction is unit: metres
+            }
             bool gatherVertex = false;
             if (kPhotons) {
                 bool purelySpecular = bsdfIsPurelySpecular(bp);
@@ -484,6 +504,8 @@ void main() {
         sum[k] = vec4(0.0);
         comp[k] = vec4(0.0);
     }
+    vec4 guideSum[PV_GUIDE_COUNT];
+    for (uint k = 0u; k < PV_GUIDE_COUNT; ++k) guideSum[k] = vec4(0.0);
     for (uint i = 0u; i < params.samplesPerDispatch; ++i) {
         PV_COUNT_LOOP_ITERATION();
         const uint sampleIndex = params.sampleBase + i;
@@ -527,6 +549,12 @@ void main() {
             if (kDifferential)
                 kahanAdd(sum[r + PV_ACCUM_REAL], comp[r + PV_ACCUM_REAL], vec4(lr, 0.0));
         }
+        if (kDenoiseGuides) {
+            guideSum[PV_GUIDE_ALBEDO_DEPTH] += vec4(gGuideAlbedo, gGuideDepthM);
+            guideSum[PV_GUIDE_NORMAL] += vec4(gGuideNormal, 1.0);
+            vec3 y = vec3(luminance(composite), luminance(lm), luminance(lr));
+            guideSum[PV_GUIDE_MOMENTS] += vec4(y * y, mask);
+        }
     }
     atomicAdd(stats.raysTraced, gRaysTraced);
     if (gNonFiniteRays > 0u) atomicAdd(stats.nonFiniteRays, gNonFiniteRays);
@@ -539,6 +567,18 @@ void main() {
         kahanAdd(total, c, sum[k] - comp[k]);
         accumSum[at] = total;
         accumCompensation[at] = c;
+    }
+    float kept = guideSum[PV_GUIDE_NORMAL].w;
+    if (kDenoiseGuides && kept > 0.0) {
+        // Running means over the pixel's kept samples (shared/denoise.h says why not sums).
+        // Bound from this band's first row on, as the accumulation.
+        uint at = (pixelIndex - params.bandFirstRow * params.width) * PV_GUIDE_COUNT;
+        float total = guides[at + PV_GUIDE_NORMAL].w + kept;
+        for (uint k = 0u; k < PV_GUIDE_COUNT; ++k) {
+            vec4 mean = guides[at + k];
+            guides[at + k] = mean + (guideSum[k] - kept * mean) / total;
+        }
+        guides[at + PV_GUIDE_NORMAL].w = total;
     }
     // The renderer sizes later dispatches from this (lavapipe's loop budget).
     if (kCountLoops) atomicMax(stats.maxLoopIterations, gLoopIterations);

@@ -56,7 +56,10 @@ PV_BEGIN
 #define PV_BINDING_PHOTON_BLOCK_COUNTS 25
 // Per bucket, the [begin, end) range of its records in the sorted array (2 words).
 #define PV_BINDING_PHOTON_CELLS 26
-#define PV_BINDING_COUNT 27
+// The denoiser's guides (shared/denoise.h): first-hit albedo, normal, depth and luminance
+// moments per pixel; a 16-byte placeholder when the renderer has no denoiser.
+#define PV_BINDING_GUIDES 27
+#define PV_BINDING_COUNT 28
 
 // Specialization constant ids: scene features that select pipeline variants, so a scene runs
 // none of the code it does not need ("model only what the scene requires").
@@ -87,7 +90,9 @@ PV_BEGIN
 // Caustics from a photon map (shared/photon_map.h): the gather at the path's first non-specular
 // vertex and the exclusion of the paths the photons carry. Off: the path tracer alone.
 #define PV_SPEC_PHOTONS 13
-#define PV_SPEC_COUNT 14
+// The denoiser's guide buffers (PV_BINDING_GUIDES): written only by renders that may denoise.
+#define PV_SPEC_DENOISE_GUIDES 14
+#define PV_SPEC_COUNT 15
 #define PV_SAMPLER_SOBOL 0u
 #define PV_SAMPLER_INDEPENDENT 1u
 

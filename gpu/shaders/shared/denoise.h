@@ -1,0 +1,66 @@
+// The denoiser's data (denoise.comp, render/denoiser.h): the guide buffers the path tracer's
+// first hit writes (trace_paths.comp, PV_BINDING_GUIDES) and the edge-avoiding à-trous filter's
+// bindings and parameters (Dammertz et al. 2010, "Edge-Avoiding À-Trous Wavelet Transform for
+// fast Global Illumination Filtering"; weights as in Schied et al. 2017, SVGF).
+#ifndef PREVIS_SHARED_DENOISE_H
+#define PREVIS_SHARED_DENOISE_H
+
+#include "shared/prelude.h"
+
+PV_BEGIN
+
+// Guides: PV_GUIDE_COUNT vec4 per pixel, each the running mean over the pixel's kept samples
+// (the same samples as the accumulation's means), so antialiased edges get the blend their
+// colour has. Means, not sums: a mean updated by (sum − k·mean)/(n + k) stays precise after
+// millions of samples in float, where a plain sum of depths would not.
+#define PV_GUIDE_ALBEDO_DEPTH 0u  // first-hit base colour (1 for a miss or an emitter), camera distance (m)
+#define PV_GUIDE_NORMAL 1u        // first-hit shading normal facing the camera; w = samples in the means
+// Second moments of the luminance of each accumulated signal per sample: the composite without
+// the plate, L_om, L_or. With the means they give each pixel's variance (SVGF's moments). w: the
+// mask M (the fraction of samples whose first hit is virtual): Eq. 1 composites two different
+// signals on either side of M's edge (L_om on a virtual object, L_om − L_or on the real set),
+// which the filter must not mix even where depth and normal would let it.
+#define PV_GUIDE_MOMENTS 2u
+#define PV_GUIDE_COUNT 3u
+// The camera distance recorded for a ray that hits nothing: far beyond any set, finite so that
+// means and differences stay finite.
+#define PV_GUIDE_MISS_DEPTH_M 1.0e4f
+
+// Descriptor set 0 of denoise.comp.
+#define PV_DENOISE_BINDING_PARAMS 0
+// Per pixel: the signal to filter (RGB) and the variance of its mean's luminance (w; negative:
+// unknown, the prepare stage estimates it spatially). A texel buffer.
+#define PV_DENOISE_BINDING_COLOR 1
+#define PV_DENOISE_BINDING_GUIDES 2  // PV_GUIDE_COUNT vec4 per pixel, as above (texel buffer)
+// Three images of vec4 (demodulated RGB, its luminance variance): the prepared input, then two
+// for the iterations' ping-pong.
+#define PV_DENOISE_BINDING_WORK 3
+#define PV_DENOISE_BINDING_OUTPUT 4  // the filtered signal, vec4 per pixel (w unused)
+// The work buffer again, as a texel buffer the stages read (on llvmpipe a texel fetch is a
+// gather, a storage-buffer load with per-lane addresses a loop over the lanes). A dispatch reads
+// only images it does not write.
+#define PV_DENOISE_BINDING_WORK_TEXELS 5
+#define PV_DENOISE_BINDING_COUNT 6
+
+// Specialization constant 0 of denoise.comp: which stage the pipeline runs.
+#define PV_DENOISE_STAGE_PREPARE 0u
+#define PV_DENOISE_STAGE_ATROUS 1u
+#define PV_DENOISE_STAGE_FINISH 2u
+
+#define PV_DENOISE_GROUP_SIZE 8
+
+struct DenoiseParams {
+    uint width;
+    uint height;
+    uint stepPx;         // this iteration's tap spacing: 2^iteration
+    uint inImage;        // work image read (0: the prepared input)
+    uint outImage;       // work image written
+    float sigmaLuminance;  // SVGF's σ_l: luminance tolerance in standard deviations of the noise
+    float sigmaNormal;     // SVGF's σ_n: exponent of the normals' cosine
+    float sigmaDepth;      // SVGF's σ_z: depth tolerance in units of the local depth gradient
+    float sigmaMask;       // weight exp(−σ_m·|ΔM|) between pixels of different mask
+};
+
+PV_END
+
+#endif

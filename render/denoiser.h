@@ -1,0 +1,79 @@
+#pragma once
+
+// Edge-avoiding à-trous wavelet denoiser (gpu/shaders/denoise.comp; Dammertz et al. 2010 with
+// SVGF's weights, Schied et al. 2017) for the renderer's accumulated signals. The renderer
+// applies it to the composite *without* the plate term — M·L_om + (1−M)(L_om − L_or) — or to
+// L_om or L_or, never to the camera image (Renderer::image(Aov, bool)).
+
+#include <cstdint>
+#include <glm/glm.hpp>
+#include <optional>
+#include <span>
+
+#include "base/result.h"
+#include "gpu/buffer.h"
+#include "gpu/compute_pipeline.h"
+#include "gpu/context.h"
+#include "image/image.h"
+
+namespace previs {
+
+struct DenoiseSettings {
+    uint32_t iterations = 5;  // à-trous levels: taps 1, 2, 4, ... 2^(n−1) pixels apart
+    // SVGF's σ_n and σ_z (Schied et al. 2017, §4.4). Its σ_l = 4 suits its few-frame variance;
+    // with the accumulation's own variance it blurs converged gradients (the soft occlusion
+    // around a virtual object's contact): measured on tests/integrator/test_denoise.cpp's set,
+    // the 256-spp change was 3.1× the noise bound at 4, 1.5× at 2, 0.9× at 1, 0.5× at 0.5, while
+    // the 4-spp RMSE gain was 1.39×, 1.55×, 1.55×, 1.28×: 1 keeps both.
+    float sigmaLuminance = 1.0f;
+    float sigmaNormal = 128.0f;
+    float sigmaDepth = 1.0f;
+    // Ours (shared/denoise.h). Only pixels of a silhouette have a fractional mask, and their
+    // signal is M·L_om + (1 − M)(L_om − L_or): mixing two whose M differs by ΔM moves the
+    // result by ΔM times the jump, a bias that shrinks only as fast as the noise. So the
+    // weight is nearly a partition: ΔM = 1/64 weighs e^−4, 1/16 e^−16.
+    float sigmaMask = 256.0f;
+};
+
+// `--denoise auto` turns the denoiser on below this many samples per pixel (render/denoiser.cpp
+// gives the measurement behind it). HOOK for the convergence meter: autoDenoise() is the one
+// place the decision is made; it should become "the meter's relative RMSE estimate is above the
+// target noise".
+constexpr uint64_t kAutoDenoiseBelowSpp = 64;
+inline bool autoDenoise(uint64_t samplesPerPixel) { return samplesPerPixel < kAutoDenoiseBelowSpp; }
+
+class Denoiser {
+public:
+    static Result<Denoiser> create(GpuContext& ctx, uint32_t width, uint32_t height,
+                                   const DenoiseSettings& settings = {});
+
+    Denoiser(Denoiser&&) = default;
+    Denoiser& operator=(Denoiser&&) = default;
+
+    // Filters `signal` (RGB, width × height) guided by `guides` (PV_GUIDE_COUNT vec4 per pixel,
+    // shared/denoise.h: albedo and depth, normal; the moments are not read). `variance` is per
+    // pixel the variance of the luminance of the pixel's mean, or negative where unknown (the
+    // shader then estimates it from the neighbourhood); empty: unknown everywhere.
+    Result<ImageF> apply(const ImageF& signal, std::span<const glm::vec4> guides,
+                         std::span<const float> variance);
+
+    // GPU time of the last apply()'s dispatches (ms; 0 without timestamps).
+    double lastGpuMilliseconds() const { return lastGpuMs_; }
+    const DenoiseSettings& settings() const { return settings_; }
+
+private:
+    Denoiser() = default;
+    Status dispatch(ComputePipeline& pipeline);
+
+    uint32_t width_ = 0;
+    uint32_t height_ = 0;
+    DenoiseSettings settings_;
+    double lastGpuMs_ = 0.0;
+    // Buffers in PV_DENOISE_BINDING_* order, then the pipelines that bind them.
+    std::vector<GpuBuffer> buffers_;
+    std::optional<ComputePipeline> prepare_;
+    std::optional<ComputePipeline> atrous_;
+    std::optional<ComputePipeline> finish_;
+};
+
+}  // namespace previs
