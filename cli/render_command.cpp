@@ -324,7 +324,8 @@ int run(const RenderOptions& o) {
 
     // The one place --denoise auto decides (autoDenoise, render/denoiser.h).
     const bool denoised =
-        o.denoise == "on" || (o.denoise == "auto" && autoDenoise((*renderer)->samplesPerPixel()));
+        o.denoise == "on" ||
+        (o.denoise == "auto" && autoDenoise(noise, o.targetNoise, (*renderer)->samplesPerPixel()));
     auto image = (*renderer)->image(Aov::Composite, denoised);
     if (!image) {
         logError("{}", image.message());

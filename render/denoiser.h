@@ -35,12 +35,18 @@ struct DenoiseSettings {
     float sigmaMask = 256.0f;
 };
 
-// `--denoise auto` turns the denoiser on below this many samples per pixel (render/denoiser.cpp
-// gives the measurement behind it). HOOK for the convergence meter: autoDenoise() is the one
-// place the decision is made; it should become "the meter's relative RMSE estimate is above the
-// target noise".
+// `--denoise auto`: the denoiser runs while the convergence meter's relative RMSE estimate
+// (render/convergence.h) is above the target noise — above kAutoDenoiseAboveNoise without a
+// target — and is off once the image has reached it (its bias then costs more than its gain).
+// Without an estimate (below 2 spp, or the meter off) it runs below kAutoDenoiseBelowSpp
+// samples per pixel (render/denoiser.cpp gives the measurement behind it).
+constexpr double kAutoDenoiseAboveNoise = 0.01;
 constexpr uint64_t kAutoDenoiseBelowSpp = 64;
-inline bool autoDenoise(uint64_t samplesPerPixel) { return samplesPerPixel < kAutoDenoiseBelowSpp; }
+inline bool autoDenoise(std::optional<double> noiseEstimate, double targetNoise,
+                        uint64_t samplesPerPixel) {
+    if (!noiseEstimate) return samplesPerPixel < kAutoDenoiseBelowSpp;
+    return *noiseEstimate > (targetNoise > 0.0 ? targetNoise : kAutoDenoiseAboveNoise);
+}
 
 class Denoiser {
 public:
