@@ -18,6 +18,7 @@
 #include "bench/image_compare.h"
 #include "gpu/context.h"
 #include "image/image.h"
+#include "render/quality_dial.h"
 #include "render/renderer.h"
 #include "render/tonemap.h"
 
@@ -168,6 +169,46 @@ Result<std::vector<std::pair<std::string, double>>> measureResolutions(
     return out;
 }
 
+// The dial at the preview's output size: every grid point's median frame time (render, read
+// back, upsample, composite: what a preview frame costs before display) and the RMSE of one such
+// frame against the converged composite.
+Result<std::vector<DialMeasurement>> measureDial(GpuContext& ctx, const Scene& scene,
+                                                 uint32_t width, uint32_t height,
+                                                 const ImageF& plate, const ImageF& reference,
+                                                 std::span<const DialPoint> grid, int reps) {
+    std::vector<DialMeasurement> out;
+    std::unique_ptr<Renderer> renderer;
+    uint32_t depth = 0;
+    for (const DialPoint& p : grid) {
+        benchProgress("trade: dial, {}", p.describe());
+        if (!renderer || depth != p.maxDepth) {
+            auto created = Renderer::create(ctx, scene, baseSettings(width, height, p.maxDepth));
+            if (!created) return created.error();
+            renderer = std::move(*created);
+            depth = p.maxDepth;
+            if (Status s = renderer->setPlate(plate, "the set's real-only render"); !s)
+                return s.error();
+        }
+        Renderer& r = *renderer;
+        if (Status s = r.setResolutionScale(p.resolutionScale); !s) return s.error();
+        if (Status s = r.renderPreviewFrame(p.samplesPerFrame); !s) return s.error();  // warm
+        std::vector<double> times;
+        std::optional<ImageF> frame;
+        for (int i = 0; i < reps; ++i) {
+            const auto start = Clock::now();
+            if (Status s = r.renderPreviewFrame(p.samplesPerFrame); !s) return s.error();
+            auto image = r.image(Aov::Composite);
+            if (!image) return image.error();
+            times.push_back(secondsSince(start));
+            frame = std::move(*image);
+        }
+        auto difference = compareImages(*frame, reference);
+        if (!difference) return difference.error();
+        out.push_back({p, median(times), difference->rmse});
+    }
+    return out;
+}
+
 }  // namespace
 
 int runTradeBench(const TradeBenchOptions& o) {
@@ -268,6 +309,78 @@ int runTradeBench(const TradeBenchOptions& o) {
         std::printf("| %s | %.1f |\n", name.c_str(), seconds * 1e3);
     }
     resolution.close();
+
+    // The dial: preview at 640×480 (the issue's target, 10 frames per second).
+    {
+        const uint32_t w = o.quick ? 64 : 640, h = o.quick ? 48 : 480;
+        const uint32_t dialReferenceSpp = o.quick ? 32 : 128;
+        const double targetFps = 10.0;
+        benchProgress("trade: dial reference {}x{}, {} spp", w, h, dialReferenceSpp);
+        ImageF dialPlate, dialReference;
+        {
+            auto created = Renderer::create(**ctx, scene, baseSettings(w, h, referenceDepth));
+            if (!created) return fail(created.error());
+            (*created)->setSeed(0x5eed);
+            if (Status s = (*created)->render(dialReferenceSpp); !s) return fail(s.error());
+            auto real = (*created)->image(Aov::Real);
+            if (!real) return fail(real.error());
+            dialPlate = *real;
+            if (Status s = (*created)->setPlate(dialPlate, "the set's real-only render"); !s)
+                return fail(s.error());
+            auto composite = (*created)->image(Aov::Composite);
+            if (!composite) return fail(composite.error());
+            dialReference = *composite;
+        }
+        const std::vector<float> scales = {1.0f, 0.5f, 1.0f / 3.0f, 0.25f};
+        const std::vector<uint32_t> samples = {1, 2, 4};
+        const std::vector<uint32_t> depths = {2, 4, 8};
+        // The denoiser is left out: it takes about 1 s a 640×480 frame on lavapipe and is
+        // refused below scale 1 (BENCHMARKS.md, "Issue 10: denoiser").
+        const std::vector<DialPoint> grid = dialGrid(scales, samples, depths, false);
+        auto measured = measureDial(**ctx, scene, w, h, dialPlate, dialReference, grid,
+                                    o.quick ? 1 : o.repetitions);
+        if (!measured) return fail(measured.error());
+        const std::vector<size_t> front = paretoFront(*measured);
+        const std::optional<size_t> chosen = chooseForFrameRate(*measured, targetFps);
+        std::ofstream dial(o.outDir / "dial.csv");
+        dial << "scale,spp,max_depth,denoise,frame_seconds,rmse,pareto,chosen\n";
+        for (size_t i = 0; i < measured->size(); ++i) {
+            const DialMeasurement& m = (*measured)[i];
+            dial << fmt::format("{:.4f},{},{},{},{:.6f},{:.6g},{},{}\n", m.point.resolutionScale,
+                                m.point.samplesPerFrame, m.point.maxDepth, int(m.point.denoise),
+                                m.frameSeconds, m.error,
+                                int(std::find(front.begin(), front.end(), i) != front.end()),
+                                int(chosen == i));
+        }
+        dial.close();
+        std::printf(
+            "\n## The dial: preview at %ux%u, target %.0f frames per second (RMSE of one frame "
+            "against a %u-spp reference)\n\n| point | ms per frame | fps | RMSE | |\n"
+            "|---|---|---|---|---|\n",
+            w, h, targetFps, dialReferenceSpp);
+        if (!chosen) {
+            std::printf("no grid point reaches %.0f fps on this machine\n", targetFps);
+        } else {
+            auto row = [&](size_t i, const char* note) {
+                const DialMeasurement& m = (*measured)[i];
+                std::printf("| %s | %.1f | %.1f | %.4f | %s |\n", m.point.describe().c_str(),
+                            m.frameSeconds * 1e3, 1.0 / m.frameSeconds, m.error, note);
+            };
+            row(*chosen, "**chosen**");
+            for (size_t n : gridNeighbours(*measured, *chosen, scales, samples, depths)) {
+                const DialMeasurement& m = (*measured)[n];
+                const DialMeasurement& c = (*measured)[*chosen];
+                const bool dominates = m.frameSeconds <= c.frameSeconds && m.error <= c.error;
+                row(n, dominates                          ? "DOMINATES the choice"
+                       : m.frameSeconds > 1.0 / targetFps ? "neighbour: over the frame budget"
+                                                          : "neighbour: less accurate");
+            }
+        }
+        std::printf("\nPareto front (fastest first):\n\n");
+        for (size_t i : front)
+            std::printf("- %s: %.1f ms, RMSE %.4f\n", (*measured)[i].point.describe().c_str(),
+                        (*measured)[i].frameSeconds * 1e3, (*measured)[i].error);
+    }
 
     if (!o.plotter.empty()) {
         benchProgress("trade: plots");

@@ -74,12 +74,14 @@ source "$root/bench/scenes/bench_scene.sh"
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 
-# previs render: prints the --timing total (seconds).
+# previs render: prints the --timing total (seconds). One random sequence (--no-meter): the
+# convergence meter's two interleaved sequences cost some stratification, and this compares
+# renderers at their fastest.
 previs_render() {  # scene env spp seed out
     local env_args=()
     [[ "$2" != none ]] && env_args=(--env "$2")
     "$previs" render "$1" "${env_args[@]}" --width $width --height $height --max-depth $depth \
-        --spp "$3" --seed "$4" --out "$5" --quiet --timing | sed -n 's/.*total_s=\([0-9.]*\).*/\1/p'
+        --spp "$3" --seed "$4" --out "$5" --no-meter --quiet --timing | sed -n 's/.*total_s=\([0-9.]*\).*/\1/p'
 }
 
 # Blender: renders every listed sample count in one session; prints "spp seconds" lines.
@@ -138,3 +140,8 @@ python3 "$root/bench/time_to_equal_error.py" "$csv"
 echo
 sed 's/^/- /' "$work/bias.txt"
 cp "$csv" "$cache/last_results.csv"
+# The two renderers' curves in one plot per scene (Debian's matplotlib; skipped without it).
+if /usr/bin/python3 -c 'import matplotlib' 2>/dev/null; then
+    /usr/bin/python3 "$root/bench/plot_trade.py" --blender "$csv" "$cache/compare_blender.png" &&
+        echo "- plot: $cache/compare_blender.png"
+fi

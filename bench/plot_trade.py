@@ -7,7 +7,8 @@
 From DIR: trade.csv → trade_rmse.png and trade_relmse.png (error against wall time, log-log,
 one line per setting), meter.png (the convergence meter's estimate against the true √relMSE);
 figure2_NNNN.png → figure2.png (the paper's figure 2: the composite after 1, 10, 100, 1000
-frames); resolution.csv → figure4.png (the paper's figure 4: time of a frame against pixels).
+frames); resolution.csv → figure4.png (the paper's figure 4: time of a frame against pixels);
+dial.csv → dial.png (every preview setting's time and error, the Pareto front, the choice).
 """
 import csv
 import glob
@@ -105,6 +106,32 @@ def figure4(rows, path):
     plt.close(fig)
 
 
+def dial_plot(rows, path):
+    """dial.csv: every preview setting's frame time against its error; the front and the choice."""
+    fig, ax = plt.subplots(figsize=(7, 5))
+    t = [1e3 * float(r["frame_seconds"]) for r in rows]
+    e = [float(r["rmse"]) for r in rows]
+    ax.scatter(t, e, s=14, color="0.6", label="grid points")
+    front = sorted((x, y) for x, y, r in zip(t, e, rows) if r["pareto"] == "1")
+    ax.plot([x for x, _ in front], [y for _, y in front], "-o", ms=4, label="Pareto front")
+    for x, y, r in zip(t, e, rows):
+        if r["chosen"] == "1":
+            ax.scatter([x], [y], s=120, facecolors="none", edgecolors="red", linewidths=2,
+                       label=f"chosen: 1/{1 / float(r['scale']):.3g} scale, {r['spp']} spp, "
+                             f"depth {r['max_depth']}")
+    ax.axvline(100.0, color="red", ls=":", label="10 fps budget")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("ms per preview frame (median)")
+    ax.set_ylabel("RMSE of one frame")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title("The dial: preview settings at 640x480")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
 def blender(csv_path, path):
     """compare_blender.sh's last_results.csv: scene,renderer,spp,seconds,rmse."""
     rows = read_csv(csv_path)
@@ -138,6 +165,9 @@ def main(argv):
                math.sqrt)
     meter_plot(rows, os.path.join(directory, "meter.png"))
     figure2(directory, os.path.join(directory, "figure2.png"))
+    dial = os.path.join(directory, "dial.csv")
+    if os.path.exists(dial):
+        dial_plot(read_csv(dial), os.path.join(directory, "dial.png"))
     resolution = os.path.join(directory, "resolution.csv")
     if os.path.exists(resolution):
         figure4(read_csv(resolution), os.path.join(directory, "figure4.png"))

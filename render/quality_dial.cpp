@@ -1,0 +1,94 @@
+#include "render/quality_dial.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+
+namespace previs {
+
+std::string DialPoint::describe() const {
+    return fmt::format("scale 1/{:.3g}, {} spp, depth {}{}", 1.0 / resolutionScale, samplesPerFrame,
+                       maxDepth, denoise ? ", denoised" : "");
+}
+
+std::vector<DialPoint> dialGrid(std::span<const float> scales, std::span<const uint32_t> samples,
+                                std::span<const uint32_t> depths, bool withDenoise) {
+    std::vector<DialPoint> grid;
+    for (float s : scales)
+        for (uint32_t n : samples)
+            for (uint32_t d : depths)
+                for (int denoise = 0; denoise <= int(withDenoise); ++denoise)
+                    grid.push_back({s, n, d, denoise == 1});
+    return grid;
+}
+
+namespace {
+
+bool dominates(const DialMeasurement& a, const DialMeasurement& b) {
+    return a.frameSeconds <= b.frameSeconds && a.error <= b.error &&
+           (a.frameSeconds < b.frameSeconds || a.error < b.error);
+}
+
+bool valid(const DialMeasurement& m) {
+    return std::isfinite(m.frameSeconds) && std::isfinite(m.error) && m.frameSeconds > 0.0 &&
+           m.error >= 0.0;
+}
+
+}  // namespace
+
+std::vector<size_t> paretoFront(std::span<const DialMeasurement> measurements) {
+    std::vector<size_t> front;
+    for (size_t i = 0; i < measurements.size(); ++i) {
+        if (!valid(measurements[i])) continue;
+        bool dominated = false;
+        for (size_t j = 0; j < measurements.size() && !dominated; ++j)
+            dominated =
+                j != i && valid(measurements[j]) && dominates(measurements[j], measurements[i]);
+        if (!dominated) front.push_back(i);
+    }
+    std::sort(front.begin(), front.end(), [&](size_t a, size_t b) {
+        return measurements[a].frameSeconds < measurements[b].frameSeconds;
+    });
+    return front;
+}
+
+std::optional<size_t> chooseForFrameRate(std::span<const DialMeasurement> measurements,
+                                         double targetFps) {
+    if (!(targetFps > 0.0)) return std::nullopt;
+    const double budget = 1.0 / targetFps;
+    std::optional<size_t> best;
+    for (size_t i = 0; i < measurements.size(); ++i) {
+        const DialMeasurement& m = measurements[i];
+        if (!valid(m) || m.frameSeconds > budget) continue;
+        // Ties in error go to the faster point, so the choice is never dominated.
+        if (!best || m.error < measurements[*best].error ||
+            (m.error == measurements[*best].error &&
+             m.frameSeconds < measurements[*best].frameSeconds))
+            best = i;
+    }
+    return best;
+}
+
+std::vector<size_t> gridNeighbours(std::span<const DialMeasurement> measurements, size_t chosen,
+                                   std::span<const float> scales, std::span<const uint32_t> samples,
+                                   std::span<const uint32_t> depths) {
+    auto indexIn = [](auto values, auto v) {
+        return std::find(values.begin(), values.end(), v) - values.begin();
+    };
+    const DialPoint& c = measurements[chosen].point;
+    std::vector<size_t> out;
+    for (size_t i = 0; i < measurements.size(); ++i) {
+        const DialPoint& p = measurements[i].point;
+        const long ds = std::labs(
+            long(indexIn(scales, p.resolutionScale) - indexIn(scales, c.resolutionScale)));
+        const long dn = std::labs(
+            long(indexIn(samples, p.samplesPerFrame) - indexIn(samples, c.samplesPerFrame)));
+        const long dd = std::labs(long(indexIn(depths, p.maxDepth) - indexIn(depths, c.maxDepth)));
+        const long dz = p.denoise != c.denoise;
+        if (ds + dn + dd + dz == 1) out.push_back(i);
+    }
+    return out;
+}
+
+}  // namespace previs

@@ -1,0 +1,99 @@
+// The dial's choosing (render/quality_dial.h): the Pareto front against a brute-force check on
+// random measurements, the choice for a frame rate, and the grid neighbours the bench reports.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <random>
+
+#include "render/quality_dial.h"
+
+namespace previs {
+namespace {
+
+const std::vector<float> kScales = {1.0f, 0.5f, 0.25f};
+const std::vector<uint32_t> kSamples = {1, 2, 4};
+const std::vector<uint32_t> kDepths = {2, 4};
+
+std::vector<DialMeasurement> randomMeasurements(std::mt19937& rng) {
+    std::uniform_real_distribution<double> time(0.01, 1.0), error(0.01, 1.0);
+    std::vector<DialMeasurement> m;
+    for (const DialPoint& p : dialGrid(kScales, kSamples, kDepths, false))
+        m.push_back({p, time(rng), error(rng)});
+    return m;
+}
+
+TEST(QualityDial, ParetoFrontIsExactlyTheUndominatedPoints) {
+    std::mt19937 rng(11);
+    for (int trial = 0; trial < 50; ++trial) {
+        const auto m = randomMeasurements(rng);
+        const auto front = paretoFront(m);
+        ASSERT_FALSE(front.empty());
+        for (size_t i = 0; i < m.size(); ++i) {
+            bool dominated = false;
+            for (size_t j = 0; j < m.size(); ++j)
+                dominated |= m[j].frameSeconds <= m[i].frameSeconds && m[j].error <= m[i].error &&
+                             (m[j].frameSeconds < m[i].frameSeconds || m[j].error < m[i].error);
+            const bool onFront = std::find(front.begin(), front.end(), i) != front.end();
+            EXPECT_EQ(onFront, !dominated) << "point " << i;
+        }
+        // Ordered by time, so errors fall along it.
+        for (size_t k = 1; k < front.size(); ++k) {
+            EXPECT_LT(m[front[k - 1]].frameSeconds, m[front[k]].frameSeconds);
+            EXPECT_GT(m[front[k - 1]].error, m[front[k]].error);
+        }
+    }
+}
+
+TEST(QualityDial, ChoiceFitsTheBudgetAndIsOnTheFront) {
+    std::mt19937 rng(12);
+    for (int trial = 0; trial < 50; ++trial) {
+        const auto m = randomMeasurements(rng);
+        const auto front = paretoFront(m);
+        for (double fps : {1.5, 3.0, 10.0, 50.0}) {
+            const auto chosen = chooseForFrameRate(m, fps);
+            bool anyFits = false;
+            for (const auto& x : m) anyFits |= x.frameSeconds <= 1.0 / fps;
+            ASSERT_EQ(chosen.has_value(), anyFits);
+            if (!chosen) continue;
+            EXPECT_LE(m[*chosen].frameSeconds, 1.0 / fps);
+            EXPECT_NE(std::find(front.begin(), front.end(), *chosen), front.end());
+            for (const auto& x : m) {
+                if (x.frameSeconds <= 1.0 / fps) {
+                    EXPECT_GE(x.error, m[*chosen].error);
+                }
+            }
+        }
+    }
+}
+
+// Unmeasurable points (a failed run: NaN or infinite) are never chosen nor on the front; no
+// frame rate or a zero one chooses nothing.
+TEST(QualityDial, InvalidMeasurementsAndTargetsAreRefused) {
+    std::vector<DialMeasurement> m = {
+        {{1.0f, 1, 2, false}, 0.05, 0.1},
+        {{0.5f, 1, 2, false}, std::nan(""), 0.01},
+        {{0.25f, 1, 2, false}, 0.01, std::numeric_limits<double>::infinity()}};
+    EXPECT_EQ(paretoFront(m), std::vector<size_t>{0});
+    EXPECT_EQ(chooseForFrameRate(m, 10.0), 0u);
+    EXPECT_FALSE(chooseForFrameRate(m, 0.0));
+    EXPECT_FALSE(chooseForFrameRate(m, std::nan("")));
+    EXPECT_FALSE(chooseForFrameRate(m, 1000.0));
+}
+
+// In the full grid a middle point has one neighbour per step along each axis.
+TEST(QualityDial, GridNeighboursAreOneStepAway) {
+    std::mt19937 rng(13);
+    const auto m = randomMeasurements(rng);
+    size_t middle = 0;
+    for (size_t i = 0; i < m.size(); ++i)
+        if (m[i].point.resolutionScale == 0.5f && m[i].point.samplesPerFrame == 2 &&
+            m[i].point.maxDepth == 2)
+            middle = i;
+    const auto n = gridNeighbours(m, middle, kScales, kSamples, kDepths);
+    EXPECT_EQ(n.size(), 2u + 2u + 1u);  // scale ±1, samples ±1, depth +1 (2 is the smallest)
+    for (size_t i : n) EXPECT_NE(i, middle);
+}
+
+}  // namespace
+}  // namespace previs
