@@ -64,6 +64,29 @@ RenderSettings baseSettings(uint32_t width, uint32_t height, uint32_t maxDepth) 
     return rs;
 }
 
+// The set filmed: the converged real-only solution is the plate, so the composite is what a
+// camera filming that set would see with the bunny added; and the converged composite.
+struct ConvergedSet {
+    ImageF plate, reference;
+};
+Result<ConvergedSet> convergedSet(GpuContext& ctx, const Scene& scene, uint32_t width,
+                                  uint32_t height, uint32_t maxDepth, uint32_t spp) {
+    auto created = Renderer::create(ctx, scene, baseSettings(width, height, maxDepth));
+    if (!created) return created.error();
+    Renderer& r = **created;
+    r.setSeed(0x5eed);
+    if (Status s = r.render(spp); !s) return s.error();
+    auto real = r.image(Aov::Real);
+    if (!real) return real.error();
+    ConvergedSet set;
+    set.plate = *real;
+    if (Status s = r.setPlate(set.plate, "the set's real-only render"); !s) return s.error();
+    auto composite = r.image(Aov::Composite);
+    if (!composite) return composite.error();
+    set.reference = std::move(*composite);
+    return set;
+}
+
 // The composite so far against the reference, and the meter.
 Result<TradePoint> measurePoint(const Renderer& r, const ImageF& reference, double seconds) {
     auto image = r.image(Aov::Composite);
@@ -240,26 +263,14 @@ int runTradeBench(const TradeBenchOptions& o) {
         "%ux%u, against a %u-spp reference at max depth %u (CSV and plots in %s)\n\n",
         width, height, referenceSpp, referenceDepth, o.outDir.string().c_str());
 
-    // The reference, and the plate: the converged real-only solution, so the composite is what
-    // a camera filming that set would see with the bunny added.
+    // The reference and the plate (convergedSet).
     benchProgress("trade: reference, {} spp", referenceSpp);
-    ImageF plate, reference;
-    {
-        auto created = Renderer::create(**ctx, scene, baseSettings(width, height, referenceDepth));
-        if (!created) return fail(created.error());
-        (*created)->setSeed(0x5eed);
-        if (Status s = (*created)->render(referenceSpp); !s) return fail(s.error());
-        auto real = (*created)->image(Aov::Real);
-        if (!real) return fail(real.error());
-        plate = *real;
-        if (Status s = (*created)->setPlate(plate, "the set's real-only render"); !s)
-            return fail(s.error());
-        auto composite = (*created)->image(Aov::Composite);
-        if (!composite) return fail(composite.error());
-        reference = *composite;
-        if (Status s = writeExr((o.outDir / "reference.exr").string(), reference); !s)
-            return fail(s.error());
-    }
+    auto set = convergedSet(**ctx, scene, width, height, referenceDepth, referenceSpp);
+    if (!set) return fail(set.error());
+    const ImageF& plate = set->plate;
+    const ImageF& reference = set->reference;
+    if (Status s = writeExr((o.outDir / "reference.exr").string(), reference); !s)
+        return fail(s.error());
 
     std::vector<TradeSetting> settings;
     for (uint32_t depth : {1u, 2u, 4u, 8u, 16u})
@@ -316,21 +327,10 @@ int runTradeBench(const TradeBenchOptions& o) {
         const uint32_t dialReferenceSpp = o.quick ? 32 : 128;
         const double targetFps = 10.0;
         benchProgress("trade: dial reference {}x{}, {} spp", w, h, dialReferenceSpp);
-        ImageF dialPlate, dialReference;
-        {
-            auto created = Renderer::create(**ctx, scene, baseSettings(w, h, referenceDepth));
-            if (!created) return fail(created.error());
-            (*created)->setSeed(0x5eed);
-            if (Status s = (*created)->render(dialReferenceSpp); !s) return fail(s.error());
-            auto real = (*created)->image(Aov::Real);
-            if (!real) return fail(real.error());
-            dialPlate = *real;
-            if (Status s = (*created)->setPlate(dialPlate, "the set's real-only render"); !s)
-                return fail(s.error());
-            auto composite = (*created)->image(Aov::Composite);
-            if (!composite) return fail(composite.error());
-            dialReference = *composite;
-        }
+        auto dialSet = convergedSet(**ctx, scene, w, h, referenceDepth, dialReferenceSpp);
+        if (!dialSet) return fail(dialSet.error());
+        const ImageF& dialPlate = dialSet->plate;
+        const ImageF& dialReference = dialSet->reference;
         const std::vector<float> scales = {1.0f, 0.5f, 1.0f / 3.0f, 0.25f};
         const std::vector<uint32_t> samples = {1, 2, 4};
         const std::vector<uint32_t> depths = {2, 4, 8};
