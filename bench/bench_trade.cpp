@@ -192,46 +192,6 @@ Result<std::vector<std::pair<std::string, double>>> measureResolutions(
     return out;
 }
 
-// The dial at the preview's output size: every grid point's median frame time (render, read
-// back, upsample, composite: what a preview frame costs before display) and the RMSE of one such
-// frame against the converged composite.
-Result<std::vector<DialMeasurement>> measureDial(GpuContext& ctx, const Scene& scene,
-                                                 uint32_t width, uint32_t height,
-                                                 const ImageF& plate, const ImageF& reference,
-                                                 std::span<const DialPoint> grid, int reps) {
-    std::vector<DialMeasurement> out;
-    std::unique_ptr<Renderer> renderer;
-    uint32_t depth = 0;
-    for (const DialPoint& p : grid) {
-        benchProgress("trade: dial, {}", p.describe());
-        if (!renderer || depth != p.maxDepth) {
-            auto created = Renderer::create(ctx, scene, baseSettings(width, height, p.maxDepth));
-            if (!created) return created.error();
-            renderer = std::move(*created);
-            depth = p.maxDepth;
-            if (Status s = renderer->setPlate(plate, "the set's real-only render"); !s)
-                return s.error();
-        }
-        Renderer& r = *renderer;
-        if (Status s = r.setResolutionScale(p.resolutionScale); !s) return s.error();
-        if (Status s = r.renderPreviewFrame(p.samplesPerFrame); !s) return s.error();  // warm
-        std::vector<double> times;
-        std::optional<ImageF> frame;
-        for (int i = 0; i < reps; ++i) {
-            const auto start = Clock::now();
-            if (Status s = r.renderPreviewFrame(p.samplesPerFrame); !s) return s.error();
-            auto image = r.image(Aov::Composite);
-            if (!image) return image.error();
-            times.push_back(secondsSince(start));
-            frame = std::move(*image);
-        }
-        auto difference = compareImages(*frame, reference);
-        if (!difference) return difference.error();
-        out.push_back({p, median(times), difference->rmse});
-    }
-    return out;
-}
-
 }  // namespace
 
 int runTradeBench(const TradeBenchOptions& o) {
@@ -337,8 +297,13 @@ int runTradeBench(const TradeBenchOptions& o) {
         // The denoiser is left out: it takes about 1 s a 640×480 frame on lavapipe and is
         // refused below scale 1 (BENCHMARKS.md, "Issue 10: denoiser").
         const std::vector<DialPoint> grid = dialGrid(scales, samples, depths, false);
-        auto measured = measureDial(**ctx, scene, w, h, dialPlate, dialReference, grid,
-                                    o.quick ? 1 : o.repetitions);
+        benchProgress("trade: dial, {} settings at {}x{}", grid.size(), w, h);
+        auto dialRenderer = Renderer::create(**ctx, scene, baseSettings(w, h, referenceDepth));
+        if (!dialRenderer) return fail(dialRenderer.error());
+        if (Status s = (*dialRenderer)->setPlate(dialPlate, "the set's real-only render"); !s)
+            return fail(s.error());
+        auto measured =
+            measureDial(**dialRenderer, grid, dialReference, o.quick ? 1 : o.repetitions);
         if (!measured) return fail(measured.error());
         const std::vector<size_t> front = paretoFront(*measured);
         const std::optional<size_t> chosen = chooseForFrameRate(*measured, targetFps);

@@ -1,5 +1,6 @@
 #include "daemon/pipeline_renderer.h"
 
+#include <chrono>
 #include <opencv2/imgproc.hpp>
 
 #include "base/log.h"
@@ -95,7 +96,69 @@ Result<std::unique_ptr<PipelineRenderer>> PipelineRenderer::create(GpuContext& c
     Result<std::unique_ptr<Renderer>> renderer = Renderer::create(ctx, scene, settings);
     if (!renderer) return makeError("{}: {}", config.scenePath, renderer.message());
     p->renderer_ = std::move(*renderer);
+    p->previewDepth_ = p->refineDepth_ = config.render.maxDepth;
+    p->seed_ = config.render.seed;
+    if (config.render.previewFps > 0.0)
+        if (Status s = p->chooseByDial(config.render.previewFps); !s) return s.error();
     return p;
+}
+
+Status PipelineRenderer::chooseByDial(double fps) {
+    // Samples of the reference: its noise adds the same expected squared error to every point,
+    // so it orders them as a converged one would, at a few seconds' cost.
+    constexpr uint32_t kReferenceSpp = 16;
+    const auto start = std::chrono::steady_clock::now();
+    Renderer& r = *renderer_;
+    ImageF grey;
+    grey.width = width_;
+    grey.height = height_;
+    grey.channels = 3;
+    grey.pixels.assign(size_t(width_) * height_ * 3, 0.18f);
+    if (Status s = r.setPlate(std::move(grey), "the dial's grey plate"); !s) return s;
+    if (Status s = r.setResolutionScale(1.0f); !s) return s;
+    r.setMaxDepth(refineDepth_);
+    if (Status s = r.reset(); !s) return s;
+    // A sequence of its own: with preview's, a preview frame's samples would be the first of
+    // the reference's and look closer to it than they are.
+    r.setSeed(seed_ ^ 0x9e3779b9u);
+    if (Status s = r.render(kReferenceSpp); !s) return s;
+    r.setSeed(seed_);
+    Result<ImageF> reference = r.image(Aov::Composite);
+    if (!reference) return reference.error();
+    const std::vector<float> scales = {1.0f, 0.5f, 1.0f / 3.0f, 0.25f};
+    const std::vector<uint32_t> samples = {1, 2, 4};
+    std::vector<uint32_t> depths;
+    for (uint32_t d : {2u, 4u, 8u})
+        if (d <= refineDepth_) depths.push_back(d);
+    if (depths.empty()) depths.push_back(refineDepth_);
+    Result<std::vector<DialMeasurement>> measured =
+        measureDial(r, dialGrid(scales, samples, depths, false), *reference, 2);
+    if (!measured) return measured.error();
+    dial_ = std::move(*measured);
+    dialChoice_ = chooseForFrameRate(dial_, fps);
+    size_t chosen = 0;
+    if (dialChoice_) {
+        chosen = *dialChoice_;
+    } else {
+        // None fits: the fastest, and say so.
+        for (size_t i = 1; i < dial_.size(); ++i)
+            if (dial_[i].frameSeconds < dial_[chosen].frameSeconds) chosen = i;
+        logWarning(
+            "render: no preview setting reaches {:.1f} fps on this scene and device; the "
+            "fastest, {}, takes {:.0f} ms a frame (lower render.preview_fps or the render size)",
+            fps, dial_[chosen].point.describe(), dial_[chosen].frameSeconds * 1e3);
+    }
+    const DialMeasurement& m = dial_[chosen];
+    previewSamples_ = m.point.samplesPerFrame;
+    previewResolutionScale_ = m.point.resolutionScale;
+    previewDepth_ = m.point.maxDepth;
+    logInfo(
+        "render: preview at {:.1f} fps: {} ({:.0f} ms a frame here; {} settings timed in {:.1f} s)",
+        fps, m.point.describe(), m.frameSeconds * 1e3, dial_.size(),
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+    r.setMaxDepth(refineDepth_);
+    if (Status s = r.setResolutionScale(1.0f); !s) return s;
+    return r.reset();
 }
 
 Status PipelineRenderer::prepare(const TrackedFrame& tracked,
@@ -142,6 +205,7 @@ Status PipelineRenderer::renderPreview(const TrackedFrame& frame,
     if (!rendered_) return {};
     // Nothing happens unless the traced size changes (entering preview from refinement).
     if (Status s = renderer_->setResolutionScale(previewResolutionScale_); !s) return s;
+    renderer_->setMaxDepth(previewDepth_);
     return renderer_->renderPreviewFrame(previewSamples_);
 }
 
@@ -151,6 +215,7 @@ Status PipelineRenderer::beginRefine(const TrackedFrame& frame,
     if (!rendered_) return {};
     // Refinement converges to the full-resolution image: every pixel traced.
     if (Status s = renderer_->setResolutionScale(1.0f); !s) return s;
+    renderer_->setMaxDepth(refineDepth_);
     return renderer_->reset();
 }
 

@@ -15,6 +15,7 @@
 #include "daemon/service_config.h"
 #include "gpu/context.h"
 #include "image/image.h"
+#include "render/quality_dial.h"
 #include "render/renderer.h"
 #include "render/tonemap.h"
 #include "scene/scene.h"
@@ -48,12 +49,21 @@ public:
     uint32_t height() const { return height_; }
     uint32_t previewSamples() const { return previewSamples_; }
     void setPreviewSamples(uint32_t spp) { previewSamples_ = spp; }
+    float previewResolutionScale() const { return previewResolutionScale_; }
+    uint32_t previewMaxDepth() const { return previewDepth_; }
+    // What the dial ([render] preview_fps) measured and chose at start; empty without it.
+    const std::vector<DialMeasurement>& dialMeasurements() const { return dial_; }
+    std::optional<size_t> dialChoice() const { return dialChoice_; }
     // Whether the last frame rendered the virtual objects (false before the first pose).
     bool rendered() const { return rendered_; }
     Renderer& renderer() { return *renderer_; }
 
 private:
     PipelineRenderer() = default;
+    // [render] preview_fps: times every preview setting on the scene (its own camera, a grey
+    // plate) and scores it against a short full-resolution reference, then takes the most
+    // accurate one that reaches `fps` (render/quality_dial.h).
+    Status chooseByDial(double fps);
     // Plate, pose and lighting for the next samples.
     Status prepare(const TrackedFrame& frame, const std::shared_ptr<const LiveLighting>& lighting);
 
@@ -62,6 +72,11 @@ private:
     uint32_t height_ = 0;
     uint32_t previewSamples_ = 1;
     float previewResolutionScale_ = 1.0f;  // refinement traces every pixel
+    uint32_t previewDepth_ = 8;            // refinement traces refineDepth_
+    uint32_t refineDepth_ = 8;
+    uint32_t seed_ = 0;  // [render] seed: preview's fixed sequence
+    std::vector<DialMeasurement> dial_;
+    std::optional<size_t> dialChoice_;
     InverseToneMapSettings radiometry_;
     ToneMapSettings display_;
     std::array<float, 3> whiteBalance_{1.0f, 1.0f, 1.0f};

@@ -506,8 +506,10 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config, bo
         PipelineRenderer::create(*t.gpu, *scene, config);
     if (!renderer) return renderer.error();
     t.renderer = std::move(*renderer);
+    // With [render] preview_fps the dial chose the preview's samples (PipelineRenderer).
+    t.previewSamples = t.renderer->previewSamples();
     logInfo("render: {}x{} on {}, {} spp per preview frame", t.renderer->width(),
-            t.renderer->height(), t.gpu->deviceName(), config.render.samplesPerFrame);
+            t.renderer->height(), t.gpu->deviceName(), t.previewSamples);
 
     Result<TrackingStage> tracking = TrackingStage::create(config);
     if (!tracking) return tracking.error();
@@ -686,7 +688,8 @@ void Service::reload() {
     {
         std::lock_guard lock(threads_->settingsMutex);
         threads_->refine = n.refine;
-        threads_->previewSamples = n.render.samplesPerFrame;
+        // The dial's choice stands while preview_fps is set.
+        if (n.render.previewFps <= 0.0) threads_->previewSamples = n.render.samplesPerFrame;
     }
     // What the running pipeline cannot take without a restart.
     std::vector<std::string> restart;
@@ -704,8 +707,10 @@ void Service::reload() {
     if (n.lighting.mode != config_.lighting.mode) restart.push_back("lighting");
     if (n.render.width != config_.render.width || n.render.height != config_.render.height ||
         n.render.maxDepth != config_.render.maxDepth || n.render.seed != config_.render.seed ||
-        !(n.render.photons == config_.render.photons))
-        restart.push_back("render (size, max_depth, seed, photons)");
+        !(n.render.photons == config_.render.photons) ||
+        n.render.previewFps != config_.render.previewFps ||
+        n.render.resolutionScale != config_.render.resolutionScale)
+        restart.push_back("render (size, max_depth, seed, photons, preview_fps, resolution_scale)");
     if (n.output.kind != config_.output.kind || n.output.folder != config_.output.folder ||
         n.output.card != config_.output.card || n.output.connector != config_.output.connector ||
         n.output.mode != config_.output.mode)
@@ -716,8 +721,10 @@ void Service::reload() {
         restart.push_back("button");
     if (controlSocketPath(n.control) != controlSocketPath(config_.control))
         restart.push_back("control");
-    logInfo("reload: {}: applied [refine] and render.samples_per_frame = {}{}", config_.path,
-            n.render.samplesPerFrame,
+    logInfo("reload: {}: applied [refine]{}{}", config_.path,
+            n.render.previewFps <= 0.0
+                ? fmt::format(" and render.samples_per_frame = {}", n.render.samplesPerFrame)
+                : std::string(" (render.preview_fps keeps the dial's samples per frame)"),
             restart.empty()
                 ? std::string()
                 : fmt::format("; these need a restart to apply: {}", fmt::join(restart, ", ")));

@@ -96,6 +96,11 @@ struct RenderConfig {
     // Preview traces this fraction of the width and height and upsamples it guided by the plate
     // (RenderSettings::resolutionScale); refinement always traces every pixel. (0, 1].
     float resolutionScale = 1.0f;
+    // The dial (render/quality_dial.h): a preview frame rate to reach. When set (> 0) the
+    // service times every preview setting on the scene at start and picks the most accurate one
+    // that fits — samples per frame, resolution scale and max depth (≤ max_depth) — in place of
+    // samples_per_frame and resolution_scale. 0 = off.
+    double previewFps = 0.0;
     // Caustics (render/photon_map.h): mode and photons per iteration, first radius, alpha.
     PhotonSettings photons;
 };

@@ -3,7 +3,10 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+
+#include "render/renderer.h"
 
 namespace previs {
 
@@ -87,6 +90,42 @@ std::vector<size_t> gridNeighbours(std::span<const DialMeasurement> measurements
         const long dd = std::labs(long(indexIn(depths, p.maxDepth) - indexIn(depths, c.maxDepth)));
         const long dz = p.denoise != c.denoise;
         if (ds + dn + dd + dz == 1) out.push_back(i);
+    }
+    return out;
+}
+
+Result<std::vector<DialMeasurement>> measureDial(Renderer& renderer,
+                                                 std::span<const DialPoint> grid,
+                                                 const ImageF& reference, int reps) {
+    using Clock = std::chrono::steady_clock;
+    std::vector<DialMeasurement> out;
+    for (const DialPoint& p : grid) {
+        renderer.setMaxDepth(p.maxDepth);
+        if (Status s = renderer.setResolutionScale(p.resolutionScale); !s) return s.error();
+        // A first frame unmeasured: it may allocate (a new traced size) or size dispatches.
+        if (Status s = renderer.renderPreviewFrame(p.samplesPerFrame); !s) return s.error();
+        std::vector<double> times;
+        std::optional<ImageF> frame;
+        for (int i = 0; i < std::max(1, reps); ++i) {
+            const auto start = Clock::now();
+            if (Status s = renderer.renderPreviewFrame(p.samplesPerFrame); !s) return s.error();
+            auto image = renderer.image(Aov::Composite);
+            if (!image) return image.error();
+            times.push_back(std::chrono::duration<double>(Clock::now() - start).count());
+            frame = std::move(*image);
+        }
+        if (frame->pixels.size() != reference.pixels.size())
+            return makeError("the dial's reference is {}x{}; the frames are {}x{}", reference.width,
+                             reference.height, frame->width, frame->height);
+        double squares = 0.0;
+        for (size_t i = 0; i < frame->pixels.size(); ++i) {
+            const double d = double(frame->pixels[i]) - reference.pixels[i];
+            squares += d * d;
+        }
+        std::sort(times.begin(), times.end());
+        const size_t n = times.size();
+        const double median = n % 2 ? times[n / 2] : 0.5 * (times[n / 2 - 1] + times[n / 2]);
+        out.push_back({p, median, std::sqrt(squares / double(frame->pixels.size()))});
     }
     return out;
 }

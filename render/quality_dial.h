@@ -2,14 +2,18 @@
 
 // The speed ⇄ accuracy dial: the settings a preview frame can be rendered with, their measured
 // cost and error, the Pareto front among them, and the point one setting — a target frame rate
-// — selects. The measuring is the caller's (bench/bench_trade.cpp measures cost on the scene
-// and error against a reference); this is the choosing, kept apart so it is tested on its own.
+// — selects. measureDial times each point on the scene itself and scores it against a reference
+// (bench/bench_trade.cpp: a converged one; the service: a short one, which adds the same noise
+// to every point's expected squared error and so leaves their order as it is).
 
 #include <cstdint>
 #include <optional>
 #include <span>
 #include <string>
 #include <vector>
+
+#include "base/result.h"
+#include "image/image.h"
 
 namespace previs {
 
@@ -48,5 +52,15 @@ std::optional<size_t> chooseForFrameRate(std::span<const DialMeasurement> measur
 std::vector<size_t> gridNeighbours(std::span<const DialMeasurement> measurements, size_t chosen,
                                    std::span<const float> scales, std::span<const uint32_t> samples,
                                    std::span<const uint32_t> depths);
+
+class Renderer;
+
+// Measures every point of `grid` on `renderer` (its scene, plate, pose and lighting as they
+// are): the median wall time of `reps` preview frames (render, read back, upsample, composite)
+// and the RMSE of the last one against `reference` (the output's size). Leaves the renderer at
+// the last point's settings.
+Result<std::vector<DialMeasurement>> measureDial(Renderer& renderer,
+                                                 std::span<const DialPoint> grid,
+                                                 const ImageF& reference, int reps);
 
 }  // namespace previs

@@ -749,6 +749,12 @@ Status Renderer::setResolutionScale(float scale) {
     return reset();
 }
 
+void Renderer::setMaxDepth(uint32_t maxDepth) {
+    settings_.maxDepth = std::max(1u, maxDepth);
+    params_.maxDepth = settings_.maxDepth;
+    params_.photonMaxBounces = std::min(settings_.maxDepth, kMaxPhotonBounces + 1u) - 1u;
+}
+
 Status Renderer::reset() {
     samples_ = 0;
     gpuMs_ = 0.0;

@@ -204,6 +204,11 @@ public:
     // How image() brings a traced buffer to the output size (resolution scale < 1).
     UpsampleSettings& upsampleSettings() { return upsample_; }
 
+    // The most scattering events on a path for the next renders (RenderSettings::maxDepth; the
+    // preview can trace shorter paths than refinement). Call reset() before refining on.
+    void setMaxDepth(uint32_t maxDepth);
+    uint32_t maxDepth() const { return params_.maxDepth; }
+
     // Selects another random sequence (takes effect with the next render; call reset() first
     // unless the new samples are meant to join the old ones).
     void setSeed(uint32_t seed) { params_.seed = seed; }

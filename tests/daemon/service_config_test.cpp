@@ -285,6 +285,9 @@ position_m = [1, 0, 0]
         {"render_resolution_scale_above_one",
          minimal("", "[render]\nresolution_scale = 1.5"),
          {"'render.resolution_scale' is 1.5"}},
+        {"render_preview_fps_negative",
+         minimal("", "[render]\npreview_fps = -1"),
+         {"'render.preview_fps' is -1"}},
         {"refine_negative",
          minimal("", "[refine]\npose_threshold_m = -1"),
          {"'refine.pose_threshold_m' is -1"}},
@@ -332,6 +335,7 @@ preview_photons = 4096
 photon_radius_m = 0.004
 photon_alpha = 0.75
 resolution_scale = 0.3333
+preview_fps = 12.5
 [refine]
 samples_per_step = 8
 max_samples = 0
@@ -362,6 +366,7 @@ loop = false
     EXPECT_FLOAT_EQ(c->render.photons.initialRadius, 0.004f);
     EXPECT_FLOAT_EQ(c->render.photons.alpha, 0.75f);
     EXPECT_FLOAT_EQ(c->render.resolutionScale, 0.3333f);
+    EXPECT_DOUBLE_EQ(c->render.previewFps, 12.5);
     EXPECT_EQ(c->refine.samplesPerStep, 8u);
     EXPECT_EQ(c->refine.maxSamples, 0u);
     EXPECT_DOUBLE_EQ(c->refine.poseThresholdDeg, 1.5);
