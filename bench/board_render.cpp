@@ -263,6 +263,7 @@ Result<BoardRenderer> BoardRenderer::create(GpuContext& ctx, const TagBoard& boa
     // emitted radiance (the albedo) and no light sampling or bounce is traced for nothing.
     settings.maxDepth = 0;
     settings.samplesPerDispatch = spp;  // one dispatch per image
+    settings.convergenceMeter = false;  // one sequence: nothing reads a noise estimate here
     auto grid = lensRayGrid(calibration, settings.width, settings.height);
     if (!grid) return grid.error();
     settings.lensGrid = std::move(grid).value();

@@ -153,7 +153,7 @@ Status PipelineRenderer::chooseByDial(double fps) {
     previewResolutionScale_ = m.point.resolutionScale;
     previewDepth_ = m.point.maxDepth;
     logInfo(
-        "render: preview at {:.1f} fps: {} ({:.0f} ms a frame here; {} settings timed in {:.1f} s)",
+        "render: preview at {:.3g} fps: {} ({:.0f} ms a frame here; {} settings timed in {:.1f} s)",
         fps, m.point.describe(), m.frameSeconds * 1e3, dial_.size(),
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
     r.setMaxDepth(refineDepth_);

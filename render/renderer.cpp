@@ -530,7 +530,7 @@ Status Renderer::buildScene(const Scene& scene) {
     p.width = settings_.width;
     p.height = settings_.height;
     p.seed = settings_.seed;
-    p.replicates = settings_.convergenceMeter ? 2u : 1u;  // shared/sampler.h
+    p.replicates = 1u;  // set per accumulation by render() (shared/sampler.h)
     p.maxDepth = settings_.maxDepth;
     p.lightCount = uint32_t(lights.size());
     p.emissiveTriangleCount = uint32_t(emissive.size());
@@ -757,6 +757,7 @@ void Renderer::setMaxDepth(uint32_t maxDepth) {
 
 Status Renderer::reset() {
     samples_ = 0;
+    accumulationReplicates_ = 0;
     gpuMs_ = 0.0;
     photonMs_ = 0.0;
     for (int b : {PV_BINDING_ACCUM_SUM, PV_BINDING_ACCUM_COMPENSATION, PV_BINDING_STATS,
@@ -773,6 +774,9 @@ Status Renderer::renderPreviewFrame(uint32_t spp) {
     const uint32_t full = params_.photonCount;
     params_.photonCount =
         std::min(full, (settings_.photons.previewPerIteration + 127u) / 128u * 128u);
+    // One random sequence: a preview frame reports no noise estimate, so it keeps all of the
+    // sampler's stratification (the convergence meter's replicates are refinement's).
+    accumulationReplicates_ = 1;
     Status s = render(spp);
     params_.photonCount = full;
     return s;
@@ -800,6 +804,11 @@ Status Renderer::render(uint32_t samples,
     const std::optional<glm::dvec3> origin = renderOriginFor(cameraM);
     if (origin && std::max({away.x, away.y, away.z}) > kRecentreDistanceM)
         if (Status s = recentre(*origin); !s) return s;
+    // The accumulation keeps the sequence layout it started with (a refinement continuing a
+    // preview frame stays one sequence: its samples never repeat one another).
+    if (accumulationReplicates_ == 0)
+        accumulationReplicates_ = settings_.convergenceMeter ? 2u : 1u;
+    params_.replicates = accumulationReplicates_;
     uint32_t done = 0;
     while (done < samples) {
         const uint32_t n = samplesForNextDispatch(samples - done);

@@ -140,7 +140,8 @@ public:
     Status reset();
     // Preview mode (the paper's interactive mode): one frame of `spp` samples per pixel that
     // replaces the previous one, drawn with the same random sequence every frame so the noise
-    // stays put while the camera, plate or lighting change (temporal coherence).
+    // stays put while the camera, plate or lighting change (temporal coherence). One sequence,
+    // without the convergence meter's replicates: convergence() says nothing after it.
     Status renderPreviewFrame(uint32_t spp);
     // Refinement mode: adds `spp` more samples to the accumulation, continuing the sequence, so
     // the image converges frame after frame (exact over millions of samples).
@@ -344,6 +345,9 @@ private:
     uint64_t plateValuesRepaired_ = 0;
     uint64_t samples_ = 0;
     uint32_t bandRows_ = 0;  // rows per dispatch: the storage-buffer range limits it
+    // The accumulation's interleaved sequences (shared/sampler.h): 2 with the convergence meter,
+    // 1 for preview frames; 0 until its first sample.
+    uint32_t accumulationReplicates_ = 0;
     double gpuMs_ = 0.0;
     double loopIterationsPerSample_ = 0.0;  // the most one lane ran per sample, measured
     uint64_t loopLimitRisks_ = 0;

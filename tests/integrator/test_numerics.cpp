@@ -134,10 +134,12 @@ TEST_F(NumericsTest, NanRaysAreCulledCountedAndDropped) {
     for (float v : image->pixels) ASSERT_EQ(v, 0.0f);
     if (ctx().isCpuDevice()) {
         // Loop iterations are counted on the CPU device only. A ray that walks the BVH runs at
-        // least one iteration per node; a culled one a handful per sample.
+        // least one iteration per node; a culled one a handful per sample, on top of the
+        // dispatch's fixed loops over the accumulation slots (initialise and write back).
         const size_t nodes = (*r)->bvh().wideNodes.size();
         ASSERT_GT(nodes, size_t(100));
-        EXPECT_LT((*r)->loopIterationsPerSample(), 16.0) << nodes << " BVH nodes";
+        const double fixedLoops = 2.0 * PV_ACCUM_COUNT;
+        EXPECT_LT((*r)->loopIterationsPerSample(), fixedLoops + 10.0) << nodes << " BVH nodes";
     }
 }
 

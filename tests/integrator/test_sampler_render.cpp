@@ -35,6 +35,9 @@ RenderSettings settingsFor(Sampler sampler) {
     rs.maxDepth = 4;
     rs.samplesPerDispatch = 64;
     rs.sampler = sampler;
+    // One sequence: the generators' own stratification is what is compared (the convergence
+    // meter's two interleaved replicates give some of it up: BENCHMARKS.md, issue 10).
+    rs.convergenceMeter = false;
     return rs;
 }
 
