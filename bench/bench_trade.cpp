@@ -41,8 +41,10 @@ double median(std::vector<double> v) {
 // One line of settings the trade is measured under.
 struct TradeSetting {
     std::string name;  // e.g. "refinement depth 8"
-    std::string mode;  // "refinement" or "preview"
+    std::string mode;  // "refinement" (samples accumulate) or "preview" (each point one frame)
     uint32_t maxDepth = 8;
+    float resolutionScale = 1.0f;
+    bool denoise = false;  // each point's image denoised (its filter time counted)
 };
 
 // One measured point of a curve.
@@ -87,10 +89,14 @@ Result<ConvergedSet> convergedSet(GpuContext& ctx, const Scene& scene, uint32_t 
     return set;
 }
 
-// The composite so far against the reference, and the meter.
-Result<TradePoint> measurePoint(const Renderer& r, const ImageF& reference, double seconds) {
-    auto image = r.image(Aov::Composite);
+// The composite so far (denoised when asked, its filter time added to `seconds`) against the
+// reference, and the meter.
+Result<TradePoint> measurePoint(Renderer& r, const ImageF& reference, double seconds,
+                                bool denoise) {
+    const auto start = Clock::now();
+    auto image = r.image(Aov::Composite, denoise);
     if (!image) return image.error();
+    if (denoise) seconds += secondsSince(start);
     auto difference = compareImages(*image, reference);
     if (!difference) return difference.error();
     auto meter = r.convergence();
@@ -104,13 +110,16 @@ Result<TradePoint> measurePoint(const Renderer& r, const ImageF& reference, doub
     return p;
 }
 
-// Progressive rendering to `maxSpp`, a point at every power of two (and at the figure-2 frame
-// counts when `frames` is set, whose composites are written as PNGs).
+// A point at every power of two up to `maxSpp`. Refinement: one progressive render, time
+// accumulating (and the figure-2 frame counts in `frames` written as PNGs). Preview: each point
+// a preview frame of that many samples on its own, timed alone.
 Result<std::vector<TradePoint>> measureCurve(GpuContext& ctx, const Scene& scene,
-                                             const RenderSettings& rs, const ImageF& plate,
-                                             const ImageF& reference, uint32_t maxSpp,
-                                             const std::vector<uint32_t>& frames,
+                                             const TradeSetting& setting, RenderSettings rs,
+                                             const ImageF& plate, const ImageF& reference,
+                                             uint32_t maxSpp, const std::vector<uint32_t>& frames,
                                              const std::filesystem::path& frameStem) {
+    rs.resolutionScale = setting.resolutionScale;
+    rs.denoise = setting.denoise;
     auto created = Renderer::create(ctx, scene, rs);
     if (!created) return created.error();
     Renderer& r = **created;
@@ -118,17 +127,23 @@ Result<std::vector<TradePoint>> measureCurve(GpuContext& ctx, const Scene& scene
     // Warm-up: the first dispatch also sizes dispatches to the CPU loop limit.
     if (Status s = r.render(1); !s) return s.error();
     if (Status s = r.reset(); !s) return s.error();
+    const bool preview = setting.mode == "preview";
     std::vector<uint32_t> stops;
     for (uint32_t n = 1; n <= maxSpp; n *= 2) stops.push_back(n);
-    stops.insert(stops.end(), frames.begin(), frames.end());
+    if (!preview) stops.insert(stops.end(), frames.begin(), frames.end());
     std::sort(stops.begin(), stops.end());
     stops.erase(std::unique(stops.begin(), stops.end()), stops.end());
     std::vector<TradePoint> curve;
     double seconds = 0.0;
     for (uint32_t stop : stops) {
         const auto start = Clock::now();
-        if (Status s = r.render(uint32_t(stop - r.samplesPerPixel())); !s) return s.error();
-        seconds += secondsSince(start);
+        if (preview) {
+            if (Status s = r.renderPreviewFrame(stop); !s) return s.error();
+            seconds = secondsSince(start);
+        } else {
+            if (Status s = r.render(uint32_t(stop - r.samplesPerPixel())); !s) return s.error();
+            seconds += secondsSince(start);
+        }
         if (std::find(frames.begin(), frames.end(), stop) != frames.end()) {
             auto image = r.image(Aov::Composite);
             if (!image) return image.error();
@@ -139,7 +154,7 @@ Result<std::vector<TradePoint>> measureCurve(GpuContext& ctx, const Scene& scene
                 return s.error();
         }
         if ((stop & (stop - 1)) != 0) continue;  // a figure-2 frame only
-        auto point = measurePoint(r, reference, seconds);
+        auto point = measurePoint(r, reference, seconds, setting.denoise);
         if (!point) return point.error();
         curve.push_back(*point);
     }
@@ -235,25 +250,31 @@ int runTradeBench(const TradeBenchOptions& o) {
     std::vector<TradeSetting> settings;
     for (uint32_t depth : {1u, 2u, 4u, 8u, 16u})
         settings.push_back({fmt::format("refinement depth {}", depth), "refinement", depth});
+    settings.push_back({"refinement depth 8 denoised", "refinement", 8, 1.0f, true});
+    // Preview frames: the fixed sequence, each point one frame; at full resolution and at the
+    // dial's 640×480 choice (BENCHMARKS.md), a third of it upsampled.
     settings.push_back({"preview depth 2", "preview", 2});
+    settings.push_back({"preview depth 2 scale 1/3", "preview", 2, 1.0f / 3.0f});
     const std::vector<uint32_t> figure2Frames =
         o.quick ? std::vector<uint32_t>{1, 10} : std::vector<uint32_t>{1, 10, 100, 1000};
 
     std::ofstream csv(o.outDir / "trade.csv");
-    csv << "setting,mode,width,height,max_depth,spp,seconds,rmse,relmse,noise_estimate\n";
+    csv << "setting,mode,width,height,max_depth,resolution_scale,denoise,spp,seconds,rmse,relmse,"
+           "noise_estimate\n";
     std::printf("| setting | spp | seconds | RMSE | √relMSE | meter's estimate |\n");
     std::printf("|---|---|---|---|---|---|\n");
     for (const TradeSetting& s : settings) {
         benchProgress("trade: {}", s.name);
         const bool figure2 = s.mode == "refinement" && s.maxDepth == 8;
         auto curve = measureCurve(
-            **ctx, scene, baseSettings(width, height, s.maxDepth), plate, reference, maxSpp,
-            figure2 ? figure2Frames : std::vector<uint32_t>{}, o.outDir / "figure2");
+            **ctx, scene, s, baseSettings(width, height, s.maxDepth), plate, reference, maxSpp,
+            figure2 && !s.denoise ? figure2Frames : std::vector<uint32_t>{}, o.outDir / "figure2");
         if (!curve) return fail(curve.error());
         for (const TradePoint& p : *curve) {
-            csv << fmt::format("{},{},{},{},{},{},{:.6f},{:.6g},{:.6g},{:.6g}\n", s.name, s.mode,
-                               width, height, s.maxDepth, p.spp, p.seconds, p.rmse, p.relMse,
-                               p.noiseEstimate);
+            // (Setting names hold no comma.)
+            csv << fmt::format("{},{},{},{},{},{:.4f},{},{},{:.6f},{:.6g},{:.6g},{:.6g}\n", s.name,
+                               s.mode, width, height, s.maxDepth, s.resolutionScale, int(s.denoise),
+                               p.spp, p.seconds, p.rmse, p.relMse, p.noiseEstimate);
             if ((p.spp & 0x55555555u) != 0 || p.spp == 1)  // 1, 4, 16, 64, 256, 1024
                 std::printf(
                     "| %s | %llu | %.3f | %.4f | %.4f | %s |\n", s.name.c_str(),

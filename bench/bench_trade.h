@@ -5,8 +5,12 @@
 // converged real-only render), it renders progressively from 1 to 1024 samples per pixel under
 // several settings and records, at every power of two, the wall time, the RMSE and relMSE
 // (DESIGN §4) against a long reference, and the convergence meter's estimate:
-//   - refinement settings at max depth 1, 2, 4, 8 and 16 (depth's bias shows as a floor);
-//   - preview settings (a short depth), the fixed-sequence frame the service shows live;
+//   - refinement settings at max depth 1, 2, 4, 8 and 16 (depth's bias shows as a floor), and
+//     at depth 8 denoised (each point's filter time counted);
+//   - preview settings (depth 2, at full resolution and at a third upsampled): each point one
+//     fixed-sequence frame of that many samples, the frame the service shows live;
+//   - the dial at 640×480: 36 preview settings' frame time and error, the Pareto front, the
+//     choice for 10 frames per second and its neighbours (render/quality_dial.h);
 //   - the paper's figure 2 (the composite after 1, 10, 100 and 1000 frames of refinement) and
 //     figure 4 (time of a 1-spp frame against resolution).
 // Writes trade.csv, resolution.csv and the figure-2 frames into a folder, then draws the plots
