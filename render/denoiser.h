@@ -66,6 +66,8 @@ public:
     // GPU time of the last apply()'s dispatches (ms; 0 without timestamps).
     double lastGpuMilliseconds() const { return lastGpuMs_; }
     const DenoiseSettings& settings() const { return settings_; }
+    uint32_t width() const { return width_; }
+    uint32_t height() const { return height_; }
 
 private:
     Denoiser() = default;

@@ -235,7 +235,8 @@ public:
     Result<Convergence> convergence() const;
     // The same, denoised where `denoised` (needs RenderSettings::denoise): Composite, Mixed and
     // Real are filtered, the composite before Eq. 1 adds the plate term (1 − M)·L_oc, so the
-    // camera image itself is never filtered; the other AOVs are returned as image(aov).
+    // camera image itself is never filtered; the other AOVs are returned as image(aov). At a
+    // resolution scale below 1 the traced pixels are filtered, then upsampled as image() does.
     Result<ImageF> image(Aov aov, bool denoised);
     // GPU time of the last denoised image()'s filter dispatches (ms).
     double denoiseMilliseconds() const {
@@ -274,6 +275,10 @@ public:
     }
 
 private:
+    // Eq. 1 at a resolution scale below 1: `plateFree` (traced size; RGB the mean of
+    // M·L_om + (1−M)(L_om − L_or), A the mean mask) upsampled to the output, then
+    // (1 − M)·L_oc added with the full-resolution plate.
+    ImageF upsampleAndAddPlate(const ImageF& plateFree) const;
     // The accumulation buffers read back: value(pixel, PV_ACCUM_*, channel) is the compensated
     // sum in double.
     struct Accumulation {
