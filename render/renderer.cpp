@@ -757,6 +757,29 @@ void Renderer::setMaxDepth(uint32_t maxDepth) {
     params_.photonMaxBounces = std::min(settings_.maxDepth, kMaxPhotonBounces + 1u) - 1u;
 }
 
+Status Renderer::setDenoiseIterations(uint32_t iterations) {
+    if (!denoiser_)
+        return makeError(
+            "the denoiser's strength needs a renderer created with denoising on (--denoise "
+            "on|auto, [render] denoise)");
+    if (iterations == denoiser_->settings().iterations) return {};
+    DenoiseSettings d = denoiser_->settings();
+    d.iterations = iterations;
+    auto resized = Denoiser::create(*ctx_, denoiser_->width(), denoiser_->height(), d);
+    if (!resized) return resized.error();
+    denoiser_.emplace(std::move(resized.value()));
+    settings_.denoiseSettings = d;
+    return {};
+}
+
+Status Renderer::setPreviewPhotons(uint32_t photons) {
+    if (photons == 0 || photons > kMaxPhotonsPerIteration)
+        return makeError("preview photon budget {} is out of range: 1..{} photons per frame",
+                         photons, kMaxPhotonsPerIteration);
+    settings_.photons.previewPerIteration = photons;
+    return {};
+}
+
 Status Renderer::reset() {
     samples_ = 0;
     accumulationReplicates_ = 0;

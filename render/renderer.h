@@ -210,6 +210,13 @@ public:
     void setMaxDepth(uint32_t maxDepth);
     uint32_t maxDepth() const { return params_.maxDepth; }
 
+    // The denoiser's strength for the next denoised image(): its à-trous levels (DenoiseSettings::
+    // iterations, 1..10; needs RenderSettings::denoise). The dial sweeps it.
+    Status setDenoiseIterations(uint32_t iterations);
+    // The budget of preview frames' photon pass (PhotonSettings::previewPerIteration; at most
+    // the buffers' per-iteration count). Nothing changes without an active photon pass.
+    Status setPreviewPhotons(uint32_t photons);
+
     // Selects another random sequence (takes effect with the next render; call reset() first
     // unless the new samples are meant to join the old ones).
     void setSeed(uint32_t seed) { params_.seed = seed; }
