@@ -14,6 +14,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <optional>
 #include <thread>
 #include <type_traits>
@@ -191,6 +192,13 @@ Result<ServiceConfig> demoConfig(const ServiceBenchOptions& o, uint32_t w, uint3
     config->render.resolutionScale = o.resolutionScale;
     config->render.previewFps = o.previewFps;
     config->render.denoise = o.denoise;
+    // The bench sets the mode itself: the take's recorded button presses would toggle it.
+    config->replaySessionEvents = false;
+    // The looping take pans and relights: refinement would restart on it (daemon/refine_watch.h)
+    // and the bench would time restarts, not a frozen shot's samples and idle.
+    config->refine.poseThresholdM = std::numeric_limits<double>::infinity();
+    config->refine.poseThresholdDeg = std::numeric_limits<double>::infinity();
+    config->refine.lightingThreshold = std::numeric_limits<double>::infinity();
     return config;
 }
 
