@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <optional>
 #include <vector>
 
 #include "base/log.h"
@@ -44,7 +45,8 @@ struct TradeSetting {
     std::string mode;  // "refinement" (samples accumulate) or "preview" (each point one frame)
     uint32_t maxDepth = 8;
     float resolutionScale = 1.0f;
-    bool denoise = false;  // each point's image denoised (its filter time counted)
+    bool denoise = false;     // each point's image denoised (its filter time counted)
+    uint32_t sizeFactor = 1;  // the curve's width and height: this many times the bench's
 };
 
 // One measured point of a curve.
@@ -242,7 +244,6 @@ int runTradeBench(const TradeBenchOptions& o) {
     benchProgress("trade: reference, {} spp", referenceSpp);
     auto set = convergedSet(**ctx, scene, width, height, referenceDepth, referenceSpp);
     if (!set) return fail(set.error());
-    const ImageF& plate = set->plate;
     const ImageF& reference = set->reference;
     if (Status s = writeExr((o.outDir / "reference.exr").string(), reference); !s)
         return fail(s.error());
@@ -255,6 +256,13 @@ int runTradeBench(const TradeBenchOptions& o) {
     // dial's 640×480 choice (BENCHMARKS.md), a third of it upsampled.
     settings.push_back({"preview depth 2", "preview", 2});
     settings.push_back({"preview depth 2 scale 1/3", "preview", 2, 1.0f / 3.0f});
+    // Per resolution: the same refinement at twice the width and height, against its own
+    // reference of a quarter of the samples (same cost; its noise is then a quarter of the
+    // 256-spp point's MSE), to 256 spp.
+    const std::string doubled = fmt::format("{}x{}", 2 * width, 2 * height);
+    settings.push_back({"refinement depth 8 at " + doubled, "refinement", 8, 1.0f, false, 2});
+    settings.push_back(
+        {"refinement depth 8 at " + doubled + " denoised", "refinement", 8, 1.0f, true, 2});
     const std::vector<uint32_t> figure2Frames =
         o.quick ? std::vector<uint32_t>{1, 10} : std::vector<uint32_t>{1, 10, 100, 1000};
 
@@ -263,18 +271,29 @@ int runTradeBench(const TradeBenchOptions& o) {
            "noise_estimate\n";
     std::printf("| setting | spp | seconds | RMSE | √relMSE | meter's estimate |\n");
     std::printf("|---|---|---|---|---|---|\n");
+    std::optional<ConvergedSet> doubleSet;
     for (const TradeSetting& s : settings) {
         benchProgress("trade: {}", s.name);
-        const bool figure2 = s.mode == "refinement" && s.maxDepth == 8;
-        auto curve = measureCurve(
-            **ctx, scene, s, baseSettings(width, height, s.maxDepth), plate, reference, maxSpp,
-            figure2 && !s.denoise ? figure2Frames : std::vector<uint32_t>{}, o.outDir / "figure2");
+        const bool figure2 = s.mode == "refinement" && s.maxDepth == 8 && s.sizeFactor == 1;
+        const uint32_t w = width * s.sizeFactor, h = height * s.sizeFactor;
+        const uint32_t factor2 = s.sizeFactor * s.sizeFactor;
+        if (s.sizeFactor != 1 && !doubleSet) {
+            benchProgress("trade: reference at {}x{}, {} spp", w, h, referenceSpp / factor2);
+            auto other = convergedSet(**ctx, scene, w, h, referenceDepth, referenceSpp / factor2);
+            if (!other) return fail(other.error());
+            doubleSet = std::move(*other);
+        }
+        const ConvergedSet& curveSet = s.sizeFactor == 1 ? *set : *doubleSet;
+        auto curve = measureCurve(**ctx, scene, s, baseSettings(w, h, s.maxDepth), curveSet.plate,
+                                  curveSet.reference, maxSpp / factor2,
+                                  figure2 && !s.denoise ? figure2Frames : std::vector<uint32_t>{},
+                                  o.outDir / "figure2");
         if (!curve) return fail(curve.error());
         for (const TradePoint& p : *curve) {
             // (Setting names hold no comma.)
             csv << fmt::format("{},{},{},{},{},{:.4f},{},{},{:.6f},{:.6g},{:.6g},{:.6g}\n", s.name,
-                               s.mode, width, height, s.maxDepth, s.resolutionScale, int(s.denoise),
-                               p.spp, p.seconds, p.rmse, p.relMse, p.noiseEstimate);
+                               s.mode, w, h, s.maxDepth, s.resolutionScale, int(s.denoise), p.spp,
+                               p.seconds, p.rmse, p.relMse, p.noiseEstimate);
             if ((p.spp & 0x55555555u) != 0 || p.spp == 1)  // 1, 4, 16, 64, 256, 1024
                 std::printf(
                     "| %s | %llu | %.3f | %.4f | %.4f | %s |\n", s.name.c_str(),
