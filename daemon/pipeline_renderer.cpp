@@ -1,5 +1,7 @@
 #include "daemon/pipeline_renderer.h"
 
+#include <fmt/format.h>
+
 #include <chrono>
 #include <opencv2/imgproc.hpp>
 
@@ -171,14 +173,9 @@ Status PipelineRenderer::chooseByDial(double fps) {
             "fastest, {}, takes {:.0f} ms a frame (lower render.preview_fps or the render size)",
             fps, dial_[chosen].point.describe(), dial_[chosen].frameSeconds * 1e3);
     }
+    dialFps_ = fps;
+    if (Status s = useDialPoint(chosen); !s) return s;
     const DialMeasurement& m = dial_[chosen];
-    previewSamples_ = m.point.samplesPerFrame;
-    previewResolutionScale_ = m.point.resolutionScale;
-    previewDepth_ = m.point.maxDepth;
-    previewDenoiseLevels_ = m.point.denoiseIterations;
-    previewPhotons_ = m.point.photons;
-    if (previewPhotons_ > 0)
-        if (Status s = r.setPreviewPhotons(previewPhotons_); !s) return s;
     logInfo(
         "render: preview at {:.3g} fps: {} ({:.0f} ms a frame here; {} settings timed in {:.1f} s)",
         fps, m.point.describe(), m.frameSeconds * 1e3, dial_.size(),
@@ -186,6 +183,46 @@ Status PipelineRenderer::chooseByDial(double fps) {
     r.setMaxDepth(refineDepth_);
     if (Status s = r.setResolutionScale(1.0f); !s) return s;
     return r.reset();
+}
+
+Status PipelineRenderer::useDialPoint(size_t i) {
+    const DialPoint& p = dial_[i].point;
+    dialInUse_ = i;
+    previewSamples_ = p.samplesPerFrame;
+    previewResolutionScale_ = p.resolutionScale;
+    previewDepth_ = p.maxDepth;
+    previewDenoiseLevels_ = p.denoiseIterations;
+    previewPhotons_ = p.photons;
+    if (previewPhotons_ > 0) return renderer_->setPreviewPhotons(previewPhotons_);
+    return {};
+}
+
+std::optional<std::string> PipelineRenderer::adaptDial(double liveFrameSeconds) {
+    if (dial_.empty() || !(dialFps_ > 0.0) || !(liveFrameSeconds > 0.0)) return std::nullopt;
+    const DialMeasurement& current = dial_[dialInUse_];
+    const double slowdown = liveFrameSeconds / current.frameSeconds;
+    const std::optional<size_t> fits = chooseForFrameRate(dial_, dialFps_, slowdown);
+    size_t next = dialInUse_;
+    if (fits) {
+        next = *fits;
+    } else {  // none fits even now: the fastest
+        for (size_t i = 0; i < dial_.size(); ++i)
+            if (dial_[i].frameSeconds < dial_[next].frameSeconds) next = i;
+    }
+    if (next == dialInUse_) return std::nullopt;
+    const DialMeasurement& candidate = dial_[next];
+    if (candidate.frameSeconds > current.frameSeconds &&
+        candidate.frameSeconds * slowdown > kDialUpgradeMargin / dialFps_)
+        return std::nullopt;
+    if (Status s = useDialPoint(next); !s) {
+        logWarning("render: the dial cannot switch to {}: {}", candidate.point.describe(),
+                   s.message());
+        return std::nullopt;
+    }
+    dialChoice_ = fits;
+    return fmt::format("{} (live frames took {:.0f} ms, {:.2f}x the {:.0f} ms measured at start)",
+                       candidate.point.describe(), liveFrameSeconds * 1e3, slowdown,
+                       current.frameSeconds * 1e3);
 }
 
 Status PipelineRenderer::prepare(const TrackedFrame& tracked,

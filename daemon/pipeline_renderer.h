@@ -61,6 +61,14 @@ public:
     // What the dial ([render] preview_fps) measured and chose at start; empty without it.
     const std::vector<DialMeasurement>& dialMeasurements() const { return dial_; }
     std::optional<size_t> dialChoice() const { return dialChoice_; }
+    // The dial, corrected live: the service's preview frames take longer than the dial measured
+    // at start, with the CPU to itself (tracking, lighting and display share it). Given the
+    // median live frame time of the point in use, every measurement is scaled by live/measured
+    // and the choice made again; a dearer point must fit within kDialUpgradeMargin of the
+    // budget, so the choice does not swing back and forth. Returns the new point's description
+    // when the choice changed.
+    std::optional<std::string> adaptDial(double liveFrameSeconds);
+    static constexpr double kDialUpgradeMargin = 0.85;
     // Whether the last frame rendered the virtual objects (false before the first pose).
     bool rendered() const { return rendered_; }
     Renderer& renderer() { return *renderer_; }
@@ -91,6 +99,10 @@ private:
     bool refining_ = false;
     std::vector<DialMeasurement> dial_;
     std::optional<size_t> dialChoice_;
+    size_t dialInUse_ = 0;  // the measurement preview renders with
+    double dialFps_ = 0.0;
+    // Makes preview render with dial_[i].
+    Status useDialPoint(size_t i);
     InverseToneMapSettings radiometry_;
     ToneMapSettings display_;
     std::array<float, 3> whiteBalance_{1.0f, 1.0f, 1.0f};

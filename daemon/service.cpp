@@ -60,6 +60,8 @@ constexpr auto kMaxPreviewFrame = std::chrono::milliseconds(3000);
 
 // Without camera frames for this long, the display says so instead of holding the last picture.
 constexpr auto kNoCameraAfter = std::chrono::seconds(2);
+// Preview frames per live correction of the dial: a median over a second or two of frames.
+constexpr size_t kDialWindowFrames = 15;
 
 OutputSettings outputSettings(const OutputConfig& c) {
     OutputSettings s;
@@ -319,6 +321,7 @@ void Service::Threads::runRender(ModeMachine& modes) {
     uint64_t seenVersion = modes.version();
     double previewMsPerSample = 0.0;
     bool loggedPreviewCap = false;
+    std::vector<double> liveFrameSeconds;  // preview frames since the dial's last correction
     auto tick = [&] {
         const Clock::time_point now = Clock::now();
         if (lastFrame != Clock::time_point{}) {
@@ -365,6 +368,7 @@ void Service::Threads::runRender(ModeMachine& modes) {
             refining = false;
             fps = 0.0;
             lastFrame = {};
+            liveFrameSeconds.clear();  // the first frames back re-size the traced buffers
         }
 
         if (!refining) {
@@ -407,6 +411,23 @@ void Service::Threads::runRender(ModeMachine& modes) {
                 r.previewSamples();
             tick();
             publish(r, *frame, Mode::Preview, start, fps);
+            // The dial's live correction (PipelineRenderer::adaptDial) on a window of frames.
+            if (!r.dialMeasurements().empty()) {
+                liveFrameSeconds.push_back(
+                    std::chrono::duration<double>(Clock::now() - start).count());
+                if (liveFrameSeconds.size() >= kDialWindowFrames) {
+                    std::nth_element(liveFrameSeconds.begin(),
+                                     liveFrameSeconds.begin() + liveFrameSeconds.size() / 2,
+                                     liveFrameSeconds.end());
+                    const double median = liveFrameSeconds[liveFrameSeconds.size() / 2];
+                    liveFrameSeconds.clear();
+                    if (std::optional<std::string> now = r.adaptDial(median)) {
+                        logInfo("render: preview now at {}", *now);
+                        std::lock_guard lock(settingsMutex);
+                        previewSamples = r.previewSamples();
+                    }
+                }
+            }
             continue;
         }
 

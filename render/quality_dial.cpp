@@ -62,9 +62,9 @@ std::vector<size_t> paretoFront(std::span<const DialMeasurement> measurements) {
 }
 
 std::optional<size_t> chooseForFrameRate(std::span<const DialMeasurement> measurements,
-                                         double targetFps) {
-    if (!(targetFps > 0.0)) return std::nullopt;
-    const double budget = 1.0 / targetFps;
+                                         double targetFps, double slowdown) {
+    if (!(targetFps > 0.0) || !(slowdown > 0.0) || !std::isfinite(slowdown)) return std::nullopt;
+    const double budget = 1.0 / (targetFps * slowdown);
     std::optional<size_t> best;
     for (size_t i = 0; i < measurements.size(); ++i) {
         const DialMeasurement& m = measurements[i];

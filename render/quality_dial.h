@@ -53,8 +53,10 @@ std::vector<size_t> paretoFront(std::span<const DialMeasurement> measurements);
 // The most accurate measurement whose frame fits in 1/targetFps; nothing when none does. It is
 // on the Pareto front by construction: anything that dominated it would also fit and be more
 // accurate.
+// `slowdown` scales every measured time first: what the live service's frames took against
+// what the dial measured with the machine to itself (tracking and lighting share its cores).
 std::optional<size_t> chooseForFrameRate(std::span<const DialMeasurement> measurements,
-                                         double targetFps);
+                                         double targetFps, double slowdown = 1.0);
 
 // The grid neighbours of measurement `chosen`: points one step away along one axis (scale,
 // samples, depth, denoiser strength or photon budget) — what the bench shows to prove the

@@ -88,6 +88,39 @@ TEST(Dial, AnUnreachableTargetTakesTheFastest) {
     EXPECT_TRUE(previewIsFastest);
 }
 
+// The live correction: frames far slower than measured move preview to the fastest point;
+// frames as fast as measured move it back to the most accurate one that fits; the same
+// observation again changes nothing.
+TEST(Dial, LiveFramesSlowerThanMeasuredMovePreviewToACheaperPoint) {
+    auto ctx = GpuContext::create({});
+    ASSERT_TRUE(ctx) << ctx.message();
+    Demo d = demo(0.01);
+    auto p = PipelineRenderer::create(**ctx, d.scene, d.config);
+    ASSERT_TRUE(p) << p.message();
+    PipelineRenderer& r = **p;
+    const auto& m = r.dialMeasurements();
+    ASSERT_TRUE(r.dialChoice());
+    const size_t best = *r.dialChoice();
+    size_t fastest = 0;
+    for (size_t i = 0; i < m.size(); ++i)
+        if (m[i].frameSeconds < m[fastest].frameSeconds) fastest = i;
+    ASSERT_NE(best, fastest);
+    // 10^4 times slower than measured: at 0.01 fps nothing fits any more.
+    std::optional<std::string> moved = r.adaptDial(m[best].frameSeconds * 1e4 * 1e2);
+    ASSERT_TRUE(moved);
+    EXPECT_FALSE(r.dialChoice());
+    EXPECT_EQ(r.previewSamples(), m[fastest].point.samplesPerFrame);
+    EXPECT_EQ(r.previewResolutionScale(), m[fastest].point.resolutionScale);
+    EXPECT_EQ(r.previewMaxDepth(), m[fastest].point.maxDepth);
+    // As fast as measured: back to the most accurate.
+    moved = r.adaptDial(m[fastest].frameSeconds);
+    ASSERT_TRUE(moved);
+    ASSERT_TRUE(r.dialChoice());
+    EXPECT_EQ(*r.dialChoice(), best);
+    EXPECT_EQ(r.previewSamples(), m[best].point.samplesPerFrame);
+    EXPECT_FALSE(r.adaptDial(m[best].frameSeconds));
+}
+
 // [render] denoise = "auto": the dial sweeps the denoiser's strength too, preview frames are
 // denoised at the strength it chose, and refinement denoises while the meter's estimate is above
 // target_noise and stops once it is below.

@@ -66,6 +66,20 @@ TEST(QualityDial, ChoiceFitsTheBudgetAndIsOnTheFront) {
     }
 }
 
+// A live slowdown of 2 chooses at 10 fps what twice the frame rate would choose unslowed; no
+// slowdown changes nothing; a meaningless one chooses nothing.
+TEST(QualityDial, SlowdownScalesTheBudget) {
+    std::mt19937 rng(15);
+    for (int trial = 0; trial < 20; ++trial) {
+        const auto m = randomMeasurements(rng);
+        EXPECT_EQ(chooseForFrameRate(m, 2.0, 2.0), chooseForFrameRate(m, 4.0));
+        EXPECT_EQ(chooseForFrameRate(m, 4.0, 1.0), chooseForFrameRate(m, 4.0));
+    }
+    const auto m = randomMeasurements(rng);
+    EXPECT_FALSE(chooseForFrameRate(m, 10.0, 0.0));
+    EXPECT_FALSE(chooseForFrameRate(m, 10.0, std::nan("")));
+}
+
 // Unmeasurable points (a failed run: NaN or infinite) are never chosen nor on the front; no
 // frame rate or a zero one chooses nothing.
 TEST(QualityDial, InvalidMeasurementsAndTargetsAreRefused) {
