@@ -91,7 +91,10 @@ public:
                                  std::span<const float> variance, const DenoiseCamera& now);
     // Forget the history: the next applyTemporal() starts afresh (mode switch, refinement start,
     // scene or resolution change).
-    void resetHistory() { historyValid_ = false; }
+    void resetHistory() {
+        historyValid_ = false;
+        historyFrames_ = 0;
+    }
     // Frames in the history after the last applyTemporal() (0 after resetHistory()).
     uint32_t historyFrames() const { return historyFrames_; }
 
