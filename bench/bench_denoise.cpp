@@ -1,13 +1,13 @@
 #include "bench/bench_denoise.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <vector>
-
-#include <fmt/format.h>
 #include <glm/gtc/matrix_transform.hpp>
+#include <vector>
 
 #include "base/log.h"
 #include "bench/bench_progress.h"
@@ -259,8 +259,8 @@ int runDenoiseBench(GpuContext& ctx, const DenoiseBenchOptions& o) {
             std::printf("| %u | %s | %s | %s | %.2f× | %.2f× | %.5f | %.5f | %.5f | %.2e |\n",
                         checkpoints[k], meanSpread(row.rmse[0]).c_str(),
                         meanSpread(row.rmse[1]).c_str(), meanSpread(row.rmse[2]).c_str(),
-                        before / mean(row.rmse[1]), before / mean(row.rmse[2]),
-                        mean(row.relMse[0]), mean(row.relMse[1]), mean(row.relMse[2]),
+                        before / mean(row.rmse[1]), before / mean(row.rmse[2]), mean(row.relMse[0]),
+                        mean(row.relMse[1]), mean(row.relMse[2]),
                         (before - mean(row.rmse[1])) / std::max(refTime->gpuMs, 1e-9));
             std::fflush(stdout);
         }
@@ -316,13 +316,12 @@ int runDenoiseBench(GpuContext& ctx, const DenoiseBenchOptions& o) {
             "spatial |\n|---|---|---|---|\n",
             frames, kDegreesPerFrame, pw, ph, spp, depth, panRefSpp, median(ms[0]), median(ms[1]));
         for (int f = 0; f < frames; ++f)
-            std::printf("| %d | %.5f | %.5f | %.5f |\n", f + 1, rmse[0][f], rmse[1][f],
-                        rmse[2][f]);
+            std::printf("| %d | %.5f | %.5f | %.5f |\n", f + 1, rmse[0][f], rmse[1][f], rmse[2][f]);
         auto tail = [&](const std::vector<double>& v) {
             return mean(std::vector<double>(v.begin() + std::min<int>(frames - 1, 4), v.end()));
         };
-        std::printf("| mean of frames 5.. | %.5f | %.5f | %.5f |\n\n", tail(rmse[0]),
-                    tail(rmse[1]), tail(rmse[2]));
+        std::printf("| mean of frames 5.. | %.5f | %.5f | %.5f |\n\n", tail(rmse[0]), tail(rmse[1]),
+                    tail(rmse[2]));
         std::fflush(stdout);
     }
     return 0;

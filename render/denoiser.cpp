@@ -68,9 +68,9 @@ Result<Denoiser> Denoiser::create(GpuContext& ctx, uint32_t width, uint32_t heig
     bound[PV_DENOISE_BINDING_HISTORY_TEXELS] = bound[PV_DENOISE_BINDING_HISTORY];
     std::array<BindingKind, PV_DENOISE_BINDING_COUNT> kinds{};
     kinds.fill(BindingKind::StorageBuffer);
-    for (int b : {PV_DENOISE_BINDING_COLOR, PV_DENOISE_BINDING_GUIDES,
-                  PV_DENOISE_BINDING_WORK_TEXELS, PV_DENOISE_BINDING_PACKED_TEXELS,
-                  PV_DENOISE_BINDING_HISTORY_TEXELS})
+    for (int b :
+         {PV_DENOISE_BINDING_COLOR, PV_DENOISE_BINDING_GUIDES, PV_DENOISE_BINDING_WORK_TEXELS,
+          PV_DENOISE_BINDING_PACKED_TEXELS, PV_DENOISE_BINDING_HISTORY_TEXELS})
         kinds[b] = BindingKind::TexelBufferUint4;
     auto make = [&](uint32_t stage, std::optional<ComputePipeline>& out) -> Status {
         const std::array<uint32_t, 1> constants{stage};
@@ -108,8 +108,7 @@ Result<ImageF> Denoiser::apply(const ImageF& signal, std::span<const glm::vec4> 
 }
 
 Result<ImageF> Denoiser::applyTemporal(const ImageF& signal, std::span<const glm::vec4> guides,
-                                       std::span<const float> variance,
-                                       const DenoiseCamera& now) {
+                                       std::span<const float> variance, const DenoiseCamera& now) {
     return run(signal, guides, variance, &now);
 }
 

@@ -511,8 +511,8 @@ TEST_F(DenoiseTest, TemporalStaysFiniteOnBlackAndVeryBrightInput) {
         }
         for (int f = 0; f < 2; ++f) {
             const glm::dvec3 camera(f * 0.37 * kFarPixelM, 0.0, 0.0);
-            ImageF out = take(denoiser->applyTemporal(
-                greyImage(values), planeGuides(camera, true), variance, cameraAt(camera)));
+            ImageF out = take(denoiser->applyTemporal(greyImage(values), planeGuides(camera, true),
+                                                      variance, cameraAt(camera)));
             ASSERT_EQ(out.pixels.size(), pixels * 3);
             for (float v : out.pixels) {
                 ASSERT_TRUE(std::isfinite(v)) << "scene " << scene << " frame " << f;
