@@ -95,8 +95,8 @@ Status Denoiser::setSettings(const DenoiseSettings& settings) {
 }
 
 Status Denoiser::dispatch(ComputePipeline& pipeline) {
-    auto ms = pipeline.dispatch((width_ + PV_DENOISE_GROUP_SIZE - 1) / PV_DENOISE_GROUP_SIZE,
-                                (height_ + PV_DENOISE_GROUP_SIZE - 1) / PV_DENOISE_GROUP_SIZE);
+    auto ms = pipeline.dispatch((width_ + PV_DENOISE_GROUP_X - 1) / PV_DENOISE_GROUP_X,
+                                (height_ + PV_DENOISE_GROUP_Y - 1) / PV_DENOISE_GROUP_Y);
     if (!ms) return ms.error();
     lastGpuMs_ += ms.value();
     return {};

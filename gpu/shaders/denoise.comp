@@ -20,7 +20,7 @@
 #include "shared/sampling.h"
 
 layout(constant_id = 0) const uint kStage = PV_DENOISE_STAGE_PREPARE;
-layout(local_size_x = PV_DENOISE_GROUP_SIZE, local_size_y = PV_DENOISE_GROUP_SIZE) in;
+layout(local_size_x = PV_DENOISE_GROUP_X, local_size_y = PV_DENOISE_GROUP_Y) in;
 
 layout(binding = PV_DENOISE_BINDING_PARAMS, scalar) readonly buffer Params { DenoiseParams params; };
 // Read-only arrays are texel buffers (shared/denoise.h says why).

@@ -68,7 +68,10 @@ PV_BEGIN
 #define PV_DENOISE_STAGE_FINISH 2u
 #define PV_DENOISE_STAGE_TEMPORAL 3u
 
-#define PV_DENOISE_GROUP_SIZE 8
+// Workgroup shape: llvmpipe runs 8 consecutive invocations (along x) as one SIMD batch; 32×2
+// and 16×16 measured no faster than 8×8 (BENCHMARKS.md "Issue 10: denoiser").
+#define PV_DENOISE_GROUP_X 8
+#define PV_DENOISE_GROUP_Y 8
 
 struct DenoiseParams {
     // The temporal stage's reprojection: the previous frame's camera from this frame's (both
