@@ -99,8 +99,9 @@ struct LiveResult {
     uint32_t width = 0, height = 0;
     int files = 0;
     double previewSeconds = 0.0;
-    double fpsStatus = 0.0;  // median of the status's fps samples
-    double fpsShown = 0.0;   // frames shown / seconds over the window
+    double startupSeconds = 0.0;  // start to the first frame shown (with the dial: its timing)
+    double fpsStatus = 0.0;       // median of the status's fps samples
+    double fpsShown = 0.0;        // frames shown / seconds over the window
     uint64_t shown = 0, dropCapture = 0, dropRender = 0, dropDisplay = 0;
     Stat latency, renderMs, trackMs, lightingMs;
     double previewCpuPct = 0.0;
@@ -188,6 +189,8 @@ Result<ServiceConfig> demoConfig(const ServiceBenchOptions& o, uint32_t w, uint3
     config->render.width = w;
     config->render.height = h;
     config->render.resolutionScale = o.resolutionScale;
+    config->render.previewFps = o.previewFps;
+    config->render.denoise = o.denoise;
     return config;
 }
 
@@ -314,6 +317,7 @@ struct Running {
     std::unique_ptr<Service> service;
     std::thread thread;
     int rc = 0;
+    double startupSeconds = 0.0;  // Service::create until the first frame was shown
     void start() {
         thread = std::thread([this] { rc = service->run(); });
     }
@@ -341,6 +345,7 @@ bool waitFor(const Service& s, double timeoutSeconds, Pred done) {
 }
 
 Status Running::startAndWarmUp(const ServiceConfig& config, const char* what) {
+    const Clock::time_point begin = Clock::now();
     auto created = Service::create(config);
     if (!created) return created.error();
     service = std::move(*created);
@@ -349,6 +354,7 @@ Status Running::startAndWarmUp(const ServiceConfig& config, const char* what) {
         stop();
         return makeError("{}: no frame shown within 120 s", what);
     }
+    startupSeconds = secondsSince(begin);
     return {};
 }
 
@@ -382,6 +388,7 @@ LiveResult measureLive(const ServiceBenchOptions& o, uint32_t w, uint32_t h, boo
         Running run;
         if (Status st = run.startAndWarmUp(*config, "live run"); !st) return fail(st.message());
         const Service& s = *run.service;
+        r.startupSeconds = run.startupSeconds;
         const ServiceStatus first = s.status();
         const double cpu0 = cpuSeconds();
         const Clock::time_point start = Clock::now();
@@ -500,8 +507,9 @@ int runServiceBench(const ServiceBenchOptions& o) {
     if (sizes.empty()) sizes = {{640, 480}, {1280, 720}};
     std::printf(
         "## previsd (issue 7): the demo session (examples/demo, 640×360 scene frames at "
-        "15 fps, fisheye at 3.75 fps), preview 1 spp, max depth 4, resolution scale %.3g%s\n\n",
-        o.resolutionScale, o.quick ? " (quick run)" : "");
+        "15 fps, fisheye at 3.75 fps), preview 1 spp, max depth 4, resolution scale %.3g, "
+        "preview_fps %.3g (0: no dial), denoise %s%s\n\n",
+        o.resolutionScale, o.previewFps, o.denoise.c_str(), o.quick ? " (quick run)" : "");
 
     std::vector<StageResult> stages;
     for (auto [w, h] : sizes) {
@@ -551,15 +559,15 @@ int runServiceBench(const ServiceBenchOptions& o) {
         }
     std::printf(
         "### The live service (recorded timing, looping; ms as median / p90)\n\n"
-        "| render size | output | seconds | fps (status) | fps (shown/s) | latency ms | "
-        "render ms | drops capture / render / display | CPU (preview) | peak RSS | "
-        "device memory |\n|---|---|---|---|---|---|---|---|---|---|---|\n");
+        "| render size | output | start to first frame | seconds | fps (status) | fps (shown/s) "
+        "| latency ms | render ms | drops capture / render / display | CPU (preview) | peak RSS | "
+        "device memory |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     for (const LiveResult& l : live)
         std::printf(
-            "| %u×%u | %s | %.0f | %.2f | %.2f | %s | %s | %llu / %llu / %llu | %.0f %% | "
+            "| %u×%u | %s | %.1f s | %.0f | %.2f | %.2f | %s | %s | %llu / %llu / %llu | %.0f %% | "
             "%.0f MiB | %.0f MiB |\n",
-            l.width, l.height, l.files ? "files" : "none", l.previewSeconds, l.fpsStatus,
-            l.fpsShown, ms(l.latency).c_str(), ms(l.renderMs).c_str(),
+            l.width, l.height, l.files ? "files" : "none", l.startupSeconds, l.previewSeconds,
+            l.fpsStatus, l.fpsShown, ms(l.latency).c_str(), ms(l.renderMs).c_str(),
             (unsigned long long)l.dropCapture, (unsigned long long)l.dropRender,
             (unsigned long long)l.dropDisplay, l.previewCpuPct, l.peakRssMiB, l.deviceMiB);
     // What the stages that keep running while refinement idles should cost, from the lock-step
@@ -611,6 +619,7 @@ int runServiceBench(const ServiceBenchOptions& o) {
         for (const LiveResult& l : live) {
             const char* out = l.files ? "files" : "none";
             row("live", l.width, l.height, out, "seconds", l.previewSeconds, NAN, 1);
+            row("live", l.width, l.height, out, "startup_seconds", l.startupSeconds, NAN, 1);
             row("live", l.width, l.height, out, "fps_status", l.fpsStatus, NAN, 1);
             row("live", l.width, l.height, out, "fps_shown", l.fpsShown, NAN, uint32_t(l.shown));
             row("live", l.width, l.height, out, "latency_ms", l.latency.median, l.latency.p90,

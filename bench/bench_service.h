@@ -27,6 +27,9 @@ struct ServiceBenchOptions {
     double idleSeconds = 0.0;
     // [render] resolution_scale for every run (preview traces this fraction; refinement all).
     float resolutionScale = 1.0f;
+    // [render] preview_fps (the dial; 0: off) and denoise (off | on | auto) for every run.
+    double previewFps = 0.0;
+    std::string denoise = "off";
 };
 
 // Prints a Markdown report on stdout (progress on stderr); returns the process exit code.

@@ -21,6 +21,11 @@ int main(int argc, char** argv) {
     app.add_option("--resolution-scale", o.resolutionScale,
                    "[render] resolution_scale: preview traces this fraction, (0, 1]")
         ->check(CLI::Range(1e-4f, 1.0f));
+    app.add_option("--preview-fps", o.previewFps,
+                   "[render] preview_fps: the dial's target frame rate (0: off)")
+        ->check(CLI::Range(0.0, 240.0));
+    app.add_option("--denoise", o.denoise, "[render] denoise for every run")
+        ->check(CLI::IsMember({"off", "on", "auto"}));
     app.add_option("--size", sizes, "render size WxH (repeatable; default 640x480 and 1280x720)");
     app.add_option("--preview-seconds", o.previewSeconds, "live preview window per run")
         ->check(CLI::Range(1.0, 3600.0));

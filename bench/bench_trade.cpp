@@ -312,14 +312,15 @@ int runTradeBench(const TradeBenchOptions& o) {
         if (!dialSet) return fail(dialSet.error());
         const ImageF& dialPlate = dialSet->plate;
         const ImageF& dialReference = dialSet->reference;
-        const std::vector<float> scales = {1.0f, 0.5f, 1.0f / 3.0f, 0.25f};
-        const std::vector<uint32_t> samples = {1, 2, 4};
-        const std::vector<uint32_t> depths = {2, 4, 8};
-        // The denoiser is left out: it takes about 1 s a 640×480 frame on lavapipe and is
-        // refused below scale 1 (BENCHMARKS.md, "Issue 10: denoiser").
-        const std::vector<DialPoint> grid = dialGrid(scales, samples, depths, false);
+        // The scene has no specular object a small light reaches: no photon axis.
+        const DialAxes axes = {
+            {1.0f, 0.5f, 1.0f / 3.0f, 0.25f}, {1, 2, 4}, {2, 4, 8}, {0, 2, 4}, {}};
+        const std::vector<DialPoint> grid = dialGrid(axes);
         benchProgress("trade: dial, {} settings at {}x{}", grid.size(), w, h);
-        auto dialRenderer = Renderer::create(**ctx, scene, baseSettings(w, h, referenceDepth));
+        // Guides written for every point, as in a service that may denoise.
+        RenderSettings dialSettings = baseSettings(w, h, referenceDepth);
+        dialSettings.denoise = true;
+        auto dialRenderer = Renderer::create(**ctx, scene, dialSettings);
         if (!dialRenderer) return fail(dialRenderer.error());
         if (Status s = (*dialRenderer)->setPlate(dialPlate, "the set's real-only render"); !s)
             return fail(s.error());
@@ -329,12 +330,12 @@ int runTradeBench(const TradeBenchOptions& o) {
         const std::vector<size_t> front = paretoFront(*measured);
         const std::optional<size_t> chosen = chooseForFrameRate(*measured, targetFps);
         std::ofstream dial(o.outDir / "dial.csv");
-        dial << "scale,spp,max_depth,denoise,frame_seconds,rmse,pareto,chosen\n";
+        dial << "scale,spp,max_depth,denoise_levels,photons,frame_seconds,rmse,pareto,chosen\n";
         for (size_t i = 0; i < measured->size(); ++i) {
             const DialMeasurement& m = (*measured)[i];
-            dial << fmt::format("{:.4f},{},{},{},{:.6f},{:.6g},{},{}\n", m.point.resolutionScale,
-                                m.point.samplesPerFrame, m.point.maxDepth, int(m.point.denoise),
-                                m.frameSeconds, m.error,
+            dial << fmt::format("{:.4f},{},{},{},{},{:.6f},{:.6g},{},{}\n", m.point.resolutionScale,
+                                m.point.samplesPerFrame, m.point.maxDepth,
+                                m.point.denoiseIterations, m.point.photons, m.frameSeconds, m.error,
                                 int(std::find(front.begin(), front.end(), i) != front.end()),
                                 int(chosen == i));
         }
@@ -353,7 +354,7 @@ int runTradeBench(const TradeBenchOptions& o) {
                             m.frameSeconds * 1e3, 1.0 / m.frameSeconds, m.error, note);
             };
             row(*chosen, "**chosen**");
-            for (size_t n : gridNeighbours(*measured, *chosen, scales, samples, depths)) {
+            for (size_t n : gridNeighbours(*measured, *chosen, axes)) {
                 const DialMeasurement& m = (*measured)[n];
                 const DialMeasurement& c = (*measured)[*chosen];
                 const bool dominates = m.frameSeconds <= c.frameSeconds && m.error <= c.error;

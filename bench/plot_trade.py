@@ -111,14 +111,19 @@ def dial_plot(rows, path):
     fig, ax = plt.subplots(figsize=(7, 5))
     t = [1e3 * float(r["frame_seconds"]) for r in rows]
     e = [float(r["rmse"]) for r in rows]
-    ax.scatter(t, e, s=14, color="0.6", label="grid points")
+    denoised = [r.get("denoise_levels", "0") != "0" for r in rows]
+    ax.scatter([x for x, d in zip(t, denoised) if not d], [y for y, d in zip(e, denoised) if not d],
+               s=14, color="0.6", label="grid points")
+    if any(denoised):
+        ax.scatter([x for x, d in zip(t, denoised) if d], [y for y, d in zip(e, denoised) if d],
+                   s=14, marker="^", color="tab:green", label="grid points, denoised")
     front = sorted((x, y) for x, y, r in zip(t, e, rows) if r["pareto"] == "1")
     ax.plot([x for x, _ in front], [y for _, y in front], "-o", ms=4, label="Pareto front")
     for x, y, r in zip(t, e, rows):
         if r["chosen"] == "1":
             ax.scatter([x], [y], s=120, facecolors="none", edgecolors="red", linewidths=2,
                        label=f"chosen: 1/{1 / float(r['scale']):.3g} scale, {r['spp']} spp, "
-                             f"depth {r['max_depth']}")
+                             f"depth {r['max_depth']}, denoise {r.get('denoise_levels', '0')}")
     ax.axvline(100.0, color="red", ls=":", label="10 fps budget")
     ax.set_xscale("log")
     ax.set_yscale("log")

@@ -86,6 +86,9 @@ Result<std::unique_ptr<PipelineRenderer>> PipelineRenderer::create(GpuContext& c
     settings.seed = config.render.seed;
     settings.photons = config.render.photons;
     settings.differential = true;
+    // Guides are written only when the denoiser may run.
+    settings.denoise = config.render.denoise != "off";
+    settings.denoiseSettings.iterations = config.render.denoiseLevels;
     settings.samplesPerDispatch = 64;  // the renderer lowers it inside the CPU loop limit
     Result<CameraCalibration> calibration =
         scaledCalibration(*config.sceneCamera.calibration, p->width_, p->height_);
@@ -98,6 +101,15 @@ Result<std::unique_ptr<PipelineRenderer>> PipelineRenderer::create(GpuContext& c
     p->renderer_ = std::move(*renderer);
     p->previewDepth_ = p->refineDepth_ = config.render.maxDepth;
     p->seed_ = config.render.seed;
+    p->denoise_ = config.render.denoise;
+    p->denoiseLevels_ = config.render.denoiseLevels;
+    p->targetNoise_ = config.refine.targetNoise;
+    p->previewPhotons_ = config.render.photons.previewPerIteration;
+    // Without the dial, "auto" follows autoDenoise for a preview frame: no estimate, its spp.
+    const bool previewDenoised =
+        p->denoise_ == "on" ||
+        (p->denoise_ == "auto" && autoDenoise(std::nullopt, p->targetNoise_, p->previewSamples_));
+    p->previewDenoiseLevels_ = previewDenoised ? p->denoiseLevels_ : 0;
     if (config.render.previewFps > 0.0)
         if (Status s = p->chooseByDial(config.render.previewFps); !s) return s.error();
     return p;
@@ -125,14 +137,25 @@ Status PipelineRenderer::chooseByDial(double fps) {
     r.setSeed(seed_);
     Result<ImageF> reference = r.image(Aov::Composite);
     if (!reference) return reference.error();
-    const std::vector<float> scales = {1.0f, 0.5f, 1.0f / 3.0f, 0.25f};
-    const std::vector<uint32_t> samples = {1, 2, 4};
-    std::vector<uint32_t> depths;
+    DialAxes axes;
+    axes.scales = {1.0f, 0.5f, 1.0f / 3.0f, 0.25f};
+    axes.samples = {1, 2, 4};
     for (uint32_t d : {2u, 4u, 8u})
-        if (d <= refineDepth_) depths.push_back(d);
-    if (depths.empty()) depths.push_back(refineDepth_);
+        if (d <= refineDepth_) axes.depths.push_back(d);
+    if (axes.depths.empty()) axes.depths.push_back(refineDepth_);
+    // The denoiser's strength: off or two strengths with "auto", the configured one with "on".
+    if (denoise_ == "auto") axes.denoiseLevels = {0, 2, 4};
+    if (denoise_ == "on") axes.denoiseLevels = {denoiseLevels_};
+    // The photon budget, where the scene runs the photon pass: around the configured one.
+    if (r.photonsActive()) {
+        const uint32_t configured = std::max(128u, previewPhotons_);
+        for (uint32_t n : {configured / 4, configured, configured * 4})
+            if (n >= 128 && n <= r.photonsPerIteration()) axes.photonBudgets.push_back(n);
+        if (axes.photonBudgets.empty()) axes.photonBudgets.push_back(r.photonsPerIteration());
+    }
+    // Points that cannot fit the frame budget are not rendered (measureDial).
     Result<std::vector<DialMeasurement>> measured =
-        measureDial(r, dialGrid(scales, samples, depths, false), *reference, 2);
+        measureDial(r, dialGrid(axes), *reference, 2, 1.0 / fps);
     if (!measured) return measured.error();
     dial_ = std::move(*measured);
     dialChoice_ = chooseForFrameRate(dial_, fps);
@@ -152,6 +175,10 @@ Status PipelineRenderer::chooseByDial(double fps) {
     previewSamples_ = m.point.samplesPerFrame;
     previewResolutionScale_ = m.point.resolutionScale;
     previewDepth_ = m.point.maxDepth;
+    previewDenoiseLevels_ = m.point.denoiseIterations;
+    previewPhotons_ = m.point.photons;
+    if (previewPhotons_ > 0)
+        if (Status s = r.setPreviewPhotons(previewPhotons_); !s) return s;
     logInfo(
         "render: preview at {:.3g} fps: {} ({:.0f} ms a frame here; {} settings timed in {:.1f} s)",
         fps, m.point.describe(), m.frameSeconds * 1e3, dial_.size(),
@@ -206,6 +233,7 @@ Status PipelineRenderer::renderPreview(const TrackedFrame& frame,
     // Nothing happens unless the traced size changes (entering preview from refinement).
     if (Status s = renderer_->setResolutionScale(previewResolutionScale_); !s) return s;
     renderer_->setMaxDepth(previewDepth_);
+    refining_ = false;
     return renderer_->renderPreviewFrame(previewSamples_);
 }
 
@@ -216,6 +244,7 @@ Status PipelineRenderer::beginRefine(const TrackedFrame& frame,
     // Refinement converges to the full-resolution image: every pixel traced.
     if (Status s = renderer_->setResolutionScale(1.0f); !s) return s;
     renderer_->setMaxDepth(refineDepth_);
+    refining_ = true;
     return renderer_->reset();
 }
 
@@ -226,9 +255,19 @@ Status PipelineRenderer::refineStep(uint32_t samples) {
 
 uint64_t PipelineRenderer::samples() const { return rendered_ ? renderer_->samplesPerPixel() : 0; }
 
-Result<ImageF> PipelineRenderer::composite() const {
+Result<ImageF> PipelineRenderer::composite(std::optional<double> noiseEstimate) {
+    lastDenoiseLevels_ = 0;
     if (!rendered_) return plate_;
-    return renderer_->image(Aov::Composite);
+    uint32_t levels = previewDenoiseLevels_;
+    if (refining_)
+        levels = denoise_ == "on" ||
+                         (denoise_ == "auto" && autoDenoise(noiseEstimate, targetNoise_, samples()))
+                     ? denoiseLevels_
+                     : 0;
+    if (levels == 0) return renderer_->image(Aov::Composite);
+    if (Status s = renderer_->setDenoiseIterations(levels); !s) return s.error();
+    lastDenoiseLevels_ = levels;
+    return renderer_->image(Aov::Composite, true);
 }
 
 std::vector<uint8_t> PipelineRenderer::toDisplay(ImageF composite) const {

@@ -37,8 +37,12 @@ public:
     // Adds `samples` more paths per pixel to the frozen shot.
     Status refineStep(uint32_t samples);
 
-    // The composite so far, linear (the plate alone before the first pose).
-    Result<ImageF> composite() const;
+    // The composite so far, linear (the plate alone before the first pose), denoised as
+    // [render] denoise says: in preview at the dial's (or the config's) strength; in
+    // refinement with "auto" while `noiseEstimate` (the meter's) is above target_noise.
+    Result<ImageF> composite(std::optional<double> noiseEstimate = {});
+    // The denoiser's strength the last composite() used (à-trous levels; 0: not denoised).
+    uint32_t lastDenoiseLevels() const { return lastDenoiseLevels_; }
     // The composite as the monitor shows it: the scene camera's own curve applied forward, so
     // the untouched parts of the picture look exactly as the camera delivered them.
     // Takes the composite by value: it is changed in place (callers move a temporary in).
@@ -51,6 +55,9 @@ public:
     void setPreviewSamples(uint32_t spp) { previewSamples_ = spp; }
     float previewResolutionScale() const { return previewResolutionScale_; }
     uint32_t previewMaxDepth() const { return previewDepth_; }
+    uint32_t previewDenoiseLevels() const { return previewDenoiseLevels_; }  // 0: not denoised
+    // Photons per preview frame where the photon pass runs (the dial's, or preview_photons).
+    uint32_t previewPhotons() const { return previewPhotons_; }
     // What the dial ([render] preview_fps) measured and chose at start; empty without it.
     const std::vector<DialMeasurement>& dialMeasurements() const { return dial_; }
     std::optional<size_t> dialChoice() const { return dialChoice_; }
@@ -74,7 +81,14 @@ private:
     float previewResolutionScale_ = 1.0f;  // refinement traces every pixel
     uint32_t previewDepth_ = 8;            // refinement traces refineDepth_
     uint32_t refineDepth_ = 8;
-    uint32_t seed_ = 0;  // [render] seed: preview's fixed sequence
+    uint32_t seed_ = 0;                  // [render] seed: preview's fixed sequence
+    std::string denoise_ = "off";        // [render] denoise
+    uint32_t denoiseLevels_ = 5;         // [render] denoise_levels
+    uint32_t previewDenoiseLevels_ = 0;  // the dial's or the config's; 0: off
+    uint32_t previewPhotons_ = 0;        // the dial's photon budget per preview frame
+    uint32_t lastDenoiseLevels_ = 0;
+    double targetNoise_ = 0.0;  // [refine] target_noise
+    bool refining_ = false;
     std::vector<DialMeasurement> dial_;
     std::optional<size_t> dialChoice_;
     InverseToneMapSettings radiometry_;

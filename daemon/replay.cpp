@@ -240,7 +240,8 @@ int runReplay(const ReplayOptions& o) {
             logError("replay: frame {}: {}", frame->sequence, rendered.message());
             return 1;
         }
-        Result<ImageF> image = (*renderer)->composite();
+        Result<ImageF> image =
+            (*renderer)->composite(mode == Mode::Refine ? meter.measured() : std::nullopt);
         if (!image) {
             logError("replay: frame {}: {}", frame->sequence, image.message());
             return 1;

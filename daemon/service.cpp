@@ -246,7 +246,7 @@ void Service::Threads::publish(PipelineRenderer& r, const TrackedFrame& frame, M
                                Clock::time_point renderStart, double fps,
                                std::optional<double> noiseEstimate,
                                std::optional<double> etaSeconds) {
-    Result<ImageF> image = r.composite();
+    Result<ImageF> image = r.composite(noiseEstimate);
     if (!image) {
         logError("render: {}", image.message());
         return;

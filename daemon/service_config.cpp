@@ -415,7 +415,7 @@ Status ConfigReader::parseRender(const toml::table& t, RenderConfig& c) const {
     if (Status st = r_.checkKeys(t, "render",
                                  {"width", "height", "samples_per_frame", "max_depth", "seed",
                                   "photons", "preview_photons", "photon_radius_m", "photon_alpha",
-                                  "resolution_scale", "preview_fps"});
+                                  "resolution_scale", "preview_fps", "denoise", "denoise_levels"});
         !st)
         return st;
     int64_t width = c.width, height = c.height, spp = c.samplesPerFrame, depth = c.maxDepth,
@@ -457,6 +457,13 @@ Status ConfigReader::parseRender(const toml::table& t, RenderConfig& c) const {
     if (Status st = ranged(t, "render", "resolution_scale", c.resolutionScale, 0.0, 1.0, true); !st)
         return st;
     if (Status st = ranged(t, "render", "preview_fps", c.previewFps, 0.0, 240.0); !st) return st;
+    if (Status st = stringKey(t, "render", "denoise", c.denoise); !st) return st;
+    if (c.denoise != "off" && c.denoise != "on" && c.denoise != "auto")
+        return fail(t.get("denoise"), "'render.denoise' is '{}': use \"off\", \"on\" or \"auto\"",
+                    c.denoise);
+    int64_t levels = c.denoiseLevels;
+    if (Status st = integerIn(t, "render", "denoise_levels", levels, 1, 10); !st) return st;
+    c.denoiseLevels = uint32_t(levels);
     return {};
 }
 

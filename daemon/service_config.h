@@ -101,6 +101,12 @@ struct RenderConfig {
     // that fits — samples per frame, resolution scale and max depth (≤ max_depth) — in place of
     // samples_per_frame and resolution_scale. 0 = off.
     double previewFps = 0.0;
+    // The denoiser (render/denoiser.h) on what the renderer adds to the plate, never the plate:
+    // "off" (no guide buffers either), "on" (every frame, denoise_levels strong), "auto" (preview:
+    // the dial's choice of strength with preview_fps, else below 64 spp; refinement: while the
+    // meter's estimate is above target_noise, 1 % without one).
+    std::string denoise = "off";
+    uint32_t denoiseLevels = 5;  // à-trous levels for "on" and for "auto" without the dial, [1, 10]
     // Caustics (render/photon_map.h): mode and photons per iteration, first radius, alpha.
     PhotonSettings photons;
 };

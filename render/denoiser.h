@@ -103,6 +103,8 @@ public:
     const DenoiseSettings& settings() const { return settings_; }
     // New settings for the next calls (the dial's strength); out of range: an error, no change.
     Status setSettings(const DenoiseSettings& settings);
+    uint32_t width() const { return width_; }
+    uint32_t height() const { return height_; }
 
 private:
     Denoiser() = default;

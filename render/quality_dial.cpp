@@ -11,18 +11,23 @@
 namespace previs {
 
 std::string DialPoint::describe() const {
-    return fmt::format("scale 1/{:.3g}, {} spp, depth {}{}", 1.0 / resolutionScale, samplesPerFrame,
-                       maxDepth, denoise ? ", denoised" : "");
+    std::string out = fmt::format("scale 1/{:.3g}, {} spp, depth {}", 1.0 / resolutionScale,
+                                  samplesPerFrame, maxDepth);
+    if (denoiseIterations > 0) out += fmt::format(", denoised ({} levels)", denoiseIterations);
+    if (photons > 0) out += fmt::format(", {} photons", photons);
+    return out;
 }
 
-std::vector<DialPoint> dialGrid(std::span<const float> scales, std::span<const uint32_t> samples,
-                                std::span<const uint32_t> depths, bool withDenoise) {
+std::vector<DialPoint> dialGrid(const DialAxes& axes) {
+    const std::vector<uint32_t> none = {0};
+    const std::vector<uint32_t>& levels = axes.denoiseLevels.empty() ? none : axes.denoiseLevels;
+    const std::vector<uint32_t>& budgets = axes.photonBudgets.empty() ? none : axes.photonBudgets;
     std::vector<DialPoint> grid;
-    for (float s : scales)
-        for (uint32_t n : samples)
-            for (uint32_t d : depths)
-                for (int denoise = 0; denoise <= int(withDenoise); ++denoise)
-                    grid.push_back({s, n, d, denoise == 1});
+    for (float s : axes.scales)
+        for (uint32_t n : axes.samples)
+            for (uint32_t d : axes.depths)
+                for (uint32_t z : levels)
+                    for (uint32_t ph : budgets) grid.push_back({s, n, d, z, ph});
     return grid;
 }
 
@@ -74,34 +79,72 @@ std::optional<size_t> chooseForFrameRate(std::span<const DialMeasurement> measur
 }
 
 std::vector<size_t> gridNeighbours(std::span<const DialMeasurement> measurements, size_t chosen,
-                                   std::span<const float> scales, std::span<const uint32_t> samples,
-                                   std::span<const uint32_t> depths) {
-    auto indexIn = [](auto values, auto v) {
-        return std::find(values.begin(), values.end(), v) - values.begin();
+                                   const DialAxes& axes) {
+    // Steps along an axis: a value missing from it (an axis not swept) counts as one place.
+    auto step = [](const auto& values, auto a, auto b) {
+        const auto ia = std::find(values.begin(), values.end(), a) - values.begin();
+        const auto ib = std::find(values.begin(), values.end(), b) - values.begin();
+        return std::labs(long(ia - ib));
     };
     const DialPoint& c = measurements[chosen].point;
     std::vector<size_t> out;
     for (size_t i = 0; i < measurements.size(); ++i) {
         const DialPoint& p = measurements[i].point;
-        const long ds = std::labs(
-            long(indexIn(scales, p.resolutionScale) - indexIn(scales, c.resolutionScale)));
-        const long dn = std::labs(
-            long(indexIn(samples, p.samplesPerFrame) - indexIn(samples, c.samplesPerFrame)));
-        const long dd = std::labs(long(indexIn(depths, p.maxDepth) - indexIn(depths, c.maxDepth)));
-        const long dz = p.denoise != c.denoise;
-        if (ds + dn + dd + dz == 1) out.push_back(i);
+        const long steps = step(axes.scales, p.resolutionScale, c.resolutionScale) +
+                           step(axes.samples, p.samplesPerFrame, c.samplesPerFrame) +
+                           step(axes.depths, p.maxDepth, c.maxDepth) +
+                           step(axes.denoiseLevels, p.denoiseIterations, c.denoiseIterations) +
+                           step(axes.photonBudgets, p.photons, c.photons);
+        if (steps == 1) out.push_back(i);
     }
     return out;
 }
 
+namespace {
+
+// Whether `a` costs at most what `b` does on every axis (a smaller scale traces fewer pixels).
+bool costsNoMore(const DialPoint& a, const DialPoint& b) {
+    return a.resolutionScale <= b.resolutionScale && a.samplesPerFrame <= b.samplesPerFrame &&
+           a.maxDepth <= b.maxDepth && a.denoiseIterations <= b.denoiseIterations &&
+           a.photons <= b.photons;
+}
+
+double tracedSamples(const DialPoint& p) {
+    return double(p.resolutionScale) * p.resolutionScale * p.samplesPerFrame;
+}
+
+}  // namespace
+
+bool cannotFit(std::span<const DialMeasurement> measured, const DialPoint& p,
+               double budgetSeconds) {
+    return std::any_of(measured.begin(), measured.end(), [&](const DialMeasurement& m) {
+        return m.frameSeconds > budgetSeconds * kDialPruneMargin && costsNoMore(m.point, p);
+    });
+}
+
 Result<std::vector<DialMeasurement>> measureDial(Renderer& renderer,
                                                  std::span<const DialPoint> grid,
-                                                 const ImageF& reference, int reps) {
+                                                 const ImageF& reference, int reps,
+                                                 std::optional<double> budgetSeconds) {
     using Clock = std::chrono::steady_clock;
+    std::vector<DialPoint> order(grid.begin(), grid.end());
+    if (budgetSeconds)
+        std::stable_sort(order.begin(), order.end(), [](const DialPoint& a, const DialPoint& b) {
+            return tracedSamples(a) < tracedSamples(b);
+        });
     std::vector<DialMeasurement> out;
-    for (const DialPoint& p : grid) {
+    for (const DialPoint& p : order) {
+        if (budgetSeconds && cannotFit(out, p, *budgetSeconds)) continue;
         renderer.setMaxDepth(p.maxDepth);
         if (Status s = renderer.setResolutionScale(p.resolutionScale); !s) return s.error();
+        if (p.denoiseIterations > 0)
+            if (Status s = renderer.setDenoiseIterations(p.denoiseIterations); !s) return s.error();
+        if (p.photons > 0) {
+            if (!renderer.photonsActive())
+                return makeError("the dial point '{}' needs the photon pass, which is off",
+                                 p.describe());
+            if (Status s = renderer.setPreviewPhotons(p.photons); !s) return s.error();
+        }
         // A first frame unmeasured: it may allocate (a new traced size) or size dispatches.
         if (Status s = renderer.renderPreviewFrame(p.samplesPerFrame); !s) return s.error();
         std::vector<double> times;
@@ -109,7 +152,7 @@ Result<std::vector<DialMeasurement>> measureDial(Renderer& renderer,
         for (int i = 0; i < std::max(1, reps); ++i) {
             const auto start = Clock::now();
             if (Status s = renderer.renderPreviewFrame(p.samplesPerFrame); !s) return s.error();
-            auto image = renderer.image(Aov::Composite);
+            auto image = renderer.image(Aov::Composite, p.denoiseIterations > 0);
             if (!image) return image.error();
             times.push_back(std::chrono::duration<double>(Clock::now() - start).count());
             frame = std::move(*image);

@@ -22,7 +22,8 @@ struct DialPoint {
     float resolutionScale = 1.0f;  // RenderSettings::resolutionScale
     uint32_t samplesPerFrame = 1;
     uint32_t maxDepth = 4;
-    bool denoise = false;
+    uint32_t denoiseIterations = 0;  // the denoiser's strength (à-trous levels); 0: off
+    uint32_t photons = 0;            // the photon pass's budget per frame; 0: no photon pass
     std::string describe() const;
 };
 
@@ -32,10 +33,18 @@ struct DialMeasurement {
     double error = 0.0;         // e.g. RMSE of one frame against the converged image
 };
 
-// The grid of points the dial chooses among: each scale × samples × depth (× denoising when
-// `withDenoise`).
-std::vector<DialPoint> dialGrid(std::span<const float> scales, std::span<const uint32_t> samples,
-                                std::span<const uint32_t> depths, bool withDenoise);
+// The values each setting takes. Empty denoise levels or photon budgets: that axis is not
+// swept (no denoiser; no photon pass) and its value is 0.
+struct DialAxes {
+    std::vector<float> scales;
+    std::vector<uint32_t> samples;
+    std::vector<uint32_t> depths;
+    std::vector<uint32_t> denoiseLevels;  // include 0 to measure "off"
+    std::vector<uint32_t> photonBudgets;
+};
+
+// Every combination of the axes' values.
+std::vector<DialPoint> dialGrid(const DialAxes& axes);
 
 // Indices of the measurements no other one dominates (as fast or faster and as accurate or
 // more, strictly better in one), ordered by time.
@@ -48,19 +57,28 @@ std::optional<size_t> chooseForFrameRate(std::span<const DialMeasurement> measur
                                          double targetFps);
 
 // The grid neighbours of measurement `chosen`: points one step away along one axis (scale,
-// samples, depth or denoising) — what the bench shows to prove the choice is not dominated.
+// samples, depth, denoiser strength or photon budget) — what the bench shows to prove the
+// choice is not dominated.
 std::vector<size_t> gridNeighbours(std::span<const DialMeasurement> measurements, size_t chosen,
-                                   std::span<const float> scales, std::span<const uint32_t> samples,
-                                   std::span<const uint32_t> depths);
+                                   const DialAxes& axes);
 
 class Renderer;
 
 // Measures every point of `grid` on `renderer` (its scene, plate, pose and lighting as they
-// are): the median wall time of `reps` preview frames (render, read back, upsample, composite)
-// and the RMSE of the last one against `reference` (the output's size). Leaves the renderer at
-// the last point's settings.
+// are): the median wall time of `reps` preview frames (render, read back, denoise, upsample,
+// composite) and the RMSE of the last one against `reference` (the output's size). Points
+// that denoise need a renderer created with RenderSettings::denoise; points with photons, an
+// active photon pass. Leaves the renderer at the last point's settings.
+//
+// With a `budgetSeconds`, points that cannot fit are not rendered: every axis costs time as it
+// grows (scale, samples, depth, strength, photons), so a point at or above, on every axis, one
+// measured over the budget (by kDialPruneMargin, for the timing noise) is left out of the
+// result. Cheap points are measured first. The bench measures all (no budget), to show the front.
+inline constexpr double kDialPruneMargin = 1.25;
+bool cannotFit(std::span<const DialMeasurement> measured, const DialPoint& p, double budgetSeconds);
 Result<std::vector<DialMeasurement>> measureDial(Renderer& renderer,
                                                  std::span<const DialPoint> grid,
-                                                 const ImageF& reference, int reps);
+                                                 const ImageF& reference, int reps,
+                                                 std::optional<double> budgetSeconds = {});
 
 }  // namespace previs

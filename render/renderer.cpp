@@ -179,9 +179,11 @@ Result<std::unique_ptr<Renderer>> Renderer::create(GpuContext& ctx, const Scene&
     r->settings_.resolutionScale = 1.0f;
     if (Status s = r->setResolutionScale(settings.resolutionScale); !s) return s.error();
     if (Status s = r->reset(); !s) return s.error();
+    // The denoiser is made at the traced size by the first denoised image() (the size follows
+    // setResolutionScale); creating one here checks the settings early.
     if (settings.denoise) {
         auto denoiser =
-            Denoiser::create(ctx, settings.width, settings.height, settings.denoiseSettings);
+            Denoiser::create(ctx, r->params_.width, r->params_.height, settings.denoiseSettings);
         if (!denoiser) return denoiser.error();
         r->denoiser_.emplace(std::move(denoiser.value()));
     }
@@ -755,6 +757,29 @@ void Renderer::setMaxDepth(uint32_t maxDepth) {
     params_.photonMaxBounces = std::min(settings_.maxDepth, kMaxPhotonBounces + 1u) - 1u;
 }
 
+Status Renderer::setDenoiseIterations(uint32_t iterations) {
+    if (!denoiser_)
+        return makeError(
+            "the denoiser's strength needs a renderer created with denoising on (--denoise "
+            "on|auto, [render] denoise)");
+    if (iterations == denoiser_->settings().iterations) return {};
+    DenoiseSettings d = denoiser_->settings();
+    d.iterations = iterations;
+    auto resized = Denoiser::create(*ctx_, denoiser_->width(), denoiser_->height(), d);
+    if (!resized) return resized.error();
+    denoiser_.emplace(std::move(resized.value()));
+    settings_.denoiseSettings = d;
+    return {};
+}
+
+Status Renderer::setPreviewPhotons(uint32_t photons) {
+    if (photons == 0 || photons > kMaxPhotonsPerIteration)
+        return makeError("preview photon budget {} is out of range: 1..{} photons per frame",
+                         photons, kMaxPhotonsPerIteration);
+    settings_.photons.previewPerIteration = photons;
+    return {};
+}
+
 Status Renderer::reset() {
     samples_ = 0;
     accumulationReplicates_ = 0;
@@ -1038,9 +1063,14 @@ Result<ImageF> Renderer::image(Aov aov) const {
         }
     }
     if (!scaled) return img;
-    ImageF up = jointBilateralUpsample(img, settings_.width, settings_.height,
-                                       plate_ ? &*plate_ : nullptr, upsample_);
-    if (!upsampleComposite) return up;
+    return upsampleComposite ? upsampleAndAddPlate(img)
+                             : jointBilateralUpsample(img, settings_.width, settings_.height,
+                                                      plate_ ? &*plate_ : nullptr, upsample_);
+}
+
+ImageF Renderer::upsampleAndAddPlate(const ImageF& plateFree) const {
+    ImageF up =
+        jointBilateralUpsample(plateFree, settings_.width, settings_.height, &*plate_, upsample_);
     ImageF out;
     out.width = settings_.width;
     out.height = settings_.height;
@@ -1064,10 +1094,15 @@ Result<ImageF> Renderer::image(Aov aov, bool denoised) {
     if (!denoiser_)
         return makeError(
             "a denoised image needs a renderer created with denoising on (--denoise on|auto)");
-    if (params_.width != settings_.width || params_.height != settings_.height)
-        return makeError(
-            "denoising at a resolution scale below 1 is not supported: denoise at scale 1, or "
-            "upsample without denoising");
+    // At a resolution scale below 1 the filter runs on the traced pixels, before upsampling
+    // (the guides are traced there too), so it costs scale² of a full-size filter.
+    const bool scaled = params_.width != settings_.width || params_.height != settings_.height;
+    if (denoiser_->width() != params_.width || denoiser_->height() != params_.height) {
+        auto resized =
+            Denoiser::create(*ctx_, params_.width, params_.height, denoiser_->settings());
+        if (!resized) return resized.error();
+        denoiser_.emplace(std::move(resized.value()));
+    }
     auto m = readAccumulation();
     if (!m) return m.error();
     auto g = guides();
@@ -1084,8 +1119,8 @@ Result<ImageF> Renderer::image(Aov aov, bool denoised) {
     // HOOK for the convergence meter: its per-pixel variance can replace this one.
     constexpr double kMinSamplesForVariance = 4.0;
     ImageF signal;
-    signal.width = settings_.width;
-    signal.height = settings_.height;
+    signal.width = params_.width;
+    signal.height = params_.height;
     signal.channels = 3;
     signal.pixels.resize(pixels * 3);
     std::vector<float> variance(pixels);
@@ -1106,6 +1141,22 @@ Result<ImageF> Renderer::image(Aov aov, bool denoised) {
                         ? denoiser_->applyTemporal(signal, *g, variance, denoiseCamera())
                         : denoiser_->apply(signal, *g, variance);
     if (!filtered) return filtered.error();
+    if (scaled && withPlate) {
+        // As image(): the plate-free term and the mean mask are upsampled, the plate added after.
+        ImageF plateFree;
+        plateFree.width = params_.width;
+        plateFree.height = params_.height;
+        plateFree.channels = 4;
+        plateFree.pixels.resize(pixels * 4);
+        for (size_t i = 0; i < pixels; ++i) {
+            for (int c = 0; c < 3; ++c) plateFree.pixels[i * 4 + c] = filtered->pixels[i * 3 + c];
+            plateFree.pixels[i * 4 + 3] = float(m->mean(i, PV_ACCUM_COMPOSITE, 3));
+        }
+        return upsampleAndAddPlate(plateFree);
+    }
+    if (scaled)
+        return jointBilateralUpsample(*filtered, settings_.width, settings_.height,
+                                      plate_ ? &*plate_ : nullptr, upsample_);
     if (withPlate) {
         for (size_t i = 0; i < pixels; ++i) {
             const double plateWeight = 1.0 - m->mean(i, PV_ACCUM_COMPOSITE, 3);

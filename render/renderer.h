@@ -210,6 +210,13 @@ public:
     void setMaxDepth(uint32_t maxDepth);
     uint32_t maxDepth() const { return params_.maxDepth; }
 
+    // The denoiser's strength for the next denoised image(): its à-trous levels (DenoiseSettings::
+    // iterations, 1..10; needs RenderSettings::denoise). The dial sweeps it.
+    Status setDenoiseIterations(uint32_t iterations);
+    // The budget of preview frames' photon pass (PhotonSettings::previewPerIteration; at most
+    // the buffers' per-iteration count). Nothing changes without an active photon pass.
+    Status setPreviewPhotons(uint32_t photons);
+
     // Selects another random sequence (takes effect with the next render; call reset() first
     // unless the new samples are meant to join the old ones).
     void setSeed(uint32_t seed) { params_.seed = seed; }
@@ -235,7 +242,8 @@ public:
     Result<Convergence> convergence() const;
     // The same, denoised where `denoised` (needs RenderSettings::denoise): Composite, Mixed and
     // Real are filtered, the composite before Eq. 1 adds the plate term (1 − M)·L_oc, so the
-    // camera image itself is never filtered; the other AOVs are returned as image(aov).
+    // camera image itself is never filtered; the other AOVs are returned as image(aov). At a
+    // resolution scale below 1 the traced pixels are filtered, then upsampled as image() does.
     Result<ImageF> image(Aov aov, bool denoised);
     // GPU time of the last denoised image()'s filter dispatches (ms).
     double denoiseMilliseconds() const {
@@ -282,6 +290,10 @@ public:
     }
 
 private:
+    // Eq. 1 at a resolution scale below 1: `plateFree` (traced size; RGB the mean of
+    // M·L_om + (1−M)(L_om − L_or), A the mean mask) upsampled to the output, then
+    // (1 − M)·L_oc added with the full-resolution plate.
+    ImageF upsampleAndAddPlate(const ImageF& plateFree) const;
     // The accumulation buffers read back: value(pixel, PV_ACCUM_*, channel) is the compensated
     // sum in double.
     struct Accumulation {

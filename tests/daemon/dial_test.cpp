@@ -5,10 +5,13 @@
 // extremes of the target make the choice deterministic in kind.
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include "daemon/pipeline_renderer.h"
 #include "daemon/service_config.h"
 #include "gpu/context.h"
 #include "scene/scene_description.h"
+#include "tests/support/scene_builders.h"
 #include "tests/support/test_data.h"
 
 namespace previs {
@@ -64,14 +67,16 @@ TEST(Dial, ASlowTargetTakesTheMostAccurateSetting) {
 TEST(Dial, AnUnreachableTargetTakesTheFastest) {
     auto ctx = GpuContext::create({});
     ASSERT_TRUE(ctx) << ctx.message();
+    // Large enough that even the cheapest point (160×90 traced) cannot reach 240 fps here; the
+    // dial times only that one (the rest cost more on every axis and are pruned).
     Demo d = demo(240.0);
-    d.config.render.width = 320;
-    d.config.render.height = 180;
+    d.config.render.width = 640;
+    d.config.render.height = 360;
     auto p = PipelineRenderer::create(**ctx, d.scene, d.config);
     ASSERT_TRUE(p) << p.message();
     const auto& m = (*p)->dialMeasurements();
     ASSERT_FALSE(m.empty());
-    if ((*p)->dialChoice()) GTEST_SKIP() << "this device renders 320x180 at 240 fps";
+    if ((*p)->dialChoice()) GTEST_SKIP() << "this device renders 640x360 at 240 fps";
     double fastest = m[0].frameSeconds;
     for (const DialMeasurement& x : m) fastest = std::min(fastest, x.frameSeconds);
     bool previewIsFastest = false;
@@ -81,6 +86,73 @@ TEST(Dial, AnUnreachableTargetTakesTheFastest) {
                             x.point.resolutionScale == (*p)->previewResolutionScale() &&
                             x.point.maxDepth == (*p)->previewMaxDepth();
     EXPECT_TRUE(previewIsFastest);
+}
+
+// [render] denoise = "auto": the dial sweeps the denoiser's strength too, preview frames are
+// denoised at the strength it chose, and refinement denoises while the meter's estimate is above
+// target_noise and stops once it is below.
+TEST(Dial, DenoiserStrengthIsOnTheDialAndRefinementStopsDenoisingAtTheTarget) {
+    auto ctx = GpuContext::create({});
+    ASSERT_TRUE(ctx) << ctx.message();
+    Demo d = demo(0.01);
+    d.config.render.denoise = "auto";
+    d.config.refine.targetNoise = 0.02;
+    d.config.tracking.sceneCameraUntilTracked = true;  // render without a board in view
+    auto p = PipelineRenderer::create(**ctx, d.scene, d.config);
+    ASSERT_TRUE(p) << p.message();
+    const auto& m = (*p)->dialMeasurements();
+    ASSERT_EQ(m.size(), 4u * 3u * 2u * 3u);  // × strength 0, 2, 4
+    size_t denoised = 0;
+    for (const DialMeasurement& x : m) denoised += x.point.denoiseIterations > 0;
+    EXPECT_EQ(denoised, 4u * 3u * 2u * 2u);
+    ASSERT_TRUE((*p)->dialChoice());
+    const DialPoint& chosen = m[*(*p)->dialChoice()].point;
+    EXPECT_EQ((*p)->previewDenoiseLevels(), chosen.denoiseIterations);
+
+    auto frame = std::make_shared<Frame>();
+    frame->width = (*p)->width();
+    frame->height = (*p)->height();
+    frame->rgb.assign(size_t(frame->width) * frame->height * 3, 118);
+    TrackedFrame tracked;
+    tracked.frame = frame;
+    ASSERT_TRUE((*p)->renderPreview(tracked, nullptr));
+    Result<ImageF> preview = (*p)->composite();
+    ASSERT_TRUE(preview) << preview.message();
+    EXPECT_EQ((*p)->lastDenoiseLevels(), chosen.denoiseIterations);
+
+    ASSERT_TRUE((*p)->beginRefine(tracked, nullptr));
+    ASSERT_TRUE((*p)->refineStep(8));
+    ASSERT_TRUE((*p)->composite(0.1));  // above the target: denoised at denoise_levels
+    EXPECT_EQ((*p)->lastDenoiseLevels(), d.config.render.denoiseLevels);
+    Result<ImageF> converged = (*p)->composite(0.01);  // below: the accumulation as it is
+    ASSERT_TRUE(converged) << converged.message();
+    EXPECT_EQ((*p)->lastDenoiseLevels(), 0u);
+    for (float v : converged->pixels) ASSERT_TRUE(std::isfinite(v));
+
+    // "on" without the dial: every preview frame at denoise_levels, and it changes the picture.
+    Demo on = demo(0.0);
+    on.config.render.denoise = "on";
+    on.config.render.denoiseLevels = 3;
+    on.config.render.width = 160;  // the virtual object a few pixels across at 64x36
+    on.config.render.height = 90;
+    on.config.tracking.sceneCameraUntilTracked = true;
+    // The demo scene is lit by the fisheye's estimate: without one, a sky of its own.
+    on.scene.environment = ::previs::testing::uniformEnvironment(glm::vec3(0.5f));
+    auto q = PipelineRenderer::create(**ctx, on.scene, on.config);
+    ASSERT_TRUE(q) << q.message();
+    EXPECT_EQ((*q)->previewDenoiseLevels(), 3u);
+    auto bigger = std::make_shared<Frame>(*frame);
+    bigger->width = 160;
+    bigger->height = 90;
+    bigger->rgb.assign(size_t(160) * 90 * 3, 118);
+    tracked.frame = bigger;
+    ASSERT_TRUE((*q)->renderPreview(tracked, nullptr));
+    Result<ImageF> filtered = (*q)->composite();
+    ASSERT_TRUE(filtered) << filtered.message();
+    EXPECT_EQ((*q)->lastDenoiseLevels(), 3u);
+    Result<ImageF> raw = (*q)->renderer().image(Aov::Composite);
+    ASSERT_TRUE(raw) << raw.message();
+    EXPECT_NE(filtered->pixels, raw->pixels);
 }
 
 }  // namespace

@@ -288,6 +288,12 @@ position_m = [1, 0, 0]
         {"render_preview_fps_negative",
          minimal("", "[render]\npreview_fps = -1"),
          {"'render.preview_fps' is -1"}},
+        {"render_denoise_mode",
+         minimal("", "[render]\ndenoise = \"sometimes\""),
+         {"'render.denoise' is 'sometimes'", "\"off\", \"on\" or \"auto\""}},
+        {"render_denoise_levels_zero",
+         minimal("", "[render]\ndenoise_levels = 0"),
+         {"'render.denoise_levels' is 0"}},
         {"refine_negative",
          minimal("", "[refine]\npose_threshold_m = -1"),
          {"'refine.pose_threshold_m' is -1"}},
@@ -336,6 +342,8 @@ photon_radius_m = 0.004
 photon_alpha = 0.75
 resolution_scale = 0.3333
 preview_fps = 12.5
+denoise = "auto"
+denoise_levels = 3
 [refine]
 samples_per_step = 8
 max_samples = 0
@@ -367,6 +375,8 @@ loop = false
     EXPECT_FLOAT_EQ(c->render.photons.alpha, 0.75f);
     EXPECT_FLOAT_EQ(c->render.resolutionScale, 0.3333f);
     EXPECT_DOUBLE_EQ(c->render.previewFps, 12.5);
+    EXPECT_EQ(c->render.denoise, "auto");
+    EXPECT_EQ(c->render.denoiseLevels, 3u);
     EXPECT_EQ(c->refine.samplesPerStep, 8u);
     EXPECT_EQ(c->refine.maxSamples, 0u);
     EXPECT_DOUBLE_EQ(c->refine.poseThresholdDeg, 1.5);

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstring>
 
+#include "render/quality_dial.h"
 #include "shared/bsdf.h"
 #include "tests/integrator/gpu_fixture.h"
 #include "tests/support/scene_builders.h"
@@ -355,6 +356,35 @@ TEST_F(CausticAgreementTest, PreviewFramesAreBitIdentical) {
     EXPECT_EQ(0, std::memcmp(first.data(), other.data(), first.size() * sizeof(float)));
     // The preview budget was a budget: refinement traces its full count again.
     EXPECT_EQ((*a)->photonsPerIteration(), 1u << 15);
+}
+
+// The preview's photon budget is one of the dial's axes (render/quality_dial.h): setting it
+// changes the frame (other photons are traced), measureDial sets it per point, and refinement
+// keeps its own count.
+TEST_F(CausticAgreementTest, PreviewPhotonBudgetIsADialAxis) {
+    const Scene s = scene();
+    RenderSettings rs = photonSettings(48, 36, PhotonMode::Auto);
+    rs.photons.perIteration = 1u << 15;
+    auto r = Renderer::create(ctx(), s, rs);
+    ASSERT_TRUE(r.ok()) << r.message();
+    Renderer& renderer = **r;
+    ASSERT_TRUE(renderer.photonsActive());
+    ASSERT_TRUE(renderer.render(16).ok());
+    auto reference = renderer.image();
+    ASSERT_TRUE(reference.ok());
+    DialAxes axes{{1.0f}, {1}, {4}, {}, {1024, 8192}};
+    auto measured = measureDial(renderer, dialGrid(axes), *reference, 1);
+    ASSERT_TRUE(measured.ok()) << measured.message();
+    ASSERT_EQ(measured->size(), 2u);
+    EXPECT_EQ((*measured)[0].point.photons, 1024u);
+    EXPECT_EQ((*measured)[1].point.photons, 8192u);
+    for (const DialMeasurement& m : *measured) {
+        EXPECT_TRUE(std::isfinite(m.error) && m.error > 0.0);
+        EXPECT_GT(m.frameSeconds, 0.0);
+    }
+    EXPECT_NE((*measured)[0].error, (*measured)[1].error);  // different photons, another frame
+    EXPECT_EQ(renderer.photonsPerIteration(), 1u << 15);
+    EXPECT_FALSE(renderer.setPreviewPhotons(0).ok());
 }
 
 // Model only what the scene requires: no purely specular object (or no light) ⇒ no photon pass,

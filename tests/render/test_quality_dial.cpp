@@ -11,15 +11,14 @@
 namespace previs {
 namespace {
 
-const std::vector<float> kScales = {1.0f, 0.5f, 0.25f};
-const std::vector<uint32_t> kSamples = {1, 2, 4};
-const std::vector<uint32_t> kDepths = {2, 4};
+const DialAxes kAxes = {{1.0f, 0.5f, 0.25f}, {1, 2, 4}, {2, 4}, {}, {}};
+// With the denoiser's strength and a photon budget swept too.
+const DialAxes kAllAxes = {{1.0f, 0.5f}, {1, 2}, {2, 4}, {0, 2, 4}, {4096, 16384}};
 
-std::vector<DialMeasurement> randomMeasurements(std::mt19937& rng) {
+std::vector<DialMeasurement> randomMeasurements(std::mt19937& rng, const DialAxes& axes = kAxes) {
     std::uniform_real_distribution<double> time(0.01, 1.0), error(0.01, 1.0);
     std::vector<DialMeasurement> m;
-    for (const DialPoint& p : dialGrid(kScales, kSamples, kDepths, false))
-        m.push_back({p, time(rng), error(rng)});
+    for (const DialPoint& p : dialGrid(axes)) m.push_back({p, time(rng), error(rng)});
     return m;
 }
 
@@ -71,9 +70,9 @@ TEST(QualityDial, ChoiceFitsTheBudgetAndIsOnTheFront) {
 // frame rate or a zero one chooses nothing.
 TEST(QualityDial, InvalidMeasurementsAndTargetsAreRefused) {
     std::vector<DialMeasurement> m = {
-        {{1.0f, 1, 2, false}, 0.05, 0.1},
-        {{0.5f, 1, 2, false}, std::nan(""), 0.01},
-        {{0.25f, 1, 2, false}, 0.01, std::numeric_limits<double>::infinity()}};
+        {{1.0f, 1, 2, 0, 0}, 0.05, 0.1},
+        {{0.5f, 1, 2, 0, 0}, std::nan(""), 0.01},
+        {{0.25f, 1, 2, 0, 0}, 0.01, std::numeric_limits<double>::infinity()}};
     EXPECT_EQ(paretoFront(m), std::vector<size_t>{0});
     EXPECT_EQ(chooseForFrameRate(m, 10.0), 0u);
     EXPECT_FALSE(chooseForFrameRate(m, 0.0));
@@ -90,9 +89,56 @@ TEST(QualityDial, GridNeighboursAreOneStepAway) {
         if (m[i].point.resolutionScale == 0.5f && m[i].point.samplesPerFrame == 2 &&
             m[i].point.maxDepth == 2)
             middle = i;
-    const auto n = gridNeighbours(m, middle, kScales, kSamples, kDepths);
+    const auto n = gridNeighbours(m, middle, kAxes);
     EXPECT_EQ(n.size(), 2u + 2u + 1u);  // scale ±1, samples ±1, depth +1 (2 is the smallest)
     for (size_t i : n) EXPECT_NE(i, middle);
+}
+
+// Every combination once; the axes not swept are 0 (off); the denoiser's and the photons'
+// axes have neighbours like the others.
+TEST(QualityDial, GridCoversEveryAxis) {
+    const std::vector<DialPoint> plain = dialGrid(kAxes);
+    EXPECT_EQ(plain.size(), 3u * 3u * 2u);
+    for (const DialPoint& p : plain) {
+        EXPECT_EQ(p.denoiseIterations, 0u);
+        EXPECT_EQ(p.photons, 0u);
+    }
+    const std::vector<DialPoint> all = dialGrid(kAllAxes);
+    EXPECT_EQ(all.size(), 2u * 2u * 2u * 3u * 2u);
+    for (size_t i = 0; i < all.size(); ++i)
+        for (size_t j = i + 1; j < all.size(); ++j)
+            EXPECT_FALSE(all[i].resolutionScale == all[j].resolutionScale &&
+                         all[i].samplesPerFrame == all[j].samplesPerFrame &&
+                         all[i].maxDepth == all[j].maxDepth &&
+                         all[i].denoiseIterations == all[j].denoiseIterations &&
+                         all[i].photons == all[j].photons);
+    std::mt19937 rng(14);
+    const auto m = randomMeasurements(rng, kAllAxes);
+    size_t corner = 0;  // scale 1, 1 spp, depth 2, denoised at strength 2, 4096 photons
+    for (size_t i = 0; i < m.size(); ++i)
+        if (m[i].point.resolutionScale == 1.0f && m[i].point.samplesPerFrame == 1 &&
+            m[i].point.maxDepth == 2 && m[i].point.denoiseIterations == 2 &&
+            m[i].point.photons == 4096)
+            corner = i;
+    // scale +1, samples +1, depth +1, strength ±1 (0 and 4), photons +1
+    EXPECT_EQ(gridNeighbours(m, corner, kAllAxes).size(), 1u + 1u + 1u + 2u + 1u);
+    EXPECT_EQ(m[corner].point.describe(),
+              "scale 1/1, 1 spp, depth 2, denoised (2 levels), 4096 photons");
+}
+
+// A point is left out only when a point that costs no more on any axis already took longer
+// than the budget (with the margin): never one a cheaper measurement says may fit.
+TEST(QualityDial, OnlyPointsThatCannotFitArePruned) {
+    const double budget = 0.1;
+    const std::vector<DialMeasurement> measured = {
+        {{0.5f, 2, 4, 0, 0}, budget * kDialPruneMargin * 1.01, 0.1},  // over the budget
+        {{0.25f, 4, 4, 0, 0}, budget * 1.1, 0.1},                     // over, but within the margin
+    };
+    EXPECT_TRUE(cannotFit(measured, {0.5f, 2, 4, 2, 0}, budget));    // the same, denoised
+    EXPECT_TRUE(cannotFit(measured, {1.0f, 2, 8, 0, 0}, budget));    // more on two axes
+    EXPECT_FALSE(cannotFit(measured, {0.5f, 1, 8, 0, 0}, budget));   // fewer samples
+    EXPECT_FALSE(cannotFit(measured, {0.25f, 4, 8, 0, 0}, budget));  // only the margin's point
+    EXPECT_FALSE(cannotFit(measured, {0.5f, 2, 4, 0, 0}, 1.0));      // a larger budget
 }
 
 }  // namespace
