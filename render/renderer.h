@@ -255,7 +255,9 @@ public:
     // The denoiser (null without RenderSettings::denoise): its settings and temporal history.
     Denoiser* denoiser() { return denoiser_ ? &*denoiser_ : nullptr; }
     // Denoised images accumulate the denoiser's temporal history (preview; Denoiser::
-    // applyTemporal with denoiseCamera()); off: spatial only (Denoiser::apply).
+    // applyTemporal with denoiseCamera()); off: spatial only (Denoiser::apply). The history is
+    // one signal's: denoise one AOV a frame while it is on (the composite), and reset it
+    // (denoiser()->resetHistory()) on a mode switch or a scene change.
     void setTemporalDenoise(bool on) { temporalDenoise_ = on; }
 
     uint64_t samplesPerPixel() const { return samples_; }
