@@ -36,6 +36,7 @@ static_assert(offsetof(GpuLight, cosInnerCone) == 44 && offsetof(EmissiveTriangl
 // Two texels (trace_paths.comp's gather reads position + flags, then power + direction).
 static_assert(sizeof(PhotonRecord) == 32 && offsetof(PhotonRecord, flags) == 12);
 static_assert(offsetof(PhotonRecord, power) == 16 && offsetof(PhotonRecord, direction) == 28);
-static_assert(sizeof(DenoiseParams) == 36 && offsetof(DenoiseParams, sigmaLuminance) == 20);
+static_assert(sizeof(DenoiseParams) == 140 && offsetof(DenoiseParams, tanHalfFov) == 64);
+static_assert(offsetof(DenoiseParams, width) == 80 && offsetof(DenoiseParams, sigmaMask) == 136);
 
 }  // namespace previs::shader

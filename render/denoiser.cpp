@@ -1,48 +1,76 @@
 #include "render/denoiser.h"
 
 #include <array>
+#include <iterator>
 
 #include "denoise.spv.h"
 #include "shared/denoise.h"
 
 namespace previs {
 
+namespace {
+
+Status validate(const DenoiseSettings& settings) {
+    if (settings.iterations > 10 || settings.kernelRadius < 1 || settings.kernelRadius > 2 ||
+        !(settings.sigmaLuminance > 0.0f) || !(settings.sigmaNormal >= 0.0f) ||
+        !(settings.sigmaDepth > 0.0f) || !(settings.sigmaMask >= 0.0f) ||
+        !(settings.temporalAlpha > 0.0f && settings.temporalAlpha <= 1.0f) ||
+        !(settings.maxHistoryFrames >= 1.0f))
+        return makeError(
+            "denoiser settings out of range ({} iterations, kernel radius {}, sigma luminance "
+            "{}, normal {}, depth {}, mask {}, temporal alpha {}, history {}): iterations 0..10, "
+            "radius 1 or 2, sigmas > 0 (normal and mask >= 0), alpha in (0, 1], history >= 1",
+            settings.iterations, settings.kernelRadius, settings.sigmaLuminance,
+            settings.sigmaNormal, settings.sigmaDepth, settings.sigmaMask, settings.temporalAlpha,
+            settings.maxHistoryFrames);
+    return {};
+}
+
+}  // namespace
+
 Result<Denoiser> Denoiser::create(GpuContext& ctx, uint32_t width, uint32_t height,
                                   const DenoiseSettings& settings) {
     if (width == 0 || height == 0)
         return makeError("denoiser image size {}x{} is empty", width, height);
-    if (settings.iterations == 0 || settings.iterations > 10 || !(settings.sigmaLuminance > 0.0f) ||
-        !(settings.sigmaNormal >= 0.0f) || !(settings.sigmaDepth > 0.0f) ||
-        !(settings.sigmaMask >= 0.0f))
-        return makeError(
-            "denoiser settings out of range ({} iterations, sigma luminance {}, normal {}, "
-            "depth {}, mask {}): iterations 1..10, sigmas > 0 (normal and mask >= 0)",
-            settings.iterations, settings.sigmaLuminance, settings.sigmaNormal, settings.sigmaDepth,
-            settings.sigmaMask);
+    if (Status s = validate(settings); !s) return s.error();
     Denoiser d;
     d.width_ = width;
     d.height_ = height;
     d.settings_ = settings;
     const size_t pixels = size_t(width) * height;
-    // Bindings 0..4; the work buffer is bound again as PV_DENOISE_BINDING_WORK_TEXELS.
-    const size_t sizes[PV_DENOISE_BINDING_WORK_TEXELS] = {
-        sizeof(shader::DenoiseParams), pixels * sizeof(glm::vec4),
-        pixels * PV_GUIDE_COUNT * sizeof(glm::vec4), 3 * pixels * sizeof(glm::vec4),
-        pixels * sizeof(glm::vec4)};
-    const char* labels[PV_DENOISE_BINDING_WORK_TEXELS] = {
-        "denoiseParams", "denoiseColor", "denoiseGuides", "denoiseWork", "denoiseOutput"};
-    for (int b = 0; b < PV_DENOISE_BINDING_WORK_TEXELS; ++b) {
-        auto buffer = GpuBuffer::create(ctx, sizes[b], labels[b]);
+    // Every binding owns its buffer except the *_TEXELS ones, which view the buffer before them.
+    struct Owned {
+        int binding;
+        size_t bytes;
+        const char* label;
+    };
+    const Owned owned[] = {
+        {PV_DENOISE_BINDING_PARAMS, sizeof(shader::DenoiseParams), "denoiseParams"},
+        {PV_DENOISE_BINDING_COLOR, pixels * sizeof(glm::vec4), "denoiseColor"},
+        {PV_DENOISE_BINDING_GUIDES, pixels * PV_GUIDE_COUNT * sizeof(glm::vec4), "denoiseGuides"},
+        {PV_DENOISE_BINDING_WORK, PV_DENOISE_WORK_IMAGES * pixels * sizeof(glm::vec4),
+         "denoiseWork"},
+        {PV_DENOISE_BINDING_OUTPUT, pixels * sizeof(glm::vec4), "denoiseOutput"},
+        {PV_DENOISE_BINDING_PACKED, 2 * pixels * sizeof(glm::uvec4), "denoisePacked"},
+        {PV_DENOISE_BINDING_HISTORY, 2 * PV_HISTORY_TEXELS * pixels * sizeof(glm::vec4),
+         "denoiseHistory"},
+    };
+    std::array<const GpuBuffer*, PV_DENOISE_BINDING_COUNT> bound{};
+    d.buffers_.reserve(std::size(owned));
+    for (const Owned& o : owned) {
+        auto buffer = GpuBuffer::create(ctx, o.bytes, o.label);
         if (!buffer) return buffer.error();
         d.buffers_.push_back(std::move(buffer.value()));
     }
-    std::vector<const GpuBuffer*> bound;
-    for (const GpuBuffer& b : d.buffers_) bound.push_back(&b);
-    bound.push_back(&d.buffers_[PV_DENOISE_BINDING_WORK]);
+    for (size_t i = 0; i < std::size(owned); ++i) bound[owned[i].binding] = &d.buffers_[i];
+    bound[PV_DENOISE_BINDING_WORK_TEXELS] = bound[PV_DENOISE_BINDING_WORK];
+    bound[PV_DENOISE_BINDING_PACKED_TEXELS] = bound[PV_DENOISE_BINDING_PACKED];
+    bound[PV_DENOISE_BINDING_HISTORY_TEXELS] = bound[PV_DENOISE_BINDING_HISTORY];
     std::array<BindingKind, PV_DENOISE_BINDING_COUNT> kinds{};
     kinds.fill(BindingKind::StorageBuffer);
     for (int b :
-         {PV_DENOISE_BINDING_COLOR, PV_DENOISE_BINDING_GUIDES, PV_DENOISE_BINDING_WORK_TEXELS})
+         {PV_DENOISE_BINDING_COLOR, PV_DENOISE_BINDING_GUIDES, PV_DENOISE_BINDING_WORK_TEXELS,
+          PV_DENOISE_BINDING_PACKED_TEXELS, PV_DENOISE_BINDING_HISTORY_TEXELS})
         kinds[b] = BindingKind::TexelBufferUint4;
     auto make = [&](uint32_t stage, std::optional<ComputePipeline>& out) -> Status {
         const std::array<uint32_t, 1> constants{stage};
@@ -54,14 +82,21 @@ Result<Denoiser> Denoiser::create(GpuContext& ctx, uint32_t width, uint32_t heig
         return out->bind(bound);
     };
     if (Status s = make(PV_DENOISE_STAGE_PREPARE, d.prepare_); !s) return s.error();
+    if (Status s = make(PV_DENOISE_STAGE_TEMPORAL, d.temporal_); !s) return s.error();
     if (Status s = make(PV_DENOISE_STAGE_ATROUS, d.atrous_); !s) return s.error();
     if (Status s = make(PV_DENOISE_STAGE_FINISH, d.finish_); !s) return s.error();
     return d;
 }
 
+Status Denoiser::setSettings(const DenoiseSettings& settings) {
+    if (Status s = validate(settings); !s) return s;
+    settings_ = settings;
+    return {};
+}
+
 Status Denoiser::dispatch(ComputePipeline& pipeline) {
-    auto ms = pipeline.dispatch((width_ + PV_DENOISE_GROUP_SIZE - 1) / PV_DENOISE_GROUP_SIZE,
-                                (height_ + PV_DENOISE_GROUP_SIZE - 1) / PV_DENOISE_GROUP_SIZE);
+    auto ms = pipeline.dispatch((width_ + PV_DENOISE_GROUP_X - 1) / PV_DENOISE_GROUP_X,
+                                (height_ + PV_DENOISE_GROUP_Y - 1) / PV_DENOISE_GROUP_Y);
     if (!ms) return ms.error();
     lastGpuMs_ += ms.value();
     return {};
@@ -69,6 +104,16 @@ Status Denoiser::dispatch(ComputePipeline& pipeline) {
 
 Result<ImageF> Denoiser::apply(const ImageF& signal, std::span<const glm::vec4> guides,
                                std::span<const float> variance) {
+    return run(signal, guides, variance, nullptr);
+}
+
+Result<ImageF> Denoiser::applyTemporal(const ImageF& signal, std::span<const glm::vec4> guides,
+                                       std::span<const float> variance, const DenoiseCamera& now) {
+    return run(signal, guides, variance, &now);
+}
+
+Result<ImageF> Denoiser::run(const ImageF& signal, std::span<const glm::vec4> guides,
+                             std::span<const float> variance, const DenoiseCamera* now) {
     const size_t pixels = size_t(width_) * height_;
     if (signal.width != width_ || signal.height != height_ || signal.channels != 3 ||
         signal.pixels.size() != pixels * 3 || guides.size() != pixels * PV_GUIDE_COUNT ||
@@ -80,6 +125,8 @@ Result<ImageF> Denoiser::apply(const ImageF& signal, std::span<const glm::vec4> 
             signal.width, signal.height, signal.channels, guides.size(), variance.size(), width_,
             height_, PV_GUIDE_COUNT);
     lastGpuMs_ = 0.0;
+    // Strength 0 without temporal accumulation: nothing to do.
+    if (settings_.iterations == 0 && !now) return signal;
     std::vector<glm::vec4> color(pixels);
     for (size_t i = 0; i < pixels; ++i)
         color[i] = glm::vec4(signal.pixels[3 * i], signal.pixels[3 * i + 1],
@@ -94,23 +141,48 @@ Result<ImageF> Denoiser::apply(const ImageF& signal, std::span<const glm::vec4> 
     shader::DenoiseParams params{};
     params.width = width_;
     params.height = height_;
+    params.kernelRadius = settings_.kernelRadius;
+    // This frame's guides go into the image not holding the previous frame's.
+    params.packedImage = 1u - prevPacked_;
+    params.historyIn = historyIn_;
+    params.temporalAlpha = settings_.temporalAlpha;
+    params.maxHistory = settings_.maxHistoryFrames;
     params.sigmaLuminance = settings_.sigmaLuminance;
     params.sigmaNormal = settings_.sigmaNormal;
     params.sigmaDepth = settings_.sigmaDepth;
     params.sigmaMask = settings_.sigmaMask;
+    if (now) {
+        params.prevCameraFromCamera =
+            glm::mat4(glm::inverse(prevCamera_.worldFromCamera) * now->worldFromCamera);
+        params.tanHalfFov = now->tanHalfFov;
+        params.historyValid = historyValid_ ? 1u : 0u;
+        params.prevTanHalfFov = prevCamera_.tanHalfFov;
+    }
     GpuBuffer& paramsBuffer = buffers_[PV_DENOISE_BINDING_PARAMS];
     // Dispatches wait for completion (ComputePipeline::dispatch), so each iteration's parameters
     // can be uploaded into the one buffer between them.
     if (Status s = paramsBuffer.upload(&params, sizeof(params)); !s) return s.error();
     if (Status s = dispatch(*prepare_); !s) return s.error();
+    uint32_t image = PV_DENOISE_WORK_PREPARED;
+    if (now) {
+        if (Status s = dispatch(*temporal_); !s) return s.error();
+        image = PV_DENOISE_WORK_TEMPORAL;
+        prevPacked_ = params.packedImage;
+        historyIn_ = 1u - historyIn_;
+        historyFrames_ = historyValid_ ? historyFrames_ + 1 : 1;
+        historyValid_ = true;
+        prevCamera_ = *now;
+    }
+    // The iterations ping-pong between the two images after the prepared and temporal ones.
     for (uint32_t i = 0; i < settings_.iterations; ++i) {
         params.stepPx = 1u << i;
-        params.inImage = i == 0 ? 0u : 1u + (i + 1) % 2;
-        params.outImage = 1u + i % 2;
+        params.inImage = image;
+        params.outImage = PV_DENOISE_WORK_TEMPORAL + 1u + i % 2;
+        image = params.outImage;
         if (Status s = paramsBuffer.upload(&params, sizeof(params)); !s) return s.error();
         if (Status s = dispatch(*atrous_); !s) return s.error();
     }
-    params.inImage = params.outImage;
+    params.inImage = image;
     if (Status s = paramsBuffer.upload(&params, sizeof(params)); !s) return s.error();
     if (Status s = dispatch(*finish_); !s) return s.error();
     if (Status s =

@@ -19,7 +19,11 @@
 namespace previs {
 
 struct DenoiseSettings {
-    uint32_t iterations = 5;  // à-trous levels: taps 1, 2, 4, ... 2^(n−1) pixels apart
+    // The strength: à-trous levels, taps 1, 2, 4, ... 2^(n−1) pixels apart; 0 = no spatial
+    // filter (apply() returns its input; applyTemporal() only accumulates).
+    uint32_t iterations = 5;
+    // 2: SVGF's 5×5 B3-spline taps; 1: a 3×3 kernel (8 taps instead of 24 per level).
+    uint32_t kernelRadius = 2;
     // SVGF's σ_n and σ_z (Schied et al. 2017, §4.4). Its σ_l = 4 suits its few-frame variance;
     // with the accumulation's own variance it blurs converged gradients (the soft occlusion
     // around a virtual object's contact): measured on tests/integrator/test_denoise.cpp's set,
@@ -33,6 +37,20 @@ struct DenoiseSettings {
     // result by ΔM times the jump, a bias that shrinks only as fast as the noise. So the
     // weight is nearly a partition: ΔM = 1/64 weighs e^−4, 1/16 e^−16.
     float sigmaMask = 256.0f;
+    // Temporal accumulation (applyTemporal): SVGF's α, the smallest weight of the new frame in
+    // the exponential moving average (a mean over the first 1/α frames), and the cap of the
+    // history length the validation carries (frames).
+    float temporalAlpha = 0.2f;
+    float maxHistoryFrames = 32.0f;
+};
+
+// The pinhole camera of a frame, for temporal reprojection (Renderer::denoiseCamera): the
+// camera's pose (looks along −Z, +Y up; double, as Renderer::setCameraPose takes it) and tan of
+// the half field of view in x and y. A calibrated lens grid is approximated by this pinhole
+// (BENCHMARKS.md "Issue 10: denoiser" says what that costs).
+struct DenoiseCamera {
+    glm::dmat4 worldFromCamera{1.0};
+    glm::vec2 tanHalfFov{1.0f};
 };
 
 // `--denoise auto`: the denoiser runs while the convergence meter's relative RMSE estimate
@@ -63,23 +81,52 @@ public:
     Result<ImageF> apply(const ImageF& signal, std::span<const glm::vec4> guides,
                          std::span<const float> variance);
 
+    // The same with SVGF's temporal accumulation first (preview): the previous call's history,
+    // reprojected from its camera to `now` through the guides' depth, is kept where depth,
+    // normal and mask agree (else the pixel starts afresh), blended with this frame with weight
+    // max(α, 1/(history + 1)), and the blend's variance (shader: "temporal") sets the spatial
+    // filter's luminance tolerance. The depth must be the distance along the pixel centre's ray
+    // of a pinhole camera `now`. apply() calls in between leave the history alone.
+    Result<ImageF> applyTemporal(const ImageF& signal, std::span<const glm::vec4> guides,
+                                 std::span<const float> variance, const DenoiseCamera& now);
+    // Forget the history: the next applyTemporal() starts afresh (mode switch, refinement start,
+    // scene or resolution change).
+    void resetHistory() {
+        historyValid_ = false;
+        historyFrames_ = 0;
+    }
+    // Frames in the history after the last applyTemporal() (0 after resetHistory()).
+    uint32_t historyFrames() const { return historyFrames_; }
+
     // GPU time of the last apply()'s dispatches (ms; 0 without timestamps).
     double lastGpuMilliseconds() const { return lastGpuMs_; }
     const DenoiseSettings& settings() const { return settings_; }
+    // New settings for the next calls (the dial's strength); out of range: an error, no change.
+    Status setSettings(const DenoiseSettings& settings);
     uint32_t width() const { return width_; }
     uint32_t height() const { return height_; }
 
 private:
     Denoiser() = default;
     Status dispatch(ComputePipeline& pipeline);
+    Result<ImageF> run(const ImageF& signal, std::span<const glm::vec4> guides,
+                       std::span<const float> variance, const DenoiseCamera* now);
 
     uint32_t width_ = 0;
     uint32_t height_ = 0;
     DenoiseSettings settings_;
     double lastGpuMs_ = 0.0;
+    // Temporal state: the packed-guide image and history image holding the previous frame, and
+    // its camera.
+    uint32_t prevPacked_ = 1;
+    uint32_t historyIn_ = 0;
+    bool historyValid_ = false;
+    uint32_t historyFrames_ = 0;
+    DenoiseCamera prevCamera_;
     // Buffers in PV_DENOISE_BINDING_* order, then the pipelines that bind them.
     std::vector<GpuBuffer> buffers_;
     std::optional<ComputePipeline> prepare_;
+    std::optional<ComputePipeline> temporal_;
     std::optional<ComputePipeline> atrous_;
     std::optional<ComputePipeline> finish_;
 };

@@ -1137,7 +1137,9 @@ Result<ImageF> Renderer::image(Aov aov, bool denoised) {
         variance[i] =
             n >= kMinSamplesForVariance ? float(std::max(0.0, y2 - y * y) / (n - 1.0)) : -1.0f;
     }
-    auto filtered = denoiser_->apply(signal, *g, variance);
+    auto filtered = temporalDenoise_
+                        ? denoiser_->applyTemporal(signal, *g, variance, denoiseCamera())
+                        : denoiser_->apply(signal, *g, variance);
     if (!filtered) return filtered.error();
     if (scaled && withPlate) {
         // As image(): the plate-free term and the mean mask are upsampled, the plate added after.

@@ -249,6 +249,16 @@ public:
     double denoiseMilliseconds() const {
         return denoiser_ ? denoiser_->lastGpuMilliseconds() : 0.0;
     }
+    // The camera of the next render, for the denoiser's temporal reprojection
+    // (Denoiser::applyTemporal).
+    DenoiseCamera denoiseCamera() const { return {worldFromCameraM_, params_.tanHalfFov}; }
+    // The denoiser (null without RenderSettings::denoise): its settings and temporal history.
+    Denoiser* denoiser() { return denoiser_ ? &*denoiser_ : nullptr; }
+    // Denoised images accumulate the denoiser's temporal history (preview; Denoiser::
+    // applyTemporal with denoiseCamera()); off: spatial only (Denoiser::apply). The history is
+    // one signal's: denoise one AOV a frame while it is on (the composite), and reset it
+    // (denoiser()->resetHistory()) on a mode switch or a scene change.
+    void setTemporalDenoise(bool on) { temporalDenoise_ = on; }
 
     uint64_t samplesPerPixel() const { return samples_; }
     const SceneFeatures& features() const { return features_; }
@@ -370,6 +380,7 @@ private:
     std::optional<PhotonPasses> photonPasses_;
     double photonMs_ = 0.0;
     std::optional<Denoiser> denoiser_;
+    bool temporalDenoise_ = false;
 };
 
 }  // namespace previs

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <glm/gtc/matrix_transform.hpp>
 #include <random>
 
 #include "shared/denoise.h"
@@ -106,10 +107,24 @@ TEST_F(DenoiseTest, FlatImageStaysExactlyFlat) {
         flat.channels = 3;
         for (size_t i = 0; i < size_t(kW) * kH; ++i)
             for (int c = 0; c < 3; ++c) flat.pixels.push_back(colour[c]);
-        ImageF out = take(denoiser->apply(flat, guides, variance));
-        ASSERT_EQ(out.pixels.size(), flat.pixels.size());
-        EXPECT_EQ(std::memcmp(out.pixels.data(), flat.pixels.data(), flat.pixels.size() * 4), 0);
+        // Every strength the dial may pick (0 = off) and both kernels.
+        for (uint32_t radius : {1u, 2u}) {
+            for (uint32_t iterations = 0; iterations <= 5; ++iterations) {
+                DenoiseSettings settings;
+                settings.kernelRadius = radius;
+                settings.iterations = iterations;
+                ASSERT_TRUE(denoiser->setSettings(settings).ok());
+                ImageF out = take(denoiser->apply(flat, guides, variance));
+                ASSERT_EQ(out.pixels.size(), flat.pixels.size());
+                EXPECT_EQ(
+                    std::memcmp(out.pixels.data(), flat.pixels.data(), flat.pixels.size() * 4), 0)
+                    << radius << " " << iterations;
+            }
+        }
     }
+    DenoiseSettings bad;
+    bad.kernelRadius = 3;
+    EXPECT_FALSE(denoiser->setSettings(bad).ok());
 }
 
 // The guides cost nothing to the samples: a renderer with the denoiser's guides accumulates the
@@ -310,8 +325,9 @@ double denoiseGainAt4Spp(GpuContext& ctx, float resolutionScale) {
 }
 
 // At 4 spp the denoiser cuts the RMSE against a long reference. Measured over seeds 300..303
-// when this test was written: 1.48×, 1.63×, 1.45×, 1.59× (printed); the mean gain is asserted
-// above 1.3, below the smallest seed's with room for other devices' float differences.
+// when this test was written: 1.48×, 1.63×, 1.45×, 1.59× (printed); with the packed guides
+// (16-bit normals, half-float depth slopes) 1.48×, 1.58×, 1.43×, 1.60×. The mean gain is
+// asserted above 1.3, below the smallest seed's with room for other devices' float differences.
 TEST_F(DenoiseTest, ReducesTheErrorAtLowSampleCounts) {
     constexpr double kMinGain = 1.3;
     EXPECT_GT(denoiseGainAt4Spp(ctx(), 1.0f), kMinGain);
@@ -323,6 +339,213 @@ TEST_F(DenoiseTest, ReducesTheErrorAtLowSampleCounts) {
 TEST_F(DenoiseTest, AtAResolutionScaleTheTracedPixelsAreFiltered) {
     constexpr double kMinGain = 1.15;
     EXPECT_GT(denoiseGainAt4Spp(ctx(), 0.5f), kMinGain);
+}
+
+// Temporal reprojection (Denoiser::applyTemporal). Guides of a pinhole camera (looking along −Z,
+// tan half fov 0.5 × 0.375, 64×48: square pixels) seeing a far wall z = −4 m and optionally a
+// near strip z = −2 m over world x in [kStripX0, kStripX1), both facing +Z, albedo 1, mask 0:
+// the depth is the distance along each pixel centre's ray, as the path tracer's guides record.
+constexpr uint32_t kTw = 64, kTh = 48;
+constexpr glm::vec2 kTanHalfFov(0.5f, 0.375f);
+constexpr double kFarM = 4.0, kNearM = 2.0;
+constexpr double kStripX0 = -0.33, kStripX1 = 0.11;
+// A pixel on the far wall is 2·4·0.5/64 = 1/16 m wide (on the strip 1/32 m).
+constexpr double kFarPixelM = 2.0 * kFarM * kTanHalfFov.x / kTw;
+
+struct Hit {
+    double depthM;
+    bool nearStrip;
+};
+Hit castPixel(uint32_t x, uint32_t y, const glm::dvec3& cameraM, bool withStrip) {
+    const glm::dvec2 ndc((x + 0.5) / kTw * 2.0 - 1.0, 1.0 - (y + 0.5) / kTh * 2.0);
+    const glm::dvec3 dir = glm::normalize(glm::dvec3(ndc * glm::dvec2(kTanHalfFov), -1.0));
+    if (withStrip) {
+        const double t = (cameraM.z + kNearM) / -dir.z;
+        const double hx = cameraM.x + t * dir.x;
+        if (hx >= kStripX0 && hx < kStripX1) return {t, true};
+    }
+    return {(cameraM.z + kFarM) / -dir.z, false};
+}
+std::vector<glm::vec4> planeGuides(const glm::dvec3& cameraM, bool withStrip) {
+    std::vector<glm::vec4> g(size_t(kTw) * kTh * PV_GUIDE_COUNT, glm::vec4(0.0f));
+    for (uint32_t y = 0; y < kTh; ++y)
+        for (uint32_t x = 0; x < kTw; ++x) {
+            const size_t i = (size_t(y) * kTw + x) * PV_GUIDE_COUNT;
+            g[i + PV_GUIDE_ALBEDO_DEPTH] =
+                glm::vec4(1.0f, 1.0f, 1.0f, float(castPixel(x, y, cameraM, withStrip).depthM));
+            g[i + PV_GUIDE_NORMAL] = glm::vec4(0.0f, 0.0f, 1.0f, 1.0f);
+        }
+    return g;
+}
+DenoiseCamera cameraAt(const glm::dvec3& positionM) {
+    return {glm::translate(glm::dmat4(1.0), positionM), kTanHalfFov};
+}
+ImageF greyImage(const std::vector<float>& values) {
+    ImageF img;
+    img.width = kTw;
+    img.height = kTh;
+    img.channels = 3;
+    for (float v : values)
+        for (int c = 0; c < 3; ++c) img.pixels.push_back(v);
+    return img;
+}
+Result<Denoiser> temporalDenoiser(GpuContext& ctx, uint32_t iterations) {
+    DenoiseSettings settings;
+    settings.iterations = iterations;
+    return Denoiser::create(ctx, kTw, kTh, settings);
+}
+
+// (a) A still camera and the same frame twice (preview traces the same sequence every frame):
+// the history is that frame, its variance is the frame's own (the frames are fully correlated),
+// so the output is the spatial-only filter's — the first frame's exactly, the second's within
+// float rounding (asserted to 1e-6 of the signal's range).
+TEST_F(DenoiseTest, TemporalOnAStillFrameTwiceEqualsTheSpatialFilter) {
+    auto denoiser = temporalDenoiser(ctx(), 5);
+    ASSERT_TRUE(denoiser.ok()) << denoiser.message();
+    const glm::dvec3 camera(0.1, 0.2, 0.0);
+    const auto guides = planeGuides(camera, true);
+    std::mt19937 rng(11);
+    std::normal_distribution<float> noise(0.5f, 0.1f);
+    std::vector<float> values(size_t(kTw) * kTh);
+    for (float& v : values) v = noise(rng);
+    const ImageF frame = greyImage(values);
+    const std::vector<float> variance(values.size(), 0.01f);
+    const ImageF spatial = take(denoiser->apply(frame, guides, variance));
+    const ImageF first = take(denoiser->applyTemporal(frame, guides, variance, cameraAt(camera)));
+    const ImageF second = take(denoiser->applyTemporal(frame, guides, variance, cameraAt(camera)));
+    EXPECT_EQ(denoiser->historyFrames(), 2u);
+    ASSERT_EQ(first.pixels.size(), spatial.pixels.size());
+    ASSERT_EQ(second.pixels.size(), spatial.pixels.size());
+    EXPECT_EQ(std::memcmp(first.pixels.data(), spatial.pixels.data(), spatial.pixels.size() * 4),
+              0);
+    double worst = 0.0;
+    for (size_t i = 0; i < spatial.pixels.size(); ++i)
+        worst = std::max(worst, std::abs(double(second.pixels[i]) - spatial.pixels[i]));
+    EXPECT_LE(worst, 1e-6) << "largest difference from the spatial filter";
+    // And the spatial filter did filter (the comparison is not of two copies of the input).
+    EXPECT_NE(std::memcmp(spatial.pixels.data(), frame.pixels.data(), frame.pixels.size() * 4), 0);
+}
+
+// (b) The camera moves 1/4 m along +x between two frames: the far wall shifts 4 pixels left and
+// the near strip 8, so frame 2's pixel (x, y) finds its history at frame 1's (x + 4, y) on the
+// wall. Frame 1 shows a ramp, frame 2 black, no spatial filter: where the history is valid the
+// output is the EMA's second-frame blend ½·ramp(x + shift), elsewhere black — pixels whose
+// frame-1 point was off screen or behind the strip (disoccluded) are rejected.
+TEST_F(DenoiseTest, TemporalReprojectsAStaticSceneAndRejectsDisocclusions) {
+    auto denoiser = temporalDenoiser(ctx(), 0);
+    ASSERT_TRUE(denoiser.ok()) << denoiser.message();
+    const glm::dvec3 c1(0.0), c2(4.0 * kFarPixelM, 0.0, 0.0);
+    auto ramp = [](uint32_t x, uint32_t y) { return 0.1f + 0.01f * float(x) + 0.001f * float(y); };
+    std::vector<float> v1(size_t(kTw) * kTh), zeros(v1.size(), 0.0f);
+    for (uint32_t y = 0; y < kTh; ++y)
+        for (uint32_t x = 0; x < kTw; ++x) v1[size_t(y) * kTw + x] = ramp(x, y);
+    const std::vector<float> variance(v1.size(), 0.01f);
+    take(denoiser->applyTemporal(greyImage(v1), planeGuides(c1, true), variance, cameraAt(c1)));
+    const ImageF out = take(
+        denoiser->applyTemporal(greyImage(zeros), planeGuides(c2, true), variance, cameraAt(c2)));
+    ASSERT_EQ(out.pixels.size(), size_t(kTw) * kTh * 3);
+    size_t reprojected = 0, disoccluded = 0, offScreen = 0;
+    for (uint32_t y = 0; y < kTh; ++y) {
+        for (uint32_t x = 0; x < kTw; ++x) {
+            // Where frame 1 saw this pixel's point, and whether it saw that point there.
+            const Hit now = castPixel(x, y, c2, true);
+            const uint32_t shift = now.nearStrip ? 8 : 4;
+            float expected = 0.0f;
+            if (x + shift >= kTw) {
+                ++offScreen;
+            } else if (castPixel(x + shift, y, c1, true).nearStrip != now.nearStrip) {
+                ++disoccluded;
+            } else {
+                ++reprojected;
+                expected = 0.5f * ramp(x + shift, y);
+            }
+            for (int c = 0; c < 3; ++c)
+                ASSERT_NEAR(out.pixels[(size_t(y) * kTw + x) * 3 + c], expected, 1e-5f)
+                    << x << "," << y << " shift " << shift;
+        }
+    }
+    // Every case occurred: a strip 0.44 m wide uncovers about 0.25 m of wall behind its edge.
+    EXPECT_GT(reprojected, size_t(kTw * kTh / 2));
+    EXPECT_GE(disoccluded, size_t(3 * kTh));
+    EXPECT_GE(offScreen, size_t(4 * kTh));
+}
+
+// (c) A camera panning one wall pixel a frame over 12 frames, each frame with independent noise
+// (σ = 0.1): where a pixel's history spans all frames, the temporal blend's variance is g·σ² with
+// g = Σ w² of the EMA's weights (a mean over the first 1/α frames, then α = 0.2). The sample
+// variance over P independent pixels has a relative standard deviation √(2/P) (~3 % here);
+// asserted within 5 of them.
+TEST_F(DenoiseTest, TemporalNoiseFallsAsTheEffectiveHistoryOnAMovingCamera) {
+    auto denoiser = temporalDenoiser(ctx(), 0);
+    ASSERT_TRUE(denoiser.ok()) << denoiser.message();
+    const DenoiseSettings& settings = denoiser->settings();
+    constexpr int kFrames = 12;
+    constexpr double kSigma = 0.1;
+    std::mt19937 rng(5);
+    std::normal_distribution<float> noise(0.5f, float(kSigma));
+    const std::vector<float> variance(size_t(kTw) * kTh, float(kSigma * kSigma));
+    ImageF out;
+    double g = 1.0, n = 1.0;
+    for (int f = 0; f < kFrames; ++f) {
+        const glm::dvec3 camera(f * kFarPixelM, 0.0, 0.0);
+        std::vector<float> values(variance.size());
+        for (float& v : values) v = noise(rng);
+        out = take(denoiser->applyTemporal(greyImage(values), planeGuides(camera, false), variance,
+                                           cameraAt(camera)));
+        if (f > 0) {
+            const double alpha = std::max(double(settings.temporalAlpha), 1.0 / (n + 1.0));
+            g = (1.0 - alpha) * (1.0 - alpha) * g + alpha * alpha;
+            n = std::min(n + 1.0, double(settings.maxHistoryFrames));
+        }
+    }
+    ASSERT_EQ(out.pixels.size(), size_t(kTw) * kTh * 3);
+    double sum = 0.0, sum2 = 0.0;
+    size_t count = 0;
+    for (uint32_t y = 0; y < kTh; ++y)
+        for (uint32_t x = 0; x + kFrames <= kTw - 1; ++x) {
+            const double v = out.pixels[(size_t(y) * kTw + x) * 3] - 0.5;
+            sum += v;
+            sum2 += v * v;
+            ++count;
+        }
+    const double observed = (sum2 - sum * sum / double(count)) / double(count - 1);
+    const double expected = g * kSigma * kSigma;
+    const double tolerance = 5.0 * std::sqrt(2.0 / double(count));
+    std::printf("temporal variance %.3e, expected g·σ² = %.4f·%.0e = %.3e (ratio %.3f, %zu px)\n",
+                observed, g, kSigma * kSigma, expected, observed / expected, count);
+    EXPECT_NEAR(observed / expected, 1.0, tolerance);
+    EXPECT_LT(g, 0.2);  // the history did grow beyond the first frames' plain mean
+}
+
+// (d) Black input with zero variance, and a 1e5-radiance sun among 0.5-radiance pixels with
+// known and unknown variances, through two moving frames of the full temporal + spatial filter:
+// every output is finite, black stays exactly black, and the sun keeps finite neighbours.
+TEST_F(DenoiseTest, TemporalStaysFiniteOnBlackAndVeryBrightInput) {
+    auto denoiser = temporalDenoiser(ctx(), 5);
+    ASSERT_TRUE(denoiser.ok()) << denoiser.message();
+    const size_t pixels = size_t(kTw) * kTh;
+    for (int scene = 0; scene < 2; ++scene) {
+        denoiser->resetHistory();
+        EXPECT_EQ(denoiser->historyFrames(), 0u);
+        std::vector<float> values(pixels, scene == 0 ? 0.0f : 0.5f);
+        std::vector<float> variance(pixels, 0.0f);
+        if (scene == 1) {
+            values[size_t(20) * kTw + 30] = 1e5f;
+            for (size_t i = 0; i < pixels; i += 3) variance[i] = i % 2 ? -1.0f : 1e4f;
+        }
+        for (int f = 0; f < 2; ++f) {
+            const glm::dvec3 camera(f * 0.37 * kFarPixelM, 0.0, 0.0);
+            ImageF out = take(denoiser->applyTemporal(greyImage(values), planeGuides(camera, true),
+                                                      variance, cameraAt(camera)));
+            ASSERT_EQ(out.pixels.size(), pixels * 3);
+            for (float v : out.pixels) {
+                ASSERT_TRUE(std::isfinite(v)) << "scene " << scene << " frame " << f;
+                if (scene == 0) {
+                    ASSERT_EQ(v, 0.0f);
+                }
+            }
+        }
+    }
 }
 
 }  // namespace

@@ -32,29 +32,65 @@ PV_BEGIN
 // unknown, the prepare stage estimates it spatially). A texel buffer.
 #define PV_DENOISE_BINDING_COLOR 1
 #define PV_DENOISE_BINDING_GUIDES 2  // PV_GUIDE_COUNT vec4 per pixel, as above (texel buffer)
-// Three images of vec4 (demodulated RGB, its luminance variance): the prepared input, then two
-// for the iterations' ping-pong.
+// PV_DENOISE_WORK_IMAGES images of vec4 (demodulated RGB, its luminance variance): the prepared
+// input, the temporally integrated input, then two for the iterations' ping-pong.
 #define PV_DENOISE_BINDING_WORK 3
 #define PV_DENOISE_BINDING_OUTPUT 4  // the filtered signal, vec4 per pixel (w unused)
 // The work buffer again, as a texel buffer the stages read (on llvmpipe a texel fetch is a
 // gather, a storage-buffer load with per-lane addresses a loop over the lanes). A dispatch reads
 // only images it does not write.
 #define PV_DENOISE_BINDING_WORK_TEXELS 5
-#define PV_DENOISE_BINDING_COUNT 6
+// Two images (this frame's and the previous frame's) of what a filter tap needs besides the
+// colour, packed by the prepare stage into one uvec4 per pixel (PV_PACKED_*): an à-trous tap
+// reads two texels instead of four.
+#define PV_DENOISE_BINDING_PACKED 6
+#define PV_DENOISE_BINDING_PACKED_TEXELS 7  // the same, read
+// Two images (read, written; swapped each frame) of the temporal history, PV_HISTORY_TEXELS
+// vec4 per pixel: (integrated demodulated RGB, history length in frames), (EMA of the
+// luminance, EMA of its square, EMA of the frames' own variance, Σ of the squared EMA weights).
+#define PV_DENOISE_BINDING_HISTORY 8
+#define PV_DENOISE_BINDING_HISTORY_TEXELS 9  // the same, read
+#define PV_DENOISE_BINDING_COUNT 10
+
+#define PV_DENOISE_WORK_IMAGES 4u
+#define PV_DENOISE_WORK_PREPARED 0u
+#define PV_DENOISE_WORK_TEMPORAL 1u
+#define PV_HISTORY_TEXELS 2u
+
+// The packed guide texel: x depth (float bits, m), y normal (packSnorm2x16 of its octahedral
+// map, or PV_PACKED_NO_NORMAL where the guide has none), z mask M (float bits: the mask weight
+// needs its full precision), w the depth's slopes per pixel along x and y (packHalf2x16).
+#define PV_PACKED_NO_NORMAL 0x80008000u  // −32768 twice: packSnorm2x16 never writes it
 
 // Specialization constant 0 of denoise.comp: which stage the pipeline runs.
 #define PV_DENOISE_STAGE_PREPARE 0u
 #define PV_DENOISE_STAGE_ATROUS 1u
 #define PV_DENOISE_STAGE_FINISH 2u
+#define PV_DENOISE_STAGE_TEMPORAL 3u
 
-#define PV_DENOISE_GROUP_SIZE 8
+// Workgroup shape: llvmpipe runs 8 consecutive invocations (along x) as one SIMD batch; 32×2
+// and 16×16 measured no faster than 8×8 (BENCHMARKS.md "Issue 10: denoiser").
+#define PV_DENOISE_GROUP_X 8
+#define PV_DENOISE_GROUP_Y 8
 
 struct DenoiseParams {
+    // The temporal stage's reprojection: the previous frame's camera from this frame's (both
+    // look along −Z, +Y up), composed on the host in double so that far-from-origin worlds keep
+    // their precision.
+    mat4 prevCameraFromCamera;
+    vec2 tanHalfFov;           // this frame's tan of the half field of view, x and y
+    vec2 prevTanHalfFov;
     uint width;
     uint height;
-    uint stepPx;         // this iteration's tap spacing: 2^iteration
-    uint inImage;        // work image read (0: the prepared input)
-    uint outImage;       // work image written
+    uint stepPx;           // this iteration's tap spacing: 2^iteration
+    uint inImage;          // work image read
+    uint outImage;         // work image written
+    uint kernelRadius;     // 1: a 3×3 kernel, 2: 5×5
+    uint packedImage;      // packed guide image of this frame (the other is the previous frame's)
+    uint historyIn;        // history image read (temporal stage); the other is written
+    uint historyValid;     // 0: no usable previous frame (reset), every pixel starts afresh
+    float temporalAlpha;   // the EMA's smallest weight of the new frame (SVGF's α)
+    float maxHistory;      // history length cap (frames)
     float sigmaLuminance;  // SVGF's σ_l: luminance tolerance in standard deviations of the noise
     float sigmaNormal;     // SVGF's σ_n: exponent of the normals' cosine
     float sigmaDepth;      // SVGF's σ_z: depth tolerance in units of the local depth gradient
