@@ -271,6 +271,8 @@ Status PipelineRenderer::renderPreview(const TrackedFrame& frame,
     if (Status s = renderer_->setResolutionScale(previewResolutionScale_); !s) return s;
     renderer_->setMaxDepth(previewDepth_);
     refining_ = false;
+    // Preview denoises with temporal reprojection: the history follows the tracked camera.
+    renderer_->setTemporalDenoise(true);
     return renderer_->renderPreviewFrame(previewSamples_);
 }
 
@@ -282,6 +284,9 @@ Status PipelineRenderer::beginRefine(const TrackedFrame& frame,
     if (Status s = renderer_->setResolutionScale(1.0f); !s) return s;
     renderer_->setMaxDepth(refineDepth_);
     refining_ = true;
+    // Refinement filters its own accumulation, never a history; preview starts a new one after.
+    renderer_->setTemporalDenoise(false);
+    if (Denoiser* d = renderer_->denoiser()) d->resetHistory();
     return renderer_->reset();
 }
 

@@ -762,12 +762,10 @@ Status Renderer::setDenoiseIterations(uint32_t iterations) {
         return makeError(
             "the denoiser's strength needs a renderer created with denoising on (--denoise "
             "on|auto, [render] denoise)");
-    if (iterations == denoiser_->settings().iterations) return {};
+    // New settings for the same pipelines: the temporal history is kept.
     DenoiseSettings d = denoiser_->settings();
     d.iterations = iterations;
-    auto resized = Denoiser::create(*ctx_, denoiser_->width(), denoiser_->height(), d);
-    if (!resized) return resized.error();
-    denoiser_.emplace(std::move(resized.value()));
+    if (Status s = denoiser_->setSettings(d); !s) return s;
     settings_.denoiseSettings = d;
     return {};
 }
