@@ -186,6 +186,13 @@ TEST(Dial, DenoiserStrengthIsOnTheDialAndRefinementStopsDenoisingAtTheTarget) {
     Result<ImageF> raw = (*q)->renderer().image(Aov::Composite);
     ASSERT_TRUE(raw) << raw.message();
     EXPECT_NE(filtered->pixels, raw->pixels);
+    // Preview frames build the temporal history; refinement starts without one.
+    ASSERT_TRUE((*q)->renderPreview(tracked, nullptr));
+    ASSERT_TRUE((*q)->composite());
+    ASSERT_NE((*q)->renderer().denoiser(), nullptr);
+    EXPECT_EQ((*q)->renderer().denoiser()->historyFrames(), 2u);
+    ASSERT_TRUE((*q)->beginRefine(tracked, nullptr));
+    EXPECT_EQ((*q)->renderer().denoiser()->historyFrames(), 0u);
 }
 
 }  // namespace
