@@ -160,14 +160,14 @@ Status PipelineRenderer::chooseByDial(double fps) {
         measureDial(r, dialGrid(axes), *reference, 2, 1.0 / fps);
     if (!measured) return measured.error();
     dial_ = std::move(*measured);
+    if (dial_.empty()) return makeError("render: the dial measured no preview setting");
     dialChoice_ = chooseForFrameRate(dial_, fps);
     size_t chosen = 0;
     if (dialChoice_) {
         chosen = *dialChoice_;
     } else {
         // None fits: the fastest, and say so.
-        for (size_t i = 1; i < dial_.size(); ++i)
-            if (dial_[i].frameSeconds < dial_[chosen].frameSeconds) chosen = i;
+        chosen = fastest(dial_).value_or(0);
         logWarning(
             "render: no preview setting reaches {:.1f} fps on this scene and device; the "
             "fastest, {}, takes {:.0f} ms a frame (lower render.preview_fps or the render size)",
@@ -202,13 +202,8 @@ std::optional<std::string> PipelineRenderer::adaptDial(double liveFrameSeconds) 
     const DialMeasurement& current = dial_[dialInUse_];
     const double slowdown = liveFrameSeconds / current.frameSeconds;
     const std::optional<size_t> fits = chooseForFrameRate(dial_, dialFps_, slowdown);
-    size_t next = dialInUse_;
-    if (fits) {
-        next = *fits;
-    } else {  // none fits even now: the fastest
-        for (size_t i = 0; i < dial_.size(); ++i)
-            if (dial_[i].frameSeconds < dial_[next].frameSeconds) next = i;
-    }
+    // None fits even now: the fastest.
+    const size_t next = fits ? *fits : fastest(dial_).value_or(dialInUse_);
     if (next == dialInUse_) return std::nullopt;
     const DialMeasurement& candidate = dial_[next];
     if (candidate.frameSeconds > current.frameSeconds &&

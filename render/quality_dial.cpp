@@ -78,6 +78,14 @@ std::optional<size_t> chooseForFrameRate(std::span<const DialMeasurement> measur
     return best;
 }
 
+std::optional<size_t> fastest(std::span<const DialMeasurement> measurements) {
+    if (measurements.empty()) return std::nullopt;
+    size_t best = 0;
+    for (size_t i = 1; i < measurements.size(); ++i)
+        if (measurements[i].frameSeconds < measurements[best].frameSeconds) best = i;
+    return best;
+}
+
 std::vector<size_t> gridNeighbours(std::span<const DialMeasurement> measurements, size_t chosen,
                                    const DialAxes& axes) {
     // Steps along an axis: a value missing from it (an axis not swept) counts as one place.

@@ -58,6 +58,9 @@ std::vector<size_t> paretoFront(std::span<const DialMeasurement> measurements);
 std::optional<size_t> chooseForFrameRate(std::span<const DialMeasurement> measurements,
                                          double targetFps, double slowdown = 1.0);
 
+// The fastest measurement (the fallback when none fits); nothing when there are none.
+std::optional<size_t> fastest(std::span<const DialMeasurement> measurements);
+
 // The grid neighbours of measurement `chosen`: points one step away along one axis (scale,
 // samples, depth, denoiser strength or photon budget) — what the bench shows to prove the
 // choice is not dominated.
