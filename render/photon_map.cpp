@@ -71,9 +71,12 @@ bool mayBePurelySpecular(const Material& m) {
 PhotonAim photonAimFor(const Geometry& g, std::span<const Material> materials) {
     PhotonAim aim;
     glm::vec3 lo(INFINITY), hi(-INFINITY), sceneLo(INFINITY), sceneHi(-INFINITY);
-    for (size_t t = 0; t < g.triangles.size(); ++t) {
+    auto isSpecular = [&](size_t t) {
         uint32_t mat = g.triangleMaterials[t];
-        bool specular = mat < materials.size() && mayBePurelySpecular(materials[mat]);
+        return mat < materials.size() && mayBePurelySpecular(materials[mat]);
+    };
+    for (size_t t = 0; t < g.triangles.size(); ++t) {
+        bool specular = isSpecular(t);
         for (int k = 0; k < 3; ++k) {
             const glm::vec3& p = g.positions[g.triangles[t][k]];
             sceneLo = glm::min(sceneLo, p);
@@ -90,8 +93,19 @@ PhotonAim photonAimFor(const Geometry& g, std::span<const Material> materials) {
         hi = sceneHi;
     }
     aim.center = 0.5f * (lo + hi);
-    // A little margin: the boxes of the triangles are in float, so are the photons' rays.
-    aim.radius = std::max(0.5f * glm::length(hi - lo) * 1.001f, 1e-6f);
+    // The farthest aimed vertex bounds every aimed triangle (a triangle is the convex hull of its
+    // vertices). For a ball that is its radius, where the box's half-diagonal is √3 times it and
+    // would spend two thirds of the photons beside the ball. A little margin: the triangles are
+    // in float, so are the photons' rays.
+    float farthest2 = 0.0f;
+    for (size_t t = 0; t < g.triangles.size(); ++t) {
+        if (aim.any && !isSpecular(t)) continue;
+        for (int k = 0; k < 3; ++k) {
+            glm::vec3 d = g.positions[g.triangles[t][k]] - aim.center;
+            farthest2 = std::max(farthest2, glm::dot(d, d));
+        }
+    }
+    aim.radius = std::max(std::sqrt(farthest2) * 1.001f, 1e-6f);
     float scene = 0.0f;
     for (int c = 0; c < 8; ++c) {
         glm::vec3 corner((c & 1) ? sceneHi.x : sceneLo.x, (c & 2) ? sceneHi.y : sceneLo.y,

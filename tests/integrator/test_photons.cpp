@@ -387,6 +387,31 @@ TEST_F(CausticAgreementTest, PreviewPhotonBudgetIsADialAxis) {
     EXPECT_FALSE(renderer.setPreviewPhotons(0).ok());
 }
 
+// Photons are aimed at a sphere around the specular triangles: for a glass ball it is the ball
+// itself (every vertex on it), not the sphere around its bounding box (√3 times the radius, which
+// would spend two thirds of the photons beside the ball); diffuse geometry does not widen it.
+TEST(PhotonAimTest, TheAimSphereOfABallIsTheBall) {
+    Scene scene;
+    uint32_t white = addMaterial(scene, lambert(glm::vec3(0.7f)));
+    addQuad(scene, glm::vec3(0.0f), glm::vec3(2, 0, 0), glm::vec3(0, 0, -2), white, true);
+    uint32_t glassMat = addMaterial(scene, glass(1.5f));
+    const glm::vec3 center(0.3f, 0.12f, -0.2f);
+    addSphere(scene, center, 0.12f, glassMat, false, 24, 48);
+    PhotonAim aim = photonAimFor(scene.geometry, scene.materials);
+    ASSERT_TRUE(aim.any);
+    EXPECT_NEAR(aim.radius, 0.12f, 0.12f * 2e-3f);
+    EXPECT_LT(glm::length(aim.center - center), 1e-4f);
+    EXPECT_GE(aim.sceneRadius, glm::length(glm::vec3(2.0f, 0.0f, 2.0f)));
+    // Every specular vertex is inside (the bound holds every aimed triangle).
+    for (size_t t = 0; t < scene.geometry.triangles.size(); ++t) {
+        if (scene.geometry.triangleMaterials[t] != glassMat) continue;
+        for (int k = 0; k < 3; ++k)
+            EXPECT_LE(glm::length(scene.geometry.positions[scene.geometry.triangles[t][k]] -
+                                  aim.center),
+                      aim.radius);
+    }
+}
+
 // Model only what the scene requires: no purely specular object (or no light) ⇒ no photon pass,
 // no photon buffers; forcing it off turns it off; a bad photon setting is refused.
 TEST_F(PhotonTest, OnlyScenesWithACausticRunPhotons) {
