@@ -406,9 +406,9 @@ TEST(PhotonAimTest, TheAimSphereOfABallIsTheBall) {
     for (size_t t = 0; t < scene.geometry.triangles.size(); ++t) {
         if (scene.geometry.triangleMaterials[t] != glassMat) continue;
         for (int k = 0; k < 3; ++k)
-            EXPECT_LE(glm::length(scene.geometry.positions[scene.geometry.triangles[t][k]] -
-                                  aim.center),
-                      aim.radius);
+            EXPECT_LE(
+                glm::length(scene.geometry.positions[scene.geometry.triangles[t][k]] - aim.center),
+                aim.radius);
     }
 }
 
