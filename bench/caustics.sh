@@ -2,7 +2,7 @@
 # Issue 9's caustics benchmark on bench/scenes/caustics_glass.gltf (a virtual glass ball and cube
 # on a real table, one 4 cm lamp; make_scenes.py says more), 640×480, max depth 8:
 #   1. the cost of one iteration: photon pass (trace + sort into the grid) and gather, at preview
-#      settings (PREVIEW photons, the radius fixed) and refinement settings (65536 photons,
+#      settings (PREVIEW photons, the radius fixed) and refinement settings (32768 photons,
 #      α = 2/3) — GPU times from `previs render --timing` over 16 iterations, median of 3 runs —
 #      and the photon map's device memory;
 #   2. convergence of the caustic region (pixels x 290–460, y 255–345: the ball's caustic and
@@ -27,6 +27,7 @@ ref_iterations=512
 photon_spp=256
 path_spp=1024
 preview_photons=16384
+photons=32768  # per iteration, the default (render/photon_map.h), references included
 while [[ $# -gt 0 ]]; do
     case "$1" in
         --quick) ref_iterations=128; photon_spp=64; path_spp=128; shift ;;
@@ -41,12 +42,14 @@ out=$root/build/caustics
 mkdir -p "$out"
 common=(--width 640 --height 480 --max-depth 8 --quiet)
 
-key=$({ cat "$scene"; echo "$ref_iterations"; } | sha256sum | cut -c1-16)
+# The references depend on the renderer too: keyed by the binary, so a changed estimator renders
+# them again.
+key=$({ cat "$scene" "$previs"; echo "$ref_iterations"; } | sha256sum | cut -c1-16)
 refs=("$out/ref-$key-a.exr" "$out/ref-$key-b.exr")
 for i in 0 1; do
     if [[ ! -f ${refs[$i]} ]]; then
         echo "rendering reference $((i + 1))/2: $ref_iterations photon iterations (cached: ${refs[$i]})" >&2
-        "$previs" render "$scene" "${common[@]}" --photons 65536 --spp "$ref_iterations" \
+        "$previs" render "$scene" "${common[@]}" --photons "$photons" --spp "$ref_iterations" \
             --seed $((9000 + i)) --out "${refs[$i]}"
     fi
 done
@@ -78,11 +81,12 @@ per_iteration() {  # label photons extra-args...
         "$(printf '%s\n' "${alone[@]}" | median)"
 }
 per_iteration "preview (radius fixed)" "$preview_photons" --photon-alpha 1
-per_iteration "refinement (alpha 2/3)" 65536
-for n in "$preview_photons" 65536; do
-    # Two records per photon in trace order and sorted (32 bytes each), two sort pairs (8 each)
-    # and a digit count (4), plus the 65535 bucket ranges (8 bytes each).
-    awk -v n="$n" 'BEGIN { printf "photon map memory at %d photons: %.1f MiB\n", n, (2 * n * 84 + 65535 * 8) / 1048576 }'
+per_iteration "refinement (alpha 2/3)" "$photons"
+for n in "$preview_photons" "$photons"; do
+    # Four records per photon (two solutions, two levels) in trace order and sorted (32 bytes
+    # each), two sort pairs (8 each) and a digit count (4), plus the 65528 bucket ranges (8 bytes
+    # each).
+    awk -v n="$n" 'BEGIN { printf "photon map memory at %d photons: %.1f MiB\n", n, (4 * n * 84 + 65528 * 8) / 1048576 }'
 done
 
 echo
@@ -98,7 +102,7 @@ ref_mean=$("$previs" compare "${refs[0]}" "${refs[1]}" --region "$region" |
     awk '{print ($6 + $8) / 2}')
 awk -v m="$ref_mse" -v mean="$ref_mean" 'BEGIN { printf "region mean %.4f; reference noise (relative RMSE of one reference) %.4f\n", mean, sqrt(m) / mean }'
 for method in photons paths; do
-    if [[ $method == photons ]]; then spp=$photon_spp; mode=65536; else spp=$path_spp; mode=off; fi
+    if [[ $method == photons ]]; then spp=$photon_spp; mode=$photons; else spp=$path_spp; mode=off; fi
     "$previs" render "$scene" "${common[@]}" --photons "$mode" --spp "$spp" --seed 1 \
         --checkpoints "$(checkpoints "$spp")" --out "$out/$method.exr" |
         while read -r _ sppField secondsField fileField; do

@@ -32,7 +32,10 @@ enum class PhotonMode {
 
 struct PhotonSettings {
     PhotonMode mode = PhotonMode::Auto;
-    uint32_t perIteration = 1u << 16;  // photons per iteration (rounded up to a multiple of 128)
+    // Photons per iteration (rounded up to a multiple of 128). On the caustics benchmark
+    // (BENCHMARKS.md, issue 9) 32768 reached a given error sooner than 65536 (the gather's cost
+    // grows with the photons, the error hardly falls: the radius decides it) and than 16384.
+    uint32_t perIteration = 1u << 15;
     // Preview frames (Renderer::renderPreviewFrame) trace at most this many: a fixed budget for
     // speed; the radius of a preview frame is the first iterations' (it restarts every frame).
     uint32_t previewPerIteration = 1u << 14;

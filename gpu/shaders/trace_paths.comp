@@ -19,9 +19,9 @@ layout(binding = PV_BINDING_STATS, scalar) buffer Stats { RenderStats stats; };
 layout(constant_id = PV_SPEC_DENOISE_GUIDES) const bool kDenoiseGuides = false;
 layout(binding = PV_BINDING_GUIDES, scalar) buffer Guides { vec4 guides[]; };
 // This iteration's photon map (photon_grid.comp): records sorted by bucket, two texels each, and
-// each bucket's [begin, end) as two words.
+// each bucket's [begin, end) as two words, two buckets a texel (one fetch per bucket).
 layout(binding = PV_BINDING_PHOTON_SORTED) uniform usamplerBuffer photonTexels;
-layout(binding = PV_BINDING_PHOTON_CELLS) uniform usamplerBuffer photonCellWords;
+layout(binding = PV_BINDING_PHOTON_CELLS) uniform usamplerBuffer photonCellTexels;
 
 #include "shared/photon_map.h"
 #include "shared/denoise.h"
@@ -231,13 +231,14 @@ void fixedAdd(inout FixedRgb sum, vec3 v) {
 vec3 fixedValue(FixedRgb sum) { return vec3(sum.whole) + vec3(sum.fraction) * 2.3283064365386963e-10; }
 
 // The photon map's estimate of the caustic radiance leaving gather vertex `s` toward wo, for the
-// mixed and the real solution: Σ f(wo, wi_p)·Φ_p / (π r²) over the photons within r whose
+// mixed and the real solution: Σ f(wo, wi_p)·Φ_p / (π r²) over the photons within r (level-2
+// ones only unless `level1`) whose
 // specular chain fits in the depth left (depth: scatterings before this vertex). A bucket holding
 // more than photonGatherCap records is subsampled — a window of that many at a random start,
 // weighted by the ratio — which keeps the estimate unbiased and a lane's loop count bounded
 // (llvmpipe's loop budget, shared/prelude.h).
 void gatherPhotons(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint depth, float uWindow,
-                   out vec3 toMixed, out vec3 toReal) {
+                   bool level1, out vec3 toMixed, out vec3 toReal) {
     float r = params.photonRadius;
     float r2 = r * r;
     float norm = 1.0 / (PV_PI * r2);
@@ -246,27 +247,30 @@ void gatherPhotons(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint depth, f
     ivec3 first = photonCell(s.position - vec3(r), 2.0 * r);
     FixedRgb sumMixed = FixedRgb(uvec3(0u), uvec3(0u));
     FixedRgb sumReal = FixedRgb(uvec3(0u), uvec3(0u));
-    uint buckets[8];
     for (uint c = 0u; c < 8u; ++c) {
         PV_COUNT_LOOP_ITERATION();
+        // The eight cells' buckets differ (photonBucket): each record is summed once.
         uint bucket = photonBucket(first + ivec3(c & 1u, (c >> 1u) & 1u, c >> 2u));
-        buckets[c] = bucket;
-        // Two cells hashed to one bucket: its records are summed once.
-        bool seen = false;
-        for (uint k = 0u; k < c; ++k) seen = seen || buckets[k] == bucket;
-        if (seen) continue;
-        uint begin = texelFetch(photonCellWords, int(2u * bucket)).x;
-        uint n = texelFetch(photonCellWords, int(2u * bucket + 1u)).x - begin;
+        uvec4 pair = texelFetch(photonCellTexels, int(bucket >> 1u));
+        uvec2 range = (bucket & 1u) != 0u ? pair.zw : pair.xy;
+        uint n = range.y - range.x;
         if (n == 0u) continue;
         uint examined = min(n, params.photonGatherCap);
         uint start = examined < n ? min(uint(uWindow * float(n)), n - 1u) : 0u;
         float weight = norm * float(n) / float(examined);
         for (uint k = 0u; k < examined; ++k) {
             PV_COUNT_LOOP_ITERATION();
-            uint at = begin + (start + k) % n;
+            // The window wraps: (start + k) mod n without a division (a per-lane scalar loop on
+            // llvmpipe).
+            uint offset = start + k;
+            uint at = range.x + (offset >= n ? offset - n : offset);
             uvec4 t0 = texelFetch(photonTexels, int(2u * at));
             vec3 d = uintBitsToFloat(t0.xyz) - s.position;
-            if (dot(d, d) >= r2 || (t0.w >> PV_PHOTON_BOUNCES_SHIFT) > maxBounces) continue;
+            // Level 1 only where the path may gather it (shared/photon_map.h's rule).
+            bool levelGathered = level1 || (t0.w & PV_PHOTON_LEVEL_2) != 0u;
+            if (dot(d, d) >= r2 || (t0.w >> PV_PHOTON_BOUNCES_SHIFT) > maxBounces ||
+                !levelGathered)
+                continue;
             uvec4 t1 = texelFetch(photonTexels, int(2u * at + 1u));
             vec3 wi = octahedralDecode(unpackSnorm2x16(t1.w));
             vec3 wiLocal = toLocal(frame, wi);
@@ -305,6 +309,9 @@ struct PathState {
     uint depth;         // scattering events so far
     uint causticState;  // CAUSTIC_*: which emitters the photon map already carries
     uint causticBounces;
+    // The next gather vertex gathers level-1 photons: none before it, or the last one scattered
+    // through a delta lobe (shared/photon_map.h).
+    bool gatherLevel1;
 };
 
 // An emitter of a photon light reached now is light the photon map carries: the path tracer
@@ -328,6 +335,7 @@ void tracePath(uvec2 pixel, SampleKey key, out vec3 lm, out vec3 lr, out bool fi
     st.depth = 0u;
     st.causticState = CAUSTIC_NONE;
     st.causticBounces = 0u;
+    st.gatherLevel1 = true;
     lm = vec3(0.0);
     lr = vec3(0.0);
     firstHitVirtual = false;
@@ -420,15 +428,17 @@ void tracePath(uvec2 pixel, SampleKey key, out vec3 lm, out vec3 lr, out bool fi
             if (kPhotons) {
                 bool purelySpecular = bsdfIsPurelySpecular(bp);
                 if (!purelySpecular) {
-                    // Every vertex that is not purely specular gathers: at later vertices too,
-                    // a caustic lighting what the camera sees only indirectly (the wall beside a
-                    // glass) would otherwise be the path tracer's rare, bright samples.
+                    // Every vertex that is not purely specular gathers: level 2 always, level 1
+                    // where the rule allows (shared/photon_map.h), so the light a caustic
+                    // throws onward (the wall beside a glass) is a density estimate, not the
+                    // path tracer's rare, bright samples.
                     gatherVertex = true;
                     vec3 causticMixed;
                     vec3 causticReal;
                     // The light set's fourth number is otherwise unused.
                     float uWindow = draw(key, vertexSet(st.depth, PV_SET_VERTEX_LIGHT)).w;
-                    gatherPhotons(s, bp, frame, wo, st.depth, uWindow, causticMixed, causticReal);
+                    gatherPhotons(s, bp, frame, wo, st.depth, uWindow, st.gatherLevel1,
+                                  causticMixed, causticReal);
                     if (mode != MODE_REAL) lm += st.throughput * causticMixed;
                     if (mode != MODE_MIXED) lr += st.throughput * causticReal;
                 } else if (st.causticState != CAUSTIC_NONE) {
@@ -465,6 +475,7 @@ void tracePath(uvec2 pixel, SampleKey key, out vec3 lm, out vec3 lr, out bool fi
             if (gatherVertex) {
                 st.causticState = bs.isDelta ? CAUSTIC_NONE : CAUSTIC_LEFT_GATHER;
                 st.causticBounces = 0u;
+                st.gatherLevel1 = bs.isDelta;
             }
             st.prevPdf = bs.pdf;
             st.prevDelta = bs.isDelta;

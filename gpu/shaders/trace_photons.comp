@@ -1,11 +1,12 @@
 // trace_photons: the photon pass of one iteration. Each invocation emits one photon from a
 // photon light (chosen by the power it sends toward the specular objects), aimed at the sphere
 // that holds every purely specular triangle, follows its purely specular scatterings and stores
-// it where it first lands on anything else after at least one of them (L S+ D, shared/
-// photon_map.h). Like the path tracer's paths, a photon from a real light starts in both
-// solutions and splits where it first meets a virtual object: the mixed photon goes on from the
-// virtual surface, the real one continues the same ray behind it. Output: two records per photon
-// in photon order and their (bucket, record) sort pairs; photon_grid.comp sorts them.
+// it where it first lands on anything else after at least one of them (L S+ D, level 1), then
+// once more where it lands next (level 2; shared/photon_map.h says why and which paths that
+// carries). Like the path tracer's paths, a photon from a real light starts in both solutions
+// and splits where it first meets a virtual object: the mixed photon goes on from the virtual
+// surface, the real one continues the same ray behind it. Output: four records per photon in
+// photon order and their (bucket, record) sort pairs; photon_grid.comp sorts them.
 #version 460
 #extension GL_EXT_scalar_block_layout : require
 #extension GL_GOOGLE_include_directive : require
@@ -68,14 +69,24 @@ Ray distantPhotonRay(vec3 dir, vec2 u) {
     return ray;
 }
 
+// A photon's random numbers: the path tracer's generator (shared/sampler.h) with the photon as
+// the sample and the iteration as the "pixel", so that under Sobol' the iteration's photons are
+// one scrambled net: their directions cover the aim sphere's cone evenly (a (0,2)-sequence) and
+// their lobe choices split in proportion, which smooths the caustic's density estimate; each
+// iteration is scrambled afresh, so iterations stay independent and the estimate unbiased.
+#define PV_PHOTON_SET_EMIT 0u    // .xy direction toward the aim, .z light pick
+#define PV_PHOTON_SET_POINT 1u   // .xy point on the light (or on a distant light's disk)
+#define PV_PHOTON_SET_BOUNCE 2u  // + b: scattering b (.xy direction, .z lobe)
+
 // Emits photon `photon`: its first ray and its power (flux, over the iteration's photon count).
 // False when the sample carries nothing (a back face, outside a spot's cone).
-bool emitPhoton(inout uint rng, out Ray ray, out vec3 power, out bool real) {
-    uvec4 entry = texelFetch(photonLightTexels, int(pickPhotonLight(rngNext(rng))));
+bool emitPhoton(SampleKey key, out Ray ray, out vec3 power, out bool real) {
+    vec4 uEmit = sampleSet(kSampler, key, PV_PHOTON_SET_EMIT);
+    uvec4 entry = texelFetch(photonLightTexels, int(pickPhotonLight(uEmit.z)));
     float pick = uintBitsToFloat(entry.w) * float(params.photonCount);
     real = (entry.x & PV_PHOTON_LIGHT_REAL) != 0u;
-    vec2 uPoint = vec2(rngNext(rng), rngNext(rng));
-    vec2 uDir = vec2(rngNext(rng), rngNext(rng));
+    vec2 uPoint = sampleSet(kSampler, key, PV_PHOTON_SET_POINT).xy;
+    vec2 uDir = uEmit.xy;
     ray.tMin = 0.0;
     ray.tMax = PV_FLOAT_MAX;
     power = vec3(0.0);
@@ -140,25 +151,26 @@ bool emitPhoton(inout uint rng, out Ray ray, out vec3 power, out bool real) {
 struct PhotonState {
     Ray ray;
     vec3 power;
-    uint bounces;  // purely specular scatterings so far
-    uint rng;
+    uint bounces;  // scatterings so far
+    uint level;    // records stored so far (0: still on its specular chain; 1: landed once)
 };
 
 void main() {
     uint photon = gl_GlobalInvocationID.x;
     if (photon >= params.photonCount) return;
-    PhotonRecord stored[2];
-    for (uint k = 0u; k < 2u; ++k) {
+    PhotonRecord stored[PV_PHOTON_RECORDS_PER_PHOTON];
+    for (uint k = 0u; k < PV_PHOTON_RECORDS_PER_PHOTON; ++k) {
         stored[k].position = vec3(0.0);
         stored[k].flags = 0u;
         stored[k].power = vec3(0.0);
         stored[k].direction = 0u;
     }
     PhotonState st;
-    st.rng = rngSeed(photon, params.photonIteration, params.seed ^ 0x9e3779b9u);
+    SampleKey key = makeSampleKey(params.photonIteration, photon, params.seed ^ 0x9e3779b9u, 0u);
     st.bounces = 0u;
+    st.level = 0u;
     bool real;
-    bool emitted = params.photonLightCount > 0u && emitPhoton(st.rng, st.ray, st.power, real);
+    bool emitted = params.photonLightCount > 0u && emitPhoton(key, st.ray, st.power, real);
     uint mode = kDifferential && real ? MODE_SHARED : MODE_MIXED;
     PhotonState realContinuation = st;
     bool haveRealContinuation = false;
@@ -183,18 +195,21 @@ void main() {
             if (kHasTransmission && !s.frontFace && maxComponent(m.attenuation) > 0.0)
                 st.power *= exp(-m.attenuation * hit.t);  // Beer–Lambert, as trace_paths
             BsdfParams bp = bsdfParamsAt(m, s);
-            if (!bsdfIsPurelySpecular(bp)) {
-                if (st.bounces > 0u) {
-                    uint slot = mode == MODE_REAL ? 1u : 0u;
-                    uint solutions = mode == MODE_SHARED ? PV_PHOTON_IN_MIXED | PV_PHOTON_IN_REAL
-                                     : mode == MODE_MIXED ? PV_PHOTON_IN_MIXED
-                                                          : PV_PHOTON_IN_REAL;
-                    stored[slot].position = s.position;
-                    stored[slot].flags = solutions | (st.bounces << PV_PHOTON_BOUNCES_SHIFT);
-                    stored[slot].power = st.power;
-                    stored[slot].direction = packSnorm2x16(octahedralEncode(-st.ray.direction));
-                }
-                break;
+            bool landed = !bsdfIsPurelySpecular(bp);
+            if (landed) {
+                // Direct light (no specular scattering yet) is the path tracer's.
+                if (st.bounces == 0u) break;
+                uint slot = 2u * st.level + (mode == MODE_REAL ? 1u : 0u);
+                uint solutions = mode == MODE_SHARED ? PV_PHOTON_IN_MIXED | PV_PHOTON_IN_REAL
+                                 : mode == MODE_MIXED ? PV_PHOTON_IN_MIXED
+                                                      : PV_PHOTON_IN_REAL;
+                stored[slot].position = s.position;
+                stored[slot].flags = solutions | (st.level == 1u ? PV_PHOTON_LEVEL_2 : 0u) |
+                                     (st.bounces << PV_PHOTON_BOUNCES_SHIFT);
+                stored[slot].power = st.power;
+                stored[slot].direction = packSnorm2x16(octahedralEncode(-st.ray.direction));
+                if (st.level == 1u) break;
+                st.level = 1u;
             }
             if (st.bounces >= params.photonMaxBounces) break;
             Frame frame;
@@ -202,8 +217,11 @@ void main() {
             buildBasis(frame.n, frame.t, frame.b);
             vec3 wo = toLocal(frame, -st.ray.direction);
             BsdfSample bs;
-            vec4 u = vec4(rngNext(st.rng), rngNext(st.rng), rngNext(st.rng), 0.0);
+            vec4 u = sampleSet(kSampler, key, PV_PHOTON_SET_BOUNCE + st.bounces);
             if (!sampleBsdf(bp, wo, u, bs)) break;
+            // On to level 2 only through the non-delta part of D's BSDF (shared/photon_map.h):
+            // a delta lobe there is the path tracer's.
+            if (landed && bs.isDelta) break;
             vec3 wi = toWorld(frame, bs.wi);
             if (!consistentSide(s, wi, bs.wi))  // as trace_paths: only delta lobes come here
                 wi = nearestDirectionOnSide(wi, s.geometricNormal, bs.wi.z > 0.0 ? 1.0 : -1.0);
@@ -212,6 +230,13 @@ void main() {
             // A thin wall does not refract, and its weight has no such factor.
             vec3 weight = bs.weight;
             if (bs.lobe == PV_LOBE_TRANSMISSION && !bp.thinWalled) weight *= bp.etaRel * bp.etaRel;
+            if (landed) {
+                // Russian roulette on the albedo: level-2 photons keep about the power of
+                // level-1 ones, so the density estimate is not a sum of faint photons.
+                float pContinue = min(1.0, maxComponent(weight));
+                if (!(u.w < pContinue)) break;
+                weight /= pContinue;
+            }
             st.power *= weight;
             st.bounces += 1u;
             st.ray = directionRay(s.position, s.geometricNormal * (bs.wi.z > 0.0 ? 1.0 : -1.0),
@@ -219,7 +244,7 @@ void main() {
         }
     }
     float cellSize = 2.0 * params.photonRadius;
-    for (uint k = 0u; k < 2u; ++k) {
+    for (uint k = 0u; k < PV_PHOTON_RECORDS_PER_PHOTON; ++k) {
         uint record = PV_PHOTON_RECORDS_PER_PHOTON * photon + k;
         records[record] = stored[k];
         uint key = stored[k].flags == 0u

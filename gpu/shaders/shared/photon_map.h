@@ -4,13 +4,24 @@
 //
 // What the photon map carries (and the path tracer therefore leaves out): light from a photon
 // light — an emissive triangle, a punctual light or an estimated (cone) light, never the
-// environment map — that reached a surface through one or more purely specular scatterings
-// (L S+ D). It is gathered at every vertex of a camera path that is not purely specular (a
-// "gather vertex"), through the non-delta part of that vertex's BSDF. The path tracer drops
-// exactly those paths: an emitter of a photon light reached from a gather vertex through a
-// non-delta scattering followed only by 1..photonMaxBounces purely specular ones. Everything else
-// (direct light, diffuse interreflection, environment light through glass) stays with the path
-// tracer.
+// environment map — that reached a surface D through one or more purely specular scatterings
+// (L S+ D, the caustic). The path tracer drops exactly those paths: an emitter of a photon light
+// reached from a gather vertex (a vertex that is not purely specular) through a non-delta
+// scattering followed only by 1..photonMaxBounces purely specular ones. Everything else (direct
+// light, diffuse interreflection, environment light through glass) stays with the path tracer.
+//
+// Photons are stored at two levels, so that the light a caustic throws onward is a density
+// estimate too, not the path tracer's rare bright samples (a point in a glass ball's shadow that
+// sees the ball's bright caustic through the ball):
+// - level 1 where the photon lands on D, as above;
+// - level 2 where it lands next: after D it scatters through the non-delta part of D's BSDF (a
+//   delta lobe ends it) and purely specular scatterings, and is stored at the next vertex that
+//   is not purely specular (L S+ D S* G).
+// The camera path gathers level 2 at every gather vertex and level 1 only at a gather vertex
+// whose previous gather vertex, if any, scattered through a delta lobe. Each of the dropped
+// paths is then counted once: L S+ D … E is level 1 at D when the path reached D from the camera
+// through delta scatterings only, and level 2 at the gather vertex before D otherwise (which
+// scattered toward D through its non-delta part, the part a gather evaluates).
 #ifndef PREVIS_SHARED_PHOTON_MAP_H
 #define PREVIS_SHARED_PHOTON_MAP_H
 
@@ -19,14 +30,17 @@
 PV_BEGIN
 
 // Hash buckets of the grid. Keys are 16 bits: buckets 0..PV_PHOTON_BUCKETS−1 and one key for
-// "no photon here", sorted last and never looked up.
-#define PV_PHOTON_BUCKETS 65535u
+// "no photon here", sorted last and never looked up. Eight parity classes of 8191 buckets each
+// (photonBucket).
+#define PV_PHOTON_PARENT_BUCKETS 8191u
+#define PV_PHOTON_BUCKETS (8u * PV_PHOTON_PARENT_BUCKETS)
 #define PV_PHOTON_EMPTY_KEY 65535u
 
-// Each photon owns two records: slot 0 for the photon while it is in the mixed scene (or in
-// both solutions, while it meets only real geometry), slot 1 for the real-only continuation
-// after it met a virtual object (the paper's ray types, as in trace_paths).
-#define PV_PHOTON_RECORDS_PER_PHOTON 2u
+// Each photon owns four records, two per level: slot 2·level' + 0 for the photon while it is in
+// the mixed scene (or in both solutions, while it meets only real geometry), + 1 for the
+// real-only continuation after it met a virtual object (the paper's ray types, as in
+// trace_paths); level' is 0 for level 1, 1 for level 2.
+#define PV_PHOTON_RECORDS_PER_PHOTON 4u
 // Records are sorted in blocks of this many by photon_grid.comp (one workgroup each).
 #define PV_PHOTON_SORT_BLOCK 256u
 #define PV_PHOTON_GROUP_SIZE 64u
@@ -36,6 +50,9 @@ PV_BEGIN
 // PhotonRecord.flags: the solutions the photon belongs to, and its specular bounces.
 #define PV_PHOTON_IN_MIXED 1u
 #define PV_PHOTON_IN_REAL 2u
+#define PV_PHOTON_LEVEL_2 4u
+// Scatterings before the photon landed (all of them: a level-2 photon counts D too), which the
+// camera path's remaining depth must hold.
 #define PV_PHOTON_BOUNCES_SHIFT 8u
 
 // Photon lights (PV_BINDING_PHOTON_LIGHTS, one 16-byte texel each): kind | real flag in x,
@@ -58,10 +75,16 @@ struct PhotonRecord {
 // sphere overlaps at most 2×2×2 cells).
 PV_INLINE ivec3 photonCell(vec3 p, float cellSize) { return ivec3(floor(p / cellSize)); }
 
-// Teschner et al. 2003's spatial hash, folded onto the buckets.
+// Teschner et al. 2003's spatial hash of the 2×2×2 block holding the cell, folded onto the
+// parent buckets, then the cell's parity within the block. A gather visits 2×2×2 neighbouring
+// cells, whose parities all differ: they never share a bucket, so no record is summed twice and
+// the gather needs no duplicate check.
 PV_INLINE uint photonBucket(ivec3 c) {
-    uint h = (uint(c.x) * 73856093u) ^ (uint(c.y) * 19349663u) ^ (uint(c.z) * 83492791u);
-    return h % PV_PHOTON_BUCKETS;
+    ivec3 block = c >> 1;  // arithmetic shift: floor(c / 2), negative cells too
+    uint h = (uint(block.x) * 73856093u) ^ (uint(block.y) * 19349663u) ^
+             (uint(block.z) * 83492791u);
+    uint parity = uint(c.x & 1) | (uint(c.y & 1) << 1u) | (uint(c.z & 1) << 2u);
+    return (h % PV_PHOTON_PARENT_BUCKETS) * 8u + parity;
 }
 
 // Octahedral map of a unit vector to [−1, 1]² (Cigolle et al. 2014) and back.
