@@ -218,15 +218,14 @@ Status Renderer::specialisePipeline() {
     std::array<BindingKind, PV_BINDING_COUNT> bindings{};
     bindings.fill(BindingKind::StorageBuffer);
     bindings[PV_BINDING_BVH_NODES] = BindingKind::TexelBufferUint4;
-    for (int b :
-         {PV_BINDING_TEXTURES, PV_BINDING_TRIANGLE_VERTICES, PV_BINDING_TRIANGLES,
-          PV_BINDING_NORMALS, PV_BINDING_UVS, PV_BINDING_MATERIALS, PV_BINDING_LIGHTS,
-          PV_BINDING_EMISSIVE_TRIANGLES, PV_BINDING_PHOTON_LIGHTS, PV_BINDING_PHOTON_SORTED,
-         PV_BINDING_PHOTON_CELLS})
+    for (int b : {PV_BINDING_TEXTURES, PV_BINDING_TRIANGLE_VERTICES, PV_BINDING_TRIANGLES,
+                  PV_BINDING_NORMALS, PV_BINDING_UVS, PV_BINDING_MATERIALS, PV_BINDING_LIGHTS,
+                  PV_BINDING_EMISSIVE_TRIANGLES, PV_BINDING_PHOTON_LIGHTS, PV_BINDING_PHOTON_SORTED,
+                  PV_BINDING_PHOTON_CELLS})
         bindings[b] = BindingKind::TexelBufferUint4;
-    for (int b : {PV_BINDING_TEXELS, PV_BINDING_ENV_RADIANCE, PV_BINDING_ENV_MARGINAL_CDF,
-                  PV_BINDING_ENV_CONDITIONAL_CDF, PV_BINDING_TRIANGLE_LIGHT_PDF,
-                  PV_BINDING_LENS_GRID})
+    for (int b :
+         {PV_BINDING_TEXELS, PV_BINDING_ENV_RADIANCE, PV_BINDING_ENV_MARGINAL_CDF,
+          PV_BINDING_ENV_CONDITIONAL_CDF, PV_BINDING_TRIANGLE_LIGHT_PDF, PV_BINDING_LENS_GRID})
         bindings[b] = BindingKind::TexelBufferUint;
     auto pipeline = ComputePipeline::create(
         *ctx_, std::span<const uint32_t>(trace_paths_spv, sizeof(trace_paths_spv) / 4), bindings,
