@@ -232,8 +232,8 @@ vec3 fixedValue(FixedRgb sum) { return vec3(sum.whole) + vec3(sum.fraction) * 2.
 
 // The photon map's estimate of the caustic radiance leaving gather vertex `s` toward wo, for the
 // mixed and the real solution: Σ f(wo, wi_p)·Φ_p / (π r²) over the photons within r (level-2
-// ones only unless `level1`) whose
-// specular chain fits in the depth left (depth: scatterings before this vertex). A bucket holding
+// ones only unless `level1`) whose scatterings fit in the depth left (depth: scatterings before
+// this vertex). A bucket holding
 // more than photonGatherCap records is subsampled — a window of that many at a random start,
 // weighted by the ratio — which keeps the estimate unbiased and a lane's loop count bounded
 // (llvmpipe's loop budget, shared/prelude.h).
