@@ -48,7 +48,7 @@ key=$({ cat "$scene" "$previs"; echo "$ref_iterations"; } | sha256sum | cut -c1-
 refs=("$out/ref-$key-a.exr" "$out/ref-$key-b.exr")
 for i in 0 1; do
     if [[ ! -f ${refs[$i]} ]]; then
-        echo "rendering reference $((i + 1))/2: $ref_iterations photon iterations (cached: ${refs[$i]})" >&2
+        echo "rendering reference $((i + 1))/2: $ref_iterations photon iterations (cached: ${refs[$i]#"$root"/})" >&2
         "$previs" render "$scene" "${common[@]}" --photons "$photons" --spp "$ref_iterations" \
             --seed $((9000 + i)) --out "${refs[$i]}"
     fi
@@ -143,4 +143,4 @@ for method, points in rows.items():
     else:
         print(f"{method}: relative RMSE 5 % after {found:.1f} s")
 EOF
-echo "curve: $csv"
+echo "curve: ${csv#"$root"/}"  # relative to the checkout: results are committed
