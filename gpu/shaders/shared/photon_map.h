@@ -47,7 +47,7 @@ PV_BEGIN
 // photon_grid.comp's scan runs in one workgroup of this many invocations.
 #define PV_PHOTON_SCAN_GROUP 1024u
 
-// PhotonRecord.flags: the solutions the photon belongs to, and its specular bounces.
+// PhotonRecord.flags: the solutions the photon belongs to, its level, and its scatterings.
 #define PV_PHOTON_IN_MIXED 1u
 #define PV_PHOTON_IN_REAL 2u
 #define PV_PHOTON_LEVEL_2 4u
