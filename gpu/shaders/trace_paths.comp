@@ -433,14 +433,22 @@ void tracePath(uvec2 pixel, SampleKey key, out vec3 lm, out vec3 lr, out bool fi
                     // throws onward (the wall beside a glass) is a density estimate, not the
                     // path tracer's rare, bright samples.
                     gatherVertex = true;
-                    vec3 causticMixed;
-                    vec3 causticReal;
                     // The light set's fourth number is otherwise unused.
-                    float uWindow = draw(key, vertexSet(st.depth, PV_SET_VERTEX_LIGHT)).w;
-                    gatherPhotons(s, bp, frame, wo, st.depth, uWindow, st.gatherLevel1,
-                                  causticMixed, causticReal);
-                    if (mode != MODE_REAL) lm += st.throughput * causticMixed;
-                    if (mode != MODE_MIXED) lr += st.throughput * causticReal;
+                    float u = draw(key, vertexSet(st.depth, PV_SET_VERTEX_LIGHT)).w;
+                    // A gather of level 2 alone (the caustic's light after a diffuse bounce
+                    // seen after another) adds little and costs a full grid lookup: it runs
+                    // with a probability, weighted by its inverse (unbiased); u, rescaled,
+                    // still places the window.
+                    float pGather = st.gatherLevel1 ? 1.0 : PV_PHOTON_LEVEL_2_GATHER_PROBABILITY;
+                    if (u < pGather) {
+                        vec3 causticMixed;
+                        vec3 causticReal;
+                        gatherPhotons(s, bp, frame, wo, st.depth, u / pGather, st.gatherLevel1,
+                                      causticMixed, causticReal);
+                        vec3 weight = st.throughput / pGather;
+                        if (mode != MODE_REAL) lm += weight * causticMixed;
+                        if (mode != MODE_MIXED) lr += weight * causticReal;
+                    }
                 } else if (st.causticState != CAUSTIC_NONE) {
                     st.causticState = CAUSTIC_SPECULAR_CHAIN;
                     st.causticBounces += 1u;

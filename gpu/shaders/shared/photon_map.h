@@ -51,6 +51,11 @@ PV_BEGIN
 #define PV_PHOTON_IN_MIXED 1u
 #define PV_PHOTON_IN_REAL 2u
 #define PV_PHOTON_LEVEL_2 4u
+// A camera path's gather vertex that takes level 2 only gathers with this probability (weighted
+// by its inverse): the light a caustic throws on after two diffuse bounces is small beside the
+// path tracer's own at that vertex, and a gather costs eight bucket lookups wherever it runs.
+#define PV_PHOTON_LEVEL_2_GATHER_PROBABILITY 0.25f
+
 // Scatterings before the photon landed (all of them: a level-2 photon counts D too), which the
 // camera path's remaining depth must hold.
 #define PV_PHOTON_BOUNCES_SHIFT 8u
