@@ -220,8 +220,8 @@ Result<double> PhotonPasses::run(shader::FrameParams& params, std::span<GpuBuffe
     if (Status s = buffers[PV_BINDING_PHOTON_CELLS].fill(0); !s) return s.error();
     if (Status s = dispatch(*trace_, params.photonCount / PV_PHOTON_GROUP_SIZE); !s)
         return s.error();
-    for (uint32_t shift : {0u, 8u}) {
-        params.photonSortShift = shift;
+    for (uint32_t pass = 0; pass < PV_PHOTON_SORT_PASSES; ++pass) {
+        params.photonSortShift = 8 * pass;
         if (Status s = uploadParams(); !s) return s.error();
         if (Status s = dispatch(*grid_[kHistogram], blocks); !s) return s.error();
         if (Status s = dispatch(*grid_[kScan], 1); !s) return s.error();

@@ -1,7 +1,7 @@
 // photon_grid: sorts the iteration's photon records by grid bucket and records each bucket's
 // range, so the gather finds a bucket's photons contiguous. A stable least-significant-digit radix
-// sort of the 16-bit bucket keys, two passes of 8 bits (params.photonSortShift), each three
-// dispatches — per-block digit histograms, one scan over them, a stable scatter — then the cell
+// sort of the 24-bit bucket keys, PV_PHOTON_SORT_PASSES passes of 8 bits (params.photonSortShift),
+// each three dispatches — per-block digit histograms, one scan over them, a stable scatter — then the cell
 // pass. Stable and free of order-dependent atomics, so a bucket's records come out in photon order
 // on every run: the gather's bucket subsampling, and with it every pixel, is deterministic.
 #version 460
@@ -23,7 +23,7 @@ layout(local_size_x_id = 1) in;
 
 layout(binding = PV_BINDING_PARAMS, scalar) readonly buffer ParamsBuffer { FrameParams params; };
 layout(binding = PV_BINDING_PHOTON_RECORDS, scalar) readonly buffer Records { PhotonRecord records[]; };
-layout(binding = PV_BINDING_PHOTON_SORTED, scalar) writeonly buffer Sorted { PhotonRecord sorted[]; };
+layout(binding = PV_BINDING_PHOTON_SORTED, scalar) writeonly buffer Sorted { PhotonRecord sortedRecords[]; };
 layout(binding = PV_BINDING_PHOTON_SORT_A, scalar) buffer SortA { uvec2 sortA[]; };
 layout(binding = PV_BINDING_PHOTON_SORT_B, scalar) buffer SortB { uvec2 sortB[]; };
 layout(binding = PV_BINDING_PHOTON_BLOCK_COUNTS, scalar) buffer BlockCounts { uint blockCounts[]; };
@@ -34,11 +34,14 @@ shared uint sharedWords[PV_PHOTON_SCAN_GROUP];
 uint recordCount() { return PV_PHOTON_RECORDS_PER_PHOTON * params.photonCount; }
 uint blockCount() { return recordCount() / PV_PHOTON_SORT_BLOCK; }
 
-// Pass 0 sorts A into B, pass 1 B back into A.
-uvec2 sortInput(uint i) { return params.photonSortShift == 0u ? sortA[i] : sortB[i]; }
+// Even passes sort A into B, odd ones B back into A.
+bool evenPass() { return ((params.photonSortShift >> 3u) & 1u) == 0u; }
+uvec2 sortInput(uint i) { return evenPass() ? sortA[i] : sortB[i]; }
 void sortOutput(uint i, uvec2 v) {
-    if (params.photonSortShift == 0u) sortB[i] = v; else sortA[i] = v;
+    if (evenPass()) sortB[i] = v; else sortA[i] = v;
 }
+// Where the last pass left the pairs.
+uvec2 sorted(uint i) { return (PV_PHOTON_SORT_PASSES & 1u) != 0u ? sortB[i] : sortA[i]; }
 uint digitOf(uvec2 pair) { return (pair.x >> params.photonSortShift) & 0xffu; }
 
 void histogram() {
@@ -95,17 +98,17 @@ void scatter() {
     sortOutput(blockCounts[digit * blockCount() + block] + rank, pair);
 }
 
-// After both passes the pairs in A are in key order: copy the records into that order and mark
+// After the last pass the pairs are in key order: copy the records into that order and mark
 // where each bucket begins and ends (the host zeroed the cells).
 void buildCells() {
     uint i = gl_GlobalInvocationID.x;
     uint n = recordCount();
     if (i >= n) return;
-    uvec2 pair = sortA[i];
-    sorted[i] = records[pair.y];
+    uvec2 pair = sorted(i);
+    sortedRecords[i] = records[pair.y];
     if (pair.x == PV_PHOTON_EMPTY_KEY) return;
-    if (i == 0u || sortA[i - 1u].x != pair.x) cells[pair.x].x = i;
-    if (i + 1u == n || sortA[i + 1u].x != pair.x) cells[pair.x].y = i + 1u;
+    if (i == 0u || sorted(i - 1u).x != pair.x) cells[pair.x].x = i;
+    if (i + 1u == n || sorted(i + 1u).x != pair.x) cells[pair.x].y = i + 1u;
 }
 
 void main() {

@@ -29,12 +29,16 @@
 
 PV_BEGIN
 
-// Hash buckets of the grid. Keys are 16 bits: buckets 0..PV_PHOTON_BUCKETS−1 and one key for
-// "no photon here", sorted last and never looked up. Eight parity classes of 8191 buckets each
-// (photonBucket).
-#define PV_PHOTON_PARENT_BUCKETS 8191u
+// Hash buckets of the grid: eight parity classes of PV_PHOTON_PARENT_BUCKETS (photonBucket).
+// Keys are 24 bits: buckets 0..PV_PHOTON_BUCKETS−1 and one key for "no photon here", sorted last
+// and never looked up. A bucket a gather visits holds, besides its own cell's records, those of
+// every cell hashed onto it, each read and rejected: with 65528 buckets those collisions were a
+// third of the gather's time on the caustics scene (BENCHMARKS.md), so the table is 16× larger
+// (8 MiB of ranges) and sorted in three radix passes of 8 bits.
+#define PV_PHOTON_PARENT_BUCKETS 131071u
 #define PV_PHOTON_BUCKETS (8u * PV_PHOTON_PARENT_BUCKETS)
-#define PV_PHOTON_EMPTY_KEY 65535u
+#define PV_PHOTON_EMPTY_KEY 0xffffffu
+#define PV_PHOTON_SORT_PASSES 3u
 
 // Each photon owns four records, two per level: slot 2·level' + 0 for the photon while it is in
 // the mixed scene (or in both solutions, while it meets only real geometry), + 1 for the

@@ -247,7 +247,7 @@ struct FrameParams {
     float photonAimRadius;   // specular triangle (so none is wasted on the rest of the scene)
     float photonSceneRadius; // from photonAimCenter, a sphere holding the scene: distant lights' photons start on it
     uint photonMaxBounces;   // specular bounces a photon follows at most (≤ maxDepth − 1)
-    uint photonSortShift;    // the radix pass photon_grid.comp runs: 0 or 8 (bits of the key)
+    uint photonSortShift;    // the radix pass photon_grid.comp runs: 0, 8 or 16 (bits of the key)
     uint photonGatherCap;    // records examined per bucket at most; a fuller bucket is subsampled
 };
 
