@@ -243,19 +243,13 @@ void gatherPhotons(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint depth, f
     float r2 = r * r;
     float norm = 1.0 / (PV_PI * r2);
     uint maxBounces = params.maxDepth - depth - 1u;
-    // The cells that the sphere of radius r around the point overlaps: from `first`, one or
-    // two along each axis (the bits of `span`), visited as the sub-masks of span.
-    float cellSize = photonCellSize(r);
-    ivec3 first = photonCell(s.position - vec3(r), cellSize);
-    ivec3 last = photonCell(s.position + vec3(r), cellSize);
-    uint span = (last.x != first.x ? 1u : 0u) | (last.y != first.y ? 2u : 0u) |
-                (last.z != first.z ? 4u : 0u);
+    // The 2×2×2 cells (edge 2r) that the sphere of radius r around the point overlaps.
+    ivec3 first = photonCell(s.position - vec3(r), 2.0 * r);
     FixedRgb sumMixed = FixedRgb(uvec3(0u), uvec3(0u));
     FixedRgb sumReal = FixedRgb(uvec3(0u), uvec3(0u));
-    uint cells = 1u << uint(bitCount(span));
-    for (uint i = 0u, c = span; i < cells; ++i, c = (c - 1u) & span) {
+    for (uint c = 0u; c < 8u; ++c) {
         PV_COUNT_LOOP_ITERATION();
-        // These cells' buckets differ (photonBucket): each record is summed once.
+        // The eight cells' buckets differ (photonBucket): each record is summed once.
         uint bucket = photonBucket(first + ivec3(c & 1u, (c >> 1u) & 1u, c >> 2u));
         uvec4 pair = texelFetch(photonCellTexels, int(bucket >> 1u));
         uvec2 range = (bucket & 1u) != 0u ? pair.zw : pair.xy;

@@ -243,7 +243,7 @@ void main() {
                                   wi, PV_FLOAT_MAX);
         }
     }
-    float cellSize = photonCellSize(params.photonRadius);
+    float cellSize = 2.0 * params.photonRadius;
     for (uint k = 0u; k < PV_PHOTON_RECORDS_PER_PHOTON; ++k) {
         uint record = PV_PHOTON_RECORDS_PER_PHOTON * photon + k;
         records[record] = stored[k];

@@ -80,21 +80,13 @@ struct PhotonRecord {
     uint direction;  // packSnorm2x16(octahedralEncode(toward where the photon came from))
 };
 
-// Grid cells are cubes of edge PV_PHOTON_CELL_RADII gather radii. At least two, so that a gather
-// sphere overlaps at most 2×2×2 cells; more, so that it usually overlaps fewer: along each axis
-// it crosses a cell boundary with probability 2 / PV_PHOTON_CELL_RADII, and a gather looks up
-// only the cells it overlaps (1.5³ ≈ 3.4 on average, not 8), at the price of reading more
-// records that lie outside the sphere. A bucket lookup is the gather's main cost on a
-// SIMD-per-lane device (BENCHMARKS.md).
-#define PV_PHOTON_CELL_RADII 4.0f
-PV_INLINE float photonCellSize(float radius) { return PV_PHOTON_CELL_RADII * radius; }
-
-// The grid cell of p for cells of edge `cellSize`.
+// The grid cell of p for cells of edge `cellSize` (twice the gather radius, so that a gather
+// sphere overlaps at most 2×2×2 cells).
 PV_INLINE ivec3 photonCell(vec3 p, float cellSize) { return ivec3(floor(p / cellSize)); }
 
 // Teschner et al. 2003's spatial hash of the 2×2×2 block holding the cell, folded onto the
-// parent buckets, then the cell's parity within the block. A gather visits at most 2×2×2
-// neighbouring cells, whose parities all differ: they never share a bucket, so no record is summed twice and
+// parent buckets, then the cell's parity within the block. A gather visits 2×2×2 neighbouring
+// cells, whose parities all differ: they never share a bucket, so no record is summed twice and
 // the gather needs no duplicate check.
 PV_INLINE uint photonBucket(ivec3 c) {
     ivec3 block = c >> 1;  // arithmetic shift: floor(c / 2), negative cells too
