@@ -47,12 +47,13 @@ uint digitOf(uvec2 pair) { return (pair.x >> params.photonSortShift) & 0xffu; }
 void histogram() {
     uint t = gl_LocalInvocationID.x;
     uint block = gl_WorkGroupID.x;
-    sharedWords[t] = 0u;
+    for (uint d = t; d < 256u; d += PV_PHOTON_SORT_BLOCK) sharedWords[d] = 0u;
     barrier();
     // Counts are the same whatever order the additions happen in.
     atomicAdd(sharedWords[digitOf(sortInput(block * PV_PHOTON_SORT_BLOCK + t))], 1u);
     barrier();
-    blockCounts[t * blockCount() + block] = sharedWords[t];
+    for (uint d = t; d < 256u; d += PV_PHOTON_SORT_BLOCK)
+        blockCounts[d * blockCount() + block] = sharedWords[d];
 }
 
 // Exclusive scan of the 256 × blocks counts, digit-major: each entry becomes where that block's
@@ -85,7 +86,8 @@ void scan() {
 }
 
 // Stable: a record's place among its block's records of the same digit is the number of them
-// before it in the block.
+// before it in the block (a loop over the block: quadratic in PV_PHOTON_SORT_BLOCK, hence the
+// small blocks).
 void scatter() {
     uint t = gl_LocalInvocationID.x;
     uint block = gl_WorkGroupID.x;
