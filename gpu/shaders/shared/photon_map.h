@@ -17,11 +17,12 @@
 // - level 2 where it lands next: after D it scatters through the non-delta part of D's BSDF (a
 //   delta lobe ends it) and purely specular scatterings, and is stored at the next vertex that
 //   is not purely specular (L S+ D S* G).
-// The camera path gathers level 2 at every gather vertex and level 1 only at a gather vertex
-// whose previous gather vertex, if any, scattered through a delta lobe. Each of the dropped
-// paths is then counted once: L S+ D … E is level 1 at D when the path reached D from the camera
-// through delta scatterings only, and level 2 at the gather vertex before D otherwise (which
-// scattered toward D through its non-delta part, the part a gather evaluates).
+// The camera path gathers level 2 at every gather vertex (where level 2 is all it takes, with a
+// probability and the inverse weight: PV_PHOTON_LEVEL_2_GATHER_PROBABILITY) and level 1 only at
+// a gather vertex whose previous gather vertex, if any, scattered through a delta lobe. Each of
+// the dropped paths is then counted once: L S+ D … E is level 1 at D when the path reached D
+// from the camera through delta scatterings only, and level 2 at the gather vertex before D
+// otherwise (which scattered toward D through its non-delta part, the part a gather evaluates).
 #ifndef PREVIS_SHARED_PHOTON_MAP_H
 #define PREVIS_SHARED_PHOTON_MAP_H
 
