@@ -551,7 +551,10 @@ Status Renderer::buildScene(const Scene& scene) {
     const PhotonSettings& ph = settings_.photons;
     const bool photonsPossible =
         ph.mode == PhotonMode::On || (ph.mode == PhotonMode::Auto && photonAim_.any);
-    // A multiple of 128: two records each fill whole 256-record sort blocks.
+    // A multiple of 128: whole photon workgroups, and records (four a photon) in whole sort
+    // blocks.
+    static_assert(128u % PV_PHOTON_GROUP_SIZE == 0u &&
+                  128u * PV_PHOTON_RECORDS_PER_PHOTON % PV_PHOTON_SORT_BLOCK == 0u);
     p.photonCount = photonsPossible ? (ph.perIteration + 127u) / 128u * 128u : 0u;
     p.photonAimCenter = photonAim_.center;
     p.photonAimRadius = photonAim_.radius;

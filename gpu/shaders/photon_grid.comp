@@ -1,9 +1,10 @@
 // photon_grid: sorts the iteration's photon records by grid bucket and records each bucket's
 // range, so the gather finds a bucket's photons contiguous. A stable least-significant-digit radix
-// sort of the 24-bit bucket keys, PV_PHOTON_SORT_PASSES passes of 8 bits (params.photonSortShift),
-// each three dispatches — per-block digit histograms, one scan over them, a stable scatter — then the cell
-// pass. Stable and free of order-dependent atomics, so a bucket's records come out in photon order
-// on every run: the gather's bucket subsampling, and with it every pixel, is deterministic.
+// sort of the 24-bit bucket keys, PV_PHOTON_SORT_PASSES passes of 8 bits
+// (params.photonSortShift), each three dispatches — per-block digit histograms, one scan over
+// them, a stable scatter — then the cell pass. Stable and free of order-dependent atomics, so a
+// bucket's records come out in photon order on every run: the gather's bucket subsampling, and
+// with it every pixel, is deterministic.
 #version 460
 #extension GL_EXT_scalar_block_layout : require
 #extension GL_GOOGLE_include_directive : require
