@@ -165,8 +165,8 @@ size_t photonBufferBytes(int binding, uint32_t photons) {
         case PV_BINDING_PHOTON_SORT_B:
             return records * sizeof(glm::uvec2);
         case PV_BINDING_PHOTON_BLOCK_COUNTS:
-            // 256 digit counts a block.
-            return 256 * (records / PV_PHOTON_SORT_BLOCK) * sizeof(uint32_t);
+            return size_t(PV_PHOTON_SORT_DIGITS) * (records / PV_PHOTON_SORT_BLOCK) *
+                   sizeof(uint32_t);
         case PV_BINDING_PHOTON_CELLS:
             return photons ? size_t(PV_PHOTON_BUCKETS) * sizeof(glm::uvec2) : 0;
         default:

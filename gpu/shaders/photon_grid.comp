@@ -43,17 +43,19 @@ void sortOutput(uint i, uvec2 v) {
 }
 // Where the last pass left the pairs.
 uvec2 sorted(uint i) { return (PV_PHOTON_SORT_PASSES & 1u) != 0u ? sortB[i] : sortA[i]; }
-uint digitOf(uvec2 pair) { return (pair.x >> params.photonSortShift) & 0xffu; }
+uint digitOf(uvec2 pair) {
+    return (pair.x >> params.photonSortShift) & (PV_PHOTON_SORT_DIGITS - 1u);
+}
 
 void histogram() {
     uint t = gl_LocalInvocationID.x;
     uint block = gl_WorkGroupID.x;
-    for (uint d = t; d < 256u; d += PV_PHOTON_SORT_BLOCK) sharedWords[d] = 0u;
+    for (uint d = t; d < PV_PHOTON_SORT_DIGITS; d += PV_PHOTON_SORT_BLOCK) sharedWords[d] = 0u;
     barrier();
     // Counts are the same whatever order the additions happen in.
     atomicAdd(sharedWords[digitOf(sortInput(block * PV_PHOTON_SORT_BLOCK + t))], 1u);
     barrier();
-    for (uint d = t; d < 256u; d += PV_PHOTON_SORT_BLOCK)
+    for (uint d = t; d < PV_PHOTON_SORT_DIGITS; d += PV_PHOTON_SORT_BLOCK)
         blockCounts[d * blockCount() + block] = sharedWords[d];
 }
 
@@ -61,7 +63,7 @@ void histogram() {
 // records of that digit start in the output.
 void scan() {
     uint t = gl_LocalInvocationID.x;
-    uint total = 256u * blockCount();
+    uint total = PV_PHOTON_SORT_DIGITS * blockCount();
     uint chunk = (total + PV_PHOTON_SCAN_GROUP - 1u) / PV_PHOTON_SCAN_GROUP;
     uint begin = min(t * chunk, total);
     uint end = min(begin + chunk, total);

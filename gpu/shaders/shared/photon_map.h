@@ -40,6 +40,9 @@ PV_BEGIN
 #define PV_PHOTON_BUCKETS (8u * PV_PHOTON_PARENT_BUCKETS)
 #define PV_PHOTON_EMPTY_KEY 0xffffffu
 #define PV_PHOTON_SORT_PASSES 3u
+// Each pass sorts by one 8-bit digit: 256 digit counts per sort block (photon_grid.comp's
+// histograms, and the host's buffer for them).
+#define PV_PHOTON_SORT_DIGITS 256u
 
 // Each photon owns four records, two per level: slot 2·level' + 0 for the photon while it is in
 // the mixed scene (or in both solutions, while it meets only real geometry), + 1 for the
