@@ -303,9 +303,10 @@ struct PathState {
     float prevPdf;
     bool prevDelta;     // the last scattering was a delta lobe (or the camera): no MIS
     vec3 prevPosition;
-    // Product of the η² factors of the refractions so far: Russian roulette decides on
-    // throughput·etaScale, so radiance compressed inside glass does not get paths killed (pbrt).
-    float etaScale;
+    // Russian roulette decides on throughput·rouletteScale: the product of the η² factors of
+    // the refractions so far, so radiance compressed inside glass does not get paths killed
+    // (pbrt), over the share of a split's branch, so a split changes no path's survival.
+    float rouletteScale;
     uint depth;         // scattering events so far
     uint causticState;  // CAUSTIC_*: which emitters the photon map already carries
     uint causticBounces;
@@ -321,6 +322,44 @@ bool photonMapCarries(PathState st) {
            st.causticBounces <= params.photonMaxBounces;
 }
 
+// Moves path `st` across the scattering `bs` sampled at `s`: throughput, roulette scale, the
+// photon map's bookkeeping, the next ray and Russian roulette (uRoulette). `share` is a split
+// branch's share (1 without a split): the throughput carries share × the sample's weight.
+// False when the path ends here.
+bool scatter(inout PathState st, Surface s, Frame frame, BsdfParams bp, BsdfSample bs,
+             bool gatherVertex, float uRoulette, float share) {
+    vec3 wi = toWorld(frame, bs.wi);
+    if (!consistentSide(s, wi, bs.wi)) {
+        // The adapted normal keeps every mirror direction above the surface; a smooth
+        // refraction leaving at grazing angles can still point back into its facet. A delta
+        // direction is moved to the nearest one on its promised side (its weight stays exact); a
+        // sampled non-delta direction would break its pdf, so it ends.
+        if (!bs.isDelta) return false;
+        wi = nearestDirectionOnSide(wi, s.geometricNormal, bs.wi.z > 0.0 ? 1.0 : -1.0);
+    }
+    st.throughput *= share * bs.weight;
+    st.rouletteScale /= share;
+    if (bs.lobe == PV_LOBE_TRANSMISSION && !bp.thinWalled) st.rouletteScale *= bp.etaRel * bp.etaRel;
+    if (gatherVertex) {
+        st.causticState = bs.isDelta ? CAUSTIC_NONE : CAUSTIC_LEFT_GATHER;
+        st.causticBounces = 0u;
+        st.gatherLevel1 = bs.isDelta;
+    }
+    st.prevPdf = bs.pdf;
+    st.prevDelta = bs.isDelta;
+    st.prevPosition = s.position;
+    st.ray = directionRay(s.position, s.geometricNormal * (bs.wi.z > 0.0 ? 1.0 : -1.0), wi,
+                          PV_FLOAT_MAX);
+    st.depth += 1u;
+    if (st.depth >= params.rouletteStartDepth) {
+        // Russian roulette: unbiased, keeps paths whose throughput is still large.
+        float pContinue = min(1.0, maxComponent(st.throughput) * st.rouletteScale);
+        if (uRoulette >= pContinue) return false;
+        st.throughput /= pContinue;
+    }
+    return true;
+}
+
 // One camera sample: the mixed radiance lm (L_om), the real radiance lr (L_or), and whether the
 // camera ray's first hit is virtual (the sample's mask M). Every vertex draws the dimension sets
 // of its depth, so the real pass after a split draws what a real-only render would.
@@ -331,7 +370,7 @@ void tracePath(uvec2 pixel, SampleKey key, out vec3 lm, out vec3 lr, out bool fi
     st.prevPdf = 0.0;
     st.prevDelta = true;
     st.prevPosition = st.ray.origin;
-    st.etaScale = 1.0;
+    st.rouletteScale = 1.0;
     st.depth = 0u;
     st.causticState = CAUSTIC_NONE;
     st.causticBounces = 0u;
@@ -345,11 +384,19 @@ void tracePath(uvec2 pixel, SampleKey key, out vec3 lm, out vec3 lr, out bool fi
         gGuideDepthM = PV_GUIDE_MISS_DEPTH_M;
     }
     uint mode = kDifferential ? MODE_SHARED : MODE_MIXED;
+    // Pass 0 traces the camera ray (both solutions until they part); pass 1 the reflected
+    // branch of a split at smooth glass; pass 2 the real solution behind a virtual object.
     PathState realContinuation = st;
     bool haveRealContinuation = false;
-    for (uint pass = 0u; pass < 2u; ++pass) {
+    PathState reflectedBranch = st;
+    bool haveReflectedBranch = false;
+    for (uint pass = 0u; pass < 3u; ++pass) {
         PV_COUNT_LOOP_ITERATION();
         if (pass == 1u) {
+            if (!haveReflectedBranch) continue;
+            st = reflectedBranch;
+            mode = MODE_MIXED;
+        } else if (pass == 2u) {
             if (!haveRealContinuation) break;
             st = realContinuation;
             mode = MODE_REAL;
@@ -467,36 +514,27 @@ void tracePath(uvec2 pixel, SampleKey key, out vec3 lm, out vec3 lr, out bool fi
 
             BsdfSample bs;
             vec4 uBsdf = draw(key, vertexSet(st.depth, PV_SET_VERTEX_BSDF));
-            if (!sampleBsdf(bp, wo, uBsdf, bs)) break;
-            vec3 wi = toWorld(frame, bs.wi);
-            if (!consistentSide(s, wi, bs.wi)) {
-                // The adapted normal keeps every mirror direction above the surface; a smooth
-                // refraction leaving at grazing angles can still point back into its facet. A
-                // delta direction is moved to the nearest one on its promised side (its weight
-                // stays exact); a sampled non-delta direction would break its pdf, so it ends.
-                if (!bs.isDelta) break;
-                wi = nearestDirectionOnSide(wi, s.geometricNormal, bs.wi.z > 0.0 ? 1.0 : -1.0);
+            float share = 1.0;
+            float pReflect;
+            if (kHasTransmission && pass == 0u && st.depth == 0u && mode == MODE_MIXED &&
+                bsdfSplitsAtSmoothGlass(bp, wo, pReflect)) {
+                // Smooth glass the camera sees: both branches are followed, each weighted by its
+                // coefficient (unbiased). A Fresnel choice would show the reflection — a caustic
+                // or a light in the glass's grazing rim — in few samples, brightly: the noisiest
+                // pixels of a glass object. The reflection is traced in pass 1, mixed only (the
+                // split happens where the solutions have parted, or in a plain render).
+                BsdfSample reflection;
+                if (sampleBsdf(bp, wo, vec4(uBsdf.xy, 0.0, uBsdf.w), reflection)) {
+                    reflectedBranch = st;
+                    haveReflectedBranch = scatter(reflectedBranch, s, frame, bp, reflection,
+                                                  gatherVertex, uBsdf.w, pReflect);
+                }
+                uBsdf.z = 0.99999994;  // the refraction (bsdfSplitsAtSmoothGlass)
+                share = 1.0 - pReflect;
             }
-            st.throughput *= bs.weight;
-            if (bs.lobe == PV_LOBE_TRANSMISSION && !bp.thinWalled)
-                st.etaScale *= bp.etaRel * bp.etaRel;
-            if (gatherVertex) {
-                st.causticState = bs.isDelta ? CAUSTIC_NONE : CAUSTIC_LEFT_GATHER;
-                st.causticBounces = 0u;
-                st.gatherLevel1 = bs.isDelta;
-            }
-            st.prevPdf = bs.pdf;
-            st.prevDelta = bs.isDelta;
-            st.prevPosition = s.position;
-            st.ray = directionRay(s.position, s.geometricNormal * (bs.wi.z > 0.0 ? 1.0 : -1.0),
-                                  wi, PV_FLOAT_MAX);
-            st.depth += 1u;
-            if (st.depth >= params.rouletteStartDepth) {
-                // Russian roulette: unbiased, keeps paths whose throughput is still large.
-                float pContinue = min(1.0, maxComponent(st.throughput) * st.etaScale);
-                if (uBsdf.w >= pContinue) break;
-                st.throughput /= pContinue;
-            }
+            if (!sampleBsdf(bp, wo, uBsdf, bs) ||
+                !scatter(st, s, frame, bp, bs, gatherVertex, uBsdf.w, share))
+                break;
         }
     }
 }

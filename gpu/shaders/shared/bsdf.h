@@ -223,6 +223,19 @@ PV_INLINE float dielectricReflectionProbability(BsdfParams p, float cosThetaH) {
     return r + t > 0.0f ? r / (r + t) : 1.0f;
 }
 
+// Smooth glass and nothing else (no metal, no diffuse base), seen from where both its
+// reflection and its refraction can happen: an integrator may follow both branches instead of
+// choosing one (trace_paths.comp splits there). pReflect is the probability with which
+// bsdfSample would choose the reflection; bsdfSample with uLobe = 0 returns the reflection and
+// with uLobe just below 1 the refraction, each weighted by its coefficient over its probability.
+PV_INLINE bool bsdfSplitsAtSmoothGlass(BsdfParams p, vec3 wo, PV_OUT(float) pReflect) {
+    pReflect = 0.0f;
+    if (!bsdfIsDelta(p) || p.metallic > 0.0f || p.transmission < 1.0f || wo.z < PV_MIN_COSINE)
+        return false;
+    pReflect = dielectricReflectionProbability(p, wo.z);
+    return pReflect > 0.0f && pReflect < 1.0f;
+}
+
 // The non-delta part of the BSDF: f(wo, wi) (without the cosine) and the mixture pdf of
 // sampling wi with bsdfSample. Delta lobes contribute nothing here.
 PV_INLINE vec3 bsdfEvaluate(BsdfParams p, vec3 wo, vec3 wi, PV_OUT(float) pdf) {
