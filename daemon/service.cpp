@@ -490,8 +490,17 @@ void Service::Threads::stopAll() {
     button.reset();
     stopping.store(true);
     trackedFrames.wakeAll();
-    for (std::thread* t : {&renderThread, &trackingThread, &lightingThread})
-        if (t->joinable()) t->join();
+    // Each thread finishes the step it is in (a frame's samples, a tag detection, a lighting
+    // estimate); one that holds the stop up is named, so a slow stop says where it waited.
+    const std::pair<std::thread*, const char*> workers[] = {
+        {&renderThread, "render"}, {&trackingThread, "tracking"}, {&lightingThread, "lighting"}};
+    for (auto [thread, name] : workers) {
+        if (!thread->joinable()) continue;
+        const Clock::time_point start = Clock::now();
+        thread->join();
+        const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
+        if (seconds > 1.0) logInfo("stop: the {} thread took {:.1f} s to finish its step", name, seconds);
+    }
     if (sceneCamera) sceneCamera->stop();
     if (fisheyeCamera) fisheyeCamera->stop();
     if (display) display->stop();

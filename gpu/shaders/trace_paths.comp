@@ -384,158 +384,166 @@ void tracePath(uvec2 pixel, SampleKey key, out vec3 lm, out vec3 lr, out bool fi
         gGuideDepthM = PV_GUIDE_MISS_DEPTH_M;
     }
     uint mode = kDifferential ? MODE_SHARED : MODE_MIXED;
-    // Pass 0 traces the camera ray (both solutions until they part); pass 1 the reflected
-    // branch of a split at smooth glass; pass 2 the real solution behind a virtual object.
+    // One loop traces the camera path (both solutions until they part), then the reflected
+    // branch of a split at smooth glass, then the real solution behind a virtual object: each
+    // starts where the one before ended, so a lane does not wait at a pass boundary, and the
+    // loop's body (traversal and shading) is compiled once.
     PathState realContinuation = st;
     bool haveRealContinuation = false;
     PathState reflectedBranch = st;
     bool haveReflectedBranch = false;
-    for (uint pass = 0u; pass < 3u; ++pass) {
+    bool ended = false;
+    for (;;) {
         PV_COUNT_LOOP_ITERATION();
-        if (pass == 1u) {
-            if (!haveReflectedBranch) continue;
-            st = reflectedBranch;
-            mode = MODE_MIXED;
-        } else if (pass == 2u) {
-            if (!haveRealContinuation) break;
-            st = realContinuation;
-            mode = MODE_REAL;
-        }
-        for (;;) {
-            PV_COUNT_LOOP_ITERATION();
-            Hit hit;
-            bool found = intersectScene(st.ray, mode, hit);
-            bool hitVirtual = found && hit.triangle >= params.realTriangleCount;
-            if (hitVirtual && st.depth == 0u) firstHitVirtual = true;
-            if (hitVirtual && mode == MODE_SHARED) {
-                // The solutions part here: the real one continues this ray behind the virtual
-                // object (traced after the mixed part), the mixed one shades the virtual hit.
-                realContinuation = st;
-                haveRealContinuation = true;
+        if (ended) {
+            if (haveReflectedBranch) {
+                st = reflectedBranch;
                 mode = MODE_MIXED;
-            }
-            if (!found) {
-                if (kHasEnv && params.envWidth > 0u) {
-                    vec3 le = params.envScale * envRadiance(st.ray.direction, params.envWidth,
-                                                            params.envHeight, vec2(params.envRotationCos, params.envRotationSin));
-                    float w = st.prevDelta
-                                  ? 1.0
-                                  : powerHeuristic(st.prevPdf,
-                                                   envPdf(st.ray.direction, params.envWidth,
-                                                          params.envHeight, vec2(params.envRotationCos, params.envRotationSin)));
-                    addRadiance(mode, st.throughput * le * w, lm, lr);
-                }
-                if (kHasConeLights) {
-                    // Cone lights are seen where they are (camera rays, mirrors, and the BSDF
-                    // half of their multiple importance sampling).
-                    for (uint i = params.coneLightFirst; i < params.lightCount; ++i) {
-                        PV_COUNT_LOOP_ITERATION();
-                        GpuLight light = lightAt(i);
-                        float pdf = coneLightPdf(light, st.ray.direction);
-                        if (!(pdf > 0.0) || photonMapCarries(st)) continue;
-                        float w = st.prevDelta ? 1.0 : powerHeuristic(st.prevPdf, pdf);
-                        // Estimated lights are part of the captured (real) environment; a cone
-                        // light without PV_LIGHT_REAL lights only the mixed solution.
-                        vec3 l = st.throughput * light.intensity * w;
-                        if ((light.type & PV_LIGHT_REAL) != 0u) addRadiance(mode, l, lm, lr);
-                        else if (mode != MODE_REAL) lm += l;
-                    }
-                }
+                haveReflectedBranch = false;
+            } else if (haveRealContinuation) {
+                st = realContinuation;
+                mode = MODE_REAL;
+                haveRealContinuation = false;
+            } else {
                 break;
             }
-            Surface s = surfaceAt(st.ray, hit);
-            GpuMaterial m = materialAt(s.material);
-            if (kHasTransmission && !s.frontFace && maxComponent(m.attenuation) > 0.0) {
-                // Beer–Lambert (KHR_materials_volume): the segment just travelled ran inside
-                // this material's volume, from where the path entered it to this back face.
-                st.throughput *= exp(-m.attenuation * hit.t);
-            }
-            if (kHasEmissive && maxComponent(m.emission) > 0.0 && emitsToward(m, s.frontFace) &&
-                !photonMapCarries(st)) {
-                float w = st.prevDelta ? 1.0
-                                       : powerHeuristic(st.prevPdf,
-                                                        emissiveLightPdf(hit.triangle,
-                                                                         st.prevPosition, s));
-                addRadiance(mode, st.throughput * emittedRadiance(m, s.uv) * w, lm, lr);
-            }
-            if (st.depth >= params.maxDepth) break;
-
-            Frame frame;
-            frame.n = s.shadingNormal;
-            buildBasis(frame.n, frame.t, frame.b);
-            vec3 wo = toLocal(frame, -st.ray.direction);
-            BsdfParams bp = bsdfParamsAt(m, s);
-            if (kDenoiseGuides && pass == 0u && st.depth == 0u) {
-                // An emitter's light is not modulated by its base colour: albedo 1, as a miss.
-                gGuideAlbedo = maxComponent(m.emission) > 0.0 ? vec3(1.0) : bp.baseColor;
-                gGuideNormal = faceforward(s.shadingNormal, st.ray.direction, s.shadingNormal);
-                gGuideDepthM = hit.t;  // the camera ray's direction is unit: metres
-            }
-            bool gatherVertex = false;
-            if (kPhotons) {
-                bool purelySpecular = bsdfIsPurelySpecular(bp);
-                if (!purelySpecular) {
-                    // Every vertex that is not purely specular gathers: level 2 always, level 1
-                    // where the rule allows (shared/photon_map.h), so the light a caustic
-                    // throws onward (the wall beside a glass) is a density estimate, not the
-                    // path tracer's rare, bright samples.
-                    gatherVertex = true;
-                    // The light set's fourth number is otherwise unused.
-                    float u = draw(key, vertexSet(st.depth, PV_SET_VERTEX_LIGHT)).w;
-                    // A gather of level 2 alone (the caustic's light after a diffuse bounce
-                    // seen after another) adds little and costs a full grid lookup: it runs
-                    // with a probability, weighted by its inverse (unbiased); u, rescaled,
-                    // still places the window.
-                    float pGather = st.gatherLevel1 ? 1.0 : PV_PHOTON_LEVEL_2_GATHER_PROBABILITY;
-                    if (u < pGather) {
-                        vec3 causticMixed;
-                        vec3 causticReal;
-                        gatherPhotons(s, bp, frame, wo, st.depth, u / pGather, st.gatherLevel1,
-                                      causticMixed, causticReal);
-                        vec3 weight = st.throughput / pGather;
-                        if (mode != MODE_REAL) lm += weight * causticMixed;
-                        if (mode != MODE_MIXED) lr += weight * causticReal;
-                    }
-                } else if (st.causticState != CAUSTIC_NONE) {
-                    st.causticState = CAUSTIC_SPECULAR_CHAIN;
-                    st.causticBounces += 1u;
-                }
-            }
-            // Light sampling only where some lobe is not a delta (a smooth mirror or glass
-            // can only see lights through its one reflected or refracted ray).
-            if (!(kHasSpecular || kHasTransmission) || !bsdfIsDelta(bp) ||
-                bsdfLobeProbabilities(bp, wo).z > 0.0) {
-                vec3 directMixed = vec3(0.0);
-                vec3 directReal = vec3(0.0);
-                sampleDirectLight(s, bp, frame, wo, mode, key, st.depth, directMixed, directReal);
-                if (mode != MODE_REAL) lm += st.throughput * directMixed;
-                if (mode != MODE_MIXED) lr += st.throughput * directReal;
-            }
-
-            BsdfSample bs;
-            vec4 uBsdf = draw(key, vertexSet(st.depth, PV_SET_VERTEX_BSDF));
-            float share = 1.0;
-            float pReflect;
-            if (kHasTransmission && pass == 0u && st.depth == 0u && mode == MODE_MIXED &&
-                bsdfSplitsAtSmoothGlass(bp, wo, pReflect)) {
-                // Smooth glass the camera sees: both branches are followed, each weighted by its
-                // coefficient (unbiased). A Fresnel choice would show the reflection — a caustic
-                // or a light in the glass's grazing rim — in few samples, brightly: the noisiest
-                // pixels of a glass object. The reflection is traced in pass 1, mixed only (the
-                // split happens where the solutions have parted, or in a plain render).
-                BsdfSample reflection;
-                if (sampleBsdf(bp, wo, vec4(uBsdf.xy, 0.0, uBsdf.w), reflection)) {
-                    reflectedBranch = st;
-                    haveReflectedBranch = scatter(reflectedBranch, s, frame, bp, reflection,
-                                                  gatherVertex, uBsdf.w, pReflect);
-                }
-                uBsdf.z = 0.99999994;  // the refraction (bsdfSplitsAtSmoothGlass)
-                share = 1.0 - pReflect;
-            }
-            if (!sampleBsdf(bp, wo, uBsdf, bs) ||
-                !scatter(st, s, frame, bp, bs, gatherVertex, uBsdf.w, share))
-                break;
+            ended = false;
         }
+        Hit hit;
+        bool found = intersectScene(st.ray, mode, hit);
+        bool hitVirtual = found && hit.triangle >= params.realTriangleCount;
+        if (hitVirtual && st.depth == 0u) firstHitVirtual = true;
+        if (hitVirtual && mode == MODE_SHARED) {
+            // The solutions part here: the real one continues this ray behind the virtual
+            // object (traced after the mixed part), the mixed one shades the virtual hit.
+            realContinuation = st;
+            haveRealContinuation = true;
+            mode = MODE_MIXED;
+        }
+        if (!found) {
+            if (kHasEnv && params.envWidth > 0u) {
+                vec3 le = params.envScale * envRadiance(st.ray.direction, params.envWidth,
+                                                        params.envHeight, vec2(params.envRotationCos, params.envRotationSin));
+                float w = st.prevDelta
+                              ? 1.0
+                              : powerHeuristic(st.prevPdf,
+                                               envPdf(st.ray.direction, params.envWidth,
+                                                      params.envHeight, vec2(params.envRotationCos, params.envRotationSin)));
+                addRadiance(mode, st.throughput * le * w, lm, lr);
+            }
+            if (kHasConeLights) {
+                // Cone lights are seen where they are (camera rays, mirrors, and the BSDF
+                // half of their multiple importance sampling).
+                for (uint i = params.coneLightFirst; i < params.lightCount; ++i) {
+                    PV_COUNT_LOOP_ITERATION();
+                    GpuLight light = lightAt(i);
+                    float pdf = coneLightPdf(light, st.ray.direction);
+                    if (!(pdf > 0.0) || photonMapCarries(st)) continue;
+                    float w = st.prevDelta ? 1.0 : powerHeuristic(st.prevPdf, pdf);
+                    // Estimated lights are part of the captured (real) environment; a cone
+                    // light without PV_LIGHT_REAL lights only the mixed solution.
+                    vec3 l = st.throughput * light.intensity * w;
+                    if ((light.type & PV_LIGHT_REAL) != 0u) addRadiance(mode, l, lm, lr);
+                    else if (mode != MODE_REAL) lm += l;
+                }
+            }
+            ended = true;
+            continue;
+        }
+        Surface s = surfaceAt(st.ray, hit);
+        GpuMaterial m = materialAt(s.material);
+        if (kHasTransmission && !s.frontFace && maxComponent(m.attenuation) > 0.0) {
+            // Beer–Lambert (KHR_materials_volume): the segment just travelled ran inside
+            // this material's volume, from where the path entered it to this back face.
+            st.throughput *= exp(-m.attenuation * hit.t);
+        }
+        if (kHasEmissive && maxComponent(m.emission) > 0.0 && emitsToward(m, s.frontFace) &&
+            !photonMapCarries(st)) {
+            float w = st.prevDelta ? 1.0
+                                   : powerHeuristic(st.prevPdf,
+                                                    emissiveLightPdf(hit.triangle,
+                                                                     st.prevPosition, s));
+            addRadiance(mode, st.throughput * emittedRadiance(m, s.uv) * w, lm, lr);
+        }
+        if (st.depth >= params.maxDepth) {
+            ended = true;
+            continue;
+        }
+
+        Frame frame;
+        frame.n = s.shadingNormal;
+        buildBasis(frame.n, frame.t, frame.b);
+        vec3 wo = toLocal(frame, -st.ray.direction);
+        BsdfParams bp = bsdfParamsAt(m, s);
+        if (kDenoiseGuides && mode != MODE_REAL && st.depth == 0u) {
+            // An emitter's light is not modulated by its base colour: albedo 1, as a miss.
+            gGuideAlbedo = maxComponent(m.emission) > 0.0 ? vec3(1.0) : bp.baseColor;
+            gGuideNormal = faceforward(s.shadingNormal, st.ray.direction, s.shadingNormal);
+            gGuideDepthM = hit.t;  // the camera ray's direction is unit: metres
+        }
+        bool gatherVertex = false;
+        if (kPhotons) {
+            bool purelySpecular = bsdfIsPurelySpecular(bp);
+            if (!purelySpecular) {
+                // Every vertex that is not purely specular gathers: level 2 always, level 1
+                // where the rule allows (shared/photon_map.h), so the light a caustic
+                // throws onward (the wall beside a glass) is a density estimate, not the
+                // path tracer's rare, bright samples.
+                gatherVertex = true;
+                // The light set's fourth number is otherwise unused.
+                float u = draw(key, vertexSet(st.depth, PV_SET_VERTEX_LIGHT)).w;
+                // A gather of level 2 alone (the caustic's light after a diffuse bounce
+                // seen after another) adds little and costs a full grid lookup: it runs
+                // with a probability, weighted by its inverse (unbiased); u, rescaled,
+                // still places the window.
+                float pGather = st.gatherLevel1 ? 1.0 : PV_PHOTON_LEVEL_2_GATHER_PROBABILITY;
+                if (u < pGather) {
+                    vec3 causticMixed;
+                    vec3 causticReal;
+                    gatherPhotons(s, bp, frame, wo, st.depth, u / pGather, st.gatherLevel1,
+                                  causticMixed, causticReal);
+                    vec3 weight = st.throughput / pGather;
+                    if (mode != MODE_REAL) lm += weight * causticMixed;
+                    if (mode != MODE_MIXED) lr += weight * causticReal;
+                }
+            } else if (st.causticState != CAUSTIC_NONE) {
+                st.causticState = CAUSTIC_SPECULAR_CHAIN;
+                st.causticBounces += 1u;
+            }
+        }
+        // Light sampling only where some lobe is not a delta (a smooth mirror or glass
+        // can only see lights through its one reflected or refracted ray).
+        if (!(kHasSpecular || kHasTransmission) || !bsdfIsDelta(bp) ||
+            bsdfLobeProbabilities(bp, wo).z > 0.0) {
+            vec3 directMixed = vec3(0.0);
+            vec3 directReal = vec3(0.0);
+            sampleDirectLight(s, bp, frame, wo, mode, key, st.depth, directMixed, directReal);
+            if (mode != MODE_REAL) lm += st.throughput * directMixed;
+            if (mode != MODE_MIXED) lr += st.throughput * directReal;
+        }
+
+        BsdfSample bs;
+        vec4 uBsdf = draw(key, vertexSet(st.depth, PV_SET_VERTEX_BSDF));
+        float share = 1.0;
+        float pReflect;
+        if (kHasTransmission && st.depth == 0u && mode == MODE_MIXED &&
+            bsdfSplitsAtSmoothGlass(bp, wo, pReflect)) {
+            // Smooth glass the camera sees: both branches are followed, each weighted by its
+            // coefficient (unbiased). A Fresnel choice would show the reflection — a caustic
+            // or a light in the glass's grazing rim — in few samples, brightly: the noisiest
+            // pixels of a glass object. The reflection is traced after this path, mixed only (the
+            // split happens where the solutions have parted, or in a plain render).
+            BsdfSample reflection;
+            if (sampleBsdf(bp, wo, vec4(uBsdf.xy, 0.0, uBsdf.w), reflection)) {
+                reflectedBranch = st;
+                haveReflectedBranch = scatter(reflectedBranch, s, frame, bp, reflection,
+                                              gatherVertex, uBsdf.w, pReflect);
+            }
+            uBsdf.z = 0.99999994;  // the refraction (bsdfSplitsAtSmoothGlass)
+            share = 1.0 - pReflect;
+        }
+        ended = !sampleBsdf(bp, wo, uBsdf, bs) ||
+                !scatter(st, s, frame, bp, bs, gatherVertex, uBsdf.w, share);
     }
 }
 

@@ -246,7 +246,8 @@ TEST(Previsd, RunsTheDemoTogglesRefinementAndStopsOnSigterm) {
     std::optional<int> code = p.wait(30s);
     const double stopS =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - stopAt).count();
-    ASSERT_TRUE(code) << "still running 30 s after SIGTERM";
+    ASSERT_TRUE(code) << "still running 30 s after SIGTERM; its threads:\n"
+                      << p.threads() << p.log();
     EXPECT_EQ(*code, 0) << p.log();
     EXPECT_LT(stopS, 5.0) << "SIGTERM must stop previsd within 5 s";
     const std::string log = p.log();
@@ -268,7 +269,8 @@ TEST(Previsd, SigintStopsFromRefinement) {
     const auto stopAt = std::chrono::steady_clock::now();
     p.signal(SIGINT);
     std::optional<int> code = p.wait(30s);
-    ASSERT_TRUE(code);
+    ASSERT_TRUE(code) << "still running 30 s after SIGINT; its threads:\n"
+                      << p.threads() << p.log();
     EXPECT_EQ(*code, 0) << p.log();
     EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - stopAt).count(),
               5.0);

@@ -214,7 +214,8 @@ TEST(PrevisdInTheVm, DisplayButtonLedHotplugAndStop) {
 
     p.signal(SIGTERM);
     std::optional<int> code = p.wait(30s);
-    ASSERT_TRUE(code) << "previsd did not stop on SIGTERM";
+    ASSERT_TRUE(code) << "previsd did not stop on SIGTERM within 30 s; its threads:\n"
+                      << p.threads() << p.log();
     EXPECT_EQ(*code, 0) << p.log();
     EXPECT_EQ(led.value(), 0) << "the LED is off after a clean stop";
     std::printf("%s\n", p.log().c_str());

@@ -13,6 +13,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <filesystem>
 #include <cstdint>
 #include <fstream>
 #include <optional>
@@ -68,6 +69,26 @@ public:
         return status_;
     }
     bool running() { return !wait(std::chrono::milliseconds(0)); }
+    // The process's threads, one line each: name, state and the kernel function it sleeps in
+    // (/proc/PID/task/*/{comm,stat,wchan}); says where a process that does not exit waits.
+    std::string threads() const {
+        std::string out;
+        std::error_code gone;  // the process exited meanwhile: no threads
+        for (const auto& task : std::filesystem::directory_iterator(
+                 "/proc/" + std::to_string(pid_) + "/task", gone)) {
+            auto read = [&](const char* file) {
+                std::ifstream in(task.path() / file);
+                std::string line;
+                std::getline(in, line);
+                return line;
+            };
+            const std::string stat = read("stat");
+            const size_t close = stat.rfind(')');
+            const std::string state = close == std::string::npos ? "?" : stat.substr(close + 2, 1);
+            out += read("comm") + " " + state + " " + read("wchan") + "\n";
+        }
+        return out;
+    }
     std::string log() const {
         std::ifstream in(logPath_);
         std::stringstream s;
