@@ -231,10 +231,10 @@ void fixedAdd(inout FixedRgb sum, vec3 v) {
 vec3 fixedValue(FixedRgb sum) { return vec3(sum.whole) + vec3(sum.fraction) * 2.3283064365386963e-10; }
 
 // The photon map's estimate of the caustic radiance leaving gather vertex `s` toward wo, for the
-// mixed and the real solution: Σ f(wo, wi_p)·Φ_p / (π r²) over the photons within r (level-2
+// mixed and the real solution: Σ f(wo, wi_p)·Φ_p·K(d_p) over the photons within r (level-2
 // ones only unless `level1`) whose scatterings fit in the depth left (depth: scatterings before
-// this vertex). A bucket holding
-// more than photonGatherCap records is subsampled — a window of that many at a random start,
+// this vertex), K the Epanechnikov kernel 2(1 − d²/r²)/(π r²) (docs/caustics.md says why not a
+// uniform disc). A bucket holding more than photonGatherCap records is subsampled — a window of that many at a random start,
 // weighted by the ratio — which keeps the estimate unbiased and a lane's loop count bounded
 // (llvmpipe's loop budget, shared/prelude.h).
 void gatherPhotons(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint depth, float uWindow,
@@ -268,7 +268,8 @@ void gatherPhotons(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint depth, f
             vec3 d = uintBitsToFloat(t0.xyz) - s.position;
             // Level 1 only where the path may gather it (shared/photon_map.h's rule).
             bool levelGathered = level1 || (t0.w & PV_PHOTON_LEVEL_2) != 0u;
-            if (dot(d, d) >= r2 || (t0.w >> PV_PHOTON_BOUNCES_SHIFT) > maxBounces ||
+            float d2 = dot(d, d);
+            if (d2 >= r2 || (t0.w >> PV_PHOTON_BOUNCES_SHIFT) > maxBounces ||
                 !levelGathered)
                 continue;
             uvec4 t1 = texelFetch(photonTexels, int(2u * at + 1u));
@@ -276,7 +277,9 @@ void gatherPhotons(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint depth, f
             vec3 wiLocal = toLocal(frame, wi);
             if (!consistentSide(s, wi, wiLocal)) continue;
             float pdf;
-            vec3 c = evaluateBsdf(bp, wo, wiLocal, pdf) * uintBitsToFloat(t1.xyz) * weight;
+            float kernel = 2.0 * (1.0 - d2 / r2);  // × norm (in weight): Epanechnikov
+            vec3 c = evaluateBsdf(bp, wo, wiLocal, pdf) * uintBitsToFloat(t1.xyz) *
+                     (weight * kernel);
             if ((t0.w & PV_PHOTON_IN_MIXED) != 0u) fixedAdd(sumMixed, c);
             if ((t0.w & PV_PHOTON_IN_REAL) != 0u) fixedAdd(sumReal, c);
         }
