@@ -499,7 +499,8 @@ void Service::Threads::stopAll() {
         const Clock::time_point start = Clock::now();
         thread->join();
         const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
-        if (seconds > 1.0) logInfo("stop: the {} thread took {:.1f} s to finish its step", name, seconds);
+        if (seconds > 1.0)
+            logInfo("stop: the {} thread took {:.1f} s to finish its step", name, seconds);
     }
     if (sceneCamera) sceneCamera->stop();
     if (fisheyeCamera) fisheyeCamera->stop();

@@ -234,9 +234,9 @@ vec3 fixedValue(FixedRgb sum) { return vec3(sum.whole) + vec3(sum.fraction) * 2.
 // mixed and the real solution: Σ f(wo, wi_p)·Φ_p·K(d_p) over the photons within r (level-2
 // ones only unless `level1`) whose scatterings fit in the depth left (depth: scatterings before
 // this vertex), K the Epanechnikov kernel 2(1 − d²/r²)/(π r²) (docs/caustics.md says why not a
-// uniform disc). A bucket holding more than photonGatherCap records is subsampled — a window of that many at a random start,
-// weighted by the ratio — which keeps the estimate unbiased and a lane's loop count bounded
-// (llvmpipe's loop budget, shared/prelude.h).
+// uniform disc). A bucket holding more than photonGatherCap records is subsampled — a window of
+// that many at a random start, weighted by the ratio — which keeps the estimate unbiased and a
+// lane's loop count bounded (llvmpipe's loop budget, shared/prelude.h).
 void gatherPhotons(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint depth, float uWindow,
                    bool level1, out vec3 toMixed, out vec3 toReal) {
     float r = params.photonRadius;
@@ -342,7 +342,8 @@ bool scatter(inout PathState st, Surface s, Frame frame, BsdfParams bp, BsdfSamp
     }
     st.throughput *= share * bs.weight;
     st.rouletteScale /= share;
-    if (bs.lobe == PV_LOBE_TRANSMISSION && !bp.thinWalled) st.rouletteScale *= bp.etaRel * bp.etaRel;
+    if (bs.lobe == PV_LOBE_TRANSMISSION && !bp.thinWalled)
+        st.rouletteScale *= bp.etaRel * bp.etaRel;
     if (gatherVertex) {
         st.causticState = bs.isDelta ? CAUSTIC_NONE : CAUSTIC_LEFT_GATHER;
         st.causticBounces = 0u;

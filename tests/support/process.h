@@ -13,8 +13,8 @@
 
 #include <algorithm>
 #include <chrono>
-#include <filesystem>
 #include <cstdint>
+#include <filesystem>
 #include <fstream>
 #include <optional>
 #include <sstream>
@@ -74,8 +74,8 @@ public:
     std::string threads() const {
         std::string out;
         std::error_code gone;  // the process exited meanwhile: no threads
-        for (const auto& task : std::filesystem::directory_iterator(
-                 "/proc/" + std::to_string(pid_) + "/task", gone)) {
+        for (const auto& task :
+             std::filesystem::directory_iterator("/proc/" + std::to_string(pid_) + "/task", gone)) {
             auto read = [&](const char* file) {
                 std::ifstream in(task.path() / file);
                 std::string line;
