@@ -352,6 +352,7 @@ void Service::Threads::runRender(ModeMachine& modes) {
             frozen = current;
             frozenLighting = lightingSnapshots.latest();
             if (Status s = r.beginRefine(*frozen, frozenLighting); !s) {
+                if (stopping.load()) return;  // the stop interrupted the GPU pass
                 logError("render: cannot start refinement: {}", s.message());
                 pipelineFailed.store(true);
                 return;
@@ -401,6 +402,7 @@ void Service::Threads::runRender(ModeMachine& modes) {
                 }
             }
             if (Status s = r.renderPreview(*frame, lightingSnapshots.latest()); !s) {
+                if (stopping.load()) return;
                 logError("render: {}", s.message());
                 pipelineFailed.store(true);
                 return;
@@ -461,6 +463,7 @@ void Service::Threads::runRender(ModeMachine& modes) {
             step = uint32_t(std::min<uint64_t>(step, settings.maxSamples - done));
         const Clock::time_point start = Clock::now();
         if (Status s = r.refineStep(step); !s) {
+            if (stopping.load()) return;
             logError("render: {}", s.message());
             pipelineFailed.store(true);
             return;
@@ -537,6 +540,8 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config, bo
         PipelineRenderer::create(*t.gpu, *scene, config);
     if (!renderer) return renderer.error();
     t.renderer = std::move(*renderer);
+    // A stop must not wait for a whole frame on a slow device (lavapipe on a slow CPU).
+    t.renderer->renderer().setInterrupt(&t.stopping);
     // With [render] preview_fps the dial chose the preview's samples (PipelineRenderer).
     t.previewSamples = t.renderer->previewSamples();
     logInfo("render: {}x{} on {}, {} spp per preview frame", t.renderer->width(),

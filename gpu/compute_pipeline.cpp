@@ -55,8 +55,11 @@ Result<ComputePipeline> ComputePipeline::create(GpuContext& ctx, std::span<const
                                     boolSpecConstants.size_bytes(), boolSpecConstants.data());
         vk::PipelineShaderStageCreateInfo stage({}, vk::ShaderStageFlagBits::eCompute, *p.module_,
                                                 "main", &spec);
-        p.pipeline_ = vk::raii::Pipeline(device, nullptr,
-                                         vk::ComputePipelineCreateInfo({}, stage, *p.layout_));
+        // Dispatch base (core since Vulkan 1.1): dispatchPart() splits a dispatch.
+        p.pipeline_ =
+            vk::raii::Pipeline(device, nullptr,
+                               vk::ComputePipelineCreateInfo(
+                                   vk::PipelineCreateFlagBits::eDispatchBase, stage, *p.layout_));
 
         std::vector<vk::DescriptorPoolSize> poolSizes;
         if (storageCount) poolSizes.emplace_back(vk::DescriptorType::eStorageBuffer, storageCount);
@@ -123,6 +126,16 @@ Status ComputePipeline::bind(std::span<const GpuBuffer* const> buffers,
 }
 
 Result<double> ComputePipeline::dispatch(uint32_t groupsX, uint32_t groupsY, uint32_t groupsZ) {
+    return record(0, 0, groupsX, groupsY, groupsZ);
+}
+
+Result<double> ComputePipeline::dispatchPart(uint32_t baseX, uint32_t baseY, uint32_t groupsX,
+                                             uint32_t groupsY) {
+    return record(baseX, baseY, groupsX, groupsY, 1);
+}
+
+Result<double> ComputePipeline::record(uint32_t baseX, uint32_t baseY, uint32_t groupsX,
+                                       uint32_t groupsY, uint32_t groupsZ) {
     bool timed = static_cast<VkQueryPool>(*queries_) != VK_NULL_HANDLE;
     Status s = ctx_->submitAndWait([&](const vk::raii::CommandBuffer& cmd) {
         if (timed) {
@@ -131,7 +144,10 @@ Result<double> ComputePipeline::dispatch(uint32_t groupsX, uint32_t groupsY, uin
         }
         cmd.bindPipeline(vk::PipelineBindPoint::eCompute, *pipeline_);
         cmd.bindDescriptorSets(vk::PipelineBindPoint::eCompute, *layout_, 0, *set_, nullptr);
-        cmd.dispatch(groupsX, groupsY, groupsZ);
+        if (baseX == 0 && baseY == 0)
+            cmd.dispatch(groupsX, groupsY, groupsZ);
+        else
+            cmd.dispatchBase(baseX, baseY, 0, groupsX, groupsY, groupsZ);
         if (timed) cmd.writeTimestamp(vk::PipelineStageFlagBits::eBottomOfPipe, *queries_, 1);
     });
     if (!s) return s.error();

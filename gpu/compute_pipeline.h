@@ -52,11 +52,18 @@ public:
     // Dispatches groups and waits; returns the GPU time of the dispatch in milliseconds
     // (0 when the device has no timestamps).
     Result<double> dispatch(uint32_t groupsX, uint32_t groupsY, uint32_t groupsZ = 1);
+    // The same for the groups from (baseX, baseY) on: gl_WorkGroupID and gl_GlobalInvocationID
+    // count from there (vkCmdDispatchBase), so a dispatch split into parts computes what it
+    // computes whole.
+    Result<double> dispatchPart(uint32_t baseX, uint32_t baseY, uint32_t groupsX, uint32_t groupsY);
 
     const std::string& label() const { return label_; }
 
 private:
     ComputePipeline() = default;
+    Result<double> record(uint32_t baseX, uint32_t baseY, uint32_t groupsX, uint32_t groupsY,
+                          uint32_t groupsZ);
+
     GpuContext* ctx_ = nullptr;
     std::string label_;
     vk::raii::DescriptorSetLayout setLayout_{nullptr};

@@ -203,7 +203,8 @@ Status PhotonPasses::bind(std::span<const GpuBuffer* const> buffers,
     return {};
 }
 
-Result<double> PhotonPasses::run(shader::FrameParams& params, std::span<GpuBuffer> buffers) {
+Result<double> PhotonPasses::run(shader::FrameParams& params, std::span<GpuBuffer> buffers,
+                                 const std::atomic<bool>* stop) {
     const uint32_t blocks =
         PV_PHOTON_RECORDS_PER_PHOTON * params.photonCount / PV_PHOTON_SORT_BLOCK;
     double ms = 0.0;
@@ -219,8 +220,14 @@ Result<double> PhotonPasses::run(shader::FrameParams& params, std::span<GpuBuffe
     params.photonSortShift = 0;
     if (Status s = uploadParams(); !s) return s.error();
     if (Status s = buffers[PV_BINDING_PHOTON_CELLS].fill(0); !s) return s.error();
-    if (Status s = dispatch(*trace_, params.photonCount / PV_PHOTON_GROUP_SIZE); !s)
+    const uint32_t traceGroups = params.photonCount / PV_PHOTON_GROUP_SIZE;
+    if (stop) {
+        auto t = traceParts_.run(*trace_, traceGroups, 1, *stop);
+        if (!t) return t.error();
+        ms += t.value();
+    } else if (Status s = dispatch(*trace_, traceGroups); !s) {
         return s.error();
+    }
     for (uint32_t pass = 0; pass < PV_PHOTON_SORT_PASSES; ++pass) {
         params.photonSortShift = 8 * pass;
         if (Status s = uploadParams(); !s) return s.error();

@@ -7,6 +7,7 @@
 // trace_paths.comp gathers from.
 
 #include <array>
+#include <atomic>
 #include <cstdint>
 #include <glm/glm.hpp>
 #include <optional>
@@ -18,6 +19,7 @@
 #include "gpu/buffer.h"
 #include "gpu/compute_pipeline.h"
 #include "gpu/context.h"
+#include "gpu/interruptible_dispatch.h"
 #include "scene/scene.h"
 #include "shared/photon_map.h"
 #include "shared/scene_types.h"
@@ -103,11 +105,14 @@ public:
 
     // Traces params.photonCount photons for params.photonIteration at params.photonRadius and
     // builds the grid. Uploads params (the sort passes change photonSortShift). Returns GPU ms.
-    Result<double> run(shader::FrameParams& params, std::span<GpuBuffer> buffers);
+    // With `stop`, the tracing (most of the time) runs in parts and ends early once it is set.
+    Result<double> run(shader::FrameParams& params, std::span<GpuBuffer> buffers,
+                       const std::atomic<bool>* stop = nullptr);
 
 private:
     PhotonPasses() = default;
     std::optional<ComputePipeline> trace_;
+    InterruptibleDispatch traceParts_{kInterruptiblePartMs};
     std::array<std::optional<ComputePipeline>, 4> grid_;  // photon_grid.comp's stages
 };
 

@@ -841,10 +841,11 @@ Status Renderer::render(uint32_t samples,
         // The sample index selects the random sequence; it wraps after 2^32 samples.
         params_.sampleBase = uint32_t(samples_);
         params_.samplesPerDispatch = n;
+        if (interrupt_ && interrupt_->load()) return makeError("{}", kDispatchInterrupted);
         if (photonsActive_) {
             params_.photonIteration = uint32_t(samples_);
             params_.photonRadius = nextPhotonRadius();
-            auto photonMs = photonPasses_->run(params_, buffers_);
+            auto photonMs = photonPasses_->run(params_, buffers_, interrupt_);
             if (!photonMs) return photonMs.error();
             photonMs_ += photonMs.value();
             gpuMs_ += photonMs.value();
@@ -868,8 +869,9 @@ Status Renderer::render(uint32_t samples,
                 if (Status s = bindBuffers(first); !s) return s;
             }
             const uint32_t rows = std::min(bandRows_, params_.height - first);
-            auto bandMs = pipeline_->dispatch(
-                groupsX, (rows + PV_WORKGROUP_SIZE_Y - 1) / PV_WORKGROUP_SIZE_Y);
+            const uint32_t groupsY = (rows + PV_WORKGROUP_SIZE_Y - 1) / PV_WORKGROUP_SIZE_Y;
+            auto bandMs = interrupt_ ? pathParts_.run(*pipeline_, groupsX, groupsY, *interrupt_)
+                                     : pipeline_->dispatch(groupsX, groupsY);
             if (!bandMs) return bandMs.error();
             ms += bandMs.value();
         }

@@ -4,6 +4,7 @@
 // the path tracer on it: progressive, exact accumulation of samples per pixel.
 
 #include <array>
+#include <atomic>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -16,6 +17,7 @@
 #include "gpu/buffer.h"
 #include "gpu/compute_pipeline.h"
 #include "gpu/context.h"
+#include "gpu/interruptible_dispatch.h"
 #include "image/image.h"
 #include "render/bvh.h"
 #include "render/convergence.h"
@@ -217,6 +219,12 @@ public:
     // the buffers' per-iteration count). Nothing changes without an active photon pass.
     Status setPreviewPhotons(uint32_t photons);
 
+    // A flag that, once set, ends the render in progress early with an error (a service
+    // stopping; a partial render's buffers are not to be shown). While a flag is set up here,
+    // each pass runs in parts of about kInterruptiblePartMs so a stop never waits for a whole
+    // frame on a slow device; the parts change no result. nullptr: one dispatch per pass.
+    void setInterrupt(const std::atomic<bool>* stop) { interrupt_ = stop; }
+
     // Selects another random sequence (takes effect with the next render; call reset() first
     // unless the new samples are meant to join the old ones).
     void setSeed(uint32_t seed) { params_.seed = seed; }
@@ -350,6 +358,8 @@ private:
     shader::FrameParams params_{};
     std::vector<GpuBuffer> buffers_;  // indexed by PV_BINDING_*
     std::optional<ComputePipeline> pipeline_;
+    const std::atomic<bool>* interrupt_ = nullptr;
+    InterruptibleDispatch pathParts_{kInterruptiblePartMs};
     std::array<uint32_t, PV_SPEC_COUNT> specConstants_{};
     std::vector<shader::GpuLight> sceneLights_;      // the scene's own; estimated ones follow them
     std::vector<shader::GpuLight> estimatedLights_;  // cone lights (directions only)

@@ -5,6 +5,7 @@
 // from the measured noise.
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <cmath>
 #include <cstring>
 
@@ -377,6 +378,42 @@ TEST_F(CausticAgreementTest, PreviewFramesAreBitIdentical) {
     EXPECT_EQ(0, std::memcmp(first.data(), other.data(), first.size() * sizeof(float)));
     // The preview budget was a budget: refinement traces its full count again.
     EXPECT_EQ((*a)->photonsPerIteration(), 1u << 15);
+}
+
+// A service's renderer runs each pass in parts, so that a stop waits for one part and not for a
+// whole frame on a slow device (Renderer::setInterrupt). The parts must change nothing: the
+// first frame (its first parts one workgroup row of paths and one group of photons, before any
+// part was timed) and the next equal an uninterrupted renderer's bit for bit. Once the flag is
+// set, a render ends with the interruption error and adds no samples.
+TEST_F(CausticAgreementTest, PassesInPartsEqualWholePassesAndAStopEndsThem) {
+    const Scene s = scene();
+    RenderSettings rs = photonSettings(48, 36, PhotonMode::Auto);
+    rs.photons.perIteration = 1u << 15;
+    rs.photons.previewPerIteration = 4096;
+    auto frame = [&](Renderer& r) {
+        EXPECT_TRUE(r.renderPreviewFrame(2).ok());
+        auto image = r.image();
+        EXPECT_TRUE(image.ok());
+        return image.ok() ? image->pixels : std::vector<float>{};
+    };
+    auto whole = Renderer::create(ctx(), s, rs);
+    auto parts = Renderer::create(ctx(), s, rs);
+    ASSERT_TRUE(whole.ok() && parts.ok());
+    ASSERT_TRUE((*parts)->photonsActive());
+    std::atomic<bool> stop{false};
+    (*parts)->setInterrupt(&stop);
+    for (int f = 0; f < 2; ++f) {
+        std::vector<float> a = frame(**whole), b = frame(**parts);
+        ASSERT_EQ(a.size(), size_t(48 * 36 * 3));
+        ASSERT_EQ(a.size(), b.size());
+        EXPECT_EQ(0, std::memcmp(a.data(), b.data(), a.size() * sizeof(float))) << "frame " << f;
+    }
+    const uint64_t samples = (*parts)->samplesPerPixel();
+    stop.store(true);
+    Status stopped = (*parts)->render(4);
+    ASSERT_FALSE(stopped.ok());
+    EXPECT_EQ(stopped.message(), kDispatchInterrupted);
+    EXPECT_EQ((*parts)->samplesPerPixel(), samples);
 }
 
 // The preview's photon budget is one of the dial's axes (render/quality_dial.h): setting it
