@@ -528,7 +528,6 @@ void tracePath(uvec2 pixel, SampleKey key, out vec3 lm, out vec3 lr, out bool fi
 
         BsdfSample bs;
         vec4 uBsdf = draw(key, vertexSet(st.depth, PV_SET_VERTEX_BSDF));
-        float share = 1.0;
         float pReflect;
         if (kHasTransmission && st.depth == 0u && mode == MODE_MIXED &&
             bsdfSplitsAtSmoothGlass(bp, wo, pReflect)) {
@@ -538,16 +537,17 @@ void tracePath(uvec2 pixel, SampleKey key, out vec3 lm, out vec3 lr, out bool fi
             // pixels of a glass object. The reflection is traced after this path, mixed only (the
             // split happens where the solutions have parted, or in a plain render).
             BsdfSample reflection;
-            if (sampleBsdf(bp, wo, vec4(uBsdf.xy, 0.0, uBsdf.w), reflection)) {
+            if (smoothDielectricReflection(bp, wo, pReflect, reflection)) {
                 reflectedBranch = st;
                 haveReflectedBranch = scatter(reflectedBranch, s, frame, bp, reflection,
                                               gatherVertex, uBsdf.w, pReflect);
             }
-            uBsdf.z = 0.99999994;  // the refraction (bsdfSplitsAtSmoothGlass)
-            share = 1.0 - pReflect;
+            ended = !smoothDielectricRefraction(bp, wo, 1.0 - pReflect, bs) ||
+                    !scatter(st, s, frame, bp, bs, gatherVertex, uBsdf.w, 1.0 - pReflect);
+        } else {
+            ended = !sampleBsdf(bp, wo, uBsdf, bs) ||
+                    !scatter(st, s, frame, bp, bs, gatherVertex, uBsdf.w, 1.0);
         }
-        ended = !sampleBsdf(bp, wo, uBsdf, bs) ||
-                !scatter(st, s, frame, bp, bs, gatherVertex, uBsdf.w, share);
     }
 }
 

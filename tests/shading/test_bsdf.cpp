@@ -165,6 +165,43 @@ TEST(BsdfTest, LimitCasesAreExact) {
     EXPECT_NEAR(sinO, 1.5f * sinI, 1e-6f);
 }
 
+// Where the path tracer splits at smooth glass it takes the two branches from
+// smoothDielectricReflection and smoothDielectricRefraction, weighted by their coefficients
+// (choice 1); bsdfSample picks one of the same branches by Fresnel. The split is unbiased when
+// each branch's coefficient equals bsdfSample's weight times its probability, and bsdfSample
+// returns exactly these functions' directions: checked for solid and thin-walled, clear and
+// tinted glass, from normal to grazing incidence.
+TEST(BsdfTest, SplitBranchesAreBsdfSampleBranchesTimesTheirProbabilities) {
+    for (bool thin : {false, true})
+        for (glm::vec3 tint : {glm::vec3(1.0f), glm::vec3(0.9f, 0.5f, 0.2f)})
+            for (float theta : {0.0f, 30.0f, 60.0f, 85.0f, 89.0f}) {
+                BsdfParams glass = material(tint, 0.0f, 0.0f, 1.0f, 1.5f);
+                if (thin) glass = thinWalled(glass);
+                const glm::vec3 wo = direction(theta, 40.0f);
+                float pReflect = 0.0f;
+                ASSERT_TRUE(bsdfSplitsAtSmoothGlass(glass, wo, pReflect)) << theta;
+                BsdfSample reflected, refracted, chosen;
+                ASSERT_TRUE(smoothDielectricReflection(glass, wo, 1.0f, reflected));
+                ASSERT_TRUE(smoothDielectricRefraction(glass, wo, 1.0f, refracted));
+                ASSERT_TRUE(bsdfSample(glass, wo, 0.5f * pReflect, {0.5f, 0.5f}, chosen));
+                EXPECT_EQ(chosen.lobe, reflected.lobe);
+                EXPECT_EQ(chosen.wi, reflected.wi);
+                for (int c = 0; c < 3; ++c)
+                    EXPECT_NEAR(chosen.weight[c] * pReflect, reflected.weight[c], 1e-6f);
+                ASSERT_TRUE(bsdfSample(glass, wo, pReflect + 0.5f * (1.0f - pReflect), {0.5f, 0.5f},
+                                       chosen));
+                EXPECT_EQ(chosen.lobe, refracted.lobe);
+                EXPECT_EQ(chosen.wi, refracted.wi);
+                for (int c = 0; c < 3; ++c)
+                    EXPECT_NEAR(chosen.weight[c] * (1.0f - pReflect), refracted.weight[c], 1e-6f);
+                // Clear glass loses nothing: R + T = 1 (T counted without the 1/η² of radiance).
+                if (tint == glm::vec3(1.0f)) {
+                    const float eta2 = thin ? 1.0f : 1.5f * 1.5f;
+                    EXPECT_NEAR(reflected.weight.x + refracted.weight.x * eta2, 1.0f, 1e-6f);
+                }
+            }
+}
+
 TEST(BsdfTest, FresnelOfDielectric) {
     EXPECT_NEAR(fresnelDielectric(1.0f, 1.5f), 0.04f, 1e-6f);
     EXPECT_NEAR(fresnelDielectric(0.0f, 1.5f), 1.0f, 1e-6f);

@@ -69,17 +69,17 @@ struct BsdfParams {
     vec3 baseColor;
     float metallic;
     vec3 specularColor;
-    float alpha;         // GGX roughness, perceptual roughness squared
+    float alpha;  // GGX roughness, perceptual roughness squared
     float transmission;
-    float etaRel;        // see the convention above
+    float etaRel;  // see the convention above
     float specular;
-    bool thinWalled;     // transmission through a thin slab, not into a volume (see above)
+    bool thinWalled;  // transmission through a thin slab, not into a volume (see above)
 };
 
 struct BsdfSample {
     vec3 wi;
-    float pdf;           // solid angle pdf of the mixture; 0 for delta lobes
-    vec3 weight;         // f·|cosθi| / pdf (for delta lobes: the lobe coefficient / choice prob)
+    float pdf;    // solid angle pdf of the mixture; 0 for delta lobes
+    vec3 weight;  // f·|cosθi| / pdf (for delta lobes: the lobe coefficient / choice prob)
     uint lobe;
     bool isDelta;
 };
@@ -225,9 +225,9 @@ PV_INLINE float dielectricReflectionProbability(BsdfParams p, float cosThetaH) {
 
 // Smooth glass and nothing else (no metal, no diffuse base), seen from where both its
 // reflection and its refraction can happen: an integrator may follow both branches instead of
-// choosing one (trace_paths.comp splits there). pReflect is the probability with which
-// bsdfSample would choose the reflection; bsdfSample with uLobe = 0 returns the reflection and
-// with uLobe just below 1 the refraction, each weighted by its coefficient over its probability.
+// choosing one (trace_paths.comp splits there, with smoothDielectricReflection and
+// smoothDielectricRefraction). pReflect is the probability with which bsdfSample would choose
+// the reflection.
 PV_INLINE bool bsdfSplitsAtSmoothGlass(BsdfParams p, vec3 wo, PV_OUT(float) pReflect) {
     pReflect = 0.0f;
     if (!bsdfIsDelta(p) || p.metallic > 0.0f || p.transmission < 1.0f || wo.z < PV_MIN_COSINE)
@@ -297,6 +297,39 @@ PV_INLINE vec3 bsdfEvaluate(BsdfParams p, vec3 wo, vec3 wi, PV_OUT(float) pdf) {
     return f;
 }
 
+// The two branches of a smooth (delta) dielectric lobe: the mirror reflection and the refraction
+// (straight through a thin wall), each weighted by its coefficient over `choice`, the
+// probability with which the caller picked it (1 when it follows both). false when the branch
+// carries nothing. wo.z ≥ PV_MIN_COSINE.
+PV_INLINE bool smoothDielectricReflection(BsdfParams p, vec3 wo, float choice,
+                                          PV_OUT(BsdfSample) s) {
+    s.isDelta = true;
+    s.pdf = 0.0f;
+    s.lobe = PV_LOBE_DIELECTRIC_REFLECTION;
+    s.wi = vec3(-wo.x, -wo.y, wo.z);
+    s.weight = (1.0f - p.metallic) * dielectricFresnel(p, wo.z) / choice;
+    return maxComponent(s.weight) > 0.0f;
+}
+
+PV_INLINE bool smoothDielectricRefraction(BsdfParams p, vec3 wo, float choice,
+                                          PV_OUT(BsdfSample) s) {
+    s.isDelta = true;
+    s.pdf = 0.0f;
+    s.lobe = PV_LOBE_TRANSMISSION;
+    s.weight = (1.0f - p.metallic) * p.transmission * (vec3(1.0f) - dielectricFresnel(p, wo.z)) *
+               p.baseColor / choice;
+    if (p.thinWalled) {
+        // Straight through the slab, back into the medium it came from.
+        s.wi = -wo;
+    } else {
+        s.wi = vec3(0.0f, 0.0f, 1.0f);
+        if (!refractDirection(wo, vec3(0.0f, 0.0f, 1.0f), p.etaRel, s.wi)) return false;
+        // Radiance is scaled by 1/η² across the boundary (non-symmetric scattering, Veach 1997).
+        s.weight /= p.etaRel * p.etaRel;
+    }
+    return maxComponent(s.weight) > 0.0f;
+}
+
 // Samples wi from the lobe mixture; false when no direction could be generated (black material,
 // a microfacet that reflects below the surface or refracts above it) — the path ends there.
 PV_INLINE bool bsdfSample(BsdfParams p, vec3 wo, float uLobe, vec2 u, PV_OUT(BsdfSample) s) {
@@ -326,7 +359,6 @@ PV_INLINE bool bsdfSample(BsdfParams p, vec3 wo, float uLobe, vec2 u, PV_OUT(Bsd
         // Perfect specular: the weight is the lobe's coefficient over its choice probability.
         s.isDelta = true;
         float cosO = wo.z;
-        vec3 fd = dielectricFresnel(p, cosO);
         if (lobe == PV_LOBE_METAL) {
             s.wi = vec3(-wo.x, -wo.y, wo.z);
             s.weight = p.metallic * schlickFresnel(p.baseColor, cosO) / prob.x;
@@ -334,25 +366,8 @@ PV_INLINE bool bsdfSample(BsdfParams p, vec3 wo, float uLobe, vec2 u, PV_OUT(Bsd
             return maxComponent(s.weight) > 0.0f;
         }
         float pReflect = dielectricReflectionProbability(p, cosO);
-        if (uDielectric < pReflect) {
-            s.lobe = PV_LOBE_DIELECTRIC_REFLECTION;
-            s.wi = vec3(-wo.x, -wo.y, wo.z);
-            s.weight = (1.0f - p.metallic) * fd / (prob.y * pReflect);
-        } else {
-            s.lobe = PV_LOBE_TRANSMISSION;
-            s.weight = (1.0f - p.metallic) * p.transmission * (vec3(1.0f) - fd) * p.baseColor /
-                       (prob.y * (1.0f - pReflect));
-            if (p.thinWalled) {
-                // Straight through the slab, back into the medium it came from.
-                s.wi = -wo;
-            } else {
-                if (!refractDirection(wo, vec3(0.0f, 0.0f, 1.0f), p.etaRel, s.wi)) return false;
-                // Radiance is scaled by 1/η² across the boundary (non-symmetric scattering,
-                // Veach 1997).
-                s.weight /= p.etaRel * p.etaRel;
-            }
-        }
-        return maxComponent(s.weight) > 0.0f;
+        if (uDielectric < pReflect) return smoothDielectricReflection(p, wo, prob.y * pReflect, s);
+        return smoothDielectricRefraction(p, wo, prob.y * (1.0f - pReflect), s);
     }
     s.lobe = lobe;
     if (lobe == PV_LOBE_DIFFUSE) {
