@@ -223,6 +223,21 @@ protected:
             lookAt(glm::vec3(0, 1.6f, 1.2f), glm::vec3(0, 0, 0), glm::vec3(0, 1, 0), 0.9f));
         return s;
     }
+
+    // 48×36 preview frames with a 4096-photon budget (refinement: 32768).
+    static RenderSettings previewSettings() {
+        RenderSettings rs = photonSettings(48, 36, PhotonMode::Auto);
+        rs.photons.perIteration = 1u << 15;
+        rs.photons.previewPerIteration = 4096;
+        return rs;
+    }
+    // A 2-sample preview frame's pixels; empty, with the test failed, on an error.
+    static std::vector<float> previewFrame(Renderer& r) {
+        EXPECT_TRUE(r.renderPreviewFrame(2).ok());
+        auto image = r.image();
+        EXPECT_TRUE(image.ok());
+        return image.ok() ? image->pixels : std::vector<float>{};
+    }
 };
 
 TEST_F(CausticAgreementTest, PhotonsPlusPathsEqualPathTracing) {
@@ -357,15 +372,8 @@ TEST_F(PhotonTest, VirtualGlassBallCausticIsMixedOnly) {
 // sums do not depend on the order of additions), and refining from it goes on converging.
 TEST_F(CausticAgreementTest, PreviewFramesAreBitIdentical) {
     const Scene s = scene();
-    RenderSettings rs = photonSettings(48, 36, PhotonMode::Auto);
-    rs.photons.perIteration = 1u << 15;
-    rs.photons.previewPerIteration = 4096;
-    auto frame = [&](Renderer& r) {
-        EXPECT_TRUE(r.renderPreviewFrame(2).ok());
-        auto image = r.image();
-        EXPECT_TRUE(image.ok());
-        return image.ok() ? image->pixels : std::vector<float>{};
-    };
+    const RenderSettings rs = previewSettings();
+    auto frame = previewFrame;
     auto a = Renderer::create(ctx(), s, rs);
     auto b = Renderer::create(ctx(), s, rs);
     ASSERT_TRUE(a.ok() && b.ok());
@@ -387,15 +395,7 @@ TEST_F(CausticAgreementTest, PreviewFramesAreBitIdentical) {
 // set, a render ends with the interruption error and adds no samples.
 TEST_F(CausticAgreementTest, PassesInPartsEqualWholePassesAndAStopEndsThem) {
     const Scene s = scene();
-    RenderSettings rs = photonSettings(48, 36, PhotonMode::Auto);
-    rs.photons.perIteration = 1u << 15;
-    rs.photons.previewPerIteration = 4096;
-    auto frame = [&](Renderer& r) {
-        EXPECT_TRUE(r.renderPreviewFrame(2).ok());
-        auto image = r.image();
-        EXPECT_TRUE(image.ok());
-        return image.ok() ? image->pixels : std::vector<float>{};
-    };
+    const RenderSettings rs = previewSettings();
     auto whole = Renderer::create(ctx(), s, rs);
     auto parts = Renderer::create(ctx(), s, rs);
     ASSERT_TRUE(whole.ok() && parts.ok());
@@ -403,7 +403,7 @@ TEST_F(CausticAgreementTest, PassesInPartsEqualWholePassesAndAStopEndsThem) {
     std::atomic<bool> stop{false};
     (*parts)->setInterrupt(&stop);
     for (int f = 0; f < 2; ++f) {
-        std::vector<float> a = frame(**whole), b = frame(**parts);
+        std::vector<float> a = previewFrame(**whole), b = previewFrame(**parts);
         ASSERT_EQ(a.size(), size_t(48 * 36 * 3));
         ASSERT_EQ(a.size(), b.size());
         EXPECT_EQ(0, std::memcmp(a.data(), b.data(), a.size() * sizeof(float))) << "frame " << f;
