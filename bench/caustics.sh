@@ -19,7 +19,14 @@
 # the noise of x and of either reference being independent. What remains is the references'
 # shared bias (their radius after REF iterations), which is not subtracted.
 #
-#   bench/caustics.sh [--quick] [--ref-iterations N] [--previs BINARY]
+# --extrapolate removes that bias too (docs/caustics.md, "Measuring against a biased
+# reference"): two more references at the first radius over √2, whose bias (∝ r², the
+# kernel's second moment) is half as large, give R = 2B̄ − Ā, bias-free to first order. The
+# photon curve's error against R is reported beside the other, with R's noise (B̄'s four times,
+# Ā's once) subtracted the same way. The MSE against R comes from pairwise MSEs only:
+# ‖Σ cᵢ Yᵢ‖² = −Σ_{i<j} cᵢ cⱼ ‖Yᵢ − Yⱼ‖² when Σ cᵢ = 0, here c = (x: 1, B: −1 each, A: ½ each).
+#
+#   bench/caustics.sh [--quick] [--ref-iterations N] [--previs BINARY] [--extrapolate]
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 previs=$root/build/cli/previs
@@ -28,12 +35,14 @@ photon_spp=256
 path_spp=1024
 preview_photons=16384
 photons=32768  # per iteration, the default (render/photon_map.h), references included
+extrapolate=0
 while [[ $# -gt 0 ]]; do
     case "$1" in
         --quick) ref_iterations=128; photon_spp=64; path_spp=128; shift ;;
         --ref-iterations) ref_iterations=$2; shift 2 ;;
         --previs) previs=$2; shift 2 ;;
-        *) echo "usage: $0 [--quick] [--ref-iterations N] [--previs BINARY]" >&2; exit 2 ;;
+        --extrapolate) extrapolate=1; shift ;;
+        *) echo "usage: $0 [--quick] [--ref-iterations N] [--previs BINARY] [--extrapolate]" >&2; exit 2 ;;
     esac
 done
 scene=$root/bench/scenes/caustics_glass.gltf
@@ -55,6 +64,29 @@ for i in 0 1; do
 done
 mse() { "$previs" compare "$1" "$2" --region "$region" | awk '{print $2 * $2}'; }
 ref_mse=$(awk -v d="$(mse "${refs[0]}" "${refs[1]}")" 'BEGIN { print d / 2 }')
+if ((extrapolate)); then
+    # The first radius, as the progress line prints it with the radius held (alpha 1).
+    r0=$("$previs" render "$scene" --width 64 --height 48 --max-depth 8 --photons "$photons" \
+        --photon-alpha 1 --spp 1 --out "$out/radius.exr" 2>&1 |
+        sed -n 's/.*radius \([0-9.e-]*\) m.*/\1/p' | head -1)
+    half=$(awk -v r="$r0" 'BEGIN { printf "%.6g", r / sqrt(2) }')
+    halfRefs=("$out/ref-$key-half-a.exr" "$out/ref-$key-half-b.exr")
+    for i in 0 1; do
+        if [[ ! -f ${halfRefs[$i]} ]]; then
+            echo "rendering reference $((i + 1))/2 at radius $half m (first radius $r0 m over √2)" >&2
+            "$previs" render "$scene" "${common[@]}" --photons "$photons" --spp "$ref_iterations" \
+                --seed $((9100 + i)) --photon-radius "$half" --out "${halfRefs[$i]}"
+        fi
+    done
+    A1=${refs[0]} A2=${refs[1]} B1=${halfRefs[0]} B2=${halfRefs[1]}
+    dA=$(mse "$A1" "$A2") dB=$(mse "$B1" "$B2")
+    # Ā–B̄ cross terms of the pairwise sum (coefficient +½ each), less B1–B2 and ¼ A1–A2.
+    ext_const=$(awk -v a1b1="$(mse "$A1" "$B1")" -v a1b2="$(mse "$A1" "$B2")" \
+        -v a2b1="$(mse "$A2" "$B1")" -v a2b2="$(mse "$A2" "$B2")" -v dA="$dA" -v dB="$dB" \
+        'BEGIN { print 0.5 * (a1b1 + a1b2 + a2b1 + a2b2) - dB - 0.25 * dA }')
+    ext_noise=$(awk -v dA="$dA" -v dB="$dB" 'BEGIN { print dB + dA / 4 }')  # var of 2B̄ − Ā
+    half_mean=$("$previs" compare "$B1" "$B2" --region "$region" | awk '{print ($6 + $8) / 2}')
+fi
 
 echo "## Cost per iteration (GPU time, median of 3 runs of 16 iterations)"
 echo "| settings | photons | photon pass (ms) | trace + gather (ms) | path tracing alone (ms) |"
@@ -92,7 +124,7 @@ done
 echo
 echo "## Caustic region against the reference"
 csv=$out/curve.csv
-echo "method,spp,seconds,rmse,rel_rmse" >"$csv"
+echo "method,spp,seconds,rmse,rel_rmse,rel_rmse_extrapolated" >"$csv"
 checkpoints() {  # up to N: 1,2,4,...,N
     local list=1 n=2
     while ((n <= $1)); do list+=",$n"; n=$((n * 2)); done
@@ -101,6 +133,11 @@ checkpoints() {  # up to N: 1,2,4,...,N
 ref_mean=$("$previs" compare "${refs[0]}" "${refs[1]}" --region "$region" |
     awk '{print ($6 + $8) / 2}')
 awk -v m="$ref_mse" -v mean="$ref_mean" 'BEGIN { printf "region mean %.4f; reference noise (relative RMSE of one reference) %.4f\n", mean, sqrt(m) / mean }'
+if ((extrapolate)); then
+    ext_mean=$(awk -v a="$ref_mean" -v b="$half_mean" 'BEGIN { print 2 * b - a }')
+    awk -v a="$ref_mean" -v b="$half_mean" -v e="$ext_mean" -v n="$ext_noise" -v dB="$dB" \
+        'BEGIN { printf "extrapolated reference: region mean %.4f (radius r: %.4f, %+.2f %%; r/√2: %.4f, %+.2f %%); its noise %.4f of the mean; one r/√2 reference %.4f\n", e, a, 100 * (a - e) / e, b, 100 * (b - e) / e, sqrt(n) / e, sqrt(dB / 2) / b }'
+fi
 for method in photons paths; do
     if [[ $method == photons ]]; then spp=$photon_spp; mode=$photons; else spp=$path_spp; mode=off; fi
     "$previs" render "$scene" "${common[@]}" --photons "$mode" --spp "$spp" --seed 1 \
@@ -113,8 +150,16 @@ for method in photons paths; do
             rmse=$(awk -v a="$(mse "$file" "${refs[0]}")" -v b="$(mse "$file" "${refs[1]}")" \
                 -v r="$ref_mse" 'BEGIN { m = (a + b) / 2 - r; print (m > 0 ? sqrt(m) : 0) }')
             rel=$(awk -v r="$rmse" -v m="$ref_mean" 'BEGIN { print r / m }')
-            echo "$method,$n,$seconds,$rmse,$rel" >>"$csv"
-            printf '%-8s %5d spp  %8.2f s  relative RMSE %.4f\n' "$method" "$n" "$seconds" "$rel"
+            ext=""
+            if ((extrapolate)) && [[ $method == photons ]]; then
+                ext=$(awk -v xA1="$(mse "$file" "$A1")" -v xA2="$(mse "$file" "$A2")" \
+                    -v xB1="$(mse "$file" "$B1")" -v xB2="$(mse "$file" "$B2")" \
+                    -v c="$ext_const" -v n="$ext_noise" -v m="$ext_mean" \
+                    'BEGIN { v = xB1 + xB2 - 0.5 * (xA1 + xA2) + c - n; print (v > 0 ? sqrt(v) : 0) / m }')
+            fi
+            echo "$method,$n,$seconds,$rmse,$rel,$ext" >>"$csv"
+            printf '%-8s %5d spp  %8.2f s  relative RMSE %.4f%s\n' "$method" "$n" "$seconds" "$rel" \
+                "${ext:+  (against the extrapolated reference: $(printf '%.4f' "$ext"))}"
         done
 done
 python3 - "$csv" <<'EOF'
@@ -122,6 +167,9 @@ import csv, math, sys
 rows = {}
 for r in csv.DictReader(open(sys.argv[1])):
     rows.setdefault(r["method"], []).append((float(r["seconds"]), max(float(r["rel_rmse"]), 1e-9)))
+    if r.get("rel_rmse_extrapolated"):
+        rows.setdefault(r["method"] + " (extrapolated reference)", []).append(
+            (float(r["seconds"]), max(float(r["rel_rmse_extrapolated"]), 1e-9)))
 for method, points in rows.items():
     target = 0.05
     found = None
