@@ -147,12 +147,13 @@ for method in photons paths; do
             seconds=${secondsField#total_s=}
             file=${fileField#file=}
             # The references' noise subtracted (see the top); floored at 0.
-            rmse=$(awk -v a="$(mse "$file" "${refs[0]}")" -v b="$(mse "$file" "${refs[1]}")" \
+            xA1=$(mse "$file" "${refs[0]}") xA2=$(mse "$file" "${refs[1]}")
+            rmse=$(awk -v a="$xA1" -v b="$xA2" \
                 -v r="$ref_mse" 'BEGIN { m = (a + b) / 2 - r; print (m > 0 ? sqrt(m) : 0) }')
             rel=$(awk -v r="$rmse" -v m="$ref_mean" 'BEGIN { print r / m }')
             ext=""
             if ((extrapolate)) && [[ $method == photons ]]; then
-                ext=$(awk -v xA1="$(mse "$file" "$A1")" -v xA2="$(mse "$file" "$A2")" \
+                ext=$(awk -v xA1="$xA1" -v xA2="$xA2" \
                     -v xB1="$(mse "$file" "$B1")" -v xB2="$(mse "$file" "$B2")" \
                     -v c="$ext_const" -v n="$ext_noise" -v m="$ext_mean" \
                     'BEGIN { v = xB1 + xB2 - 0.5 * (xA1 + xA2) + c - n; print (v > 0 ? sqrt(v) : 0) / m }')

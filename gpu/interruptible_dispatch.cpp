@@ -27,8 +27,7 @@ Result<double> InterruptibleDispatch::run(ComputePipeline& pipeline, uint32_t gr
         const double wallMs =
             std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
                 .count();
-        lastPartGroups_ = count * groupsPerLine;
-        msPerGroup_ = wallMs / double(lastPartGroups_);
+        msPerGroup_ = wallMs / double(count * groupsPerLine);
         first += count;
     }
     return gpuMs;

@@ -27,13 +27,9 @@ public:
     Result<double> run(ComputePipeline& pipeline, uint32_t groupsX, uint32_t groupsY,
                        const std::atomic<bool>& stop);
 
-    // Workgroups one part held last (for tests).
-    uint32_t lastPartGroups() const { return lastPartGroups_; }
-
 private:
     double partMs_;
     double msPerGroup_ = 0.0;  // measured on the last part; 0 until one ran
-    uint32_t lastPartGroups_ = 0;
 };
 
 // The part size the renderer uses: a stop waits about this long for the pass it interrupts.

@@ -841,7 +841,6 @@ Status Renderer::render(uint32_t samples,
         // The sample index selects the random sequence; it wraps after 2^32 samples.
         params_.sampleBase = uint32_t(samples_);
         params_.samplesPerDispatch = n;
-        if (interrupt_ && interrupt_->load()) return makeError("{}", kDispatchInterrupted);
         if (photonsActive_) {
             params_.photonIteration = uint32_t(samples_);
             params_.photonRadius = nextPhotonRadius();
