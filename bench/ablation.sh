@@ -38,7 +38,8 @@ seconds_of() {  # binary scene env spp seed out -> wall seconds of the whole pro
     [[ "$3" != none ]] && env_args=(--env "$3")
     local t0 t1
     t0=$(date +%s.%N)
-    "$1" render "$2" "${env_args[@]}" --width 640 --height 480 --max-depth 8 --spp "$4" \
+    "$1" render "$2" "${env_args[@]}" "${previs_args[@]}" --width 640 --height 480 \
+        --max-depth 8 --spp "$4" \
         --seed "$5" --out "$6" --quiet
     t1=$(date +%s.%N)
     awk -v a="$t0" -v b="$t1" 'BEGIN { print b - a }'

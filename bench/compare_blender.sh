@@ -80,7 +80,8 @@ trap 'rm -rf "$work"' EXIT
 previs_render() {  # scene env spp seed out
     local env_args=()
     [[ "$2" != none ]] && env_args=(--env "$2")
-    "$previs" render "$1" "${env_args[@]}" --width $width --height $height --max-depth $depth \
+    "$previs" render "$1" "${env_args[@]}" "${previs_args[@]}" --width $width --height $height \
+        --max-depth $depth \
         --spp "$3" --seed "$4" --out "$5" --no-meter --quiet --timing | sed -n 's/.*total_s=\([0-9.]*\).*/\1/p'
 }
 

@@ -26,6 +26,11 @@ namespace previs {
 
 namespace {
 
+// Samples per dispatch at most (the renderer may lower it): on lavapipe 16 take about 0.75 of the
+// time of 16 one-sample dispatches (BENCHMARKS.md, "Issue 8: path regeneration"); more gains
+// little and makes the progress line and --seconds coarser.
+constexpr uint32_t kSamplesPerDispatch = 16;
+
 struct RenderOptions {
     std::string scene;
     std::string env;
@@ -163,7 +168,11 @@ int run(const RenderOptions& o) {
     settings.photons.initialRadius = o.photonRadius;
     settings.photons.alpha = o.photonAlpha;
     settings.photons.gatherCap = o.photonGatherCap;
-    settings.samplesPerDispatch = 1;
+    // Several samples per dispatch: a lane whose path ends starts its next sample at once
+    // (trace_paths.comp), and the per-pixel cost of a dispatch is paid once per chunk
+    // (BENCHMARKS.md, "Issue 8: path regeneration"). The renderer lowers it inside lavapipe's loop
+    // limit; photon iterations dispatch one sample each.
+    settings.samplesPerDispatch = kSamplesPerDispatch;
 
     // The plate: linear radiance at the render's resolution (its own resolution by default).
     std::optional<ImageF> plate;
@@ -243,8 +252,46 @@ int run(const RenderOptions& o) {
     uint32_t target = o.spp ? o.spp : (o.seconds > 0.0 || o.targetNoise > 0.0 ? UINT32_MAX : 64);
     ProgressLine progress("render", o.quiet);
     NoiseSchedule meter(o.targetNoise);
+    auto showProgress = [&](uint64_t samples) {
+        const Renderer& r = **renderer;
+        // Photons: per iteration, and the radius the next iteration gathers with.
+        std::string photons = r.photonsActive()
+                                  ? fmt::format(", {} photons/iteration, radius {:.3g} m",
+                                                r.photonsPerIteration(), r.nextPhotonRadius())
+                                  : "";
+        std::string noise;
+        if (meter.noise()) {
+            noise = fmt::format(", noise {:.2f} %", *meter.noise() * 100.0);
+            const std::optional<double> eta =
+                o.targetNoise > 0.0
+                    ? etaSeconds(meter.noise(), samples, o.targetNoise, elapsed() / double(samples))
+                    : std::nullopt;
+            if (eta)
+                noise +=
+                    fmt::format(" (target {:.2f} %, ETA {:.0f} s)", o.targetNoise * 100.0, *eta);
+        }
+        progress.update(fmt::format("{}{} spp, {:.1f} s{}{}", samples,
+                                    o.spp ? fmt::format("/{}", o.spp) : "", elapsed(), noise,
+                                    photons));
+    };
     while ((*renderer)->samplesPerPixel() < target) {
-        if (Status s = (*renderer)->render(1); !s) {
+        const uint64_t before = (*renderer)->samplesPerPixel();
+        // The next chunk ends where something must happen: the target, a checkpoint, the time
+        // limit of --seconds (estimated from the samples so far), or with --target-noise the
+        // meter's next look. Without a target the meter looks after the chunk that passes it.
+        uint64_t chunk = std::min<uint64_t>(target - before, kSamplesPerDispatch);
+        for (uint64_t c : o.checkpoints)
+            if (c > before) chunk = std::min(chunk, c - before);
+        if (o.targetNoise > 0.0)
+            chunk = std::min(chunk, std::max<uint64_t>(meter.nextLook(), before + 1) - before);
+        if (o.seconds > 0.0 && before > 0) {
+            const double perSample = elapsed() / double(before);
+            chunk = std::min(chunk, uint64_t(std::max(1.0, (o.seconds - elapsed()) / perSample)));
+        }
+        auto onDispatch = [&](const RenderProgress& p) {
+            if (p.samplesDone < p.samplesTotal) showProgress(before + p.samplesDone);
+        };
+        if (Status s = (*renderer)->render(uint32_t(chunk), onDispatch); !s) {
             logError("{}", s.message());
             return 1;
         }
@@ -256,29 +303,7 @@ int run(const RenderOptions& o) {
             }
             meter.looked((*renderer)->samplesPerPixel(), c->composite.relativeRmse);
         }
-        {
-            const Renderer& r = **renderer;
-            // Photons: per iteration, and the radius the next iteration gathers with.
-            std::string photons = r.photonsActive()
-                                      ? fmt::format(", {} photons/iteration, radius {:.3g} m",
-                                                    r.photonsPerIteration(), r.nextPhotonRadius())
-                                      : "";
-            std::string noise;
-            if (meter.noise()) {
-                noise = fmt::format(", noise {:.2f} %", *meter.noise() * 100.0);
-                const std::optional<double> eta =
-                    o.targetNoise > 0.0
-                        ? etaSeconds(meter.noise(), r.samplesPerPixel(), o.targetNoise,
-                                     elapsed() / double(r.samplesPerPixel()))
-                        : std::nullopt;
-                if (eta)
-                    noise += fmt::format(" (target {:.2f} %, ETA {:.0f} s)", o.targetNoise * 100.0,
-                                         *eta);
-            }
-            progress.update(fmt::format("{}{} spp, {:.1f} s{}{}", r.samplesPerPixel(),
-                                        o.spp ? fmt::format("/{}", o.spp) : "", elapsed(), noise,
-                                        photons));
-        }
+        showProgress((*renderer)->samplesPerPixel());
         if (meter.reached()) break;
         const uint64_t done = (*renderer)->samplesPerPixel();
         if (std::find(o.checkpoints.begin(), o.checkpoints.end(), done) != o.checkpoints.end()) {

@@ -75,6 +75,8 @@ class NoiseSchedule {
 public:
     explicit NoiseSchedule(double target = 0.0) : target_(target) {}
     bool due(uint64_t samples) const { return samples >= next_; }
+    // The sample count of the next look (a render in chunks ends one there).
+    uint64_t nextLook() const { return next_; }
     // Records a look at `samples` and plans the next one.
     void looked(uint64_t samples, std::optional<double> noise);
     // The last look's estimate, and whether it reached the target (never without a target).

@@ -1,8 +1,10 @@
 # Sourced by bench/compare_blender.sh and bench/ablation.sh: the benchmark scenes by name, and the
 # cache key of a reference rendered of one. Needs $root, $data, $cache and $env_map set.
 
-# Sets $scene (a glTF) and $env (an HDR map, or "none") for scene $1: bunny or area-lights.
+# Sets $scene (a glTF), $env (an HDR map, or "none") and $previs_args (extra `previs render`
+# options) for scene $1: bunny or area-lights.
 bench_scene() {
+    previs_args=()
     case "$1" in
         bunny)
             scene="$cache/bunny.gltf"
@@ -10,13 +12,17 @@ bench_scene() {
             env=$env_map ;;
         area-lights)
             scene="$root/bench/scenes/area_lights_mirror.gltf"
+            # These benchmarks compare path tracers. The mirror sphere under small lights would
+            # switch on photon mapping (--photons auto, issue 9): another, consistent but biased
+            # estimator, which Cycles does not have.
+            previs_args=(--photons off)
             env=none ;;
         *) echo "unknown scene $1 (bunny, area-lights)" >&2; return 2 ;;
     esac
 }
 
 # The key under which a reference of scene file $1 with map $2 at $3×$4, depth $5, $6 spp is
-# cached: the scene's bytes and the settings.
+# cached: the scene's bytes and the settings (with bench_scene's $previs_args).
 bench_reference_key() {
-    { cat "$1"; echo "$2 $3 $4 $5 $6"; } | sha256sum | cut -c1-16
+    { cat "$1"; echo "$2 $3 $4 $5 $6 ${previs_args[*]}"; } | sha256sum | cut -c1-16
 }

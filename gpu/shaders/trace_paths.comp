@@ -26,7 +26,8 @@ layout(binding = PV_BINDING_PHOTON_CELLS) uniform usamplerBuffer photonCellTexel
 #include "shared/photon_map.h"
 #include "shared/denoise.h"
 
-// What the camera ray's first hit shows the denoiser (tracePath sets them where kDenoiseGuides).
+// What the camera ray's first hit shows the denoiser (beginPath and tracePaths set them where
+// kDenoiseGuides).
 vec3 gGuideAlbedo;
 vec3 gGuideNormal;
 float gGuideDepthM;
@@ -364,11 +365,70 @@ bool scatter(inout PathState st, Surface s, Frame frame, BsdfParams bp, BsdfSamp
     return true;
 }
 
-// One camera sample: the mixed radiance lm (L_om), the real radiance lr (L_or), and whether the
-// camera ray's first hit is virtual (the sample's mask M). Every vertex draws the dimension sets
-// of its depth, so the real pass after a split draws what a real-only render would.
-void tracePath(uvec2 pixel, SampleKey key, out vec3 lm, out vec3 lr, out bool firstHitVirtual) {
-    PathState st;
+// The pixel's sums over this dispatch's samples (tracePaths adds to them, main adds them to the
+// accumulation). Compensated, within the dispatch and across dispatches: the mean stays exact
+// over millions of samples in 32-bit floats (the paper's running average, Eq. 3, drifts).
+vec4 gSum[PV_ACCUM_COUNT];
+vec4 gComp[PV_ACCUM_COUNT];
+vec4 gGuideSum[PV_GUIDE_COUNT];
+
+// Kahan-compensated sum (`precise` forbids the compiler from reassociating it away).
+void kahanAdd(inout vec4 sum, inout vec4 c, vec4 x) {
+    precise vec4 y = x - c;
+    precise vec4 t = sum + y;
+    precise vec4 newC = (t - sum) - y;
+    c = newC;
+    sum = t;
+}
+
+// Adds sample `sampleIndex`'s radiances to the pixel's sums; `nonFiniteRay`: one of its rays had
+// a NaN or infinite origin or direction.
+void addSample(uint sampleIndex, vec3 lm, vec3 lr, bool firstHitVirtual, bool nonFiniteRay) {
+    if (nonFiniteRay || any(isnan(lm)) || any(isinf(lm)) ||
+        any(isnan(lr)) || any(isinf(lr))) {
+        // Counted, and the host reports it: never silently part of the image. Dropped
+        // samples are not in the pixel's sample count (the mixed sum's w), so the mean is
+        // over the samples that count and the pixel is not darkened.
+        atomicAdd(stats.nonFiniteSamples, 1u);
+        return;
+    }
+    if (params.fireflyClamp > 0.0) {
+        // One factor for both solutions, so their difference stays consistent.
+        float lum = max(luminance(lm), luminance(lr));
+        if (lum > params.fireflyClamp) {
+            lm *= params.fireflyClamp / lum;
+            lr *= params.fireflyClamp / lum;
+        }
+    }
+    float mask = firstHitVirtual ? 1.0 : 0.0;
+    // Eq. 1 per sample, without the plate term (1 − M)·L_oc, which the host adds from the
+    // mean mask: where both solutions followed the same path lm − lr is exactly 0.
+    vec3 composite = firstHitVirtual ? lm : lm - lr;
+    kahanAdd(gSum[PV_ACCUM_COMPOSITE], gComp[PV_ACCUM_COMPOSITE], vec4(composite, mask));
+    kahanAdd(gSum[PV_ACCUM_MIXED], gComp[PV_ACCUM_MIXED], vec4(lm, 1.0));
+    if (kDifferential) kahanAdd(gSum[PV_ACCUM_REAL], gComp[PV_ACCUM_REAL], vec4(lr, 0.0));
+    // Replicate 1's samples (sampler.h) also into its own sums: the convergence meter
+    // compares the two replicates' means.
+    if (sampleIndex % params.replicates == 1u) {
+        const uint r = PV_ACCUM_REPLICATE_1;
+        kahanAdd(gSum[r + PV_ACCUM_COMPOSITE], gComp[r + PV_ACCUM_COMPOSITE],
+                 vec4(composite, mask));
+        kahanAdd(gSum[r + PV_ACCUM_MIXED], gComp[r + PV_ACCUM_MIXED], vec4(lm, 1.0));
+        if (kDifferential)
+            kahanAdd(gSum[r + PV_ACCUM_REAL], gComp[r + PV_ACCUM_REAL], vec4(lr, 0.0));
+    }
+    if (kDenoiseGuides) {
+        gGuideSum[PV_GUIDE_ALBEDO_DEPTH] += vec4(gGuideAlbedo, gGuideDepthM);
+        gGuideSum[PV_GUIDE_NORMAL] += vec4(gGuideNormal, 1.0);
+        vec3 y = vec3(luminance(composite), luminance(lm), luminance(lr));
+        gGuideSum[PV_GUIDE_MOMENTS] += vec4(y * y, mask);
+    }
+}
+
+// Starts sample `key` of `pixel`: the camera ray, and the sample's mixed radiance lm (L_om), real
+// radiance lr (L_or) and whether the camera ray's first hit is virtual (its mask M) at zero.
+void beginPath(uvec2 pixel, SampleKey key, out PathState st, out vec3 lm, out vec3 lr,
+               out bool firstHitVirtual) {
     st.ray = cameraRay(pixel, key);
     st.throughput = vec3(1.0);
     st.prevPdf = 0.0;
@@ -387,11 +447,28 @@ void tracePath(uvec2 pixel, SampleKey key, out vec3 lm, out vec3 lr, out bool fi
         gGuideNormal = -st.ray.direction;
         gGuideDepthM = PV_GUIDE_MISS_DEPTH_M;
     }
+}
+
+// The pixel's samples sampleBase .. sampleBase + samplesPerDispatch − 1, each added to the sums by
+// addSample as it ends. Every vertex draws the dimension sets of its depth, so the real pass after
+// a split draws what a real-only render would.
+//
+// One loop traces, per sample, the camera path (both solutions until they part), then the
+// reflected branch of a split at smooth glass, then the real solution behind a virtual object;
+// then the lane starts its next sample (path regeneration, Novák et al. 2010). Each starts where
+// the one before ended, so a lane whose path ended early does not idle until the longest path of
+// its SIMD batch ends, and the loop's body (traversal and shading) is compiled once.
+void tracePaths(uvec2 pixel, uint pixelIndex) {
+    uint nth = 0u;
+    SampleKey key =
+        interleavedSampleKey(pixelIndex, params.sampleBase, params.seed, params.replicates);
+    PathState st;
+    vec3 lm;
+    vec3 lr;
+    bool firstHitVirtual;
+    beginPath(pixel, key, st, lm, lr, firstHitVirtual);
+    uint nonFiniteRaysBefore = gNonFiniteRays;
     uint mode = kDifferential ? MODE_SHARED : MODE_MIXED;
-    // One loop traces the camera path (both solutions until they part), then the reflected
-    // branch of a split at smooth glass, then the real solution behind a virtual object: each
-    // starts where the one before ended, so a lane does not wait at a pass boundary, and the
-    // loop's body (traversal and shading) is compiled once.
     PathState realContinuation = st;
     bool haveRealContinuation = false;
     PathState reflectedBranch = st;
@@ -409,7 +486,15 @@ void tracePath(uvec2 pixel, SampleKey key, out vec3 lm, out vec3 lr, out bool fi
                 mode = MODE_REAL;
                 haveRealContinuation = false;
             } else {
-                break;
+                addSample(params.sampleBase + nth, lm, lr, firstHitVirtual,
+                          gNonFiniteRays != nonFiniteRaysBefore);
+                nth += 1u;
+                if (nth >= params.samplesPerDispatch) break;
+                key = interleavedSampleKey(pixelIndex, params.sampleBase + nth, params.seed,
+                                           params.replicates);
+                beginPath(pixel, key, st, lm, lr, firstHitVirtual);
+                nonFiniteRaysBefore = gNonFiniteRays;
+                mode = kDifferential ? MODE_SHARED : MODE_MIXED;
             }
             ended = false;
         }
@@ -551,80 +636,17 @@ void tracePath(uvec2 pixel, SampleKey key, out vec3 lm, out vec3 lr, out bool fi
     }
 }
 
-// Kahan-compensated sum (`precise` forbids the compiler from reassociating it away).
-void kahanAdd(inout vec4 sum, inout vec4 c, vec4 x) {
-    precise vec4 y = x - c;
-    precise vec4 t = sum + y;
-    precise vec4 newC = (t - sum) - y;
-    c = newC;
-    sum = t;
-}
-
 void main() {
     uvec2 pixel = gl_GlobalInvocationID.xy + uvec2(0u, params.bandFirstRow);
     if (pixel.x >= params.width || pixel.y >= params.height) return;
     uint pixelIndex = pixel.y * params.width + pixel.x;
-    // Compensated sums, within the dispatch and across dispatches: the mean stays exact over
-    // millions of samples in 32-bit floats (the paper's running average, Eq. 3, drifts).
-    vec4 sum[PV_ACCUM_COUNT];
-    vec4 comp[PV_ACCUM_COUNT];
     for (uint k = 0u; k < PV_ACCUM_COUNT; ++k) {
         PV_COUNT_LOOP_ITERATION();
-        sum[k] = vec4(0.0);
-        comp[k] = vec4(0.0);
+        gSum[k] = vec4(0.0);
+        gComp[k] = vec4(0.0);
     }
-    vec4 guideSum[PV_GUIDE_COUNT];
-    for (uint k = 0u; k < PV_GUIDE_COUNT; ++k) guideSum[k] = vec4(0.0);
-    for (uint i = 0u; i < params.samplesPerDispatch; ++i) {
-        PV_COUNT_LOOP_ITERATION();
-        const uint sampleIndex = params.sampleBase + i;
-        SampleKey key =
-            interleavedSampleKey(pixelIndex, sampleIndex, params.seed, params.replicates);
-        vec3 lm;
-        vec3 lr;
-        bool firstHitVirtual;
-        const uint nonFiniteRaysBefore = gNonFiniteRays;
-        tracePath(pixel, key, lm, lr, firstHitVirtual);
-        if (gNonFiniteRays != nonFiniteRaysBefore || any(isnan(lm)) || any(isinf(lm)) ||
-            any(isnan(lr)) || any(isinf(lr))) {
-            // Counted, and the host reports it: never silently part of the image. Dropped
-            // samples are not in the pixel's sample count (the mixed sum's w), so the mean is
-            // over the samples that count and the pixel is not darkened.
-            atomicAdd(stats.nonFiniteSamples, 1u);
-            continue;
-        }
-        if (params.fireflyClamp > 0.0) {
-            // One factor for both solutions, so their difference stays consistent.
-            float lum = max(luminance(lm), luminance(lr));
-            if (lum > params.fireflyClamp) {
-                lm *= params.fireflyClamp / lum;
-                lr *= params.fireflyClamp / lum;
-            }
-        }
-        float mask = firstHitVirtual ? 1.0 : 0.0;
-        // Eq. 1 per sample, without the plate term (1 − M)·L_oc, which the host adds from the
-        // mean mask: where both solutions followed the same path lm − lr is exactly 0.
-        vec3 composite = firstHitVirtual ? lm : lm - lr;
-        kahanAdd(sum[PV_ACCUM_COMPOSITE], comp[PV_ACCUM_COMPOSITE], vec4(composite, mask));
-        kahanAdd(sum[PV_ACCUM_MIXED], comp[PV_ACCUM_MIXED], vec4(lm, 1.0));
-        if (kDifferential) kahanAdd(sum[PV_ACCUM_REAL], comp[PV_ACCUM_REAL], vec4(lr, 0.0));
-        // Replicate 1's samples (sampler.h) also into its own sums: the convergence meter
-        // compares the two replicates' means.
-        if (sampleIndex % params.replicates == 1u) {
-            const uint r = PV_ACCUM_REPLICATE_1;
-            kahanAdd(sum[r + PV_ACCUM_COMPOSITE], comp[r + PV_ACCUM_COMPOSITE],
-                     vec4(composite, mask));
-            kahanAdd(sum[r + PV_ACCUM_MIXED], comp[r + PV_ACCUM_MIXED], vec4(lm, 1.0));
-            if (kDifferential)
-                kahanAdd(sum[r + PV_ACCUM_REAL], comp[r + PV_ACCUM_REAL], vec4(lr, 0.0));
-        }
-        if (kDenoiseGuides) {
-            guideSum[PV_GUIDE_ALBEDO_DEPTH] += vec4(gGuideAlbedo, gGuideDepthM);
-            guideSum[PV_GUIDE_NORMAL] += vec4(gGuideNormal, 1.0);
-            vec3 y = vec3(luminance(composite), luminance(lm), luminance(lr));
-            guideSum[PV_GUIDE_MOMENTS] += vec4(y * y, mask);
-        }
-    }
+    for (uint k = 0u; k < PV_GUIDE_COUNT; ++k) gGuideSum[k] = vec4(0.0);
+    tracePaths(pixel, pixelIndex);
     atomicAdd(stats.raysTraced, gRaysTraced);
     if (gNonFiniteRays > 0u) atomicAdd(stats.nonFiniteRays, gNonFiniteRays);
     for (uint k = 0u; k < PV_ACCUM_COUNT; ++k) {
@@ -633,11 +655,11 @@ void main() {
         uint at = (pixelIndex - params.bandFirstRow * params.width) * PV_ACCUM_COUNT + k;
         vec4 total = accumSum[at];
         vec4 c = accumCompensation[at];
-        kahanAdd(total, c, sum[k] - comp[k]);
+        kahanAdd(total, c, gSum[k] - gComp[k]);
         accumSum[at] = total;
         accumCompensation[at] = c;
     }
-    float kept = guideSum[PV_GUIDE_NORMAL].w;
+    float kept = gGuideSum[PV_GUIDE_NORMAL].w;
     if (kDenoiseGuides && kept > 0.0) {
         // Running means over the pixel's kept samples (shared/denoise.h says why not sums).
         // Bound from this band's first row on, as the accumulation.
@@ -645,7 +667,7 @@ void main() {
         float total = guides[at + PV_GUIDE_NORMAL].w + kept;
         for (uint k = 0u; k < PV_GUIDE_COUNT; ++k) {
             vec4 mean = guides[at + k];
-            guides[at + k] = mean + (guideSum[k] - kept * mean) / total;
+            guides[at + k] = mean + (gGuideSum[k] - kept * mean) / total;
         }
         guides[at + PV_GUIDE_NORMAL].w = total;
     }

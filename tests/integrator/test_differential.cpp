@@ -222,6 +222,39 @@ TEST_F(DifferentialTest, OnePassEqualsTwoIndependentRenders) {
             real.var[int(Aov::Mixed)], "real");
 }
 
+// A lane whose path ends starts its pixel's next sample in the same loop (trace_paths.comp's
+// path regeneration), after the reflected branch of a split at glass and the real continuation
+// behind a virtual object. Each sample must be the one a dispatch of that sample alone traces:
+// every AOV of 16 samples in one dispatch equals 16 one-sample dispatches to rounding (only the
+// order of the compensated sums differs). State leaking from one sample into the next (a branch
+// left over, a solution's mode or mask not reset) would differ by far more.
+TEST_F(DifferentialTest, PathsStartedInOneDispatchEqualOneSamplePerDispatch) {
+    Scene s = setWithVirtualObjects();
+    addSphere(s, {0.45f, 0.3f, 0.55f}, 0.2f, addMaterial(s, glass(1.5f)), false, 16, 32);
+    auto renderWith = [&](uint32_t perDispatch) {
+        RenderSettings rs = differentialSettings(24, 24);
+        rs.samplesPerDispatch = perDispatch;
+        // Photon iterations dispatch one sample each (the glass would switch them on).
+        rs.photons.mode = PhotonMode::Off;
+        auto r = Renderer::create(ctx(), s, rs);
+        EXPECT_TRUE(r.ok()) << r.message();
+        EXPECT_TRUE((*r)->render(16).ok());
+        return std::move(*r);
+    };
+    auto alone = renderWith(1);
+    auto together = renderWith(16);
+    for (Aov aov : {Aov::Mixed, Aov::Real, Aov::Mask, Aov::SampleCount}) {
+        Result<ImageF> a = alone->image(aov);
+        Result<ImageF> b = together->image(aov);
+        ASSERT_TRUE(a.ok() && b.ok());
+        float worst = 0.0f;
+        for (size_t i = 0; i < a->pixels.size(); ++i)
+            worst = std::max(worst, std::abs(a->pixels[i] - b->pixels[i]) /
+                                        std::max(1.0f, std::abs(a->pixels[i])));
+        EXPECT_LT(worst, 1e-5f) << "AOV " << int(aov);
+    }
+}
+
 // With this renderer's own converged real-only image as the plate, the composite equals its
 // render of the mixed scene wherever the mask is all-or-nothing (at fractional-mask edges the
 // pixel average of Eq. 1 legitimately differs).
