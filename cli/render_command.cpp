@@ -168,10 +168,8 @@ int run(const RenderOptions& o) {
     settings.photons.initialRadius = o.photonRadius;
     settings.photons.alpha = o.photonAlpha;
     settings.photons.gatherCap = o.photonGatherCap;
-    // Several samples per dispatch: a lane whose path ends starts its next sample at once
-    // (trace_paths.comp), and the per-pixel cost of a dispatch is paid once per chunk
-    // (BENCHMARKS.md, "Issue 8: path regeneration"). The renderer lowers it inside lavapipe's loop
-    // limit; photon iterations dispatch one sample each.
+    // A lane whose path ends starts its next sample at once (trace_paths.comp). The renderer lowers
+    // this inside lavapipe's loop limit; photon iterations dispatch one sample each.
     settings.samplesPerDispatch = kSamplesPerDispatch;
 
     // The plate: linear radiance at the render's resolution (its own resolution by default).
