@@ -459,21 +459,21 @@ void beginPath(uvec2 pixel, SampleKey key, out PathState st, out vec3 lm, out ve
 // the one before ended, so a lane whose path ended early does not idle until the longest path of
 // its SIMD batch ends, and the loop's body (traversal and shading) is compiled once.
 void tracePaths(uvec2 pixel, uint pixelIndex) {
+    // The first pass through the loop begins sample 0 (nothing has ended yet, nothing is added).
     uint nth = 0u;
-    SampleKey key =
-        interleavedSampleKey(pixelIndex, params.sampleBase, params.seed, params.replicates);
+    bool begun = false;
+    SampleKey key;
     PathState st;
     vec3 lm;
     vec3 lr;
     bool firstHitVirtual;
-    beginPath(pixel, key, st, lm, lr, firstHitVirtual);
-    uint nonFiniteRaysBefore = gNonFiniteRays;
-    uint mode = kDifferential ? MODE_SHARED : MODE_MIXED;
-    PathState realContinuation = st;
+    uint nonFiniteRaysBefore;
+    uint mode;
+    PathState realContinuation;
     bool haveRealContinuation = false;
-    PathState reflectedBranch = st;
+    PathState reflectedBranch;
     bool haveReflectedBranch = false;
-    bool ended = false;
+    bool ended = true;
     for (;;) {
         PV_COUNT_LOOP_ITERATION();
         if (ended) {
@@ -486,10 +486,13 @@ void tracePaths(uvec2 pixel, uint pixelIndex) {
                 mode = MODE_REAL;
                 haveRealContinuation = false;
             } else {
-                addSample(params.sampleBase + nth, lm, lr, firstHitVirtual,
-                          gNonFiniteRays != nonFiniteRaysBefore);
-                nth += 1u;
-                if (nth >= params.samplesPerDispatch) break;
+                if (begun) {
+                    addSample(params.sampleBase + nth, lm, lr, firstHitVirtual,
+                              gNonFiniteRays != nonFiniteRaysBefore);
+                    nth += 1u;
+                    if (nth >= params.samplesPerDispatch) break;
+                }
+                begun = true;
                 key = interleavedSampleKey(pixelIndex, params.sampleBase + nth, params.seed,
                                            params.replicates);
                 beginPath(pixel, key, st, lm, lr, firstHitVirtual);
