@@ -54,6 +54,7 @@ struct RenderOptions {
     float photonRadius = 0.0f;
     float photonAlpha = 2.0f / 3.0f;
     uint32_t photonGatherCap = PhotonSettings{}.gatherCap;
+    uint32_t photonNeighbours = PhotonSettings{}.gatherNeighbours;
     std::string out;
     ToneCurveOptions output;  // PNG output
     float fireflyClamp = 0.0f;
@@ -168,6 +169,7 @@ int run(const RenderOptions& o) {
     settings.photons.initialRadius = o.photonRadius;
     settings.photons.alpha = o.photonAlpha;
     settings.photons.gatherCap = o.photonGatherCap;
+    settings.photons.gatherNeighbours = o.photonNeighbours;
     // A lane whose path ends starts its next sample at once (trace_paths.comp). The renderer lowers
     // this inside lavapipe's loop limit; photon iterations dispatch one sample each.
     settings.samplesPerDispatch = kSamplesPerDispatch;
@@ -474,6 +476,11 @@ std::function<int()> addRenderCommand(CLI::App& app) {
                     "photon records a gather examines per grid cell at most; a fuller cell is "
                     "subsampled without bias (more: less noise in bright caustics, longer loops)")
         ->check(CLI::Range(1u, 1u << 20));
+    cmd->add_option("--photon-neighbours", o->photonNeighbours,
+                    "a gather that finds more photons than this within the radius shrinks its "
+                    "radius to hold about this many: sharper caustics where photons are dense "
+                    "(0: never; default 128)")
+        ->check(CLI::Range(0u, 1u << 20));
     cmd->add_option("--checkpoints", o->checkpoints,
                     "also write OUT_STEM.sppN.exr at these sample counts (N1,N2,...), and print "
                     "each one's time since start: a convergence curve from one run")

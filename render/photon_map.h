@@ -49,6 +49,10 @@ struct PhotonSettings {
     float alpha = 2.0f / 3.0f;
     // Records examined per grid bucket at most; fuller buckets are subsampled without bias.
     uint32_t gatherCap = 256;
+    // A gather that finds more than this many photons within the iteration's radius takes its
+    // estimate again at the radius that holds about this many: the blur shrinks where photons are
+    // dense (at a focus). 0 keeps every gather at the iteration's radius.
+    uint32_t gatherNeighbours = 128;
 
     bool operator==(const PhotonSettings&) const = default;
 };

@@ -561,6 +561,7 @@ Status Renderer::buildScene(const Scene& scene) {
     p.photonSceneRadius = photonAim_.sceneRadius;
     p.photonMaxBounces = std::min(settings_.maxDepth, kMaxPhotonBounces + 1u) - 1u;
     p.photonGatherCap = ph.gatherCap;
+    p.photonGatherNeighbours = ph.gatherNeighbours;
     photonInitialRadius_ =
         ph.initialRadius > 0.0f ? ph.initialRadius : kDefaultRadiusFraction * photonAim_.radius;
 

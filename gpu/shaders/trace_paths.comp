@@ -231,34 +231,34 @@ void fixedAdd(inout FixedRgb sum, vec3 v) {
 
 vec3 fixedValue(FixedRgb sum) { return vec3(sum.whole) + vec3(sum.fraction) * 2.3283064365386963e-10; }
 
-// The photon map's estimate of the caustic radiance leaving gather vertex `s` toward wo, for the
-// mixed and the real solution: Σ f(wo, wi_p)·Φ_p·K(d_p) over the photons within r (level-2
-// ones only unless `level1`) whose scatterings fit in the depth left (depth: scatterings before
-// this vertex), K the Epanechnikov kernel 2(1 − d²/r²)/(π r²) (docs/caustics.md says why not a
-// uniform disc). A bucket holding more than photonGatherCap records is subsampled — a window of
-// that many at a random start, weighted by the ratio — which keeps the estimate unbiased and a
-// lane's loop count bounded (llvmpipe's loop budget, shared/prelude.h).
-void gatherPhotons(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint depth, float uWindow,
-                   bool level1, out vec3 toMixed, out vec3 toReal) {
-    float r = params.photonRadius;
-    float r2 = r * r;
-    float norm = 1.0 / (PV_PI * r2);
-    uint maxBounces = params.maxDepth - depth - 1u;
-    // The 2×2×2 cells (edge 2r) that the sphere of radius r around the point overlaps.
-    ivec3 first = photonCell(s.position - vec3(r), 2.0 * r);
-    FixedRgb sumMixed = FixedRgb(uvec3(0u), uvec3(0u));
-    FixedRgb sumReal = FixedRgb(uvec3(0u), uvec3(0u));
+// One pass of gatherPhotons over the records in the 2×2×2 cells `first` (edge 2·params.photonRadius)
+// that lie within rq ≤ params.photonRadius of s: adds Σ f(wo, wi_p)·Φ_p·K(d_p) (K at radius rq) to
+// the sums and returns how many records it took (weighted like them where a bucket is subsampled).
+// Level-1 records only if `level1`; scatterings must fit in maxBounces.
+float gatherWithin(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint maxBounces, float uWindow,
+                   bool level1, ivec3 first, float rq, inout FixedRgb sumMixed,
+                   inout FixedRgb sumReal) {
+    float cellSize = 2.0 * params.photonRadius;
+    float rq2 = rq * rq;
+    float norm = 1.0 / (PV_PI * rq2);
+    float taken = 0.0;
     for (uint c = 0u; c < 8u; ++c) {
         PV_COUNT_LOOP_ITERATION();
+        ivec3 cell = first + ivec3(c & 1u, (c >> 1u) & 1u, c >> 2u);
+        // A cell the sphere misses holds nothing to take (most of them once rq < r).
+        vec3 lo = vec3(cell) * cellSize;
+        vec3 outside = max(lo - s.position, vec3(0.0)) + max(s.position - lo - cellSize, vec3(0.0));
+        if (dot(outside, outside) >= rq2) continue;
         // The eight cells' buckets differ (photonBucket): each record is summed once.
-        uint bucket = photonBucket(first + ivec3(c & 1u, (c >> 1u) & 1u, c >> 2u));
+        uint bucket = photonBucket(cell);
         uvec4 pair = texelFetch(photonCellTexels, int(bucket >> 1u));
         uvec2 range = (bucket & 1u) != 0u ? pair.zw : pair.xy;
         uint n = range.y - range.x;
         if (n == 0u) continue;
         uint examined = min(n, params.photonGatherCap);
         uint start = examined < n ? min(uint(uWindow * float(n)), n - 1u) : 0u;
-        float weight = norm * float(n) / float(examined);
+        float share = float(n) / float(examined);
+        float weight = norm * share;
         for (uint k = 0u; k < examined; ++k) {
             PV_COUNT_LOOP_ITERATION();
             // The window wraps: (start + k) mod n without a division (a per-lane scalar loop on
@@ -270,20 +270,53 @@ void gatherPhotons(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint depth, f
             // Level 1 only where the path may gather it (shared/photon_map.h's rule).
             bool levelGathered = level1 || (t0.w & PV_PHOTON_LEVEL_2) != 0u;
             float d2 = dot(d, d);
-            if (d2 >= r2 || (t0.w >> PV_PHOTON_BOUNCES_SHIFT) > maxBounces ||
-                !levelGathered)
+            if (d2 >= rq2 || (t0.w >> PV_PHOTON_BOUNCES_SHIFT) > maxBounces || !levelGathered)
                 continue;
+            taken += share;
             uvec4 t1 = texelFetch(photonTexels, int(2u * at + 1u));
             vec3 wi = octahedralDecode(unpackSnorm2x16(t1.w));
             vec3 wiLocal = toLocal(frame, wi);
             if (!consistentSide(s, wi, wiLocal)) continue;
             float pdf;
-            float kernel = 2.0 * (1.0 - d2 / r2);  // × norm (in weight): Epanechnikov
+            float kernel = 2.0 * (1.0 - d2 / rq2);  // × norm (in weight): Epanechnikov
             vec3 c = evaluateBsdf(bp, wo, wiLocal, pdf) * uintBitsToFloat(t1.xyz) *
                      (weight * kernel);
             if ((t0.w & PV_PHOTON_IN_MIXED) != 0u) fixedAdd(sumMixed, c);
             if ((t0.w & PV_PHOTON_IN_REAL) != 0u) fixedAdd(sumReal, c);
         }
+    }
+    return taken;
+}
+
+// The photon map's estimate of the caustic radiance leaving gather vertex `s` toward wo, for the
+// mixed and the real solution: Σ f(wo, wi_p)·Φ_p·K(d_p) over the photons within the radius
+// (level-2 ones only unless `level1`) whose scatterings fit in the depth left (depth: scatterings
+// before this vertex), K the Epanechnikov kernel 2(1 − d²/r²)/(π r²) (docs/caustics.md says why
+// not a uniform disc). Where the iteration's radius r holds M > k = photonGatherNeighbours
+// records, the estimate is taken again at r·√(k/M), which holds about k: the blur shrinks where
+// photons are dense — at a focus, where it is most of the error — and, given M, the records
+// within r are spread evenly over its disc wherever the density is locally even, so the smaller
+// disc's estimate has the same expectation there (docs/caustics.md, "The radius where photons are
+// dense"). Both solutions use the same radius, so where they hold the same photons their sums
+// stay equal. A bucket holding more than photonGatherCap records is subsampled — a window of that
+// many at a random start, weighted by the ratio — which keeps the estimate unbiased and a lane's
+// loop count bounded (llvmpipe's loop budget, shared/prelude.h).
+void gatherPhotons(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint depth, float uWindow,
+                   bool level1, out vec3 toMixed, out vec3 toReal) {
+    float r = params.photonRadius;
+    uint maxBounces = params.maxDepth - depth - 1u;
+    // The 2×2×2 cells (edge 2r) that the sphere of radius r around the point overlaps.
+    ivec3 first = photonCell(s.position - vec3(r), 2.0 * r);
+    FixedRgb sumMixed = FixedRgb(uvec3(0u), uvec3(0u));
+    FixedRgb sumReal = FixedRgb(uvec3(0u), uvec3(0u));
+    float taken =
+        gatherWithin(s, bp, frame, wo, maxBounces, uWindow, level1, first, r, sumMixed, sumReal);
+    float k = float(params.photonGatherNeighbours);
+    if (k > 0.0 && taken > k) {
+        sumMixed = FixedRgb(uvec3(0u), uvec3(0u));
+        sumReal = FixedRgb(uvec3(0u), uvec3(0u));
+        gatherWithin(s, bp, frame, wo, maxBounces, uWindow, level1, first, r * sqrt(k / taken),
+                     sumMixed, sumReal);
     }
     toMixed = fixedValue(sumMixed);
     toReal = fixedValue(sumReal);

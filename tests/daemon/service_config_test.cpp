@@ -279,6 +279,9 @@ position_m = [1, 0, 0]
         {"render_photon_alpha",
          minimal("", "[render]\nphoton_alpha = 0"),
          {"'render.photon_alpha' is 0"}},
+        {"render_photon_neighbours_negative",
+         minimal("", "[render]\nphoton_neighbours = -1"),
+         {"'render.photon_neighbours' is -1"}},
         {"render_resolution_scale_zero",
          minimal("", "[render]\nresolution_scale = 0"),
          {"'render.resolution_scale' is 0"}},
@@ -340,6 +343,7 @@ photons = 20000
 preview_photons = 4096
 photon_radius_m = 0.004
 photon_alpha = 0.75
+photon_neighbours = 48
 resolution_scale = 0.3333
 preview_fps = 12.5
 denoise = "auto"
@@ -373,6 +377,7 @@ loop = false
     EXPECT_EQ(c->render.photons.previewPerIteration, 4096u);
     EXPECT_FLOAT_EQ(c->render.photons.initialRadius, 0.004f);
     EXPECT_FLOAT_EQ(c->render.photons.alpha, 0.75f);
+    EXPECT_EQ(c->render.photons.gatherNeighbours, 48u);
     EXPECT_FLOAT_EQ(c->render.resolutionScale, 0.3333f);
     EXPECT_DOUBLE_EQ(c->render.previewFps, 12.5);
     EXPECT_EQ(c->render.denoise, "auto");

@@ -249,6 +249,9 @@ struct FrameParams {
     uint photonMaxBounces;   // specular bounces a photon follows at most (≤ maxDepth − 1)
     uint photonSortShift;    // the radix pass photon_grid.comp runs: 0, 8 or 16 (bits of the key)
     uint photonGatherCap;    // records examined per bucket at most; a fuller bucket is subsampled
+    // A gather that finds more records than this within the radius takes its estimate again at
+    // the radius that holds about this many (trace_paths.comp's gatherPhotons); 0: never.
+    uint photonGatherNeighbours;
 };
 
 PV_END
