@@ -231,10 +231,10 @@ void fixedAdd(inout FixedRgb sum, vec3 v) {
 
 vec3 fixedValue(FixedRgb sum) { return vec3(sum.whole) + vec3(sum.fraction) * 2.3283064365386963e-10; }
 
-// One pass of gatherPhotons over the records in the 2×2×2 cells `first` (edge 2·params.photonRadius)
-// that lie within rq ≤ params.photonRadius of s: adds Σ f(wo, wi_p)·Φ_p·K(d_p) (K at radius rq) to
-// the sums and returns how many records it took (weighted like them where a bucket is subsampled).
-// Level-1 records only if `level1`; scatterings must fit in maxBounces.
+// One pass of gatherPhotons over the records in the 2×2×2 cells from `first` (edge twice
+// params.photonRadius) that lie within rq ≤ params.photonRadius of s: adds Σ f(wo, wi_p)·Φ_p·K(d_p)
+// (K at radius rq) to the sums and returns how many records it took (weighted like them where a
+// bucket is subsampled). Level-1 records only if `level1`; scatterings must fit in maxBounces.
 float gatherWithin(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint maxBounces, float uWindow,
                    bool level1, ivec3 first, float rq, inout FixedRgb sumMixed,
                    inout FixedRgb sumReal) {
