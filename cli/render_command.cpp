@@ -479,7 +479,8 @@ std::function<int()> addRenderCommand(CLI::App& app) {
     cmd->add_option("--photon-neighbours", o->photonNeighbours,
                     "a gather that finds more photons than this within the radius shrinks its "
                     "radius to hold about this many: sharper caustics where photons are dense "
-                    "(0: never; default 128)")
+                    "(0: never)")
+        ->capture_default_str()
         ->check(CLI::Range(0u, 1u << 20));
     cmd->add_option("--checkpoints", o->checkpoints,
                     "also write OUT_STEM.sppN.exr at these sample counts (N1,N2,...), and print "
