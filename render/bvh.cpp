@@ -20,8 +20,8 @@ using shader::BvhNode;
 constexpr uint32_t kMaxDepth = 56;
 // A wide node is at least one binary level below its parent, a leaf too large for one reference
 // adds at most log4(2^24 / 128) < 9 levels (leafReference), and traversal pushes at most three
-// children per level.
-static_assert(3 * (kMaxDepth + 9) <= PV_BVH_STACK_SIZE,
+// children per level, above the second BVH's root (traceClosest walks both).
+static_assert(3 * (kMaxDepth + 9) + 1 <= PV_BVH_STACK_SIZE,
               "traversal stack cannot hold the deepest path");
 
 // Centroid bins per axis (Wald 2007, "On fast Construction of SAH-based Bounding Volume

@@ -49,16 +49,16 @@ CpuTracer::CpuTracer(SceneBvh bvh, const Geometry& geometry)
 std::optional<shader::Hit> CpuTracer::closestHit(const shader::Ray& ray, bool realOnly) const {
     gBound = {bvh_.wideNodes.data(), triangleVertices_.data()};
     shader::Hit hit{ray.tMax, kBvhNoRoot, 0.0f, 0.0f};
-    bool found = shader::traceClosest(bvh_.wideRealRoot, ray, hit);
-    if (!realOnly) found = shader::traceClosest(bvh_.wideVirtualRoot, ray, hit) || found;
-    if (!found) return std::nullopt;
+    if (!shader::traceClosest(bvh_.wideRealRoot, realOnly ? kBvhNoRoot : bvh_.wideVirtualRoot, ray,
+                              hit))
+        return std::nullopt;
     return hit;
 }
 
 bool CpuTracer::occluded(const shader::Ray& ray, bool realOnly) const {
     gBound = {bvh_.wideNodes.data(), triangleVertices_.data()};
-    if (shader::traceAny(bvh_.wideRealRoot, ray)) return true;
-    return !realOnly && shader::traceAny(bvh_.wideVirtualRoot, ray);
+    return shader::traceAny(bvh_.wideRealRoot, realOnly ? kBvhNoRoot : bvh_.wideVirtualRoot, ray) !=
+           PV_BVH_NO_TRIANGLE;
 }
 
 }  // namespace previs

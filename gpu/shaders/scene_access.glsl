@@ -174,18 +174,26 @@ bool intersectScene(Ray ray, uint mode, out Hit hit) {
         ++gNonFiniteRays;
         return false;
     }
-    bool found = traceClosest(params.realRoot, ray, hit);
-    if (mode != MODE_REAL) found = traceClosest(params.virtualRoot, ray, hit) || found;
-    return found;
+    return traceClosest(params.realRoot, mode != MODE_REAL ? params.virtualRoot : PV_BVH_NO_ROOT,
+                        ray, hit);
 }
 
-bool occludedBy(uint root, Ray ray) {
+// What blocks a shadow ray: OCCLUDER_NONE, OCCLUDER_REAL (real geometry, which blocks both
+// solutions) or OCCLUDER_VIRTUAL (only virtual geometry: the real solution sees the light).
+// Real rays test the phantoms only.
+#define OCCLUDER_NONE 0u
+#define OCCLUDER_REAL 1u
+#define OCCLUDER_VIRTUAL 2u
+uint occluder(Ray ray, uint mode) {
     ++gRaysTraced;
     if (!rayIsFinite(ray.origin, ray.direction)) {
         ++gNonFiniteRays;
-        return true;  // no light through it; its sample is dropped anyway
+        return OCCLUDER_REAL;  // no light through it; its sample is dropped anyway
     }
-    return traceAny(root, ray);
+    uint blocker = traceAny(params.realRoot,
+                            mode != MODE_REAL ? params.virtualRoot : PV_BVH_NO_ROOT, ray);
+    if (blocker == PV_BVH_NO_TRIANGLE) return OCCLUDER_NONE;
+    return blocker < params.realTriangleCount ? OCCLUDER_REAL : OCCLUDER_VIRTUAL;
 }
 // Shadow ray between two surface points, each offset off its surface toward the other.
 Ray segmentRay(vec3 from, vec3 fromNormal, vec3 to, vec3 toNormal) {

@@ -40,13 +40,14 @@ vec4 draw(SampleKey key, uint set) { return sampleSet(kSampler, key, set); }
 // (virtual geometry). A virtual light exists only in the mixed scene.
 void addLightSample(vec3 c, bool lightIsReal, Ray ray, uint mode, inout vec3 toMixed,
                     inout vec3 toReal) {
+    uint blocker = occluder(ray, mode);
     if (mode == MODE_REAL) {
-        if (lightIsReal && !occludedBy(params.realRoot, ray)) toReal += c;
+        if (lightIsReal && blocker == OCCLUDER_NONE) toReal += c;
         return;
     }
-    if (occludedBy(params.realRoot, ray)) return;
+    if (blocker == OCCLUDER_REAL) return;
     if (mode == MODE_SHARED && lightIsReal) toReal += c;
-    if (!occludedBy(params.virtualRoot, ray)) toMixed += c;
+    if (blocker == OCCLUDER_NONE) toMixed += c;
 }
 
 // Solid-angle pdf with which emissive-triangle sampling picks the point `lightSurface` seen from
@@ -482,6 +483,146 @@ void beginPath(uvec2 pixel, SampleKey key, out PathState st, out vec3 lm, out ve
     }
 }
 
+// One segment of the path in `st` (solution `mode`): the ray to its next hit, the light found
+// there, and the scattered ray. Returns true when the path has ended. Where the camera path's
+// solutions part behind a virtual object, or it splits at smooth glass, the branch to trace
+// after it is stored in realContinuation or reflectedBranch.
+bool extendPath(SampleKey key, inout PathState st, inout uint mode, inout vec3 lm,
+                inout vec3 lr, inout bool firstHitVirtual, inout PathState realContinuation,
+                inout bool haveRealContinuation, inout PathState reflectedBranch,
+                inout bool haveReflectedBranch) {
+    Hit hit;
+    bool found = intersectScene(st.ray, mode, hit);
+    bool hitVirtual = found && hit.triangle >= params.realTriangleCount;
+    if (hitVirtual && st.depth == 0u) firstHitVirtual = true;
+    if (hitVirtual && mode == MODE_SHARED) {
+        // The solutions part here: the real one continues this ray behind the virtual
+        // object (traced after the mixed part), the mixed one shades the virtual hit.
+        realContinuation = st;
+        haveRealContinuation = true;
+        mode = MODE_MIXED;
+    }
+    if (!found) {
+        if (kHasEnv && params.envWidth > 0u) {
+            vec3 le = params.envScale * envRadiance(st.ray.direction, params.envWidth,
+                                                    params.envHeight, vec2(params.envRotationCos, params.envRotationSin));
+            float w = st.prevDelta
+                          ? 1.0
+                          : powerHeuristic(st.prevPdf,
+                                           envPdf(st.ray.direction, params.envWidth,
+                                                  params.envHeight, vec2(params.envRotationCos, params.envRotationSin)));
+            addRadiance(mode, st.throughput * le * w, lm, lr);
+        }
+        if (kHasConeLights) {
+            // Cone lights are seen where they are (camera rays, mirrors, and the BSDF
+            // half of their multiple importance sampling).
+            for (uint i = params.coneLightFirst; i < params.lightCount; ++i) {
+                PV_COUNT_LOOP_ITERATION();
+                GpuLight light = lightAt(i);
+                float pdf = coneLightPdf(light, st.ray.direction);
+                if (!(pdf > 0.0) || photonMapCarries(st)) continue;
+                float w = st.prevDelta ? 1.0 : powerHeuristic(st.prevPdf, pdf);
+                // Estimated lights are part of the captured (real) environment; a cone
+                // light without PV_LIGHT_REAL lights only the mixed solution.
+                vec3 l = st.throughput * light.intensity * w;
+                if ((light.type & PV_LIGHT_REAL) != 0u) addRadiance(mode, l, lm, lr);
+                else if (mode != MODE_REAL) lm += l;
+            }
+        }
+        return true;
+    }
+    Surface s = surfaceAt(st.ray, hit);
+    GpuMaterial m = materialAt(s.material);
+    if (kHasTransmission && !s.frontFace && maxComponent(m.attenuation) > 0.0) {
+        // Beer–Lambert (KHR_materials_volume): the segment just travelled ran inside
+        // this material's volume, from where the path entered it to this back face.
+        st.throughput *= exp(-m.attenuation * hit.t);
+    }
+    if (kHasEmissive && maxComponent(m.emission) > 0.0 && emitsToward(m, s.frontFace) &&
+        !photonMapCarries(st)) {
+        float w = st.prevDelta ? 1.0
+                               : powerHeuristic(st.prevPdf,
+                                                emissiveLightPdf(hit.triangle,
+                                                                 st.prevPosition, s));
+        addRadiance(mode, st.throughput * emittedRadiance(m, s.uv) * w, lm, lr);
+    }
+    if (st.depth >= params.maxDepth) return true;
+
+    Frame frame;
+    frame.n = s.shadingNormal;
+    buildBasis(frame.n, frame.t, frame.b);
+    vec3 wo = toLocal(frame, -st.ray.direction);
+    BsdfParams bp = bsdfParamsAt(m, s);
+    if (kDenoiseGuides && mode != MODE_REAL && st.depth == 0u) {
+        // An emitter's light is not modulated by its base colour: albedo 1, as a miss.
+        gGuideAlbedo = maxComponent(m.emission) > 0.0 ? vec3(1.0) : bp.baseColor;
+        gGuideNormal = faceforward(s.shadingNormal, st.ray.direction, s.shadingNormal);
+        gGuideDepthM = hit.t;  // the camera ray's direction is unit: metres
+    }
+    bool gatherVertex = false;
+    if (kPhotons) {
+        bool purelySpecular = bsdfIsPurelySpecular(bp);
+        if (!purelySpecular) {
+            // Every vertex that is not purely specular gathers: level 2 always, level 1
+            // where the rule allows (shared/photon_map.h), so the light a caustic
+            // throws onward (the wall beside a glass) is a density estimate, not the
+            // path tracer's rare, bright samples.
+            gatherVertex = true;
+            // The light set's fourth number is otherwise unused.
+            float u = draw(key, vertexSet(st.depth, PV_SET_VERTEX_LIGHT)).w;
+            // A gather of level 2 alone (the caustic's light after a diffuse bounce
+            // seen after another) adds little and costs a full grid lookup: it runs
+            // with a probability, weighted by its inverse (unbiased); u, rescaled,
+            // still places the window.
+            float pGather = st.gatherLevel1 ? 1.0 : PV_PHOTON_LEVEL_2_GATHER_PROBABILITY;
+            if (u < pGather) {
+                vec3 causticMixed;
+                vec3 causticReal;
+                gatherPhotons(s, bp, frame, wo, st.depth, u / pGather, st.gatherLevel1,
+                              causticMixed, causticReal);
+                vec3 weight = st.throughput / pGather;
+                if (mode != MODE_REAL) lm += weight * causticMixed;
+                if (mode != MODE_MIXED) lr += weight * causticReal;
+            }
+        } else if (st.causticState != CAUSTIC_NONE) {
+            st.causticState = CAUSTIC_SPECULAR_CHAIN;
+            st.causticBounces += 1u;
+        }
+    }
+    // Light sampling only where some lobe is not a delta (a smooth mirror or glass
+    // can only see lights through its one reflected or refracted ray).
+    if (!(kHasSpecular || kHasTransmission) || !bsdfIsDelta(bp) ||
+        bsdfLobeProbabilities(bp, wo).z > 0.0) {
+        vec3 directMixed = vec3(0.0);
+        vec3 directReal = vec3(0.0);
+        sampleDirectLight(s, bp, frame, wo, mode, key, st.depth, directMixed, directReal);
+        if (mode != MODE_REAL) lm += st.throughput * directMixed;
+        if (mode != MODE_MIXED) lr += st.throughput * directReal;
+    }
+
+    BsdfSample bs;
+    vec4 uBsdf = draw(key, vertexSet(st.depth, PV_SET_VERTEX_BSDF));
+    float pReflect;
+    if (kHasTransmission && st.depth == 0u && mode == MODE_MIXED &&
+        bsdfSplitsAtSmoothGlass(bp, wo, pReflect)) {
+        // Smooth glass the camera sees: both branches are followed, each weighted by its
+        // coefficient (unbiased). A Fresnel choice would show the reflection — a caustic
+        // or a light in the glass's grazing rim — in few samples, brightly: the noisiest
+        // pixels of a glass object. The reflection is traced after this path, mixed only (the
+        // split happens where the solutions have parted, or in a plain render).
+        BsdfSample reflection;
+        if (smoothDielectricReflection(bp, wo, pReflect, reflection)) {
+            reflectedBranch = st;
+            haveReflectedBranch = scatter(reflectedBranch, s, frame, bp, reflection,
+                                          gatherVertex, uBsdf.w, pReflect);
+        }
+        return !smoothDielectricRefraction(bp, wo, 1.0 - pReflect, bs) ||
+               !scatter(st, s, frame, bp, bs, gatherVertex, uBsdf.w, 1.0 - pReflect);
+    }
+    return !sampleBsdf(bp, wo, uBsdf, bs) ||
+           !scatter(st, s, frame, bp, bs, gatherVertex, uBsdf.w, 1.0);
+}
+
 // The pixel's samples sampleBase .. sampleBase + samplesPerDispatch − 1, each added to the sums by
 // addSample as it ends. Every vertex draws the dimension sets of its depth, so the real pass after
 // a split draws what a real-only render would.
@@ -491,10 +632,13 @@ void beginPath(uvec2 pixel, SampleKey key, out PathState st, out vec3 lm, out ve
 // then the lane starts its next sample (path regeneration, Novák et al. 2010). Each starts where
 // the one before ended, so a lane whose path ended early does not idle until the longest path of
 // its SIMD batch ends, and the loop's body (traversal and shading) is compiled once.
+//
+// The loop's exit is tested at the end of its body, after the segment. llvmpipe runs both sides
+// of every branch under a mask and tests a loop's mask only where the body ends: a break at the
+// top would run one more whole segment, masked, for every SIMD batch (about 90 ms a dispatch at
+// 640×480, measured).
 void tracePaths(uvec2 pixel, uint pixelIndex) {
-    // The first pass through the loop begins sample 0 (nothing has ended yet, nothing is added).
     uint nth = 0u;
-    bool begun = false;
     SampleKey key;
     PathState st;
     vec3 lm;
@@ -506,9 +650,20 @@ void tracePaths(uvec2 pixel, uint pixelIndex) {
     bool haveRealContinuation = false;
     PathState reflectedBranch;
     bool haveReflectedBranch = false;
-    bool ended = true;
+    bool more = true;
     for (;;) {
         PV_COUNT_LOOP_ITERATION();
+        if (more) {
+            // Sample nth begins.
+            key = interleavedSampleKey(pixelIndex, params.sampleBase + nth, params.seed,
+                                       params.replicates);
+            beginPath(pixel, key, st, lm, lr, firstHitVirtual);
+            nonFiniteRaysBefore = gNonFiniteRays;
+            mode = kDifferential ? MODE_SHARED : MODE_MIXED;
+            more = false;
+        }
+        bool ended = extendPath(key, st, mode, lm, lr, firstHitVirtual, realContinuation,
+                                haveRealContinuation, reflectedBranch, haveReflectedBranch);
         if (ended) {
             if (haveReflectedBranch) {
                 st = reflectedBranch;
@@ -519,155 +674,12 @@ void tracePaths(uvec2 pixel, uint pixelIndex) {
                 mode = MODE_REAL;
                 haveRealContinuation = false;
             } else {
-                if (begun) {
-                    addSample(params.sampleBase + nth, lm, lr, firstHitVirtual,
-                              gNonFiniteRays != nonFiniteRaysBefore);
-                    nth += 1u;
-                    if (nth >= params.samplesPerDispatch) break;
-                }
-                begun = true;
-                key = interleavedSampleKey(pixelIndex, params.sampleBase + nth, params.seed,
-                                           params.replicates);
-                beginPath(pixel, key, st, lm, lr, firstHitVirtual);
-                nonFiniteRaysBefore = gNonFiniteRays;
-                mode = kDifferential ? MODE_SHARED : MODE_MIXED;
+                addSample(params.sampleBase + nth, lm, lr, firstHitVirtual,
+                          gNonFiniteRays != nonFiniteRaysBefore);
+                nth += 1u;
+                if (nth >= params.samplesPerDispatch) break;
+                more = true;
             }
-            ended = false;
-        }
-        Hit hit;
-        bool found = intersectScene(st.ray, mode, hit);
-        bool hitVirtual = found && hit.triangle >= params.realTriangleCount;
-        if (hitVirtual && st.depth == 0u) firstHitVirtual = true;
-        if (hitVirtual && mode == MODE_SHARED) {
-            // The solutions part here: the real one continues this ray behind the virtual
-            // object (traced after the mixed part), the mixed one shades the virtual hit.
-            realContinuation = st;
-            haveRealContinuation = true;
-            mode = MODE_MIXED;
-        }
-        if (!found) {
-            if (kHasEnv && params.envWidth > 0u) {
-                vec3 le = params.envScale * envRadiance(st.ray.direction, params.envWidth,
-                                                        params.envHeight, vec2(params.envRotationCos, params.envRotationSin));
-                float w = st.prevDelta
-                              ? 1.0
-                              : powerHeuristic(st.prevPdf,
-                                               envPdf(st.ray.direction, params.envWidth,
-                                                      params.envHeight, vec2(params.envRotationCos, params.envRotationSin)));
-                addRadiance(mode, st.throughput * le * w, lm, lr);
-            }
-            if (kHasConeLights) {
-                // Cone lights are seen where they are (camera rays, mirrors, and the BSDF
-                // half of their multiple importance sampling).
-                for (uint i = params.coneLightFirst; i < params.lightCount; ++i) {
-                    PV_COUNT_LOOP_ITERATION();
-                    GpuLight light = lightAt(i);
-                    float pdf = coneLightPdf(light, st.ray.direction);
-                    if (!(pdf > 0.0) || photonMapCarries(st)) continue;
-                    float w = st.prevDelta ? 1.0 : powerHeuristic(st.prevPdf, pdf);
-                    // Estimated lights are part of the captured (real) environment; a cone
-                    // light without PV_LIGHT_REAL lights only the mixed solution.
-                    vec3 l = st.throughput * light.intensity * w;
-                    if ((light.type & PV_LIGHT_REAL) != 0u) addRadiance(mode, l, lm, lr);
-                    else if (mode != MODE_REAL) lm += l;
-                }
-            }
-            ended = true;
-            continue;
-        }
-        Surface s = surfaceAt(st.ray, hit);
-        GpuMaterial m = materialAt(s.material);
-        if (kHasTransmission && !s.frontFace && maxComponent(m.attenuation) > 0.0) {
-            // Beer–Lambert (KHR_materials_volume): the segment just travelled ran inside
-            // this material's volume, from where the path entered it to this back face.
-            st.throughput *= exp(-m.attenuation * hit.t);
-        }
-        if (kHasEmissive && maxComponent(m.emission) > 0.0 && emitsToward(m, s.frontFace) &&
-            !photonMapCarries(st)) {
-            float w = st.prevDelta ? 1.0
-                                   : powerHeuristic(st.prevPdf,
-                                                    emissiveLightPdf(hit.triangle,
-                                                                     st.prevPosition, s));
-            addRadiance(mode, st.throughput * emittedRadiance(m, s.uv) * w, lm, lr);
-        }
-        if (st.depth >= params.maxDepth) {
-            ended = true;
-            continue;
-        }
-
-        Frame frame;
-        frame.n = s.shadingNormal;
-        buildBasis(frame.n, frame.t, frame.b);
-        vec3 wo = toLocal(frame, -st.ray.direction);
-        BsdfParams bp = bsdfParamsAt(m, s);
-        if (kDenoiseGuides && mode != MODE_REAL && st.depth == 0u) {
-            // An emitter's light is not modulated by its base colour: albedo 1, as a miss.
-            gGuideAlbedo = maxComponent(m.emission) > 0.0 ? vec3(1.0) : bp.baseColor;
-            gGuideNormal = faceforward(s.shadingNormal, st.ray.direction, s.shadingNormal);
-            gGuideDepthM = hit.t;  // the camera ray's direction is unit: metres
-        }
-        bool gatherVertex = false;
-        if (kPhotons) {
-            bool purelySpecular = bsdfIsPurelySpecular(bp);
-            if (!purelySpecular) {
-                // Every vertex that is not purely specular gathers: level 2 always, level 1
-                // where the rule allows (shared/photon_map.h), so the light a caustic
-                // throws onward (the wall beside a glass) is a density estimate, not the
-                // path tracer's rare, bright samples.
-                gatherVertex = true;
-                // The light set's fourth number is otherwise unused.
-                float u = draw(key, vertexSet(st.depth, PV_SET_VERTEX_LIGHT)).w;
-                // A gather of level 2 alone (the caustic's light after a diffuse bounce
-                // seen after another) adds little and costs a full grid lookup: it runs
-                // with a probability, weighted by its inverse (unbiased); u, rescaled,
-                // still places the window.
-                float pGather = st.gatherLevel1 ? 1.0 : PV_PHOTON_LEVEL_2_GATHER_PROBABILITY;
-                if (u < pGather) {
-                    vec3 causticMixed;
-                    vec3 causticReal;
-                    gatherPhotons(s, bp, frame, wo, st.depth, u / pGather, st.gatherLevel1,
-                                  causticMixed, causticReal);
-                    vec3 weight = st.throughput / pGather;
-                    if (mode != MODE_REAL) lm += weight * causticMixed;
-                    if (mode != MODE_MIXED) lr += weight * causticReal;
-                }
-            } else if (st.causticState != CAUSTIC_NONE) {
-                st.causticState = CAUSTIC_SPECULAR_CHAIN;
-                st.causticBounces += 1u;
-            }
-        }
-        // Light sampling only where some lobe is not a delta (a smooth mirror or glass
-        // can only see lights through its one reflected or refracted ray).
-        if (!(kHasSpecular || kHasTransmission) || !bsdfIsDelta(bp) ||
-            bsdfLobeProbabilities(bp, wo).z > 0.0) {
-            vec3 directMixed = vec3(0.0);
-            vec3 directReal = vec3(0.0);
-            sampleDirectLight(s, bp, frame, wo, mode, key, st.depth, directMixed, directReal);
-            if (mode != MODE_REAL) lm += st.throughput * directMixed;
-            if (mode != MODE_MIXED) lr += st.throughput * directReal;
-        }
-
-        BsdfSample bs;
-        vec4 uBsdf = draw(key, vertexSet(st.depth, PV_SET_VERTEX_BSDF));
-        float pReflect;
-        if (kHasTransmission && st.depth == 0u && mode == MODE_MIXED &&
-            bsdfSplitsAtSmoothGlass(bp, wo, pReflect)) {
-            // Smooth glass the camera sees: both branches are followed, each weighted by its
-            // coefficient (unbiased). A Fresnel choice would show the reflection — a caustic
-            // or a light in the glass's grazing rim — in few samples, brightly: the noisiest
-            // pixels of a glass object. The reflection is traced after this path, mixed only (the
-            // split happens where the solutions have parted, or in a plain render).
-            BsdfSample reflection;
-            if (smoothDielectricReflection(bp, wo, pReflect, reflection)) {
-                reflectedBranch = st;
-                haveReflectedBranch = scatter(reflectedBranch, s, frame, bp, reflection,
-                                              gatherVertex, uBsdf.w, pReflect);
-            }
-            ended = !smoothDielectricRefraction(bp, wo, 1.0 - pReflect, bs) ||
-                    !scatter(st, s, frame, bp, bs, gatherVertex, uBsdf.w, 1.0 - pReflect);
-        } else {
-            ended = !sampleBsdf(bp, wo, uBsdf, bs) ||
-                    !scatter(st, s, frame, bp, bs, gatherVertex, uBsdf.w, 1.0);
         }
     }
 }

@@ -201,7 +201,8 @@ namespace {
 PV_INLINE bool intersectLeaf(TriangleRay tr, uint first, uint count, float tMin,
                              PV_INOUT(float) tMax, PV_INOUT(Hit) hit) {
     bool found = false;
-    for (uint i = first; i < first + count; ++i) {
+    // A leaf holds at least one triangle: the exit test can sit at the end (see below).
+    for (uint i = first;;) {
         PV_COUNT_LOOP_ITERATION();
         float t;
         float b1;
@@ -215,6 +216,7 @@ PV_INLINE bool intersectLeaf(TriangleRay tr, uint first, uint count, float tMin,
             hit.b2 = b2;
             found = true;
         }
+        if (++i >= first + count) break;
     }
     return found;
 }
@@ -289,97 +291,120 @@ PV_INLINE uint enteredChildren(uint ref, vec3 origin, vec3 invDir, float tMin, f
 // left), and only then are leaves intersected. On a SIMD device that runs the lanes of a batch
 // in lock step (llvmpipe, GPUs) a lane at a leaf waits for the others instead of making every
 // iteration pay for both the node and the leaf code.
+//
+// Shaped for llvmpipe, which runs both sides of every branch under a lane mask and tests a loop's
+// mask only where its body ends:
+// - every loop tests its exit at the end of its body. A test at the top would run the whole
+//   body once more, masked, after the batch's last lane left it;
+// - one traversal walks both BVHs, the second root waiting at the bottom of the stack, so a
+//   shading point's code holds one traversal loop per ray, not one per BVH.
 
-// Closest hit with t in (ray.tMin, min(ray.tMax, hit.t)) in the BVH at `root`; updates `hit` and
-// returns true if it found one. Children are visited nearest entry first, so boxes behind a found
-// hit are culled. (Any-hit traversal visits them in the same order.)
-PV_INLINE bool traceClosest(uint root, Ray ray, PV_INOUT(Hit) hit) {
-    if (root == PV_BVH_NO_ROOT || !rayIsFinite(ray.origin, ray.direction)) return false;
+// Pops the next subtree into `ref`, or clears `live` when none is left. (No do-while wrapper:
+// in a shader that would be a loop.)
+#define PV_BVH_POP(ref, stack, stackSize, live) \
+    {                                           \
+        if ((stackSize) > 0)                    \
+            (ref) = (stack)[--(stackSize)];     \
+        else                                    \
+            (live) = false;                     \
+    }
+
+// Walks from `ref` down to a leaf, pushing the siblings not taken (far to near, so that the
+// nearest of them is popped first); clears `live` when no leaf is left. A macro, not a function:
+// GLSL passes arrays by value, so a helper taking the stack would copy all of it at every node.
+#define PV_BVH_DESCEND(ref, stack, stackSize, origin, invDir, tMin, tMax, live)                  \
+    if (((ref) & PV_WIDE_LEAF) == 0u) {                                                         \
+        for (;;) {                                                                              \
+            PV_COUNT_LOOP_ITERATION();                                                          \
+            uvec4 children;                                                                     \
+            uint entered = enteredChildren((ref), (origin), (invDir), (tMin), (tMax), children); \
+            if (entered == 0u) {                                                                \
+                PV_BVH_POP(ref, stack, stackSize, live)                                         \
+            } else {                                                                            \
+                if (entered > 3u) (stack)[(stackSize)++] = children.w;                          \
+                if (entered > 2u) (stack)[(stackSize)++] = children.z;                          \
+                if (entered > 1u) (stack)[(stackSize)++] = children.y;                          \
+                (ref) = children.x;                                                             \
+            }                                                                                   \
+            if (!(live) || ((ref) & PV_WIDE_LEAF) != 0u) break;                                 \
+        }                                                                                       \
+    }
+
+// Closest hit with t in (ray.tMin, min(ray.tMax, hit.t)) in the BVHs at `first` and `second`
+// (either may be PV_BVH_NO_ROOT); updates `hit` and returns true if it found one. Children are
+// visited nearest entry first, so boxes behind a found hit are culled. (Any-hit traversal visits
+// them in the same order.)
+PV_INLINE bool traceClosest(uint first, uint second, Ray ray, PV_INOUT(Hit) hit) {
+    if (!rayIsFinite(ray.origin, ray.direction)) return false;
+    uint stack[PV_BVH_STACK_SIZE];
+    int stackSize = 0;
+    if (second != PV_BVH_NO_ROOT) stack[stackSize++] = second;
+    uint ref = first;
+    bool live = true;
+    if (ref == PV_BVH_NO_ROOT) PV_BVH_POP(ref, stack, stackSize, live)
     float tMax = min(ray.tMax, hit.t);
     vec3 invDir = 1.0f / ray.direction;
     TriangleRay tr = makeTriangleRay(ray.origin, ray.direction);
-    uint stack[PV_BVH_STACK_SIZE];
-    int stackSize = 0;
-    uint ref = root;
     bool found = false;
-    while (true) {
-        PV_COUNT_LOOP_ITERATION();
-        bool done = false;
-        while ((ref & PV_WIDE_LEAF) == 0u) {
+    if (live) {
+        for (;;) {
             PV_COUNT_LOOP_ITERATION();
-            uvec4 children;
-            uint entered = enteredChildren(ref, ray.origin, invDir, ray.tMin, tMax, children);
-            if (entered == 0u) {
-                if (stackSize == 0) {
-                    done = true;
-                    break;
-                }
-                ref = stack[--stackSize];
-                continue;
+            PV_BVH_DESCEND(ref, stack, stackSize, ray.origin, invDir, ray.tMin, tMax, live)
+            if (live) {
+                uint start = ref & ((1u << PV_WIDE_LEAF_FIRST_BITS) - 1u);
+                uint count = ((ref & ~PV_WIDE_LEAF) >> PV_WIDE_LEAF_FIRST_BITS) + 1u;
+                if (intersectLeaf(tr, start, count, ray.tMin, tMax, hit)) found = true;
+                PV_BVH_POP(ref, stack, stackSize, live)
             }
-            // Far to near, so that the nearest of the pushed is popped first.
-            if (entered > 3u) stack[stackSize++] = children.w;
-            if (entered > 2u) stack[stackSize++] = children.z;
-            if (entered > 1u) stack[stackSize++] = children.y;
-            ref = children.x;
+            if (!live) break;
         }
-        if (done) break;
-        uint first = ref & ((1u << PV_WIDE_LEAF_FIRST_BITS) - 1u);
-        uint count = ((ref & ~PV_WIDE_LEAF) >> PV_WIDE_LEAF_FIRST_BITS) + 1u;
-        if (intersectLeaf(tr, first, count, ray.tMin, tMax, hit)) found = true;
-        if (stackSize == 0) break;
-        ref = stack[--stackSize];
     }
     return found;
 }
 
-// Any hit with t in (ray.tMin, ray.tMax) in the BVH at `root` (shadow rays). Its descent repeats
-// traceClosest's on purpose: GLSL passes arrays by value, so a helper taking the stack would copy
-// all PV_BVH_STACK_SIZE entries in and out at every node.
-PV_INLINE bool traceAny(uint root, Ray ray) {
-    if (root == PV_BVH_NO_ROOT || !rayIsFinite(ray.origin, ray.direction)) return false;
-    vec3 invDir = 1.0f / ray.direction;
-    TriangleRay tr = makeTriangleRay(ray.origin, ray.direction);
+// Any hit with t in (ray.tMin, ray.tMax) in the BVHs at `first` and `second` (either may be
+// PV_BVH_NO_ROOT; shadow rays). Returns the blocking triangle, or PV_BVH_NO_TRIANGLE. The second
+// BVH is entered only once the first holds no blocker, so a blocker from the second means the
+// first is clear: the differential renderer needs to know which scene blocks.
+#define PV_BVH_NO_TRIANGLE 0xffffffffu
+PV_INLINE uint traceAny(uint first, uint second, Ray ray) {
+    if (!rayIsFinite(ray.origin, ray.direction)) return PV_BVH_NO_TRIANGLE;
     uint stack[PV_BVH_STACK_SIZE];
     int stackSize = 0;
-    uint ref = root;
-    while (true) {
-        PV_COUNT_LOOP_ITERATION();
-        bool done = false;
-        while ((ref & PV_WIDE_LEAF) == 0u) {
+    if (second != PV_BVH_NO_ROOT) stack[stackSize++] = second;
+    uint ref = first;
+    bool live = true;
+    if (ref == PV_BVH_NO_ROOT) PV_BVH_POP(ref, stack, stackSize, live)
+    vec3 invDir = 1.0f / ray.direction;
+    TriangleRay tr = makeTriangleRay(ray.origin, ray.direction);
+    uint blocker = PV_BVH_NO_TRIANGLE;
+    if (live) {
+        for (;;) {
             PV_COUNT_LOOP_ITERATION();
-            uvec4 children;
-            uint entered = enteredChildren(ref, ray.origin, invDir, ray.tMin, ray.tMax, children);
-            if (entered == 0u) {
-                if (stackSize == 0) {
-                    done = true;
-                    break;
+            PV_BVH_DESCEND(ref, stack, stackSize, ray.origin, invDir, ray.tMin, ray.tMax, live)
+            if (live) {
+                uint start = ref & ((1u << PV_WIDE_LEAF_FIRST_BITS) - 1u);
+                uint count = ((ref & ~PV_WIDE_LEAF) >> PV_WIDE_LEAF_FIRST_BITS) + 1u;
+                for (uint i = start;;) {
+                    PV_COUNT_LOOP_ITERATION();
+                    float t;
+                    float b1;
+                    float b2;
+                    if (intersectTriangle(tr, PV_TRIANGLE_VERTEX(i, 0u), PV_TRIANGLE_VERTEX(i, 1u),
+                                          PV_TRIANGLE_VERTEX(i, 2u), ray.tMin, ray.tMax, t, b1,
+                                          b2))
+                        blocker = i;
+                    if (blocker != PV_BVH_NO_TRIANGLE || ++i >= start + count) break;
                 }
-                ref = stack[--stackSize];
-                continue;
+                if (blocker != PV_BVH_NO_TRIANGLE)
+                    live = false;
+                else
+                    PV_BVH_POP(ref, stack, stackSize, live)
             }
-            // Far to near, so that the nearest of the pushed is popped first.
-            if (entered > 3u) stack[stackSize++] = children.w;
-            if (entered > 2u) stack[stackSize++] = children.z;
-            if (entered > 1u) stack[stackSize++] = children.y;
-            ref = children.x;
+            if (!live) break;
         }
-        if (done) break;
-        uint first = ref & ((1u << PV_WIDE_LEAF_FIRST_BITS) - 1u);
-        uint count = ((ref & ~PV_WIDE_LEAF) >> PV_WIDE_LEAF_FIRST_BITS) + 1u;
-        for (uint i = first; i < first + count; ++i) {
-            PV_COUNT_LOOP_ITERATION();
-            float t;
-            float b1;
-            float b2;
-            if (intersectTriangle(tr, PV_TRIANGLE_VERTEX(i, 0u), PV_TRIANGLE_VERTEX(i, 1u),
-                                  PV_TRIANGLE_VERTEX(i, 2u), ray.tMin, ray.tMax, t, b1, b2))
-                return true;
-        }
-        if (stackSize == 0) break;
-        ref = stack[--stackSize];
     }
-    return false;
+    return blocker;
 }
 
 #ifdef __cplusplus
