@@ -243,48 +243,54 @@ float gatherWithin(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint maxBounc
     float rq2 = rq * rq;
     float norm = 1.0 / (PV_PI * rq2);
     float taken = 0.0;
-    for (uint c = 0u; c < 8u; ++c) {
+    // Both loops test their exit at the end (see tracePaths): on llvmpipe a test at the top
+    // runs the record loop's body, BSDF and all, once more for every cell.
+    for (uint c = 0u;;) {
         PV_COUNT_LOOP_ITERATION();
         ivec3 cell = first + ivec3(c & 1u, (c >> 1u) & 1u, c >> 2u);
         // A cell the sphere misses holds nothing to take (most of them once rq < r).
         vec3 lo = vec3(cell) * cellSize;
         vec3 outside = max(lo - s.position, vec3(0.0)) + max(s.position - lo - cellSize, vec3(0.0));
-        if (dot(outside, outside) >= rq2) continue;
         // The eight cells' buckets differ (photonBucket): each record is summed once.
         uint bucket = photonBucket(cell);
         uvec4 pair = texelFetch(photonCellTexels, int(bucket >> 1u));
         uvec2 range = (bucket & 1u) != 0u ? pair.zw : pair.xy;
-        uint n = range.y - range.x;
-        if (n == 0u) continue;
+        uint n = dot(outside, outside) < rq2 ? range.y - range.x : 0u;
         uint examined = min(n, params.photonGatherCap);
         uint start = examined < n ? min(uint(uWindow * float(n)), n - 1u) : 0u;
         float share = float(n) / float(examined);
         float weight = norm * share;
-        for (uint k = 0u; k < examined; ++k) {
-            PV_COUNT_LOOP_ITERATION();
-            // The window wraps: (start + k) mod n without a division (a per-lane scalar loop on
-            // llvmpipe).
-            uint offset = start + k;
-            uint at = range.x + (offset >= n ? offset - n : offset);
-            uvec4 t0 = texelFetch(photonTexels, int(2u * at));
-            vec3 d = uintBitsToFloat(t0.xyz) - s.position;
-            // Level 1 only where the path may gather it (shared/photon_map.h's rule).
-            bool levelGathered = level1 || (t0.w & PV_PHOTON_LEVEL_2) != 0u;
-            float d2 = dot(d, d);
-            if (d2 >= rq2 || (t0.w >> PV_PHOTON_BOUNCES_SHIFT) > maxBounces || !levelGathered)
-                continue;
-            taken += share;
-            uvec4 t1 = texelFetch(photonTexels, int(2u * at + 1u));
-            vec3 wi = octahedralDecode(unpackSnorm2x16(t1.w));
-            vec3 wiLocal = toLocal(frame, wi);
-            if (!consistentSide(s, wi, wiLocal)) continue;
-            float pdf;
-            float kernel = 2.0 * (1.0 - d2 / rq2);  // × norm (in weight): Epanechnikov
-            vec3 c = evaluateBsdf(bp, wo, wiLocal, pdf) * uintBitsToFloat(t1.xyz) *
-                     (weight * kernel);
-            if ((t0.w & PV_PHOTON_IN_MIXED) != 0u) fixedAdd(sumMixed, c);
-            if ((t0.w & PV_PHOTON_IN_REAL) != 0u) fixedAdd(sumReal, c);
+        if (examined > 0u) {
+            for (uint k = 0u;;) {
+                PV_COUNT_LOOP_ITERATION();
+                // The window wraps: (start + k) mod n without a division (a per-lane scalar loop
+                // on llvmpipe).
+                uint offset = start + k;
+                uint at = range.x + (offset >= n ? offset - n : offset);
+                uvec4 t0 = texelFetch(photonTexels, int(2u * at));
+                vec3 d = uintBitsToFloat(t0.xyz) - s.position;
+                // Level 1 only where the path may gather it (shared/photon_map.h's rule).
+                bool levelGathered = level1 || (t0.w & PV_PHOTON_LEVEL_2) != 0u;
+                float d2 = dot(d, d);
+                if (d2 < rq2 && (t0.w >> PV_PHOTON_BOUNCES_SHIFT) <= maxBounces &&
+                    levelGathered) {
+                    taken += share;
+                    uvec4 t1 = texelFetch(photonTexels, int(2u * at + 1u));
+                    vec3 wi = octahedralDecode(unpackSnorm2x16(t1.w));
+                    vec3 wiLocal = toLocal(frame, wi);
+                    if (consistentSide(s, wi, wiLocal)) {
+                        float pdf;
+                        float kernel = 2.0 * (1.0 - d2 / rq2);  // × norm (in weight): Epanechnikov
+                        vec3 f = evaluateBsdf(bp, wo, wiLocal, pdf) * uintBitsToFloat(t1.xyz) *
+                                 (weight * kernel);
+                        if ((t0.w & PV_PHOTON_IN_MIXED) != 0u) fixedAdd(sumMixed, f);
+                        if ((t0.w & PV_PHOTON_IN_REAL) != 0u) fixedAdd(sumReal, f);
+                    }
+                }
+                if (++k >= examined) break;
+            }
         }
+        if (++c >= 8u) break;
     }
     return taken;
 }
@@ -308,16 +314,21 @@ void gatherPhotons(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint depth, f
     uint maxBounces = params.maxDepth - depth - 1u;
     // The 2×2×2 cells (edge 2r) that the sphere of radius r around the point overlaps.
     ivec3 first = photonCell(s.position - vec3(r), 2.0 * r);
-    FixedRgb sumMixed = FixedRgb(uvec3(0u), uvec3(0u));
-    FixedRgb sumReal = FixedRgb(uvec3(0u), uvec3(0u));
-    float taken =
-        gatherWithin(s, bp, frame, wo, maxBounces, uWindow, level1, first, r, sumMixed, sumReal);
+    FixedRgb sumMixed;
+    FixedRgb sumReal;
     float k = float(params.photonGatherNeighbours);
-    if (k > 0.0 && taken > k) {
+    // The second pass is the loop's second trip, not a second copy of the gather: on llvmpipe
+    // every copy would run (masked) at every vertex, needed or not.
+    float rq = r;
+    for (bool again = false;;) {
+        PV_COUNT_LOOP_ITERATION();
         sumMixed = FixedRgb(uvec3(0u), uvec3(0u));
         sumReal = FixedRgb(uvec3(0u), uvec3(0u));
-        gatherWithin(s, bp, frame, wo, maxBounces, uWindow, level1, first, r * sqrt(k / taken),
-                     sumMixed, sumReal);
+        float taken = gatherWithin(s, bp, frame, wo, maxBounces, uWindow, level1, first, rq,
+                                   sumMixed, sumReal);
+        if (again || !(k > 0.0 && taken > k)) break;
+        again = true;
+        rq = r * sqrt(k / taken);
     }
     toMixed = fixedValue(sumMixed);
     toReal = fixedValue(sumReal);

@@ -155,15 +155,83 @@ struct PhotonState {
     uint level;    // records stored so far (0: still on its specular chain; 1: landed once)
 };
 
+// The records this invocation's photon stores (level 1 and 2, mixed and real slots).
+PhotonRecord gStored[PV_PHOTON_RECORDS_PER_PHOTON];
+
+// One segment of the photon in `st` (solution `mode`): the ray to its next hit, a record where it
+// lands, and the scattered ray. Returns true when the photon has ended. Where a shared photon
+// first meets a virtual object, its real solution's continuation is stored in realContinuation.
+bool extendPhoton(SampleKey key, inout PhotonState st, inout uint mode,
+                  inout PhotonState realContinuation, inout bool haveRealContinuation) {
+    Hit hit;
+    if (!intersectScene(st.ray, mode, hit)) return true;
+    if (hit.triangle >= params.realTriangleCount && mode == MODE_SHARED) {
+        realContinuation = st;
+        haveRealContinuation = true;
+        mode = MODE_MIXED;
+    }
+    Surface s = surfaceAt(st.ray, hit);
+    GpuMaterial m = materialAt(s.material);
+    if (kHasTransmission && !s.frontFace && maxComponent(m.attenuation) > 0.0)
+        st.power *= exp(-m.attenuation * hit.t);  // Beer–Lambert, as trace_paths
+    BsdfParams bp = bsdfParamsAt(m, s);
+    bool landed = !bsdfIsPurelySpecular(bp);
+    if (landed) {
+        // Direct light (no specular scattering yet) is the path tracer's.
+        if (st.bounces == 0u) return true;
+        uint slot = 2u * st.level + (mode == MODE_REAL ? 1u : 0u);
+        uint solutions = mode == MODE_SHARED ? PV_PHOTON_IN_MIXED | PV_PHOTON_IN_REAL
+                         : mode == MODE_MIXED ? PV_PHOTON_IN_MIXED
+                                              : PV_PHOTON_IN_REAL;
+        gStored[slot].position = s.position;
+        gStored[slot].flags = solutions | (st.level == 1u ? PV_PHOTON_LEVEL_2 : 0u) |
+                              (st.bounces << PV_PHOTON_BOUNCES_SHIFT);
+        gStored[slot].power = st.power;
+        gStored[slot].direction = packSnorm2x16(octahedralEncode(-st.ray.direction));
+        if (st.level == 1u) return true;
+        st.level = 1u;
+    }
+    if (st.bounces >= params.photonMaxBounces) return true;
+    Frame frame;
+    frame.n = s.shadingNormal;
+    buildBasis(frame.n, frame.t, frame.b);
+    vec3 wo = toLocal(frame, -st.ray.direction);
+    BsdfSample bs;
+    vec4 u = sampleSet(kSampler, key, PV_PHOTON_SET_BOUNCE + st.bounces);
+    if (!sampleBsdf(bp, wo, u, bs)) return true;
+    // On to level 2 only through the non-delta part of D's BSDF (shared/photon_map.h):
+    // a delta lobe there is the path tracer's.
+    if (landed && bs.isDelta) return true;
+    vec3 wi = toWorld(frame, bs.wi);
+    if (!consistentSide(s, wi, bs.wi))  // as trace_paths: only delta lobes come here
+        wi = nearestDirectionOnSide(wi, s.geometricNormal, bs.wi.z > 0.0 ? 1.0 : -1.0);
+    // Flux is not rescaled by 1/η² across a refraction (radiance is; the sample weight
+    // holds that factor for the path tracer's radiance): the adjoint BSDF (Veach 1997).
+    // A thin wall does not refract, and its weight has no such factor.
+    vec3 weight = bs.weight;
+    if (bs.lobe == PV_LOBE_TRANSMISSION && !bp.thinWalled) weight *= bp.etaRel * bp.etaRel;
+    if (landed) {
+        // Russian roulette on the albedo: level-2 photons keep about the power of
+        // level-1 ones, so the density estimate is not a sum of faint photons.
+        float pContinue = min(1.0, maxComponent(weight));
+        if (!(u.w < pContinue)) return true;
+        weight /= pContinue;
+    }
+    st.power *= weight;
+    st.bounces += 1u;
+    st.ray = directionRay(s.position, s.geometricNormal * (bs.wi.z > 0.0 ? 1.0 : -1.0),
+                          wi, PV_FLOAT_MAX);
+    return false;
+}
+
 void main() {
     uint photon = gl_GlobalInvocationID.x;
     if (photon >= params.photonCount) return;
-    PhotonRecord stored[PV_PHOTON_RECORDS_PER_PHOTON];
     for (uint k = 0u; k < PV_PHOTON_RECORDS_PER_PHOTON; ++k) {
-        stored[k].position = vec3(0.0);
-        stored[k].flags = 0u;
-        stored[k].power = vec3(0.0);
-        stored[k].direction = 0u;
+        gStored[k].position = vec3(0.0);
+        gStored[k].flags = 0u;
+        gStored[k].power = vec3(0.0);
+        gStored[k].direction = 0u;
     }
     PhotonState st;
     SampleKey key = makeSampleKey(params.photonIteration, photon, params.seed ^ 0x9e3779b9u, 0u);
@@ -174,82 +242,29 @@ void main() {
     uint mode = kDifferential && real ? MODE_SHARED : MODE_MIXED;
     PhotonState realContinuation = st;
     bool haveRealContinuation = false;
-    for (uint pass = 0u; pass < 2u && emitted; ++pass) {
-        PV_COUNT_LOOP_ITERATION();
-        if (pass == 1u) {
-            if (!haveRealContinuation) break;
-            st = realContinuation;
-            mode = MODE_REAL;
-        }
+    // One loop traces the photon, then its real solution's continuation behind a virtual object,
+    // and tests its exit at the end: llvmpipe runs a loop's whole body once more (masked) after
+    // the last lane of a batch breaks at the top, and a second loop for the continuation would
+    // run at least once for every batch (trace_paths.comp's tracePaths says more).
+    if (emitted) {
         for (;;) {
             PV_COUNT_LOOP_ITERATION();
-            Hit hit;
-            if (!intersectScene(st.ray, mode, hit)) break;
-            if (hit.triangle >= params.realTriangleCount && mode == MODE_SHARED) {
-                realContinuation = st;
-                haveRealContinuation = true;
-                mode = MODE_MIXED;
+            bool ended = extendPhoton(key, st, mode, realContinuation, haveRealContinuation);
+            if (ended) {
+                if (!haveRealContinuation) break;
+                st = realContinuation;
+                mode = MODE_REAL;
+                haveRealContinuation = false;
             }
-            Surface s = surfaceAt(st.ray, hit);
-            GpuMaterial m = materialAt(s.material);
-            if (kHasTransmission && !s.frontFace && maxComponent(m.attenuation) > 0.0)
-                st.power *= exp(-m.attenuation * hit.t);  // Beer–Lambert, as trace_paths
-            BsdfParams bp = bsdfParamsAt(m, s);
-            bool landed = !bsdfIsPurelySpecular(bp);
-            if (landed) {
-                // Direct light (no specular scattering yet) is the path tracer's.
-                if (st.bounces == 0u) break;
-                uint slot = 2u * st.level + (mode == MODE_REAL ? 1u : 0u);
-                uint solutions = mode == MODE_SHARED ? PV_PHOTON_IN_MIXED | PV_PHOTON_IN_REAL
-                                 : mode == MODE_MIXED ? PV_PHOTON_IN_MIXED
-                                                      : PV_PHOTON_IN_REAL;
-                stored[slot].position = s.position;
-                stored[slot].flags = solutions | (st.level == 1u ? PV_PHOTON_LEVEL_2 : 0u) |
-                                     (st.bounces << PV_PHOTON_BOUNCES_SHIFT);
-                stored[slot].power = st.power;
-                stored[slot].direction = packSnorm2x16(octahedralEncode(-st.ray.direction));
-                if (st.level == 1u) break;
-                st.level = 1u;
-            }
-            if (st.bounces >= params.photonMaxBounces) break;
-            Frame frame;
-            frame.n = s.shadingNormal;
-            buildBasis(frame.n, frame.t, frame.b);
-            vec3 wo = toLocal(frame, -st.ray.direction);
-            BsdfSample bs;
-            vec4 u = sampleSet(kSampler, key, PV_PHOTON_SET_BOUNCE + st.bounces);
-            if (!sampleBsdf(bp, wo, u, bs)) break;
-            // On to level 2 only through the non-delta part of D's BSDF (shared/photon_map.h):
-            // a delta lobe there is the path tracer's.
-            if (landed && bs.isDelta) break;
-            vec3 wi = toWorld(frame, bs.wi);
-            if (!consistentSide(s, wi, bs.wi))  // as trace_paths: only delta lobes come here
-                wi = nearestDirectionOnSide(wi, s.geometricNormal, bs.wi.z > 0.0 ? 1.0 : -1.0);
-            // Flux is not rescaled by 1/η² across a refraction (radiance is; the sample weight
-            // holds that factor for the path tracer's radiance): the adjoint BSDF (Veach 1997).
-            // A thin wall does not refract, and its weight has no such factor.
-            vec3 weight = bs.weight;
-            if (bs.lobe == PV_LOBE_TRANSMISSION && !bp.thinWalled) weight *= bp.etaRel * bp.etaRel;
-            if (landed) {
-                // Russian roulette on the albedo: level-2 photons keep about the power of
-                // level-1 ones, so the density estimate is not a sum of faint photons.
-                float pContinue = min(1.0, maxComponent(weight));
-                if (!(u.w < pContinue)) break;
-                weight /= pContinue;
-            }
-            st.power *= weight;
-            st.bounces += 1u;
-            st.ray = directionRay(s.position, s.geometricNormal * (bs.wi.z > 0.0 ? 1.0 : -1.0),
-                                  wi, PV_FLOAT_MAX);
         }
     }
     float cellSize = 2.0 * params.photonRadius;
     for (uint k = 0u; k < PV_PHOTON_RECORDS_PER_PHOTON; ++k) {
         uint record = PV_PHOTON_RECORDS_PER_PHOTON * photon + k;
-        records[record] = stored[k];
-        uint key = stored[k].flags == 0u
+        records[record] = gStored[k];
+        uint key = gStored[k].flags == 0u
                        ? PV_PHOTON_EMPTY_KEY
-                       : photonBucket(photonCell(stored[k].position, cellSize));
+                       : photonBucket(photonCell(gStored[k].position, cellSize));
         sortPairs[record] = uvec2(key, record);
     }
 }
