@@ -391,10 +391,14 @@ bool consistentSide(Surface s, vec3 wiWorld, vec3 wiLocal) {
 uint pickEmissiveTriangle(float u) {
     uint lo = 0u;
     uint hi = params.emissiveTriangleCount - 1u;
-    while (lo < hi) {
-        PV_COUNT_LOOP_ITERATION();
-        uint mid = (lo + hi) / 2u;
-        if (u < emissiveTriangleAt(mid).cdf) hi = mid; else lo = mid + 1u;
+    // The exit test at the end, as in envSearchMarginal (shared/env_sampling.h).
+    if (lo < hi) {
+        for (;;) {
+            PV_COUNT_LOOP_ITERATION();
+            uint mid = (lo + hi) / 2u;
+            if (u < emissiveTriangleAt(mid).cdf) hi = mid; else lo = mid + 1u;
+            if (lo >= hi) break;
+        }
     }
     return lo;
 }

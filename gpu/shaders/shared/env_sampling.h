@@ -64,14 +64,19 @@ PV_INLINE vec3 envRadiance(vec3 dirWorld, uint width, uint height, vec2 rotation
 }
 
 // Largest i in [first, first + n) with cdf(i) <= x, for cdf(first) <= x < cdf(first + n).
-// Written out per table because GLSL has no function pointers.
+// Written out per table because GLSL has no function pointers. The loops test their exit at the
+// end: on llvmpipe a test at the top runs the body once more after the last lane is done
+// (trace_paths.comp's tracePaths).
 PV_INLINE uint envSearchMarginal(float x, uint height) {
     uint lo = 0u;
     uint hi = height;
-    while (hi - lo > 1u) {
-        PV_COUNT_LOOP_ITERATION();
-        uint mid = (lo + hi) / 2u;
-        if (PV_ENV_MARGINAL_CDF(mid) <= x) lo = mid; else hi = mid;
+    if (hi - lo > 1u) {
+        for (;;) {
+            PV_COUNT_LOOP_ITERATION();
+            uint mid = (lo + hi) / 2u;
+            if (PV_ENV_MARGINAL_CDF(mid) <= x) lo = mid; else hi = mid;
+            if (hi - lo <= 1u) break;
+        }
     }
     return lo;
 }
@@ -80,10 +85,13 @@ PV_INLINE uint envSearchConditional(float x, uint row, uint width) {
     uint base = row * (width + 1u);
     uint lo = 0u;
     uint hi = width;
-    while (hi - lo > 1u) {
-        PV_COUNT_LOOP_ITERATION();
-        uint mid = (lo + hi) / 2u;
-        if (PV_ENV_CONDITIONAL_CDF(base + mid) <= x) lo = mid; else hi = mid;
+    if (hi - lo > 1u) {
+        for (;;) {
+            PV_COUNT_LOOP_ITERATION();
+            uint mid = (lo + hi) / 2u;
+            if (PV_ENV_CONDITIONAL_CDF(base + mid) <= x) lo = mid; else hi = mid;
+            if (hi - lo <= 1u) break;
+        }
     }
     return lo;
 }
