@@ -25,10 +25,6 @@ while [[ $# -gt 0 && $1 == --* ]]; do
 done
 (($# > 0)) || { echo "usage: $0 [--spp N] [--seeds K] PREVIS_BINARY..." >&2; exit 2; }
 binaries=("$@")
-data=${PREVIS_DATA_DIR:-${PREVIS_SHARED_DATA:-$root/../shared/data}}
-env_map="$data/envmaps/polyhaven_1k_hdr/rooitou_park_1k.hdr"
-cache="$root/build/compare_blender"
-mkdir -p "$cache"
 source "$root/bench/scenes/bench_scene.sh"
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT

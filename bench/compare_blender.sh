@@ -49,10 +49,6 @@ done
 width=640
 height=480
 depth=8
-# The shared data beside the checkout, else where PREVIS_DATA_DIR says.
-data=${PREVIS_DATA_DIR:-${PREVIS_SHARED_DATA:-$root/../shared/data}}
-env_map="$data/envmaps/polyhaven_1k_hdr/rooitou_park_1k.hdr"
-
 missing=()
 command -v blender >/dev/null || missing+=(blender)
 dpkg-query -W -f='${Status}' python3-numpy 2>/dev/null | grep -q "install ok installed" ||
@@ -68,8 +64,6 @@ build="$root/build"
     cmake -S "$root" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo >&2
 cmake --build "$build" --target previs -j"$(nproc)" >&2
 previs="$build/cli/previs"
-cache="$build/compare_blender"
-mkdir -p "$cache"
 source "$root/bench/scenes/bench_scene.sh"
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT

@@ -1,5 +1,12 @@
-# Sourced by bench/compare_blender.sh and bench/ablation.sh: the benchmark scenes by name, and the
-# cache key of a reference rendered of one. Needs $root, $data, $cache and $env_map set.
+# Sourced by bench/compare_blender.sh, bench/ablation.sh and bench/gpu_time.sh: the benchmark
+# scenes by name, and the cache key of a reference rendered of one. Needs $root set.
+
+# The shared data beside the checkout, else where PREVIS_DATA_DIR says; the cache of references
+# and generated scenes.
+data=${PREVIS_DATA_DIR:-${PREVIS_SHARED_DATA:-$root/../shared/data}}
+env_map="$data/envmaps/polyhaven_1k_hdr/rooitou_park_1k.hdr"
+cache="$root/build/compare_blender"
+mkdir -p "$cache"
 
 # Sets $scene (a glTF), $env (an HDR map, or "none") and $previs_args (extra `previs render`
 # options) for scene $1: bunny or area-lights.

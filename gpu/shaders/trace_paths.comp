@@ -257,10 +257,10 @@ float gatherWithin(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint maxBounc
         uvec2 range = (bucket & 1u) != 0u ? pair.zw : pair.xy;
         uint n = dot(outside, outside) < rq2 ? range.y - range.x : 0u;
         uint examined = min(n, params.photonGatherCap);
-        uint start = examined < n ? min(uint(uWindow * float(n)), n - 1u) : 0u;
-        float share = float(n) / float(examined);
-        float weight = norm * share;
         if (examined > 0u) {
+            uint start = examined < n ? min(uint(uWindow * float(n)), n - 1u) : 0u;
+            float share = float(n) / float(examined);
+            float weight = norm * share;
             for (uint k = 0u;;) {
                 PV_COUNT_LOOP_ITERATION();
                 // The window wraps: (start + k) mod n without a division (a per-lane scalar loop
@@ -515,13 +515,13 @@ bool extendPath(SampleKey key, inout PathState st, inout uint mode, inout vec3 l
     }
     if (!found) {
         if (kHasEnv && params.envWidth > 0u) {
+            vec2 rotation = vec2(params.envRotationCos, params.envRotationSin);
             vec3 le = params.envScale * envRadiance(st.ray.direction, params.envWidth,
-                                                    params.envHeight, vec2(params.envRotationCos, params.envRotationSin));
-            float w = st.prevDelta
-                          ? 1.0
-                          : powerHeuristic(st.prevPdf,
-                                           envPdf(st.ray.direction, params.envWidth,
-                                                  params.envHeight, vec2(params.envRotationCos, params.envRotationSin)));
+                                                    params.envHeight, rotation);
+            float w = st.prevDelta ? 1.0
+                                   : powerHeuristic(st.prevPdf,
+                                                    envPdf(st.ray.direction, params.envWidth,
+                                                           params.envHeight, rotation));
             addRadiance(mode, st.throughput * le * w, lm, lr);
         }
         if (kHasConeLights) {
@@ -661,17 +661,16 @@ void tracePaths(uvec2 pixel, uint pixelIndex) {
     bool haveRealContinuation = false;
     PathState reflectedBranch;
     bool haveReflectedBranch = false;
-    bool more = true;
+    bool sampleBegins = true;
     for (;;) {
         PV_COUNT_LOOP_ITERATION();
-        if (more) {
-            // Sample nth begins.
+        if (sampleBegins) {
             key = interleavedSampleKey(pixelIndex, params.sampleBase + nth, params.seed,
                                        params.replicates);
             beginPath(pixel, key, st, lm, lr, firstHitVirtual);
             nonFiniteRaysBefore = gNonFiniteRays;
             mode = kDifferential ? MODE_SHARED : MODE_MIXED;
-            more = false;
+            sampleBegins = false;
         }
         bool ended = extendPath(key, st, mode, lm, lr, firstHitVirtual, realContinuation,
                                 haveRealContinuation, reflectedBranch, haveReflectedBranch);
@@ -689,7 +688,7 @@ void tracePaths(uvec2 pixel, uint pixelIndex) {
                           gNonFiniteRays != nonFiniteRaysBefore);
                 nth += 1u;
                 if (nth >= params.samplesPerDispatch) break;
-                more = true;
+                sampleBegins = true;
             }
         }
     }

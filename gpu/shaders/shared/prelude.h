@@ -39,6 +39,14 @@
 #define PV_COUNT_LOOP_ITERATION()
 #endif
 
+// How llvmpipe runs control flow (Mesa 22.3's gallivm), which shapes the loops of these shaders:
+// an `if` does not branch, both sides run under a lane mask; a loop is always entered and tests
+// its mask only at the end of its body. So a loop tests its exit at the end (`for (;;) { ...;
+// if (done) break; }`): a test at the top runs the whole body once more, masked, after the last
+// lane of the SIMD batch has left. And code that must run at most once per pass of an enclosing
+// loop appears in it once: every copy of a loop runs at least once per pass, needed or not
+// (BENCHMARKS.md, "llvmpipe runs every branch").
+
 #define PV_PI 3.14159265358979323846f
 #define PV_INV_PI 0.31830988618379067154f
 #define PV_TWO_PI 6.28318530717958647692f

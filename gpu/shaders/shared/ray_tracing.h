@@ -309,6 +309,16 @@ PV_INLINE uint enteredChildren(uint ref, vec3 origin, vec3 invDir, float tMin, f
             (live) = false;                     \
     }
 
+// Declares a traversal's state: the stack, with the root `second` at its bottom; the subtree
+// `ref` to walk first; and `live`, false once nothing is left to walk.
+#define PV_BVH_BEGIN(first, second)                                  \
+    uint stack[PV_BVH_STACK_SIZE];                                   \
+    int stackSize = 0;                                               \
+    if ((second) != PV_BVH_NO_ROOT) stack[stackSize++] = (second);   \
+    uint ref = (first);                                              \
+    bool live = true;                                                \
+    if (ref == PV_BVH_NO_ROOT) PV_BVH_POP(ref, stack, stackSize, live)
+
 // Walks from `ref` down to a leaf, pushing the siblings not taken (far to near, so that the
 // nearest of them is popped first); clears `live` when no leaf is left. A macro, not a function:
 // GLSL passes arrays by value, so a helper taking the stack would copy all of it at every node.
@@ -336,12 +346,7 @@ PV_INLINE uint enteredChildren(uint ref, vec3 origin, vec3 invDir, float tMin, f
 // them in the same order.)
 PV_INLINE bool traceClosest(uint first, uint second, Ray ray, PV_INOUT(Hit) hit) {
     if (!rayIsFinite(ray.origin, ray.direction)) return false;
-    uint stack[PV_BVH_STACK_SIZE];
-    int stackSize = 0;
-    if (second != PV_BVH_NO_ROOT) stack[stackSize++] = second;
-    uint ref = first;
-    bool live = true;
-    if (ref == PV_BVH_NO_ROOT) PV_BVH_POP(ref, stack, stackSize, live)
+    PV_BVH_BEGIN(first, second)
     float tMax = min(ray.tMax, hit.t);
     vec3 invDir = 1.0f / ray.direction;
     TriangleRay tr = makeTriangleRay(ray.origin, ray.direction);
@@ -369,12 +374,7 @@ PV_INLINE bool traceClosest(uint first, uint second, Ray ray, PV_INOUT(Hit) hit)
 #define PV_BVH_NO_TRIANGLE 0xffffffffu
 PV_INLINE uint traceAny(uint first, uint second, Ray ray) {
     if (!rayIsFinite(ray.origin, ray.direction)) return PV_BVH_NO_TRIANGLE;
-    uint stack[PV_BVH_STACK_SIZE];
-    int stackSize = 0;
-    if (second != PV_BVH_NO_ROOT) stack[stackSize++] = second;
-    uint ref = first;
-    bool live = true;
-    if (ref == PV_BVH_NO_ROOT) PV_BVH_POP(ref, stack, stackSize, live)
+    PV_BVH_BEGIN(first, second)
     vec3 invDir = 1.0f / ray.direction;
     TriangleRay tr = makeTriangleRay(ray.origin, ray.direction);
     uint blocker = PV_BVH_NO_TRIANGLE;
