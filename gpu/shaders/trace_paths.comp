@@ -40,9 +40,11 @@ vec4 draw(SampleKey key, uint set) { return sampleSet(kSampler, key, set); }
 // (virtual geometry). A virtual light exists only in the mixed scene.
 void addLightSample(vec3 c, bool lightIsReal, Ray ray, uint mode, inout vec3 toMixed,
                     inout vec3 toReal) {
+    // A virtual light has nothing to give the real solution: no ray (nor a dropped sample).
+    if (mode == MODE_REAL && !lightIsReal) return;
     uint blocker = occluder(ray, mode);
     if (mode == MODE_REAL) {
-        if (lightIsReal && blocker == OCCLUDER_NONE) toReal += c;
+        if (blocker == OCCLUDER_NONE) toReal += c;
         return;
     }
     if (blocker == OCCLUDER_REAL) return;

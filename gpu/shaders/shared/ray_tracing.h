@@ -28,8 +28,9 @@
 // Root index of a BVH with no triangles: traversal returns "no hit" at once.
 #define PV_BVH_NO_ROOT 0xffffffffu
 // Traversal stack entries. Nearest-child-first traversal of the 4-wide tree pushes at most three
-// references per level, so a tree of depth D (root at depth 0) needs 3·D entries; render/bvh.cpp
-// caps the depth so that this always suffices.
+// references per level, so a tree of depth D (root at depth 0) needs 3·D entries, plus one for
+// the second BVH's root that traceClosest and traceAny keep at the bottom; render/bvh.cpp caps the
+// depth so that this always suffices.
 #define PV_BVH_STACK_SIZE 208
 // 1 + 2γ(3) with γ(n) = nε/(1 - nε), ε = 2^-24 (pbrt-v4 Bounds3::IntersectP; Ize 2013, "Robust
 // BVH Ray Traversal"): widens a slab's far distance by the worst rounding error of
@@ -310,7 +311,8 @@ PV_INLINE uint enteredChildren(uint ref, vec3 origin, vec3 invDir, float tMin, f
     }
 
 // Declares a traversal's state: the stack, with the root `second` at its bottom; the subtree
-// `ref` to walk first; and `live`, false once nothing is left to walk.
+// `ref` to walk first; and `live`, false once nothing is left to walk. This and PV_BVH_DESCEND
+// end in an `if`: use them as statements of their own, never before an `else`.
 #define PV_BVH_BEGIN(first, second)                                  \
     uint stack[PV_BVH_STACK_SIZE];                                   \
     int stackSize = 0;                                               \
