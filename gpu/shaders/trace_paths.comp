@@ -253,11 +253,14 @@ float gatherWithin(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint maxBounc
         // A cell the sphere misses holds nothing to take (most of them once rq < r).
         vec3 lo = vec3(cell) * cellSize;
         vec3 outside = max(lo - s.position, vec3(0.0)) + max(s.position - lo - cellSize, vec3(0.0));
-        // The eight cells' buckets differ (photonBucket): each record is summed once.
-        uint bucket = photonBucket(cell);
-        uvec4 pair = texelFetch(photonCellTexels, int(bucket >> 1u));
-        uvec2 range = (bucket & 1u) != 0u ? pair.zw : pair.xy;
-        uint n = dot(outside, outside) < rq2 ? range.y - range.x : 0u;
+        uvec2 range = uvec2(0u);
+        if (dot(outside, outside) < rq2) {
+            // The eight cells' buckets differ (photonBucket): each record is summed once.
+            uint bucket = photonBucket(cell);
+            uvec4 pair = texelFetch(photonCellTexels, int(bucket >> 1u));
+            range = (bucket & 1u) != 0u ? pair.zw : pair.xy;
+        }
+        uint n = range.y - range.x;
         uint examined = min(n, params.photonGatherCap);
         if (examined > 0u) {
             uint start = examined < n ? min(uint(uWindow * float(n)), n - 1u) : 0u;
