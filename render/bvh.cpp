@@ -19,10 +19,11 @@ using shader::BvhNode;
 // leaves the shaders' stack a margin; at the cap a node becomes a leaf whatever its size.
 constexpr uint32_t kMaxDepth = 56;
 // A wide node is at least one binary level below its parent, a leaf too large for one reference
-// adds at most log4(2^24 / 128) < 9 levels (leafReference), and traversal pushes at most three
-// children per level, above the second BVH's root (traceClosest walks both).
-static_assert(3 * (kMaxDepth + 9) + 1 <= PV_BVH_STACK_SIZE,
-              "traversal stack cannot hold the deepest path");
+// adds at most log4(2^24 / 128) < 9 levels (leafReference), and traversal keeps one stack entry
+// per node of its path (ray_tracing.h).
+static_assert(kMaxDepth + 9 <= PV_BVH_STACK_SIZE, "traversal stack cannot hold the deepest path");
+// A traversal stack entry keeps a node index in the bits above PV_BVH_ENTRY_NODE_SHIFT.
+constexpr size_t kMaxWideNodes = size_t(1) << (32 - PV_BVH_ENTRY_NODE_SHIFT);
 
 // Centroid bins per axis (Wald 2007, "On fast Construction of SAH-based Bounding Volume
 // Hierarchies": 16–32 bins lose little against a full sweep).
@@ -435,6 +436,9 @@ Result<SceneBvh> buildSceneBvh(const Geometry& geometry, const BvhBuildOptions& 
     if (bvh.virtualRoot != kBvhNoRoot)
         bvh.wideVirtualRoot =
             collapseToWide(bvh.nodes, bvh.virtualRoot, 0, bvh.wideNodes, bvh.wideMaxDepth);
+    if (bvh.wideNodes.size() > kMaxWideNodes)
+        return makeError("scene has {} triangles, which need {} BVH nodes; traversal supports {}",
+                         triangleCount, bvh.wideNodes.size(), kMaxWideNodes);
     bvh.buildSeconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return bvh;

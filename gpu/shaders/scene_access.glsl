@@ -134,6 +134,7 @@ vec2 lensGridAt(uint corner) {
     return vec2(wordAsFloat(lensGridWords, 2u * corner), wordAsFloat(lensGridWords, 2u * corner + 1u));
 }
 #define PV_BVH_NODE(i) loadBvhNode(i)
+#define PV_BVH_NODE_CHILDREN(i) texelFetch(bvhNodeTexels, int(7u * (i) + 6u))
 #define PV_TRIANGLE_VERTEX(i, k) \
     uintBitsToFloat(texelFetch(triangleVertexTexels, int(3u * (i) + (k))).xyz)
 #include "shared/ray_tracing.h"

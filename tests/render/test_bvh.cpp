@@ -157,7 +157,7 @@ void checkWideStructure(const SceneBvh& bvh, const Geometry& g) {
             Visit v = stack.back();
             stack.pop_back();
             ASSERT_LT(v.node, bvh.wideNodes.size());
-            ASSERT_LE(3 * (v.depth + 1), uint32_t(PV_BVH_STACK_SIZE));
+            ASSERT_LE(v.depth + 1, uint32_t(PV_BVH_STACK_SIZE));
             const shader::WideBvhNode& w = bvh.wideNodes[v.node];
             for (int i = 0; i < 4; ++i) {
                 glm::vec3 lo(w.loX[i], w.loY[i], w.loZ[i]);

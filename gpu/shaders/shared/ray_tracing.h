@@ -5,6 +5,7 @@
 // The first part (types, intersection, offsetRayOrigin) needs nothing from the includer. The
 // traversal part is compiled only when the includer has defined the accessors first:
 //   PV_BVH_NODE(i)  -> WideBvhNode  node i of the 4-wide BVH
+//   PV_BVH_NODE_CHILDREN(i) -> uvec4  its child references alone (WideBvhNode::child)
 //   PV_TRIANGLE_VERTEX(i, k) -> vec3  vertex k (0, 1, 2) of triangle i, in BVH order
 // It has its own include guard, so a C++ file may include the first part through another header
 // and the traversal after binding the macros. In C++ the traversal sits in an anonymous
@@ -27,11 +28,13 @@
 
 // Root index of a BVH with no triangles: traversal returns "no hit" at once.
 #define PV_BVH_NO_ROOT 0xffffffffu
-// Traversal stack entries. Nearest-child-first traversal of the 4-wide tree pushes at most three
-// references per level, so a tree of depth D (root at depth 0) needs 3·D entries, plus one for
-// the second BVH's root that traceClosest and traceAny keep at the bottom; render/bvh.cpp caps the
-// depth so that this always suffices.
-#define PV_BVH_STACK_SIZE 208
+// Traversal stack entries. An entry holds one node of the path from the root (see PV_BVH_POP),
+// so a tree of depth D (root at depth 0) needs D entries; render/bvh.cpp caps the depth so that
+// this always suffices.
+#define PV_BVH_STACK_SIZE 72
+// A stack entry keeps its node's index above this bit (PV_BVH_POP); render/bvh.cpp keeps node
+// indices below 2^24.
+#define PV_BVH_ENTRY_NODE_SHIFT 8u
 // 1 + 2γ(3) with γ(n) = nε/(1 - nε), ε = 2^-24 (pbrt-v4 Bounds3::IntersectP; Ize 2013, "Robust
 // BVH Ray Traversal"): widens a slab's far distance by the worst rounding error of
 // (bound - origin) * invDir, so a ray that hits a triangle never misses its box.
@@ -189,7 +192,7 @@ PV_END
 
 #endif  // PREVIS_SHARED_RAY_TRACING_H
 
-#if defined(PV_BVH_NODE) && defined(PV_TRIANGLE_VERTEX) && \
+#if defined(PV_BVH_NODE) && defined(PV_BVH_NODE_CHILDREN) && defined(PV_TRIANGLE_VERTEX) && \
     !defined(PREVIS_SHARED_RAY_TRACING_TRAVERSAL_H)
 #define PREVIS_SHARED_RAY_TRACING_TRAVERSAL_H
 
@@ -260,10 +263,11 @@ PV_INLINE void sortPair(PV_INOUT(float) ka, PV_INOUT(uint) va, PV_INOUT(float) k
     }
 }
 
-// Visits wide node `ref`: writes the references of the children the ray enters to `children`,
-// nearest entry first, and returns how many there are (0-4).
+// Visits wide node `ref`: writes its child references to `children` and the slots (0-3) of the
+// children the ray enters to `order`, nearest entry first, two bits each from bit 0; returns how
+// many the ray enters (0-4).
 PV_INLINE uint enteredChildren(uint ref, vec3 origin, vec3 invDir, float tMin, float tMax,
-                               PV_OUT(uvec4) children) {
+                               PV_OUT(uvec4) children, PV_OUT(uint) order) {
     WideBvhNode n = PV_BVH_NODE(ref);
     vec4 tEntry;
     bvec4 entered = intersectChildBoxes(n, origin, invDir, tMin, tMax, tEntry);
@@ -273,18 +277,28 @@ PV_INLINE uint enteredChildren(uint ref, vec3 origin, vec3 invDir, float tMin, f
     float k1 = entered.y ? tEntry.y : none;
     float k2 = entered.z ? tEntry.z : none;
     float k3 = entered.w ? tEntry.w : none;
-    uint c0 = n.child.x;
-    uint c1 = n.child.y;
-    uint c2 = n.child.z;
-    uint c3 = n.child.w;
+    uint s0 = 0u;
+    uint s1 = 1u;
+    uint s2 = 2u;
+    uint s3 = 3u;
     // A sorting network for four.
-    sortPair(k0, c0, k1, c1);
-    sortPair(k2, c2, k3, c3);
-    sortPair(k0, c0, k2, c2);
-    sortPair(k1, c1, k3, c3);
-    sortPair(k1, c1, k2, c2);
-    children = uvec4(c0, c1, c2, c3);
+    sortPair(k0, s0, k1, s1);
+    sortPair(k2, s2, k3, s3);
+    sortPair(k0, s0, k2, s2);
+    sortPair(k1, s1, k3, s3);
+    sortPair(k1, s1, k2, s2);
+    children = n.child;
+    order = s0 | (s1 << 2u) | (s2 << 4u) | (s3 << 6u);
     return uint(entered.x) + uint(entered.y) + uint(entered.z) + uint(entered.w);
+}
+
+// The child reference in slot `slot` of `children` (selects: a per-lane index into a vector
+// would be a per-lane loop on llvmpipe).
+PV_INLINE uint childInSlot(uvec4 children, uint slot) {
+    return slot == 0u   ? children.x
+           : slot == 1u ? children.y
+           : slot == 2u ? children.z
+                        : children.w;
 }
 
 // Both traversals are "while-while" (Aila & Laine 2009, "Understanding the Efficiency of Ray
@@ -297,49 +311,74 @@ PV_INLINE uint enteredChildren(uint ref, vec3 origin, vec3 invDir, float tMin, f
 // mask only where its body ends:
 // - every loop tests its exit at the end of its body. A test at the top would run the whole
 //   body once more, masked, after the batch's last lane left it;
-// - one traversal walks both BVHs, the second root waiting at the bottom of the stack, so a
-//   shading point's code holds one traversal loop per ray, not one per BVH.
+// - one traversal walks both BVHs, the second root waiting until the first tree is done, so a
+//   shading point's code holds one traversal loop per ray, not one per BVH;
+// - a node visit stores at most one stack entry, not one per sibling left to visit: an entry is
+//   the node and the slots of its entered children still to visit, nearest first, and the newest
+//   entry stays in a register (`top`) until a later node needs the register. The stack is a
+//   per-lane array, and llvmpipe stores to one lane by lane, each behind a branch on the lane's
+//   mask, whether or not any lane stores (measured: the three pushes per visit were a quarter of
+//   all shader time on the area-light scene).
+//
+// An entry: node index << PV_BVH_ENTRY_NODE_SHIFT | the slots left (bits 2-3 the nearest, 4-5,
+// 6-7) | their count (bits 0-1, 1-3). 0 is no entry (a count is never 0).
 
-// Pops the next subtree into `ref`, or clears `live` when none is left. (No do-while wrapper:
-// in a shader that would be a loop.)
-#define PV_BVH_POP(ref, stack, stackSize, live) \
-    {                                           \
-        if ((stackSize) > 0)                    \
-            (ref) = (stack)[--(stackSize)];     \
-        else                                    \
-            (live) = false;                     \
+// Takes the next subtree into `ref`: the nearest sibling left in the newest entry, else the
+// second BVH's root once the first is done; clears `live` when none is left. (No do-while
+// wrapper: in a shader that would be a loop.)
+#define PV_BVH_POP(ref, stack, stackSize, top, pendingRoot, live)                              \
+    {                                                                                          \
+        if ((top) == 0u && (stackSize) > 0) (top) = (stack)[--(stackSize)];                   \
+        if ((top) != 0u) {                                                                     \
+            (ref) = childInSlot(PV_BVH_NODE_CHILDREN((top) >> PV_BVH_ENTRY_NODE_SHIFT),         \
+                                ((top) >> 2u) & 3u);                                           \
+            uint left = ((top) & 3u) - 1u;                                                     \
+            uint rest = (((top) >> 4u) & 0xfu) << 2u;                                          \
+            (top) = left == 0u ? 0u : (((top) & ~0xffu) | rest | left);                        \
+        } else if ((pendingRoot) != PV_BVH_NO_ROOT) {                                          \
+            (ref) = (pendingRoot);                                                             \
+            (pendingRoot) = PV_BVH_NO_ROOT;                                                    \
+        } else {                                                                               \
+            (live) = false;                                                                    \
+        }                                                                                      \
     }
 
-// Declares a traversal's state: the stack, with the root `second` at its bottom; the subtree
-// `ref` to walk first; and `live`, false once nothing is left to walk. This and PV_BVH_DESCEND
-// end in an `if`: use them as statements of their own, never before an `else`.
+// Declares a traversal's state: the stack and its register top, the root `second` to walk once
+// `first` is done, the subtree `ref` to walk first, and `live`, false once nothing is left to
+// walk. This and PV_BVH_DESCEND end in an `if`: use them as statements of their own, never before
+// an `else`.
 #define PV_BVH_BEGIN(first, second)                                  \
     uint stack[PV_BVH_STACK_SIZE];                                   \
     int stackSize = 0;                                               \
-    if ((second) != PV_BVH_NO_ROOT) stack[stackSize++] = (second);   \
+    uint top = 0u;                                                   \
+    uint pendingRoot = (second);                                     \
     uint ref = (first);                                              \
     bool live = true;                                                \
-    if (ref == PV_BVH_NO_ROOT) PV_BVH_POP(ref, stack, stackSize, live)
+    if (ref == PV_BVH_NO_ROOT) PV_BVH_POP(ref, stack, stackSize, top, pendingRoot, live)
 
-// Walks from `ref` down to a leaf, pushing the siblings not taken (far to near, so that the
-// nearest of them is popped first); clears `live` when no leaf is left. A macro, not a function:
-// GLSL passes arrays by value, so a helper taking the stack would copy all of it at every node.
-#define PV_BVH_DESCEND(ref, stack, stackSize, origin, invDir, tMin, tMax, live)                  \
-    if (((ref) & PV_WIDE_LEAF) == 0u) {                                                         \
-        for (;;) {                                                                              \
-            PV_COUNT_LOOP_ITERATION();                                                          \
-            uvec4 children;                                                                     \
-            uint entered = enteredChildren((ref), (origin), (invDir), (tMin), (tMax), children); \
-            if (entered == 0u) {                                                                \
-                PV_BVH_POP(ref, stack, stackSize, live)                                         \
-            } else {                                                                            \
-                if (entered > 3u) (stack)[(stackSize)++] = children.w;                          \
-                if (entered > 2u) (stack)[(stackSize)++] = children.z;                          \
-                if (entered > 1u) (stack)[(stackSize)++] = children.y;                          \
-                (ref) = children.x;                                                             \
-            }                                                                                   \
-            if (!(live) || ((ref) & PV_WIDE_LEAF) != 0u) break;                                 \
-        }                                                                                       \
+// Walks from `ref` down to a leaf, keeping the entered siblings not taken in an entry (see
+// above); clears `live` when no leaf is left. A macro, not a function: GLSL passes arrays by
+// value, so a helper taking the stack would copy all of it at every node.
+#define PV_BVH_DESCEND(ref, stack, stackSize, top, pendingRoot, origin, invDir, tMin, tMax, live) \
+    if (((ref) & PV_WIDE_LEAF) == 0u) {                                                          \
+        for (;;) {                                                                               \
+            PV_COUNT_LOOP_ITERATION();                                                           \
+            uvec4 children;                                                                      \
+            uint order;                                                                          \
+            uint entered =                                                                       \
+                enteredChildren((ref), (origin), (invDir), (tMin), (tMax), children, order);     \
+            if (entered == 0u) {                                                                 \
+                PV_BVH_POP(ref, stack, stackSize, top, pendingRoot, live)                        \
+            } else {                                                                             \
+                if (entered > 1u) {                                                              \
+                    if ((top) != 0u) (stack)[(stackSize)++] = (top);                             \
+                    uint slotsLeft = (order & 0xfcu) | (entered - 1u);                           \
+                    (top) = ((ref) << PV_BVH_ENTRY_NODE_SHIFT) | slotsLeft;                      \
+                }                                                                                \
+                (ref) = childInSlot(children, order & 3u);                                       \
+            }                                                                                    \
+            if (!(live) || ((ref) & PV_WIDE_LEAF) != 0u) break;                                  \
+        }                                                                                        \
     }
 
 // Closest hit with t in (ray.tMin, min(ray.tMax, hit.t)) in the BVHs at `first` and `second`
@@ -356,12 +395,13 @@ PV_INLINE bool traceClosest(uint first, uint second, Ray ray, PV_INOUT(Hit) hit)
     if (live) {
         for (;;) {
             PV_COUNT_LOOP_ITERATION();
-            PV_BVH_DESCEND(ref, stack, stackSize, ray.origin, invDir, ray.tMin, tMax, live)
+            PV_BVH_DESCEND(ref, stack, stackSize, top, pendingRoot, ray.origin, invDir, ray.tMin,
+                           tMax, live)
             if (live) {
                 uint start = ref & ((1u << PV_WIDE_LEAF_FIRST_BITS) - 1u);
                 uint count = ((ref & ~PV_WIDE_LEAF) >> PV_WIDE_LEAF_FIRST_BITS) + 1u;
                 if (intersectLeaf(tr, start, count, ray.tMin, tMax, hit)) found = true;
-                PV_BVH_POP(ref, stack, stackSize, live)
+                PV_BVH_POP(ref, stack, stackSize, top, pendingRoot, live)
             }
             if (!live) break;
         }
@@ -383,7 +423,8 @@ PV_INLINE uint traceAny(uint first, uint second, Ray ray) {
     if (live) {
         for (;;) {
             PV_COUNT_LOOP_ITERATION();
-            PV_BVH_DESCEND(ref, stack, stackSize, ray.origin, invDir, ray.tMin, ray.tMax, live)
+            PV_BVH_DESCEND(ref, stack, stackSize, top, pendingRoot, ray.origin, invDir, ray.tMin,
+                           ray.tMax, live)
             if (live) {
                 uint start = ref & ((1u << PV_WIDE_LEAF_FIRST_BITS) - 1u);
                 uint count = ((ref & ~PV_WIDE_LEAF) >> PV_WIDE_LEAF_FIRST_BITS) + 1u;
@@ -401,7 +442,7 @@ PV_INLINE uint traceAny(uint first, uint second, Ray ray) {
                 if (blocker != PV_BVH_NO_TRIANGLE)
                     live = false;
                 else
-                    PV_BVH_POP(ref, stack, stackSize, live)
+                    PV_BVH_POP(ref, stack, stackSize, top, pendingRoot, live)
             }
             if (!live) break;
         }
