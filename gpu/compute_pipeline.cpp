@@ -9,20 +9,8 @@ namespace previs {
 namespace {
 
 vk::DescriptorType descriptorType(BindingKind kind) {
-    switch (kind) {
-        case BindingKind::StorageBuffer:
-            return vk::DescriptorType::eStorageBuffer;
-        case BindingKind::UniformBuffer:
-            return vk::DescriptorType::eUniformBuffer;
-        case BindingKind::TexelBufferUint4:
-        case BindingKind::TexelBufferUint:
-            break;
-    }
-    return vk::DescriptorType::eUniformTexelBuffer;
-}
-
-bool isTexelBuffer(BindingKind kind) {
-    return kind == BindingKind::TexelBufferUint4 || kind == BindingKind::TexelBufferUint;
+    return kind == BindingKind::StorageBuffer ? vk::DescriptorType::eStorageBuffer
+                                              : vk::DescriptorType::eUniformTexelBuffer;
 }
 
 size_t texelBytes(BindingKind kind) { return kind == BindingKind::TexelBufferUint4 ? 16 : 4; }
@@ -45,16 +33,11 @@ Result<ComputePipeline> ComputePipeline::create(GpuContext& ctx, std::span<const
     try {
         const auto& device = ctx.device();
         std::vector<vk::DescriptorSetLayoutBinding> layoutBindings;
-        std::vector<vk::DescriptorPoolSize> poolSizes;
+        uint32_t storageCount = 0;
+        uint32_t texelCount = 0;
         for (uint32_t i = 0; i < bindings.size(); ++i) {
             vk::DescriptorType type = descriptorType(bindings[i]);
-            auto size =
-                std::find_if(poolSizes.begin(), poolSizes.end(),
-                             [&](const vk::DescriptorPoolSize& s) { return s.type == type; });
-            if (size == poolSizes.end())
-                poolSizes.emplace_back(type, 1);
-            else
-                size->descriptorCount += 1;
+            (type == vk::DescriptorType::eStorageBuffer ? storageCount : texelCount) += 1;
             layoutBindings.emplace_back(i, type, 1, vk::ShaderStageFlagBits::eCompute);
         }
         p.setLayout_ = vk::raii::DescriptorSetLayout(
@@ -78,6 +61,9 @@ Result<ComputePipeline> ComputePipeline::create(GpuContext& ctx, std::span<const
                                vk::ComputePipelineCreateInfo(
                                    vk::PipelineCreateFlagBits::eDispatchBase, stage, *p.layout_));
 
+        std::vector<vk::DescriptorPoolSize> poolSizes;
+        if (storageCount) poolSizes.emplace_back(vk::DescriptorType::eStorageBuffer, storageCount);
+        if (texelCount) poolSizes.emplace_back(vk::DescriptorType::eUniformTexelBuffer, texelCount);
         p.pool_ = vk::raii::DescriptorPool(
             device, vk::DescriptorPoolCreateInfo(
                         vk::DescriptorPoolCreateFlagBits::eFreeDescriptorSet, 1, poolSizes));
@@ -105,7 +91,7 @@ Status ComputePipeline::bind(std::span<const GpuBuffer* const> buffers,
     for (uint32_t i = 0; i < buffers.size(); ++i) {
         const BufferRange range = ranges.empty() ? BufferRange{} : ranges[i];
         infos.emplace_back(buffers[i]->handle(), range.offset, range.size);
-        if (!isTexelBuffer(bindings_[i])) continue;
+        if (bindings_[i] == BindingKind::StorageBuffer) continue;
         // GpuBuffer allocates at least 16 bytes, so an empty array still has one texel.
         const size_t bytesPerTexel = texelBytes(bindings_[i]);
         const size_t texels = std::max<size_t>(1, buffers[i]->size() / bytesPerTexel);
@@ -126,11 +112,12 @@ Status ComputePipeline::bind(std::span<const GpuBuffer* const> buffers,
     }
     std::vector<vk::WriteDescriptorSet> writes;
     for (uint32_t i = 0; i < buffers.size(); ++i) {
-        if (isTexelBuffer(bindings_[i]))
+        if (bindings_[i] != BindingKind::StorageBuffer)
             writes.emplace_back(*set_, i, 0, 1, vk::DescriptorType::eUniformTexelBuffer, nullptr,
                                 nullptr, &viewHandles[i]);
         else
-            writes.emplace_back(*set_, i, 0, 1, descriptorType(bindings_[i]), nullptr, &infos[i]);
+            writes.emplace_back(*set_, i, 0, 1, vk::DescriptorType::eStorageBuffer, nullptr,
+                                &infos[i]);
     }
     ctx_->device().updateDescriptorSets(writes, nullptr);
     // Dispatches wait for completion, so no submission still uses the views replaced here.

@@ -23,10 +23,6 @@ enum class BindingKind {
     TexelBufferUint4,
     // The same for arrays of 4-byte words (R32_UINT: floats as bits, packed texture texels).
     TexelBufferUint,
-    // Small read-only parameters every lane reads at the same address (the frame parameters). On
-    // llvmpipe a uniform-buffer load is one scalar load; a storage-buffer load inside any branch
-    // or loop is a loop over the active lanes (measured: 6 % of path-tracing time).
-    UniformBuffer,
 };
 
 // The bytes [offset, offset + size) of a buffer; size VK_WHOLE_SIZE: to its end.

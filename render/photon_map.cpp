@@ -183,7 +183,6 @@ Result<PhotonPasses> PhotonPasses::create(GpuContext& ctx, std::span<const Bindi
     if (!trace) return trace.error();
     p.trace_.emplace(std::move(trace.value()));
     std::vector<BindingKind> storage(PV_BINDING_COUNT, BindingKind::StorageBuffer);
-    storage[PV_BINDING_PARAMS] = BindingKind::UniformBuffer;
     for (uint32_t stage : {kHistogram, kScan, kScatter, kCells}) {
         std::array<uint32_t, 2> constants{
             stage, stage == kScan ? PV_PHOTON_SCAN_GROUP : PV_PHOTON_SORT_BLOCK};

@@ -214,11 +214,9 @@ Status Renderer::specialisePipeline() {
     constants[PV_SPEC_DENOISE_GUIDES] = settings_.denoise;
     if (pipeline_ && constants == specConstants_) return bindBuffers();
     // Every read-only array the shader indexes per lane is a texel buffer (see BindingKind);
-    // params (the same address in every lane) are a uniform buffer; the accumulators and the stats
-    // stay storage buffers.
+    // params (uniform reads), the accumulators and the stats stay storage buffers.
     std::array<BindingKind, PV_BINDING_COUNT> bindings{};
     bindings.fill(BindingKind::StorageBuffer);
-    bindings[PV_BINDING_PARAMS] = BindingKind::UniformBuffer;
     bindings[PV_BINDING_BVH_NODES] = BindingKind::TexelBufferUint4;
     for (int b : {PV_BINDING_TEXTURES, PV_BINDING_TRIANGLE_VERTICES, PV_BINDING_TRIANGLES,
                   PV_BINDING_NORMALS, PV_BINDING_UVS, PV_BINDING_MATERIALS, PV_BINDING_LIGHTS,

@@ -22,7 +22,7 @@ layout(constant_id = 0) const uint kStage = STAGE_HISTOGRAM;
 // PV_PHOTON_SORT_BLOCK records.
 layout(local_size_x_id = 1) in;
 
-layout(binding = PV_BINDING_PARAMS, scalar) uniform ParamsBlock { FrameParams params; };
+layout(binding = PV_BINDING_PARAMS, scalar) readonly buffer ParamsBuffer { FrameParams params; };
 layout(binding = PV_BINDING_PHOTON_RECORDS, scalar) readonly buffer Records { PhotonRecord records[]; };
 layout(binding = PV_BINDING_PHOTON_SORTED, scalar) writeonly buffer Sorted { PhotonRecord sortedRecords[]; };
 layout(binding = PV_BINDING_PHOTON_SORT_A, scalar) buffer SortA { uvec2 sortA[]; };

@@ -28,7 +28,7 @@ layout(constant_id = PV_SPEC_LIGHT_SOLID_ANGLE) const bool kLightSolidAngle = tr
 // Caustics from the photon map (shared/photon_map.h).
 layout(constant_id = PV_SPEC_PHOTONS) const bool kPhotons = true;
 
-layout(binding = PV_BINDING_PARAMS, scalar) uniform ParamsBlock { FrameParams params; };
+layout(binding = PV_BINDING_PARAMS, scalar) readonly buffer ParamsBuffer { FrameParams params; };
 // Every read-only scene array indexed per lane is a texel buffer (BindingKind::TexelBufferUint4):
 // on llvmpipe a texel fetch is a gather, while a storage-buffer load whose address differs per
 // lane is a loop over the lanes with a bounds check each. A BVH node is seven texels
