@@ -192,6 +192,9 @@ PV_END
 
 #endif  // PREVIS_SHARED_RAY_TRACING_H
 
+#if defined(PV_BVH_NODE) && !(defined(PV_BVH_NODE_CHILDREN) && defined(PV_TRIANGLE_VERTEX))
+#error "the traversal needs PV_BVH_NODE_CHILDREN and PV_TRIANGLE_VERTEX as well as PV_BVH_NODE"
+#endif
 #if defined(PV_BVH_NODE) && defined(PV_BVH_NODE_CHILDREN) && defined(PV_TRIANGLE_VERTEX) && \
     !defined(PREVIS_SHARED_RAY_TRACING_TRAVERSAL_H)
 #define PREVIS_SHARED_RAY_TRACING_TRAVERSAL_H
