@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include "base/log.h"
+#include "gpu/spirv_specialise.h"
 
 namespace previs {
 
@@ -24,8 +25,8 @@ vk::Format texelFormat(BindingKind kind) {
 
 Result<ComputePipeline> ComputePipeline::create(GpuContext& ctx, std::span<const uint32_t> spirv,
                                                 std::span<const BindingKind> bindings,
-                                                std::span<const uint32_t> boolSpecConstants,
-                                                const char* label) {
+                                                std::span<const uint32_t> specConstants,
+                                                const char* label, Specialise specialise) {
     ComputePipeline p;
     p.ctx_ = &ctx;
     p.label_ = label;
@@ -44,15 +45,27 @@ Result<ComputePipeline> ComputePipeline::create(GpuContext& ctx, std::span<const
             device, vk::DescriptorSetLayoutCreateInfo({}, layoutBindings));
         vk::DescriptorSetLayout setLayout = *p.setLayout_;
         p.layout_ = vk::raii::PipelineLayout(device, vk::PipelineLayoutCreateInfo({}, setLayout));
+        std::vector<uint32_t> specialised;
+        if (specialise == Specialise::OnHost && !specConstants.empty()) {
+            auto module = specialiseSpirv(spirv, specConstants);
+            if (!module)
+                return makeError("cannot create compute pipeline '{}': {}", label,
+                                 module.error().message);
+            specialised = std::move(module.value());
+            spirv = specialised;
+        }
         p.module_ = vk::raii::ShaderModule(
             device, vk::ShaderModuleCreateInfo({}, spirv.size_bytes(), spirv.data()));
 
-        // VkBool32 specialization constants, ids in order.
+        // 32-bit specialization constants, ids in order (none left in a module specialised
+        // on the host).
         std::vector<vk::SpecializationMapEntry> entries;
-        for (uint32_t i = 0; i < boolSpecConstants.size(); ++i)
-            entries.emplace_back(i, i * sizeof(uint32_t), sizeof(uint32_t));
+        if (specialised.empty())
+            for (uint32_t i = 0; i < specConstants.size(); ++i)
+                entries.emplace_back(i, i * sizeof(uint32_t), sizeof(uint32_t));
         vk::SpecializationInfo spec(static_cast<uint32_t>(entries.size()), entries.data(),
-                                    boolSpecConstants.size_bytes(), boolSpecConstants.data());
+                                    entries.empty() ? 0 : specConstants.size_bytes(),
+                                    specConstants.data());
         vk::PipelineShaderStageCreateInfo stage({}, vk::ShaderStageFlagBits::eCompute, *p.module_,
                                                 "main", &spec);
         // Dispatch base (core since Vulkan 1.1): dispatchPart() splits a dispatch.

@@ -2,7 +2,7 @@
 
 // A compute pipeline whose descriptor set 0 holds one buffer per binding 0..n-1 — a storage
 // buffer, or a uniform texel buffer of 16- or 4-byte uint texels (usamplerBuffer) where the
-// binding says so — with boolean specialization constants (ids 0..n-1) selecting the variant, and
+// binding says so — with 32-bit specialization constants (ids 0..n-1) selecting the variant, and
 // timestamp queries around its dispatches so benchmarks can report GPU time per pass.
 
 #include <span>
@@ -25,6 +25,11 @@ enum class BindingKind {
     TexelBufferUint,
 };
 
+// Where the specialization constants are applied: on the host before the driver compiles
+// (gpu/spirv_specialise.h: it compiles less code), or by the driver (the reference the tests
+// compare the first against).
+enum class Specialise { OnHost, InDriver };
+
 // The bytes [offset, offset + size) of a buffer; size VK_WHOLE_SIZE: to its end.
 struct BufferRange {
     uint64_t offset = 0;
@@ -33,11 +38,13 @@ struct BufferRange {
 
 class ComputePipeline {
 public:
-    // bindings[i] is the kind of binding i.
+    // bindings[i] is the kind of binding i; specConstants[i] the value of the 32-bit
+    // specialization constant with id i.
     static Result<ComputePipeline> create(GpuContext& ctx, std::span<const uint32_t> spirv,
                                           std::span<const BindingKind> bindings,
-                                          std::span<const uint32_t> boolSpecConstants,
-                                          const char* label);
+                                          std::span<const uint32_t> specConstants,
+                                          const char* label,
+                                          Specialise specialise = Specialise::OnHost);
 
     ComputePipeline(ComputePipeline&&) = default;
     ComputePipeline& operator=(ComputePipeline&&) = default;

@@ -175,11 +175,12 @@ size_t photonBufferBytes(int binding, uint32_t photons) {
 }
 
 Result<PhotonPasses> PhotonPasses::create(GpuContext& ctx, std::span<const BindingKind> bindings,
-                                          std::span<const uint32_t> sceneConstants) {
+                                          std::span<const uint32_t> sceneConstants,
+                                          Specialise specialise) {
     PhotonPasses p;
     auto trace = ComputePipeline::create(
         ctx, std::span<const uint32_t>(trace_photons_spv, sizeof(trace_photons_spv) / 4), bindings,
-        sceneConstants, "trace_photons");
+        sceneConstants, "trace_photons", specialise);
     if (!trace) return trace.error();
     p.trace_.emplace(std::move(trace.value()));
     std::vector<BindingKind> storage(PV_BINDING_COUNT, BindingKind::StorageBuffer);
@@ -188,7 +189,7 @@ Result<PhotonPasses> PhotonPasses::create(GpuContext& ctx, std::span<const Bindi
             stage, stage == kScan ? PV_PHOTON_SCAN_GROUP : PV_PHOTON_SORT_BLOCK};
         auto grid = ComputePipeline::create(
             ctx, std::span<const uint32_t>(photon_grid_spv, sizeof(photon_grid_spv) / 4), storage,
-            constants, "photon_grid");
+            constants, "photon_grid", specialise);
         if (!grid) return grid.error();
         p.grid_[stage].emplace(std::move(grid.value()));
     }

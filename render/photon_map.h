@@ -101,7 +101,8 @@ class PhotonPasses {
 public:
     // `bindings` and `sceneConstants` are trace_paths'; trace_photons shares its scene layout.
     static Result<PhotonPasses> create(GpuContext& ctx, std::span<const BindingKind> bindings,
-                                       std::span<const uint32_t> sceneConstants);
+                                       std::span<const uint32_t> sceneConstants,
+                                       Specialise specialise = Specialise::OnHost);
 
     // Binds the renderer's buffers (after any of them was replaced).
     Status bind(std::span<const GpuBuffer* const> buffers,

@@ -229,7 +229,7 @@ Status Renderer::specialisePipeline() {
         bindings[b] = BindingKind::TexelBufferUint;
     auto pipeline = ComputePipeline::create(
         *ctx_, std::span<const uint32_t>(trace_paths_spv, sizeof(trace_paths_spv) / 4), bindings,
-        constants, "trace_paths");
+        constants, "trace_paths", settings_.specialise);
     if (!pipeline) return pipeline.error();
     // Dispatches wait for completion (ComputePipeline::dispatch), so no submission can still
     // use the pipeline this replaces.
@@ -238,7 +238,7 @@ Status Renderer::specialisePipeline() {
     photonPasses_.reset();
     if (photonsActive_) {
         // trace_photons shares trace_paths' scene bindings and feature constants.
-        auto passes = PhotonPasses::create(*ctx_, bindings, constants);
+        auto passes = PhotonPasses::create(*ctx_, bindings, constants, settings_.specialise);
         if (!passes) return passes.error();
         photonPasses_.emplace(std::move(passes.value()));
     }

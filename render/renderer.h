@@ -60,6 +60,9 @@ struct RenderSettings {
     // Off only to demonstrate what happens without it (tests): llvmpipe drops work.
     bool respectCpuLoopLimit = true;
     bool generalPipeline = false;  // run every feature's code (benchmarks the saving)
+    // Where the feature constants are applied (gpu/compute_pipeline.h): on the host, so the
+    // driver compiles only what the scene needs; InDriver only to compare against (tests).
+    Specialise specialise = Specialise::OnHost;
     // Differential rendering (the paper): also compute the real-only solution L_or in the same
     // pass, for compositing with the camera image. Off: a plain CG render of the mixed scene.
     bool differential = false;

@@ -28,7 +28,12 @@ layout(constant_id = PV_SPEC_LIGHT_SOLID_ANGLE) const bool kLightSolidAngle = tr
 // Caustics from the photon map (shared/photon_map.h).
 layout(constant_id = PV_SPEC_PHOTONS) const bool kPhotons = true;
 
-layout(binding = PV_BINDING_PARAMS, scalar) readonly buffer ParamsBuffer { FrameParams params; };
+layout(binding = PV_BINDING_PARAMS, scalar) readonly buffer ParamsBuffer { FrameParams paramsBuffer; };
+// The including shader's main() copies the parameters here before any branch: llvmpipe loads a
+// storage-buffer value once for all lanes only outside control flow (inside a branch or loop
+// it loops over the active lanes), and a uniform or push-constant block would make lavapipe
+// recompile the shader whenever a value a branch depends on changes (BENCHMARKS.md).
+FrameParams params;
 // Every read-only scene array indexed per lane is a texel buffer (BindingKind::TexelBufferUint4):
 // on llvmpipe a texel fetch is a gather, while a storage-buffer load whose address differs per
 // lane is a loop over the lanes with a bounds check each. A BVH node is seven texels

@@ -700,6 +700,7 @@ void tracePaths(uvec2 pixel, uint pixelIndex) {
 }
 
 void main() {
+    params = paramsBuffer;  // before any branch (scene_access.glsl)
     uvec2 pixel = gl_GlobalInvocationID.xy + uvec2(0u, params.bandFirstRow);
     if (pixel.x >= params.width || pixel.y >= params.height) return;
     uint pixelIndex = pixel.y * params.width + pixel.x;

@@ -225,6 +225,7 @@ bool extendPhoton(SampleKey key, inout PhotonState st, inout uint mode,
 }
 
 void main() {
+    params = paramsBuffer;  // before any branch (scene_access.glsl)
     uint photon = gl_GlobalInvocationID.x;
     if (photon >= params.photonCount) return;
     for (uint k = 0u; k < PV_PHOTON_RECORDS_PER_PHOTON; ++k) {
