@@ -47,6 +47,22 @@ double depositedPower(const std::vector<shader::PhotonRecord>& records, uint32_t
     return sum;
 }
 
+// A closed white room (real) lit by a small real lamp in its ceiling, a smooth glass ball on its
+// floor (real or virtual), seen from above.
+Scene glassBallInAWhiteRoom(bool ballIsReal) {
+    Scene scene;
+    uint32_t white = addMaterial(scene, lambert(glm::vec3(0.7f)));
+    uint32_t glassMat = addMaterial(scene, glass(1.5f));
+    uint32_t lamp = addMaterial(scene, emitter(glm::vec3(200.0f)));
+    addBox(scene, glm::vec3(-1.0f, 0.0f, -1.0f), glm::vec3(1.0f, 1.5f, 1.0f), white, true, true);
+    addSphere(scene, glm::vec3(0.1f, 0.25f, 0.0f), 0.2f, glassMat, ballIsReal);
+    addQuad(scene, glm::vec3(-0.2f, 1.2f, -0.1f), glm::vec3(0.05f, 0, 0), glm::vec3(0, 0, 0.05f),
+            lamp, true);
+    scene.cameras.push_back(
+        lookAt(glm::vec3(0, 0.9f, 0.9f), glm::vec3(0, 0.1f, 0), glm::vec3(0, 1, 0), 1.2f));
+    return scene;
+}
+
 class PhotonTest : public GpuTest {
 protected:
     // A differential 32×24 renderer of `scene` (16384 photons per iteration) after `iterations`
@@ -424,17 +440,9 @@ TEST_F(PhotonTest, DenseGathersKeepTheDensityAndSharpenItsEdges) {
 // virtual object is outside the closed real room), both maps hold the same photons and
 // L_om − L_or is exactly 0 in every pixel — caustic included.
 TEST_F(PhotonTest, NoVirtualObjectOnTheirPathGivesZeroDifferenceBitForBit) {
-    Scene scene;
+    Scene scene = glassBallInAWhiteRoom(true);
     uint32_t white = addMaterial(scene, lambert(glm::vec3(0.7f)));
-    uint32_t glassMat = addMaterial(scene, glass(1.5f));
-    uint32_t lamp = addMaterial(scene, emitter(glm::vec3(200.0f)));
-    addBox(scene, glm::vec3(-1.0f, 0.0f, -1.0f), glm::vec3(1.0f, 1.5f, 1.0f), white, true, true);
-    addSphere(scene, glm::vec3(0.1f, 0.25f, 0.0f), 0.2f, glassMat, true);
-    addQuad(scene, glm::vec3(-0.2f, 1.2f, -0.1f), glm::vec3(0.05f, 0, 0), glm::vec3(0, 0, 0.05f),
-            lamp, true);
     addBox(scene, glm::vec3(3.0f), glm::vec3(3.5f), white, false);  // virtual, outside the room
-    scene.cameras.push_back(
-        lookAt(glm::vec3(0, 0.9f, 0.9f), glm::vec3(0, 0.1f, 0), glm::vec3(0, 1, 0), 1.2f));
     std::unique_ptr<Renderer> renderer = differentialPhotonRenderer(scene, 8);
     ASSERT_TRUE(renderer);
     Renderer& r = *renderer;
@@ -464,16 +472,7 @@ TEST_F(PhotonTest, NoVirtualObjectOnTheirPathGivesZeroDifferenceBitForBit) {
 // agree to float rounding (measured: RMSE 1e-8 of a mean 0.29 on bench/scenes/caustics_glass),
 // not always to the bit.
 TEST_F(PhotonTest, HostSpecialisationMatchesTheDrivers) {
-    Scene scene;
-    uint32_t white = addMaterial(scene, lambert(glm::vec3(0.7f)));
-    uint32_t glassMat = addMaterial(scene, glass(1.5f));
-    uint32_t lamp = addMaterial(scene, emitter(glm::vec3(200.0f)));
-    addBox(scene, glm::vec3(-1.0f, 0.0f, -1.0f), glm::vec3(1.0f, 1.5f, 1.0f), white, true, true);
-    addSphere(scene, glm::vec3(0.1f, 0.25f, 0.0f), 0.2f, glassMat, false);
-    addQuad(scene, glm::vec3(-0.2f, 1.2f, -0.1f), glm::vec3(0.05f, 0, 0), glm::vec3(0, 0, 0.05f),
-            lamp, true);
-    scene.cameras.push_back(
-        lookAt(glm::vec3(0, 0.9f, 0.9f), glm::vec3(0, 0.1f, 0), glm::vec3(0, 1, 0), 1.2f));
+    const Scene scene = glassBallInAWhiteRoom(false);
     std::vector<float> images[2][2];
     size_t records[2] = {0, 0};
     const Specialise modes[2] = {Specialise::OnHost, Specialise::InDriver};
