@@ -19,7 +19,14 @@ namespace {
 constexpr float kPi = 3.14159265358979f;
 
 // photon_grid.comp's stages (its constant_id 0) and workgroup sizes (constant_id 1).
-enum GridStage : uint32_t { kHistogram = 0, kScan = 1, kScatter = 2, kCells = 3 };
+enum GridStage : uint32_t {
+    kHistogram = 0,
+    kScan = 1,
+    kScatter = 2,
+    kCells = 3,
+    kCompactScan = 4,
+    kCompact = 5,
+};
 
 // Solid angle of the aim sphere seen from p (the whole sphere of directions from inside).
 float aimSolidAngle(const PhotonAim& aim, const glm::vec3& p) {
@@ -168,7 +175,8 @@ size_t photonBufferBytes(int binding, uint32_t photons) {
             return size_t(PV_PHOTON_SORT_DIGITS) * (records / PV_PHOTON_SORT_BLOCK) *
                    sizeof(uint32_t);
         case PV_BINDING_PHOTON_CELLS:
-            return photons ? size_t(PV_PHOTON_BUCKETS) * sizeof(glm::uvec2) : 0;
+            // Whole texels of two ranges (the gather reads them as uvec4).
+            return photons ? size_t(PV_PHOTON_BUCKETS + 1u) / 2u * 2u * sizeof(glm::uvec2) : 0;
         default:
             return 0;
     }
@@ -184,9 +192,10 @@ Result<PhotonPasses> PhotonPasses::create(GpuContext& ctx, std::span<const Bindi
     if (!trace) return trace.error();
     p.trace_.emplace(std::move(trace.value()));
     std::vector<BindingKind> storage(PV_BINDING_COUNT, BindingKind::StorageBuffer);
-    for (uint32_t stage : {kHistogram, kScan, kScatter, kCells}) {
-        std::array<uint32_t, 2> constants{
-            stage, stage == kScan ? PV_PHOTON_SCAN_GROUP : PV_PHOTON_SORT_BLOCK};
+    for (uint32_t stage : {kHistogram, kScan, kScatter, kCells, kCompactScan, kCompact}) {
+        const bool scan = stage == kScan || stage == kCompactScan;
+        std::array<uint32_t, 2> constants{stage,
+                                          scan ? PV_PHOTON_SCAN_GROUP : PV_PHOTON_SORT_BLOCK};
         auto grid = ComputePipeline::create(
             ctx, std::span<const uint32_t>(photon_grid_spv, sizeof(photon_grid_spv) / 4), storage,
             constants, "photon_grid", specialise);
@@ -206,7 +215,7 @@ Status PhotonPasses::bind(std::span<const GpuBuffer* const> buffers,
 
 Result<double> PhotonPasses::run(shader::FrameParams& params, std::span<GpuBuffer> buffers,
                                  const std::atomic<bool>* stop) {
-    const uint32_t blocks =
+    const uint32_t slotBlocks =
         PV_PHOTON_RECORDS_PER_PHOTON * params.photonCount / PV_PHOTON_SORT_BLOCK;
     double ms = 0.0;
     auto dispatch = [&](ComputePipeline& p, uint32_t groups) -> Status {
@@ -229,6 +238,19 @@ Result<double> PhotonPasses::run(shader::FrameParams& params, std::span<GpuBuffe
     } else if (Status s = dispatch(*trace_, traceGroups); !s) {
         return s.error();
     }
+    // Gather the stored records' pairs, then sort only those (rounded up to whole blocks).
+    if (Status s = dispatch(*grid_[kCompactScan], 1); !s) return s.error();
+    if (Status s = dispatch(*grid_[kCompact], slotBlocks); !s) return s.error();
+    uint32_t stored = 0;
+    if (Status s = buffers[PV_BINDING_PHOTON_BLOCK_COUNTS].download(
+            &stored, sizeof(stored),
+            sizeof(uint32_t) * (params.photonCount / PV_PHOTON_GROUP_SIZE));
+        !s)
+        return s.error();
+    params.photonSortRecords =
+        (stored + PV_PHOTON_SORT_BLOCK - 1) / PV_PHOTON_SORT_BLOCK * PV_PHOTON_SORT_BLOCK;
+    const uint32_t blocks = params.photonSortRecords / PV_PHOTON_SORT_BLOCK;
+    if (blocks == 0) return ms;  // no photon stored: the cells stay empty
     for (uint32_t pass = 0; pass < PV_PHOTON_SORT_PASSES; ++pass) {
         params.photonSortShift = 8 * pass;
         if (Status s = uploadParams(); !s) return s.error();

@@ -118,7 +118,7 @@ private:
     PhotonPasses() = default;
     std::optional<ComputePipeline> trace_;
     InterruptibleDispatch traceParts_{kInterruptiblePartMs};
-    std::array<std::optional<ComputePipeline>, 4> grid_;  // photon_grid.comp's stages
+    std::array<std::optional<ComputePipeline>, 6> grid_;  // photon_grid.comp's stages
 };
 
 // Bytes of the photon buffers for `photons` per iteration, by binding.

@@ -1195,6 +1195,22 @@ Result<std::vector<shader::PhotonRecord>> Renderer::photonRecords() const {
     return records;
 }
 
+Result<Renderer::PhotonGrid> Renderer::photonGrid() const {
+    PhotonGrid grid;
+    grid.sorted.resize(size_t(PV_PHOTON_RECORDS_PER_PHOTON) * params_.photonCount);
+    grid.buckets.resize(PV_PHOTON_BUCKETS);
+    grid.radius = params_.photonRadius;
+    if (Status s = buffers_[PV_BINDING_PHOTON_SORTED].download(
+            grid.sorted.data(), grid.sorted.size() * sizeof(shader::PhotonRecord));
+        !s)
+        return s.error();
+    if (Status s = buffers_[PV_BINDING_PHOTON_CELLS].download(
+            grid.buckets.data(), grid.buckets.size() * sizeof(glm::uvec2));
+        !s)
+        return s.error();
+    return grid;
+}
+
 Result<uint32_t> Renderer::raysTraced() const {
     shader::RenderStats stats{};
     if (Status s = buffers_[PV_BINDING_STATS].download(&stats, sizeof(stats)); !s) return s.error();

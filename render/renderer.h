@@ -196,6 +196,15 @@ public:
     // The last photon iteration's records (two per photon, PV_PHOTON_* flags; empty slots have
     // flags 0), for tests and benchmarks.
     Result<std::vector<shader::PhotonRecord>> photonRecords() const;
+    // The last photon iteration's grid as the gather reads it, for tests: the records sorted by
+    // bucket, each bucket's [begin, end) in them (PV_PHOTON_BUCKETS), and the iteration's radius
+    // (the cell edge).
+    struct PhotonGrid {
+        std::vector<shader::PhotonRecord> sorted;
+        std::vector<glm::uvec2> buckets;
+        float radius = 0.0f;
+    };
+    Result<PhotonGrid> photonGrid() const;
     // GPU time of the photon passes so far (ms; part of gpuMilliseconds()).
     double photonMilliseconds() const { return photonMs_; }
 

@@ -1,8 +1,10 @@
 // photon_grid: sorts the iteration's photon records by grid bucket and records each bucket's
-// range, so the gather finds a bucket's photons contiguous. A stable least-significant-digit radix
-// sort of the 24-bit bucket keys, PV_PHOTON_SORT_PASSES passes of 8 bits
-// (params.photonSortShift), each three dispatches — per-block digit histograms, one scan over
-// them, a stable scatter — then the cell pass. Stable and free of order-dependent atomics, so a
+// range, so the gather finds a bucket's photons contiguous. First the stored records' sort pairs,
+// which trace_photons left packed per workgroup, are gathered into one array (a scan of the
+// groups' counts, then a move): the sort then costs what the stored records need, not the four
+// slots every photon has. Then a stable least-significant-digit radix sort of the 24-bit bucket
+// keys, PV_PHOTON_SORT_PASSES passes of 8 bits (params.photonSortShift), each three dispatches —
+// per-block digit histograms, one scan over them, a stable scatter — then the cell pass. Stable and free of order-dependent atomics, so a
 // bucket's records come out in photon order on every run: the gather's bucket subsampling, and
 // with it every pixel, is deterministic.
 #version 460
@@ -16,6 +18,8 @@
 #define STAGE_SCAN 1u
 #define STAGE_SCATTER 2u
 #define STAGE_CELLS 3u
+#define STAGE_COMPACT_SCAN 4u
+#define STAGE_COMPACT 5u
 layout(constant_id = 0) const uint kStage = STAGE_HISTOGRAM;
 
 // The scan runs in one workgroup of PV_PHOTON_SCAN_GROUP; the other stages in blocks of
@@ -32,7 +36,8 @@ layout(binding = PV_BINDING_PHOTON_CELLS, scalar) buffer Cells { uvec2 cells[]; 
 
 shared uint sharedWords[PV_PHOTON_SCAN_GROUP];
 
-uint recordCount() { return PV_PHOTON_RECORDS_PER_PHOTON * params.photonCount; }
+uint recordCount() { return params.photonSortRecords; }
+uint traceGroupCount() { return params.photonCount / PV_PHOTON_GROUP_SIZE; }
 uint blockCount() { return recordCount() / PV_PHOTON_SORT_BLOCK; }
 
 // Even passes sort A into B, odd ones B back into A.
@@ -60,10 +65,12 @@ void histogram() {
 }
 
 // Exclusive scan of the 256 × blocks counts, digit-major: each entry becomes where that block's
-// records of that digit start in the output.
+// records of that digit start in the output. For the compaction: of the trace's groups' counts
+// and the zero after them, which becomes the total.
 void scan() {
     uint t = gl_LocalInvocationID.x;
-    uint total = PV_PHOTON_SORT_DIGITS * blockCount();
+    uint total = kStage == STAGE_COMPACT_SCAN ? traceGroupCount() + 1u
+                                              : PV_PHOTON_SORT_DIGITS * blockCount();
     uint chunk = (total + PV_PHOTON_SCAN_GROUP - 1u) / PV_PHOTON_SCAN_GROUP;
     uint begin = min(t * chunk, total);
     uint end = min(begin + chunk, total);
@@ -103,6 +110,21 @@ void scatter() {
     sortOutput(blockCounts[digit * blockCount() + block] + rank, pair);
 }
 
+// Slot i of trace_photons' output: its pair, if stored, moves to its group's offset in sort A;
+// the slots after the total up to whole sort blocks get the empty key (sorted last, never
+// looked up).
+void compact() {
+    uint i = gl_GlobalInvocationID.x;
+    const uint groupSlots = PV_PHOTON_RECORDS_PER_PHOTON * PV_PHOTON_GROUP_SIZE;
+    uint group = i / groupSlots;
+    uint local = i - group * groupSlots;
+    uint offset = blockCounts[group];
+    if (local < blockCounts[group + 1u] - offset) sortA[offset + local] = sortB[i];
+    uint total = blockCounts[traceGroupCount()];
+    uint padded = (total + PV_PHOTON_SORT_BLOCK - 1u) / PV_PHOTON_SORT_BLOCK * PV_PHOTON_SORT_BLOCK;
+    if (i >= total && i < padded) sortA[i] = uvec2(PV_PHOTON_EMPTY_KEY, 0u);
+}
+
 // After the last pass the pairs are in key order: copy the records into that order and mark
 // where each bucket begins and ends (the host zeroed the cells).
 void buildCells() {
@@ -118,7 +140,8 @@ void buildCells() {
 
 void main() {
     if (kStage == STAGE_HISTOGRAM) histogram();
-    else if (kStage == STAGE_SCAN) scan();
+    else if (kStage == STAGE_SCAN || kStage == STAGE_COMPACT_SCAN) scan();
     else if (kStage == STAGE_SCATTER) scatter();
+    else if (kStage == STAGE_COMPACT) compact();
     else buildCells();
 }

@@ -234,68 +234,92 @@ void fixedAdd(inout FixedRgb sum, vec3 v) {
 
 vec3 fixedValue(FixedRgb sum) { return vec3(sum.whole) + vec3(sum.fraction) * 2.3283064365386963e-10; }
 
-// One pass of gatherPhotons over the records in the 2×2×2 cells from `first` (edge twice
+// One pass of gatherPhotons over the records in the 3×3×3 cells from `first` (edge
 // params.photonRadius) that lie within rq ≤ params.photonRadius of s: adds Σ f(wo, wi_p)·Φ_p·K(d_p)
 // (K at radius rq) to the sums and returns how many records it took (weighted like them where a
 // bucket is subsampled). Level-1 records only if `level1`; scatterings must fit in maxBounces.
 float gatherWithin(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint maxBounces, float uWindow,
                    bool level1, ivec3 first, float rq, inout FixedRgb sumMixed,
                    inout FixedRgb sumReal) {
-    float cellSize = 2.0 * params.photonRadius;
+    float cellSize = params.photonRadius;
     float rq2 = rq * rq;
     float norm = 1.0 / (PV_PI * rq2);
     float taken = 0.0;
-    // Both loops test their exit at the end (see tracePaths): on llvmpipe a test at the top
-    // runs the record loop's body, BSDF and all, once more for every cell.
-    for (uint c = 0u;;) {
+    // One loop over the records of all the cells, one record per trip, the cell moved on within
+    // the trip: on llvmpipe a loop's body runs at least once (masked) whether or not a lane has
+    // work, so a record loop per cell would run the record's code — the BSDF — once per cell at
+    // the least, and lanes would wait for each other cell by cell instead of once. Loops test
+    // their exit at the end (see tracePaths).
+    ivec3 place = ivec3(0);
+    uint cellsLeft = 27u;
+    uint k = 0u;
+    uint examined = 0u;
+    uint n = 0u;
+    uint start = 0u;
+    uint rangeStart = 0u;
+    float share = 0.0;
+    for (;;) {
         PV_COUNT_LOOP_ITERATION();
-        ivec3 cell = first + ivec3(c & 1u, (c >> 1u) & 1u, c >> 2u);
-        // A cell the sphere misses holds nothing to take (most of them once rq < r).
-        vec3 lo = vec3(cell) * cellSize;
-        vec3 outside = max(lo - s.position, vec3(0.0)) + max(s.position - lo - cellSize, vec3(0.0));
-        uvec2 range = uvec2(0u);
-        if (dot(outside, outside) < rq2) {
-            // The eight cells' buckets differ (photonBucket): each record is summed once.
-            uint bucket = photonBucket(cell);
-            uvec4 pair = texelFetch(photonCellTexels, int(bucket >> 1u));
-            range = (bucket & 1u) != 0u ? pair.zw : pair.xy;
-        }
-        uint n = range.y - range.x;
-        uint examined = min(n, params.photonGatherCap);
-        if (examined > 0u) {
-            uint start = examined < n ? min(uint(uWindow * float(n)), n - 1u) : 0u;
-            float share = float(n) / float(examined);
-            float weight = norm * share;
-            for (uint k = 0u;;) {
-                PV_COUNT_LOOP_ITERATION();
-                // The window wraps: (start + k) mod n without a division (a per-lane scalar loop
-                // on llvmpipe).
-                uint offset = start + k;
-                uint at = range.x + (offset >= n ? offset - n : offset);
-                uvec4 t0 = texelFetch(photonTexels, int(2u * at));
-                vec3 d = uintBitsToFloat(t0.xyz) - s.position;
-                // Level 1 only where the path may gather it (shared/photon_map.h's rule).
-                bool levelGathered = level1 || (t0.w & PV_PHOTON_LEVEL_2) != 0u;
-                float d2 = dot(d, d);
-                if (d2 < rq2 && (t0.w >> PV_PHOTON_BOUNCES_SHIFT) <= maxBounces &&
-                    levelGathered) {
-                    taken += share;
-                    uvec4 t1 = texelFetch(photonTexels, int(2u * at + 1u));
-                    vec3 wi = octahedralDecode(unpackSnorm2x16(t1.w));
-                    vec3 wiLocal = toLocal(frame, wi);
-                    if (consistentSide(s, wi, wiLocal)) {
-                        float pdf;
-                        float kernel = 2.0 * (1.0 - d2 / rq2);  // × norm (in weight): Epanechnikov
-                        vec3 f = evaluateBsdf(bp, wo, wiLocal, pdf) * uintBitsToFloat(t1.xyz) *
-                                 (weight * kernel);
-                        if ((t0.w & PV_PHOTON_IN_MIXED) != 0u) fixedAdd(sumMixed, f);
-                        if ((t0.w & PV_PHOTON_IN_REAL) != 0u) fixedAdd(sumReal, f);
-                    }
+        // On to the next cell that holds records to examine, when this one is done.
+        for (; k >= examined && cellsLeft > 0u;) {
+            PV_COUNT_LOOP_ITERATION();
+            ivec3 cell = first + place;
+            // A cell the sphere misses holds nothing to take (most of them once rq < r).
+            vec3 lo = vec3(cell) * cellSize;
+            vec3 outside = max(lo - s.position, vec3(0.0)) +
+                           max(s.position - lo - cellSize, vec3(0.0));
+            uvec2 range = uvec2(0u);
+            if (dot(outside, outside) < rq2) {
+                // The 27 cells' buckets differ (photonBucket): each record is summed once.
+                uint bucket = photonBucket(cell);
+                uvec4 pair = texelFetch(photonCellTexels, int(bucket >> 1u));
+                range = (bucket & 1u) != 0u ? pair.zw : pair.xy;
+            }
+            n = range.y - range.x;
+            examined = min(n, params.photonGatherCap);
+            start = examined < n ? min(uint(uWindow * float(n)), n - 1u) : 0u;
+            share = float(n) / float(max(examined, 1u));
+            rangeStart = range.x;
+            k = 0u;
+            // The next of the 27 places, x fastest (no division: a per-lane loop on llvmpipe).
+            place.x += 1;
+            if (place.x == 3) {
+                place.x = 0;
+                place.y += 1;
+                if (place.y == 3) {
+                    place.y = 0;
+                    place.z += 1;
                 }
-                if (++k >= examined) break;
+            }
+            cellsLeft -= 1u;
+        }
+        if (k < examined) {
+            // The window wraps: (start + k) mod n without a division (a per-lane scalar loop on
+            // llvmpipe).
+            uint offset = start + k;
+            uint at = rangeStart + (offset >= n ? offset - n : offset);
+            uvec4 t0 = texelFetch(photonTexels, int(2u * at));
+            vec3 d = uintBitsToFloat(t0.xyz) - s.position;
+            // Level 1 only where the path may gather it (shared/photon_map.h's rule).
+            bool levelGathered = level1 || (t0.w & PV_PHOTON_LEVEL_2) != 0u;
+            float d2 = dot(d, d);
+            if (d2 < rq2 && (t0.w >> PV_PHOTON_BOUNCES_SHIFT) <= maxBounces && levelGathered) {
+                taken += share;
+                uvec4 t1 = texelFetch(photonTexels, int(2u * at + 1u));
+                vec3 wi = octahedralDecode(unpackSnorm2x16(t1.w));
+                vec3 wiLocal = toLocal(frame, wi);
+                if (consistentSide(s, wi, wiLocal)) {
+                    float pdf;
+                    float kernel = 2.0 * (1.0 - d2 / rq2);  // × norm: Epanechnikov
+                    vec3 f = evaluateBsdf(bp, wo, wiLocal, pdf) * uintBitsToFloat(t1.xyz) *
+                             (norm * share * kernel);
+                    if ((t0.w & PV_PHOTON_IN_MIXED) != 0u) fixedAdd(sumMixed, f);
+                    if ((t0.w & PV_PHOTON_IN_REAL) != 0u) fixedAdd(sumReal, f);
+                }
             }
         }
-        if (++c >= 8u) break;
+        k += 1u;
+        if (k >= examined && cellsLeft == 0u) break;
     }
     return taken;
 }
@@ -317,8 +341,8 @@ void gatherPhotons(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint depth, f
                    bool level1, out vec3 toMixed, out vec3 toReal) {
     float r = params.photonRadius;
     uint maxBounces = params.maxDepth - depth - 1u;
-    // The 2×2×2 cells (edge 2r) that the sphere of radius r around the point overlaps.
-    ivec3 first = photonCell(s.position - vec3(r), 2.0 * r);
+    // The 3×3×3 cells (edge r) that the sphere of radius r around the point overlaps.
+    ivec3 first = photonCell(s.position - vec3(r), r);
     FixedRgb sumMixed;
     FixedRgb sumReal;
     float k = float(params.photonGatherNeighbours);

@@ -6,7 +6,10 @@
 // carries). Like the path tracer's paths, a photon from a real light starts in both solutions
 // and splits where it first meets a virtual object: the mixed photon goes on from the virtual
 // surface, the real one continues the same ray behind it. Output: four records per photon in
-// photon order and their (bucket, record) sort pairs; photon_grid.comp sorts them.
+// photon order, and the (bucket, record) sort pairs of the records that hold a photon, packed at
+// the start of their workgroup's slots in record order with the workgroup's count beside them
+// (most slots stay empty: on the caustics benchmark a quarter hold one), which photon_grid.comp
+// gathers into one array and sorts.
 #version 460
 #extension GL_EXT_scalar_block_layout : require
 #extension GL_GOOGLE_include_directive : require
@@ -20,7 +23,12 @@ layout(binding = PV_BINDING_PHOTON_LIGHTS) uniform usamplerBuffer photonLightTex
 layout(binding = PV_BINDING_PHOTON_RECORDS, scalar) writeonly buffer Records {
     PhotonRecord records[];
 };
-layout(binding = PV_BINDING_PHOTON_SORT_A, scalar) writeonly buffer SortPairs { uvec2 sortPairs[]; };
+layout(binding = PV_BINDING_PHOTON_SORT_B, scalar) writeonly buffer SortPairs { uvec2 sortPairs[]; };
+layout(binding = PV_BINDING_PHOTON_BLOCK_COUNTS, scalar) writeonly buffer GroupCounts {
+    uint groupCounts[];
+};
+
+shared uint groupStored[PV_PHOTON_GROUP_SIZE];
 
 // The photon light whose inclusive cdf first exceeds u (binary search).
 uint pickPhotonLight(float u) {
@@ -226,8 +234,9 @@ bool extendPhoton(SampleKey key, inout PhotonState st, inout uint mode,
 
 void main() {
     params = paramsBuffer;  // before any branch (scene_access.glsl)
+    // Whole workgroups only (photonCount is a multiple of the group size): no invocation leaves
+    // before the barrier below.
     uint photon = gl_GlobalInvocationID.x;
-    if (photon >= params.photonCount) return;
     for (uint k = 0u; k < PV_PHOTON_RECORDS_PER_PHOTON; ++k) {
         gStored[k].position = vec3(0.0);
         gStored[k].flags = 0u;
@@ -259,13 +268,30 @@ void main() {
             }
         }
     }
-    float cellSize = 2.0 * params.photonRadius;
+    float cellSize = params.photonRadius;
+    uint stored = 0u;
     for (uint k = 0u; k < PV_PHOTON_RECORDS_PER_PHOTON; ++k) {
-        uint record = PV_PHOTON_RECORDS_PER_PHOTON * photon + k;
-        records[record] = gStored[k];
-        uint key = gStored[k].flags == 0u
-                       ? PV_PHOTON_EMPTY_KEY
-                       : photonBucket(photonCell(gStored[k].position, cellSize));
-        sortPairs[record] = uvec2(key, record);
+        records[PV_PHOTON_RECORDS_PER_PHOTON * photon + k] = gStored[k];
+        stored += gStored[k].flags != 0u ? 1u : 0u;
     }
+    // The pairs of the stored records only, in record order: this photon's go after those of the
+    // group's photons before it. Counts, not atomics: the order is the same on every run.
+    uint local = gl_LocalInvocationID.x;
+    groupStored[local] = stored;
+    barrier();
+    uint slot = gl_WorkGroupID.x * (PV_PHOTON_RECORDS_PER_PHOTON * PV_PHOTON_GROUP_SIZE);
+    for (uint j = 0u; j < local; ++j) slot += groupStored[j];
+    for (uint k = 0u; k < PV_PHOTON_RECORDS_PER_PHOTON; ++k) {
+        if (gStored[k].flags != 0u) {
+            uint key = photonBucket(photonCell(gStored[k].position, cellSize));
+            sortPairs[slot] = uvec2(key, PV_PHOTON_RECORDS_PER_PHOTON * photon + k);
+            slot += 1u;
+        }
+    }
+    if (local == PV_PHOTON_GROUP_SIZE - 1u) {
+        groupCounts[gl_WorkGroupID.x] =
+            slot - gl_WorkGroupID.x * (PV_PHOTON_RECORDS_PER_PHOTON * PV_PHOTON_GROUP_SIZE);
+    }
+    // One more entry after the groups' counts: the compaction's scan turns it into the total.
+    if (photon == 0u) groupCounts[params.photonCount / PV_PHOTON_GROUP_SIZE] = 0u;
 }

@@ -5,12 +5,16 @@
 // from the measured noise.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
 #include <atomic>
 #include <cmath>
 #include <cstring>
+#include <map>
 
 #include "render/quality_dial.h"
 #include "shared/bsdf.h"
+#include "shared/photon_map.h"
 #include "tests/integrator/gpu_fixture.h"
 #include "tests/support/scene_builders.h"
 
@@ -507,6 +511,57 @@ TEST_F(PhotonTest, HostSpecialisationMatchesTheDrivers) {
                         1e-5f * std::max(1.0f, std::abs(images[1][a][i])))
                 << (a ? "real" : "mixed") << " value " << i;
     }
+}
+
+// The grid the gather reads: every stored record of the iteration (and nothing else) lies in the
+// range of its own bucket, exactly once; the ranges do not overlap; within a bucket the records
+// keep photon order (the sort is stable, the compaction before it keeps record order), so the
+// gather's subsampling window is the same on every run.
+TEST_F(PhotonTest, GridHoldsEachStoredRecordOnceInItsBucketInPhotonOrder) {
+    auto r = differentialPhotonRenderer(glassBallInAWhiteRoom(false), 2);
+    ASSERT_TRUE(r);
+    auto records = r->photonRecords();
+    ASSERT_TRUE(records.ok()) << records.message();
+    auto grid = r->photonGrid();
+    ASSERT_TRUE(grid.ok()) << grid.message();
+    // Trace order of each stored record, by its bits (position, power and direction make it
+    // unique among one iteration's records).
+    auto bitsOf = [](const shader::PhotonRecord& rec) {
+        std::array<uint32_t, 8> b{};
+        std::memcpy(b.data(), &rec, sizeof(rec));
+        return b;
+    };
+    std::map<std::array<uint32_t, 8>, size_t> traceIndex;
+    for (size_t i = 0; i < records->size(); ++i)
+        if ((*records)[i].flags != 0) traceIndex.emplace(bitsOf((*records)[i]), i);
+    ASSERT_GT(traceIndex.size(), 1000u);
+    std::vector<bool> seen(records->size(), false);
+    std::vector<glm::uvec2> ranges;
+    size_t inRanges = 0;
+    for (uint32_t bucket = 0; bucket < grid->buckets.size(); ++bucket) {
+        const glm::uvec2 range = grid->buckets[bucket];
+        if (range.y == range.x) continue;
+        ASSERT_LT(range.x, range.y);
+        ASSERT_LE(range.y, grid->sorted.size());
+        ranges.push_back(range);
+        size_t previous = 0;
+        for (uint32_t k = range.x; k < range.y; ++k) {
+            const shader::PhotonRecord& rec = grid->sorted[k];
+            EXPECT_EQ(shader::photonBucket(shader::photonCell(rec.position, grid->radius)), bucket);
+            auto it = traceIndex.find(bitsOf(rec));
+            ASSERT_NE(it, traceIndex.end()) << "record " << k << " was not traced";
+            EXPECT_FALSE(seen[it->second]) << "record " << it->second << " twice";
+            seen[it->second] = true;
+            if (k > range.x) {
+                EXPECT_GT(it->second, previous) << "bucket " << bucket;
+            }
+            previous = it->second;
+            ++inRanges;
+        }
+    }
+    EXPECT_EQ(inRanges, traceIndex.size());
+    std::sort(ranges.begin(), ranges.end(), [](glm::uvec2 a, glm::uvec2 b) { return a.x < b.x; });
+    for (size_t i = 1; i < ranges.size(); ++i) EXPECT_LE(ranges[i - 1].y, ranges[i].x);
 }
 
 // A virtual glass ball on the real floor: its caustic and its shadow exist in the mixed solution

@@ -30,14 +30,15 @@
 
 PV_BEGIN
 
-// Hash buckets of the grid: eight parity classes of PV_PHOTON_PARENT_BUCKETS (photonBucket).
-// Keys are 24 bits: buckets 0..PV_PHOTON_BUCKETS−1 and one key for "no photon here", sorted last
-// and never looked up. A bucket a gather visits holds, besides its own cell's records, those of
-// every cell hashed onto it, each read and rejected: with 65528 buckets those collisions were a
-// third of the gather's time on the caustics scene (BENCHMARKS.md), so the table is 16× larger
-// (8 MiB of ranges) and sorted in three radix passes of 8 bits.
-#define PV_PHOTON_PARENT_BUCKETS 131071u
-#define PV_PHOTON_BUCKETS (8u * PV_PHOTON_PARENT_BUCKETS)
+// Hash buckets of the grid: 27 classes (a cell's place in its 3×3×3 block) of
+// PV_PHOTON_PARENT_BUCKETS each (photonBucket). Keys are 24 bits: buckets 0..PV_PHOTON_BUCKETS−1
+// and one key for "no photon here", sorted last and never looked up. A bucket a gather visits
+// holds, besides its own cell's records, those of every cell hashed onto it, each read and
+// rejected: with 65528 buckets those collisions were a third of the gather's time on the caustics
+// scene (BENCHMARKS.md), so the table holds about a million (8 MiB of ranges), sorted in three
+// radix passes of 8 bits.
+#define PV_PHOTON_PARENT_BUCKETS 38833u
+#define PV_PHOTON_BUCKETS (27u * PV_PHOTON_PARENT_BUCKETS)
 #define PV_PHOTON_EMPTY_KEY 0xffffffu
 #define PV_PHOTON_SORT_PASSES 3u
 // Each pass sorts by one 8-bit digit: 256 digit counts per sort block (photon_grid.comp's
@@ -64,7 +65,7 @@ PV_BEGIN
 #define PV_PHOTON_LEVEL_2 4u
 // A camera path's gather vertex that takes level 2 only gathers with this probability (weighted
 // by its inverse): the light a caustic throws on after two diffuse bounces is small beside the
-// path tracer's own at that vertex, and a gather costs eight bucket lookups wherever it runs.
+// path tracer's own at that vertex, and a gather costs its bucket lookups wherever it runs.
 #define PV_PHOTON_LEVEL_2_GATHER_PROBABILITY 0.25f
 
 // Scatterings before the photon landed (all of them: a level-2 photon counts D too), which the
@@ -87,20 +88,22 @@ struct PhotonRecord {
     uint direction;  // packSnorm2x16(octahedralEncode(toward where the photon came from))
 };
 
-// The grid cell of p for cells of edge `cellSize` (twice the gather radius, so that a gather
-// sphere overlaps at most 2×2×2 cells).
+// The grid cell of p for cells of edge `cellSize` (the gather radius, so that a gather sphere
+// overlaps at most 3×3×3 cells).
 PV_INLINE ivec3 photonCell(vec3 p, float cellSize) { return ivec3(floor(p / cellSize)); }
 
-// Teschner et al. 2003's spatial hash of the 2×2×2 block holding the cell, folded onto the
-// parent buckets, then the cell's parity within the block. A gather visits 2×2×2 neighbouring
-// cells, whose parities all differ: they never share a bucket, so no record is summed twice and
-// the gather needs no duplicate check.
+// Teschner et al. 2003's spatial hash of the 3×3×3 block holding the cell, folded onto the
+// parent buckets, then the cell's place within the block. A gather visits 3×3×3 neighbouring
+// cells, whose places all differ: they never share a bucket, so no record is summed twice and the
+// gather needs no duplicate check. (Cells of edge r rather than 2×2×2 of edge 2r: on a surface a
+// gather then reads the records of about 8 r² instead of 15 r², for a disc of π r².)
 PV_INLINE uint photonBucket(ivec3 c) {
-    ivec3 block = c >> 1;  // arithmetic shift: floor(c / 2), negative cells too
-    uint h = (uint(block.x) * 73856093u) ^ (uint(block.y) * 19349663u) ^
-             (uint(block.z) * 83492791u);
-    uint parity = uint(c.x & 1) | (uint(c.y & 1) << 1u) | (uint(c.z & 1) << 2u);
-    return (h % PV_PHOTON_PARENT_BUCKETS) * 8u + parity;
+    // Offset by a multiple of 3 so that unsigned division floors negative cells too.
+    uvec3 u = uvec3(c) + uvec3(1610612736u);
+    uvec3 block = u / 3u;
+    uvec3 place = u - block * 3u;
+    uint h = (block.x * 73856093u) ^ (block.y * 19349663u) ^ (block.z * 83492791u);
+    return (h % PV_PHOTON_PARENT_BUCKETS) * 27u + place.x + 3u * place.y + 9u * place.z;
 }
 
 // Octahedral map of a unit vector to [−1, 1]² (Cigolle et al. 2014) and back.

@@ -252,6 +252,9 @@ struct FrameParams {
     // A gather that finds more records than this within the radius takes its estimate again at
     // the radius that holds about this many (trace_paths.comp's gatherPhotons); 0: never.
     uint photonGatherNeighbours;
+    // Sort pairs photon_grid.comp's radix passes sort: the iteration's stored records (the
+    // compaction's count), rounded up to whole sort blocks.
+    uint photonSortRecords;
 };
 
 PV_END
