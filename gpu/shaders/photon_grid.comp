@@ -4,9 +4,9 @@
 // groups' counts, then a move): the sort then costs what the stored records need, not the four
 // slots every photon has. Then a stable least-significant-digit radix sort of the 24-bit bucket
 // keys, PV_PHOTON_SORT_PASSES passes of 8 bits (params.photonSortShift), each three dispatches —
-// per-block digit histograms, one scan over them, a stable scatter — then the cell pass. Stable and free of order-dependent atomics, so a
-// bucket's records come out in photon order on every run: the gather's bucket subsampling, and
-// with it every pixel, is deterministic.
+// per-block digit histograms, one scan over them, a stable scatter — then the cell pass. Stable
+// and free of order-dependent atomics, so a bucket's records come out in photon order on every
+// run: the gather's bucket subsampling, and with it every pixel, is deterministic.
 #version 460
 #extension GL_EXT_scalar_block_layout : require
 #extension GL_GOOGLE_include_directive : require
@@ -121,7 +121,8 @@ void compact() {
     uint offset = blockCounts[group];
     if (local < blockCounts[group + 1u] - offset) sortA[offset + local] = sortB[i];
     uint total = blockCounts[traceGroupCount()];
-    uint padded = (total + PV_PHOTON_SORT_BLOCK - 1u) / PV_PHOTON_SORT_BLOCK * PV_PHOTON_SORT_BLOCK;
+    uint padded = (total + PV_PHOTON_SORT_BLOCK - 1u) / PV_PHOTON_SORT_BLOCK;
+    padded *= PV_PHOTON_SORT_BLOCK;
     if (i >= total && i < padded) sortA[i] = uvec2(PV_PHOTON_EMPTY_KEY, 0u);
 }
 

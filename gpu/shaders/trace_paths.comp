@@ -247,7 +247,7 @@ float gatherWithin(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint maxBounc
     float taken = 0.0;
     // One loop over the records of all the cells, one record per trip, the cell moved on within
     // the trip: on llvmpipe a loop's body runs at least once (masked) whether or not a lane has
-    // work, so a record loop per cell would run the record's code — the BSDF — once per cell at
+    // work, so a record loop per cell would run the record's code (the BSDF) once per cell at
     // the least, and lanes would wait for each other cell by cell instead of once. Loops test
     // their exit at the end (see tracePaths).
     ivec3 place = ivec3(0);

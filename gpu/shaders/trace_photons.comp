@@ -23,7 +23,9 @@ layout(binding = PV_BINDING_PHOTON_LIGHTS) uniform usamplerBuffer photonLightTex
 layout(binding = PV_BINDING_PHOTON_RECORDS, scalar) writeonly buffer Records {
     PhotonRecord records[];
 };
-layout(binding = PV_BINDING_PHOTON_SORT_B, scalar) writeonly buffer SortPairs { uvec2 sortPairs[]; };
+layout(binding = PV_BINDING_PHOTON_SORT_B, scalar) writeonly buffer SortPairs {
+    uvec2 sortPairs[];
+};
 layout(binding = PV_BINDING_PHOTON_BLOCK_COUNTS, scalar) writeonly buffer GroupCounts {
     uint groupCounts[];
 };
