@@ -115,9 +115,8 @@ void scatter() {
 // looked up).
 void compact() {
     uint i = gl_GlobalInvocationID.x;
-    const uint groupSlots = PV_PHOTON_RECORDS_PER_PHOTON * PV_PHOTON_GROUP_SIZE;
-    uint group = i / groupSlots;
-    uint local = i - group * groupSlots;
+    uint group = i / PV_PHOTON_GROUP_SLOTS;
+    uint local = i - group * PV_PHOTON_GROUP_SLOTS;
     uint offset = blockCounts[group];
     if (local < blockCounts[group + 1u] - offset) sortA[offset + local] = sortB[i];
     uint total = blockCounts[traceGroupCount()];

@@ -281,7 +281,7 @@ void main() {
     uint local = gl_LocalInvocationID.x;
     groupStored[local] = stored;
     barrier();
-    uint slot = gl_WorkGroupID.x * (PV_PHOTON_RECORDS_PER_PHOTON * PV_PHOTON_GROUP_SIZE);
+    uint slot = gl_WorkGroupID.x * PV_PHOTON_GROUP_SLOTS;
     for (uint j = 0u; j < local; ++j) slot += groupStored[j];
     for (uint k = 0u; k < PV_PHOTON_RECORDS_PER_PHOTON; ++k) {
         if (gStored[k].flags != 0u) {
@@ -292,7 +292,7 @@ void main() {
     }
     if (local == PV_PHOTON_GROUP_SIZE - 1u) {
         groupCounts[gl_WorkGroupID.x] =
-            slot - gl_WorkGroupID.x * (PV_PHOTON_RECORDS_PER_PHOTON * PV_PHOTON_GROUP_SIZE);
+            slot - gl_WorkGroupID.x * PV_PHOTON_GROUP_SLOTS;
     }
     // One more entry after the groups' counts: the compaction's scan turns it into the total.
     if (photon == 0u) groupCounts[params.photonCount / PV_PHOTON_GROUP_SIZE] = 0u;

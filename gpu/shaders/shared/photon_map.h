@@ -56,6 +56,9 @@ PV_BEGIN
 // (64 against 256 on llvmpipe: a pass of 32768 photons' records 6.8 ms against 9.4).
 #define PV_PHOTON_SORT_BLOCK 64u
 #define PV_PHOTON_GROUP_SIZE 64u
+// trace_photons packs a workgroup's stored sort pairs at the start of its slots, this many (four
+// per photon); photon_grid.comp's compaction gathers them from there.
+#define PV_PHOTON_GROUP_SLOTS (PV_PHOTON_RECORDS_PER_PHOTON * PV_PHOTON_GROUP_SIZE)
 // photon_grid.comp's scan runs in one workgroup of this many invocations.
 #define PV_PHOTON_SCAN_GROUP 1024u
 
