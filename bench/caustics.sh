@@ -2,7 +2,7 @@
 # Issue 9's caustics benchmark on bench/scenes/caustics_glass.gltf (a virtual glass ball and cube
 # on a real table, one 4 cm lamp; make_scenes.py says more), 640×480, max depth 8:
 #   1. the cost of one iteration: photon pass (trace + sort into the grid) and gather, at preview
-#      settings (PREVIEW photons, the radius fixed) and refinement settings (32768 photons,
+#      settings (PREVIEW photons, the radius fixed) and refinement settings (65536 photons,
 #      α = 2/3) — GPU times from `previs render --timing` over 16 iterations, median of 3 runs —
 #      and the photon map's device memory;
 #   2. convergence of the caustic region (pixels x 290–460, y 255–345: the ball's caustic and
@@ -34,7 +34,7 @@ ref_iterations=512
 photon_spp=256
 path_spp=1024
 preview_photons=16384
-photons=32768  # per iteration, the default (render/photon_map.h), references included
+photons=65536  # per iteration, the default (render/photon_map.h), references included
 extrapolate=0
 while [[ $# -gt 0 ]]; do
     case "$1" in
@@ -51,9 +51,9 @@ out=$root/build/caustics
 mkdir -p "$out"
 common=(--width 640 --height 480 --max-depth 8 --quiet)
 
-# The references depend on the renderer too: keyed by the binary, so a changed estimator renders
-# them again.
-key=$({ cat "$scene" "$previs"; echo "$ref_iterations"; } | sha256sum | cut -c1-16)
+# The references depend on the renderer too: keyed by the binary and the photon count, so a
+# changed estimator renders them again.
+key=$({ cat "$scene" "$previs"; echo "$ref_iterations $photons"; } | sha256sum | cut -c1-16)
 refs=("$out/ref-$key-a.exr" "$out/ref-$key-b.exr")
 for i in 0 1; do
     if [[ ! -f ${refs[$i]} ]]; then

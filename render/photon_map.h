@@ -34,10 +34,12 @@ enum class PhotonMode {
 
 struct PhotonSettings {
     PhotonMode mode = PhotonMode::Auto;
-    // Photons per iteration (rounded up to a multiple of 128). On the caustics benchmark
-    // (BENCHMARKS.md, issue 9) 32768 reached a given error sooner than 65536 (the gather's cost
-    // grows with the photons, the error hardly falls: the radius decides it) and than 16384.
-    uint32_t perIteration = 1u << 15;
+    // Photons per iteration (rounded up to a multiple of 128). Where a gather finds more than
+    // gatherNeighbours, its radius holds about that many whatever the iteration, so the blur
+    // there falls only as the photons per iteration grow (docs/caustics.md). On the caustics
+    // benchmark, against a bias-free reference (BENCHMARKS.md, issue 9, eighth pass), 65536
+    // reached 5 % sooner than 32768 and 131072 (each iteration costs more with more photons).
+    uint32_t perIteration = 1u << 16;
     // Preview frames (Renderer::renderPreviewFrame) trace at most this many: a fixed budget for
     // speed; the radius of a preview frame is the first iterations' (it restarts every frame).
     uint32_t previewPerIteration = 1u << 14;
