@@ -5,7 +5,8 @@
 #   area        bench/scenes/area_lights_mirror.gltf (--photons off), 16 spp likewise
 #   preview     the same scene as 16 one-sample dispatches (a checkpoint after every sample ends a
 #               dispatch), as live preview frames and photon iterations dispatch
-#   caustics    bench/scenes/caustics_glass.gltf, 16 photon iterations (photon pass shown apart)
+#   caustics    bench/scenes/caustics_glass.gltf, 16 photon iterations of 65536 photons (photon pass
+#               shown apart)
 # The builds alternate within each run, so slow drift of a noisy machine hits all alike; the
 # medians over the runs are printed per workload and build, with the ratio to the first build.
 #
@@ -35,7 +36,8 @@ gpu_seconds() {  # binary workload seed
         area) bench_scene area-lights; args=("$scene" "${previs_args[@]}" --spp 16) ;;
         preview) bench_scene area-lights
                  args=("$scene" "${previs_args[@]}" --spp 16 --checkpoints "$every_sample") ;;
-        caustics) args=("$root/bench/scenes/caustics_glass.gltf" --spp 16) ;;
+        # The photon count pinned: builds with another default compare the same work.
+        caustics) args=("$root/bench/scenes/caustics_glass.gltf" --photons 65536 --spp 16) ;;
     esac
     "$1" render "${args[@]}" "${common[@]}" --seed "$3" --out "$work/out.exr" 2>&1 |
         sed -n 's/.* gpu_s=\([0-9.]*\) photon_gpu_s=\([0-9.]*\).*/\1 \2/p'
