@@ -81,22 +81,23 @@ Ray distantPhotonRay(vec3 dir, vec2 u) {
 
 // A photon's random numbers: the path tracer's generator (shared/sampler.h) with the photon as
 // the sample and the iteration as the "pixel", so that under Sobol' the iteration's photons are
-// one scrambled net: their directions cover the aim sphere's cone evenly (a (0,2)-sequence) and
-// their lobe choices split in proportion, which smooths the caustic's density estimate; each
-// iteration is scrambled afresh, so iterations stay independent and the estimate unbiased.
-#define PV_PHOTON_SET_EMIT 0u    // .xy direction toward the aim, .z light pick
+// one scrambled net: their points on the light and lobe choices split in proportion, which
+// smooths the caustic's density estimate; their directions are stratified as evenly, along a
+// curve that keeps consecutive photons together (photonDirectionSample). Each iteration is
+// scrambled afresh, so iterations stay independent and the estimate unbiased.
+#define PV_PHOTON_SET_EMIT 0u    // .xyw direction toward the aim, .z light pick
 #define PV_PHOTON_SET_POINT 1u   // .xy point on the light (or on a distant light's disk)
 #define PV_PHOTON_SET_BOUNCE 2u  // + b: scattering b (.xy direction, .z lobe)
 
 // Emits photon `photon`: its first ray and its power (flux, over the iteration's photon count).
 // False when the sample carries nothing (a back face, outside a spot's cone).
-bool emitPhoton(SampleKey key, out Ray ray, out vec3 power, out bool real) {
+bool emitPhoton(uint photon, SampleKey key, out Ray ray, out vec3 power, out bool real) {
     vec4 uEmit = sampleSet(kSampler, key, PV_PHOTON_SET_EMIT);
     uvec4 entry = texelFetch(photonLightTexels, int(pickPhotonLight(uEmit.z)));
     float pick = uintBitsToFloat(entry.w) * float(params.photonCount);
     real = (entry.x & PV_PHOTON_LIGHT_REAL) != 0u;
     vec2 uPoint = sampleSet(kSampler, key, PV_PHOTON_SET_POINT).xy;
-    vec2 uDir = uEmit.xy;
+    vec2 uDir = photonDirectionSample(photon, params.photonCount, uEmit.xyw, uEmit.xy);
     ray.tMin = 0.0;
     ray.tMax = PV_FLOAT_MAX;
     power = vec3(0.0);
@@ -250,7 +251,7 @@ void main() {
     st.bounces = 0u;
     st.level = 0u;
     bool real;
-    bool emitted = params.photonLightCount > 0u && emitPhoton(key, st.ray, st.power, real);
+    bool emitted = params.photonLightCount > 0u && emitPhoton(photon, key, st.ray, st.power, real);
     uint mode = kDifferential && real ? MODE_SHARED : MODE_MIXED;
     PhotonState realContinuation = st;
     bool haveRealContinuation = false;

@@ -699,6 +699,53 @@ TEST(PhotonAimTest, TheAimSphereOfABallIsTheBall) {
     }
 }
 
+// A photon's direction numbers are stratified along a Z-order curve (shared/photon_map.h): over
+// an iteration's N = 2^m photons every cell of the 2^k × 2^k grid (4^k ≥ N) is taken exactly
+// once — by the cell-picking number's two halves where a photon's stretch is two cells — so the
+// directions are uniform; the 8 photons of one SIMD batch lie within a 4 × 4-cell square; and
+// a photon count that is not a power of two takes the sampler's own numbers.
+TEST(PhotonDirectionTest, ZOrderStrataTakeEveryCellOnceAndKeepBatchesTogether) {
+    for (uint32_t n : {128u, 256u, 32768u, 65536u}) {
+        const uint32_t k = (uint32_t(std::log2(double(n))) + 1u) / 2u;
+        const uint32_t side = 1u << k;
+        const uint32_t perPhoton = side * side / n;
+        std::vector<int> taken(size_t(side) * side, 0);
+        for (uint32_t p = 0; p < n; ++p) {
+            for (uint32_t half = 0; half < perPhoton; ++half) {
+                const float pick = (float(half) + 0.5f) / float(perPhoton);
+                const glm::vec2 u = shader::photonDirectionSample(p, n, glm::vec3(pick, 0.5f, 0.5f),
+                                                                  glm::vec2(-1.0f));
+                ASSERT_TRUE(u.x >= 0.0f && u.x < 1.0f && u.y >= 0.0f && u.y < 1.0f) << n;
+                const auto x = uint32_t(u.x * float(side)), y = uint32_t(u.y * float(side));
+                taken[size_t(y) * side + x] += 1;
+            }
+        }
+        EXPECT_TRUE(std::all_of(taken.begin(), taken.end(), [](int t) { return t == 1; }))
+            << n << " photons: a cell taken twice or never";
+        // The last cell's far corner stays below 1 (a uniform number's range).
+        const glm::vec2 corner =
+            shader::photonDirectionSample(n - 1u, n, glm::vec3(0.9999f), glm::vec2(-1.0f));
+        EXPECT_LT(std::max(corner.x, corner.y), 1.0f);
+        for (uint32_t batch = 0; batch < n; batch += 8) {
+            glm::vec2 lo(1.0f), hi(0.0f);
+            for (uint32_t p = batch; p < batch + 8; ++p) {
+                for (float pick : {0.0f, 0.9999f}) {
+                    for (float c : {0.0f, 0.9999f}) {
+                        const glm::vec2 u = shader::photonDirectionSample(
+                            p, n, glm::vec3(pick, c, c), glm::vec2(-1.0f));
+                        lo = glm::min(lo, u);
+                        hi = glm::max(hi, u);
+                    }
+                }
+            }
+            ASSERT_LE(std::max(hi.x - lo.x, hi.y - lo.y), 4.0f / float(side))
+                << n << " photons, batch " << batch;
+        }
+    }
+    const glm::vec2 plain(0.25f, 0.75f);
+    EXPECT_EQ(shader::photonDirectionSample(7u, 3u * 128u, glm::vec3(0.5f), plain), plain);
+}
+
 // Model only what the scene requires: no purely specular object (or no light) ⇒ no photon pass,
 // no photon buffers; forcing it off turns it off; a bad photon setting is refused.
 TEST_F(PhotonTest, OnlyScenesWithACausticRunPhotons) {

@@ -131,6 +131,32 @@ PV_INLINE vec3 octahedralDecode(vec2 p) {
     return normalize(v);
 }
 
+// The even bits of v, packed: one coordinate of a Morton (Z-order) index.
+PV_INLINE uint compactEvenBits(uint v) {
+    v &= 0x55555555u;
+    v = (v | (v >> 1u)) & 0x33333333u;
+    v = (v | (v >> 2u)) & 0x0f0f0f0fu;
+    v = (v | (v >> 4u)) & 0x00ff00ffu;
+    return (v | (v >> 8u)) & 0x0000ffffu;
+}
+
+// The two numbers of photon `photon`'s direction, of an iteration's N = 2^m photons, from three
+// uniform ones: the photon takes the photon-th of N equal stretches of a Z-order curve through
+// the 2^k × 2^k cells of the unit square (k = ⌈m/2⌉: one or two cells a stretch), u.x picks the
+// cell in its stretch and u.yz the point in the cell. Over the N photons that is uniform
+// (stratified along the curve), and consecutive photons — the lanes of one SIMD batch — leave in
+// neighbouring directions and meet the same BVH nodes, where a scrambled net's consecutive
+// points go anywhere. Another N (any multiple of 128 is allowed) takes the sampler's `plain`.
+PV_INLINE vec2 photonDirectionSample(uint photon, uint n, vec3 u, vec2 plain) {
+    if ((n & (n - 1u)) != 0u) return plain;
+    uint k = (uint(findMSB(n)) + 1u) / 2u;
+    uint cellsPerPhoton = (1u << (2u * k)) / n;
+    uint cell =
+        photon * cellsPerPhoton + min(uint(u.x * float(cellsPerPhoton)), cellsPerPhoton - 1u);
+    vec2 corner = vec2(compactEvenBits(cell), compactEvenBits(cell >> 1u));
+    return min((corner + vec2(u.y, u.z)) / float(1u << k), vec2(PV_ONE_MINUS_EPSILON));
+}
+
 // The gather radius of iteration i (0-based): r_i = r_0 · (i + 1)^((α − 1)/2), the global radius
 // schedule of Knaus & Zwicker 2011 ("Progressive Photon Mapping: A Probabilistic Approach"),
 // which gives progressive photon mapping's convergence with each iteration's estimate
