@@ -465,7 +465,7 @@ std::function<int()> addRenderCommand(CLI::App& app) {
                     "or glass and a light), on, off, or N photons per iteration (implies on)");
     cmd->add_option("--photon-radius", o->photonRadius,
                     "first gather radius, metres (default: 2.5% of the sphere around the specular "
-                    "objects)")
+                    "objects at 32768 photons per iteration, times sqrt(32768/photons))")
         ->check(CLI::NonNegativeNumber);
     cmd->add_option(
            "--photon-alpha", o->photonAlpha,

@@ -65,6 +65,12 @@ Status applyPhotonSpec(const std::string& spec, PhotonSettings& settings) {
     return {};
 }
 
+float defaultPhotonRadius(float aimRadius, uint32_t photonsPerIteration) {
+    const double scale =
+        std::sqrt(double(kDefaultRadiusPhotons) / double(std::max(photonsPerIteration, 1u)));
+    return float(double(kDefaultRadiusFraction) * aimRadius * scale);
+}
+
 bool mayBePurelySpecular(const Material& m) {
     // shader::bsdfIsPurelySpecular: alpha = roughness² below PV_DELTA_ALPHA, and no diffuse
     // base. Textures scale roughness, metalness and base colour, so a textured factor may reach it.

@@ -43,8 +43,8 @@ struct PhotonSettings {
     // Preview frames (Renderer::renderPreviewFrame) trace at most this many: a fixed budget for
     // speed; the radius of a preview frame is the first iterations' (it restarts every frame).
     uint32_t previewPerIteration = 1u << 14;
-    // Gather radius of the first iteration (metres); 0: kDefaultRadiusFraction of the radius of
-    // the sphere that holds the specular objects.
+    // Gather radius of the first iteration (metres); 0: defaultPhotonRadius (from the sphere
+    // that holds the specular objects and the photons per iteration).
     float initialRadius = 0.0f;
     // Progressive photon mapping's α in (0, 1): the radius shrinks as (i + 1)^((α − 1)/2).
     // 1 keeps the radius fixed (preview: a fixed, biased but steady estimate).
@@ -61,8 +61,18 @@ struct PhotonSettings {
 
 // Chosen on bench/scenes/caustics_glass.gltf (BENCHMARKS.md, issue 9): at 16 iterations the
 // caustic's relative RMSE against a long render fell from 0.25 (5 % of the 0.21 m aim radius:
-// blur dominated) to 0.13 (2.5 %); below that the path tracer's noise dominates.
+// blur dominated) to 0.13 (2.5 %); below that the path tracer's noise dominates. It holds at
+// kDefaultRadiusPhotons photons per iteration (defaultPhotonRadius).
 inline constexpr float kDefaultRadiusFraction = 0.025f;
+inline constexpr uint32_t kDefaultRadiusPhotons = 1u << 15;
+
+// The first gather radius when none is given: kDefaultRadiusFraction of the aim sphere's radius
+// at kDefaultRadiusPhotons per iteration, scaled by √(kDefaultRadiusPhotons / photons). A
+// surface's photon density grows with the photons per iteration, so the first disc then holds
+// the same expected count whatever that number: the same noise per iteration, and a blur (∝ r²)
+// that falls as photons are added instead of staying what the fewer photons needed
+// (docs/caustics.md, "Progressive radius"; BENCHMARKS.md, issue 9, ninth pass).
+float defaultPhotonRadius(float aimRadius, uint32_t photonsPerIteration);
 
 // Applies a `--photons` / config value: "auto", "on", "off", or a photon count per iteration
 // (which also turns photons on). The error names the accepted values.

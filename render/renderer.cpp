@@ -562,8 +562,6 @@ Status Renderer::buildScene(const Scene& scene) {
     p.photonMaxBounces = std::min(settings_.maxDepth, kMaxPhotonBounces + 1u) - 1u;
     p.photonGatherCap = ph.gatherCap;
     p.photonGatherNeighbours = ph.gatherNeighbours;
-    photonInitialRadius_ =
-        ph.initialRadius > 0.0f ? ph.initialRadius : kDefaultRadiusFraction * photonAim_.radius;
 
     size_t pixels = size_t(settings_.width) * settings_.height;
     buffers_.clear();
@@ -677,7 +675,11 @@ Status Renderer::updatePhotonLights(std::span<const shader::GpuLight> lights) {
 }
 
 float Renderer::nextPhotonRadius() const {
-    return shader::photonRadius(photonInitialRadius_, settings_.photons.alpha, uint32_t(samples_));
+    // The default follows the iteration's photon count: a preview frame's budget too.
+    const float first = settings_.photons.initialRadius > 0.0f
+                            ? settings_.photons.initialRadius
+                            : defaultPhotonRadius(photonAim_.radius, params_.photonCount);
+    return shader::photonRadius(first, settings_.photons.alpha, uint32_t(samples_));
 }
 
 void Renderer::traceSize(float scale, uint32_t& width, uint32_t& height) const {

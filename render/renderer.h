@@ -398,7 +398,6 @@ private:
     PhotonAim photonAim_;
     std::vector<EmissivePhotonSource> emissivePhotonSources_;
     bool photonsActive_ = false;
-    float photonInitialRadius_ = 0.0f;
     std::optional<PhotonPasses> photonPasses_;
     double photonMs_ = 0.0;
     std::optional<Denoiser> denoiser_;
