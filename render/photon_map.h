@@ -38,7 +38,8 @@ struct PhotonSettings {
     // gatherNeighbours, its radius holds about that many whatever the iteration, so the blur
     // there falls only as the photons per iteration grow (docs/caustics.md). On the caustics
     // benchmark, against a bias-free reference (BENCHMARKS.md, issue 9, eighth pass), 65536
-    // reached 5 % sooner than 32768 and 131072 (each iteration costs more with more photons).
+    // reached 5 % sooner than 32768 and 131072 (each iteration costs more with more photons);
+    // with the first radius following the count (ninth pass) 131072 still lose.
     uint32_t perIteration = 1u << 16;
     // Preview frames (Renderer::renderPreviewFrame) trace at most this many: a fixed budget for
     // speed; the radius of a preview frame is the first iterations' (it restarts every frame).
