@@ -279,8 +279,9 @@ void Service::Threads::publish(PipelineRenderer& r, const TrackedFrame& frame, M
         renderStatus.trackMs = frame.trackMs;
         renderStatus.deviceBytes = r.renderer().deviceBytes();
         const bool photons = r.renderer().photonsActive();
-        renderStatus.photonsPerIteration = photons ? r.renderer().photonsPerIteration() : 0;
-        renderStatus.photonRadiusM = photons ? r.renderer().nextPhotonRadius() : 0.0f;
+        // What the shown frame used: a preview frame's budget and radius, not refinement's.
+        renderStatus.photonsPerIteration = photons ? r.renderer().lastPhotonCount() : 0;
+        renderStatus.photonRadiusM = photons ? r.renderer().lastPhotonRadius() : 0.0f;
         out->index = renderStatus.framesRendered++;
         s = renderStatus;
     }

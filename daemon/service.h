@@ -51,7 +51,7 @@ struct ServiceStatus {
     double latencyMs = 0.0;
     uint64_t deviceBytes = 0;                // the renderer's device memory
     uint32_t photonsPerIteration = 0;        // 0: no photon pass (docs/caustics.md)
-    float photonRadiusM = 0.0f;              // the gather radius of the next iteration
+    float photonRadiusM = 0.0f;              // the gather radius of the frame's last iteration
     std::string sceneCamera, fisheyeCamera;  // capture states
     uint64_t lightingUpdates = 0;
 };

@@ -847,6 +847,8 @@ Status Renderer::render(uint32_t samples,
         if (photonsActive_) {
             params_.photonIteration = uint32_t(samples_);
             params_.photonRadius = nextPhotonRadius();
+            lastPhotonCount_ = params_.photonCount;
+            lastPhotonRadius_ = params_.photonRadius;
             auto photonMs = photonPasses_->run(params_, buffers_, interrupt_);
             if (!photonMs) return photonMs.error();
             photonMs_ += photonMs.value();

@@ -192,6 +192,10 @@ public:
     bool photonsActive() const { return photonsActive_; }
     uint32_t photonsPerIteration() const { return params_.photonCount; }
     float nextPhotonRadius() const;
+    // The photons and gather radius of the last photon iteration rendered (a preview frame's
+    // budget and its radius, which differ from refinement's); 0 before any.
+    uint32_t lastPhotonCount() const { return lastPhotonCount_; }
+    float lastPhotonRadius() const { return lastPhotonRadius_; }
     const PhotonAim& photonAim() const { return photonAim_; }
     // The last photon iteration's records (two per photon, PV_PHOTON_* flags; empty slots have
     // flags 0), for tests and benchmarks.
@@ -400,6 +404,8 @@ private:
     bool photonsActive_ = false;
     std::optional<PhotonPasses> photonPasses_;
     double photonMs_ = 0.0;
+    uint32_t lastPhotonCount_ = 0;
+    float lastPhotonRadius_ = 0.0f;
     std::optional<Denoiser> denoiser_;
     bool temporalDenoise_ = false;
 };

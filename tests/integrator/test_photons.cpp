@@ -674,6 +674,42 @@ TEST_F(CausticAgreementTest, PreviewPhotonBudgetIsADialAxis) {
     EXPECT_FALSE(renderer.setPreviewPhotons(0).ok());
 }
 
+// The default first radius keeps the expected photons in the first disc (∝ N·r²) whatever the
+// photons per iteration N: 2.5 % of the aim radius at 32768, half that at four times as many,
+// finite at the extremes. The renderer uses it for refinement's count and for a preview frame's
+// budget; a radius the user gives is kept whatever the count.
+TEST_F(CausticAgreementTest, TheDefaultFirstRadiusFollowsThePhotonsPerIteration) {
+    EXPECT_FLOAT_EQ(defaultPhotonRadius(0.1f, 1u << 15), 0.1f * kDefaultRadiusFraction);
+    EXPECT_FLOAT_EQ(defaultPhotonRadius(0.1f, 1u << 17), 0.5f * 0.1f * kDefaultRadiusFraction);
+    for (uint32_t n : {1u, 128u, 5000u, 1u << 16, kMaxPhotonsPerIteration}) {
+        const double r = defaultPhotonRadius(0.1f, n);
+        EXPECT_TRUE(std::isfinite(r) && r > 0.0) << n;
+        // To float rounding (the radius is a float).
+        EXPECT_NEAR(double(n) * r * r / (double(1u << 15) * 0.0025 * 0.0025), 1.0, 1e-6) << n;
+    }
+    EXPECT_TRUE(std::isfinite(defaultPhotonRadius(0.1f, 0u)));
+
+    const Scene s = scene();
+    RenderSettings rs = previewSettings();  // refinement 32768 photons, preview 4096
+    auto r = Renderer::create(ctx(), s, rs);
+    ASSERT_TRUE(r.ok()) << r.message();
+    ASSERT_TRUE((*r)->photonsActive());
+    const float aim = (*r)->photonAim().radius;
+    EXPECT_FLOAT_EQ((*r)->nextPhotonRadius(), defaultPhotonRadius(aim, 1u << 15));
+    EXPECT_EQ((*r)->lastPhotonCount(), 0u);
+    ASSERT_TRUE((*r)->renderPreviewFrame(1).ok());
+    EXPECT_EQ((*r)->lastPhotonCount(), 4096u);
+    EXPECT_FLOAT_EQ((*r)->lastPhotonRadius(), defaultPhotonRadius(aim, 4096));
+    ASSERT_TRUE((*r)->reset().ok());
+    ASSERT_TRUE((*r)->render(1).ok());
+    EXPECT_EQ((*r)->lastPhotonCount(), 1u << 15);
+    EXPECT_FLOAT_EQ((*r)->lastPhotonRadius(), defaultPhotonRadius(aim, 1u << 15));
+    rs.photons.initialRadius = 0.004f;
+    auto fixed = Renderer::create(ctx(), s, rs);
+    ASSERT_TRUE(fixed.ok()) << fixed.message();
+    EXPECT_FLOAT_EQ((*fixed)->nextPhotonRadius(), 0.004f);
+}
+
 // Photons are aimed at a sphere around the specular triangles: for a glass ball it is the ball
 // itself (every vertex on it), not the sphere around its bounding box (√3 times the radius, which
 // would spend two thirds of the photons beside the ball); diffuse geometry does not widen it.
