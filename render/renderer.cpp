@@ -848,7 +848,6 @@ Status Renderer::render(uint32_t samples,
             params_.photonIteration = uint32_t(samples_);
             params_.photonRadius = nextPhotonRadius();
             lastPhotonCount_ = params_.photonCount;
-            lastPhotonRadius_ = params_.photonRadius;
             auto photonMs = photonPasses_->run(params_, buffers_, interrupt_);
             if (!photonMs) return photonMs.error();
             photonMs_ += photonMs.value();
@@ -1191,7 +1190,7 @@ Result<uint32_t> Renderer::nonFiniteSamples() const {
 
 Result<std::vector<shader::PhotonRecord>> Renderer::photonRecords() const {
     std::vector<shader::PhotonRecord> records(size_t(PV_PHOTON_RECORDS_PER_PHOTON) *
-                                              params_.photonCount);
+                                              lastPhotonCount_);
     if (Status s = buffers_[PV_BINDING_PHOTON_RECORDS].download(
             records.data(), records.size() * sizeof(shader::PhotonRecord));
         !s)
@@ -1201,7 +1200,7 @@ Result<std::vector<shader::PhotonRecord>> Renderer::photonRecords() const {
 
 Result<Renderer::PhotonGrid> Renderer::photonGrid() const {
     PhotonGrid grid;
-    grid.sorted.resize(size_t(PV_PHOTON_RECORDS_PER_PHOTON) * params_.photonCount);
+    grid.sorted.resize(size_t(PV_PHOTON_RECORDS_PER_PHOTON) * lastPhotonCount_);
     grid.buckets.resize(PV_PHOTON_BUCKETS);
     grid.radius = params_.photonRadius;
     if (Status s = buffers_[PV_BINDING_PHOTON_SORTED].download(

@@ -193,9 +193,10 @@ public:
     uint32_t photonsPerIteration() const { return params_.photonCount; }
     float nextPhotonRadius() const;
     // The photons and gather radius of the last photon iteration rendered (a preview frame's
-    // budget and its radius, which differ from refinement's); 0 before any.
+    // budget and its radius, which differ from refinement's); 0 before any. photonRecords and
+    // photonGrid hold that iteration.
     uint32_t lastPhotonCount() const { return lastPhotonCount_; }
-    float lastPhotonRadius() const { return lastPhotonRadius_; }
+    float lastPhotonRadius() const { return params_.photonRadius; }
     const PhotonAim& photonAim() const { return photonAim_; }
     // The last photon iteration's records (two per photon, PV_PHOTON_* flags; empty slots have
     // flags 0), for tests and benchmarks.
@@ -404,8 +405,7 @@ private:
     bool photonsActive_ = false;
     std::optional<PhotonPasses> photonPasses_;
     double photonMs_ = 0.0;
-    uint32_t lastPhotonCount_ = 0;
-    float lastPhotonRadius_ = 0.0f;
+    uint32_t lastPhotonCount_ = 0;  // params_.photonCount is refinement's again after a preview
     std::optional<Denoiser> denoiser_;
     bool temporalDenoise_ = false;
 };

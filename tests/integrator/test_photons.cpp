@@ -700,6 +700,9 @@ TEST_F(CausticAgreementTest, TheDefaultFirstRadiusFollowsThePhotonsPerIteration)
     ASSERT_TRUE((*r)->renderPreviewFrame(1).ok());
     EXPECT_EQ((*r)->lastPhotonCount(), 4096u);
     EXPECT_FLOAT_EQ((*r)->lastPhotonRadius(), defaultPhotonRadius(aim, 4096));
+    auto previewRecords = (*r)->photonRecords();  // the preview iteration's, not refinement's
+    ASSERT_TRUE(previewRecords.ok());
+    EXPECT_EQ(previewRecords->size(), size_t(PV_PHOTON_RECORDS_PER_PHOTON) * 4096u);
     ASSERT_TRUE((*r)->reset().ok());
     ASSERT_TRUE((*r)->render(1).ok());
     EXPECT_EQ((*r)->lastPhotonCount(), 1u << 15);
