@@ -50,8 +50,10 @@ struct PhotonSettings {
     // Progressive photon mapping's α in (0, 1): the radius shrinks as (i + 1)^((α − 1)/2).
     // 1 keeps the radius fixed (preview: a fixed, biased but steady estimate).
     float alpha = 2.0f / 3.0f;
-    // Records examined per grid bucket at most; fuller buckets are subsampled without bias.
-    uint32_t gatherCap = 256;
+    // Records examined per grid bucket at most; fuller buckets are subsampled without bias. A
+    // bucket is a cell of edge 2r (photonCellSize): a smaller window subsamples a focus's cells
+    // and adds noise (BENCHMARKS.md, issue 9, eleventh pass).
+    uint32_t gatherCap = 1024;
     // A gather that finds more than this many photons within the iteration's radius takes its
     // estimate again at the radius that holds about this many: the blur shrinks where photons are
     // dense (at a focus). 0 keeps every gather at the iteration's radius.

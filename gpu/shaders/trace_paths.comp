@@ -234,14 +234,14 @@ void fixedAdd(inout FixedRgb sum, vec3 v) {
 
 vec3 fixedValue(FixedRgb sum) { return vec3(sum.whole) + vec3(sum.fraction) * 2.3283064365386963e-10; }
 
-// One pass of gatherPhotons over the records in the 3×3×3 cells from `first` (edge
-// params.photonRadius) that lie within rq ≤ params.photonRadius of s: adds Σ f(wo, wi_p)·Φ_p·K(d_p)
+// One pass of gatherPhotons over the records in the 2×2×2 cells from `first` (edge
+// photonCellSize(params.photonRadius)) that lie within rq ≤ params.photonRadius of s: adds Σ f(wo, wi_p)·Φ_p·K(d_p)
 // (K at radius rq) to the sums and returns how many records it took (weighted like them where a
 // bucket is subsampled). Level-1 records only if `level1`; scatterings must fit in maxBounces.
 float gatherWithin(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint maxBounces, float uWindow,
                    bool level1, ivec3 first, float rq, inout FixedRgb sumMixed,
                    inout FixedRgb sumReal) {
-    float cellSize = params.photonRadius;
+    float cellSize = photonCellSize(params.photonRadius);
     float rq2 = rq * rq;
     float norm = 1.0 / (PV_PI * rq2);
     float taken = 0.0;
@@ -251,7 +251,7 @@ float gatherWithin(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint maxBounc
     // the least, and lanes would wait for each other cell by cell instead of once. Loops test
     // their exit at the end (see tracePaths).
     ivec3 place = ivec3(0);
-    uint cellsLeft = 27u;
+    uint cellsLeft = 8u;
     uint k = 0u;
     uint examined = 0u;
     uint n = 0u;
@@ -270,7 +270,7 @@ float gatherWithin(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint maxBounc
                            max(s.position - lo - cellSize, vec3(0.0));
             uvec2 range = uvec2(0u);
             if (dot(outside, outside) < rq2) {
-                // The 27 cells' buckets differ (photonBucket): each record is summed once.
+                // The 8 cells' buckets differ (photonBucket): each record is summed once.
                 uint bucket = photonBucket(cell);
                 uvec4 pair = texelFetch(photonCellTexels, int(bucket >> 1u));
                 range = (bucket & 1u) != 0u ? pair.zw : pair.xy;
@@ -281,12 +281,12 @@ float gatherWithin(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint maxBounc
             share = float(n) / float(max(examined, 1u));
             rangeStart = range.x;
             k = 0u;
-            // The next of the 27 places, x fastest (no division: a per-lane loop on llvmpipe).
+            // The next of the 8 places, x fastest (no division: a per-lane loop on llvmpipe).
             place.x += 1;
-            if (place.x == 3) {
+            if (place.x == 2) {
                 place.x = 0;
                 place.y += 1;
-                if (place.y == 3) {
+                if (place.y == 2) {
                     place.y = 0;
                     place.z += 1;
                 }
@@ -341,8 +341,8 @@ void gatherPhotons(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint depth, f
                    bool level1, out vec3 toMixed, out vec3 toReal) {
     float r = params.photonRadius;
     uint maxBounces = params.maxDepth - depth - 1u;
-    // The 3×3×3 cells (edge r) that the sphere of radius r around the point overlaps.
-    ivec3 first = photonCell(s.position - vec3(r), r);
+    // The 2×2×2 cells (edge 2r) that the sphere of radius r around the point overlaps.
+    ivec3 first = photonCell(s.position - vec3(r), photonCellSize(r));
     FixedRgb sumMixed;
     FixedRgb sumReal;
     float k = float(params.photonGatherNeighbours);

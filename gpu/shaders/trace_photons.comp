@@ -271,7 +271,7 @@ void main() {
             }
         }
     }
-    float cellSize = params.photonRadius;
+    float cellSize = photonCellSize(params.photonRadius);
     uint stored = 0u;
     for (uint k = 0u; k < PV_PHOTON_RECORDS_PER_PHOTON; ++k) {
         records[PV_PHOTON_RECORDS_PER_PHOTON * photon + k] = gStored[k];

@@ -95,11 +95,17 @@ struct PhotonRecord {
 // overlaps at most 3×3×3 cells).
 PV_INLINE ivec3 photonCell(vec3 p, float cellSize) { return ivec3(floor(p / cellSize)); }
 
+// The grid's cell edge for gather radius r: 2r, so a gather's sphere meets 2×2×2 cells. (3×3×3
+// cells of edge r read fewer records, about 8 r² of a surface instead of 15 r² for a disc of
+// π r², but llvmpipe runs a gather's cell loop 27 trips instead of 8 wherever a lane gathers:
+// with a window of 1024 records a cell (PhotonSettings::gatherCap) the 8 cells make an iteration
+// about 10 % faster at the same error, BENCHMARKS.md.)
+PV_INLINE float photonCellSize(float radius) { return 2.0f * radius; }
+
 // Teschner et al. 2003's spatial hash of the 3×3×3 block holding the cell, folded onto the
-// parent buckets, then the cell's place within the block. A gather visits 3×3×3 neighbouring
-// cells, whose places all differ: they never share a bucket, so no record is summed twice and the
-// gather needs no duplicate check. (Cells of edge r rather than 2×2×2 of edge 2r: on a surface a
-// gather then reads the records of about 8 r² instead of 15 r², for a disc of π r².)
+// parent buckets, then the cell's place within the block. Neighbouring cells (the 2×2×2 a gather
+// visits) have different places: they never share a bucket, so no record is summed twice and the
+// gather needs no duplicate check.
 PV_INLINE uint photonBucket(ivec3 c) {
     // Offset by a multiple of 3 so that unsigned division floors negative cells too.
     uvec3 u = uvec3(c) + uvec3(1610612736u);
