@@ -234,8 +234,8 @@ void fixedAdd(inout FixedRgb sum, vec3 v) {
 
 vec3 fixedValue(FixedRgb sum) { return vec3(sum.whole) + vec3(sum.fraction) * 2.3283064365386963e-10; }
 
-// One pass of gatherPhotons over the records in the 2×2×2 cells from `first` (edge
-// photonCellSize(params.photonRadius)) that lie within rq ≤ params.photonRadius of s: adds Σ f(wo, wi_p)·Φ_p·K(d_p)
+// One pass of gatherPhotons over the records in the 2×2×2 cells from `first` (edge 2r, r =
+// params.photonRadius) that lie within rq ≤ r of s: adds Σ f(wo, wi_p)·Φ_p·K(d_p)
 // (K at radius rq) to the sums and returns how many records it took (weighted like them where a
 // bucket is subsampled). Level-1 records only if `level1`; scatterings must fit in maxBounces.
 float gatherWithin(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint maxBounces, float uWindow,

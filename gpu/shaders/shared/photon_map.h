@@ -91,8 +91,7 @@ struct PhotonRecord {
     uint direction;  // packSnorm2x16(octahedralEncode(toward where the photon came from))
 };
 
-// The grid cell of p for cells of edge `cellSize` (the gather radius, so that a gather sphere
-// overlaps at most 3×3×3 cells).
+// The grid cell of p for cells of edge `cellSize` (photonCellSize of the gather radius).
 PV_INLINE ivec3 photonCell(vec3 p, float cellSize) { return ivec3(floor(p / cellSize)); }
 
 // The grid's cell edge for gather radius r: 2r, so a gather's sphere meets 2×2×2 cells. (3×3×3
