@@ -1203,7 +1203,6 @@ Result<Renderer::PhotonGrid> Renderer::photonGrid() const {
     grid.sorted.resize(size_t(PV_PHOTON_RECORDS_PER_PHOTON) * lastPhotonCount_);
     grid.buckets.resize(PV_PHOTON_BUCKETS);
     grid.radius = params_.photonRadius;
-    grid.cellSize = shader::photonCellSize(grid.radius);
     if (Status s = buffers_[PV_BINDING_PHOTON_SORTED].download(
             grid.sorted.data(), grid.sorted.size() * sizeof(shader::PhotonRecord));
         !s)

@@ -208,7 +208,6 @@ public:
         std::vector<shader::PhotonRecord> sorted;
         std::vector<glm::uvec2> buckets;
         float radius = 0.0f;
-        float cellSize = 0.0f;  // photonCellSize(radius)
     };
     Result<PhotonGrid> photonGrid() const;
     // GPU time of the photon passes so far (ms; part of gpuMilliseconds()).

@@ -251,7 +251,7 @@ float gatherWithin(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint maxBounc
     // the least, and lanes would wait for each other cell by cell instead of once. Loops test
     // their exit at the end (see tracePaths).
     ivec3 place = ivec3(0);
-    uint cellsLeft = 8u;
+    uint cellsLeft = uint(PV_PHOTON_GATHER_SPAN * PV_PHOTON_GATHER_SPAN * PV_PHOTON_GATHER_SPAN);
     uint k = 0u;
     uint examined = 0u;
     uint n = 0u;
@@ -283,10 +283,10 @@ float gatherWithin(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint maxBounc
             k = 0u;
             // The next of the 8 places, x fastest (no division: a per-lane loop on llvmpipe).
             place.x += 1;
-            if (place.x == 2) {
+            if (place.x == PV_PHOTON_GATHER_SPAN) {
                 place.x = 0;
                 place.y += 1;
-                if (place.y == 2) {
+                if (place.y == PV_PHOTON_GATHER_SPAN) {
                     place.y = 0;
                     place.z += 1;
                 }

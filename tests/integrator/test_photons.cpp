@@ -550,7 +550,8 @@ TEST_F(PhotonTest, GridHoldsEachStoredRecordOnceInItsBucketInPhotonOrder) {
         size_t previous = 0;
         for (uint32_t k = range.x; k < range.y; ++k) {
             const shader::PhotonRecord& rec = grid->sorted[k];
-            EXPECT_EQ(shader::photonBucket(shader::photonCell(rec.position, grid->cellSize)),
+            EXPECT_EQ(shader::photonBucket(
+                          shader::photonCell(rec.position, shader::photonCellSize(grid->radius))),
                       bucket);
             auto it = traceIndex.find(bitsOf(rec));
             ASSERT_NE(it, traceIndex.end()) << "record " << k << " was not traced";

@@ -99,7 +99,12 @@ PV_INLINE ivec3 photonCell(vec3 p, float cellSize) { return ivec3(floor(p / cell
 // π r², but llvmpipe runs a gather's cell loop 27 trips instead of 8 wherever a lane gathers:
 // with a window of 1024 records a cell (PhotonSettings::gatherCap) the 8 cells make an iteration
 // about 10 % faster at the same error, BENCHMARKS.md.)
-PV_INLINE float photonCellSize(float radius) { return 2.0f * radius; }
+// The span is the cells a gather visits per axis; the edge follows from it, as a sphere of
+// radius r spans 2r: 2 cells of 2r, or 3 of r.
+#define PV_PHOTON_GATHER_SPAN 2
+PV_INLINE float photonCellSize(float radius) {
+    return 2.0f * radius / float(PV_PHOTON_GATHER_SPAN - 1);
+}
 
 // Teschner et al. 2003's spatial hash of the 3×3×3 block holding the cell, folded onto the
 // parent buckets, then the cell's place within the block. Neighbouring cells (the 2×2×2 a gather
