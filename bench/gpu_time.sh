@@ -10,18 +10,23 @@
 # The builds alternate within each run, so slow drift of a noisy machine hits all alike; the
 # medians over the runs are printed per workload and build, with the ratio to the first build.
 #
-#   bench/gpu_time.sh [--runs N] PREVIS_BINARY...
+#   bench/gpu_time.sh [--runs N] [--only WORKLOAD,...] PREVIS_BINARY...
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 runs=3
+workloads=(bunny area preview caustics)
 while [[ $# -gt 0 && $1 == --* ]]; do
     case "$1" in
         --runs) runs=$2; shift 2 ;;
-        *) echo "usage: $0 [--runs N] PREVIS_BINARY..." >&2; exit 2 ;;
+        --only) IFS=, read -r -a workloads <<<"$2"; shift 2 ;;
+        *) echo "usage: $0 [--runs N] [--only WORKLOAD,...] PREVIS_BINARY..." >&2; exit 2 ;;
     esac
 done
-(($# > 0)) || { echo "usage: $0 [--runs N] PREVIS_BINARY..." >&2; exit 2; }
+(($# > 0)) || { echo "usage: $0 [--runs N] [--only WORKLOAD,...] PREVIS_BINARY..." >&2; exit 2; }
 binaries=("$@")
+for w in "${workloads[@]}"; do
+    [[ $w =~ ^(bunny|area|preview|caustics)$ ]] || { echo "$0: unknown workload $w (bunny, area, preview, caustics)" >&2; exit 2; }
+done
 source "$root/bench/scenes/bench_scene.sh"
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
@@ -47,7 +52,7 @@ median() { sort -g | awk '{ v[NR] = $1 } END { print (NR % 2) ? v[(NR + 1) / 2] 
 
 echo "| workload | build | GPU s (median of $runs) | photon pass s | ratio to the first build |"
 echo "|---|---|---|---|---|"
-for workload in bunny area preview caustics; do
+for workload in "${workloads[@]}"; do
     declare -A gpu=() photon=()
     for ((r = 1; r <= runs; ++r)); do
         for b in "${binaries[@]}"; do

@@ -199,9 +199,13 @@ Result<PhotonPasses> PhotonPasses::create(GpuContext& ctx, std::span<const Bindi
     p.trace_.emplace(std::move(trace.value()));
     std::vector<BindingKind> storage(PV_BINDING_COUNT, BindingKind::StorageBuffer);
     for (uint32_t stage : {kHistogram, kScan, kScatter, kCells, kCompactScan, kCompact}) {
-        const bool scan = stage == kScan || stage == kCompactScan;
-        std::array<uint32_t, 2> constants{stage,
-                                          scan ? PV_PHOTON_SCAN_GROUP : PV_PHOTON_SORT_BLOCK};
+        // Workgroup size: the scan's one group; one invocation a block for the histogram and
+        // the scatter (photon_grid.comp); a block's worth for the rest.
+        const uint32_t groupSize = stage == kScan || stage == kCompactScan ? PV_PHOTON_SCAN_GROUP
+                                   : stage == kHistogram || stage == kScatter
+                                       ? 1u
+                                       : PV_PHOTON_SORT_BLOCK;
+        std::array<uint32_t, 2> constants{stage, groupSize};
         auto grid = ComputePipeline::create(
             ctx, std::span<const uint32_t>(photon_grid_spv, sizeof(photon_grid_spv) / 4), storage,
             constants, "photon_grid", specialise);

@@ -22,8 +22,9 @@
 #define STAGE_COMPACT 5u
 layout(constant_id = 0) const uint kStage = STAGE_HISTOGRAM;
 
-// The scan runs in one workgroup of PV_PHOTON_SCAN_GROUP; the other stages in blocks of
-// PV_PHOTON_SORT_BLOCK records.
+// The scan runs in one workgroup of PV_PHOTON_SCAN_GROUP, the histogram and the scatter in one
+// invocation per block of PV_PHOTON_SORT_BLOCK records, the other stages in workgroups of
+// PV_PHOTON_SORT_BLOCK invocations.
 layout(local_size_x_id = 1) in;
 
 layout(binding = PV_BINDING_PARAMS, scalar) readonly buffer ParamsBuffer { FrameParams params; };
@@ -52,15 +53,14 @@ uint digitOf(uvec2 pair) {
     return (pair.x >> params.photonSortShift) & (PV_PHOTON_SORT_DIGITS - 1u);
 }
 
+// One invocation per block (histogram and scatter): it walks the block's records in order, so
+// the histogram is plain additions and the scatter is stable without a rank per record.
 void histogram() {
-    uint t = gl_LocalInvocationID.x;
     uint block = gl_WorkGroupID.x;
-    for (uint d = t; d < PV_PHOTON_SORT_DIGITS; d += PV_PHOTON_SORT_BLOCK) sharedWords[d] = 0u;
-    barrier();
-    // Counts are the same whatever order the additions happen in.
-    atomicAdd(sharedWords[digitOf(sortInput(block * PV_PHOTON_SORT_BLOCK + t))], 1u);
-    barrier();
-    for (uint d = t; d < PV_PHOTON_SORT_DIGITS; d += PV_PHOTON_SORT_BLOCK)
+    uint base = block * PV_PHOTON_SORT_BLOCK;
+    for (uint d = 0u; d < PV_PHOTON_SORT_DIGITS; ++d) sharedWords[d] = 0u;
+    for (uint i = 0u; i < PV_PHOTON_SORT_BLOCK; ++i) sharedWords[digitOf(sortInput(base + i))] += 1u;
+    for (uint d = 0u; d < PV_PHOTON_SORT_DIGITS; ++d)
         blockCounts[d * blockCount() + block] = sharedWords[d];
 }
 
@@ -95,19 +95,19 @@ void scan() {
     }
 }
 
-// Stable: a record's place among its block's records of the same digit is the number of them
-// before it in the block (a loop over the block: quadratic in PV_PHOTON_SORT_BLOCK, hence the
-// small blocks).
+// Stable: the block's records of one digit go out in the order they come in, after those of the
+// same digit in earlier blocks (the scanned counts).
 void scatter() {
-    uint t = gl_LocalInvocationID.x;
     uint block = gl_WorkGroupID.x;
-    uvec2 pair = sortInput(block * PV_PHOTON_SORT_BLOCK + t);
-    uint digit = digitOf(pair);
-    sharedWords[t] = digit;
-    barrier();
-    uint rank = 0u;
-    for (uint j = 0u; j < t; ++j) rank += sharedWords[j] == digit ? 1u : 0u;
-    sortOutput(blockCounts[digit * blockCount() + block] + rank, pair);
+    uint base = block * PV_PHOTON_SORT_BLOCK;
+    for (uint d = 0u; d < PV_PHOTON_SORT_DIGITS; ++d)
+        sharedWords[d] = blockCounts[d * blockCount() + block];
+    for (uint i = 0u; i < PV_PHOTON_SORT_BLOCK; ++i) {
+        uvec2 pair = sortInput(base + i);
+        uint digit = digitOf(pair);
+        sortOutput(sharedWords[digit], pair);
+        sharedWords[digit] += 1u;
+    }
 }
 
 // Slot i of trace_photons' output: its pair, if stored, moves to its group's offset in sort A;

@@ -50,11 +50,11 @@ PV_BEGIN
 // real-only continuation after it met a virtual object (the paper's ray types, as in
 // trace_paths); level' is 0 for level 1, 1 for level 2.
 #define PV_PHOTON_RECORDS_PER_PHOTON 4u
-// Records are sorted in blocks of this many by photon_grid.comp (one workgroup each). Small: a
-// record's rank in its block is a loop over the records before it, so a pass costs the block
-// size per record, while the one-workgroup scan over blocks × 256 digit counts stays cheap
-// (64 against 256 on llvmpipe: a pass of 32768 photons' records 6.8 ms against 9.4).
-#define PV_PHOTON_SORT_BLOCK 64u
+// Records are sorted in blocks of this many by photon_grid.comp, one invocation walking each
+// block in order: its histogram and scatter cost one step a record whatever the block size, and
+// the one-workgroup scan over blocks × 256 digit counts shrinks as blocks grow. 512 is four
+// records each of the 128 photons the photon count is a multiple of (renderer.cpp).
+#define PV_PHOTON_SORT_BLOCK 512u
 #define PV_PHOTON_GROUP_SIZE 64u
 // trace_photons packs a workgroup's stored sort pairs at the start of its slots, this many (four
 // per photon); photon_grid.comp's compaction gathers them from there.
