@@ -116,9 +116,9 @@ per_iteration "preview (radius fixed)" "$preview_photons" --photon-alpha 1
 per_iteration "refinement (alpha 2/3)" "$photons"
 for n in "$preview_photons" "$photons"; do
     # Four records per photon (two solutions, two levels) in trace order and sorted (32 bytes
-    # each), two sort pairs (8 each) and 256 digit counts per 64-record sort block (16), plus the
+    # each), two sort pairs (8 each) and 256 digit counts per 512-record sort block (2), plus the
     # 1048492 bucket ranges (8 bytes each); render/photon_map.cpp's photonBufferBytes.
-    awk -v n="$n" 'BEGIN { printf "photon map memory at %d photons: %.1f MiB\n", n, (4 * n * 96 + 1048492 * 8) / 1048576 }'
+    awk -v n="$n" 'BEGIN { printf "photon map memory at %d photons: %.1f MiB\n", n, (4 * n * 82 + 1048492 * 8) / 1048576 }'
 done
 
 echo

@@ -24,6 +24,7 @@ while [[ $# -gt 0 && $1 == --* ]]; do
 done
 (($# > 0)) || { echo "usage: $0 [--runs N] [--only WORKLOAD,...] PREVIS_BINARY..." >&2; exit 2; }
 binaries=("$@")
+((${#workloads[@]})) || { echo "$0: --only needs a workload (bunny, area, preview, caustics)" >&2; exit 2; }
 for w in "${workloads[@]}"; do
     [[ $w =~ ^(bunny|area|preview|caustics)$ ]] || { echo "$0: unknown workload $w (bunny, area, preview, caustics)" >&2; exit 2; }
 done
