@@ -27,7 +27,11 @@ layout(constant_id = 0) const uint kStage = STAGE_HISTOGRAM;
 // PV_PHOTON_SORT_BLOCK invocations.
 layout(local_size_x_id = 1) in;
 
-layout(binding = PV_BINDING_PARAMS, scalar) readonly buffer ParamsBuffer { FrameParams params; };
+layout(binding = PV_BINDING_PARAMS, scalar) readonly buffer ParamsBuffer { FrameParams paramsBuffer; };
+// Copied from paramsBuffer before any branch, as in scene_access.glsl: llvmpipe loads a
+// storage-buffer value inside a loop as a loop over the active lanes, and the histogram and the
+// scatter read the sort shift and the block count once a record.
+FrameParams params;
 layout(binding = PV_BINDING_PHOTON_RECORDS, scalar) readonly buffer Records { PhotonRecord records[]; };
 layout(binding = PV_BINDING_PHOTON_SORTED, scalar) writeonly buffer Sorted { PhotonRecord sortedRecords[]; };
 layout(binding = PV_BINDING_PHOTON_SORT_A, scalar) buffer SortA { uvec2 sortA[]; };
@@ -59,7 +63,8 @@ void histogram() {
     uint block = gl_WorkGroupID.x;
     uint base = block * PV_PHOTON_SORT_BLOCK;
     for (uint d = 0u; d < PV_PHOTON_SORT_DIGITS; ++d) sharedWords[d] = 0u;
-    for (uint i = 0u; i < PV_PHOTON_SORT_BLOCK; ++i) sharedWords[digitOf(sortInput(base + i))] += 1u;
+    for (uint i = 0u; i < PV_PHOTON_SORT_BLOCK; ++i)
+        sharedWords[digitOf(sortInput(base + i))] += 1u;
     for (uint d = 0u; d < PV_PHOTON_SORT_DIGITS; ++d)
         blockCounts[d * blockCount() + block] = sharedWords[d];
 }
@@ -139,6 +144,7 @@ void buildCells() {
 }
 
 void main() {
+    params = paramsBuffer;  // before any branch (above)
     if (kStage == STAGE_HISTOGRAM) histogram();
     else if (kStage == STAGE_SCAN || kStage == STAGE_COMPACT_SCAN) scan();
     else if (kStage == STAGE_SCATTER) scatter();
