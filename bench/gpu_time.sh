@@ -14,7 +14,8 @@
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 runs=3
-workloads=(bunny area preview caustics)
+known=(bunny area preview caustics)
+workloads=("${known[@]}")
 while [[ $# -gt 0 && $1 == --* ]]; do
     case "$1" in
         --runs) runs=$2; shift 2 ;;
@@ -24,9 +25,9 @@ while [[ $# -gt 0 && $1 == --* ]]; do
 done
 (($# > 0)) || { echo "usage: $0 [--runs N] [--only WORKLOAD,...] PREVIS_BINARY..." >&2; exit 2; }
 binaries=("$@")
-((${#workloads[@]})) || { echo "$0: --only needs a workload (bunny, area, preview, caustics)" >&2; exit 2; }
+((${#workloads[@]})) || { echo "$0: --only needs a workload (${known[*]})" >&2; exit 2; }
 for w in "${workloads[@]}"; do
-    [[ $w =~ ^(bunny|area|preview|caustics)$ ]] || { echo "$0: unknown workload $w (bunny, area, preview, caustics)" >&2; exit 2; }
+    [[ " ${known[*]} " == *" $w "* ]] || { echo "$0: unknown workload '$w' (${known[*]})" >&2; exit 2; }
 done
 source "$root/bench/scenes/bench_scene.sh"
 work=$(mktemp -d)
