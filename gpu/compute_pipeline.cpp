@@ -3,7 +3,7 @@
 #include <algorithm>
 
 #include "base/log.h"
-#include "gpu/spirv_specialise.h"
+#include "gpu/spirv_cache.h"
 
 namespace previs {
 
@@ -47,7 +47,7 @@ Result<ComputePipeline> ComputePipeline::create(GpuContext& ctx, std::span<const
         p.layout_ = vk::raii::PipelineLayout(device, vk::PipelineLayoutCreateInfo({}, setLayout));
         std::vector<uint32_t> specialised;
         if (specialise == Specialise::OnHost && !specConstants.empty()) {
-            auto module = specialiseSpirv(spirv, specConstants);
+            auto module = SpirvCache::fromEnvironment().specialise(spirv, specConstants);
             if (!module)
                 return makeError("cannot create compute pipeline '{}': {}", label,
                                  module.error().message);

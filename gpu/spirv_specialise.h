@@ -14,6 +14,10 @@
 
 namespace previs {
 
+// The version of specialiseSpirv's pass list: part of a cached module's key (gpu/spirv_cache.h),
+// so that a changed list never reads an entry the old one wrote. Bump it with any change there.
+inline constexpr uint32_t kSpecialisePassesVersion = 1;
+
 // `spirv` with its 32-bit specialization constants (id i = constants[i]) frozen to constants and
 // the branches and functions they disable removed (SPIRV-Tools). The result has no
 // specialization constants left; it computes what the driver would with the same values.

@@ -32,6 +32,9 @@ vulkaninfo --summary 2>&1 | grep -E "deviceName|driverName" || { echo "FAIL vulk
 echo "ok   vulkaninfo under the sandbox"
 touch "$MESA_SHADER_CACHE_DIR/probe" && echo "ok   $MESA_SHADER_CACHE_DIR writable" ||
     { echo "FAIL $MESA_SHADER_CACHE_DIR not writable"; exit 1; }
+mkdir -p "$PREVIS_SHADER_CACHE_DIR" && touch "$PREVIS_SHADER_CACHE_DIR/probe" &&
+    echo "ok   $PREVIS_SHADER_CACHE_DIR writable" ||
+    { echo "FAIL $PREVIS_SHADER_CACHE_DIR not writable"; exit 1; }
 EOT
 chmod 755 /usr/local/bin/previs-sandbox-check
 
