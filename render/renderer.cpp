@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstring>
+#include <future>
 #include <glm/gtc/matrix_transform.hpp>
 
 #include "base/log.h"
@@ -172,8 +173,29 @@ Result<std::unique_ptr<Renderer>> Renderer::create(GpuContext& ctx, const Scene&
         renderOriginFor(glm::dvec3(r->worldFromCameraM_[3])).value_or(glm::dvec3(0.0));
 
     r->features_ = detectSceneFeatures(scene, r->camera_);
-    if (Status s = r->buildScene(scene); !s) return s.error();
-
+    // Positions in the GPU's frame (setCameraPose); a copy only where the frames differ.
+    const glm::dvec3 offset = r->sceneOriginM_ - r->renderOriginM_;
+    Geometry shifted;
+    if (offset != glm::dvec3(0.0)) {
+        shifted = scene.geometry;
+        for (glm::vec3& p : shifted.positions) p = toRenderFrame(p, offset);
+    }
+    const Geometry& g = offset != glm::dvec3(0.0) ? shifted : scene.geometry;
+    // Two slow steps that need nothing of each other, on two cores: the BVH builds on a second
+    // thread (CPU work only) while this one compiles the pipelines (all Vulkan calls stay on one
+    // thread). The pipelines' photon switch is predicted from what the scene holds: photons
+    // run where they may (photonsPossible) and the scene has an emitter or a light to send
+    // them from. Where buildScene finds otherwise (emitters of zero area or power),
+    // specialisePipeline compiles again: a prediction costs time, never a wrong pipeline.
+    r->photonAim_ = photonAimFor(g, scene.materials);
+    const bool photonsLikely =
+        r->photonsPossible() && (r->features_.emissive || !scene.lights.empty());
+    auto bvh = std::async(std::launch::async, [&g] { return buildSceneBvh(g); });
+    const Status compiled = r->compilePipelines(r->pipelineConstants(photonsLikely));
+    Result<SceneBvh> built = bvh.get();
+    if (!compiled) return compiled.error();
+    if (!built) return built.error();
+    if (Status s = r->buildScene(scene, g, std::move(built.value())); !s) return s.error();
     if (Status s = r->specialisePipeline(); !s) return s.error();
     // buildScene sized the accumulation for the output; a fraction shrinks it.
     r->settings_.resolutionScale = 1.0f;
@@ -190,7 +212,7 @@ Result<std::unique_ptr<Renderer>> Renderer::create(GpuContext& ctx, const Scene&
     return Result<std::unique_ptr<Renderer>>(std::move(r));
 }
 
-Status Renderer::specialisePipeline() {
+std::array<uint32_t, PV_SPEC_COUNT> Renderer::pipelineConstants(bool photons) const {
     SceneFeatures spec = features_;
     if (settings_.generalPipeline)
         spec = SceneFeatures{true, true, true, true, true, true, true, true};
@@ -210,9 +232,20 @@ Status Renderer::specialisePipeline() {
     constants[PV_SPEC_SAMPLER] =
         settings_.sampler == Sampler::Sobol ? PV_SAMPLER_SOBOL : PV_SAMPLER_INDEPENDENT;
     constants[PV_SPEC_LIGHT_SOLID_ANGLE] = settings_.lightSampling == LightSampling::SolidAngle;
-    constants[PV_SPEC_PHOTONS] = photonsActive_;
+    constants[PV_SPEC_PHOTONS] = photons;
     constants[PV_SPEC_DENOISE_GUIDES] = settings_.denoise;
-    if (pipeline_ && constants == specConstants_) return bindBuffers();
+    return constants;
+}
+
+Status Renderer::specialisePipeline() {
+    const std::array<uint32_t, PV_SPEC_COUNT> constants = pipelineConstants(photonsActive_);
+    if (!pipeline_ || constants != specConstants_)
+        if (Status s = compilePipelines(constants); !s) return s;
+    return bindBuffers();
+}
+
+Status Renderer::compilePipelines(const std::array<uint32_t, PV_SPEC_COUNT>& constants) {
+    ++pipelineCompiles_;
     // Every read-only array the shader indexes per lane is a texel buffer (see BindingKind);
     // params (uniform reads), the accumulators and the stats stay storage buffers.
     std::array<BindingKind, PV_BINDING_COUNT> bindings{};
@@ -236,13 +269,17 @@ Status Renderer::specialisePipeline() {
     pipeline_.emplace(std::move(pipeline.value()));
     specConstants_ = constants;
     photonPasses_.reset();
-    if (photonsActive_) {
+    if (constants[PV_SPEC_PHOTONS]) {
         // trace_photons shares trace_paths' scene bindings and feature constants.
         auto passes = PhotonPasses::create(*ctx_, bindings, constants, settings_.specialise);
-        if (!passes) return passes.error();
+        if (!passes) {
+            // No half-made set: the next specialisePipeline compiles both again.
+            pipeline_.reset();
+            return passes.error();
+        }
         photonPasses_.emplace(std::move(passes.value()));
     }
-    return bindBuffers();
+    return {};
 }
 
 Status Renderer::sizeBands(uint32_t width, uint32_t height) {
@@ -385,19 +422,16 @@ Status Renderer::setEstimatedLights(std::span<const EstimatedLightSource> estima
     return s;
 }
 
-Status Renderer::buildScene(const Scene& scene) {
+bool Renderer::photonsPossible() const {
+    // Auto needs a specular object; its lights may still come from the captured environment.
+    const PhotonSettings& ph = settings_.photons;
+    return ph.mode == PhotonMode::On || (ph.mode == PhotonMode::Auto && photonAim_.any);
+}
+
+Status Renderer::buildScene(const Scene& scene, const Geometry& g, SceneBvh bvh) {
     ++sceneBuilds_;
-    // Positions in the GPU's frame (setCameraPose); a copy only where the frames differ.
     const glm::dvec3 offset = sceneOriginM_ - renderOriginM_;
-    Geometry shifted;
-    if (offset != glm::dvec3(0.0)) {
-        shifted = scene.geometry;
-        for (glm::vec3& p : shifted.positions) p = toRenderFrame(p, offset);
-    }
-    const Geometry& g = offset != glm::dvec3(0.0) ? shifted : scene.geometry;
-    auto bvh = buildSceneBvh(g);
-    if (!bvh) return bvh.error();
-    bvh_ = std::move(bvh.value());
+    bvh_ = std::move(bvh);
 
     // Triangles in BVH order, so that each leaf's triangles are contiguous.
     size_t triCount = g.triangles.size();
@@ -545,17 +579,13 @@ Status Renderer::buildScene(const Scene& scene) {
     // The BVH puts real triangles first.
     p.realTriangleCount =
         uint32_t(std::count(g.triangleIsReal.begin(), g.triangleIsReal.end(), uint8_t(1)));
-    // Photon buffers exist only where photons may run: Auto needs a specular object (lights
-    // may still come from the captured environment).
-    photonAim_ = photonAimFor(g, scene.materials);
+    // Photon buffers exist only where photons may run (create() set photonAim_).
     const PhotonSettings& ph = settings_.photons;
-    const bool photonsPossible =
-        ph.mode == PhotonMode::On || (ph.mode == PhotonMode::Auto && photonAim_.any);
     // A multiple of 128: whole photon workgroups, and records (four a photon) in whole sort
     // blocks.
     static_assert(128u % PV_PHOTON_GROUP_SIZE == 0u &&
                   128u * PV_PHOTON_RECORDS_PER_PHOTON % PV_PHOTON_SORT_BLOCK == 0u);
-    p.photonCount = photonsPossible ? (ph.perIteration + 127u) / 128u * 128u : 0u;
+    p.photonCount = photonsPossible() ? (ph.perIteration + 127u) / 128u * 128u : 0u;
     p.photonAimCenter = photonAim_.center;
     p.photonAimRadius = photonAim_.radius;
     p.photonSceneRadius = photonAim_.sceneRadius;

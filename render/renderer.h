@@ -185,6 +185,9 @@ public:
     Status setEstimatedLights(std::span<const EstimatedLightSource> lights);
     // How often this renderer built its BVH and geometry buffers (1: only in create()).
     uint64_t sceneBuildCount() const { return sceneBuilds_; }
+    // How often this renderer compiled its pipelines: 1 after create() where the constants it
+    // predicts before the BVH is built held, 2 where buildScene found otherwise.
+    uint64_t pipelineCompileCount() const { return pipelineCompiles_; }
 
     // Whether renders run the photon pass (the settings' mode and the scene decide; estimated
     // lights can switch an Auto renderer on), its photons per iteration and the gather radius
@@ -342,8 +345,18 @@ private:
     Result<Accumulation> readAccumulation() const;
 
     Renderer() = default;
-    Status buildScene(const Scene& scene);
-    // (Re)creates the pipeline when the specialization constants changed, and binds buffers_.
+    // Everything of the scene but its BVH, which `bvh` (built from `g`, the scene's geometry
+    // in the render frame) brings.
+    Status buildScene(const Scene& scene, const Geometry& g, SceneBvh bvh);
+    // Photon mapping may run in this scene: forced on, or --photons auto with a specular object.
+    bool photonsPossible() const;
+    // The specialization constants of the pipelines for the scene's features and settings, with
+    // photon mapping on or off.
+    std::array<uint32_t, PV_SPEC_COUNT> pipelineConstants(bool photons) const;
+    // Compiles the pipelines (trace_paths and, with PV_SPEC_PHOTONS, the photon passes) for
+    // `constants`; binds nothing.
+    Status compilePipelines(const std::array<uint32_t, PV_SPEC_COUNT>& constants);
+    // (Re)creates the pipelines when the specialization constants changed, and binds buffers_.
     Status specialisePipeline();
     // Uploads `bytes` into buffers_[binding], reallocating it only when its size differs.
     Status replaceBufferContents(int binding, const void* data, size_t bytes, const char* label);
@@ -389,6 +402,7 @@ private:
     std::vector<glm::vec3> sceneLightPositions_;    // scene frame, per scene light
     uint64_t recentres_ = 0;
     uint64_t sceneBuilds_ = 0;
+    uint64_t pipelineCompiles_ = 0;
     UpsampleSettings upsample_;
     std::optional<ImageF> plate_;
     uint64_t plateValuesRepaired_ = 0;

@@ -823,9 +823,32 @@ TEST_F(PhotonTest, OnlyScenesWithACausticRunPhotons) {
     sun.direction = glm::vec3(0.2f, 1.0f, 0.1f);
     sun.solidAngleSr = 6.8e-5f;
     sun.radiance = glm::vec3(1e4f);
+    // create() compiles the pipelines once, for the photon switch it predicts from the scene
+    // before buildScene confirms it (renderer.cpp); the sun changes the switch: once more.
+    for (const auto* r : {&plain, &plainOff, &on, &off, &dark})
+        EXPECT_EQ((**r)->pipelineCompileCount(), 1u);
     ASSERT_TRUE((*dark)->setEstimatedLights(std::span(&sun, 1)).ok());
     EXPECT_TRUE((*dark)->photonsActive());
+    EXPECT_EQ((*dark)->pipelineCompileCount(), 2u);
     ASSERT_TRUE((*dark)->render(1).ok());
+
+    // A prediction buildScene refutes: the only light is an emitter of zero area, so no photon
+    // leaves it. The pipelines are compiled again without photons and the render is the unlit
+    // one (black), as from a scene without that emitter.
+    Scene degenerate = unlit;
+    const uint32_t glow = addMaterial(degenerate, emitter(glm::vec3(10.0f)));
+    const glm::vec3 point(0, 1, 0);
+    const glm::vec3 down(0, -1, 0);
+    addMesh(degenerate, {point, point, point}, {down, down, down}, {glm::uvec3(0, 1, 2)}, glow,
+            false);
+    auto refuted = Renderer::create(ctx(), degenerate, photonSettings(8, 8, PhotonMode::Auto));
+    ASSERT_TRUE(refuted.ok()) << refuted.message();
+    EXPECT_FALSE((*refuted)->photonsActive());
+    EXPECT_EQ((*refuted)->pipelineCompileCount(), 2u);
+    ASSERT_TRUE((*refuted)->render(1).ok());
+    auto black = (*refuted)->image(Aov::Mixed);
+    ASSERT_TRUE(black.ok());
+    for (float v : black->pixels) EXPECT_EQ(v, 0.0f);
 
     RenderSettings bad = photonSettings(8, 8, PhotonMode::On);
     bad.photons.alpha = 0.0f;
