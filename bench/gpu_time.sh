@@ -15,20 +15,8 @@ set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 runs=3
 known=(bunny area preview caustics)
-workloads=("${known[@]}")
-while [[ $# -gt 0 && $1 == --* ]]; do
-    case "$1" in
-        --runs) runs=$2; shift 2 ;;
-        --only) IFS=, read -r -a workloads <<<"$2"; shift 2 ;;
-        *) echo "usage: $0 [--runs N] [--only WORKLOAD,...] PREVIS_BINARY..." >&2; exit 2 ;;
-    esac
-done
-(($# > 0)) || { echo "usage: $0 [--runs N] [--only WORKLOAD,...] PREVIS_BINARY..." >&2; exit 2; }
-binaries=("$@")
-((${#workloads[@]})) || { echo "$0: --only needs a workload (${known[*]})" >&2; exit 2; }
-for w in "${workloads[@]}"; do
-    [[ " ${known[*]} " == *" $w "* ]] || { echo "$0: unknown workload '$w' (${known[*]})" >&2; exit 2; }
-done
+source "$root/bench/build_comparison.sh"
+parse_build_comparison_options "$@"
 source "$root/bench/scenes/bench_scene.sh"
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
@@ -50,7 +38,6 @@ gpu_seconds() {  # binary workload seed
         sed -n 's/.* gpu_s=\([0-9.]*\) photon_gpu_s=\([0-9.]*\).*/\1 \2/p'
 }
 
-median() { sort -g | awk '{ v[NR] = $1 } END { print (NR % 2) ? v[(NR + 1) / 2] : (v[NR / 2] + v[NR / 2 + 1]) / 2 }'; }
 
 echo "| workload | build | GPU s (median of $runs) | photon pass s | ratio to the first build |"
 echo "|---|---|---|---|---|"

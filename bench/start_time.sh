@@ -17,21 +17,8 @@ set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 runs=5
 known=(bunny area caustics)
-workloads=("${known[@]}")
-usage="usage: $0 [--runs N] [--only WORKLOAD,...] PREVIS_BINARY..."
-while [[ $# -gt 0 && $1 == --* ]]; do
-    case "$1" in
-        --runs) runs=$2; shift 2 ;;
-        --only) IFS=, read -r -a workloads <<<"$2"; shift 2 ;;
-        *) echo "$usage" >&2; exit 2 ;;
-    esac
-done
-(($# > 0)) || { echo "$usage" >&2; exit 2; }
-binaries=("$@")
-((${#workloads[@]})) || { echo "$0: --only needs a workload (${known[*]})" >&2; exit 2; }
-for w in "${workloads[@]}"; do
-    [[ " ${known[*]} " == *" $w "* ]] || { echo "$0: unknown workload '$w' (${known[*]})" >&2; exit 2; }
-done
+source "$root/bench/build_comparison.sh"
+parse_build_comparison_options "$@"
 source "$root/bench/scenes/bench_scene.sh"
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
@@ -51,7 +38,6 @@ stages() {  # binary workload seed: prints the fields' values
     echo
 }
 
-median() { sort -g | awk '{ v[NR] = $1 } END { print (NR % 2) ? v[(NR + 1) / 2] : (v[NR / 2] + v[NR / 2 + 1]) / 2 }'; }
 
 echo "Seconds, medians of $runs runs:"
 echo "| workload | build |$(printf ' %s |' "${fields[@]}") total_s to the first build |"
