@@ -58,7 +58,10 @@ def main(path):
         ratios = []
         if lo < hi:
             for k in range(5):
-                target = math.exp(math.log(hi) + (math.log(lo) - math.log(hi)) * k / 4)
+                # The ends exactly: exp(log(lo)) may round below lo, which the renderer whose
+                # last error is lo never reaches, and the lowest level would be lost.
+                target = hi if k == 0 else lo if k == 4 else math.exp(
+                    math.log(hi) + (math.log(lo) - math.log(hi)) * k / 4)
                 tp, tc = time_for_error(p, target), time_for_error(c, target)
                 if tp is None or tc is None:
                     continue
