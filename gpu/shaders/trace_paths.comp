@@ -433,8 +433,9 @@ bool scatter(inout PathState st, Surface s, Frame frame, BsdfParams bp, BsdfSamp
     if (st.depth >= params.rouletteStartDepth) {
         // Russian roulette: unbiased, keeps paths whose throughput is still large. The square
         // root (as Cycles' path_state_continuation_probability) ends paths later than the
-        // throughput itself would: 4-9 % less variance per sample on the bunny and area-light
-        // benchmarks at no measured cost in time (BENCHMARKS.md, "Issue 8: Russian roulette").
+        // throughput itself would: 5-9 % less variance per sample on the bunny and area-light
+        // benchmarks at no measured cost in time (BENCHMARKS.md, "Issue 8: the fixed cost of a
+        // render, and Russian roulette").
         float pContinue = min(1.0, sqrt(maxComponent(st.throughput) * st.rouletteScale));
         if (uRoulette >= pContinue) return false;
         st.throughput /= pContinue;
