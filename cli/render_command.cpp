@@ -108,16 +108,33 @@ int run(const RenderOptions& o) {
     auto since = [](Clock::time_point t) {
         return std::chrono::duration<double>(Clock::now() - t).count();
     };
-    // The Vulkan device starts on a second core while the scene and its map load: neither needs
-    // the other (lavapipe's start, LLVM's included, is about 0.1 s).
-    auto deviceStarting = std::async(std::launch::async, [] { return GpuContext::create({}); });
-    auto scene = loadScene(o.scene);
+    // The scene and its map load on a second core while this thread starts the Vulkan device
+    // (lavapipe's start, LLVM's included, is about 0.1 s): neither needs the other, and every
+    // Vulkan call stays on this thread. Errors are reported in the order of the work: the
+    // scene's, the map's, then the device's.
+    struct Loaded {
+        Result<Scene> scene;
+        std::optional<Result<EnvironmentMap>> env;
+        double seconds;
+    };
+    auto loading = std::async(std::launch::async, [&o, runStart, since] {
+        Loaded l{loadScene(o.scene), std::nullopt, 0.0};
+        if (l.scene && !o.env.empty()) l.env.emplace(loadEnvironmentMap(o.env));
+        l.seconds = since(runStart);
+        return l;
+    });
+    auto ctx = GpuContext::create({});
+    const double deviceAndLoadSeconds = since(runStart);
+    Loaded loaded = loading.get();
+    // device_s: the part of the device's start the loading did not hide.
+    const double deviceSeconds = std::max(0.0, deviceAndLoadSeconds - loaded.seconds);
+    auto& scene = loaded.scene;
     if (!scene) {
         logError("{}", scene.message());
         return 2;
     }
-    if (!o.env.empty()) {
-        auto env = loadEnvironmentMap(o.env);
+    if (loaded.env) {
+        auto& env = *loaded.env;
         if (!env) {
             logError("{}", env.message());
             return 2;
@@ -227,14 +244,11 @@ int run(const RenderOptions& o) {
     // Guides are written only when something may use them: the denoiser, or a guide AOV.
     settings.denoise = o.denoise != "off" || std::any_of(o.aovs.begin(), o.aovs.end(), isGuideAov);
 
-    const double loadSeconds = since(runStart);
-    const auto deviceStart = Clock::now();
-    auto ctx = deviceStarting.get();  // device_s: what is left of its start
+    const double loadSeconds = since(runStart) - deviceSeconds;
     if (!ctx) {
         logError("{}", ctx.message());
         return 1;
     }
-    const double deviceSeconds = since(deviceStart);
     const auto setupStart = Clock::now();
     auto renderer = Renderer::create(**ctx, *scene, settings);
     if (!renderer) {
