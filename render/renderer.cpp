@@ -855,6 +855,11 @@ uint32_t Renderer::samplesForNextDispatch(uint32_t remaining) const {
 
 Status Renderer::render(uint32_t samples,
                         const std::function<void(const RenderProgress&)>& progress) {
+    // A failed re-specialisation (setEnvironment, setEstimatedLights) leaves no pipeline set.
+    if (!pipeline_ || (photonsActive_ && !photonPasses_))
+        return makeError(
+            "the renderer has no pipelines: their last compile failed (see the error it "
+            "returned); set the lighting again to retry");
     uint32_t groupsX = (params_.width + PV_WORKGROUP_SIZE_X - 1) / PV_WORKGROUP_SIZE_X;
     constexpr size_t kMaxLoopOffset = offsetof(shader::RenderStats, maxLoopIterations);
     // Camera-relative rendering: the GPU's origin follows the camera, with hysteresis.
