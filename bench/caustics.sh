@@ -26,7 +26,12 @@
 # Ā's once) subtracted the same way. The MSE against R comes from pairwise MSEs only:
 # ‖Σ cᵢ Yᵢ‖² = −Σ_{i<j} cᵢ cⱼ ‖Yᵢ − Yⱼ‖² when Σ cᵢ = 0, here c = (x: 1, B: −1 each, A: ½ each).
 #
+# --references-only stops once the references are cached; --score FILE... scores existing renders
+# of the scene (previs render's EXRs, same size and region) against them instead of running the
+# benchmark, one line per file (with --extrapolate, against R as well).
+#
 #   bench/caustics.sh [--quick] [--ref-iterations N] [--previs BINARY] [--extrapolate]
+#                     [--references-only | --score FILE...]
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 previs=$root/build/cli/previs
@@ -36,13 +41,17 @@ path_spp=1024
 preview_photons=16384
 photons=65536  # per iteration, the default (render/photon_map.h), references included
 extrapolate=0
+references_only=0
+score=()
 while [[ $# -gt 0 ]]; do
     case "$1" in
         --quick) ref_iterations=128; photon_spp=64; path_spp=128; shift ;;
         --ref-iterations) ref_iterations=$2; shift 2 ;;
         --previs) previs=$2; shift 2 ;;
         --extrapolate) extrapolate=1; shift ;;
-        *) echo "usage: $0 [--quick] [--ref-iterations N] [--previs BINARY] [--extrapolate]" >&2; exit 2 ;;
+        --references-only) references_only=1; shift ;;
+        --score) shift; score=("$@"); break ;;
+        *) echo "usage: $0 [--quick] [--ref-iterations N] [--previs BINARY] [--extrapolate] [--references-only | --score FILE...]" >&2; exit 2 ;;
     esac
 done
 scene=$root/bench/scenes/caustics_glass.gltf
@@ -88,6 +97,34 @@ if ((extrapolate)); then
     half_mean=$("$previs" compare "$B1" "$B2" --region "$region" | awk '{print ($6 + $8) / 2}')
 fi
 
+ref_mean=$("$previs" compare "${refs[0]}" "${refs[1]}" --region "$region" |
+    awk '{print ($6 + $8) / 2}')
+((extrapolate)) && ext_mean=$(awk -v a="$ref_mean" -v b="$half_mean" 'BEGIN { print 2 * b - a }')
+# "RMSE relative-RMSE [relative-RMSE-against-R]" of one render: the references' noise subtracted
+# (see the top), floored at 0; the third only when $2 is 1.
+score_file() {
+    local file=$1 against_r=$2 xA1 xA2 rmse rel ext=""
+    xA1=$(mse "$file" "${refs[0]}") xA2=$(mse "$file" "${refs[1]}")
+    rmse=$(awk -v a="$xA1" -v b="$xA2" \
+        -v r="$ref_mse" 'BEGIN { m = (a + b) / 2 - r; print (m > 0 ? sqrt(m) : 0) }')
+    rel=$(awk -v r="$rmse" -v m="$ref_mean" 'BEGIN { print r / m }')
+    if ((against_r)); then
+        ext=$(awk -v xA1="$xA1" -v xA2="$xA2" \
+            -v xB1="$(mse "$file" "$B1")" -v xB2="$(mse "$file" "$B2")" \
+            -v c="$ext_const" -v n="$ext_noise" -v m="$ext_mean" \
+            'BEGIN { v = xB1 + xB2 - 0.5 * (xA1 + xA2) + c - n; print (v > 0 ? sqrt(v) : 0) / m }')
+    fi
+    echo "$rmse $rel $ext"
+}
+((references_only)) && exit 0
+if ((${#score[@]})); then
+    for file in "${score[@]}"; do
+        read -r rmse rel ext < <(score_file "$file" "$extrapolate")
+        printf '%s  relative RMSE %.4f%s\n' "$file" "$rel" "${ext:+  against R: $ext}"
+    done
+    exit 0
+fi
+
 echo "## Cost per iteration (GPU time, median of 3 runs of 16 iterations)"
 echo "| settings | photons | photon pass (ms) | trace + gather (ms) | path tracing alone (ms) |"
 echo "|---|---|---|---|---|"
@@ -130,11 +167,8 @@ checkpoints() {  # up to N: 1,2,4,...,N
     while ((n <= $1)); do list+=",$n"; n=$((n * 2)); done
     echo "$list"
 }
-ref_mean=$("$previs" compare "${refs[0]}" "${refs[1]}" --region "$region" |
-    awk '{print ($6 + $8) / 2}')
 awk -v m="$ref_mse" -v mean="$ref_mean" 'BEGIN { printf "region mean %.4f; reference noise (relative RMSE of one reference) %.4f\n", mean, sqrt(m) / mean }'
 if ((extrapolate)); then
-    ext_mean=$(awk -v a="$ref_mean" -v b="$half_mean" 'BEGIN { print 2 * b - a }')
     awk -v a="$ref_mean" -v b="$half_mean" -v e="$ext_mean" -v n="$ext_noise" -v dB="$dB" \
         'BEGIN { printf "extrapolated reference: region mean %.4f (radius r: %.4f, %+.2f %%; r/√2: %.4f, %+.2f %%); its noise %.4f of the mean; one r/√2 reference %.4f\n", e, a, 100 * (a - e) / e, b, 100 * (b - e) / e, sqrt(n) / e, sqrt(dB / 2) / b }'
 fi
@@ -146,18 +180,7 @@ for method in photons paths; do
             n=${sppField#spp=}
             seconds=${secondsField#total_s=}
             file=${fileField#file=}
-            # The references' noise subtracted (see the top); floored at 0.
-            xA1=$(mse "$file" "${refs[0]}") xA2=$(mse "$file" "${refs[1]}")
-            rmse=$(awk -v a="$xA1" -v b="$xA2" \
-                -v r="$ref_mse" 'BEGIN { m = (a + b) / 2 - r; print (m > 0 ? sqrt(m) : 0) }')
-            rel=$(awk -v r="$rmse" -v m="$ref_mean" 'BEGIN { print r / m }')
-            ext=""
-            if ((extrapolate)) && [[ $method == photons ]]; then
-                ext=$(awk -v xA1="$xA1" -v xA2="$xA2" \
-                    -v xB1="$(mse "$file" "$B1")" -v xB2="$(mse "$file" "$B2")" \
-                    -v c="$ext_const" -v n="$ext_noise" -v m="$ext_mean" \
-                    'BEGIN { v = xB1 + xB2 - 0.5 * (xA1 + xA2) + c - n; print (v > 0 ? sqrt(v) : 0) / m }')
-            fi
+            read -r rmse rel ext < <(score_file "$file" "$([[ $method == photons ]] && echo "$extrapolate" || echo 0)")
             echo "$method,$n,$seconds,$rmse,$rel,$ext" >>"$csv"
             printf '%-8s %5d spp  %8.2f s  relative RMSE %.4f%s\n' "$method" "$n" "$seconds" "$rel" \
                 "${ext:+  (against the extrapolated reference: $(printf '%.4f' "$ext"))}"

@@ -117,6 +117,7 @@ SceneFeatures detectSceneFeatures(const Scene& scene, const Camera& camera) {
         f.specular |= materialHasSpecular(m);
         f.transmission |= m.transmission > 0.0f;
         f.emissive |= glm::length(m.emission) > 0.0f;
+        f.glossy |= glossyMaterial(m);
     }
     return f;
 }
@@ -215,7 +216,15 @@ Result<std::unique_ptr<Renderer>> Renderer::create(GpuContext& ctx, const Scene&
 std::array<uint32_t, PV_SPEC_COUNT> Renderer::pipelineConstants(bool photons) const {
     SceneFeatures spec = features_;
     if (settings_.generalPipeline)
-        spec = SceneFeatures{true, true, true, true, true, true, true, true};
+        spec = SceneFeatures{.environment = true,
+                             .emissive = true,
+                             .punctual = true,
+                             .specular = true,
+                             .transmission = true,
+                             .thinLens = true,
+                             .textures = true,
+                             .coneLights = true,
+                             .glossy = true};
     std::array<uint32_t, PV_SPEC_COUNT> constants{};
     constants[PV_SPEC_DIFFERENTIAL] = settings_.differential;
     constants[PV_SPEC_HAS_LENS_GRID] = !settings_.lensGrid.empty();
@@ -228,6 +237,7 @@ std::array<uint32_t, PV_SPEC_COUNT> Renderer::pipelineConstants(bool photons) co
     constants[PV_SPEC_HAS_THIN_LENS] = spec.thinLens;
     constants[PV_SPEC_HAS_TEXTURES] = spec.textures;
     constants[PV_SPEC_HAS_CONE_LIGHTS] = spec.coneLights;
+    constants[PV_SPEC_HAS_GLOSSY] = spec.glossy;
     constants[PV_SPEC_COUNT_LOOPS] = ctx_->isCpuDevice();
     constants[PV_SPEC_SAMPLER] =
         settings_.sampler == Sampler::Sobol ? PV_SAMPLER_SOBOL : PV_SAMPLER_INDEPENDENT;

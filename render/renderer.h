@@ -114,6 +114,8 @@ struct SceneFeatures {
     bool thinLens = false;
     bool textures = false;
     bool coneLights = false;  // estimated lights (Renderer::setEstimatedLights)
+    // A material neither Lambertian nor purely specular on every texel (glossyMaterial)
+    bool glossy = false;
 };
 
 // A distant light estimated from the captured environment (vision/light_estimator.h's

@@ -9,13 +9,18 @@ cache="$root/build/compare_blender"
 mkdir -p "$cache"
 
 # Sets $scene (a glTF), $env (an HDR map, or "none") and $previs_args (extra `previs render`
-# options) for scene $1: bunny or area-lights.
+# options) for scene $1: bunny, dragon or area-lights.
 bench_scene() {
     previs_args=()
     case "$1" in
         bunny)
             scene="$cache/bunny.gltf"
             [[ -f "$scene" ]] || python3 "$root/bench/scenes/make_scenes.py" bunny "$data" "$scene"
+            env=$env_map ;;
+        dragon)
+            # The throughput benchmark's 810K-triangle case (make_scenes.py dragon).
+            scene="$cache/dragon.gltf"
+            [[ -f "$scene" ]] || python3 "$root/bench/scenes/make_scenes.py" dragon "$data" "$scene"
             env=$env_map ;;
         area-lights)
             scene="$root/bench/scenes/area_lights_mirror.gltf"
@@ -24,7 +29,7 @@ bench_scene() {
             # estimator, which Cycles does not have.
             previs_args=(--photons off)
             env=none ;;
-        *) echo "unknown scene $1 (bunny, area-lights)" >&2; return 2 ;;
+        *) echo "unknown scene $1 (bunny, dragon, area-lights)" >&2; return 2 ;;
     esac
 }
 

@@ -5,6 +5,8 @@
   make_scenes.py caustics OUT.gltf           the committed bench/scenes/caustics_glass.gltf
   make_scenes.py bunny DATA_DIR OUT.gltf     bench_scenes.cpp's bunnyScene() as glTF (generated
                                              into build/: the 69K-triangle mesh is not committed)
+  make_scenes.py dragon DATA_DIR OUT.gltf    the throughput benchmark's 810K-triangle "dragon ×4"
+                                             (bench_scenes.cpp's subdivide + meshOnPlaneScene)
 
 Both renderers load the very same file, so geometry, normals, camera and materials agree by
 construction. Materials use only what both map the same way (bench/blender_cycles_gltf.py says
@@ -233,6 +235,48 @@ def bunny_scene(data_dir, out):
     g.write(out)
 
 
+def subdivide(positions, triangles):
+    """bench_scenes.cpp subdivide(): each triangle split 1 → 4 at its edges' midpoints (shared
+    per edge), in the same order, so the mesh is the throughput benchmark's."""
+    positions = list(positions)
+    midpoints = {}
+
+    def mid(a, b):
+        key = (min(a, b), max(a, b))
+        if key not in midpoints:
+            midpoints[key] = len(positions)
+            pa, pb = positions[a], positions[b]
+            positions.append(tuple(0.5 * (pa[k] + pb[k]) for k in range(3)))
+        return midpoints[key]
+
+    out = []
+    for a, b, c in triangles:
+        ab, bc, ca = mid(a, b), mid(b, c), mid(c, a)
+        out += [(a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca)]
+    return positions, out
+
+
+def dragon_scene(data_dir, out, height=0.3):
+    """bench_scenes.cpp meshOnPlaneScene(subdivide(dragon_vrip_res2.ply), env, 0.3): the dragon
+    scaled to 0.3 m tall, centred on a 2 m Lambertian plane (0.5) at its lowest point, Lambert 0.8,
+    the same 40° camera; the environment map is given on each renderer's command line."""
+    positions, triangles = subdivide(*read_ply(Path(data_dir) / "meshes" / "dragon_vrip_res2.ply"))
+    lo = [min(p[k] for p in positions) for k in range(3)]
+    hi = [max(p[k] for p in positions) for k in range(3)]
+    scale = height / max(hi[1] - lo[1], 1e-9)
+    shift = (0.5 * (lo[0] + hi[0]), lo[1], 0.5 * (lo[2] + hi[2]))
+    positions = [tuple(scale * (p[k] - shift[k]) for k in range(3)) for p in positions]
+    g = new_builder()
+    floor = add_material(g, "floor lambert", (0.5, 0.5, 0.5))
+    dragon = add_material(g, "dragon lambert", (0.8, 0.8, 0.8))
+    plane, plane_normals, plane_indices = quad_xz(1.0, 1.0)
+    g.node("Floor", mesh=g.mesh("floor", plane, plane_normals, plane_indices, floor))
+    g.node("Dragon", mesh=g.mesh("dragon", positions, smooth_normals(positions, triangles),
+                                 [i for t in triangles for i in t], dragon))
+    add_camera(g, (0.0, 0.55 * height, 1.45 * height), (0.0, 0.45 * height, 0.0))
+    g.write(out)
+
+
 if __name__ == "__main__":
     if sys.argv[1:2] == ["area-lights"] and len(sys.argv) == 3:
         area_lights_scene(sys.argv[2])
@@ -240,5 +284,7 @@ if __name__ == "__main__":
         caustics_scene(sys.argv[2])
     elif sys.argv[1:2] == ["bunny"] and len(sys.argv) == 4:
         bunny_scene(sys.argv[2], sys.argv[3])
+    elif sys.argv[1:2] == ["dragon"] and len(sys.argv) == 4:
+        dragon_scene(sys.argv[2], sys.argv[3])
     else:
         sys.exit(__doc__)

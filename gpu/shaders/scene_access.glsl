@@ -27,6 +27,9 @@ layout(constant_id = PV_SPEC_COUNT_LOOPS) const bool kCountLoops = true;
 layout(constant_id = PV_SPEC_LIGHT_SOLID_ANGLE) const bool kLightSolidAngle = true;
 // Caustics from the photon map (shared/photon_map.h).
 layout(constant_id = PV_SPEC_PHOTONS) const bool kPhotons = true;
+// Some material is neither Lambertian nor purely specular (else evaluateBsdf is Lambert's, and
+// photon gathers apply baseColor/π once).
+layout(constant_id = PV_SPEC_HAS_GLOSSY) const bool kHasGlossy = true;
 
 layout(binding = PV_BINDING_PARAMS, scalar) readonly buffer ParamsBuffer { FrameParams paramsBuffer; };
 // The including shader's main() copies the parameters here before any branch: llvmpipe loads a
@@ -354,11 +357,18 @@ BsdfParams bsdfParamsAt(GpuMaterial m, Surface s) {
     return p;
 }
 
-// f(wo, wi) and its sampling pdf. A scene of Lambertian materials only runs the first branch.
+// f(wo, wi) and its sampling pdf. A scene of Lambertian materials only runs the first branch;
+// one of Lambertian and purely specular materials (a mirror or smooth glass among diffuse
+// surfaces) the second: bsdfEvaluate's diffuse term, or nothing at a delta vertex.
 vec3 evaluateBsdf(BsdfParams p, vec3 wo, vec3 wi, out float pdf) {
     if (!kHasSpecular && !kHasTransmission) {
         pdf = wi.z > 0.0 ? wi.z * PV_INV_PI : 0.0;
         return wi.z > 0.0 ? p.baseColor * PV_INV_PI : vec3(0.0);
+    }
+    if (!kHasGlossy) {
+        bool diffuse = !bsdfIsPurelySpecular(p) && wo.z >= PV_MIN_COSINE && wi.z >= PV_MIN_COSINE;
+        pdf = diffuse ? wi.z * PV_INV_PI : 0.0;
+        return diffuse ? p.baseColor * PV_INV_PI : vec3(0.0);
     }
     return bsdfEvaluate(p, wo, wi, pdf);
 }

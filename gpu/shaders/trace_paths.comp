@@ -236,7 +236,7 @@ vec3 fixedValue(FixedRgb sum) { return vec3(sum.whole) + vec3(sum.fraction) * 2.
 
 // One pass of gatherPhotons over the records in the 2×2×2 cells from `first` (edge 2r, r =
 // params.photonRadius) that lie within rq ≤ r of s: adds Σ f(wo, wi_p)·Φ_p·K(d_p)
-// (K at radius rq) to the sums and returns how many records it took (weighted like them where a
+// (K at radius rq; without glossy surfaces Σ Φ_p·K(d_p), f being baseColor/π) to the sums and returns how many records it took (weighted like them where a
 // bucket is subsampled). Level-1 records only if `level1`; scatterings must fit in maxBounces.
 float gatherWithin(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint maxBounces, float uWindow,
                    bool level1, ivec3 first, float rq, inout FixedRgb sumMixed,
@@ -309,10 +309,16 @@ float gatherWithin(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint maxBounc
                 vec3 wi = octahedralDecode(unpackSnorm2x16(t1.w));
                 vec3 wiLocal = toLocal(frame, wi);
                 if (consistentSide(s, wi, wiLocal)) {
-                    float pdf;
                     float kernel = 2.0 * (1.0 - d2 / rq2);  // × norm: Epanechnikov
-                    vec3 f = evaluateBsdf(bp, wo, wiLocal, pdf) * uintBitsToFloat(t1.xyz) *
-                             (norm * share * kernel);
+                    vec3 f = uintBitsToFloat(t1.xyz) * (norm * share * kernel);
+                    // Without glossy surfaces the vertex is Lambertian: gatherPhotons applies
+                    // baseColor/π to the sums (bsdfEvaluate's diffuse term, its cosine limits).
+                    if (kHasGlossy) {
+                        float pdf;
+                        f *= evaluateBsdf(bp, wo, wiLocal, pdf);
+                    } else if (wiLocal.z < PV_MIN_COSINE) {
+                        f = vec3(0.0);
+                    }
                     if ((t0.w & PV_PHOTON_IN_MIXED) != 0u) fixedAdd(sumMixed, f);
                     if ((t0.w & PV_PHOTON_IN_REAL) != 0u) fixedAdd(sumReal, f);
                 }
@@ -361,6 +367,11 @@ void gatherPhotons(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint depth, f
     }
     toMixed = fixedValue(sumMixed);
     toReal = fixedValue(sumReal);
+    if (!kHasGlossy) {
+        vec3 lambert = wo.z < PV_MIN_COSINE ? vec3(0.0) : bp.baseColor * PV_INV_PI;
+        toMixed *= lambert;
+        toReal *= lambert;
+    }
 }
 
 // Where a path stands with respect to the photon map's paths (shared/photon_map.h's rule).

@@ -740,6 +740,77 @@ TEST(PhotonAimTest, TheAimSphereOfABallIsTheBall) {
     }
 }
 
+// The gather's BSDF is baseColor/π only where every surface photons may land on is Lambertian
+// whatever its textures: smooth glass and untextured mirrors are passed through, anything
+// glossy, or anything a texture could make glossy, keeps the BSDF per photon.
+TEST(PhotonGatherTest, OnlyLambertianOrPurelySpecularMaterialsSkipTheBsdf) {
+    EXPECT_FALSE(glossyMaterial(lambert(glm::vec3(0.7f))));
+    EXPECT_FALSE(glossyMaterial(emitter(glm::vec3(5.0f))));
+    EXPECT_FALSE(glossyMaterial(glass(1.5f)));
+    EXPECT_FALSE(glossyMaterial(mirror()));
+    Material textured = lambert(glm::vec3(0.7f));
+    textured.baseColorTexture = 0;
+    textured.metallicRoughnessTexture = 0;  // scales metalness 0: still Lambertian
+    EXPECT_FALSE(glossyMaterial(textured));
+    Material m = mirror();
+    m.metallicRoughnessTexture = 0;  // may lower the metalness: a diffuse base shows
+    EXPECT_TRUE(glossyMaterial(m));
+    m = mirror();
+    m.roughness = 0.3f;
+    EXPECT_TRUE(glossyMaterial(m));
+    m = glass(1.5f);
+    m.roughness = 0.2f;
+    EXPECT_TRUE(glossyMaterial(m));
+    m = glass(1.5f);
+    m.transmission = 0.5f;  // half the light meets a diffuse base
+    EXPECT_TRUE(glossyMaterial(m));
+    m = lambert(glm::vec3(0.7f));
+    m.specular = 0.5f;  // a specular layer over the base
+    EXPECT_TRUE(glossyMaterial(m));
+}
+
+// Where every gather vertex is Lambertian the gather applies baseColor/π once instead of the BSDF
+// per photon: the same image as the general pipeline's (which evaluates it per photon), to float
+// rounding, in both solutions; a glossy floor switches the per-photon BSDF back on.
+TEST_F(PhotonTest, LambertianGathersMatchTheBsdfPerPhoton) {
+    const Scene scene = glassBallInAWhiteRoom(false);
+    std::vector<float> images[2][2];
+    for (int general = 0; general < 2; ++general) {
+        RenderSettings rs = photonSettings(32, 24, PhotonMode::Auto);
+        rs.differential = true;
+        rs.photons.perIteration = 1u << 12;
+        rs.generalPipeline = general == 1;
+        auto renderer = Renderer::create(ctx(), scene, rs);
+        ASSERT_TRUE(renderer.ok()) << renderer.message();
+        ASSERT_TRUE((*renderer)->photonsActive());
+        EXPECT_FALSE((*renderer)->features().glossy);
+        ASSERT_TRUE((*renderer)->render(4).ok());
+        int a = 0;
+        for (Aov aov : {Aov::Mixed, Aov::Real}) {
+            auto image = (*renderer)->image(aov);
+            ASSERT_TRUE(image.ok());
+            images[general][a++] = image->pixels;
+        }
+    }
+    double sum = 0.0;
+    for (int a = 0; a < 2; ++a) {
+        ASSERT_EQ(images[0][a].size(), images[1][a].size());
+        for (size_t i = 0; i < images[0][a].size(); ++i) {
+            ASSERT_NEAR(images[0][a][i], images[1][a][i],
+                        1e-4f * std::max(1.0f, std::abs(images[1][a][i])))
+                << (a ? "real" : "mixed") << " value " << i;
+            sum += images[1][a][i];
+        }
+    }
+    EXPECT_GT(sum, 0.0);
+    Scene glossyFloor = scene;
+    glossyFloor.materials[0].specular = 0.5f;
+    RenderSettings rs = photonSettings(8, 8, PhotonMode::Auto);
+    auto glossy = Renderer::create(ctx(), glossyFloor, rs);
+    ASSERT_TRUE(glossy.ok()) << glossy.message();
+    EXPECT_TRUE((*glossy)->features().glossy);
+}
+
 // A photon's direction numbers are stratified along a Z-order curve (shared/photon_map.h): over
 // an iteration's N = 2^m photons every cell of the 2^k × 2^k grid (4^k ≥ N) is taken exactly
 // once — by the cell-picking number's two halves where a photon's stretch is two cells — so the

@@ -92,7 +92,12 @@ PV_BEGIN
 #define PV_SPEC_PHOTONS 13
 // The denoiser's guide buffers (PV_BINDING_GUIDES): written only by renders that may denoise.
 #define PV_SPEC_DENOISE_GUIDES 14
-#define PV_SPEC_COUNT 15
+// A material neither Lambertian nor purely specular (a rough metal or glass, a specular layer
+// over a diffuse base). Off, every vertex that is not a delta is Lambertian: BSDF evaluations
+// (light samples, MIS) are baseColor/π, and the photon gather sums the photons' power and applies
+// baseColor/π once, instead of a BSDF evaluation per photon.
+#define PV_SPEC_HAS_GLOSSY 15
+#define PV_SPEC_COUNT 16
 #define PV_SAMPLER_SOBOL 0u
 #define PV_SAMPLER_INDEPENDENT 1u
 
