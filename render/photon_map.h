@@ -86,11 +86,11 @@ inline constexpr uint32_t kMaxPhotonsPerIteration = 1u << 20;
 // must include it. Errs on the side of yes — a larger aim costs photons, a smaller one bias.
 bool mayBePurelySpecular(const Material& m);
 
-// A material photons may land on that is not Lambertian: neither Lambertian (no metal, specular
-// layer or transmission: f = baseColor/π whatever the textures, which only scale metalness) nor
-// purely specular on every texel (textures only lower the roughness, but may lower a metal's
-// metalness). Errs on the side of yes: with none in the scene, the photon gather runs without
-// a BSDF evaluation per photon (PV_SPEC_HAS_GLOSSY).
+// Neither Lambertian (no metal, specular layer or transmission: f = baseColor/π whatever the
+// textures, which only scale metalness) nor purely specular on every texel (textures only lower
+// the roughness, but may lower a metal's metalness). Errs on the side of yes: with none in the
+// scene, BSDF evaluations are Lambert's and the photon gather evaluates none per photon
+// (PV_SPEC_HAS_GLOSSY).
 bool glossyMaterial(const Material& m);
 
 // The sphere photons are aimed at: it holds every triangle that may be purely specular.

@@ -235,9 +235,10 @@ void fixedAdd(inout FixedRgb sum, vec3 v) {
 vec3 fixedValue(FixedRgb sum) { return vec3(sum.whole) + vec3(sum.fraction) * 2.3283064365386963e-10; }
 
 // One pass of gatherPhotons over the records in the 2×2×2 cells from `first` (edge 2r, r =
-// params.photonRadius) that lie within rq ≤ r of s: adds Σ f(wo, wi_p)·Φ_p·K(d_p)
-// (K at radius rq; without glossy surfaces Σ Φ_p·K(d_p), f being baseColor/π) to the sums and returns how many records it took (weighted like them where a
-// bucket is subsampled). Level-1 records only if `level1`; scatterings must fit in maxBounces.
+// params.photonRadius) that lie within rq ≤ r of s: adds Σ f(wo, wi_p)·Φ_p·K(d_p) (K at
+// radius rq; without glossy materials Σ Φ_p·K(d_p), gatherPhotons applying the constant f) to
+// the sums and returns how many records it took (weighted like them where a bucket is
+// subsampled). Level-1 records only if `level1`; scatterings must fit in maxBounces.
 float gatherWithin(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint maxBounces, float uWindow,
                    bool level1, ivec3 first, float rq, inout FixedRgb sumMixed,
                    inout FixedRgb sumReal) {
@@ -311,8 +312,8 @@ float gatherWithin(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint maxBounc
                 if (consistentSide(s, wi, wiLocal)) {
                     float kernel = 2.0 * (1.0 - d2 / rq2);  // × norm: Epanechnikov
                     vec3 f = uintBitsToFloat(t1.xyz) * (norm * share * kernel);
-                    // Without glossy surfaces the vertex is Lambertian: gatherPhotons applies
-                    // baseColor/π to the sums (bsdfEvaluate's diffuse term, its cosine limits).
+                    // Without glossy materials the vertex is Lambertian: f is the same for
+                    // every photon on its side (above the cosine limit of bsdfEvaluate).
                     if (kHasGlossy) {
                         float pdf;
                         f *= evaluateBsdf(bp, wo, wiLocal, pdf);
@@ -368,7 +369,9 @@ void gatherPhotons(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint depth, f
     toMixed = fixedValue(sumMixed);
     toReal = fixedValue(sumReal);
     if (!kHasGlossy) {
-        vec3 lambert = wo.z < PV_MIN_COSINE ? vec3(0.0) : bp.baseColor * PV_INV_PI;
+        // The Lambertian f, once: evaluateBsdf's (the direction only needs to face the normal).
+        float pdf;
+        vec3 lambert = evaluateBsdf(bp, wo, vec3(0.0, 0.0, 1.0), pdf);
         toMixed *= lambert;
         toReal *= lambert;
     }
