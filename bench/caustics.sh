@@ -157,6 +157,9 @@ for n in "$preview_photons" "$photons"; do
     # 1048492 bucket ranges (8 bytes each); render/photon_map.cpp's photonBufferBytes.
     awk -v n="$n" 'BEGIN { printf "photon map memory at %d photons: %.1f MiB\n", n, (4 * n * 82 + 1048492 * 8) / 1048576 }'
 done
+# The splat sums (Renderer::photonSplatBytes): per pixel three channels of 32.32 fixed point, one
+# sum (mixed) as here without a plate, three (mixed, real, real unhidden) in a differential render.
+awk 'BEGIN { printf "photon splat sums at 640x480: %.1f MiB (differential: %.1f MiB)\n", 640 * 480 * 24 / 1048576, 640 * 480 * 72 / 1048576 }'
 
 echo
 echo "## Caustic region against the reference"

@@ -56,6 +56,7 @@ struct RenderOptions {
     float photonAlpha = 2.0f / 3.0f;
     uint32_t photonGatherCap = PhotonSettings{}.gatherCap;
     uint32_t photonNeighbours = PhotonSettings{}.gatherNeighbours;
+    bool photonSplat = PhotonSettings{}.splatToCamera;
     std::string out;
     ToneCurveOptions output;  // PNG output
     float fireflyClamp = 0.0f;
@@ -191,6 +192,7 @@ int run(const RenderOptions& o) {
     settings.photons.alpha = o.photonAlpha;
     settings.photons.gatherCap = o.photonGatherCap;
     settings.photons.gatherNeighbours = o.photonNeighbours;
+    settings.photons.splatToCamera = o.photonSplat;
     // A lane whose path ends starts its next sample at once (trace_paths.comp). The renderer lowers
     // this inside lavapipe's loop limit; photon iterations dispatch one sample each.
     settings.samplesPerDispatch = kSamplesPerDispatch;
@@ -500,6 +502,11 @@ std::function<int()> addRenderCommand(CLI::App& app) {
                     "(0: never)")
         ->capture_default_str()
         ->check(CLI::Range(0u, 1u << 20));
+    cmd->add_option("--photon-splat", o->photonSplat,
+                    "photons the camera sees directly go to the pixels they land in (true) "
+                    "instead of a gather at the first hit (false); a lens grid or an aperture "
+                    "always gathers")
+        ->capture_default_str();
     cmd->add_option("--checkpoints", o->checkpoints,
                     "also write OUT_STEM.sppN.exr at these sample counts (N1,N2,...), and print "
                     "each one's time since start: a convergence curve from one run")

@@ -412,11 +412,11 @@ Status ConfigReader::stringKey(const toml::table& t, std::string_view section, s
 }
 
 Status ConfigReader::parseRender(const toml::table& t, RenderConfig& c) const {
-    if (Status st =
-            r_.checkKeys(t, "render",
-                         {"width", "height", "samples_per_frame", "max_depth", "seed", "photons",
-                          "preview_photons", "photon_radius_m", "photon_alpha", "photon_neighbours",
-                          "resolution_scale", "preview_fps", "denoise", "denoise_levels"});
+    if (Status st = r_.checkKeys(
+            t, "render",
+            {"width", "height", "samples_per_frame", "max_depth", "seed", "photons",
+             "preview_photons", "photon_radius_m", "photon_alpha", "photon_neighbours",
+             "photon_splat", "resolution_scale", "preview_fps", "denoise", "denoise_levels"});
         !st)
         return st;
     int64_t width = c.width, height = c.height, spp = c.samplesPerFrame, depth = c.maxDepth,
@@ -459,6 +459,9 @@ Status ConfigReader::parseRender(const toml::table& t, RenderConfig& c) const {
     if (Status st = integerIn(t, "render", "photon_neighbours", neighbours, 0, 1 << 20); !st)
         return st;
     c.photons.gatherNeighbours = uint32_t(neighbours);
+    Result<std::optional<bool>> splat = r_.boolean(t, "render", "photon_splat");
+    if (!splat) return splat.error();
+    c.photons.splatToCamera = splat->value_or(c.photons.splatToCamera);
     if (Status st = ranged(t, "render", "resolution_scale", c.resolutionScale, 0.0, 1.0, true); !st)
         return st;
     if (Status st = ranged(t, "render", "preview_fps", c.previewFps, 0.0, 240.0); !st) return st;

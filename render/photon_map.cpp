@@ -248,6 +248,8 @@ Result<double> PhotonPasses::run(shader::FrameParams& params, std::span<GpuBuffe
     params.photonSortShift = 0;
     if (Status s = uploadParams(); !s) return s.error();
     if (Status s = buffers[PV_BINDING_PHOTON_CELLS].fill(0); !s) return s.error();
+    if (buffers[PV_BINDING_PHOTON_SPLATS].size() > 0)
+        if (Status s = buffers[PV_BINDING_PHOTON_SPLATS].fill(0); !s) return s.error();
     const uint32_t traceGroups = params.photonCount / PV_PHOTON_GROUP_SIZE;
     if (stop) {
         auto t = traceParts_.run(*trace_, traceGroups, 1, *stop);

@@ -58,6 +58,12 @@ struct PhotonSettings {
     // estimate again at the radius that holds about this many: the blur shrinks where photons are
     // dense (at a focus). 0 keeps every gather at the iteration's radius.
     uint32_t gatherNeighbours = 128;
+    // The photons the camera sees directly go to the pixels they land in (light tracing's last
+    // step, trace_photons.comp's splatToCamera) instead of a gather at the camera path's first
+    // vertex: every photon in a pixel counts and no radius blurs them. Needs a pinhole camera
+    // (no aperture, no lens grid) and the splat sums within one storage-buffer binding
+    // (Renderer::photonSplatBytes); elsewhere, or off, the first vertex gathers.
+    bool splatToCamera = true;
 
     bool operator==(const PhotonSettings&) const = default;
 };

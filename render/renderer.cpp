@@ -189,6 +189,7 @@ Result<std::unique_ptr<Renderer>> Renderer::create(GpuContext& ctx, const Scene&
     // them from. Where buildScene finds otherwise (emitters of zero area or power),
     // specialisePipeline compiles again: a prediction costs time, never a wrong pipeline.
     r->photonAim_ = photonAimFor(g, scene.materials);
+    r->photonSplats_ = r->photonSplatBytes() > 0;
     const bool photonsLikely =
         r->photonsPossible() && (r->features_.emissive || !scene.lights.empty());
     auto bvh = std::async(std::launch::async, [&g] { return buildSceneBvh(g); });
@@ -243,6 +244,7 @@ std::array<uint32_t, PV_SPEC_COUNT> Renderer::pipelineConstants(bool photons) co
         settings_.sampler == Sampler::Sobol ? PV_SAMPLER_SOBOL : PV_SAMPLER_INDEPENDENT;
     constants[PV_SPEC_LIGHT_SOLID_ANGLE] = settings_.lightSampling == LightSampling::SolidAngle;
     constants[PV_SPEC_PHOTONS] = photons;
+    constants[PV_SPEC_PHOTON_SPLAT] = photons && photonSplats_;
     constants[PV_SPEC_DENOISE_GUIDES] = settings_.denoise;
     return constants;
 }
@@ -430,6 +432,18 @@ Status Renderer::setEstimatedLights(std::span<const EstimatedLightSource> estima
     }
     if (Status p = specialisePipeline(); !p) return p;
     return s;
+}
+
+size_t Renderer::photonSplatBytes() const {
+    if (!photonsPossible() || !settings_.photons.splatToCamera) return 0;
+    // Mixed; with the real solution also real and real-unhidden (scene_types.h).
+    const size_t sums = settings_.differential ? 3 : 1;
+    const size_t bytes =
+        size_t(settings_.width) * settings_.height * sums * PV_SPLAT_WORDS * sizeof(uint32_t);
+    // One binding holds them all (the photon pass writes anywhere in the frame): a frame too
+    // large for the device's range gathers at the first vertex instead.
+    const uint64_t limit = ctx_->physicalDevice().getProperties().limits.maxStorageBufferRange;
+    return bytes <= limit ? bytes : 0;
 }
 
 bool Renderer::photonsPossible() const {
@@ -655,6 +669,8 @@ Status Renderer::buildScene(const Scene& scene, const Geometry& g, SceneBvh bvh)
     const size_t guideBytes =
         settings_.denoise ? pixels * PV_GUIDE_COUNT * sizeof(glm::vec4) : size_t(0);
     if (!(s = add(GpuBuffer::create(*ctx_, guideBytes, "guides")))) return s;
+    const size_t splatBytes = photonSplats_ ? photonSplatBytes() : size_t(0);
+    if (!(s = add(GpuBuffer::create(*ctx_, splatBytes, "photonSplats")))) return s;
     PV_ASSERT(buffers_.size() == PV_BINDING_COUNT);
     return updatePhotonLights(lights);
 }

@@ -352,6 +352,9 @@ private:
     Status buildScene(const Scene& scene, const Geometry& g, SceneBvh bvh);
     // Photon mapping may run in this scene: forced on, or --photons auto with a specular object.
     bool photonsPossible() const;
+    // Bytes of the photon splat sums (PV_BINDING_PHOTON_SPLATS) at the output's size; 0 where
+    // the renderer does not splat.
+    size_t photonSplatBytes() const;
     // The specialization constants of the pipelines for the scene's features and settings, with
     // photon mapping on or off.
     std::array<uint32_t, PV_SPEC_COUNT> pipelineConstants(bool photons) const;
@@ -419,6 +422,7 @@ private:
     PhotonAim photonAim_;
     std::vector<EmissivePhotonSource> emissivePhotonSources_;
     bool photonsActive_ = false;
+    bool photonSplats_ = false;  // the splat buffer exists (PV_SPEC_PHOTON_SPLAT)
     std::optional<PhotonPasses> photonPasses_;
     double photonMs_ = 0.0;
     uint32_t lastPhotonCount_ = 0;  // params_.photonCount is refinement's again after a preview

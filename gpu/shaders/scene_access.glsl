@@ -30,6 +30,8 @@ layout(constant_id = PV_SPEC_PHOTONS) const bool kPhotons = true;
 // Some material is neither Lambertian nor purely specular (else evaluateBsdf is Lambert's, and
 // photon gathers apply baseColor/π once).
 layout(constant_id = PV_SPEC_HAS_GLOSSY) const bool kHasGlossy = true;
+// The host allows splatting the photons the camera sees directly (scene_types.h).
+layout(constant_id = PV_SPEC_PHOTON_SPLAT) const bool kPhotonSplat = true;
 
 layout(binding = PV_BINDING_PARAMS, scalar) readonly buffer ParamsBuffer { FrameParams paramsBuffer; };
 // The including shader's main() copies the parameters here before any branch: llvmpipe loads a
@@ -37,6 +39,14 @@ layout(binding = PV_BINDING_PARAMS, scalar) readonly buffer ParamsBuffer { Frame
 // it loops over the active lanes), and a uniform or push-constant block would make lavapipe
 // recompile the shader whenever a value a branch depends on changes (BENCHMARKS.md).
 FrameParams params;
+
+// The photon pass splats the light the camera sees directly, and the camera path does not gather
+// at its first vertex: only through a pinhole, whose pixels light tracing projects onto exactly
+// (a thin lens's aperture or a calibrated lens grid keep the gather there).
+bool photonSplatsActive() {
+    return kPhotons && kPhotonSplat && !kHasLensGrid &&
+           !(kHasThinLens && params.apertureRadiusM > 0.0);
+}
 // Every read-only scene array indexed per lane is a texel buffer (BindingKind::TexelBufferUint4):
 // on llvmpipe a texel fetch is a gather, while a storage-buffer load whose address differs per
 // lane is a loop over the lanes with a bounds check each. A BVH node is seven texels

@@ -22,6 +22,8 @@ layout(binding = PV_BINDING_GUIDES, scalar) buffer Guides { vec4 guides[]; };
 // each bucket's [begin, end) as two words, two buckets a texel (one fetch per bucket).
 layout(binding = PV_BINDING_PHOTON_SORTED) uniform usamplerBuffer photonTexels;
 layout(binding = PV_BINDING_PHOTON_CELLS) uniform usamplerBuffer photonCellTexels;
+// The photons the camera sees directly, splatted by this iteration's photon pass (scene_types.h).
+layout(binding = PV_BINDING_PHOTON_SPLATS, scalar) readonly buffer Splats { uint splats[]; };
 
 #include "shared/photon_map.h"
 #include "shared/denoise.h"
@@ -233,6 +235,15 @@ void fixedAdd(inout FixedRgb sum, vec3 v) {
 }
 
 vec3 fixedValue(FixedRgb sum) { return vec3(sum.whole) + vec3(sum.fraction) * 2.3283064365386963e-10; }
+
+// Sum `sum` (PV_SPLAT_*) of the photons splatted onto pixel `pixelIndex` this iteration.
+vec3 splattedLight(uint sum, uint pixelIndex) {
+    uint at = (sum * params.width * params.height + pixelIndex) * PV_SPLAT_WORDS;
+    FixedRgb v;
+    v.fraction = uvec3(splats[at], splats[at + 2u], splats[at + 4u]);
+    v.whole = uvec3(splats[at + 1u], splats[at + 3u], splats[at + 5u]);
+    return fixedValue(v);
+}
 
 // One pass of gatherPhotons over the records in the 2×2×2 cells from `first` (edge 2r, r =
 // params.photonRadius) that lie within rq ≤ r of s: adds Σ f(wo, wi_p)·Φ_p·K(d_p) (K at
@@ -475,7 +486,8 @@ void kahanAdd(inout vec4 sum, inout vec4 c, vec4 x) {
 
 // Adds sample `sampleIndex`'s radiances to the pixel's sums; `nonFiniteRay`: one of its rays had
 // a NaN or infinite origin or direction.
-void addSample(uint sampleIndex, vec3 lm, vec3 lr, bool firstHitVirtual, bool nonFiniteRay) {
+void addSample(uint sampleIndex, uint pixelIndex, vec3 lm, vec3 lr, bool firstHitVirtual,
+               bool nonFiniteRay) {
     if (nonFiniteRay || any(isnan(lm)) || any(isinf(lm)) ||
         any(isnan(lr)) || any(isinf(lr))) {
         // Counted, and the host reports it: never silently part of the image. Dropped
@@ -496,6 +508,18 @@ void addSample(uint sampleIndex, vec3 lm, vec3 lr, bool firstHitVirtual, bool no
     // Eq. 1 per sample, without the plate term (1 − M)·L_oc, which the host adds from the
     // mean mask: where both solutions followed the same path lm − lr is exactly 0.
     vec3 composite = firstHitVirtual ? lm : lm - lr;
+    if (photonSplatsActive() && sampleIndex == params.sampleBase) {
+        // The iteration's splats, once, with its one sample (a photon iteration is one sample
+        // a dispatch): its light seen directly, in each solution, and in the composite less
+        // the real light no virtual object hides (where one does, the pixel shows it: M = 1).
+        vec3 mixed = splattedLight(PV_SPLAT_MIXED, pixelIndex);
+        lm += mixed;
+        composite += mixed;
+        if (kDifferential) {
+            lr += splattedLight(PV_SPLAT_REAL, pixelIndex);
+            composite -= splattedLight(PV_SPLAT_REAL_UNHIDDEN, pixelIndex);
+        }
+    }
     kahanAdd(gSum[PV_ACCUM_COMPOSITE], gComp[PV_ACCUM_COMPOSITE], vec4(composite, mask));
     kahanAdd(gSum[PV_ACCUM_MIXED], gComp[PV_ACCUM_MIXED], vec4(lm, 1.0));
     if (kDifferential) kahanAdd(gSum[PV_ACCUM_REAL], gComp[PV_ACCUM_REAL], vec4(lr, 0.0));
@@ -633,7 +657,9 @@ bool extendPath(SampleKey key, inout PathState st, inout uint mode, inout vec3 l
             // with a probability, weighted by its inverse (unbiased); u, rescaled,
             // still places the window.
             float pGather = st.gatherLevel1 ? 1.0 : PV_PHOTON_LEVEL_2_GATHER_PROBABILITY;
-            if (u < pGather) {
+            // The first vertex's photons reach the pixel as the photon pass's splats.
+            bool splatted = photonSplatsActive() && st.depth == 0u;
+            if (u < pGather && !splatted) {
                 vec3 causticMixed;
                 vec3 causticReal;
                 gatherPhotons(s, bp, frame, wo, st.depth, u / pGather, st.gatherLevel1,
@@ -731,7 +757,7 @@ void tracePaths(uvec2 pixel, uint pixelIndex) {
                 mode = MODE_REAL;
                 haveRealContinuation = false;
             } else {
-                addSample(params.sampleBase + nth, lm, lr, firstHitVirtual,
+                addSample(params.sampleBase + nth, pixelIndex, lm, lr, firstHitVirtual,
                           gNonFiniteRays != nonFiniteRaysBefore);
                 nth += 1u;
                 if (nth >= params.samplesPerDispatch) break;

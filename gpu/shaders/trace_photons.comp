@@ -30,6 +30,8 @@ layout(binding = PV_BINDING_PHOTON_BLOCK_COUNTS, scalar) writeonly buffer GroupC
     uint groupCounts[];
 };
 
+layout(binding = PV_BINDING_PHOTON_SPLATS, scalar) buffer Splats { uint splats[]; };
+
 shared uint groupStored[PV_PHOTON_GROUP_SIZE];
 
 // The photon light whose inclusive cdf first exceeds u (binary search).
@@ -169,6 +171,78 @@ struct PhotonState {
 // The records this invocation's photon stores (level 1 and 2, mixed and real slots).
 PhotonRecord gStored[PV_PHOTON_RECORDS_PER_PHOTON];
 
+// Adds v to the 32.32 fixed-point sum at splats[at..at+5] (per channel: fraction, whole) with
+// atomics: integer additions, carries included, give the same bits in any order, so a replay is
+// byte-identical and two solutions that splat the same photons hold the same sums. Values are
+// clamped to [0, 2^31), as trace_paths' fixedAdd.
+void splatAdd(uint at, vec3 v) {
+    v = clamp(v, vec3(0.0), vec3(2147483520.0));
+    vec3 whole = floor(v);
+    uvec3 fraction = uvec3((v - whole) * 4294967296.0);
+    for (uint c = 0u; c < 3u; ++c) {
+        uint before = atomicAdd(splats[at + 2u * c], fraction[c]);
+        uint carry = before > 0xffffffffu - fraction[c] ? 1u : 0u;
+        if (whole[c] > 0.0 || carry > 0u) atomicAdd(splats[at + 2u * c + 1u], uint(whole[c]) + carry);
+    }
+}
+
+// Light tracing's last step for a photon just stored at s (shared/photon_map.h's level 1 or 2),
+// in place of the camera path's gather at its first vertex: where the camera sees s directly,
+// the photon's light toward the camera goes to the pixel it lands in,
+//   f(w_cam, w_i) · Φ · |cos θ_s| / (d² · cos³θ_c · A_pixel),
+// the change of variables from the pixel's film area (A_pixel on the plane z = −1, where
+// cameraRay's jitter is uniform) to the surface: dA_film = |cos θ_s| dA / (d² cos³θ_c), d the
+// distance to the eye and θ_c the angle off the optical axis. Every photon the pixel sees counts,
+// at no gather radius: no blur beyond the pixel's own box, where a gather at a jittered point
+// took only the photons within r of it (docs/caustics.md, "The caustic seen directly"). What
+// the camera sees of each solution follows trace_paths' rules: a mixed photon needs no blocker
+// in the mixed scene; a real one no real blocker, and it is subtracted in the composite only
+// where no virtual object hides it (there the camera's first hit is virtual, M = 1).
+void splatToCamera(Surface s, BsdfParams bp, PhotonState st, uint mode) {
+    vec3 eye = params.worldFromCamera[3].xyz;
+    vec3 toEye = eye - s.position;
+    vec3 c = inverse(mat3(params.worldFromCamera)) * -toEye;  // camera frame, looking along −Z
+    if (!(c.z < 0.0)) return;
+    vec2 ndc = vec2(c.x, c.y) / (-c.z * params.tanHalfFov);
+    vec2 film = vec2((ndc.x + 1.0) * 0.5 * float(params.width),
+                     (1.0 - ndc.y) * 0.5 * float(params.height));
+    if (!(film.x >= 0.0 && film.y >= 0.0 && film.x < float(params.width) &&
+          film.y < float(params.height)))
+        return;
+    float dist2 = dot(toEye, toEye);
+    float dist = sqrt(dist2);
+    vec3 wCam = toEye / dist;
+    Frame frame;
+    frame.n = s.shadingNormal;
+    buildBasis(frame.n, frame.t, frame.b);
+    vec3 wo = toLocal(frame, wCam);
+    vec3 wi = -st.ray.direction;
+    vec3 wiLocal = toLocal(frame, wi);
+    if (!consistentSide(s, wCam, wo) || !consistentSide(s, wi, wiLocal)) return;
+    float pdf;
+    vec3 f = evaluateBsdf(bp, wo, wiLocal, pdf);
+    float cosCamera = -c.z / length(c);
+    float pixelArea = 4.0 * params.tanHalfFov.x * params.tanHalfFov.y /
+                      (float(params.width) * float(params.height));
+    vec3 l = f * st.power *
+             (abs(dot(s.geometricNormal, wCam)) /
+              (dist2 * cosCamera * cosCamera * cosCamera * pixelArea));
+    if (!(maxComponent(l) > 0.0)) return;
+    Ray ray = directionRay(s.position, s.geometricNormal, wCam, dist);
+    // Real and shared photons test the virtual objects too: whether one hides them from the
+    // mixed camera ray decides the composite.
+    uint blocker = occluder(ray, mode == MODE_MIXED ? MODE_MIXED : MODE_SHARED);
+    uint pixels = params.width * params.height;
+    uint at = (uint(film.y) * params.width + uint(film.x)) * PV_SPLAT_WORDS;
+    if (mode != MODE_REAL && blocker == OCCLUDER_NONE)
+        splatAdd(PV_SPLAT_MIXED * pixels * PV_SPLAT_WORDS + at, l);
+    if (kDifferential && mode != MODE_MIXED && blocker != OCCLUDER_REAL) {
+        splatAdd(PV_SPLAT_REAL * pixels * PV_SPLAT_WORDS + at, l);
+        if (blocker == OCCLUDER_NONE)
+            splatAdd(PV_SPLAT_REAL_UNHIDDEN * pixels * PV_SPLAT_WORDS + at, l);
+    }
+}
+
 // One segment of the photon in `st` (solution `mode`): the ray to its next hit, a record where it
 // lands, and the scattered ray. Returns true when the photon has ended. Where a shared photon
 // first meets a virtual object, its real solution's continuation is stored in realContinuation.
@@ -199,6 +273,7 @@ bool extendPhoton(SampleKey key, inout PhotonState st, inout uint mode,
                               (st.bounces << PV_PHOTON_BOUNCES_SHIFT);
         gStored[slot].power = st.power;
         gStored[slot].direction = packSnorm2x16(octahedralEncode(-st.ray.direction));
+        if (photonSplatsActive()) splatToCamera(s, bp, st, mode);
         if (st.level == 1u) return true;
         st.level = 1u;
     }

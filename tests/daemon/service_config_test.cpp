@@ -325,6 +325,9 @@ position_m = [1, 0, 0]
          minimal("", "until_tracked = \"guess\""),
          {"'tracking.until_tracked' is 'guess'"}},
         {"session_loop_type", minimal("", "[session]\nloop = 1"), {"'session.loop'"}},
+        {"render_photon_splat_type",
+         minimal("", "[render]\nphoton_splat = \"yes\""),
+         {"'render.photon_splat'"}},
     };
 }
 
@@ -344,6 +347,7 @@ preview_photons = 4096
 photon_radius_m = 0.004
 photon_alpha = 0.75
 photon_neighbours = 48
+photon_splat = false
 resolution_scale = 0.3333
 preview_fps = 12.5
 denoise = "auto"
@@ -378,6 +382,7 @@ loop = false
     EXPECT_FLOAT_EQ(c->render.photons.initialRadius, 0.004f);
     EXPECT_FLOAT_EQ(c->render.photons.alpha, 0.75f);
     EXPECT_EQ(c->render.photons.gatherNeighbours, 48u);
+    EXPECT_FALSE(c->render.photons.splatToCamera);
     EXPECT_FLOAT_EQ(c->render.resolutionScale, 0.3333f);
     EXPECT_DOUBLE_EQ(c->render.previewFps, 12.5);
     EXPECT_EQ(c->render.denoise, "auto");

@@ -328,73 +328,78 @@ TEST_F(CausticAgreementTest, ErrorFallsAsTheRadiusShrinks) {
 // A spot light 0.2 m above a square mirror, pointing down: the only light on the diffuse ceiling
 // 1 m up is the mirror's caustic, a square patch lit as by the light's mirror image 0.2 m below
 // the mirror, with sharp edges and nothing outside. At max depth 2 the camera (looking up at the
-// ceiling) sees exactly that level-1 density estimate, whose expectation is known in closed form:
-// L = (ρ/π)·I·cos θ/D² inside the patch, 0 outside (the mirror reflects all of it). The first
-// radius is large (4 cm, about two pixels) and held fixed, so the blur of the edges is most of the
-// error. Where photons are dense a gather takes its estimate again at the radius that holds about
-// photonGatherNeighbours of them (trace_paths.comp's gatherPhotons): inside the patch, where the
-// density is nearly even, the estimate must keep its expectation; over the whole image, edges
-// included, the error must fall.
-TEST_F(PhotonTest, DenseGathersKeepTheDensityAndSharpenItsEdges) {
-    constexpr float kMirrorHalf = 0.06f, kLightHeight = 0.2f, kCeiling = 1.0f, kAlbedo = 0.5f;
-    constexpr float kIntensity = 10.0f, kEyeHeight = 0.3f, kHalfView = 0.5f;
-    constexpr uint32_t kSize = 48;
-    Scene s;
-    addQuad(s, glm::vec3(0.0f), glm::vec3(kMirrorHalf, 0, 0), glm::vec3(0, 0, -kMirrorHalf),
-            addMaterial(s, mirror()), true);
-    addQuad(s, glm::vec3(0.0f, kCeiling, 0.0f), glm::vec3(2.0f, 0, 0), glm::vec3(0, 0, 2.0f),
-            addMaterial(s, lambert(glm::vec3(kAlbedo))), true);
-    PunctualLight spot = pointLight(glm::vec3(0.0f, kLightHeight, 0.0f), kIntensity, true);
-    spot.type = LightType::Spot;
-    spot.direction = glm::vec3(0.0f, -1.0f, 0.0f);
-    spot.innerConeAngleRad = 0.7f;  // the mirror's corners are 0.40 rad off the axis
-    spot.outerConeAngleRad = 0.75f;
-    s.lights.push_back(spot);
-    const float tanHalf = kHalfView / (kCeiling - kEyeHeight);
-    s.cameras.push_back(lookAt(glm::vec3(0.0f, kEyeHeight, 0.0f), glm::vec3(0.0f, 1.0f, 0.0f),
-                               glm::vec3(0.0f, 0.0f, -1.0f), 2.0f * std::atan(tanHalf)));
+// ceiling) sees exactly that level-1 estimate, whose expectation is known in closed form:
+// L = (ρ/π)·I·cos θ/D² inside the patch, 0 outside (the mirror reflects all of it).
+struct MirrorCausticOnACeiling {
+    static constexpr float kMirrorHalf = 0.06f, kLightHeight = 0.2f, kCeiling = 1.0f;
+    static constexpr float kAlbedo = 0.5f, kIntensity = 10.0f, kEyeHeight = 0.3f;
+    static constexpr float kHalfView = 0.5f;
+    static constexpr uint32_t kSize = 48;
+    // The gather radius the tests hold fixed: 4 cm, about two pixels.
+    static constexpr float kRadius = 0.04f;
 
-    // The expected pixel: the closed form averaged over 8×8 points of the pixel (the scene is
-    // symmetric in x and z, so the camera's axis conventions do not matter).
-    auto radianceAt = [&](float x, float z) {
-        const float h = kLightHeight, H = kCeiling;
-        if (std::abs(x) * h / (H + h) > kMirrorHalf || std::abs(z) * h / (H + h) > kMirrorHalf)
-            return 0.0;
-        const double d2 = double(x) * x + double(z) * z + double(H + h) * (H + h);
-        return kAlbedo / kPi * kIntensity * (H + h) / (d2 * std::sqrt(d2));
-    };
-    std::vector<double> expected(kSize * kSize);
-    std::vector<bool> inner(kSize * kSize);  // more than a radius and a pixel inside the patch
-    const float edge = kMirrorHalf * (kCeiling + kLightHeight) / kLightHeight;
-    const float radius = 0.04f, pixel = 2.0f * kHalfView / kSize;
-    for (uint32_t py = 0; py < kSize; ++py)
-        for (uint32_t px = 0; px < kSize; ++px) {
-            double sum = 0.0;
-            for (int j = 0; j < 64; ++j) {
-                float a = ((px + (j % 8 + 0.5f) / 8.0f) / kSize * 2.0f - 1.0f) * kHalfView;
-                float b = ((py + (j / 8 + 0.5f) / 8.0f) / kSize * 2.0f - 1.0f) * kHalfView;
-                sum += radianceAt(a, b);
+    Scene scene;
+    std::vector<double> expected;  // per pixel, the closed form averaged over 8×8 points of it
+    std::vector<bool> inner;       // more than a radius and a pixel inside the patch
+
+    MirrorCausticOnACeiling() : expected(kSize * kSize), inner(kSize * kSize) {
+        addQuad(scene, glm::vec3(0.0f), glm::vec3(kMirrorHalf, 0, 0), glm::vec3(0, 0, -kMirrorHalf),
+                addMaterial(scene, mirror()), true);
+        addQuad(scene, glm::vec3(0.0f, kCeiling, 0.0f), glm::vec3(2.0f, 0, 0),
+                glm::vec3(0, 0, 2.0f), addMaterial(scene, lambert(glm::vec3(kAlbedo))), true);
+        PunctualLight spot = pointLight(glm::vec3(0.0f, kLightHeight, 0.0f), kIntensity, true);
+        spot.type = LightType::Spot;
+        spot.direction = glm::vec3(0.0f, -1.0f, 0.0f);
+        spot.innerConeAngleRad = 0.7f;  // the mirror's corners are 0.40 rad off the axis
+        spot.outerConeAngleRad = 0.75f;
+        scene.lights.push_back(spot);
+        const float tanHalf = kHalfView / (kCeiling - kEyeHeight);
+        scene.cameras.push_back(lookAt(glm::vec3(0.0f, kEyeHeight, 0.0f),
+                                       glm::vec3(0.0f, 1.0f, 0.0f), glm::vec3(0.0f, 0.0f, -1.0f),
+                                       2.0f * std::atan(tanHalf)));
+        // The scene is symmetric in x and z, so the camera's axis conventions do not matter.
+        auto radianceAt = [&](float x, float z) {
+            const float h = kLightHeight, H = kCeiling;
+            if (std::abs(x) * h / (H + h) > kMirrorHalf || std::abs(z) * h / (H + h) > kMirrorHalf)
+                return 0.0;
+            const double d2 = double(x) * x + double(z) * z + double(H + h) * (H + h);
+            return kAlbedo / kPi * kIntensity * (H + h) / (d2 * std::sqrt(d2));
+        };
+        const float edge = kMirrorHalf * (kCeiling + kLightHeight) / kLightHeight;
+        const float pixel = 2.0f * kHalfView / kSize;
+        for (uint32_t py = 0; py < kSize; ++py)
+            for (uint32_t px = 0; px < kSize; ++px) {
+                double sum = 0.0;
+                for (int j = 0; j < 64; ++j) {
+                    float a = ((px + (j % 8 + 0.5f) / 8.0f) / kSize * 2.0f - 1.0f) * kHalfView;
+                    float b = ((py + (j / 8 + 0.5f) / 8.0f) / kSize * 2.0f - 1.0f) * kHalfView;
+                    sum += radianceAt(a, b);
+                }
+                expected[py * kSize + px] = sum / 64.0;
+                float cx = std::abs((px + 0.5f) / kSize * 2.0f - 1.0f) * kHalfView;
+                float cy = std::abs((py + 0.5f) / kSize * 2.0f - 1.0f) * kHalfView;
+                inner[py * kSize + px] = std::max(cx, cy) < edge - kRadius - pixel;
             }
-            expected[py * kSize + px] = sum / 64.0;
-            float cx = std::abs((px + 0.5f) / kSize * 2.0f - 1.0f) * kHalfView;
-            float cy = std::abs((py + 0.5f) / kSize * 2.0f - 1.0f) * kHalfView;
-            inner[py * kSize + px] = std::max(cx, cy) < edge - radius - pixel;
-        }
+    }
 
-    RenderSettings fixedRadius = photonSettings(kSize, kSize, PhotonMode::Auto);
-    fixedRadius.maxDepth = 2;  // the camera's first hit gathers; nothing else lights the ceiling
-    fixedRadius.photons.perIteration = 1u << 14;
-    fixedRadius.photons.initialRadius = radius;
-    fixedRadius.photons.alpha = 1.0f;
-    fixedRadius.photons.gatherNeighbours = 0;
-    RenderSettings shrinking = fixedRadius;
-    shrinking.photons.gatherNeighbours = 16;  // the patch holds about 90 photons per gather
-    constexpr uint32_t kRuns = 4, kIterations = 16;
+    // The camera's first hit takes the caustic (nothing else lights the ceiling), at a fixed
+    // radius and no neighbour rule.
+    static RenderSettings settings(bool splat) {
+        RenderSettings rs = photonSettings(kSize, kSize, PhotonMode::Auto);
+        rs.maxDepth = 2;
+        rs.photons.perIteration = 1u << 14;
+        rs.photons.initialRadius = kRadius;
+        rs.photons.alpha = 1.0f;
+        rs.photons.gatherNeighbours = 0;
+        rs.photons.splatToCamera = splat;
+        return rs;
+    }
+
     struct Scores {
         std::vector<double> innerBias;  // per run: the inner pixels' mean error over their mean
         std::vector<double> innerSpread, mse;  // per run: inner RMS deviation, whole-image MSE
     };
-    auto score = [&](const std::vector<ImageF>& images) {
+    Scores score(const std::vector<ImageF>& images) const {
         Scores sc;
         double innerExpected = 0.0;
         size_t innerCount = 0;
@@ -412,9 +417,23 @@ TEST_F(PhotonTest, DenseGathersKeepTheDensityAndSharpenItsEdges) {
             sc.mse.push_back(squares / double(expected.size()));
         }
         return sc;
-    };
-    const Scores fixedScores = score(renders(s, fixedRadius, kIterations, kRuns, 500));
-    const Scores shrinkingScores = score(renders(s, shrinking, kIterations, kRuns, 500));
+    }
+};
+
+// The gather (the camera sees the ceiling, but photons are not splatted): with the first radius
+// large and fixed, the blur of the edges is most of the error. Where photons are dense a gather
+// takes its estimate again at the radius that holds about photonGatherNeighbours of them
+// (trace_paths.comp's gatherPhotons): inside the patch, where the density is nearly even, the
+// estimate must keep its expectation; over the whole image, edges included, the error must fall.
+TEST_F(PhotonTest, DenseGathersKeepTheDensityAndSharpenItsEdges) {
+    const MirrorCausticOnACeiling c;
+    const RenderSettings fixedRadius = MirrorCausticOnACeiling::settings(false);
+    RenderSettings shrinking = fixedRadius;
+    shrinking.photons.gatherNeighbours = 16;  // the patch holds about 90 photons per gather
+    constexpr uint32_t kRuns = 4, kIterations = 16;
+    using Scores = MirrorCausticOnACeiling::Scores;
+    const Scores fixedScores = c.score(renders(c.scene, fixedRadius, kIterations, kRuns, 500));
+    const Scores shrinkingScores = c.score(renders(c.scene, shrinking, kIterations, kRuns, 500));
     ASSERT_EQ(fixedScores.mse.size(), kRuns);
     ASSERT_EQ(shrinkingScores.mse.size(), kRuns);
 
@@ -440,6 +459,38 @@ TEST_F(PhotonTest, DenseGathersKeepTheDensityAndSharpenItsEdges) {
     std::printf(
         "image RMSE against the closed form: fixed radius %.4f, shrinking where dense %.4f\n",
         std::sqrt(fixedMse), std::sqrt(fixedMse - gain));
+    EXPECT_GT(gain, 10.2 * std::sqrt(gainVar));
+}
+
+// The same caustic splatted onto the pixels by the photon pass (trace_photons.comp's
+// splatToCamera, the default): each photon goes to the pixel it lands in, weighted by the
+// camera's change of variables, so the image is the closed form's box-filtered pixels with no
+// kernel at all. Inside the patch the mean is the closed form's with no curvature term (the
+// tolerance is the noise alone), and over the whole image, edges included, the error is below
+// the gather's at the same photons (paired by seed: the photon pass draws the same photons).
+TEST_F(PhotonTest, SplattedCausticsKeepTheClosedFormWithoutBlur) {
+    const MirrorCausticOnACeiling c;
+    constexpr uint32_t kRuns = 4, kIterations = 16;
+    using Scores = MirrorCausticOnACeiling::Scores;
+    const Scores gathered = c.score(
+        renders(c.scene, MirrorCausticOnACeiling::settings(false), kIterations, kRuns, 500));
+    const Scores splatted =
+        c.score(renders(c.scene, MirrorCausticOnACeiling::settings(true), kIterations, kRuns, 500));
+    ASSERT_EQ(gathered.mse.size(), kRuns);
+    ASSERT_EQ(splatted.mse.size(), kRuns);
+    auto [bias, biasVar] = meanAndVarianceOfMean(splatted.innerBias);
+    std::printf("splatted inner patch: mean relative error %+.5f ± %.5f, per-pixel RMS %.4f\n",
+                bias, std::sqrt(biasVar), meanAndVarianceOfMean(splatted.innerSpread).first);
+    // Student's t, 3 dof, two-sided 0.1 %; the spread is not zero (photons are random).
+    EXPECT_GT(biasVar, 0.0);
+    EXPECT_LT(std::abs(bias), 12.9 * std::sqrt(biasVar));
+    std::vector<double> gains;
+    for (uint32_t i = 0; i < kRuns; ++i) gains.push_back(gathered.mse[i] - splatted.mse[i]);
+    auto [gain, gainVar] = meanAndVarianceOfMean(gains);
+    const double gatheredMse = meanAndVarianceOfMean(gathered.mse).first;
+    std::printf("image RMSE against the closed form: gathered %.4f, splatted %.4f\n",
+                std::sqrt(gatheredMse), std::sqrt(gatheredMse - gain));
+    // One-sided 0.1 % with 3 dof.
     EXPECT_GT(gain, 10.2 * std::sqrt(gainVar));
 }
 
@@ -596,6 +647,59 @@ TEST_F(PhotonTest, VirtualGlassBallCausticIsMixedOnly) {
     // brighter in the mixed solution than in the real one.
     EXPECT_GT(depositedPower(*records, PV_PHOTON_IN_MIXED),
               0.5 * 20.0 * 2.0 * kPi * (1.0 - std::sqrt(1.0 - 0.04 / 1.44)));
+}
+
+// Splats and gathers estimate the same light seen directly, in every image of a differential
+// render with a plate: a real glass ball's caustic (both solutions), a virtual glass ball's
+// (mixed only), and a virtual box that hides part of the real floor from the camera — its real
+// light is in L_or, but not subtracted in the composite, whose first hit there is the box.
+// Image means per image over independent seeds, Welch's t against Student's t with 10 degrees
+// of freedom, two-sided 0.1 % (4.59).
+TEST_F(PhotonTest, SplatsAndGathersAgreeInEverySolution) {
+    Scene scene = glassBallInAWhiteRoom(true);
+    addSphere(scene, glm::vec3(-0.45f, 0.15f, 0.3f), 0.15f, addMaterial(scene, glass(1.5f)), false);
+    addBox(scene, glm::vec3(0.05f, 0.0f, 0.2f), glm::vec3(0.3f, 0.1f, 0.3f),
+           addMaterial(scene, lambert(glm::vec3(0.5f))), false);
+    constexpr uint32_t kWidth = 32, kHeight = 24, kRuns = 6, kIterations = 16;
+    ImageF plate;
+    plate.width = kWidth;
+    plate.height = kHeight;
+    plate.channels = 3;
+    plate.pixels.assign(size_t(kWidth) * kHeight * 3, 0.25f);
+    constexpr std::array<Aov, 3> kAovs = {Aov::Composite, Aov::Mixed, Aov::Real};
+    constexpr std::array<const char*, 3> kNames = {"composite", "mixed", "real"};
+    std::map<std::pair<bool, size_t>, std::vector<double>> means;  // (splat, image): per run
+    for (bool splat : {false, true}) {
+        RenderSettings rs = photonSettings(kWidth, kHeight, PhotonMode::Auto);
+        rs.differential = true;
+        rs.photons.perIteration = 1u << 14;
+        rs.photons.splatToCamera = splat;
+        auto renderer = Renderer::create(ctx(), scene, rs);
+        ASSERT_TRUE(renderer.ok()) << renderer.message();
+        Renderer& r = **renderer;
+        ASSERT_TRUE(r.photonsActive());
+        ASSERT_TRUE(r.setPlate(plate, "test plate").ok());
+        for (uint32_t run = 0; run < kRuns; ++run) {
+            ASSERT_TRUE(r.reset().ok());
+            r.setSeed(700 + run + (splat ? 100 : 0));
+            ASSERT_TRUE(r.render(kIterations).ok());
+            for (size_t k = 0; k < kAovs.size(); ++k) {
+                auto image = r.image(kAovs[k]);
+                ASSERT_TRUE(image.ok()) << image.message();
+                double sum = 0.0;
+                for (size_t i = 1; i < image->pixels.size(); i += 3) sum += image->pixels[i];
+                means[{splat, k}].push_back(sum / double(image->pixels.size() / 3));
+            }
+        }
+    }
+    for (size_t k = 0; k < kAovs.size(); ++k) {
+        auto [gathered, gatheredVar] = meanAndVarianceOfMean(means[{false, k}]);
+        auto [splatted, splattedVar] = meanAndVarianceOfMean(means[{true, k}]);
+        const double t = std::abs(splatted - gathered) / std::sqrt(gatheredVar + splattedVar);
+        std::printf("%s: gathered %.5f ± %.5f, splatted %.5f ± %.5f, t %.2f\n", kNames[k], gathered,
+                    std::sqrt(gatheredVar), splatted, std::sqrt(splattedVar), t);
+        EXPECT_LT(t, 4.59) << kNames[k];
+    }
 }
 
 // Preview's fixed random sequence holds with photons: every preview frame of an unchanged scene

@@ -23,6 +23,9 @@
 // the dropped paths is then counted once: L S+ D … E is level 1 at D when the path reached D
 // from the camera through delta scatterings only, and level 2 at the gather vertex before D
 // otherwise (which scattered toward D through its non-delta part, the part a gather evaluates).
+// Where the photon pass splats (photonSplatsActive), the camera path's first vertex does not
+// gather: the photon pass sends each record the camera sees directly to its pixel instead
+// (trace_photons.comp's splatToCamera), the same paths (L S+ D E, L S+ D S* D E) counted once.
 #ifndef PREVIS_SHARED_PHOTON_MAP_H
 #define PREVIS_SHARED_PHOTON_MAP_H
 

@@ -59,7 +59,17 @@ PV_BEGIN
 // The denoiser's guides (shared/denoise.h): first-hit albedo, normal, depth and luminance
 // moments per pixel; a 16-byte placeholder when the renderer has no denoiser.
 #define PV_BINDING_GUIDES 27
-#define PV_BINDING_COUNT 28
+// The photons' light seen directly by the camera, splatted onto the pixels they land in
+// (trace_photons.comp's splatToCamera): per sum PV_SPLAT_*, per pixel, per channel two words of
+// 32.32 fixed point (fraction, whole), so the sums do not depend on the order of the atomic
+// additions. Cleared by every photon pass, read by the camera pass; a 16-byte placeholder where
+// the renderer does not splat.
+#define PV_BINDING_PHOTON_SPLATS 28
+#define PV_BINDING_COUNT 29
+#define PV_SPLAT_MIXED 0u         // photons of the mixed solution the camera sees
+#define PV_SPLAT_REAL 1u          // photons of the real solution the real camera ray sees
+#define PV_SPLAT_REAL_UNHIDDEN 2u // ... of which no virtual object hides in the mixed solution
+#define PV_SPLAT_WORDS 6u         // per sum and pixel: three channels × (fraction, whole)
 
 // Specialization constant ids: scene features that select pipeline variants, so a scene runs
 // none of the code it does not need ("model only what the scene requires").
@@ -97,7 +107,12 @@ PV_BEGIN
 // (light samples, MIS) are baseColor/π, and the photon gather sums the photons' power and applies
 // baseColor/π once, instead of a BSDF evaluation per photon.
 #define PV_SPEC_HAS_GLOSSY 15
-#define PV_SPEC_COUNT 16
+// The photon map's light seen directly (at the camera path's first vertex) is splatted onto the
+// pixels by the photon pass instead of gathered there (docs/caustics.md, "The caustic seen
+// directly"): where the host allows it (the setting, and the splat buffer fits one binding).
+// The shaders also need a pinhole camera (no lens grid, no aperture): photonSplatsActive.
+#define PV_SPEC_PHOTON_SPLAT 16
+#define PV_SPEC_COUNT 17
 #define PV_SAMPLER_SOBOL 0u
 #define PV_SAMPLER_INDEPENDENT 1u
 
