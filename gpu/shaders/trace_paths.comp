@@ -496,30 +496,38 @@ void addSample(uint sampleIndex, uint pixelIndex, vec3 lm, vec3 lr, bool firstHi
         atomicAdd(stats.nonFiniteSamples, 1u);
         return;
     }
+    // The iteration's splats, once, with its one sample (a photon iteration is one sample a
+    // dispatch): its light seen directly in each solution, and the real light no virtual object
+    // hides, which the composite subtracts (where one does, the pixel shows it: M = 1).
+    vec3 splatMixed = vec3(0.0);
+    vec3 splatReal = vec3(0.0);
+    vec3 splatUnhidden = vec3(0.0);
+    if (photonSplatsActive() && sampleIndex == params.sampleBase) {
+        splatMixed = splattedLight(PV_SPLAT_MIXED, pixelIndex);
+        if (kDifferential) {
+            splatReal = splattedLight(PV_SPLAT_REAL, pixelIndex);
+            splatUnhidden = splattedLight(PV_SPLAT_REAL_UNHIDDEN, pixelIndex);
+        }
+    }
     if (params.fireflyClamp > 0.0) {
-        // One factor for both solutions, so their difference stays consistent.
-        float lum = max(luminance(lm), luminance(lr));
+        // One factor for both solutions, so their difference stays consistent; the splats are
+        // part of the sample, as the first vertex's gather they replace was.
+        float lum = max(luminance(lm + splatMixed), luminance(lr + splatReal));
         if (lum > params.fireflyClamp) {
-            lm *= params.fireflyClamp / lum;
-            lr *= params.fireflyClamp / lum;
+            float k = params.fireflyClamp / lum;
+            lm *= k;
+            lr *= k;
+            splatMixed *= k;
+            splatReal *= k;
+            splatUnhidden *= k;
         }
     }
     float mask = firstHitVirtual ? 1.0 : 0.0;
     // Eq. 1 per sample, without the plate term (1 − M)·L_oc, which the host adds from the
     // mean mask: where both solutions followed the same path lm − lr is exactly 0.
-    vec3 composite = firstHitVirtual ? lm : lm - lr;
-    if (photonSplatsActive() && sampleIndex == params.sampleBase) {
-        // The iteration's splats, once, with its one sample (a photon iteration is one sample
-        // a dispatch): its light seen directly, in each solution, and in the composite less
-        // the real light no virtual object hides (where one does, the pixel shows it: M = 1).
-        vec3 mixed = splattedLight(PV_SPLAT_MIXED, pixelIndex);
-        lm += mixed;
-        composite += mixed;
-        if (kDifferential) {
-            lr += splattedLight(PV_SPLAT_REAL, pixelIndex);
-            composite -= splattedLight(PV_SPLAT_REAL_UNHIDDEN, pixelIndex);
-        }
-    }
+    vec3 composite = (firstHitVirtual ? lm : lm - lr) + splatMixed - splatUnhidden;
+    lm += splatMixed;
+    lr += splatReal;
     kahanAdd(gSum[PV_ACCUM_COMPOSITE], gComp[PV_ACCUM_COMPOSITE], vec4(composite, mask));
     kahanAdd(gSum[PV_ACCUM_MIXED], gComp[PV_ACCUM_MIXED], vec4(lm, 1.0));
     if (kDifferential) kahanAdd(gSum[PV_ACCUM_REAL], gComp[PV_ACCUM_REAL], vec4(lr, 0.0));

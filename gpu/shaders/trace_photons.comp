@@ -198,9 +198,13 @@ void splatAdd(uint at, vec3 v) {
 // the camera sees of each solution follows trace_paths' rules: a mixed photon needs no blocker
 // in the mixed scene; a real one no real blocker, and it is subtracted in the composite only
 // where no virtual object hides it (there the camera's first hit is virtual, M = 1).
-void splatToCamera(Surface s, BsdfParams bp, PhotonState st, uint mode) {
+//
+// The surface and its BSDF are taken as the camera ray sees them (normals toward the eye, the
+// shading normal adapted to that ray), as the camera path's gather took them: a photon through
+// a rough or thin transmitter seen from the other side still counts.
+void splatToCamera(Hit hit, vec3 position, GpuMaterial m, PhotonState st, uint mode) {
     vec3 eye = params.worldFromCamera[3].xyz;
-    vec3 toEye = eye - s.position;
+    vec3 toEye = eye - position;
     vec3 c = inverse(mat3(params.worldFromCamera)) * -toEye;  // camera frame, looking along −Z
     if (!(c.z < 0.0)) return;
     vec2 ndc = vec2(c.x, c.y) / (-c.z * params.tanHalfFov);
@@ -212,6 +216,11 @@ void splatToCamera(Surface s, BsdfParams bp, PhotonState st, uint mode) {
     float dist2 = dot(toEye, toEye);
     float dist = sqrt(dist2);
     vec3 wCam = toEye / dist;
+    Ray fromEye;
+    fromEye.origin = eye;
+    fromEye.direction = -wCam;
+    Surface s = surfaceAt(fromEye, hit);
+    BsdfParams bp = bsdfParamsAt(m, s);
     Frame frame;
     frame.n = s.shadingNormal;
     buildBasis(frame.n, frame.t, frame.b);
@@ -273,7 +282,7 @@ bool extendPhoton(SampleKey key, inout PhotonState st, inout uint mode,
                               (st.bounces << PV_PHOTON_BOUNCES_SHIFT);
         gStored[slot].power = st.power;
         gStored[slot].direction = packSnorm2x16(octahedralEncode(-st.ray.direction));
-        if (photonSplatsActive()) splatToCamera(s, bp, st, mode);
+        if (photonSplatsActive()) splatToCamera(hit, s.position, m, st, mode);
         if (st.level == 1u) return true;
         st.level = 1u;
     }
