@@ -47,6 +47,27 @@ bool photonSplatsActive() {
     return kPhotons && kPhotonSplat && !kHasLensGrid &&
            !(kHasThinLens && params.apertureRadiusM > 0.0);
 }
+
+// The first of the PV_SPLAT_WORDS words of sum `sum` (PV_SPLAT_*) of pixel `pixelIndex` in the
+// splat buffer (scene_types.h): the photon pass writes there, the camera pass reads.
+uint splatWord(uint sum, uint pixelIndex) {
+    return (sum * params.width * params.height + pixelIndex) * PV_SPLAT_WORDS;
+}
+
+// RGB in 32.32 fixed point, the photon gather's and splats' sums: integer additions give the
+// same total in any order. Values are clamped to [0, 2^31).
+struct FixedRgb {
+    uvec3 whole;
+    uvec3 fraction;
+};
+
+FixedRgb fixedFromValue(vec3 v) {
+    v = clamp(v, vec3(0.0), vec3(2147483520.0));
+    vec3 w = floor(v);
+    return FixedRgb(uvec3(w), uvec3((v - w) * 4294967296.0));
+}
+
+vec3 fixedValue(FixedRgb sum) { return vec3(sum.whole) + vec3(sum.fraction) * 2.3283064365386963e-10; }
 // Every read-only scene array indexed per lane is a texel buffer (BindingKind::TexelBufferUint4):
 // on llvmpipe a texel fetch is a gather, while a storage-buffer load whose address differs per
 // lane is a loop over the lanes with a bounds check each. A BVH node is seven texels

@@ -218,27 +218,19 @@ Ray cameraRay(uvec2 pixel, SampleKey key) {
     return ray;
 }
 
-// Sums in 32.32 fixed point per channel: integer additions give the same total in any order, so
-// a density estimate does not depend on the order of a bucket's records, and two solutions that
-// gathered the same photons get the same bits. Values are clamped to [0, 2^31).
-struct FixedRgb {
-    uvec3 whole;
-    uvec3 fraction;
-};
-
+// The gather's sums are in 32.32 fixed point (FixedRgb, scene_access.glsl): a density estimate
+// does not depend on the order of a bucket's records, and two solutions that gathered the same
+// photons get the same bits.
 void fixedAdd(inout FixedRgb sum, vec3 v) {
-    v = clamp(v, vec3(0.0), vec3(2147483520.0));
-    vec3 w = floor(v);
+    FixedRgb x = fixedFromValue(v);
     uvec3 carry;
-    sum.fraction = uaddCarry(sum.fraction, uvec3((v - w) * 4294967296.0), carry);
-    sum.whole += uvec3(w) + carry;
+    sum.fraction = uaddCarry(sum.fraction, x.fraction, carry);
+    sum.whole += x.whole + carry;
 }
-
-vec3 fixedValue(FixedRgb sum) { return vec3(sum.whole) + vec3(sum.fraction) * 2.3283064365386963e-10; }
 
 // Sum `sum` (PV_SPLAT_*) of the photons splatted onto pixel `pixelIndex` this iteration.
 vec3 splattedLight(uint sum, uint pixelIndex) {
-    uint at = (sum * params.width * params.height + pixelIndex) * PV_SPLAT_WORDS;
+    uint at = splatWord(sum, pixelIndex);
     FixedRgb v;
     v.fraction = uvec3(splats[at], splats[at + 2u], splats[at + 4u]);
     v.whole = uvec3(splats[at + 1u], splats[at + 3u], splats[at + 5u]);

@@ -171,18 +171,15 @@ struct PhotonState {
 // The records this invocation's photon stores (level 1 and 2, mixed and real slots).
 PhotonRecord gStored[PV_PHOTON_RECORDS_PER_PHOTON];
 
-// Adds v to the 32.32 fixed-point sum at splats[at..at+5] (per channel: fraction, whole) with
-// atomics: integer additions, carries included, give the same bits in any order, so a replay is
-// byte-identical and two solutions that splat the same photons hold the same sums. Values are
-// clamped to [0, 2^31), as trace_paths' fixedAdd.
+// Adds v to the fixed-point sum (FixedRgb) at splats[at..at+5] (per channel: fraction, whole)
+// with atomics: integer additions, carries included, give the same bits in any order, so a
+// replay is byte-identical and two solutions that splat the same photons hold the same sums.
 void splatAdd(uint at, vec3 v) {
-    v = clamp(v, vec3(0.0), vec3(2147483520.0));
-    vec3 whole = floor(v);
-    uvec3 fraction = uvec3((v - whole) * 4294967296.0);
+    FixedRgb x = fixedFromValue(v);
     for (uint c = 0u; c < 3u; ++c) {
-        uint before = atomicAdd(splats[at + 2u * c], fraction[c]);
-        uint carry = before > 0xffffffffu - fraction[c] ? 1u : 0u;
-        if (whole[c] > 0.0 || carry > 0u) atomicAdd(splats[at + 2u * c + 1u], uint(whole[c]) + carry);
+        uint before = atomicAdd(splats[at + 2u * c], x.fraction[c]);
+        uint carry = before > 0xffffffffu - x.fraction[c] ? 1u : 0u;
+        if (x.whole[c] + carry > 0u) atomicAdd(splats[at + 2u * c + 1u], x.whole[c] + carry);
     }
 }
 
@@ -241,14 +238,11 @@ void splatToCamera(Hit hit, vec3 position, GpuMaterial m, PhotonState st, uint m
     // Real and shared photons test the virtual objects too: whether one hides them from the
     // mixed camera ray decides the composite.
     uint blocker = occluder(ray, mode == MODE_MIXED ? MODE_MIXED : MODE_SHARED);
-    uint pixels = params.width * params.height;
-    uint at = (uint(film.y) * params.width + uint(film.x)) * PV_SPLAT_WORDS;
-    if (mode != MODE_REAL && blocker == OCCLUDER_NONE)
-        splatAdd(PV_SPLAT_MIXED * pixels * PV_SPLAT_WORDS + at, l);
+    uint pixel = uint(film.y) * params.width + uint(film.x);
+    if (mode != MODE_REAL && blocker == OCCLUDER_NONE) splatAdd(splatWord(PV_SPLAT_MIXED, pixel), l);
     if (kDifferential && mode != MODE_MIXED && blocker != OCCLUDER_REAL) {
-        splatAdd(PV_SPLAT_REAL * pixels * PV_SPLAT_WORDS + at, l);
-        if (blocker == OCCLUDER_NONE)
-            splatAdd(PV_SPLAT_REAL_UNHIDDEN * pixels * PV_SPLAT_WORDS + at, l);
+        splatAdd(splatWord(PV_SPLAT_REAL, pixel), l);
+        if (blocker == OCCLUDER_NONE) splatAdd(splatWord(PV_SPLAT_REAL_UNHIDDEN, pixel), l);
     }
 }
 
