@@ -26,13 +26,19 @@
 // reflects or refracts with its own Fresnel term (always reflects on total internal reflection),
 // so glass seen from inside beyond the critical angle still transmits through tilted microfacets.
 // Single-scattering GGX still loses the light a microfacet sends back into the surface; the
-// white furnace of clear glass (∫ f |cos| with refraction's 1/η² undone) measured by
-// BsdfTest.RoughGlassFurnaceMatchesSingleScatteringGgx, at θo = 0°, 30°, 60°, 80°:
+// white furnace of clear glass (∫ f |cos| with refraction's 1/η² undone), at θo = 0°, 30°, 60°,
+// 80° (BsdfTest.RoughGlassFurnaceIsOne measures it):
 //   roughness  from outside (η 1.5)        from inside (η 1/1.5)
 //   0.1        1.000 1.000 1.000 0.999     1.000 1.000 1.000 0.998
 //   0.3        0.999 0.999 0.994 0.948     0.991 0.988 0.971 0.894
 //   0.5        0.992 0.988 0.961 0.913     0.930 0.907 0.829 0.797
 //   1.0        0.894 0.855 0.742 0.709     0.418 0.455 0.513 0.497
+// That light is not lost in real glass: it scatters again and leaves. The glass part of the
+// material (weight t) is therefore scaled by 1/E(wo), E being the single-scattering energy above,
+// tabulated (specular_albedo.h): the furnace gives 1 (within the table's resolution, never
+// above), as Cycles' multiscatter glass does. Like the diffuse weight, it is not reciprocal; the
+// photon pass only crosses smooth glass, where E = 1, so light and camera paths agree. Thin walls
+// keep single scattering.
 //
 // A thin-walled material (glTF: transmission without KHR_materials_volume, or thickness 0) is a
 // slab too thin to see: light crosses both faces and leaves along its incoming direction (rough:
@@ -95,6 +101,14 @@ PV_INLINE float fresnelDielectric(float cosThetaI, float eta) {
     float rParl = (eta * cosThetaI - cosThetaT) / (eta * cosThetaI + cosThetaT);
     float rPerp = (cosThetaI - eta * cosThetaT) / (cosThetaI + eta * cosThetaT);
     return 0.5f * (rParl * rParl + rPerp * rPerp);
+}
+
+// The energy compensation of rough glass seen from wo: the factor on the glass part of the
+// material (1/E, see above); 1 for smooth glass, thin walls and materials without transmission
+// (a scene without transmission compiles this away: kHasTransmission zeroes p.transmission).
+PV_INLINE float glassEnergyScale(BsdfParams p, float cosThetaO) {
+    if (p.transmission <= 0.0f || p.thinWalled || p.alpha < PV_DELTA_ALPHA) return 1.0f;
+    return 1.0f / max(glassAlbedo(cosThetaO, p.alpha, p.etaRel), 0.05f);
 }
 
 // The reflectance of the dielectric interface: one boundary, or for a thin wall the slab's two
@@ -243,6 +257,8 @@ PV_INLINE vec3 bsdfEvaluate(BsdfParams p, vec3 wo, vec3 wi, PV_OUT(float) pdf) {
     if (wo.z < PV_MIN_COSINE || abs(wi.z) < PV_MIN_COSINE) return vec3(0.0f);
     vec3 prob = bsdfLobeProbabilities(p, wo);
     bool delta = bsdfIsDelta(p);
+    // The glass part (weight t) of the interface is energy-compensated, the rest is not.
+    float glassScale = glassEnergyScale(p, wo.z);
     vec3 f = vec3(0.0f);
     if (wi.z > 0.0f) {
         vec3 h = normalize(wo + wi);
@@ -257,7 +273,7 @@ PV_INLINE vec3 bsdfEvaluate(BsdfParams p, vec3 wo, vec3 wi, PV_OUT(float) pdf) {
             float dg = ggxD(h, p.alpha) * ggxG2(wo, wi, p.alpha) / (4.0f * wo.z * wi.z);
             float reflectionPdf = ggxVisibleNormalPdf(wo, h, p.alpha) / (4.0f * hDotO);
             f += p.metallic * schlickFresnel(p.baseColor, hDotO) * dg;
-            f += (1.0f - p.metallic) * fd * dg;
+            f += (1.0f - p.metallic) * fd * dg * (1.0f + p.transmission * (glassScale - 1.0f));
             pdf += (prob.x + prob.y * dielectricReflectionProbability(p, hDotO)) * reflectionPdf;
         }
     } else if (!delta && p.transmission > 0.0f && prob.y > 0.0f && p.thinWalled) {
@@ -288,7 +304,8 @@ PV_INLINE vec3 bsdfEvaluate(BsdfParams p, vec3 wo, vec3 wi, PV_OUT(float) pdf) {
                 vec3 fd = dielectricFresnel(p, dotOM);
                 float ft = ggxD(wm, p.alpha) * ggxG2(wo, wi, p.alpha) *
                            abs(dotIM * dotOM / (wi.z * wo.z * denom2)) / (etap * etap);
-                f += (1.0f - p.metallic) * p.transmission * (vec3(1.0f) - fd) * p.baseColor * ft;
+                f += (1.0f - p.metallic) * p.transmission * (vec3(1.0f) - fd) * p.baseColor * ft *
+                     glassScale;
                 pdf += prob.y * (1.0f - dielectricReflectionProbability(p, dotOM)) *
                        ggxVisibleNormalPdf(wo, wm, p.alpha) * abs(dotIM) / denom2;
             }
