@@ -256,6 +256,12 @@ Status Renderer::specialisePipeline() {
     return bindBuffers();
 }
 
+Status Renderer::refreshPipeline() {
+    if (pipeline_ && pipelineConstants(photonsActive_) == specConstants_) return bindBuffers();
+    pipelineStale_ = true;
+    return {};
+}
+
 Status Renderer::compilePipelines(const std::array<uint32_t, PV_SPEC_COUNT>& constants) {
     ++pipelineCompiles_;
     // Every read-only array the shader indexes per lane is a texel buffer (see BindingKind);
@@ -385,7 +391,7 @@ Status Renderer::setEnvironment(std::shared_ptr<const EnvironmentMap> map) {
     // A half-replaced environment is no environment (black) rather than a wrong one.
     setEnvironmentParams(params_, s ? map.get() : nullptr, dist);
     features_.environment = s && map;
-    if (Status p = specialisePipeline(); !p) return p;
+    if (Status p = refreshPipeline(); !p) return p;
     return s;
 }
 
@@ -430,7 +436,7 @@ Status Renderer::setEstimatedLights(std::span<const EstimatedLightSource> estima
             !r)
             params_.lightCount = 0;
     }
-    if (Status p = specialisePipeline(); !p) return p;
+    if (Status p = refreshPipeline(); !p) return p;
     return s;
 }
 
@@ -881,11 +887,12 @@ uint32_t Renderer::samplesForNextDispatch(uint32_t remaining) const {
 
 Status Renderer::render(uint32_t samples,
                         const std::function<void(const RenderProgress&)>& progress) {
-    // A failed re-specialisation (setEnvironment, setEstimatedLights) leaves no pipeline set.
-    if (!pipeline_ || (photonsActive_ && !photonPasses_))
-        return makeError(
-            "the renderer has no pipelines: their last compile failed (see the error it "
-            "returned); set the lighting again to retry");
+    // The pipelines for the features the lighting changed since the last render (one compile
+    // for all of them), or again after a compile that failed.
+    if (pipelineStale_ || !pipeline_ || (photonsActive_ && !photonPasses_)) {
+        if (Status s = specialisePipeline(); !s) return s;
+        pipelineStale_ = false;
+    }
     uint32_t groupsX = (params_.width + PV_WORKGROUP_SIZE_X - 1) / PV_WORKGROUP_SIZE_X;
     constexpr size_t kMaxLoopOffset = offsetof(shader::RenderStats, maxLoopIterations);
     // Camera-relative rendering: the GPU's origin follows the camera, with hysteresis.

@@ -363,6 +363,11 @@ private:
     Status compilePipelines(const std::array<uint32_t, PV_SPEC_COUNT>& constants);
     // (Re)creates the pipelines when the specialization constants changed, and binds buffers_.
     Status specialisePipeline();
+    // After the scene's features or buffers changed: binds buffers_ where the constants still
+    // hold, else marks the pipelines stale for render() to compile. A lighting snapshot changes
+    // the environment and the estimated lights one after the other; each compiling at once made
+    // the service's first snapshot cost two compiles of every pipeline, where one does.
+    Status refreshPipeline();
     // Uploads `bytes` into buffers_[binding], reallocating it only when its size differs.
     Status replaceBufferContents(int binding, const void* data, size_t bytes, const char* label);
     // Binds buffers_, the accumulation from row `bandFirstRow` on (accumulationBand).
@@ -422,7 +427,8 @@ private:
     PhotonAim photonAim_;
     std::vector<EmissivePhotonSource> emissivePhotonSources_;
     bool photonsActive_ = false;
-    bool photonSplats_ = false;  // the splat buffer exists (PV_SPEC_PHOTON_SPLAT)
+    bool pipelineStale_ = false;  // refreshPipeline: render() compiles before it dispatches
+    bool photonSplats_ = false;   // the splat buffer exists (PV_SPEC_PHOTON_SPLAT)
     std::optional<PhotonPasses> photonPasses_;
     double photonMs_ = 0.0;
     uint32_t lastPhotonCount_ = 0;  // params_.photonCount is refinement's again after a preview

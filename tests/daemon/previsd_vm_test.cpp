@@ -37,13 +37,24 @@ std::optional<nlohmann::json> status() {
     return nlohmann::json::parse(*reply);
 }
 
-bool waitUntil(const std::function<bool()>& ready, std::chrono::seconds timeout) {
+// Seconds since the test began: each wait prints when it ended, so the CI log shows where an
+// emulated, loaded CPU spends the time when a step nears its deadline.
+double elapsedSeconds() {
+    static const auto start = std::chrono::steady_clock::now();
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+bool waitUntil(const char* what, const std::function<bool()>& ready, std::chrono::seconds timeout) {
+    const double began = elapsedSeconds();
     const auto deadline = std::chrono::steady_clock::now() + timeout;
-    while (std::chrono::steady_clock::now() < deadline) {
-        if (ready()) return true;
+    bool ok = false;
+    while (!(ok = ready()) && std::chrono::steady_clock::now() < deadline)
         std::this_thread::sleep_for(200ms);
-    }
-    return ready();
+    std::printf("previsd_vm: %-40s %s at %6.1f s (waited %5.1f of %lld s)\n", what,
+                ok ? "ready" : "TIMED OUT", elapsedSeconds(), elapsedSeconds() - began,
+                static_cast<long long>(timeout.count()));
+    std::fflush(stdout);
+    return ok;
 }
 
 // A gpio-sim line: its simulated pull is the outside world; its value what the chip drives.
@@ -120,9 +131,11 @@ TEST(PrevisdInTheVm, DisplayButtonLedHotplugAndStop) {
     SimLine button("mode-button"), led("status-led");
     ASSERT_TRUE(button.found() && led.found()) << "gpio-sim chip 'vmtest' lines";
     testing::ChildProcess p({PREVISD_BINARY, "--config", kConfig}, "/tmp/previsd_vm.log");
+    elapsedSeconds();
 
     // First frames on the display. An emulated CPU compiles the path tracer slowly.
     ASSERT_TRUE(waitUntil(
+        "two frames shown",
         [] {
             auto s = status();
             return s && (*s)["framesShown"].get<int>() >= 2;
@@ -136,22 +149,27 @@ TEST(PrevisdInTheVm, DisplayButtonLedHotplugAndStop) {
     ASSERT_FALSE(first.empty());
     EXPECT_GT(litPixels(first), first.size() / 4) << "the composite camera picture is shown";
     // The status band changes as frames arrive (frame rate, counters), so the screen does too.
-    EXPECT_TRUE(waitUntil([&] { return scanout() != first; }, 60s)) << "the display never changed";
+    EXPECT_TRUE(waitUntil(
+        "the display changes", [&] { return scanout() != first; }, 60s))
+        << "the display never changed";
     EXPECT_EQ(led.value(), 0);
     EXPECT_EQ(cameraControl("/dev/video0", "OSD Text Mode"), 2) << "the config's controls";
 
     // A press: refinement, samples grow, the LED lights.
     button.press();
     ASSERT_TRUE(waitUntil(
+        "refinement after a press",
         [] {
             auto st = status();
             return st && (*st)["mode"] == "refine";
         },
         30s))
         << p.log();
-    EXPECT_TRUE(waitUntil([&] { return led.value() == 1; }, 10s));
+    EXPECT_TRUE(waitUntil(
+        "the LED lights", [&] { return led.value() == 1; }, 10s));
     uint64_t before = 0;
     ASSERT_TRUE(waitUntil(
+        "two refinement samples",
         [&] {
             auto st = status();
             before = st ? (*st)["samples"].get<uint64_t>() : 0;
@@ -160,6 +178,7 @@ TEST(PrevisdInTheVm, DisplayButtonLedHotplugAndStop) {
         120s))
         << p.log();
     EXPECT_TRUE(waitUntil(
+        "samples grow",
         [&] {
             auto st = status();
             return st && (*st)["samples"].get<uint64_t>() > before;
@@ -170,12 +189,14 @@ TEST(PrevisdInTheVm, DisplayButtonLedHotplugAndStop) {
     // A second press: back to preview, LED off.
     button.press();
     ASSERT_TRUE(waitUntil(
+        "preview after a second press",
         [] {
             auto st = status();
             return st && (*st)["mode"] == "preview";
         },
         30s));
-    EXPECT_TRUE(waitUntil([&] { return led.value() == 0; }, 10s));
+    EXPECT_TRUE(waitUntil(
+        "the LED goes off", [&] { return led.value() == 0; }, 10s));
 
     // 50 bounces within about 10 ms, then held and released cleanly: one toggle.
     for (int i = 0; i < 50; ++i) button.pull(i % 2 == 0);
@@ -189,6 +210,7 @@ TEST(PrevisdInTheVm, DisplayButtonLedHotplugAndStop) {
     // The cameras unplugged and back (vivid unbind/bind): logged, survived, streaming again.
     { std::ofstream("/sys/bus/platform/drivers/vivid/unbind") << "vivid.0"; }
     EXPECT_TRUE(waitUntil(
+        "cameras lost on unbind",
         [&] {
             auto st = status();
             return st && (*st)["cameras"]["scene"] == "lost" &&
@@ -200,6 +222,7 @@ TEST(PrevisdInTheVm, DisplayButtonLedHotplugAndStop) {
     const int shownBefore = (*status())["framesShown"].get<int>();
     button.press();  // back to preview, so new camera frames are shown
     EXPECT_TRUE(waitUntil(
+        "streaming again after bind",
         [&] {
             auto st = status();
             return st && (*st)["cameras"]["scene"] == "streaming" &&

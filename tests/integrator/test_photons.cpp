@@ -1040,8 +1040,19 @@ TEST_F(PhotonTest, OnlyScenesWithACausticRunPhotons) {
         EXPECT_EQ((**r)->pipelineCompileCount(), 1u);
     ASSERT_TRUE((*dark)->setEstimatedLights(std::span(&sun, 1)).ok());
     EXPECT_TRUE((*dark)->photonsActive());
-    EXPECT_EQ((*dark)->pipelineCompileCount(), 2u);
+    // With the rest of a lighting snapshot, its environment: the features change twice, the
+    // pipelines compile once, when the next render needs them.
+    auto sky = std::make_shared<const EnvironmentMap>(uniformEnvironment(glm::vec3(0.5f)));
+    ASSERT_TRUE((*dark)->setEnvironment(sky).ok());
+    EXPECT_EQ((*dark)->pipelineCompileCount(), 1u);
     ASSERT_TRUE((*dark)->render(1).ok());
+    EXPECT_EQ((*dark)->pipelineCompileCount(), 2u);
+    // The next snapshot keeps the features: its buffers are bound, nothing compiles.
+    sun.radiance = glm::vec3(2e4f);
+    ASSERT_TRUE((*dark)->setEstimatedLights(std::span(&sun, 1)).ok());
+    ASSERT_TRUE((*dark)->setEnvironment(sky).ok());
+    ASSERT_TRUE((*dark)->render(1).ok());
+    EXPECT_EQ((*dark)->pipelineCompileCount(), 2u);
 
     // A prediction buildScene refutes: the only light is an emitter of zero area, so no photon
     // leaves it. The pipelines are compiled again without photons and the render is the unlit
