@@ -333,6 +333,11 @@ std::vector<BufferRange> Renderer::accumulationBand(uint32_t firstRow) const {
 }
 
 Status Renderer::bindBuffers(uint32_t bandFirstRow) {
+    // No pipelines (their last compile failed): the next render() compiles and binds them.
+    if (!pipeline_) {
+        pipelineStale_ = true;
+        return {};
+    }
     std::vector<const GpuBuffer*> bound;
     for (const auto& b : buffers_) bound.push_back(&b);
     const std::vector<BufferRange> ranges = accumulationBand(bandFirstRow);

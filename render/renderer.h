@@ -179,11 +179,12 @@ public:
     // the next render and do not clear the accumulation (reset() before refining on).
     //
     // The environment's radiance, sampling tables and FrameParams; null or an empty map removes
-    // it. Buffers are reallocated only when the map's size changes; the pipeline is
-    // re-specialised only when the environment appears or disappears.
+    // it. Buffers are reallocated only when the map's size changes; the pipelines are
+    // re-specialised only when the environment appears or disappears, by the next render()
+    // (which returns a failed compile's error; refreshPipeline).
     Status setEnvironment(std::shared_ptr<const EnvironmentMap> map);
     // Replaces the estimated lights (the scene's own lights stay). A new count reallocates the
-    // lights buffer; lights appearing or disappearing re-specialise the pipeline.
+    // lights buffer; lights appearing or disappearing re-specialise the pipelines, as above.
     Status setEstimatedLights(std::span<const EstimatedLightSource> lights);
     // How often this renderer built its BVH and geometry buffers (1: only in create()).
     uint64_t sceneBuildCount() const { return sceneBuilds_; }

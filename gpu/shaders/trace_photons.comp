@@ -299,6 +299,12 @@ bool extendPhoton(SampleKey key, inout PhotonState st, inout uint mode,
     // A thin wall does not refract, and its weight has no such factor.
     vec3 weight = bs.weight;
     if (bs.lobe == PV_LOBE_TRANSMISSION && !bp.thinWalled) weight *= bp.etaRel * bp.etaRel;
+    // Rough glass's energy compensation (bsdf.h) is 1/E at the camera path's wo, which for the
+    // light path is the direction the photon leaves in (seen from the other side of the
+    // interface when it refracts), not the one it came from: the adjoint takes that factor.
+    BsdfParams seen = bp;
+    if (bs.lobe == PV_LOBE_TRANSMISSION) seen.etaRel = 1.0 / bp.etaRel;
+    weight *= glassEnergyScale(seen, abs(bs.wi.z)) / glassEnergyScale(bp, wo.z);
     if (landed) {
         // Russian roulette on the albedo: level-2 photons keep about the power of
         // level-1 ones, so the density estimate is not a sum of faint photons.

@@ -178,7 +178,7 @@ TEST(PrevisdInTheVm, DisplayButtonLedHotplugAndStop) {
             before = st ? (*st)["samples"].get<uint64_t>() : 0;
             return before >= 2;
         },
-        120s))
+        90s))
         << p.log();
     EXPECT_TRUE(waitUntil(
         "samples grow",
@@ -186,7 +186,7 @@ TEST(PrevisdInTheVm, DisplayButtonLedHotplugAndStop) {
             auto st = status();
             return st && (*st)["samples"].get<uint64_t>() > before;
         },
-        120s))
+        90s))
         << "samples stopped growing";
 
     // A second press: back to preview, LED off.
@@ -231,7 +231,7 @@ TEST(PrevisdInTheVm, DisplayButtonLedHotplugAndStop) {
             return st && (*st)["cameras"]["scene"] == "streaming" &&
                    (*st)["framesShown"].get<int>() > shownBefore + 1;
         },
-        120s))
+        90s))
         << p.log();
     EXPECT_TRUE(p.running()) << p.log();
     // A rebound vivid starts with its default controls (OSD text mode 0); the config's controls

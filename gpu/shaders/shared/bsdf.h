@@ -27,7 +27,7 @@
 // so glass seen from inside beyond the critical angle still transmits through tilted microfacets.
 // Single-scattering GGX still loses the light a microfacet sends back into the surface; the
 // white furnace of clear glass (∫ f |cos| with refraction's 1/η² undone), at θo = 0°, 30°, 60°,
-// 80° (BsdfTest.RoughGlassFurnaceIsOne measures it):
+// 80° (BsdfTest.RoughGlassKeepsSingleScatteringTimesItsCompensation measures it):
 //   roughness  from outside (η 1.5)        from inside (η 1/1.5)
 //   0.1        1.000 1.000 1.000 0.999     1.000 1.000 1.000 0.998
 //   0.3        0.999 0.999 0.994 0.948     0.991 0.988 0.971 0.894
@@ -36,9 +36,9 @@
 // That light is not lost in real glass: it scatters again and leaves. The glass part of the
 // material (weight t) is therefore scaled by 1/E(wo), E being the single-scattering energy above,
 // tabulated (specular_albedo.h): the furnace gives 1 (within the table's resolution, never
-// above), as Cycles' multiscatter glass does. Like the diffuse weight, it is not reciprocal; the
-// photon pass only crosses smooth glass, where E = 1, so light and camera paths agree. Thin walls
-// keep single scattering.
+// above; BsdfTest.RoughGlassFurnaceIsOne), as Cycles' multiscatter glass does. Like the diffuse
+// weight, it is not reciprocal: a photon leaving rough glass (trace_photons.comp) takes the
+// factor at the direction it leaves in, the camera path's wo. Thin walls keep single scattering.
 //
 // A thin-walled material (glTF: transmission without KHR_materials_volume, or thickness 0) is a
 // slab too thin to see: light crosses both faces and leaves along its incoming direction (rough:
