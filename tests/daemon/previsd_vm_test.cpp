@@ -201,14 +201,49 @@ TEST(PrevisdInTheVm, DisplayButtonLedHotplugAndStop) {
     EXPECT_TRUE(waitUntil(
         "the LED goes off", [&] { return led.value() == 0; }, 10s));
 
-    // 50 bounces within about 10 ms, then held and released cleanly: one toggle.
-    for (int i = 0; i < 50; ++i) button.pull(i % 2 == 0);
+    // 50 bounces within about 10 ms, then held and released cleanly: one toggle. A level held
+    // longer than the 20 ms debounce is a press of its own; an emulated CPU the host stalls can
+    // hold one that long between two writes (io_vm's FiftyBouncesToggleOnce skips then, as this
+    // does for its assertion; the mode is then set through the socket for the steps after).
+    const auto countToRefine = [&] {
+        const std::string log = p.log(), line = "mode: preview -> refine (button)";
+        size_t n = 0;
+        for (size_t at = log.find(line); at != std::string::npos; at = log.find(line, at + 1)) ++n;
+        return n;
+    };
+    const size_t refinesBefore = countToRefine();
+    auto longestGap = std::chrono::steady_clock::duration::zero();
+    auto last = std::chrono::steady_clock::now();
+    for (int i = 0; i < 50; ++i) {
+        button.pull(i % 2 == 0);
+        const auto now = std::chrono::steady_clock::now();
+        longestGap = std::max(longestGap, now - last);
+        last = now;
+    }
     button.pull(true);
+    longestGap = std::max(longestGap, std::chrono::steady_clock::now() - last);
     std::this_thread::sleep_for(200ms);
     button.pull(false);
+    const bool stalled = longestGap >= 20ms;
+    std::printf("previsd_vm: bounce train's longest gap %.1f ms%s\n",
+                std::chrono::duration<double, std::milli>(longestGap).count(),
+                stalled ? " (a stall: its toggle count is not checked)" : "");
+    // The toggle is taken once the service's button thread has run; a press is never shorter.
+    EXPECT_TRUE(waitUntil(
+                    "refinement after the bouncing press",
+                    [] {
+                        auto st = status();
+                        return st && (*st)["mode"] == "refine";
+                    },
+                    30s) ||
+                stalled);
     std::this_thread::sleep_for(1s);
-    s = status();
-    EXPECT_EQ((*s)["mode"], "refine") << "a bouncing press toggles exactly once";
+    if (!stalled) {
+        EXPECT_EQ((*status())["mode"], "refine") << "a bouncing press toggles exactly once";
+        EXPECT_EQ(countToRefine(), refinesBefore + 1) << p.log();
+    } else {
+        ASSERT_TRUE(controlRequest(kSocket, "mode refine", 10000).ok());
+    }
 
     // The cameras unplugged and back (vivid unbind/bind): logged, survived, streaming again.
     { std::ofstream("/sys/bus/platform/drivers/vivid/unbind") << "vivid.0"; }
