@@ -256,12 +256,6 @@ Status Renderer::specialisePipeline() {
     return bindBuffers();
 }
 
-Status Renderer::refreshPipeline() {
-    if (pipeline_ && pipelineConstants(photonsActive_) == specConstants_) return bindBuffers();
-    pipelineStale_ = true;
-    return {};
-}
-
 Status Renderer::compilePipelines(const std::array<uint32_t, PV_SPEC_COUNT>& constants) {
     ++pipelineCompiles_;
     // Every read-only array the shader indexes per lane is a texel buffer (see BindingKind);
@@ -396,7 +390,7 @@ Status Renderer::setEnvironment(std::shared_ptr<const EnvironmentMap> map) {
     // A half-replaced environment is no environment (black) rather than a wrong one.
     setEnvironmentParams(params_, s ? map.get() : nullptr, dist);
     features_.environment = s && map;
-    if (Status p = refreshPipeline(); !p) return p;
+    pipelineStale_ = true;  // render() re-specialises (once for a whole snapshot) and binds
     return s;
 }
 
@@ -441,7 +435,7 @@ Status Renderer::setEstimatedLights(std::span<const EstimatedLightSource> estima
             !r)
             params_.lightCount = 0;
     }
-    if (Status p = refreshPipeline(); !p) return p;
+    pipelineStale_ = true;  // render() re-specialises (once for a whole snapshot) and binds
     return s;
 }
 

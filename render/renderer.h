@@ -181,7 +181,7 @@ public:
     // The environment's radiance, sampling tables and FrameParams; null or an empty map removes
     // it. Buffers are reallocated only when the map's size changes; the pipelines are
     // re-specialised only when the environment appears or disappears, by the next render()
-    // (which returns a failed compile's error; refreshPipeline).
+    // (which returns a failed compile's error; see pipelineStale_).
     Status setEnvironment(std::shared_ptr<const EnvironmentMap> map);
     // Replaces the estimated lights (the scene's own lights stay). A new count reallocates the
     // lights buffer; lights appearing or disappearing re-specialise the pipelines, as above.
@@ -364,11 +364,6 @@ private:
     Status compilePipelines(const std::array<uint32_t, PV_SPEC_COUNT>& constants);
     // (Re)creates the pipelines when the specialization constants changed, and binds buffers_.
     Status specialisePipeline();
-    // After the scene's features or buffers changed: binds buffers_ where the constants still
-    // hold, else marks the pipelines stale for render() to compile. A lighting snapshot changes
-    // the environment and the estimated lights one after the other; each compiling at once made
-    // the service's first snapshot cost two compiles of every pipeline, where one does.
-    Status refreshPipeline();
     // Uploads `bytes` into buffers_[binding], reallocating it only when its size differs.
     Status replaceBufferContents(int binding, const void* data, size_t bytes, const char* label);
     // Binds buffers_, the accumulation from row `bandFirstRow` on (accumulationBand).
@@ -428,8 +423,11 @@ private:
     PhotonAim photonAim_;
     std::vector<EmissivePhotonSource> emissivePhotonSources_;
     bool photonsActive_ = false;
-    bool pipelineStale_ = false;  // refreshPipeline: render() compiles before it dispatches
-    bool photonSplats_ = false;   // the splat buffer exists (PV_SPEC_PHOTON_SPLAT)
+    // The lighting changed features or buffers since the last render: render() calls
+    // specialisePipeline first. A snapshot changes the environment and the estimated lights one
+    // after the other; each compiling at once cost the service's first snapshot two compiles.
+    bool pipelineStale_ = false;
+    bool photonSplats_ = false;  // the splat buffer exists (PV_SPEC_PHOTON_SPLAT)
     std::optional<PhotonPasses> photonPasses_;
     double photonMs_ = 0.0;
     uint32_t lastPhotonCount_ = 0;  // params_.photonCount is refinement's again after a preview
