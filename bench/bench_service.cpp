@@ -26,6 +26,7 @@
 #include "daemon/pipeline_stages.h"
 #include "daemon/service.h"
 #include "daemon/service_config.h"
+#include "daemon/shot_controller.h"
 #include "display/compose.h"
 #include "display/files_output.h"
 #include "gpu/context.h"
@@ -256,6 +257,10 @@ StageResult measureStages(const ServiceBenchOptions& o, uint32_t w, uint32_t h) 
     if (!files) return fail(files.message());
     std::vector<uint32_t> screen(1920 * 1080);
 
+    // The service's shot rules (daemon/shot_controller.h) on the live clock, in preview.
+    const ModeMachine modes(Mode::Preview);
+    const SteadyShotClock clock;
+    ShotController shot(pr, modes, clock, config->refine);
     const size_t frames = std::min<size_t>(scenes->size(), o.quick ? 10 : scenes->size());
     std::vector<double> track, lit, render, composite, tonemap, compose, png;
     std::shared_ptr<const LiveLighting> current;
@@ -276,10 +281,10 @@ StageResult measureStages(const ServiceBenchOptions& o, uint32_t w, uint32_t h) 
             current = *l;
         }
         Clock::time_point t = Clock::now();
-        TrackedFrame tracked = tracking->process(frame);
+        auto tracked = std::make_shared<TrackedFrame>(tracking->process(frame));
         track.push_back(msSince(t));
         t = Clock::now();
-        if (Status s = pr.renderPreview(tracked, current); !s) return fail(s.message());
+        if (Result<ShotStep> step = shot.step(tracked, current); !step) return fail(step.message());
         const double renderMs = msSince(t);
         if (i == 0)
             r.firstRenderMs = renderMs;  // pipeline warm-up: not in the row

@@ -3,9 +3,11 @@
 #include <fmt/format.h>
 
 #include <chrono>
+#include <cmath>
 #include <opencv2/imgproc.hpp>
 
 #include "base/log.h"
+#include "daemon/refine_watch.h"
 #include "vision/inverse_tone_map.h"
 #include "vision/lens_grid.h"
 
@@ -88,9 +90,19 @@ Result<std::unique_ptr<PipelineRenderer>> PipelineRenderer::create(GpuContext& c
     settings.seed = config.render.seed;
     settings.photons = config.render.photons;
     settings.differential = true;
-    // Guides are written only when the denoiser may run.
-    settings.denoise = config.render.denoise != "off";
+    // Guides are written only when the denoiser may run: to filter, or to reproject preview's
+    // accumulation.
+    p->accumulate_ = config.render.previewAccumulate;
+    settings.denoise = config.render.denoise != "off" || p->accumulate_;
     settings.denoiseSettings.iterations = config.render.denoiseLevels;
+    if (p->accumulate_) {
+        // A plain mean of up to N frames, then weight 1/N: a held camera converges as refinement
+        // would at N times the samples.
+        settings.denoiseSettings.maxHistoryFrames = float(config.render.previewHistoryFrames);
+        settings.denoiseSettings.temporalAlpha = 1.0f / float(config.render.previewHistoryFrames);
+    }
+    p->lightingThreshold_ = config.refine.lightingThreshold;
+    p->lightingPending_ = config.fisheyeCamera.has_value();
     settings.samplesPerDispatch = 64;  // the renderer lowers it inside the CPU loop limit
     Result<CameraCalibration> calibration =
         scaledCalibration(*config.sceneCamera.calibration, p->width_, p->height_);
@@ -238,6 +250,12 @@ Status PipelineRenderer::prepare(const TrackedFrame& tracked,
     plate_.pixels.assign(linear.ptr<float>(0), linear.ptr<float>(0) + size_t(width_) * height_ * 3);
     rendered_ = tracked.worldFromCamera.has_value() || sceneCameraUntilTracked_;
     if (!rendered_) return {};
+    // Before the first snapshot a scene without an environment of its own would light the
+    // virtual objects with nothing: black.
+    if (lightingPending_ && !lighting && !neutralShown_ && !renderer_->features().environment) {
+        if (Status s = lightNeutrally(plate_); !s) return s;
+        neutralShown_ = true;
+    }
     // The renderer keeps the plate; plate_ is needed only while there is nothing to render.
     if (Status s = renderer_->setPlate(std::move(plate_), "scene camera frame"); !s) return s;
     // Without a pose yet the renderer keeps the scene file's camera (until_tracked).
@@ -249,13 +267,47 @@ Status PipelineRenderer::prepare(const TrackedFrame& tracked,
         renderer_->setCameraPose(pose);
     }
     // Lighting reaches the GPU only when a new snapshot arrived (no BVH rebuild, ever).
-    if (lighting && lighting != lightingShown_) {
-        if (Status s = renderer_->setEnvironment(lighting->environment); !s) return s;
-        const std::vector<EstimatedLightSource> sources = toLightSources(lighting->lights);
-        if (Status s = renderer_->setEstimatedLights(sources); !s) return s;
-        lightingShown_ = lighting;
+    if (lighting && lighting != lightingShown_) return applyLighting(lighting);
+    return {};
+}
+
+Status PipelineRenderer::applyLighting(const std::shared_ptr<const LiveLighting>& lighting) {
+    if (Status s = renderer_->setEnvironment(lighting->environment); !s) return s;
+    const std::vector<EstimatedLightSource> sources = toLightSources(lighting->lights);
+    if (Status s = renderer_->setEstimatedLights(sources); !s) return s;
+    lightingShown_ = lighting;
+    // The history holds the old lighting's shading: past the threshold (or after the neutral
+    // stand-in) it starts afresh; below it, it is the fisheye's noise and averages out.
+    const bool changed = !historyLighting_ || lightingPending_ ||
+                         lightingDelta(*lighting, *historyLighting_).change > lightingThreshold_;
+    lightingPending_ = false;
+    if (changed) {
+        if (Denoiser* d = renderer_->denoiser()) d->resetHistory();
+        historyLighting_ = lighting;
     }
     return {};
+}
+
+Status PipelineRenderer::lightNeutrally(const ImageF& plate) {
+    double sum = 0.0;
+    const size_t pixels = size_t(plate.width) * plate.height;
+    for (size_t i = 0; i < pixels; ++i)
+        for (int c = 0; c < 3; ++c) sum += plate.pixels[i * plate.channels + c];
+    // A white surface under a uniform environment L shows L: the plate's mean puts the virtual
+    // objects at the set's level; brighter above than below, as rooms are (mean 1 over the
+    // sphere, so the level is kept).
+    const float level = pixels > 0 ? float(sum / (3.0 * double(pixels))) : 0.18f;
+    auto map = std::make_shared<EnvironmentMap>();
+    map->path = "neutral environment (lighting pending)";
+    map->width = 64;
+    map->height = 32;
+    map->radiance.resize(size_t(map->width) * map->height);
+    for (uint32_t y = 0; y < map->height; ++y) {
+        const float up = std::cos(float(M_PI) * (float(y) + 0.5f) / float(map->height));
+        for (uint32_t x = 0; x < map->width; ++x)
+            map->radiance[size_t(y) * map->width + x] = glm::vec3(level * (1.0f + 0.5f * up));
+    }
+    return renderer_->setEnvironment(std::move(map));
 }
 
 Status PipelineRenderer::renderPreview(const TrackedFrame& frame,
@@ -268,7 +320,7 @@ Status PipelineRenderer::renderPreview(const TrackedFrame& frame,
     refining_ = false;
     // Preview denoises with temporal reprojection: the history follows the tracked camera.
     renderer_->setTemporalDenoise(true);
-    return renderer_->renderPreviewFrame(previewSamples_);
+    return renderer_->renderPreviewFrame(previewSamples_, accumulate_ ? ++previewFrame_ : 0);
 }
 
 Status PipelineRenderer::beginRefine(const TrackedFrame& frame,
@@ -290,6 +342,17 @@ Status PipelineRenderer::refineStep(uint32_t samples) {
     return renderer_->refine(samples);
 }
 
+Result<std::optional<double>> PipelineRenderer::measureNoise() {
+    Result<Convergence> c = renderer_->convergence();
+    if (!c) return c.error();
+    return c->composite.relativeRmse;
+}
+
+uint32_t PipelineRenderer::previewHistoryFrames() const {
+    const Denoiser* d = renderer_->denoiser();
+    return accumulate_ && d ? d->historyFrames() : 0;
+}
+
 uint64_t PipelineRenderer::samples() const { return rendered_ ? renderer_->samplesPerPixel() : 0; }
 
 Result<ImageF> PipelineRenderer::composite(std::optional<double> noiseEstimate) {
@@ -301,7 +364,9 @@ Result<ImageF> PipelineRenderer::composite(std::optional<double> noiseEstimate) 
                          (denoise_ == "auto" && autoDenoise(noiseEstimate, targetNoise_, samples()))
                      ? denoiseLevels_
                      : 0;
-    if (levels == 0) return renderer_->image(Aov::Composite);
+    // Preview's accumulation runs through the denoiser's temporal stage, spatial filter or not.
+    const bool temporal = accumulate_ && !refining_;
+    if (levels == 0 && !temporal) return renderer_->image(Aov::Composite);
     if (Status s = renderer_->setDenoiseIterations(levels); !s) return s.error();
     lastDenoiseLevels_ = levels;
     return renderer_->image(Aov::Composite, true);

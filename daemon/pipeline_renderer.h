@@ -13,6 +13,7 @@
 #include "base/result.h"
 #include "daemon/pipeline_stages.h"
 #include "daemon/service_config.h"
+#include "daemon/shot_controller.h"
 #include "gpu/context.h"
 #include "image/image.h"
 #include "render/quality_dial.h"
@@ -22,7 +23,7 @@
 
 namespace previs {
 
-class PipelineRenderer {
+class PipelineRenderer final : public ShotRenderer {
 public:
     static Result<std::unique_ptr<PipelineRenderer>> create(GpuContext& ctx, const Scene& scene,
                                                             const ServiceConfig& config);
@@ -30,12 +31,14 @@ public:
     // Preview: this frame with its own pose and `lighting` (null = the scene's own), drawn with
     // the same random sequence as every preview frame.
     Status renderPreview(const TrackedFrame& frame,
-                         const std::shared_ptr<const LiveLighting>& lighting);
+                         const std::shared_ptr<const LiveLighting>& lighting) override;
     // Refinement: freezes frame, pose and lighting, and clears the accumulation.
     Status beginRefine(const TrackedFrame& frame,
-                       const std::shared_ptr<const LiveLighting>& lighting);
+                       const std::shared_ptr<const LiveLighting>& lighting) override;
     // Adds `samples` more paths per pixel to the frozen shot.
-    Status refineStep(uint32_t samples);
+    Status refineStep(uint32_t samples) override;
+    // The convergence meter's look at the refinement (its composite's relative RMSE).
+    Result<std::optional<double>> measureNoise() override;
 
     // The composite so far, linear (the plate alone before the first pose), denoised as
     // [render] denoise says: in preview at the dial's (or the config's) strength; in
@@ -48,11 +51,11 @@ public:
     // Takes the composite by value: it is changed in place (callers move a temporary in).
     std::vector<uint8_t> toDisplay(ImageF composite) const;
 
-    uint64_t samples() const;  // per pixel: this preview frame's, or the refinement's so far
+    uint64_t samples() const override;  // per pixel: this preview frame's, or the refinement's
     uint32_t width() const { return width_; }
     uint32_t height() const { return height_; }
-    uint32_t previewSamples() const { return previewSamples_; }
-    void setPreviewSamples(uint32_t spp) { previewSamples_ = spp; }
+    uint32_t previewSamples() const override { return previewSamples_; }
+    void setPreviewSamples(uint32_t spp) override { previewSamples_ = spp; }
     float previewResolutionScale() const { return previewResolutionScale_; }
     uint32_t previewMaxDepth() const { return previewDepth_; }
     uint32_t previewDenoiseLevels() const { return previewDenoiseLevels_; }  // 0: not denoised
@@ -67,10 +70,16 @@ public:
     // and the choice made again; a dearer point must fit within kDialUpgradeMargin of the
     // budget, so the choice does not swing back and forth. Returns the new point's description
     // when the choice changed.
-    std::optional<std::string> adaptDial(double liveFrameSeconds);
+    std::optional<std::string> adaptDial(double liveFrameSeconds) override;
+    bool hasDial() const override { return !dial_.empty(); }
     static constexpr double kDialUpgradeMargin = 0.85;
+    // The fisheye is configured but no lighting snapshot has arrived: the virtual objects are
+    // lit by a neutral environment at the plate's level meanwhile (never black).
+    bool lightingPending() const { return lightingPending_; }
+    // Preview frames averaged into the shown one (the temporal history; 0: fixed sequence).
+    uint32_t previewHistoryFrames() const;
     // Whether the last frame rendered the virtual objects (false before the first pose).
-    bool rendered() const { return rendered_; }
+    bool rendered() const override { return rendered_; }
     Renderer& renderer() { return *renderer_; }
 
 private:
@@ -109,6 +118,19 @@ private:
     ImageF plate_;  // this frame's plate until it is moved into the renderer
     bool rendered_ = false;
     bool sceneCameraUntilTracked_ = false;
+    // [render] preview_accumulate: preview frame k draws sequence k (Renderer::
+    // renderPreviewFrame) and is averaged through the denoiser's reprojection.
+    bool accumulate_ = false;
+    uint64_t previewFrame_ = 0;
+    double lightingThreshold_ = 0.0;  // [refine] lighting_threshold: a change that resets it
+    std::shared_ptr<const LiveLighting> historyLighting_;  // the snapshot the history began with
+    bool lightingPending_ = false;
+    bool neutralShown_ = false;
+    // The neutral environment until the first snapshot: a vertical gradient around the plate's
+    // mean radiance.
+    Status lightNeutrally(const ImageF& plate);
+    // A new snapshot: uploads it; a change beyond lighting_threshold restarts the history.
+    Status applyLighting(const std::shared_ptr<const LiveLighting>& lighting);
     // Held (not a raw pointer) so a new snapshot can never reuse the shown one's address.
     std::shared_ptr<const LiveLighting> lightingShown_;
 };

@@ -117,12 +117,12 @@ void RefineMeter::restart(double targetNoise) {
     lookSamples_ = 0;
 }
 
-Status RefineMeter::update(const Renderer& renderer) {
-    const uint64_t samples = renderer.samplesPerPixel();
+Status RefineMeter::update(uint64_t samples,
+                           const std::function<Result<std::optional<double>>()>& look) {
     if (!schedule_.due(samples)) return {};
-    Result<Convergence> c = renderer.convergence();
-    if (!c) return c.error();
-    schedule_.looked(samples, c->composite.relativeRmse);
+    Result<std::optional<double>> noise = look();
+    if (!noise) return noise.error();
+    schedule_.looked(samples, *noise);
     lookSamples_ = samples;
     return {};
 }

@@ -11,6 +11,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <opencv2/core.hpp>
 #include <optional>
@@ -20,7 +21,6 @@
 #include "daemon/pipeline_stages.h"
 #include "daemon/service_config.h"
 #include "render/convergence.h"
-#include "render/renderer.h"
 
 namespace previs {
 
@@ -82,8 +82,9 @@ class RefineMeter {
 public:
     // The shot froze: looks start over, aiming at `targetNoise` (0: none).
     void restart(double targetNoise);
-    // After a step: reads the meter if a look is due.
-    Status update(const Renderer& renderer);
+    // After a step to `samples` per pixel: looks (`look`, one readback of the accumulation
+    // giving the composite's relative RMSE) if a look is due.
+    Status update(uint64_t samples, const std::function<Result<std::optional<double>>()>& look);
     // The last look's estimate of the composite's relative RMSE (DESIGN.md §4), measured.
     std::optional<double> measured() const { return schedule_.noise(); }
     // That estimate carried to `samples` (≥ the look's): what the status shows.

@@ -11,8 +11,8 @@
 #include "daemon/pipeline_renderer.h"
 #include "daemon/pipeline_stages.h"
 #include "daemon/recorded_events.h"
-#include "daemon/refine_watch.h"
 #include "daemon/service_config.h"
+#include "daemon/shot_controller.h"
 #include "gpu/context.h"
 #include "image/image.h"
 #include "io/session.h"
@@ -160,11 +160,11 @@ int runReplay(const ReplayOptions& o) {
         pendingFisheye = *f;
     }
     std::shared_ptr<const LiveLighting> currentLighting;
-    bool refining = false;
-    std::optional<TrackedFrame> frozen;
-    RefineWatch watch(config->refine);
-    RefineMeter meter;
-    uint64_t restarts = 0;  // refinements started over on a changed pose or lighting
+    // The service's own shot rules, on the session's clock: rendering takes no recorded time, so
+    // nothing is sized by this machine's speed and the same session gives the same frames.
+    ManualShotClock clock;
+    ShotController shot(**renderer, modes, clock, config->refine);
+    TrackingPace pace;
     uint64_t written = 0;
     const Clock::time_point start = Clock::now();
     ProgressLine progress("replay", o.quiet);
@@ -177,6 +177,7 @@ int runReplay(const ReplayOptions& o) {
         }
         if (!*next) break;
         const std::shared_ptr<Frame> frame = *next;
+        clock.setNs(frame->timestampNs);
 
         // Lighting: every fisheye frame recorded up to this scene frame, in order.
         while (pendingFisheye && pendingFisheye->timestampNs <= frame->timestampNs) {
@@ -202,46 +203,18 @@ int runReplay(const ReplayOptions& o) {
             if (!o.mode) applySessionEvent(modes, events[nextEvent]);
         }
 
-        TrackedFrame tracked = tracking->process(frame);
-        const Mode mode = modes.mode();
+        // Tracking at the service's pace: every frame in preview, a few a second refining.
+        std::shared_ptr<const TrackedFrame> tracked;
+        if (pace.due(modes.mode(), frame->timestampNs))
+            tracked = std::make_shared<TrackedFrame>(tracking->process(frame));
         const Clock::time_point renderStart = Clock::now();
-        Status rendered;
-        if (mode == Mode::Preview) {
-            refining = false;
-            rendered = (*renderer)->renderPreview(tracked, currentLighting);
-        } else {
-            std::optional<std::string> restart;
-            if (refining) {
-                restart = watch.observeFrame(tracked);
-                if (!restart) restart = watch.observeLighting(currentLighting);
-                if (restart) {
-                    logInfo("replay: frame {}: refinement restarts: {}", frame->sequence, *restart);
-                    ++restarts;
-                }
-            }
-            if (!refining || restart) {
-                frozen = tracked;
-                rendered = (*renderer)->beginRefine(*frozen, currentLighting);
-                watch.freeze(*frozen, currentLighting);
-                meter.restart(config->refine.targetNoise);
-                refining = true;
-            }
-            const uint64_t done = (*renderer)->samples();
-            const uint64_t target = config->refine.maxSamples;
-            if (rendered && !refineConverged(done, meter.measured(), config->refine)) {
-                const uint64_t step =
-                    target == 0 ? config->refine.samplesPerStep
-                                : std::min<uint64_t>(config->refine.samplesPerStep, target - done);
-                rendered = (*renderer)->refineStep(uint32_t(step));
-                if (rendered) rendered = meter.update((*renderer)->renderer());
-            }
-        }
-        if (!rendered) {
-            logError("replay: frame {}: {}", frame->sequence, rendered.message());
+        Result<ShotStep> step = shot.step(tracked, currentLighting);
+        if (!step) {
+            logError("replay: frame {}: {}", frame->sequence, step.message());
             return 1;
         }
-        Result<ImageF> image =
-            (*renderer)->composite(mode == Mode::Refine ? meter.measured() : std::nullopt);
+        const Mode mode = step->mode;
+        Result<ImageF> image = (*renderer)->composite(step->noiseEstimate);
         if (!image) {
             logError("replay: frame {}: {}", frame->sequence, image.message());
             return 1;
@@ -263,15 +236,17 @@ int runReplay(const ReplayOptions& o) {
             logError("{}", s.message());
             return 1;
         }
-        const TrackedFrame& used = mode == Mode::Refine ? *frozen : tracked;
+        // The frame shown: refinement's frozen one, else this one.
+        static const TrackedFrame kNothingShown;
+        const TrackedFrame& used = step->shown ? *step->shown : kNothingShown;
         csv << written << "," << frame->timestampNs << "," << toString(mode) << ","
             << (*renderer)->samples() << "," << fmt::format("{:.1f}", renderMs) << ","
             << (!used.worldFromCamera ? "none"
                 : used.lost           ? "held"
                                       : "tracked")
-            << "," << used.tags << "," << restarts << ",";
-        if (mode == Mode::Refine && meter.measured())
-            csv << fmt::format("{:.6g}", *meter.measured());
+            << "," << used.tags << "," << shot.restarts() << ",";
+        if (mode == Mode::Refine && shot.measuredNoise())
+            csv << fmt::format("{:.6g}", *shot.measuredNoise());
         for (int r = 0; r < 4; ++r)
             for (int c = 0; c < 4; ++c) {
                 csv << ",";

@@ -24,6 +24,7 @@
 #include "daemon/pipeline_stages.h"
 #include "daemon/recorded_events.h"
 #include "daemon/refine_watch.h"
+#include "daemon/shot_controller.h"
 #include "display/display_thread.h"
 #include "display/frame_output.h"
 #include "gpu/context.h"
@@ -43,25 +44,14 @@ int64_t nowNs() {
         .count();
 }
 
-// A refinement step is sized to take about this long, so that leaving refinement, a status
-// request and a stop are answered promptly however slow a sample is.
-constexpr double kRefineStepTargetMs = 250.0;
 // How long the render thread waits for a frame before it checks the mode and beats its heart.
 constexpr auto kRenderPoll = std::chrono::milliseconds(100);
-// Pose updates while refining (only to notice a moved camera: a move restarts after
-// [refine] restart_after of them, so this period times that many is the restart's delay).
-constexpr auto kRefineTrackingPeriod = std::chrono::milliseconds(250);
 
 // Names show in top -H, perf and /proc/PID/task/*/comm (15 characters at most).
 void nameThread(const char* name) { pthread_setname_np(pthread_self(), name); }
 
-// The longest a preview frame may take (its sample count is lowered to fit).
-constexpr auto kMaxPreviewFrame = std::chrono::milliseconds(3000);
-
 // Without camera frames for this long, the display says so instead of holding the last picture.
 constexpr auto kNoCameraAfter = std::chrono::seconds(2);
-// Preview frames per live correction of the dial: a median over a second or two of frames.
-constexpr size_t kDialWindowFrames = 15;
 
 OutputSettings outputSettings(const OutputConfig& c) {
     OutputSettings s;
@@ -92,7 +82,10 @@ std::string statusLine(const ServiceStatus& s) {
     if (s.photonsPerIteration > 0)
         line += fmt::format("  {}K photons r {:.1f} mm", (s.photonsPerIteration + 512) / 1024,
                             s.photonRadiusM * 1e3f);
+    if (s.mode == Mode::Preview && s.previewHistoryFrames > 1)
+        line += fmt::format(" x{}", s.previewHistoryFrames);
     if (s.trackingLost) line += s.worldFromCamera ? "  TRACKING LOST (holding)" : "  NO TRACKING";
+    if (s.lightingPending) line += "  LIGHTING PENDING";
     return line;
 }
 
@@ -133,6 +126,8 @@ std::string statusJson(const ServiceStatus& s) {
         j["photons"] = nullptr;
     j["cameras"] = {{"scene", s.sceneCamera}, {"fisheye", s.fisheyeCamera}};
     j["lightingUpdates"] = s.lightingUpdates;
+    j["lightingPending"] = s.lightingPending;
+    j["previewHistoryFrames"] = s.previewHistoryFrames;
     return j.dump();
 }
 
@@ -201,7 +196,7 @@ struct Service::Threads {
 
 void Service::Threads::runTracking(const ModeMachine& modes) {
     nameThread("pv-tracking");
-    Clock::time_point lastTracked{};
+    TrackingPace pace;
     while (!stopping.load()) {
         std::shared_ptr<const Frame> frame =
             sceneCamera->frames().waitTakeFor(std::chrono::milliseconds(100));
@@ -213,11 +208,7 @@ void Service::Threads::runTracking(const ModeMachine& modes) {
             if (recordedEvents->restarted()) applyEvent({0, "session", "restart"});
             for (const SessionEvent& e : due) applyEvent(e);
         }
-        // While refining, a pose only serves the "camera moved" log line: a few a second do,
-        // and the CPU goes to the accumulating samples instead.
-        if (modes.mode() == Mode::Refine && Clock::now() - lastTracked < kRefineTrackingPeriod)
-            continue;
-        lastTracked = Clock::now();
+        if (!pace.due(modes.mode(), frame->timestampNs)) continue;
         auto tracked = std::make_shared<TrackedFrame>(tracking->process(std::move(frame)));
         // Replaced before the render thread took it: the renderer is the slow stage.
         if (trackedFrames.publish(std::move(tracked))) droppedRender.fetch_add(1);
@@ -282,6 +273,8 @@ void Service::Threads::publish(PipelineRenderer& r, const TrackedFrame& frame, M
         // What the shown frame used: a preview frame's budget and radius, not refinement's.
         renderStatus.photonsPerIteration = photons ? r.renderer().lastPhotonCount() : 0;
         renderStatus.photonRadiusM = photons ? r.renderer().lastPhotonRadius() : 0.0f;
+        renderStatus.lightingPending = r.lightingPending();
+        renderStatus.previewHistoryFrames = mode == Mode::Preview ? r.previewHistoryFrames() : 0;
         out->index = renderStatus.framesRendered++;
         s = renderStatus;
     }
@@ -306,186 +299,48 @@ void Service::Threads::publishNoCamera(const PipelineRenderer& r) {
 void Service::Threads::runRender(ModeMachine& modes) {
     nameThread("pv-render");
     PipelineRenderer& r = *renderer;
-    std::shared_ptr<const TrackedFrame> current;  // the newest frame shown in preview
-    std::shared_ptr<const TrackedFrame> frozen;
-    std::shared_ptr<const LiveLighting> frozenLighting;
-    bool refining = false;
-    RefineWatch watch;
-    RefineMeter meter;
-    // When the shot froze: the ETA's cost per sample is the wall time since then (steps, meter
-    // looks, composite and tone map, tracking on the other core) over the samples.
-    Clock::time_point frozeAt{};
-    double msPerSample = 0.0;
-    double fps = 0.0;
+    const SteadyShotClock clock;
+    ShotController shot(r, modes, clock, refine);
     Clock::time_point lastPublished = Clock::now();
-    Clock::time_point lastFrame{};
-    uint64_t seenVersion = modes.version();
-    double previewMsPerSample = 0.0;
-    bool loggedPreviewCap = false;
-    std::vector<double> liveFrameSeconds;  // preview frames since the dial's last correction
-    auto tick = [&] {
-        const Clock::time_point now = Clock::now();
-        if (lastFrame != Clock::time_point{}) {
-            const double dt = std::chrono::duration<double>(now - lastFrame).count();
-            // An exponential average over about 8 frames: steady on screen, quick to follow.
-            if (dt > 0.0) fps = fps == 0.0 ? 1.0 / dt : 0.875 * fps + 0.125 / dt;
-        }
-        lastFrame = now;
-    };
-
     while (!stopping.load()) {
         heartbeatNs.store(nowNs());
-        RefineConfig settings;
         {
             std::lock_guard lock(settingsMutex);
-            settings = refine;
-            r.setPreviewSamples(previewSamples);
+            shot.setConfig(refine, previewSamples);
         }
-        watch.setConfig(settings);
-        const Mode mode = modes.mode();
-        // Out of refinement and back within one step still re-freezes on the newest frame.
-        const uint64_t version = modes.version();
-        if (refining && version != seenVersion) refining = false;
-        seenVersion = version;
-        if (mode == Mode::Refine && !refining) {
-            if (!current) current = trackedFrames.waitTakeFor(kRenderPoll);
-            if (!current) continue;  // nothing to freeze yet
-            frozen = current;
-            frozenLighting = lightingSnapshots.latest();
-            if (Status s = r.beginRefine(*frozen, frozenLighting); !s) {
-                if (stopping.load()) return;  // the stop interrupted the GPU pass
-                logError("render: cannot start refinement: {}", s.message());
-                pipelineFailed.store(true);
-                return;
-            }
-            refining = true;
-            watch.freeze(*frozen, frozenLighting);
-            meter.restart(settings.targetNoise);
-            frozeAt = Clock::now();
-            fps = 0.0;
-            lastFrame = {};
-            logInfo("refinement: frame {} frozen{}", frozen->frame->sequence,
-                    r.rendered() ? "" : " (no pose yet: showing the camera picture)");
-        } else if (mode == Mode::Preview && refining) {
-            refining = false;
-            fps = 0.0;
-            lastFrame = {};
-            liveFrameSeconds.clear();  // the first frames back re-size the traced buffers
-        }
-
-        if (!refining) {
-            std::shared_ptr<const TrackedFrame> frame = trackedFrames.waitTakeFor(kRenderPoll);
-            if (!frame) {
-                // A camera that delivers nothing (unplugged, never opened) must not leave the
-                // monitor frozen on an old picture: say so on a black frame, once a second.
-                if (Clock::now() - lastPublished > kNoCameraAfter) {
-                    publishNoCamera(r);
-                    lastPublished = Clock::now();
-                }
-                continue;
-            }
-            lastPublished = Clock::now();
-            const Clock::time_point start = Clock::now();
-            // A preview frame cannot be interrupted: keep it inside kMaxPreviewFrame so the
-            // watchdog, a mode change and SIGTERM are answered, whatever samples_per_frame says.
-            const uint32_t wanted = r.previewSamples();
-            if (previewMsPerSample > 0.0) {
-                const uint32_t fits =
-                    std::max(1u, uint32_t(double(kMaxPreviewFrame.count()) / previewMsPerSample));
-                if (fits < wanted) {
-                    if (!loggedPreviewCap)
-                        logWarning(
-                            "render: {} samples per preview frame would take {:.0f} ms; "
-                            "rendering {} (lower render.samples_per_frame)",
-                            wanted, wanted * previewMsPerSample, fits);
-                    loggedPreviewCap = true;
-                    r.setPreviewSamples(fits);
-                }
-            }
-            if (Status s = r.renderPreview(*frame, lightingSnapshots.latest()); !s) {
-                if (stopping.load()) return;
-                logError("render: {}", s.message());
-                pipelineFailed.store(true);
-                return;
-            }
-            current = frame;
-            previewMsPerSample =
-                std::chrono::duration<double, std::milli>(Clock::now() - start).count() /
-                r.previewSamples();
-            tick();
-            publish(r, *frame, Mode::Preview, start, fps);
-            // The dial's live correction (PipelineRenderer::adaptDial) on a window of frames.
-            if (!r.dialMeasurements().empty()) {
-                liveFrameSeconds.push_back(
-                    std::chrono::duration<double>(Clock::now() - start).count());
-                if (liveFrameSeconds.size() >= kDialWindowFrames) {
-                    std::nth_element(liveFrameSeconds.begin(),
-                                     liveFrameSeconds.begin() + liveFrameSeconds.size() / 2,
-                                     liveFrameSeconds.end());
-                    const double median = liveFrameSeconds[liveFrameSeconds.size() / 2];
-                    liveFrameSeconds.clear();
-                    if (std::optional<std::string> now = r.adaptDial(median)) {
-                        logInfo("render: preview now at {}", *now);
-                        std::lock_guard lock(settingsMutex);
-                        previewSamples = r.previewSamples();
-                    }
-                }
-            }
-            continue;
-        }
-
-        // Refining: a change of pose or lighting that persists re-freezes the shot on the newest
-        // frame and lighting and starts the accumulation over; anything smaller is noise.
-        std::optional<std::string> restart;
-        if (std::shared_ptr<const TrackedFrame> f = trackedFrames.take()) {
-            current = f;
-            restart = watch.observeFrame(*f);
-        }
-        if (!restart) restart = watch.observeLighting(lightingSnapshots.latest());
-        if (restart) {
-            logInfo("refinement: restarting on frame {}: {}", current->frame->sequence, *restart);
-            {
-                std::lock_guard lock(statusMutex);
-                ++renderStatus.refineRestarts;
-            }
-            refining = false;
-            continue;
-        }
-        const uint64_t done = r.samples();
-        if (!r.rendered() || refineConverged(done, meter.measured(), settings)) {
-            // Converged (or nothing to refine): idle until the mode changes.
-            std::this_thread::sleep_for(kRenderPoll);
-            continue;
-        }
-        uint32_t step = settings.samplesPerStep;
-        if (msPerSample > 0.0)
-            step = std::clamp(uint32_t(kRefineStepTargetMs / msPerSample), 1u, step);
-        if (settings.maxSamples > 0)
-            step = uint32_t(std::min<uint64_t>(step, settings.maxSamples - done));
-        const Clock::time_point start = Clock::now();
-        if (Status s = r.refineStep(step); !s) {
-            if (stopping.load()) return;
-            logError("render: {}", s.message());
+        std::shared_ptr<const TrackedFrame> frame =
+            shot.wantsFrame() ? trackedFrames.waitTakeFor(kRenderPoll) : trackedFrames.take();
+        Result<ShotStep> step = shot.step(std::move(frame), lightingSnapshots.latest());
+        if (!step) {
+            if (stopping.load()) return;  // the stop interrupted the GPU pass
+            logError("render: {}", step.message());
             pipelineFailed.store(true);
             return;
         }
-        msPerSample =
-            std::chrono::duration<double, std::milli>(Clock::now() - start).count() / step;
-        tick();
-        if (Status s = meter.update(r.renderer()); !s)
-            logWarning("render: convergence meter: {}", s.message());
-        const uint64_t total = r.samples();
-        const std::optional<double> estimate = meter.at(total);
-        publish(r, *frozen, Mode::Refine, start, fps, estimate,
-                refineEtaSeconds(
-                    total, estimate, settings.targetNoise, settings.maxSamples,
-                    std::chrono::duration<double, std::milli>(Clock::now() - frozeAt).count() /
-                        double(std::max<uint64_t>(total, 1))));
-        if (refineConverged(total, meter.measured(), settings))
-            logInfo("refinement: reached {} samples per pixel{}", total,
-                    meter.measured()
-                        ? fmt::format(", noise estimate {:.2f} %", *meter.measured() * 100.0)
-                        : "");
+        {
+            std::lock_guard lock(statusMutex);
+            renderStatus.refineRestarts = shot.restarts();
+        }
+        switch (step->kind) {
+            case ShotStep::Kind::NoFrame:
+                // A camera that delivers nothing (unplugged, never opened) must not leave the
+                // monitor frozen on an old picture: say so on a black frame, once a second.
+                if (step->mode == Mode::Preview && Clock::now() - lastPublished > kNoCameraAfter) {
+                    publishNoCamera(r);
+                    lastPublished = Clock::now();
+                }
+                break;
+            case ShotStep::Kind::Held:
+                // Converged (or nothing to refine): idle until the mode changes.
+                std::this_thread::sleep_for(kRenderPoll);
+                break;
+            case ShotStep::Kind::Previewed:
+            case ShotStep::Kind::Refined:
+                lastPublished = Clock::now();
+                publish(r, *step->shown, step->mode, step->start, step->fps, step->noiseEstimate,
+                        step->etaSeconds);
+                break;
+        }
     }
 }
 

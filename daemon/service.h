@@ -54,6 +54,10 @@ struct ServiceStatus {
     float photonRadiusM = 0.0f;              // the gather radius of the frame's last iteration
     std::string sceneCamera, fisheyeCamera;  // capture states
     uint64_t lightingUpdates = 0;
+    // No lighting snapshot yet: the virtual objects are lit by a neutral environment.
+    bool lightingPending = false;
+    // Preview: frames averaged into the shown one (temporal accumulation; 0: fixed sequence).
+    uint32_t previewHistoryFrames = 0;
 };
 
 std::string statusJson(const ServiceStatus& status);

@@ -412,11 +412,12 @@ Status ConfigReader::stringKey(const toml::table& t, std::string_view section, s
 }
 
 Status ConfigReader::parseRender(const toml::table& t, RenderConfig& c) const {
-    if (Status st = r_.checkKeys(
-            t, "render",
-            {"width", "height", "samples_per_frame", "max_depth", "seed", "photons",
-             "preview_photons", "photon_radius_m", "photon_alpha", "photon_neighbours",
-             "photon_splat", "resolution_scale", "preview_fps", "denoise", "denoise_levels"});
+    if (Status st =
+            r_.checkKeys(t, "render",
+                         {"width", "height", "samples_per_frame", "max_depth", "seed", "photons",
+                          "preview_photons", "photon_radius_m", "photon_alpha", "photon_neighbours",
+                          "photon_splat", "resolution_scale", "preview_fps", "denoise",
+                          "denoise_levels", "preview_accumulate", "preview_history_frames"});
         !st)
         return st;
     int64_t width = c.width, height = c.height, spp = c.samplesPerFrame, depth = c.maxDepth,
@@ -472,6 +473,13 @@ Status ConfigReader::parseRender(const toml::table& t, RenderConfig& c) const {
     int64_t levels = c.denoiseLevels;
     if (Status st = integerIn(t, "render", "denoise_levels", levels, 1, 10); !st) return st;
     c.denoiseLevels = uint32_t(levels);
+    Result<std::optional<bool>> accumulate = r_.boolean(t, "render", "preview_accumulate");
+    if (!accumulate) return accumulate.error();
+    c.previewAccumulate = accumulate->value_or(c.previewAccumulate);
+    int64_t history = c.previewHistoryFrames;
+    if (Status st = integerIn(t, "render", "preview_history_frames", history, 1, 1024); !st)
+        return st;
+    c.previewHistoryFrames = uint32_t(history);
     return {};
 }
 

@@ -107,6 +107,16 @@ struct RenderConfig {
     // meter's estimate is above target_noise, 1 % without one).
     std::string denoise = "off";
     uint32_t denoiseLevels = 5;  // à-trous levels for "on" and for "auto" without the dial, [1, 10]
+    // Preview's temporal accumulation (issue 35): each preview frame draws new samples, and the
+    // frames are averaged through reprojection along the tracked camera (Denoiser::
+    // applyTemporal: kept where depth, normal and mask agree, started afresh where disoccluded,
+    // and everywhere on a lighting change), so a held camera converges toward refinement and a
+    // moving one stays clean. false: the paper's fixed sequence (the noise stays put).
+    bool previewAccumulate = true;
+    // The frames the accumulation averages at most (a plain mean up to this many, then an
+    // exponential average with weight 1/N): longer converges further, shorter follows a change
+    // of shading sooner. [1, 1024].
+    uint32_t previewHistoryFrames = 32;
     // Caustics (render/photon_map.h): mode and photons per iteration, first radius, alpha.
     PhotonSettings photons;
 };

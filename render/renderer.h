@@ -145,11 +145,13 @@ public:
                   const std::function<void(const RenderProgress&)>& progress = {});
     // Clears the accumulation (refinement restarts at sample 0).
     Status reset();
-    // Preview mode (the paper's interactive mode): one frame of `spp` samples per pixel that
-    // replaces the previous one, drawn with the same random sequence every frame so the noise
-    // stays put while the camera, plate or lighting change (temporal coherence). One sequence,
+    // Preview mode: one frame of `spp` samples per pixel that replaces the previous one. With
+    // `frameIndex` 0 every frame draws the same random sequence, so the noise stays put while the
+    // camera, plate or lighting change (the paper's interactive mode); frame k > 0 draws a
+    // sequence of its own (its own scramble), so frames a temporal accumulation averages
+    // (Denoiser::applyTemporal) are independent and a held camera converges. One sequence,
     // without the convergence meter's replicates: convergence() says nothing after it.
-    Status renderPreviewFrame(uint32_t spp);
+    Status renderPreviewFrame(uint32_t spp, uint64_t frameIndex = 0);
     // Refinement mode: adds `spp` more samples to the accumulation, continuing the sequence, so
     // the image converges frame after frame (exact over millions of samples).
     Status refine(uint32_t spp) { return render(spp); }

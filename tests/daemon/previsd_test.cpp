@@ -608,11 +608,13 @@ TEST(ReplayRefine, ACameraThatMovesRestartsOnceOnTheNewView) {
     const RefineRun run =
         replayRefine(editedSession("refine_moved", shots, heldFisheye), "refine_moved");
     ASSERT_EQ(run.rows.size(), 50u) << run.log;
-    // On the third panned frame (restart_after = 3), and never again.
-    EXPECT_EQ(restartFrames(run), std::vector<size_t>{27}) << run.log;
+    // Refining, tracking runs at the service's pace (TrackingPace: a pose every 250 ms of the
+    // frames' capture time, every 4th frame at 15 fps: 0, 4, ... 24, 28, ...): on the third
+    // panned pose tracked (restart_after = 3), frame 36, and never again.
+    EXPECT_EQ(restartFrames(run), std::vector<size_t>{36}) << run.log;
     EXPECT_NE(run.log.find("the camera moved"), std::string::npos) << run.log;
     // The shot re-froze on the panned view: the frozen poses before and after differ by the pan.
-    const auto before = poseOf(run.rows[26]), after = poseOf(run.rows[27]);
+    const auto before = poseOf(run.rows[35]), after = poseOf(run.rows[36]);
     cv::Matx44d a, b;
     for (int k = 0; k < 16; ++k) {
         a.val[k] = before[size_t(k)];

@@ -1,0 +1,205 @@
+#include "daemon/shot_controller.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+
+#include "base/log.h"
+
+namespace previs {
+
+bool TrackingPace::due(Mode mode, uint64_t captureNs) {
+    const uint64_t periodNs = uint64_t(std::chrono::nanoseconds(kRefinePeriod).count());
+    // A looping recording starts its clock over: a time before the last one is a new pass.
+    const bool waited = !lastNs_ || captureNs < *lastNs_ || captureNs - *lastNs_ >= periodNs;
+    if (mode == Mode::Refine && !waited) return false;
+    lastNs_ = captureNs;
+    return true;
+}
+
+ShotController::ShotController(ShotRenderer& renderer, const ModeMachine& modes,
+                               const ShotClock& clock, const RefineConfig& refine)
+    : renderer_(renderer),
+      modes_(modes),
+      clock_(clock),
+      refine_(refine),
+      configuredPreviewSamples_(renderer.previewSamples()),
+      seenVersion_(modes.version()),
+      watch_(refine) {}
+
+void ShotController::setConfig(const RefineConfig& refine, uint32_t previewSamples) {
+    refine_ = refine;
+    watch_.setConfig(refine);
+    if (previewSamples != configuredPreviewSamples_) {
+        configuredPreviewSamples_ = previewSamples;
+        renderer_.setPreviewSamples(previewSamples);
+        loggedPreviewCap_ = false;
+    }
+}
+
+bool ShotController::wantsFrame() const {
+    const bool refineNow = modes_.mode() == Mode::Refine;
+    const bool versionChanged = modes_.version() != seenVersion_;
+    return !refineNow || !refining_ || versionChanged;
+}
+
+double ShotController::msSince(ShotClock::TimePoint t) const {
+    return std::chrono::duration<double, std::milli>(clock_.now() - t).count();
+}
+
+void ShotController::tick() {
+    const ShotClock::TimePoint now = clock_.now();
+    if (lastFrame_) {
+        const double dt = std::chrono::duration<double>(now - *lastFrame_).count();
+        // An exponential average over about 8 frames: steady on screen, quick to follow.
+        if (dt > 0.0) fps_ = fps_ == 0.0 ? 1.0 / dt : 0.875 * fps_ + 0.125 / dt;
+    }
+    lastFrame_ = now;
+}
+
+Result<ShotStep> ShotController::step(std::shared_ptr<const TrackedFrame> newest,
+                                      std::shared_ptr<const LiveLighting> lighting) {
+    const Mode mode = modes_.mode();
+    // Out of refinement and back within one step still re-freezes on the newest frame.
+    const uint64_t version = modes_.version();
+    if (refining_ && version != seenVersion_) refining_ = false;
+    seenVersion_ = version;
+    if (mode == Mode::Preview) {
+        if (frozen_) {
+            // Back from refinement: the first frames re-size the traced buffers.
+            frozen_.reset();
+            fps_ = 0.0;
+            lastFrame_.reset();
+            liveFrameSeconds_.clear();
+        }
+        return preview(std::move(newest), lighting);
+    }
+    return refine(std::move(newest), lighting);
+}
+
+Result<ShotStep> ShotController::preview(std::shared_ptr<const TrackedFrame> frame,
+                                         const std::shared_ptr<const LiveLighting>& lighting) {
+    ShotStep out;
+    out.mode = Mode::Preview;
+    if (!frame) return out;
+    current_ = frame;
+    capPreviewSamples();
+    out.start = clock_.now();
+    if (Status s = renderer_.renderPreview(*frame, lighting); !s) return s.error();
+    const double ms = msSince(out.start);
+    previewMsPerSample_ = ms / std::max(1u, renderer_.previewSamples());
+    tick();
+    out.kind = ShotStep::Kind::Previewed;
+    out.shown = std::move(frame);
+    out.fps = fps_;
+    correctDial(ms * 1e-3);
+    return out;
+}
+
+void ShotController::capPreviewSamples() {
+    const uint32_t wanted = configuredPreviewSamples_;
+    if (!(previewMsPerSample_ > 0.0) || renderer_.hasDial()) return;
+    const uint32_t fits = std::max(1u, uint32_t(kMaxPreviewFrameMs / previewMsPerSample_));
+    const uint32_t use = std::min(wanted, fits);
+    if (use < wanted && !loggedPreviewCap_) {
+        logWarning(
+            "render: {} samples per preview frame would take {:.0f} ms; rendering {} (lower "
+            "render.samples_per_frame)",
+            wanted, wanted * previewMsPerSample_, use);
+        loggedPreviewCap_ = true;
+    }
+    if (use != renderer_.previewSamples()) renderer_.setPreviewSamples(use);
+}
+
+void ShotController::correctDial(double frameSeconds) {
+    if (!renderer_.hasDial() || !(frameSeconds > 0.0)) return;
+    liveFrameSeconds_.push_back(frameSeconds);
+    if (liveFrameSeconds_.size() < kDialWindowFrames) return;
+    std::nth_element(liveFrameSeconds_.begin(),
+                     liveFrameSeconds_.begin() + ptrdiff_t(liveFrameSeconds_.size() / 2),
+                     liveFrameSeconds_.end());
+    const double median = liveFrameSeconds_[liveFrameSeconds_.size() / 2];
+    liveFrameSeconds_.clear();
+    if (std::optional<std::string> now = renderer_.adaptDial(median))
+        logInfo("render: preview now at {}", *now);
+}
+
+Status ShotController::freeze(std::shared_ptr<const TrackedFrame> frame,
+                              const std::shared_ptr<const LiveLighting>& lighting) {
+    frozen_ = std::move(frame);
+    if (Status s = renderer_.beginRefine(*frozen_, lighting); !s)
+        return makeError("cannot start refinement: {}", s.message());
+    refining_ = true;
+    watch_.freeze(*frozen_, lighting);
+    meter_.restart(refine_.targetNoise);
+    frozeAt_ = clock_.now();
+    refineMsPerSample_ = 0.0;
+    fps_ = 0.0;
+    lastFrame_.reset();
+    logInfo("refinement: frame {} frozen{}", frozen_->frame->sequence,
+            renderer_.rendered() ? "" : " (no pose yet: showing the camera picture)");
+    return {};
+}
+
+uint32_t ShotController::refineStepSamples() const {
+    uint32_t step = refine_.samplesPerStep;
+    if (refineMsPerSample_ > 0.0)
+        step = std::clamp(uint32_t(kRefineStepTargetMs / refineMsPerSample_), 1u, step);
+    if (refine_.maxSamples > 0)
+        step = uint32_t(std::min<uint64_t>(step, refine_.maxSamples - renderer_.samples()));
+    return step;
+}
+
+Result<ShotStep> ShotController::refine(std::shared_ptr<const TrackedFrame> newest,
+                                        const std::shared_ptr<const LiveLighting>& lighting) {
+    ShotStep out;
+    out.mode = Mode::Refine;
+    out.start = clock_.now();
+    if (newest) current_ = newest;
+    if (!refining_) {
+        if (!current_) return out;  // nothing to freeze yet
+        if (Status s = freeze(current_, lighting); !s) return s.error();
+    } else {
+        // A change of pose or lighting that persists re-freezes the shot on the newest frame and
+        // lighting and starts the accumulation over; anything smaller is noise.
+        std::optional<std::string> restart;
+        if (newest) restart = watch_.observeFrame(*newest);
+        if (!restart) restart = watch_.observeLighting(lighting);
+        if (restart) {
+            logInfo("refinement: restarting on frame {}: {}", current_->frame->sequence, *restart);
+            ++restarts_;
+            out.restarted = true;
+            if (Status s = freeze(current_, lighting); !s) return s.error();
+        }
+    }
+    out.shown = frozen_;
+    if (!renderer_.rendered() || refineConverged(renderer_.samples(), meter_.measured(), refine_)) {
+        out.kind = ShotStep::Kind::Held;
+        out.noiseEstimate = meter_.at(renderer_.samples());
+        return out;
+    }
+    const uint32_t samples = refineStepSamples();
+    const ShotClock::TimePoint stepStart = clock_.now();
+    if (Status s = renderer_.refineStep(samples); !s) return s.error();
+    refineMsPerSample_ = msSince(stepStart) / samples;
+    tick();
+    const uint64_t total = renderer_.samples();
+    if (Status s = meter_.update(total, [this] { return renderer_.measureNoise(); }); !s)
+        logWarning("render: convergence meter: {}", s.message());
+    out.kind = ShotStep::Kind::Refined;
+    out.fps = fps_;
+    out.noiseEstimate = meter_.at(total);
+    out.etaSeconds =
+        refineEtaSeconds(total, out.noiseEstimate, refine_.targetNoise, refine_.maxSamples,
+                         msSince(frozeAt_) / double(std::max<uint64_t>(total, 1)));
+    if (refineConverged(total, meter_.measured(), refine_)) {
+        out.converged = true;
+        logInfo("refinement: reached {} samples per pixel{}", total,
+                meter_.measured()
+                    ? fmt::format(", noise estimate {:.2f} %", *meter_.measured() * 100.0)
+                    : "");
+    }
+    return out;
+}
+
+}  // namespace previs
