@@ -14,6 +14,7 @@
 #include "bench/bench_progress.h"
 #include "bench/bench_scenes.h"
 #include "bench/bench_service.h"
+#include "bench/bench_shot.h"
 #include "bench/bench_trade.h"
 #include "bench/pose_accuracy.h"
 #include "gpu/context.h"
@@ -87,7 +88,7 @@ int runBenchmarks(const BenchOptions& o) {
         logError("bench: the project's examples/ folder was not found beside or above previs");
         return 2;
     }
-    if (o.only != "service" && o.dataDir.empty()) {
+    if (o.only != "service" && o.only != "shot" && o.dataDir.empty()) {
         logError(
             "bench: no shared data found (meshes, environment maps): pass --data DIR or set "
             "PREVIS_DATA_DIR");
@@ -101,6 +102,8 @@ int runBenchmarks(const BenchOptions& o) {
         service.csvPath = o.csvPath;
         return runServiceBench(service);
     }
+    if (o.only == "shot")
+        return runShotBench({.examplesDir = o.examplesDir, .quick = o.quick, .csvPath = o.csvPath});
     if (o.only == "trade")
         return runTradeBench({.dataDir = o.dataDir,
                               .outDir = o.outDir,

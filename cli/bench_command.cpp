@@ -31,10 +31,10 @@ std::function<int()> addBenchCommand(CLI::App& app) {
         ->check(CLI::Range(1, 4096));
     cmd->add_option("--only", o->only, "one section")
         ->check(CLI::IsMember({"throughput", "resolution", "triangles", "specialisation",
-                               "differential", "pose", "service", "memory", "preview", "trade",
-                               "denoise"}));
+                               "differential", "pose", "service", "shot", "memory", "preview",
+                               "trade", "denoise"}));
     cmd->add_option("--csv", o->csvPath,
-                    "service, preview: also write the results as CSV to this file");
+                    "service, preview, shot: also write the results as CSV to this file");
     cmd->add_option("--out-dir", o->outDir,
                     "trade: folder for its CSVs, frames and plots (default bench-trade)");
     auto quiet = std::make_shared<bool>(false);

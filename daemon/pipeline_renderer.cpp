@@ -8,6 +8,7 @@
 
 #include "base/log.h"
 #include "daemon/refine_watch.h"
+#include "scene/environment_map.h"
 #include "vision/inverse_tone_map.h"
 #include "vision/lens_grid.h"
 
@@ -293,20 +294,21 @@ Status PipelineRenderer::lightNeutrally(const ImageF& plate) {
     const size_t pixels = size_t(plate.width) * plate.height;
     for (size_t i = 0; i < pixels; ++i)
         for (int c = 0; c < 3; ++c) sum += plate.pixels[i * plate.channels + c];
-    // A white surface under a uniform environment L shows L: the plate's mean puts the virtual
-    // objects at the set's level; brighter above than below, as rooms are (mean 1 over the
-    // sphere, so the level is kept).
-    const float level = pixels > 0 ? float(sum / (3.0 * double(pixels))) : 0.18f;
-    auto map = std::make_shared<EnvironmentMap>();
-    map->path = "neutral environment (lighting pending)";
-    map->width = 64;
-    map->height = 32;
-    map->radiance.resize(size_t(map->width) * map->height);
+    const double plateMean = pixels > 0 ? sum / (3.0 * double(pixels)) : 0.18;
+    // The bundled studio (lit from above, colourless), scaled so that its mean over the sphere is
+    // the plate's mean: a white surface under a uniform environment L shows L, so the virtual
+    // objects come out near the set's level, not at the studio's absolute one.
+    auto map = std::make_shared<EnvironmentMap>(studioEnvironment());
+    double weighted = 0.0, solidAngle = 0.0;
     for (uint32_t y = 0; y < map->height; ++y) {
-        const float up = std::cos(float(M_PI) * (float(y) + 0.5f) / float(map->height));
+        const double w = std::sin(M_PI * (double(y) + 0.5) / double(map->height));
         for (uint32_t x = 0; x < map->width; ++x)
-            map->radiance[size_t(y) * map->width + x] = glm::vec3(level * (1.0f + 0.5f * up));
+            weighted += w * map->radiance[size_t(y) * map->width + x].r;
+        solidAngle += w * map->width;
     }
+    const float scale = weighted > 0.0 ? float(plateMean * solidAngle / weighted) : 1.0f;
+    for (glm::vec3& r : map->radiance) r *= scale;
+    map->path = "the studio environment (lighting pending)";
     return renderer_->setEnvironment(std::move(map));
 }
 
@@ -331,6 +333,7 @@ Status PipelineRenderer::beginRefine(const TrackedFrame& frame,
     if (Status s = renderer_->setResolutionScale(1.0f); !s) return s;
     renderer_->setMaxDepth(refineDepth_);
     refining_ = true;
+    refineDenoised_.reset();
     // Refinement filters its own accumulation, never a history; preview starts a new one after.
     renderer_->setTemporalDenoise(false);
     if (Denoiser* d = renderer_->denoiser()) d->resetHistory();
@@ -367,9 +370,19 @@ Result<ImageF> PipelineRenderer::composite(std::optional<double> noiseEstimate) 
     // Preview's accumulation runs through the denoiser's temporal stage, spatial filter or not.
     const bool temporal = accumulate_ && !refining_;
     if (levels == 0 && !temporal) return renderer_->image(Aov::Composite);
+    // A denoise costs what a refinement step does (~0.2 s at 640×480): refinement shows its last
+    // denoised frame until the samples have grown by a quarter (the noise by 11 %), so a
+    // refinement to 1024 spp denoises ~30 times, not at every step, and keeps its samples/s.
+    const bool reuse = refining_ && refineDenoised_ && samples() < refineDenoisedAt_ * 5 / 4;
     if (Status s = renderer_->setDenoiseIterations(levels); !s) return s.error();
     lastDenoiseLevels_ = levels;
-    return renderer_->image(Aov::Composite, true);
+    if (reuse) return *refineDenoised_;
+    Result<ImageF> image = renderer_->image(Aov::Composite, true);
+    if (image && refining_) {
+        refineDenoised_ = *image;
+        refineDenoisedAt_ = samples();
+    }
+    return image;
 }
 
 std::vector<uint8_t> PipelineRenderer::toDisplay(ImageF composite) const {

@@ -42,7 +42,9 @@ public:
 
     // The composite so far, linear (the plate alone before the first pose), denoised as
     // [render] denoise says: in preview at the dial's (or the config's) strength; in
-    // refinement with "auto" while `noiseEstimate` (the meter's) is above target_noise.
+    // refinement with "auto" while `noiseEstimate` (the meter's) is above target_noise. Once per
+    // preview frame: with preview_accumulate it is also the step that adds the frame to the
+    // history.
     Result<ImageF> composite(std::optional<double> noiseEstimate = {});
     // The denoiser's strength the last composite() used (à-trous levels; 0: not denoised).
     uint32_t lastDenoiseLevels() const { return lastDenoiseLevels_; }
@@ -104,6 +106,9 @@ private:
     uint32_t previewDenoiseLevels_ = 0;  // the dial's or the config's; 0: off
     uint32_t previewPhotons_ = 0;        // the dial's photon budget per preview frame
     uint32_t lastDenoiseLevels_ = 0;
+    // Refinement's last denoised composite and its samples (composite() reuses it a while).
+    std::optional<ImageF> refineDenoised_;
+    uint64_t refineDenoisedAt_ = 0;
     double targetNoise_ = 0.0;  // [refine] target_noise
     bool refining_ = false;
     std::vector<DialMeasurement> dial_;

@@ -52,83 +52,169 @@ Result<std::unique_ptr<RecordedReader>> openCamera(const SessionInfo& session,
 
 }  // namespace
 
-int runReplay(const ReplayOptions& o) {
-    Result<SessionInfo> session = openSession(o.sessionDir);
-    if (!session) {
-        logError("{}", session.message());
-        return 2;
+SessionReplay::~SessionReplay() = default;
+
+std::variant<std::unique_ptr<SessionReplay>, SessionReplay::OpenError> SessionReplay::open(
+    const std::string& sessionDir, const ServiceConfig& config, std::optional<Mode> mode) {
+    auto bad = [](const Error& e, int code = 2) { return OpenError{e, code}; };
+    Result<SessionInfo> session = openSession(sessionDir);
+    if (!session) return bad(session.error());
+    std::unique_ptr<SessionReplay> r(new SessionReplay());
+    r->fixedMode_ = mode;
+    if (fs::exists(fs::path(sessionDir) / "events.csv")) {
+        Result<std::vector<SessionEvent>> loaded = loadEvents(sessionDir, &r->unknownEvents_);
+        if (!loaded) return bad(loaded.error());
+        r->events_ = std::move(*loaded);
     }
-    Result<ServiceConfig> config = o.configPath.empty()
-                                       ? loadServiceConfig(session->configPath, session->configDir)
-                                       : loadServiceConfig(o.configPath);
+    Result<std::unique_ptr<RecordedReader>> scene = openCamera(*session, "scene");
+    if (!scene) return bad(scene.error());
+    if (!*scene)
+        return bad(
+            makeError("{}: the session has no scene camera (cameras/scene or a camera with role "
+                      "\"scene\" in session.toml)",
+                      sessionDir));
+    r->sceneReader_ = std::move(*scene);
+    Result<std::unique_ptr<RecordedReader>> fisheye = openCamera(*session, "fisheye");
+    if (!fisheye) return bad(fisheye.error());
+    r->fisheyeReader_ = std::move(*fisheye);
+    if (r->fisheyeReader_ && !config.fisheyeCamera)
+        logWarning(
+            "{}: the session has fisheye frames but the config has no [cameras.fisheye]: "
+            "the scene's own lighting is used",
+            config.path);
+
+    Result<Scene> loaded = loadScene(config.scenePath);
+    if (!loaded) return bad(loaded.error());
+    Result<std::unique_ptr<GpuContext>> gpu = GpuContext::create({});
+    if (!gpu) return bad(gpu.error(), 1);
+    r->gpu_ = std::move(*gpu);
+    Result<std::unique_ptr<PipelineRenderer>> renderer =
+        PipelineRenderer::create(*r->gpu_, *loaded, config);
+    if (!renderer) return bad(renderer.error());
+    r->renderer_ = std::move(*renderer);
+    Result<TrackingStage> tracking = TrackingStage::create(config);
+    if (!tracking) return bad(tracking.error());
+    r->tracking_ = std::make_unique<TrackingStage>(std::move(*tracking));
+    if (r->fisheyeReader_ && config.fisheyeCamera) {
+        Result<LightingStage> stage = LightingStage::create(config);
+        if (!stage) return bad(stage.error());
+        r->lighting_ = std::make_unique<LightingStage>(std::move(*stage));
+        Result<std::shared_ptr<Frame>> f = nextFrame(*r->fisheyeReader_, r->fisheyeSequence_);
+        if (!f) return bad(f.error(), 1);
+        r->pendingFisheye_ = *f;
+    }
+    r->modes_ = std::make_unique<ModeMachine>(mode.value_or(Mode::Preview));
+    // The service's own shot rules, on the session's clock: rendering takes no recorded time, so
+    // nothing is sized by this machine's speed and the same session gives the same frames.
+    r->shot_ =
+        std::make_unique<ShotController>(*r->renderer_, *r->modes_, r->clock_, config.refine);
+    return r;
+}
+
+// Every fisheye frame recorded up to `timestampNs`, in order, through the lighting stage's own
+// pacing ([lighting] update_hz on the frames' timestamps).
+Status SessionReplay::lightUpTo(uint64_t timestampNs) {
+    while (pendingFisheye_ && pendingFisheye_->timestampNs <= timestampNs) {
+        if (lighting_->due(*pendingFisheye_)) {
+            Result<std::shared_ptr<const LiveLighting>> lit = lighting_->process(*pendingFisheye_);
+            if (lit)
+                currentLighting_ = *lit;
+            else
+                logWarning("replay: fisheye frame {}: {}", pendingFisheye_->sequence,
+                           lit.message());
+        }
+        Result<std::shared_ptr<Frame>> f = nextFrame(*fisheyeReader_, fisheyeSequence_);
+        if (!f) return f.error();
+        pendingFisheye_ = *f;
+    }
+    return {};
+}
+
+Result<std::optional<SessionReplay::Step>> SessionReplay::next() {
+    Result<std::shared_ptr<Frame>> next = nextFrame(*sceneReader_, sceneSequence_);
+    if (!next) return next.error();
+    if (!*next) return std::optional<Step>();
+    Step out;
+    out.frame = *next;
+    const Frame& frame = *out.frame;
+    clock_.setNs(frame.timestampNs);
+    if (Status s = lightUpTo(frame.timestampNs); !s) return s.error();
+    // Button and ctl events up to this frame drive the mode, as they did live.
+    for (; nextEvent_ < events_.size() && events_[nextEvent_].timestampNs <= frame.timestampNs;
+         ++nextEvent_) {
+        if (!fixedMode_) applySessionEvent(*modes_, events_[nextEvent_]);
+    }
+    // Tracking at the service's pace: every frame in preview, a few a second refining.
+    std::shared_ptr<const TrackedFrame> tracked;
+    if (pace_.due(modes_->mode(), frame.timestampNs))
+        tracked = std::make_shared<TrackedFrame>(tracking_->process(out.frame));
+    Result<ShotStep> step = shot_->step(tracked, currentLighting_);
+    if (!step) return makeError("replay: frame {}: {}", frame.sequence, step.message());
+    out.shot = std::move(*step);
+    return std::optional<Step>(std::move(out));
+}
+
+namespace {
+
+// frames.csv: one row per written frame (docs/previsd.md, "previs replay").
+void writeCsvHeader(std::ofstream& csv) {
+    csv << "frame,timestamp_ns,mode,samples,render_ms,tracking,tags,restarts,noise_estimate";
+    for (int r = 0; r < 4; ++r)
+        for (int c = 0; c < 4; ++c) csv << ",m" << r << c;
+    csv << "\n";
+}
+
+void writeCsvRow(std::ofstream& csv, uint64_t index, const SessionReplay& replay,
+                 const SessionReplay::Step& step, uint64_t samples, double renderMs) {
+    // The frame shown: refinement's frozen one, else this one.
+    static const TrackedFrame kNothingShown;
+    const TrackedFrame& used = step.shot.shown ? *step.shot.shown : kNothingShown;
+    const ShotController& shot = replay.shot();
+    csv << index << "," << step.frame->timestampNs << "," << toString(step.shot.mode) << ","
+        << samples << "," << fmt::format("{:.1f}", renderMs) << ","
+        << (!used.worldFromCamera ? "none"
+            : used.lost           ? "held"
+                                  : "tracked")
+        << "," << used.tags << "," << shot.restarts() << ",";
+    if (step.shot.mode == Mode::Refine && shot.measuredNoise())
+        csv << fmt::format("{:.6g}", *shot.measuredNoise());
+    for (int r = 0; r < 4; ++r)
+        for (int c = 0; c < 4; ++c) {
+            csv << ",";
+            if (used.worldFromCamera) csv << fmt::format("{:.9g}", (*used.worldFromCamera)(r, c));
+        }
+    csv << "\n";
+}
+
+}  // namespace
+
+int runReplay(const ReplayOptions& o) {
+    Result<ServiceConfig> config = [&]() -> Result<ServiceConfig> {
+        if (!o.configPath.empty()) return loadServiceConfig(o.configPath);
+        Result<SessionInfo> session = openSession(o.sessionDir);
+        if (!session) return session.error();
+        return loadServiceConfig(session->configPath, session->configDir);
+    }();
     if (!config) {
         logError("{}", config.message());
         return 2;
     }
-    size_t unknownEvents = 0;
-    std::vector<SessionEvent> events;
-    if (fs::exists(fs::path(o.sessionDir) / "events.csv")) {
-        Result<std::vector<SessionEvent>> loaded = loadEvents(o.sessionDir, &unknownEvents);
-        if (!loaded) {
-            logError("{}", loaded.message());
-            return 2;
-        }
-        events = std::move(*loaded);
+    // The dial chooses by this machine's timing; lock step gives the same pixels on any machine.
+    if (config->render.previewFps > 0.0) {
+        logInfo(
+            "replay: the dial ([render] preview_fps = {:g}) is live only: preview renders "
+            "samples_per_frame = {} at resolution_scale = {:g}",
+            config->render.previewFps, config->render.samplesPerFrame,
+            config->render.resolutionScale);
+        config->render.previewFps = 0.0;
     }
-
-    Result<std::unique_ptr<RecordedReader>> sceneReader = openCamera(*session, "scene");
-    if (!sceneReader) {
-        logError("{}", sceneReader.message());
-        return 2;
+    auto opened = SessionReplay::open(o.sessionDir, *config, o.mode);
+    if (auto* e = std::get_if<SessionReplay::OpenError>(&opened)) {
+        logError("{}", e->error.message);
+        return e->exitCode;
     }
-    if (!*sceneReader) {
-        logError(
-            "{}: the session has no scene camera (cameras/scene or a camera with role "
-            "\"scene\" in session.toml)",
-            o.sessionDir);
-        return 2;
-    }
-    Result<std::unique_ptr<RecordedReader>> fisheyeReader = openCamera(*session, "fisheye");
-    if (!fisheyeReader) {
-        logError("{}", fisheyeReader.message());
-        return 2;
-    }
-    if (*fisheyeReader && !config->fisheyeCamera)
-        logWarning(
-            "{}: the session has fisheye frames but the config has no [cameras.fisheye]: "
-            "the scene's own lighting is used",
-            config->path);
-
-    Result<Scene> scene = loadScene(config->scenePath);
-    if (!scene) {
-        logError("{}", scene.message());
-        return 2;
-    }
-    Result<std::unique_ptr<GpuContext>> gpu = GpuContext::create({});
-    if (!gpu) {
-        logError("{}", gpu.message());
-        return 1;
-    }
-    Result<std::unique_ptr<PipelineRenderer>> renderer =
-        PipelineRenderer::create(**gpu, *scene, *config);
-    if (!renderer) {
-        logError("{}", renderer.message());
-        return 2;
-    }
-    Result<TrackingStage> tracking = TrackingStage::create(*config);
-    if (!tracking) {
-        logError("{}", tracking.message());
-        return 2;
-    }
-    std::optional<LightingStage> lighting;
-    if (*fisheyeReader && config->fisheyeCamera) {
-        Result<LightingStage> stage = LightingStage::create(*config);
-        if (!stage) {
-            logError("{}", stage.message());
-            return 2;
-        }
-        lighting.emplace(std::move(*stage));
-    }
+    SessionReplay& replay = *std::get<std::unique_ptr<SessionReplay>>(opened);
+    PipelineRenderer& renderer = replay.renderer();
 
     std::error_code ec;
     fs::create_directories(o.outDir, ec);
@@ -142,81 +228,22 @@ int runReplay(const ReplayOptions& o) {
         logError("--out {}: cannot write {}", o.outDir, csvPath);
         return 2;
     }
-    csv << "frame,timestamp_ns,mode,samples,render_ms,tracking,tags,restarts,noise_estimate";
-    for (int r = 0; r < 4; ++r)
-        for (int c = 0; c < 4; ++c) csv << ",m" << r << c;
-    csv << "\n";
+    writeCsvHeader(csv);
 
-    ModeMachine modes(o.mode.value_or(Mode::Preview));
-    size_t nextEvent = 0;
-    uint64_t sceneSequence = 0, fisheyeSequence = 0;
-    std::shared_ptr<Frame> pendingFisheye;
-    if (*fisheyeReader) {
-        Result<std::shared_ptr<Frame>> f = nextFrame(**fisheyeReader, fisheyeSequence);
-        if (!f) {
-            logError("{}", f.message());
-            return 1;
-        }
-        pendingFisheye = *f;
-    }
-    std::shared_ptr<const LiveLighting> currentLighting;
-    // The service's own shot rules, on the session's clock: rendering takes no recorded time, so
-    // nothing is sized by this machine's speed and the same session gives the same frames.
-    ManualShotClock clock;
-    ShotController shot(**renderer, modes, clock, config->refine);
-    TrackingPace pace;
     uint64_t written = 0;
     const Clock::time_point start = Clock::now();
     ProgressLine progress("replay", o.quiet);
-
     for (;;) {
-        Result<std::shared_ptr<Frame>> next = nextFrame(**sceneReader, sceneSequence);
-        if (!next) {
-            logError("{}", next.message());
-            return 1;
-        }
-        if (!*next) break;
-        const std::shared_ptr<Frame> frame = *next;
-        clock.setNs(frame->timestampNs);
-
-        // Lighting: every fisheye frame recorded up to this scene frame, in order.
-        while (pendingFisheye && pendingFisheye->timestampNs <= frame->timestampNs) {
-            if (lighting && lighting->due(*pendingFisheye)) {
-                Result<std::shared_ptr<const LiveLighting>> lit =
-                    lighting->process(*pendingFisheye);
-                if (lit)
-                    currentLighting = *lit;
-                else
-                    logWarning("replay: fisheye frame {}: {}", pendingFisheye->sequence,
-                               lit.message());
-            }
-            Result<std::shared_ptr<Frame>> f = nextFrame(**fisheyeReader, fisheyeSequence);
-            if (!f) {
-                logError("{}", f.message());
-                return 1;
-            }
-            pendingFisheye = *f;
-        }
-        // Button and ctl events up to this frame drive the mode, as they did live.
-        for (; nextEvent < events.size() && events[nextEvent].timestampNs <= frame->timestampNs;
-             ++nextEvent) {
-            if (!o.mode) applySessionEvent(modes, events[nextEvent]);
-        }
-
-        // Tracking at the service's pace: every frame in preview, a few a second refining.
-        std::shared_ptr<const TrackedFrame> tracked;
-        if (pace.due(modes.mode(), frame->timestampNs))
-            tracked = std::make_shared<TrackedFrame>(tracking->process(frame));
         const Clock::time_point renderStart = Clock::now();
-        Result<ShotStep> step = shot.step(tracked, currentLighting);
+        Result<std::optional<SessionReplay::Step>> step = replay.next();
         if (!step) {
-            logError("replay: frame {}: {}", frame->sequence, step.message());
+            logError("{}", step.message());
             return 1;
         }
-        const Mode mode = step->mode;
-        Result<ImageF> image = (*renderer)->composite(step->noiseEstimate);
+        if (!*step) break;
+        Result<ImageF> image = renderer.composite((*step)->shot.noiseEstimate);
         if (!image) {
-            logError("replay: frame {}: {}", frame->sequence, image.message());
+            logError("replay: frame {}: {}", (*step)->frame->sequence, image.message());
             return 1;
         }
         const double renderMs =
@@ -231,32 +258,15 @@ int runReplay(const ReplayOptions& o) {
         }
         const uint32_t width = image->width, height = image->height;
         if (Status s =
-                writePng(stem + ".png", width, height, (*renderer)->toDisplay(std::move(*image)));
+                writePng(stem + ".png", width, height, renderer.toDisplay(std::move(*image)));
             !s) {
             logError("{}", s.message());
             return 1;
         }
-        // The frame shown: refinement's frozen one, else this one.
-        static const TrackedFrame kNothingShown;
-        const TrackedFrame& used = step->shown ? *step->shown : kNothingShown;
-        csv << written << "," << frame->timestampNs << "," << toString(mode) << ","
-            << (*renderer)->samples() << "," << fmt::format("{:.1f}", renderMs) << ","
-            << (!used.worldFromCamera ? "none"
-                : used.lost           ? "held"
-                                      : "tracked")
-            << "," << used.tags << "," << shot.restarts() << ",";
-        if (mode == Mode::Refine && shot.measuredNoise())
-            csv << fmt::format("{:.6g}", *shot.measuredNoise());
-        for (int r = 0; r < 4; ++r)
-            for (int c = 0; c < 4; ++c) {
-                csv << ",";
-                if (used.worldFromCamera)
-                    csv << fmt::format("{:.9g}", (*used.worldFromCamera)(r, c));
-            }
-        csv << "\n";
+        writeCsvRow(csv, written, replay, **step, renderer.samples(), renderMs);
         ++written;
-        progress.update(fmt::format("frame {}, {}, {} spp, {:.0f} ms", written - 1, toString(mode),
-                                    (*renderer)->samples(), renderMs));
+        progress.update(fmt::format("frame {}, {}, {} spp, {:.0f} ms", written - 1,
+                                    toString((*step)->shot.mode), renderer.samples(), renderMs));
     }
     csv.flush();
     if (!csv) {
@@ -264,9 +274,9 @@ int runReplay(const ReplayOptions& o) {
         return 1;
     }
     progress.finish();
-    if (unknownEvents > 0)
+    if (replay.unknownEvents() > 0)
         logInfo("replay: {} event(s) of sources this previs does not know were skipped",
-                unknownEvents);
+                replay.unknownEvents());
     if (written == 0) {
         logError("{}: the scene camera has no frames", o.sessionDir);
         return 2;

@@ -661,6 +661,11 @@ Result<ServiceConfig> ConfigReader::read(const toml::table& root) {
         if (Status st = parseLighting(**lighting, config.lighting); !st) return st.error();
     }
 
+    // The dial aims at the scene camera's rate unless [render] preview_fps says otherwise: a
+    // preview cannot show more frames than the camera delivers.
+    config.render.previewFps =
+        config.sceneCamera.fps > 0.0 ? config.sceneCamera.fps : RenderConfig::kDefaultPreviewFps;
+
     // Optional sections: absent means the defaults (no button, no display).
     struct Optional {
         const char* key;

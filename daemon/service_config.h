@@ -99,13 +99,15 @@ struct RenderConfig {
     // The dial (render/quality_dial.h): a preview frame rate to reach. When set (> 0) the
     // service times every preview setting on the scene at start and picks the most accurate one
     // that fits — samples per frame, resolution scale and max depth (≤ max_depth) — in place of
-    // samples_per_frame and resolution_scale. 0 = off.
+    // samples_per_frame and resolution_scale. 0 = off. A config without the key gets the scene
+    // camera's fps, else kDefaultPreviewFps (this struct's own 0 is for code that builds one).
+    static constexpr double kDefaultPreviewFps = 30.0;
     double previewFps = 0.0;
     // The denoiser (render/denoiser.h) on what the renderer adds to the plate, never the plate:
     // "off" (no guide buffers either), "on" (every frame, denoise_levels strong), "auto" (preview:
     // the dial's choice of strength with preview_fps, else below 64 spp; refinement: while the
     // meter's estimate is above target_noise, 1 % without one).
-    std::string denoise = "off";
+    std::string denoise = "auto";
     uint32_t denoiseLevels = 5;  // à-trous levels for "on" and for "auto" without the dial, [1, 10]
     // Preview's temporal accumulation (issue 35): each preview frame draws new samples, and the
     // frames are averaged through reprojection along the tracked camera (Denoiser::

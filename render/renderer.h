@@ -262,6 +262,8 @@ public:
     Status setPlate(ImageF plate, std::string_view source = "plate");
     // Plate values setPlate has replaced so far (NaN/Inf and negative).
     uint64_t plateValuesRepaired() const { return plateValuesRepaired_; }
+    // The plate as repaired and kept; nullptr before the first setPlate.
+    const ImageF* plate() const { return plate_ ? &*plate_ : nullptr; }
 
     // The mean per pixel so far (RGB linear; the mask one channel), at the output size. At a
     // resolution scale below 1 the traced means are upsampled (render/upsample.h; guided by the

@@ -31,6 +31,7 @@ Demo demo(double previewFps) {
     d.config.render.height = 36;
     d.config.render.maxDepth = 6;
     d.config.render.previewFps = previewFps;
+    d.config.render.denoise = "off";  // no strength axis: the counts below are of the other three
     Result<Scene> scene = loadScene(d.config.scenePath);
     EXPECT_TRUE(scene) << scene.message();
     d.scene = std::move(*scene);

@@ -77,6 +77,8 @@ width = 160
 height = 90
 samples_per_frame = 1
 max_depth = 4
+preview_fps = 0
+denoise = "off"
 
 [refine]
 samples_per_step = 4

@@ -1,0 +1,27 @@
+#pragma once
+
+// `previs bench --only shot` (BENCHMARKS.md, "The preview as shipped"): the demo take
+// (examples/demo) through `previs replay`'s lock-step loop (daemon/replay.h) with the shipped
+// config and with the paper's fixed-sequence preview, against a deep refinement of the take's
+// still view (its frames 20–44 hold one view and one lighting). Per frame of the pan and of the
+// hold: DESIGN.md §4's √relMSE of what the preview adds to the plate (composite − plate, so the
+// plates' own noise cancels) against the reference's; flicker (temporal standard deviation of
+// the still frames' added signal, relative to the reference's); the virtual objects' level on
+// the first frame (before any lighting snapshot) against the reference's; lock-step ms per frame.
+
+#include <cstdint>
+#include <string>
+
+namespace previs::bench {
+
+struct ShotBenchOptions {
+    std::string examplesDir;       // the repository's examples/ (the demo config and take)
+    bool quick = false;            // a 64-spp reference and the first 8 still frames: a smoke run
+    uint32_t referenceSpp = 1600;  // the deep refinement of the still view
+    std::string csvPath;           // per-frame rows as CSV ("" = none)
+};
+
+// Prints a Markdown report on stdout (progress on stderr); returns the process exit code.
+int runShotBench(const ShotBenchOptions& options);
+
+}  // namespace previs::bench
