@@ -14,7 +14,7 @@
 #include <vector>
 
 #include "base/result.h"
-#include "render/photon_map.h"
+#include "render/render_settings.h"
 #include "vision/board_pose.h"
 #include "vision/camera_calibration.h"
 #include "vision/fisheye_to_equirect.h"

@@ -12,6 +12,7 @@
 #include "base/result.h"
 #include "gpu/buffer.h"
 #include "gpu/context.h"
+#include "gpu/specialise_mode.h"
 
 namespace previs {
 
@@ -24,11 +25,6 @@ enum class BindingKind {
     // The same for arrays of 4-byte words (R32_UINT: floats as bits, packed texture texels).
     TexelBufferUint,
 };
-
-// Where the specialization constants are applied: on the host before the driver compiles
-// (gpu/spirv_specialise.h: it compiles less code), or by the driver (the reference the tests
-// compare the first against).
-enum class Specialise { OnHost, InDriver };
 
 // The bytes [offset, offset + size) of a buffer; size VK_WHOLE_SIZE: to its end.
 struct BufferRange {

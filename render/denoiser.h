@@ -15,34 +15,9 @@
 #include "gpu/compute_pipeline.h"
 #include "gpu/context.h"
 #include "image/image.h"
+#include "render/render_settings.h"
 
 namespace previs {
-
-struct DenoiseSettings {
-    // The strength: à-trous levels, taps 1, 2, 4, ... 2^(n−1) pixels apart; 0 = no spatial
-    // filter (apply() returns its input; applyTemporal() only accumulates).
-    uint32_t iterations = 5;
-    // 2: SVGF's 5×5 B3-spline taps; 1: a 3×3 kernel (8 taps instead of 24 per level).
-    uint32_t kernelRadius = 2;
-    // SVGF's σ_n and σ_z (Schied et al. 2017, §4.4). Its σ_l = 4 suits its few-frame variance;
-    // with the accumulation's own variance it blurs converged gradients (the soft occlusion
-    // around a virtual object's contact): measured on tests/integrator/test_denoise.cpp's set,
-    // the 256-spp change was 3.1× the noise bound at 4, 1.5× at 2, 0.9× at 1, 0.5× at 0.5, while
-    // the 4-spp RMSE gain was 1.39×, 1.55×, 1.55×, 1.28×: 1 keeps both.
-    float sigmaLuminance = 1.0f;
-    float sigmaNormal = 128.0f;
-    float sigmaDepth = 1.0f;
-    // Ours (shared/denoise.h). Only pixels of a silhouette have a fractional mask, and their
-    // signal is M·L_om + (1 − M)(L_om − L_or): mixing two whose M differs by ΔM moves the
-    // result by ΔM times the jump, a bias that shrinks only as fast as the noise. So the
-    // weight is nearly a partition: ΔM = 1/64 weighs e^−4, 1/16 e^−16.
-    float sigmaMask = 256.0f;
-    // Temporal accumulation (applyTemporal): SVGF's α, the smallest weight of the new frame in
-    // the exponential moving average (a mean over the first 1/α frames), and the cap of the
-    // history length the validation carries (frames).
-    float temporalAlpha = 0.2f;
-    float maxHistoryFrames = 32.0f;
-};
 
 // The pinhole camera of a frame, for temporal reprojection (Renderer::denoiseCamera): the
 // camera's pose (looks along −Z, +Y up; double, as Renderer::setCameraPose takes it) and tan of
@@ -52,19 +27,6 @@ struct DenoiseCamera {
     glm::dmat4 worldFromCamera{1.0};
     glm::vec2 tanHalfFov{1.0f};
 };
-
-// `--denoise auto`: the denoiser runs while the convergence meter's relative RMSE estimate
-// (render/convergence.h) is above the target noise — above kAutoDenoiseAboveNoise without a
-// target — and is off once the image has reached it (its bias then costs more than its gain).
-// Without an estimate (below 2 spp, or the meter off) it runs below kAutoDenoiseBelowSpp
-// samples per pixel (render/denoiser.cpp gives the measurement behind it).
-constexpr double kAutoDenoiseAboveNoise = 0.01;
-constexpr uint64_t kAutoDenoiseBelowSpp = 64;
-inline bool autoDenoise(std::optional<double> noiseEstimate, double targetNoise,
-                        uint64_t samplesPerPixel) {
-    if (!noiseEstimate) return samplesPerPixel < kAutoDenoiseBelowSpp;
-    return *noiseEstimate > (targetNoise > 0.0 ? targetNoise : kAutoDenoiseAboveNoise);
-}
 
 class Denoiser {
 public:

@@ -20,53 +20,12 @@
 #include "gpu/compute_pipeline.h"
 #include "gpu/context.h"
 #include "gpu/interruptible_dispatch.h"
+#include "render/render_settings.h"
 #include "scene/scene.h"
 #include "shared/photon_map.h"
 #include "shared/scene_types.h"
 
 namespace previs {
-
-enum class PhotonMode {
-    Auto,  // when the scene has a purely specular object and a light that photons leave from
-    On,
-    Off,
-};
-
-struct PhotonSettings {
-    PhotonMode mode = PhotonMode::Auto;
-    // Photons per iteration (rounded up to a multiple of 128). Where a gather finds more than
-    // gatherNeighbours, its radius holds about that many whatever the iteration, so the blur
-    // there falls only as the photons per iteration grow (docs/caustics.md). On the caustics
-    // benchmark, against a bias-free reference (BENCHMARKS.md, issue 9, eighth pass), 65536
-    // reached 5 % sooner than 32768 and 131072 (each iteration costs more with more photons);
-    // with the first radius following the count (ninth pass) 131072 still lose.
-    uint32_t perIteration = 1u << 16;
-    // Preview frames (Renderer::renderPreviewFrame) trace at most this many: a fixed budget for
-    // speed; the radius of a preview frame is the first iterations' (it restarts every frame).
-    uint32_t previewPerIteration = 1u << 14;
-    // Gather radius of the first iteration (metres); 0: defaultPhotonRadius (from the sphere
-    // that holds the specular objects and the photons per iteration).
-    float initialRadius = 0.0f;
-    // Progressive photon mapping's α in (0, 1): the radius shrinks as (i + 1)^((α − 1)/2).
-    // 1 keeps the radius fixed (preview: a fixed, biased but steady estimate).
-    float alpha = 2.0f / 3.0f;
-    // Records examined per grid bucket at most; fuller buckets are subsampled without bias. A
-    // bucket is a cell of edge 2r (photonCellSize): a smaller window subsamples a focus's cells
-    // and adds noise (BENCHMARKS.md, issue 9, eleventh pass).
-    uint32_t gatherCap = 1024;
-    // A gather that finds more than this many photons within the iteration's radius takes its
-    // estimate again at the radius that holds about this many: the blur shrinks where photons are
-    // dense (at a focus). 0 keeps every gather at the iteration's radius.
-    uint32_t gatherNeighbours = 128;
-    // The photons the camera sees directly go to the pixels they land in (light tracing's last
-    // step, trace_photons.comp's splatToCamera) instead of a gather at the camera path's first
-    // vertex: every photon in a pixel counts and no radius blurs them. Needs a pinhole camera
-    // (no aperture, no lens grid) and the splat sums within one storage-buffer binding
-    // (Renderer::photonSplatBytes); elsewhere, or off, the first vertex gathers.
-    bool splatToCamera = true;
-
-    bool operator==(const PhotonSettings&) const = default;
-};
 
 // Chosen on bench/scenes/caustics_glass.gltf (BENCHMARKS.md, issue 9): at 16 iterations the
 // caustic's relative RMSE against a long render fell from 0.25 (5 % of the 0.21 m aim radius:
@@ -82,11 +41,6 @@ inline constexpr uint32_t kDefaultRadiusPhotons = 1u << 15;
 // that falls as photons are added instead of staying what the fewer photons needed
 // (docs/caustics.md, "Progressive radius"; BENCHMARKS.md, issue 9, ninth pass).
 float defaultPhotonRadius(float aimRadius, uint32_t photonsPerIteration);
-
-// Applies a `--photons` / config value: "auto", "on", "off", or a photon count per iteration
-// (which also turns photons on). The error names the accepted values.
-Status applyPhotonSpec(const std::string& spec, PhotonSettings& settings);
-inline constexpr uint32_t kMaxPhotonsPerIteration = 1u << 20;
 
 // A material that may be purely specular (every lobe a delta) on some texel: the photons' aim
 // must include it. Errs on the side of yes — a larger aim costs photons, a smaller one bias.

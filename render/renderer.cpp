@@ -9,7 +9,6 @@
 #include <glm/gtc/matrix_transform.hpp>
 
 #include "base/log.h"
-#include "render/plate.h"
 #include "scene/environment_map.h"
 #include "shared/denoise.h"
 #include "shared/photon_map.h"
@@ -203,14 +202,11 @@ Result<std::unique_ptr<Renderer>> Renderer::create(GpuContext& ctx, const Scene&
     r->settings_.resolutionScale = 1.0f;
     if (Status s = r->setResolutionScale(settings.resolutionScale); !s) return s.error();
     if (Status s = r->reset(); !s) return s.error();
-    // The denoiser is made at the traced size by the first denoised image() (the size follows
-    // setResolutionScale); creating one here checks the settings early.
-    if (settings.denoise) {
-        auto denoiser =
-            Denoiser::create(ctx, r->params_.width, r->params_.height, settings.denoiseSettings);
-        if (!denoiser) return denoiser.error();
-        r->denoiser_.emplace(std::move(denoiser.value()));
-    }
+    // The denoiser follows the traced size (setResolutionScale) at the first denoised image();
+    // creating it here checks the settings early.
+    auto film = Film::create(ctx, settings, r->params_.width, r->params_.height);
+    if (!film) return film.error();
+    r->film_.emplace(std::move(film.value()));
     return Result<std::unique_ptr<Renderer>>(std::move(r));
 }
 
@@ -825,14 +821,15 @@ void Renderer::setMaxDepth(uint32_t maxDepth) {
 }
 
 Status Renderer::setDenoiseIterations(uint32_t iterations) {
-    if (!denoiser_)
+    Denoiser* denoiser = film_->denoiser();
+    if (!denoiser)
         return makeError(
             "the denoiser's strength needs a renderer created with denoising on (--denoise "
             "on|auto, [render] denoise)");
     // New settings for the same pipelines: the temporal history is kept.
-    DenoiseSettings d = denoiser_->settings();
+    DenoiseSettings d = denoiser->settings();
     d.iterations = iterations;
-    if (Status s = denoiser_->setSettings(d); !s) return s;
+    if (Status s = denoiser->setSettings(d); !s) return s;
     settings_.denoiseSettings = d;
     return {};
 }
@@ -978,274 +975,10 @@ Status Renderer::render(uint32_t samples,
     return {};
 }
 
-Status Renderer::setPlate(ImageF plate, std::string_view source) {
-    if (plate.width != settings_.width || plate.height != settings_.height || plate.channels < 3)
-        return makeError(
-            "the plate is {}x{} with {} channel(s); the render is {}x{} and needs "
-            "RGB (render at the plate's resolution)",
-            plate.width, plate.height, plate.channels, settings_.width, settings_.height);
-    const PlateRepair repair = repairPlate(plate);
-    if (repair.total() > 0 && plateValuesRepaired_ == 0)
-        logWarning(
-            "{}: {} NaN/infinite value(s) replaced by their finite neighbours' mean (0 "
-            "where there is none) and {} negative value(s) by 0; they are never "
-            "composited (docs/plates.md)",
-            source, repair.nonFinite, repair.negative);
-    plateValuesRepaired_ += repair.total();
-    plate_ = std::move(plate);
-    return {};
-}
-
-Result<Renderer::Accumulation> Renderer::readAccumulation() const {
-    // The traced pixels (the output's at resolution scale 1).
-    const size_t values = size_t(params_.width) * params_.height * PV_ACCUM_COUNT;
-    Accumulation a;
-    a.sum.resize(values);
-    a.compensation.resize(values);
-    const size_t bytes = values * sizeof(glm::vec4);
-    if (Status s = buffers_[PV_BINDING_ACCUM_SUM].download(a.sum.data(), bytes); !s)
-        return s.error();
-    if (Status s = buffers_[PV_BINDING_ACCUM_COMPENSATION].download(a.compensation.data(), bytes);
-        !s)
-        return s.error();
-    return a;
-}
-
-Result<Convergence> Renderer::convergence() const {
-    Result<Accumulation> read = readAccumulation();
-    if (!read) return read.error();
-    const Accumulation& a = *read;
-    // At a resolution scale below 1 the meter measures the traced pixels, each with the plate
-    // pixel at its centre (the upsampled image is smoother: this errs high).
-    const size_t pixels = size_t(params_.width) * params_.height;
-    auto platePixel = [&](size_t i) {
-        const size_t x = (i % params_.width) * settings_.width / params_.width +
-                         settings_.width / (2 * params_.width);
-        const size_t y = (i / params_.width) * settings_.height / params_.height +
-                         settings_.height / (2 * params_.height);
-        return std::min(y, size_t(settings_.height) - 1) * settings_.width +
-               std::min(x, size_t(settings_.width) - 1);
-    };
-    const bool withPlate = plate_ && settings_.differential;
-    std::vector<MeterPixel> composite(pixels), differential(pixels);
-    for (size_t i = 0; i < pixels; ++i) {
-        // Slot `k` of all samples and of replicate 1's.
-        auto total = [&](uint32_t k, int c) { return a.value(i, k, c); };
-        auto half = [&](uint32_t k, int c) { return a.value(i, PV_ACCUM_REPLICATE_1 + k, c); };
-        MeterPixel& m = composite[i];
-        MeterPixel& d = differential[i];
-        m.count = d.count = total(PV_ACCUM_MIXED, 3);
-        m.halfCount = d.halfCount = half(PV_ACCUM_MIXED, 3);
-        for (int c = 0; c < 3; ++c) {
-            if (withPlate) {
-                // Eq. 1 per sample, summed: M·L_om + (1−M)(L_om − L_or) + (1 − M)·L_oc.
-                const double plate = plate_->pixels[platePixel(i) * plate_->channels + c];
-                m.sum[c] =
-                    total(PV_ACCUM_COMPOSITE, c) + (m.count - total(PV_ACCUM_COMPOSITE, 3)) * plate;
-                m.halfSum[c] = half(PV_ACCUM_COMPOSITE, c) +
-                               (m.halfCount - half(PV_ACCUM_COMPOSITE, 3)) * plate;
-            } else {
-                // What image(Aov::Composite) shows without a plate: the mixed scene.
-                m.sum[c] = total(PV_ACCUM_MIXED, c);
-                m.halfSum[c] = half(PV_ACCUM_MIXED, c);
-            }
-            d.sum[c] = total(PV_ACCUM_MIXED, c) - total(PV_ACCUM_REAL, c);
-            d.halfSum[c] = half(PV_ACCUM_MIXED, c) - half(PV_ACCUM_REAL, c);
-        }
-    }
-    Convergence out;
-    out.composite = estimateNoise(composite);
-    out.differential = estimateNoise(differential);
-    out.samplesPerPixel = samples_;
-    return out;
-}
-
-Result<std::vector<glm::vec4>> Renderer::guides() const {
-    if (!settings_.denoise)
-        return makeError(
-            "the denoiser's guides (albedo, normal, depth) exist only in a renderer created with "
-            "denoising on");
-    std::vector<glm::vec4> g(size_t(params_.width) * params_.height * PV_GUIDE_COUNT);
-    if (Status s = buffers_[PV_BINDING_GUIDES].download(g.data(), g.size() * sizeof(glm::vec4)); !s)
-        return s.error();
-    return g;
-}
-
-Result<ImageF> Renderer::image(Aov aov) const {
-    const bool scaled = params_.width != settings_.width || params_.height != settings_.height;
-    const size_t pixels = size_t(params_.width) * params_.height;
-    ImageF img;
-    img.width = params_.width;
-    img.height = params_.height;
-    if (aov == Aov::Albedo || aov == Aov::Normal || aov == Aov::Depth) {
-        auto g = guides();
-        if (!g) return g.error();
-        const bool depth = aov == Aov::Depth;
-        img.channels = depth ? 1 : 3;
-        img.pixels.resize(pixels * img.channels);
-        const uint32_t slot = aov == Aov::Normal ? PV_GUIDE_NORMAL : PV_GUIDE_ALBEDO_DEPTH;
-        for (size_t i = 0; i < pixels; ++i) {
-            const glm::vec4& v = (*g)[i * PV_GUIDE_COUNT + slot];
-            if (depth)
-                img.pixels[i] = v.w;
-            else
-                for (int c = 0; c < 3; ++c) img.pixels[i * 3 + c] = v[c];
-        }
-        return scaled ? jointBilateralUpsample(img, settings_.width, settings_.height,
-                                               plate_ ? &*plate_ : nullptr, upsample_)
-                      : img;
-    }
-    Result<Accumulation> read = readAccumulation();
-    if (!read) return read.error();
-    const Accumulation& a = *read;
-    img.channels = aov == Aov::Mask || aov == Aov::SampleCount ? 1 : 3;
-    // The mean of a compensated sum: (sum − compensation) / n, in double, where n counts the
-    // pixel's samples that were not dropped (NaN/Inf, stats().nonFiniteSamples): a dropped
-    // sample neither darkens the pixel nor lets the plate through. A pixel with none is 0
-    // (mask 0: the plate).
-    auto mean = [&](size_t i, uint32_t k, int c) {
-        const double n = a.value(i, PV_ACCUM_MIXED, 3);
-        return n > 0.0 ? a.value(i, k, c) / n : 0.0;
-    };
-    bool withPlate = aov == Aov::Composite && plate_ && settings_.differential;
-    // At a fraction of the output: Eq. 1's plate-free terms, the mean composite sum and the
-    // mean mask, are upsampled first; the plate term is added at full resolution below.
-    const bool upsampleComposite = scaled && withPlate;
-    if (upsampleComposite) img.channels = 4;
-    img.pixels.resize(pixels * img.channels);
-    for (size_t i = 0; i < pixels; ++i) {
-        if (upsampleComposite) {
-            for (int c = 0; c < 4; ++c)
-                img.pixels[i * 4 + c] = float(mean(i, PV_ACCUM_COMPOSITE, c));
-            continue;
-        }
-        if (aov == Aov::Mask) {
-            img.pixels[i] = float(mean(i, PV_ACCUM_COMPOSITE, 3));
-            continue;
-        }
-        if (aov == Aov::SampleCount) {
-            img.pixels[i] = float(a.value(i, PV_ACCUM_MIXED, 3));
-            continue;
-        }
-        uint32_t k = aov == Aov::Real                  ? PV_ACCUM_REAL
-                     : aov == Aov::Mixed || !withPlate ? PV_ACCUM_MIXED
-                                                       : PV_ACCUM_COMPOSITE;
-        double plateWeight = withPlate ? 1.0 - mean(i, PV_ACCUM_COMPOSITE, 3) : 0.0;
-        for (int c = 0; c < 3; ++c) {
-            double v = mean(i, k, c);
-            // Eq. 1 averaged over the pixel's samples: mean(M·L_om + (1−M)(L_om − L_or)) plus
-            // (1 − mean M)·L_oc. Where no sample met a virtual object this is 0 + 1·L_oc: the
-            // plate, bit for bit.
-            if (withPlate) v += plateWeight * double(plate_->pixels[i * plate_->channels + c]);
-            img.pixels[i * 3 + c] = float(v);
-        }
-    }
-    if (!scaled) return img;
-    return upsampleComposite ? upsampleAndAddPlate(img)
-                             : jointBilateralUpsample(img, settings_.width, settings_.height,
-                                                      plate_ ? &*plate_ : nullptr, upsample_);
-}
-
-ImageF Renderer::upsampleAndAddPlate(const ImageF& plateFree) const {
-    ImageF up =
-        jointBilateralUpsample(plateFree, settings_.width, settings_.height, &*plate_, upsample_);
-    ImageF out;
-    out.width = settings_.width;
-    out.height = settings_.height;
-    out.channels = 3;
-    out.pixels.resize(size_t(out.width) * out.height * 3);
-    for (size_t i = 0; i < size_t(out.width) * out.height; ++i) {
-        // As above, Eq. 1 with the upsampled terms: where no traced sample near the pixel met
-        // a virtual object both are exactly 0 and the pixel is the plate, bit for bit.
-        const double plateWeight = 1.0 - double(up.pixels[i * 4 + 3]);
-        for (int c = 0; c < 3; ++c)
-            out.pixels[i * 3 + c] =
-                float(double(up.pixels[i * 4 + c]) +
-                      plateWeight * double(plate_->pixels[i * plate_->channels + c]));
-    }
-    return out;
-}
-
-Result<ImageF> Renderer::image(Aov aov, bool denoised) {
-    if (!denoised || !(aov == Aov::Composite || aov == Aov::Mixed || aov == Aov::Real))
-        return image(aov);
-    if (!denoiser_)
-        return makeError(
-            "a denoised image needs a renderer created with denoising on (--denoise on|auto)");
-    // At a resolution scale below 1 the filter runs on the traced pixels, before upsampling
-    // (the guides are traced there too), so it costs scale² of a full-size filter.
-    const bool scaled = params_.width != settings_.width || params_.height != settings_.height;
-    if (denoiser_->width() != params_.width || denoiser_->height() != params_.height) {
-        auto resized =
-            Denoiser::create(*ctx_, params_.width, params_.height, denoiser_->settings());
-        if (!resized) return resized.error();
-        denoiser_.emplace(std::move(resized.value()));
-    }
-    auto m = readAccumulation();
-    if (!m) return m.error();
-    auto g = guides();
-    if (!g) return g.error();
-    const size_t pixels = size_t(params_.width) * params_.height;
-    const bool withPlate = aov == Aov::Composite && plate_ && settings_.differential;
-    // The signal the filter sees: the composite without its plate term, L_om or L_or. Its slot
-    // in the accumulation is also its luminance moment's component in PV_GUIDE_MOMENTS.
-    const uint32_t k = aov == Aov::Real                  ? PV_ACCUM_REAL
-                       : aov == Aov::Mixed || !withPlate ? PV_ACCUM_MIXED
-                                                         : PV_ACCUM_COMPOSITE;
-    // A pixel's own variance needs a few samples (SVGF switches to its spatial estimate below
-    // 4 frames of history); below that the shader estimates it from the neighbourhood.
-    // HOOK for the convergence meter: its per-pixel variance can replace this one.
-    constexpr double kMinSamplesForVariance = 4.0;
-    ImageF signal;
-    signal.width = params_.width;
-    signal.height = params_.height;
-    signal.channels = 3;
-    signal.pixels.resize(pixels * 3);
-    std::vector<float> variance(pixels);
-    for (size_t i = 0; i < pixels; ++i) {
-        glm::dvec3 mean(0.0);
-        for (int c = 0; c < 3; ++c) {
-            mean[c] = m->mean(i, k, c);
-            signal.pixels[i * 3 + c] = float(mean[c]);
-        }
-        const double n = m->count(i);
-        const double y = glm::dot(mean, glm::dvec3(0.2126, 0.7152, 0.0722));  // luminance()
-        const double y2 = (*g)[i * PV_GUIDE_COUNT + PV_GUIDE_MOMENTS][k];
-        // The variance of the mean: the samples' unbiased variance over n.
-        variance[i] =
-            n >= kMinSamplesForVariance ? float(std::max(0.0, y2 - y * y) / (n - 1.0)) : -1.0f;
-    }
-    auto filtered = temporalDenoise_
-                        ? denoiser_->applyTemporal(signal, *g, variance, denoiseCamera())
-                        : denoiser_->apply(signal, *g, variance);
-    if (!filtered) return filtered.error();
-    if (scaled && withPlate) {
-        // As image(): the plate-free term and the mean mask are upsampled, the plate added after.
-        ImageF plateFree;
-        plateFree.width = params_.width;
-        plateFree.height = params_.height;
-        plateFree.channels = 4;
-        plateFree.pixels.resize(pixels * 4);
-        for (size_t i = 0; i < pixels; ++i) {
-            for (int c = 0; c < 3; ++c) plateFree.pixels[i * 4 + c] = filtered->pixels[i * 3 + c];
-            plateFree.pixels[i * 4 + 3] = float(m->mean(i, PV_ACCUM_COMPOSITE, 3));
-        }
-        return upsampleAndAddPlate(plateFree);
-    }
-    if (scaled)
-        return jointBilateralUpsample(*filtered, settings_.width, settings_.height,
-                                      plate_ ? &*plate_ : nullptr, upsample_);
-    if (withPlate) {
-        for (size_t i = 0; i < pixels; ++i) {
-            const double plateWeight = 1.0 - m->mean(i, PV_ACCUM_COMPOSITE, 3);
-            for (int c = 0; c < 3; ++c) {
-                float& v = filtered->pixels[i * 3 + c];
-                v = float(double(v) +
-                          plateWeight * double(plate_->pixels[i * plate_->channels + c]));
-            }
-        }
-    }
-    return filtered;
+TracedBuffers Renderer::traced() const {
+    return {&buffers_[PV_BINDING_ACCUM_SUM], &buffers_[PV_BINDING_ACCUM_COMPENSATION],
+            settings_.denoise ? &buffers_[PV_BINDING_GUIDES] : nullptr, params_.width,
+            params_.height};
 }
 
 Result<shader::RenderStats> Renderer::stats() const {
@@ -1258,32 +991,6 @@ Result<uint32_t> Renderer::nonFiniteSamples() const {
     auto s = stats();
     if (!s) return s.error();
     return s->nonFiniteSamples;
-}
-
-Result<std::vector<shader::PhotonRecord>> Renderer::photonRecords() const {
-    std::vector<shader::PhotonRecord> records(size_t(PV_PHOTON_RECORDS_PER_PHOTON) *
-                                              lastPhotonCount_);
-    if (Status s = buffers_[PV_BINDING_PHOTON_RECORDS].download(
-            records.data(), records.size() * sizeof(shader::PhotonRecord));
-        !s)
-        return s.error();
-    return records;
-}
-
-Result<Renderer::PhotonGrid> Renderer::photonGrid() const {
-    PhotonGrid grid;
-    grid.sorted.resize(size_t(PV_PHOTON_RECORDS_PER_PHOTON) * lastPhotonCount_);
-    grid.buckets.resize(PV_PHOTON_BUCKETS);
-    grid.radius = params_.photonRadius;
-    if (Status s = buffers_[PV_BINDING_PHOTON_SORTED].download(
-            grid.sorted.data(), grid.sorted.size() * sizeof(shader::PhotonRecord));
-        !s)
-        return s.error();
-    if (Status s = buffers_[PV_BINDING_PHOTON_CELLS].download(
-            grid.buckets.data(), grid.buckets.size() * sizeof(glm::uvec2));
-        !s)
-        return s.error();
-    return grid;
 }
 
 Result<uint32_t> Renderer::raysTraced() const {

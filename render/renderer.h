@@ -22,113 +22,53 @@
 #include "render/bvh.h"
 #include "render/convergence.h"
 #include "render/denoiser.h"
+#include "render/film.h"
 #include "render/photon_map.h"
+#include "render/render_settings.h"
 #include "render/upsample.h"
 #include "scene/scene.h"
 
 namespace previs {
 
-// Where a path's random numbers come from (gpu/shaders/shared/sampler.h). Both address every
-// number by (pixel, sample, dimension), so both keep preview's fixed sequence and the
-// differential identities; Independent is the baseline for ablations.
-enum class Sampler {
-    Sobol,        // Owen-scrambled Sobol' with per-pixel shuffles (Burley 2020): stratified
-    Independent,  // one PCG stream per (pixel, sample, dimension set)
-};
-
-// How a chosen emissive triangle is sampled (gpu/shaders/shared/triangle_light.h).
-enum class LightSampling {
-    SolidAngle,  // uniform in the solid angle it subtends (Arvo 1995), area where it is tiny
-    Area,        // uniform in area: the baseline for ablations
-};
-
-struct RenderSettings {
-    uint32_t width = 640;
-    uint32_t height = 480;
-    uint32_t maxDepth = 16;           // pbrt's maxdepth: 1 = direct light only
-    uint32_t rouletteStartDepth = 3;  // Russian roulette from this many bounces on
-    uint32_t seed = 0;
-    Sampler sampler = Sampler::Sobol;
-    LightSampling lightSampling = LightSampling::SolidAngle;
-    int cameraIndex = 0;                   // into Scene::cameras; a default camera if there is none
-    std::optional<float> apertureRadiusM;  // override the camera's thin lens
-    std::optional<float> focusDistanceM;
-    float fireflyClamp = 0.0f;  // 0 = off (default): no hidden clamping
-    // Paths per pixel in one GPU dispatch (fewer dispatches, less overhead). On a CPU device
-    // the renderer lowers it to stay inside llvmpipe's loop limit (renderer.cpp).
-    uint32_t samplesPerDispatch = 1;
-    // Off only to demonstrate what happens without it (tests): llvmpipe drops work.
-    bool respectCpuLoopLimit = true;
-    bool generalPipeline = false;  // run every feature's code (benchmarks the saving)
-    // Where the feature constants are applied (gpu/compute_pipeline.h): on the host, so the
-    // driver compiles only what the scene needs; InDriver only to compare against (tests).
-    Specialise specialise = Specialise::OnHost;
-    // Differential rendering (the paper): also compute the real-only solution L_or in the same
-    // pass, for compositing with the camera image. Off: a plain CG render of the mixed scene.
-    bool differential = false;
-    // The convergence meter (convergence()): samples alternate between two independently
-    // randomised sequences, whose difference measures the error. It costs some stratification
-    // (BENCHMARKS.md: about 8 % more RMSE at equal samples); off, one sequence and no meter.
-    bool convergenceMeter = true;
-    // A calibrated lens (vision/lens_grid.h): (width+1)×(height+1) normalised OpenCV camera
-    // coordinates of the pixel corners. Empty: a pinhole with the camera's field of view.
-    std::vector<glm::vec2> lensGrid;
-    // Caustics from a photon map (render/photon_map.h); Auto runs it only where the scene needs it.
-    PhotonSettings photons;
-    // Preview speed: the path tracer traces max(1, round(width·s)) × max(1, round(height·s))
-    // pixels, each covering 1/s × 1/s output pixels, and image() upsamples them to width ×
-    // height guided by the plate (render/upsample.h); the plate is never resampled. In (0, 1];
-    // 1 traces every output pixel (and image() is what it was without this setting, bit for bit).
-    float resolutionScale = 1.0f;
-    // The denoiser (render/denoiser.h): the first hit writes its guide buffers and
-    // image(aov, true) filters. Off: neither the guides' code nor their memory is paid for.
-    bool denoise = false;
-    DenoiseSettings denoiseSettings;
-};
-
-// The buffers a render produces (DESIGN.md §3 --aov).
-enum class Aov {
-    Composite,  // Eq. 1 with the plate; without a plate the mixed scene
-    Mixed,      // L_om: real phantoms and virtual objects
-    Real,       // L_or: phantoms only (differential renders)
-    Mask,       // fraction of camera samples whose first hit is virtual (one channel)
-    // Samples that count in each pixel's mean (one channel): samplesPerPixel() less those
-    // dropped as NaN/Inf, or lost when a CPU device cut a dispatch short. Not a file AOV.
-    SampleCount,
-    // The denoiser's guides (RenderSettings::denoise), means over the pixel's samples of the
-    // camera ray's first hit: base colour (1 for a miss or an emitter), shading normal facing
-    // the camera (RGB = xyz, not normalised), camera distance in metres (one channel; misses
-    // PV_GUIDE_MISS_DEPTH_M).
-    Albedo,
-    Normal,
-    Depth,
-};
-
-// What the scene uses; each off feature is compiled out of the pipeline.
-struct SceneFeatures {
-    bool environment = false;
-    bool emissive = false;
-    bool punctual = false;
-    bool specular = false;  // any metal or specular (Fresnel) reflection
-    bool transmission = false;
-    bool thinLens = false;
-    bool textures = false;
-    bool coneLights = false;  // estimated lights (Renderer::setEstimatedLights)
-    // A material neither Lambertian nor purely specular on every texel (glossyMaterial)
-    bool glossy = false;
-};
-
-// A distant light estimated from the captured environment (vision/light_estimator.h's
-// EstimatedLight; the map's residual becomes the environment): uniform radiance over a cone of
-// directions of the given solid angle. It belongs to the real set, so it lights both solutions
-// of differential rendering, with soft shadows.
-struct EstimatedLightSource {
-    glm::vec3 direction{0.0f, 1.0f, 0.0f};  // world, toward the light (normalised on upload)
-    float solidAngleSr = 0.0f;              // in (0, 4π]
-    glm::vec3 radiance{0.0f};               // linear RGB, the environment's units
-};
-
 SceneFeatures detectSceneFeatures(const Scene& scene, const Camera& camera);
+
+class Renderer;
+
+// Probes into a renderer's inner state for tests and benchmarks, kept out of its API
+// (Renderer::diagnostics()). Valid while the renderer lives.
+class RendererDiagnostics {
+public:
+    explicit RendererDiagnostics(const Renderer& renderer) : r_(renderer) {}
+
+    // How often the renderer built its BVH and geometry buffers (1: only in create()).
+    uint64_t sceneBuildCount() const;
+    // How often it compiled its pipelines: 1 after create() where the constants it predicts
+    // before the BVH is built held, 2 where buildScene found otherwise.
+    uint64_t pipelineCompileCount() const;
+    // How often the GPU's origin moved since create() (Renderer::setCameraPose).
+    uint64_t recentreCount() const;
+    // The last photon iteration's records (two per photon, PV_PHOTON_* flags; empty slots have
+    // flags 0).
+    Result<std::vector<shader::PhotonRecord>> photonRecords() const;
+    // The last photon iteration's grid as the gather reads it: the records sorted by bucket,
+    // each bucket's [begin, end) in them (PV_PHOTON_BUCKETS), and the iteration's radius (the
+    // cell edge).
+    struct PhotonGrid {
+        std::vector<shader::PhotonRecord> sorted;
+        std::vector<glm::uvec2> buckets;
+        float radius = 0.0f;
+    };
+    Result<PhotonGrid> photonGrid() const;
+    // Dispatches whose loop iterations may have reached llvmpipe's limit (work silently lost);
+    // 0 unless respectCpuLoopLimit was turned off or one sample alone is too long.
+    uint64_t loopLimitRisks() const;
+    // The most loop iterations one invocation ran per sample (the dispatch sizing measure;
+    // measured on CPU devices only, 0 elsewhere).
+    double loopIterationsPerSample() const;
+
+private:
+    const Renderer& r_;
+};
 
 struct RenderProgress {
     uint64_t samplesDone;
@@ -172,9 +112,8 @@ public:
     }
     static constexpr double kRecentreGridM = 16.0;
     static constexpr double kRecentreDistanceM = 12.0;
-    // The world position of the GPU's coordinate origin, and how often it moved since create().
+    // The world position of the GPU's coordinate origin.
     glm::dvec3 renderOriginM() const { return renderOriginM_; }
-    uint64_t recentreCount() const { return recentres_; }
 
     // Live lighting: each fisheye snapshot replaces the environment and the estimated lights
     // without touching the scene's geometry or BVH. Like setCameraPose, they take effect with
@@ -188,11 +127,6 @@ public:
     // Replaces the estimated lights (the scene's own lights stay). A new count reallocates the
     // lights buffer; lights appearing or disappearing re-specialise the pipelines, as above.
     Status setEstimatedLights(std::span<const EstimatedLightSource> lights);
-    // How often this renderer built its BVH and geometry buffers (1: only in create()).
-    uint64_t sceneBuildCount() const { return sceneBuilds_; }
-    // How often this renderer compiled its pipelines: 1 after create() where the constants it
-    // predicts before the BVH is built held, 2 where buildScene found otherwise.
-    uint64_t pipelineCompileCount() const { return pipelineCompiles_; }
 
     // Whether renders run the photon pass (the settings' mode and the scene decide; estimated
     // lights can switch an Auto renderer on), its photons per iteration and the gather radius
@@ -201,23 +135,11 @@ public:
     uint32_t photonsPerIteration() const { return params_.photonCount; }
     float nextPhotonRadius() const;
     // The photons and gather radius of the last photon iteration rendered (a preview frame's
-    // budget and its radius, which differ from refinement's); 0 before any. photonRecords and
-    // photonGrid hold that iteration.
+    // budget and its radius, which differ from refinement's); 0 before any. The diagnostics'
+    // photonRecords and photonGrid hold that iteration.
     uint32_t lastPhotonCount() const { return lastPhotonCount_; }
     float lastPhotonRadius() const { return params_.photonRadius; }
     const PhotonAim& photonAim() const { return photonAim_; }
-    // The last photon iteration's records (two per photon, PV_PHOTON_* flags; empty slots have
-    // flags 0), for tests and benchmarks.
-    Result<std::vector<shader::PhotonRecord>> photonRecords() const;
-    // The last photon iteration's grid as the gather reads it, for tests: the records sorted by
-    // bucket, each bucket's [begin, end) in them (PV_PHOTON_BUCKETS), and the iteration's radius
-    // (the cell edge).
-    struct PhotonGrid {
-        std::vector<shader::PhotonRecord> sorted;
-        std::vector<glm::uvec2> buckets;
-        float radius = 0.0f;
-    };
-    Result<PhotonGrid> photonGrid() const;
     // GPU time of the photon passes so far (ms; part of gpuMilliseconds()).
     double photonMilliseconds() const { return photonMs_; }
 
@@ -230,7 +152,7 @@ public:
     uint32_t traceWidth() const { return params_.width; }
     uint32_t traceHeight() const { return params_.height; }
     // How image() brings a traced buffer to the output size (resolution scale < 1).
-    UpsampleSettings& upsampleSettings() { return upsample_; }
+    UpsampleSettings& upsampleSettings() { return film_->upsampleSettings(); }
 
     // The most scattering events on a path for the next renders (RenderSettings::maxDepth; the
     // preview can trace shorter paths than refinement). Call reset() before refining on.
@@ -259,43 +181,49 @@ public:
     // negative values are never composited: repairPlate (render/plate.h) replaces them, with
     // one warning naming `source` (the first time only: the service sets a plate every frame).
     // By value: a caller done with its plate moves it in.
-    Status setPlate(ImageF plate, std::string_view source = "plate");
+    Status setPlate(ImageF plate, std::string_view source = "plate") {
+        return film_->setPlate(std::move(plate), source);
+    }
     // Plate values setPlate has replaced so far (NaN/Inf and negative).
-    uint64_t plateValuesRepaired() const { return plateValuesRepaired_; }
+    uint64_t plateValuesRepaired() const { return film_->plateValuesRepaired(); }
     // The plate as repaired and kept; nullptr before the first setPlate.
-    const ImageF* plate() const { return plate_ ? &*plate_ : nullptr; }
+    const ImageF* plate() const { return film_->plate(); }
 
     // The mean per pixel so far (RGB linear; the mask one channel), at the output size. At a
     // resolution scale below 1 the traced means are upsampled (render/upsample.h; guided by the
     // plate when there is one); the composite upsamples its two plate-free terms of Eq. 1, the
     // mean of M·L_om + (1−M)(L_om − L_or) and the mask M, and adds (1 − M)·L_oc with the
     // full-resolution plate.
-    Result<ImageF> image(Aov aov = Aov::Composite) const;
+    Result<ImageF> image(Aov aov = Aov::Composite) const { return film_->image(traced(), aov); }
     // The convergence meter (render/convergence.h): the estimated relative RMSE of the
     // composite and of L_om − L_or so far, from the two interleaved replicates (none without
     // RenderSettings::convergenceMeter). One readback of the accumulation, as image() does.
-    Result<Convergence> convergence() const;
+    Result<Convergence> convergence() const { return film_->convergence(traced(), samples_); }
     // The same, denoised where `denoised` (needs RenderSettings::denoise): Composite, Mixed and
     // Real are filtered, the composite before Eq. 1 adds the plate term (1 − M)·L_oc, so the
     // camera image itself is never filtered; the other AOVs are returned as image(aov). At a
     // resolution scale below 1 the traced pixels are filtered, then upsampled as image() does.
-    Result<ImageF> image(Aov aov, bool denoised);
+    Result<ImageF> image(Aov aov, bool denoised) {
+        return film_->image(traced(), aov, denoised, denoiseCamera());
+    }
     // GPU time of the last denoised image()'s filter dispatches (ms).
     double denoiseMilliseconds() const {
-        return denoiser_ ? denoiser_->lastGpuMilliseconds() : 0.0;
+        return film_->denoiser() ? film_->denoiser()->lastGpuMilliseconds() : 0.0;
     }
     // The camera of the next render, for the denoiser's temporal reprojection
     // (Denoiser::applyTemporal).
     DenoiseCamera denoiseCamera() const { return {worldFromCameraM_, params_.tanHalfFov}; }
     // The denoiser (null without RenderSettings::denoise): its settings and temporal history.
-    Denoiser* denoiser() { return denoiser_ ? &*denoiser_ : nullptr; }
+    Denoiser* denoiser() { return film_->denoiser(); }
+    const Denoiser* denoiser() const { return film_->denoiser(); }
     // Denoised images accumulate the denoiser's temporal history (preview; Denoiser::
     // applyTemporal with denoiseCamera()); off: spatial only (Denoiser::apply). The history is
     // one signal's: denoise one AOV a frame while it is on (the composite), and reset it
     // (denoiser()->resetHistory()) on a mode switch or a scene change.
-    void setTemporalDenoise(bool on) { temporalDenoise_ = on; }
+    void setTemporalDenoise(bool on) { film_->setTemporalDenoise(on); }
 
     uint64_t samplesPerPixel() const { return samples_; }
+    RendererDiagnostics diagnostics() const { return RendererDiagnostics(*this); }
     const SceneFeatures& features() const { return features_; }
     const SceneBvh& bvh() const { return bvh_; }
     // GPU time of all dispatches so far (ms), and of the last one.
@@ -309,12 +237,6 @@ public:
     Result<shader::RenderStats> stats() const;
     // Rays traced since the last reset (closest-hit and shadow; wraps at 2^32).
     Result<uint32_t> raysTraced() const;
-    // Dispatches whose loop iterations may have reached llvmpipe's limit (work silently lost);
-    // 0 unless respectCpuLoopLimit was turned off or one sample alone is too long.
-    uint64_t loopLimitRisks() const { return loopLimitRisks_; }
-    // The most loop iterations one invocation ran per sample (the dispatch sizing measure;
-    // measured on CPU devices only, 0 elsewhere).
-    double loopIterationsPerSample() const { return loopIterationsPerSample_; }
     // The camera, its pose in world coordinates in float (worldFromCameraM() in double).
     const Camera& camera() const { return camera_; }
     const glm::dmat4& worldFromCameraM() const { return worldFromCameraM_; }
@@ -327,29 +249,9 @@ public:
     }
 
 private:
-    // Eq. 1 at a resolution scale below 1: `plateFree` (traced size; RGB the mean of
-    // M·L_om + (1−M)(L_om − L_or), A the mean mask) upsampled to the output, then
-    // (1 − M)·L_oc added with the full-resolution plate.
-    ImageF upsampleAndAddPlate(const ImageF& plateFree) const;
-    // The accumulation buffers read back: value(pixel, PV_ACCUM_*, channel) is the compensated
-    // sum in double.
-    struct Accumulation {
-        std::vector<glm::vec4> sum, compensation;
-        double value(size_t pixel, uint32_t slot, int channel) const {
-            const size_t at = pixel * PV_ACCUM_COUNT + slot;
-            return double(sum[at][channel]) - double(compensation[at][channel]);
-        }
-        // The samples of pixel i that count: those not dropped (NaN/Inf,
-        // stats().nonFiniteSamples), so a dropped sample neither darkens the pixel nor lets the
-        // plate through.
-        double count(size_t pixel) const { return value(pixel, PV_ACCUM_MIXED, 3); }
-        // The mean of a slot; 0 (mask 0: the plate) for a pixel without samples.
-        double mean(size_t pixel, uint32_t slot, int channel) const {
-            const double n = count(pixel);
-            return n > 0.0 ? value(pixel, slot, channel) / n : 0.0;
-        }
-    };
-    Result<Accumulation> readAccumulation() const;
+    friend class RendererDiagnostics;
+    // The accumulation as the film reads it.
+    TracedBuffers traced() const;
 
     Renderer() = default;
     // Everything of the scene but its BVH, which `bvh` (built from `g`, the scene's geometry
@@ -378,7 +280,6 @@ private:
     // The accumulation's part for the band of rows from `firstRow` (bandRows_ rows, fewer at
     // the bottom); the other bindings whole.
     std::vector<BufferRange> accumulationBand(uint32_t firstRow) const;
-    Result<std::vector<glm::vec4>> guides() const;
     uint32_t samplesForNextDispatch(uint32_t remaining) const;
     // Moves the GPU's origin to `originM` (world): re-uploads vertices, BVH boxes, lights.
     Status recentre(const glm::dvec3& originM);
@@ -413,9 +314,6 @@ private:
     uint64_t recentres_ = 0;
     uint64_t sceneBuilds_ = 0;
     uint64_t pipelineCompiles_ = 0;
-    UpsampleSettings upsample_;
-    std::optional<ImageF> plate_;
-    uint64_t plateValuesRepaired_ = 0;
     uint64_t samples_ = 0;
     uint32_t bandRows_ = 0;  // rows per dispatch: the storage-buffer range limits it
     // The accumulation's interleaved sequences (shared/sampler.h): 2 with the convergence meter,
@@ -435,8 +333,9 @@ private:
     std::optional<PhotonPasses> photonPasses_;
     double photonMs_ = 0.0;
     uint32_t lastPhotonCount_ = 0;  // params_.photonCount is refinement's again after a preview
-    std::optional<Denoiser> denoiser_;
-    bool temporalDenoise_ = false;
+    // Means, AOVs, Eq. 1, upsampling, the denoiser and the meter (render/film.h); optional only
+    // so that create() can make it once the traced size is known.
+    std::optional<Film> film_;
 };
 
 }  // namespace previs

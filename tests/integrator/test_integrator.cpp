@@ -328,8 +328,9 @@ TEST_F(IntegratorTest, DispatchesStayInsideTheCpuDeviceLoopLimit) {
     auto sized = renderWith(1024, true);
     // Only the summation order differs (compensated sums of values near 1).
     EXPECT_LT(worstDifference(*sized, *reference), 1e-6f);
-    EXPECT_EQ(sized->loopLimitRisks(), 0u);
-    RecordProperty("loopIterationsPerSample", std::to_string(sized->loopIterationsPerSample()));
+    EXPECT_EQ(sized->diagnostics().loopLimitRisks(), 0u);
+    RecordProperty("loopIterationsPerSample",
+                   std::to_string(sized->diagnostics().loopIterationsPerSample()));
     if (!ctx().isCpuDevice()) GTEST_SKIP() << "the loop limit is llvmpipe's";
 
     auto unsized = renderWith(1024, false);
@@ -343,9 +344,9 @@ TEST_F(IntegratorTest, DispatchesStayInsideTheCpuDeviceLoopLimit) {
     std::printf(
         "%.0f loop iterations per sample; unsized 1024-sample dispatches: worst error "
         "%.3g, fewest samples in a pixel %.0f of %u\n",
-        sized->loopIterationsPerSample(), lost, fewest, spp);
+        sized->diagnostics().loopIterationsPerSample(), lost, fewest, spp);
     EXPECT_LT(fewest, float(spp)) << "llvmpipe no longer cuts long loops? (then the guard can go)";
-    EXPECT_GT(unsized->loopLimitRisks(), 0u);
+    EXPECT_GT(unsized->diagnostics().loopLimitRisks(), 0u);
     Result<ImageF> sizedCounts = sized->image(Aov::SampleCount);
     ASSERT_TRUE(sizedCounts.ok());
     for (float n : sizedCounts->pixels) ASSERT_EQ(n, float(spp));

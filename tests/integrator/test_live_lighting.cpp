@@ -135,7 +135,7 @@ TEST_F(LiveLightingTest, EnvironmentSwitchMatchesFreshRenderer) {
         EXPECT_TRUE(identical(switched, frame(*fresh, kSpp))) << "map width " << width;
         EXPECT_FALSE(identical(switched, first)) << "the new map changed nothing";
     }
-    EXPECT_EQ(live->sceneBuildCount(), 1u);
+    EXPECT_EQ(live->diagnostics().sceneBuildCount(), 1u);
     EXPECT_EQ(live->bvh().nodes.data(), nodes);
 }
 
@@ -165,7 +165,7 @@ TEST_F(LiveLightingTest, EstimatedLightSwitchMatchesFreshRenderer) {
         EXPECT_TRUE(identical(switched, frame(*fresh, kSpp)));
         EXPECT_FALSE(identical(switched, withA));
     }
-    EXPECT_EQ(live->sceneBuildCount(), 1u);
+    EXPECT_EQ(live->diagnostics().sceneBuildCount(), 1u);
 }
 
 // (2) An environment or lights appearing re-specialise the pipeline: the result is the fresh
@@ -195,7 +195,7 @@ TEST_F(LiveLightingTest, LightingAppearingMatchesFreshRenderer) {
     ASSERT_TRUE(fresher->setEstimatedLights(lightsA()).ok());
     std::vector<float> liveFrame = frame(*live, kSpp);
     EXPECT_TRUE(identical(liveFrame, frame(*fresher, kSpp)));
-    EXPECT_EQ(live->sceneBuildCount(), 1u);
+    EXPECT_EQ(live->diagnostics().sceneBuildCount(), 1u);
 }
 
 // (3) Removing them gives the renderer that never had them (and its pipeline runs none of it).
@@ -219,7 +219,7 @@ TEST_F(LiveLightingTest, LightingRemovedMatchesFreshRenderer) {
     // An empty map removes it too.
     ASSERT_TRUE(live->setEnvironment(std::make_shared<const EnvironmentMap>()).ok());
     EXPECT_TRUE(identical(frame(*live, kSpp), removed));
-    EXPECT_EQ(live->sceneBuildCount(), 1u);
+    EXPECT_EQ(live->diagnostics().sceneBuildCount(), 1u);
 }
 
 TEST_F(LiveLightingTest, RejectsBadInputWithoutChangingTheRender) {
@@ -273,7 +273,7 @@ TEST_F(LiveLightingTest, CameraPoseChangeMatchesFreshRenderer) {
     ASSERT_TRUE(fresh);
     EXPECT_TRUE(identical(after, frame(*fresh, kSpp)));
     EXPECT_FALSE(identical(after, first));
-    EXPECT_EQ(live->sceneBuildCount(), 1u);
+    EXPECT_EQ(live->diagnostics().sceneBuildCount(), 1u);
 }
 
 // A large diffuse floor seen from straight above: every pixel shows the floor's centre region,
@@ -440,7 +440,7 @@ TEST_F(LiveLightingTest, SetEnvironmentCostAgainstCreate) {
     std::printf("512x256 map: setEnvironment %.2f ms, Renderer::create %.2f ms\n", setMs, createMs);
     RecordProperty("setEnvironmentMs", std::to_string(setMs));
     RecordProperty("createMs", std::to_string(createMs));
-    EXPECT_EQ(r->sceneBuildCount(), 1u);
+    EXPECT_EQ(r->diagnostics().sceneBuildCount(), 1u);
 }
 
 }  // namespace

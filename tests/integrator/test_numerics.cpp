@@ -139,7 +139,8 @@ TEST_F(NumericsTest, NanRaysAreCulledCountedAndDropped) {
         const size_t nodes = (*r)->bvh().wideNodes.size();
         ASSERT_GT(nodes, size_t(100));
         const double fixedLoops = 2.0 * PV_ACCUM_COUNT;
-        EXPECT_LT((*r)->loopIterationsPerSample(), fixedLoops + 10.0) << nodes << " BVH nodes";
+        EXPECT_LT((*r)->diagnostics().loopIterationsPerSample(), fixedLoops + 10.0)
+            << nodes << " BVH nodes";
     }
 }
 
@@ -505,13 +506,13 @@ TEST_F(ScaleTest, RecentresOnlyWhenTheCameraMovesFar) {
         (*r)->setCameraPose(glm::translate(glm::dmat4(1.0), glm::dvec3(step, 0, 0)) * start);
         ASSERT_TRUE((*r)->renderPreviewFrame(1));
     }
-    EXPECT_EQ((*r)->recentreCount(), 0u);
+    EXPECT_EQ((*r)->diagnostics().recentreCount(), 0u);
     // 30 m back along the view (the set stays in view), then render as a fresh renderer would.
     const glm::dmat4 moved = start * glm::translate(glm::dmat4(1.0), glm::dvec3(0, 0, 30));
     (*r)->setCameraPose(moved);
     ASSERT_TRUE((*r)->reset());
     ASSERT_TRUE((*r)->render(kSpp));
-    EXPECT_EQ((*r)->recentreCount(), 1u);
+    EXPECT_EQ((*r)->diagnostics().recentreCount(), 1u);
     auto image = (*r)->image();
     ASSERT_TRUE(image);
     Scene at = scene;

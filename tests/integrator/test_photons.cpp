@@ -121,7 +121,7 @@ TEST_F(PhotonTest, GlassBallDepositsTheFluxItIntercepts) {
     size_t stored = 0;
     for (int i = 0; i < iterations; ++i) {
         ASSERT_TRUE(r.render(1).ok());
-        auto records = r.photonRecords();
+        auto records = r.diagnostics().photonRecords();
         ASSERT_TRUE(records.ok()) << records.message();
         perIteration.push_back(depositedPower(*records, PV_PHOTON_IN_MIXED));
         level2Ratio.push_back(depositedPower(*records, PV_PHOTON_IN_MIXED, true) /
@@ -174,7 +174,7 @@ TEST_F(PhotonTest, RefractedFluxIsNotScaledByEtaSquared) {
     std::vector<double> perIteration;
     for (int i = 0; i < 16; ++i) {
         ASSERT_TRUE((*renderer)->render(1).ok());
-        auto records = (*renderer)->photonRecords();
+        auto records = (*renderer)->diagnostics().photonRecords();
         ASSERT_TRUE(records.ok());
         perIteration.push_back(depositedPower(*records, PV_PHOTON_IN_MIXED));
     }
@@ -292,7 +292,7 @@ TEST_F(CausticAgreementTest, PhotonsPlusPathsEqualPathTracing) {
     ASSERT_TRUE(r.ok());
     ASSERT_TRUE((*r)->photonsActive());
     ASSERT_TRUE((*r)->render(1).ok());
-    auto records = (*r)->photonRecords();
+    auto records = (*r)->diagnostics().photonRecords();
     ASSERT_TRUE(records.ok());
     EXPECT_GT(depositedPower(*records, PV_PHOTON_IN_MIXED), 0.1);
 }
@@ -504,7 +504,7 @@ TEST_F(PhotonTest, NoVirtualObjectOnTheirPathGivesZeroDifferenceBitForBit) {
     std::unique_ptr<Renderer> renderer = differentialPhotonRenderer(scene, 8);
     ASSERT_TRUE(renderer);
     Renderer& r = *renderer;
-    auto records = r.photonRecords();
+    auto records = r.diagnostics().photonRecords();
     ASSERT_TRUE(records.ok());
     size_t both = 0, one = 0;
     for (const auto& rec : *records) {
@@ -546,7 +546,7 @@ TEST_F(PhotonTest, HostSpecialisationMatchesTheDrivers) {
         ASSERT_TRUE(renderer.ok()) << renderer.message();
         ASSERT_TRUE((*renderer)->photonsActive());
         ASSERT_TRUE((*renderer)->render(4).ok());
-        auto stored = (*renderer)->photonRecords();
+        auto stored = (*renderer)->diagnostics().photonRecords();
         ASSERT_TRUE(stored.ok());
         for (const auto& rec : *stored) records[m] += rec.flags != 0;
         int a = 0;
@@ -574,9 +574,9 @@ TEST_F(PhotonTest, HostSpecialisationMatchesTheDrivers) {
 TEST_F(PhotonTest, GridHoldsEachStoredRecordOnceInItsBucketInPhotonOrder) {
     auto r = differentialPhotonRenderer(glassBallInAWhiteRoom(false), 2);
     ASSERT_TRUE(r);
-    auto records = r->photonRecords();
+    auto records = r->diagnostics().photonRecords();
     ASSERT_TRUE(records.ok()) << records.message();
-    auto grid = r->photonGrid();
+    auto grid = r->diagnostics().photonGrid();
     ASSERT_TRUE(grid.ok()) << grid.message();
     // Trace order of each stored record, by its bits (position, power and direction make it
     // unique among one iteration's records).
@@ -634,7 +634,7 @@ TEST_F(PhotonTest, VirtualGlassBallCausticIsMixedOnly) {
         lookAt(glm::vec3(0, 1.0f, 1.5f), glm::vec3(0, 0.1f, 0), glm::vec3(0, 1, 0), 1.0f));
     std::unique_ptr<Renderer> renderer = differentialPhotonRenderer(scene, 2);
     ASSERT_TRUE(renderer);
-    auto records = renderer->photonRecords();
+    auto records = renderer->diagnostics().photonRecords();
     ASSERT_TRUE(records.ok());
     size_t mixedOnly = 0, withReal = 0;
     for (const auto& rec : *records) {
@@ -842,7 +842,8 @@ TEST_F(CausticAgreementTest, TheDefaultFirstRadiusFollowsThePhotonsPerIteration)
     ASSERT_TRUE((*r)->renderPreviewFrame(1).ok());
     EXPECT_EQ((*r)->lastPhotonCount(), 4096u);
     EXPECT_FLOAT_EQ((*r)->lastPhotonRadius(), defaultPhotonRadius(aim, 4096));
-    auto previewRecords = (*r)->photonRecords();  // the preview iteration's, not refinement's
+    auto previewRecords =
+        (*r)->diagnostics().photonRecords();  // the preview iteration's, not refinement's
     ASSERT_TRUE(previewRecords.ok());
     EXPECT_EQ(previewRecords->size(), size_t(PV_PHOTON_RECORDS_PER_PHOTON) * 4096u);
     ASSERT_TRUE((*r)->reset().ok());
@@ -1037,22 +1038,22 @@ TEST_F(PhotonTest, OnlyScenesWithACausticRunPhotons) {
     // create() compiles the pipelines once, for the photon switch it predicts from the scene
     // before buildScene confirms it (renderer.cpp); the sun changes the switch: once more.
     for (const auto* r : {&plain, &plainOff, &on, &off, &dark})
-        EXPECT_EQ((**r)->pipelineCompileCount(), 1u);
+        EXPECT_EQ((**r)->diagnostics().pipelineCompileCount(), 1u);
     ASSERT_TRUE((*dark)->setEstimatedLights(std::span(&sun, 1)).ok());
     EXPECT_TRUE((*dark)->photonsActive());
     // With the rest of a lighting snapshot, its environment: the features change twice, the
     // pipelines compile once, when the next render needs them.
     auto sky = std::make_shared<const EnvironmentMap>(uniformEnvironment(glm::vec3(0.5f)));
     ASSERT_TRUE((*dark)->setEnvironment(sky).ok());
-    EXPECT_EQ((*dark)->pipelineCompileCount(), 1u);
+    EXPECT_EQ((*dark)->diagnostics().pipelineCompileCount(), 1u);
     ASSERT_TRUE((*dark)->render(1).ok());
-    EXPECT_EQ((*dark)->pipelineCompileCount(), 2u);
+    EXPECT_EQ((*dark)->diagnostics().pipelineCompileCount(), 2u);
     // The next snapshot keeps the features: its buffers are bound, nothing compiles.
     sun.radiance = glm::vec3(2e4f);
     ASSERT_TRUE((*dark)->setEstimatedLights(std::span(&sun, 1)).ok());
     ASSERT_TRUE((*dark)->setEnvironment(sky).ok());
     ASSERT_TRUE((*dark)->render(1).ok());
-    EXPECT_EQ((*dark)->pipelineCompileCount(), 2u);
+    EXPECT_EQ((*dark)->diagnostics().pipelineCompileCount(), 2u);
 
     // A prediction buildScene refutes: the only light is an emitter of zero area, so no photon
     // leaves it. The pipelines are compiled again without photons and the render is the unlit
@@ -1066,7 +1067,7 @@ TEST_F(PhotonTest, OnlyScenesWithACausticRunPhotons) {
     auto refuted = Renderer::create(ctx(), degenerate, photonSettings(8, 8, PhotonMode::Auto));
     ASSERT_TRUE(refuted.ok()) << refuted.message();
     EXPECT_FALSE((*refuted)->photonsActive());
-    EXPECT_EQ((*refuted)->pipelineCompileCount(), 2u);
+    EXPECT_EQ((*refuted)->diagnostics().pipelineCompileCount(), 2u);
     ASSERT_TRUE((*refuted)->render(1).ok());
     auto black = (*refuted)->image(Aov::Mixed);
     ASSERT_TRUE(black.ok());

@@ -1,0 +1,272 @@
+#include "render/film.h"
+
+#include <algorithm>
+#include <utility>
+
+#include "base/log.h"
+#include "render/plate.h"
+#include "shared/denoise.h"
+#include "shared/scene_types.h"
+
+namespace previs {
+
+namespace {
+
+// A pixel's own variance needs a few samples (SVGF switches to its spatial estimate below 4
+// frames of history); below that the denoiser estimates it from the neighbourhood.
+constexpr double kMinSamplesForVariance = 4.0;
+
+// The accumulation slot an AOV's colour is the mean of (the composite's plate-free part where a
+// plate is composited, else the mixed scene). Also its luminance moment's component in
+// PV_GUIDE_MOMENTS.
+uint32_t colourSlot(Aov aov, bool withPlate) {
+    if (aov == Aov::Real) return PV_ACCUM_REAL;
+    if (aov == Aov::Mixed || !withPlate) return PV_ACCUM_MIXED;
+    return PV_ACCUM_COMPOSITE;
+}
+
+ImageF blankImage(uint32_t width, uint32_t height, int channels) {
+    ImageF img;
+    img.width = width;
+    img.height = height;
+    img.channels = channels;
+    img.pixels.resize(size_t(width) * height * channels);
+    return img;
+}
+
+}  // namespace
+
+double Film::Accumulation::value(size_t pixel, uint32_t slot, int channel) const {
+    const size_t at = pixel * PV_ACCUM_COUNT + slot;
+    return double(sum[at][channel]) - double(compensation[at][channel]);
+}
+
+double Film::Accumulation::count(size_t pixel) const { return value(pixel, PV_ACCUM_MIXED, 3); }
+
+double Film::Accumulation::mean(size_t pixel, uint32_t slot, int channel) const {
+    const double n = count(pixel);
+    return n > 0.0 ? value(pixel, slot, channel) / n : 0.0;
+}
+
+Result<Film> Film::create(GpuContext& ctx, const RenderSettings& settings, uint32_t traceWidth,
+                          uint32_t traceHeight) {
+    Film film;
+    film.ctx_ = &ctx;
+    film.width_ = settings.width;
+    film.height_ = settings.height;
+    film.differential_ = settings.differential;
+    if (settings.denoise) {
+        auto denoiser = Denoiser::create(ctx, traceWidth, traceHeight, settings.denoiseSettings);
+        if (!denoiser) return denoiser.error();
+        film.denoiser_.emplace(std::move(denoiser.value()));
+    }
+    return film;
+}
+
+Status Film::setPlate(ImageF plate, std::string_view source) {
+    if (plate.width != width_ || plate.height != height_ || plate.channels < 3)
+        return makeError(
+            "the plate is {}x{} with {} channel(s); the render is {}x{} and needs "
+            "RGB (render at the plate's resolution)",
+            plate.width, plate.height, plate.channels, width_, height_);
+    const PlateRepair repair = repairPlate(plate);
+    if (repair.total() > 0 && plateValuesRepaired_ == 0)
+        logWarning(
+            "{}: {} NaN/infinite value(s) replaced by their finite neighbours' mean (0 "
+            "where there is none) and {} negative value(s) by 0; they are never "
+            "composited (docs/plates.md)",
+            source, repair.nonFinite, repair.negative);
+    plateValuesRepaired_ += repair.total();
+    plate_ = std::move(plate);
+    return {};
+}
+
+Result<Film::Accumulation> Film::readAccumulation(const TracedBuffers& traced) {
+    const size_t values = size_t(traced.width) * traced.height * PV_ACCUM_COUNT;
+    Accumulation a;
+    a.sum.resize(values);
+    a.compensation.resize(values);
+    const size_t bytes = values * sizeof(glm::vec4);
+    if (Status s = traced.sum->download(a.sum.data(), bytes); !s) return s.error();
+    if (Status s = traced.compensation->download(a.compensation.data(), bytes); !s)
+        return s.error();
+    return a;
+}
+
+Result<std::vector<glm::vec4>> Film::readGuides(const TracedBuffers& traced) {
+    if (!traced.guides)
+        return makeError(
+            "the denoiser's guides (albedo, normal, depth) exist only in a renderer created with "
+            "denoising on");
+    std::vector<glm::vec4> g(size_t(traced.width) * traced.height * PV_GUIDE_COUNT);
+    if (Status s = traced.guides->download(g.data(), g.size() * sizeof(glm::vec4)); !s)
+        return s.error();
+    return g;
+}
+
+size_t Film::platePixelOf(const TracedBuffers& traced, size_t i) const {
+    const size_t x =
+        (i % traced.width) * width_ / traced.width + width_ / (2 * size_t(traced.width));
+    const size_t y =
+        (i / traced.width) * height_ / traced.height + height_ / (2 * size_t(traced.height));
+    return std::min(y, size_t(height_) - 1) * width_ + std::min(x, size_t(width_) - 1);
+}
+
+ImageF Film::upsample(const ImageF& traced) const {
+    if (traced.width == width_ && traced.height == height_) return traced;
+    return jointBilateralUpsample(traced, width_, height_, plate(), upsample_);
+}
+
+ImageF Film::compositeOverPlate(const ImageF& plateFree) const {
+    // At a fraction of the output the plate-free terms are upsampled first; the plate term is
+    // added at full resolution, so the plate is never resampled.
+    const ImageF up = upsample(plateFree);
+    ImageF out = blankImage(width_, height_, 3);
+    for (size_t i = 0; i < size_t(width_) * height_; ++i) {
+        const double mask = up.pixels[i * 4 + 3];
+        for (int c = 0; c < 3; ++c)
+            out.pixels[i * 3 + c] = float(compositeSum(up.pixels[i * 4 + c], mask, 1.0,
+                                                       plate_->pixels[i * plate_->channels + c]));
+    }
+    return out;
+}
+
+Result<ImageF> Film::guideImage(const TracedBuffers& traced, Aov aov) const {
+    auto g = readGuides(traced);
+    if (!g) return g.error();
+    const bool depth = aov == Aov::Depth;
+    ImageF img = blankImage(traced.width, traced.height, depth ? 1 : 3);
+    const uint32_t slot = aov == Aov::Normal ? PV_GUIDE_NORMAL : PV_GUIDE_ALBEDO_DEPTH;
+    for (size_t i = 0; i < size_t(traced.width) * traced.height; ++i) {
+        const glm::vec4& v = (*g)[i * PV_GUIDE_COUNT + slot];
+        if (depth)
+            img.pixels[i] = v.w;
+        else
+            for (int c = 0; c < 3; ++c) img.pixels[i * 3 + c] = v[c];
+    }
+    return upsample(img);
+}
+
+Result<ImageF> Film::image(const TracedBuffers& traced, Aov aov) const {
+    if (aov == Aov::Albedo || aov == Aov::Normal || aov == Aov::Depth)
+        return guideImage(traced, aov);
+    Result<Accumulation> read = readAccumulation(traced);
+    if (!read) return read.error();
+    const Accumulation& a = *read;
+    const size_t pixels = size_t(traced.width) * traced.height;
+    if (compositesPlate(aov)) {
+        // The means of Eq. 1's plate-free part and of the mask; compositeOverPlate adds the plate.
+        ImageF plateFree = blankImage(traced.width, traced.height, 4);
+        for (size_t i = 0; i < pixels; ++i)
+            for (int c = 0; c < 4; ++c)
+                plateFree.pixels[i * 4 + c] = float(a.mean(i, PV_ACCUM_COMPOSITE, c));
+        return compositeOverPlate(plateFree);
+    }
+    const bool single = aov == Aov::Mask || aov == Aov::SampleCount;
+    ImageF img = blankImage(traced.width, traced.height, single ? 1 : 3);
+    const uint32_t k = colourSlot(aov, false);
+    for (size_t i = 0; i < pixels; ++i) {
+        if (aov == Aov::Mask)
+            img.pixels[i] = float(a.mean(i, PV_ACCUM_COMPOSITE, 3));
+        else if (aov == Aov::SampleCount)
+            img.pixels[i] = float(a.count(i));
+        else
+            for (int c = 0; c < 3; ++c) img.pixels[i * 3 + c] = float(a.mean(i, k, c));
+    }
+    return upsample(img);
+}
+
+Result<ImageF> Film::image(const TracedBuffers& traced, Aov aov, bool denoised,
+                           const DenoiseCamera& camera) {
+    if (!denoised || !(aov == Aov::Composite || aov == Aov::Mixed || aov == Aov::Real))
+        return image(traced, aov);
+    if (!denoiser_)
+        return makeError(
+            "a denoised image needs a renderer created with denoising on (--denoise on|auto)");
+    // At a resolution scale below 1 the filter runs on the traced pixels, before upsampling
+    // (the guides are traced there too), so it costs scale² of a full-size filter.
+    if (denoiser_->width() != traced.width || denoiser_->height() != traced.height) {
+        auto resized = Denoiser::create(*ctx_, traced.width, traced.height, denoiser_->settings());
+        if (!resized) return resized.error();
+        denoiser_.emplace(std::move(resized.value()));
+    }
+    auto m = readAccumulation(traced);
+    if (!m) return m.error();
+    auto g = readGuides(traced);
+    if (!g) return g.error();
+    const size_t pixels = size_t(traced.width) * traced.height;
+    const bool withPlate = compositesPlate(aov);
+    // The signal the filter sees: the composite without its plate term, L_om or L_or.
+    const uint32_t k = colourSlot(aov, withPlate);
+    ImageF signal = blankImage(traced.width, traced.height, 3);
+    std::vector<float> variance(pixels);
+    for (size_t i = 0; i < pixels; ++i) {
+        glm::dvec3 mean(0.0);
+        for (int c = 0; c < 3; ++c) {
+            mean[c] = m->mean(i, k, c);
+            signal.pixels[i * 3 + c] = float(mean[c]);
+        }
+        const double n = m->count(i);
+        const double y = glm::dot(mean, glm::dvec3(0.2126, 0.7152, 0.0722));  // luminance()
+        const double y2 = (*g)[i * PV_GUIDE_COUNT + PV_GUIDE_MOMENTS][k];
+        // The variance of the mean: the samples' unbiased variance over n.
+        variance[i] =
+            n >= kMinSamplesForVariance ? float(std::max(0.0, y2 - y * y) / (n - 1.0)) : -1.0f;
+    }
+    auto filtered = temporalDenoise_ ? denoiser_->applyTemporal(signal, *g, variance, camera)
+                                     : denoiser_->apply(signal, *g, variance);
+    if (!filtered) return filtered.error();
+    if (!withPlate) return upsample(*filtered);
+    // Eq. 1's plate weight 1 − M with the M the filtered signal goes with: after the temporal
+    // stage the integrated one (a silhouette's M from one frame's few samples would not average).
+    const std::span<const float> mask = denoiser_->mask();
+    ImageF plateFree = blankImage(traced.width, traced.height, 4);
+    for (size_t i = 0; i < pixels; ++i) {
+        for (int c = 0; c < 3; ++c) plateFree.pixels[i * 4 + c] = filtered->pixels[i * 3 + c];
+        plateFree.pixels[i * 4 + 3] =
+            temporalDenoise_ ? mask[i] : float(m->mean(i, PV_ACCUM_COMPOSITE, 3));
+    }
+    return compositeOverPlate(plateFree);
+}
+
+Result<Convergence> Film::convergence(const TracedBuffers& traced, uint64_t samplesPerPixel) const {
+    Result<Accumulation> read = readAccumulation(traced);
+    if (!read) return read.error();
+    const Accumulation& a = *read;
+    // At a resolution scale below 1 the meter measures the traced pixels, each with the plate
+    // pixel at its centre (the upsampled image is smoother: this errs high).
+    const size_t pixels = size_t(traced.width) * traced.height;
+    const bool withPlate = compositesPlate(Aov::Composite);
+    std::vector<MeterPixel> composite(pixels), differential(pixels);
+    for (size_t i = 0; i < pixels; ++i) {
+        // Slot `k` of all samples and of replicate 1's.
+        auto total = [&](uint32_t k, int c) { return a.value(i, k, c); };
+        auto half = [&](uint32_t k, int c) { return a.value(i, PV_ACCUM_REPLICATE_1 + k, c); };
+        MeterPixel& mp = composite[i];
+        MeterPixel& d = differential[i];
+        mp.count = d.count = total(PV_ACCUM_MIXED, 3);
+        mp.halfCount = d.halfCount = half(PV_ACCUM_MIXED, 3);
+        for (int c = 0; c < 3; ++c) {
+            if (withPlate) {
+                const double plate = plate_->pixels[platePixelOf(traced, i) * plate_->channels + c];
+                mp.sum[c] = compositeSum(total(PV_ACCUM_COMPOSITE, c), total(PV_ACCUM_COMPOSITE, 3),
+                                         mp.count, plate);
+                mp.halfSum[c] = compositeSum(half(PV_ACCUM_COMPOSITE, c),
+                                             half(PV_ACCUM_COMPOSITE, 3), mp.halfCount, plate);
+            } else {
+                // What image(Aov::Composite) shows without a plate: the mixed scene.
+                mp.sum[c] = total(PV_ACCUM_MIXED, c);
+                mp.halfSum[c] = half(PV_ACCUM_MIXED, c);
+            }
+            d.sum[c] = total(PV_ACCUM_MIXED, c) - total(PV_ACCUM_REAL, c);
+            d.halfSum[c] = half(PV_ACCUM_MIXED, c) - half(PV_ACCUM_REAL, c);
+        }
+    }
+    Convergence out;
+    out.composite = estimateNoise(composite);
+    out.differential = estimateNoise(differential);
+    out.samplesPerPixel = samplesPerPixel;
+    return out;
+}
+
+}  // namespace previs

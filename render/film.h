@@ -1,0 +1,108 @@
+#pragma once
+
+// The film (pbrt-v4's term): what the path tracer's accumulation becomes as images. It reads the
+// traced sums back, takes their means per pixel, composites them with the camera image (Eq. 1 of
+// Kán & Kaufmann, written once: compositeSum), upsamples a fraction-size trace to the output,
+// runs the denoiser on the differential signal and the convergence meter. The renderer owns one;
+// the path tracer writes the buffers it reads (TracedBuffers).
+
+#include <cstdint>
+#include <glm/glm.hpp>
+#include <optional>
+#include <span>
+#include <string_view>
+#include <vector>
+
+#include "base/result.h"
+#include "gpu/buffer.h"
+#include "gpu/context.h"
+#include "image/image.h"
+#include "render/convergence.h"
+#include "render/denoiser.h"
+#include "render/render_settings.h"
+#include "render/upsample.h"
+
+namespace previs {
+
+// Eq. 1 summed over n samples of a pixel: Σ[M·L_om + (1−M)(L_om − L_or)] (the plate-free sum the
+// path tracer accumulates) plus (n − ΣM)·L_oc. With n = 1 and means it is the composite's mean;
+// where no sample met a virtual object (both sums 0) it is n·L_oc, the plate bit for bit.
+inline double compositeSum(double plateFreeSum, double maskSum, double samples, double plate) {
+    return plateFreeSum + (samples - maskSum) * plate;
+}
+
+// The accumulation the path tracer wrote (read-only views of the renderer's buffers): the
+// compensated sums (PV_ACCUM_* slots per pixel), the denoiser's guides (null without them) and
+// the traced size.
+struct TracedBuffers {
+    const GpuBuffer* sum = nullptr;
+    const GpuBuffer* compensation = nullptr;
+    const GpuBuffer* guides = nullptr;
+    uint32_t width = 0;
+    uint32_t height = 0;
+};
+
+class Film {
+public:
+    // Output size and what is composited from the settings; the denoiser (settings.denoise)
+    // created at the traced size, so its settings are checked before the first frame.
+    static Result<Film> create(GpuContext& ctx, const RenderSettings& settings, uint32_t traceWidth,
+                               uint32_t traceHeight);
+
+    // The camera image L_oc in linear radiance at the output size. NaN, Inf and negative values
+    // are never composited: repairPlate (render/plate.h) replaces them, with one warning naming
+    // `source` (the first time only: the service sets a plate every frame).
+    Status setPlate(ImageF plate, std::string_view source);
+    const ImageF* plate() const { return plate_ ? &*plate_ : nullptr; }
+    uint64_t plateValuesRepaired() const { return plateValuesRepaired_; }
+    UpsampleSettings& upsampleSettings() { return upsample_; }
+
+    // Renderer::image's two forms and Renderer::convergence (render/renderer.h says what each
+    // returns).
+    Result<ImageF> image(const TracedBuffers& traced, Aov aov) const;
+    // `camera`: this frame's, for the temporal stage's reprojection.
+    Result<ImageF> image(const TracedBuffers& traced, Aov aov, bool denoised,
+                         const DenoiseCamera& camera);
+    Result<Convergence> convergence(const TracedBuffers& traced, uint64_t samplesPerPixel) const;
+
+    Denoiser* denoiser() { return denoiser_ ? &*denoiser_ : nullptr; }
+    const Denoiser* denoiser() const { return denoiser_ ? &*denoiser_ : nullptr; }
+    void setTemporalDenoise(bool on) { temporalDenoise_ = on; }
+
+private:
+    // The sums read back: value(pixel, PV_ACCUM_*, channel) is the compensated sum in double.
+    struct Accumulation {
+        std::vector<glm::vec4> sum, compensation;
+        double value(size_t pixel, uint32_t slot, int channel) const;
+        // The samples of pixel i that count: those not dropped (NaN/Inf,
+        // RenderStats::nonFiniteSamples), so a dropped sample neither darkens the pixel nor lets
+        // the plate through.
+        double count(size_t pixel) const;
+        // The mean of a slot; 0 (mask 0: the plate) for a pixel without samples.
+        double mean(size_t pixel, uint32_t slot, int channel) const;
+    };
+    static Result<Accumulation> readAccumulation(const TracedBuffers& traced);
+    static Result<std::vector<glm::vec4>> readGuides(const TracedBuffers& traced);
+    Result<ImageF> guideImage(const TracedBuffers& traced, Aov aov) const;
+    // The plate's pixel at the centre of traced pixel i (the meter at a fraction-size trace).
+    size_t platePixelOf(const TracedBuffers& traced, size_t i) const;
+    bool compositesPlate(Aov aov) const { return aov == Aov::Composite && plate_ && differential_; }
+    // Brings a traced-size image to the output size (guided by the plate where there is one).
+    ImageF upsample(const ImageF& traced) const;
+    // Eq. 1 at the output size from `plateFree` (RGB the mean of M·L_om + (1−M)(L_om − L_or), A
+    // the mask M), upsampled first when it is traced at a fraction of the output.
+    ImageF compositeOverPlate(const ImageF& plateFree) const;
+
+    Film() = default;
+    GpuContext* ctx_ = nullptr;
+    uint32_t width_ = 0;  // the output's
+    uint32_t height_ = 0;
+    bool differential_ = false;
+    std::optional<ImageF> plate_;
+    uint64_t plateValuesRepaired_ = 0;
+    UpsampleSettings upsample_;
+    std::optional<Denoiser> denoiser_;
+    bool temporalDenoise_ = false;
+};
+
+}  // namespace previs
