@@ -1,5 +1,6 @@
 #include "gpu/buffer.h"
 
+#include <atomic>
 #include <cstring>
 
 namespace previs {
@@ -33,9 +34,11 @@ Staging makeStaging(GpuContext& ctx, size_t bytes) {
 }  // namespace
 
 Result<GpuBuffer> GpuBuffer::create(GpuContext& ctx, size_t sizeBytes, const char* label) {
+    static std::atomic<uint64_t> nextId{1};
     GpuBuffer b;
     b.ctx_ = &ctx;
     b.size_ = sizeBytes;
+    b.id_ = nextId.fetch_add(1, std::memory_order_relaxed);
     try {
         size_t allocSize = std::max<size_t>(sizeBytes, 16);
         b.buffer_ = vk::raii::Buffer(ctx.device(), vk::BufferCreateInfo({}, allocSize, kUsage));

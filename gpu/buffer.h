@@ -5,6 +5,7 @@
 // temporary staging buffer.
 
 #include <cstddef>
+#include <cstdint>
 #include <span>
 #include <vector>
 #include <vulkan/vulkan_raii.hpp>
@@ -36,6 +37,10 @@ public:
 
     vk::Buffer handle() const { return *buffer_; }
     size_t size() const { return size_; }
+    // Unique to this buffer among all created in the process (a moved buffer keeps it), unlike a
+    // handle, which a new buffer may reuse once this one is destroyed: whoever bound it can tell
+    // whether the buffer at a binding is still the one bound.
+    uint64_t id() const { return id_; }
 
 private:
     GpuBuffer() = default;
@@ -44,6 +49,7 @@ private:
     vk::raii::DeviceMemory memory_{nullptr};
     size_t size_ = 0;
     void* mapped_ = nullptr;  // non-null when the memory is host visible and coherent
+    uint64_t id_ = 0;
 };
 
 }  // namespace previs

@@ -217,14 +217,11 @@ Result<ImageF> Film::image(const TracedBuffers& traced, Aov aov, bool denoised,
                                      : denoiser_->apply(signal, *g, variance);
     if (!filtered) return filtered.error();
     if (!withPlate) return upsample(*filtered);
-    // Eq. 1's plate weight 1 − M with the M the filtered signal goes with: after the temporal
-    // stage the integrated one (a silhouette's M from one frame's few samples would not average).
-    const std::span<const float> mask = denoiser_->mask();
+    // The filtered plate-free term with the mean mask; compositeOverPlate adds the plate.
     ImageF plateFree = blankImage(traced.width, traced.height, 4);
     for (size_t i = 0; i < pixels; ++i) {
         for (int c = 0; c < 3; ++c) plateFree.pixels[i * 4 + c] = filtered->pixels[i * 3 + c];
-        plateFree.pixels[i * 4 + 3] =
-            temporalDenoise_ ? mask[i] : float(m->mean(i, PV_ACCUM_COMPOSITE, 3));
+        plateFree.pixels[i * 4 + 3] = float(m->mean(i, PV_ACCUM_COMPOSITE, 3));
     }
     return compositeOverPlate(plateFree);
 }

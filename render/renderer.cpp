@@ -15,7 +15,6 @@
 #include "shared/scene_types.h"
 #include "shared/specular_albedo.h"
 #include "shared/texture_sampling.h"
-#include "trace_paths.spv.h"
 
 namespace previs {
 
@@ -186,18 +185,19 @@ Result<std::unique_ptr<Renderer>> Renderer::create(GpuContext& ctx, const Scene&
     // thread). The pipelines' photon switch is predicted from what the scene holds: photons
     // run where they may (photonsPossible) and the scene has an emitter or a light to send
     // them from. Where buildScene finds otherwise (emitters of zero area or power),
-    // specialisePipeline compiles again: a prediction costs time, never a wrong pipeline.
+    // ensurePipelines compiles again: a prediction costs time, never a wrong pipeline.
     r->photonAim_ = photonAimFor(g, scene.materials);
     r->photonSplats_ = r->photonSplatBytes() > 0;
     const bool photonsLikely =
         r->photonsPossible() && (r->features_.emissive || !scene.lights.empty());
     auto bvh = std::async(std::launch::async, [&g] { return buildSceneBvh(g); });
-    const Status compiled = r->compilePipelines(r->pipelineConstants(photonsLikely));
+    r->pipelines_.emplace(ctx, settings.specialise);
+    const Status compiled = r->pipelines_->ensure(r->pipelineConstants(photonsLikely));
     Result<SceneBvh> built = bvh.get();
     if (!compiled) return compiled.error();
     if (!built) return built.error();
     if (Status s = r->buildScene(scene, g, std::move(built.value())); !s) return s.error();
-    if (Status s = r->specialisePipeline(); !s) return s.error();
+    if (Status s = r->ensurePipelines(); !s) return s.error();
     // buildScene sized the accumulation for the output; a fraction shrinks it.
     r->settings_.resolutionScale = 1.0f;
     if (Status s = r->setResolutionScale(settings.resolutionScale); !s) return s.error();
@@ -210,7 +210,7 @@ Result<std::unique_ptr<Renderer>> Renderer::create(GpuContext& ctx, const Scene&
     return Result<std::unique_ptr<Renderer>>(std::move(r));
 }
 
-std::array<uint32_t, PV_SPEC_COUNT> Renderer::pipelineConstants(bool photons) const {
+PipelineConstants Renderer::pipelineConstants(bool photons) const {
     SceneFeatures spec = features_;
     if (settings_.generalPipeline)
         spec = SceneFeatures{.environment = true,
@@ -222,7 +222,7 @@ std::array<uint32_t, PV_SPEC_COUNT> Renderer::pipelineConstants(bool photons) co
                              .textures = true,
                              .coneLights = true,
                              .glossy = true};
-    std::array<uint32_t, PV_SPEC_COUNT> constants{};
+    PipelineConstants constants{};
     constants[PV_SPEC_DIFFERENTIAL] = settings_.differential;
     constants[PV_SPEC_HAS_LENS_GRID] = !settings_.lensGrid.empty();
     constants[PV_SPEC_HAS_ENV] = spec.environment;
@@ -245,49 +245,9 @@ std::array<uint32_t, PV_SPEC_COUNT> Renderer::pipelineConstants(bool photons) co
     return constants;
 }
 
-Status Renderer::specialisePipeline() {
-    const std::array<uint32_t, PV_SPEC_COUNT> constants = pipelineConstants(photonsActive_);
-    if (!pipeline_ || constants != specConstants_)
-        if (Status s = compilePipelines(constants); !s) return s;
+Status Renderer::ensurePipelines() {
+    if (Status s = pipelines_->ensure(pipelineConstants(photonsActive_)); !s) return s;
     return bindBuffers();
-}
-
-Status Renderer::compilePipelines(const std::array<uint32_t, PV_SPEC_COUNT>& constants) {
-    ++pipelineCompiles_;
-    // Every read-only array the shader indexes per lane is a texel buffer (see BindingKind);
-    // params (uniform reads), the accumulators and the stats stay storage buffers.
-    std::array<BindingKind, PV_BINDING_COUNT> bindings{};
-    bindings.fill(BindingKind::StorageBuffer);
-    bindings[PV_BINDING_BVH_NODES] = BindingKind::TexelBufferUint4;
-    for (int b : {PV_BINDING_TEXTURES, PV_BINDING_TRIANGLE_VERTICES, PV_BINDING_TRIANGLES,
-                  PV_BINDING_NORMALS, PV_BINDING_UVS, PV_BINDING_MATERIALS, PV_BINDING_LIGHTS,
-                  PV_BINDING_EMISSIVE_TRIANGLES, PV_BINDING_PHOTON_LIGHTS, PV_BINDING_PHOTON_SORTED,
-                  PV_BINDING_PHOTON_CELLS})
-        bindings[b] = BindingKind::TexelBufferUint4;
-    for (int b :
-         {PV_BINDING_TEXELS, PV_BINDING_ENV_RADIANCE, PV_BINDING_ENV_MARGINAL_CDF,
-          PV_BINDING_ENV_CONDITIONAL_CDF, PV_BINDING_TRIANGLE_LIGHT_PDF, PV_BINDING_LENS_GRID})
-        bindings[b] = BindingKind::TexelBufferUint;
-    auto pipeline = ComputePipeline::create(
-        *ctx_, std::span<const uint32_t>(trace_paths_spv, sizeof(trace_paths_spv) / 4), bindings,
-        constants, "trace_paths", settings_.specialise);
-    if (!pipeline) return pipeline.error();
-    // Dispatches wait for completion (ComputePipeline::dispatch), so no submission can still
-    // use the pipeline this replaces.
-    pipeline_.emplace(std::move(pipeline.value()));
-    specConstants_ = constants;
-    photonPasses_.reset();
-    if (constants[PV_SPEC_PHOTONS]) {
-        // trace_photons shares trace_paths' scene bindings and feature constants.
-        auto passes = PhotonPasses::create(*ctx_, bindings, constants, settings_.specialise);
-        if (!passes) {
-            // No half-made set: the next specialisePipeline compiles both again.
-            pipeline_.reset();
-            return passes.error();
-        }
-        photonPasses_.emplace(std::move(passes.value()));
-    }
-    return {};
 }
 
 Status Renderer::sizeBands(uint32_t width, uint32_t height) {
@@ -323,17 +283,10 @@ std::vector<BufferRange> Renderer::accumulationBand(uint32_t firstRow) const {
 }
 
 Status Renderer::bindBuffers(uint32_t bandFirstRow) {
-    // No pipelines (their last compile failed): the next render() compiles and binds them.
-    if (!pipeline_) {
-        pipelineStale_ = true;
-        return {};
-    }
+    // Without pipelines (their last compile failed) the next render() compiles and binds them.
     std::vector<const GpuBuffer*> bound;
     for (const auto& b : buffers_) bound.push_back(&b);
-    const std::vector<BufferRange> ranges = accumulationBand(bandFirstRow);
-    if (photonPasses_)
-        if (Status s = photonPasses_->bind(bound, ranges); !s) return s;
-    return pipeline_->bind(bound, ranges);
+    return pipelines_->bind(bound, accumulationBand(bandFirstRow));
 }
 
 Status Renderer::replaceBufferContents(int binding, const void* data, size_t bytes,
@@ -386,8 +339,7 @@ Status Renderer::setEnvironment(std::shared_ptr<const EnvironmentMap> map) {
     // A half-replaced environment is no environment (black) rather than a wrong one.
     setEnvironmentParams(params_, s ? map.get() : nullptr, dist);
     features_.environment = s && map;
-    pipelineStale_ = true;  // render() re-specialises (once for a whole snapshot) and binds
-    return s;
+    return s;  // the next render() compiles for the features and binds the buffers
 }
 
 Status Renderer::setEstimatedLights(std::span<const EstimatedLightSource> estimated) {
@@ -431,8 +383,7 @@ Status Renderer::setEstimatedLights(std::span<const EstimatedLightSource> estima
             !r)
             params_.lightCount = 0;
     }
-    pipelineStale_ = true;  // render() re-specialises (once for a whole snapshot) and binds
-    return s;
+    return s;  // the next render() compiles for the features and binds the buffers
 }
 
 size_t Renderer::photonSplatBytes() const {
@@ -618,25 +569,30 @@ Status Renderer::buildScene(const Scene& scene, const Geometry& g, SceneBvh bvh)
     p.photonGatherCap = ph.gatherCap;
     p.photonGatherNeighbours = ph.gatherNeighbours;
 
-    size_t pixels = size_t(settings_.width) * settings_.height;
-    buffers_.clear();
-    buffers_.reserve(PV_BINDING_COUNT);
-    auto add = [&](auto&& result) -> Status {
-        if (!result) return result.error();
-        buffers_.push_back(std::move(result.value()));
-        return {};
-    };
-    auto span = [](const auto& v) { return std::span(v.data(), v.size()); };
+    const size_t pixels = size_t(settings_.width) * settings_.height;
+    // Each buffer made for its binding, by name; buffers_ holds them in binding order after.
+    std::array<std::optional<GpuBuffer>, PV_BINDING_COUNT> made;
     Status s;
-    // Order = binding numbers (PV_BINDING_*).
-    if (!(s = add(GpuBuffer::createWith(*ctx_, std::span(&params_, 1), "params")))) return s;
-    if (!(s = add(GpuBuffer::createWith(*ctx_, span(triangleVertices), "triangleVertices"))))
-        return s;
-    if (!(s = add(GpuBuffer::createWith(*ctx_, span(normalTexels), "normals")))) return s;
-    if (!(s = add(GpuBuffer::createWith(*ctx_, span(uvTexels), "uvs")))) return s;
-    if (!(s = add(GpuBuffer::createWith(*ctx_, span(triangleTexels), "triangles")))) return s;
-    if (!(s = add(GpuBuffer::createWith(*ctx_, span(triMaterials), "triangleMaterials")))) return s;
-    if (!(s = add(GpuBuffer::createWith(*ctx_, span(bvh_.wideNodes), "bvhNodes")))) return s;
+    auto put = [&](int binding, auto&& result) {
+        if (!s) return;
+        if (!result)
+            s = result.error();
+        else
+            made[binding].emplace(std::move(result.value()));
+    };
+    auto upload = [&](int binding, const auto& v, const char* label) {
+        put(binding, GpuBuffer::createWith(*ctx_, std::span(v.data(), v.size()), label));
+    };
+    auto allocate = [&](int binding, size_t bytes, const char* label) {
+        put(binding, GpuBuffer::create(*ctx_, bytes, label));
+    };
+    put(PV_BINDING_PARAMS, GpuBuffer::createWith(*ctx_, std::span(&params_, 1), "params"));
+    upload(PV_BINDING_TRIANGLE_VERTICES, triangleVertices, "triangleVertices");
+    upload(PV_BINDING_NORMALS, normalTexels, "normals");
+    upload(PV_BINDING_UVS, uvTexels, "uvs");
+    upload(PV_BINDING_TRIANGLES, triangleTexels, "triangles");
+    upload(PV_BINDING_TRIANGLE_MATERIALS, triMaterials, "triangleMaterials");
+    upload(PV_BINDING_BVH_NODES, bvh_.wideNodes, "bvhNodes");
     // The specular albedo table (shared/specular_albedo.h) first, then the materials.
     static_assert(sizeof(shader::kSpecularAlbedo) == 16 * PV_SPECULAR_ALBEDO_TEXELS);
     std::vector<uint32_t> materialWords(
@@ -645,34 +601,36 @@ Status Renderer::buildScene(const Scene& scene, const Geometry& g, SceneBvh bvh)
     if (!materials.empty())  // memcpy from an empty vector's null data() is undefined
         std::memcpy(materialWords.data() + sizeof(shader::kSpecularAlbedo) / 4, materials.data(),
                     materials.size() * sizeof(shader::GpuMaterial));
-    if (!(s = add(GpuBuffer::createWith(*ctx_, span(materialWords), "materials")))) return s;
-    if (!(s = add(GpuBuffer::createWith(*ctx_, span(textureInfos), "textures")))) return s;
-    if (!(s = add(GpuBuffer::createWith(*ctx_, span(texels), "texels")))) return s;
-    if (!(s = add(GpuBuffer::createWith(*ctx_, span(lights), "lights")))) return s;
-    if (!(s = add(GpuBuffer::createWith(*ctx_, span(emissive), "emissiveTriangles")))) return s;
-    if (!(s = add(GpuBuffer::createWith(*ctx_, span(envRadiance), "envRadiance")))) return s;
-    if (!(s = add(GpuBuffer::createWith(*ctx_, span(envDist.marginalCdf), "envMarginal"))))
-        return s;
-    if (!(s = add(GpuBuffer::createWith(*ctx_, span(envDist.conditionalCdf), "envConditional"))))
-        return s;
-    size_t accumBytes = pixels * PV_ACCUM_COUNT * sizeof(glm::vec4);
-    if (!(s = sizeBands(settings_.width, settings_.height))) return s;
-    if (!(s = add(GpuBuffer::create(*ctx_, accumBytes, "accumSum")))) return s;
-    if (!(s = add(GpuBuffer::create(*ctx_, accumBytes, "accumCompensation")))) return s;
-    if (!(s = add(GpuBuffer::create(*ctx_, sizeof(shader::RenderStats), "stats")))) return s;
-    if (!(s = add(GpuBuffer::createWith(*ctx_, span(triangleLightPdf), "triangleLightPdf"))))
-        return s;
-    if (!(s = add(GpuBuffer::createWith(*ctx_, span(settings_.lensGrid), "lensGrid")))) return s;
-    if (!(s = add(GpuBuffer::create(*ctx_, 0, "photonLights")))) return s;
+    upload(PV_BINDING_MATERIALS, materialWords, "materials");
+    upload(PV_BINDING_TEXTURES, textureInfos, "textures");
+    upload(PV_BINDING_TEXELS, texels, "texels");
+    upload(PV_BINDING_LIGHTS, lights, "lights");
+    upload(PV_BINDING_EMISSIVE_TRIANGLES, emissive, "emissiveTriangles");
+    upload(PV_BINDING_ENV_RADIANCE, envRadiance, "envRadiance");
+    upload(PV_BINDING_ENV_MARGINAL_CDF, envDist.marginalCdf, "envMarginal");
+    upload(PV_BINDING_ENV_CONDITIONAL_CDF, envDist.conditionalCdf, "envConditional");
+    if (Status bands = sizeBands(settings_.width, settings_.height); !bands) return bands;
+    const size_t accumBytes = pixels * PV_ACCUM_COUNT * sizeof(glm::vec4);
+    allocate(PV_BINDING_ACCUM_SUM, accumBytes, "accumSum");
+    allocate(PV_BINDING_ACCUM_COMPENSATION, accumBytes, "accumCompensation");
+    allocate(PV_BINDING_STATS, sizeof(shader::RenderStats), "stats");
+    upload(PV_BINDING_TRIANGLE_LIGHT_PDF, triangleLightPdf, "triangleLightPdf");
+    upload(PV_BINDING_LENS_GRID, settings_.lensGrid, "lensGrid");
+    allocate(PV_BINDING_PHOTON_LIGHTS, 0, "photonLights");
+    // Photon buffers have a size only where photons may run (create() set photonAim_).
     for (int b = PV_BINDING_PHOTON_RECORDS; b <= PV_BINDING_PHOTON_CELLS; ++b)
-        if (!(s = add(GpuBuffer::create(*ctx_, photonBufferBytes(b, p.photonCount), "photons"))))
-            return s;
-    const size_t guideBytes =
-        settings_.denoise ? pixels * PV_GUIDE_COUNT * sizeof(glm::vec4) : size_t(0);
-    if (!(s = add(GpuBuffer::create(*ctx_, guideBytes, "guides")))) return s;
-    const size_t splatBytes = photonSplats_ ? photonSplatBytes() : size_t(0);
-    if (!(s = add(GpuBuffer::create(*ctx_, splatBytes, "photonSplats")))) return s;
-    PV_ASSERT(buffers_.size() == PV_BINDING_COUNT);
+        allocate(b, photonBufferBytes(b, p.photonCount), "photons");
+    allocate(PV_BINDING_GUIDES,
+             settings_.denoise ? pixels * PV_GUIDE_COUNT * sizeof(glm::vec4) : size_t(0), "guides");
+    allocate(PV_BINDING_PHOTON_SPLATS, photonSplats_ ? photonSplatBytes() : size_t(0),
+             "photonSplats");
+    if (!s) return s;
+    buffers_.clear();
+    buffers_.reserve(PV_BINDING_COUNT);
+    for (int b = 0; b < int(PV_BINDING_COUNT); ++b) {
+        PV_ASSERT(made[b].has_value());  // every binding above has its buffer
+        buffers_.push_back(std::move(*made[b]));
+    }
     return updatePhotonLights(lights);
 }
 
@@ -888,12 +846,7 @@ uint32_t Renderer::samplesForNextDispatch(uint32_t remaining) const {
 
 Status Renderer::render(uint32_t samples,
                         const std::function<void(const RenderProgress&)>& progress) {
-    // The pipelines for the features the lighting changed since the last render (one compile
-    // for all of them), or again after a compile that failed.
-    if (pipelineStale_ || !pipeline_ || (photonsActive_ && !photonPasses_)) {
-        if (Status s = specialisePipeline(); !s) return s;
-        pipelineStale_ = false;
-    }
+    if (Status s = ensurePipelines(); !s) return s;
     uint32_t groupsX = (params_.width + PV_WORKGROUP_SIZE_X - 1) / PV_WORKGROUP_SIZE_X;
     constexpr size_t kMaxLoopOffset = offsetof(shader::RenderStats, maxLoopIterations);
     // Camera-relative rendering: the GPU's origin follows the camera, with hysteresis.
@@ -917,7 +870,7 @@ Status Renderer::render(uint32_t samples,
             params_.photonIteration = uint32_t(samples_);
             params_.photonRadius = nextPhotonRadius();
             lastPhotonCount_ = params_.photonCount;
-            auto photonMs = photonPasses_->run(params_, buffers_, interrupt_);
+            auto photonMs = pipelines_->photons()->run(params_, buffers_, interrupt_);
             if (!photonMs) return photonMs.error();
             photonMs_ += photonMs.value();
             gpuMs_ += photonMs.value();
@@ -942,8 +895,9 @@ Status Renderer::render(uint32_t samples,
             }
             const uint32_t rows = std::min(bandRows_, params_.height - first);
             const uint32_t groupsY = (rows + PV_WORKGROUP_SIZE_Y - 1) / PV_WORKGROUP_SIZE_Y;
-            auto bandMs = interrupt_ ? pathParts_.run(*pipeline_, groupsX, groupsY, *interrupt_)
-                                     : pipeline_->dispatch(groupsX, groupsY);
+            ComputePipeline& paths = pipelines_->paths();
+            auto bandMs = interrupt_ ? pathParts_.run(paths, groupsX, groupsY, *interrupt_)
+                                     : paths.dispatch(groupsX, groupsY);
             if (!bandMs) return bandMs.error();
             ms += bandMs.value();
         }

@@ -23,6 +23,7 @@
 #include "render/convergence.h"
 #include "render/denoiser.h"
 #include "render/film.h"
+#include "render/path_pipelines.h"
 #include "render/photon_map.h"
 #include "render/render_settings.h"
 #include "render/upsample.h"
@@ -122,7 +123,7 @@ public:
     // The environment's radiance, sampling tables and FrameParams; null or an empty map removes
     // it. Buffers are reallocated only when the map's size changes; the pipelines are
     // re-specialised only when the environment appears or disappears, by the next render()
-    // (which returns a failed compile's error; see pipelineStale_).
+    // (which returns a failed compile's error; render/path_pipelines.h).
     Status setEnvironment(std::shared_ptr<const EnvironmentMap> map);
     // Replaces the estimated lights (the scene's own lights stay). A new count reallocates the
     // lights buffer; lights appearing or disappearing re-specialise the pipelines, as above.
@@ -264,12 +265,10 @@ private:
     size_t photonSplatBytes() const;
     // The specialization constants of the pipelines for the scene's features and settings, with
     // photon mapping on or off.
-    std::array<uint32_t, PV_SPEC_COUNT> pipelineConstants(bool photons) const;
-    // Compiles the pipelines (trace_paths and, with PV_SPEC_PHOTONS, the photon passes) for
-    // `constants`; binds nothing.
-    Status compilePipelines(const std::array<uint32_t, PV_SPEC_COUNT>& constants);
-    // (Re)creates the pipelines when the specialization constants changed, and binds buffers_.
-    Status specialisePipeline();
+    PipelineConstants pipelineConstants(bool photons) const;
+    // The pipelines for the current features (compiled where they changed: one compile for a
+    // whole lighting snapshot, at the next render), with buffers_ bound.
+    Status ensurePipelines();
     // Uploads `bytes` into buffers_[binding], reallocating it only when its size differs.
     Status replaceBufferContents(int binding, const void* data, size_t bytes, const char* label);
     // Binds buffers_, the accumulation from row `bandFirstRow` on (accumulationBand).
@@ -297,11 +296,10 @@ private:
     Camera camera_;
     SceneBvh bvh_;
     shader::FrameParams params_{};
-    std::vector<GpuBuffer> buffers_;  // indexed by PV_BINDING_*
-    std::optional<ComputePipeline> pipeline_;
+    std::vector<GpuBuffer> buffers_;          // indexed by PV_BINDING_*
+    std::optional<PathPipelines> pipelines_;  // set in create(): it needs the context
     const std::atomic<bool>* interrupt_ = nullptr;
     InterruptibleDispatch pathParts_{kInterruptiblePartMs};
-    std::array<uint32_t, PV_SPEC_COUNT> specConstants_{};
     std::vector<shader::GpuLight> sceneLights_;      // the scene's own; estimated ones follow them
     std::vector<shader::GpuLight> estimatedLights_;  // cone lights (directions only)
     // Camera-relative rendering (setCameraPose): world = sceneOriginM_ + scene position;
@@ -313,7 +311,6 @@ private:
     std::vector<glm::vec3> sceneLightPositions_;    // scene frame, per scene light
     uint64_t recentres_ = 0;
     uint64_t sceneBuilds_ = 0;
-    uint64_t pipelineCompiles_ = 0;
     uint64_t samples_ = 0;
     uint32_t bandRows_ = 0;  // rows per dispatch: the storage-buffer range limits it
     // The accumulation's interleaved sequences (shared/sampler.h): 2 with the convergence meter,
@@ -325,12 +322,7 @@ private:
     PhotonAim photonAim_;
     std::vector<EmissivePhotonSource> emissivePhotonSources_;
     bool photonsActive_ = false;
-    // The lighting changed features or buffers since the last render: render() calls
-    // specialisePipeline first. A snapshot changes the environment and the estimated lights one
-    // after the other; each compiling at once cost the service's first snapshot two compiles.
-    bool pipelineStale_ = false;
     bool photonSplats_ = false;  // the splat buffer exists (PV_SPEC_PHOTON_SPLAT)
-    std::optional<PhotonPasses> photonPasses_;
     double photonMs_ = 0.0;
     uint32_t lastPhotonCount_ = 0;  // params_.photonCount is refinement's again after a preview
     // Means, AOVs, Eq. 1, upsampling, the denoiser and the meter (render/film.h); optional only

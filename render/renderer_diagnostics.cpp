@@ -4,7 +4,7 @@
 namespace previs {
 
 uint64_t RendererDiagnostics::sceneBuildCount() const { return r_.sceneBuilds_; }
-uint64_t RendererDiagnostics::pipelineCompileCount() const { return r_.pipelineCompiles_; }
+uint64_t RendererDiagnostics::pipelineCompileCount() const { return r_.pipelines_->compileCount(); }
 uint64_t RendererDiagnostics::recentreCount() const { return r_.recentres_; }
 uint64_t RendererDiagnostics::loopLimitRisks() const { return r_.loopLimitRisks_; }
 double RendererDiagnostics::loopIterationsPerSample() const { return r_.loopIterationsPerSample_; }
