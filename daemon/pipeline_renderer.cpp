@@ -277,11 +277,13 @@ Status PipelineRenderer::applyLighting(const std::shared_ptr<const LiveLighting>
     const std::vector<EstimatedLightSource> sources = toLightSources(lighting->lights);
     if (Status s = renderer_->setEstimatedLights(sources); !s) return s;
     lightingShown_ = lighting;
-    // The history holds the old lighting's shading: past the threshold (or after the neutral
-    // stand-in) it starts afresh; below it, it is the fisheye's noise and averages out.
+    // The history holds the old lighting's shading: past the threshold (or after a stand-in: the
+    // neutral studio or the saved lighting) it starts afresh; below it, it is the fisheye's noise
+    // and averages out.
     const bool changed = !historyLighting_ || lightingPending_ ||
                          lightingDelta(*lighting, *historyLighting_).change > lightingThreshold_;
-    lightingPending_ = false;
+    // The saved lighting is the set as last seen, not as it is now: still pending.
+    lightingPending_ = lighting->restored;
     if (changed) {
         if (Denoiser* d = renderer_->denoiser()) d->resetHistory();
         historyLighting_ = lighting;

@@ -75,8 +75,9 @@ public:
     std::optional<std::string> adaptDial(double liveFrameSeconds) override;
     bool hasDial() const override { return !dial_.empty(); }
     static constexpr double kDialUpgradeMargin = 0.85;
-    // The fisheye is configured but no lighting snapshot has arrived: the virtual objects are
-    // lit by a neutral environment at the plate's level meanwhile (never black).
+    // The fisheye is configured but no snapshot of it has arrived: the virtual objects are lit
+    // meanwhile by the box's saved lighting (LiveLighting::restored) or, without one, by a
+    // neutral environment at the plate's level (never black).
     bool lightingPending() const { return lightingPending_; }
     // Preview frames averaged into the shown one (the temporal history; 0: fixed sequence).
     uint32_t previewHistoryFrames() const;

@@ -3,9 +3,11 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <filesystem>
 #include <opencv2/imgproc.hpp>
 
 #include "base/log.h"
+#include "image/image.h"
 #include "scene/environment_map.h"
 #include "vision/equirect.h"
 #include "vision/inverse_tone_map.h"
@@ -110,22 +112,60 @@ Result<std::shared_ptr<const LiveLighting>> LightingStage::process(const Frame& 
     const cv::Mat linear = inverseToneMapRgb8(rgb, radiometry_);
     Result<cv::Mat> map = toEquirect_.apply(linear);
     if (!map) return map.error();
+    auto out = fromMap(*map, fmt::format("fisheye frame {}", frame.sequence));
+    if (!out) return out.error();
+    (*out)->sequence = frame.sequence;
+    (*out)->timestampNs = frame.timestampNs;
+    (*out)->computeMs = millisecondsSince(start);
+    return std::shared_ptr<const LiveLighting>(std::move(*out));
+}
+
+Result<std::shared_ptr<const LiveLighting>> LightingStage::restore(const std::string& path) {
+    Result<EnvironmentMap> map = loadEnvironmentMap(path);
+    if (!map) return map.error();
+    auto out = fromMap(environmentMapToMat(*map), fmt::format("{} (saved lighting)", path));
+    if (!out) return out.error();
+    (*out)->restored = true;
+    return std::shared_ptr<const LiveLighting>(std::move(*out));
+}
+
+Result<std::shared_ptr<LiveLighting>> LightingStage::fromMap(const cv::Mat& map,
+                                                             const std::string& name) {
     auto out = std::make_shared<LiveLighting>();
-    out->sequence = frame.sequence;
-    out->timestampNs = frame.timestampNs;
-    out->totalLuminancePower = luminanceMoments(*map, out->luminanceSh);
+    out->totalLuminancePower = luminanceMoments(map, out->luminanceSh);
+    out->captured = std::make_shared<const EnvironmentMap>(matToEnvironmentMap(map, name));
     if (mode_ == LightingMode::Lights) {
-        Result<LightingSnapshot> lights = estimator_.estimate(*map);
+        Result<LightingSnapshot> lights = estimator_.estimate(map);
         if (!lights) return lights.error();
         out->lights = std::move(lights->lights);
-        out->environment = std::make_shared<const EnvironmentMap>(matToEnvironmentMap(
-            lights->residual, fmt::format("fisheye frame {} (residual)", frame.sequence)));
-    } else {
         out->environment = std::make_shared<const EnvironmentMap>(
-            matToEnvironmentMap(*map, fmt::format("fisheye frame {}", frame.sequence)));
+            matToEnvironmentMap(lights->residual, name + " (residual)"));
+    } else {
+        out->environment = out->captured;
     }
-    out->computeMs = millisecondsSince(start);
-    return std::shared_ptr<const LiveLighting>(std::move(out));
+    return out;
+}
+
+Status saveLighting(const LiveLighting& lighting, const std::string& path) {
+    if (!lighting.captured) return makeError("saved lighting '{}': no captured map", path);
+    const EnvironmentMap& map = *lighting.captured;
+    ImageF image;
+    image.width = map.width;
+    image.height = map.height;
+    image.channels = 3;
+    image.pixels.reserve(map.radiance.size() * 3);
+    for (const glm::vec3& v : map.radiance)
+        image.pixels.insert(image.pixels.end(), {v.r, v.g, v.b});
+    // A ".tmp.exr" name keeps the extension the writer goes by.
+    const std::string temporary = path + ".tmp.exr";
+    if (Status s = writeExr(temporary, image); !s) return s;
+    std::error_code ec;
+    std::filesystem::rename(temporary, path, ec);
+    if (ec) {
+        std::filesystem::remove(temporary, ec);
+        return makeError("cannot save the lighting to '{}': {}", path, ec.message());
+    }
+    return {};
 }
 
 PoseDelta poseDelta(const cv::Matx44d& a, const cv::Matx44d& b) {

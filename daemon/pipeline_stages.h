@@ -53,7 +53,16 @@ struct LiveLighting {
     uint64_t sequence = 0;  // the fisheye frame's sequence
     uint64_t timestampNs = 0;
     double computeMs = 0.0;
+    // The whole map as captured, before any light was split off (what saveLighting keeps).
+    std::shared_ptr<const EnvironmentMap> captured;
+    // Read back from the box's saved lighting (LightingStage::restore), not captured since the
+    // service started: it stands in, and the status still says lighting is pending.
+    bool restored = false;
 };
+
+// Keeps `lighting`'s captured map at `path` (OpenEXR), written to a temporary name beside it and
+// renamed, so the file is whole or absent even when the box loses power while writing.
+Status saveLighting(const LiveLighting& lighting, const std::string& path);
 
 class TrackingStage {
 public:
@@ -75,8 +84,13 @@ public:
     // Whether this frame makes a new snapshot under [lighting] update_hz (by its timestamp).
     bool due(const Frame& fisheyeFrame) const;
     Result<std::shared_ptr<const LiveLighting>> process(const Frame& fisheyeFrame);
+    // The snapshot of a map saveLighting wrote (its lights estimated again, as for a frame),
+    // marked restored.
+    Result<std::shared_ptr<const LiveLighting>> restore(const std::string& path);
 
 private:
+    // A snapshot of an equirectangular map (linear radiance, CV_32FC3) named `name`.
+    Result<std::shared_ptr<LiveLighting>> fromMap(const cv::Mat& map, const std::string& name);
     LightingStage(FisheyeToEquirect toEquirect, InverseToneMapSettings radiometry,
                   LightingMode mode, LightEstimatorSettings lights, double updateHz)
         : toEquirect_(std::move(toEquirect)),

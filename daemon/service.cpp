@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <nlohmann/json.hpp>
 
 #include "base/guarded_thread.h"
@@ -183,6 +184,13 @@ struct Service::Threads {
 
     void runTracking(const ModeMachine& modes);
     void runLighting();
+    // [lighting] saved (savedLightingPath; empty: off): read at start, so the virtual objects
+    // are lit by the set as last seen until the first snapshot, and kept from the first snapshot
+    // on, at most every kSaveEvery (a room's light changes slowly; a box's flash wears).
+    std::string savedLighting;
+    static constexpr std::chrono::seconds kSaveEvery{60};
+    void restoreLighting();
+    void keepLighting(const LiveLighting& lit, Clock::time_point& lastSaved);
     void runRender(ModeMachine& modes);
     std::atomic<double> lightingMs{0.0};
     // Sends the composite to the display; renderMs runs from `renderStart` to the tone-mapped
@@ -215,9 +223,33 @@ void Service::Threads::runTracking(const ModeMachine& modes) {
     }
 }
 
+void Service::Threads::restoreLighting() {
+    std::error_code ec;
+    if (savedLighting.empty() || !std::filesystem::is_regular_file(savedLighting, ec)) return;
+    Result<std::shared_ptr<const LiveLighting>> restored = lighting->restore(savedLighting);
+    if (!restored) {
+        logWarning("lighting: the saved lighting is not used: {}", restored.message());
+        return;
+    }
+    logInfo("lighting: lit by the saved lighting '{}' until the fisheye's first snapshot",
+            savedLighting);
+    lightingSnapshots.publish(*restored);
+}
+
+void Service::Threads::keepLighting(const LiveLighting& lit, Clock::time_point& lastSaved) {
+    const Clock::time_point now = Clock::now();
+    if (savedLighting.empty() || (lastSaved != Clock::time_point{} && now - lastSaved < kSaveEvery))
+        return;
+    if (Status s = saveLighting(lit, savedLighting); !s && lastSaved == Clock::time_point{})
+        logWarning("lighting: {} (the next start lights with the studio environment)", s.message());
+    lastSaved = now;
+}
+
 void Service::Threads::runLighting() {
     nameThread("pv-lighting");
+    restoreLighting();
     uint64_t failures = 0;
+    Clock::time_point lastSaved{};
     while (!stopping.load()) {
         std::shared_ptr<const Frame> frame =
             fisheyeCamera->frames().waitTakeFor(std::chrono::milliseconds(100));
@@ -232,6 +264,7 @@ void Service::Threads::runLighting() {
         lightingMs.store((*lit)->computeMs);
         lightingSnapshots.publish(*lit);
         lightingUpdates.fetch_add(1);
+        keepLighting(**lit, lastSaved);
     }
 }
 
@@ -410,6 +443,7 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config, bo
         Result<LightingStage> lighting = LightingStage::create(config);
         if (!lighting) return lighting.error();
         t.lighting.emplace(std::move(*lighting));
+        t.savedLighting = savedLightingPath(config.lighting);
     }
 
     Result<std::unique_ptr<FrameOutput>> output = makeFrameOutput(outputSettings(config.output));

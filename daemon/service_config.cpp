@@ -358,7 +358,7 @@ Status ConfigReader::parseLighting(const toml::table& t, LightingConfig& c) cons
     if (Status st = r_.checkKeys(
             t, "lighting",
             {"mode", "map_width", "max_field_angle_deg", "fill_ring_deg", "mean_factor",
-             "max_fraction", "max_lights", "min_power_fraction", "update_hz"});
+             "max_fraction", "max_lights", "min_power_fraction", "update_hz", "saved"});
         !st)
         return st;
     Result<std::optional<std::string>> mode = r_.string(t, "lighting", "mode");
@@ -396,6 +396,12 @@ Status ConfigReader::parseLighting(const toml::table& t, LightingConfig& c) cons
     int64_t maxLights = c.lights.maxLights;
     if (Status st = integerIn(t, "lighting", "max_lights", maxLights, 0, 256); !st) return st;
     c.lights.maxLights = int(maxLights);
+    Result<std::optional<std::string>> saved = r_.string(t, "lighting", "saved");
+    if (!saved) return saved.error();
+    if (*saved && !(*saved)->empty())
+        c.savedPath = (r_.folder() / fs::path(**saved)).lexically_normal().string();
+    else if (*saved)
+        c.savedPath = "";
     if (Status st =
             ranged(t, "lighting", "min_power_fraction", c.lights.minPowerFraction, 0.0, 1.0);
         !st)
@@ -742,6 +748,15 @@ std::string controlSocketPath(const ControlConfig& control) {
         return (fs::path(first) / "previsd.sock").string();
     }
     return "/run/previs/previsd.sock";
+}
+
+std::string savedLightingPath(const LightingConfig& lighting) {
+    if (lighting.savedPath) return *lighting.savedPath;
+    const char* state = std::getenv("STATE_DIRECTORY");
+    if (!state || !*state) return "";
+    // As RUNTIME_DIRECTORY: the first of several folders is ours.
+    const std::string first = std::string(state).substr(0, std::string(state).find(':'));
+    return (fs::path(first) / "last_lighting.exr").string();
 }
 
 const char* toString(LightingMode mode) {

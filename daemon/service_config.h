@@ -84,7 +84,15 @@ struct LightingConfig {
     // slowly, and each snapshot costs a map conversion and an upload. Timed on the frames' own
     // timestamps, so a replay picks the same frames.
     double updateHz = 2.0;
+    // [lighting] saved: where the service keeps the set's last captured lighting (an OpenEXR
+    // environment map), so that after a restart the virtual objects are lit by the set as last
+    // seen until the fisheye's first snapshot. Unset: savedLightingPath()'s default; "": off.
+    std::optional<std::string> savedPath;
 };
+
+// The saved lighting's file: [lighting] saved, else $STATE_DIRECTORY/last_lighting.exr under
+// systemd (/var/lib/previs), else none (an empty string).
+std::string savedLightingPath(const LightingConfig& lighting);
 
 // What the render thread does per frame (issue 7: preview and refinement).
 struct RenderConfig {

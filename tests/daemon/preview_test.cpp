@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 
 #include "capture/recorded_source.h"
 #include "daemon/pipeline_renderer.h"
@@ -129,6 +130,45 @@ TEST(Preview, BeforeTheFirstLightingTheVirtualObjectsAreLitAndLightingIsPending)
     ASSERT_GT(litLevel, 0.0);
     EXPECT_GT(pendingLevel, litLevel / 4.0);
     EXPECT_LT(pendingLevel, litLevel * 4.0);
+}
+
+// The box's saved lighting (the service keeps the last snapshot's map, daemon/service.cpp)
+// stands in until the first snapshot, exactly: a restored map renders what the live one did,
+// bit for bit (float32 OpenEXR), while the renderer still says lighting is pending.
+TEST(Preview, TheSavedLightingStandsInUntilTheFirstSnapshot) {
+    Demo d = demo();
+    const std::string saved = ::testing::TempDir() + "/previs_saved_lighting.exr";
+    ASSERT_TRUE(saveLighting(*d.lighting, saved));
+    Result<LightingStage> stage = LightingStage::create(d.config);
+    ASSERT_TRUE(stage) << stage.message();
+    Result<std::shared_ptr<const LiveLighting>> restored = stage->restore(saved);
+    ASSERT_TRUE(restored) << restored.message();
+    EXPECT_TRUE((*restored)->restored);
+    EXPECT_EQ((*restored)->environment->radiance, d.lighting->environment->radiance);
+
+    auto composite = [&](const std::shared_ptr<const LiveLighting>& lighting, bool& pending) {
+        auto p = PipelineRenderer::create(*d.gpu, d.scene, d.config);
+        EXPECT_TRUE(p) << p.message();
+        EXPECT_TRUE((*p)->renderPreview(d.still, lighting));
+        Result<ImageF> image = (*p)->composite();
+        EXPECT_TRUE(image) << image.message();
+        pending = (*p)->lightingPending();
+        return *image;
+    };
+    bool pendingRestored = false, pendingLive = true;
+    const ImageF standIn = composite(*restored, pendingRestored);
+    const ImageF live = composite(d.lighting, pendingLive);
+    EXPECT_TRUE(pendingRestored);
+    EXPECT_FALSE(pendingLive);
+    EXPECT_EQ(standIn.pixels, live.pixels);
+
+    // A file that is not a map: the service logs it and keeps the studio stand-in.
+    std::FILE* f = std::fopen(saved.c_str(), "w");
+    ASSERT_NE(f, nullptr);
+    std::fputs("not an EXR", f);
+    std::fclose(f);
+    EXPECT_FALSE(stage->restore(saved));
+    std::remove(saved.c_str());
 }
 
 // The preview after `frames` frames of the held still view, and a refinement of it.

@@ -412,6 +412,24 @@ TEST(ServiceConfig, DefaultControlSocketFollowsRuntimeDirectory) {
     EXPECT_EQ(controlSocketPath(none), "/run/previs/previsd.sock");
 }
 
+// [lighting] saved: a path relative to the config, "" off, unset the state directory's file.
+TEST(ServiceConfig, SavedLightingPath) {
+    LightingConfig unset;
+    ::setenv("STATE_DIRECTORY", "/var/lib/previs:/var/lib/other", 1);
+    EXPECT_EQ(savedLightingPath(unset), "/var/lib/previs/last_lighting.exr");
+    ::unsetenv("STATE_DIRECTORY");
+    EXPECT_EQ(savedLightingPath(unset), "");
+    LightingConfig off;
+    off.savedPath = "";
+    EXPECT_EQ(savedLightingPath(off), "");
+    const std::string path = writeFile("saved_lighting.toml", minimal("", R"([lighting]
+saved = "state/lighting.exr"
+)"));
+    Result<ServiceConfig> c = loadServiceConfig(path);
+    ASSERT_TRUE(c) << c.message();
+    EXPECT_EQ(savedLightingPath(c->lighting), (tempDir() / "state/lighting.exr").string());
+}
+
 TEST(ServiceConfig, MissingFileAndFolder) {
     Result<ServiceConfig> missing = loadServiceConfig("/nonexistent/previsd.toml");
     ASSERT_FALSE(missing);
