@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Installs the Debian packages previs needs (skipping those present), then configures and
-# builds one configuration. Usage: scripts/setup.sh [release|asan|fuzz]   (default release)
+# builds one configuration. Usage: scripts/setup.sh [release|asan|fuzz] [TARGET]   (default
+# release, every target; TARGET builds only that one and what it needs)
 # fuzz: clang-14 with libFuzzer+ASan+UBSan in build-fuzz, only the fuzz targets (docs/fuzzing.md).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
@@ -40,5 +41,6 @@ esac
 cmake -S "$root" -B "$build" -G Ninja -DPREVIS_WERROR=${PREVIS_WERROR:-OFF} "${flags[@]}" >&2
 targets=()
 [[ $config == fuzz ]] && targets=(--target previs_fuzzers)
+[[ -n ${2:-} ]] && targets=(--target "$2")
 cmake --build "$build" -j"$(nproc)" "${targets[@]}" >&2
 echo "$build"

@@ -1,0 +1,58 @@
+#!/usr/bin/env bash
+# The live service's frame rate and latency, measured from outside the process: starts previsd on
+# a config (default: the shipped demo, examples/demo/previsd.toml), waits until it shows frames,
+# then reads `previs ctl status --json` once a second and reports the frames shown per second of
+# wall clock (framesShown's growth, not the service's own estimate), and the medians of the
+# service's fps, latencyMs and renderMs fields over the window.
+#   usage: bench/live_fps.sh [--config FILE] [--seconds N] [--warmup N] [--build DIR]
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+config=$root/examples/demo/previsd.toml
+seconds=30
+warmup=20
+build=$root/build
+while (($#)); do
+    case $1 in
+        --config) config=$2; shift 2 ;;
+        --seconds) seconds=$2; shift 2 ;;
+        --warmup) warmup=$2; shift 2 ;;
+        --build) build=$2; shift 2 ;;
+        *) echo "live_fps: unknown option '$1' (see the script's header)" >&2; exit 2 ;;
+    esac
+done
+work=$(mktemp -d)
+trap 'kill "$pid" 2>/dev/null || true; wait "$pid" 2>/dev/null || true; rm -rf "$work"' EXIT
+export RUNTIME_DIRECTORY=$work
+"$build/daemon/previsd" --config "$config" >"$work/previsd.log" 2>&1 &
+pid=$!
+status() { "$build/cli/previs" ctl --socket "$work/previsd.sock" status --json 2>/dev/null; }
+# The dial measures its settings at start: wait for the first frames, then the warm-up.
+for _ in $(seq 600); do
+    shown=$(status | python3 -c 'import json,sys; print(json.load(sys.stdin)["framesShown"])' \
+            2>/dev/null || echo 0)
+    ((shown > 0)) && break
+    sleep 1
+done
+((shown > 0)) || { echo "live_fps: no frame shown in 600 s; log:" >&2; cat "$work/previsd.log" >&2; exit 1; }
+sleep "$warmup"
+for i in $(seq 0 "$seconds"); do
+    echo "$(date +%s.%N) $(status | tr -d '\n')" >>"$work/samples"
+    sleep 1
+done
+python3 - "$work/samples" <<'EOF'
+import json, statistics, sys
+rows = []
+for line in open(sys.argv[1]):
+    t, _, body = line.partition(" ")
+    try:
+        rows.append((float(t), json.loads(body)))
+    except ValueError:
+        pass
+(t0, a), (t1, b) = rows[0], rows[-1]
+shown = (b["framesShown"] - a["framesShown"]) / (t1 - t0)
+med = lambda k: statistics.median(r[k] for _, r in rows)
+print(f"frames shown/s {shown:.2f} over {t1 - t0:.0f} s; medians: fps {med('fps'):.2f}, "
+      f"latencyMs {med('latencyMs'):.0f}, renderMs {med('renderMs'):.0f}, "
+      f"dropped {b['framesDropped'] - a['framesDropped']}, mode {b['mode']}, "
+      f"history {b.get('previewHistoryFrames')}")
+EOF
