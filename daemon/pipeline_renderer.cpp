@@ -286,6 +286,8 @@ Status PipelineRenderer::applyLighting(const std::shared_ptr<const LiveLighting>
     lightingPending_ = lighting->restored;
     if (changed) {
         if (Denoiser* d = renderer_->denoiser()) d->resetHistory();
+        if (Status s = renderer_->holdView(false); !s) return s;
+        heldSince_.reset();
         historyLighting_ = lighting;
     }
     return {};
@@ -324,7 +326,28 @@ Status PipelineRenderer::renderPreview(const TrackedFrame& frame,
     refining_ = false;
     // Preview denoises with temporal reprojection: the history follows the tracked camera.
     renderer_->setTemporalDenoise(true);
+    if (Status s = renderer_->holdView(accumulate_ && cameraHolds(frame)); !s) return s;
     return renderer_->renderPreviewFrame(previewSamples_, accumulate_ ? ++previewFrame_ : 0);
+}
+
+bool PipelineRenderer::cameraHolds(const TrackedFrame& frame) {
+    if (!frame.worldFromCamera || frame.lost) {
+        heldSince_.reset();
+        return false;
+    }
+    const cv::Matx44d& pose = *frame.worldFromCamera;
+    // What moves a pixel: the rotation's angle, and the translation over the distance to the
+    // board's origin (where the set's virtual objects stand), against one pixel's angle.
+    const double pixelRad = renderer_->camera().fovYRad / double(height_);
+    const double distanceM =
+        std::max(kMinHeldDistanceM, cv::norm(cv::Vec3d(pose(0, 3), pose(1, 3), pose(2, 3))));
+    bool holds = false;
+    if (heldSince_) {
+        const PoseDelta d = poseDelta(*heldSince_, pose);
+        holds = d.rotationDeg * M_PI / 180.0 + d.translationM / distanceM <= kHeldPixels * pixelRad;
+    }
+    if (!holds) heldSince_ = pose;
+    return holds;
 }
 
 Status PipelineRenderer::beginRefine(const TrackedFrame& frame,
@@ -339,6 +362,8 @@ Status PipelineRenderer::beginRefine(const TrackedFrame& frame,
     // Refinement filters its own accumulation, never a history; preview starts a new one after.
     renderer_->setTemporalDenoise(false);
     if (Denoiser* d = renderer_->denoiser()) d->resetHistory();
+    heldSince_.reset();
+    if (Status s = renderer_->holdView(false); !s) return s;
     return renderer_->reset();
 }
 

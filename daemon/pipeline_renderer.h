@@ -137,6 +137,15 @@ private:
     Status lightNeutrally(const ImageF& plate);
     // A new snapshot: uploads it; a change beyond lighting_threshold restarts the history.
     Status applyLighting(const std::shared_ptr<const LiveLighting>& lighting);
+    // Whether the camera has held still since heldSince_ (within kHeldPixels of a pixel's
+    // angle): the held view (render/held_view.h) then keeps this frame's samples per output
+    // pixel. A move, a lost pose, a lighting change or refinement starts it afresh.
+    bool cameraHolds(const TrackedFrame& frame);
+    std::optional<cv::Matx44d> heldSince_;
+    // A tracked pose jitters by a fraction of a pixel (0.05° on the demo take); a blur of up to a
+    // pixel in the held view costs less than restarting it on every jitter.
+    static constexpr double kHeldPixels = 1.0;
+    static constexpr double kMinHeldDistanceM = 0.1;
     // Held (not a raw pointer) so a new snapshot can never reuse the shown one's address.
     std::shared_ptr<const LiveLighting> lightingShown_;
 };

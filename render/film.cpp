@@ -154,14 +154,7 @@ Result<ImageF> Film::image(const TracedBuffers& traced, Aov aov) const {
     if (!read) return read.error();
     const Accumulation& a = *read;
     const size_t pixels = size_t(traced.width) * traced.height;
-    if (compositesPlate(aov)) {
-        // The means of Eq. 1's plate-free part and of the mask; compositeOverPlate adds the plate.
-        ImageF plateFree = blankImage(traced.width, traced.height, 4);
-        for (size_t i = 0; i < pixels; ++i)
-            for (int c = 0; c < 4; ++c)
-                plateFree.pixels[i * 4 + c] = float(a.mean(i, PV_ACCUM_COMPOSITE, c));
-        return compositeOverPlate(plateFree);
-    }
+    if (compositesPlate(aov)) return compositeOverPlate(plateFreeMeans(a, traced));
     const bool single = aov == Aov::Mask || aov == Aov::SampleCount;
     ImageF img = blankImage(traced.width, traced.height, single ? 1 : 3);
     const uint32_t k = colourSlot(aov, false);
@@ -176,8 +169,38 @@ Result<ImageF> Film::image(const TracedBuffers& traced, Aov aov) const {
     return upsample(img);
 }
 
+ImageF Film::plateFreeMeans(const Accumulation& a, const TracedBuffers& traced) {
+    ImageF plateFree = blankImage(traced.width, traced.height, 4);
+    for (size_t i = 0; i < size_t(traced.width) * traced.height; ++i)
+        for (int c = 0; c < 4; ++c)
+            plateFree.pixels[i * 4 + c] = float(a.mean(i, PV_ACCUM_COMPOSITE, c));
+    return plateFree;
+}
+
+std::optional<Film::HeldPhase> Film::holdView(bool on, uint32_t traceWidth, uint32_t traceHeight) {
+    if (on && held_ && held_->factor() * traceWidth != width_) held_.reset();
+    if (on && !held_) held_ = HeldView::create(width_, height_, traceWidth, traceHeight);
+    if (!on && held_) held_->reset();
+    if (!on || !held_) return std::nullopt;
+    return HeldPhase{held_->phase(), held_->factor()};
+}
+
+ImageF Film::heldComposite(const Accumulation& a, const TracedBuffers& traced,
+                           const ImageF& estimate) {
+    std::vector<float> samples(size_t(traced.width) * traced.height);
+    for (size_t i = 0; i < samples.size(); ++i) samples[i] = float(a.count(i));
+    held_->add(plateFreeMeans(a, traced), samples);
+    return compositeOverPlate(held_->blend(upsample(estimate), kHeldEstimateSamples));
+}
+
 Result<ImageF> Film::image(const TracedBuffers& traced, Aov aov, bool denoised,
                            const DenoiseCamera& camera) {
+    const bool held = held_ && held_->factor() * traced.width == width_ && compositesPlate(aov);
+    if (held && !denoised) {
+        Result<Accumulation> a = readAccumulation(traced);
+        if (!a) return a.error();
+        return heldComposite(*a, traced, plateFreeMeans(*a, traced));
+    }
     if (!denoised || !(aov == Aov::Composite || aov == Aov::Mixed || aov == Aov::Real))
         return image(traced, aov);
     if (!denoiser_)
@@ -223,7 +246,7 @@ Result<ImageF> Film::image(const TracedBuffers& traced, Aov aov, bool denoised,
         for (int c = 0; c < 3; ++c) plateFree.pixels[i * 4 + c] = filtered->pixels[i * 3 + c];
         plateFree.pixels[i * 4 + 3] = float(m->mean(i, PV_ACCUM_COMPOSITE, 3));
     }
-    return compositeOverPlate(plateFree);
+    return held ? heldComposite(*m, traced, plateFree) : compositeOverPlate(plateFree);
 }
 
 Result<Convergence> Film::convergence(const TracedBuffers& traced, uint64_t samplesPerPixel) const {

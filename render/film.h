@@ -19,6 +19,7 @@
 #include "image/image.h"
 #include "render/convergence.h"
 #include "render/denoiser.h"
+#include "render/held_view.h"
 #include "render/render_settings.h"
 #include "render/upsample.h"
 
@@ -65,6 +66,23 @@ public:
                          const DenoiseCamera& camera);
     Result<Convergence> convergence(const TracedBuffers& traced, uint64_t samplesPerPixel) const;
 
+    // A held camera's preview at the output's resolution (render/held_view.h): on, the
+    // composite keeps each frame's samples per output pixel and blends them in; off, it forgets
+    // them. Stays off where the trace is not the output divided by a whole factor ≥ 2. Returns
+    // the output pixel of each block the next frame is to sample (Renderer::setPixelFootprint),
+    // with the factor; nothing while off.
+    struct HeldPhase {
+        glm::uvec2 phase;
+        uint32_t factor;
+    };
+    std::optional<HeldPhase> holdView(bool on, uint32_t traceWidth, uint32_t traceHeight);
+    // Frames the held view keeps (0 while off).
+    uint64_t heldFrames() const { return held_ ? held_->frames() : 0; }
+    // What the estimate of a frame weighs against the samples kept per output pixel: about what
+    // the denoised, temporally accumulated estimate is worth in samples where it is right; the
+    // kept samples take over as they grow past it.
+    static constexpr double kHeldEstimateSamples = 4.0;
+
     Denoiser* denoiser() { return denoiser_ ? &*denoiser_ : nullptr; }
     const Denoiser* denoiser() const { return denoiser_ ? &*denoiser_ : nullptr; }
     void setTemporalDenoise(bool on) { temporalDenoise_ = on; }
@@ -83,6 +101,8 @@ private:
     };
     static Result<Accumulation> readAccumulation(const TracedBuffers& traced);
     static Result<std::vector<glm::vec4>> readGuides(const TracedBuffers& traced);
+    // The means of Eq. 1's plate-free part (RGB) and of the mask M (A) per traced pixel.
+    static ImageF plateFreeMeans(const Accumulation& a, const TracedBuffers& traced);
     Result<ImageF> guideImage(const TracedBuffers& traced, Aov aov) const;
     // The plate's pixel at the centre of traced pixel i (the meter at a fraction-size trace).
     size_t platePixelOf(const TracedBuffers& traced, size_t i) const;
@@ -92,6 +112,10 @@ private:
     // Eq. 1 at the output size from `plateFree` (RGB the mean of M·L_om + (1−M)(L_om − L_or), A
     // the mask M), upsampled first when it is traced at a fraction of the output.
     ImageF compositeOverPlate(const ImageF& plateFree) const;
+    // The held view's composite: this frame's samples kept, blended with `estimate` (the
+    // traced-size RGBA compositeOverPlate takes) upsampled.
+    ImageF heldComposite(const Accumulation& a, const TracedBuffers& traced,
+                         const ImageF& estimate);
 
     Film() = default;
     GpuContext* ctx_ = nullptr;
@@ -103,6 +127,7 @@ private:
     UpsampleSettings upsample_;
     std::optional<Denoiser> denoiser_;
     bool temporalDenoise_ = false;
+    std::optional<HeldView> held_;
 };
 
 }  // namespace previs

@@ -542,7 +542,8 @@ Status Renderer::buildScene(const Scene& scene, const Geometry& g, SceneBvh bvh)
     p.width = settings_.width;
     p.height = settings_.height;
     p.seed = settings_.seed;
-    p.replicates = 1u;  // set per accumulation by render() (shared/sampler.h)
+    p.replicates = 1u;        // set per accumulation by render() (shared/sampler.h)
+    p.footprintScale = 1.0f;  // the whole pixel (setPixelFootprint)
     p.maxDepth = settings_.maxDepth;
     p.lightCount = uint32_t(lights.size());
     p.emissiveTriangleCount = uint32_t(emissive.size());
@@ -770,6 +771,25 @@ Status Renderer::setResolutionScale(float scale) {
     if (Status s = sizeBands(width, height); !s) return s;
     if (Status s = bindBuffers(); !s) return s;
     return reset();
+}
+
+Status Renderer::setPixelFootprint(glm::vec2 offset, float scale) {
+    if (!(scale > 0.0f) || !(scale <= 1.0f) || !(offset.x >= 0.0f) || !(offset.y >= 0.0f) ||
+        !(offset.x + scale <= 1.0f) || !(offset.y + scale <= 1.0f))
+        return makeError(
+            "pixel footprint offset ({}, {}) scale {} is out of range: the square [offset, "
+            "offset + scale) must lie in the pixel, scale in (0, 1]",
+            offset.x, offset.y, scale);
+    params_.footprintOffset = offset;
+    params_.footprintScale = scale;
+    return {};
+}
+
+Status Renderer::holdView(bool on) {
+    const std::optional<Film::HeldPhase> held = film_->holdView(on, params_.width, params_.height);
+    if (!held) return setPixelFootprint(glm::vec2(0.0f), 1.0f);
+    const float scale = 1.0f / float(held->factor);
+    return setPixelFootprint(glm::vec2(held->phase) * scale, scale);
 }
 
 void Renderer::setMaxDepth(uint32_t maxDepth) {

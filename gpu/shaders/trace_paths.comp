@@ -184,7 +184,7 @@ void sampleDirectLight(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint mode
 }
 
 Ray cameraRay(uvec2 pixel, SampleKey key) {
-    vec2 jitter = draw(key, PV_SET_CAMERA_JITTER).xy;
+    vec2 jitter = params.footprintOffset + params.footprintScale * draw(key, PV_SET_CAMERA_JITTER).xy;
     vec2 ndc = vec2((float(pixel.x) + jitter.x) / float(params.width) * 2.0 - 1.0,
                     1.0 - (float(pixel.y) + jitter.y) / float(params.height) * 2.0);
     vec3 dir = vec3(ndc * params.tanHalfFov, -1.0);

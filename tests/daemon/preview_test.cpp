@@ -186,13 +186,18 @@ ImageF previewAfter(Demo& d, bool accumulate, int frames) {
     return *image;
 }
 
+// The still view refined to `samples` per pixel at full resolution, as the service refines.
+Result<ImageF> refined(Demo& d, uint32_t samples) {
+    auto p = PipelineRenderer::create(*d.gpu, d.scene, d.config);
+    if (!p) return p.error();
+    if (Status s = (*p)->beginRefine(d.still, d.lighting); !s) return s.error();
+    if (Status s = (*p)->refineStep(samples); !s) return s.error();
+    return (*p)->composite();
+}
+
 TEST(Preview, AHeldCameraConvergesTowardRefinementTheFixedSequenceDoesNot) {
     Demo d = demo();
-    auto p = PipelineRenderer::create(*d.gpu, d.scene, d.config);
-    ASSERT_TRUE(p) << p.message();
-    ASSERT_TRUE((*p)->beginRefine(d.still, d.lighting));
-    ASSERT_TRUE((*p)->refineStep(1024));
-    Result<ImageF> reference = (*p)->composite();
+    Result<ImageF> reference = refined(d, 1024);
     ASSERT_TRUE(reference) << reference.message();
 
     // Independent frames averaged: the error falls as 1/√N (1/4 after 16 frames; the reference's
@@ -207,6 +212,40 @@ TEST(Preview, AHeldCameraConvergesTowardRefinementTheFixedSequenceDoesNot) {
     const double fixedOne = rmse(previewAfter(d, false, 1), *reference);
     const double fixedSixteen = rmse(previewAfter(d, false, 16), *reference);
     EXPECT_NEAR(fixedSixteen, fixedOne, 0.01 * fixedOne);
+}
+
+// At half resolution the held view (render/held_view.h) keeps each frame's samples per output
+// pixel: a held camera's preview goes below what any number of half-resolution samples
+// upsampled can reach (the floor: a converged half-resolution trace, upsampled), toward the
+// full-resolution refinement.
+TEST(Preview, AtHalfResolutionAHeldCameraGoesBelowTheUpsamplingFloor) {
+    Demo d = demo();
+    Result<ImageF> reference = refined(d, 1024);
+    ASSERT_TRUE(reference) << reference.message();
+
+    d.config.render.resolutionScale = 0.5f;
+    d.config.render.previewAccumulate = true;
+    auto half = PipelineRenderer::create(*d.gpu, d.scene, d.config);
+    ASSERT_TRUE(half) << half.message();
+    ASSERT_TRUE((*half)->renderPreview(d.still, d.lighting));
+    Renderer& r = (*half)->renderer();
+    ASSERT_EQ(r.traceWidth() * 2, (*half)->width());
+    ASSERT_TRUE(r.holdView(false));
+    ASSERT_TRUE(r.reset());
+    ASSERT_TRUE(r.render(256));
+    Result<ImageF> converged = r.image(Aov::Composite);
+    ASSERT_TRUE(converged) << converged.message();
+    const double floor = rmse(*converged, *reference);
+
+    std::vector<double> errors;
+    for (int frames : {1, 4, 16, 32}) {
+        errors.push_back(rmse(previewAfter(d, true, frames), *reference));
+        std::printf("held half-resolution preview after %d frames: RMSE %.4f (floor %.4f)\n",
+                    frames, errors.back(), floor);
+    }
+    // 32 frames keep 8 samples of each output pixel (1 a frame, one pixel of each 2 x 2 block).
+    EXPECT_LT(errors.back(), floor);
+    EXPECT_LT(errors.back(), errors.front() / 2.0);
 }
 
 }  // namespace

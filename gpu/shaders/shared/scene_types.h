@@ -275,6 +275,11 @@ struct FrameParams {
     // Sort pairs photon_grid.comp's radix passes sort: the iteration's stored records (the
     // compaction's count), rounded up to whole sort blocks.
     uint photonSortRecords;
+    // The part of each traced pixel the camera samples, in traced pixels: [offset, offset +
+    // scale)² (Renderer::setPixelFootprint). (0, 0) and 1: all of it, the box filter; a preview
+    // at a fraction of the output size samples one output pixel of each traced pixel's block.
+    vec2 footprintOffset;
+    float footprintScale;
 };
 
 PV_END
