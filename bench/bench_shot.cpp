@@ -100,11 +100,15 @@ Result<References> references(const ServiceConfig& shipped, const std::string& s
     return refs;
 }
 
+// `dialPoint`: what the dial chose on this machine, where the variant runs it.
 Result<std::vector<FrameRow>> run(const Variant& v, const std::string& session,
-                                  const References& refs, size_t lastFrame) {
+                                  const References& refs, size_t lastFrame,
+                                  std::string& dialPoint) {
     auto opened = SessionReplay::open(session, v.config, Mode::Preview);
     if (auto* e = std::get_if<SessionReplay::OpenError>(&opened)) return e->error;
     SessionReplay& replay = *std::get<std::unique_ptr<SessionReplay>>(opened);
+    const PipelineRenderer& r = replay.renderer();
+    if (r.dialChoice()) dialPoint = r.dialMeasurements()[*r.dialChoice()].point.describe();
     std::vector<FrameRow> rows;
     for (size_t i = 0; i <= lastFrame; ++i) {
         const Clock::time_point t = Clock::now();
@@ -201,8 +205,11 @@ int runShotBench(const ShotBenchOptions& o) {
         "| preview | pan 5 | pan 10 | pan 15 | pan 19 | held 0 | held 1 | held 2 | held 4 | held 8 "
         "| held 16 | held 24 | pan 48 | pan 52 | flicker | ms/frame (median) |\n"
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    std::vector<std::string> dialPoints;
     for (const Variant& v : variants) {
-        Result<std::vector<FrameRow>> rows = run(v, session, *refs, last);
+        std::string dialPoint;
+        Result<std::vector<FrameRow>> rows = run(v, session, *refs, last, dialPoint);
+        if (!dialPoint.empty()) dialPoints.push_back(v.name + ": " + dialPoint);
         if (!rows) {
             logError("{}", rows.message());
             return 1;
@@ -227,6 +234,7 @@ int runShotBench(const ShotBenchOptions& o) {
         std::printf(" %.3f | %.0f |\n", flicker(*rows, still), median(ms));
         std::fflush(stdout);
     }
+    for (const std::string& d : dialPoints) std::printf("\nThe dial chose, %s.\n", d.c_str());
     return 0;
 }
 

@@ -129,6 +129,7 @@ std::string statusJson(const ServiceStatus& s) {
     j["lightingUpdates"] = s.lightingUpdates;
     j["lightingPending"] = s.lightingPending;
     j["previewHistoryFrames"] = s.previewHistoryFrames;
+    j["heldViewFrames"] = s.heldViewFrames;
     return j.dump();
 }
 
@@ -308,6 +309,7 @@ void Service::Threads::publish(PipelineRenderer& r, const TrackedFrame& frame, M
         renderStatus.photonRadiusM = photons ? r.renderer().lastPhotonRadius() : 0.0f;
         renderStatus.lightingPending = r.lightingPending();
         renderStatus.previewHistoryFrames = mode == Mode::Preview ? r.previewHistoryFrames() : 0;
+        renderStatus.heldViewFrames = mode == Mode::Preview ? r.renderer().heldViewFrames() : 0;
         out->index = renderStatus.framesRendered++;
         s = renderStatus;
     }

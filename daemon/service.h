@@ -58,6 +58,9 @@ struct ServiceStatus {
     bool lightingPending = false;
     // Preview: frames averaged into the shown one (temporal accumulation; 0: fixed sequence).
     uint32_t previewHistoryFrames = 0;
+    // Preview: frames the held view keeps per output pixel since the camera last moved
+    // (render/held_view.h; 0 while the camera moves, at full resolution, or in refinement).
+    uint64_t heldViewFrames = 0;
 };
 
 std::string statusJson(const ServiceStatus& status);

@@ -177,29 +177,29 @@ ImageF Film::plateFreeMeans(const Accumulation& a, const TracedBuffers& traced) 
     return plateFree;
 }
 
-std::optional<Film::HeldPhase> Film::holdView(bool on, uint32_t traceWidth, uint32_t traceHeight) {
+std::optional<uint32_t> Film::holdView(bool on, uint32_t traceWidth, uint32_t traceHeight) {
     if (on && held_ && held_->factor() * traceWidth != width_) held_.reset();
     if (on && !held_) held_ = HeldView::create(width_, height_, traceWidth, traceHeight);
     if (!on && held_) held_->reset();
     if (!on || !held_) return std::nullopt;
-    return HeldPhase{held_->phase(), held_->factor()};
+    return held_->factor();
 }
 
-ImageF Film::heldComposite(const Accumulation& a, const TracedBuffers& traced,
-                           const ImageF& estimate) {
-    std::vector<float> samples(size_t(traced.width) * traced.height);
-    for (size_t i = 0; i < samples.size(); ++i) samples[i] = float(a.count(i));
-    held_->add(plateFreeMeans(a, traced), samples);
-    return compositeOverPlate(held_->blend(upsample(estimate), kHeldEstimateSamples));
+Result<ImageF> Film::heldComposite(const TracedBuffers& traced, const ImageF& estimate) {
+    std::vector<glm::vec4> samples(size_t(width_) * height_ * 2);
+    if (Status s = traced.held->download(samples.data(), samples.size() * sizeof(glm::vec4)); !s)
+        return s.error();
+    held_->add(samples);
+    return compositeOverPlate(held_->blend(upsample(estimate)));
 }
 
 Result<ImageF> Film::image(const TracedBuffers& traced, Aov aov, bool denoised,
                            const DenoiseCamera& camera) {
-    const bool held = held_ && held_->factor() * traced.width == width_ && compositesPlate(aov);
+    const bool held = held_ && traced.held && compositesPlate(aov);
     if (held && !denoised) {
         Result<Accumulation> a = readAccumulation(traced);
         if (!a) return a.error();
-        return heldComposite(*a, traced, plateFreeMeans(*a, traced));
+        return heldComposite(traced, plateFreeMeans(*a, traced));
     }
     if (!denoised || !(aov == Aov::Composite || aov == Aov::Mixed || aov == Aov::Real))
         return image(traced, aov);
@@ -246,7 +246,8 @@ Result<ImageF> Film::image(const TracedBuffers& traced, Aov aov, bool denoised,
         for (int c = 0; c < 3; ++c) plateFree.pixels[i * 4 + c] = filtered->pixels[i * 3 + c];
         plateFree.pixels[i * 4 + 3] = float(m->mean(i, PV_ACCUM_COMPOSITE, 3));
     }
-    return held ? heldComposite(*m, traced, plateFree) : compositeOverPlate(plateFree);
+    if (held) return heldComposite(traced, plateFree);
+    return compositeOverPlate(plateFree);
 }
 
 Result<Convergence> Film::convergence(const TracedBuffers& traced, uint64_t samplesPerPixel) const {

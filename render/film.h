@@ -39,6 +39,9 @@ struct TracedBuffers {
     const GpuBuffer* sum = nullptr;
     const GpuBuffer* compensation = nullptr;
     const GpuBuffer* guides = nullptr;
+    // The frame's samples at the output's resolution (PV_BINDING_HELD_SAMPLES); null unless the
+    // held view is on.
+    const GpuBuffer* held = nullptr;
     uint32_t width = 0;
     uint32_t height = 0;
 };
@@ -67,21 +70,12 @@ public:
     Result<Convergence> convergence(const TracedBuffers& traced, uint64_t samplesPerPixel) const;
 
     // A held camera's preview at the output's resolution (render/held_view.h): on, the
-    // composite keeps each frame's samples per output pixel and blends them in; off, it forgets
-    // them. Stays off where the trace is not the output divided by a whole factor ≥ 2. Returns
-    // the output pixel of each block the next frame is to sample (Renderer::setPixelFootprint),
-    // with the factor; nothing while off.
-    struct HeldPhase {
-        glm::uvec2 phase;
-        uint32_t factor;
-    };
-    std::optional<HeldPhase> holdView(bool on, uint32_t traceWidth, uint32_t traceHeight);
+    // composite keeps each frame's samples per output pixel (TracedBuffers::held) and clamps its
+    // estimate to them; off, it forgets them. Stays off where the trace is not the output divided
+    // by a whole factor ≥ 2. Returns whether it is on, and its factor.
+    std::optional<uint32_t> holdView(bool on, uint32_t traceWidth, uint32_t traceHeight);
     // Frames the held view keeps (0 while off).
     uint64_t heldFrames() const { return held_ ? held_->frames() : 0; }
-    // What the estimate of a frame weighs against the samples kept per output pixel: about what
-    // the denoised, temporally accumulated estimate is worth in samples where it is right; the
-    // kept samples take over as they grow past it.
-    static constexpr double kHeldEstimateSamples = 4.0;
 
     Denoiser* denoiser() { return denoiser_ ? &*denoiser_ : nullptr; }
     const Denoiser* denoiser() const { return denoiser_ ? &*denoiser_ : nullptr; }
@@ -114,8 +108,7 @@ private:
     ImageF compositeOverPlate(const ImageF& plateFree) const;
     // The held view's composite: this frame's samples kept, blended with `estimate` (the
     // traced-size RGBA compositeOverPlate takes) upsampled.
-    ImageF heldComposite(const Accumulation& a, const TracedBuffers& traced,
-                         const ImageF& estimate);
+    Result<ImageF> heldComposite(const TracedBuffers& traced, const ImageF& estimate);
 
     Film() = default;
     GpuContext* ctx_ = nullptr;

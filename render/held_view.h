@@ -3,11 +3,15 @@
 // A held camera's preview at the output's own resolution. A preview traced at 1/f of the output
 // size upsamples its traced pixels (render/upsample.h), and no number of frames averages away
 // what the upsampling blurs at the virtual objects' outlines, which the plate (its guide) does
-// not show. While the camera holds still, each frame instead samples one output pixel of every
-// traced pixel's f × f block (Renderer::setPixelFootprint), the f² phases in turn; this keeps
-// those samples per output pixel, so a held preview converges to the full-resolution image that
-// refinement converges to, and blends them with the frame's own (upsampled, denoised) estimate
-// while they are few.
+// not show. Yet each traced pixel's samples are jittered over its whole f × f block of output
+// pixels: the path tracer also adds each sample to the output pixel it landed in
+// (PV_BINDING_HELD_SAMPLES), and while the camera holds still this keeps those samples per
+// output pixel, so a held preview converges to the full-resolution image that refinement
+// converges to. The frame's own (upsampled, denoised) estimate counts as kEstimateSamples
+// samples beside them: it carries the picture while they are few, and they take over as they
+// grow (the estimate's error is mostly the upsampling's bias at outlines and contact shadows,
+// which a few more samples do not tell apart from noise: path tracing's heavy tails make a few
+// samples agree too often, e.g. all miss a soft shadow, for a per-pixel confidence test).
 
 #include <cstdint>
 #include <glm/glm.hpp>
@@ -26,26 +30,27 @@ public:
                                           uint32_t traceHeight);
 
     uint32_t factor() const { return factor_; }
-    // The output pixel of each block the next frame samples, (0, 0) to (f − 1, f − 1), in an
-    // order that spreads each f² frames' samples evenly over the block.
-    glm::uvec2 phase() const;
-    // Keeps a frame traced at phase(): `traced` RGBA per traced pixel (RGB the mean of Eq. 1's
-    // plate-free part, A the mask M) over `samples` per traced pixel; the next phase follows.
-    void add(const ImageF& traced, std::span<const float> samples);
-    // `estimate` (the same RGBA, at the output size) where no sample is kept, else the mean of
-    // the kept samples and the estimate weighted as `estimateSamples` samples.
-    ImageF blend(const ImageF& estimate, double estimateSamples) const;
+    // Keeps a frame's samples: per output pixel two vec4, as PV_BINDING_HELD_SAMPLES holds them.
+    void add(std::span<const glm::vec4> samples);
+    // `estimate` (RGBA at the output size: RGB the mean of Eq. 1's plate-free part, A the mask
+    // M) averaged with the kept samples, the estimate counted as kEstimateSamples samples.
+    ImageF blend(const ImageF& estimate) const;
+    // About what the denoised estimate is worth where it is right: it averages a history of up to
+    // 32 frames of its traced pixels and their neighbours' (BENCHMARKS.md, "The preview as
+    // shipped", measures the choice).
+    static constexpr double kEstimateSamples = 16.0;
     // Frames kept since the camera last moved.
     uint64_t frames() const { return frames_; }
     void reset();
 
 private:
     HeldView(uint32_t width, uint32_t height, uint32_t factor);
+
     uint32_t width_;
     uint32_t height_;
     uint32_t factor_;
     uint64_t frames_ = 0;
-    std::vector<glm::vec4> sum_;  // per output pixel, Σ samples × traced mean
+    std::vector<glm::vec4> sum_;  // per output pixel, Σ (plate-free RGB, M) over its samples
     std::vector<float> count_;    // per output pixel, samples kept
 };
 

@@ -542,8 +542,7 @@ Status Renderer::buildScene(const Scene& scene, const Geometry& g, SceneBvh bvh)
     p.width = settings_.width;
     p.height = settings_.height;
     p.seed = settings_.seed;
-    p.replicates = 1u;        // set per accumulation by render() (shared/sampler.h)
-    p.footprintScale = 1.0f;  // the whole pixel (setPixelFootprint)
+    p.replicates = 1u;  // set per accumulation by render() (shared/sampler.h)
     p.maxDepth = settings_.maxDepth;
     p.lightCount = uint32_t(lights.size());
     p.emissiveTriangleCount = uint32_t(emissive.size());
@@ -625,6 +624,7 @@ Status Renderer::buildScene(const Scene& scene, const Geometry& g, SceneBvh bvh)
              settings_.denoise ? pixels * PV_GUIDE_COUNT * sizeof(glm::vec4) : size_t(0), "guides");
     allocate(PV_BINDING_PHOTON_SPLATS, photonSplats_ ? photonSplatBytes() : size_t(0),
              "photonSplats");
+    allocate(PV_BINDING_HELD_SAMPLES, 0, "heldSamples");  // holdView makes it when needed
     if (!s) return s;
     buffers_.clear();
     buffers_.reserve(PV_BINDING_COUNT);
@@ -773,23 +773,24 @@ Status Renderer::setResolutionScale(float scale) {
     return reset();
 }
 
-Status Renderer::setPixelFootprint(glm::vec2 offset, float scale) {
-    if (!(scale > 0.0f) || !(scale <= 1.0f) || !(offset.x >= 0.0f) || !(offset.y >= 0.0f) ||
-        !(offset.x + scale <= 1.0f) || !(offset.y + scale <= 1.0f))
-        return makeError(
-            "pixel footprint offset ({}, {}) scale {} is out of range: the square [offset, "
-            "offset + scale) must lie in the pixel, scale in (0, 1]",
-            offset.x, offset.y, scale);
-    params_.footprintOffset = offset;
-    params_.footprintScale = scale;
-    return {};
-}
-
 Status Renderer::holdView(bool on) {
-    const std::optional<Film::HeldPhase> held = film_->holdView(on, params_.width, params_.height);
-    if (!held) return setPixelFootprint(glm::vec2(0.0f), 1.0f);
-    const float scale = 1.0f / float(held->factor);
-    return setPixelFootprint(glm::vec2(held->phase) * scale, scale);
+    const std::optional<uint32_t> factor = film_->holdView(on, params_.width, params_.height);
+    params_.heldFactor = 0u;
+    if (!factor) return {};
+    // The output's samples of one frame, made when first needed (a renderer that never previews
+    // below full resolution never pays for them) and bound whole.
+    const uint64_t bytes = uint64_t(settings_.width) * settings_.height * 2 * sizeof(glm::vec4);
+    const uint64_t limit = ctx_->physicalDevice().getProperties().limits.maxStorageBufferRange;
+    if (bytes > limit) return {};
+    GpuBuffer& held = buffers_[PV_BINDING_HELD_SAMPLES];
+    if (held.size() != bytes) {
+        auto fresh = GpuBuffer::create(*ctx_, bytes, "heldSamples");
+        if (!fresh) return fresh.error();
+        if (Status s = fresh->fill(0); !s) return s;
+        held = std::move(fresh.value());  // dispatches are synchronous: the old one is unused
+    }
+    params_.heldFactor = *factor;
+    return {};
 }
 
 void Renderer::setMaxDepth(uint32_t maxDepth) {
@@ -825,8 +826,8 @@ Status Renderer::reset() {
     accumulationReplicates_ = 0;
     gpuMs_ = 0.0;
     photonMs_ = 0.0;
-    for (int b : {PV_BINDING_ACCUM_SUM, PV_BINDING_ACCUM_COMPENSATION, PV_BINDING_STATS,
-                  PV_BINDING_GUIDES}) {
+    for (int b : {PV_BINDING_ACCUM_SUM, PV_BINDING_ACCUM_COMPENSATION, PV_BINDING_HELD_SAMPLES,
+                  PV_BINDING_STATS, PV_BINDING_GUIDES}) {
         if (Status s = buffers_[b].fill(0); !s) return s;
     }
     return {};
@@ -950,8 +951,11 @@ Status Renderer::render(uint32_t samples,
 }
 
 TracedBuffers Renderer::traced() const {
-    return {&buffers_[PV_BINDING_ACCUM_SUM], &buffers_[PV_BINDING_ACCUM_COMPENSATION],
-            settings_.denoise ? &buffers_[PV_BINDING_GUIDES] : nullptr, params_.width,
+    return {&buffers_[PV_BINDING_ACCUM_SUM],
+            &buffers_[PV_BINDING_ACCUM_COMPENSATION],
+            settings_.denoise ? &buffers_[PV_BINDING_GUIDES] : nullptr,
+            params_.heldFactor ? &buffers_[PV_BINDING_HELD_SAMPLES] : nullptr,
+            params_.width,
             params_.height};
 }
 

@@ -155,17 +155,10 @@ public:
     // How image() brings a traced buffer to the output size (resolution scale < 1).
     UpsampleSettings& upsampleSettings() { return film_->upsampleSettings(); }
 
-    // The part of each traced pixel the next samples cover, in traced pixels: the square
-    // [offset, offset + scale)² ((0, 0) and 1, the default: all of it, the box filter). A preview
-    // traced at 1/f of the output samples one output pixel of each f × f block per frame
-    // (offset = phase / f, scale = 1/f), so that successive frames cover every output pixel
-    // (render/held_view.h). Call reset() before samples of another footprint join the mean.
-    Status setPixelFootprint(glm::vec2 offset, float scale);
-
-    // A held camera's preview (render/held_view.h, Film::holdView): on, the next frame samples
-    // the held view's phase of each traced pixel's block and the composite keeps its samples per
-    // output pixel; off, every pixel is sampled whole and the kept samples are forgotten. On
-    // does nothing where the trace is not the output divided by a whole factor ≥ 2.
+    // A held camera's preview (render/held_view.h, Film::holdView): on, the next frames also add
+    // each sample to the output pixel it landed in and the composite keeps those per output
+    // pixel; off, the kept samples are forgotten. On does nothing where the trace is not the
+    // output divided by a whole factor ≥ 2 (at full resolution there is nothing to gain).
     Status holdView(bool on);
     // Frames the held view keeps (0 while off).
     uint64_t heldViewFrames() const { return film_->heldFrames(); }

@@ -24,6 +24,7 @@ layout(binding = PV_BINDING_PHOTON_SORTED) uniform usamplerBuffer photonTexels;
 layout(binding = PV_BINDING_PHOTON_CELLS) uniform usamplerBuffer photonCellTexels;
 // The photons the camera sees directly, splatted by this iteration's photon pass (scene_types.h).
 layout(binding = PV_BINDING_PHOTON_SPLATS, scalar) readonly buffer Splats { uint splats[]; };
+layout(binding = PV_BINDING_HELD_SAMPLES, scalar) buffer HeldSamples { vec4 heldSamples[]; };
 
 #include "shared/photon_map.h"
 #include "shared/denoise.h"
@@ -184,7 +185,7 @@ void sampleDirectLight(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint mode
 }
 
 Ray cameraRay(uvec2 pixel, SampleKey key) {
-    vec2 jitter = params.footprintOffset + params.footprintScale * draw(key, PV_SET_CAMERA_JITTER).xy;
+    vec2 jitter = draw(key, PV_SET_CAMERA_JITTER).xy;
     vec2 ndc = vec2((float(pixel.x) + jitter.x) / float(params.width) * 2.0 - 1.0,
                     1.0 - (float(pixel.y) + jitter.y) / float(params.height) * 2.0);
     vec3 dir = vec3(ndc * params.tanHalfFov, -1.0);
@@ -478,8 +479,18 @@ void kahanAdd(inout vec4 sum, inout vec4 c, vec4 x) {
 
 // Adds sample `sampleIndex`'s radiances to the pixel's sums; `nonFiniteRay`: one of its rays had
 // a NaN or infinite origin or direction.
+// The held view's sample (FrameParams::heldFactor): in the output pixel of the traced pixel's
+// block that the sample's jitter (cameraRay's) landed in.
+void addHeldSample(uvec2 pixel, SampleKey key, vec3 composite, float mask) {
+    uint f = params.heldFactor;
+    uvec2 at = pixel * f + min(uvec2(draw(key, PV_SET_CAMERA_JITTER).xy * float(f)), uvec2(f - 1u));
+    uint i = 2u * (at.y * params.width * f + at.x);
+    heldSamples[i] += vec4(composite, mask);
+    heldSamples[i + 1u].x += 1.0;
+}
+
 void addSample(uint sampleIndex, uint pixelIndex, vec3 lm, vec3 lr, bool firstHitVirtual,
-               bool nonFiniteRay) {
+               bool nonFiniteRay, uvec2 pixel, SampleKey key) {
     if (nonFiniteRay || any(isnan(lm)) || any(isinf(lm)) ||
         any(isnan(lr)) || any(isinf(lr))) {
         // Counted, and the host reports it: never silently part of the image. Dropped
@@ -521,6 +532,7 @@ void addSample(uint sampleIndex, uint pixelIndex, vec3 lm, vec3 lr, bool firstHi
     lm += splatMixed;
     lr += splatReal;
     kahanAdd(gSum[PV_ACCUM_COMPOSITE], gComp[PV_ACCUM_COMPOSITE], vec4(composite, mask));
+    if (params.heldFactor != 0u) addHeldSample(pixel, key, composite, mask);
     kahanAdd(gSum[PV_ACCUM_MIXED], gComp[PV_ACCUM_MIXED], vec4(lm, 1.0));
     if (kDifferential) kahanAdd(gSum[PV_ACCUM_REAL], gComp[PV_ACCUM_REAL], vec4(lr, 0.0));
     // Replicate 1's samples (sampler.h) also into its own sums: the convergence meter
@@ -758,7 +770,7 @@ void tracePaths(uvec2 pixel, uint pixelIndex) {
                 haveRealContinuation = false;
             } else {
                 addSample(params.sampleBase + nth, pixelIndex, lm, lr, firstHitVirtual,
-                          gNonFiniteRays != nonFiniteRaysBefore);
+                          gNonFiniteRays != nonFiniteRaysBefore, pixel, key);
                 nth += 1u;
                 if (nth >= params.samplesPerDispatch) break;
                 sampleBegins = true;

@@ -65,7 +65,11 @@ PV_BEGIN
 // additions. Cleared by every photon pass, read by the camera pass; a 16-byte placeholder where
 // the renderer does not splat.
 #define PV_BINDING_PHOTON_SPLATS 28
-#define PV_BINDING_COUNT 29
+// The held view's samples of one frame at the output's resolution (FrameParams::heldFactor): per
+// output pixel two vec4, (Σ of Eq. 1's plate-free part, Σ M) and (the samples, 0, 0, 0). Each invocation writes only its traced pixel's block: no atomics. Cleared with
+// the accumulation; a 16-byte placeholder where no held view is possible.
+#define PV_BINDING_HELD_SAMPLES 29
+#define PV_BINDING_COUNT 30
 #define PV_SPLAT_MIXED 0u         // photons of the mixed solution the camera sees
 #define PV_SPLAT_REAL 1u          // photons of the real solution the real camera ray sees
 #define PV_SPLAT_REAL_UNHIDDEN 2u // ... of which no virtual object hides in the mixed solution
@@ -275,11 +279,10 @@ struct FrameParams {
     // Sort pairs photon_grid.comp's radix passes sort: the iteration's stored records (the
     // compaction's count), rounded up to whole sort blocks.
     uint photonSortRecords;
-    // The part of each traced pixel the camera samples, in traced pixels: [offset, offset +
-    // scale)² (Renderer::setPixelFootprint). (0, 0) and 1: all of it, the box filter; a preview
-    // at a fraction of the output size samples one output pixel of each traced pixel's block.
-    vec2 footprintOffset;
-    float footprintScale;
+    // The held view (render/held_view.h): 0, off; f, each sample is also added to the output
+    // pixel (of the f × f that the traced pixel covers) its jitter landed in
+    // (PV_BINDING_HELD_SAMPLES).
+    uint heldFactor;
 };
 
 PV_END
