@@ -13,9 +13,7 @@ std::optional<HeldView> HeldView::create(uint32_t width, uint32_t height, uint32
 }
 
 HeldView::HeldView(uint32_t width, uint32_t height, uint32_t factor)
-    : width_(width),
-      height_(height),
-      factor_(factor),
+    : factor_(factor),
       sum_(size_t(width) * height, glm::vec4(0.0f)),
       count_(size_t(width) * height, 0.0f) {}
 

@@ -46,8 +46,6 @@ public:
 private:
     HeldView(uint32_t width, uint32_t height, uint32_t factor);
 
-    uint32_t width_;
-    uint32_t height_;
     uint32_t factor_;
     uint64_t frames_ = 0;
     std::vector<glm::vec4> sum_;  // per output pixel, Σ (plate-free RGB, M) over its samples
