@@ -778,15 +778,14 @@ Status Renderer::holdView(bool on) {
     params_.heldFactor = 0u;
     if (!factor) return {};
     // The output's samples of one frame, made when first needed (a renderer that never previews
-    // below full resolution never pays for them) and bound whole.
-    const uint64_t bytes = uint64_t(settings_.width) * settings_.height * 2 * sizeof(glm::vec4);
-    const uint64_t limit = ctx_->physicalDevice().getProperties().limits.maxStorageBufferRange;
-    if (bytes > limit) return {};
+    // below full resolution never pays for them) and bound whole; reset() clears them.
     GpuBuffer& held = buffers_[PV_BINDING_HELD_SAMPLES];
+    const uint64_t bytes = uint64_t(settings_.width) * settings_.height * 2 * sizeof(glm::vec4);
     if (held.size() != bytes) {
+        const uint64_t limit = ctx_->physicalDevice().getProperties().limits.maxStorageBufferRange;
+        if (bytes > limit) return {};  // an output too large to bind whole: no held view
         auto fresh = GpuBuffer::create(*ctx_, bytes, "heldSamples");
         if (!fresh) return fresh.error();
-        if (Status s = fresh->fill(0); !s) return s;
         held = std::move(fresh.value());  // dispatches are synchronous: the old one is unused
     }
     params_.heldFactor = *factor;
@@ -826,10 +825,12 @@ Status Renderer::reset() {
     accumulationReplicates_ = 0;
     gpuMs_ = 0.0;
     photonMs_ = 0.0;
-    for (int b : {PV_BINDING_ACCUM_SUM, PV_BINDING_ACCUM_COMPENSATION, PV_BINDING_HELD_SAMPLES,
-                  PV_BINDING_STATS, PV_BINDING_GUIDES}) {
+    for (int b : {PV_BINDING_ACCUM_SUM, PV_BINDING_ACCUM_COMPENSATION, PV_BINDING_STATS,
+                  PV_BINDING_GUIDES}) {
         if (Status s = buffers_[b].fill(0); !s) return s;
     }
+    // The held view's samples only while it is on: a frame that moves pays nothing for them.
+    if (params_.heldFactor != 0u) return buffers_[PV_BINDING_HELD_SAMPLES].fill(0);
     return {};
 }
 
