@@ -90,7 +90,7 @@ double cpuSeconds() {
 struct StageResult {
     int ok = 0;
     uint32_t width = 0, height = 0, frames = 0;
-    Stat decode, track, lighting, render, composite, tonemap, compose1080, png;
+    Stat decode, track, lighting, render, display, compose1080, png;
     double firstRenderMs = 0.0;  // frame 0 (warm-up, not in the render row)
     double peakRssMiB = 0.0;
     double deviceMiB = 0.0;
@@ -262,7 +262,7 @@ StageResult measureStages(const ServiceBenchOptions& o, uint32_t w, uint32_t h) 
     const SteadyShotClock clock;
     ShotController shot(pr, modes, clock, config->refine);
     const size_t frames = std::min<size_t>(scenes->size(), o.quick ? 10 : scenes->size());
-    std::vector<double> track, lit, render, composite, tonemap, compose, png;
+    std::vector<double> track, lit, render, display, compose, png;
     std::shared_ptr<const LiveLighting> current;
     size_t nextFisheye = 0;
     for (size_t i = 0; i < frames; ++i) {
@@ -291,15 +291,13 @@ StageResult measureStages(const ServiceBenchOptions& o, uint32_t w, uint32_t h) 
         else
             render.push_back(renderMs);
         t = Clock::now();
-        Result<ImageF> image = pr.composite();
+        Result<DisplayImage> image = pr.display();
         if (!image) return fail(image.message());
-        composite.push_back(msSince(t));
-        t = Clock::now();
+        display.push_back(msSince(t));
         DisplayFrame out;
         out.width = image->width;
         out.height = image->height;
-        out.rgb = pr.toDisplay(std::move(*image));
-        tonemap.push_back(msSince(t));
+        out.rgb = std::move(image->rgb);
         out.status = fmt::format("PREVIEW 1 spp {:.1f} fps", 1.0);
         out.index = i;
         t = Clock::now();
@@ -315,8 +313,7 @@ StageResult measureStages(const ServiceBenchOptions& o, uint32_t w, uint32_t h) 
     r.track = stat(track);
     r.lighting = stat(lit);
     r.render = stat(render);
-    r.composite = stat(composite);
-    r.tonemap = stat(tonemap);
+    r.display = stat(display);
     r.compose1080 = stat(compose);
     r.png = stat(png);
     r.peakRssMiB = peakRssMiB();
@@ -537,16 +534,14 @@ int runServiceBench(const ServiceBenchOptions& o) {
     std::printf(
         "### Cost per frame of each stage, lock step (ms, median / p90)\n\n"
         "| render size | frames | JPEG decode 640×360 | tracking 640×360 | lighting "
-        "(fisheye → map) | preview render 1 spp | composite readback | tone map | "
+        "(fisheye → map) | preview render 1 spp | composite + tone map (device), 8-bit readback | "
         "compose to 1920×1080 | PNG write | peak RSS | device memory |\n"
-        "|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+        "|---|---|---|---|---|---|---|---|---|---|---|\n");
     for (const StageResult& s : stages)
-        std::printf(
-            "| %u×%u | %u | %s | %s | %s | %s | %s | %s | %s | %s | %.0f MiB | %.0f MiB |\n",
-            s.width, s.height, s.frames, ms(s.decode).c_str(), ms(s.track).c_str(),
-            ms(s.lighting).c_str(), ms(s.render).c_str(), ms(s.composite).c_str(),
-            ms(s.tonemap).c_str(), ms(s.compose1080).c_str(), ms(s.png).c_str(), s.peakRssMiB,
-            s.deviceMiB);
+        std::printf("| %u×%u | %u | %s | %s | %s | %s | %s | %s | %s | %.0f MiB | %.0f MiB |\n",
+                    s.width, s.height, s.frames, ms(s.decode).c_str(), ms(s.track).c_str(),
+                    ms(s.lighting).c_str(), ms(s.render).c_str(), ms(s.display).c_str(),
+                    ms(s.compose1080).c_str(), ms(s.png).c_str(), s.peakRssMiB, s.deviceMiB);
     std::printf("\nFirst preview frame (warm-up, not in the render column): %s.\n\n",
                 [&] {
                     std::string t;
@@ -618,11 +613,13 @@ int runServiceBench(const ServiceBenchOptions& o) {
                 << "\n";
         };
         for (const StageResult& s : stages) {
-            std::pair<const char*, const Stat*> list[] = {
-                {"decode_ms", &s.decode},           {"track_ms", &s.track},
-                {"lighting_ms", &s.lighting},       {"render_ms", &s.render},
-                {"composite_ms", &s.composite},     {"tonemap_ms", &s.tonemap},
-                {"compose1080_ms", &s.compose1080}, {"png_ms", &s.png}};
+            std::pair<const char*, const Stat*> list[] = {{"decode_ms", &s.decode},
+                                                          {"track_ms", &s.track},
+                                                          {"lighting_ms", &s.lighting},
+                                                          {"render_ms", &s.render},
+                                                          {"display_ms", &s.display},
+                                                          {"compose1080_ms", &s.compose1080},
+                                                          {"png_ms", &s.png}};
             for (auto [name, st] : list)
                 row("stages", s.width, s.height, "", name, st->median, st->p90, st->n);
             row("stages", s.width, s.height, "", "first_render_ms", s.firstRenderMs, NAN, 1);

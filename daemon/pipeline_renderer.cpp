@@ -80,8 +80,8 @@ Result<std::unique_ptr<PipelineRenderer>> PipelineRenderer::create(GpuContext& c
     p->previewSamples_ = config.render.samplesPerFrame;
     p->previewResolutionScale_ = config.render.resolutionScale;
     p->radiometry_ = config.sceneCamera.radiometry;
-    p->display_ = forwardOf(p->radiometry_);
-    p->whiteBalance_ = p->radiometry_.whiteBalance;
+    p->display_.tone = forwardOf(p->radiometry_);
+    p->display_.whiteBalance = p->radiometry_.whiteBalance;
     p->sceneCameraUntilTracked_ = config.tracking.sceneCameraUntilTracked;
 
     RenderSettings settings;
@@ -358,7 +358,8 @@ Status PipelineRenderer::beginRefine(const TrackedFrame& frame,
     if (Status s = renderer_->setResolutionScale(1.0f); !s) return s;
     renderer_->setMaxDepth(refineDepth_);
     refining_ = true;
-    refineDenoised_.reset();
+    refineComposite_ = {};
+    refineDisplay_ = {};
     // Refinement filters its own accumulation, never a history; preview starts a new one after.
     renderer_->setTemporalDenoise(false);
     if (Denoiser* d = renderer_->denoiser()) d->resetHistory();
@@ -385,9 +386,8 @@ uint32_t PipelineRenderer::previewHistoryFrames() const {
 
 uint64_t PipelineRenderer::samples() const { return rendered_ ? renderer_->samplesPerPixel() : 0; }
 
-Result<ImageF> PipelineRenderer::composite(std::optional<double> noiseEstimate) {
+Result<bool> PipelineRenderer::chooseFilter(std::optional<double> noiseEstimate) {
     lastDenoiseLevels_ = 0;
-    if (!rendered_) return plate_;
     uint32_t levels = previewDenoiseLevels_;
     if (refining_)
         levels = denoise_ == "on" ||
@@ -396,29 +396,41 @@ Result<ImageF> PipelineRenderer::composite(std::optional<double> noiseEstimate) 
                      : 0;
     // Preview's accumulation runs through the denoiser's temporal stage, spatial filter or not.
     const bool temporal = accumulate_ && !refining_;
-    if (levels == 0 && !temporal) return renderer_->image(Aov::Composite);
+    if (levels == 0 && !temporal) return false;
+    if (Status s = renderer_->setDenoiseIterations(levels); !s) return s.error();
+    lastDenoiseLevels_ = levels;
+    return true;
+}
+
+template <typename Image, typename Make>
+Result<Image> PipelineRenderer::denoisedOnce(RefineCache<Image>& cache, Make make) {
     // A denoise costs what a refinement step does (~0.2 s at 640×480): refinement shows its last
     // denoised frame until the samples have grown by a quarter (the noise by 11 %), so a
     // refinement to 1024 spp denoises ~30 times, not at every step, and keeps its samples/s.
-    const bool reuse = refining_ && refineDenoised_ && samples() < refineDenoisedAt_ * 5 / 4;
-    if (Status s = renderer_->setDenoiseIterations(levels); !s) return s.error();
-    lastDenoiseLevels_ = levels;
-    if (reuse) return *refineDenoised_;
-    Result<ImageF> image = renderer_->image(Aov::Composite, true);
-    if (image && refining_) {
-        refineDenoised_ = *image;
-        refineDenoisedAt_ = samples();
-    }
+    if (refining_ && cache.image && samples() < cache.samples * 5 / 4) return *cache.image;
+    Result<Image> image = make();
+    if (image && refining_) cache = {*image, samples()};
     return image;
 }
 
-std::vector<uint8_t> PipelineRenderer::toDisplay(ImageF composite) const {
-    // Undo the white balance the plate's inverse applied (in place, no copy per frame), then
-    // the camera's curve forward.
-    if (whiteBalance_ != std::array<float, 3>{1.0f, 1.0f, 1.0f})
-        for (size_t i = 0; i < composite.pixels.size(); ++i)
-            composite.pixels[i] /= whiteBalance_[i % 3];
-    return toneMapToSrgb8(composite, display_);
+Result<ImageF> PipelineRenderer::composite(std::optional<double> noiseEstimate) {
+    if (!rendered_) return plate_;
+    const Result<bool> denoised = chooseFilter(noiseEstimate);
+    if (!denoised) return denoised.error();
+    if (!*denoised) return renderer_->image(Aov::Composite);
+    return denoisedOnce(refineComposite_, [&] { return renderer_->image(Aov::Composite, true); });
+}
+
+Result<DisplayImage> PipelineRenderer::display(std::optional<double> noiseEstimate) {
+    if (!rendered_) return toDisplayImage(plate_, display_);
+    const Result<bool> denoised = chooseFilter(noiseEstimate);
+    if (!denoised) return denoised.error();
+    if (!*denoised) return renderer_->display(false, display_);
+    return denoisedOnce(refineDisplay_, [&] { return renderer_->display(true, display_); });
+}
+
+DisplayImage PipelineRenderer::toDisplay(ImageF composite) const {
+    return toDisplayImage(std::move(composite), display_);
 }
 
 }  // namespace previs

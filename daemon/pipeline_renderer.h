@@ -16,6 +16,7 @@
 #include "daemon/shot_controller.h"
 #include "gpu/context.h"
 #include "image/image.h"
+#include "render/display_pass.h"
 #include "render/quality_dial.h"
 #include "render/renderer.h"
 #include "render/tonemap.h"
@@ -49,9 +50,12 @@ public:
     // The denoiser's strength the last composite() used (à-trous levels; 0: not denoised).
     uint32_t lastDenoiseLevels() const { return lastDenoiseLevels_; }
     // The composite as the monitor shows it: the scene camera's own curve applied forward, so
-    // the untouched parts of the picture look exactly as the camera delivered them.
-    // Takes the composite by value: it is changed in place (callers move a temporary in).
-    std::vector<uint8_t> toDisplay(ImageF composite) const;
+    // the untouched parts of the picture look exactly as the camera delivered them. composite()
+    // tone mapped, made on the device (Renderer::display): the service's frame.
+    Result<DisplayImage> display(std::optional<double> noiseEstimate = {});
+    // The same curve applied on the host to a composite (from composite()), taken by value: it is
+    // changed in place (callers move a temporary in).
+    DisplayImage toDisplay(ImageF composite) const;
 
     uint64_t samples() const override;  // per pixel: this preview frame's, or the refinement's
     uint32_t width() const { return width_; }
@@ -107,9 +111,20 @@ private:
     uint32_t previewDenoiseLevels_ = 0;  // the dial's or the config's; 0: off
     uint32_t previewPhotons_ = 0;        // the dial's photon budget per preview frame
     uint32_t lastDenoiseLevels_ = 0;
-    // Refinement's last denoised composite and its samples (composite() reuses it a while).
-    std::optional<ImageF> refineDenoised_;
-    uint64_t refineDenoisedAt_ = 0;
+    // Refinement's last denoised frame and its samples (composite() and display() reuse it a
+    // while: denoisedOnce).
+    template <typename Image>
+    struct RefineCache {
+        std::optional<Image> image;
+        uint64_t samples = 0;
+    };
+    RefineCache<ImageF> refineComposite_;
+    RefineCache<DisplayImage> refineDisplay_;
+    template <typename Image, typename Make>
+    Result<Image> denoisedOnce(RefineCache<Image>& cache, Make make);
+    // Sets the denoiser's strength for this frame (lastDenoiseLevels_); whether it is denoised
+    // (through the temporal stage in preview with accumulation).
+    Result<bool> chooseFilter(std::optional<double> noiseEstimate);
     double targetNoise_ = 0.0;  // [refine] target_noise
     bool refining_ = false;
     std::vector<DialMeasurement> dial_;
@@ -119,8 +134,7 @@ private:
     // Makes preview render with dial_[i].
     Status useDialPoint(size_t i);
     InverseToneMapSettings radiometry_;
-    ToneMapSettings display_;
-    std::array<float, 3> whiteBalance_{1.0f, 1.0f, 1.0f};
+    DisplaySettings display_;
     ImageF plate_;  // this frame's plate until it is moved into the renderer
     bool rendered_ = false;
     bool sceneCameraUntilTracked_ = false;

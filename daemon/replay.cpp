@@ -241,25 +241,36 @@ int runReplay(const ReplayOptions& o) {
             return 1;
         }
         if (!*step) break;
-        Result<ImageF> image = renderer.composite((*step)->shot.noiseEstimate);
-        if (!image) {
-            logError("replay: frame {}: {}", (*step)->frame->sequence, image.message());
+        // With --exr the float composite, tone mapped on the host; else the monitor's frame as
+        // the service makes it (on the device). Either is the frame's one composite: each adds
+        // the frame to the preview's history.
+        Result<DisplayImage> shown = DisplayImage{};
+        std::optional<ImageF> image;
+        if (o.exr) {
+            Result<ImageF> composite = renderer.composite((*step)->shot.noiseEstimate);
+            if (composite)
+                image = std::move(*composite);
+            else
+                shown = composite.error();
+        } else {
+            shown = renderer.display((*step)->shot.noiseEstimate);
+        }
+        if (!shown) {
+            logError("replay: frame {}: {}", (*step)->frame->sequence, shown.message());
             return 1;
         }
         const double renderMs =
             std::chrono::duration<double, std::milli>(Clock::now() - renderStart).count();
         const std::string stem =
             (fs::path(o.outDir) / fmt::format("frame_{:06d}", written)).string();
-        if (o.exr) {
+        if (image) {
             if (Status s = writeExr(stem + ".exr", *image); !s) {
                 logError("{}", s.message());
                 return 1;
             }
+            shown = renderer.toDisplay(std::move(*image));
         }
-        const uint32_t width = image->width, height = image->height;
-        if (Status s =
-                writePng(stem + ".png", width, height, renderer.toDisplay(std::move(*image)));
-            !s) {
+        if (Status s = writePng(stem + ".png", shown->width, shown->height, shown->rgb); !s) {
             logError("{}", s.message());
             return 1;
         }

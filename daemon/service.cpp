@@ -273,7 +273,7 @@ void Service::Threads::publish(PipelineRenderer& r, const TrackedFrame& frame, M
                                Clock::time_point renderStart, double fps,
                                std::optional<double> noiseEstimate,
                                std::optional<double> etaSeconds) {
-    Result<ImageF> image = r.composite(noiseEstimate);
+    Result<DisplayImage> image = r.display(noiseEstimate);
     if (!image) {
         logError("render: {}", image.message());
         return;
@@ -281,7 +281,7 @@ void Service::Threads::publish(PipelineRenderer& r, const TrackedFrame& frame, M
     auto out = std::make_shared<DisplayFrame>();
     out->width = image->width;
     out->height = image->height;
-    out->rgb = r.toDisplay(std::move(*image));
+    out->rgb = std::move(image->rgb);
     const double renderMs =
         std::chrono::duration<double, std::milli>(Clock::now() - renderStart).count();
     // A live camera's timestamp is CLOCK_MONOTONIC, the display thread's clock; a recording's

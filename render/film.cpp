@@ -78,6 +78,7 @@ Status Film::setPlate(ImageF plate, std::string_view source) {
             source, repair.nonFinite, repair.negative);
     plateValuesRepaired_ += repair.total();
     plate_ = std::move(plate);
+    ++plateVersion_;
     return {};
 }
 
@@ -189,20 +190,11 @@ Result<ImageF> Film::heldComposite(const TracedBuffers& traced, const ImageF& es
     std::vector<glm::vec4> samples(size_t(width_) * height_ * 2);
     if (Status s = traced.held->download(samples.data(), samples.size() * sizeof(glm::vec4)); !s)
         return s.error();
-    held_->add(samples);
-    return compositeOverPlate(held_->blend(upsample(estimate)));
+    return compositeOverPlate(HeldView::blend(samples, upsample(estimate)));
 }
 
-Result<ImageF> Film::image(const TracedBuffers& traced, Aov aov, bool denoised,
-                           const DenoiseCamera& camera) {
-    const bool held = held_ && traced.held && compositesPlate(aov);
-    if (held && !denoised) {
-        Result<Accumulation> a = readAccumulation(traced);
-        if (!a) return a.error();
-        return heldComposite(traced, plateFreeMeans(*a, traced));
-    }
-    if (!denoised || !(aov == Aov::Composite || aov == Aov::Mixed || aov == Aov::Real))
-        return image(traced, aov);
+Result<ImageF> Film::denoisedMeans(const TracedBuffers& traced, const Accumulation& m,
+                                   uint32_t slot, const DenoiseCamera& camera) {
     if (!denoiser_)
         return makeError(
             "a denoised image needs a renderer created with denoising on (--denoise on|auto)");
@@ -213,41 +205,85 @@ Result<ImageF> Film::image(const TracedBuffers& traced, Aov aov, bool denoised,
         if (!resized) return resized.error();
         denoiser_.emplace(std::move(resized.value()));
     }
-    auto m = readAccumulation(traced);
-    if (!m) return m.error();
     auto g = readGuides(traced);
     if (!g) return g.error();
     const size_t pixels = size_t(traced.width) * traced.height;
-    const bool withPlate = compositesPlate(aov);
-    // The signal the filter sees: the composite without its plate term, L_om or L_or.
-    const uint32_t k = colourSlot(aov, withPlate);
     ImageF signal = blankImage(traced.width, traced.height, 3);
     std::vector<float> variance(pixels);
     for (size_t i = 0; i < pixels; ++i) {
         glm::dvec3 mean(0.0);
         for (int c = 0; c < 3; ++c) {
-            mean[c] = m->mean(i, k, c);
+            mean[c] = m.mean(i, slot, c);
             signal.pixels[i * 3 + c] = float(mean[c]);
         }
-        const double n = m->count(i);
+        const double n = m.count(i);
         const double y = glm::dot(mean, glm::dvec3(0.2126, 0.7152, 0.0722));  // luminance()
-        const double y2 = (*g)[i * PV_GUIDE_COUNT + PV_GUIDE_MOMENTS][k];
+        const double y2 = (*g)[i * PV_GUIDE_COUNT + PV_GUIDE_MOMENTS][slot];
         // The variance of the mean: the samples' unbiased variance over n.
         variance[i] =
             n >= kMinSamplesForVariance ? float(std::max(0.0, y2 - y * y) / (n - 1.0)) : -1.0f;
     }
-    auto filtered = temporalDenoise_ ? denoiser_->applyTemporal(signal, *g, variance, camera)
-                                     : denoiser_->apply(signal, *g, variance);
+    return temporalDenoise_ ? denoiser_->applyTemporal(signal, *g, variance, camera)
+                            : denoiser_->apply(signal, *g, variance);
+}
+
+Result<ImageF> Film::compositeEstimate(const TracedBuffers& traced, bool denoised,
+                                       const DenoiseCamera& camera) {
+    Result<Accumulation> m = readAccumulation(traced);
+    if (!m) return m.error();
+    if (!denoised) return plateFreeMeans(*m, traced);
+    // The filter sees the composite without its plate term; the mask keeps its mean.
+    auto filtered = denoisedMeans(traced, *m, PV_ACCUM_COMPOSITE, camera);
     if (!filtered) return filtered.error();
-    if (!withPlate) return upsample(*filtered);
-    // The filtered plate-free term with the mean mask; compositeOverPlate adds the plate.
     ImageF plateFree = blankImage(traced.width, traced.height, 4);
-    for (size_t i = 0; i < pixels; ++i) {
+    for (size_t i = 0; i < size_t(traced.width) * traced.height; ++i) {
         for (int c = 0; c < 3; ++c) plateFree.pixels[i * 4 + c] = filtered->pixels[i * 3 + c];
         plateFree.pixels[i * 4 + 3] = float(m->mean(i, PV_ACCUM_COMPOSITE, 3));
     }
-    if (held) return heldComposite(traced, plateFree);
-    return compositeOverPlate(plateFree);
+    return plateFree;
+}
+
+Result<ImageF> Film::image(const TracedBuffers& traced, Aov aov, bool denoised,
+                           const DenoiseCamera& camera) {
+    const bool held = held_ && traced.held;
+    if (compositesPlate(aov) && (denoised || held)) {
+        Result<ImageF> estimate = compositeEstimate(traced, denoised, camera);
+        if (!estimate) return estimate.error();
+        return held ? heldComposite(traced, *estimate) : compositeOverPlate(*estimate);
+    }
+    if (!denoised || !(aov == Aov::Composite || aov == Aov::Mixed || aov == Aov::Real))
+        return image(traced, aov);
+    Result<Accumulation> m = readAccumulation(traced);
+    if (!m) return m.error();
+    auto filtered = denoisedMeans(traced, *m, colourSlot(aov, false), camera);
+    if (!filtered) return filtered.error();
+    return upsample(*filtered);
+}
+
+Result<DisplayImage> Film::display(const TracedBuffers& traced, bool denoised,
+                                   const DenoiseCamera& camera, const DisplaySettings& settings) {
+    if (!compositesPlate(Aov::Composite)) {
+        Result<ImageF> image = this->image(traced, Aov::Composite, denoised, camera);
+        if (!image) return image.error();
+        return toDisplayImage(std::move(*image), settings);
+    }
+    DisplayPass::Inputs in{&*plate_,     plateVersion_, traced.sum, traced.compensation,
+                           traced.width, traced.height};
+    in.held = held_ && traced.held ? traced.held : nullptr;
+    // Undenoised, the means are taken on the device: nothing is read back but the frame.
+    std::optional<ImageF> estimate;
+    if (denoised) {
+        Result<ImageF> filtered = compositeEstimate(traced, true, camera);
+        if (!filtered) return filtered.error();
+        estimate = std::move(*filtered);
+        in.estimate = &*estimate;
+    }
+    if (!displayPass_) {
+        auto pass = DisplayPass::create(*ctx_, width_, height_);
+        if (!pass) return pass.error();
+        displayPass_.emplace(std::move(pass.value()));
+    }
+    return displayPass_->run(in, upsample_, settings);
 }
 
 Result<Convergence> Film::convergence(const TracedBuffers& traced, uint64_t samplesPerPixel) const {

@@ -19,17 +19,20 @@
 #include "image/image.h"
 #include "render/convergence.h"
 #include "render/denoiser.h"
+#include "render/display_pass.h"
 #include "render/held_view.h"
 #include "render/render_settings.h"
 #include "render/upsample.h"
+#include "shared/film.h"
 
 namespace previs {
 
 // Eq. 1 summed over n samples of a pixel: Σ[M·L_om + (1−M)(L_om − L_or)] (the plate-free sum the
 // path tracer accumulates) plus (n − ΣM)·L_oc. With n = 1 and means it is the composite's mean;
 // where no sample met a virtual object (both sums 0) it is n·L_oc, the plate bit for bit.
+// (shared/film.h's PV_COMPOSITE_SUM, which the display pass runs too.)
 inline double compositeSum(double plateFreeSum, double maskSum, double samples, double plate) {
-    return plateFreeSum + (samples - maskSum) * plate;
+    return PV_COMPOSITE_SUM(plateFreeSum, maskSum, samples, plate);
 }
 
 // The accumulation the path tracer wrote (read-only views of the renderer's buffers): the
@@ -68,14 +71,24 @@ public:
     Result<ImageF> image(const TracedBuffers& traced, Aov aov, bool denoised,
                          const DenoiseCamera& camera);
     Result<Convergence> convergence(const TracedBuffers& traced, uint64_t samplesPerPixel) const;
+    // The composite as the monitor shows it: image(Composite, denoised, camera) tone mapped to
+    // 8-bit sRGB, made on the device (render/display_pass.h: upsampling, the held view, Eq. 1,
+    // the curve) with one 8-bit readback; without a plate to composite, on the host.
+    Result<DisplayImage> display(const TracedBuffers& traced, bool denoised,
+                                 const DenoiseCamera& camera, const DisplaySettings& settings);
 
     // A held camera's preview at the output's resolution (render/held_view.h): on, the
     // composite keeps each frame's samples per output pixel (TracedBuffers::held) and clamps its
     // estimate to them; off, it forgets them. Stays off where the trace is not the output divided
     // by a whole factor ≥ 2. Returns whether it is on, and its factor.
     std::optional<uint32_t> holdView(bool on, uint32_t traceWidth, uint32_t traceHeight);
-    // Frames the held view keeps (0 while off).
+    // Frames the held view keeps (0 while off, and before its first: its samples are then to be
+    // cleared).
     uint64_t heldFrames() const { return held_ ? held_->frames() : 0; }
+    // A preview frame's samples joined the held view's (the renderer sums them on the device).
+    void heldFrameAdded() {
+        if (held_) held_->frameAdded();
+    }
 
     Denoiser* denoiser() { return denoiser_ ? &*denoiser_ : nullptr; }
     const Denoiser* denoiser() const { return denoiser_ ? &*denoiser_ : nullptr; }
@@ -106,8 +119,15 @@ private:
     // Eq. 1 at the output size from `plateFree` (RGB the mean of M·L_om + (1−M)(L_om − L_or), A
     // the mask M), upsampled first when it is traced at a fraction of the output.
     ImageF compositeOverPlate(const ImageF& plateFree) const;
-    // The held view's composite: this frame's samples kept, blended with `estimate` (the
-    // traced-size RGBA compositeOverPlate takes) upsampled.
+    // The frame's estimate of Eq. 1's plate-free part at the traced size: RGB its mean (denoised
+    // where `denoised`), A the mask M.
+    Result<ImageF> compositeEstimate(const TracedBuffers& traced, bool denoised,
+                                     const DenoiseCamera& camera);
+    // The means of accumulation slot `slot` (RGB) through the denoiser (temporal where it is on).
+    Result<ImageF> denoisedMeans(const TracedBuffers& traced, const Accumulation& m, uint32_t slot,
+                                 const DenoiseCamera& camera);
+    // The held view's composite: the samples kept, blended with `estimate` (the traced-size
+    // RGBA compositeOverPlate takes) upsampled.
     Result<ImageF> heldComposite(const TracedBuffers& traced, const ImageF& estimate);
 
     Film() = default;
@@ -116,11 +136,13 @@ private:
     uint32_t height_ = 0;
     bool differential_ = false;
     std::optional<ImageF> plate_;
+    uint64_t plateVersion_ = 0;  // counts setPlate calls: the display pass uploads a new plate
     uint64_t plateValuesRepaired_ = 0;
     UpsampleSettings upsample_;
     std::optional<Denoiser> denoiser_;
     bool temporalDenoise_ = false;
     std::optional<HeldView> held_;
+    std::optional<DisplayPass> displayPass_;  // made with the first display()
 };
 
 }  // namespace previs

@@ -5,21 +5,22 @@
 // what the upsampling blurs at the virtual objects' outlines, which the plate (its guide) does
 // not show. Yet each traced pixel's samples are jittered over its whole f × f block of output
 // pixels: the path tracer also adds each sample to the output pixel it landed in
-// (PV_BINDING_HELD_SAMPLES), and while the camera holds still this keeps those samples per
-// output pixel, so a held preview converges to the full-resolution image that refinement
-// converges to. The frame's own (upsampled, denoised) estimate counts as kEstimateSamples
-// samples beside them: it carries the picture while they are few, and they take over as they
-// grow (the estimate's error is mostly the upsampling's bias at outlines and contact shadows,
-// which a few more samples do not tell apart from noise: path tracing's heavy tails make a few
-// samples agree too often, e.g. all miss a soft shadow, for a per-pixel confidence test).
+// (PV_BINDING_HELD_SAMPLES), and while the camera holds still that buffer keeps summing them per
+// output pixel (the renderer clears it only when a held view starts), so a held preview converges
+// to the full-resolution image that refinement converges to. The frame's own (upsampled, denoised)
+// estimate counts as kEstimateSamples samples beside them: it carries the picture while they are
+// few, and they take over as they grow (the estimate's error is mostly the upsampling's bias at
+// outlines and contact shadows, which a few more samples do not tell apart from noise: path
+// tracing's heavy tails make a few samples agree too often, e.g. all miss a soft shadow, for a
+// per-pixel confidence test).
 
 #include <cstdint>
 #include <glm/glm.hpp>
 #include <optional>
 #include <span>
-#include <vector>
 
 #include "image/image.h"
+#include "shared/film.h"
 
 namespace previs {
 
@@ -30,26 +31,26 @@ public:
                                           uint32_t traceHeight);
 
     uint32_t factor() const { return factor_; }
-    // Keeps a frame's samples: per output pixel two vec4, as PV_BINDING_HELD_SAMPLES holds them.
-    void add(std::span<const glm::vec4> samples);
+    // A frame's samples joined the kept ones.
+    void frameAdded() { ++frames_; }
     // `estimate` (RGBA at the output size: RGB the mean of Eq. 1's plate-free part, A the mask
-    // M) averaged with the kept samples, the estimate counted as kEstimateSamples samples.
-    ImageF blend(const ImageF& estimate) const;
+    // M) averaged with the kept samples (per output pixel two vec4, as PV_BINDING_HELD_SAMPLES
+    // holds them), the estimate counted as kEstimateSamples samples (shared/film.h's heldBlend,
+    // which the display pass runs too).
+    static ImageF blend(std::span<const glm::vec4> samples, const ImageF& estimate);
     // About what the denoised estimate is worth where it is right: it averages a history of up to
     // 32 frames of its traced pixels and their neighbours' (BENCHMARKS.md, "The preview as
     // shipped", measures the choice).
-    static constexpr double kEstimateSamples = 16.0;
-    // Frames kept since the camera last moved.
+    static constexpr double kEstimateSamples = PV_HELD_ESTIMATE_SAMPLES;
+    // Frames kept since the camera last moved (0: the samples are to be cleared).
     uint64_t frames() const { return frames_; }
-    void reset();
+    void reset() { frames_ = 0; }
 
 private:
-    HeldView(uint32_t width, uint32_t height, uint32_t factor);
+    explicit HeldView(uint32_t factor) : factor_(factor) {}
 
     uint32_t factor_;
     uint64_t frames_ = 0;
-    std::vector<glm::vec4> sum_;  // per output pixel, Σ (plate-free RGB, M) over its samples
-    std::vector<float> count_;    // per output pixel, samples kept
 };
 
 }  // namespace previs

@@ -777,8 +777,9 @@ Status Renderer::holdView(bool on) {
     const std::optional<uint32_t> factor = film_->holdView(on, params_.width, params_.height);
     params_.heldFactor = 0u;
     if (!factor) return {};
-    // The output's samples of one frame, made when first needed (a renderer that never previews
-    // below full resolution never pays for them) and bound whole; reset() clears them.
+    // The output's samples, made when first needed (a renderer that never previews below full
+    // resolution never pays for them) and bound whole; summed over the frames the view holds,
+    // cleared when it starts.
     GpuBuffer& held = buffers_[PV_BINDING_HELD_SAMPLES];
     const uint64_t bytes = uint64_t(settings_.width) * settings_.height * 2 * sizeof(glm::vec4);
     if (held.size() != bytes) {
@@ -789,6 +790,7 @@ Status Renderer::holdView(bool on) {
         held = std::move(fresh.value());  // dispatches are synchronous: the old one is unused
     }
     params_.heldFactor = *factor;
+    if (film_->heldFrames() == 0) return held.fill(0);
     return {};
 }
 
@@ -825,12 +827,11 @@ Status Renderer::reset() {
     accumulationReplicates_ = 0;
     gpuMs_ = 0.0;
     photonMs_ = 0.0;
+    // Not the held view's samples: they outlive a preview frame (holdView clears them).
     for (int b : {PV_BINDING_ACCUM_SUM, PV_BINDING_ACCUM_COMPENSATION, PV_BINDING_STATS,
                   PV_BINDING_GUIDES}) {
         if (Status s = buffers_[b].fill(0); !s) return s;
     }
-    // The held view's samples only while it is on: a frame that moves pays nothing for them.
-    if (params_.heldFactor != 0u) return buffers_[PV_BINDING_HELD_SAMPLES].fill(0);
     return {};
 }
 
@@ -851,6 +852,7 @@ Status Renderer::renderPreviewFrame(uint32_t spp, uint64_t frameIndex) {
     accumulationReplicates_ = 1;
     Status s = render(spp);
     params_.photonCount = full;
+    if (s && params_.heldFactor != 0u) film_->heldFrameAdded();
     return s;
 }
 

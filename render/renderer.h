@@ -215,6 +215,11 @@ public:
     Result<ImageF> image(Aov aov, bool denoised) {
         return film_->image(traced(), aov, denoised, denoiseCamera());
     }
+    // image(Composite, denoised) as the monitor shows it (Film::display): composited and tone
+    // mapped to 8-bit sRGB on the device.
+    Result<DisplayImage> display(bool denoised, const DisplaySettings& settings) {
+        return film_->display(traced(), denoised, denoiseCamera(), settings);
+    }
     // GPU time of the last denoised image()'s filter dispatches (ms).
     double denoiseMilliseconds() const {
         return film_->denoiser() ? film_->denoiser()->lastGpuMilliseconds() : 0.0;

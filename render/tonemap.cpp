@@ -6,7 +6,7 @@
 #include <vector>
 
 #include "base/log.h"
-#include "base/luminance.h"
+#include "shared/film.h"
 
 namespace previs {
 
@@ -27,25 +27,21 @@ float srgbEncode(float linear) {
 
 namespace {
 
-// L_d / L_w of reinhardExtendedCurve, finite at L_w = 0 (where it is the slope L_white/L_max),
-// so colour ratios are kept without a 0/0 at black.
-inline float reinhardExtendedRatio(float lw, float maxRadiance, float whiteLuminance) {
-    const float scale = whiteLuminance / maxRadiance;
-    const float l = lw * scale;
-    return scale * (1.0f + l / (whiteLuminance * whiteLuminance)) / (1.0f + l);
-}
+static_assert(uint32_t(ToneMapOperator::Clamp) == PV_TONE_CLAMP &&
+              uint32_t(ToneMapOperator::Reinhard) == PV_TONE_REINHARD &&
+              uint32_t(ToneMapOperator::ReinhardExtended) == PV_TONE_REINHARD_EXTENDED);
 
-// Exposed radiance (finite, ≥ 0) → linear display values, in place.
+// Exposed radiance (finite, ≥ 0) → linear display values, in place (shared/film.h's curve, the
+// one the display pass runs).
 inline void tonemap(float rgb[3], const ToneMapSettings& settings) {
     if (settings.op == ToneMapOperator::Clamp) return;
-    const float lum = luminance(rgb[0], rgb[1], rgb[2]);
-    float k = 1.0f;
-    if (settings.op == ToneMapOperator::Reinhard)
-        k = lum > 0.0f ? 1.0f / (1.0f + lum) : 1.0f;
-    else
-        k = reinhardExtendedRatio(lum, settings.maxRadiance, settings.whiteLuminance);
-    for (int c = 0; c < 3; ++c) rgb[c] *= k;
+    const glm::vec3 out =
+        shader::toneCurve(glm::vec3(rgb[0], rgb[1], rgb[2]), uint32_t(settings.op),
+                          settings.maxRadiance, settings.whiteLuminance);
+    for (int c = 0; c < 3; ++c) rgb[c] = out[c];
 }
+
+}  // namespace
 
 // The display code lround(255 · srgbEncode(v)) is a non-decreasing step function of the
 // display-linear value v: thresholds[k] is the smallest float whose code is ≥ k (k = 1 … 255;
@@ -75,6 +71,8 @@ const std::array<float, 256>& srgb8Thresholds() {
     }();
     return table;
 }
+
+namespace {
 
 // The code at the start of each bucket of floats sharing exponent and 8 leading mantissa bits,
 // from 2⁻¹⁶ (below the first step, 1.5e-4) to 1: a bucket holds at most a step or two, so the
@@ -124,7 +122,7 @@ float reinhardExtendedCurve(float luminance, float maxRadiance, float whiteLumin
     PV_DCHECK(maxRadiance > 0.0f && std::isfinite(maxRadiance));
     PV_DCHECK(whiteLuminance > 0.0f && std::isfinite(whiteLuminance));
     const float lw = std::isfinite(luminance) ? std::max(luminance, 0.0f) : 0.0f;
-    return lw * reinhardExtendedRatio(lw, maxRadiance, whiteLuminance);
+    return lw * shader::reinhardExtendedRatio(lw, maxRadiance, whiteLuminance);
 }
 
 std::array<float, 3> toneMapRgb(const std::array<float, 3>& radiance,

@@ -40,6 +40,11 @@ float srgbEncode(float linear);
 // 255 values where the code steps): equal to it for every float.
 uint8_t encodeSrgb8(float linear);
 
+// The display code's steps: [k] is the smallest display-linear value whose 8-bit sRGB code is ≥ k
+// (k = 1 … 255; [0] is 0). encodeSrgb8 and the device's display pass (render/display_pass.h)
+// both count them.
+const std::array<float, 256>& srgb8Thresholds();
+
 // Reinhard's extended global curve: luminance L_w ≥ 0 (after exposure) → display luminance
 //   L_d = L · (1 + L/L_white²) / (1 + L),  L = L_w · L_white / L_max.
 // Strictly increasing; L_d(L_max) = 1, values above L_max exceed 1 and clip at the encode.

@@ -8,16 +8,16 @@
 #include <vector>
 
 #include "base/log.h"
+#include "shared/film.h"
 
 namespace previs {
 
 namespace {
 
-// The range kernel exp(−x) tabulated on x = d²/(2σ²) ∈ [0, kRangeCut): beyond it a weight is
-// below e^-16 (1e-7) and counts as 0. Table steps of 1/64 in x change a weight by < 1.6 %.
-constexpr float kRangeCut = 16.0f;
-constexpr int kRangeSteps = 64;
-constexpr int kRangeTable = int(kRangeCut) * kRangeSteps;
+// The range kernel exp(−x) tabulated on x = d²/(2σ²) ∈ [0, PV_RANGE_CUT) in steps of
+// 1/PV_RANGE_STEPS (shared/film.h: the display pass rounds x alike).
+constexpr int kRangeSteps = int(PV_RANGE_STEPS);
+constexpr int kRangeTable = int(PV_RANGE_CUT) * kRangeSteps;
 
 // Where the sum of range-weighted taps is this small a fraction of the spatial weights, the
 // pixel's guide colour matches none of its neighbours (a detail finer than the traced grid):
@@ -75,19 +75,7 @@ std::vector<std::vector<std::pair<uint32_t, double>>> areaWeights(uint32_t full,
     return out;
 }
 
-// log2 to 1.3e-3 (a cubic on the mantissa): a guide needs relative colour, not digits, and
-// std::log on every channel of every pixel costs more than the rest of the upsampling.
-inline float fastLog2(float v) {
-    uint32_t bits;
-    std::memcpy(&bits, &v, 4);
-    const float exponent = float(int((bits >> 23) & 0xffu) - 127);
-    bits = (bits & 0x007fffffu) | 0x3f800000u;
-    float m;
-    std::memcpy(&m, &bits, 4);  // [1, 2)
-    // Minimax-style cubic for log2(m) on [1, 2), exact at both ends.
-    const float p = ((0.15824871f * m - 1.05187502f) * m + 3.04788415f) * m - 2.15425784f;
-    return exponent + p;
-}
+using shader::fastLog2;
 
 // Runs body(rowBegin, rowEnd) over [0, rows) on `threads` threads (this one included).
 template <typename Body>

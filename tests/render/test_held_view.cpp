@@ -25,26 +25,27 @@ TEST(HeldView, OnlyAWholeFactorOfTwoOrMore) {
     EXPECT_FALSE(HeldView::create(640, 360, 320, 120));  // factors differ
 }
 
-// Each frame's samples land on their output pixels and add up; the estimate counts as
-// kEstimateSamples samples beside them; a pixel without samples shows the estimate.
+// The kept samples (summed over frames in the renderer's buffer) join the estimate, which
+// counts as kEstimateSamples samples; a pixel without samples shows the estimate.
 TEST(HeldView, KeptSamplesJoinTheEstimate) {
-    auto view = HeldView::create(4, 2, 2, 1);  // row 1 keeps nothing
+    auto view = HeldView::create(4, 2, 2, 1);
     ASSERT_TRUE(view);
-    std::vector<glm::vec4> frame(16, glm::vec4(0.0f));
-    frame[0] = glm::vec4(6.0f, 6.0f, 6.0f, 3.0f);  // pixel 0: 3 samples of 2, all virtual
-    frame[1].x = 3.0f;
-    view->add(frame);
-    view->add(frame);  // a second frame: 6 samples
+    std::vector<glm::vec4> kept(16, glm::vec4(0.0f));  // row 1 keeps nothing
+    kept[0] = glm::vec4(12.0f, 12.0f, 12.0f, 6.0f);    // pixel 0: 6 samples of 2, all virtual
+    kept[1].x = 6.0f;
+    view->frameAdded();
+    view->frameAdded();
     EXPECT_EQ(view->frames(), 2u);
     const ImageF estimate = constant(4, 2, 1.0f);
-    const ImageF out = view->blend(estimate);
+    const ImageF out = HeldView::blend(kept, estimate);
     const double k = HeldView::kEstimateSamples;
     for (int c = 0; c < 3; ++c) EXPECT_FLOAT_EQ(out.pixels[c], float((12.0 + k) / (6.0 + k)));
     EXPECT_FLOAT_EQ(out.pixels[3], float((6.0 + k) / (6.0 + k)));
     for (size_t i = 4; i < out.pixels.size(); ++i) EXPECT_FLOAT_EQ(out.pixels[i], 1.0f) << i;
     view->reset();
     EXPECT_EQ(view->frames(), 0u);
-    EXPECT_EQ(view->blend(estimate).pixels, estimate.pixels);
+    EXPECT_EQ(HeldView::blend(std::vector<glm::vec4>(16, glm::vec4(0.0f)), estimate).pixels,
+              estimate.pixels);
 }
 
 }  // namespace

@@ -1,0 +1,168 @@
+// film_display: the preview frame as the monitor shows it, made on the device (render/
+// display_pass.h). Three stages:
+//   estimate: per traced pixel, the means of Eq. 1's plate-free part and of the mask from the
+//            path tracer's compensated sums (the host uploads a denoised estimate instead);
+//   guide:   per traced pixel, log2 of the plate's area mean over its footprint plus ε: the low-
+//            resolution side of the joint bilateral upsampling's range kernel;
+//   resolve: per output pixel, the traced estimate upsampled (render/upsample.h's kernel: a
+//            cubic B-spline on the traced grid times the range kernel on the plate), blended with
+//            the held view's samples, composited with the plate by Eq. 1, tone mapped and
+//            encoded as 8-bit sRGB.
+// render/upsample.cpp, render/held_view.cpp and render/tonemap.cpp run the same steps on the
+// host for the float images `previs render` writes; tests/integrator/test_display_frame.cpp holds
+// the two within one 8-bit code.
+#version 460
+#extension GL_EXT_scalar_block_layout : require
+#extension GL_GOOGLE_include_directive : require
+
+#include "shared/film.h"
+#include "shared/scene_types.h"
+
+layout(constant_id = 0) const uint kStage = PV_FILM_STAGE_RESOLVE;
+layout(local_size_x = PV_FILM_GROUP_X, local_size_y = PV_FILM_GROUP_Y) in;
+
+layout(binding = PV_FILM_BINDING_PARAMS, scalar) readonly buffer Params { FilmParams params; };
+layout(binding = PV_FILM_BINDING_PLATE) uniform usamplerBuffer plateTexels;
+layout(binding = PV_FILM_BINDING_ESTIMATE) uniform usamplerBuffer estimateTexels;
+layout(binding = PV_FILM_BINDING_LOW_GUIDE, scalar) writeonly buffer LowGuide { vec4 lowGuide[]; };
+layout(binding = PV_FILM_BINDING_LOW_GUIDE_TEXELS) uniform usamplerBuffer lowGuideTexels;
+layout(binding = PV_FILM_BINDING_HELD, scalar) readonly buffer Held { vec4 held[]; };
+layout(binding = PV_FILM_BINDING_SRGB_THRESHOLDS) uniform usamplerBuffer srgbThresholds;
+layout(binding = PV_FILM_BINDING_OUTPUT, scalar) writeonly buffer Output { uint display[]; };
+layout(binding = PV_FILM_BINDING_ESTIMATE_OUT, scalar) writeonly buffer EstimateOut { vec4 estimateOut[]; };
+layout(binding = PV_FILM_BINDING_ACCUM_SUM, scalar) readonly buffer AccumSum { vec4 accumSum[]; };
+layout(binding = PV_FILM_BINDING_ACCUM_COMPENSATION, scalar) readonly buffer AccumCompensation {
+    vec4 accumCompensation[];
+};
+
+// Range weights summing below this fraction of the spatial ones: the pixel's colour matches no
+// neighbour (a detail finer than the traced grid) and the spatial kernel alone is used.
+const float kMinRangeWeightFraction = 1e-4;
+
+vec4 fetch(usamplerBuffer b, uint i) { return uintBitsToFloat(texelFetch(b, int(i))); }
+
+vec3 plateAt(uint x, uint y) {
+    uint i = y * params.width + x;
+    return vec3(uintBitsToFloat(texelFetch(plateTexels, int(3u * i)).x),
+                uintBitsToFloat(texelFetch(plateTexels, int(3u * i + 1u)).x),
+                uintBitsToFloat(texelFetch(plateTexels, int(3u * i + 2u)).x));
+}
+
+vec3 logGuide(vec3 c) {
+    c = max(c, vec3(0.0)) + params.logEpsilon;
+    return vec3(fastLog2(c.r), fastLog2(c.g), fastLog2(c.b));
+}
+
+// The fraction of output pixel `x`'s extent [x, x + 1) inside [a, b).
+float overlap(uint x, float a, float b) { return max(0.0, min(b, float(x) + 1.0) - max(a, float(x))); }
+
+// A compensated sum of slot `slot` of traced pixel `i` (render/film.h's Accumulation::value).
+vec4 accumulated(uint i, uint slot) {
+    uint at = i * PV_ACCUM_COUNT + slot;
+    return accumSum[at] - accumCompensation[at];
+}
+
+// The samples that count (the mixed sum's w: dropped samples are not in it) divide the sums; a
+// pixel without samples is mask 0: the plate.
+void estimateStage(uvec2 q) {
+    uint i = q.y * params.traceWidth + q.x;
+    float n = accumulated(i, PV_ACCUM_MIXED).w;
+    estimateOut[i] = n > 0.0 ? accumulated(i, PV_ACCUM_COMPOSITE) / n : vec4(0.0);
+}
+
+void guideStage(uvec2 q) {
+    float stepX = float(params.width) / float(params.traceWidth);
+    float stepY = float(params.height) / float(params.traceHeight);
+    float ax = float(q.x) * stepX, bx = ax + stepX, ay = float(q.y) * stepY, by = ay + stepY;
+    vec3 sum = vec3(0.0);
+    for (uint y = uint(ay); y < min(uint(ceil(by)), params.height); ++y) {
+        float wy = overlap(y, ay, by);
+        for (uint x = uint(ax); x < min(uint(ceil(bx)), params.width); ++x)
+            sum += wy * overlap(x, ax, bx) * plateAt(x, y);
+    }
+    lowGuide[q.y * params.traceWidth + q.x] = vec4(logGuide(sum / (stepX * stepY)), 0.0);
+}
+
+// The uniform cubic B-spline's four weights at fraction t past the second tap.
+vec4 cubicBSpline(float t) {
+    float t2 = t * t, t3 = t2 * t, s = 1.0 - t;
+    return vec4(s * s * s, 3.0 * t3 - 6.0 * t2 + 4.0, -3.0 * t3 + 3.0 * t2 + 3.0 * t + 1.0, t3) /
+           6.0;
+}
+
+// The output pixel's centre on the traced grid (whose pixel centres are at integers): the first
+// of its four taps and their weights, 0 for taps off the grid.
+void taps(uint x, uint full, uint low, out int first, out vec4 w) {
+    float u = (float(x) + 0.5) * float(low) / float(full) - 0.5;
+    float base = floor(u);
+    first = int(base) - 1;
+    w = cubicBSpline(u - base);
+    for (int k = 0; k < 4; ++k)
+        if (first + k < 0 || first + k >= int(low)) w[k] = 0.0;
+}
+
+vec4 upsampled(uvec2 p, vec3 plate) {
+    if (params.traceWidth == params.width && params.traceHeight == params.height)
+        return fetch(estimateTexels, p.y * params.width + p.x);
+    int i0, j0;
+    vec4 wx, wy;
+    taps(p.x, params.width, params.traceWidth, i0, wx);
+    taps(p.y, params.height, params.traceHeight, j0, wy);
+    vec3 g = logGuide(plate);
+    vec4 ranged = vec4(0.0), spatial = vec4(0.0);
+    float rangedWeight = 0.0, spatialWeight = 0.0;
+    for (int b = 0; b < 4; ++b) {
+        for (int a = 0; a < 4; ++a) {
+            float ws = wx[a] * wy[b];
+            if (ws == 0.0) continue;
+            uint q = uint(j0 + b) * params.traceWidth + uint(i0 + a);
+            vec4 v = fetch(estimateTexels, q);
+            vec3 d = g - fetch(lowGuideTexels, q).xyz;
+            float t = params.rangeScale * dot(d, d);
+            float wr = t < PV_RANGE_CUT ? ws * exp(-floor(t * PV_RANGE_STEPS) / PV_RANGE_STEPS) : 0.0;
+            ranged += wr * v;
+            rangedWeight += wr;
+            spatial += ws * v;
+            spatialWeight += ws;
+        }
+    }
+    if (rangedWeight > kMinRangeWeightFraction * spatialWeight) return ranged / rangedWeight;
+    return spatial / spatialWeight;
+}
+
+// lround(255 · sRGB(v)) exactly as the host's encodeSrgb8: the code from the formula, then moved
+// to the one whose thresholds bracket v (pow's rounding is far below a code).
+uint encodeSrgb8(float v) {
+    if (!(v > 0.0)) return 0u;
+    if (v >= 1.0) return 255u;
+    float e = v <= 0.0031308 ? 12.92 * v : 1.055 * pow(v, 1.0 / 2.4) - 0.055;
+    uint code = uint(clamp(round(e * 255.0), 0.0, 255.0));
+    if (code > 0u && v < uintBitsToFloat(texelFetch(srgbThresholds, int(code)).x)) return code - 1u;
+    if (code < 255u && v >= uintBitsToFloat(texelFetch(srgbThresholds, int(code + 1u)).x))
+        return code + 1u;
+    return code;
+}
+
+void resolveStage(uvec2 p) {
+    uint i = p.y * params.width + p.x;
+    vec3 plate = plateAt(p.x, p.y);
+    vec4 estimate = upsampled(p, plate);
+    if (params.held != 0u) estimate = heldBlend(held[2u * i], held[2u * i + 1u].x, estimate);
+    vec3 composite = PV_COMPOSITE_SUM(estimate.rgb, estimate.a, 1.0, plate);
+    bvec3 bad = bvec3(uvec3(isnan(composite)) | uvec3(isinf(composite)));
+    composite = mix(max(composite, vec3(0.0)), vec3(0.0), bad) * params.exposure;
+    vec3 linear = toneCurve(composite, params.toneOp, params.maxRadiance, params.whiteLuminance);
+    display[i] = encodeSrgb8(linear.r) | (encodeSrgb8(linear.g) << 8) | (encodeSrgb8(linear.b) << 16);
+}
+
+void main() {
+    uvec2 p = gl_GlobalInvocationID.xy;
+    bool traced = p.x < params.traceWidth && p.y < params.traceHeight;
+    if (kStage == PV_FILM_STAGE_ESTIMATE) {
+        if (traced) estimateStage(p);
+    } else if (kStage == PV_FILM_STAGE_GUIDE) {
+        if (traced) guideStage(p);
+    } else if (p.x < params.width && p.y < params.height) {
+        resolveStage(p);
+    }
+}

@@ -1,0 +1,122 @@
+// The film's math that the host (render/film.cpp, render/held_view.cpp, render/tonemap.cpp) and
+// the display pass (film_display.comp) both run, and the display pass's bindings: Eq. 1 of Kán &
+// Kaufmann, the held view's blend, and the global tone curves. One definition each, so the
+// monitor shows what `previs render` writes.
+#ifndef PREVIS_SHARED_FILM_H
+#define PREVIS_SHARED_FILM_H
+
+#include "shared/prelude.h"
+
+PV_BEGIN
+
+// Eq. 1 summed over n samples of a pixel: Σ[M·L_om + (1−M)(L_om − L_or)] (the plate-free sum the
+// path tracer accumulates) plus (n − ΣM)·L_oc. A macro, so the host evaluates it in double and
+// the shader in float.
+#define PV_COMPOSITE_SUM(plateFreeSum, maskSum, samples, plate) \
+    ((plateFreeSum) + ((samples) - (maskSum)) * (plate))
+
+// What a held view's frame estimate counts as beside the samples kept per output pixel
+// (render/held_view.h says why 16).
+#define PV_HELD_ESTIMATE_SAMPLES 16.0f
+
+// The held view's pixel: `estimate` (RGB the mean of Eq. 1's plate-free part, A the mask M)
+// averaged with `count` kept samples whose sum is `sum`.
+PV_INLINE vec4 heldBlend(vec4 sum, float count, vec4 estimate) {
+    if (count == 0.0f) return estimate;
+    return (sum + PV_HELD_ESTIMATE_SAMPLES * estimate) / (count + PV_HELD_ESTIMATE_SAMPLES);
+}
+
+// The joint bilateral upsampling's range kernel (render/upsample.h), as both sides evaluate it:
+// log2 to 1.3e-3 (a cubic on the mantissa: a guide needs relative colour, not digits, and a log
+// per channel and pixel costs the host more than the rest of the upsampling), and exp(−t) on t
+// rounded down to steps of 1/PV_RANGE_STEPS (a weight changes by < 1.6 %: the host reads it from
+// a table), 0 from t = PV_RANGE_CUT on (below e^-16, 1e-7).
+#define PV_RANGE_CUT 16.0f
+#define PV_RANGE_STEPS 64.0f
+
+PV_INLINE float fastLog2(float v) {
+    uint bits = floatBitsToUint(v);
+    float exponent = float(int((bits >> 23) & 0xffu) - 127);
+    float m = uintBitsToFloat((bits & 0x007fffffu) | 0x3f800000u);  // [1, 2)
+    // Minimax-style cubic for log2(m) on [1, 2), exact at both ends.
+    return exponent + (((0.15824871f * m - 1.05187502f) * m + 3.04788415f) * m - 2.15425784f);
+}
+
+// Global tone curves (render/tonemap.h's ToneMapOperator, in its order).
+#define PV_TONE_CLAMP 0u
+#define PV_TONE_REINHARD 1u
+#define PV_TONE_REINHARD_EXTENDED 2u
+
+// L_d / L_w of Reinhard's extended curve (render/tonemap.h's reinhardExtendedCurve), finite at
+// L_w = 0 (where it is the slope L_white/L_max), so colour ratios are kept without a 0/0 at black.
+PV_INLINE float reinhardExtendedRatio(float lw, float maxRadiance, float whiteLuminance) {
+    float scale = whiteLuminance / maxRadiance;
+    float l = lw * scale;
+    return scale * (1.0f + l / (whiteLuminance * whiteLuminance)) / (1.0f + l);
+}
+
+// Exposed radiance (finite, ≥ 0) → linear display values (not yet sRGB-encoded). Reinhard's
+// curves act on luminance and scale the colour by the luminance's ratio, so hues are kept.
+PV_INLINE vec3 toneCurve(vec3 rgb, uint op, float maxRadiance, float whiteLuminance) {
+    if (op == PV_TONE_CLAMP) return rgb;
+    float lum = 0.2126f * rgb.r + 0.7152f * rgb.g + 0.0722f * rgb.b;
+    if (op == PV_TONE_REINHARD) return rgb * (lum > 0.0f ? 1.0f / (1.0f + lum) : 1.0f);
+    return rgb * reinhardExtendedRatio(lum, maxRadiance, whiteLuminance);
+}
+
+// film_display.comp: descriptor set 0.
+#define PV_FILM_BINDING_PARAMS 0
+// The plate L_oc, linear RGB at the output size (3 floats per pixel; texel buffer of words).
+#define PV_FILM_BINDING_PLATE 1
+// The frame's estimate at the traced size: RGB the mean of Eq. 1's plate-free part (denoised or
+// not), A the mask M (vec4 per pixel; texel buffer). The estimate stage writes it through
+// PV_FILM_BINDING_ESTIMATE_OUT, or the host uploads it (denoised).
+#define PV_FILM_BINDING_ESTIMATE 2
+// The upsampling's low-resolution guide: per traced pixel, log2 of the plate's area mean over
+// its footprint plus ε (vec4, w unused), written by the guide stage.
+#define PV_FILM_BINDING_LOW_GUIDE 3
+#define PV_FILM_BINDING_LOW_GUIDE_TEXELS 4
+// The held view's samples kept per output pixel (PV_BINDING_HELD_SAMPLES: Σ(RGB, M), then the
+// count in x; texel buffer). Any buffer while FilmParams::held is 0.
+#define PV_FILM_BINDING_HELD 5
+// The 8-bit sRGB code's thresholds: [k] the smallest display-linear value whose code is ≥ k
+// (k = 1 … 255; [0] unused), render/tonemap.cpp's table, so both sides round alike.
+#define PV_FILM_BINDING_SRGB_THRESHOLDS 6
+// The display frame: one uint per output pixel, R | G << 8 | B << 16.
+#define PV_FILM_BINDING_OUTPUT 7
+#define PV_FILM_BINDING_ESTIMATE_OUT 8
+// The path tracer's accumulation (PV_BINDING_ACCUM_SUM and _COMPENSATION: PV_ACCUM_COUNT vec4 per
+// traced pixel), read by the estimate stage. Any buffer when the host uploads the estimate.
+#define PV_FILM_BINDING_ACCUM_SUM 9
+#define PV_FILM_BINDING_ACCUM_COMPENSATION 10
+#define PV_FILM_BINDING_COUNT 11
+
+// The estimate from the accumulation's means (skipped when the host uploads a denoised one),
+// the low-resolution guide (skipped at full resolution), then the output pixels.
+#define PV_FILM_STAGE_ESTIMATE 0u
+#define PV_FILM_STAGE_GUIDE 1u
+#define PV_FILM_STAGE_RESOLVE 2u
+#define PV_FILM_GROUP_X 8
+#define PV_FILM_GROUP_Y 8
+
+struct FilmParams {
+    uint width;  // the output's
+    uint height;
+    uint traceWidth;
+    uint traceHeight;
+    // The range kernel exp(−d²/(2σ²)) of render/upsample.h as exp(−rangeScale·d²), d the
+    // distance of the guide's log2 colours; 0: the spatial kernel alone.
+    float rangeScale;
+    float logEpsilon;  // ε added before the log (render/upsample.h)
+    uint held;         // 1: blend the held view's samples (PV_FILM_BINDING_HELD)
+    uint toneOp;       // PV_TONE_*
+    // Multiplies the composite before the curve: the exposure's 2^stops over the white balance
+    // the plate's inverse applied (undone here, as PipelineRenderer's display does).
+    vec3 exposure;
+    float maxRadiance;
+    float whiteLuminance;
+};
+
+PV_END
+
+#endif

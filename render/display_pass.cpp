@@ -1,0 +1,193 @@
+#include "render/display_pass.h"
+
+#include <array>
+#include <cmath>
+#include <span>
+
+#include "base/log.h"
+#include "film_display.spv.h"
+#include "shared/film.h"
+
+namespace previs {
+
+namespace {
+
+constexpr uint32_t groups(uint32_t n, uint32_t group) { return (n + group - 1) / group; }
+
+uint32_t toneOp(ToneMapOperator op) {
+    switch (op) {
+        case ToneMapOperator::Clamp:
+            return PV_TONE_CLAMP;
+        case ToneMapOperator::Reinhard:
+            return PV_TONE_REINHARD;
+        case ToneMapOperator::ReinhardExtended:
+            return PV_TONE_REINHARD_EXTENDED;
+    }
+    return PV_TONE_CLAMP;
+}
+
+}  // namespace
+
+DisplayImage toDisplayImage(ImageF composite, const DisplaySettings& settings) {
+    // Undo the white balance the plate's inverse applied (in place: no copy per frame), then the
+    // camera's curve forward.
+    if (settings.whiteBalance != std::array<float, 3>{1.0f, 1.0f, 1.0f})
+        for (size_t i = 0; i < composite.pixels.size(); ++i)
+            composite.pixels[i] /= settings.whiteBalance[i % composite.channels];
+    return {composite.width, composite.height, toneMapToSrgb8(composite, settings.tone)};
+}
+
+Result<DisplayPass> DisplayPass::create(GpuContext& ctx, uint32_t width, uint32_t height) {
+    DisplayPass d;
+    d.ctx_ = &ctx;
+    d.width_ = width;
+    d.height_ = height;
+    const size_t pixels = size_t(width) * height;
+    auto make = [&](std::optional<GpuBuffer>& out, size_t bytes, const char* label) -> Status {
+        auto b = GpuBuffer::create(ctx, bytes, label);
+        if (!b) return b.error();
+        out.emplace(std::move(b.value()));
+        return {};
+    };
+    for (Status s : {make(d.params_, sizeof(shader::FilmParams), "filmParams"),
+                     make(d.plate_, pixels * 3 * sizeof(float), "filmPlate"),
+                     make(d.thresholds_, 256 * sizeof(float), "filmSrgbThresholds"),
+                     make(d.output_, pixels * sizeof(uint32_t), "filmDisplay"),
+                     make(d.none_, 2 * sizeof(glm::vec4), "filmUnused")})
+        if (!s) return s.error();
+    if (Status s = d.thresholds_->upload(srgb8Thresholds().data(), 256 * sizeof(float)); !s)
+        return s.error();
+    std::array<BindingKind, PV_FILM_BINDING_COUNT> kinds{};
+    kinds.fill(BindingKind::StorageBuffer);
+    kinds[PV_FILM_BINDING_PLATE] = BindingKind::TexelBufferUint;
+    kinds[PV_FILM_BINDING_SRGB_THRESHOLDS] = BindingKind::TexelBufferUint;
+    kinds[PV_FILM_BINDING_ESTIMATE] = BindingKind::TexelBufferUint4;
+    kinds[PV_FILM_BINDING_LOW_GUIDE_TEXELS] = BindingKind::TexelBufferUint4;
+    for (auto [stage, out] : {std::pair{PV_FILM_STAGE_ESTIMATE, &d.estimateStage_},
+                              std::pair{PV_FILM_STAGE_GUIDE, &d.guide_},
+                              std::pair{PV_FILM_STAGE_RESOLVE, &d.resolve_}}) {
+        const std::array<uint32_t, 1> constants{stage};
+        auto p = ComputePipeline::create(
+            ctx, std::span<const uint32_t>(film_display_spv, sizeof(film_display_spv) / 4), kinds,
+            constants, "film_display");
+        if (!p) return p.error();
+        out->emplace(std::move(p.value()));
+    }
+    return d;
+}
+
+Status DisplayPass::sizeTrace(uint32_t traceWidth, uint32_t traceHeight) {
+    if (traceWidth == traceWidth_ && traceHeight == traceHeight_) return {};
+    const size_t bytes = size_t(traceWidth) * traceHeight * sizeof(glm::vec4);
+    auto estimate = GpuBuffer::create(*ctx_, bytes, "filmEstimate");
+    if (!estimate) return estimate.error();
+    auto lowGuide = GpuBuffer::create(*ctx_, bytes, "filmLowGuide");
+    if (!lowGuide) return lowGuide.error();
+    estimate_.emplace(std::move(estimate.value()));
+    lowGuide_.emplace(std::move(lowGuide.value()));
+    traceWidth_ = traceWidth;
+    traceHeight_ = traceHeight;
+    bound_ = {};  // the new buffers are not bound yet
+    return {};
+}
+
+Status DisplayPass::uploadPlate(const ImageF& plate, uint64_t plateVersion) {
+    if (plateVersion_ == plateVersion) return {};
+    PV_ASSERT(plate.width == width_ && plate.height == height_ && plate.channels >= 3);
+    const size_t pixels = size_t(width_) * height_;
+    std::vector<float> rgb;
+    if (plate.channels != 3) {
+        rgb.resize(pixels * 3);
+        for (size_t i = 0; i < pixels; ++i)
+            for (int c = 0; c < 3; ++c) rgb[i * 3 + c] = plate.pixels[i * plate.channels + c];
+    }
+    const std::span<const float> values = plate.channels == 3 ? plate.pixels : rgb;
+    if (Status s = plate_->upload(values.data(), values.size_bytes()); !s) return s;
+    // The range kernel's ε is relative to the plate's mean (render/upsample.h).
+    double sum = 0.0;
+    for (float v : values) sum += std::max(v, 0.0f);
+    plateMean_ = float(sum / double(std::max<size_t>(values.size(), 1)));
+    plateVersion_ = plateVersion;
+    return {};
+}
+
+Status DisplayPass::bind(const Inputs& in) {
+    const GpuBuffer& held = in.held ? *in.held : *none_;
+    const GpuBuffer& sum = in.sum && !in.estimate ? *in.sum : *none_;
+    const GpuBuffer& compensation = in.compensation && !in.estimate ? *in.compensation : *none_;
+    const std::array<uint64_t, 3> ids{held.id(), sum.id(), compensation.id()};
+    if (bound_ == ids) return {};
+    std::array<const GpuBuffer*, PV_FILM_BINDING_COUNT> bound{};
+    bound[PV_FILM_BINDING_PARAMS] = &*params_;
+    bound[PV_FILM_BINDING_PLATE] = &*plate_;
+    bound[PV_FILM_BINDING_ESTIMATE] = &*estimate_;
+    bound[PV_FILM_BINDING_ESTIMATE_OUT] = &*estimate_;
+    bound[PV_FILM_BINDING_LOW_GUIDE] = &*lowGuide_;
+    bound[PV_FILM_BINDING_LOW_GUIDE_TEXELS] = &*lowGuide_;
+    bound[PV_FILM_BINDING_HELD] = &held;
+    bound[PV_FILM_BINDING_SRGB_THRESHOLDS] = &*thresholds_;
+    bound[PV_FILM_BINDING_OUTPUT] = &*output_;
+    bound[PV_FILM_BINDING_ACCUM_SUM] = &sum;
+    bound[PV_FILM_BINDING_ACCUM_COMPENSATION] = &compensation;
+    for (ComputePipeline* p : {&*estimateStage_, &*guide_, &*resolve_})
+        if (Status s = p->bind(bound); !s) return s;
+    bound_ = ids;
+    return {};
+}
+
+Result<DisplayImage> DisplayPass::run(const Inputs& in, const UpsampleSettings& upsample,
+                                      const DisplaySettings& settings) {
+    PV_ASSERT(in.plate && (in.estimate || (in.sum && in.compensation)));
+    const uint32_t traceWidth = in.estimate ? in.estimate->width : in.traceWidth;
+    const uint32_t traceHeight = in.estimate ? in.estimate->height : in.traceHeight;
+    if (Status s = sizeTrace(traceWidth, traceHeight); !s) return s.error();
+    if (Status s = uploadPlate(*in.plate, in.plateVersion); !s) return s.error();
+    if (in.estimate) {
+        PV_ASSERT(in.estimate->channels == 4);
+        const std::vector<float>& e = in.estimate->pixels;
+        if (Status s = estimate_->upload(e.data(), e.size() * sizeof(float)); !s) return s.error();
+    }
+    if (Status s = bind(in); !s) return s.error();
+    const shader::FilmParams p =
+        params(traceWidth, traceHeight, in.held != nullptr, upsample, settings);
+    if (Status s = params_->upload(&p, sizeof(p)); !s) return s.error();
+    const uint32_t tx = groups(traceWidth, PV_FILM_GROUP_X),
+                   ty = groups(traceHeight, PV_FILM_GROUP_Y);
+    if (!in.estimate)
+        if (auto ms = estimateStage_->dispatch(tx, ty); !ms) return ms.error();
+    if (traceWidth != width_ || traceHeight != height_)
+        if (auto ms = guide_->dispatch(tx, ty); !ms) return ms.error();
+    auto ms = resolve_->dispatch(groups(width_, PV_FILM_GROUP_X), groups(height_, PV_FILM_GROUP_Y));
+    if (!ms) return ms.error();
+    const size_t pixels = size_t(width_) * height_;
+    std::vector<uint32_t> packed(pixels);
+    if (Status s = output_->download(packed.data(), pixels * sizeof(uint32_t)); !s)
+        return s.error();
+    DisplayImage out{width_, height_, std::vector<uint8_t>(pixels * 3)};
+    for (size_t i = 0; i < pixels; ++i)
+        for (int c = 0; c < 3; ++c) out.rgb[i * 3 + c] = uint8_t(packed[i] >> (8 * c));
+    return out;
+}
+
+shader::FilmParams DisplayPass::params(uint32_t traceWidth, uint32_t traceHeight, bool held,
+                                       const UpsampleSettings& upsample,
+                                       const DisplaySettings& settings) const {
+    shader::FilmParams p{};
+    p.width = width_;
+    p.height = height_;
+    p.traceWidth = traceWidth;
+    p.traceHeight = traceHeight;
+    // exp(−d_ln²/(2σ²)) with d_ln = ln 2 · d_log2.
+    const float ln2 = 0.69314718f, sigma = upsample.rangeSigma;
+    p.rangeScale = sigma > 0.0f ? ln2 * ln2 / (2.0f * sigma * sigma) : 0.0f;
+    p.logEpsilon = std::max(upsample.logEpsilonFraction * plateMean_, 1e-12f);
+    p.held = held ? 1u : 0u;
+    p.toneOp = toneOp(settings.tone.op);
+    const float exposure = std::exp2(settings.tone.exposureStops);
+    for (int c = 0; c < 3; ++c) p.exposure[c] = exposure / settings.whiteBalance[c];
+    p.maxRadiance = settings.tone.maxRadiance;
+    p.whiteLuminance = settings.tone.whiteLuminance;
+    return p;
+}
+
+}  // namespace previs

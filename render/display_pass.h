@@ -1,0 +1,89 @@
+#pragma once
+
+// The preview's last step on the device (gpu/shaders/film_display.comp): the traced estimate
+// upsampled to the output guided by the plate, the held view's samples blended in, Eq. 1 with
+// the plate, the tone curve and the 8-bit sRGB encode, so one 8-bit frame comes back instead of
+// float accumulations composited and tone mapped on the host. The film (render/film.h) owns one,
+// made when the first display frame is asked for.
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include "base/result.h"
+#include "gpu/buffer.h"
+#include "gpu/compute_pipeline.h"
+#include "gpu/context.h"
+#include "image/image.h"
+#include "render/tonemap.h"
+#include "render/upsample.h"
+#include "shared/film.h"
+
+namespace previs {
+
+// How the composite becomes display values: the white balance the plate's inverse applied
+// (undone before the curve, per channel) and the curve with its exposure.
+struct DisplaySettings {
+    ToneMapSettings tone;
+    std::array<float, 3> whiteBalance{1.0f, 1.0f, 1.0f};
+};
+
+// An 8-bit sRGB frame, RGB interleaved.
+struct DisplayImage {
+    uint32_t width = 0;
+    uint32_t height = 0;
+    std::vector<uint8_t> rgb;
+};
+
+// The host's version of the same frame from a float composite (render/film.h's image()).
+DisplayImage toDisplayImage(ImageF composite, const DisplaySettings& settings);
+
+class DisplayPass {
+public:
+    static Result<DisplayPass> create(GpuContext& ctx, uint32_t width, uint32_t height);
+
+    DisplayPass(DisplayPass&&) = default;
+    DisplayPass& operator=(DisplayPass&&) = default;
+
+    // What a frame is made of. `plate`: RGB (≥ 3 channels) at the output size, uploaded only
+    // when `plateVersion` differs from the last call's. The estimate of Eq. 1's plate-free part
+    // at the traced size: the means of the path tracer's accumulation (`sum`, `compensation`,
+    // taken on the device), or `estimate` where the host made one (denoised; RGBA, A the mask
+    // M). `held`: the held view's samples at the output size (PV_BINDING_HELD_SAMPLES), or null.
+    struct Inputs {
+        const ImageF* plate = nullptr;
+        uint64_t plateVersion = 0;
+        const GpuBuffer* sum = nullptr;
+        const GpuBuffer* compensation = nullptr;
+        uint32_t traceWidth = 0;
+        uint32_t traceHeight = 0;
+        const ImageF* estimate = nullptr;
+        const GpuBuffer* held = nullptr;
+    };
+    Result<DisplayImage> run(const Inputs& in, const UpsampleSettings& upsample,
+                             const DisplaySettings& settings);
+
+private:
+    DisplayPass() = default;
+    Status sizeTrace(uint32_t traceWidth, uint32_t traceHeight);
+    Status uploadPlate(const ImageF& plate, uint64_t plateVersion);
+    // Binds what changed since the last frame (buffers are compared by GpuBuffer::id).
+    Status bind(const Inputs& in);
+    shader::FilmParams params(uint32_t traceWidth, uint32_t traceHeight, bool held,
+                              const UpsampleSettings& upsample,
+                              const DisplaySettings& settings) const;
+
+    GpuContext* ctx_ = nullptr;
+    uint32_t width_ = 0;
+    uint32_t height_ = 0;
+    uint32_t traceWidth_ = 0;
+    uint32_t traceHeight_ = 0;
+    std::optional<uint64_t> plateVersion_;
+    float plateMean_ = 0.0f;
+    std::array<uint64_t, 3> bound_{};  // GpuBuffer::id of the held, sum, compensation bound last
+    std::optional<GpuBuffer> params_, plate_, estimate_, lowGuide_, thresholds_, output_, none_;
+    std::optional<ComputePipeline> estimateStage_, guide_, resolve_;
+};
+
+}  // namespace previs

@@ -1,0 +1,153 @@
+// The monitor's frame made on the device (Renderer::display, render/display_pass.h) against the
+// host's: the float composite (Renderer::image) tone mapped by toDisplayImage. The two run the
+// same steps (upsampling, the held view's blend, Eq. 1, the curve, the 8-bit encode: one
+// definition each in shared/film.h, or the same table) and differ only by float rounding (the
+// host sums in double): a value on a code's edge can land on either side. So at most one code
+// apart, and on one value in a thousand at most.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstdlib>
+
+#include "render/display_pass.h"
+#include "tests/integrator/gpu_fixture.h"
+#include "tests/support/scene_builders.h"
+
+namespace previs::testing {
+namespace {
+
+constexpr uint32_t kSize = 64;
+
+// A virtual ball on a real floor under a bright uniform sky (values beyond 1 reach the curve's
+// shoulder); the top rows see the sky.
+Scene ballOnFloor() {
+    Scene s;
+    const uint32_t floor = addMaterial(s, lambert(glm::vec3(0.5f)));
+    const uint32_t ball = addMaterial(s, lambert(glm::vec3(0.8f, 0.3f, 0.2f)));
+    addQuad(s, glm::vec3(0.0f), glm::vec3(0.0f, 0.0f, 1.0f), glm::vec3(2.0f, 0.0f, 0.0f), floor,
+            /*real=*/true);
+    addSphere(s, glm::vec3(0.0f, 0.25f, 0.0f), 0.25f, ball);
+    s.environment = uniformEnvironment(glm::vec3(3.0f));
+    s.cameras.push_back(lookAt(glm::vec3(0.0f, 0.6f, 1.8f), glm::vec3(0.0f, 0.25f, 0.0f),
+                               glm::vec3(0.0f, 1.0f, 0.0f), 0.7f));
+    return s;
+}
+
+// How far two 8-bit frames are apart: the largest and the mean difference of a code.
+struct CodeDifference {
+    int largest = 0;
+    double mean = 0.0;
+};
+
+CodeDifference compare(const DisplayImage& a, const DisplayImage& b) {
+    EXPECT_EQ(a.width, b.width);
+    EXPECT_EQ(a.height, b.height);
+    CodeDifference d;
+    if (a.rgb.size() != b.rgb.size() || a.rgb.empty()) return {255, 255.0};
+    for (size_t i = 0; i < a.rgb.size(); ++i) {
+        const int diff = std::abs(int(a.rgb[i]) - int(b.rgb[i]));
+        d.largest = std::max(d.largest, diff);
+        d.mean += diff;
+    }
+    d.mean /= double(a.rgb.size());
+    return d;
+}
+
+// The camera curves the service meets: sRGB with a white balance to undo, and the demo's
+// reinhard-extended with an exposure.
+std::vector<DisplaySettings> curves() {
+    DisplaySettings srgb;
+    srgb.whiteBalance = {1.2f, 1.0f, 0.8f};
+    DisplaySettings banterle;
+    banterle.tone.op = ToneMapOperator::ReinhardExtended;
+    banterle.tone.exposureStops = 0.5f;
+    banterle.tone.maxRadiance = 8.0f;
+    banterle.tone.whiteLuminance = 4.0f;
+    return {srgb, banterle};
+}
+
+class DisplayTest : public GpuTest {
+protected:
+    std::unique_ptr<Renderer> make(float scale, bool denoise = false) {
+        RenderSettings rs;
+        rs.width = kSize;
+        rs.height = kSize;
+        rs.maxDepth = 4;
+        rs.differential = true;
+        rs.samplesPerDispatch = 8;
+        rs.resolutionScale = scale;
+        rs.denoise = denoise;
+        auto r = Renderer::create(ctx(), scene_, rs);
+        EXPECT_TRUE(r.ok()) << r.message();
+        if (!r) return nullptr;
+        // The plate: the real-only solution with a checker, so the range kernel sees edges.
+        EXPECT_TRUE((*r)->render(8).ok());
+        Result<ImageF> real = (*r)->image(Aov::Real);
+        EXPECT_TRUE(real.ok());
+        ImageF plate = *real;
+        for (size_t i = 0; i < plate.pixels.size(); ++i)
+            plate.pixels[i] *= ((i / 3 % kSize / 8 + i / 3 / kSize / 8) % 2) ? 1.0f : 0.3f;
+        EXPECT_TRUE((*r)->setPlate(plate).ok());
+        EXPECT_TRUE((*r)->reset().ok());
+        return std::move(*r);
+    }
+
+    void expectClose(Renderer& r, bool denoised) {
+        for (const DisplaySettings& s : curves()) {
+            Result<DisplayImage> device = r.display(denoised, s);
+            ASSERT_TRUE(device.ok()) << device.message();
+            Result<ImageF> host = r.image(Aov::Composite, denoised);
+            ASSERT_TRUE(host.ok()) << host.message();
+            const CodeDifference d = compare(*device, toDisplayImage(*host, s));
+            EXPECT_LE(d.largest, 1) << int(s.tone.op);
+            EXPECT_LE(d.mean, 1e-3) << int(s.tone.op);
+        }
+    }
+
+    const Scene scene_ = ballOnFloor();
+};
+
+TEST_F(DisplayTest, AtFullResolutionTheDeviceFrameIsTheHostFrameToOneCode) {
+    auto r = make(1.0f);
+    ASSERT_TRUE(r);
+    ASSERT_TRUE(r->render(4).ok());
+    expectClose(*r, false);
+}
+
+TEST_F(DisplayTest, UpsampledTheDeviceFrameIsTheHostFrameToOneCode) {
+    for (float scale : {0.5f, 1.0f / 3.0f}) {
+        auto r = make(scale);
+        ASSERT_TRUE(r);
+        ASSERT_TRUE(r->render(4).ok());
+        expectClose(*r, false);
+    }
+}
+
+TEST_F(DisplayTest, DenoisedTheDeviceFrameIsTheHostFrame) {
+    auto r = make(0.5f, /*denoise=*/true);
+    ASSERT_TRUE(r);
+    ASSERT_TRUE(r->render(4).ok());
+    expectClose(*r, true);
+}
+
+// The held view's samples add up on the device over the frames it holds, and both sides blend
+// the same sums.
+TEST_F(DisplayTest, AHeldViewShowsItsKeptSamples) {
+    auto r = make(0.5f);
+    ASSERT_TRUE(r);
+    for (uint64_t frame = 1; frame <= 3; ++frame) {
+        ASSERT_TRUE(r->holdView(true).ok());
+        ASSERT_TRUE(r->renderPreviewFrame(2, frame).ok());
+    }
+    EXPECT_EQ(r->heldViewFrames(), 3u);
+    expectClose(*r, false);
+    // Against a frame without the held view: the kept samples change the picture.
+    Result<DisplayImage> held = r->display(false, curves()[0]);
+    ASSERT_TRUE(r->holdView(false).ok());
+    Result<DisplayImage> unheld = r->display(false, curves()[0]);
+    ASSERT_TRUE(held.ok() && unheld.ok());
+    EXPECT_GT(compare(*held, *unheld).mean, 0.01);
+}
+
+}  // namespace
+}  // namespace previs::testing
