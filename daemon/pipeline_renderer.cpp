@@ -16,6 +16,10 @@ namespace previs {
 
 namespace {
 
+// The dial's pan (DialMotion): the image moves this many pixels a frame, a steady operator's pan
+// (at 15 fps and 640×360 with a 50° field, about 17° a second).
+constexpr double kDialPanPixels = 8.0;
+
 // The calibration of the same lens sampled at another resolution: focal lengths and principal
 // point scale with the pixel size (pixel centres at x + 0.5), distortion is unitless.
 Result<CameraCalibration> scaledCalibration(const CameraCalibration& c, uint32_t width,
@@ -168,9 +172,15 @@ Status PipelineRenderer::chooseByDial(double fps) {
             if (n >= 128 && n <= r.photonsPerIteration()) axes.photonBudgets.push_back(n);
         if (axes.photonBudgets.empty()) axes.photonBudgets.push_back(r.photonsPerIteration());
     }
-    // Points that cannot fit the frame budget are not rendered (measureDial).
+    // Each point is timed on a pan that ends at the reference's view, through the same temporal
+    // stage preview runs (DialMotion): what the denoiser and reprojection gain or cost in motion
+    // decides, not a still camera's single frame. Points that cannot fit the frame budget are not
+    // rendered (measureDial).
+    DialMotion pan;
+    pan.panStepRad = kDialPanPixels * double(r.camera().fovYRad) / double(height_);
+    pan.accumulate = accumulate_;
     Result<std::vector<DialMeasurement>> measured =
-        measureDial(r, dialGrid(axes), *reference, 2, 1.0 / fps);
+        measureDial(r, dialGrid(axes), *reference, 2, 1.0 / fps, pan);
     if (!measured) return measured.error();
     dial_ = std::move(*measured);
     if (dial_.empty()) return makeError("render: the dial measured no preview setting");

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <glm/gtc/matrix_transform.hpp>
 
 #include "render/renderer.h"
 
@@ -130,11 +131,79 @@ bool cannotFit(std::span<const DialMeasurement> measured, const DialPoint& p,
     });
 }
 
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double secondsSince(Clock::time_point start) {
+    return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+// Sets the renderer to point `p`.
+Status usePoint(Renderer& renderer, const DialPoint& p) {
+    renderer.setMaxDepth(p.maxDepth);
+    if (Status s = renderer.setResolutionScale(p.resolutionScale); !s) return s;
+    if (p.denoiseIterations > 0)
+        if (Status s = renderer.setDenoiseIterations(p.denoiseIterations); !s) return s;
+    if (p.photons > 0) {
+        if (!renderer.photonsActive())
+            return makeError("the dial point '{}' needs the photon pass, which is off",
+                             p.describe());
+        if (Status s = renderer.setPreviewPhotons(p.photons); !s) return s;
+    }
+    return {};
+}
+
+// A still camera's frames: the times of `reps` after one untimed; the last frame is scored.
+Result<ImageF> stillFrames(Renderer& renderer, const DialPoint& p, int reps,
+                           std::vector<double>& times) {
+    // A first frame unmeasured: it may allocate (a new traced size) or size dispatches.
+    if (Status s = renderer.renderPreviewFrame(p.samplesPerFrame); !s) return s.error();
+    std::optional<ImageF> frame;
+    for (int i = 0; i < std::max(1, reps); ++i) {
+        const Clock::time_point start = Clock::now();
+        if (Status s = renderer.renderPreviewFrame(p.samplesPerFrame); !s) return s.error();
+        auto image = renderer.image(Aov::Composite, p.denoiseIterations > 0);
+        if (!image) return image.error();
+        times.push_back(secondsSince(start));
+        frame = std::move(*image);
+    }
+    return std::move(*frame);
+}
+
+// A pan's frames (DialMotion): the times of all but the first; the last frame is scored.
+Result<ImageF> panFrames(Renderer& renderer, const DialPoint& p, const DialMotion& motion,
+                         std::vector<double>& times) {
+    const glm::dmat4 end = renderer.denoiseCamera().worldFromCamera;
+    const bool filtered = p.denoiseIterations > 0 || motion.accumulate;
+    if (Denoiser* d = renderer.denoiser()) d->resetHistory();
+    renderer.setTemporalDenoise(motion.accumulate);
+    std::optional<ImageF> frame;
+    const uint32_t frames = std::max(2u, motion.frames);
+    for (uint32_t i = 0; i < frames; ++i) {
+        const double turn = motion.panStepRad * double(frames - 1 - i);
+        renderer.setCameraPose(end * glm::rotate(glm::dmat4(1.0), turn, glm::dvec3(0, 1, 0)));
+        const Clock::time_point start = Clock::now();
+        const uint64_t sequence = motion.accumulate ? i + 1 : 0;
+        if (Status s = renderer.renderPreviewFrame(p.samplesPerFrame, sequence); !s)
+            return s.error();
+        auto image = renderer.image(Aov::Composite, filtered);
+        if (!image) return image.error();
+        if (i > 0) times.push_back(secondsSince(start));
+        frame = std::move(*image);
+    }
+    renderer.setTemporalDenoise(false);
+    if (Denoiser* d = renderer.denoiser()) d->resetHistory();
+    return std::move(*frame);
+}
+
+}  // namespace
+
 Result<std::vector<DialMeasurement>> measureDial(Renderer& renderer,
                                                  std::span<const DialPoint> grid,
                                                  const ImageF& reference, int reps,
-                                                 std::optional<double> budgetSeconds) {
-    using Clock = std::chrono::steady_clock;
+                                                 std::optional<double> budgetSeconds,
+                                                 const DialMotion& motion) {
     std::vector<DialPoint> order(grid.begin(), grid.end());
     if (budgetSeconds)
         std::stable_sort(order.begin(), order.end(), [](const DialPoint& a, const DialPoint& b) {
@@ -143,28 +212,11 @@ Result<std::vector<DialMeasurement>> measureDial(Renderer& renderer,
     std::vector<DialMeasurement> out;
     for (const DialPoint& p : order) {
         if (budgetSeconds && cannotFit(out, p, *budgetSeconds)) continue;
-        renderer.setMaxDepth(p.maxDepth);
-        if (Status s = renderer.setResolutionScale(p.resolutionScale); !s) return s.error();
-        if (p.denoiseIterations > 0)
-            if (Status s = renderer.setDenoiseIterations(p.denoiseIterations); !s) return s.error();
-        if (p.photons > 0) {
-            if (!renderer.photonsActive())
-                return makeError("the dial point '{}' needs the photon pass, which is off",
-                                 p.describe());
-            if (Status s = renderer.setPreviewPhotons(p.photons); !s) return s.error();
-        }
-        // A first frame unmeasured: it may allocate (a new traced size) or size dispatches.
-        if (Status s = renderer.renderPreviewFrame(p.samplesPerFrame); !s) return s.error();
+        if (Status s = usePoint(renderer, p); !s) return s.error();
         std::vector<double> times;
-        std::optional<ImageF> frame;
-        for (int i = 0; i < std::max(1, reps); ++i) {
-            const auto start = Clock::now();
-            if (Status s = renderer.renderPreviewFrame(p.samplesPerFrame); !s) return s.error();
-            auto image = renderer.image(Aov::Composite, p.denoiseIterations > 0);
-            if (!image) return image.error();
-            times.push_back(std::chrono::duration<double>(Clock::now() - start).count());
-            frame = std::move(*image);
-        }
+        Result<ImageF> frame = motion.panStepRad != 0.0 ? panFrames(renderer, p, motion, times)
+                                                        : stillFrames(renderer, p, reps, times);
+        if (!frame) return frame.error();
         if (frame->pixels.size() != reference.pixels.size())
             return makeError("the dial's reference is {}x{}; the frames are {}x{}", reference.width,
                              reference.height, frame->width, frame->height);

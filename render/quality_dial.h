@@ -69,9 +69,24 @@ std::vector<size_t> gridNeighbours(std::span<const DialMeasurement> measurements
 
 class Renderer;
 
+// How measureDial moves the camera while it measures a point. Still (panStepRad 0): every frame
+// from the renderer's view, with preview's fixed sequence, filtered on its own. A pan: `frames`
+// preview frames, each turned by panStepRad about the camera's up axis from the one before and
+// ending at the renderer's view (the reference's); with `accumulate` each frame draws new
+// samples and is filtered through the denoiser's temporal reprojection (its history afresh at
+// each point), as the service's accumulating preview is. The error is the last frame's: what
+// reprojection keeps in motion; the time every frame's but the first (it may allocate). What a
+// held camera gains later (render/held_view.h) is not scored.
+struct DialMotion {
+    double panStepRad = 0.0;
+    uint32_t frames = 5;
+    bool accumulate = false;
+};
+
 // Measures every point of `grid` on `renderer` (its scene, plate, pose and lighting as they
 // are): the median wall time of `reps` preview frames (render, read back, denoise, upsample,
-// composite) and the RMSE of the last one against `reference` (the output's size). Points
+// composite; a pan's frames but the first) and the RMSE of the last one against `reference`
+// (the output's size, from the renderer's view). Points
 // that denoise need a renderer created with RenderSettings::denoise; points with photons, an
 // active photon pass. Leaves the renderer at the last point's settings.
 //
@@ -84,6 +99,7 @@ bool cannotFit(std::span<const DialMeasurement> measured, const DialPoint& p, do
 Result<std::vector<DialMeasurement>> measureDial(Renderer& renderer,
                                                  std::span<const DialPoint> grid,
                                                  const ImageF& reference, int reps,
-                                                 std::optional<double> budgetSeconds = {});
+                                                 std::optional<double> budgetSeconds = {},
+                                                 const DialMotion& motion = {});
 
 }  // namespace previs

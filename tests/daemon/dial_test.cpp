@@ -196,5 +196,47 @@ TEST(Dial, DenoiserStrengthIsOnTheDialAndRefinementStopsDenoisingAtTheTarget) {
     EXPECT_EQ((*q)->renderer().denoiser()->historyFrames(), 0u);
 }
 
+// The dial measures each point on a pan through preview's temporal stage (DialMotion): the pan
+// ends at the view it started from, and the reprojected history of a slow pan lowers the last
+// frame's error well below a still camera's single frame (8 frames of history at 1 pixel a
+// frame; the 32-spp reference's own noise is common to both).
+TEST(Dial, APanCountsWhatReprojectionKeepsAndEndsAtTheReferenceView) {
+    auto ctx = GpuContext::create({});
+    ASSERT_TRUE(ctx) << ctx.message();
+    Demo d = demo(0.0);
+    d.config.render.denoise = "on";
+    d.config.render.previewAccumulate = true;
+    auto p = PipelineRenderer::create(**ctx, d.scene, d.config);
+    ASSERT_TRUE(p) << p.message();
+    Renderer& r = (*p)->renderer();
+    // The demo's set is lit by the fisheye alone: a sky stands in, and a grey plate.
+    ASSERT_TRUE(r.setEnvironment(std::make_shared<EnvironmentMap>(
+        ::previs::testing::uniformEnvironment(glm::vec3(1.0f)))));
+    ImageF grey;
+    grey.width = (*p)->width();
+    grey.height = (*p)->height();
+    grey.channels = 3;
+    grey.pixels.assign(size_t(grey.width) * grey.height * 3, 0.18f);
+    ASSERT_TRUE(r.setPlate(std::move(grey)));
+    const glm::dmat4 view = r.denoiseCamera().worldFromCamera;
+    ASSERT_TRUE(r.reset());
+    r.setSeed(99);
+    ASSERT_TRUE(r.render(32));
+    Result<ImageF> reference = r.image(Aov::Composite);
+    ASSERT_TRUE(reference) << reference.message();
+    const DialPoint point{1.0f, 1, 4, 0, 0};
+    auto still = measureDial(r, std::span(&point, 1), *reference, 1);
+    DialMotion pan;
+    pan.panStepRad = r.camera().fovYRad / 36.0;  // one pixel
+    pan.frames = 9;
+    pan.accumulate = true;
+    auto panned = measureDial(r, std::span(&point, 1), *reference, 1, std::nullopt, pan);
+    ASSERT_TRUE(still && panned);
+    EXPECT_GT((*panned)[0].frameSeconds, 0.0);
+    EXPECT_LT((*panned)[0].error, 0.8 * (*still)[0].error);
+    EXPECT_EQ(r.denoiseCamera().worldFromCamera, view);
+    EXPECT_EQ(r.denoiser()->historyFrames(), 0u);  // preview starts its own history
+}
+
 }  // namespace
 }  // namespace previs
