@@ -55,17 +55,17 @@ Result<Denoiser> Denoiser::create(GpuContext& ctx, uint32_t width, uint32_t heig
         {PV_DENOISE_BINDING_HISTORY, 2 * PV_HISTORY_TEXELS * pixels * sizeof(glm::vec4),
          "denoiseHistory"},
     };
-    std::array<const GpuBuffer*, PV_DENOISE_BINDING_COUNT> bound{};
     d.buffers_.reserve(std::size(owned));
     for (const Owned& o : owned) {
         auto buffer = GpuBuffer::create(ctx, o.bytes, o.label);
         if (!buffer) return buffer.error();
         d.buffers_.push_back(std::move(buffer.value()));
     }
-    for (size_t i = 0; i < std::size(owned); ++i) bound[owned[i].binding] = &d.buffers_[i];
-    bound[PV_DENOISE_BINDING_WORK_TEXELS] = bound[PV_DENOISE_BINDING_WORK];
-    bound[PV_DENOISE_BINDING_PACKED_TEXELS] = bound[PV_DENOISE_BINDING_PACKED];
-    bound[PV_DENOISE_BINDING_HISTORY_TEXELS] = bound[PV_DENOISE_BINDING_HISTORY];
+    // (The vector's elements keep their addresses when the denoiser moves.)
+    for (size_t i = 0; i < std::size(owned); ++i) d.bound_[owned[i].binding] = &d.buffers_[i];
+    d.bound_[PV_DENOISE_BINDING_WORK_TEXELS] = d.bound_[PV_DENOISE_BINDING_WORK];
+    d.bound_[PV_DENOISE_BINDING_PACKED_TEXELS] = d.bound_[PV_DENOISE_BINDING_PACKED];
+    d.bound_[PV_DENOISE_BINDING_HISTORY_TEXELS] = d.bound_[PV_DENOISE_BINDING_HISTORY];
     std::array<BindingKind, PV_DENOISE_BINDING_COUNT> kinds{};
     kinds.fill(BindingKind::StorageBuffer);
     for (int b :
@@ -79,13 +79,24 @@ Result<Denoiser> Denoiser::create(GpuContext& ctx, uint32_t width, uint32_t heig
             "denoise");
         if (!p) return p.error();
         out.emplace(std::move(p.value()));
-        return out->bind(bound);
+        return Status{};
     };
     if (Status s = make(PV_DENOISE_STAGE_PREPARE, d.prepare_); !s) return s.error();
     if (Status s = make(PV_DENOISE_STAGE_TEMPORAL, d.temporal_); !s) return s.error();
     if (Status s = make(PV_DENOISE_STAGE_ATROUS, d.atrous_); !s) return s.error();
     if (Status s = make(PV_DENOISE_STAGE_FINISH, d.finish_); !s) return s.error();
+    if (Status s = d.bindGuides(*d.bound_[PV_DENOISE_BINDING_GUIDES]); !s) return s.error();
     return d;
+}
+
+Status Denoiser::bindGuides(const GpuBuffer& guides) {
+    if (boundGuides_ == guides.id()) return {};
+    std::array<const GpuBuffer*, PV_DENOISE_BINDING_COUNT> bound = bound_;
+    bound[PV_DENOISE_BINDING_GUIDES] = &guides;
+    for (ComputePipeline* p : {&*prepare_, &*temporal_, &*atrous_, &*finish_})
+        if (Status s = p->bind(bound); !s) return s;
+    boundGuides_ = guides.id();
+    return {};
 }
 
 Status Denoiser::setSettings(const DenoiseSettings& settings) {
@@ -124,8 +135,8 @@ Result<ImageF> Denoiser::run(const ImageF& signal, std::span<const glm::vec4> gu
             "per pixel",
             signal.width, signal.height, signal.channels, guides.size(), variance.size(), width_,
             height_, PV_GUIDE_COUNT);
-    lastGpuMs_ = 0.0;
     // Strength 0 without temporal accumulation: nothing to do.
+    lastGpuMs_ = 0.0;
     if (settings_.iterations == 0 && !now) return signal;
     std::vector<glm::vec4> color(pixels);
     for (size_t i = 0; i < pixels; ++i)
@@ -135,9 +146,26 @@ Result<ImageF> Denoiser::run(const ImageF& signal, std::span<const glm::vec4> gu
             buffers_[PV_DENOISE_BINDING_COLOR].upload(color.data(), pixels * sizeof(glm::vec4));
         !s)
         return s.error();
-    if (Status s = buffers_[PV_DENOISE_BINDING_GUIDES].upload(guides.data(), guides.size_bytes());
+    GpuBuffer& ownGuides = buffers_[PV_DENOISE_BINDING_GUIDES];
+    if (Status s = ownGuides.upload(guides.data(), guides.size_bytes()); !s) return s.error();
+    if (Status s = filter(ownGuides, now); !s) return s.error();
+    if (Status s =
+            buffers_[PV_DENOISE_BINDING_OUTPUT].download(color.data(), pixels * sizeof(glm::vec4));
         !s)
         return s.error();
+    ImageF out;
+    out.width = width_;
+    out.height = height_;
+    out.channels = 3;
+    out.pixels.resize(pixels * 3);
+    for (size_t i = 0; i < pixels; ++i)
+        for (int c = 0; c < 3; ++c) out.pixels[3 * i + c] = color[i][c];
+    return out;
+}
+
+Status Denoiser::filter(const GpuBuffer& guides, const DenoiseCamera* now) {
+    lastGpuMs_ = 0.0;
+    if (Status s = bindGuides(guides); !s) return s;
     shader::DenoiseParams params{};
     params.width = width_;
     params.height = height_;
@@ -161,11 +189,11 @@ Result<ImageF> Denoiser::run(const ImageF& signal, std::span<const glm::vec4> gu
     GpuBuffer& paramsBuffer = buffers_[PV_DENOISE_BINDING_PARAMS];
     // Dispatches wait for completion (ComputePipeline::dispatch), so each iteration's parameters
     // can be uploaded into the one buffer between them.
-    if (Status s = paramsBuffer.upload(&params, sizeof(params)); !s) return s.error();
-    if (Status s = dispatch(*prepare_); !s) return s.error();
+    if (Status s = paramsBuffer.upload(&params, sizeof(params)); !s) return s;
+    if (Status s = dispatch(*prepare_); !s) return s;
     uint32_t image = PV_DENOISE_WORK_PREPARED;
     if (now) {
-        if (Status s = dispatch(*temporal_); !s) return s.error();
+        if (Status s = dispatch(*temporal_); !s) return s;
         image = PV_DENOISE_WORK_TEMPORAL;
         prevPacked_ = params.packedImage;
         historyIn_ = 1u - historyIn_;
@@ -179,24 +207,13 @@ Result<ImageF> Denoiser::run(const ImageF& signal, std::span<const glm::vec4> gu
         params.inImage = image;
         params.outImage = PV_DENOISE_WORK_TEMPORAL + 1u + i % 2;
         image = params.outImage;
-        if (Status s = paramsBuffer.upload(&params, sizeof(params)); !s) return s.error();
-        if (Status s = dispatch(*atrous_); !s) return s.error();
+        if (Status s = paramsBuffer.upload(&params, sizeof(params)); !s) return s;
+        if (Status s = dispatch(*atrous_); !s) return s;
     }
     params.inImage = image;
-    if (Status s = paramsBuffer.upload(&params, sizeof(params)); !s) return s.error();
-    if (Status s = dispatch(*finish_); !s) return s.error();
-    if (Status s =
-            buffers_[PV_DENOISE_BINDING_OUTPUT].download(color.data(), pixels * sizeof(glm::vec4));
-        !s)
-        return s.error();
-    ImageF out;
-    out.width = width_;
-    out.height = height_;
-    out.channels = 3;
-    out.pixels.resize(pixels * 3);
-    for (size_t i = 0; i < pixels; ++i)
-        for (int c = 0; c < 3; ++c) out.pixels[3 * i + c] = color[i][c];
-    return out;
+    if (Status s = paramsBuffer.upload(&params, sizeof(params)); !s) return s;
+    if (Status s = dispatch(*finish_); !s) return s;
+    return {};
 }
 
 }  // namespace previs

@@ -5,6 +5,7 @@
 // applies it to the composite *without* the plate term — M·L_om + (1−M)(L_om − L_or) — or to
 // L_om or L_or, never to the camera image (Renderer::image(Aov, bool)).
 
+#include <array>
 #include <cstdint>
 #include <glm/glm.hpp>
 #include <optional>
@@ -16,6 +17,7 @@
 #include "gpu/context.h"
 #include "image/image.h"
 #include "render/render_settings.h"
+#include "shared/denoise.h"
 
 namespace previs {
 
@@ -51,6 +53,15 @@ public:
     // of a pinhole camera `now`. apply() calls in between leave the history alone.
     Result<ImageF> applyTemporal(const ImageF& signal, std::span<const glm::vec4> guides,
                                  std::span<const float> variance, const DenoiseCamera& now);
+    // The same for a signal already on the device, leaving the result there: the caller has
+    // written colourInput() (per pixel the signal's RGB and the variance of its mean's luminance
+    // in w, negative where unknown), `guides` is the path tracer's own buffer (layout as above),
+    // and output() holds the filtered signal (vec4 per pixel, w unused). `now`: through the
+    // temporal stage, as applyTemporal; null: as apply.
+    Status filter(const GpuBuffer& guides, const DenoiseCamera* now);
+    GpuBuffer& colourInput() { return buffers_[PV_DENOISE_BINDING_COLOR]; }
+    const GpuBuffer& output() const { return buffers_[PV_DENOISE_BINDING_OUTPUT]; }
+
     // Forget the history: the next applyTemporal() starts afresh (mode switch, refinement start,
     // scene or resolution change).
     void resetHistory() {
@@ -66,11 +77,18 @@ public:
     // New settings for the next calls (the dial's strength); out of range: an error, no change.
     Status setSettings(const DenoiseSettings& settings);
     uint32_t width() const { return width_; }
+    uint64_t deviceBytes() const {
+        uint64_t total = 0;
+        for (const GpuBuffer& b : buffers_) total += b.size();
+        return total;
+    }
     uint32_t height() const { return height_; }
 
 private:
     Denoiser() = default;
     Status dispatch(ComputePipeline& pipeline);
+    // Binds `guides` (the denoiser's own buffer, or the path tracer's) unless it is bound.
+    Status bindGuides(const GpuBuffer& guides);
     Result<ImageF> run(const ImageF& signal, std::span<const glm::vec4> guides,
                        std::span<const float> variance, const DenoiseCamera* now);
 
@@ -87,6 +105,8 @@ private:
     DenoiseCamera prevCamera_;
     // Buffers in PV_DENOISE_BINDING_* order, then the pipelines that bind them.
     std::vector<GpuBuffer> buffers_;
+    std::array<const GpuBuffer*, PV_DENOISE_BINDING_COUNT> bound_{};  // own buffers per binding
+    uint64_t boundGuides_ = 0;                                        // GpuBuffer::id
     std::optional<ComputePipeline> prepare_;
     std::optional<ComputePipeline> temporal_;
     std::optional<ComputePipeline> atrous_;

@@ -63,7 +63,8 @@ Result<DisplayPass> DisplayPass::create(GpuContext& ctx, uint32_t width, uint32_
     kinds[PV_FILM_BINDING_SRGB_THRESHOLDS] = BindingKind::TexelBufferUint;
     kinds[PV_FILM_BINDING_ESTIMATE] = BindingKind::TexelBufferUint4;
     kinds[PV_FILM_BINDING_LOW_GUIDE_TEXELS] = BindingKind::TexelBufferUint4;
-    for (auto [stage, out] : {std::pair{PV_FILM_STAGE_ESTIMATE, &d.estimateStage_},
+    for (auto [stage, out] : {std::pair{PV_FILM_STAGE_SIGNAL, &d.signalStage_},
+                              std::pair{PV_FILM_STAGE_ESTIMATE, &d.estimateStage_},
                               std::pair{PV_FILM_STAGE_GUIDE, &d.guide_},
                               std::pair{PV_FILM_STAGE_RESOLVE, &d.resolve_}}) {
         const std::array<uint32_t, 1> constants{stage};
@@ -74,6 +75,14 @@ Result<DisplayPass> DisplayPass::create(GpuContext& ctx, uint32_t width, uint32_
         out->emplace(std::move(p.value()));
     }
     return d;
+}
+
+uint64_t DisplayPass::deviceBytes() const {
+    uint64_t total = 0;
+    for (const std::optional<GpuBuffer>* b :
+         {&params_, &plate_, &estimate_, &lowGuide_, &thresholds_, &output_, &none_})
+        if (*b) total += (*b)->size();
+    return total;
 }
 
 Status DisplayPass::sizeTrace(uint32_t traceWidth, uint32_t traceHeight) {
@@ -112,10 +121,12 @@ Status DisplayPass::uploadPlate(const ImageF& plate, uint64_t plateVersion) {
 }
 
 Status DisplayPass::bind(const Inputs& in) {
-    const GpuBuffer& held = in.held ? *in.held : *none_;
-    const GpuBuffer& sum = in.sum && !in.estimate ? *in.sum : *none_;
-    const GpuBuffer& compensation = in.compensation && !in.estimate ? *in.compensation : *none_;
-    const std::array<uint64_t, 3> ids{held.id(), sum.id(), compensation.id()};
+    auto orNone = [&](const GpuBuffer* b) -> const GpuBuffer& { return b ? *b : *none_; };
+    const std::array<const GpuBuffer*, 6> inputs{&orNone(in.held),         &orNone(in.sum),
+                                                 &orNone(in.compensation), &orNone(in.guides),
+                                                 &orNone(in.signal),       &orNone(in.denoised)};
+    std::array<uint64_t, 6> ids{};
+    for (size_t k = 0; k < ids.size(); ++k) ids[k] = inputs[k]->id();
     if (bound_ == ids) return {};
     std::array<const GpuBuffer*, PV_FILM_BINDING_COUNT> bound{};
     bound[PV_FILM_BINDING_PARAMS] = &*params_;
@@ -124,38 +135,43 @@ Status DisplayPass::bind(const Inputs& in) {
     bound[PV_FILM_BINDING_ESTIMATE_OUT] = &*estimate_;
     bound[PV_FILM_BINDING_LOW_GUIDE] = &*lowGuide_;
     bound[PV_FILM_BINDING_LOW_GUIDE_TEXELS] = &*lowGuide_;
-    bound[PV_FILM_BINDING_HELD] = &held;
     bound[PV_FILM_BINDING_SRGB_THRESHOLDS] = &*thresholds_;
     bound[PV_FILM_BINDING_OUTPUT] = &*output_;
-    bound[PV_FILM_BINDING_ACCUM_SUM] = &sum;
-    bound[PV_FILM_BINDING_ACCUM_COMPENSATION] = &compensation;
-    for (ComputePipeline* p : {&*estimateStage_, &*guide_, &*resolve_})
+    bound[PV_FILM_BINDING_HELD] = inputs[0];
+    bound[PV_FILM_BINDING_ACCUM_SUM] = inputs[1];
+    bound[PV_FILM_BINDING_ACCUM_COMPENSATION] = inputs[2];
+    bound[PV_FILM_BINDING_GUIDES] = inputs[3];
+    bound[PV_FILM_BINDING_SIGNAL_OUT] = inputs[4];
+    bound[PV_FILM_BINDING_DENOISED] = inputs[5];
+    for (ComputePipeline* p : {&*signalStage_, &*estimateStage_, &*guide_, &*resolve_})
         if (Status s = p->bind(bound); !s) return s;
     bound_ = ids;
     return {};
 }
 
+Status DisplayPass::writeSignal(const Inputs& in) {
+    PV_ASSERT(in.sum && in.compensation && in.guides && in.signal);
+    if (Status s = sizeTrace(in.traceWidth, in.traceHeight); !s) return s;
+    if (Status s = bind(in); !s) return s;
+    const shader::FilmParams p = params(in, {}, {});
+    if (Status s = params_->upload(&p, sizeof(p)); !s) return s;
+    auto ms = signalStage_->dispatch(groups(in.traceWidth, PV_FILM_GROUP_X),
+                                     groups(in.traceHeight, PV_FILM_GROUP_Y));
+    return ms ? Status{} : Status(ms.error());
+}
+
 Result<DisplayImage> DisplayPass::run(const Inputs& in, const UpsampleSettings& upsample,
                                       const DisplaySettings& settings) {
-    PV_ASSERT(in.plate && (in.estimate || (in.sum && in.compensation)));
-    const uint32_t traceWidth = in.estimate ? in.estimate->width : in.traceWidth;
-    const uint32_t traceHeight = in.estimate ? in.estimate->height : in.traceHeight;
-    if (Status s = sizeTrace(traceWidth, traceHeight); !s) return s.error();
+    PV_ASSERT(in.plate && in.sum && in.compensation);
+    if (Status s = sizeTrace(in.traceWidth, in.traceHeight); !s) return s.error();
     if (Status s = uploadPlate(*in.plate, in.plateVersion); !s) return s.error();
-    if (in.estimate) {
-        PV_ASSERT(in.estimate->channels == 4);
-        const std::vector<float>& e = in.estimate->pixels;
-        if (Status s = estimate_->upload(e.data(), e.size() * sizeof(float)); !s) return s.error();
-    }
     if (Status s = bind(in); !s) return s.error();
-    const shader::FilmParams p =
-        params(traceWidth, traceHeight, in.held != nullptr, upsample, settings);
+    const shader::FilmParams p = params(in, upsample, settings);
     if (Status s = params_->upload(&p, sizeof(p)); !s) return s.error();
-    const uint32_t tx = groups(traceWidth, PV_FILM_GROUP_X),
-                   ty = groups(traceHeight, PV_FILM_GROUP_Y);
-    if (!in.estimate)
-        if (auto ms = estimateStage_->dispatch(tx, ty); !ms) return ms.error();
-    if (traceWidth != width_ || traceHeight != height_)
+    const uint32_t tx = groups(in.traceWidth, PV_FILM_GROUP_X);
+    const uint32_t ty = groups(in.traceHeight, PV_FILM_GROUP_Y);
+    if (auto ms = estimateStage_->dispatch(tx, ty); !ms) return ms.error();
+    if (in.traceWidth != width_ || in.traceHeight != height_)
         if (auto ms = guide_->dispatch(tx, ty); !ms) return ms.error();
     auto ms = resolve_->dispatch(groups(width_, PV_FILM_GROUP_X), groups(height_, PV_FILM_GROUP_Y));
     if (!ms) return ms.error();
@@ -169,19 +185,19 @@ Result<DisplayImage> DisplayPass::run(const Inputs& in, const UpsampleSettings& 
     return out;
 }
 
-shader::FilmParams DisplayPass::params(uint32_t traceWidth, uint32_t traceHeight, bool held,
-                                       const UpsampleSettings& upsample,
+shader::FilmParams DisplayPass::params(const Inputs& in, const UpsampleSettings& upsample,
                                        const DisplaySettings& settings) const {
     shader::FilmParams p{};
     p.width = width_;
     p.height = height_;
-    p.traceWidth = traceWidth;
-    p.traceHeight = traceHeight;
+    p.traceWidth = in.traceWidth;
+    p.traceHeight = in.traceHeight;
     // exp(−d_ln²/(2σ²)) with d_ln = ln 2 · d_log2.
     const float ln2 = 0.69314718f, sigma = upsample.rangeSigma;
     p.rangeScale = sigma > 0.0f ? ln2 * ln2 / (2.0f * sigma * sigma) : 0.0f;
     p.logEpsilon = std::max(upsample.logEpsilonFraction * plateMean_, 1e-12f);
-    p.held = held ? 1u : 0u;
+    p.held = in.held ? 1u : 0u;
+    p.denoised = in.denoised ? 1u : 0u;
     p.toneOp = toneOp(settings.tone.op);
     const float exposure = std::exp2(settings.tone.exposureStops);
     for (int c = 0; c < 3; ++c) p.exposure[c] = exposure / settings.whiteBalance[c];

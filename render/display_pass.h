@@ -46,11 +46,13 @@ public:
     DisplayPass(DisplayPass&&) = default;
     DisplayPass& operator=(DisplayPass&&) = default;
 
-    // What a frame is made of. `plate`: RGB (≥ 3 channels) at the output size, uploaded only
-    // when `plateVersion` differs from the last call's. The estimate of Eq. 1's plate-free part
-    // at the traced size: the means of the path tracer's accumulation (`sum`, `compensation`,
-    // taken on the device), or `estimate` where the host made one (denoised; RGBA, A the mask
-    // M). `held`: the held view's samples at the output size (PV_BINDING_HELD_SAMPLES), or null.
+    // What a frame is made of, all on the device but the plate. `plate`: RGB (≥ 3 channels) at
+    // the output size, uploaded only when `plateVersion` differs from the last call's. The path
+    // tracer's accumulation at the traced size (`sum`, `compensation`: PV_BINDING_ACCUM_*) and,
+    // for a denoised frame, its guides. `held`: the held view's samples at the output size
+    // (PV_BINDING_HELD_SAMPLES), or null. `signal`: the denoiser's input buffer writeSignal
+    // fills; `denoised`: its output, which run() then takes for the estimate's RGB (null: the
+    // means).
     struct Inputs {
         const ImageF* plate = nullptr;
         uint64_t plateVersion = 0;
@@ -58,11 +60,19 @@ public:
         const GpuBuffer* compensation = nullptr;
         uint32_t traceWidth = 0;
         uint32_t traceHeight = 0;
-        const ImageF* estimate = nullptr;
         const GpuBuffer* held = nullptr;
+        const GpuBuffer* guides = nullptr;
+        GpuBuffer* signal = nullptr;
+        const GpuBuffer* denoised = nullptr;
     };
+    // Writes the denoiser's input (Denoiser::colourInput: the mean of Eq. 1's plate-free part
+    // and the variance of its luminance) from the accumulation and the guides' moments.
+    Status writeSignal(const Inputs& in);
+    // The frame, 8-bit, read back.
     Result<DisplayImage> run(const Inputs& in, const UpsampleSettings& upsample,
                              const DisplaySettings& settings);
+
+    uint64_t deviceBytes() const;
 
 private:
     DisplayPass() = default;
@@ -70,8 +80,7 @@ private:
     Status uploadPlate(const ImageF& plate, uint64_t plateVersion);
     // Binds what changed since the last frame (buffers are compared by GpuBuffer::id).
     Status bind(const Inputs& in);
-    shader::FilmParams params(uint32_t traceWidth, uint32_t traceHeight, bool held,
-                              const UpsampleSettings& upsample,
+    shader::FilmParams params(const Inputs& in, const UpsampleSettings& upsample,
                               const DisplaySettings& settings) const;
 
     GpuContext* ctx_ = nullptr;
@@ -81,9 +90,10 @@ private:
     uint32_t traceHeight_ = 0;
     std::optional<uint64_t> plateVersion_;
     float plateMean_ = 0.0f;
-    std::array<uint64_t, 3> bound_{};  // GpuBuffer::id of the held, sum, compensation bound last
+    // GpuBuffer::id of the inputs bound last: held, sum, compensation, guides, signal, denoised.
+    std::array<uint64_t, 6> bound_{};
     std::optional<GpuBuffer> params_, plate_, estimate_, lowGuide_, thresholds_, output_, none_;
-    std::optional<ComputePipeline> estimateStage_, guide_, resolve_;
+    std::optional<ComputePipeline> signalStage_, estimateStage_, guide_, resolve_;
 };
 
 }  // namespace previs

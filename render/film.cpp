@@ -12,10 +12,6 @@ namespace previs {
 
 namespace {
 
-// A pixel's own variance needs a few samples (SVGF switches to its spatial estimate below 4
-// frames of history); below that the denoiser estimates it from the neighbourhood.
-constexpr double kMinSamplesForVariance = 4.0;
-
 // The accumulation slot an AOV's colour is the mean of (the composite's plate-free part where a
 // plate is composited, else the mixed scene). Also its luminance moment's component in
 // PV_GUIDE_MOMENTS.
@@ -193,9 +189,8 @@ Result<ImageF> Film::heldComposite(const TracedBuffers& traced, const ImageF& es
     return compositeOverPlate(HeldView::blend(samples, upsample(estimate)));
 }
 
-Result<ImageF> Film::denoisedMeans(const TracedBuffers& traced, const Accumulation& m,
-                                   uint32_t slot, const DenoiseCamera& camera) {
-    if (!denoiser_)
+Result<Denoiser*> Film::denoiserFor(const TracedBuffers& traced) {
+    if (!denoiser_ || !traced.guides)
         return makeError(
             "a denoised image needs a renderer created with denoising on (--denoise on|auto)");
     // At a resolution scale below 1 the filter runs on the traced pixels, before upsampling
@@ -205,6 +200,12 @@ Result<ImageF> Film::denoisedMeans(const TracedBuffers& traced, const Accumulati
         if (!resized) return resized.error();
         denoiser_.emplace(std::move(resized.value()));
     }
+    return &*denoiser_;
+}
+
+Result<ImageF> Film::denoisedMeans(const TracedBuffers& traced, const Accumulation& m,
+                                   uint32_t slot, const DenoiseCamera& camera) {
+    if (Result<Denoiser*> d = denoiserFor(traced); !d) return d.error();
     auto g = readGuides(traced);
     if (!g) return g.error();
     const size_t pixels = size_t(traced.width) * traced.height;
@@ -221,7 +222,7 @@ Result<ImageF> Film::denoisedMeans(const TracedBuffers& traced, const Accumulati
         const double y2 = (*g)[i * PV_GUIDE_COUNT + PV_GUIDE_MOMENTS][slot];
         // The variance of the mean: the samples' unbiased variance over n.
         variance[i] =
-            n >= kMinSamplesForVariance ? float(std::max(0.0, y2 - y * y) / (n - 1.0)) : -1.0f;
+            n >= PV_MIN_SAMPLES_FOR_VARIANCE ? float(std::max(0.0, y2 - y * y) / (n - 1.0)) : -1.0f;
     }
     return temporalDenoise_ ? denoiser_->applyTemporal(signal, *g, variance, camera)
                             : denoiser_->apply(signal, *g, variance);
@@ -267,21 +268,25 @@ Result<DisplayImage> Film::display(const TracedBuffers& traced, bool denoised,
         if (!image) return image.error();
         return toDisplayImage(std::move(*image), settings);
     }
-    DisplayPass::Inputs in{&*plate_,     plateVersion_, traced.sum, traced.compensation,
-                           traced.width, traced.height};
-    in.held = held_ && traced.held ? traced.held : nullptr;
-    // Undenoised, the means are taken on the device: nothing is read back but the frame.
-    std::optional<ImageF> estimate;
-    if (denoised) {
-        Result<ImageF> filtered = compositeEstimate(traced, true, camera);
-        if (!filtered) return filtered.error();
-        estimate = std::move(*filtered);
-        in.estimate = &*estimate;
-    }
     if (!displayPass_) {
         auto pass = DisplayPass::create(*ctx_, width_, height_);
         if (!pass) return pass.error();
         displayPass_.emplace(std::move(pass.value()));
+    }
+    DisplayPass::Inputs in{&*plate_,     plateVersion_, traced.sum, traced.compensation,
+                           traced.width, traced.height};
+    in.held = held_ && traced.held ? traced.held : nullptr;
+    // Denoised, the filter's input is written and filtered on the device too: nothing is read
+    // back but the frame.
+    if (denoised) {
+        Result<Denoiser*> d = denoiserFor(traced);
+        if (!d) return d.error();
+        in.guides = traced.guides;
+        in.signal = &(*d)->colourInput();
+        if (Status s = displayPass_->writeSignal(in); !s) return s.error();
+        if (Status s = (*d)->filter(*traced.guides, temporalDenoise_ ? &camera : nullptr); !s)
+            return s.error();
+        in.denoised = &(*d)->output();
     }
     return displayPass_->run(in, upsample_, settings);
 }

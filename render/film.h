@@ -90,6 +90,13 @@ public:
         if (held_) held_->frameAdded();
     }
 
+    // Bytes of device memory in the denoiser's buffers (its history included) and the display
+    // pass's.
+    uint64_t deviceBytes() const {
+        return (denoiser_ ? denoiser_->deviceBytes() : 0) +
+               (displayPass_ ? displayPass_->deviceBytes() : 0);
+    }
+
     Denoiser* denoiser() { return denoiser_ ? &*denoiser_ : nullptr; }
     const Denoiser* denoiser() const { return denoiser_ ? &*denoiser_ : nullptr; }
     void setTemporalDenoise(bool on) { temporalDenoise_ = on; }
@@ -123,6 +130,8 @@ private:
     // where `denoised`), A the mask M.
     Result<ImageF> compositeEstimate(const TracedBuffers& traced, bool denoised,
                                      const DenoiseCamera& camera);
+    // The denoiser at the traced size (made anew when the size changed); an error without one.
+    Result<Denoiser*> denoiserFor(const TracedBuffers& traced);
     // The means of accumulation slot `slot` (RGB) through the denoiser (temporal where it is on).
     Result<ImageF> denoisedMeans(const TracedBuffers& traced, const Accumulation& m, uint32_t slot,
                                  const DenoiseCamera& camera);

@@ -254,10 +254,11 @@ public:
     // The camera, its pose in world coordinates in float (worldFromCameraM() in double).
     const Camera& camera() const { return camera_; }
     const glm::dmat4& worldFromCameraM() const { return worldFromCameraM_; }
-    // Bytes of device memory in this renderer's buffers (scene, accumulation, lighting); the
+    // Bytes of device memory in this renderer's buffers (scene, accumulation, lighting, the
+    // held view) and its film's (the denoiser's with its history, the display pass's); the
     // staging copies of an upload or readback come and go on top.
     uint64_t deviceBytes() const {
-        uint64_t total = 0;
+        uint64_t total = film_->deviceBytes();
         for (const GpuBuffer& b : buffers_) total += b.size();
         return total;
     }

@@ -1,7 +1,9 @@
 // film_display: the preview frame as the monitor shows it, made on the device (render/
-// display_pass.h). Three stages:
-//   estimate: per traced pixel, the means of Eq. 1's plate-free part and of the mask from the
-//            path tracer's compensated sums (the host uploads a denoised estimate instead);
+// display_pass.h). Four stages:
+//   signal:  (denoised frames) per traced pixel, the denoiser's input: the mean of Eq. 1's
+//            plate-free part and the variance of its luminance from the path tracer's moments;
+//   estimate: per traced pixel, the means of Eq. 1's plate-free part (or the denoiser's output)
+//            and of the mask from the path tracer's compensated sums;
 //   guide:   per traced pixel, log2 of the plate's area mean over its footprint plus ε: the low-
 //            resolution side of the joint bilateral upsampling's range kernel;
 //   resolve: per output pixel, the traced estimate upsampled (render/upsample.h's kernel: a
@@ -15,6 +17,7 @@
 #extension GL_EXT_scalar_block_layout : require
 #extension GL_GOOGLE_include_directive : require
 
+#include "shared/denoise.h"
 #include "shared/film.h"
 #include "shared/scene_types.h"
 
@@ -34,6 +37,9 @@ layout(binding = PV_FILM_BINDING_ACCUM_SUM, scalar) readonly buffer AccumSum { v
 layout(binding = PV_FILM_BINDING_ACCUM_COMPENSATION, scalar) readonly buffer AccumCompensation {
     vec4 accumCompensation[];
 };
+layout(binding = PV_FILM_BINDING_GUIDES, scalar) readonly buffer Guides { vec4 guides[]; };
+layout(binding = PV_FILM_BINDING_SIGNAL_OUT, scalar) writeonly buffer SignalOut { vec4 signalOut[]; };
+layout(binding = PV_FILM_BINDING_DENOISED, scalar) readonly buffer Denoised { vec4 denoised[]; };
 
 // Range weights summing below this fraction of the spatial ones: the pixel's colour matches no
 // neighbour (a detail finer than the traced grid) and the spatial kernel alone is used.
@@ -64,10 +70,28 @@ vec4 accumulated(uint i, uint slot) {
 
 // The samples that count (the mixed sum's w: dropped samples are not in it) divide the sums; a
 // pixel without samples is mask 0: the plate.
-void estimateStage(uvec2 q) {
+vec4 compositeMean(uint i) {
+    float n = accumulated(i, PV_ACCUM_MIXED).w;
+    return n > 0.0 ? accumulated(i, PV_ACCUM_COMPOSITE) / n : vec4(0.0);
+}
+
+// The variance of the mean's luminance: the samples' unbiased variance over n, from the second
+// moment the path tracer keeps per pixel (render/film.cpp's host version); unknown (−1) below
+// PV_MIN_SAMPLES_FOR_VARIANCE samples.
+void signalStage(uvec2 q) {
     uint i = q.y * params.traceWidth + q.x;
     float n = accumulated(i, PV_ACCUM_MIXED).w;
-    estimateOut[i] = n > 0.0 ? accumulated(i, PV_ACCUM_COMPOSITE) / n : vec4(0.0);
+    vec3 mean = compositeMean(i).rgb;
+    float y = dot(mean, vec3(0.2126, 0.7152, 0.0722));
+    float y2 = guides[i * PV_GUIDE_COUNT + PV_GUIDE_MOMENTS][PV_ACCUM_COMPOSITE];
+    float variance = n >= PV_MIN_SAMPLES_FOR_VARIANCE ? max(0.0, y2 - y * y) / (n - 1.0) : -1.0;
+    signalOut[i] = vec4(mean, variance);
+}
+
+void estimateStage(uvec2 q) {
+    uint i = q.y * params.traceWidth + q.x;
+    vec4 mean = compositeMean(i);
+    estimateOut[i] = params.denoised != 0u ? vec4(denoised[i].rgb, mean.a) : mean;
 }
 
 void guideStage(uvec2 q) {
@@ -158,7 +182,9 @@ void resolveStage(uvec2 p) {
 void main() {
     uvec2 p = gl_GlobalInvocationID.xy;
     bool traced = p.x < params.traceWidth && p.y < params.traceHeight;
-    if (kStage == PV_FILM_STAGE_ESTIMATE) {
+    if (kStage == PV_FILM_STAGE_SIGNAL) {
+        if (traced) signalStage(p);
+    } else if (kStage == PV_FILM_STAGE_ESTIMATE) {
         if (traced) estimateStage(p);
     } else if (kStage == PV_FILM_STAGE_GUIDE) {
         if (traced) guideStage(p);

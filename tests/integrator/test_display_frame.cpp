@@ -130,6 +130,28 @@ TEST_F(DisplayTest, DenoisedTheDeviceFrameIsTheHostFrame) {
     expectClose(*r, true);
 }
 
+// Through the temporal stage each frame joins the history, so the device's and the host's frames
+// come from two identical renderers fed the same frames.
+TEST_F(DisplayTest, AccumulatedTheDeviceFrameIsTheHostFrame) {
+    auto device = make(0.5f, /*denoise=*/true);
+    auto host = make(0.5f, /*denoise=*/true);
+    ASSERT_TRUE(device && host);
+    const DisplaySettings s = curves()[1];
+    for (uint64_t frame = 1; frame <= 3; ++frame) {
+        for (Renderer* r : {device.get(), host.get()}) {
+            r->setTemporalDenoise(true);
+            ASSERT_TRUE(r->renderPreviewFrame(2, frame).ok());
+        }
+        Result<DisplayImage> shown = device->display(true, s);
+        Result<ImageF> composite = host->image(Aov::Composite, true);
+        ASSERT_TRUE(shown.ok() && composite.ok());
+        const CodeDifference d = compare(*shown, toDisplayImage(*composite, s));
+        EXPECT_LE(d.largest, 1) << frame;
+        EXPECT_LE(d.mean, 1e-3) << frame;
+    }
+    EXPECT_EQ(device->denoiser()->historyFrames(), 3u);
+}
+
 // The held view's samples add up on the device over the frames it holds, and both sides blend
 // the same sums.
 TEST_F(DisplayTest, AHeldViewShowsItsKeptSamples) {

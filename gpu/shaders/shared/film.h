@@ -70,7 +70,7 @@ PV_INLINE vec3 toneCurve(vec3 rgb, uint op, float maxRadiance, float whiteLumina
 #define PV_FILM_BINDING_PLATE 1
 // The frame's estimate at the traced size: RGB the mean of Eq. 1's plate-free part (denoised or
 // not), A the mask M (vec4 per pixel; texel buffer). The estimate stage writes it through
-// PV_FILM_BINDING_ESTIMATE_OUT, or the host uploads it (denoised).
+// PV_FILM_BINDING_ESTIMATE_OUT.
 #define PV_FILM_BINDING_ESTIMATE 2
 // The upsampling's low-resolution guide: per traced pixel, log2 of the plate's area mean over
 // its footprint plus ε (vec4, w unused), written by the guide stage.
@@ -89,13 +89,26 @@ PV_INLINE vec3 toneCurve(vec3 rgb, uint op, float maxRadiance, float whiteLumina
 // traced pixel), read by the estimate stage. Any buffer when the host uploads the estimate.
 #define PV_FILM_BINDING_ACCUM_SUM 9
 #define PV_FILM_BINDING_ACCUM_COMPENSATION 10
-#define PV_FILM_BINDING_COUNT 11
+// The denoised path: the path tracer's guides (PV_BINDING_GUIDES, for the luminance moments),
+// the denoiser's input it writes (PV_DENOISE_BINDING_COLOR: the mean's RGB, the variance of its
+// luminance in w) and the denoiser's output it reads (PV_DENOISE_BINDING_OUTPUT). Any buffer
+// while FilmParams::denoised is 0.
+#define PV_FILM_BINDING_GUIDES 11
+#define PV_FILM_BINDING_SIGNAL_OUT 12
+#define PV_FILM_BINDING_DENOISED 13
+#define PV_FILM_BINDING_COUNT 14
 
-// The estimate from the accumulation's means (skipped when the host uploads a denoised one),
+// The denoiser's input from the accumulation (denoised frames only; the denoiser runs between
+// it and the estimate), the estimate (the means, or the denoised signal with the mean mask),
 // the low-resolution guide (skipped at full resolution), then the output pixels.
-#define PV_FILM_STAGE_ESTIMATE 0u
-#define PV_FILM_STAGE_GUIDE 1u
-#define PV_FILM_STAGE_RESOLVE 2u
+#define PV_FILM_STAGE_SIGNAL 0u
+#define PV_FILM_STAGE_ESTIMATE 1u
+#define PV_FILM_STAGE_GUIDE 2u
+#define PV_FILM_STAGE_RESOLVE 3u
+
+// Below this many samples a pixel's own variance is not trusted (SVGF switches to its spatial
+// estimate below 4 frames of history); the denoiser then estimates it from the neighbourhood.
+#define PV_MIN_SAMPLES_FOR_VARIANCE 4.0f
 #define PV_FILM_GROUP_X 8
 #define PV_FILM_GROUP_Y 8
 
@@ -109,6 +122,7 @@ struct FilmParams {
     float rangeScale;
     float logEpsilon;  // ε added before the log (render/upsample.h)
     uint held;         // 1: blend the held view's samples (PV_FILM_BINDING_HELD)
+    uint denoised;     // 1: the estimate's RGB is the denoiser's output (PV_FILM_BINDING_DENOISED)
     uint toneOp;       // PV_TONE_*
     // Multiplies the composite before the curve: the exposure's 2^stops over the white balance
     // the plate's inverse applied (undone here, as PipelineRenderer's display does).
