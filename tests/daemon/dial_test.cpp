@@ -210,8 +210,8 @@ TEST(Dial, APanCountsWhatReprojectionKeepsAndEndsAtTheReferenceView) {
     ASSERT_TRUE(p) << p.message();
     Renderer& r = (*p)->renderer();
     // The demo's set is lit by the fisheye alone: a sky stands in, and a grey plate.
-    ASSERT_TRUE(r.setEnvironment(std::make_shared<EnvironmentMap>(
-        ::previs::testing::uniformEnvironment(glm::vec3(1.0f)))));
+    ASSERT_TRUE(r.setEnvironment(
+        std::make_shared<EnvironmentMap>(::previs::testing::uniformEnvironment(glm::vec3(1.0f)))));
     ImageF grey;
     grey.width = (*p)->width();
     grey.height = (*p)->height();

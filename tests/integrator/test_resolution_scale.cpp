@@ -19,18 +19,7 @@ namespace {
 constexpr uint32_t kSize = 64;
 
 // A virtual Lambertian ball on a real floor under a uniform sky; the top rows see the sky.
-Scene ballOnFloor() {
-    Scene s;
-    const uint32_t floor = addMaterial(s, lambert(glm::vec3(0.5f)));
-    const uint32_t ball = addMaterial(s, lambert(glm::vec3(0.8f, 0.3f, 0.2f)));
-    addQuad(s, glm::vec3(0.0f), glm::vec3(0.0f, 0.0f, 1.0f), glm::vec3(2.0f, 0.0f, 0.0f), floor,
-            /*real=*/true);
-    addSphere(s, glm::vec3(0.0f, 0.25f, 0.0f), 0.25f, ball);
-    s.environment = uniformEnvironment(glm::vec3(1.0f));
-    s.cameras.push_back(lookAt(glm::vec3(0.0f, 0.6f, 1.8f), glm::vec3(0.0f, 0.25f, 0.0f),
-                               glm::vec3(0.0f, 1.0f, 0.0f), 0.7f));
-    return s;
-}
+Scene ballOnFloor() { return ballOnRealFloor(glm::vec3(1.0f)); }
 
 RenderSettings settings(float scale) {
     RenderSettings rs;

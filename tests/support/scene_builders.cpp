@@ -133,4 +133,17 @@ Camera lookAt(glm::vec3 eye, glm::vec3 target, glm::vec3 up, float fovYRad) {
     return c;
 }
 
+Scene ballOnRealFloor(glm::vec3 sky) {
+    Scene s;
+    const uint32_t floor = addMaterial(s, lambert(glm::vec3(0.5f)));
+    const uint32_t ball = addMaterial(s, lambert(glm::vec3(0.8f, 0.3f, 0.2f)));
+    addQuad(s, glm::vec3(0.0f), glm::vec3(0.0f, 0.0f, 1.0f), glm::vec3(2.0f, 0.0f, 0.0f), floor,
+            /*real=*/true);
+    addSphere(s, glm::vec3(0.0f, 0.25f, 0.0f), 0.25f, ball);
+    s.environment = uniformEnvironment(sky);
+    s.cameras.push_back(lookAt(glm::vec3(0.0f, 0.6f, 1.8f), glm::vec3(0.0f, 0.25f, 0.0f),
+                               glm::vec3(0.0f, 1.0f, 0.0f), 0.7f));
+    return s;
+}
+
 }  // namespace previs::testing

@@ -32,4 +32,8 @@ EnvironmentMap uniformEnvironment(glm::vec3 radiance, uint32_t width = 16, uint3
 
 Camera lookAt(glm::vec3 eye, glm::vec3 target, glm::vec3 up, float fovYRad);
 
+// A virtual Lambertian ball on a real grey floor under a uniform sky of radiance `sky`, seen
+// from above and in front; the top rows of the image see the sky.
+Scene ballOnRealFloor(glm::vec3 sky);
+
 }  // namespace previs::testing
