@@ -51,6 +51,7 @@ Result<Film> Film::create(GpuContext& ctx, const RenderSettings& settings, uint3
     film.width_ = settings.width;
     film.height_ = settings.height;
     film.differential_ = settings.differential;
+    film.maxStorageRange_ = ctx.physicalDevice().getProperties().limits.maxStorageBufferRange;
     if (settings.denoise) {
         auto denoiser = Denoiser::create(ctx, traceWidth, traceHeight, settings.denoiseSettings);
         if (!denoiser) return denoiser.error();
@@ -261,9 +262,18 @@ Result<ImageF> Film::image(const TracedBuffers& traced, Aov aov, bool denoised,
     return upsample(*filtered);
 }
 
+bool Film::displayPassFits(const TracedBuffers& traced) const {
+    const uint64_t perTraced = uint64_t(traced.width) * traced.height * sizeof(glm::vec4);
+    const uint64_t perOutput = uint64_t(width_) * height_ * sizeof(glm::vec4);
+    return perTraced * std::max(PV_ACCUM_COUNT, PV_GUIDE_COUNT) <= maxStorageRange_ &&
+           perOutput * 2 <= maxStorageRange_;
+}
+
 Result<DisplayImage> Film::display(const TracedBuffers& traced, bool denoised,
                                    const DenoiseCamera& camera, const DisplaySettings& settings) {
-    if (!compositesPlate(Aov::Composite)) {
+    // Without a plate to composite, or with buffers too large for the device to bind whole (an
+    // output far beyond 4K on a device with a small maxStorageBufferRange), the host finishes it.
+    if (!compositesPlate(Aov::Composite) || !displayPassFits(traced)) {
         Result<ImageF> image = this->image(traced, Aov::Composite, denoised, camera);
         if (!image) return image.error();
         return toDisplayImage(std::move(*image), settings);

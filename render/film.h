@@ -135,6 +135,8 @@ private:
     // The means of accumulation slot `slot` (RGB) through the denoiser (temporal where it is on).
     Result<ImageF> denoisedMeans(const TracedBuffers& traced, const Accumulation& m, uint32_t slot,
                                  const DenoiseCamera& camera);
+    // Whether the display pass can bind the accumulation, the guides and the held samples whole.
+    bool displayPassFits(const TracedBuffers& traced) const;
     // The held view's composite: the samples kept, blended with `estimate` (the traced-size
     // RGBA compositeOverPlate takes) upsampled.
     Result<ImageF> heldComposite(const TracedBuffers& traced, const ImageF& estimate);
@@ -144,6 +146,7 @@ private:
     uint32_t width_ = 0;  // the output's
     uint32_t height_ = 0;
     bool differential_ = false;
+    uint64_t maxStorageRange_ = 0;  // the device's maxStorageBufferRange
     std::optional<ImageF> plate_;
     uint64_t plateVersion_ = 0;  // counts setPlate calls: the display pass uploads a new plate
     uint64_t plateValuesRepaired_ = 0;
