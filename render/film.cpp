@@ -175,12 +175,11 @@ ImageF Film::plateFreeMeans(const Accumulation& a, const TracedBuffers& traced) 
     return plateFree;
 }
 
-std::optional<uint32_t> Film::holdView(bool on, uint32_t traceWidth, uint32_t traceHeight) {
-    if (on && held_ && held_->factor() * traceWidth != width_) held_.reset();
+bool Film::holdView(bool on, uint32_t traceWidth, uint32_t traceHeight) {
+    if (on && held_ && !held_->traces(traceWidth, traceHeight)) held_.reset();
     if (on && !held_) held_ = HeldView::create(width_, height_, traceWidth, traceHeight);
     if (!on && held_) held_->reset();
-    if (!on || !held_) return std::nullopt;
-    return held_->factor();
+    return on && held_;
 }
 
 Result<ImageF> Film::heldComposite(const TracedBuffers& traced, const ImageF& estimate) {

@@ -78,10 +78,10 @@ public:
                                  const DenoiseCamera& camera, const DisplaySettings& settings);
 
     // A held camera's preview at the output's resolution (render/held_view.h): on, the
-    // composite keeps each frame's samples per output pixel (TracedBuffers::held) and clamps its
-    // estimate to them; off, it forgets them. Stays off where the trace is not the output divided
-    // by a whole factor ≥ 2. Returns whether it is on, and its factor.
-    std::optional<uint32_t> holdView(bool on, uint32_t traceWidth, uint32_t traceHeight);
+    // composite keeps each frame's samples per output pixel (TracedBuffers::held) and blends its
+    // estimate with them; off, it forgets them. Stays off at full resolution. Returns whether it
+    // is on.
+    bool holdView(bool on, uint32_t traceWidth, uint32_t traceHeight);
     // Frames the held view keeps (0 while off, and before its first: its samples are then to be
     // cleared).
     uint64_t heldFrames() const { return held_ ? held_->frames() : 0; }

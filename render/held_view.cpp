@@ -6,10 +6,9 @@ namespace previs {
 
 std::optional<HeldView> HeldView::create(uint32_t width, uint32_t height, uint32_t traceWidth,
                                          uint32_t traceHeight) {
-    if (traceWidth == 0 || traceHeight == 0 || width % traceWidth != 0) return std::nullopt;
-    const uint32_t f = width / traceWidth;
-    if (f < 2 || height != traceHeight * f) return std::nullopt;
-    return HeldView(f);
+    if (traceWidth == 0 || traceHeight == 0 || traceWidth >= width || traceHeight >= height)
+        return std::nullopt;
+    return HeldView(traceWidth, traceHeight);
 }
 
 ImageF HeldView::blend(std::span<const glm::vec4> samples, const ImageF& estimate) {

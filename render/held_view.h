@@ -1,9 +1,9 @@
 #pragma once
 
-// A held camera's preview at the output's own resolution. A preview traced at 1/f of the output
-// size upsamples its traced pixels (render/upsample.h), and no number of frames averages away
-// what the upsampling blurs at the virtual objects' outlines, which the plate (its guide) does
-// not show. Yet each traced pixel's samples are jittered over its whole f × f block of output
+// A held camera's preview at the output's own resolution. A preview traced at a fraction of the
+// output size upsamples its traced pixels (render/upsample.h), and no number of frames averages
+// away what the upsampling blurs at the virtual objects' outlines, which the plate (its guide)
+// does not show. Yet each traced pixel's samples are jittered over its whole footprint of output
 // pixels: the path tracer also adds each sample to the output pixel it landed in
 // (PV_BINDING_HELD_SAMPLES), and while the camera holds still that buffer keeps summing them per
 // output pixel (the renderer clears it only when a held view starts), so a held preview converges
@@ -26,11 +26,16 @@ namespace previs {
 
 class HeldView {
 public:
-    // An output of width × height traced at width/f × height/f; none unless f ≥ 2 divides both.
+    // An output of width × height traced smaller in both directions (any fraction; at a
+    // fraction that is not a whole one, the samples landing on an output pixel whose centre
+    // another traced pixel holds are not kept); none at full resolution.
     static std::optional<HeldView> create(uint32_t width, uint32_t height, uint32_t traceWidth,
                                           uint32_t traceHeight);
 
-    uint32_t factor() const { return factor_; }
+    // Whether it was made for this traced size.
+    bool traces(uint32_t traceWidth, uint32_t traceHeight) const {
+        return traceWidth == traceWidth_ && traceHeight == traceHeight_;
+    }
     // A frame's samples joined the kept ones.
     void frameAdded() { ++frames_; }
     // `estimate` (RGBA at the output size: RGB the mean of Eq. 1's plate-free part, A the mask
@@ -47,9 +52,11 @@ public:
     void reset() { frames_ = 0; }
 
 private:
-    explicit HeldView(uint32_t factor) : factor_(factor) {}
+    HeldView(uint32_t traceWidth, uint32_t traceHeight)
+        : traceWidth_(traceWidth), traceHeight_(traceHeight) {}
 
-    uint32_t factor_;
+    uint32_t traceWidth_;
+    uint32_t traceHeight_;
     uint64_t frames_ = 0;
 };
 

@@ -774,9 +774,8 @@ Status Renderer::setResolutionScale(float scale) {
 }
 
 Status Renderer::holdView(bool on) {
-    const std::optional<uint32_t> factor = film_->holdView(on, params_.width, params_.height);
-    params_.heldFactor = 0u;
-    if (!factor) return {};
+    params_.heldWidth = params_.heldHeight = 0u;
+    if (!film_->holdView(on, params_.width, params_.height)) return {};
     // The output's samples, made when first needed (a renderer that never previews below full
     // resolution never pays for them) and bound whole; summed over the frames the view holds,
     // cleared when it starts.
@@ -789,7 +788,8 @@ Status Renderer::holdView(bool on) {
         if (!fresh) return fresh.error();
         held = std::move(fresh.value());  // dispatches are synchronous: the old one is unused
     }
-    params_.heldFactor = *factor;
+    params_.heldWidth = settings_.width;
+    params_.heldHeight = settings_.height;
     if (film_->heldFrames() == 0) return held.fill(0);
     return {};
 }
@@ -852,7 +852,7 @@ Status Renderer::renderPreviewFrame(uint32_t spp, uint64_t frameIndex) {
     accumulationReplicates_ = 1;
     Status s = render(spp);
     params_.photonCount = full;
-    if (s && params_.heldFactor != 0u) film_->heldFrameAdded();
+    if (s && params_.heldWidth != 0u) film_->heldFrameAdded();
     return s;
 }
 
@@ -957,7 +957,7 @@ TracedBuffers Renderer::traced() const {
     return {&buffers_[PV_BINDING_ACCUM_SUM],
             &buffers_[PV_BINDING_ACCUM_COMPENSATION],
             settings_.denoise ? &buffers_[PV_BINDING_GUIDES] : nullptr,
-            params_.heldFactor ? &buffers_[PV_BINDING_HELD_SAMPLES] : nullptr,
+            params_.heldWidth ? &buffers_[PV_BINDING_HELD_SAMPLES] : nullptr,
             params_.width,
             params_.height};
 }

@@ -157,8 +157,8 @@ public:
 
     // A held camera's preview (render/held_view.h, Film::holdView): on, the next frames also add
     // each sample to the output pixel it landed in and the composite keeps those per output
-    // pixel; off, the kept samples are forgotten. On does nothing where the trace is not the
-    // output divided by a whole factor ≥ 2 (at full resolution there is nothing to gain).
+    // pixel; off, the kept samples are forgotten. On does nothing at full resolution (there is
+    // nothing to gain).
     Status holdView(bool on);
     // Frames the held view keeps (0 while off).
     uint64_t heldViewFrames() const { return film_->heldFrames(); }

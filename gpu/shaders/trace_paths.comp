@@ -479,12 +479,18 @@ void kahanAdd(inout vec4 sum, inout vec4 c, vec4 x) {
 
 // Adds sample `sampleIndex`'s radiances to the pixel's sums; `nonFiniteRay`: one of its rays had
 // a NaN or infinite origin or direction.
-// The held view's sample (FrameParams::heldFactor): in the output pixel of the traced pixel's
-// block that the sample's jitter (cameraRay's) landed in.
+// The held view's sample (FrameParams::heldWidth): in the output pixel the sample's jitter
+// (cameraRay's) landed in. At a fraction that is not a whole one, an output pixel on a traced
+// pixel's edge is written only by the traced pixel that holds its centre (the one whose owner is
+// this pixel), so no two invocations add to one pixel; the other's samples there are not kept.
 void addHeldSample(uvec2 pixel, SampleKey key, vec3 composite, float mask) {
-    uint f = params.heldFactor;
-    uvec2 at = pixel * f + min(uvec2(draw(key, PV_SET_CAMERA_JITTER).xy * float(f)), uvec2(f - 1u));
-    uint i = 2u * (at.y * params.width * f + at.x);
+    uvec2 size = uvec2(params.heldWidth, params.heldHeight);
+    vec2 scale = vec2(size) / vec2(params.width, params.height);
+    vec2 p = (vec2(pixel) + draw(key, PV_SET_CAMERA_JITTER).xy) * scale;
+    uvec2 at = min(uvec2(p), size - 1u);
+    uvec2 owner = min(uvec2((vec2(at) + 0.5) / scale), uvec2(params.width, params.height) - 1u);
+    if (owner != pixel) return;
+    uint i = 2u * (at.y * size.x + at.x);
     heldSamples[i] += vec4(composite, mask);
     heldSamples[i + 1u].x += 1.0;
 }
@@ -532,7 +538,7 @@ void addSample(uint sampleIndex, uint pixelIndex, vec3 lm, vec3 lr, bool firstHi
     lm += splatMixed;
     lr += splatReal;
     kahanAdd(gSum[PV_ACCUM_COMPOSITE], gComp[PV_ACCUM_COMPOSITE], vec4(composite, mask));
-    if (params.heldFactor != 0u) addHeldSample(pixel, key, composite, mask);
+    if (params.heldWidth != 0u) addHeldSample(pixel, key, composite, mask);
     kahanAdd(gSum[PV_ACCUM_MIXED], gComp[PV_ACCUM_MIXED], vec4(lm, 1.0));
     if (kDifferential) kahanAdd(gSum[PV_ACCUM_REAL], gComp[PV_ACCUM_REAL], vec4(lr, 0.0));
     // Replicate 1's samples (sampler.h) also into its own sums: the convergence meter

@@ -16,13 +16,13 @@ ImageF constant(uint32_t width, uint32_t height, float value) {
     return img;
 }
 
-TEST(HeldView, OnlyAWholeFactorOfTwoOrMore) {
-    EXPECT_TRUE(HeldView::create(640, 360, 320, 180));
-    EXPECT_EQ(HeldView::create(640, 360, 320, 180)->factor(), 2u);
-    EXPECT_EQ(HeldView::create(640, 360, 160, 90)->factor(), 4u);
+TEST(HeldView, AnyTraceSmallerThanTheOutput) {
+    EXPECT_TRUE(HeldView::create(640, 360, 320, 180)->traces(320, 180));
+    EXPECT_TRUE(HeldView::create(640, 360, 213, 120));  // a third of 640 is not whole
+    EXPECT_TRUE(HeldView::create(640, 360, 320, 120));  // the fractions differ
+    EXPECT_FALSE(HeldView::create(640, 360, 320, 180)->traces(160, 90));
     EXPECT_FALSE(HeldView::create(640, 360, 640, 360));  // full resolution: nothing to keep
-    EXPECT_FALSE(HeldView::create(640, 360, 213, 120));  // a third, not whole
-    EXPECT_FALSE(HeldView::create(640, 360, 320, 120));  // factors differ
+    EXPECT_FALSE(HeldView::create(640, 360, 640, 180));
 }
 
 // The kept samples (summed over frames in the renderer's buffer) join the estimate, which

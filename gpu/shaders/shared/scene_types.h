@@ -65,15 +65,16 @@ PV_BEGIN
 // additions. Cleared by every photon pass, read by the camera pass; a 16-byte placeholder where
 // the renderer does not splat.
 #define PV_BINDING_PHOTON_SPLATS 28
-// The held view's samples of one frame at the output's resolution (FrameParams::heldFactor): per
-// output pixel two vec4, (Σ of Eq. 1's plate-free part, Σ M) and (the samples, 0, 0, 0). Each invocation writes only its traced pixel's block: no atomics. Cleared with
-// the accumulation; a 16-byte placeholder where no held view is possible.
+// The held view's samples at the output's resolution (FrameParams::heldWidth): per output pixel
+// two vec4, (Σ of Eq. 1's plate-free part, Σ M) and (the samples, 0, 0, 0), summed over the
+// frames the view holds. Each output pixel is written only by the traced pixel whose footprint
+// holds its centre: no atomics. A 16-byte placeholder where no held view is possible.
 #define PV_BINDING_HELD_SAMPLES 29
 #define PV_BINDING_COUNT 30
-#define PV_SPLAT_MIXED 0u         // photons of the mixed solution the camera sees
-#define PV_SPLAT_REAL 1u          // photons of the real solution the real camera ray sees
-#define PV_SPLAT_REAL_UNHIDDEN 2u // ... of which no virtual object hides in the mixed solution
-#define PV_SPLAT_WORDS 6u         // per sum and pixel: three channels × (fraction, whole)
+#define PV_SPLAT_MIXED 0u          // photons of the mixed solution the camera sees
+#define PV_SPLAT_REAL 1u           // photons of the real solution the real camera ray sees
+#define PV_SPLAT_REAL_UNHIDDEN 2u  // ... of which no virtual object hides in the mixed solution
+#define PV_SPLAT_WORDS 6u          // per sum and pixel: three channels × (fraction, whole)
 
 // Specialization constant ids: scene features that select pipeline variants, so a scene runs
 // none of the code it does not need ("model only what the scene requires").
@@ -159,21 +160,21 @@ struct WideBvhNode {
 // glTF 2.0 metallic-roughness material with the transmission, ior, specular and
 // emissive_strength extensions. Texture fields index TextureInfo or are PV_NO_TEXTURE.
 struct GpuMaterial {
-    vec4 baseColor;          // linear RGB + alpha
-    vec3 emission;           // emissiveFactor * emissive_strength (radiance)
+    vec4 baseColor;  // linear RGB + alpha
+    vec3 emission;   // emissiveFactor * emissive_strength (radiance)
     float metallic;
-    vec3 specularColor;      // KHR_materials_specular specularColorFactor
-    float roughness;         // perceptual; alpha = roughness^2
+    vec3 specularColor;  // KHR_materials_specular specularColorFactor
+    float roughness;     // perceptual; alpha = roughness^2
     float transmission;
     float ior;
-    float specular;          // KHR_materials_specular specularFactor
+    float specular;  // KHR_materials_specular specularFactor
     uint baseColorTexture;
     uint metallicRoughnessTexture;
     uint normalTexture;
     uint emissiveTexture;
-    uint flags;              // PV_MATERIAL_* bits
-    vec3 attenuation;        // KHR_materials_volume absorption coefficient inside, 1/m
-    uint reserved;           // keeps the struct a whole number of 16-byte texels
+    uint flags;        // PV_MATERIAL_* bits
+    vec3 attenuation;  // KHR_materials_volume absorption coefficient inside, 1/m
+    uint reserved;     // keeps the struct a whole number of 16-byte texels
 };
 
 #define PV_MATERIAL_DOUBLE_SIDED 1u
@@ -217,8 +218,8 @@ struct GpuLight {
 struct EmissiveTriangle {
     uint triangle;
     float area;
-    float cdf;   // inclusive cumulative probability
-    float pdf;   // probability of choosing this triangle
+    float cdf;  // inclusive cumulative probability
+    float pdf;  // probability of choosing this triangle
 };
 
 // Counters the shader raises; the host checks them after a render.
@@ -231,13 +232,13 @@ struct RenderStats {
 
 // Per-dispatch parameters (binding PV_BINDING_PARAMS).
 struct FrameParams {
-    mat4 worldFromCamera;    // camera looks along -Z, +Y up
-    vec2 tanHalfFov;         // tan of the half field of view, x and y
-    float apertureRadiusM;   // thin lens; 0 = pinhole
+    mat4 worldFromCamera;   // camera looks along -Z, +Y up
+    vec2 tanHalfFov;        // tan of the half field of view, x and y
+    float apertureRadiusM;  // thin lens; 0 = pinhole
     float focusDistanceM;
     uint width;
     uint height;
-    uint sampleBase;         // index of the first sample of this dispatch
+    uint sampleBase;  // index of the first sample of this dispatch
     uint samplesPerDispatch;
     uint seed;
     // 2: samples alternate between two independently randomised sequences, which the
@@ -247,42 +248,44 @@ struct FrameParams {
     // splits a frame whose accumulation exceeds the device's storage-buffer range into bands,
     // binding each band's part of the accumulation (Renderer::render).
     uint bandFirstRow;
-    uint maxDepth;           // most scattering events on a path (pbrt's maxdepth)
+    uint maxDepth;  // most scattering events on a path (pbrt's maxdepth)
     uint lightCount;
     uint emissiveTriangleCount;
-    uint realRoot;           // BVH root over real (phantom) geometry, or 0xffffffff
-    uint virtualRoot;        // BVH root over virtual geometry, or 0xffffffff
+    uint realRoot;     // BVH root over real (phantom) geometry, or 0xffffffff
+    uint virtualRoot;  // BVH root over virtual geometry, or 0xffffffff
     uint envWidth;
     uint envHeight;
-    float envScale;          // multiplies the map's radiance
-    float envRotationCos;    // the map's rotation about +Y (counter-clockwise seen from
-    float envRotationSin;    // above) as cos and sin, computed once (envRotationCosSin)
-    float envIntegral;       // mean luminance·sinθ weight of the map (EnvironmentDistribution)
-    float fireflyClamp;      // 0 = off (default); else the largest sample luminance kept
-    uint rouletteStartDepth; // Russian roulette from this depth on
-    uint realTriangleCount;  // triangles [0, this) in BVH order are real (phantoms)
-    uint coneLightFirst;     // lights [this, lightCount) are cone lights (PV_LIGHT_CONE)
+    float envScale;           // multiplies the map's radiance
+    float envRotationCos;     // the map's rotation about +Y (counter-clockwise seen from
+    float envRotationSin;     // above) as cos and sin, computed once (envRotationCosSin)
+    float envIntegral;        // mean luminance·sinθ weight of the map (EnvironmentDistribution)
+    float fireflyClamp;       // 0 = off (default); else the largest sample luminance kept
+    uint rouletteStartDepth;  // Russian roulette from this depth on
+    uint realTriangleCount;   // triangles [0, this) in BVH order are real (phantoms)
+    uint coneLightFirst;      // lights [this, lightCount) are cone lights (PV_LIGHT_CONE)
     // Photon mapping (shared/photon_map.h); unused when the pipeline has no photons.
-    uint photonCount;        // photons traced this iteration (a multiple of 128)
-    uint photonIteration;    // the iteration: seeds its photons (the sample index it serves)
-    float photonRadius;      // this iteration's gather radius (metres)
+    uint photonCount;      // photons traced this iteration (a multiple of 128)
+    uint photonIteration;  // the iteration: seeds its photons (the sample index it serves)
+    float photonRadius;    // this iteration's gather radius (metres)
     uint photonLightCount;
-    vec3 photonAimCenter;    // photons are aimed at this sphere, which holds every purely
-    float photonAimRadius;   // specular triangle (so none is wasted on the rest of the scene)
-    float photonSceneRadius; // from photonAimCenter, a sphere holding the scene: distant lights' photons start on it
-    uint photonMaxBounces;   // specular bounces a photon follows at most (≤ maxDepth − 1)
-    uint photonSortShift;    // the radix pass photon_grid.comp runs: 0, 8 or 16 (bits of the key)
-    uint photonGatherCap;    // records examined per bucket at most; a fuller bucket is subsampled
+    vec3 photonAimCenter;     // photons are aimed at this sphere, which holds every purely
+    float photonAimRadius;    // specular triangle (so none is wasted on the rest of the scene)
+    float photonSceneRadius;  // from photonAimCenter, a sphere holding the scene: distant lights'
+                              // photons start on it
+    uint photonMaxBounces;    // specular bounces a photon follows at most (≤ maxDepth − 1)
+    uint photonSortShift;     // the radix pass photon_grid.comp runs: 0, 8 or 16 (bits of the key)
+    uint photonGatherCap;     // records examined per bucket at most; a fuller bucket is subsampled
     // A gather that finds more records than this within the radius takes its estimate again at
     // the radius that holds about this many (trace_paths.comp's gatherPhotons); 0: never.
     uint photonGatherNeighbours;
     // Sort pairs photon_grid.comp's radix passes sort: the iteration's stored records (the
     // compaction's count), rounded up to whole sort blocks.
     uint photonSortRecords;
-    // The held view (render/held_view.h): 0, off; f, each sample is also added to the output
-    // pixel (of the f × f that the traced pixel covers) its jitter landed in
-    // (PV_BINDING_HELD_SAMPLES).
-    uint heldFactor;
+    // The held view (render/held_view.h): 0, off; else the output's size, larger than the
+    // traced one (width, height), and each sample is also added to the output pixel its jitter
+    // landed in (PV_BINDING_HELD_SAMPLES).
+    uint heldWidth;
+    uint heldHeight;
 };
 
 PV_END
