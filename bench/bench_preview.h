@@ -4,8 +4,8 @@
 // map, setPlate, the 1-spp render, the frame finished on the device as the service shows it,
 // compose to the 1920×1080 screen; beside them, untotalled, the host's readback + upsampling +
 // composite and tone map), frames per second, and the error each resolution scale costs against
-// a long full-resolution reference (RMSE and DESIGN.md §4's relMSE). Scene: the bunny on a real floor
-// under an environment map, differential (bench_scenes.h).
+// a long full-resolution reference (RMSE and DESIGN.md §4's relMSE). Scene: the bunny on a real
+// floor under an environment map, differential (bench_scenes.h).
 
 #include <cstdint>
 #include <string>
