@@ -220,9 +220,7 @@ Result<ImageF> Film::denoisedMeans(const TracedBuffers& traced, const Accumulati
         const double n = m.count(i);
         const double y = glm::dot(mean, glm::dvec3(0.2126, 0.7152, 0.0722));  // luminance()
         const double y2 = (*g)[i * PV_GUIDE_COUNT + PV_GUIDE_MOMENTS][slot];
-        // The variance of the mean: the samples' unbiased variance over n.
-        variance[i] =
-            n >= PV_MIN_SAMPLES_FOR_VARIANCE ? float(std::max(0.0, y2 - y * y) / (n - 1.0)) : -1.0f;
+        variance[i] = float(PV_MEAN_LUMINANCE_VARIANCE(y, y2, n));
     }
     return temporalDenoise_ ? denoiser_->applyTemporal(signal, *g, variance, camera)
                             : denoiser_->apply(signal, *g, variance);

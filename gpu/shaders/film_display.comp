@@ -19,6 +19,7 @@
 
 #include "shared/denoise.h"
 #include "shared/film.h"
+#include "shared/sampling.h"
 #include "shared/scene_types.h"
 
 layout(constant_id = 0) const uint kStage = PV_FILM_STAGE_RESOLVE;
@@ -75,17 +76,15 @@ vec4 compositeMean(uint i) {
     return n > 0.0 ? accumulated(i, PV_ACCUM_COMPOSITE) / n : vec4(0.0);
 }
 
-// The variance of the mean's luminance: the samples' unbiased variance over n, from the second
-// moment the path tracer keeps per pixel (render/film.cpp's host version); unknown (−1) below
-// PV_MIN_SAMPLES_FOR_VARIANCE samples.
+// The denoiser's input: the mean and the variance of its luminance, from the second moment the
+// path tracer keeps per pixel (as render/film.cpp's host version).
 void signalStage(uvec2 q) {
     uint i = q.y * params.traceWidth + q.x;
     float n = accumulated(i, PV_ACCUM_MIXED).w;
     vec3 mean = compositeMean(i).rgb;
-    float y = dot(mean, vec3(0.2126, 0.7152, 0.0722));
+    float y = luminance(mean);
     float y2 = guides[i * PV_GUIDE_COUNT + PV_GUIDE_MOMENTS][PV_ACCUM_COMPOSITE];
-    float variance = n >= PV_MIN_SAMPLES_FOR_VARIANCE ? max(0.0, y2 - y * y) / (n - 1.0) : -1.0;
-    signalOut[i] = vec4(mean, variance);
+    signalOut[i] = vec4(mean, PV_MEAN_LUMINANCE_VARIANCE(y, y2, n));
 }
 
 void estimateStage(uvec2 q) {

@@ -109,6 +109,15 @@ PV_INLINE vec3 toneCurve(vec3 rgb, uint op, float maxRadiance, float whiteLumina
 // Below this many samples a pixel's own variance is not trusted (SVGF switches to its spatial
 // estimate below 4 frames of history); the denoiser then estimates it from the neighbourhood.
 #define PV_MIN_SAMPLES_FOR_VARIANCE 4.0f
+
+// The variance of a pixel mean's luminance from n samples: their unbiased variance over n, from
+// the mean luminance y and the mean of the squared luminance y2 (never below 0); −1 (unknown)
+// below PV_MIN_SAMPLES_FOR_VARIANCE samples. A macro: the host evaluates it in double.
+#define PV_MEAN_LUMINANCE_VARIANCE(y, y2, n)                           \
+    ((n) >= PV_MIN_SAMPLES_FOR_VARIANCE                                \
+         ? ((y2) > (y) * (y) ? ((y2) - (y) * (y)) / ((n)-1.0f) : 0.0f) \
+         : -1.0f)
+
 #define PV_FILM_GROUP_X 8
 #define PV_FILM_GROUP_Y 8
 
