@@ -1,11 +1,33 @@
 #include "capture/camera_source.h"
 
+#include <time.h>
+
 #include <utility>
 
 #include "base/guarded_thread.h"
 #include "base/log.h"
 
 namespace previs {
+
+namespace {
+
+uint64_t clockNs(clockid_t clock) {
+    timespec ts{};
+    clock_gettime(clock, &ts);
+    return uint64_t(ts.tv_sec) * 1'000'000'000ull + uint64_t(ts.tv_nsec);
+}
+
+// The wall clock when a frame stamped `monotonicNs` was captured: now on CLOCK_REALTIME less the
+// frame's age on CLOCK_MONOTONIC. A timestamp not on this boot's monotonic clock (a recording's,
+// or in the future) gets the wall clock of its arrival.
+uint64_t wallClockOf(uint64_t monotonicNs) {
+    const uint64_t mono = clockNs(CLOCK_MONOTONIC);
+    const uint64_t wall = clockNs(CLOCK_REALTIME);
+    const uint64_t age = mono - monotonicNs;
+    return monotonicNs <= mono && age < 10'000'000'000ull ? wall - age : wall;
+}
+
+}  // namespace
 
 const char* toString(CaptureState state) {
     switch (state) {
@@ -175,7 +197,10 @@ void CaptureThread::run() {
         lastFrame = Clock::now();
         // Counted before publishing, so stats().delivered never lags a frame already visible.
         frame.sequence = delivered_++;
-        slot_.publish(std::make_shared<const Frame>(std::move(frame)));
+        if (frame.wallClockNs == 0) frame.wallClockNs = wallClockOf(frame.timestampNs);
+        auto shared = std::make_shared<const Frame>(std::move(frame));
+        if (options_.onFrame) options_.onFrame(shared);
+        slot_.publish(std::move(shared));
         if (lastFrame - dropLogTime >= kDropLogInterval) {
             const uint64_t dropped = slot_.dropped();
             if (dropped > droppedLogged)

@@ -88,6 +88,9 @@ struct CaptureOptions {
     // No frame for this long while streaming counts as lost (a camera that delivers nothing):
     // several frame periods at the slowest useful rate, plus slack for a loaded machine.
     int stallTimeoutMs = 3000;
+    // Called on the capture thread with every frame before it is published (the take recorder's
+    // tap: it must return at once, e.g. by queueing). Unset: none.
+    std::function<void(const std::shared_ptr<const Frame>&)> onFrame;
 };
 
 // A CameraSource running a FrameReader on its own thread.

@@ -1,6 +1,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 namespace previs {
@@ -21,6 +22,12 @@ struct Frame {
     uint64_t sequence = 0;
     // The driver's own counter (v4l2_buffer::sequence); restarts at 0 when a device reopens.
     uint32_t deviceSequence = 0;
+    // CLOCK_REALTIME when the sensor finished the frame (the capture thread's estimate from
+    // timestampNs), so a take can be placed in the day; 0 when unknown.
+    uint64_t wallClockNs = 0;
+    // The frame as the camera sent it, when that was JPEG (MJPEG cameras): the recorder stores
+    // these bytes as they came, never re-encoded. Null for raw formats.
+    std::shared_ptr<const std::vector<uint8_t>> encoded;
 };
 
 }  // namespace previs

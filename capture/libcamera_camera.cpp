@@ -595,6 +595,8 @@ Result<bool> LibcameraCamera::State::read(int timeoutMs, Frame& frame) {
             data = scratch;
         }
         Status s = convertToRgb(v4l2Fourcc, data, width, height, stride, frame.rgb);
+        if (s && isJpegFourcc(v4l2Fourcc))
+            frame.encoded = std::make_shared<const std::vector<uint8_t>>(data.begin(), data.end());
         syncDmabuf(planes.fds, DMA_BUF_SYNC_END);
         if (!s) {
             // Garbage from the camera costs one frame, not the stream; log the first few only.

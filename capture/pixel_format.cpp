@@ -162,6 +162,10 @@ std::string supportedFormatList() {
     return out;
 }
 
+bool isJpegFourcc(uint32_t fourcc) {
+    return fourcc == V4L2_PIX_FMT_MJPEG || fourcc == V4L2_PIX_FMT_JPEG;
+}
+
 Status convertToRgb(uint32_t fourcc, std::span<const uint8_t> data, uint32_t width, uint32_t height,
                     uint32_t stride, std::vector<uint8_t>& rgb) {
     const FormatInfo* info = findFormat(fourcc);

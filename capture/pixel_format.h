@@ -19,6 +19,8 @@ uint32_t fourccFromString(const std::string& name);
 
 // Whether convertToRgb handles this fourcc.
 bool isSupportedFormat(uint32_t fourcc);
+// MJPEG or JPEG: frames that are complete JPEG files (the recorder keeps their bytes).
+bool isJpegFourcc(uint32_t fourcc);
 // The supported fourccs, for messages ("YUYV, UYVY, NV12, ...").
 std::string supportedFormatList();
 

@@ -12,20 +12,9 @@
 
 #include "base/result.h"
 #include "capture/camera_source.h"
+#include "io/session.h"
 
 namespace previs {
-
-struct RecordedFrameEntry {
-    uint64_t sequence = 0;
-    uint64_t timestampNs = 0;
-    std::string file;  // absolute path
-    uint32_t width = 0;
-    uint32_t height = 0;
-};
-
-// Parses cameras/<name>/index.csv of a session; a truncated last line (a crash mid-append) is
-// ignored, a malformed complete line is an error naming file and line.
-Result<std::vector<RecordedFrameEntry>> loadCameraIndex(const std::string& cameraDir);
 
 // The longest pause a Recorded replay keeps between two frames: a longer recorded gap (a camera
 // that was off for a while, or a broken clock: timestamps years apart) is replayed as this, with

@@ -289,8 +289,11 @@ Result<bool> V4L2Device::read(int timeoutMs, Frame& frame) {
     if (good) {
         const Mapping& m = buffers_[buf.index];
         const size_t used = std::min<size_t>(buf.bytesused, m.length);
-        Status s = convertToRgb(fourcc_, {static_cast<const uint8_t*>(m.data), used}, width_,
-                                height_, stride_, frame.rgb);
+        const std::span<const uint8_t> data{static_cast<const uint8_t*>(m.data), used};
+        Status s = convertToRgb(fourcc_, data, width_, height_, stride_, frame.rgb);
+        // A JPEG frame is kept as it came, for the recorder (a copy: the buffer goes back).
+        if (s && isJpegFourcc(fourcc_))
+            frame.encoded = std::make_shared<const std::vector<uint8_t>>(data.begin(), data.end());
         if (!s) {
             // Garbage from the camera costs one frame, not the stream; log the first few only.
             if (badFrames_ < 3)

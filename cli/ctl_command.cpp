@@ -16,6 +16,7 @@ struct CtlOptions {
     std::string socket;
     bool json = false;
     std::string mode;
+    std::string takeName;
 };
 
 // The human-readable form of `previs ctl status`.
@@ -35,6 +36,14 @@ void printStatus(const nlohmann::json& s) {
     } else {
         std::printf("camera    not tracked yet\n");
     }
+    if (s.value("recording", false) && s["record"].is_object())
+        std::printf("recording %s: %llu frames, %.1f MiB, %llu dropped\n",
+                    s["record"].value("path", "?").c_str(),
+                    (unsigned long long)s["record"].value("frames", 0ull),
+                    double(s["record"].value("bytes", 0ull)) / (1 << 20),
+                    (unsigned long long)s["record"].value("dropped", 0ull));
+    else if (s.contains("record") && s["record"].is_object())
+        std::printf("recording stopped: %s\n", s["record"].value("stoppedBecause", "").c_str());
     std::printf("uptime    %.0f s\n", s.value("uptimeSeconds", 0.0));
 }
 
@@ -60,6 +69,8 @@ int run(const CtlOptions& o, const std::string& command, bool status) {
         printStatus(j);
     else if (status)
         std::printf("%s\n", reply->c_str());
+    else if (j.contains("path"))
+        std::printf("%s\n", j.value("path", "").c_str());  // record start|stop: the take
     else
         std::printf("%s\n", j.value("mode", "").c_str());
     return 0;
@@ -81,16 +92,23 @@ std::function<int()> addCtlCommand(CLI::App& app) {
         ->required()
         ->check(CLI::IsMember({"preview", "refine"}));
     CLI::App* toggle = cmd->add_subcommand("toggle", "switch between preview and refinement");
-    CLI::App* record = cmd->add_subcommand("record", "start or stop recording (not built yet)");
+    CLI::App* record = cmd->add_subcommand(
+        "record", "start a take (prints its folder) or stop it (docs/takes.md)");
     auto recordWhat = std::make_shared<std::string>();
     record->add_option("WHAT", *recordWhat, "start or stop")
         ->required()
         ->check(CLI::IsMember({"start", "stop"}));
+    record->add_option("--name", o->takeName,
+                       "start: the take's name, added to its folder's (letters, digits, - and _)");
     return [o, status, mode, toggle, record, recordWhat] {
         if (*status) return run(*o, "status", true);
         if (*mode) return run(*o, "mode " + o->mode, false);
         if (*toggle) return run(*o, "toggle", false);
-        if (*record) return run(*o, "record " + *recordWhat, false);
+        if (*record) {
+            std::string command = "record " + *recordWhat;
+            if (*recordWhat == "start" && !o->takeName.empty()) command += " " + o->takeName;
+            return run(*o, command, false);
+        }
         return 2;
     };
 }

@@ -64,9 +64,12 @@ private:
 
 }  // namespace
 
-std::unique_ptr<CameraSource> makeCameraSource(const CameraConfig& camera, bool loop) {
+std::unique_ptr<CameraSource> makeCameraSource(
+    const CameraConfig& camera, bool loop,
+    std::function<void(const std::shared_ptr<const Frame>&)> onFrame) {
     CaptureOptions options;
     options.name = fmt::format("{} camera {}", camera.name, camera.device);
+    options.onFrame = std::move(onFrame);
     switch (camera.source) {
         case CameraSourceKind::Session: {
             if (!loop) return makeRecordedSource(camera.device, ReplayTiming::Recorded, options);

@@ -12,7 +12,10 @@
 namespace previs {
 
 // `loop`: a recorded camera starts over at its end (timestamps keep increasing), as previsd
-// plays a demo session; otherwise it finishes.
-std::unique_ptr<CameraSource> makeCameraSource(const CameraConfig& camera, bool loop);
+// plays a demo session; otherwise it finishes. `onFrame`: CaptureOptions::onFrame (the take
+// recorder's tap).
+std::unique_ptr<CameraSource> makeCameraSource(
+    const CameraConfig& camera, bool loop,
+    std::function<void(const std::shared_ptr<const Frame>&)> onFrame = {});
 
 }  // namespace previs

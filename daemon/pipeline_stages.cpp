@@ -146,8 +146,8 @@ Result<std::shared_ptr<LiveLighting>> LightingStage::fromMap(const cv::Mat& map,
     return out;
 }
 
-Status saveLighting(const LiveLighting& lighting, const std::string& path) {
-    if (!lighting.captured) return makeError("saved lighting '{}': no captured map", path);
+Status writeLightingMap(const LiveLighting& lighting, const std::string& path) {
+    if (!lighting.captured) return makeError("lighting '{}': no captured map", path);
     const EnvironmentMap& map = *lighting.captured;
     ImageF image;
     image.width = map.width;
@@ -156,9 +156,13 @@ Status saveLighting(const LiveLighting& lighting, const std::string& path) {
     image.pixels.reserve(map.radiance.size() * 3);
     for (const glm::vec3& v : map.radiance)
         image.pixels.insert(image.pixels.end(), {v.r, v.g, v.b});
+    return writeExr(path, image);
+}
+
+Status saveLighting(const LiveLighting& lighting, const std::string& path) {
     // A ".tmp.exr" name keeps the extension the writer goes by.
     const std::string temporary = path + ".tmp.exr";
-    if (Status s = writeExr(temporary, image); !s) return s;
+    if (Status s = writeLightingMap(lighting, temporary); !s) return s;
     std::error_code ec;
     std::filesystem::rename(temporary, path, ec);
     if (ec) {

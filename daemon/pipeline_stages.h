@@ -63,6 +63,8 @@ struct LiveLighting {
 // Keeps `lighting`'s captured map at `path` (OpenEXR), written to a temporary name beside it and
 // renamed, so the file is whole or absent even when the box loses power while writing.
 Status saveLighting(const LiveLighting& lighting, const std::string& path);
+// Writes `lighting`'s captured map to `path` as OpenEXR (no rename; the caller makes it whole).
+Status writeLightingMap(const LiveLighting& lighting, const std::string& path);
 
 class TrackingStage {
 public:

@@ -13,6 +13,7 @@
 #include "daemon/recorded_events.h"
 #include "daemon/service_config.h"
 #include "daemon/shot_controller.h"
+#include "daemon/take_files.h"
 #include "gpu/context.h"
 #include "image/image.h"
 #include "io/session.h"
@@ -193,7 +194,7 @@ int runReplay(const ReplayOptions& o) {
         if (!o.configPath.empty()) return loadServiceConfig(o.configPath);
         Result<SessionInfo> session = openSession(o.sessionDir);
         if (!session) return session.error();
-        return loadServiceConfig(session->configPath, session->configDir);
+        return loadSessionConfig(*session);
     }();
     if (!config) {
         logError("{}", config.message());

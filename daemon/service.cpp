@@ -87,6 +87,11 @@ std::string statusLine(const ServiceStatus& s) {
         line += fmt::format(" x{}", s.previewHistoryFrames);
     if (s.trackingLost) line += s.worldFromCamera ? "  TRACKING LOST (holding)" : "  NO TRACKING";
     if (s.lightingPending) line += "  LIGHTING PENDING";
+    if (s.record.recording)
+        line +=
+            fmt::format("  REC {} {:.0f} MiB", s.record.frames, double(s.record.bytes) / (1 << 20));
+    else if (!s.record.stoppedBecause.empty())
+        line += "  REC STOPPED";
     return line;
 }
 
@@ -105,7 +110,18 @@ std::string statusJson(const ServiceStatus& s) {
     j["etaSeconds"] = number(s.etaSeconds, 10.0);
     j["refineRestarts"] = s.refineRestarts;
     j["fps"] = std::round(s.fps * 100.0) / 100.0;
-    j["recording"] = false;
+    j["recording"] = s.record.recording;
+    if (s.record.recording || !s.record.stoppedBecause.empty()) {
+        nlohmann::json r = {{"path", s.record.path},
+                            {"frames", s.record.frames},
+                            {"dropped", s.record.dropped},
+                            {"bytes", s.record.bytes},
+                            {"freeBytes", s.record.freeBytes}};
+        if (!s.record.stoppedBecause.empty()) r["stoppedBecause"] = s.record.stoppedBecause;
+        j["record"] = r;
+    } else {
+        j["record"] = nullptr;
+    }
     j["display"] = s.display;
     if (s.worldFromCamera) {
         nlohmann::json m = nlohmann::json::array();
@@ -158,6 +174,7 @@ struct Service::Threads {
     std::unique_ptr<StatusLed> led;
     std::mutex ledMutex;  // the button thread and the socket thread both switch it
     std::unique_ptr<ControlServer> control;
+    std::unique_ptr<TakeRecorder> recorder;
     // A recorded scene camera's button and ctl events, fired as its frames arrive.
     std::optional<RecordedEvents> recordedEvents;
     std::function<void(const SessionEvent&)> applyEvent;
@@ -219,6 +236,7 @@ void Service::Threads::runTracking(const ModeMachine& modes) {
         }
         if (!pace.due(modes.mode(), frame->timestampNs)) continue;
         auto tracked = std::make_shared<TrackedFrame>(tracking->process(std::move(frame)));
+        recorder->addPose(*tracked);
         // Replaced before the render thread took it: the renderer is the slow stage.
         if (trackedFrames.publish(std::move(tracked))) droppedRender.fetch_add(1);
     }
@@ -263,6 +281,7 @@ void Service::Threads::runLighting() {
             continue;
         }
         lightingMs.store((*lit)->computeMs);
+        recorder->addLighting(*lit);
         lightingSnapshots.publish(*lit);
         lightingUpdates.fetch_add(1);
         keepLighting(**lit, lastSaved);
@@ -382,6 +401,11 @@ void Service::Threads::runRender(ModeMachine& modes) {
 void Service::Threads::stopAll() {
     control.reset();
     button.reset();
+    // A take ends complete and durable before anything else stops (SIGTERM mid-take).
+    if (recorder && recorder->recording()) {
+        Result<std::string> take = recorder->stop();
+        if (!take) logError("recording: {}", take.message());
+    }
     stopping.store(true);
     trackedFrames.wakeAll();
     // Each thread finishes the step it is in (a frame's samples, a tag detection, a lighting
@@ -464,12 +488,16 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config, bo
         Result<std::unique_ptr<GpioButton>> button =
             GpioButton::create(settings, [self](ButtonEvent e) {
                 if (e == ButtonEvent::ShortPress) {
-                    self->setLed(self->modes_.toggle("button") == Mode::Refine);
-                } else {
-                    logInfo(
-                        "button: long press (reserved for recording, which this previs "
-                        "does not have yet)");
+                    self->recordEvent("mode-button", "short-press");
+                    self->modes_.toggle("button");
+                    self->updateLed();
+                    return;
                 }
+                self->recordEvent("mode-button", "long-press");
+                const bool rolling = self->threads_->recorder->recording();
+                Result<std::string> take =
+                    rolling ? self->stopRecording() : self->startRecording("");
+                if (!take) logError("button: long press: {}", take.message());
             });
         if (!button) return button.error();
         t.button = std::move(*button);
@@ -493,12 +521,19 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config, bo
         }
     }
 
-    // Cameras: once they stream, frames flow into the stages.
+    // Cameras: once they stream, frames flow into the stages (and into a take while one rolls).
     configError = false;
-    t.sceneCamera = makeCameraSource(config.sceneCamera, config.loopSession);
+    t.recorder = std::make_unique<TakeRecorder>(config);
+    TakeRecorder* recorder = t.recorder.get();
+    t.sceneCamera = makeCameraSource(
+        config.sceneCamera, config.loopSession,
+        [recorder](const std::shared_ptr<const Frame>& f) { recorder->addFrame("scene", f); });
     if (Status s = t.sceneCamera->start(); !s) return s.error();
     if (config.fisheyeCamera) {
-        t.fisheyeCamera = makeCameraSource(*config.fisheyeCamera, config.loopSession);
+        t.fisheyeCamera = makeCameraSource(*config.fisheyeCamera, config.loopSession,
+                                           [recorder](const std::shared_ptr<const Frame>& f) {
+                                               recorder->addFrame("fisheye", f);
+                                           });
         if (Status s = t.fisheyeCamera->start(); !s) return s.error();
         t.lightingThread = std::thread([&t] {
             runGuarded(
@@ -527,12 +562,43 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config, bo
     t.control = std::move(*control);
     configError = false;
     logInfo("serving {} (control socket {})", config.path, t.control->path());
+    // [record] auto: a box that cannot record says so, and still previews.
+    if (config.record.autoStart)
+        if (Result<std::string> take = service->startRecording(""); !take)
+            logError("recording: [record] auto: {}", take.message());
     return service;
+}
+
+Result<std::string> Service::startRecording(const std::string& name) {
+    Result<std::string> take =
+        threads_->recorder->start(name, threads_->lightingSnapshots.latest());
+    updateLed();
+    return take;
+}
+
+Result<std::string> Service::stopRecording() {
+    Result<std::string> take = threads_->recorder->stop();
+    updateLed();
+    return take;
+}
+
+void Service::recordEvent(const std::string& source, const std::string& event) {
+    threads_->recorder->addEvent({0, source, event});
+}
+
+void Service::updateLed() {
+    const bool refine = modes_.mode() == Mode::Refine;
+    if (!threads_->recorder || !threads_->recorder->recording()) {
+        setLed(refine);
+        return;
+    }
+    const int64_t phaseMs = (nowNs() / 1'000'000) % 1000;
+    setLed(phaseMs < (refine ? 800 : 200));
 }
 
 void Service::applyRecordedEvent(const SessionEvent& e) {
     applySessionEvent(modes_, e);
-    setLed(modes_.mode() == Mode::Refine);
+    updateLed();
 }
 
 void Service::setLed(bool on) {
@@ -576,6 +642,7 @@ ServiceStatus Service::status() const {
     s.sceneCamera = toString(t.sceneCamera->stats().state);
     s.fisheyeCamera = t.fisheyeCamera ? toString(t.fisheyeCamera->stats().state) : "none";
     s.lightingUpdates = t.lightingUpdates.load();
+    s.record = t.recorder->status();
     return s;
 }
 
@@ -587,21 +654,34 @@ std::string Service::handleCommand(const std::string& command) {
     };
     if (command == "status") return statusJson(status());
     if (command == "toggle") {
+        recordEvent("ctl", "mode=toggle");
         const Mode m = modes_.toggle("ctl");
-        setLed(m == Mode::Refine);
+        updateLed();
         return nlohmann::json{{"ok", true}, {"mode", toString(m)}}.dump();
     }
     if (command.rfind("mode ", 0) == 0) {
         const std::optional<Mode> wanted = parseMode(command.substr(5));
         if (!wanted)
             return error("mode must be preview or refine, not '" + command.substr(5) + "'");
+        recordEvent("ctl", "mode=" + std::string(toString(*wanted)));
         const Mode m = modes_.set(*wanted, "ctl");
-        setLed(m == Mode::Refine);
+        updateLed();
         return nlohmann::json{{"ok", true}, {"mode", toString(m)}}.dump();
     }
-    if (command == "record start" || command == "record stop")
-        return error("recording is not built yet (the recorder is the next issue)");
-    return error("unknown command '" + command + "'; use status, mode preview|refine or toggle");
+    if (command == "record stop") {
+        Result<std::string> take = stopRecording();
+        if (!take) return error(take.message());
+        return nlohmann::json{{"ok", true}, {"path", *take}}.dump();
+    }
+    if (command == "record start" || command.rfind("record start ", 0) == 0) {
+        const std::string name = command.size() > 13 ? command.substr(13) : std::string();
+        Result<std::string> take = startRecording(name);
+        if (!take) return error(take.message());
+        return nlohmann::json{{"ok", true}, {"path", *take}}.dump(
+            -1, ' ', false, nlohmann::json::error_handler_t::replace);
+    }
+    return error("unknown command '" + command +
+                 "'; use status, mode preview|refine, toggle or record start [NAME]|stop");
 }
 
 void Service::reload() {
@@ -682,7 +762,9 @@ int Service::run() {
     Clock::time_point lastStatus{}, finishedAt{};
     for (;;) {
         pollfd fds[2] = {{signals.get(), POLLIN, 0}, {t.stopEvent.get(), POLLIN, 0}};
-        const int r = ::poll(fds, 2, pollMs);
+        // A rolling take blinks the LED (updateLed): wake often enough to blink.
+        const bool rolling = t.recorder->recording();
+        const int r = ::poll(fds, 2, rolling ? std::min(pollMs, 100) : pollMs);
         if (r < 0 && errno != EINTR) {
             logError("poll: {}", std::strerror(errno));
             exitCode = 1;
@@ -717,6 +799,7 @@ int Service::run() {
                 break;
             }
         }
+        if (rolling || t.led) updateLed();
         const int64_t heartbeat = t.heartbeatNs.load();
         if (watchdog && heartbeat != 0 && nowNs() - heartbeat < staleNs) systemd::notifyWatchdog();
         if (Clock::now() - lastStatus > std::chrono::seconds(1)) {

@@ -52,6 +52,7 @@ private:
     Status parseOutput(const toml::table& t, OutputConfig& c) const;
     Status parseButton(const toml::table& t, ButtonConfig& c) const;
     Status parseControl(const toml::table& t, ControlConfig& c) const;
+    Status parseRecord(const toml::table& t, RecordConfig& c) const;
     Status stringKey(const toml::table& t, std::string_view section, std::string_view key,
                      std::string& value) const;
 
@@ -596,10 +597,32 @@ Status ConfigReader::parseControl(const toml::table& t, ControlConfig& c) const 
     return {};
 }
 
+Status ConfigReader::parseRecord(const toml::table& t, RecordConfig& c) const {
+    if (Status st = r_.checkKeys(t, "record",
+                                 {"dir", "auto", "min_free_mb", "flush_interval_ms", "queue_mb"});
+        !st)
+        return st;
+    if (Status st = stringKey(t, "record", "dir", c.dir); !st) return st;
+    if (!c.dir.empty()) c.dir = (r_.folder() / fs::path(c.dir)).lexically_normal().string();
+    Result<std::optional<bool>> autoStart = r_.boolean(t, "record", "auto");
+    if (!autoStart) return autoStart.error();
+    c.autoStart = autoStart->value_or(false);
+    int64_t v = int64_t(c.minFreeMb);
+    if (Status st = integerIn(t, "record", "min_free_mb", v, 0, 1 << 24); !st) return st;
+    c.minFreeMb = uint64_t(v);
+    v = c.flushIntervalMs;
+    if (Status st = integerIn(t, "record", "flush_interval_ms", v, 10, 60000); !st) return st;
+    c.flushIntervalMs = uint32_t(v);
+    v = c.queueMb;
+    if (Status st = integerIn(t, "record", "queue_mb", v, 16, 16384); !st) return st;
+    c.queueMb = uint32_t(v);
+    return {};
+}
+
 Result<ServiceConfig> ConfigReader::read(const toml::table& root) {
     if (Status st = r_.checkKeys(root, "",
                                  {"version", "scene", "cameras", "tracking", "lighting", "render",
-                                  "refine", "output", "button", "control", "session"});
+                                  "refine", "output", "button", "control", "session", "record"});
         !st)
         return st.error();
     const toml::node* version = root.get("version");
@@ -689,6 +712,7 @@ Result<ServiceConfig> ConfigReader::read(const toml::table& root) {
              return parseButton(t, button);
          }},
         {"control", [&](const toml::table& t) { return parseControl(t, config.control); }},
+        {"record", [&](const toml::table& t) { return parseRecord(t, config.record); }},
         {"session",
          [&](const toml::table& t) -> Status {
              if (Status st = r_.checkKeys(t, "session", {"loop", "events"}); !st) return st;
@@ -748,6 +772,14 @@ std::string controlSocketPath(const ControlConfig& control) {
         return (fs::path(first) / "previsd.sock").string();
     }
     return "/run/previs/previsd.sock";
+}
+
+std::string takesFolder(const RecordConfig& record) {
+    if (!record.dir.empty()) return record.dir;
+    const char* state = std::getenv("STATE_DIRECTORY");
+    if (!state || !*state) return (fs::current_path() / "takes").string();
+    const std::string first = std::string(state).substr(0, std::string(state).find(':'));
+    return (fs::path(first) / "takes").string();
 }
 
 std::string savedLightingPath(const LightingConfig& lighting) {

@@ -175,6 +175,23 @@ struct ControlConfig {
     std::string socketPath;
 };
 
+// Takes (DESIGN.md §3 "Recording", docs/takes.md).
+struct RecordConfig {
+    // Where take folders go; "" = takesFolder()'s default.
+    std::string dir;
+    bool autoStart = false;     // [record] auto: record whenever previsd runs
+    uint64_t minFreeMb = 1024;  // refuse to start, and stop, below this much free space
+    // The take's index files are made durable at least this often: a power cut loses at most
+    // this much of the take (docs/session-format.md, write order).
+    uint32_t flushIntervalMs = 1000;
+    // Frames waiting for the disk at most (MiB of frame data) before the recorder drops one.
+    uint32_t queueMb = 512;
+};
+
+// [record] dir, else $STATE_DIRECTORY/takes under systemd (/var/lib/previs/takes), else
+// ./takes.
+std::string takesFolder(const RecordConfig& record);
+
 struct ServiceConfig {
     std::string path;       // the file this came from
     std::string scenePath;  // a .gltf/.glb or previs.toml scene description (resolved)
@@ -188,6 +205,7 @@ struct ServiceConfig {
     OutputConfig output;
     std::optional<ButtonConfig> button;
     ControlConfig control;
+    RecordConfig record;
     // Recorded cameras (source = "session"): start over at the end (a demo loop) or stop the
     // service there (exit 0).
     bool loopSession = true;

@@ -19,7 +19,6 @@
 #include <string_view>
 
 #include "base/log.h"
-#include "capture/recorded_source.h"
 
 #ifndef PREVIS_VERSION
 #define PREVIS_VERSION "unknown"
@@ -117,26 +116,6 @@ Status writeAll(int fd, const void* data, size_t size, const std::string& path) 
     return {};
 }
 
-// A whole file, atomically: `path` either does not exist or holds all of `bytes`.
-Status writeFileAtomic(const std::string& path, std::span<const uint8_t> bytes) {
-    const std::string tmp = path + ".tmp";
-    UniqueFD fd(::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644));
-    if (!fd.isValid()) return makeError("{}: cannot create: {}", tmp, errnoText());
-    // On failure the partial .tmp goes: a full disk must not fill further.
-    if (Status s = writeAll(fd.get(), bytes.data(), bytes.size(), tmp); !s) {
-        ::unlink(tmp.c_str());
-        return s;
-    }
-    if (::fdatasync(fd.get()) != 0) {
-        ::unlink(tmp.c_str());
-        return makeError("{}: fdatasync failed: {}", tmp, errnoText());
-    }
-    fd.reset();
-    if (::rename(tmp.c_str(), path.c_str()) != 0)
-        return makeError("{}: cannot rename to {}: {}", tmp, path, errnoText());
-    return {};
-}
-
 Status writeTextAtomic(const std::string& path, const std::string& text) {
     return writeFileAtomic(path,
                            std::span(reinterpret_cast<const uint8_t*>(text.data()), text.size()));
@@ -171,6 +150,10 @@ std::string tomlString(const std::string& v) {
 std::string formatDouble(double v) { return fmt::format("{}", v); }
 
 constexpr std::string_view kPosesHeader = "# previs-session poses v";
+constexpr std::string_view kCameraIndexHeader = "# previs-session camera index v";
+constexpr std::string_view kLightingHeader = "# previs-session lighting v";
+// The camera index's own version (v2: wallClockNs and timecode appended).
+constexpr int kCameraIndexVersion = 2;
 constexpr std::string_view kEventsHeader = "# previs-session events v";
 
 bool knownEvent(std::string_view source, std::string_view event, int version) {
@@ -184,11 +167,176 @@ bool knownEvent(std::string_view source, std::string_view event, int version) {
 
 }  // namespace
 
+Status writeFileAtomic(const std::string& path, std::span<const uint8_t> bytes) {
+    const std::string tmp = path + ".tmp";
+    UniqueFD fd(::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644));
+    if (!fd.isValid()) return makeError("{}: cannot create: {}", tmp, errnoText());
+    // On failure the partial .tmp goes: a full disk must not fill further.
+    if (Status s = writeAll(fd.get(), bytes.data(), bytes.size(), tmp); !s) {
+        ::unlink(tmp.c_str());
+        return s;
+    }
+    if (::fdatasync(fd.get()) != 0) {
+        ::unlink(tmp.c_str());
+        return makeError("{}: fdatasync failed: {}", tmp, errnoText());
+    }
+    fd.reset();
+    if (::rename(tmp.c_str(), path.c_str()) != 0)
+        return makeError("{}: cannot rename to {}: {}", tmp, path, errnoText());
+    return {};
+}
+
 const SessionCamera* SessionInfo::cameraWithRole(const std::string& role) const {
     for (const SessionCamera& c : cameras)
         if (c.role == role) return &c;
     return nullptr;
 }
+
+Result<std::string> containedPath(const std::string& root, const std::string& relative,
+                                  const std::string& what, bool folder) {
+    const fs::path rel(relative);
+    auto refuse = [&](std::string_view why) -> Result<std::string> {
+        return makeError("{}: '{}' {}; a session names only files inside its own folder", what,
+                         relative, why);
+    };
+    if (relative.empty()) return refuse("is empty");
+    if (rel.is_absolute()) return refuse("is an absolute path");
+    fs::path at(root);
+    for (const fs::path& part : rel) {
+        if (part == "..") return refuse("leaves the folder ('..')");
+        if (part == "." || part.empty()) continue;
+        at /= part;
+        std::error_code ec;
+        const fs::file_status st = fs::symlink_status(at, ec);
+        if (ec || !fs::exists(st)) return refuse("does not exist");
+        if (fs::is_symlink(st)) return refuse("goes through a symbolic link");
+    }
+    std::error_code ec;
+    const fs::file_status st = fs::symlink_status(at, ec);
+    if (folder ? !fs::is_directory(st) : !fs::is_regular_file(st))
+        return refuse(folder ? "is not a folder" : "is not a regular file");
+    return at.string();
+}
+
+Result<std::vector<uint8_t>> readSessionFile(const std::string& path) {
+    UniqueFD fd(::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NOFOLLOW | O_NONBLOCK));
+    if (!fd.isValid()) return makeError("{}: cannot open: {}", path, errnoText());
+    struct stat st {};
+    if (::fstat(fd.get(), &st) != 0) return makeError("{}: cannot stat: {}", path, errnoText());
+    if (!S_ISREG(st.st_mode)) return makeError("{}: not a regular file", path);
+    if (uint64_t(st.st_size) > kMaxSessionFileBytes)
+        return makeError("{}: {} bytes, more than a session file may hold ({} MiB)", path,
+                         st.st_size, kMaxSessionFileBytes >> 20);
+    std::vector<uint8_t> bytes(size_t(st.st_size));
+    size_t got = 0;
+    while (got < bytes.size()) {
+        const ssize_t n = ::read(fd.get(), bytes.data() + got, bytes.size() - got);
+        if (n < 0 && errno == EINTR) continue;
+        if (n < 0) return makeError("{}: read failed: {}", path, errnoText());
+        if (n == 0) return makeError("{}: cut short while reading", path);
+        got += size_t(n);
+    }
+    return bytes;
+}
+
+Result<std::vector<RecordedFrameEntry>> loadCameraIndex(const std::string& cameraDir) {
+    const std::string path = cameraDir + "/index.csv";
+    std::error_code ec;
+    if (!fs::is_regular_file(path, ec))
+        return makeError(
+            "{}: cannot open (is {} a session camera folder? see "
+            "docs/session-format.md)",
+            path, cameraDir);
+    int version = 1;
+    std::vector<RecordedFrameEntry> entries;
+    Status s =
+        forEachLine(path, kCameraIndexHeader, version, [&](int lineNo, std::string_view line) {
+            const std::vector<std::string_view> f = splitFields(line);
+            RecordedFrameEntry e;
+            // Later versions may append columns (docs/session-format.md, versioning). A file is
+            // a plain name in the camera's folder: never a path out of it.
+            const bool plainName = f.size() >= 3 && !f[2].empty() && f[2] != "." && f[2] != ".." &&
+                                   f[2].find('/') == std::string_view::npos;
+            if (f.size() < 5 || !parseNumber(f[0], e.sequence) ||
+                !parseNumber(f[1], e.timestampNs) || !plainName || !parseNumber(f[3], e.width) ||
+                !parseNumber(f[4], e.height) || e.width == 0 || e.height == 0 || e.width > 16384 ||
+                e.height > 16384)
+                return Status(
+                    makeError("{}:{}: malformed frame line '{}' (expected "
+                              "sequence,timestampNs,file,width,height)",
+                              path, lineNo, line));
+            if (f.size() >= 7) {
+                uint64_t wall = 0;
+                if (!f[5].empty()) {
+                    if (!parseNumber(f[5], wall))
+                        return Status(
+                            makeError("{}:{}: malformed wallClockNs in '{}'", path, lineNo, line));
+                    e.wallClockNs = wall;
+                }
+                e.timecode = std::string(f[6]);
+            }
+            if (!entries.empty() && (e.sequence <= entries.back().sequence ||
+                                     e.timestampNs < entries.back().timestampNs))
+                return Status(
+                    makeError("{}:{}: sequence or timestamp goes backwards", path, lineNo));
+            e.file = cameraDir + "/" + std::string(f[2]);
+            entries.push_back(std::move(e));
+            return Status{};
+        });
+    if (!s) return s.error();
+    return entries;
+}
+
+Result<std::vector<LightingRecord>> loadLighting(const std::string& dir) {
+    const std::string lightingDir = dir + "/lighting";
+    const std::string path = lightingDir + "/index.csv";
+    std::error_code ec;
+    if (!fs::exists(path, ec)) return std::vector<LightingRecord>{};
+    int version = 1;
+    std::vector<LightingRecord> records;
+    Status s = forEachLine(path, kLightingHeader, version, [&](int lineNo, std::string_view line) {
+        // timestampNs,file,lights: the lights JSON is the rest of the line (it holds commas).
+        const size_t a = line.find(',');
+        const size_t b = a == std::string_view::npos ? a : line.find(',', a + 1);
+        LightingRecord r;
+        const std::string_view file =
+            b == std::string_view::npos ? std::string_view() : line.substr(a + 1, b - a - 1);
+        if (b == std::string_view::npos || !parseNumber(line.substr(0, a), r.timestampNs) ||
+            file.empty() || file.find('/') != std::string_view::npos || file == "..")
+            return Status(makeError(
+                "{}:{}: malformed lighting line (expected timestampNs,file,lights)", path, lineNo));
+        Result<std::string> map = containedPath(lightingDir, std::string(file), path);
+        if (!map) return Status(map.error());
+        r.mapFile = *map;
+        r.lightsJson = std::string(line.substr(b + 1));
+        records.push_back(std::move(r));
+        return Status{};
+    });
+    if (!s) return s.error();
+    return records;
+}
+
+namespace {
+
+// A killed recorder leaves at most one *.tmp per file it was writing; a reader ignores them,
+// and the next open removes them.
+void removeLeftoverTmp(const std::string& dir) {
+    std::error_code ec;
+    size_t removed = 0;
+    for (auto it = fs::recursive_directory_iterator(dir, ec);
+         !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
+        if (it.depth() > 2) it.disable_recursion_pending();
+        const std::string name = it->path().filename().string();
+        if (!it->is_regular_file(ec) || !(name.ends_with(".tmp") || name.ends_with(".tmp.exr")))
+            continue;
+        std::error_code rm;
+        if (fs::remove(it->path(), rm)) ++removed;
+    }
+    if (removed > 0)
+        logInfo("{}: removed {} unfinished file(s) (*.tmp) a stopped recorder left", dir, removed);
+}
+
+}  // namespace
 
 Result<SessionInfo> openSession(const std::string& dir) {
     const std::string path = dir + "/session.toml";
@@ -207,6 +355,7 @@ Result<SessionInfo> openSession(const std::string& dir) {
     }
     SessionInfo info;
     info.dir = dir;
+    removeLeftoverTmp(dir);
     if (table["format"].value_or(std::string()) != "previs-session")
         return makeError("{}: format is not \"previs-session\" (not a previs session)", path);
     const std::optional<int64_t> version = table["version"].value<int64_t>();
@@ -413,12 +562,15 @@ Result<SessionWriter> SessionWriter::create(const std::string& dir,
     SessionWriter w;
     w.dir_ = dir;
     w.lastSync_ = std::chrono::steady_clock::now();
+    w.flushInterval_ = options.flushInterval;
     // config.toml first: a folder with session.toml is a session, and should be complete.
     if (!options.configToml.empty())
         if (Status s = writeTextAtomic(dir + "/config.toml", options.configToml); !s)
             return s.error();
     if (Status s = writeTextAtomic(dir + "/session.toml", toml); !s) return s.error();
     if (Status s = syncDir(dir); !s) return s.error();
+    // The new folder's own entry lives in its parent.
+    if (Status s = syncDir(fs::absolute(dir).parent_path().string()); !s) return s.error();
     return w;
 }
 
@@ -477,34 +629,50 @@ Status SessionWriter::appendLine(Index& index, const std::string& line) {
 }
 
 Status SessionWriter::syncIfDue() {
-    // At least once a second (docs/session-format.md): a power cut loses at most that much.
-    if (std::chrono::steady_clock::now() - lastSync_ < std::chrono::seconds(1)) return {};
+    // At least every flushInterval (docs/session-format.md): a power cut loses at most that.
+    if (std::chrono::steady_clock::now() - lastSync_ < flushInterval_) return {};
     return flush();
 }
 
 Status SessionWriter::flush() {
     Status result;
+    // Folders first: a durable index line must never name a file whose rename is not.
+    if (newEntries_) {
+        // New folders' entries live in their parents; renamed frames and new index files in
+        // the folders of the indices.
+        std::set<std::string> folders = newFolders_;
+        for (auto& [rel, index] : indices_) folders.insert(fs::path(index.path).parent_path());
+        folders.insert(dir_);
+        for (const std::string& folder : folders)
+            if (Status s = syncDir(folder); !s && result) result = s;
+        newFolders_.clear();
+        newEntries_ = false;
+    }
     for (auto& [rel, index] : indices_) {
         if (!index.dirty) continue;
         if (::fdatasync(index.fd.get()) != 0 && result)
             result = makeError("{}: fdatasync failed: {}", index.path, errnoText());
         index.dirty = false;
     }
-    if (newEntries_) {
-        // Renamed frames and new index files live in these folders.
-        for (auto& [rel, index] : indices_)
-            if (Status s = syncDir(fs::path(index.path).parent_path().string()); !s && result)
-                result = s;
-        if (Status s = syncDir(dir_); !s && result) result = s;
-        newEntries_ = false;
-    }
     lastSync_ = std::chrono::steady_clock::now();
     return result;
 }
 
+Status SessionWriter::createFolder(const std::string& relPath) {
+    const fs::path folder = fs::path(dir_) / relPath;
+    std::error_code ec;
+    if (fs::is_directory(folder, ec)) return {};
+    fs::create_directories(folder, ec);
+    if (ec) return makeError("{}: cannot create: {}", folder.string(), ec.message());
+    for (fs::path p = folder; p != fs::path(dir_) && p.has_parent_path(); p = p.parent_path())
+        newFolders_.insert(p.parent_path().string());
+    newEntries_ = true;
+    return {};
+}
+
 Status SessionWriter::writeFrame(const std::string& camera, uint64_t sequence, uint64_t timestampNs,
                                  std::span<const uint8_t> encoded, const std::string& ext,
-                                 uint32_t width, uint32_t height) {
+                                 uint32_t width, uint32_t height, const FrameStamp& stamp) {
     if (!validCameraName(camera))
         return makeError("session camera name '{}': use letters, digits, '-', '_', '.'", camera);
     if (ext != "png" && ext != "jpg")
@@ -513,15 +681,11 @@ Status SessionWriter::writeFrame(const std::string& camera, uint64_t sequence, u
         return makeError("session frame {} of '{}': empty frame", sequence, camera);
     const std::string camDir = dir_ + "/cameras/" + camera;
     const std::string rel = "cameras/" + camera + "/index.csv";
-    if (indices_.find(rel) == indices_.end()) {
-        std::error_code ec;
-        fs::create_directories(camDir, ec);
-        if (ec) return makeError("{}: cannot create: {}", camDir, ec.message());
-        newEntries_ = true;
-    }
-    auto index = openIndex(rel,
-                           "# previs-session camera index v1: sequence,timestampNs,file,width,"
-                           "height\n");
+    if (indices_.find(rel) == indices_.end())
+        if (Status s = createFolder("cameras/" + camera); !s) return s;
+    auto index = openIndex(rel, fmt::format("{}{}: sequence,timestampNs,file,width,height,"
+                                            "wallClockNs,timecode\n",
+                                            kCameraIndexHeader, kCameraIndexVersion));
     if (!index) return index.error();
     Index& idx = **index;
     if ((idx.lastSequence && sequence <= *idx.lastSequence) || timestampNs < idx.lastTimestampNs)
@@ -532,8 +696,13 @@ Status SessionWriter::writeFrame(const std::string& camera, uint64_t sequence, u
     const std::string file = fmt::format("{:012d}.{}", sequence, ext);
     if (Status s = writeFileAtomic(camDir + "/" + file, encoded); !s) return s;
     newEntries_ = true;
+    if (stamp.timecode.find_first_of(",\n\r") != std::string::npos)
+        return makeError("session frame {} of '{}': timecode '{}' holds a comma or newline",
+                         sequence, camera, stamp.timecode);
     if (Status s = appendLine(
-            idx, fmt::format("{},{},{},{},{}\n", sequence, timestampNs, file, width, height));
+            idx, fmt::format("{},{},{},{},{},{},{}\n", sequence, timestampNs, file, width, height,
+                             stamp.wallClockNs ? std::to_string(*stamp.wallClockNs) : std::string(),
+                             stamp.timecode));
         !s)
         return s;
     idx.lastSequence = sequence;
@@ -584,6 +753,44 @@ Status SessionWriter::writeEvent(const SessionEvent& event) {
     if (!index) return index.error();
     if (Status s = appendLine(
             **index, fmt::format("{},{},{}\n", event.timestampNs, event.source, event.event));
+        !s)
+        return s;
+    return syncIfDue();
+}
+
+Status SessionWriter::writeLighting(uint64_t timestampNs,
+                                    const std::function<Status(const std::string& path)>& writeMap,
+                                    const std::string& lightsJson) {
+    if (lightsJson.find_first_of("\n\r") != std::string::npos)
+        return makeError("session lighting at {} ns: the lights JSON must be one line",
+                         timestampNs);
+    if (indices_.find("lighting/index.csv") == indices_.end())
+        if (Status s = createFolder("lighting"); !s) return s;
+    auto index = openIndex(
+        "lighting/index.csv",
+        fmt::format("{}{}: timestampNs,file,lights\n", kLightingHeader, kSessionFormatVersion));
+    if (!index) return index.error();
+    const std::string file = fmt::format("{:06d}.exr", lightingSnapshots_);
+    const std::string path = dir_ + "/lighting/" + file;
+    // The EXR writer goes by the extension: "<n>.tmp.exr", which readers and cleanup treat as
+    // a *.tmp file.
+    const std::string tmp = dir_ + "/lighting/" + fmt::format("{:06d}.tmp.exr", lightingSnapshots_);
+    if (Status s = writeMap(tmp); !s) {
+        ::unlink(tmp.c_str());
+        return s;
+    }
+    {
+        UniqueFD fd(::open(tmp.c_str(), O_RDONLY | O_CLOEXEC));
+        if (!fd.isValid() || ::fdatasync(fd.get()) != 0) {
+            ::unlink(tmp.c_str());
+            return makeError("{}: fdatasync failed: {}", tmp, errnoText());
+        }
+    }
+    if (::rename(tmp.c_str(), path.c_str()) != 0)
+        return makeError("{}: cannot rename to {}: {}", tmp, path, errnoText());
+    newEntries_ = true;
+    ++lightingSnapshots_;
+    if (Status s = appendLine(**index, fmt::format("{},{},{}\n", timestampNs, file, lightsJson));
         !s)
         return s;
     return syncIfDue();

@@ -1,14 +1,16 @@
 #pragma once
 
-// The recorded session (DESIGN.md §5, docs/session-format.md v2): a reader for what a session
-// folder holds besides the camera frames (capture/recorded_source.h replays those), and the
-// crash-safe writer the recorder and the demo generator use.
+// The recorded session (DESIGN.md §5, docs/session-format.md v3): the one owner of the format.
+// Readers for every file a session folder holds (capture/recorded_source.h replays the camera
+// frames it lists), and the crash-safe writer the take recorder and the demo generator use.
 
 #include <array>
 #include <chrono>
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <optional>
+#include <set>
 #include <span>
 #include <string>
 #include <vector>
@@ -19,7 +21,11 @@
 namespace previs {
 
 // docs/session-format.md: the newest version this previs reads and the one it writes.
-constexpr int kSessionFormatVersion = 2;
+constexpr int kSessionFormatVersion = 3;
+
+// The largest file a session may name (a frame, a lighting map): checked before decoding, since a
+// take that left the box is untrusted input.
+constexpr uint64_t kMaxSessionFileBytes = uint64_t(256) << 20;
 
 struct SessionCamera {
     std::string name;   // the folder under cameras/
@@ -46,7 +52,47 @@ struct SessionInfo {
 
 // Reads session.toml, checks format and version, and lists the cameras present (folders
 // under cameras/ with an index.csv, each index parsed).
+// Also removes *.tmp files a killed recorder left (best effort: a read-only copy keeps them,
+// and readers ignore them).
 Result<SessionInfo> openSession(const std::string& dir);
+
+// A path a session names (a frame file, a copied config file, `config_dir`): relative, without
+// "..", resolving inside `root` through no symbolic link, to an existing regular file (or folder
+// when `folder`). Returns the absolute path, or one line naming `what` and the path.
+Result<std::string> containedPath(const std::string& root, const std::string& relative,
+                                  const std::string& what, bool folder = false);
+
+// Writes a whole file durably: `path` either does not exist or holds all of `bytes` (tmp +
+// fdatasync + rename; the caller fsyncs the folder).
+Status writeFileAtomic(const std::string& path, std::span<const uint8_t> bytes);
+
+// Reads a regular file of at most kMaxSessionFileBytes without following a symbolic link.
+Result<std::vector<uint8_t>> readSessionFile(const std::string& path);
+
+// One line of cameras/<name>/index.csv.
+struct RecordedFrameEntry {
+    uint64_t sequence = 0;
+    uint64_t timestampNs = 0;
+    std::string file;  // absolute path
+    uint32_t width = 0;
+    uint32_t height = 0;
+    // v3: CLOCK_REALTIME at capture, and the time-of-day timecode at the camera's rate
+    // ("HH:MM:SS:FF"); absent in older sessions.
+    std::optional<uint64_t> wallClockNs;
+    std::string timecode;
+};
+
+// Parses cameras/<name>/index.csv of a session; a truncated last line (a crash mid-append) is
+// ignored, a malformed complete line is an error naming file and line.
+Result<std::vector<RecordedFrameEntry>> loadCameraIndex(const std::string& cameraDir);
+
+// One lighting snapshot the renderer used: lighting/index.csv.
+struct LightingRecord {
+    uint64_t timestampNs = 0;  // the fisheye frame it was made from
+    std::string mapFile;       // absolute path of lighting/<n>.exr
+    std::string lightsJson;    // the estimated lights (`previs lights` JSON), "" for none
+};
+Result<std::vector<LightingRecord>> loadLighting(const std::string& dir);
 
 enum class PoseKind { Tracked, Lost, Truth };
 
@@ -88,11 +134,21 @@ struct SessionWriterOptions {
     std::string configDir;
     std::string created;        // RFC 3339; empty: now (UTC)
     std::string previsVersion;  // empty: this build's
+    // The index files are fdatasync'ed at least this often (and on flush()): a power cut loses
+    // at most this much of the take.
+    std::chrono::milliseconds flushInterval{1000};
+};
+
+// When a frame was captured, besides its monotonic timestamp (camera index v2 columns).
+struct FrameStamp {
+    std::optional<uint64_t> wallClockNs;  // CLOCK_REALTIME
+    std::string timecode;                 // "HH:MM:SS:FF", time of day at the camera's rate
 };
 
 // Appends a session folder in the crash-safe write order of docs/session-format.md: a frame
 // file is complete (tmp + fdatasync + rename) before its index line is appended with a single
-// write(), and the index files are fdatasync'ed at least once a second and on flush().
+// write(); a flush (at least every flushInterval, and on flush()) fsyncs the folders that gained
+// entries before the index files, so no durable line names a file that is not.
 class SessionWriter {
 public:
     // Creates `dir` (its parent must exist) and writes session.toml and config.toml. Refuses a
@@ -109,7 +165,12 @@ public:
     // decrease per camera.
     Status writeFrame(const std::string& camera, uint64_t sequence, uint64_t timestampNs,
                       std::span<const uint8_t> encoded, const std::string& ext, uint32_t width,
-                      uint32_t height);
+                      uint32_t height, const FrameStamp& stamp = {});
+    // A lighting snapshot: `writeMap(path)` writes the environment map as OpenEXR to `path` (a
+    // temporary name, made durable and renamed here), then its index line follows.
+    Status writeLighting(uint64_t timestampNs,
+                         const std::function<Status(const std::string& path)>& writeMap,
+                         const std::string& lightsJson);
     Status writePose(const PoseRecord& pose);
     Status writeEvent(const SessionEvent& event);
     // Makes everything written so far durable (index files and folder entries).
@@ -131,10 +192,16 @@ private:
     Result<Index*> openIndex(const std::string& relPath, const std::string& header);
     Status appendLine(Index& index, const std::string& line);
     Status syncIfDue();
+    // Creates a folder under dir_ (and its missing parents), to be made durable at the next flush.
+    Status createFolder(const std::string& relPath);
 
     std::string dir_;
-    std::map<std::string, Index> indices_;  // by path relative to dir_
+    std::map<std::string, Index> indices_;
+    std::set<std::string> newFolders_;  // folders (and their parents) created since the last flush
+                                        // // by path relative to dir_
     std::chrono::steady_clock::time_point lastSync_;
+    std::chrono::milliseconds flushInterval_{1000};
+    uint64_t lightingSnapshots_ = 0;
     bool newEntries_ = false;  // folder entries (renames, new files) not yet fsync'ed
 };
 

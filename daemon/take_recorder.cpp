@@ -1,0 +1,377 @@
+#include "daemon/take_recorder.h"
+
+#include <sys/statvfs.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <chrono>
+#include <cstring>
+#include <ctime>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "base/log.h"
+#include "base/timecode.h"
+#include "daemon/take_files.h"
+
+namespace previs {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+std::optional<uint64_t> freeBytes(const std::string& dir) {
+    struct statvfs st {};
+    if (::statvfs(dir.c_str(), &st) != 0) return std::nullopt;
+    return uint64_t(st.f_bavail) * uint64_t(st.f_frsize);
+}
+
+bool validTakeName(const std::string& name) {
+    return name.size() <= 64 && std::all_of(name.begin(), name.end(), [](char c) {
+               return std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_';
+           });
+}
+
+std::string takeFolderName(const std::string& name) {
+    const std::time_t now = std::time(nullptr);
+    std::tm local{};
+    localtime_r(&now, &local);
+    char stamp[32];
+    std::strftime(stamp, sizeof stamp, "%Y-%m-%d_%H%M%S", &local);
+    return name.empty() ? std::string(stamp) : std::string(stamp) + "_" + name;
+}
+
+// What a raw frame costs on disk and in the queue: its RGB bytes until the writer encodes it.
+size_t frameBytes(const Frame& f) { return f.encoded ? f.encoded->size() : f.rgb.size(); }
+
+// Lossless and fast: PNG at zlib level 1 (a 1280x720 frame in ~15 ms on one core).
+Result<std::vector<uint8_t>> encodePng(const Frame& f) {
+    cv::Mat bgr;
+    cv::cvtColor(cv::Mat(int(f.height), int(f.width), CV_8UC3, const_cast<uint8_t*>(f.rgb.data())),
+                 bgr, cv::COLOR_RGB2BGR);
+    std::vector<uint8_t> png;
+    if (!cv::imencode(".png", bgr, png, {cv::IMWRITE_PNG_COMPRESSION, 1}))
+        return makeError("frame {}: PNG encoding failed", f.sequence);
+    return png;
+}
+
+std::string lightsJson(const LiveLighting& lit) {
+    nlohmann::json lights = nlohmann::json::array();
+    for (const EstimatedLight& l : lit.lights)
+        lights.push_back({{"direction", {l.direction[0], l.direction[1], l.direction[2]}},
+                          {"solidAngleSr", l.solidAngleSr},
+                          {"radiance", {l.radiance[0], l.radiance[1], l.radiance[2]}}});
+    return nlohmann::json{{"lights", lights}}.dump();
+}
+
+}  // namespace
+
+// The writer's state: the session being appended, and per camera how its timestamps continue.
+struct TakeRecorder::Take {
+    explicit Take(SessionWriter w) : writer(std::move(w)) {}
+    std::string dir;
+    SessionWriter writer;
+    uint64_t minFreeBytes = 0;
+    Clock::time_point lastSpaceCheck{};
+    // Per camera: a looping recorded source starts its timestamps over; the take's must not
+    // decrease, so a jump back shifts the rest of that camera's (and its poses') timestamps.
+    struct CameraClock {
+        uint64_t offsetNs = 0;
+        uint64_t lastNs = 0;
+        bool any = false;
+    };
+    std::map<std::string, CameraClock> clocks;
+    std::map<std::string, int> timecodeRates;      // per camera, once known
+    std::map<std::string, FrameItem> firstFrames;  // waiting for their rate
+
+    uint64_t takeTimestamp(const std::string& camera, uint64_t ns, uint64_t sequence) {
+        CameraClock& c = clocks[camera];
+        if (c.any && ns + c.offsetNs < c.lastNs) {
+            c.offsetNs = c.lastNs - ns + 1;
+            logInfo(
+                "recording: {} frame {} goes back in time (a looping session); its "
+                "timestamps continue from the take's",
+                camera, sequence);
+        }
+        c.any = true;
+        c.lastNs = ns + c.offsetNs;
+        return c.lastNs;
+    }
+};
+
+TakeRecorder::TakeRecorder(ServiceConfig config)
+    : config_(std::move(config)), queueLimitBytes_(uint64_t(config_.record.queueMb) << 20) {}
+
+TakeRecorder::~TakeRecorder() {
+    if (recording()) {
+        Result<std::string> stopped = stop();
+        if (!stopped) logError("recording: {}", stopped.message());
+    }
+    finishWriter();
+}
+
+bool TakeRecorder::recording() const {
+    std::lock_guard lock(mutex_);
+    return status_.recording;
+}
+
+RecordStatus TakeRecorder::status() const {
+    std::lock_guard lock(mutex_);
+    return status_;
+}
+
+void TakeRecorder::finishWriter() {
+    if (writer_.joinable()) writer_.join();
+}
+
+Result<std::string> TakeRecorder::start(const std::string& name,
+                                        std::shared_ptr<const LiveLighting> lighting) {
+    if (recording()) return makeError("already recording {}", status().path);
+    finishWriter();  // a take that stopped by itself
+    if (!validTakeName(name))
+        return makeError("take name '{}': use at most 64 letters, digits, '-' and '_'", name);
+    const std::string root = takesFolder(config_.record);
+    std::error_code ec;
+    fs::create_directories(root, ec);
+    if (ec || ::access(root.c_str(), W_OK | X_OK) != 0)
+        return makeError("cannot record into {}: {}; set [record] dir to a writable folder", root,
+                         ec ? ec.message() : std::strerror(errno));
+    const std::optional<uint64_t> free = freeBytes(root);
+    const uint64_t minFree = config_.record.minFreeMb << 20;
+    if (!free || *free < minFree)
+        return makeError("cannot record into {}: {} MiB free, under [record] min_free_mb = {}",
+                         root, free ? *free >> 20 : 0, config_.record.minFreeMb);
+    std::string dir = (fs::path(root) / takeFolderName(name)).string();
+    for (int n = 2; fs::exists(dir, ec); ++n)
+        dir = (fs::path(root) / (takeFolderName(name) + "-" + std::to_string(n))).string();
+    if (!fs::create_directory(dir, ec))
+        return makeError("cannot create the take folder {}: {}", dir, ec.message());
+    auto abandon = [&](const Error& e) -> Result<std::string> {
+        fs::remove_all(dir, ec);
+        return e;
+    };
+    Result<std::string> configToml = copyConfigIntoTake(config_, dir);
+    if (!configToml) return abandon(configToml.error());
+    SessionWriterOptions options;
+    options.cameraRoles["scene"] = "scene";
+    if (config_.fisheyeCamera) options.cameraRoles["fisheye"] = "fisheye";
+    options.configToml = *configToml;
+    options.flushInterval = std::chrono::milliseconds(config_.record.flushIntervalMs);
+    Result<SessionWriter> writer = SessionWriter::create(dir, options);
+    if (!writer) return abandon(writer.error());
+
+    auto take = std::make_unique<Take>(std::move(*writer));
+    take->dir = dir;
+    take->minFreeBytes = minFree;
+    if (config_.sceneCamera.fps > 0)
+        take->timecodeRates["scene"] = timecodeRate(config_.sceneCamera.fps);
+    if (config_.fisheyeCamera && config_.fisheyeCamera->fps > 0)
+        take->timecodeRates["fisheye"] = timecodeRate(config_.fisheyeCamera->fps);
+    {
+        std::lock_guard lock(mutex_);
+        status_ = RecordStatus{};
+        status_.recording = true;
+        status_.path = dir;
+        status_.freeBytes = *free;
+        accepting_ = true;
+        draining_ = false;
+    }
+    if (lighting) push(std::move(lighting), 0);
+    writer_ = std::thread([this, t = std::move(take)]() mutable { runWriter(std::move(t)); });
+    logInfo("recording: take {} started", dir);
+    return dir;
+}
+
+Result<std::string> TakeRecorder::stop() {
+    std::string dir;
+    {
+        std::lock_guard lock(mutex_);
+        if (!status_.recording) return makeError("not recording");
+        accepting_ = false;
+        draining_ = true;
+        dir = status_.path;
+    }
+    wake_.notify_all();
+    finishWriter();
+    const RecordStatus s = status();
+    logInfo("recording: take {} stopped: {} frames, {:.1f} MiB, {} dropped", dir, s.frames,
+            double(s.bytes) / (1 << 20), s.dropped);
+    return dir;
+}
+
+void TakeRecorder::push(Item item, size_t bytes) {
+    {
+        std::lock_guard lock(mutex_);
+        if (!accepting_) return;
+        if (bytes > 0 && queuedBytes_ + bytes > queueLimitBytes_) {
+            // The disk is slower than the cameras: this frame is lost to the take, never
+            // silently (the count is in the status; the log says so now and then).
+            if (status_.dropped++ % 100 == 0)
+                logWarning("recording: the disk cannot keep up; {} frame(s) dropped so far",
+                           status_.dropped);
+            return;
+        }
+        queuedBytes_ += bytes;
+        queue_.emplace_back(std::move(item), bytes);
+    }
+    wake_.notify_one();
+}
+
+void TakeRecorder::addFrame(const std::string& camera, std::shared_ptr<const Frame> frame) {
+    if (!frame) return;
+    const size_t bytes = std::max<size_t>(frameBytes(*frame), 1);
+    if (camera == "scene") lastSceneNs_.store(frame->timestampNs);
+    push(FrameItem{camera, std::move(frame)}, bytes);
+}
+
+void TakeRecorder::addPose(const TrackedFrame& tracked) {
+    if (!tracked.frame) return;
+    PoseRecord pose;
+    pose.timestampNs = tracked.frame->timestampNs;
+    pose.frame = tracked.frame->sequence;
+    // The pose tracked on this very frame; a held pose (lost) is not this frame's.
+    if (!tracked.lost && tracked.worldFromCamera) {
+        pose.kind = PoseKind::Tracked;
+        std::array<double, 16> m{};
+        for (int i = 0; i < 16; ++i) m[size_t(i)] = (*tracked.worldFromCamera)(i / 4, i % 4);
+        pose.worldFromCamera = m;
+        pose.reprojErrorPx = tracked.reprojErrorPx;
+        pose.tags = tracked.tags;
+    } else {
+        pose.kind = PoseKind::Lost;
+    }
+    push(std::move(pose), 0);
+}
+
+void TakeRecorder::addEvent(SessionEvent event) {
+    // On the scene camera's clock, which a replay fires events by: after the last frame seen.
+    if (event.timestampNs == 0) event.timestampNs = lastSceneNs_.load() + 1;
+    push(std::move(event), 0);
+}
+
+void TakeRecorder::addLighting(std::shared_ptr<const LiveLighting> lighting) {
+    if (lighting) push(std::move(lighting), 0);
+}
+
+Status TakeRecorder::writeFrame(Take& take, const FrameItem& item) {
+    const Frame& frame = *item.frame;
+    std::vector<uint8_t> png;
+    std::span<const uint8_t> bytes;
+    if (frame.encoded) {
+        bytes = *frame.encoded;
+    } else {
+        Result<std::vector<uint8_t>> encoded = encodePng(frame);
+        if (!encoded) return encoded.error();
+        png = std::move(*encoded);
+        bytes = png;
+    }
+    FrameStamp stamp;
+    if (frame.wallClockNs > 0) {
+        stamp.wallClockNs = frame.wallClockNs;
+        stamp.timecode = timeOfDayTimecode(frame.wallClockNs, take.timecodeRates[item.camera]);
+    }
+    const uint64_t ns = take.takeTimestamp(item.camera, frame.timestampNs, frame.sequence);
+    if (Status s =
+            take.writer.writeFrame(item.camera, frame.sequence, ns, bytes,
+                                   frame.encoded ? "jpg" : "png", frame.width, frame.height, stamp);
+        !s)
+        return s;
+    std::lock_guard lock(mutex_);
+    status_.bytes += bytes.size();
+    if (item.camera == "scene") ++status_.frames;
+    return {};
+}
+
+Status TakeRecorder::write(Take& take, Item& item) {
+    if (auto* f = std::get_if<FrameItem>(&item)) {
+        if (take.timecodeRates.count(f->camera)) return writeFrame(take, *f);
+        // A camera without a configured fps: its timecode rate is its frame rate, measured on
+        // its first two frames, so the first waits for the second.
+        auto pending = take.firstFrames.find(f->camera);
+        if (pending == take.firstFrames.end()) {
+            take.firstFrames.emplace(f->camera, *f);
+            return {};
+        }
+        const uint64_t dt = f->frame->timestampNs - pending->second.frame->timestampNs;
+        take.timecodeRates[f->camera] = dt > 0 ? timecodeRate(1e9 / double(dt)) : 30;
+        const FrameItem first = pending->second;
+        take.firstFrames.erase(pending);
+        if (Status s = writeFrame(take, first); !s) return s;
+        return writeFrame(take, *f);
+    }
+    if (auto* pose = std::get_if<PoseRecord>(&item)) {
+        const Take::CameraClock& c = take.clocks["scene"];
+        pose->timestampNs += c.offsetNs;
+        return take.writer.writePose(*pose);
+    }
+    if (auto* event = std::get_if<SessionEvent>(&item)) return take.writer.writeEvent(*event);
+    const auto& lit = std::get<std::shared_ptr<const LiveLighting>>(item);
+    const uint64_t ns = lit->timestampNs + take.clocks["fisheye"].offsetNs;
+    return take.writer.writeLighting(
+        ns, [&](const std::string& path) { return writeLightingMap(*lit, path); },
+        lightsJson(*lit));
+}
+
+void TakeRecorder::runWriter(std::unique_ptr<Take> take) {
+    pthread_setname_np(pthread_self(), "pv-recorder");
+    std::string stoppedBecause;
+    for (;;) {
+        std::optional<std::pair<Item, size_t>> next;
+        {
+            std::unique_lock lock(mutex_);
+            wake_.wait_for(lock, std::chrono::milliseconds(200),
+                           [&] { return !queue_.empty() || draining_; });
+            if (!queue_.empty()) {
+                next = std::move(queue_.front());
+                queue_.pop_front();
+                queuedBytes_ -= next->second;
+            } else if (draining_) {
+                break;
+            }
+        }
+        if (next) {
+            if (Status s = write(*take, next->first); !s) {
+                stoppedBecause = s.message();
+                break;
+            }
+        }
+        if (Clock::now() - take->lastSpaceCheck > std::chrono::seconds(1)) {
+            take->lastSpaceCheck = Clock::now();
+            const std::optional<uint64_t> free = freeBytes(take->dir);
+            std::lock_guard lock(mutex_);
+            status_.freeBytes = free.value_or(0);
+            if (free && *free < take->minFreeBytes) {
+                stoppedBecause = fmt::format(
+                    "the disk holding {} has {} MiB free, under [record] min_free_mb = {}",
+                    take->dir, *free >> 20, take->minFreeBytes >> 20);
+                break;
+            }
+        }
+    }
+    // A camera that sent one frame only: counted at the common 30.
+    for (auto& [camera, first] : take->firstFrames) {
+        take->timecodeRates[camera] = 30;
+        if (Status s = writeFrame(*take, first); !s && stoppedBecause.empty())
+            stoppedBecause = s.message();
+    }
+    Status flushed = take->writer.flush();
+    if (!flushed && stoppedBecause.empty()) stoppedBecause = flushed.message();
+    std::lock_guard lock(mutex_);
+    if (!stoppedBecause.empty()) {
+        // Everything before the failure is in the take; what was still queued is not.
+        status_.dropped += queue_.size();
+        logError("recording: take {} stopped: {}; the service goes on previewing", take->dir,
+                 stoppedBecause);
+        status_.stoppedBecause = stoppedBecause;
+    }
+    queue_.clear();
+    queuedBytes_ = 0;
+    accepting_ = false;
+    draining_ = false;
+    status_.recording = false;
+}
+
+}  // namespace previs

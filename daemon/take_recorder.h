@@ -1,0 +1,96 @@
+#pragma once
+
+// The take recorder (DESIGN.md §3 "Recording", §5, §6; issue 36): while a take rolls, every
+// scene and fisheye frame as captured, the tracked poses, the lighting snapshots and the
+// button/ctl events go through one bounded queue to a writer thread that appends them to a
+// session folder in its crash-safe order (io/session.h). Capture, tracking and lighting only
+// queue (never wait on the disk); a frame the queue cannot take is counted and logged.
+
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <variant>
+
+#include "base/result.h"
+#include "capture/frame.h"
+#include "daemon/pipeline_stages.h"
+#include "daemon/service_config.h"
+#include "io/session.h"
+
+namespace previs {
+
+// What `status --json` reports as "record" (DESIGN.md §3).
+struct RecordStatus {
+    bool recording = false;
+    std::string path;      // the take's folder (the last take's after it stopped)
+    uint64_t frames = 0;   // scene-camera frames written
+    uint64_t dropped = 0;  // frames the recorder could not take (queue full)
+    uint64_t bytes = 0;    // bytes written to the take
+    uint64_t freeBytes = 0;
+    // Set when the take stopped by itself (a full disk, a write error); cleared by the next start.
+    std::string stoppedBecause;
+};
+
+class TakeRecorder {
+public:
+    explicit TakeRecorder(ServiceConfig config);
+    ~TakeRecorder();
+    TakeRecorder(const TakeRecorder&) = delete;
+    TakeRecorder& operator=(const TakeRecorder&) = delete;
+
+    // Creates the take's folder under [record] dir — `YYYY-MM-DD_HHMMSS[_NAME]`, NAME letters,
+    // digits, '-' and '_' — copies in what the config names (daemon/take_files.h), and starts
+    // the writer. `lighting`: the snapshot in effect, so the take is lit from its first frame.
+    // Refuses (one line) when already recording, when the folder cannot be written or when its
+    // disk has less than [record] min_free_mb free.
+    Result<std::string> start(const std::string& name,
+                              std::shared_ptr<const LiveLighting> lighting = nullptr);
+    // Writes what is queued, makes it durable and ends the take; returns its folder.
+    Result<std::string> stop();
+    bool recording() const;
+    RecordStatus status() const;
+
+    // Producers (any thread; each returns at once, and does nothing when not recording).
+    void addFrame(const std::string& camera, std::shared_ptr<const Frame> frame);
+    void addPose(const TrackedFrame& tracked);
+    // An event without a timestamp gets the last scene frame's (+1 ns): a replay fires it
+    // after that frame, on the same clock as the frames.
+    void addEvent(SessionEvent event);
+    void addLighting(std::shared_ptr<const LiveLighting> lighting);
+
+private:
+    struct FrameItem {
+        std::string camera;
+        std::shared_ptr<const Frame> frame;
+    };
+    using Item =
+        std::variant<FrameItem, PoseRecord, SessionEvent, std::shared_ptr<const LiveLighting>>;
+
+    struct Take;  // the writer's state, owned by its thread
+    void runWriter(std::unique_ptr<Take> take);
+    Status write(Take& take, Item& item);
+    Status writeFrame(Take& take, const FrameItem& item);
+    void push(Item item, size_t bytes);
+    void finishWriter();
+
+    const ServiceConfig config_;
+    const uint64_t queueLimitBytes_;
+
+    mutable std::mutex mutex_;
+    std::condition_variable wake_;
+    std::deque<std::pair<Item, size_t>> queue_;
+    size_t queuedBytes_ = 0;
+    bool accepting_ = false;  // a take rolls and takes items
+    bool draining_ = false;   // stop(): write what is queued, then end
+    RecordStatus status_;
+    std::atomic<uint64_t> lastSceneNs_{0};
+    std::thread writer_;
+};
+
+}  // namespace previs
