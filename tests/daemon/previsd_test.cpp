@@ -4,10 +4,13 @@
 // run, with each frame's pose tracked on that very frame (compared with the recorded truth).
 #include <fmt/format.h>
 #include <gtest/gtest.h>
+#include <sys/mount.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -20,6 +23,7 @@
 
 #include "daemon/control_server.h"
 #include "daemon/pipeline_stages.h"
+#include "daemon/take_files.h"
 #include "io/session.h"
 #include "tests/support/process.h"
 #include "tests/support/temp_dir.h"
@@ -161,8 +165,93 @@ TEST(Previsd, CheckAcceptsTheDemoAndNamesTheKeyOfABadConfig) {
     EXPECT_NE(fileBytes(chipLog).find("nochip"), std::string::npos) << fileBytes(chipLog);
 }
 
+std::string trimmed(std::string s) {
+    while (!s.empty() && (s.back() == '\n' || s.back() == ' ')) s.pop_back();
+    return s;
+}
+
+// Every frame a take's index lists decodes: what a crash or a full disk must leave behind.
+size_t decodableFrames(const fs::path& cameraDir) {
+    Result<std::vector<RecordedFrameEntry>> frames = loadCameraIndex(cameraDir.string());
+    EXPECT_TRUE(frames) << frames.message();
+    if (!frames) return 0;
+    for (const RecordedFrameEntry& f : *frames)
+        EXPECT_FALSE(cv::imread(f.file).empty()) << f.file << " is indexed but does not decode";
+    return frames->size();
+}
+
+// `previs ctl record` as a crew uses it, on a running previsd whose config records into
+// DIR/takes: the take's folder printed, a second start refused, the status while rolling, and a
+// take that holds its frames, poses, lighting and a config that loads from its own copies.
+void checkATakeRecordsAndIsSelfContained(const std::string& socket, const fs::path& dir) {
+    const std::string ctlLog = (dir / "record.out").string();
+    ASSERT_EQ(testing::runProcess(
+                  {previs(), "ctl", "--socket", socket, "record", "start", "--name", "take_1"},
+                  ctlLog, 60s),
+              0)
+        << fileBytes(ctlLog);
+    const std::string take = trimmed(fileBytes(ctlLog));
+    EXPECT_TRUE(fs::is_directory(take)) << take;
+    EXPECT_EQ(fs::path(take).parent_path(), dir / "takes");
+    EXPECT_TRUE(take.ends_with("_take_1")) << take;
+    EXPECT_EQ(
+        testing::runProcess({previs(), "ctl", "--socket", socket, "record", "start"}, ctlLog, 30s),
+        2);
+    EXPECT_NE(fileBytes(ctlLog).find("already recording"), std::string::npos) << fileBytes(ctlLog);
+    auto rolling = waitFor(socket, kStartup, [](const nlohmann::json& s) {
+        return s["recording"] == true && s["record"]["frames"].get<int>() >= 10;
+    });
+    ASSERT_TRUE(rolling && (*rolling)["recording"] == true) << (rolling ? rolling->dump() : "");
+    for (const char* key : {"path", "frames", "dropped", "bytes", "freeBytes"})
+        EXPECT_TRUE((*rolling)["record"].contains(key)) << key << " in " << rolling->dump();
+    EXPECT_EQ((*rolling)["record"]["path"], take);
+    EXPECT_EQ((*rolling)["record"]["dropped"], 0);
+    EXPECT_GT((*rolling)["record"]["bytes"].get<uint64_t>(), 0u);
+    ASSERT_EQ(
+        testing::runProcess({previs(), "ctl", "--socket", socket, "record", "stop"}, ctlLog, 60s),
+        0)
+        << fileBytes(ctlLog);
+    EXPECT_EQ(trimmed(fileBytes(ctlLog)), take);
+    auto stopped = status(socket);
+    ASSERT_TRUE(stopped);
+    EXPECT_EQ((*stopped)["recording"], false);
+    EXPECT_TRUE((*stopped)["record"].is_null()) << stopped->dump();
+
+    Result<SessionInfo> info = openSession(take);
+    ASSERT_TRUE(info) << info.message();
+    EXPECT_EQ(info->version, kSessionFormatVersion);
+    ASSERT_NE(info->cameraWithRole("scene"), nullptr);
+    ASSERT_NE(info->cameraWithRole("fisheye"), nullptr);
+    EXPECT_GE(decodableFrames(info->cameraWithRole("scene")->dir), 10u);
+    EXPECT_GE(decodableFrames(info->cameraWithRole("fisheye")->dir), 1u);
+    Result<std::vector<RecordedFrameEntry>> frames =
+        loadCameraIndex(info->cameraWithRole("scene")->dir);
+    ASSERT_TRUE(frames && !frames->empty());
+    EXPECT_TRUE(frames->front().wallClockNs.has_value());
+    EXPECT_EQ(frames->front().timecode.size(), 11u) << frames->front().timecode;
+    Result<std::vector<PoseRecord>> poses = loadPoses(take);
+    ASSERT_TRUE(poses) << poses.message();
+    EXPECT_FALSE(poses->empty());
+    Result<std::vector<LightingRecord>> lighting = loadLighting(take);
+    ASSERT_TRUE(lighting) << lighting.message();
+    EXPECT_FALSE(lighting->empty()) << "the lighting in effect when the take started is in it";
+    // Self-contained: the config names only the take's own copies and cameras.
+    Result<ServiceConfig> recorded = loadSessionConfig(*info);
+    ASSERT_TRUE(recorded) << recorded.message();
+    for (const std::string& path :
+         {recorded->scenePath, recorded->tracking.boardPath, recorded->sceneCamera.calibrationPath,
+          recorded->sceneCamera.device})
+        EXPECT_EQ(fs::path(path).lexically_relative(take).string().rfind("..", 0),
+                  std::string::npos)
+            << path << " is outside the take " << take;
+    EXPECT_TRUE(fs::exists(fs::path(take) / "config" / "scene" / "scene.bin"))
+        << "the glTF's buffer is copied with it";
+}
+
 TEST(Previsd, RunsTheDemoTogglesRefinementAndStopsOnSigterm) {
-    const std::string config = demoConfig("run");
+    const std::string config =
+        demoConfig("run", fmt::format("[record]\ndir = \"{}/takes\"\nmin_free_mb = 1\n",
+                                      (scratch() / "run").string()));
     const std::string socket = socketOf(config);
     ChildProcess p({previsd(), "--config", config}, (scratch() / "run.log").string());
 
@@ -189,10 +278,7 @@ TEST(Previsd, RunsTheDemoTogglesRefinementAndStopsOnSigterm) {
         EXPECT_TRUE(viaCli.contains(key)) << key << " missing from " << viaCli.dump();
     ASSERT_EQ(testing::runProcess({previs(), "ctl", "--socket", socket, "status"}, ctlLog, 30s), 0);
     EXPECT_NE(fileBytes(ctlLog).find("mode      preview"), std::string::npos) << fileBytes(ctlLog);
-    EXPECT_EQ(
-        testing::runProcess({previs(), "ctl", "--socket", socket, "record", "start"}, ctlLog, 30s),
-        2)
-        << "recording is not built yet: a clear error, exit 2";
+    checkATakeRecordsAndIsSelfContained(socket, fs::path(config).parent_path());
     EXPECT_NE(testing::runProcess({previs(), "ctl", "--socket", socket + ".nobody", "status"},
                                   ctlLog, 30s),
               0);
@@ -257,6 +343,84 @@ TEST(Previsd, RunsTheDemoTogglesRefinementAndStopsOnSigterm) {
     EXPECT_NE(log.find("mode: refine -> preview (ctl)"), std::string::npos) << log;
     EXPECT_NE(log.find("reload:"), std::string::npos) << log;
     EXPECT_FALSE(fs::exists(socket)) << "the socket is removed on a clean stop";
+}
+
+TEST(Previsd, ATakeSurvivesSigkillAndReplays) {
+    // [record] auto: the take starts with the service; then the box loses power (SIGKILL).
+    const fs::path dir = scratch() / "sigkill";
+    fs::remove_all(dir / "takes");
+    const std::string config =
+        demoConfig("sigkill",
+                   fmt::format("[record]\nauto = true\ndir = \"{}/takes\"\nmin_free_mb = 1\n"
+                               "flush_interval_ms = 100\n",
+                               dir.string()),
+                   "kind = \"none\"");
+    const std::string socket = socketOf(config);
+    ChildProcess p({previsd(), "--config", config}, (scratch() / "sigkill.log").string());
+    auto rolling = waitFor(socket, kStartup, [](const nlohmann::json& s) {
+        return s["recording"] == true && s["record"]["frames"].get<int>() >= 15;
+    });
+    ASSERT_TRUE(rolling && (*rolling)["recording"] == true) << p.log();
+    const std::string take = (*rolling)["record"]["path"];
+    p.signal(SIGKILL);
+    p.wait(30s);
+
+    // Every frame flushed before the kill is there and whole; the take replays as it is.
+    Result<SessionInfo> info = openSession(take);
+    ASSERT_TRUE(info) << info.message();
+    const size_t frames = decodableFrames(info->cameraWithRole("scene")->dir);
+    EXPECT_GE(frames, 10u) << "at most a flush interval (100 ms) may be lost";
+    const fs::path out = dir / "replay";
+    fs::remove_all(out);
+    ASSERT_EQ(testing::runProcess({previs(), "replay", take, "--out", out.string(), "--quiet"},
+                                  (dir / "replay.log").string(), kStartup),
+              0)
+        << fileBytes(dir / "replay.log");
+    size_t pngs = 0;
+    for (const auto& e : fs::directory_iterator(out)) pngs += e.path().extension() == ".png";
+    EXPECT_EQ(pngs, frames);
+}
+
+TEST(Previsd, AFullDiskStopsTheTakeAndPreviewGoesOn) {
+    const fs::path dir = scratch() / "fulldisk";
+    const fs::path takes = dir / "takes";
+    fs::create_directories(takes);
+    ::umount(takes.c_str());
+    // A small tmpfs is the full disk (root only: CI runs as root).
+    if (::mount("tmpfs", takes.c_str(), "tmpfs", 0, "size=3m") != 0)
+        GTEST_SKIP() << "cannot mount a tmpfs at " << takes << " (" << std::strerror(errno)
+                     << "): needs root";
+    struct Unmount {
+        std::string path;
+        ~Unmount() { ::umount2(path.c_str(), MNT_DETACH); }
+    } unmount{takes.string()};
+    const std::string config = demoConfig(
+        "fulldisk",
+        fmt::format("[record]\nauto = true\ndir = \"{}\"\nmin_free_mb = 0\n", takes.string()),
+        "kind = \"none\"");
+    const std::string socket = socketOf(config);
+    ChildProcess p({previsd(), "--config", config}, (scratch() / "fulldisk.log").string());
+    auto stopped = waitFor(socket, kStartup, [](const nlohmann::json& s) {
+        return s["record"].is_object() && s["record"].contains("stoppedBecause");
+    });
+    ASSERT_TRUE(stopped && (*stopped)["record"].contains("stoppedBecause")) << p.log();
+    EXPECT_EQ((*stopped)["recording"], false);
+    const std::string why = (*stopped)["record"]["stoppedBecause"];
+    EXPECT_NE(why.find("No space left"), std::string::npos) << why;
+    const int shown = (*stopped)["framesShown"];
+    auto later = waitFor(socket, 60s, [&](const nlohmann::json& s) {
+        return s["framesShown"].get<int>() >= shown + 5;
+    });
+    EXPECT_TRUE(later && (*later)["framesShown"].get<int>() >= shown + 5)
+        << "the service keeps previewing: " << p.log();
+    const std::string log = p.log();
+    EXPECT_NE(log.find("the service goes on previewing"), std::string::npos) << log;
+    // What was written before the disk filled still opens, and every indexed frame decodes.
+    Result<SessionInfo> info = openSession((*stopped)["record"]["path"]);
+    ASSERT_TRUE(info) << info.message();
+    EXPECT_GE(decodableFrames(info->cameraWithRole("scene")->dir), 1u);
+    p.signal(SIGTERM);
+    EXPECT_EQ(p.wait(30s), std::optional<int>(0)) << p.log();
 }
 
 TEST(Previsd, SigintStopsFromRefinement) {

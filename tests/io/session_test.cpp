@@ -1,10 +1,12 @@
-// The session format v2 (docs/session-format.md): what SessionWriter writes, openSession,
-// loadPoses, loadEvents and the camera index reader read back; the crash cases the format
-// promises to survive (a cut last line, a stray *.tmp) and a future version refused.
+// The session format v3 (docs/session-format.md): what SessionWriter writes, openSession,
+// loadPoses, loadEvents, loadLighting and the camera index reader read back; the crash cases the
+// format promises to survive (a cut last line, a stray *.tmp), a future version refused, and a
+// take from elsewhere kept inside its folder.
 
 #include "io/session.h"
 
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <array>
 #include <cmath>
@@ -89,7 +91,7 @@ TEST(Session, RoundTrip) {
 
     auto info = openSession(dir.string());
     ASSERT_TRUE(info.ok()) << info.message();
-    EXPECT_EQ(info->version, 2);
+    EXPECT_EQ(info->version, kSessionFormatVersion);
     EXPECT_EQ(info->created, "2025-01-02T03:04:05Z");
     EXPECT_EQ(info->clock, "CLOCK_MONOTONIC");
     EXPECT_FALSE(info->previsVersion.empty());
@@ -215,16 +217,16 @@ TEST(Session, FutureVersionRefused) {
     const fs::path dir = freshDir("future");
     fs::create_directories(dir);
     writeText(dir / "session.toml",
-              "format = \"previs-session\"\nversion = 3\ncreated = \"2030-01-01T00:00:00Z\"\n");
+              "format = \"previs-session\"\nversion = 99\ncreated = \"2030-01-01T00:00:00Z\"\n");
     auto info = openSession(dir.string());
     ASSERT_FALSE(info.ok());
-    EXPECT_NE(info.message().find("version 3 is newer"), std::string::npos) << info.message();
+    EXPECT_NE(info.message().find("version 99 is newer"), std::string::npos) << info.message();
     EXPECT_NE(info.message().find("session.toml"), std::string::npos);
 
-    writeText(dir / "poses.csv", "# previs-session poses v3: something else\n1,2,3\n");
+    writeText(dir / "poses.csv", "# previs-session poses v99: something else\n1,2,3\n");
     auto poses = loadPoses(dir.string());
     ASSERT_FALSE(poses.ok());
-    EXPECT_NE(poses.message().find("version 3 is newer"), std::string::npos) << poses.message();
+    EXPECT_NE(poses.message().find("version 99 is newer"), std::string::npos) << poses.message();
 
     writeText(dir / "session.toml", "format = \"something\"\nversion = 1\n");
     EXPECT_FALSE(openSession(dir.string()).ok());
@@ -285,6 +287,10 @@ TEST(Session, TmpFilesIgnored) {
     ASSERT_TRUE(info.ok()) << info.message();
     ASSERT_EQ(info->cameras.size(), 1u);
     EXPECT_EQ(info->cameras[0].frames, 1u);
+    EXPECT_FALSE(fs::exists(dir / "cameras" / "scene" / "000000000001.png.tmp"))
+        << "opening a take removes what a killed recorder left";
+    EXPECT_FALSE(fs::exists(dir / "session.toml.tmp"));
+    EXPECT_TRUE(fs::exists(dir / "cameras" / "scene" / "000000000000.png"));
     // Recording goes on after the crash's leftovers: the .tmp is simply overwritten.
     {
         auto writer = SessionWriter::create((dir / "second").string());
@@ -292,6 +298,82 @@ TEST(Session, TmpFilesIgnored) {
         writeText(dir / "second" / "cameras", "");  // not a folder: a clear error, no crash
         EXPECT_FALSE(writer->writeFrame("scene", 0, 100, kBytes, "png", 4, 4));
     }
+}
+
+TEST(Session, FrameStampsAndLightingRoundTrip) {
+    const fs::path dir = freshDir("stamps");
+    {
+        auto writer = SessionWriter::create(dir.string());
+        ASSERT_TRUE(writer.ok()) << writer.message();
+        ASSERT_TRUE(writer->writeFrame("scene", 0, 100, kBytes, "jpg", 4, 4,
+                                       {1796391907500000001ull, "13:45:07:15"}));
+        ASSERT_TRUE(writer->writeFrame("scene", 1, 200, kBytes, "jpg", 4, 4));
+        EXPECT_FALSE(writer->writeFrame("scene", 2, 300, kBytes, "jpg", 4, 4, {1, "a,b"}))
+            << "a comma would shift the columns";
+        const std::string lights = R"({"lights":[{"direction":[0,1,0]}]})";
+        for (uint64_t t : {150u, 250u})
+            ASSERT_TRUE(writer->writeLighting(
+                t,
+                [](const std::string& path) -> Status {
+                    std::ofstream(path) << "exr bytes";
+                    return {};
+                },
+                lights));
+        EXPECT_FALSE(writer->writeLighting(
+            300, [](const std::string&) { return Status(makeError("disk full")); }, lights));
+        EXPECT_FALSE(writer->writeLighting(
+            300, [](const std::string&) { return Status{}; }, "two\nlines"));
+    }
+    auto frames = loadCameraIndex((dir / "cameras" / "scene").string());
+    ASSERT_TRUE(frames.ok()) << frames.message();
+    ASSERT_EQ(frames->size(), 2u);
+    EXPECT_EQ((*frames)[0].wallClockNs, 1796391907500000001ull);
+    EXPECT_EQ((*frames)[0].timecode, "13:45:07:15");
+    EXPECT_FALSE((*frames)[1].wallClockNs.has_value());
+    auto lighting = loadLighting(dir.string());
+    ASSERT_TRUE(lighting.ok()) << lighting.message();
+    ASSERT_EQ(lighting->size(), 2u);
+    EXPECT_EQ((*lighting)[1].timestampNs, 250u);
+    EXPECT_EQ(readText((*lighting)[1].mapFile), "exr bytes");
+    EXPECT_EQ((*lighting)[0].lightsJson, R"({"lights":[{"direction":[0,1,0]}]})");
+    for (const auto& entry : fs::directory_iterator(dir / "lighting"))
+        EXPECT_EQ(entry.path().string().find(".tmp"), std::string::npos)
+            << "a failed snapshot leaves nothing: " << entry.path();
+}
+
+TEST(Session, ATakeFromElsewhereNamesOnlyFilesInsideIt) {
+    const fs::path dir = freshDir("contained");
+    fs::create_directories(dir / "config");
+    writeText(dir / "config" / "board.toml", "x");
+    writeText(dir.parent_path() / "outside.toml", "x");
+    fs::create_symlink(dir.parent_path() / "outside.toml", dir / "config" / "link.toml");
+    const std::string root = dir.string();
+    auto good = containedPath(root, "config/board.toml", "config.toml");
+    ASSERT_TRUE(good.ok()) << good.message();
+    EXPECT_EQ(fs::path(*good), dir / "config" / "board.toml");
+    EXPECT_TRUE(containedPath(root, "config", "config.toml", true).ok());
+    for (const char* bad : {"/etc/passwd", "../outside.toml", "config/../../outside.toml",
+                            "config/link.toml", "config/missing.toml", "config", ""}) {
+        auto refused = containedPath(root, bad, "config.toml");
+        ASSERT_FALSE(refused.ok()) << bad;
+        EXPECT_NE(refused.message().find("config.toml"), std::string::npos) << refused.message();
+    }
+    // Frames are plain names in their camera's folder; files are read without following a
+    // link, and only when regular (a FIFO would hang a reader).
+    fs::create_directories(dir / "cameras" / "scene");
+    writeText(dir / "cameras" / "scene" / "index.csv", "0,1,../../outside.toml,4,4\n");
+    auto escaping = loadCameraIndex((dir / "cameras" / "scene").string());
+    ASSERT_FALSE(escaping.ok());
+    EXPECT_NE(escaping.message().find("index.csv:1: malformed"), std::string::npos)
+        << escaping.message();
+    EXPECT_FALSE(readSessionFile((dir / "config" / "link.toml").string()).ok());
+    ASSERT_EQ(::mkfifo((dir / "fifo").c_str(), 0600), 0);
+    auto fifo = readSessionFile((dir / "fifo").string());
+    ASSERT_FALSE(fifo.ok());
+    EXPECT_NE(fifo.message().find("not a regular file"), std::string::npos) << fifo.message();
+    auto file = readSessionFile((dir / "config" / "board.toml").string());
+    ASSERT_TRUE(file.ok()) << file.message();
+    EXPECT_EQ(file->size(), 1u);
 }
 
 }  // namespace
