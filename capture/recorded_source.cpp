@@ -10,6 +10,35 @@
 
 namespace previs {
 
+Result<Frame> readRecordedFrame(const RecordedFrameEntry& e) {
+    // A take from elsewhere is untrusted: no symbolic link followed, the size checked before
+    // decoding; OpenCV may throw on a hostile file, which stays inside this module.
+    Result<std::vector<uint8_t>> bytes = readSessionFile(e.file);
+    if (!bytes) return bytes.error();
+    cv::Mat bgr;
+    try {
+        bgr =
+            cv::imdecode(cv::Mat(1, int(bytes->size()), CV_8UC1, bytes->data()), cv::IMREAD_COLOR);
+    } catch (const cv::Exception&) {
+        bgr.release();
+    }
+    if (bgr.empty() || uint32_t(bgr.cols) != e.width || uint32_t(bgr.rows) != e.height)
+        return makeError("{}: unreadable or not {}x{}", e.file, e.width, e.height);
+    Frame frame;
+    frame.width = e.width;
+    frame.height = e.height;
+    frame.rgb.resize(size_t(e.width) * e.height * 3);
+    cv::Mat rgb(bgr.rows, bgr.cols, CV_8UC3, frame.rgb.data());
+    cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
+    frame.timestampNs = e.timestampNs;
+    frame.wallClockNs = e.wallClockNs.value_or(0);
+    frame.deviceSequence = uint32_t(e.sequence);
+    // A recorded JPEG goes on as its bytes, so a take recorded from a replay keeps them.
+    if (e.file.ends_with(".jpg"))
+        frame.encoded = std::make_shared<const std::vector<uint8_t>>(std::move(*bytes));
+    return frame;
+}
+
 RecordedReader::RecordedReader(std::vector<RecordedFrameEntry> entries, ReplayTiming timing)
     : entries_(std::move(entries)), timing_(timing) {
     // Gaps in unsigned arithmetic (timestamps only grow, loadCameraIndex checks it), capped
@@ -62,35 +91,12 @@ Result<bool> RecordedReader::read(int timeoutMs, Frame& frame) {
             std::this_thread::sleep_until(due);
         }
         ++next_;
-        // A take from elsewhere is untrusted: no symbolic link followed, the size checked
-        // before decoding; OpenCV may throw on a hostile file, which stays inside this module.
-        Result<std::vector<uint8_t>> bytes = readSessionFile(e.file);
-        cv::Mat bgr;
-        if (bytes) {
-            try {
-                bgr = cv::imdecode(cv::Mat(1, int(bytes->size()), CV_8UC1, bytes->data()),
-                                   cv::IMREAD_COLOR);
-            } catch (const cv::Exception&) {
-                bgr.release();
-            }
-        }
-        if (bgr.empty() || uint32_t(bgr.cols) != e.width || uint32_t(bgr.rows) != e.height) {
-            if (badFrames_++ < 3)
-                logWarning("{}: unreadable or not {}x{}; frame {} skipped", e.file, e.width,
-                           e.height, e.sequence);
+        Result<Frame> decoded = readRecordedFrame(e);
+        if (!decoded) {
+            if (badFrames_++ < 3) logWarning("{}; frame {} skipped", decoded.message(), e.sequence);
             continue;
         }
-        frame.width = e.width;
-        frame.height = e.height;
-        frame.rgb.resize(size_t(e.width) * e.height * 3);
-        cv::Mat rgb(bgr.rows, bgr.cols, CV_8UC3, frame.rgb.data());
-        cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
-        frame.timestampNs = e.timestampNs;
-        frame.wallClockNs = e.wallClockNs.value_or(0);
-        frame.deviceSequence = uint32_t(e.sequence);
-        // A recorded JPEG goes on as its bytes, so a take recorded from a replay keeps them.
-        if (e.file.ends_with(".jpg"))
-            frame.encoded = std::make_shared<const std::vector<uint8_t>>(std::move(*bytes));
+        frame = std::move(*decoded);
         return true;
     }
     return false;

@@ -16,6 +16,10 @@
 
 namespace previs {
 
+// One recorded frame, decoded (its file read without following a link, its size checked first);
+// an error names the file when it is missing, unreadable or not the indexed size.
+Result<Frame> readRecordedFrame(const RecordedFrameEntry& entry);
+
 // The longest pause a Recorded replay keeps between two frames: a longer recorded gap (a camera
 // that was off for a while, or a broken clock: timestamps years apart) is replayed as this, with
 // a warning, instead of a box that waits for years.

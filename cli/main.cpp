@@ -16,6 +16,7 @@
 #include "cli/lights_command.h"
 #include "cli/render_command.h"
 #include "cli/replay_command.h"
+#include "cli/take_commands.h"
 #include "cli/track_command.h"
 
 #ifndef PREVIS_VERSION
@@ -37,6 +38,8 @@ int main(int argc, char** argv) {
     auto runReplay = addReplayCommand(app);
     auto runCtl = addCtlCommand(app);
     auto runCompare = addCompareCommand(app);
+    auto runRenderSession = addRenderSessionCommand(app);
+    auto runExportTrack = addExportTrackCommand(app);
     std::vector<std::string> names;
     for (const CLI::App* sub : app.get_subcommands({})) names.push_back(sub->get_name());
     if (argc > 1 && argv[1][0] != '-' &&
@@ -55,6 +58,8 @@ int main(int argc, char** argv) {
         if (app.got_subcommand("replay")) return runReplay();
         if (app.got_subcommand("ctl")) return runCtl();
         if (app.got_subcommand("compare")) return runCompare();
+        if (app.got_subcommand("render-session")) return runRenderSession();
+        if (app.got_subcommand("export-track")) return runExportTrack();
         return kExitUsage;
     });
 }

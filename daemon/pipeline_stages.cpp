@@ -85,6 +85,8 @@ TrackedFrame TrackingStage::process(std::shared_ptr<const Frame> frame) {
         out.worldFromCamera = state.pose->worldFromCamera;
         out.tags = int(state.pose->tagIds.size());
         out.reprojErrorPx = state.pose->reprojErrorPx;
+        out.positionStdM = state.pose->positionStdM;
+        out.rotationStdDeg = state.pose->rotationStdDeg;
     }
     out.trackMs = millisecondsSince(start);
     return out;

@@ -32,6 +32,9 @@ struct TrackedFrame {
     bool lost = true;
     int tags = 0;
     double reprojErrorPx = 0.0;
+    // The pose's one-sigma uncertainty (BoardPose::positionStdM, rotationStdDeg).
+    double positionStdM = 0.0;
+    double rotationStdDeg = 0.0;
     std::string reason;  // why this frame gave no trusted pose
     double trackMs = 0.0;
     // When the tracking stage took the frame (steady clock, CLOCK_MONOTONIC), for latency when

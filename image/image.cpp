@@ -562,14 +562,17 @@ Result<ImageRgba8> decodePngOrJpeg(std::span<const uint8_t> bytes, const std::st
 }
 
 Status writeExr(const std::string& path, const ImageF& image) {
-    if (lowerExtension(path) != ".exr")
-        return makeError("cannot write EXR image '{}': the file name must end in .exr", path);
-    if (image.width == 0 || image.height == 0 ||
-        image.pixels.size() != size_t(image.width) * image.height * image.channels)
-        return makeError("cannot write EXR image '{}': image is empty or its size is inconsistent",
-                         path);
-    std::vector<const char*> names;
-    switch (image.channels) {
+    if (image.channels != 1 && image.channels != 3 && image.channels != 4)
+        return makeError("cannot write EXR image '{}': {} channels (use 1, 3 or 4)", path,
+                         image.channels);
+    return writeExrLayers(path, {ExrLayer{"", &image}});
+}
+
+namespace {
+
+std::vector<std::string> exrChannelNames(const ExrLayer& layer) {
+    std::vector<std::string> names;
+    switch (layer.image->channels) {
         case 1:
             names = {"Y"};
             break;
@@ -579,31 +582,64 @@ Status writeExr(const std::string& path, const ImageF& image) {
         case 4:
             names = {"R", "G", "B", "A"};
             break;
-        default:
-            return makeError("cannot write EXR image '{}': {} channels (use 1, 3 or 4)", path,
-                             image.channels);
+    }
+    if (!layer.name.empty())
+        for (std::string& n : names) n = layer.name + "." + n;
+    return names;
+}
+
+}  // namespace
+
+Status writeExrLayers(const std::string& path, const std::vector<ExrLayer>& layers) {
+    if (lowerExtension(path) != ".exr")
+        return makeError("cannot write EXR image '{}': the file name must end in .exr", path);
+    if (layers.empty()) return makeError("cannot write EXR image '{}': no layers", path);
+    const uint32_t width = layers.front().image->width, height = layers.front().image->height;
+    for (const ExrLayer& layer : layers) {
+        const ImageF& image = *layer.image;
+        if (image.width == 0 || image.height == 0 || image.width != width ||
+            image.height != height ||
+            image.pixels.size() != size_t(image.width) * image.height * image.channels ||
+            exrChannelNames(layer).empty())
+            return makeError(
+                "cannot write EXR image '{}': layer '{}' is empty, of another size or has {} "
+                "channels (use 1, 3 or 4)",
+                path, layer.name, image.channels);
     }
     if (Status s = checkWritableFolder(path); !s) return s;
     try {
-        Imf::Header header(int(image.width), int(image.height));
+        Imf::Header header{int(width), int(height)};
         header.compression() = Imf::ZIP_COMPRESSION;
-        for (const char* name : names) header.channels().insert(name, Imf::Channel(Imf::FLOAT));
         Imf::FrameBuffer frameBuffer;
-        const size_t xStride = sizeof(float) * image.channels;
-        const size_t yStride = xStride * image.width;
-        for (size_t c = 0; c < names.size(); ++c) {
-            // OpenEXR only reads through this pointer; its API is not const-correct.
-            char* base = reinterpret_cast<char*>(const_cast<float*>(image.pixels.data() + c));
-            frameBuffer.insert(names[c], Imf::Slice(Imf::FLOAT, base, xStride, yStride));
+        for (const ExrLayer& layer : layers) {
+            const ImageF& image = *layer.image;
+            const std::vector<std::string> names = exrChannelNames(layer);
+            const size_t xStride = sizeof(float) * image.channels;
+            const size_t yStride = xStride * image.width;
+            for (size_t c = 0; c < names.size(); ++c) {
+                header.channels().insert(names[c], Imf::Channel(Imf::FLOAT));
+                // OpenEXR only reads through this pointer; its API is not const-correct.
+                char* base = reinterpret_cast<char*>(const_cast<float*>(image.pixels.data() + c));
+                frameBuffer.insert(names[c], Imf::Slice(Imf::FLOAT, base, xStride, yStride));
+            }
         }
         Imf::OutputFile file(path.c_str(), header);
         file.setFrameBuffer(frameBuffer);
-        file.writePixels(int(image.height));
+        file.writePixels(int(height));
     } catch (const std::exception& e) {
         return makeError("cannot write EXR image '{}': {} (check the folder is writable)", path,
                          e.what());
     }
     return {};
+}
+
+bool isCompleteExr(const std::string& path) {
+    try {
+        Imf::InputFile file(path.c_str());
+        return file.isComplete();
+    } catch (const std::exception&) {
+        return false;
+    }
 }
 
 Status writePng(const std::string& path, uint32_t width, uint32_t height,

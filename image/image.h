@@ -57,6 +57,20 @@ Result<ImageRgba8> decodePngOrJpeg(std::span<const uint8_t> bytes, const std::st
 // compression. 1 channel is written as "Y", 3 as RGB, 4 as RGBA.
 Status writeExr(const std::string& path, const ImageF& image);
 
+// A layer of a multi-layer EXR: its channels are "<name>.R", ".G", ".B" (".A", or ".Y" for one
+// channel), the layer convention Nuke and Blender's compositor read; an empty name writes plain
+// R, G, B (the default layer a viewer shows).
+struct ExrLayer {
+    std::string name;
+    const ImageF* image = nullptr;
+};
+
+// Writes layers of one size into one EXR, float32 and ZIP as writeExr.
+Status writeExrLayers(const std::string& path, const std::vector<ExrLayer>& layers);
+
+// Whether `path` is an EXR whose header reads and whose every scanline is present.
+bool isCompleteExr(const std::string& path);
+
 // Writes an 8-bit RGB PNG; rgb8 holds width*height*3 bytes, row 0 at the top.
 Status writePng(const std::string& path, uint32_t width, uint32_t height,
                 const std::vector<uint8_t>& rgb8);

@@ -52,8 +52,10 @@ std::vector<std::string_view> splitFields(std::string_view line) {
 // reads a camera index: a last line without '\n' was cut off mid-append and never counted.
 // `header` is the header's prefix up to the version ("# previs-session poses v"); a header with
 // a newer version is refused. `onLine` returns an error for a malformed line.
+// `skipped`: when given, a malformed line is reported there and skipped instead of failing.
 Status forEachLine(const std::string& path, std::string_view header, int& version,
-                   const std::function<Status(int lineNo, std::string_view line)>& onLine) {
+                   const std::function<Status(int lineNo, std::string_view line)>& onLine,
+                   std::vector<std::string>* skipped = nullptr) {
     std::ifstream in(path, std::ios::binary);
     if (!in) return makeError("{}: cannot open ({})", path, std::strerror(errno));
     std::stringstream buffer;
@@ -83,7 +85,10 @@ Status forEachLine(const std::string& path, std::string_view header, int& versio
             continue;
         }
         if (line.empty() || line[0] == '#') continue;
-        if (Status s = onLine(lineNo, line); !s) return s;
+        if (Status s = onLine(lineNo, line); !s) {
+            if (!skipped) return s;
+            skipped->push_back(s.message());
+        }
     }
     return {};
 }
@@ -239,7 +244,8 @@ Result<std::vector<uint8_t>> readSessionFile(const std::string& path) {
     return bytes;
 }
 
-Result<std::vector<RecordedFrameEntry>> loadCameraIndex(const std::string& cameraDir) {
+Result<std::vector<RecordedFrameEntry>> loadCameraIndex(const std::string& cameraDir,
+                                                        std::vector<std::string>* skipped) {
     const std::string path = cameraDir + "/index.csv";
     std::error_code ec;
     if (!fs::is_regular_file(path, ec))
@@ -249,8 +255,9 @@ Result<std::vector<RecordedFrameEntry>> loadCameraIndex(const std::string& camer
             path, cameraDir);
     int version = 1;
     std::vector<RecordedFrameEntry> entries;
-    Status s =
-        forEachLine(path, kCameraIndexHeader, version, [&](int lineNo, std::string_view line) {
+    Status s = forEachLine(
+        path, kCameraIndexHeader, version,
+        [&](int lineNo, std::string_view line) {
             const std::vector<std::string_view> f = splitFields(line);
             RecordedFrameEntry e;
             // Later versions may append columns (docs/session-format.md, versioning). A file is
@@ -282,7 +289,8 @@ Result<std::vector<RecordedFrameEntry>> loadCameraIndex(const std::string& camer
             e.file = cameraDir + "/" + std::string(f[2]);
             entries.push_back(std::move(e));
             return Status{};
-        });
+        },
+        skipped);
     if (!s) return s.error();
     return entries;
 }

@@ -83,8 +83,11 @@ struct RecordedFrameEntry {
 };
 
 // Parses cameras/<name>/index.csv of a session; a truncated last line (a crash mid-append) is
-// ignored, a malformed complete line is an error naming file and line.
-Result<std::vector<RecordedFrameEntry>> loadCameraIndex(const std::string& cameraDir);
+// ignored, a malformed complete line — a bad field, a path out of the folder, a sequence or
+// timestamp going back — is an error naming file and line, or with `skipped`
+// (a final render: the rest still renders) reported there and left out.
+Result<std::vector<RecordedFrameEntry>> loadCameraIndex(
+    const std::string& cameraDir, std::vector<std::string>* skipped = nullptr);
 
 // One lighting snapshot the renderer used: lighting/index.csv.
 struct LightingRecord {

@@ -1,0 +1,422 @@
+#include "daemon/take_render.h"
+
+#include <signal.h>
+
+#include <algorithm>
+#include <atomic>
+#include <charconv>
+#include <cstdio>
+#include <filesystem>
+#include <map>
+#include <set>
+
+#include "base/log.h"
+#include "capture/recorded_source.h"
+#include "daemon/pipeline_renderer.h"
+#include "daemon/pipeline_stages.h"
+#include "daemon/take_files.h"
+#include "daemon/take_track.h"
+#include "gpu/context.h"
+#include "image/image.h"
+#include "scene/scene_description.h"
+
+namespace previs {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+bool parseIndex(std::string_view s, size_t& out) {
+    const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), out);
+    return !s.empty() && ec == std::errc() && end == s.data() + s.size();
+}
+
+Result<std::vector<size_t>> parsePostList(const std::string& text, size_t count) {
+    std::set<size_t> frames;
+    size_t start = 0;
+    while (start <= text.size()) {
+        const size_t comma = std::min(text.find(',', start), text.size());
+        const std::string item = text.substr(start, comma - start);
+        start = comma + 1;
+        // "A", "A-B" or "A-BxS".
+        size_t a = 0, b = 0, step = 1;
+        const size_t dash = item.find('-');
+        const size_t x = item.find('x');
+        bool ok;
+        if (dash == std::string::npos) {
+            ok = x == std::string::npos && parseIndex(item, a);
+            b = a;
+        } else {
+            ok = parseIndex(item.substr(0, dash), a) &&
+                 parseIndex(item.substr(dash + 1, x == std::string::npos ? x : x - dash - 1), b) &&
+                 (x == std::string::npos || parseIndex(item.substr(x + 1), step)) && step > 0 &&
+                 b >= a;
+        }
+        if (!ok)
+            return makeError(
+                "frame range '{}': cannot read '{}' (use A:B, or a list like 1-100, 1-100x2, "
+                "1,5,7-9)",
+                text, item);
+        if (b >= count)
+            return makeError("frame range '{}': frame {} is past the take's last frame ({})", text,
+                             b, count == 0 ? 0 : count - 1);
+        for (size_t f = a; f <= b; f += step) frames.insert(f);
+    }
+    return std::vector<size_t>(frames.begin(), frames.end());
+}
+
+}  // namespace
+
+Result<std::vector<size_t>> parseFrameRange(const std::string& text, size_t count) {
+    if (text.empty()) {
+        std::vector<size_t> all(count);
+        for (size_t i = 0; i < count; ++i) all[i] = i;
+        return all;
+    }
+    const size_t colon = text.find(':');
+    if (colon == std::string::npos) return parsePostList(text, count);
+    size_t a = 0, b = count;
+    const std::string first = text.substr(0, colon), second = text.substr(colon + 1);
+    if ((!first.empty() && !parseIndex(first, a)) || (!second.empty() && !parseIndex(second, b)))
+        return makeError("frame range '{}': use A:B (A inclusive, B exclusive)", text);
+    if (b > count)
+        return makeError("frame range '{}': the take has {} frames (0:{})", text, count, count);
+    std::vector<size_t> frames;
+    for (size_t i = a; i < b; ++i) frames.push_back(i);
+    return frames;
+}
+
+std::vector<std::string> planFrameRanges(const std::vector<size_t>& frames, size_t parts) {
+    std::vector<std::string> plan;
+    if (parts == 0 || frames.empty()) return plan;
+    parts = std::min(parts, frames.size());
+    for (size_t p = 0; p < parts; ++p) {
+        const size_t begin = frames.size() * p / parts, end = frames.size() * (p + 1) / parts;
+        if (frames[end - 1] - frames[begin] == end - begin - 1) {
+            plan.push_back(fmt::format("{}:{}", frames[begin], frames[end - 1] + 1));
+            continue;
+        }
+        std::string list;
+        for (size_t i = begin; i < end;) {
+            size_t j = i;
+            while (j + 1 < end && frames[j + 1] == frames[j] + 1) ++j;
+            if (!list.empty()) list += ',';
+            list +=
+                j == i ? fmt::format("{}", frames[i]) : fmt::format("{}-{}", frames[i], frames[j]);
+            i = j + 1;
+        }
+        plan.push_back(list);
+    }
+    return plan;
+}
+
+uint32_t takeFrameSeed(uint32_t seed, uint64_t index) {
+    uint64_t z = (uint64_t(seed) << 32 ^ index) + 0x9e3779b97f4a7c15ull;
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+    return uint32_t((z ^ (z >> 31)) >> 32);
+}
+
+namespace {
+
+std::atomic<bool> gStop{false};
+std::atomic<int> gSignal{0};
+
+void onSignal(int sig) {
+    gSignal.store(sig);
+    gStop.store(true);
+}
+
+// The take's lighting snapshots in time order: those the service recorded (v3 lighting/), else
+// made from its fisheye frames by the lighting stage, as the service made them.
+Result<std::vector<std::shared_ptr<const LiveLighting>>> takeLighting(const SessionInfo& session,
+                                                                      const ServiceConfig& config) {
+    std::vector<std::shared_ptr<const LiveLighting>> out;
+    if (!config.fisheyeCamera) return out;
+    Result<LightingStage> stage = LightingStage::create(config);
+    if (!stage) return stage.error();
+    Result<std::vector<LightingRecord>> recorded = loadLighting(session.dir);
+    if (!recorded) return recorded.error();
+    for (const LightingRecord& r : *recorded) {
+        Result<std::shared_ptr<const LiveLighting>> lit = stage->restore(r.mapFile);
+        if (!lit) return lit.error();
+        auto snapshot = std::make_shared<LiveLighting>(**lit);
+        snapshot->timestampNs = r.timestampNs;
+        snapshot->restored = false;  // captured on set, not the box's stand-in
+        out.push_back(std::move(snapshot));
+    }
+    if (!out.empty() || !session.cameraWithRole("fisheye")) return out;
+    Result<std::vector<RecordedFrameEntry>> fisheye =
+        loadCameraIndex(session.cameraWithRole("fisheye")->dir);
+    if (!fisheye) return fisheye.error();
+    for (const RecordedFrameEntry& e : *fisheye) {
+        Result<Frame> frame = readRecordedFrame(e);
+        if (!frame || !stage->due(*frame)) continue;
+        Result<std::shared_ptr<const LiveLighting>> lit = stage->process(*frame);
+        if (lit) out.push_back(*lit);
+    }
+    return out;
+}
+
+// The snapshot in effect at `timestampNs`: the newest before it, else the first.
+std::shared_ptr<const LiveLighting> lightingAt(
+    const std::vector<std::shared_ptr<const LiveLighting>>& snapshots, uint64_t timestampNs) {
+    std::shared_ptr<const LiveLighting> in;
+    for (const auto& s : snapshots)
+        if (!in || s->timestampNs <= timestampNs) in = s;
+    return in;
+}
+
+std::string framePath(const std::string& dir, size_t index, const char* ext) {
+    return (fs::path(dir) / fmt::format("frame_{:06d}.{}", index, ext)).string();
+}
+
+bool frameDone(const std::string& dir, size_t index) {
+    std::error_code ec;
+    return fs::is_regular_file(framePath(dir, index, "png"), ec) &&
+           isCompleteExr(framePath(dir, index, "exr"));
+}
+
+class FrameRenderer {
+public:
+    FrameRenderer(PipelineRenderer& r, const TakeRenderOptions& o, uint32_t spp, double target,
+                  uint32_t seed)
+        : r_(r), o_(o), spp_(spp), target_(target), seed_(seed) {}
+
+    // Renders and writes frame `index`; an error names what failed.
+    Status render(size_t index, const TakeFrame& f, const cv::Matx44d& pose,
+                  const std::shared_ptr<const LiveLighting>& lighting) {
+        Result<Frame> plate = readRecordedFrame(f.entry);
+        if (!plate) return plate.error();
+        TrackedFrame tracked;
+        tracked.frame = std::make_shared<const Frame>(std::move(*plate));
+        tracked.worldFromCamera = pose;
+        tracked.lost = false;
+        // The first refinement of a process differs from later ones in the last bits of a float
+        // (the renderer's first pass settles state a later one finds settled; not yet pinned
+        // down), so frame k would depend on whether it came first: one discarded sample first.
+        if (!warmed_) {
+            warmed_ = true;
+            if (Status s = r_.beginRefine(tracked, lighting); !s) return s;
+            if (Status s = r_.refineStep(1); !s) return s;
+        }
+        if (Status s = r_.beginRefine(tracked, lighting); !s) return s;
+        r_.renderer().setSeed(takeFrameSeed(seed_, index));
+        std::optional<double> noise;
+        constexpr uint32_t kStep = 16;  // samples between looks of the meter
+        for (uint32_t done = 0; done < spp_ && !gStop.load();) {
+            const uint32_t n = std::min(kStep, spp_ - done);
+            if (Status s = r_.refineStep(n); !s) return s;
+            done += n;
+            if (target_ > 0.0 && done < spp_) {
+                Result<std::optional<double>> measured = r_.measureNoise();
+                if (!measured) return measured.error();
+                noise = *measured;
+                if (noise && *noise <= target_) break;
+            }
+        }
+        if (gStop.load()) return makeError("interrupted");
+        return write(index, noise);
+    }
+
+private:
+    Status write(size_t index, std::optional<double> noise) {
+        Result<ImageF> composite = r_.composite(noise);
+        if (!composite) return composite.error();
+        ImageF rgba;
+        rgba.width = composite->width;
+        rgba.height = composite->height;
+        rgba.channels = 4;
+        rgba.pixels.reserve(size_t(rgba.width) * rgba.height * 4);
+        for (size_t i = 0; i < composite->pixels.size(); i += 3)
+            rgba.pixels.insert(rgba.pixels.end(), {composite->pixels[i], composite->pixels[i + 1],
+                                                   composite->pixels[i + 2], 1.0f});
+        std::vector<ImageF> layers;
+        std::vector<std::string> names;
+        for (const std::string& name : o_.aovs) {
+            Result<ImageF> layer = aov(name);
+            if (!layer) return layer.error();
+            layers.push_back(std::move(*layer));
+            names.push_back(name);
+        }
+        std::vector<ExrLayer> exr{{"", &rgba}};
+        for (size_t i = 0; i < layers.size(); ++i) exr.push_back({names[i], &layers[i]});
+        const std::string exrPath = framePath(o_.outDir, index, "exr");
+        const std::string pngPath = framePath(o_.outDir, index, "png");
+        // Temporary names keep the extension the writers go by; both renamed once both exist.
+        const std::string exrTmp = exrPath + ".tmp.exr", pngTmp = pngPath + ".tmp.png";
+        const DisplayImage shown = r_.toDisplay(std::move(*composite));
+        Status s = writeExrLayers(exrTmp, exr);
+        if (s) s = writePng(pngTmp, shown.width, shown.height, shown.rgb);
+        std::error_code ec;
+        if (s) fs::rename(pngTmp, pngPath, ec);
+        if (s && !ec) fs::rename(exrTmp, exrPath, ec);
+        if (s && ec) s = makeError("{}: {}", exrPath, ec.message());
+        fs::remove(exrTmp, ec);
+        fs::remove(pngTmp, ec);
+        return s;
+    }
+
+    Result<ImageF> aov(const std::string& name) {
+        if (name == "differential") {
+            Result<ImageF> mixed = r_.renderer().image(Aov::Mixed);
+            if (!mixed) return mixed.error();
+            Result<ImageF> real = r_.renderer().image(Aov::Real);
+            if (!real) return real.error();
+            for (size_t i = 0; i < mixed->pixels.size(); ++i) mixed->pixels[i] -= real->pixels[i];
+            return mixed;
+        }
+        static const std::map<std::string, Aov> kAovs = {
+            {"mixed", Aov::Mixed},   {"real", Aov::Real},     {"mask", Aov::Mask},
+            {"albedo", Aov::Albedo}, {"normal", Aov::Normal}, {"depth", Aov::Depth}};
+        return r_.renderer().image(kAovs.at(name));
+    }
+
+    PipelineRenderer& r_;
+    const TakeRenderOptions& o_;
+    uint32_t spp_;
+    double target_;
+    uint32_t seed_;
+    bool warmed_ = false;
+};
+
+struct Prepared {
+    SessionInfo session;
+    ServiceConfig config;
+    TakeTrack track;
+    std::vector<size_t> frames;
+};
+
+Result<Prepared> prepare(const TakeRenderOptions& o) {
+    Prepared p;
+    Result<SessionInfo> session = openSession(o.takeDir);
+    if (!session) return session.error();
+    p.session = std::move(*session);
+    Result<ServiceConfig> config = loadSessionConfig(p.session);
+    if (!config) return config.error();
+    p.config = std::move(*config);
+    if ((o.width == 0) != (o.height == 0))
+        return makeError("give --width and --height together (or neither)");
+    if (o.width > 0) {
+        p.config.render.width = o.width;
+        p.config.render.height = o.height;
+    }
+    p.config.render.previewFps = 0.0;  // no dial: a final render never previews
+    static const std::set<std::string> kKnown = {"mixed",  "real",   "mask", "differential",
+                                                 "albedo", "normal", "depth"};
+    for (const std::string& a : o.aovs)
+        if (!kKnown.count(a))
+            return makeError(
+                "--aov '{}': use mixed, real, mask, differential, albedo, normal or depth", a);
+    // Frames are counted from the index alone, so --plan needs no tracking.
+    const SessionCamera* scene = p.session.cameraWithRole("scene");
+    if (!scene) return makeError("{}: the take has no scene camera", o.takeDir);
+    Result<std::vector<size_t>> frames = parseFrameRange(o.frames, scene->frames);
+    if (!frames) return frames.error();
+    p.frames = std::move(*frames);
+    return p;
+}
+
+}  // namespace
+
+int runTakeRender(const TakeRenderOptions& o) {
+    Result<Prepared> prepared = prepare(o);
+    if (!prepared) {
+        logError("render-session: {}", prepared.message());
+        return 2;
+    }
+    Prepared& p = *prepared;
+    if (o.plan > 0) {
+        for (const std::string& range : planFrameRanges(p.frames, o.plan))
+            std::printf("%s\n", range.c_str());
+        return 0;
+    }
+    std::error_code ec;
+    fs::create_directories(o.outDir, ec);
+    if (ec) {
+        logError("render-session: cannot create {}: {}", o.outDir, ec.message());
+        return 2;
+    }
+    // Finished frames are not rendered again (a resubmitted job).
+    std::vector<size_t> todo;
+    for (size_t f : p.frames)
+        if (!frameDone(o.outDir, f)) todo.push_back(f);
+    if (todo.size() < p.frames.size())
+        logInfo("render-session: {} of the {} frames are already in {}",
+                p.frames.size() - todo.size(), p.frames.size(), o.outDir);
+    if (todo.empty()) return 0;
+
+    Result<TakeTrack> track = trackTake(p.session, p.config);
+    if (!track) {
+        logError("render-session: {}", track.message());
+        return 2;
+    }
+    for (const std::string& line : track->skippedLines) logError("render-session: {}", line);
+    Result<std::vector<std::shared_ptr<const LiveLighting>>> lighting =
+        takeLighting(p.session, p.config);
+    if (!lighting) {
+        logError("render-session: {}", lighting.message());
+        return 2;
+    }
+    Result<Scene> scene = loadScene(p.config.scenePath);
+    if (!scene) {
+        logError("render-session: {}", scene.message());
+        return 2;
+    }
+    Result<std::unique_ptr<GpuContext>> gpu = GpuContext::create({});
+    if (!gpu) {
+        logError("render-session: {}", gpu.message());
+        return 1;
+    }
+    Result<std::unique_ptr<PipelineRenderer>> renderer =
+        PipelineRenderer::create(**gpu, *scene, p.config);
+    if (!renderer) {
+        logError("render-session: {}", renderer.message());
+        return 2;
+    }
+    gStop.store(false);
+    struct sigaction action {};
+    action.sa_handler = onSignal;
+    sigaction(SIGTERM, &action, nullptr);
+    sigaction(SIGINT, &action, nullptr);
+    (*renderer)->renderer().setInterrupt(&gStop);
+
+    const uint32_t spp =
+        o.spp > 0 ? o.spp : uint32_t(std::max<uint64_t>(p.config.refine.maxSamples, 1));
+    const double target = o.targetNoise >= 0.0 ? o.targetNoise : p.config.refine.targetNoise;
+    FrameRenderer frames(**renderer, o, spp, target, p.config.render.seed);
+    size_t failed = track->skippedLines.size(), rendered = 0;
+    const auto start = std::chrono::steady_clock::now();
+    for (size_t index : todo) {
+        if (gStop.load()) break;
+        if (index >= track->frames.size()) continue;
+        const TakeFrame& f = track->frames[index];
+        const std::optional<cv::Matx44d>& pose = o.rawPoses ? f.tracked : f.smoothed;
+        Status s = !f.problem.empty() ? Status(makeError("{}", f.problem))
+                   : !pose
+                       ? Status(makeError("no camera pose (tracking lost, not bridged)"))
+                       : frames.render(index, f, *pose, lightingAt(*lighting, f.entry.timestampNs));
+        if (gStop.load()) break;
+        if (!s) {
+            logError("render-session: frame {} ({}): {}; skipped", index, f.entry.file,
+                     s.message());
+            ++failed;
+            continue;
+        }
+        ++rendered;
+        if (!o.quiet) logInfo("render-session: frame {} ({} of {})", index, rendered, todo.size());
+    }
+    if (gStop.load()) {
+        logInfo("render-session: stopped by signal {} after {} frame(s); no partial frame left",
+                gSignal.load(), rendered);
+        return 128 + gSignal.load();
+    }
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    logInfo("render-session: {} frame(s) in {:.1f} s ({:.2f} s a frame){}", rendered, seconds,
+            rendered ? seconds / double(rendered) : 0.0,
+            failed ? fmt::format("; {} could not be rendered (see above)", failed) : "");
+    return failed ? 1 : 0;
+}
+
+}  // namespace previs
