@@ -636,7 +636,21 @@ Status writeExrLayers(const std::string& path, const std::vector<ExrLayer>& laye
 bool isCompleteExr(const std::string& path) {
     try {
         Imf::InputFile file(path.c_str());
-        return file.isComplete();
+        if (!file.isComplete()) return false;
+        // The offset table can be whole while the data it points at is not (a file cut short):
+        // every scanline must decode.
+        const Imath::Box2i window = file.header().dataWindow();
+        const size_t width = size_t(window.max.x - window.min.x + 1);
+        std::vector<float> row(width);
+        Imf::FrameBuffer frameBuffer;
+        for (auto c = file.header().channels().begin(); c != file.header().channels().end(); ++c)
+            frameBuffer.insert(c.name(),
+                               Imf::Slice(Imf::FLOAT,
+                                          reinterpret_cast<char*>(row.data() - window.min.x),
+                                          sizeof(float), 0));
+        file.setFrameBuffer(frameBuffer);
+        file.readPixels(window.min.y, window.max.y);
+        return true;
     } catch (const std::exception&) {
         return false;
     }

@@ -424,7 +424,10 @@ Result<SessionInfo> openSession(const std::string& dir) {
             SessionCamera cam;
             cam.name = entry.path().filename().string();
             cam.dir = entry.path().string();
-            auto index = loadCameraIndex(cam.dir);
+            // Counted as a final render reads it: a corrupt line costs itself (readers that
+            // replay in order refuse it when they get there).
+            std::vector<std::string> skipped;
+            auto index = loadCameraIndex(cam.dir, &skipped);
             if (!index) return index.error();
             cam.frames = index->size();
             if (auto it = roles.find(cam.name); it != roles.end()) cam.role = it->second;

@@ -103,8 +103,8 @@ std::vector<std::optional<cv::Matx44d>> smoothTrack(const std::vector<TrackSampl
     }
 
     const double deg = CV_PI / 180.0;
-    const double qPosition = settings.accelerationStd * settings.accelerationStd;
-    const double qRotation = std::pow(settings.angularAccelerationStdDeg * deg, 2);
+    const double qPosition = settings.positionQ;
+    const double qRotation = settings.rotationQ * deg * deg;
     std::vector<std::array<AxisState, 6>> predicted(n), filtered(n);
     std::vector<double> dts(n, 0.0);
     for (size_t i = first; i <= last; ++i) {

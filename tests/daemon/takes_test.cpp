@@ -1,0 +1,318 @@
+// Takes after the shoot (issue 36), with the real binaries on the bundled demo take: `previs
+// render-session` (a frame's bytes depend only on the take, the settings and its index; finished
+// frames are kept; a bad frame costs only itself; SIGTERM leaves no partial frame), `previs
+// export-track` read back by Blender's own .chan importer, and a Slurm array on a real
+// single-node cluster rendering what one machine renders.
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+#include <signal.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+#include <sstream>
+#include <thread>
+
+#include "image/image.h"
+#include "tests/support/process.h"
+#include "tests/support/temp_dir.h"
+#include "tests/support/test_data.h"
+
+namespace previs {
+namespace {
+
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+using testing::ChildProcess;
+
+const std::string kDemoTake = testing::sourcePath("examples/demo/session");
+
+fs::path scratch() { return testing::scratchDir("previs_takes_test"); }
+
+std::string fileBytes(const fs::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+}
+
+// A small, quick final render: what the tests compare is where the bytes come from.
+std::vector<std::string> renderSession(const std::string& take, const fs::path& out,
+                                       const std::string& frames) {
+    return {PREVIS_BINARY, "render-session", take,    "--out",  out.string(),
+            "--frames",    frames,           "--spp", "4",      "--width",
+            "160",         "--height",       "90",    "--quiet"};
+}
+
+// A command found on PATH (runProcess execs a path).
+std::vector<std::string> onPath(std::vector<std::string> argv) {
+    argv.insert(argv.begin(), {"/bin/sh", "-c", "exec \"$@\"", "sh"});
+    return argv;
+}
+
+int run(const std::vector<std::string>& argv, const fs::path& log) {
+    return testing::runProcess(argv, log.string(), 300s);
+}
+
+// Every file of `a` is in `b` with the same bytes, and `b` has no other.
+void expectSameFiles(const fs::path& a, const fs::path& b) {
+    size_t files = 0;
+    for (const auto& e : fs::directory_iterator(a)) {
+        ++files;
+        EXPECT_TRUE(fileBytes(e.path()) == fileBytes(b / e.path().filename()))
+            << e.path().filename() << " differs between " << a << " and " << b;
+    }
+    EXPECT_EQ(files, size_t(std::distance(fs::directory_iterator(b), fs::directory_iterator())));
+}
+
+TEST(RenderSession, AFrameDependsOnlyOnTheTakeAndItsIndex) {
+    const fs::path dir = scratch() / "determinism";
+    const fs::path once = dir / "once", split = dir / "split";
+    ASSERT_EQ(run(renderSession(kDemoTake, once, "0:6"), dir / "once.log"), 0)
+        << fileBytes(dir / "once.log");
+    // The same frames in two parts, the later part first (as two farm nodes might).
+    ASSERT_EQ(run(renderSession(kDemoTake, split, "3:6"), dir / "b.log"), 0)
+        << fileBytes(dir / "b.log");
+    ASSERT_EQ(run(renderSession(kDemoTake, split, "0-2"), dir / "a.log"), 0)
+        << fileBytes(dir / "a.log");
+    expectSameFiles(once, split);
+    for (size_t i = 0; i < 6; ++i)
+        EXPECT_TRUE(isCompleteExr(fmt::format("{}/frame_{:06d}.exr", once.string(), i)));
+
+    // A resubmitted job: finished frames stay, missing and cut-short ones are rendered again.
+    fs::remove(split / "frame_000001.exr");
+    fs::remove(split / "frame_000004.png");
+    fs::resize_file(split / "frame_000002.exr", fs::file_size(split / "frame_000002.exr") / 2);
+    ASSERT_EQ(run(renderSession(kDemoTake, split, "0:6"), dir / "again.log"), 0)
+        << fileBytes(dir / "again.log");
+    EXPECT_NE(fileBytes(dir / "again.log").find("3 of the 6 frames are already in"),
+              std::string::npos)
+        << fileBytes(dir / "again.log");
+    expectSameFiles(once, split);
+}
+
+TEST(RenderSession, ABadFrameIsNamedAndTheRestRenders) {
+    // A copy of the demo take with one frame that does not decode and a corrupt index line.
+    const fs::path take = scratch() / "bad_take";
+    fs::remove_all(take);
+    fs::copy(kDemoTake, take, fs::copy_options::recursive);
+    {
+        std::ifstream in(take / "session.toml");
+        std::stringstream ss;
+        ss << in.rdbuf();
+        std::string toml = ss.str();
+        const size_t at = toml.find("config_dir = \"..\"");
+        ASSERT_NE(at, std::string::npos) << toml;
+        toml.replace(at, 17, "config_dir = \"" + fs::path(kDemoTake).parent_path().string() + "\"");
+        std::ofstream(take / "session.toml") << toml;
+    }
+    const fs::path index = take / "cameras" / "scene" / "index.csv";
+    std::string frame2;
+    {
+        std::ifstream in(index);
+        int frameLines = 0;
+        for (std::string line; std::getline(in, line);)
+            if (!line.empty() && line[0] != '#' && frameLines++ == 2)
+                frame2 = line.substr(line.find(',', line.find(',') + 1) + 1),
+                frame2 = frame2.substr(0, frame2.find(','));
+    }
+    ASSERT_FALSE(frame2.empty());
+    std::ofstream(take / "cameras" / "scene" / frame2) << "not a jpeg";
+    std::ofstream(index, std::ios::app) << "99999999999,1,../../../etc/passwd,640,360\n";
+
+    const fs::path out = scratch() / "bad_out";
+    const fs::path log = scratch() / "bad.log";
+    EXPECT_EQ(run(renderSession(take.string(), out, "0:5"), log), 1) << fileBytes(log);
+    const std::string text = fileBytes(log);
+    EXPECT_NE(text.find(frame2), std::string::npos) << "names the bad frame's file: " << text;
+    EXPECT_NE(text.find("index.csv:"), std::string::npos) << "names the bad line: " << text;
+    for (size_t i : {0, 1, 3, 4})
+        EXPECT_TRUE(fs::exists(out / fmt::format("frame_{:06d}.png", i))) << i << "\n" << text;
+    EXPECT_FALSE(fs::exists(out / "frame_000002.png"));
+}
+
+TEST(RenderSession, SigtermLeavesNoPartialFrame) {
+    const fs::path out = scratch() / "sigterm";
+    ChildProcess p({PREVIS_BINARY, "render-session", kDemoTake, "--out", out.string(), "--spp",
+                    "64", "--width", "320", "--height", "180", "--frames", "0:30"},
+                   (scratch() / "sigterm.log").string());
+    const auto deadline = std::chrono::steady_clock::now() + 240s;
+    while (!fs::exists(out / "frame_000000.png") && std::chrono::steady_clock::now() < deadline)
+        std::this_thread::sleep_for(20ms);
+    ASSERT_TRUE(fs::exists(out / "frame_000000.png")) << p.log();
+    p.signal(SIGTERM);
+    std::optional<int> code = p.wait(60s);
+    ASSERT_TRUE(code) << "still running 60 s after SIGTERM: " << p.threads() << p.log();
+    EXPECT_EQ(*code, 128 + SIGTERM) << p.log();
+    size_t pngs = 0, exrs = 0;
+    for (const auto& e : fs::directory_iterator(out)) {
+        const std::string name = e.path().filename().string();
+        EXPECT_EQ(name.find(".tmp"), std::string::npos) << "a partial frame was left: " << name;
+        if (e.path().extension() == ".png") ++pngs;
+        if (e.path().extension() == ".exr") {
+            ++exrs;
+            EXPECT_TRUE(isCompleteExr(e.path().string())) << name;
+        }
+    }
+    EXPECT_EQ(pngs, exrs);
+    EXPECT_LT(exrs, 30u) << "SIGTERM stops the render";
+}
+
+// Blender's camera at a frame, from tests/daemon/blender_import_chan.py.
+struct BlenderCamera {
+    cv::Matx44d matrix;
+    double angleY = 0.0;
+};
+
+// The angle between two directions, exact also when tiny (acos of a dot product is not: Blender's
+// matrices are float32).
+double angleDegrees(const cv::Vec3d& a, const cv::Vec3d& b) {
+    return std::atan2(cv::norm(a.cross(b)), a.dot(b)) * 180.0 / CV_PI;
+}
+
+TEST(ExportTrack, BlenderImportsTheChanAsTheTrackedCamera) {
+    if (testing::runProcess({"/bin/sh", "-c", "command -v blender"},
+                            (scratch() / "which.log").string(), 30s) != 0)
+        GTEST_SKIP() << "Debian's blender is not installed (scripts/setup.sh installs it)";
+    const fs::path dir = scratch() / "chan";
+    fs::create_directories(dir);
+    const fs::path chan = dir / "take.chan", jsonl = dir / "take.jsonl";
+    ASSERT_EQ(
+        run({PREVIS_BINARY, "export-track", kDemoTake, "--out", chan.string()}, dir / "chan.log"),
+        0)
+        << fileBytes(dir / "chan.log");
+    ASSERT_EQ(
+        run({PREVIS_BINARY, "export-track", kDemoTake, "--out", jsonl.string()}, dir / "jsonl.log"),
+        0)
+        << fileBytes(dir / "jsonl.log");
+    const fs::path imported = dir / "blender.jsonl";
+    ASSERT_EQ(run(onPath({"blender", "-b", "--factory-startup", "--python",
+                          testing::sourcePath("tests/daemon/blender_import_chan.py"), "--",
+                          chan.string(), imported.string()}),
+                  dir / "blender.log"),
+              0)
+        << fileBytes(dir / "blender.log");
+
+    std::map<int, BlenderCamera> blender;
+    std::ifstream in(imported);
+    for (std::string line; std::getline(in, line);) {
+        const nlohmann::json j = nlohmann::json::parse(line);
+        BlenderCamera c;
+        for (int r = 0; r < 4; ++r)
+            for (int k = 0; k < 4; ++k) c.matrix(r, k) = j["matrix"][r][k].get<double>();
+        c.angleY = j["angleY"];
+        blender[j["frame"].get<int>()] = c;
+    }
+    std::ifstream track(jsonl);
+    size_t frames = 0;
+    for (std::string line; std::getline(track, line); ++frames) {
+        const nlohmann::json j = nlohmann::json::parse(line);
+        const int frame = j["frame"];
+        ASSERT_TRUE(blender.count(frame)) << "frame " << frame << " missing in Blender";
+        cv::Matx44d m;
+        for (int i = 0; i < 16; ++i) m(i / 4, i % 4) = j["worldFromCamera"][i].get<double>();
+        // Blender's world is the glTF world turned +Y up → +Z up ("Make Z up"), and its camera
+        // looks along −Z as OpenCV's looks along +Z.
+        const cv::Matx33d zUp(1, 0, 0, 0, 0, -1, 0, 1, 0);
+        const cv::Vec3d position = zUp * cv::Vec3d(m(0, 3), m(1, 3), m(2, 3));
+        const cv::Vec3d forward = zUp * cv::Vec3d(m(0, 2), m(1, 2), m(2, 2));
+        const cv::Vec3d up = zUp * -cv::Vec3d(m(0, 1), m(1, 1), m(2, 1));
+        const cv::Matx44d& b = blender[frame].matrix;
+        const cv::Vec3d bPosition(b(0, 3), b(1, 3), b(2, 3));
+        const cv::Vec3d bForward = -cv::Vec3d(b(0, 2), b(1, 2), b(2, 2));
+        const cv::Vec3d bUp(b(0, 1), b(1, 1), b(2, 1));
+        EXPECT_LT(cv::norm(position - bPosition), 1e-4) << "frame " << frame << ": 0.1 mm";
+        EXPECT_LT(angleDegrees(forward, bForward), 0.01) << "frame " << frame;
+        EXPECT_LT(angleDegrees(up, bUp), 0.01) << "frame " << frame;
+    }
+    EXPECT_EQ(frames, blender.size());
+    EXPECT_GT(frames, 50u) << "the demo take's camera is tracked on nearly every frame";
+    // The vertical field of view: the scene camera's calibration (fy 554.26 px, 360 px high).
+    EXPECT_NEAR(blender.begin()->second.angleY, 2.0 * std::atan(180.0 / 554.2562584220408), 1e-5);
+}
+
+// A single-node Slurm cluster from Debian's packages (scripts/slurm/test-cluster.sh), stopped
+// when the test ends.
+class SlurmCluster {
+public:
+    explicit SlurmCluster(fs::path dir) : dir_(std::move(dir)) {
+        code_ =
+            testing::runProcess({"/bin/bash", testing::sourcePath("scripts/slurm/test-cluster.sh"),
+                                 "start", dir_.string()},
+                                (dir_.parent_path() / "cluster.log").string(), 60s);
+        if (code_ == 0) ::setenv("SLURM_CONF", (dir_ / "slurm.conf").c_str(), 1);
+    }
+    ~SlurmCluster() {
+        testing::runProcess({"/bin/bash", testing::sourcePath("scripts/slurm/test-cluster.sh"),
+                             "stop", dir_.string()},
+                            (dir_.parent_path() / "cluster-stop.log").string(), 60s);
+    }
+    int code() const { return code_; }
+
+    // Submits the array and waits until squeue no longer lists it (sbatch --wait polls slowly).
+    std::string submitAndWait(const std::vector<std::string>& sbatchArgs, const fs::path& log) {
+        std::vector<std::string> argv = {"sbatch", "--parsable", "--cpus-per-task=1"};
+        argv.insert(argv.end(), sbatchArgs.begin(), sbatchArgs.end());
+        EXPECT_EQ(testing::runProcess(onPath(argv), log.string(), 60s), 0) << fileBytes(log);
+        std::string job = fileBytes(log);
+        job = job.substr(0, job.find_first_of(";\n"));
+        const auto deadline = std::chrono::steady_clock::now() + 600s;
+        while (std::chrono::steady_clock::now() < deadline) {
+            const fs::path q = log.string() + ".squeue";
+            testing::runProcess(onPath({"squeue", "-h", "-j", job}), q.string(), 30s);
+            if (fileBytes(q).find_first_not_of(" \n") == std::string::npos) break;
+            std::this_thread::sleep_for(250ms);
+        }
+        return job;
+    }
+
+private:
+    fs::path dir_;
+    int code_ = 1;
+};
+
+TEST(RenderFarm, AnArrayOfFourRendersWhatOneMachineDoesAndResubmitsOnlyWhatIsMissing) {
+    const fs::path dir = scratch() / "farm";
+    fs::create_directories(dir);
+    SlurmCluster cluster(dir / "cluster");
+    if (cluster.code() == 77) GTEST_SKIP() << fileBytes(dir / "cluster.log");
+    ASSERT_EQ(cluster.code(), 0) << fileBytes(dir / "cluster.log");
+    ::setenv("PREVIS", PREVIS_BINARY, 1);
+    const fs::path local = dir / "local", farm = dir / "out";
+    ASSERT_EQ(run(renderSession(kDemoTake, local, "0:8"), dir / "local.log"), 0)
+        << fileBytes(dir / "local.log");
+    const std::vector<std::string> job = {
+        "--array=0-3", "--chdir",
+        dir.string(),  testing::sourcePath("scripts/slurm/render-take.sbatch"),
+        kDemoTake,     farm.string(),
+        "--frames",    "0:8",
+        "--spp",       "4",
+        "--width",     "160",
+        "--height",    "90",
+        "--quiet"};
+    const std::string first = cluster.submitAndWait(job, dir / "sbatch1.log");
+    expectSameFiles(local, farm);
+
+    fs::remove(farm / "frame_000002.exr");
+    fs::remove(farm / "frame_000006.png");
+    const std::string second = cluster.submitAndWait(job, dir / "sbatch2.log");
+    expectSameFiles(local, farm);
+    size_t rendered = 0, tasks = 0;
+    for (int task = 0; task < 4; ++task) {
+        const std::string log = fileBytes(dir / fmt::format("previs-take-{}_{}.log", second, task));
+        tasks += log.find("render-take: task") != std::string::npos;
+        for (size_t at = log.find(" frame(s) in "); at != std::string::npos;
+             at = log.find(" frame(s) in ", at + 1))
+            rendered += size_t(std::stoul(log.substr(log.rfind(' ', at - 1) + 1)));
+    }
+    EXPECT_EQ(tasks, 4u);
+    EXPECT_EQ(rendered, 2u) << "only the two missing frames are rendered again";
+}
+
+}  // namespace
+}  // namespace previs
