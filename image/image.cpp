@@ -644,10 +644,9 @@ bool isCompleteExr(const std::string& path) {
         std::vector<float> row(width);
         Imf::FrameBuffer frameBuffer;
         for (auto c = file.header().channels().begin(); c != file.header().channels().end(); ++c)
-            frameBuffer.insert(c.name(),
-                               Imf::Slice(Imf::FLOAT,
-                                          reinterpret_cast<char*>(row.data() - window.min.x),
-                                          sizeof(float), 0));
+            frameBuffer.insert(
+                c.name(), Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(row.data() - window.min.x),
+                                     sizeof(float), 0));
         file.setFrameBuffer(frameBuffer);
         file.readPixels(window.min.y, window.max.y);
         return true;

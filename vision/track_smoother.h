@@ -28,7 +28,7 @@ struct SmootherSettings {
     // second (its variance grows by q each second). A dolly or hand-held camera's acceleration
     // changes every ~0.1 s with σ ≈ 1 m/s², so q ≈ σ²·0.1 s = 0.1 m²/s³; a pan's σ ≈ 30 °/s²
     // gives 100 °²/s³. Larger follows sharper moves, smaller averages more frames.
-    double positionQ = 0.1;   // m²/s³
+    double positionQ = 0.1;    // m²/s³
     double rotationQ = 100.0;  // °²/s³
     // A lost stretch longer than this is not bridged: its frames get no pose.
     double maxGapSeconds = 1.0;
