@@ -11,6 +11,7 @@
 #include "bench/bench_denoise.h"
 #include "bench/bench_memory.h"
 #include "bench/bench_preview.h"
+#include "bench/bench_recorder.h"
 #include "bench/bench_progress.h"
 #include "bench/bench_scenes.h"
 #include "bench/bench_service.h"
@@ -102,6 +103,9 @@ int runBenchmarks(const BenchOptions& o) {
         service.csvPath = o.csvPath;
         return runServiceBench(service);
     }
+    if (o.only == "recorder")
+        return runRecorderBench(
+            {.examplesDir = o.examplesDir, .dataDir = o.dataDir, .quick = o.quick});
     if (o.only == "shot")
         return runShotBench({.examplesDir = o.examplesDir, .quick = o.quick, .csvPath = o.csvPath});
     if (o.only == "trade")

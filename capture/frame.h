@@ -25,9 +25,12 @@ struct Frame {
     // CLOCK_REALTIME when the sensor finished the frame (the capture thread's estimate from
     // timestampNs), so a take can be placed in the day; 0 when unknown.
     uint64_t wallClockNs = 0;
-    // The frame as the camera sent it, when that was JPEG (MJPEG cameras): the recorder stores
-    // these bytes as they came, never re-encoded. Null for raw formats.
-    std::shared_ptr<const std::vector<uint8_t>> encoded;
+    // The frame as the camera sent it, kept only while a take rolls (CaptureOptions::
+    // keepCaptured): a JPEG's bytes as they came, a raw format's planes with any line padding
+    // removed; `capturedFourcc` names their V4L2 format. The recorder stores these bytes, never
+    // re-encoded. Null otherwise.
+    std::shared_ptr<const std::vector<uint8_t>> captured;
+    uint32_t capturedFourcc = 0;
 };
 
 }  // namespace previs

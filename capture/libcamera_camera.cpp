@@ -189,6 +189,7 @@ struct LibcameraCamera::State {
     double fps = 0;
     bool running = false;
     bool connected = false;  // our handlers are attached to the camera's signals
+    const std::atomic<bool>* keepCaptured = nullptr;  // LibcameraConfig::keepCaptured
     uint64_t badFrames = 0;
     std::vector<uint8_t> scratch;  // planes gathered for conversion when not contiguous
 
@@ -595,8 +596,11 @@ Result<bool> LibcameraCamera::State::read(int timeoutMs, Frame& frame) {
             data = scratch;
         }
         Status s = convertToRgb(v4l2Fourcc, data, width, height, stride, frame.rgb);
-        if (s && isJpegFourcc(v4l2Fourcc))
-            frame.encoded = std::make_shared<const std::vector<uint8_t>>(data.begin(), data.end());
+        if (s && keepCaptured && keepCaptured->load(std::memory_order_relaxed)) {
+            frame.captured = std::make_shared<const std::vector<uint8_t>>(
+                packedFrameBytes(v4l2Fourcc, data, width, height, stride));
+            frame.capturedFourcc = v4l2Fourcc;
+        }
         syncDmabuf(planes.fds, DMA_BUF_SYNC_END);
         if (!s) {
             // Garbage from the camera costs one frame, not the stream; log the first few only.
@@ -626,6 +630,7 @@ LibcameraCamera::~LibcameraCamera() = default;
 
 Result<std::unique_ptr<LibcameraCamera>> LibcameraCamera::create(const LibcameraConfig& config) {
     auto state = std::make_unique<State>();
+    state->keepCaptured = config.keepCaptured;
     if (Status s = state->open(config); !s) return s.error();
     return std::unique_ptr<LibcameraCamera>(new LibcameraCamera(std::move(state)));
 }

@@ -6,6 +6,7 @@
 // uses this header needs neither libcamera's headers nor its include path.
 
 #include <array>
+#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -18,6 +19,8 @@
 namespace previs {
 
 struct LibcameraConfig {
+    // While set, frames keep the bytes as captured (Frame::captured), for the take recorder.
+    const std::atomic<bool>* keepCaptured = nullptr;
     // The camera's libcamera id ("platform/vimc.0 Sensor B", as `cam -l` prints it), its index
     // in libcamera's list ("0"), or a part of the id that names one camera ("imx477");
     // "" = the first camera.

@@ -166,6 +166,28 @@ bool isJpegFourcc(uint32_t fourcc) {
     return fourcc == V4L2_PIX_FMT_MJPEG || fourcc == V4L2_PIX_FMT_JPEG;
 }
 
+uint32_t packedStride(uint32_t fourcc, uint32_t width) {
+    const FormatInfo* f = findFormat(fourcc);
+    return f ? f->bytesPerPixel * width : 0;
+}
+
+std::vector<uint8_t> packedFrameBytes(uint32_t fourcc, std::span<const uint8_t> data,
+                                      uint32_t width, uint32_t height, uint32_t stride) {
+    if (isJpegFourcc(fourcc)) return {data.begin(), data.end()};
+    const uint32_t row = packedStride(fourcc, width);
+    // Planar 4:2:0 formats: the chroma rows follow the luma rows at the same pitch.
+    const bool planar =
+        fourcc == V4L2_PIX_FMT_NV12 || fourcc == V4L2_PIX_FMT_NV21 || fourcc == V4L2_PIX_FMT_YUV420;
+    const size_t rows = planar ? size_t(height) * 3 / 2 : height;
+    if (row == 0 || stride < row || rows == 0 || data.size() < size_t(stride) * (rows - 1) + row)
+        return {};
+    if (fourcc == V4L2_PIX_FMT_YUV420 && stride != row) return {};
+    std::vector<uint8_t> out(size_t(row) * rows);
+    for (size_t y = 0; y < rows; ++y)
+        std::copy_n(data.data() + y * stride, row, out.data() + y * row);
+    return out;
+}
+
 Status convertToRgb(uint32_t fourcc, std::span<const uint8_t> data, uint32_t width, uint32_t height,
                     uint32_t stride, std::vector<uint8_t>& rgb) {
     const FormatInfo* info = findFormat(fourcc);

@@ -21,6 +21,13 @@ uint32_t fourccFromString(const std::string& name);
 bool isSupportedFormat(uint32_t fourcc);
 // MJPEG or JPEG: frames that are complete JPEG files (the recorder keeps their bytes).
 bool isJpegFourcc(uint32_t fourcc);
+
+// A raw frame's bytes with the line padding removed (stride = packedStride), as a take stores it;
+// a JPEG's bytes unchanged. Empty when `data` is too short for the format and size.
+std::vector<uint8_t> packedFrameBytes(uint32_t fourcc, std::span<const uint8_t> data,
+                                      uint32_t width, uint32_t height, uint32_t stride);
+// The stride of a frame without line padding (0 for JPEG).
+uint32_t packedStride(uint32_t fourcc, uint32_t width);
 // The supported fourccs, for messages ("YUYV, UYVY, NV12, ...").
 std::string supportedFormatList();
 

@@ -1,5 +1,8 @@
 #include "capture/recorded_source.h"
 
+#include <linux/videodev2.h>
+
+#include <cctype>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -7,6 +10,7 @@
 #include <utility>
 
 #include "base/log.h"
+#include "capture/pixel_format.h"
 
 namespace previs {
 
@@ -15,27 +19,44 @@ Result<Frame> readRecordedFrame(const RecordedFrameEntry& e) {
     // decoding; OpenCV may throw on a hostile file, which stays inside this module.
     Result<std::vector<uint8_t>> bytes = readSessionFile(e.file);
     if (!bytes) return bytes.error();
-    cv::Mat bgr;
-    try {
-        bgr =
-            cv::imdecode(cv::Mat(1, int(bytes->size()), CV_8UC1, bytes->data()), cv::IMREAD_COLOR);
-    } catch (const cv::Exception&) {
-        bgr.release();
-    }
-    if (bgr.empty() || uint32_t(bgr.cols) != e.width || uint32_t(bgr.rows) != e.height)
-        return makeError("{}: unreadable or not {}x{}", e.file, e.width, e.height);
     Frame frame;
     frame.width = e.width;
     frame.height = e.height;
-    frame.rgb.resize(size_t(e.width) * e.height * 3);
-    cv::Mat rgb(bgr.rows, bgr.cols, CV_8UC3, frame.rgb.data());
-    cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
+    const std::string ext = e.file.substr(e.file.rfind('.') + 1);
+    if (ext == "jpg" || ext == "png") {
+        cv::Mat bgr;
+        try {
+            bgr = cv::imdecode(cv::Mat(1, int(bytes->size()), CV_8UC1, bytes->data()),
+                               cv::IMREAD_COLOR);
+        } catch (const cv::Exception&) {
+            bgr.release();
+        }
+        if (bgr.empty() || uint32_t(bgr.cols) != e.width || uint32_t(bgr.rows) != e.height)
+            return makeError("{}: unreadable or not {}x{}", e.file, e.width, e.height);
+        frame.rgb.resize(size_t(e.width) * e.height * 3);
+        cv::Mat rgb(bgr.rows, bgr.cols, CV_8UC3, frame.rgb.data());
+        cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
+        if (ext == "jpg") frame.capturedFourcc = V4L2_PIX_FMT_MJPEG;
+    } else {
+        // A raw frame as the camera sent it, its lines unpadded; the extension names its format.
+        std::string name = ext;
+        for (char& c : name) c = char(std::toupper(static_cast<unsigned char>(c)));
+        const uint32_t fourcc = fourccFromString(name);
+        if (!isSupportedFormat(fourcc) || isJpegFourcc(fourcc))
+            return makeError("{}: '.{}' is not a frame format previs reads", e.file, ext);
+        if (Status s = convertToRgb(fourcc, *bytes, e.width, e.height,
+                                    packedStride(fourcc, e.width), frame.rgb);
+            !s)
+            return makeError("{}: {}", e.file, s.message());
+        frame.capturedFourcc = fourcc;
+    }
     frame.timestampNs = e.timestampNs;
     frame.wallClockNs = e.wallClockNs.value_or(0);
     frame.deviceSequence = uint32_t(e.sequence);
-    // A recorded JPEG goes on as its bytes, so a take recorded from a replay keeps them.
-    if (e.file.ends_with(".jpg"))
-        frame.encoded = std::make_shared<const std::vector<uint8_t>>(std::move(*bytes));
+    // A recorded JPEG or raw frame goes on as its bytes, so a take recorded from a replay keeps
+    // them.
+    if (frame.capturedFourcc != 0)
+        frame.captured = std::make_shared<const std::vector<uint8_t>>(std::move(*bytes));
     return frame;
 }
 

@@ -76,6 +76,7 @@ std::string V4L2Device::listFormats(int fd) {
 
 Result<std::unique_ptr<V4L2Device>> V4L2Device::create(const V4L2Config& config) {
     std::unique_ptr<V4L2Device> dev(new V4L2Device(config.device));
+    dev->keepCaptured_ = config.keepCaptured;
     // Non-blocking so DQBUF never hangs: readiness comes from poll() with a timeout.
     dev->fd_.reset(::open(config.device.c_str(), O_RDWR | O_NONBLOCK | O_CLOEXEC));
     if (!dev->fd_.isValid()) {
@@ -291,9 +292,12 @@ Result<bool> V4L2Device::read(int timeoutMs, Frame& frame) {
         const size_t used = std::min<size_t>(buf.bytesused, m.length);
         const std::span<const uint8_t> data{static_cast<const uint8_t*>(m.data), used};
         Status s = convertToRgb(fourcc_, data, width_, height_, stride_, frame.rgb);
-        // A JPEG frame is kept as it came, for the recorder (a copy: the buffer goes back).
-        if (s && isJpegFourcc(fourcc_))
-            frame.encoded = std::make_shared<const std::vector<uint8_t>>(data.begin(), data.end());
+        // While a take rolls, the frame as it came (a copy: the buffer goes back).
+        if (s && keepCaptured_ && keepCaptured_->load(std::memory_order_relaxed)) {
+            frame.captured = std::make_shared<const std::vector<uint8_t>>(
+                packedFrameBytes(fourcc_, data, width_, height_, stride_));
+            frame.capturedFourcc = fourcc_;
+        }
         if (!s) {
             // Garbage from the camera costs one frame, not the stream; log the first few only.
             if (badFrames_ < 3)

@@ -5,6 +5,7 @@
 
 #include <sys/types.h>
 
+#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -24,6 +25,8 @@ struct V4L2Config {
     uint32_t fourcc = 0;       // V4L2_PIX_FMT_*; 0 = YUYV
     double fps = 0;            // 0 = the driver's default rate
     uint32_t bufferCount = 4;  // enough to absorb a late conversion without the driver dropping
+    // While set, frames keep the bytes as captured (Frame::captured), for the take recorder.
+    const std::atomic<bool>* keepCaptured = nullptr;
 };
 
 class V4L2Device : public FrameReader {
@@ -86,6 +89,7 @@ private:
     uint32_t width_ = 0;
     uint32_t height_ = 0;
     uint32_t fourcc_ = 0;
+    const std::atomic<bool>* keepCaptured_ = nullptr;
     uint32_t stride_ = 0;
     double fps_ = 0;
     bool streaming_ = false;

@@ -66,7 +66,8 @@ private:
 
 std::unique_ptr<CameraSource> makeCameraSource(
     const CameraConfig& camera, bool loop,
-    std::function<void(const std::shared_ptr<const Frame>&)> onFrame) {
+    std::function<void(const std::shared_ptr<const Frame>&)> onFrame,
+    const std::atomic<bool>* keepCaptured) {
     CaptureOptions options;
     options.name = fmt::format("{} camera {}", camera.name, camera.device);
     options.onFrame = std::move(onFrame);
@@ -91,6 +92,7 @@ std::unique_ptr<CameraSource> makeCameraSource(
             c.exposureUs = camera.exposureUs;
             c.analogueGain = camera.analogueGain;
             c.colourGains = camera.colourGains;
+            c.keepCaptured = keepCaptured;
             return makeLibcameraSource(c, options);
 #else
             break;
@@ -108,6 +110,7 @@ std::unique_ptr<CameraSource> makeCameraSource(
     c.height = camera.height;
     c.fourcc = camera.pixelFormat.empty() ? 0 : fourccFromString(camera.pixelFormat);
     c.fps = camera.fps;
+    c.keepCaptured = keepCaptured;
     const auto controls = camera.controls;
     const std::string name = options.name;
     // The factory runs on every (re)open, so a replugged camera gets its controls back: a

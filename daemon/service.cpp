@@ -527,13 +527,14 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config, bo
     TakeRecorder* recorder = t.recorder.get();
     t.sceneCamera = makeCameraSource(
         config.sceneCamera, config.loopSession,
-        [recorder](const std::shared_ptr<const Frame>& f) { recorder->addFrame("scene", f); });
+        [recorder](const std::shared_ptr<const Frame>& f) { recorder->addFrame("scene", f); },
+        recorder->keepCapturedFlag());
     if (Status s = t.sceneCamera->start(); !s) return s.error();
     if (config.fisheyeCamera) {
-        t.fisheyeCamera = makeCameraSource(*config.fisheyeCamera, config.loopSession,
-                                           [recorder](const std::shared_ptr<const Frame>& f) {
-                                               recorder->addFrame("fisheye", f);
-                                           });
+        t.fisheyeCamera = makeCameraSource(
+            *config.fisheyeCamera, config.loopSession,
+            [recorder](const std::shared_ptr<const Frame>& f) { recorder->addFrame("fisheye", f); },
+            recorder->keepCapturedFlag());
         if (Status s = t.fisheyeCamera->start(); !s) return s.error();
         t.lightingThread = std::thread([&t] {
             runGuarded(

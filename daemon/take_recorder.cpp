@@ -14,6 +14,7 @@
 
 #include "base/log.h"
 #include "base/timecode.h"
+#include "capture/pixel_format.h"
 #include "daemon/take_files.h"
 
 namespace previs {
@@ -45,9 +46,9 @@ std::string takeFolderName(const std::string& name) {
 }
 
 // What a raw frame costs on disk and in the queue: its RGB bytes until the writer encodes it.
-size_t frameBytes(const Frame& f) { return f.encoded ? f.encoded->size() : f.rgb.size(); }
+size_t frameBytes(const Frame& f) { return f.captured ? f.captured->size() : f.rgb.size(); }
 
-// Lossless and fast: PNG at zlib level 1 (a 1280x720 frame in ~15 ms on one core).
+// A frame that came without its captured bytes (none kept): lossless PNG at zlib level 1.
 Result<std::vector<uint8_t>> encodePng(const Frame& f) {
     cv::Mat bgr;
     cv::cvtColor(cv::Mat(int(f.height), int(f.width), CV_8UC3, const_cast<uint8_t*>(f.rgb.data())),
@@ -179,6 +180,7 @@ Result<std::string> TakeRecorder::start(const std::string& name,
         accepting_ = true;
         draining_ = false;
     }
+    keepCaptured_.store(true);
     if (lighting) push(std::move(lighting), 0);
     writer_ = std::thread([this, t = std::move(take)]() mutable { runWriter(std::move(t)); });
     logInfo("recording: take {} started", dir);
@@ -194,6 +196,7 @@ Result<std::string> TakeRecorder::stop() {
         draining_ = true;
         dir = status_.path;
     }
+    keepCaptured_.store(false);
     wake_.notify_all();
     finishWriter();
     const RecordStatus s = status();
@@ -260,8 +263,12 @@ Status TakeRecorder::writeFrame(Take& take, const FrameItem& item) {
     const Frame& frame = *item.frame;
     std::vector<uint8_t> png;
     std::span<const uint8_t> bytes;
-    if (frame.encoded) {
-        bytes = *frame.encoded;
+    std::string ext = "png";
+    if (frame.captured && !frame.captured->empty()) {
+        // As the camera sent it: a JPEG's bytes, a raw format's planes (".yuyv", ".nv12", ...).
+        bytes = *frame.captured;
+        ext = isJpegFourcc(frame.capturedFourcc) ? "jpg" : fourccToString(frame.capturedFourcc);
+        for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
     } else {
         Result<std::vector<uint8_t>> encoded = encodePng(frame);
         if (!encoded) return encoded.error();
@@ -274,9 +281,8 @@ Status TakeRecorder::writeFrame(Take& take, const FrameItem& item) {
         stamp.timecode = timeOfDayTimecode(frame.wallClockNs, take.timecodeRates[item.camera]);
     }
     const uint64_t ns = take.takeTimestamp(item.camera, frame.timestampNs, frame.sequence);
-    if (Status s =
-            take.writer.writeFrame(item.camera, frame.sequence, ns, bytes,
-                                   frame.encoded ? "jpg" : "png", frame.width, frame.height, stamp);
+    if (Status s = take.writer.writeFrame(item.camera, frame.sequence, ns, bytes, ext, frame.width,
+                                          frame.height, stamp);
         !s)
         return s;
     std::lock_guard lock(mutex_);
@@ -369,6 +375,7 @@ void TakeRecorder::runWriter(std::unique_ptr<Take> take) {
     }
     queue_.clear();
     queuedBytes_ = 0;
+    keepCaptured_.store(false);
     accepting_ = false;
     draining_ = false;
     status_.recording = false;

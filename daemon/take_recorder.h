@@ -55,6 +55,9 @@ public:
     Result<std::string> stop();
     bool recording() const;
     RecordStatus status() const;
+    // Set while a take rolls: the cameras then keep each frame's bytes as captured
+    // (CaptureOptions::keepCaptured), and cost nothing for it otherwise.
+    const std::atomic<bool>* keepCapturedFlag() const { return &keepCaptured_; }
 
     // Producers (any thread; each returns at once, and does nothing when not recording).
     void addFrame(const std::string& camera, std::shared_ptr<const Frame> frame);
@@ -90,6 +93,7 @@ private:
     bool draining_ = false;   // stop(): write what is queued, then end
     RecordStatus status_;
     std::atomic<uint64_t> lastSceneNs_{0};
+    std::atomic<bool> keepCaptured_{false};
     std::thread writer_;
 };
 

@@ -686,8 +686,12 @@ Status SessionWriter::writeFrame(const std::string& camera, uint64_t sequence, u
                                  uint32_t width, uint32_t height, const FrameStamp& stamp) {
     if (!validCameraName(camera))
         return makeError("session camera name '{}': use letters, digits, '-', '_', '.'", camera);
-    if (ext != "png" && ext != "jpg")
-        return makeError("session frame of '{}': extension '{}' is not png or jpg", camera, ext);
+    // png, jpg, or a raw format's fourcc in lower case (yuyv, nv12, ...).
+    if (ext.size() < 2 || ext.size() > 4 || !std::all_of(ext.begin(), ext.end(), [](char c) {
+            return (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9');
+        }))
+        return makeError("session frame of '{}': extension '{}' is not png, jpg or a fourcc",
+                         camera, ext);
     if (width == 0 || height == 0 || encoded.empty())
         return makeError("session frame {} of '{}': empty frame", sequence, camera);
     const std::string camDir = dir_ + "/cameras/" + camera;

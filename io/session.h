@@ -163,7 +163,8 @@ public:
     SessionWriter& operator=(SessionWriter&&) = default;
     ~SessionWriter();
 
-    // One frame of `camera` as encoded bytes (`ext` "png" or "jpg"), stored as
+    // One frame of `camera` as its bytes: `ext` "png", "jpg" or a raw format's fourcc in lower
+    // case ("yuyv": planes without line padding, capture/pixel_format.h), stored as
     // cameras/<camera>/<sequence, 12 digits>.<ext>. Sequences must increase and timestamps not
     // decrease per camera.
     Status writeFrame(const std::string& camera, uint64_t sequence, uint64_t timestampNs,

@@ -5,8 +5,10 @@
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <linux/videodev2.h>
+#include <unistd.h>
 
 #include <atomic>
+#include <cctype>
 #include <chrono>
 #include <cstring>
 #include <deque>
@@ -25,6 +27,7 @@
 #include "capture/recorded_source.h"
 #include "capture/unique_fd.h"
 #include "capture/v4l2_device.h"
+#include "io/session.h"
 
 namespace previs {
 namespace {
@@ -90,6 +93,55 @@ TEST(PixelFormat, Nv12WithPaddedStrideMatchesOpenCv) {
     std::vector<uint8_t> rgb;
     ASSERT_TRUE(convertToRgb(V4L2_PIX_FMT_NV12, buf, w, h, stride, rgb));
     EXPECT_EQ(maxAbsDiff(rgb, ref), 0);
+}
+
+// A take keeps raw frames as the camera sent them, without line padding, and replays them to the
+// very pixels the live capture converted (YUYV and NV12 with padded lines, as drivers deliver).
+TEST(PixelFormat, ATakeKeepsRawFramesAndReplaysThePixelsCaptureConverted) {
+    const std::string dir =
+        (std::filesystem::temp_directory_path() / fmt::format("previs_raw_take_{}", ::getpid()))
+            .string();
+    std::filesystem::remove_all(dir);
+    auto writer = SessionWriter::create(dir);
+    ASSERT_TRUE(writer) << writer.message();
+    struct Case {
+        uint32_t fourcc, stride;
+        size_t bytes;
+    };
+    const uint32_t w = 48, h = 32;
+    const Case cases[] = {{V4L2_PIX_FMT_YUYV, w * 2 + 32, size_t(w * 2 + 32) * h},
+                          {V4L2_PIX_FMT_NV12, 64, size_t(64) * h * 3 / 2}};
+    std::vector<std::vector<uint8_t>> live;
+    for (size_t i = 0; i < std::size(cases); ++i) {
+        const Case& c = cases[i];
+        const std::vector<uint8_t> buffer = randomBytes(c.bytes, 10 + uint32_t(i));
+        std::vector<uint8_t> rgb;
+        ASSERT_TRUE(convertToRgb(c.fourcc, buffer, w, h, c.stride, rgb));
+        live.push_back(rgb);
+        const std::vector<uint8_t> packed = packedFrameBytes(c.fourcc, buffer, w, h, c.stride);
+        ASSERT_EQ(packed.size(), size_t(packedStride(c.fourcc, w)) *
+                                     (c.fourcc == V4L2_PIX_FMT_NV12 ? h * 3 / 2 : h));
+        std::string ext = fourccToString(c.fourcc);
+        for (char& ch : ext) ch = char(std::tolower(static_cast<unsigned char>(ch)));
+        ASSERT_TRUE(writer->writeFrame("scene", i, 100 + i, packed, ext, w, h));
+    }
+    ASSERT_TRUE(writer->flush());
+    auto entries = loadCameraIndex(dir + "/cameras/scene");
+    ASSERT_TRUE(entries) << entries.message();
+    ASSERT_EQ(entries->size(), std::size(cases));
+    for (size_t i = 0; i < std::size(cases); ++i) {
+        Result<Frame> replayed = readRecordedFrame((*entries)[i]);
+        ASSERT_TRUE(replayed) << replayed.message();
+        EXPECT_EQ(replayed->rgb, live[i]) << fourccToString(cases[i].fourcc);
+        EXPECT_EQ(replayed->capturedFourcc, cases[i].fourcc);
+        ASSERT_TRUE(replayed->captured) << "a replayed take can be recorded again, as it came";
+    }
+    // A short raw file is a bad frame with its name, never a read past the end.
+    std::ofstream((*entries)[0].file, std::ios::trunc) << "short";
+    Result<Frame> cut = readRecordedFrame((*entries)[0]);
+    ASSERT_FALSE(cut);
+    EXPECT_NE(cut.message().find((*entries)[0].file), std::string::npos) << cut.message();
+    std::filesystem::remove_all(dir);
 }
 
 TEST(PixelFormat, Nv12KnownColour) {
