@@ -12,7 +12,7 @@ void applySessionEvent(ModeMachine& modes, const SessionEvent& e) {
         modes.set(Mode::Preview, "session start over");
     } else if (e.source == "mode-button" && e.event == "short-press") {
         modes.toggle("session mode-button");
-    } else if (e.source == "ctl" && e.event.rfind("mode=", 0) == 0) {
+    } else if ((e.source == "ctl" || e.source == "take") && e.event.rfind("mode=", 0) == 0) {
         const std::string what = e.event.substr(5);
         if (what == "toggle")
             modes.toggle("session ctl");

@@ -573,6 +573,8 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config, bo
 Result<std::string> Service::startRecording(const std::string& name) {
     Result<std::string> take =
         threads_->recorder->start(name, threads_->lightingSnapshots.latest());
+    // The mode the take starts in: its presses toggle from there when it replays.
+    if (take) recordEvent("take", "mode=" + std::string(toString(modes_.mode())));
     updateLed();
     return take;
 }

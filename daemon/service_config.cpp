@@ -603,7 +603,10 @@ Status ConfigReader::parseRecord(const toml::table& t, RecordConfig& c) const {
         !st)
         return st;
     if (Status st = stringKey(t, "record", "dir", c.dir); !st) return st;
-    if (!c.dir.empty()) c.dir = (r_.folder() / fs::path(c.dir)).lexically_normal().string();
+    // Absolute: `record start` prints the take's folder, and a relative one would depend on
+    // where previsd was started.
+    if (!c.dir.empty())
+        c.dir = fs::absolute(r_.folder() / fs::path(c.dir)).lexically_normal().string();
     Result<std::optional<bool>> autoStart = r_.boolean(t, "record", "auto");
     if (!autoStart) return autoStart.error();
     c.autoStart = autoStart->value_or(false);

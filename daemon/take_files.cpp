@@ -179,6 +179,15 @@ Result<std::string> copyConfigIntoTake(const ServiceConfig& config, const std::s
         t.erase(boxOnly);
 
     if (Status s = copyInto(config.path, take / "config/recorded-from.toml"); !s) return s.error();
+    // The copies' folder entries, deepest first, then the take's own.
+    std::vector<std::string> folders;
+    std::error_code ec;
+    for (auto it = fs::recursive_directory_iterator(take / "config", ec);
+         !ec && it != fs::recursive_directory_iterator(); it.increment(ec))
+        if (it->is_directory()) folders.push_back(it->path().string());
+    folders.push_back((take / "config").string());
+    for (auto f = folders.rbegin(); f != folders.rend(); ++f)
+        if (Status s = syncFolder(*f); !s) return s.error();
     std::ostringstream text;
     text << "# previsd's config as this take was recorded (docs/session-format.md, config.toml):\n"
          << "# the original is config/recorded-from.toml; paths here name the copies in config/\n"

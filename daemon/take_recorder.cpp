@@ -368,7 +368,9 @@ void TakeRecorder::runWriter(std::unique_ptr<Take> take) {
     std::lock_guard lock(mutex_);
     if (!stoppedBecause.empty()) {
         // Everything before the failure is in the take; what was still queued is not.
-        status_.dropped += queue_.size();
+        status_.dropped += size_t(std::count_if(queue_.begin(), queue_.end(), [](const auto& q) {
+            return std::holds_alternative<FrameItem>(q.first);
+        }));
         logError("recording: take {} stopped: {}; the service goes on previewing", take->dir,
                  stoppedBecause);
         status_.stoppedBecause = stoppedBecause;

@@ -88,12 +88,18 @@ Result<std::vector<size_t>> parseFrameRange(const std::string& text, size_t coun
 
 std::vector<std::string> planFrameRanges(const std::vector<size_t>& frames, size_t parts) {
     std::vector<std::string> plan;
-    if (parts == 0 || frames.empty()) return plan;
-    parts = std::min(parts, frames.size());
+    if (parts == 0) return plan;
+    // More parts than frames: the surplus get an empty slice at the end, so task i always finds
+    // line i, and renders nothing.
+    const size_t used = std::min(parts, frames.size());
+    const size_t past = frames.empty() ? 0 : frames.back() + 1;
+    for (size_t p = used; p < parts; ++p) plan.push_back(fmt::format("{}:{}", past, past));
+    parts = used;
+    std::vector<std::string> ranges;
     for (size_t p = 0; p < parts; ++p) {
         const size_t begin = frames.size() * p / parts, end = frames.size() * (p + 1) / parts;
         if (frames[end - 1] - frames[begin] == end - begin - 1) {
-            plan.push_back(fmt::format("{}:{}", frames[begin], frames[end - 1] + 1));
+            ranges.push_back(fmt::format("{}:{}", frames[begin], frames[end - 1] + 1));
             continue;
         }
         std::string list;
@@ -105,9 +111,10 @@ std::vector<std::string> planFrameRanges(const std::vector<size_t>& frames, size
                 j == i ? fmt::format("{}", frames[i]) : fmt::format("{}-{}", frames[i], frames[j]);
             i = j + 1;
         }
-        plan.push_back(list);
+        ranges.push_back(list);
     }
-    return plan;
+    ranges.insert(ranges.end(), plan.begin(), plan.end());
+    return ranges;
 }
 
 uint32_t takeFrameSeed(uint32_t seed, uint64_t index) {
@@ -381,9 +388,15 @@ int runTakeRender(const TakeRenderOptions& o) {
     sigaction(SIGINT, &action, nullptr);
     (*renderer)->renderer().setInterrupt(&gStop);
 
-    const uint32_t spp =
-        o.spp > 0 ? o.spp : uint32_t(std::max<uint64_t>(p.config.refine.maxSamples, 1));
-    const double target = o.targetNoise >= 0.0 ? o.targetNoise : p.config.refine.targetNoise;
+    // --spp N renders exactly N; otherwise the take's [refine] target, up to its max_samples
+    // (kUncappedSpp when it has none: a final render must end).
+    constexpr uint32_t kUncappedSpp = 4096;
+    const uint32_t spp = o.spp > 0                        ? o.spp
+                         : p.config.refine.maxSamples > 0 ? uint32_t(p.config.refine.maxSamples)
+                                                          : kUncappedSpp;
+    const double target = o.spp > 0              ? 0.0
+                          : o.targetNoise >= 0.0 ? o.targetNoise
+                                                 : p.config.refine.targetNoise;
     FrameRenderer frames(**renderer, o, spp, target, p.config.render.seed);
     size_t failed = track->skippedLines.size(), rendered = 0;
     const auto start = std::chrono::steady_clock::now();

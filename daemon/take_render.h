@@ -36,8 +36,9 @@ struct TakeRenderOptions {
 // or past `count` are an error naming them. Sorted, without repeats.
 Result<std::vector<size_t>> parseFrameRange(const std::string& text, size_t count);
 
-// `frames` cut into at most `parts` runs of near-equal length, each as a RANGE
-// parseFrameRange reads back: "A:B" when contiguous, else a post tool's list.
+// `frames` cut into `parts` runs of near-equal length, each as a RANGE parseFrameRange reads
+// back: "A:B" when contiguous, else a post tool's list; parts beyond the frames' count are
+// empty slices ("N:N"), so array task i always has line i.
 std::vector<std::string> planFrameRanges(const std::vector<size_t>& frames, size_t parts);
 
 // The seed of frame `index` of a take rendered with `seed`: a hash of both (splitmix64).

@@ -167,6 +167,7 @@ bool knownEvent(std::string_view source, std::string_view event, int version) {
         return version < 2 || event == "short-press" || event == "long-press";
     if (source == "ctl")
         return event == "mode=preview" || event == "mode=refine" || event == "mode=toggle";
+    if (source == "take") return event == "mode=preview" || event == "mode=refine";
     return false;
 }
 
@@ -222,6 +223,8 @@ Result<std::string> containedPath(const std::string& root, const std::string& re
         return refuse(folder ? "is not a folder" : "is not a regular file");
     return at.string();
 }
+
+Status syncFolder(const std::string& dir) { return syncDir(dir); }
 
 Result<std::vector<uint8_t>> readSessionFile(const std::string& path) {
     UniqueFD fd(::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NOFOLLOW | O_NONBLOCK));
@@ -327,8 +330,10 @@ Result<std::vector<LightingRecord>> loadLighting(const std::string& dir) {
 namespace {
 
 // A killed recorder leaves at most one *.tmp per file it was writing; a reader ignores them,
-// and the next open removes them.
+// and the next open removes them — only those older than a minute, so opening a take that is
+// still being recorded never takes a file from under its writer.
 void removeLeftoverTmp(const std::string& dir) {
+    const auto cutoff = fs::file_time_type::clock::now() - std::chrono::minutes(1);
     std::error_code ec;
     size_t removed = 0;
     for (auto it = fs::recursive_directory_iterator(dir, ec);
@@ -337,6 +342,7 @@ void removeLeftoverTmp(const std::string& dir) {
         const std::string name = it->path().filename().string();
         if (!it->is_regular_file(ec) || !(name.ends_with(".tmp") || name.ends_with(".tmp.exr")))
             continue;
+        if (std::error_code t; fs::last_write_time(it->path(), t) > cutoff || t) continue;
         std::error_code rm;
         if (fs::remove(it->path(), rm)) ++removed;
     }

@@ -66,6 +66,9 @@ Result<std::string> containedPath(const std::string& root, const std::string& re
 // fdatasync + rename; the caller fsyncs the folder).
 Status writeFileAtomic(const std::string& path, std::span<const uint8_t> bytes);
 
+// fsync()s a folder, so the entries (new files, renames) in it survive a power cut.
+Status syncFolder(const std::string& dir);
+
 // Reads a regular file of at most kMaxSessionFileBytes without following a symbolic link.
 Result<std::vector<uint8_t>> readSessionFile(const std::string& path);
 

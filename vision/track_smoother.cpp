@@ -103,35 +103,73 @@ std::vector<std::optional<cv::Matx44d>> smoothTrack(const std::vector<TrackSampl
     }
 
     const double deg = CV_PI / 180.0;
-    const double qPosition = settings.positionQ;
-    const double qRotation = settings.rotationQ * deg * deg;
     std::vector<std::array<AxisState, 6>> predicted(n), filtered(n);
     std::vector<double> dts(n, 0.0);
-    for (size_t i = first; i <= last; ++i) {
-        std::array<AxisState, 6> state{};
-        if (i == first) {
-            // Starts at the first measurement, at rest but with a generous rate variance.
-            for (int a = 0; a < 6; ++a) {
-                state[size_t(a)].x = z[i][size_t(a)];
-                state[size_t(a)].pxx = 1.0;
-                state[size_t(a)].pvv = a < 3 ? 1.0 : 10.0;
+    // The forward Kalman pass; returns the log-likelihood of its innovations, position and
+    // rotation apart (the two groups' axes are independent in this model).
+    auto forward = [&](double qPosition, double qRotation, double rScalePosition,
+                       double rScaleRotation) {
+        std::array<double, 2> logLikelihood{0.0, 0.0};
+        for (size_t i = first; i <= last; ++i) {
+            std::array<AxisState, 6> state{};
+            if (i == first) {
+                // Starts at the first measurement, at rest but with a generous rate variance.
+                for (int a = 0; a < 6; ++a) {
+                    state[size_t(a)].x = z[i][size_t(a)];
+                    state[size_t(a)].pxx = 1.0;
+                    state[size_t(a)].pvv = a < 3 ? 1.0 : 10.0;
+                }
+            } else {
+                dts[i] = double(samples[i].timestampNs - samples[i - 1].timestampNs) * 1e-9;
+                for (int a = 0; a < 6; ++a)
+                    state[size_t(a)] =
+                        predict(filtered[i - 1][size_t(a)], dts[i], a < 3 ? qPosition : qRotation);
             }
-        } else {
-            dts[i] = double(samples[i].timestampNs - samples[i - 1].timestampNs) * 1e-9;
-            for (int a = 0; a < 6; ++a)
-                state[size_t(a)] =
-                    predict(filtered[i - 1][size_t(a)], dts[i], a < 3 ? qPosition : qRotation);
+            predicted[i] = state;
+            if (samples[i].worldFromCamera) {
+                const double rPosition =
+                    rScalePosition * std::pow(std::max(samples[i].positionStdM, 1e-5), 2);
+                const double rRotation =
+                    rScaleRotation * std::pow(std::max(samples[i].rotationStdDeg, 1e-3) * deg, 2);
+                for (int a = 0; a < 6; ++a) {
+                    const double r = a < 3 ? rPosition : rRotation;
+                    const double innovation = z[i][size_t(a)] - state[size_t(a)].x;
+                    const double variance = state[size_t(a)].pxx + r;
+                    if (i != first)
+                        logLikelihood[a < 3 ? 0 : 1] -=
+                            0.5 * (std::log(variance) + innovation * innovation / variance);
+                    state[size_t(a)] = update(state[size_t(a)], z[i][size_t(a)], r);
+                }
+            }
+            filtered[i] = state;
         }
-        predicted[i] = state;
-        if (samples[i].worldFromCamera) {
-            const double rPosition = std::pow(std::max(samples[i].positionStdM, 1e-5), 2);
-            const double rRotation = std::pow(std::max(samples[i].rotationStdDeg, 1e-3) * deg, 2);
-            for (int a = 0; a < 6; ++a)
-                state[size_t(a)] =
-                    update(state[size_t(a)], z[i][size_t(a)], a < 3 ? rPosition : rRotation);
-        }
-        filtered[i] = state;
+        return logLikelihood;
+    };
+    // The noise the take itself supports best: the settings' q, and the tracker's own variances,
+    // each scaled by the grid point of highest likelihood of the filter's innovations (q by
+    // 10^-4 … 10^4, the variances by 10^-2 … 10, in half decades), position and rotation apart.
+    // A steady dolly gets a stiff model and a whip pan a loose one, and a tracker that misjudges
+    // its own noise is corrected, without anyone choosing.
+    std::array<double, 2> q{settings.positionQ, settings.rotationQ * deg * deg};
+    std::array<double, 2> rScale{1.0, 1.0};
+    if (settings.estimateNoise) {
+        std::array<double, 2> best{-INFINITY, -INFINITY};
+        std::array<double, 2> bestQ = q, bestR = rScale;
+        for (int k = -8; k <= 8; ++k)
+            for (int j = -4; j <= 2; ++j) {
+                const double qs = std::pow(10.0, 0.5 * k), rs = std::pow(10.0, 0.5 * j);
+                const std::array<double, 2> l = forward(q[0] * qs, q[1] * qs, rs, rs);
+                for (size_t g = 0; g < 2; ++g)
+                    if (l[g] > best[g]) {
+                        best[g] = l[g];
+                        bestQ[g] = q[g] * qs;
+                        bestR[g] = rs;
+                    }
+            }
+        q = bestQ;
+        rScale = bestR;
     }
+    forward(q[0], q[1], rScale[0], rScale[1]);
     std::vector<std::array<AxisState, 6>> smoothed(n);
     smoothed[last] = filtered[last];
     for (size_t i = last; i-- > first;)

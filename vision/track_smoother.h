@@ -30,6 +30,10 @@ struct SmootherSettings {
     // gives 100 °²/s³. Larger follows sharper moves, smaller averages more frames.
     double positionQ = 0.1;    // m²/s³
     double rotationQ = 100.0;  // °²/s³
+    // Scale q (10^-4 … 10^4) and the tracker's variances (10^-2 … 10) by the factors under
+    // which the take's own measurements are most likely (maximum likelihood of the filter's
+    // innovations), position and rotation apart.
+    bool estimateNoise = true;
     // A lost stretch longer than this is not bridged: its frames get no pose.
     double maxGapSeconds = 1.0;
 };

@@ -12,13 +12,16 @@
 #include <chrono>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <functional>
 #include <nlohmann/json.hpp>
 #include <thread>
 
+#include "capture/recorded_source.h"
 #include "daemon/control_server.h"
 #include "display/drm_readback.h"
+#include "io/session.h"
 #include "tests/support/process.h"
 #include "tests/support/test_data.h"
 
@@ -201,6 +204,32 @@ TEST(PrevisdInTheVm, DisplayButtonLedHotplugAndStop) {
     EXPECT_TRUE(waitUntil(
         "the LED goes off", [&] { return led.value() == 0; }, 10s));
 
+    // A long press rolls a take (the config's [record] dir): the LED blinks, and vivid's raw
+    // YUYV frames go to the take as they came. It rolls through the hotplug below and ends,
+    // whole, on SIGTERM.
+    button.pull(true);
+    std::this_thread::sleep_for(2500ms);
+    button.pull(false);
+    std::string take;
+    EXPECT_TRUE(waitUntil(
+        "a take rolls after a long press",
+        [&] {
+            auto st = status();
+            if (!st || (*st)["recording"] != true) return false;
+            take = (*st)["record"]["path"];
+            return (*st)["record"]["frames"].get<int>() >= 5;
+        },
+        60s))
+        << p.log();
+    bool lit = false, dark = false;
+    EXPECT_TRUE(waitUntil(
+        "the LED blinks while recording",
+        [&] {
+            (led.value() == 1 ? lit : dark) = true;
+            return lit && dark;
+        },
+        10s));
+
     // 50 bounces within about 10 ms, then held and released cleanly: one toggle. A level held
     // longer than the 20 ms debounce is a press of its own; an emulated CPU the host stalls can
     // hold one that long between two writes (io_vm's FiftyBouncesToggleOnce skips then, as this
@@ -280,6 +309,24 @@ TEST(PrevisdInTheVm, DisplayButtonLedHotplugAndStop) {
     EXPECT_EQ(*code, 0) << p.log();
     EXPECT_EQ(led.value(), 0) << "the LED is off after a clean stop";
     std::printf("%s\n", p.log().c_str());
+
+    // The take SIGTERM ended: the raw frames of both cameras replay as the pixels they were.
+    ASSERT_FALSE(take.empty());
+    Result<SessionInfo> info = openSession(take);
+    ASSERT_TRUE(info) << info.message();
+    for (const char* role : {"scene", "fisheye"}) {
+        ASSERT_NE(info->cameraWithRole(role), nullptr) << role;
+        Result<std::vector<RecordedFrameEntry>> frames =
+            loadCameraIndex(info->cameraWithRole(role)->dir);
+        ASSERT_TRUE(frames && !frames->empty()) << role;
+        for (const RecordedFrameEntry& e : *frames) {
+            EXPECT_TRUE(e.file.ends_with(".yuyv")) << e.file;
+            Result<Frame> f = readRecordedFrame(e);
+            EXPECT_TRUE(f) << f.message();
+        }
+        std::printf("previsd_vm: the take holds %zu %s frames\n", frames->size(), role);
+    }
+    EXPECT_TRUE(std::filesystem::exists(std::filesystem::path(take) / "config.toml"));
 }
 
 }  // namespace

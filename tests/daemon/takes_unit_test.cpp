@@ -46,7 +46,10 @@ TEST(FrameRange, APlanCoversEveryFrameOnceInNearEqualParts) {
     for (const std::string& part : planFrameRanges(frames, 4))
         for (size_t f : range(part, 30)) seen.insert(f);
     EXPECT_EQ(std::vector<size_t>(seen.begin(), seen.end()), frames);
-    EXPECT_EQ(planFrameRanges(range("0:2", 2), 5).size(), 2u) << "never an empty part";
+    EXPECT_EQ(planFrameRanges(range("0:2", 2), 4),
+              (std::vector<std::string>{"0:1", "1:2", "2:2", "2:2"}))
+        << "a task beyond the frames gets an empty slice";
+    EXPECT_TRUE(range("2:2", 2).empty());
 }
 
 TEST(FrameRange, EachFrameHasItsOwnSeed) {
