@@ -211,7 +211,8 @@ public:
         r_.renderer().setSeed(takeFrameSeed(seed_, index));
         std::optional<double> noise;
         constexpr uint32_t kStep = 16;  // samples between looks of the meter
-        for (uint32_t done = 0; done < spp_ && !gStop.load();) {
+        uint32_t done = 0;
+        while (done < spp_ && !gStop.load()) {
             const uint32_t n = std::min(kStep, spp_ - done);
             if (Status s = r_.refineStep(n); !s) return s;
             done += n;
@@ -223,8 +224,14 @@ public:
             }
         }
         if (gStop.load()) return makeError("interrupted");
+        lastSamples_ = done;
+        lastNoise_ = noise;
         return write(index, noise);
     }
+
+    // The last frame's samples per pixel and the meter's estimate (none when not measured).
+    uint32_t lastSamples() const { return lastSamples_; }
+    std::optional<double> lastNoise() const { return lastNoise_; }
 
 private:
     Status write(size_t index, std::optional<double> noise) {
@@ -285,6 +292,8 @@ private:
     double target_;
     uint32_t seed_;
     bool warmed_ = false;
+    uint32_t lastSamples_ = 0;
+    std::optional<double> lastNoise_;
 };
 
 struct Prepared {
@@ -417,7 +426,11 @@ int runTakeRender(const TakeRenderOptions& o) {
             continue;
         }
         ++rendered;
-        if (!o.quiet) logInfo("render-session: frame {} ({} of {})", index, rendered, todo.size());
+        if (!o.quiet)
+            logInfo("render-session: frame {} ({} of {}): {} spp{}", index, rendered, todo.size(),
+                    frames.lastSamples(),
+                    frames.lastNoise() ? fmt::format(", noise {:.2f} %", *frames.lastNoise() * 100)
+                                       : std::string());
     }
     if (gStop.load()) {
         logInfo("render-session: stopped by signal {} after {} frame(s); no partial frame left",

@@ -323,8 +323,7 @@ bool GpioButton::resync(int64_t nowNs) {
 void GpioButton::emit(const std::vector<ButtonEvent>& events) {
     for (ButtonEvent event : events) {
         if (event == ButtonEvent::LongPress)
-            logInfo("button: long press on {} (reserved for recording; no action yet)",
-                    description_);
+            logInfo("button: long press on {} (starts or stops a take)", description_);
         else
             logDebug("button: short press on {}", description_);
         if (onEvent_) onEvent_(event);
