@@ -20,6 +20,7 @@
 
 #include "capture/recorded_source.h"
 #include "daemon/control_server.h"
+#include "daemon/take_files.h"
 #include "display/drm_readback.h"
 #include "io/session.h"
 #include "tests/support/process.h"
@@ -327,6 +328,52 @@ TEST(PrevisdInTheVm, DisplayButtonLedHotplugAndStop) {
         std::printf("previsd_vm: the take holds %zu %s frames\n", frames->size(), role);
     }
     EXPECT_TRUE(std::filesystem::exists(std::filesystem::path(take) / "config.toml"));
+}
+
+// A box that loses power mid-take (SIGKILL): every raw frame flushed before it is in the take,
+// whole, and converts to the pixels it was; the take opens (removing what the killed writer left
+// half-written) and its config loads from its own copies.
+TEST(PrevisdInTheVm, ATakeSurvivesSigkill) {
+    testing::ChildProcess p({PREVISD_BINARY, "--config", kConfig}, "/tmp/previsd_vm_kill.log");
+    ASSERT_TRUE(waitUntil(
+        "first frame before the take",
+        [] {
+            auto s = status();
+            return s && (*s)["framesShown"].get<int>() >= 1;
+        },
+        420s))
+        << p.log();
+    Result<std::string> started = controlRequest(kSocket, "record start killed", 30000);
+    ASSERT_TRUE(started) << started.message();
+    const std::string take = nlohmann::json::parse(*started).value("path", "");
+    ASSERT_FALSE(take.empty()) << *started;
+    ASSERT_TRUE(waitUntil(
+        "ten frames in the take",
+        [] {
+            auto s = status();
+            return s && (*s)["recording"] == true && (*s)["record"]["frames"].get<int>() >= 10;
+        },
+        120s))
+        << p.log();
+    // More than a flush interval (1 s), so the ten frames' lines are durable.
+    std::this_thread::sleep_for(1500ms);
+    p.signal(SIGKILL);
+    ASSERT_TRUE(p.wait(30s));
+
+    Result<SessionInfo> info = openSession(take);
+    ASSERT_TRUE(info) << info.message();
+    ASSERT_NE(info->cameraWithRole("scene"), nullptr);
+    Result<std::vector<RecordedFrameEntry>> frames =
+        loadCameraIndex(info->cameraWithRole("scene")->dir);
+    ASSERT_TRUE(frames) << frames.message();
+    EXPECT_GE(frames->size(), 10u);
+    for (const RecordedFrameEntry& e : *frames) {
+        Result<Frame> f = readRecordedFrame(e);
+        EXPECT_TRUE(f) << f.message();
+    }
+    std::printf("previsd_vm: the killed take holds %zu scene frames\n", frames->size());
+    Result<ServiceConfig> config = loadSessionConfig(*info);
+    EXPECT_TRUE(config) << config.message();
 }
 
 }  // namespace

@@ -9,6 +9,7 @@
 #include <sys/stat.h>
 
 #include <array>
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -283,6 +284,13 @@ TEST(Session, TmpFilesIgnored) {
     writeText(dir / "cameras" / "scene" / "000000000001.png.tmp", "half a frame");
     writeText(dir / "cameras" / "scene" / "index.csv.tmp", "garbage\n");
     writeText(dir / "session.toml.tmp", "garbage");
+    // Leftovers of a killed recorder are old; a live recorder's file is fresh and must stay.
+    const auto old = fs::file_time_type::clock::now() - std::chrono::minutes(2);
+    for (const fs::path& p :
+         {dir / "cameras" / "scene" / "000000000001.png.tmp",
+          dir / "cameras" / "scene" / "index.csv.tmp", dir / "session.toml.tmp"})
+        fs::last_write_time(p, old);
+    writeText(dir / "cameras" / "scene" / "000000000002.png.tmp", "being written");
     auto info = openSession(dir.string());
     ASSERT_TRUE(info.ok()) << info.message();
     ASSERT_EQ(info->cameras.size(), 1u);
@@ -290,6 +298,8 @@ TEST(Session, TmpFilesIgnored) {
     EXPECT_FALSE(fs::exists(dir / "cameras" / "scene" / "000000000001.png.tmp"))
         << "opening a take removes what a killed recorder left";
     EXPECT_FALSE(fs::exists(dir / "session.toml.tmp"));
+    EXPECT_TRUE(fs::exists(dir / "cameras" / "scene" / "000000000002.png.tmp"))
+        << "a file a recorder may still be writing is left alone";
     EXPECT_TRUE(fs::exists(dir / "cameras" / "scene" / "000000000000.png"));
     // Recording goes on after the crash's leftovers: the .tmp is simply overwritten.
     {
