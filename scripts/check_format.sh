@@ -11,10 +11,11 @@ else
     mapfile -t files < <(find . -path ./gpu/shaders -prune -o -path './build*' -prune -o \
                          \( -name '*.cpp' -o -name '*.h' \) -print | sed 's#^\./##')
 fi
-bad=()
-for f in "${files[@]}"; do
-    clang-format --dry-run --Werror "$f" >/dev/null 2>&1 || bad+=("$f")
-done
+# Batches of files on every core: one clang-format per file took half a minute of CI.
+# Each violation is reported as "FILE:LINE:COL: error: ..."; the files are what it lists.
+mapfile -t bad < <(printf '%s\0' "${files[@]}" |
+    xargs -0 -n 40 -P "$(nproc)" clang-format --dry-run --Werror 2>&1 >/dev/null |
+    grep -E '^[^ :]+:[0-9]+:[0-9]+: (error|warning)' | cut -d: -f1 | sort -u || true)
 if ((${#bad[@]})); then
     echo "not clang-formatted (run: clang-format -i FILE): ${bad[*]}" >&2
     exit 1
