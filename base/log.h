@@ -7,7 +7,12 @@ namespace previs {
 enum class LogLevel { Debug, Info, Warning, Error };
 
 void setLogLevel(LogLevel level);
+// One line on stderr: "PROGRAM: [warning: |error: ]MESSAGE". When stderr is systemd's journal
+// stream (stderrIsJournal), the line starts with its syslog priority ("<3>" errors, "<4>"
+// warnings, "<6>" info, "<7>" debug; sd-daemon(3)).
 void logMessage(LogLevel level, const std::string& message);
+// Whether stderr is the stream systemd connected to the journal (JOURNAL_STREAM matches it).
+bool stderrIsJournal();
 // The name log lines start with ("previs" unless set; previsd sets its own).
 void setLogProgramName(const char* name);
 
