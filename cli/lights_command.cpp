@@ -4,6 +4,7 @@
 #include <nlohmann/json.hpp>
 
 #include "base/log.h"
+#include "daemon/pipeline_stages.h"
 #include "scene/environment_map.h"
 #include "vision/light_estimator.h"
 
@@ -31,12 +32,9 @@ int run(const LightsOptions& o) {
         return 1;
     }
     if (o.json) {
-        nlohmann::ordered_json out;
-        out["lights"] = nlohmann::ordered_json::array();
-        for (const EstimatedLight& l : snap->lights)
-            out["lights"].push_back({{"direction", vec3(l.direction)},
-                                     {"solidAngleSr", l.solidAngleSr},
-                                     {"radiance", vec3(l.radiance)}});
+        // The lights as a take records them (one owner of their JSON), then the powers.
+        nlohmann::ordered_json out =
+            nlohmann::ordered_json::parse(estimatedLightsJson(snap->lights));
         out["residualPower"] = vec3(snap->residualPower);
         out["totalPower"] = vec3(snap->totalPower);
         std::printf("%s\n", out.dump().c_str());

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <nlohmann/json.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "base/log.h"
@@ -172,6 +173,15 @@ Status saveLighting(const LiveLighting& lighting, const std::string& path) {
         return makeError("cannot save the lighting to '{}': {}", path, ec.message());
     }
     return {};
+}
+
+std::string estimatedLightsJson(const std::vector<EstimatedLight>& lights) {
+    nlohmann::ordered_json list = nlohmann::ordered_json::array();
+    for (const EstimatedLight& l : lights)
+        list.push_back({{"direction", {l.direction[0], l.direction[1], l.direction[2]}},
+                        {"solidAngleSr", l.solidAngleSr},
+                        {"radiance", {l.radiance[0], l.radiance[1], l.radiance[2]}}});
+    return nlohmann::ordered_json{{"lights", list}}.dump();
 }
 
 PoseDelta poseDelta(const cv::Matx44d& a, const cv::Matx44d& b) {

@@ -111,6 +111,10 @@ private:
     std::optional<uint64_t> lastNs_;
 };
 
+// The estimated lights as `previs lights --json` prints them, one line:
+// {"lights":[{"direction":[x,y,z],"solidAngleSr":s,"radiance":[r,g,b]},...]}.
+std::string estimatedLightsJson(const std::vector<EstimatedLight>& lights);
+
 // How far apart two poses are: translation (metres) and rotation angle (degrees).
 struct PoseDelta {
     double translationM = 0.0;

@@ -8,7 +8,6 @@
 #include <cstring>
 #include <ctime>
 #include <filesystem>
-#include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -57,15 +56,6 @@ Result<std::vector<uint8_t>> encodePng(const Frame& f) {
     if (!cv::imencode(".png", bgr, png, {cv::IMWRITE_PNG_COMPRESSION, 1}))
         return makeError("frame {}: PNG encoding failed", f.sequence);
     return png;
-}
-
-std::string lightsJson(const LiveLighting& lit) {
-    nlohmann::json lights = nlohmann::json::array();
-    for (const EstimatedLight& l : lit.lights)
-        lights.push_back({{"direction", {l.direction[0], l.direction[1], l.direction[2]}},
-                          {"solidAngleSr", l.solidAngleSr},
-                          {"radiance", {l.radiance[0], l.radiance[1], l.radiance[2]}}});
-    return nlohmann::json{{"lights", lights}}.dump();
 }
 
 }  // namespace
@@ -318,7 +308,7 @@ Status TakeRecorder::write(Take& take, Item& item) {
     const uint64_t ns = lit->timestampNs + take.clocks["fisheye"].offsetNs;
     return take.writer.writeLighting(
         ns, [&](const std::string& path) { return writeLightingMap(*lit, path); },
-        lightsJson(*lit));
+        estimatedLightsJson(lit->lights));
 }
 
 void TakeRecorder::runWriter(std::unique_ptr<Take> take) {
