@@ -69,6 +69,8 @@ int run(const CtlOptions& o, const std::string& command, bool status) {
         printStatus(j);
     else if (status)
         std::printf("%s\n", reply->c_str());
+    else if (j.contains("applied"))
+        std::printf("%s\n", j.value("applied", "").c_str());  // reload: what took effect
     else if (j.contains("path"))
         std::printf("%s\n", j.value("path", "").c_str());  // record start|stop: the take
     else
@@ -100,8 +102,13 @@ std::function<int()> addCtlCommand(CLI::App& app) {
         ->check(CLI::IsMember({"start", "stop"}));
     record->add_option("--name", o->takeName,
                        "start: the take's name, added to its folder's (letters, digits, - and _)");
-    return [o, status, mode, toggle, record, recordWhat] {
+    CLI::App* reload = cmd->add_subcommand(
+        "reload",
+        "reread previsd's config; returns once it is in effect (exit 0) or refused (exit 2, the "
+        "running one kept): systemctl reload runs this");
+    return [o, status, mode, toggle, record, recordWhat, reload] {
         if (*status) return run(*o, "status", true);
+        if (*reload) return run(*o, "reload", false);
         if (*mode) return run(*o, "mode " + o->mode, false);
         if (*toggle) return run(*o, "toggle", false);
         if (*record) {

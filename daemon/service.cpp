@@ -87,6 +87,8 @@ std::string statusLine(const ServiceStatus& s) {
         line += fmt::format(" x{}", s.previewHistoryFrames);
     if (s.trackingLost) line += s.worldFromCamera ? "  TRACKING LOST (holding)" : "  NO TRACKING";
     if (s.lightingPending) line += "  LIGHTING PENDING";
+    if (s.button == "absent") line += "  NO BUTTON";
+    if (s.led == "absent") line += "  NO LED";
     if (s.record.recording)
         line +=
             fmt::format("  REC {} {:.0f} MiB", s.record.frames, double(s.record.bytes) / (1 << 20));
@@ -146,6 +148,8 @@ std::string statusJson(const ServiceStatus& s) {
     j["lightingPending"] = s.lightingPending;
     j["previewHistoryFrames"] = s.previewHistoryFrames;
     j["heldViewFrames"] = s.heldViewFrames;
+    j["button"] = s.button;
+    j["led"] = s.led;
     return j.dump();
 }
 
@@ -171,8 +175,7 @@ struct Service::Threads {
     LatestValueSlot<LiveLighting> lightingSnapshots;
     std::unique_ptr<DisplayThread> display;
     std::unique_ptr<GpioButton> button;
-    std::unique_ptr<StatusLed> led;
-    std::mutex ledMutex;  // the button thread and the socket thread both switch it
+    std::unique_ptr<StatusLed> led;  // thread-safe; made before any thread that switches it
     std::unique_ptr<ControlServer> control;
     std::unique_ptr<TakeRecorder> recorder;
     // A recorded scene camera's button and ctl events, fired as its frames arrive.
@@ -450,11 +453,13 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config, bo
     Result<std::unique_ptr<GpuContext>> gpu = GpuContext::create({});
     if (!gpu) return gpu.error();
     t.gpu = std::move(*gpu);
-    configError = true;
+    // A renderer that cannot be made (device memory, a driver's compile) may be made after a
+    // restart: not exit 2.
     Result<std::unique_ptr<PipelineRenderer>> renderer =
         PipelineRenderer::create(*t.gpu, *scene, config);
     if (!renderer) return renderer.error();
     t.renderer = std::move(*renderer);
+    configError = true;
     // A stop must not wait for a whole frame on a slow device (lavapipe on a slow CPU).
     t.renderer->renderer().setInterrupt(&t.stopping);
     // With [render] preview_fps the dial chose the preview's samples (PipelineRenderer).
@@ -479,6 +484,15 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config, bo
     Service* self = service.get();
     if (config.button) {
         const ButtonConfig& b = *config.button;
+        // The LED before the button: the button's thread switches it from its first press.
+        // Either may be absent at start (a chip not probed yet, udev's rule not applied): they
+        // start without it and keep looking (io/gpio_button.h); only a wrong line is exit 2.
+        if (!b.ledLine.empty()) {
+            Result<std::unique_ptr<StatusLed>> led =
+                StatusLed::create(b.ledChip, b.ledLine, b.ledActiveLow);
+            if (!led) return led.error();
+            t.led = std::move(*led);
+        }
         ButtonSettings settings;
         settings.chip = b.chip;
         settings.line = b.line;
@@ -501,12 +515,6 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config, bo
             });
         if (!button) return button.error();
         t.button = std::move(*button);
-        if (!b.ledLine.empty()) {
-            Result<std::unique_ptr<StatusLed>> led =
-                StatusLed::create(b.ledChip, b.ledLine, b.ledActiveLow);
-            if (!led) return led.error();
-            t.led = std::move(*led);
-        }
     }
 
     if (config.sceneCamera.source == CameraSourceKind::Session && config.replaySessionEvents) {
@@ -605,7 +613,6 @@ void Service::applyRecordedEvent(const SessionEvent& e) {
 }
 
 void Service::setLed(bool on) {
-    std::lock_guard lock(threads_->ledMutex);
     if (threads_->led) threads_->led->set(on);
 }
 
@@ -646,6 +653,8 @@ ServiceStatus Service::status() const {
     s.fisheyeCamera = t.fisheyeCamera ? toString(t.fisheyeCamera->stats().state) : "none";
     s.lightingUpdates = t.lightingUpdates.load();
     s.record = t.recorder->status();
+    s.button = !t.button ? "none" : t.button->connected() ? "connected" : "absent";
+    s.led = !t.led ? "none" : t.led->connected() ? "connected" : "absent";
     return s;
 }
 
@@ -671,6 +680,12 @@ std::string Service::handleCommand(const std::string& command) {
         updateLed();
         return nlohmann::json{{"ok", true}, {"mode", toString(m)}}.dump();
     }
+    if (command == "reload") {
+        Result<std::string> applied = reload();
+        if (!applied) return error(applied.message());
+        return nlohmann::json{{"ok", true}, {"applied", *applied}}.dump(
+            -1, ' ', false, nlohmann::json::error_handler_t::replace);
+    }
     if (command == "record stop") {
         Result<std::string> take = stopRecording();
         if (!take) return error(take.message());
@@ -684,16 +699,17 @@ std::string Service::handleCommand(const std::string& command) {
             -1, ' ', false, nlohmann::json::error_handler_t::replace);
     }
     return error("unknown command '" + command +
-                 "'; use status, mode preview|refine, toggle or record start [NAME]|stop");
+                 "'; use status, mode preview|refine, toggle, reload or record start [NAME]|stop");
 }
 
-void Service::reload() {
+Result<std::string> Service::reload() {
+    std::lock_guard reloading(reloadMutex_);
     systemd::notifyReloading();
     Result<ServiceConfig> fresh = loadServiceConfig(config_.path);
     if (!fresh) {
         logError("reload: {}; keeping the running config", fresh.message());
         systemd::notifyReady();
-        return;
+        return makeError("{}; the running config is kept", fresh.message());
     }
     const ServiceConfig& n = *fresh;
     {
@@ -732,14 +748,17 @@ void Service::reload() {
         restart.push_back("button");
     if (controlSocketPath(n.control) != controlSocketPath(config_.control))
         restart.push_back("control");
-    logInfo("reload: {}: applied [refine]{}{}", config_.path,
-            n.render.previewFps <= 0.0
-                ? fmt::format(" and render.samples_per_frame = {}", n.render.samplesPerFrame)
-                : std::string(" (render.preview_fps keeps the dial's samples per frame)"),
-            restart.empty()
-                ? std::string()
-                : fmt::format("; these need a restart to apply: {}", fmt::join(restart, ", ")));
+    std::string applied = fmt::format(
+        "{}: applied [refine]{}{}", config_.path,
+        n.render.previewFps <= 0.0
+            ? fmt::format(" and render.samples_per_frame = {}", n.render.samplesPerFrame)
+            : std::string(" (render.preview_fps keeps the dial's samples per frame)"),
+        restart.empty()
+            ? std::string()
+            : fmt::format("; these need a restart to apply: {}", fmt::join(restart, ", ")));
+    logInfo("reload: {}", applied);
     systemd::notifyReady();
+    return applied;
 }
 
 int Service::run() {
@@ -780,7 +799,7 @@ int Service::run() {
             while (::read(signals.get(), &info, sizeof(info)) == ssize_t(sizeof(info))) {
                 if (info.ssi_signo == SIGHUP) {
                     logInfo("SIGHUP: reloading {}", config_.path);
-                    reload();
+                    (void)reload();  // logged either way
                 } else {
                     logInfo("{}: stopping", strsignal(int(info.ssi_signo)));
                     stop = true;

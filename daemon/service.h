@@ -64,6 +64,10 @@ struct ServiceStatus {
     uint64_t heldViewFrames = 0;
     // The take recorder (daemon/take_recorder.h): "recording" and the "record" object.
     RecordStatus record;
+    // The mode button and the status LED: "connected", "absent" (its GPIO chip or line is not
+    // there yet, or went away: previsd looks for it every second) or "none" (not configured).
+    std::string button = "none";
+    std::string led = "none";
 };
 
 std::string statusJson(const ServiceStatus& status);
@@ -96,7 +100,10 @@ public:
 private:
     explicit Service(ServiceConfig config);
     struct Threads;
-    void reload();
+    // Rereads the config and applies what a running pipeline can take ([refine], the preview's
+    // samples), keeping the running config when the new one is bad. Returns what was applied,
+    // and what would need a restart (SIGHUP and `previs ctl reload`; the latter answers with it).
+    Result<std::string> reload();
     void setLed(bool on);
     // The LED while the loop runs: on in refinement, off in preview; while a take rolls it
     // blinks once a second, lit 80 % of the time in refinement and 20 % in preview.
@@ -112,6 +119,7 @@ private:
     std::chrono::steady_clock::time_point started_;
     std::atomic<bool> stop_{false};
     int stopFd_ = -1;  // eventfd owned by threads_
+    std::mutex reloadMutex_;  // SIGHUP (the main thread) and `ctl reload` (the socket's)
 };
 
 // Blocks SIGTERM, SIGINT and SIGHUP in the calling thread and the threads it starts later, so

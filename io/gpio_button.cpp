@@ -150,11 +150,18 @@ std::string lineDescription(gpiod_chip* chip, gpiod_line* line) {
 }  // namespace
 
 Result<GpioLine> requestGpioLine(const std::string& chipName, const std::string& lineName,
-                                 GpioLineUse use, bool activeLow, bool initialOn) {
+                                 GpioLineUse use, bool activeLow, bool initialOn,
+                                 GpioFailure* failure) {
+    GpioFailure ignored;
+    GpioFailure& kind = failure ? *failure : ignored;
+    kind = GpioFailure::Absent;
     auto chip = openChip(chipName);
     if (!chip) return chip.error();
     auto line = findLine(chip->get(), lineName);
-    if (!line) return line.error();
+    if (!line) {
+        kind = GpioFailure::Wrong;
+        return line.error();
+    }
     const std::string description = lineDescription(chip->get(), *line);
 
     gpiod_line_request_config config{};
@@ -195,14 +202,29 @@ Result<std::unique_ptr<GpioButton>> GpioButton::create(const ButtonSettings& set
     if (settings.longPressMs <= settings.debounceMs)
         return makeError("button: long_press_ms {} must be longer than debounce_ms {}",
                          settings.longPressMs, settings.debounceMs);
-    auto line =
-        requestGpioLine(settings.chip, settings.line, GpioLineUse::BothEdges, settings.activeLow);
-    if (!line) return line.error();
+    GpioFailure failure;
+    auto line = requestGpioLine(settings.chip, settings.line, GpioLineUse::BothEdges,
+                                settings.activeLow, false, &failure);
+    if (!line && failure == GpioFailure::Wrong) return line.error();
     UniqueFD stopFd(eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK));
     if (!stopFd.isValid())
         return makeError("button: cannot create an eventfd: {}", std::strerror(errno));
+    std::string description = line ? line->description
+                                   : fmt::format("line '{}' on chip '{}'", settings.line,
+                                                 settings.chip);
     std::unique_ptr<GpioButton> button(
-        new GpioButton(settings, std::move(onEvent), std::move(*line), std::move(stopFd)));
+        new GpioButton(settings, std::move(onEvent), line ? std::move(*line) : GpioLine{},
+                       std::move(description), std::move(stopFd)));
+    if (!line) {
+        // The thread's first step is to look for it (run() → reopen()).
+        button->connected_ = false;
+        button->absentReason_ = line.message();
+        logWarning("button: {}; starting without it, looking for it every {} s", line.message(),
+                   kRetryMs / 1000);
+        button->thread_ =
+            std::thread([b = button.get()] { runGuarded("button", [b] { b->run(); }); });
+        return button;
+    }
     const int level = gpiod_line_get_value(button->line_.line.get());
     if (level < 0)
         return makeError("gpio: cannot read {}: {}", button->description_, std::strerror(errno));
@@ -216,15 +238,20 @@ Result<std::unique_ptr<GpioButton>> GpioButton::create(const ButtonSettings& set
 }
 
 GpioButton::GpioButton(const ButtonSettings& settings, std::function<void(ButtonEvent)> onEvent,
-                       GpioLine line, UniqueFD stopFd)
+                       GpioLine line, std::string description, UniqueFD stopFd)
     : settings_(settings),
       onEvent_(std::move(onEvent)),
       line_(std::move(line)),
-      description_(line_.description),
+      description_(std::move(description)),
       stopFd_(std::move(stopFd)),
       classifier_(settings.debounceMs, settings.longPressMs) {}
 
 GpioButton::~GpioButton() { stop(); }
+
+std::string GpioButton::absentReason() const {
+    std::lock_guard lock(absentMutex_);
+    return absentReason_;
+}
 
 void GpioButton::stop() {
     if (!thread_.joinable()) return;
@@ -348,8 +375,12 @@ bool GpioButton::reopen() {
         line_ = std::move(*line);
         classifier_.reset(monotonicNs(), level == 1);
         resyncAtNs_.reset();
+        {
+            std::lock_guard lock(absentMutex_);
+            absentReason_.clear();
+        }
         connected_ = true;
-        logInfo("button: {} is back", line_.description);
+        logInfo("button: {} is there", line_.description);
         return true;
     }
 }

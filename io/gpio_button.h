@@ -7,6 +7,7 @@
 #include <atomic>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <thread>
@@ -49,12 +50,19 @@ struct GpioLine {
 
 enum class GpioLineUse { BothEdges, Output };
 
+// Why a line could not be had. Absent: its chip is not there, not permitted yet or the line is
+// busy, which time may mend (a USB or I²C expander that probes late, udev's rule not applied yet
+// at boot, another program holding it): the button and the LED start without it and keep
+// looking. Wrong: the chip is there and has no such line, which only the config can mend.
+enum class GpioFailure { Absent, Wrong };
+
 // The lookup the button and the LED share. `chip`: a path ("/dev/gpiochip0"), a chip name
 // ("gpiochip0") or a label ("vmtest"); `line`: a line name ("mode-button") or an offset ("5").
 // An output starts at logical `initialOn`. The error names what was asked for and lists what
-// exists.
+// exists; `failure`, when given, says which kind it is.
 Result<GpioLine> requestGpioLine(const std::string& chip, const std::string& line, GpioLineUse use,
-                                 bool activeLow, bool initialOn = false);
+                                 bool activeLow, bool initialOn = false,
+                                 GpioFailure* failure = nullptr);
 
 struct ButtonSettings {
     std::string chip;        // path "/dev/gpiochip0", name "gpiochip0" or label "vmtest"
@@ -67,7 +75,10 @@ struct ButtonSettings {
 class GpioButton {
 public:
     // Requests the line and starts the button thread. `onEvent` runs on that thread: keep it
-    // short and do not call stop() from it.
+    // short and do not call stop() from it. A line that is absent (GpioFailure::Absent) is not
+    // an error: the button starts disconnected, says why once in the log and in absentReason(),
+    // and its thread looks for the line every second. Bad settings and a line that the present
+    // chip does not have are errors.
     static Result<std::unique_ptr<GpioButton>> create(const ButtonSettings& settings,
                                                       std::function<void(ButtonEvent)> onEvent);
     ~GpioButton();
@@ -81,13 +92,15 @@ public:
 
     // False while the chip is away (the thread is looking for it again).
     bool connected() const { return connected_.load(); }
+    // Why it is not connected, as first found at start ("" once it was connected).
+    std::string absentReason() const;
 
     // "line 'mode-button' (0) on chip vmtest (/dev/gpiochip0)"
     const std::string& description() const { return description_; }
 
 private:
     GpioButton(const ButtonSettings& settings, std::function<void(ButtonEvent)> onEvent,
-               GpioLine line, UniqueFD stopFd);
+               GpioLine line, std::string description, UniqueFD stopFd);
 
     void run();
     // Reads pending edges into the classifier. False when the line is gone.
@@ -107,6 +120,8 @@ private:
     PressClassifier classifier_;
     std::optional<int64_t> resyncAtNs_;  // when to read the level back after a burst of edges
     std::atomic<bool> connected_{true};
+    mutable std::mutex absentMutex_;
+    std::string absentReason_;  // under absentMutex_
     std::thread thread_;
 };
 

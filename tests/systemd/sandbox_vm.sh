@@ -3,8 +3,8 @@
 # by the real systemd. systemd runs as PID 1 of a fresh PID namespace (the VM's init is busybox),
 # with the unit plus a drop-in that only swaps ExecStart for sandbox_probe (and Type=oneshot, exit
 # the manager afterwards). The probe streams from a camera, queries the media device, becomes DRM
-# master, requests a GPIO line, reads an input device, and checks that the device cgroup refuses a
-# device DeviceAllow= does not list. Then `vulkaninfo --summary` runs under the same sandbox.
+# master, requests a GPIO line, and checks that the device cgroup refuses devices DeviceAllow= does
+# not list (an input device, uinput). Then `vulkaninfo --summary` runs under the same sandbox.
 # Usage: sandbox_vm.sh SOURCE_DIR PROBE_BINARY. Exits 77 outside the VM.
 set -euo pipefail
 [ -n "${VMTEST:-}" ] || { echo "not in the test VM (VMTEST unset): skipped"; exit 77; }
@@ -18,8 +18,8 @@ cp "$src/systemd/60-previs-gpio.rules" /etc/udev/rules.d/
 udevadm control --reload
 udevadm trigger --action=add --subsystem-match=gpio
 udevadm settle --timeout=30
-# A node whose file mode lets anyone in: only the device cgroup can refuse it.
-chmod 0666 /dev/uinput
+# Nodes whose file mode lets anyone in: only the device cgroup can refuse them.
+chmod 0666 /dev/uinput /dev/input/event0
 
 # PrivateTmp= hides /tmp and the build tree may be unreadable for the dynamic user: /usr/local.
 install -m 755 "$probe" /usr/local/bin/previs-sandbox-probe
@@ -70,3 +70,63 @@ if [ $status -ne 0 ]; then
 fi
 grep -q '^running as: uid=' /run/previs-probe.log || { echo "FAIL: the probe did not run"; exit 1; }
 echo "the unit's sandbox reaches every device: OK"
+
+# A crash that repeats must not leave the box dead (previsd.service OnFailure= with
+# previsd-retry.timer and .service), and a config error (exit 2) must not be retried. The real
+# units, with drop-ins that only stand a failing command in for previsd and shorten the times
+# (3 starts in 30 s, retry 2 s later); the starts are counted in a file.
+cp "$src/systemd/previsd-retry.timer" "$src/systemd/previsd-retry.service" /etc/systemd/system/
+mkdir -p /etc/systemd/system/previsd-retry.timer.d /etc/systemd/system/previsd-retry.service.d
+cat >/etc/systemd/system/previsd-retry.timer.d/test.conf <<'EOT'
+[Unit]
+DefaultDependencies=no
+[Timer]
+OnActiveSec=
+OnActiveSec=2
+EOT
+cat >/etc/systemd/system/previsd-retry.service.d/test.conf <<'EOT'
+[Unit]
+DefaultDependencies=no
+[Service]
+StandardOutput=append:/run/previs-retry.log
+EOT
+starts_now() { if [ -f /run/previs-starts.log ]; then wc -l </run/previs-starts.log; else echo 0; fi; }
+restart_case() {  # EXIT_STATUS STARTS_WANTED SECONDS: starts counted after SECONDS (or STARTS_WANTED)
+    rm -f /run/previs-starts.log /run/previs-retry.log
+    cat >/etc/systemd/system/previsd.service.d/probe.conf <<EOT
+[Unit]
+DefaultDependencies=no
+StartLimitIntervalSec=30
+StartLimitBurst=3
+[Service]
+Type=simple
+WatchdogSec=0
+RestartSec=100ms
+ExecStart=
+ExecStart=/bin/sh -c 'echo start; exit $1'
+StandardOutput=append:/run/previs-starts.log
+EOT
+    container=vmtest unshare --pid --fork --mount-proc /lib/systemd/systemd --system \
+        --unit=previsd.service --log-target=console --log-level=info </dev/null \
+        >/run/systemd-manager.log 2>&1 &
+    local manager=$! waited=0
+    while [ $waited -lt $(($3 * 10)) ]; do
+        [ "$(starts_now)" -ge "$2" ] && break
+        sleep 0.1; waited=$((waited + 1))
+    done
+    # The manager is unshare's child, PID 1 of its namespace: killing it ends everything in there.
+    pkill -KILL -P $manager 2>/dev/null || true
+    wait $manager 2>/dev/null || true
+    starts_now
+}
+starts=$(restart_case 1 5 120)
+cat /run/previs-retry.log 2>/dev/null || true
+[ "$starts" -ge 5 ] || { tail -40 /run/systemd-manager.log; echo "FAIL: a crash loop stopped after $starts starts"; exit 1; }
+grep -q "starting it again" /run/previs-retry.log || { echo "FAIL: the retry did not say why"; exit 1; }
+echo "a crash that repeats: $starts starts (3 fast, then again after the pause): OK"
+starts=$(restart_case 2 99 15)
+cat /run/previs-retry.log 2>/dev/null || true
+[ "$starts" -eq 1 ] || { tail -40 /run/systemd-manager.log; echo "FAIL: exit 2 started $starts times"; exit 1; }
+grep -q "not starting it again" /run/previs-retry.log ||
+    { tail -40 /run/systemd-manager.log; echo "FAIL: exit 2: the retry did not say why it waits"; exit 1; }
+echo "exit 2 (a config error): started once, not retried: OK"
