@@ -118,7 +118,7 @@ private:
     std::unique_ptr<Threads> threads_;
     std::chrono::steady_clock::time_point started_;
     std::atomic<bool> stop_{false};
-    int stopFd_ = -1;  // eventfd owned by threads_
+    int stopFd_ = -1;         // eventfd owned by threads_
     std::mutex reloadMutex_;  // SIGHUP (the main thread) and `ctl reload` (the socket's)
 };
 

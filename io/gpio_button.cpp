@@ -209,12 +209,12 @@ Result<std::unique_ptr<GpioButton>> GpioButton::create(const ButtonSettings& set
     UniqueFD stopFd(eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK));
     if (!stopFd.isValid())
         return makeError("button: cannot create an eventfd: {}", std::strerror(errno));
-    std::string description = line ? line->description
-                                   : fmt::format("line '{}' on chip '{}'", settings.line,
-                                                 settings.chip);
-    std::unique_ptr<GpioButton> button(
-        new GpioButton(settings, std::move(onEvent), line ? std::move(*line) : GpioLine{},
-                       std::move(description), std::move(stopFd)));
+    std::string description =
+        line ? line->description
+             : fmt::format("line '{}' on chip '{}'", settings.line, settings.chip);
+    std::unique_ptr<GpioButton> button(new GpioButton(settings, std::move(onEvent),
+                                                      line ? std::move(*line) : GpioLine{},
+                                                      std::move(description), std::move(stopFd)));
     if (!line) {
         // The thread's first step is to look for it (run() → reopen()).
         button->connected_ = false;

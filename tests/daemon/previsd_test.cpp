@@ -168,12 +168,12 @@ TEST(Previsd, CheckAcceptsTheDemoAndNamesTheKeyOfABadConfig) {
 // status and on the display, and keeps looking (the VM test io_vm sees them come).
 TEST(Previsd, StartsWithoutAButtonWhoseChipIsNotThereYet) {
     const std::string config = demoConfig(
-        "no_chip", "[button]\nchip = \"nochip\"\nline = \"x\"\nled_chip = \"nochip\"\nled_line = \"y\"\n");
+        "no_chip",
+        "[button]\nchip = \"nochip\"\nline = \"x\"\nled_chip = \"nochip\"\nled_line = \"y\"\n");
     const std::string socket = socketOf(config);
     ChildProcess p({previsd(), "--config", config}, (scratch() / "no_chip.log").string());
-    auto up = waitFor(socket, kStartup, [](const nlohmann::json& s) {
-        return s["framesShown"].get<int>() > 0;
-    });
+    auto up = waitFor(socket, kStartup,
+                      [](const nlohmann::json& s) { return s["framesShown"].get<int>() > 0; });
     ASSERT_TRUE(up) << p.log();
     EXPECT_EQ((*up)["button"], "absent") << up->dump();
     EXPECT_EQ((*up)["led"], "absent") << up->dump();
@@ -331,14 +331,12 @@ TEST(Previsd, RunsTheDemoTogglesRefinementAndStopsOnSigterm) {
     ASSERT_TRUE(back) << "previsd died on SIGHUP: " << p.log();
     // `previs ctl reload` (systemctl reload's ExecReload=) answers once the config is in effect,
     // or refused with the reason, the running config kept.
-    ASSERT_EQ(testing::runProcess({previs(), "ctl", "--socket", socket, "reload"}, ctlLog, 30s),
-              0)
+    ASSERT_EQ(testing::runProcess({previs(), "ctl", "--socket", socket, "reload"}, ctlLog, 30s), 0)
         << fileBytes(ctlLog);
     EXPECT_NE(fileBytes(ctlLog).find("applied [refine]"), std::string::npos) << fileBytes(ctlLog);
     const std::string good = fileBytes(config);
     writeFile(config, good + "\n[refine]\nbogus_key = 1\n");
-    EXPECT_EQ(testing::runProcess({previs(), "ctl", "--socket", socket, "reload"}, ctlLog, 30s),
-              2);
+    EXPECT_EQ(testing::runProcess({previs(), "ctl", "--socket", socket, "reload"}, ctlLog, 30s), 2);
     EXPECT_NE(fileBytes(ctlLog).find("the running config is kept"), std::string::npos)
         << fileBytes(ctlLog);
     EXPECT_NE(fileBytes(ctlLog).find(fs::path(config).filename().string()), std::string::npos)
