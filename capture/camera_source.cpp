@@ -92,6 +92,8 @@ CaptureStats CaptureThread::stats() const {
     s.dropped = slot_.dropped();
     s.badFrames = badFrames_.load();
     s.reconnects = reconnects_.load();
+    std::lock_guard lock(problemMutex_);
+    s.problem = problem_;
     return s;
 }
 
@@ -101,6 +103,10 @@ bool CaptureThread::waitForStop(int ms) {
 }
 
 void CaptureThread::setState(CaptureState state, const std::string& detail) {
+    {
+        std::lock_guard lock(problemMutex_);
+        problem_ = state == CaptureState::Lost ? detail : std::string();
+    }
     // One log line per change, not per retry: a camera left unplugged for an hour must not
     // fill the journal.
     const CaptureState old = state_.exchange(state);
@@ -144,16 +150,25 @@ void CaptureThread::run() {
         setState(CaptureState::Lost, why);
     };
 
+    // Each pass is one step of the stage watch (base/stage_watch.h): opening the device, or one
+    // bounded read and what follows it; the retry waits are idle.
+    Stage* const stage = options_.stage;
+    auto idle = [stage] {
+        if (stage) stage->end();
+    };
     while (true) {
+        idle();
         {
             std::lock_guard lock(stopMutex_);
             if (stopRequested_) break;
         }
+        if (stage) stage->begin(stageClockNs());
         if (!reader) {
             Result<std::unique_ptr<FrameReader>> opened = factory_();
             Status started = opened ? (*opened)->start() : Status(opened.error());
             if (!started) {
                 dropReader(started.message());
+                idle();
                 if (waitForStop(options_.retryIntervalMs)) break;
                 continue;
             }
@@ -176,12 +191,14 @@ void CaptureThread::run() {
         badFrames_ = badBase + (reader ? reader->badFrames() : 0);
         if (!got) {
             dropReader(got.message());
+            idle();
             if (waitForStop(options_.retryIntervalMs)) break;
             continue;
         }
         if (!*got) {
             if (reader->finished()) {
                 setState(CaptureState::Finished, "");
+                idle();
                 // Stay alive until stop() so the state stays observable.
                 while (!waitForStop(options_.readTimeoutMs)) {
                 }
@@ -212,6 +229,7 @@ void CaptureThread::run() {
             dropLogTime = lastFrame;
         }
     }
+    idle();
     if (reader) badBase += reader->badFrames();
     badFrames_ = badBase;
     reader.reset();

@@ -15,6 +15,7 @@
 
 #include "base/latest_value_slot.h"
 #include "base/result.h"
+#include "base/stage_watch.h"
 #include "capture/frame.h"
 
 namespace previs {
@@ -60,6 +61,7 @@ struct CaptureStats {
     uint64_t dropped = 0;     // published but replaced before the consumer took them
     uint64_t badFrames = 0;   // frames the source returned that could not be converted
     uint64_t reconnects = 0;  // times streaming resumed after the device was lost
+    std::string problem;      // while lost: why ("no such device", a control that did not apply)
 };
 
 // What consumers see of a camera, live or recorded.
@@ -91,6 +93,9 @@ struct CaptureOptions {
     // Called on the capture thread with every frame before it is published (the take recorder's
     // tap: it must return at once, e.g. by queueing). Unset: none.
     std::function<void(const std::shared_ptr<const Frame>&)> onFrame;
+    // The service's watch over this thread (base/stage_watch.h): a read or an open that does not
+    // return is a hang. Null: not watched.
+    Stage* stage = nullptr;
 };
 
 // A CameraSource running a FrameReader on its own thread.
@@ -123,6 +128,8 @@ private:
     std::atomic<uint64_t> delivered_{0};
     std::atomic<uint64_t> reconnects_{0};
     std::atomic<uint64_t> badFrames_{0};
+    mutable std::mutex problemMutex_;
+    std::string problem_;  // CaptureStats::problem, under problemMutex_
 
     std::mutex stopMutex_;
     std::condition_variable stopCv_;

@@ -97,6 +97,12 @@ Result<std::unique_ptr<V4L2Device>> V4L2Device::create(const V4L2Config& config)
         return makeError("camera {}: cannot open: {}", config.device, std::strerror(err));
     }
     if (Status s = dev->configure(config); !s) return s.error();
+    for (const auto& [control, value] : config.controls)
+        if (Status s = dev->setControl(control, value); !s)
+            return makeError(
+                "camera {}: control '{}' = {} not applied ({}); its pictures would not be what "
+                "the config's radiometry promises",
+                config.device, control, value, s.message());
     return dev;
 }
 

@@ -27,12 +27,17 @@ struct V4L2Config {
     uint32_t bufferCount = 4;  // enough to absorb a late conversion without the driver dropping
     // While set, frames keep the bytes as captured (Frame::captured), for the take recorder.
     const std::atomic<bool>* keepCaptured = nullptr;
+    // Controls set on every open, before streaming (a replugged camera comes back in auto
+    // exposure): by name as `v4l2-ctl -l` lists them, or by their short id. One that does not
+    // apply fails create(): the pictures would not be what the config's radiometry promises.
+    std::vector<std::pair<std::string, int32_t>> controls;
 };
 
 class V4L2Device : public FrameReader {
 public:
     // Opens and configures the device; reports a missing node, a node that is not a capture
-    // device, and a format the device does not offer (listing what it offers).
+    // device, a format the device does not offer (listing what it offers) and a control that
+    // does not apply.
     static Result<std::unique_ptr<V4L2Device>> create(const V4L2Config& config);
     ~V4L2Device() override;
     V4L2Device(const V4L2Device&) = delete;

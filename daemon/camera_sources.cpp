@@ -67,10 +67,11 @@ private:
 std::unique_ptr<CameraSource> makeCameraSource(
     const CameraConfig& camera, bool loop,
     std::function<void(const std::shared_ptr<const Frame>&)> onFrame,
-    const std::atomic<bool>* keepCaptured) {
+    const std::atomic<bool>* keepCaptured, Stage* stage) {
     CaptureOptions options;
     options.name = fmt::format("{} camera {}", camera.name, camera.device);
     options.onFrame = std::move(onFrame);
+    options.stage = stage;
     switch (camera.source) {
         case CameraSourceKind::Session: {
             if (!loop) return makeRecordedSource(camera.device, ReplayTiming::Recorded, options);
@@ -95,15 +96,18 @@ std::unique_ptr<CameraSource> makeCameraSource(
             c.keepCaptured = keepCaptured;
             return makeLibcameraSource(c, options);
 #else
-            break;
+            // The config reader refuses it in such a build (service_config.cpp); never another
+            // path to the camera.
+            return std::make_unique<CaptureThread>(
+                []() -> Result<std::unique_ptr<FrameReader>> {
+                    return makeError("this previs was built without libcamera");
+                },
+                options);
 #endif
         }
         case CameraSourceKind::V4L2:
             break;
     }
-    if (camera.source == CameraSourceKind::Libcamera)
-        logError("{}: this previs was built without libcamera; the camera stays dark",
-                 options.name);
     V4L2Config c;
     c.device = camera.device;
     c.width = camera.width;
@@ -111,19 +115,14 @@ std::unique_ptr<CameraSource> makeCameraSource(
     c.fourcc = camera.pixelFormat.empty() ? 0 : fourccFromString(camera.pixelFormat);
     c.fps = camera.fps;
     c.keepCaptured = keepCaptured;
-    const auto controls = camera.controls;
-    const std::string name = options.name;
-    // The factory runs on every (re)open, so a replugged camera gets its controls back: a
-    // camera that came back in auto exposure would break the radiometric calibration.
+    // Set on every (re)open (V4L2Device::create): a camera whose controls do not apply is in
+    // error, not streaming wrong pictures; the capture thread says why and tries again.
+    for (const auto& [control, value] : camera.controls)
+        c.controls.emplace_back(control, int32_t(value));
     return std::make_unique<CaptureThread>(
-        [c, controls, name]() -> Result<std::unique_ptr<FrameReader>> {
+        [c]() -> Result<std::unique_ptr<FrameReader>> {
             Result<std::unique_ptr<V4L2Device>> device = V4L2Device::create(c);
             if (!device) return device.error();
-            for (const auto& [control, value] : controls) {
-                if (Status s = (*device)->setControl(control, int32_t(value)); !s)
-                    logWarning("{}: control '{}' = {} not applied: {}", name, control, value,
-                               s.message());
-            }
             return std::unique_ptr<FrameReader>(std::move(*device));
         },
         options);

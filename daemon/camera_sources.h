@@ -13,10 +13,11 @@ namespace previs {
 
 // `loop`: a recorded camera starts over at its end (timestamps keep increasing), as previsd
 // plays a demo session; otherwise it finishes. `onFrame`: CaptureOptions::onFrame (the take
-// recorder's tap); `keepCaptured`: while set, live frames carry their bytes as captured.
+// recorder's tap); `keepCaptured`: while set, live frames carry their bytes as captured;
+// `stage`: CaptureOptions::stage (the service's watch over the capture thread).
 std::unique_ptr<CameraSource> makeCameraSource(
     const CameraConfig& camera, bool loop,
     std::function<void(const std::shared_ptr<const Frame>&)> onFrame = {},
-    const std::atomic<bool>* keepCaptured = nullptr);
+    const std::atomic<bool>* keepCaptured = nullptr, Stage* stage = nullptr);
 
 }  // namespace previs

@@ -45,8 +45,29 @@ int64_t nowNs() {
         .count();
 }
 
-// How long the render thread waits for a frame before it checks the mode and beats its heart.
+// How long the render thread waits for a frame before it checks the mode (and ends its step).
 constexpr auto kRenderPoll = std::chrono::milliseconds(100);
+// Without systemd's watchdog a thread this long in one step is logged as stuck.
+constexpr int64_t kStuckWithoutWatchdogNs = 30'000'000'000;
+
+// Logs each stage that became stuck (once, until it recovers) and says whether the watchdog may
+// be fed: only when no stage is stuck.
+bool feedWatchdog(const std::vector<StageWatch::Stuck>& stuck, std::vector<std::string>& reported,
+                  bool underWatchdog) {
+    std::vector<std::string> now;
+    for (const StageWatch::Stuck& s : stuck) {
+        now.push_back(s.name);
+        if (std::find(reported.begin(), reported.end(), s.name) != reported.end()) continue;
+        logError("watchdog: the {} thread has been in one step for {:.0f} s{}", s.name, s.seconds,
+                 underWatchdog ? "; no longer feeding systemd's watchdog, which restarts previsd"
+                               : " (no systemd watchdog: previsd goes on without it)");
+    }
+    for (const std::string& name : reported)
+        if (std::find(now.begin(), now.end(), name) == now.end())
+            logInfo("watchdog: the {} thread is going again", name);
+    reported = std::move(now);
+    return stuck.empty();
+}
 
 // Names show in top -H, perf and /proc/PID/task/*/comm (15 characters at most).
 void nameThread(const char* name) { pthread_setname_np(pthread_self(), name); }
@@ -87,6 +108,7 @@ std::string statusLine(const ServiceStatus& s) {
         line += fmt::format(" x{}", s.previewHistoryFrames);
     if (s.trackingLost) line += s.worldFromCamera ? "  TRACKING LOST (holding)" : "  NO TRACKING";
     if (s.lightingPending) line += "  LIGHTING PENDING";
+    if (!s.fisheyeCameraProblem.empty()) line += "  FISHEYE CAMERA LOST";
     if (s.button == "absent") line += "  NO BUTTON";
     if (s.led == "absent") line += "  NO LED";
     if (s.record.recording)
@@ -144,6 +166,8 @@ std::string statusJson(const ServiceStatus& s) {
     else
         j["photons"] = nullptr;
     j["cameras"] = {{"scene", s.sceneCamera}, {"fisheye", s.fisheyeCamera}};
+    // Why a camera is lost (absent, busy, a control that did not apply); empty while streaming.
+    j["cameraProblems"] = {{"scene", s.sceneCameraProblem}, {"fisheye", s.fisheyeCameraProblem}};
     j["lightingUpdates"] = s.lightingUpdates;
     j["lightingPending"] = s.lightingPending;
     j["previewHistoryFrames"] = s.previewHistoryFrames;
@@ -164,6 +188,16 @@ void blockServiceSignals() {
 
 // Everything with a thread, in the order it is stopped (reverse of declaration is destruction).
 struct Service::Threads {
+    // Each thread's steps (base/stage_watch.h), read by run() before it feeds the watchdog; first,
+    // so it outlives every thread that marks it.
+    StageWatch watch;
+    Stage& renderStage = watch.add("render");
+    Stage& trackingStage = watch.add("tracking");
+    Stage& lightingStage = watch.add("lighting");
+    Stage& displayStage = watch.add("display");
+    Stage& sceneCaptureStage = watch.add("scene camera");
+    Stage& fisheyeCaptureStage = watch.add("fisheye camera");
+
     std::unique_ptr<GpuContext> gpu;
     std::unique_ptr<PipelineRenderer> renderer;
     std::optional<TrackingStage> tracking;
@@ -184,7 +218,6 @@ struct Service::Threads {
 
     UniqueFD stopEvent{::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK)};
     std::atomic<bool> stopping{false};
-    std::atomic<int64_t> heartbeatNs{0};
     std::atomic<uint64_t> droppedRender{0};
     std::atomic<uint64_t> lightingUpdates{0};
     // Set by a stage thread that cannot go on (its reason logged); run() then exits 1 so that
@@ -230,6 +263,7 @@ void Service::Threads::runTracking(const ModeMachine& modes) {
         std::shared_ptr<const Frame> frame =
             sceneCamera->frames().waitTakeFor(std::chrono::milliseconds(100));
         if (!frame) continue;
+        StageStep busy(&trackingStage);
         if (recordedEvents) {
             std::vector<SessionEvent> due = recordedEvents->due(frame->deviceSequence);
             // Each pass of a looping take starts in preview, as the recording did: its presses
@@ -276,6 +310,7 @@ void Service::Threads::runLighting() {
         std::shared_ptr<const Frame> frame =
             fisheyeCamera->frames().waitTakeFor(std::chrono::milliseconds(100));
         if (!frame || !lighting->due(*frame)) continue;
+        StageStep busy(&lightingStage);
         Result<std::shared_ptr<const LiveLighting>> lit = lighting->process(*frame);
         if (!lit) {
             if (failures++ == 0)
@@ -344,8 +379,9 @@ void Service::Threads::publishNoCamera(const PipelineRenderer& r) {
     out->width = r.width();
     out->height = r.height();
     out->rgb.assign(size_t(out->width) * out->height * 3, 0);
-    out->status = fmt::format("NO CAMERA: {} is {}", sceneCamera->name(),
-                              toString(sceneCamera->stats().state));
+    const CaptureStats camera = sceneCamera->stats();
+    out->status = fmt::format("NO CAMERA: {} is {}{}", sceneCamera->name(), toString(camera.state),
+                              camera.problem.empty() ? "" : ": " + camera.problem);
     {
         std::lock_guard lock(statusMutex);
         out->index = renderStatus.framesRendered++;
@@ -360,7 +396,9 @@ void Service::Threads::runRender(ModeMachine& modes) {
     ShotController shot(r, modes, clock, refine);
     Clock::time_point lastPublished = Clock::now();
     while (!stopping.load()) {
-        heartbeatNs.store(nowNs());
+        // One step a pass: its waits are bounded (kRenderPoll); a compile extends it
+        // (GpuContext::setStage).
+        StageStep pass(&renderStage);
         {
             std::lock_guard lock(settingsMutex);
             shot.setConfig(refine, previewSamples);
@@ -462,6 +500,7 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config, bo
     configError = true;
     // A stop must not wait for a whole frame on a slow device (lavapipe on a slow CPU).
     t.renderer->renderer().setInterrupt(&t.stopping);
+    t.gpu->setStage(&t.renderStage);
     // With [render] preview_fps the dial chose the preview's samples (PipelineRenderer).
     t.previewSamples = t.renderer->previewSamples();
     logInfo("render: {}x{} on {}, {} spp per preview frame", t.renderer->width(),
@@ -479,7 +518,7 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config, bo
 
     Result<std::unique_ptr<FrameOutput>> output = makeFrameOutput(outputSettings(config.output));
     if (!output) return output.error();
-    t.display = std::make_unique<DisplayThread>(std::move(*output));
+    t.display = std::make_unique<DisplayThread>(std::move(*output), &t.displayStage);
 
     Service* self = service.get();
     if (config.button) {
@@ -536,13 +575,13 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config, bo
     t.sceneCamera = makeCameraSource(
         config.sceneCamera, config.loopSession,
         [recorder](const std::shared_ptr<const Frame>& f) { recorder->addFrame("scene", f); },
-        recorder->keepCapturedFlag());
+        recorder->keepCapturedFlag(), &t.sceneCaptureStage);
     if (Status s = t.sceneCamera->start(); !s) return s.error();
     if (config.fisheyeCamera) {
         t.fisheyeCamera = makeCameraSource(
             *config.fisheyeCamera, config.loopSession,
             [recorder](const std::shared_ptr<const Frame>& f) { recorder->addFrame("fisheye", f); },
-            recorder->keepCapturedFlag());
+            recorder->keepCapturedFlag(), &t.fisheyeCaptureStage);
         if (Status s = t.fisheyeCamera->start(); !s) return s.error();
         t.lightingThread = std::thread([&t] {
             runGuarded(
@@ -649,8 +688,16 @@ ServiceStatus Service::status() const {
     s.framesDropped = s.droppedCapture + s.droppedRender + s.droppedDisplay;
     s.display = shown.kind.empty() ? t.display->output().kind() : shown.kind;
     s.uptimeSeconds = std::chrono::duration<double>(Clock::now() - started_).count();
-    s.sceneCamera = toString(t.sceneCamera->stats().state);
-    s.fisheyeCamera = t.fisheyeCamera ? toString(t.fisheyeCamera->stats().state) : "none";
+    const CaptureStats scene = t.sceneCamera->stats();
+    s.sceneCamera = toString(scene.state);
+    s.sceneCameraProblem = scene.problem;
+    if (t.fisheyeCamera) {
+        const CaptureStats fisheye = t.fisheyeCamera->stats();
+        s.fisheyeCamera = toString(fisheye.state);
+        s.fisheyeCameraProblem = fisheye.problem;
+    } else {
+        s.fisheyeCamera = "none";
+    }
     s.lightingUpdates = t.lightingUpdates.load();
     s.record = t.recorder->status();
     s.button = !t.button ? "none" : t.button->connected() ? "connected" : "absent";
@@ -775,11 +822,14 @@ int Service::run() {
     Threads& t = *threads_;
     systemd::notifyReady();
     const std::optional<std::chrono::microseconds> watchdog = systemd::watchdogInterval();
-    // Ping at a quarter of the interval, and only while the render loop's heartbeat is fresh: a
-    // hung GPU or pipeline stops the pings and systemd restarts the service.
+    // Ping at a quarter of the interval, and only while no thread is stuck in a step for half of
+    // it (base/stage_watch.h): a hung camera, tracker, GPU or display stops the pings and
+    // systemd restarts the service. Without a watchdog a stuck thread is still logged.
     const int pollMs =
         watchdog ? int(std::clamp<int64_t>(watchdog->count() / 4000, 50, 1000)) : 1000;
-    const int64_t staleNs = watchdog ? int64_t(watchdog->count()) * 1000 / 2 : 0;
+    const int64_t stuckNs =
+        watchdog ? int64_t(watchdog->count()) * 1000 / 2 : kStuckWithoutWatchdogNs;
+    std::vector<std::string> reportedStuck;
     int exitCode = 0;
     Clock::time_point lastStatus{}, finishedAt{};
     for (;;) {
@@ -822,8 +872,8 @@ int Service::run() {
             }
         }
         if (rolling || t.led) updateLed();
-        const int64_t heartbeat = t.heartbeatNs.load();
-        if (watchdog && heartbeat != 0 && nowNs() - heartbeat < staleNs) systemd::notifyWatchdog();
+        if (feedWatchdog(t.watch.stuck(nowNs(), stuckNs), reportedStuck, watchdog.has_value()))
+            if (watchdog) systemd::notifyWatchdog();
         if (Clock::now() - lastStatus > std::chrono::seconds(1)) {
             systemd::notifyStatus(statusLine(status()));
             lastStatus = Clock::now();

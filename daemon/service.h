@@ -54,6 +54,7 @@ struct ServiceStatus {
     uint32_t photonsPerIteration = 0;        // 0: no photon pass (docs/caustics.md)
     float photonRadiusM = 0.0f;              // the gather radius of the frame's last iteration
     std::string sceneCamera, fisheyeCamera;  // capture states
+    std::string sceneCameraProblem, fisheyeCameraProblem;  // CaptureStats::problem
     uint64_t lightingUpdates = 0;
     // No lighting snapshot yet: the virtual objects are lit by a neutral environment.
     bool lightingPending = false;
@@ -86,8 +87,8 @@ public:
     Service& operator=(const Service&) = delete;
 
     // Runs until SIGTERM/SIGINT (exit 0) or a fatal error (1). Speaks sd_notify, feeds the
-    // watchdog from the render loop's heartbeat, reloads on SIGHUP. The caller must have
-    // blocked SIGTERM, SIGINT and SIGHUP in every thread (blockServiceSignals()).
+    // watchdog while no thread is stuck in a step (base/stage_watch.h), reloads on SIGHUP. The
+    // caller must have blocked SIGTERM, SIGINT and SIGHUP in every thread (blockServiceSignals()).
     int run();
     // Asks run() to return (tests; signals do the same).
     void requestStop();

@@ -168,9 +168,15 @@ Status ConfigReader::parseCamera(const toml::table& t, const std::string& name,
     const std::string kind = source->value_or("v4l2");
     if (kind == "v4l2")
         c.source = CameraSourceKind::V4L2;
-    else if (kind == "libcamera")
+    else if (kind == "libcamera") {
+#ifndef PREVIS_HAVE_LIBCAMERA
+        return fail(t.get("source"),
+                    "'{}.source' is libcamera, but this previs was built without libcamera "
+                    "(Debian's libcamera-dev); use v4l2, or rebuild with libcamera",
+                    section);
+#endif
         c.source = CameraSourceKind::Libcamera;
-    else if (kind == "session")
+    } else if (kind == "session")
         c.source = CameraSourceKind::Session;
     else
         return fail(t.get("source"), "'{}.source' is '{}'; use v4l2, libcamera or session", section,

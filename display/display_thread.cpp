@@ -7,7 +7,8 @@
 
 namespace previs {
 
-DisplayThread::DisplayThread(std::unique_ptr<FrameOutput> output) : output_(std::move(output)) {
+DisplayThread::DisplayThread(std::unique_ptr<FrameOutput> output, Stage* stage)
+    : output_(std::move(output)), stage_(stage) {
     stats_.kind = output_->kind();
     thread_ = std::thread([this] {
         // run() returns only when stopping; an exception from an output counts as a failed
@@ -52,7 +53,10 @@ void DisplayThread::run() {
     for (;;) {
         std::shared_ptr<const DisplayFrame> frame = slot_.waitTake(stopping_);
         if (!frame) return;
-        const Status status = output_->show(*frame);
+        const Status status = [&] {
+            StageStep step(stage_);
+            return output_->show(*frame);
+        }();
         const std::string kind = output_->kind();
         const int64_t nowNs = std::chrono::duration_cast<std::chrono::nanoseconds>(
                                   std::chrono::steady_clock::now().time_since_epoch())

@@ -12,6 +12,7 @@
 #include <thread>
 
 #include "base/latest_value_slot.h"
+#include "base/stage_watch.h"
 #include "display/frame_output.h"
 
 namespace previs {
@@ -31,8 +32,9 @@ struct DisplayStats {
 
 class DisplayThread {
 public:
-    // Starts the thread.
-    explicit DisplayThread(std::unique_ptr<FrameOutput> output);
+    // Starts the thread. `stage`: the service's watch over it (base/stage_watch.h): a frame the
+    // output never finishes showing is a hang.
+    explicit DisplayThread(std::unique_ptr<FrameOutput> output, Stage* stage = nullptr);
     ~DisplayThread();
     DisplayThread(const DisplayThread&) = delete;
     DisplayThread& operator=(const DisplayThread&) = delete;
@@ -51,6 +53,7 @@ private:
     void run();
 
     std::unique_ptr<FrameOutput> output_;
+    Stage* stage_;
     LatestValueSlot<DisplayFrame> slot_;
     bool stopping_ = false;  // guarded by slot_.mutex()
     std::atomic<uint64_t> dropped_{0};

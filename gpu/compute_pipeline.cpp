@@ -27,6 +27,8 @@ Result<ComputePipeline> ComputePipeline::create(GpuContext& ctx, std::span<const
                                                 std::span<const BindingKind> bindings,
                                                 std::span<const uint32_t> specConstants,
                                                 const char* label, Specialise specialise) {
+    // The driver's compile may be the longest thing the render thread does (GpuContext::stage).
+    if (Stage* stage = ctx.stage()) stage->allowLonger(GpuContext::kCompileAllowance);
     ComputePipeline p;
     p.ctx_ = &ctx;
     p.label_ = label;

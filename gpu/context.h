@@ -5,6 +5,7 @@
 // implementation (lavapipe). PREVIS_VK_DEVICE (index or name substring) overrides the choice.
 
 #include <atomic>
+#include <chrono>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -12,6 +13,7 @@
 #include <vulkan/vulkan_raii.hpp>
 
 #include "base/result.h"
+#include "base/stage_watch.h"
 
 namespace previs {
 
@@ -50,6 +52,14 @@ public:
     uint32_t validationErrorCount() const { return validationErrors_.load(); }
     bool validationEnabled() const { return validationEnabled_; }
 
+    // The stage (base/stage_watch.h) of the thread that compiles and submits on this context,
+    // when a service watches it: a pipeline compile may take minutes on a slow CPU, so each one
+    // extends that thread's step by kCompileAllowance (ComputePipeline::create) instead of
+    // counting as a hang. Null: nobody watches.
+    void setStage(Stage* stage) { stage_ = stage; }
+    Stage* stage() const { return stage_; }
+    static constexpr std::chrono::minutes kCompileAllowance{10};
+
 private:
     GpuContext() = default;
     static VKAPI_ATTR VkBool32 VKAPI_CALL debugCallback(
@@ -72,6 +82,7 @@ private:
     bool validationEnabled_ = false;
     double timestampPeriodNs_ = 0.0;
     std::atomic<uint32_t> validationErrors_{0};
+    Stage* stage_ = nullptr;
 };
 
 }  // namespace previs

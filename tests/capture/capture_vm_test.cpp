@@ -265,6 +265,37 @@ bool writeSysfs(const char* path, const char* value) {
 }
 
 // Last: it unplugs both vivid cameras (one platform device) and plugs them back.
+// A control the config names that does not apply (here: one vivid does not have) would leave
+// the camera's pictures other than its radiometry promises: the camera is in error, with the
+// reason in its stats (previsd's status and display), not streaming.
+TEST(Vivid, AControlThatDoesNotApplyIsAnErrorNotAStream) {
+    V4L2Config config;
+    config.device = "/dev/video0";
+    config.width = 320;
+    config.height = 180;
+    config.controls = {{"Test Pattern", 1}, {"No Such Control", 100}};
+    auto dev = V4L2Device::create(config);
+    ASSERT_FALSE(dev);
+    EXPECT_NE(dev.message().find("control 'No Such Control' = 100 not applied"), std::string::npos)
+        << dev.message();
+    CaptureThread capture(
+        [config]() -> Result<std::unique_ptr<FrameReader>> {
+            auto d = V4L2Device::create(config);
+            if (!d) return d.error();
+            return std::unique_ptr<FrameReader>(std::move(*d));
+        },
+        vmOptions("scene /dev/video0"));
+    ASSERT_TRUE(capture.start());
+    ASSERT_TRUE(waitFor([&] { return capture.state() == CaptureState::Lost; }, 10000));
+    EXPECT_NE(capture.stats().problem.find("No Such Control"), std::string::npos)
+        << capture.stats().problem;
+    EXPECT_EQ(capture.stats().delivered, 0u);
+    capture.stop();
+    // The controls it has apply, and it streams.
+    config.controls = {{"Test Pattern", 1}};
+    EXPECT_TRUE(V4L2Device::create(config)) << "vivid's own control";
+}
+
 TEST(Vivid, UnplugAndReplugResumeWithoutRestart) {
     CaptureThread capture(vividFactory("/dev/video0", 320, 180), vmOptions("scene /dev/video0"));
     ASSERT_TRUE(capture.start());

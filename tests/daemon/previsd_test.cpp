@@ -2,9 +2,13 @@
 // the bundled demo session (examples/demo), rendering small on lavapipe. previsd plays the
 // session at its recorded timing; replay runs it in lock step and must be byte-identical run to
 // run, with each frame's pose tracked on that very frame (compared with the recorded truth).
+#include <fcntl.h>
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <sys/mount.h>
+#include <sys/socket.h>
+#include <sys/stat.h>
+#include <sys/un.h>
 
 #include <algorithm>
 #include <cerrno>
@@ -21,6 +25,7 @@
 #include <sstream>
 #include <thread>
 
+#include "capture/unique_fd.h"
 #include "daemon/control_server.h"
 #include "daemon/pipeline_stages.h"
 #include "daemon/take_files.h"
@@ -182,6 +187,73 @@ TEST(Previsd, StartsWithoutAButtonWhoseChipIsNotThereYet) {
     std::optional<int> code = p.wait(30s);
     ASSERT_TRUE(code) << p.log();
     EXPECT_EQ(*code, 0) << p.log();
+}
+
+// A display that never finishes showing a frame (here: the files output opening a FIFO nobody
+// reads, a real blocking open) is a hung thread: previsd names it and stops feeding systemd's
+// watchdog, so systemd restarts it (the unit's side is tested under systemd in the VM,
+// systemd_sandbox_vm). The test stands where systemd would: it binds NOTIFY_SOCKET and sets
+// WATCHDOG_USEC.
+TEST(Previsd, AHungDisplayThreadStopsTheWatchdogAndIsNamed) {
+    const fs::path dir = scratch() / "hung_display";
+    fs::remove_all(dir);
+    const std::string config = demoConfig("hung_display");
+    fs::create_directories(dir / "frames");
+    // The fourth frame's temporary file (display/files_output.cpp) is a FIFO: open() blocks.
+    ASSERT_EQ(::mkfifo((dir / "frames" / ".frame_000003.png.tmp").c_str(), 0644), 0)
+        << std::strerror(errno);
+    const fs::path notifyPath = dir / "notify.sock";
+    UniqueFD notify(::socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0));
+    sockaddr_un addr{};
+    addr.sun_family = AF_UNIX;
+    ASSERT_LT(notifyPath.native().size(), sizeof(addr.sun_path));
+    std::strcpy(addr.sun_path, notifyPath.c_str());
+    ASSERT_EQ(::bind(notify.get(), reinterpret_cast<sockaddr*>(&addr), sizeof(addr)), 0);
+    // 10 s: a thread is stuck after 5 s in one step, far above any step of this small render,
+    // sanitized or on a loaded machine.
+    ::setenv("NOTIFY_SOCKET", notifyPath.c_str(), 1);
+    ::setenv("WATCHDOG_USEC", "10000000", 1);
+    ChildProcess p({previsd(), "--config", config}, (dir / "previsd.log").string());
+    ::unsetenv("NOTIFY_SOCKET");
+    ::unsetenv("WATCHDOG_USEC");
+    auto drain = [&] {
+        int pings = 0;
+        char buffer[4096];
+        for (ssize_t n; (n = ::recv(notify.get(), buffer, sizeof(buffer), MSG_DONTWAIT)) > 0;)
+            pings += std::string(buffer, size_t(n)).find("WATCHDOG=1") != std::string::npos;
+        return pings;
+    };
+    const auto deadline = std::chrono::steady_clock::now() + kStartup;
+    int pings = 0;
+    while (p.log().find("watchdog: the display thread") == std::string::npos &&
+           std::chrono::steady_clock::now() < deadline && p.running()) {
+        pings += drain();
+        std::this_thread::sleep_for(200ms);
+    }
+    EXPECT_GT(pings, 0) << "previsd fed the watchdog before the display hung: " << p.log();
+    ASSERT_NE(p.log().find("watchdog: the display thread has been in one step for"),
+              std::string::npos)
+        << p.log();
+    drain();
+    std::this_thread::sleep_for(3s);  // a ping is due every 2.5 s while fed
+    EXPECT_EQ(drain(), 0) << "still feeding the watchdog with the display hung";
+    EXPECT_TRUE(p.running()) << p.log();
+    // Unblock the display (a reader for the FIFO): the thread goes on, and so do the pings.
+    UniqueFD reader(::open((dir / "frames" / ".frame_000003.png.tmp").c_str(),
+                           O_RDONLY | O_NONBLOCK | O_CLOEXEC));
+    ASSERT_TRUE(reader.isValid()) << std::strerror(errno);
+    const auto back = std::chrono::steady_clock::now() + 30s;
+    char png[65536];
+    while (p.log().find("watchdog: the display thread is going again") == std::string::npos &&
+           std::chrono::steady_clock::now() < back) {
+        [[maybe_unused]] ssize_t n = ::read(reader.get(), png, sizeof(png));
+        std::this_thread::sleep_for(200ms);
+    }
+    EXPECT_NE(p.log().find("watchdog: the display thread is going again"), std::string::npos)
+        << p.log();
+    drain();
+    std::this_thread::sleep_for(4s);
+    EXPECT_GT(drain(), 0) << "the watchdog is fed again once the display goes on";
 }
 
 std::string trimmed(std::string s) {

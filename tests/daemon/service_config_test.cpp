@@ -60,7 +60,8 @@ TEST(ServiceConfig, LoadsTheExampleBox) {
     const CameraConfig& scene = c->sceneCamera;
     EXPECT_EQ(scene.name, "scene");
     EXPECT_EQ(scene.source, CameraSourceKind::V4L2);
-    EXPECT_EQ(scene.device, "/dev/video0");
+    EXPECT_EQ(scene.device,
+              "/dev/v4l/by-id/usb-Magewell_USB_Capture_HDMI_B208220905267-video-index0");
     EXPECT_EQ(scene.width, 1280u);
     EXPECT_EQ(scene.height, 720u);
     EXPECT_EQ(scene.pixelFormat, "YUYV");
@@ -75,7 +76,8 @@ TEST(ServiceConfig, LoadsTheExampleBox) {
     EXPECT_EQ(scene.radiometry.maxRadiance, 16.0f);
 
     ASSERT_TRUE(c->fisheyeCamera);
-    EXPECT_EQ(c->fisheyeCamera->device, "/dev/video1");
+    EXPECT_EQ(c->fisheyeCamera->device,
+              "/dev/v4l/by-id/usb-ELP_USB_FHD_Fisheye_Camera_2021-video-index0");
     ASSERT_TRUE(c->fisheyeCamera->calibration);
     EXPECT_EQ(c->fisheyeCamera->calibration->model(), DistortionModel::Fisheye);
     EXPECT_EQ(c->lighting.fisheye.mountRotationDeg, cv::Vec3d(-90.0, 0.0, 0.0));

@@ -90,8 +90,20 @@ DefaultDependencies=no
 [Service]
 StandardOutput=append:/run/previs-retry.log
 EOT
-starts_now() { if [ -f /run/previs-starts.log ]; then wc -l </run/previs-starts.log; else echo 0; fi; }
-restart_case() {  # EXIT_STATUS STARTS_WANTED SECONDS: starts counted after SECONDS (or STARTS_WANTED)
+starts_now() { awk '/^start$/ { n++ } END { print n + 0 }' /run/previs-starts.log 2>/dev/null || echo 0; }
+# A process that says READY=1 from the main PID (NotifyAccess=main), then hangs: never WATCHDOG=1.
+cat >/usr/local/bin/previs-hang <<'EOT'
+#!/usr/bin/python3
+import os, socket, time
+print("start", flush=True)
+path = os.environ["NOTIFY_SOCKET"]
+s = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+s.connect("\0" + path[1:] if path.startswith("@") else path)
+s.send(b"READY=1")
+time.sleep(600)
+EOT
+chmod 755 /usr/local/bin/previs-hang
+restart_case() {  # EXEC TYPE WATCHDOG_SEC STARTS_WANTED SECONDS: starts after SECONDS (or STARTS_WANTED)
     rm -f /run/previs-starts.log /run/previs-retry.log
     cat >/etc/systemd/system/previsd.service.d/probe.conf <<EOT
 [Unit]
@@ -99,19 +111,21 @@ DefaultDependencies=no
 StartLimitIntervalSec=30
 StartLimitBurst=3
 [Service]
-Type=simple
-WatchdogSec=0
+Type=$2
+WatchdogSec=$3
 RestartSec=100ms
 ExecStart=
-ExecStart=/bin/sh -c 'echo start; exit $1'
+ExecStart=$1
+# How each run ended, as systemd saw it (watchdog, exit-code, …).
+ExecStopPost=/bin/sh -c 'echo "result \$\$SERVICE_RESULT"'
 StandardOutput=append:/run/previs-starts.log
 EOT
     container=vmtest unshare --pid --fork --mount-proc /lib/systemd/systemd --system \
         --unit=previsd.service --log-target=console --log-level=info </dev/null \
         >/run/systemd-manager.log 2>&1 &
     local manager=$! waited=0
-    while [ $waited -lt $(($3 * 10)) ]; do
-        [ "$(starts_now)" -ge "$2" ] && break
+    while [ $waited -lt $(($5 * 10)) ]; do
+        [ "$(starts_now)" -ge "$4" ] && break
         sleep 0.1; waited=$((waited + 1))
     done
     # The manager is unshare's child, PID 1 of its namespace: killing it ends everything in there.
@@ -119,14 +133,20 @@ EOT
     wait $manager 2>/dev/null || true
     starts_now
 }
-starts=$(restart_case 1 5 120)
+starts=$(restart_case "/bin/sh -c 'echo start; exit 1'" simple 0 5 120)
 cat /run/previs-retry.log 2>/dev/null || true
 [ "$starts" -ge 5 ] || { tail -40 /run/systemd-manager.log; echo "FAIL: a crash loop stopped after $starts starts"; exit 1; }
 grep -q "starting it again" /run/previs-retry.log || { echo "FAIL: the retry did not say why"; exit 1; }
 echo "a crash that repeats: $starts starts (3 fast, then again after the pause): OK"
-starts=$(restart_case 2 99 15)
+starts=$(restart_case "/bin/sh -c 'echo start; exit 2'" simple 0 99 15)
 cat /run/previs-retry.log 2>/dev/null || true
 [ "$starts" -eq 1 ] || { tail -40 /run/systemd-manager.log; echo "FAIL: exit 2 started $starts times"; exit 1; }
 grep -q "not starting it again" /run/previs-retry.log ||
     { tail -40 /run/systemd-manager.log; echo "FAIL: exit 2: the retry did not say why it waits"; exit 1; }
 echo "exit 2 (a config error): started once, not retried: OK"
+# The watchdog: a main process that stops feeding it is killed (SIGABRT) and started again.
+starts=$(restart_case /usr/local/bin/previs-hang notify 2 2 90)
+[ "$starts" -ge 2 ] || { tail -40 /run/systemd-manager.log; echo "FAIL: a hung previsd was not restarted ($starts starts)"; exit 1; }
+grep -q "^result watchdog$" /run/previs-starts.log ||
+    { cat /run/previs-starts.log; echo "FAIL: systemd did not end it for its watchdog"; exit 1; }
+echo "a process that stops feeding the watchdog: killed and started again: OK"
