@@ -81,6 +81,7 @@ VKAPI_ATTR VkBool32 VKAPI_CALL GpuContext::debugCallback(
 
 Result<std::unique_ptr<GpuContext>> GpuContext::create(const GpuOptions& options) {
     std::unique_ptr<GpuContext> ctx(new GpuContext());
+    ctx->fenceTimeout_ = options.fenceTimeout;
     try {
         std::vector<const char*> layers;
         std::vector<const char*> extensions;
@@ -202,7 +203,14 @@ Result<std::unique_ptr<GpuContext>> GpuContext::create(const GpuOptions& options
 }
 
 GpuContext::~GpuContext() {
-    if (*device_) device_.waitIdle();
+    // The C entry point: vk::raii's waitIdle() throws on VK_ERROR_DEVICE_LOST, and a throw from
+    // a destructor is std::terminate. A lost or hung device is not waited for: its objects are
+    // destroyed as they are (what the driver can still do).
+    if (!*device_ || deviceLost_.load()) return;
+    const VkResult r = device_.getDispatcher()->vkDeviceWaitIdle(static_cast<VkDevice>(*device_));
+    if (r != VK_SUCCESS)
+        logError("Vulkan device '{}': waiting for it to finish failed ({})", deviceName_,
+                 vk::to_string(vk::Result(r)));
 }
 
 uint32_t GpuContext::findMemoryType(uint32_t typeBits, vk::MemoryPropertyFlags required,
@@ -230,9 +238,20 @@ Status GpuContext::submitAndWait(
         device_.resetFences(*fence_);
         vk::CommandBuffer raw = *cmd;
         queue_.submit(vk::SubmitInfo({}, {}, raw), *fence_);
-        // Wait without a time limit: a long dispatch on a CPU device is still progress.
-        while (device_.waitForFences(*fence_, VK_TRUE, 1'000'000'000ull) == vk::Result::eTimeout) {
+        const uint64_t timeoutNs =
+            uint64_t(std::chrono::duration_cast<std::chrono::nanoseconds>(fenceTimeout_).count());
+        if (device_.waitForFences(*fence_, VK_TRUE, timeoutNs) == vk::Result::eTimeout) {
+            deviceLost_ = true;
+            return makeError(
+                "the GPU '{}' did not finish a submission in {} s: the device hangs (a driver or "
+                "a shader); previs stops rather than wait forever",
+                deviceName_, fenceTimeout_.count() / 1000.0);
         }
+    } catch (const vk::DeviceLostError& e) {
+        deviceLost_ = true;
+        return makeError(
+            "the GPU '{}' was lost (VK_ERROR_DEVICE_LOST: a driver reset or a GPU fault): {}",
+            deviceName_, e.what());
     } catch (const std::exception& e) {
         return makeError("Vulkan submission failed on '{}': {}", deviceName_, e.what());
     }

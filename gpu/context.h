@@ -24,6 +24,11 @@ struct GpuOptions {
     // Index into the device list or a case-insensitive substring of the device name;
     // empty = automatic (also read from PREVIS_VK_DEVICE when empty).
     std::string deviceOverride;
+    // The longest one submission may run before it counts as a hung device (its fence never
+    // signalled): an error, never a wait forever. Far above any dispatch previs makes (the
+    // service's are ~250 ms parts, gpu/interruptible_dispatch.h; a render's whole frames take
+    // seconds on lavapipe).
+    std::chrono::milliseconds fenceTimeout{std::chrono::minutes(5)};
 };
 
 class GpuContext {
@@ -46,8 +51,12 @@ public:
     uint32_t findMemoryType(uint32_t typeBits, vk::MemoryPropertyFlags required,
                             vk::MemoryPropertyFlags preferred) const;
 
-    // Records commands into a one-time command buffer, submits them and waits.
+    // Records commands into a one-time command buffer, submits them and waits, at most
+    // GpuOptions::fenceTimeout. A lost device (VK_ERROR_DEVICE_LOST: a driver reset, a GPU
+    // fault) or a fence that never signals is an error naming the device; deviceLost() then
+    // stays true and nothing waits on the device again (the destructor included).
     Status submitAndWait(const std::function<void(const vk::raii::CommandBuffer&)>& record);
+    bool deviceLost() const { return deviceLost_.load(); }
 
     uint32_t validationErrorCount() const { return validationErrors_.load(); }
     bool validationEnabled() const { return validationEnabled_; }
@@ -83,6 +92,8 @@ private:
     double timestampPeriodNs_ = 0.0;
     std::atomic<uint32_t> validationErrors_{0};
     Stage* stage_ = nullptr;
+    std::chrono::milliseconds fenceTimeout_{};
+    std::atomic<bool> deviceLost_{false};
 };
 
 }  // namespace previs

@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cstdlib>
 #include <numeric>
 
@@ -34,6 +35,23 @@ TEST(GpuContextTest, UnknownOverrideNamesTheDevices) {
     EXPECT_NE(ctx.message().find("PREVIS_VK_DEVICE 'no-such-gpu'"), std::string::npos)
         << ctx.message();
     EXPECT_NE(ctx.message().find("[0]"), std::string::npos) << ctx.message();
+}
+
+// A submission whose fence does not signal within GpuOptions::fenceTimeout is an error naming
+// the device, never a wait forever (a hung GPU): here a 256 MiB fill against no time at all.
+TEST(GpuContextTest, ASubmissionThatDoesNotFinishInTimeIsAnError) {
+    auto ctx = GpuContext::create(
+        {.validation = false, .deviceOverride = "", .fenceTimeout = std::chrono::milliseconds(0)});
+    ASSERT_TRUE(ctx.ok()) << ctx.message();
+    auto buffer = GpuBuffer::create(**ctx, size_t(256) << 20, "big");
+    ASSERT_TRUE(buffer.ok()) << buffer.message();
+    const Status s = buffer->fill(1);
+    ASSERT_FALSE(s.ok());
+    EXPECT_NE(s.message().find("did not finish a submission"), std::string::npos) << s.message();
+    EXPECT_NE(s.message().find((*ctx)->deviceName()), std::string::npos) << s.message();
+    EXPECT_TRUE((*ctx)->deviceLost());
+    // The device is not really hung here: let the fill end before its buffer is destroyed.
+    (*ctx)->device().waitIdle();
 }
 
 TEST(GpuBufferTest, RoundTripAndFill) {
