@@ -21,6 +21,7 @@
 #include "capture/unique_fd.h"
 #include "daemon/camera_sources.h"
 #include "daemon/control_server.h"
+#include "daemon/memory_budget.h"
 #include "daemon/pipeline_renderer.h"
 #include "daemon/pipeline_stages.h"
 #include "daemon/recorded_events.h"
@@ -487,6 +488,8 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config, bo
 
     Result<Scene> scene = loadScene(config.scenePath);
     if (!scene) return scene.error();
+    // What would cross MemoryMax= is refused now, not found by the OOM killer mid-take.
+    if (Status s = checkMemoryBudget(*scene, config, cgroupMemoryLimit()); !s) return s.error();
     configError = false;
     Result<std::unique_ptr<GpuContext>> gpu = GpuContext::create({});
     if (!gpu) return gpu.error();

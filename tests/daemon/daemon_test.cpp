@@ -8,14 +8,18 @@
 #include <atomic>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <nlohmann/json.hpp>
 #include <thread>
 
 #include "daemon/control_server.h"
+#include "daemon/memory_budget.h"
 #include "daemon/mode_machine.h"
 #include "daemon/pipeline_stages.h"
 #include "daemon/recorded_events.h"
 #include "daemon/service.h"
+#include "daemon/service_config.h"
+#include "scene/scene.h"
 #include "tests/support/temp_dir.h"
 #include "tests/support/test_data.h"
 #include "vision/lens_grid.h"
@@ -242,6 +246,49 @@ TEST(CameraConventions, PoseDeltaMeasuresTranslationAndAngle) {
     EXPECT_NEAR(d.translationM, 0.25, 1e-12);
     EXPECT_NEAR(d.rotationDeg, 10.0, 1e-9);
     EXPECT_NEAR(poseDelta(b, b).rotationDeg, 0.0, 1e-6);
+}
+
+}  // namespace
+}  // namespace previs
+
+namespace previs {
+namespace {
+
+// The memory check against the service's cgroup (daemon/memory_budget.h), on cgroup files laid
+// out as the kernel lays them out.
+TEST(MemoryBudget, ReadsTheCgroupsLimitAndRefusesWhatWouldCrossIt) {
+    const std::filesystem::path root = testing::scratchDir("previs_memory_budget");
+    std::filesystem::create_directories(root / "proc/self");
+    std::filesystem::create_directories(root / "sys/fs/cgroup/system.slice/previsd.service");
+    std::ofstream(root / "proc/self/cgroup") << "0::/system.slice/previsd.service\n";
+    const auto limitFile = root / "sys/fs/cgroup/system.slice/previsd.service/memory.max";
+    std::ofstream(limitFile) << "max\n";
+    EXPECT_EQ(cgroupMemoryLimit(root.string()), std::nullopt) << "max: unlimited";
+    std::ofstream(limitFile) << "4294967296\n";
+    EXPECT_EQ(cgroupMemoryLimit(root.string()), uint64_t(4) << 30);
+    EXPECT_EQ(cgroupMemoryLimit((root / "nothing").string()), std::nullopt);
+
+    Scene scene;
+    scene.path = "set.glb";
+    ServiceConfig config;
+    config.path = "/etc/previs/previsd.toml";
+    config.render.width = 1920;
+    config.render.height = 1080;
+    const uint64_t hd = estimatedServiceBytes(scene, config);
+    // The measured peak at 1080p (1.94 GiB on the demo scene) fits under the shipped 4 GiB.
+    EXPECT_GT(hd, uint64_t(1900) << 20);
+    EXPECT_LT(hd, uint64_t(4) << 30);
+    EXPECT_TRUE(checkMemoryBudget(scene, config, uint64_t(4) << 30));
+    EXPECT_TRUE(checkMemoryBudget(scene, config, std::nullopt));
+    // A scene of 20 million triangles does not.
+    scene.geometry.triangles.resize(20'000'000);
+    scene.geometry.positions.resize(10'000'000);
+    const Status refused = checkMemoryBudget(scene, config, uint64_t(4) << 30);
+    ASSERT_FALSE(refused);
+    EXPECT_NE(refused.message().find("set.glb at 1920x1080 needs about"), std::string::npos)
+        << refused.message();
+    EXPECT_NE(refused.message().find("limit of 4096 MiB (MemoryMax=)"), std::string::npos)
+        << refused.message();
 }
 
 }  // namespace

@@ -112,6 +112,9 @@ devices)
     rule=$tmp/lib/udev/rules.d/60-previs-gpio.rules
     grep -q 'KERNEL=="gpiochip\*".*GROUP="previs"' "$rule" || fail "$rule does not give gpiochip* to previs"
     grep -qx 'g previs -' "$tmp/lib/sysusers.d/previs.conf" || fail "sysusers.d does not create group previs"
+    # Bounded memory and tasks, sized in the unit's comment from the measured peak.
+    [ "$(values MemoryMax)" = "4G" ] || fail "MemoryMax= is '$(values MemoryMax)', not 4G"
+    [ "$(values TasksMax)" = "512" ] || fail "TasksMax= is '$(values TasksMax)', not 512"
     # Settings that would cut previsd off its devices or its JIT.
     [ "$(values MemoryDenyWriteExecute)" != "yes" ] || fail "MemoryDenyWriteExecute=yes breaks llvmpipe"
     echo "device access settings OK"
