@@ -13,8 +13,10 @@ for config in release asan; do
     # tests spend their time in the driver, which is not instrumented, and the VM tests of whole
     # services (vm-release) take minutes under an emulated CPU with ASan; the host code both
     # exercise runs sanitized in the host tests. A single device's VM test (vm) runs only there:
-    # one VM boot per test in the whole run.
-    target=() select=(-LE '^vm$')
+    # one VM boot per test in the whole run. Likewise the GPU tests labelled gpu-sanitized
+    # (previsd end to end, preview, the Vulkan wrappers) run once, sanitized: the optimised previsd
+    # still runs end to end in the release stage's VM test (previsd_vm).
+    target=() select=(-LE '^(vm|gpu-sanitized)$')
     if [[ $config == asan ]]; then
         target=(previs_sanitized_tests)
         select=(-L '^(unit|vm|gpu-sanitized)$')
