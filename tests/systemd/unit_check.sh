@@ -58,21 +58,18 @@ install)
     ;;
 verify)
     mkdir -p "$tmp/bin"
-    if [ -n "$previsd" ] && [ -x "$previsd" ]; then
-        cp "$previsd" "$tmp/bin/previsd"
-    else
-        # No previsd target yet: verify needs an executable at ExecStart, any will do.
-        printf '#!/bin/sh\nexit 1\n' >"$tmp/bin/previsd"
-        chmod +x "$tmp/bin/previsd"
-        echo "note: no previsd binary given, a stub stands at ExecStart"
-    fi
-    if [ -n "$previs" ] && [ -x "$previs" ]; then
-        cp "$previs" "$tmp/bin/previs"
-    else
-        printf '#!/bin/sh\nexit 1\n' >"$tmp/bin/previs"
-        chmod +x "$tmp/bin/previs"
-        echo "note: no previs binary given, a stub stands at ExecReload"
-    fi
+    # The unit's executables (ExecStart= previsd, ExecReload= previs): the built ones when given;
+    # else a stub, since verify needs an executable there and any will do.
+    for pair in "previsd:$previsd" "previs:$previs"; do
+        name=${pair%%:*} binary=${pair#*:}
+        if [ -n "$binary" ] && [ -x "$binary" ]; then
+            cp "$binary" "$tmp/bin/$name"
+        else
+            printf '#!/bin/sh\nexit 1\n' >"$tmp/bin/$name"
+            chmod +x "$tmp/bin/$name"
+            echo "note: no $name binary given, a stub stands in the unit"
+        fi
+    done
     # verify exits 0 on mere warnings (unknown keys, bad values): any line naming the unit fails.
     # The retry units are checked beside it (OnFailure= names the timer, the timer the service).
     status=0
