@@ -81,8 +81,7 @@ Status checkMemoryBudget(const Scene& scene, const ServiceConfig& config,
         "{}: scene {} at {}x{} needs about {} of memory, over this service's limit of {} "
         "(MemoryMax=): lower [render] width and height, simplify the scene, or raise MemoryMax= "
         "in a drop-in (docs/systemd.md)",
-        config.path, scene.path, width, height, mib(need),
-        mib(*limit));
+        config.path, scene.path, width, height, mib(need), mib(*limit));
 }
 
 }  // namespace previs
