@@ -62,6 +62,7 @@ TrackedFrame TrackingStage::process(std::shared_ptr<const Frame> frame) {
     out.receivedNs =
         std::chrono::duration_cast<std::chrono::nanoseconds>(start.time_since_epoch()).count();
     if (int(frame->width) != calibrated_.width || int(frame->height) != calibrated_.height) {
+        out.lostReason = LostReason::FrameSize;
         out.reason =
             fmt::format("the frame is {}x{} but the calibration is for {}x{}", frame->width,
                         frame->height, calibrated_.width, calibrated_.height);
@@ -82,6 +83,7 @@ TrackedFrame TrackingStage::process(std::shared_ptr<const Frame> frame) {
     out.frame = std::move(frame);
     out.lost = state.lost;
     out.reason = state.reason;
+    out.lostReason = state.lostReason;
     if (state.pose) {
         out.worldFromCamera = state.pose->worldFromCamera;
         out.tags = int(state.pose->tagIds.size());

@@ -35,7 +35,8 @@ struct TrackedFrame {
     // The pose's one-sigma uncertainty (BoardPose::positionStdM, rotationStdDeg).
     double positionStdM = 0.0;
     double rotationStdDeg = 0.0;
-    std::string reason;  // why this frame gave no trusted pose
+    std::string reason;                          // why this frame gave no trusted pose
+    LostReason lostReason = LostReason::NoTags;  // its kind (None: a trusted pose)
     double trackMs = 0.0;
     // When the tracking stage took the frame (steady clock, CLOCK_MONOTONIC), for latency when
     // the frame's own timestamp is not on this machine's clock (a recording).

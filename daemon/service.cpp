@@ -173,6 +173,11 @@ std::string statusJson(const ServiceStatus& s) {
     j["lightingPending"] = s.lightingPending;
     j["previewHistoryFrames"] = s.previewHistoryFrames;
     j["heldViewFrames"] = s.heldViewFrames;
+    // Frames that gave no trusted pose, counted by why (vision/board_pose.h LostReason).
+    nlohmann::json lost = nlohmann::json::object();
+    for (int i = 1; i < kLostReasonCount; ++i)
+        lost[toString(LostReason(i))] = s.trackingLostFrames[size_t(i)];
+    j["trackingLost"] = lost;
     j["button"] = s.button;
     j["led"] = s.led;
     return j.dump();
@@ -220,6 +225,8 @@ struct Service::Threads {
     UniqueFD stopEvent{::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK)};
     std::atomic<bool> stopping{false};
     std::atomic<uint64_t> droppedRender{0};
+    // Frames tracking gave no trusted pose, by LostReason (status "trackingLost").
+    std::array<std::atomic<uint64_t>, kLostReasonCount> lostFrames{};
     std::atomic<uint64_t> lightingUpdates{0};
     // Set by a stage thread that cannot go on (its reason logged); run() then exits 1 so that
     // systemd restarts the service.
@@ -274,6 +281,8 @@ void Service::Threads::runTracking(const ModeMachine& modes) {
         }
         if (!pace.due(modes.mode(), frame->timestampNs)) continue;
         auto tracked = std::make_shared<TrackedFrame>(tracking->process(std::move(frame)));
+        if (tracked->lostReason != LostReason::None)
+            lostFrames[size_t(tracked->lostReason)].fetch_add(1);
         recorder->addPose(*tracked);
         // Replaced before the render thread took it: the renderer is the slow stage.
         if (trackedFrames.publish(std::move(tracked))) droppedRender.fetch_add(1);
@@ -703,6 +712,8 @@ ServiceStatus Service::status() const {
     }
     s.lightingUpdates = t.lightingUpdates.load();
     s.record = t.recorder->status();
+    for (int i = 1; i < kLostReasonCount; ++i)
+        s.trackingLostFrames[size_t(i)] = t.lostFrames[size_t(i)].load();
     s.button = !t.button ? "none" : t.button->connected() ? "connected" : "absent";
     s.led = !t.led ? "none" : t.led->connected() ? "connected" : "absent";
     return s;

@@ -5,6 +5,7 @@
 // display thread, plus the button's and the control socket's — pass immutable snapshots through
 // latest-value slots: a slow stage drops frames (counted), it never stalls capture.
 
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cstdint>
@@ -20,6 +21,7 @@
 #include "daemon/service_config.h"
 #include "daemon/take_recorder.h"
 #include "io/session.h"
+#include "vision/board_pose.h"
 
 namespace previs {
 
@@ -67,6 +69,8 @@ struct ServiceStatus {
     RecordStatus record;
     // The mode button and the status LED: "connected", "absent" (its GPIO chip or line is not
     // there yet, or went away: previsd looks for it every second) or "none" (not configured).
+    // Frames tracking gave no trusted pose since start, by LostReason (index; 0 unused).
+    std::array<uint64_t, kLostReasonCount> trackingLostFrames{};
     std::string button = "none";
     std::string led = "none";
 };

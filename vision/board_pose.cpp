@@ -181,24 +181,51 @@ Result<Tracker> Tracker::create(const TagDetectorSettings& detectorSettings, Tag
 
 const TrackingState& Tracker::track(const cv::Mat& gray) { return update(detector_.detect(gray)); }
 
+const char* toString(LostReason reason) {
+    switch (reason) {
+        case LostReason::None:
+            return "none";
+        case LostReason::NoTags:
+            return "noTags";
+        case LostReason::NoBoardTag:
+            return "noBoardTag";
+        case LostReason::TooFewTags:
+            return "tooFewTags";
+        case LostReason::Reprojection:
+            return "reprojection";
+        case LostReason::IllConditioned:
+            return "illConditioned";
+        case LostReason::FrameSize:
+            return "frameSize";
+    }
+    return "?";
+}
+
 const TrackingState& Tracker::update(const std::vector<TagDetection>& detections) {
     std::optional<BoardPose> pose = estimateBoardPose(detections, board_, calibration_);
     std::string reason;
-    if (!pose)
+    LostReason kind = LostReason::None;
+    if (!pose) {
+        kind = detections.empty() ? LostReason::NoTags : LostReason::NoBoardTag;
         reason = detections.empty() ? "no tags detected" : "no tag of the board detected";
-    else if (int(pose->tagIds.size()) < settings_.minTags)
+    } else if (int(pose->tagIds.size()) < settings_.minTags) {
+        kind = LostReason::TooFewTags;
         reason =
             fmt::format("{} board tag(s) seen, {} needed", pose->tagIds.size(), settings_.minTags);
-    else if (pose->reprojErrorPx > settings_.maxReprojErrorPx)
+    } else if (pose->reprojErrorPx > settings_.maxReprojErrorPx) {
+        kind = LostReason::Reprojection;
         reason = fmt::format("reprojection error {:.2f} px over the {:.2f} px limit",
                              pose->reprojErrorPx, settings_.maxReprojErrorPx);
-    else if (!(pose->positionStdM <= settings_.maxPositionStdFraction * pose->distanceM) ||
-             !(pose->rotationStdDeg <= settings_.maxRotationStdDeg))
+    } else if (!(pose->positionStdM <= settings_.maxPositionStdFraction * pose->distanceM) ||
+               !(pose->rotationStdDeg <= settings_.maxRotationStdDeg)) {
+        kind = LostReason::IllConditioned;
         reason = fmt::format(
             "pose ill-conditioned ({} tag(s) seen): uncertain by {:.1f}% of "
             "the distance and {:.2f} deg, limits {:.1f}% and {:.2f} deg",
             pose->tagIds.size(), 100.0 * pose->positionStdM / pose->distanceM, pose->rotationStdDeg,
             100.0 * settings_.maxPositionStdFraction, settings_.maxRotationStdDeg);
+    }
+    state_.lostReason = kind;
 
     if (reason.empty()) {
         if (state_.lost && everGood_)

@@ -56,11 +56,28 @@ struct TrackerSettings {
     double maxRotationStdDeg = 3.0;
 };
 
+// Why a frame gave no trusted pose, by kind, so the service can count them (status
+// "trackingLost"): a board out of view, another board or tag family, too little of the board,
+// a blurred or wrongly detected frame, a pose its corners do not determine.
+enum class LostReason {
+    None,            // a trusted pose
+    NoTags,          // no tag of the configured family detected
+    NoBoardTag,      // tags detected, none on the board (another board, ids not on it)
+    TooFewTags,      // fewer board tags than TrackerSettings::minTags
+    Reprojection,    // the corners do not fit one pose (blur, a wrong detection)
+    IllConditioned,  // a pose the corners do not determine (few, small, far or grazing tags)
+    FrameSize,       // the frame is not the calibrated size
+};
+constexpr int kLostReasonCount = 7;
+// "noTags", "noBoardTag", …: the status's keys.
+const char* toString(LostReason reason);
+
 struct TrackingState {
     std::optional<BoardPose> pose;  // the last good pose (held while lost); none before the first
     bool lost = true;               // this frame gave no trusted pose
     uint64_t framesSinceGood = 0;   // 0 when this frame's pose is good
     std::string reason;             // why the frame was rejected, empty when good
+    LostReason lostReason = LostReason::NoTags;  // its kind; None when good
 };
 
 // Detection + board pose for one camera, frame after frame (the service's tracking thread).

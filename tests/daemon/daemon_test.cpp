@@ -151,6 +151,17 @@ TEST(StatusJson, HasTheDesignFields) {
     EXPECT_EQ(j["pose"]["worldFromCamera"][3], 1.5);  // row-major: m03
     EXPECT_EQ(j["pose"]["tags"], 4);
     EXPECT_GT(j["uptimeSeconds"].get<double>(), 61.0);
+    // Frames without a trusted pose, counted by why; the button and LED not configured.
+    EXPECT_EQ(j["trackingLost"], nlohmann::json({{"noTags", 0},
+                                                 {"noBoardTag", 0},
+                                                 {"tooFewTags", 0},
+                                                 {"reprojection", 0},
+                                                 {"illConditioned", 0},
+                                                 {"frameSize", 0}}));
+    EXPECT_EQ(j["button"], "none");
+    EXPECT_EQ(j["led"], "none");
+    s.trackingLostFrames[size_t(LostReason::IllConditioned)] = 7;
+    EXPECT_EQ(nlohmann::json::parse(statusJson(s))["trackingLost"]["illConditioned"], 7);
     s.worldFromCamera.reset();
     EXPECT_TRUE(nlohmann::json::parse(statusJson(s))["pose"].is_null());
     EXPECT_EQ(statusLine(s).rfind("REFINE 256 spp", 0), 0u) << statusLine(s);

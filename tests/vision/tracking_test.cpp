@@ -450,8 +450,18 @@ TEST(Tracker, RejectsIllConditionedPoses) {
     };
     auto tracker = Tracker::create(TagDetectorSettings{}, *board, *calib);
     ASSERT_TRUE(tracker.ok());
+    // Bad input is lost, each kind named (the status counts them): nothing seen, and a tag
+    // that is not on the board (another board, or a wrong family's look-alike id).
+    EXPECT_EQ(tracker->update({}).lostReason, LostReason::NoTags);
+    std::vector<TagDetection> stranger = detectionsAt(1.0, 1);
+    stranger[0].id = 99;
+    const TrackingState& other = tracker->update(stranger);
+    EXPECT_TRUE(other.lost);
+    EXPECT_EQ(other.lostReason, LostReason::NoBoardTag);
+    EXPECT_FALSE(other.pose.has_value()) << "no pose from a tag the board does not have";
     const TrackingState& near = tracker->update(detectionsAt(1.0, 12));
     ASSERT_FALSE(near.lost) << near.reason;
+    EXPECT_EQ(near.lostReason, LostReason::None);
     // Within the on-set requirement (1 % of the distance, 0.5°) at the nominal corner noise.
     EXPECT_LT(near.pose->positionStdM, 0.01 * near.pose->distanceM);
     EXPECT_LT(near.pose->rotationStdDeg, 0.5);
@@ -460,6 +470,8 @@ TEST(Tracker, RejectsIllConditionedPoses) {
     const TrackingState& far = tracker->update(detectionsAt(6.0, 1));
     EXPECT_TRUE(far.lost);
     EXPECT_NE(far.reason.find("ill-conditioned"), std::string::npos) << far.reason;
+    EXPECT_EQ(far.lostReason, LostReason::IllConditioned);
+    EXPECT_STREQ(toString(far.lostReason), "illConditioned");
     EXPECT_NEAR(far.pose->distanceM, 1.0, 1e-3) << "the last good pose is held";
 }
 
