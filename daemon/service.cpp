@@ -53,8 +53,8 @@ constexpr int64_t kStuckWithoutWatchdogNs = 30'000'000'000;
 
 // Logs each stage that became stuck (once, until it recovers) and says whether the watchdog may
 // be fed: only when no stage is stuck.
-bool feedWatchdog(const std::vector<StageWatch::Stuck>& stuck, std::vector<std::string>& reported,
-                  bool underWatchdog) {
+bool reportStuckStages(const std::vector<StageWatch::Stuck>& stuck,
+                       std::vector<std::string>& reported, bool underWatchdog) {
     std::vector<std::string> now;
     for (const StageWatch::Stuck& s : stuck) {
         now.push_back(s.name);
@@ -886,7 +886,7 @@ int Service::run() {
             }
         }
         if (rolling || t.led) updateLed();
-        if (feedWatchdog(t.watch.stuck(nowNs(), stuckNs), reportedStuck, watchdog.has_value()))
+        if (reportStuckStages(t.watch.stuck(nowNs(), stuckNs), reportedStuck, watchdog.has_value()))
             if (watchdog) systemd::notifyWatchdog();
         if (Clock::now() - lastStatus > std::chrono::seconds(1)) {
             systemd::notifyStatus(statusLine(status()));

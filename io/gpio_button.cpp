@@ -215,23 +215,23 @@ Result<std::unique_ptr<GpioButton>> GpioButton::create(const ButtonSettings& set
     std::unique_ptr<GpioButton> button(new GpioButton(settings, std::move(onEvent),
                                                       line ? std::move(*line) : GpioLine{},
                                                       std::move(description), std::move(stopFd)));
-    if (!line) {
-        // The thread's first step is to look for it (run() → reopen()).
+    if (line) {
+        const int level = gpiod_line_get_value(button->line_.line.get());
+        if (level < 0)
+            return makeError("gpio: cannot read {}: {}", button->description_,
+                             std::strerror(errno));
+        button->classifier_.reset(monotonicNs(), level == 1);
+    } else {
+        // The thread's first step is then to look for it (run() → reopen()).
         button->connected_ = false;
         button->absentReason_ = line.message();
         logWarning("button: {}; starting without it, looking for it every {} s", line.message(),
                    kRetryMs / 1000);
-        button->thread_ =
-            std::thread([b = button.get()] { runGuarded("button", [b] { b->run(); }); });
-        return button;
     }
-    const int level = gpiod_line_get_value(button->line_.line.get());
-    if (level < 0)
-        return makeError("gpio: cannot read {}: {}", button->description_, std::strerror(errno));
-    button->classifier_.reset(monotonicNs(), level == 1);
     // A failure here leaves the box without its button (the control socket still works): said
     // once, in the log, by runGuarded.
     button->thread_ = std::thread([b = button.get()] { runGuarded("button", [b] { b->run(); }); });
+    if (!line) return button;
     logInfo("button: watching {}{}", button->description_,
             settings.activeLow ? " (active low)" : "");
     return button;
