@@ -9,11 +9,13 @@
 #include "base/command_line.h"
 #include "base/log.h"
 #include "base/progress.h"
+#include "cli/tone_curve_options.h"
 #include "vision/board_file.h"
 #include "vision/board_pose.h"
 #include "vision/camera_calibration.h"
 #include "vision/tag_board.h"
 #include "vision/tag_detector.h"
+#include "vision/tag_edges.h"
 
 namespace previs {
 
@@ -30,6 +32,8 @@ struct TrackOptions {
     bool quiet = false;
     TagDetectorSettings detector;
     int refineEdges = 1;
+    int linearEdges = 1;
+    ToneCurveOptions toneCurve;  // the images' transfer curve, inverted for linearEdges
 };
 
 nlohmann::ordered_json matrixJson(const cv::Matx44d& m) {
@@ -96,6 +100,7 @@ int run(TrackOptions& o) {
         return 2;
     }
 
+    const LinearFromCode table = linearFromCodeTable(o.toneCurve.inverse());
     int failures = 0;
     ProgressLine progress("track", o.quiet);
     for (size_t n = 0; n < o.images.size(); ++n) {
@@ -119,6 +124,9 @@ int run(TrackOptions& o) {
                 path, gray.cols, gray.rows, o.camera, calib->imageSize().width,
                 calib->imageSize().height);
         std::vector<TagDetection> detections = detector->detect(gray);
+        if (o.linearEdges)
+            refineTagCornersInLinearLight(detections, gray, table, detector->bitsAcrossBorder(),
+                                          &*calib);
 
         std::vector<std::optional<cv::Matx44d>> tagPoses(detections.size());
         if (o.tagSizeM)
@@ -194,6 +202,10 @@ std::function<int()> addTrackCommand(CLI::App& app) {
         ->check(CLI::Range(1.0, 16.0));
     cmd->add_option("--refine-edges", o->refineEdges, "refine_edges 0|1 (default 1)")
         ->check(CLI::IsMember({0, 1}));
+    cmd->add_option("--linear-edges", o->linearEdges,
+                    "re-fit the corners in linear light, through --tone-curve (default 1)")
+        ->check(CLI::IsMember({0, 1}));
+    o->toneCurve.addTo(cmd, "", "images", false);
     cmd->add_option("--sigma", o->detector.sigma, "quad_sigma: Gaussian blur, pixels (default 0)")
         ->check(CLI::NonNegativeNumber);
     cmd->add_option("--threads", o->detector.threads, "detector threads (default 1)")

@@ -49,9 +49,10 @@ double luminanceMoments(const cv::Mat& radiance, std::array<double, 9>& sh) {
 }  // namespace
 
 Result<TrackingStage> TrackingStage::create(const ServiceConfig& config) {
-    Result<Tracker> tracker =
-        Tracker::create(config.tracking.detector, *config.tracking.board,
-                        *config.sceneCamera.calibration, config.tracking.tracker);
+    TrackerSettings settings = config.tracking.tracker;
+    settings.linearFromCode = linearFromCodeTable(config.sceneCamera.radiometry);
+    Result<Tracker> tracker = Tracker::create(config.tracking.detector, *config.tracking.board,
+                                              *config.sceneCamera.calibration, settings);
     if (!tracker) return tracker.error();
     return TrackingStage(std::move(*tracker), config.sceneCamera.calibration->imageSize());
 }

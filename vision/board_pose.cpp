@@ -179,7 +179,13 @@ Result<Tracker> Tracker::create(const TagDetectorSettings& detectorSettings, Tag
     return Tracker(std::move(detector).value(), std::move(board), std::move(calibration), settings);
 }
 
-const TrackingState& Tracker::track(const cv::Mat& gray) { return update(detector_.detect(gray)); }
+const TrackingState& Tracker::track(const cv::Mat& gray) {
+    detections_ = detector_.detect(gray);
+    if (settings_.linearEdges)
+        refineTagCornersInLinearLight(detections_, gray, settings_.linearFromCode,
+                                      detector_.bitsAcrossBorder(), &calibration_);
+    return update(detections_);
+}
 
 const char* toString(LostReason reason) {
     switch (reason) {

@@ -13,6 +13,7 @@
 #include "vision/camera_calibration.h"
 #include "vision/tag_board.h"
 #include "vision/tag_detector.h"
+#include "vision/tag_edges.h"
 
 namespace previs {
 
@@ -54,6 +55,10 @@ struct TrackerSettings {
     // wrong poses of distant small tags score 20–170 % / 10–95°; the limits sit between.
     double maxPositionStdFraction = 0.05;
     double maxRotationStdDeg = 3.0;
+    // Re-fit the corners in linear light (vision/tag_edges.h) through this table, the scene
+    // camera's radiometry (pipeline_stages.cpp sets it from the config; sRGB by default).
+    bool linearEdges = true;
+    LinearFromCode linearFromCode = linearFromCodeTable(InverseToneMapSettings{});
 };
 
 // Why a frame gave no trusted pose, by kind, so the service can count them (status
@@ -92,6 +97,8 @@ public:
     const TrackingState& update(const std::vector<TagDetection>& detections);
 
     const TrackingState& state() const { return state_; }
+    // The tags track() found on its last frame, corners as refined.
+    const std::vector<TagDetection>& detections() const { return detections_; }
 
 private:
     Tracker(TagDetector detector, TagBoard board, CameraCalibration calibration,
@@ -102,6 +109,7 @@ private:
     CameraCalibration calibration_;
     TrackerSettings settings_;
     TrackingState state_;
+    std::vector<TagDetection> detections_;
     bool everGood_ = false;
 };
 

@@ -118,6 +118,8 @@ Result<TagDetector> TagDetector::create(const TagDetectorSettings& settings) {
     return detector;
 }
 
+int TagDetector::bitsAcrossBorder() const { return family_->width_at_border; }
+
 std::vector<TagDetection> TagDetector::detect(const cv::Mat& gray) {
     std::vector<TagDetection> out;
     PV_ASSERT(gray.type() == CV_8UC1);

@@ -62,6 +62,8 @@ public:
     std::vector<TagDetection> detect(const cv::Mat& gray);
 
     const TagDetectorSettings& settings() const { return settings_; }
+    // The family's black square in bits (its width_at_border: 8 for tag36h11).
+    int bitsAcrossBorder() const;
 
 private:
     TagDetector() = default;

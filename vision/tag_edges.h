@@ -1,0 +1,49 @@
+#pragma once
+
+// Tag corners re-fitted in linear light (issue 38: the demo take's 2.2 mm bias). A camera's
+// transfer curve (sRGB, a highlight roll-off) is concave, so on a blurred edge its code values
+// cross the midpoint between ink and paper on the dark side of the true edge: libapriltag, which
+// fits edges on the codes, shrinks every black square by a fraction of a pixel (0.3 px per edge
+// on the demo take), and the board pose moves by millimetres. In radiance a blurred edge is the
+// step convolved with a symmetric kernel, so its centre is where half the step's area lies on
+// each side whatever the blur. This module finds that centre on profiles across each edge of a
+// detected tag, fits a line to them and intersects the lines.
+
+#include <array>
+#include <opencv2/core.hpp>
+#include <vector>
+
+#include "vision/inverse_tone_map.h"
+#include "vision/tag_detector.h"
+
+namespace previs {
+
+class CameraCalibration;
+
+// Code value (0..255) → relative linear radiance; any positive scale (edges use ratios).
+using LinearFromCode = std::array<float, 256>;
+
+// A grey code through the camera's configured radiometry (vision/inverse_tone_map.h; its
+// defaults are the sRGB decoding curve of a webcam, a phone or a JPEG).
+LinearFromCode linearFromCodeTable(const InverseToneMapSettings& radiometry);
+// Gamma 1 (machine-vision cameras).
+LinearFromCode identityLinearFromCode();
+
+struct EdgeRefineStats {
+    int refined = 0;  // tags whose corners were re-fitted
+    int kept = 0;     // tags left as detected (too small, low contrast, a fit that disagreed)
+};
+
+// Re-fits the corners of each detection on the 8-bit grey frame they came from, read in linear
+// light through `table`. `bitsAcrossBorder` is the family's width_at_border (8 for tag36h11): the
+// black border is one bit wide, and a printed tag has at least one bit of white around it, so a
+// profile of ±0.8 bit across an edge sees only ink, the edge and paper. A tag whose bits are
+// under 2.5 px, whose edges lack contrast, or whose re-fitted corner lands more than 1.5 px from
+// libapriltag's keeps libapriltag's corners. With a distorting `lens` the edges' lines are fitted
+// where they are straight: in its ideal pinhole pixels.
+EdgeRefineStats refineTagCornersInLinearLight(std::vector<TagDetection>& detections,
+                                              const cv::Mat& gray8, const LinearFromCode& table,
+                                              int bitsAcrossBorder,
+                                              const CameraCalibration* lens = nullptr);
+
+}  // namespace previs
