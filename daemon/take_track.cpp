@@ -33,6 +33,7 @@ Result<TakeTrack> trackTake(const SessionInfo& session, const ServiceConfig& con
                 f.tracked = t.worldFromCamera;
                 f.tags = t.tags;
                 f.reprojErrorPx = t.reprojErrorPx;
+                f.positionStdM = t.positionStdM;
                 sample.worldFromCamera = t.worldFromCamera;
                 sample.positionStdM = t.positionStdM;
                 sample.rotationStdDeg = t.rotationStdDeg;

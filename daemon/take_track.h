@@ -24,6 +24,7 @@ struct TakeFrame {
     std::optional<cv::Matx44d> smoothed;  // over the whole take
     int tags = 0;
     double reprojErrorPx = 0.0;
+    double positionStdM = 0.0;  // the tracked pose's one sigma (BoardPose::positionStdM)
 };
 
 struct TakeTrack {

@@ -3,12 +3,19 @@
 // synthetic motion with known truth.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <map>
 #include <random>
 #include <set>
 
+#include "daemon/take_files.h"
 #include "daemon/take_render.h"
+#include "daemon/take_track.h"
 #include "daemon/track_export.h"
+#include "io/session.h"
+#include "tests/support/test_data.h"
 #include "vision/track_smoother.h"
 
 namespace previs {
@@ -146,6 +153,46 @@ TEST(TrackSmoother, ReducesTrackerNoiseOnSmoothMotionAndBridgesShortGaps) {
     EXPECT_TRUE(gapped[59]);
     EXPECT_FALSE(gapped[62]);
     EXPECT_TRUE(gapped[66]);
+}
+
+// The tracker's bias (issue 38), on the bundled demo take tracked as the service tracks it (its
+// config's radiometry included). Over the still stretch (frames 20–44: one camera pose, new
+// sensor noise each frame) the tracked camera sat 2.2 mm from the truth on every frame:
+// libapriltag put each corner 0.3 px inside its black square, where the frames' tone curve moves
+// a blurred edge's midpoint. Without a bias, the stretch's mean error is what corners accurate
+// to the rendered-board tests' quarter pixel allow: the tracker's own one sigma (positionStdM,
+// for 0.5 px corner noise) halved.
+TEST(TakeTrack, TheDemoTakesStillStretchIsTrackedWithoutBias) {
+    Result<SessionInfo> session = openSession(testing::sourcePath("examples/demo/session"));
+    ASSERT_TRUE(session) << session.message();
+    Result<ServiceConfig> config = loadSessionConfig(*session);
+    ASSERT_TRUE(config) << config.message();
+    Result<TakeTrack> track = trackTake(*session, *config);
+    ASSERT_TRUE(track) << track.message();
+    Result<std::vector<PoseRecord>> poses = loadPoses(session->dir);
+    ASSERT_TRUE(poses) << poses.message();
+    std::map<uint64_t, cv::Vec3d> truth;
+    for (const PoseRecord& p : *poses)
+        if (p.kind == PoseKind::Truth && p.frame && p.worldFromCamera)
+            truth[*p.frame] = {(*p.worldFromCamera)[3], (*p.worldFromCamera)[7],
+                               (*p.worldFromCamera)[11]};
+
+    cv::Vec3d sum(0, 0, 0);
+    std::vector<double> sigmas;
+    for (size_t i = 20; i <= 44; ++i) {
+        const TakeFrame& f = track->frames.at(i);
+        ASSERT_TRUE(f.tracked) << "frame " << i << ": " << f.problem;
+        ASSERT_TRUE(truth.count(f.entry.sequence)) << "frame " << i << " has no truth";
+        const cv::Matx44d& m = *f.tracked;
+        sum += cv::Vec3d(m(0, 3), m(1, 3), m(2, 3)) - truth[f.entry.sequence];
+        sigmas.push_back(f.positionStdM);
+    }
+    const double bias = cv::norm(sum / double(sigmas.size()));
+    std::sort(sigmas.begin(), sigmas.end());
+    const double budget = 0.5 * sigmas[sigmas.size() / 2];
+    std::printf("still stretch: mean position error %.3f mm, budget %.3f mm\n", bias * 1e3,
+                budget * 1e3);
+    EXPECT_LT(bias, budget);
 }
 
 }  // namespace
