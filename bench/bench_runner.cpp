@@ -298,6 +298,9 @@ int runBenchmarks(const BenchOptions& o) {
     if (want("pose")) {
         if (int rc = runPoseSweep(**ctx, {.quick = o.quick}); rc != 0) return rc;
     }
+    if (o.only == "reach") {
+        if (int rc = runReachSweep(**ctx, o.quick); rc != 0) return rc;
+    }
     std::printf("Peak resident memory of the whole run: %.0f MiB\n", peakRssMiB());
     return 0;
 }

@@ -19,7 +19,8 @@ struct BenchOptions {
     // memory (bench/bench_memory.h; only by name: it forks a child per resolution),
     // preview (bench/bench_preview.h; only by name: it renders a long reference first),
     // trade (bench/bench_trade.h; only by name: it runs for minutes),
-    // denoise (bench/bench_denoise.h; only by name: a long reference render).
+    // denoise (bench/bench_denoise.h; only by name: a long reference render),
+    // reach (bench/pose_accuracy.h; only by name: tag reach by distance).
     std::string only;
     std::string csvPath;  // service, preview: also write the results as CSV here ("" = none)
     // trade: its CSVs, frames and plots go here, drawn by this script.

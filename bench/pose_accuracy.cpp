@@ -200,6 +200,7 @@ int runPoseSweep(GpuContext& ctx, const PoseSweepOptions& o) {
                                                                        .curve = curve});
                                 // Each frame on its own: a lost frame's held pose is not its
                                 // answer.
+                                tracker->reset();
                                 const TrackingState& st = tracker->track(gray);
                                 Frame f{l, d, a, blur, noise, curve, !st.lost, {}};
                                 if (f.tracked) f.error = poseError(st.pose->worldFromCamera, truth);
@@ -266,6 +267,126 @@ int runPoseSweep(GpuContext& ctx, const PoseSweepOptions& o) {
                      }));
         }
     }
+    std::printf("\n");
+    std::fflush(stdout);
+    return 0;
+}
+
+int runReachSweep(GpuContext& ctx, bool quick) {
+    auto lenses = sweepLenses();
+    if (!lenses) {
+        logError("{}", lenses.message());
+        return 1;
+    }
+    const Lens& lens = (*lenses)[0];
+    const TagBoard board = posterBoard();
+    const uint32_t spp = quick ? 4 : 8;
+    const std::vector<double> distances =
+        quick ? std::vector<double>{2.0, 4.0, 6.0} : std::vector<double>{1, 2, 3, 4, 5, 6, 8, 10};
+    const std::vector<double> angles =
+        quick ? std::vector<double>{30.0} : std::vector<double>{0, 45};
+    std::vector<BoardView> views = {{.azimuthDeg = 0.0, .rollDeg = 0.0, .offAxisDeg = 0.0},
+                                    {.azimuthDeg = 180.0, .rollDeg = -20.0, .offAxisDeg = 12.0}};
+    if (quick) views.resize(1);
+    const std::vector<double> blurs = {0.5, 1.0};
+
+    struct Variant {
+        const char* name;
+        TagDetectorSettings detector;
+        TrackerSettings tracker;
+        bool primed;  // tracked after a frame at the same view: the live case
+    };
+    TrackerSettings asDetected;
+    asDetected.linearEdges = false;
+    const Variant variants[] = {
+        {"libapriltag defaults (decimate 2, its corners)", {.decimate = 2.0f}, asDetected, false},
+        {"previs, a frame on its own", {}, {}, false},
+        {"previs, after the previous frame's pose", {}, {}, true},
+    };
+    struct Row {
+        size_t frames = 0, tracked = 0, withinSpec = 0;
+        std::vector<double> percent, deg, ms;
+    };
+    std::vector<std::vector<Row>> rows(std::size(variants), std::vector<Row>(distances.size()));
+
+    auto renderer = BoardRenderer::create(ctx, board, "tag36h11", lens.calibration, spp);
+    if (!renderer) {
+        logError("reach sweep: {}", renderer.message());
+        return 1;
+    }
+    std::vector<Tracker> trackers;
+    for (const Variant& v : variants) {
+        auto t = Tracker::create(v.detector, board, lens.calibration, v.tracker);
+        if (!t) {
+            logError("reach sweep: {}", t.message());
+            return 1;
+        }
+        trackers.push_back(std::move(t).value());
+    }
+    setLogLevel(LogLevel::Error);
+    const auto start = std::chrono::steady_clock::now();
+    uint64_t seed = 1;
+    uint32_t renderSeed = 0;
+    for (size_t di = 0; di < distances.size(); ++di)
+        for (double a : angles)
+            for (BoardView view : views) {
+                view.distanceM = distances[di];
+                view.angleDeg = a;
+                const cv::Matx44d truth = cameraViewingBoard(view);
+                benchProgress("reach {} m, {}°", view.distanceM, a);
+                auto linear = renderer->render(truth, renderSeed++);
+                if (!linear) {
+                    setLogLevel(LogLevel::Info);
+                    logError("reach sweep render: {}", linear.message());
+                    return 1;
+                }
+                for (double blur : blurs) {
+                    const cv::Mat gray = toCameraGray8(
+                        *linear, {.blurSigmaPx = blur, .noiseSigmaLevels = 2.0, .seed = seed++});
+                    for (size_t vi = 0; vi < std::size(variants); ++vi) {
+                        Tracker& tracker = trackers[vi];
+                        tracker.reset();
+                        if (variants[vi].primed) tracker.track(gray);
+                        const auto t0 = std::chrono::steady_clock::now();
+                        const TrackingState& st = tracker.track(gray);
+                        Row& row = rows[vi][di];
+                        row.ms.push_back(std::chrono::duration<double, std::milli>(
+                                             std::chrono::steady_clock::now() - t0)
+                                             .count());
+                        ++row.frames;
+                        if (st.lost) continue;
+                        ++row.tracked;
+                        const PoseError e = poseError(st.pose->worldFromCamera, truth);
+                        row.percent.push_back(100.0 * e.translationM / view.distanceM);
+                        row.deg.push_back(e.rotationDeg);
+                        if (e.translationM <= kSpecRelativeTranslation * view.distanceM &&
+                            e.rotationDeg <= kSpecRotationDeg)
+                            ++row.withinSpec;
+                    }
+                }
+            }
+    setLogLevel(LogLevel::Info);
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+
+    std::printf("## Reach: the A2 board by distance (rendered, sRGB, rad-tan lens 1280×720)\n\n");
+    std::printf(
+        "%u spp, blur σ 0.5 and 1 px, noise σ 2 levels; %zu angles × %zu views per distance; "
+        "within spec: position within 1%% of the distance and rotation within 0.5°. %.0f s.\n\n",
+        spp, angles.size(), views.size(), seconds);
+    std::printf(
+        "| distance | tracker | pose | within spec | median %% of distance | median ° | ms/frame "
+        "(median) |\n|---|---|---|---|---|---|---|\n");
+    for (size_t di = 0; di < distances.size(); ++di)
+        for (size_t vi = 0; vi < std::size(variants); ++vi) {
+            const Row& r = rows[vi][di];
+            const std::string pct =
+                r.percent.empty() ? "–" : fmt::format("{:.3f}", median(r.percent));
+            const std::string deg = r.deg.empty() ? "–" : fmt::format("{:.3f}", median(r.deg));
+            std::printf("| %g m | %s | %zu/%zu | %zu | %s | %s | %.1f |\n", distances[di],
+                        variants[vi].name, r.tracked, r.frames, r.withinSpec, pct.c_str(),
+                        deg.c_str(), median(r.ms));
+        }
     std::printf("\n");
     std::fflush(stdout);
     return 0;

@@ -21,4 +21,11 @@ struct PoseSweepOptions {
 // Returns the process exit code; the report goes to stdout, progress to stderr.
 int runPoseSweep(GpuContext& ctx, const PoseSweepOptions& options);
 
+// `previs bench --only reach` (issue 38): per distance, how often the A2 board gives a pose and
+// how many of those are within the on-set requirement, and the time a frame's tracking takes,
+// for libapriltag's defaults (decimate 2, its corners) against the tracker's own (the search of
+// vision/tag_search.h, corners re-fitted in linear light), on a frame tracked on its own and on
+// one tracked after the previous frame's pose. sRGB frames through the rad-tan lens.
+int runReachSweep(GpuContext& ctx, bool quick);
+
 }  // namespace previs::bench

@@ -198,8 +198,9 @@ std::function<int()> addTrackCommand(CLI::App& app) {
         ->check(CLI::ExistingFile);
     cmd->add_flag("--json", o->json, "one JSON object per image on stdout");
     cmd->add_option("--decimate", o->detector.decimate,
-                    "quad_decimate (libapriltag default 2; 1 = full resolution)")
-        ->check(CLI::Range(1.0, 16.0));
+                    "quad_decimate (default 0: full resolution, as one image predicts no tag "
+                    "sizes; libapriltag's own default is 2)")
+        ->check(CLI::Range(0.0, 16.0));
     cmd->add_option("--refine-edges", o->refineEdges, "refine_edges 0|1 (default 1)")
         ->check(CLI::IsMember({0, 1}));
     cmd->add_option("--linear-edges", o->linearEdges,

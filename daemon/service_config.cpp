@@ -280,11 +280,11 @@ Status ConfigReader::parseCamera(const toml::table& t, const std::string& name,
 }
 
 Status ConfigReader::parseTracking(const toml::table& t, TrackingConfig& c) const {
-    if (Status st =
-            r_.checkKeys(t, "tracking",
-                         {"board", "family", "decimate", "sigma", "refine_edges",
-                          "decode_sharpening", "threads", "max_reproj_error_px", "min_tags",
-                          "max_position_std_fraction", "max_rotation_std_deg", "until_tracked"});
+    if (Status st = r_.checkKeys(
+            t, "tracking",
+            {"board", "family", "decimate", "sigma", "refine_edges", "decode_sharpening", "threads",
+             "max_reproj_error_px", "min_tags", "max_position_std_fraction", "max_rotation_std_deg",
+             "min_ambiguity_ratio", "linear_edges", "until_tracked"});
         !st)
         return st;
     Result<std::optional<std::string>> board = r_.string(t, "tracking", "board");
@@ -330,8 +330,11 @@ Status ConfigReader::parseTracking(const toml::table& t, TrackingConfig& c) cons
                         "'tracking.until_tracked' is '{}'; use plate or scene-camera", **until);
     }
 
-    if (Status st = ranged(t, "tracking", "decimate", c.detector.decimate, 1.0, 16.0); !st)
+    if (Status st = ranged(t, "tracking", "decimate", c.detector.decimate, 0.0, 16.0); !st)
         return st;
+    if (c.detector.decimate > 0.0f && c.detector.decimate < 1.0f)
+        return fail(t.get("decimate"), "'tracking.decimate' is {}; use 0 (automatic) or 1 to 16",
+                    c.detector.decimate);
     if (Status st = ranged(t, "tracking", "sigma", c.detector.sigma, 0.0, 16.0); !st) return st;
     Result<std::optional<bool>> refine = r_.boolean(t, "tracking", "refine_edges");
     if (!refine) return refine.error();
@@ -358,6 +361,13 @@ Status ConfigReader::parseTracking(const toml::table& t, TrackingConfig& c) cons
                            1e6, true);
         !st)
         return st;
+    if (Status st =
+            ranged(t, "tracking", "min_ambiguity_ratio", c.tracker.minAmbiguityRatio, 0.0, 1e6);
+        !st)
+        return st;
+    Result<std::optional<bool>> linearEdges = r_.boolean(t, "tracking", "linear_edges");
+    if (!linearEdges) return linearEdges.error();
+    c.tracker.linearEdges = linearEdges->value_or(c.tracker.linearEdges);
     return {};
 }
 

@@ -85,6 +85,48 @@ void poseUncertainty(const std::vector<cv::Point3d>& world, const cv::Matx33d& r
 
 }  // namespace
 
+// A plane seen from far away or head on has two poses that fit its image (the two minima of IPPE,
+// Collins & Bartoli 2014: the plane tilted either way). The second one's RMS error, on ideal
+// pixels, and the angle between the two; infinite error when the points are not coplanar or
+// only one pose fits.
+struct PlanarAlternative {
+    double bestErrorPx = 0.0;
+    double errorPx = INFINITY;
+    double angleDeg = 0.0;
+};
+PlanarAlternative planarAlternative(const std::vector<cv::Point3d>& world,
+                                    const std::vector<cv::Point2d>& ideal, const cv::Mat& k) {
+    cv::Mat centred(int(world.size()), 3, CV_64F);
+    cv::Vec3d mean(0, 0, 0);
+    for (const cv::Point3d& p : world) mean += cv::Vec3d(p.x, p.y, p.z);
+    mean *= 1.0 / double(world.size());
+    for (size_t i = 0; i < world.size(); ++i)
+        for (int c = 0; c < 3; ++c)
+            centred.at<double>(int(i), c) =
+                cv::Vec3d(world[i].x, world[i].y, world[i].z)[c] - mean[c];
+    cv::Mat w;
+    cv::SVD::compute(centred, w, cv::SVD::NO_UV);
+    if (!(w.at<double>(2) <= 1e-9 * w.at<double>(0))) return {};
+    std::vector<cv::Mat> rvecs, tvecs;
+    cv::Mat errors;
+    try {
+        cv::solvePnPGeneric(world, ideal, k, cv::noArray(), rvecs, tvecs, false, cv::SOLVEPNP_IPPE,
+                            cv::noArray(), cv::noArray(), errors);
+    } catch (const cv::Exception& e) {
+        logDebug("IPPE failed: {}", e.what());
+        return {};
+    }
+    if (rvecs.size() < 2 || errors.total() < 2) return {};
+    errors.convertTo(errors, CV_64F);
+    cv::Matx33d r0, r1;
+    cv::Rodrigues(rvecs[0], r0);
+    cv::Rodrigues(rvecs[1], r1);
+    const cv::Matx33d d = r0.t() * r1;
+    const double c = std::clamp((d(0, 0) + d(1, 1) + d(2, 2) - 1.0) / 2.0, -1.0, 1.0);
+    return {std::min(errors.at<double>(0), errors.at<double>(1)),
+            std::max(errors.at<double>(0), errors.at<double>(1)), std::acos(c) * 180.0 / M_PI};
+}
+
 std::optional<BoardPose> estimateBoardPose(const std::vector<TagDetection>& detections,
                                            const TagBoard& board,
                                            const CameraCalibration& calibration) {
@@ -133,6 +175,7 @@ std::optional<BoardPose> estimateBoardPose(const std::vector<TagDetection>& dete
         logDebug("solvePnP failed: {}", e.what());
         return std::nullopt;
     }
+    const PlanarAlternative alternative = planarAlternative(worldUsed, idealUsed, k);
     cv::Matx33d r;
     cv::Rodrigues(rvec, r);
     cv::Matx44d cameraFromWorld = cv::Matx44d::eye();
@@ -158,6 +201,9 @@ std::optional<BoardPose> estimateBoardPose(const std::vector<TagDetection>& dete
 
     BoardPose pose;
     pose.worldFromCamera = invertRigid(cameraFromWorld);
+    pose.planarErrorPx = alternative.bestErrorPx;
+    pose.alternativeErrorPx = alternative.errorPx;
+    pose.alternativeAngleDeg = alternative.angleDeg;
     pose.reprojErrorPx = std::sqrt(sum / double(projected.size()));
     poseUncertainty(worldUsed, r, tvec, calibration, pose);
     std::sort(ids.begin(), ids.end());
@@ -179,8 +225,18 @@ Result<Tracker> Tracker::create(const TagDetectorSettings& detectorSettings, Tag
     return Tracker(std::move(detector).value(), std::move(board), std::move(calibration), settings);
 }
 
+void Tracker::reset() {
+    state_ = {};
+    detections_.clear();
+    search_ = {};
+    everGood_ = false;
+}
+
 const TrackingState& Tracker::track(const cv::Mat& gray) {
-    detections_ = detector_.detect(gray);
+    std::vector<PredictedTag> predicted;
+    if (state_.pose && state_.framesSinceGood <= kPredictFrames)
+        predicted = predictTags(board_, calibration_, state_.pose->worldFromCamera, gray.size());
+    detections_ = searchTags(detector_, gray, predicted, &search_);
     if (settings_.linearEdges)
         refineTagCornersInLinearLight(detections_, gray, settings_.linearFromCode,
                                       detector_.bitsAcrossBorder(), &calibration_);
@@ -222,6 +278,16 @@ const TrackingState& Tracker::update(const std::vector<TagDetection>& detections
         kind = LostReason::Reprojection;
         reason = fmt::format("reprojection error {:.2f} px over the {:.2f} px limit",
                              pose->reprojErrorPx, settings_.maxReprojErrorPx);
+    } else if (pose->alternativeAngleDeg > settings_.ambiguityAngleDeg &&
+               pose->alternativeErrorPx <
+                   settings_.minAmbiguityRatio *
+                       std::max(pose->planarErrorPx, kAmbiguityNoiseFloorPx)) {
+        kind = LostReason::IllConditioned;
+        reason = fmt::format(
+            "pose ambiguous ({} tag(s) seen): the board tilted {:.0f} deg the other way fits the "
+            "corners within {:.2f} px, against {:.2f} px",
+            pose->tagIds.size(), pose->alternativeAngleDeg, pose->alternativeErrorPx,
+            pose->planarErrorPx);
     } else if (!(pose->positionStdM <= settings_.maxPositionStdFraction * pose->distanceM) ||
                !(pose->rotationStdDeg <= settings_.maxRotationStdDeg)) {
         kind = LostReason::IllConditioned;

@@ -3,6 +3,7 @@
 // Camera pose from all visible tags of a board at once (OpenCV solvePnP + Levenberg–Marquardt
 // refinement), and a Tracker that holds the last good pose when tracking is lost.
 
+#include <cmath>
 #include <cstdint>
 #include <opencv2/core.hpp>
 #include <optional>
@@ -14,6 +15,7 @@
 #include "vision/tag_board.h"
 #include "vision/tag_detector.h"
 #include "vision/tag_edges.h"
+#include "vision/tag_search.h"
 
 namespace previs {
 
@@ -30,7 +32,17 @@ struct BoardPose {
     double positionStdM = 0.0;
     double rotationStdDeg = 0.0;
     double distanceM = 0.0;  // camera to the centroid of the corners used
+    // A coplanar board's other pose that fits its corners (the plane tilted the other way), its
+    // RMS error in ideal pixels: near the residual itself the corners cannot tell the two apart
+    // (a distant or small board). Infinite for a board that is not flat.
+    double alternativeErrorPx = INFINITY;
+    double planarErrorPx = 0.0;        // the better of the two, measured the same way
+    double alternativeAngleDeg = 0.0;  // between the two poses' orientations
 };
+
+// Below this the residual of a plane's better pose is not a measure of the corners' noise
+// (synthetic corners fit to hundredths of a pixel; real ones to a quarter, tests/vision).
+inline constexpr double kAmbiguityNoiseFloorPx = 0.25;
 
 // Corner noise assumed when the residual is smaller (a few corners fit almost any pose): what
 // libapriltag achieves on sharp 8-bit frames (tests/vision/rendered_pose_test.cpp measures
@@ -55,6 +67,14 @@ struct TrackerSettings {
     // wrong poses of distant small tags score 20–170 % / 10–95°; the limits sit between.
     double maxPositionStdFraction = 0.05;
     double maxRotationStdDeg = 3.0;
+    // A flat board whose other pose (tilted the other way, BoardPose::alternativeErrorPx) lies
+    // more than ambiguityAngleDeg away yet fits the corners within minAmbiguityRatio times the
+    // better pose's residual is ambiguous: a little more noise picks the other. The first-order
+    // uncertainty above cannot see it (it is computed at whichever minimum was found). In the
+    // reach sweep (BENCHMARKS.md) a wrong pose at 8 m (140 %, 88°) had 0.22 against 0.28 px,
+    // the good ones at 5-6 m 0.7-1.0 against 0.28 px; frontal views' two poses lie within 5°.
+    double ambiguityAngleDeg = 10.0;
+    double minAmbiguityRatio = 2.0;
     // Re-fit the corners in linear light (vision/tag_edges.h) through this table, the scene
     // camera's radiometry (pipeline_stages.cpp sets it from the config; sRGB by default).
     bool linearEdges = true;
@@ -91,14 +111,22 @@ public:
     static Result<Tracker> create(const TagDetectorSettings& detectorSettings, TagBoard board,
                                   CameraCalibration calibration, TrackerSettings settings = {});
 
-    // 8-bit grey frame. Logs "tracking lost" / "tracking regained" on transitions only.
+    // 8-bit grey frame. Logs "tracking lost" / "tracking regained" on transitions only. Tags are
+    // searched for where the last pose (if at most kPredictFrames old) puts them
+    // (vision/tag_search.h), their corners re-fitted in linear light (vision/tag_edges.h).
     const TrackingState& track(const cv::Mat& gray);
     // The same from detections made elsewhere.
     const TrackingState& update(const std::vector<TagDetection>& detections);
 
     const TrackingState& state() const { return state_; }
+    // Forgets every frame seen: the next is tracked on its own (a benchmark's unrelated views).
+    void reset();
     // The tags track() found on its last frame, corners as refined.
     const std::vector<TagDetection>& detections() const { return detections_; }
+    const TagSearchStats& searchStats() const { return search_; }
+
+    // A pose older than this many frames predicts nothing: the search goes to full resolution.
+    static constexpr uint64_t kPredictFrames = 2;
 
 private:
     Tracker(TagDetector detector, TagBoard board, CameraCalibration calibration,
@@ -110,6 +138,7 @@ private:
     TrackerSettings settings_;
     TrackingState state_;
     std::vector<TagDetection> detections_;
+    TagSearchStats search_;
     bool everGood_ = false;
 };
 

@@ -94,8 +94,10 @@ Result<TagDetector> TagDetector::create(const TagDetectorSettings& settings) {
         return makeError("--family {}: unknown AprilTag family (supported: {})", settings.family,
                          list);
     }
-    if (!(settings.decimate >= 1.0f) || !std::isfinite(settings.decimate))
-        return makeError("--decimate {}: must be a number >= 1", settings.decimate);
+    if (!(settings.decimate >= 1.0f || settings.decimate == 0.0f) ||
+        !std::isfinite(settings.decimate))
+        return makeError("--decimate {}: must be 0 (automatic) or a number >= 1",
+                         settings.decimate);
     if (!(settings.sigma >= 0.0f) || !std::isfinite(settings.sigma))
         return makeError("--sigma {}: must be a number >= 0", settings.sigma);
     if (settings.bitsCorrected < 0 || settings.bitsCorrected > 3)
@@ -110,7 +112,6 @@ Result<TagDetector> TagDetector::create(const TagDetectorSettings& settings) {
         return makeError("AprilTag detector for family {}: out of memory", settings.family);
     apriltag_detector_t* td = detector.detector_.get();
     apriltag_detector_add_family_bits(td, detector.family_.get(), settings.bitsCorrected);
-    td->quad_decimate = settings.decimate;
     td->quad_sigma = settings.sigma;
     td->refine_edges = settings.refineEdges;
     td->decode_sharpening = settings.decodeSharpening;
@@ -121,7 +122,13 @@ Result<TagDetector> TagDetector::create(const TagDetectorSettings& settings) {
 int TagDetector::bitsAcrossBorder() const { return family_->width_at_border; }
 
 std::vector<TagDetection> TagDetector::detect(const cv::Mat& gray) {
+    return detect(gray, settings_.decimate > 0.0f ? settings_.decimate : 1.0f);
+}
+
+std::vector<TagDetection> TagDetector::detect(const cv::Mat& gray, float decimate) {
     std::vector<TagDetection> out;
+    PV_ASSERT(decimate >= 1.0f);
+    detector_->quad_decimate = decimate;
     PV_ASSERT(gray.type() == CV_8UC1);
     if (gray.empty()) return out;
     // libapriltag reads the buffer only; its image type has no const member.

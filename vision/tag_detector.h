@@ -18,10 +18,13 @@ namespace previs {
 
 class CameraCalibration;
 
-// Defaults are libapriltag's own (apriltag_detector_create and apriltag_detector_add_family).
+// Defaults are libapriltag's own (apriltag_detector_create and apriltag_detector_add_family),
+// except decimate.
 struct TagDetectorSettings {
     std::string family = "tag36h11";
-    float decimate = 2.0f;           // quad_decimate
+    // quad_decimate; 0 = automatic: full resolution, or as coarse as the tags that the last pose
+    // predicts allow (vision/tag_search.h). libapriltag's default of 2 loses small tags.
+    float decimate = 0.0f;
     float sigma = 0.0f;              // quad_sigma, Gaussian blur before segmentation, pixels
     bool refineEdges = true;         // refine_edges
     double decodeSharpening = 0.25;  // decode_sharpening
@@ -58,8 +61,10 @@ public:
     TagDetector& operator=(TagDetector&&) noexcept;
     ~TagDetector();
 
-    // 8-bit single-channel image (any stride). Not reentrant: one detector per thread.
+    // 8-bit single-channel image (any stride, a region of a larger one too). Not reentrant: one
+    // detector per thread. The first form decimates as the settings say (automatic: not at all).
     std::vector<TagDetection> detect(const cv::Mat& gray);
+    std::vector<TagDetection> detect(const cv::Mat& gray, float decimate);
 
     const TagDetectorSettings& settings() const { return settings_; }
     // The family's black square in bits (its width_at_border: 8 for tag36h11).

@@ -24,6 +24,7 @@
 #include <cmath>
 #include <cstdio>
 #include <opencv2/calib3d.hpp>
+#include <opencv2/imgproc.hpp>
 #include <optional>
 
 #include "bench/board_render.h"
@@ -337,6 +338,104 @@ TEST_F(RenderedPoseTest, DistantBoardIsLost) {
     EXPECT_EQ(o.state.framesSinceGood, 1u);
     ASSERT_TRUE(o.state.pose.has_value());
     EXPECT_EQ(cv::norm(o.state.pose->worldFromCamera - first.state.pose->worldFromCamera), 0.0);
+}
+
+// Small tags at the defaults (issue 38): the tracker finds every tag full-resolution detection
+// finds, on a frame of its own and after a pose (the decimation then chosen from the predicted
+// tag sizes); a tracker fixed at libapriltag's decimate 2 finds them too once a pose predicts
+// them, by the full-resolution search around the predicted tags it missed.
+TEST_F(RenderedPoseTest, SmallTagsAreFoundAtTheDefaults) {
+    const CameraCalibration lens = radTanLens();
+    auto renderer = makeRenderer(lens);
+    ASSERT_TRUE(renderer.has_value());
+    for (double distance : {1.0, 2.2}) {
+        const BoardView view{.distanceM = distance, .angleDeg = 30.0, .azimuthDeg = 60.0};
+        const cv::Mat gray =
+            bench::toCameraGray8(render(*renderer, bench::cameraViewingBoard(view)),
+                                 {.blurSigmaPx = 0.5, .noiseSigmaLevels = 2.0});
+        auto fullResolution = TagDetector::create({.decimate = 1.0f});
+        auto coarse = TagDetector::create({.decimate = 2.0f});
+        ASSERT_TRUE(fullResolution && coarse);
+        const size_t all = fullResolution->detect(gray).size();
+        const size_t coarseCount = coarse->detect(gray).size();
+        if (distance > 2.0)
+            EXPECT_LT(coarseCount, all)
+                << "this view must lose tags at decimate 2 to test anything";
+        std::printf("%.1f m: %zu tags at full resolution, %zu at decimate 2\n", distance, all,
+                    coarseCount);
+
+        Tracker tracker = freshTracker(lens);
+        ASSERT_FALSE(tracker.track(gray).lost) << tracker.state().reason;
+        EXPECT_EQ(tracker.detections().size(), all);
+        EXPECT_EQ(tracker.searchStats().decimate, 1.0f) << "no pose: full resolution";
+        ASSERT_FALSE(tracker.track(gray).lost) << tracker.state().reason;
+        EXPECT_EQ(tracker.detections().size(), all);
+        std::printf("  after a pose: decimate %.1f, %d re-detected\n",
+                    tracker.searchStats().decimate, tracker.searchStats().redetected);
+
+        auto fixed = Tracker::create({.decimate = 2.0f}, bench::posterBoard(), lens);
+        ASSERT_TRUE(fixed.ok());
+        fixed->track(gray);
+        EXPECT_EQ(fixed->detections().size(), coarseCount);
+        if (fixed->state().lost) continue;  // nothing predicts the tags it missed
+        fixed->track(gray);
+        EXPECT_EQ(fixed->detections().size(), all);
+        EXPECT_EQ(size_t(fixed->searchStats().redetected), all - coarseCount);
+    }
+}
+
+// Bad input (issue 38): another tag family, a board half out of the frame, a frame smeared by
+// motion. Each is lost with its reason, or tracked within the on-set requirement; never a pose
+// outside it.
+TEST_F(RenderedPoseTest, BadFramesAreLostOrRight) {
+    const CameraCalibration lens = radTanLens();
+    const BoardView view{.distanceM = 1.0, .angleDeg = 20.0, .azimuthDeg = 45.0};
+    const cv::Matx44d truth = bench::cameraViewingBoard(view);
+
+    auto other = bench::BoardRenderer::create(ctx(), bench::posterBoard(), "tag25h9", lens, kSpp);
+    ASSERT_TRUE(other.ok()) << other.message();
+    Tracker wrongFamily = freshTracker(lens);
+    const TrackingState& family =
+        wrongFamily.track(bench::toCameraGray8(render(*other, truth), {}));
+    EXPECT_TRUE(family.lost);
+    EXPECT_EQ(family.lostReason, LostReason::NoTags) << family.reason;
+    EXPECT_FALSE(family.pose.has_value());
+
+    auto renderer = makeRenderer(lens);
+    ASSERT_TRUE(renderer.has_value());
+    auto lostOrRight = [&](const char* what, const TrackingState& st, const cv::Matx44d& t,
+                           double distanceM) {
+        if (st.lost) {
+            std::printf("%s: lost (%s)\n", what, st.reason.c_str());
+            EXPECT_NE(st.lostReason, LostReason::None);
+            return;
+        }
+        const bench::PoseError e = bench::poseError(st.pose->worldFromCamera, t);
+        std::printf("%s: %zu tags, %.2f mm, %.3f deg\n", what, st.pose->tagIds.size(),
+                    e.translationM * 1e3, e.rotationDeg);
+        EXPECT_LT(e.translationM, kMaxRelativeTranslation * distanceM) << what;
+        EXPECT_LT(e.rotationDeg, kMaxRotationDeg) << what;
+    };
+
+    // The board's centre 30° off the optical axis at 0.6 m: half of it beyond the frame's edge.
+    const BoardView edge{.distanceM = 0.6, .angleDeg = 20.0, .offAxisDeg = 30.0};
+    const cv::Matx44d edgeTruth = bench::cameraViewingBoard(edge);
+    Tracker halfOut = freshTracker(lens);
+    lostOrRight("half out of frame",
+                halfOut.track(bench::toCameraGray8(render(*renderer, edgeTruth),
+                                                   {.blurSigmaPx = 0.5, .noiseSigmaLevels = 2.0})),
+                edgeTruth, edge.distanceM);
+
+    // A pan smears the frame 12 px sideways (in linear light, as a shutter integrates).
+    ImageF smeared = render(*renderer, truth);
+    cv::Mat radiance(int(smeared.height), int(smeared.width), CV_32FC1, smeared.pixels.data());
+    cv::Mat kernel = cv::Mat::ones(1, 12, CV_32FC1) / 12.0f;
+    cv::filter2D(radiance.clone(), radiance, -1, kernel, cv::Point(-1, -1), 0,
+                 cv::BORDER_REPLICATE);
+    Tracker blurred = freshTracker(lens);
+    lostOrRight("motion blur 12 px",
+                blurred.track(bench::toCameraGray8(smeared, {.noiseSigmaLevels = 2.0})), truth,
+                view.distanceM);
 }
 
 }  // namespace
