@@ -10,6 +10,7 @@
 #include "base/log.h"
 #include "bench/bench_denoise.h"
 #include "bench/bench_memory.h"
+#include "bench/bench_pose_filter.h"
 #include "bench/bench_preview.h"
 #include "bench/bench_progress.h"
 #include "bench/bench_recorder.h"
@@ -300,6 +301,10 @@ int runBenchmarks(const BenchOptions& o) {
     }
     if (o.only == "reach") {
         if (int rc = runReachSweep(**ctx, o.quick); rc != 0) return rc;
+    }
+    if (o.only == "filter") {
+        if (int rc = runPoseFilterBench(**ctx, o.dataDir, o.examplesDir, o.quick); rc != 0)
+            return rc;
     }
     std::printf("Peak resident memory of the whole run: %.0f MiB\n", peakRssMiB());
     return 0;

@@ -20,7 +20,8 @@ struct BenchOptions {
     // preview (bench/bench_preview.h; only by name: it renders a long reference first),
     // trade (bench/bench_trade.h; only by name: it runs for minutes),
     // denoise (bench/bench_denoise.h; only by name: a long reference render),
-    // reach (bench/pose_accuracy.h; only by name: tag reach by distance).
+    // reach (bench/pose_accuracy.h; only by name: tag reach by distance),
+    // filter (bench/bench_pose_filter.h; only by name: the live pose filter's jitter and lag).
     std::string only;
     std::string csvPath;  // service, preview: also write the results as CSV here ("" = none)
     // trade: its CSVs, frames and plots go here, drawn by this script.

@@ -32,7 +32,7 @@ std::function<int()> addBenchCommand(CLI::App& app) {
     cmd->add_option("--only", o->only, "one section")
         ->check(CLI::IsMember({"throughput", "resolution", "triangles", "specialisation",
                                "differential", "pose", "service", "shot", "memory", "preview",
-                               "trade", "denoise", "recorder", "reach"}));
+                               "trade", "denoise", "recorder", "reach", "filter"}));
     cmd->add_option("--csv", o->csvPath,
                     "service, preview, shot: also write the results as CSV to this file");
     cmd->add_option("--out-dir", o->outDir,

@@ -54,7 +54,10 @@ Result<TrackingStage> TrackingStage::create(const ServiceConfig& config) {
     Result<Tracker> tracker = Tracker::create(config.tracking.detector, *config.tracking.board,
                                               *config.sceneCamera.calibration, settings);
     if (!tracker) return tracker.error();
-    return TrackingStage(std::move(*tracker), config.sceneCamera.calibration->imageSize());
+    std::optional<PoseFilter> filter;
+    if (config.tracking.poseFilter) filter.emplace();
+    return TrackingStage(std::move(*tracker), config.sceneCamera.calibration->imageSize(),
+                         std::move(filter));
 }
 
 TrackedFrame TrackingStage::process(std::shared_ptr<const Frame> frame) {
@@ -81,6 +84,7 @@ TrackedFrame TrackingStage::process(std::shared_ptr<const Frame> frame) {
     cv::Mat gray;
     cv::cvtColor(rgb, gray, cv::COLOR_RGB2GRAY);
     const TrackingState& state = tracker_.track(gray);
+    const uint64_t timestampNs = frame->timestampNs;
     out.frame = std::move(frame);
     out.lost = state.lost;
     out.reason = state.reason;
@@ -91,6 +95,15 @@ TrackedFrame TrackingStage::process(std::shared_ptr<const Frame> frame) {
         out.reprojErrorPx = state.pose->reprojErrorPx;
         out.positionStdM = state.pose->positionStdM;
         out.rotationStdDeg = state.pose->rotationStdDeg;
+        if (!state.lost) out.trackedWorldFromCamera = state.pose->worldFromCamera;
+    }
+    if (filter_) {
+        const TrackSample sample{timestampNs, out.trackedWorldFromCamera, out.positionStdM,
+                                 out.rotationStdDeg};
+        if (std::optional<cv::Matx44d> filtered = filter_->update(sample)) {
+            out.worldFromCamera = filtered;
+            out.filtered = true;
+        }
     }
     out.trackMs = millisecondsSince(start);
     return out;

@@ -19,6 +19,7 @@
 #include "vision/board_pose.h"
 #include "vision/fisheye_to_equirect.h"
 #include "vision/light_estimator.h"
+#include "vision/pose_filter.h"
 
 namespace previs {
 
@@ -26,9 +27,14 @@ namespace previs {
 // together, so they cannot slip against each other (no delay calibration needed).
 struct TrackedFrame {
     std::shared_ptr<const Frame> frame;
-    // OpenCV camera axes (x right, y down, z forward), the board's world frame. The last good
-    // pose while tracking is lost; none before the first.
+    // OpenCV camera axes (x right, y down, z forward), the board's world frame. The pose to
+    // composite with: the live pose filter's with [tracking] pose_filter (vision/pose_filter.h),
+    // else the tracker's; the last good one while tracking is lost; none before the first.
     std::optional<cv::Matx44d> worldFromCamera;
+    // The tracker's own pose on this very frame, unfiltered (none when lost): what a take
+    // records as "tracked" and the offline smoother starts from.
+    std::optional<cv::Matx44d> trackedWorldFromCamera;
+    bool filtered = false;  // worldFromCamera is the filter's
     bool lost = true;
     int tags = 0;
     double reprojErrorPx = 0.0;
@@ -76,11 +82,12 @@ public:
     TrackedFrame process(std::shared_ptr<const Frame> frame);
 
 private:
-    TrackingStage(Tracker tracker, cv::Size calibrated)
-        : tracker_(std::move(tracker)), calibrated_(calibrated) {}
+    TrackingStage(Tracker tracker, cv::Size calibrated, std::optional<PoseFilter> filter)
+        : tracker_(std::move(tracker)), calibrated_(calibrated), filter_(std::move(filter)) {}
     Tracker tracker_;
     cv::Size calibrated_;  // frames of another size would give plausible but wrong poses
     bool loggedSize_ = false;
+    std::optional<PoseFilter> filter_;
 };
 
 class LightingStage {

@@ -284,7 +284,7 @@ Status ConfigReader::parseTracking(const toml::table& t, TrackingConfig& c) cons
             t, "tracking",
             {"board", "family", "decimate", "sigma", "refine_edges", "decode_sharpening", "threads",
              "max_reproj_error_px", "min_tags", "max_position_std_fraction", "max_rotation_std_deg",
-             "min_ambiguity_ratio", "linear_edges", "until_tracked"});
+             "min_ambiguity_ratio", "linear_edges", "pose_filter", "until_tracked"});
         !st)
         return st;
     Result<std::optional<std::string>> board = r_.string(t, "tracking", "board");
@@ -368,6 +368,9 @@ Status ConfigReader::parseTracking(const toml::table& t, TrackingConfig& c) cons
     Result<std::optional<bool>> linearEdges = r_.boolean(t, "tracking", "linear_edges");
     if (!linearEdges) return linearEdges.error();
     c.tracker.linearEdges = linearEdges->value_or(c.tracker.linearEdges);
+    Result<std::optional<bool>> poseFilter = r_.boolean(t, "tracking", "pose_filter");
+    if (!poseFilter) return poseFilter.error();
+    c.poseFilter = poseFilter->value_or(c.poseFilter);
     return {};
 }
 

@@ -68,6 +68,9 @@ struct TrackingConfig {
     // from the scene file's camera (a locked-off camera whose pose was measured, or a test rig
     // whose cameras see no board).
     bool sceneCameraUntilTracked = false;
+    // Composite with the live pose filter's pose (vision/pose_filter.h) instead of each frame's
+    // own: no shimmer on a held camera. The take records both.
+    bool poseFilter = true;
 };
 
 enum class LightingMode {

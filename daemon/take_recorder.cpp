@@ -225,18 +225,29 @@ void TakeRecorder::addPose(const TrackedFrame& tracked) {
     PoseRecord pose;
     pose.timestampNs = tracked.frame->timestampNs;
     pose.frame = tracked.frame->sequence;
+    auto matrix = [](const cv::Matx44d& m) {
+        std::array<double, 16> a{};
+        for (int i = 0; i < 16; ++i) a[size_t(i)] = m(i / 4, i % 4);
+        return a;
+    };
     // The pose tracked on this very frame; a held pose (lost) is not this frame's.
-    if (!tracked.lost && tracked.worldFromCamera) {
+    if (tracked.trackedWorldFromCamera) {
         pose.kind = PoseKind::Tracked;
-        std::array<double, 16> m{};
-        for (int i = 0; i < 16; ++i) m[size_t(i)] = (*tracked.worldFromCamera)(i / 4, i % 4);
-        pose.worldFromCamera = m;
+        pose.worldFromCamera = matrix(*tracked.trackedWorldFromCamera);
         pose.reprojErrorPx = tracked.reprojErrorPx;
         pose.tags = tracked.tags;
     } else {
         pose.kind = PoseKind::Lost;
     }
+    // And the live filter's, the one the preview composited, so a final render can choose.
+    std::optional<PoseRecord> filtered;
+    if (tracked.trackedWorldFromCamera && tracked.filtered && tracked.worldFromCamera) {
+        filtered = pose;
+        filtered->kind = PoseKind::Filtered;
+        filtered->worldFromCamera = matrix(*tracked.worldFromCamera);
+    }
     push(std::move(pose), 0);
+    if (filtered) push(std::move(*filtered), 0);
 }
 
 void TakeRecorder::addEvent(SessionEvent event) {

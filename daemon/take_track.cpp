@@ -29,12 +29,13 @@ Result<TakeTrack> trackTake(const SessionInfo& session, const ServiceConfig& con
         } else {
             const TrackedFrame t =
                 tracking->process(std::make_shared<const Frame>(std::move(*decoded)));
-            if (!t.lost && t.worldFromCamera) {
-                f.tracked = t.worldFromCamera;
+            if (t.trackedWorldFromCamera) {
+                f.tracked = t.trackedWorldFromCamera;
                 f.tags = t.tags;
                 f.reprojErrorPx = t.reprojErrorPx;
                 f.positionStdM = t.positionStdM;
-                sample.worldFromCamera = t.worldFromCamera;
+                f.rotationStdDeg = t.rotationStdDeg;
+                sample.worldFromCamera = t.trackedWorldFromCamera;
                 sample.positionStdM = t.positionStdM;
                 sample.rotationStdDeg = t.rotationStdDeg;
             }

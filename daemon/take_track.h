@@ -25,6 +25,7 @@ struct TakeFrame {
     int tags = 0;
     double reprojErrorPx = 0.0;
     double positionStdM = 0.0;  // the tracked pose's one sigma (BoardPose::positionStdM)
+    double rotationStdDeg = 0.0;
 };
 
 struct TakeTrack {

@@ -461,6 +461,8 @@ const char* poseKindName(PoseKind kind) {
             return "lost";
         case PoseKind::Truth:
             return "truth";
+        case PoseKind::Filtered:
+            return "filtered";
     }
     return "?";
 }
@@ -493,8 +495,10 @@ Result<std::vector<PoseRecord>> loadPoses(const std::string& dir) {
             p.kind = PoseKind::Lost;
         else if (kind == "truth")
             p.kind = PoseKind::Truth;
+        else if (kind == "filtered")
+            p.kind = PoseKind::Filtered;
         else
-            return malformed("kind must be tracked, lost or truth");
+            return malformed("kind must be tracked, filtered, lost or truth");
         const bool empty = std::all_of(f.begin() + base + 1, f.begin() + base + 17,
                                        [](std::string_view v) { return v.empty(); });
         if (p.kind == PoseKind::Lost) {

@@ -100,7 +100,9 @@ struct LightingRecord {
 };
 Result<std::vector<LightingRecord>> loadLighting(const std::string& dir);
 
-enum class PoseKind { Tracked, Lost, Truth };
+// Tracked: the tracker's pose on that frame; Filtered: the live pose filter's (what the preview
+// composited); Lost: no pose on that frame; Truth: the ground truth, where known.
+enum class PoseKind { Tracked, Lost, Truth, Filtered };
 
 const char* poseKindName(PoseKind kind);
 

@@ -4,41 +4,16 @@
 #include <cmath>
 #include <opencv2/calib3d.hpp>
 
+#include "vision/constant_velocity.h"
+
 namespace previs {
 
+std::array<double, 2> measurementVariances(const TrackSample& sample, const NoiseModel& noise) {
+    return {noise.positionRScale * std::pow(std::max(sample.positionStdM, 1e-5), 2),
+            noise.rotationRScale * std::pow(std::max(sample.rotationStdDeg, 1e-3) * kRadPerDeg, 2)};
+}
+
 namespace {
-
-// One coordinate: state (value, rate), covariance [[a, b], [b, c]].
-struct AxisState {
-    double x = 0.0, v = 0.0;
-    double pxx = 0.0, pxv = 0.0, pvv = 0.0;
-};
-
-// x' = F x, P' = F P Fᵀ + Q for F = [[1, dt], [0, 1]] and the white-noise-acceleration
-// Q = q [[dt³/3, dt²/2], [dt²/2, dt]].
-AxisState predict(const AxisState& s, double dt, double q) {
-    AxisState p;
-    p.x = s.x + dt * s.v;
-    p.v = s.v;
-    p.pxx = s.pxx + 2.0 * dt * s.pxv + dt * dt * s.pvv + q * dt * dt * dt / 3.0;
-    p.pxv = s.pxv + dt * s.pvv + q * dt * dt / 2.0;
-    p.pvv = s.pvv + q * dt;
-    return p;
-}
-
-// Measurement z of the value with variance r.
-AxisState update(const AxisState& s, double z, double r) {
-    const double innovation = z - s.x;
-    const double sVar = s.pxx + r;
-    const double kx = s.pxx / sVar, kv = s.pxv / sVar;
-    AxisState u;
-    u.x = s.x + kx * innovation;
-    u.v = s.v + kv * innovation;
-    u.pxx = (1.0 - kx) * s.pxx;
-    u.pxv = (1.0 - kx) * s.pxv;
-    u.pvv = s.pvv - kv * s.pxv;
-    return u;
-}
 
 // RTS step: the smoothed state at k from its filtered state, the prediction of k+1 from k, and
 // the smoothed state at k+1. C = P_k Fᵀ (P⁻_{k+1})⁻¹.
@@ -59,117 +34,135 @@ AxisState smoothStep(const AxisState& filtered, const AxisState& predicted,
     return s;  // the smoothed covariance is not needed
 }
 
-// The rotation vector of R, chosen among its equivalents (θ + 2πn along the axis) nearest
-// `near`, so a sequence of rotations gives a continuous sequence of vectors.
-cv::Vec3d continuousRotationVector(const cv::Matx33d& r, const cv::Vec3d& near) {
-    cv::Vec3d v;
-    cv::Rodrigues(r, v);
-    const double angle = cv::norm(v);
-    if (angle < 1e-12) return v;
-    const cv::Vec3d axis = v / angle;
-    cv::Vec3d best = v;
-    for (int n = -2; n <= 2; ++n) {
-        const cv::Vec3d candidate = axis * (angle + 2.0 * CV_PI * n);
-        if (cv::norm(candidate - near) < cv::norm(best - near)) best = candidate;
+}  // namespace
+
+namespace {
+
+// The tracked samples as six coordinates: position, and the rotation relative to the first
+// tracked one as a continuous rotation vector.
+struct Coordinates {
+    size_t first = 0, last = 0;
+    cv::Matx33d reference = cv::Matx33d::eye();
+    std::vector<std::array<double, 6>> z;
+};
+
+std::optional<Coordinates> coordinatesOf(const std::vector<TrackSample>& samples) {
+    const size_t n = samples.size();
+    Coordinates c;
+    c.first = n;
+    for (size_t i = 0; i < n; ++i)
+        if (samples[i].worldFromCamera) {
+            c.first = std::min(c.first, i);
+            c.last = i;
+        }
+    if (c.first == n) return std::nullopt;
+    c.reference = samples[c.first].worldFromCamera->get_minor<3, 3>(0, 0);
+    c.z.resize(n);
+    cv::Vec3d previous(0, 0, 0);
+    for (size_t i = c.first; i <= c.last; ++i) {
+        if (!samples[i].worldFromCamera) continue;
+        const cv::Matx44d& m = *samples[i].worldFromCamera;
+        const cv::Vec3d r =
+            continuousRotationVector(c.reference.t() * m.get_minor<3, 3>(0, 0), previous);
+        previous = r;
+        c.z[i] = {m(0, 3), m(1, 3), m(2, 3), r[0], r[1], r[2]};
     }
-    return best;
+    return c;
+}
+
+struct ForwardPass {
+    std::vector<std::array<AxisState, 6>> predicted, filtered;
+    std::vector<double> dts;
+    // Of the innovations, position and rotation apart (the two groups' axes are independent).
+    std::array<double, 2> logLikelihood{0.0, 0.0};
+};
+
+// The forward Kalman pass over [first, last].
+ForwardPass forwardPass(const std::vector<TrackSample>& samples, const Coordinates& c,
+                        const NoiseModel& noise) {
+    const size_t n = samples.size();
+    ForwardPass f{std::vector<std::array<AxisState, 6>>(n),
+                  std::vector<std::array<AxisState, 6>>(n),
+                  std::vector<double>(n, 0.0),
+                  {0.0, 0.0}};
+    for (size_t i = c.first; i <= c.last; ++i) {
+        std::array<AxisState, 6> state{};
+        if (i == c.first) {
+            state = initialState(c.z[i]);
+        } else {
+            f.dts[i] = double(samples[i].timestampNs - samples[i - 1].timestampNs) * 1e-9;
+            for (int a = 0; a < 6; ++a)
+                state[size_t(a)] = predict(f.filtered[i - 1][size_t(a)], f.dts[i],
+                                           a < 3 ? noise.positionQ : noise.rotationQ);
+        }
+        f.predicted[i] = state;
+        if (samples[i].worldFromCamera) {
+            const std::array<double, 2> r = measurementVariances(samples[i], noise);
+            for (int a = 0; a < 6; ++a) {
+                const double innovation = c.z[i][size_t(a)] - state[size_t(a)].x;
+                const double variance = state[size_t(a)].pxx + r[a < 3 ? 0 : 1];
+                if (i != c.first)
+                    f.logLikelihood[a < 3 ? 0 : 1] -=
+                        0.5 * (std::log(variance) + innovation * innovation / variance);
+                state[size_t(a)] = update(state[size_t(a)], c.z[i][size_t(a)], r[a < 3 ? 0 : 1]);
+            }
+        }
+        f.filtered[i] = state;
+    }
+    return f;
+}
+
+NoiseModel fitNoise(const std::vector<TrackSample>& samples, const Coordinates& c,
+                    const SmootherSettings& settings) {
+    NoiseModel model{settings.positionQ, settings.rotationQ * kRadPerDeg * kRadPerDeg, 1.0, 1.0};
+    if (!settings.estimateNoise) return model;
+    // The noise the take itself supports best: the settings' q, and the tracker's own
+    // variances, each scaled by the grid point of highest likelihood of the filter's
+    // innovations (q by 10^-4 … 10^4, the variances by 10^-2 … 10, in half decades), position
+    // and rotation apart. A steady dolly gets a stiff model and a whip pan a loose one, and a
+    // tracker that misjudges its own noise is corrected, without anyone choosing.
+    std::array<double, 2> best{-INFINITY, -INFINITY};
+    NoiseModel fitted = model;
+    for (int k = -8; k <= 8; ++k)
+        for (int j = -4; j <= 2; ++j) {
+            const double qs = std::pow(10.0, 0.5 * k), rs = std::pow(10.0, 0.5 * j);
+            const NoiseModel trial{model.positionQ * qs, model.rotationQ * qs, rs, rs};
+            const std::array<double, 2> l = forwardPass(samples, c, trial).logLikelihood;
+            if (l[0] > best[0]) {
+                best[0] = l[0];
+                fitted.positionQ = trial.positionQ;
+                fitted.positionRScale = rs;
+            }
+            if (l[1] > best[1]) {
+                best[1] = l[1];
+                fitted.rotationQ = trial.rotationQ;
+                fitted.rotationRScale = rs;
+            }
+        }
+    return fitted;
 }
 
 }  // namespace
+
+NoiseModel fitNoise(const std::vector<TrackSample>& samples, const SmootherSettings& settings) {
+    std::optional<Coordinates> c = coordinatesOf(samples);
+    if (!c) return {settings.positionQ, settings.rotationQ * kRadPerDeg * kRadPerDeg, 1.0, 1.0};
+    return fitNoise(samples, *c, settings);
+}
 
 std::vector<std::optional<cv::Matx44d>> smoothTrack(const std::vector<TrackSample>& samples,
                                                     const SmootherSettings& settings) {
     const size_t n = samples.size();
     std::vector<std::optional<cv::Matx44d>> out(n);
-    size_t first = n, last = 0;
-    for (size_t i = 0; i < n; ++i)
-        if (samples[i].worldFromCamera) {
-            first = std::min(first, i);
-            last = i;
-        }
-    if (first == n) return out;
+    const std::optional<Coordinates> c = coordinatesOf(samples);
+    if (!c) return out;
+    const size_t first = c->first, last = c->last;
+    const cv::Matx33d& reference = c->reference;
+    const ForwardPass pass = forwardPass(samples, *c, fitNoise(samples, *c, settings));
+    const auto& predicted = pass.predicted;
+    const auto& filtered = pass.filtered;
+    const auto& dts = pass.dts;
 
-    // Rotations relative to the first tracked one, as continuous rotation vectors.
-    const cv::Matx33d reference = samples[first].worldFromCamera->get_minor<3, 3>(0, 0);
-    std::vector<std::array<double, 6>> z(n);
-    cv::Vec3d previous(0, 0, 0);
-    for (size_t i = first; i <= last; ++i) {
-        if (!samples[i].worldFromCamera) continue;
-        const cv::Matx44d& m = *samples[i].worldFromCamera;
-        const cv::Vec3d r =
-            continuousRotationVector(reference.t() * m.get_minor<3, 3>(0, 0), previous);
-        previous = r;
-        z[i] = {m(0, 3), m(1, 3), m(2, 3), r[0], r[1], r[2]};
-    }
-
-    const double deg = CV_PI / 180.0;
-    std::vector<std::array<AxisState, 6>> predicted(n), filtered(n);
-    std::vector<double> dts(n, 0.0);
-    // The forward Kalman pass; returns the log-likelihood of its innovations, position and
-    // rotation apart (the two groups' axes are independent in this model).
-    auto forward = [&](double qPosition, double qRotation, double rScalePosition,
-                       double rScaleRotation) {
-        std::array<double, 2> logLikelihood{0.0, 0.0};
-        for (size_t i = first; i <= last; ++i) {
-            std::array<AxisState, 6> state{};
-            if (i == first) {
-                // Starts at the first measurement, at rest but with a generous rate variance.
-                for (int a = 0; a < 6; ++a) {
-                    state[size_t(a)].x = z[i][size_t(a)];
-                    state[size_t(a)].pxx = 1.0;
-                    state[size_t(a)].pvv = a < 3 ? 1.0 : 10.0;
-                }
-            } else {
-                dts[i] = double(samples[i].timestampNs - samples[i - 1].timestampNs) * 1e-9;
-                for (int a = 0; a < 6; ++a)
-                    state[size_t(a)] =
-                        predict(filtered[i - 1][size_t(a)], dts[i], a < 3 ? qPosition : qRotation);
-            }
-            predicted[i] = state;
-            if (samples[i].worldFromCamera) {
-                const double rPosition =
-                    rScalePosition * std::pow(std::max(samples[i].positionStdM, 1e-5), 2);
-                const double rRotation =
-                    rScaleRotation * std::pow(std::max(samples[i].rotationStdDeg, 1e-3) * deg, 2);
-                for (int a = 0; a < 6; ++a) {
-                    const double r = a < 3 ? rPosition : rRotation;
-                    const double innovation = z[i][size_t(a)] - state[size_t(a)].x;
-                    const double variance = state[size_t(a)].pxx + r;
-                    if (i != first)
-                        logLikelihood[a < 3 ? 0 : 1] -=
-                            0.5 * (std::log(variance) + innovation * innovation / variance);
-                    state[size_t(a)] = update(state[size_t(a)], z[i][size_t(a)], r);
-                }
-            }
-            filtered[i] = state;
-        }
-        return logLikelihood;
-    };
-    // The noise the take itself supports best: the settings' q, and the tracker's own variances,
-    // each scaled by the grid point of highest likelihood of the filter's innovations (q by
-    // 10^-4 … 10^4, the variances by 10^-2 … 10, in half decades), position and rotation apart.
-    // A steady dolly gets a stiff model and a whip pan a loose one, and a tracker that misjudges
-    // its own noise is corrected, without anyone choosing.
-    std::array<double, 2> q{settings.positionQ, settings.rotationQ * deg * deg};
-    std::array<double, 2> rScale{1.0, 1.0};
-    if (settings.estimateNoise) {
-        std::array<double, 2> best{-INFINITY, -INFINITY};
-        std::array<double, 2> bestQ = q, bestR = rScale;
-        for (int k = -8; k <= 8; ++k)
-            for (int j = -4; j <= 2; ++j) {
-                const double qs = std::pow(10.0, 0.5 * k), rs = std::pow(10.0, 0.5 * j);
-                const std::array<double, 2> l = forward(q[0] * qs, q[1] * qs, rs, rs);
-                for (size_t g = 0; g < 2; ++g)
-                    if (l[g] > best[g]) {
-                        best[g] = l[g];
-                        bestQ[g] = q[g] * qs;
-                        bestR[g] = rs;
-                    }
-            }
-        q = bestQ;
-        rScale = bestR;
-    }
-    forward(q[0], q[1], rScale[0], rScale[1]);
     std::vector<std::array<AxisState, 6>> smoothed(n);
     smoothed[last] = filtered[last];
     for (size_t i = last; i-- > first;)
