@@ -228,16 +228,7 @@ Result<Sequence> vispHeld(const std::string& dataDir) {
                                               607.2342529296875, 241.91822814941406, 0, 0, 1),
                                   {}, cv::Size(640, 480), DistortionModel::Pinhole, "ViSP camera");
     if (!calib) return calib.error();
-    std::vector<BoardTag> tags;
-    for (int id = 0; id < 12; ++id) {
-        BoardTag t{id, 0.0955};
-        t.worldFromTag = cv::Matx44d(0, 1, 0, 0.05 + 0.12 * (id / 4), 1, 0, 0,
-                                     0.045 + 0.12 * (id % 4), 0, 0, -1, 0, 0, 0, 0, 1);
-        tags.push_back(t);
-    }
-    auto board = TagBoard::create(tags, "ViSP board");
-    if (!board) return board.error();
-    auto tracker = Tracker::create({}, *board, *calib);
+    auto tracker = Tracker::create({}, vispRbtBoard(), *calib);
     if (!tracker) return tracker.error();
     for (int frame : data["frames"].get<std::vector<int>>()) {
         if (frame > 5) break;

@@ -7,6 +7,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "bench/board_render.h"
 #include "vision/board_pose.h"
 #include "vision/fisheye_to_equirect.h"
 #include "vision/inverse_tone_map.h"
@@ -56,15 +57,7 @@ Result<std::vector<VisionTiming>> benchVision(const std::string& dataDir, int ru
                   607.2342529296875 * 1.5, 241.91822814941406 * 1.5, 0, 0, 1);
     auto calib = CameraCalibration::create(k, {}, {1280, 720}, DistortionModel::Pinhole, "bench");
     if (!calib) return calib.error();
-    std::vector<BoardTag> tags;
-    for (int id = 0; id < 12; ++id) {
-        BoardTag t{id, 0.0955};
-        t.worldFromTag = cv::Matx44d(0, 1, 0, 0.05 + 0.12 * (id / 4), 1, 0, 0,
-                                     0.045 + 0.12 * (id % 4), 0, 0, -1, 0, 0, 0, 0, 1);
-        tags.push_back(t);
-    }
-    auto board = TagBoard::create(tags, "bench board");
-    if (!board) return board.error();
+    const TagBoard board = bench::vispRbtBoard();
 
     struct Config {
         float decimate;
@@ -77,7 +70,7 @@ Result<std::vector<VisionTiming>> benchVision(const std::string& dataDir, int ru
         TagDetectorSettings s;
         s.decimate = c.decimate;
         s.threads = c.threads;
-        auto tracker = Tracker::create(s, *board, *calib);
+        auto tracker = Tracker::create(s, board, *calib);
         if (!tracker) return tracker.error();
         out.push_back(measure(
             fmt::format("track 1280x720 (decimate {}, {} thread(s))",

@@ -140,6 +140,19 @@ TagBoard posterBoard() {
     return std::move(board).value();
 }
 
+TagBoard vispRbtBoard() {
+    std::vector<BoardTag> tags;
+    for (int id = 0; id < 12; ++id) {
+        BoardTag t{id, 0.0955};
+        t.worldFromTag = cv::Matx44d(0, 1, 0, 0.05 + 0.12 * (id / 4), 1, 0, 0,
+                                     0.045 + 0.12 * (id % 4), 0, 0, -1, 0, 0, 0, 0, 1);
+        tags.push_back(t);
+    }
+    auto board = TagBoard::create(tags, "ViSP RBT board");
+    PV_ASSERT(board.ok());  // constant, valid layout
+    return std::move(board).value();
+}
+
 Result<Scene> tagBoardScene(const TagBoard& board, const std::string& family,
                             const BoardAppearance& appearance) {
     FamilyPtr fam = createFamily(family);

@@ -42,6 +42,10 @@ Result<TagBoard> gridBoard(int columns, int rows, double tagSizeM, double pitchM
 // tag36h11 tags, 100 mm black squares at 140 mm pitch, ids 0–11.
 TagBoard posterBoard();
 
+// The board of the ViSP RBT video (../shared/data/video/README.md): 4×3 tag36h11 tags of
+// 95.5 mm, ids 0–11, at 120 mm pitch, the tags turned 90° against the board's axes.
+TagBoard vispRbtBoard();
+
 // The board as a scene: one textured quad per tag (its bitmap from libapriltag, white border
 // included) in front of a white backing plane. All tags must lie on one plane.
 Result<Scene> tagBoardScene(const TagBoard& board, const std::string& family,
