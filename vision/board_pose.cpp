@@ -85,6 +85,8 @@ void poseUncertainty(const std::vector<cv::Point3d>& world, const cv::Matx33d& r
 
 }  // namespace
 
+namespace {
+
 // A plane seen from far away or head on has two poses that fit its image (the two minima of IPPE,
 // Collins & Bartoli 2014: the plane tilted either way). The second one's RMS error, on ideal
 // pixels, and the angle between the two; infinite error when the points are not coplanar or
@@ -126,6 +128,8 @@ PlanarAlternative planarAlternative(const std::vector<cv::Point3d>& world,
     return {std::min(errors.at<double>(0), errors.at<double>(1)),
             std::max(errors.at<double>(0), errors.at<double>(1)), std::acos(c) * 180.0 / M_PI};
 }
+
+}  // namespace
 
 std::optional<BoardPose> estimateBoardPose(const std::vector<TagDetection>& detections,
                                            const TagBoard& board,

@@ -358,9 +358,10 @@ TEST_F(RenderedPoseTest, SmallTagsAreFoundAtTheDefaults) {
         ASSERT_TRUE(fullResolution && coarse);
         const size_t all = fullResolution->detect(gray).size();
         const size_t coarseCount = coarse->detect(gray).size();
-        if (distance > 2.0)
+        if (distance > 2.0) {
             EXPECT_LT(coarseCount, all)
                 << "this view must lose tags at decimate 2 to test anything";
+        }
         std::printf("%.1f m: %zu tags at full resolution, %zu at decimate 2\n", distance, all,
                     coarseCount);
 
