@@ -18,7 +18,7 @@
 #include <opencv2/core.hpp>
 #include <optional>
 
-#include "vision/track_smoother.h"
+#include "vision/track_smoother.h"  // TrackSample
 
 namespace previs {
 

@@ -3,17 +3,87 @@
 #include <array>
 #include <cmath>
 #include <opencv2/calib3d.hpp>
-
-#include "vision/constant_velocity.h"
+#include <optional>
 
 namespace previs {
 
+namespace {
+
+constexpr double kRadPerDeg = CV_PI / 180.0;
+
+// One coordinate: state (value, rate), covariance [[a, b], [b, c]].
+struct AxisState {
+    double x = 0.0, v = 0.0;
+    double pxx = 0.0, pxv = 0.0, pvv = 0.0;
+};
+
+// x' = F x, P' = F P Fᵀ + Q for F = [[1, dt], [0, 1]] and the white-noise-acceleration
+// Q = q [[dt³/3, dt²/2], [dt²/2, dt]].
+AxisState predict(const AxisState& s, double dt, double q) {
+    AxisState p;
+    p.x = s.x + dt * s.v;
+    p.v = s.v;
+    p.pxx = s.pxx + 2.0 * dt * s.pxv + dt * dt * s.pvv + q * dt * dt * dt / 3.0;
+    p.pxv = s.pxv + dt * s.pvv + q * dt * dt / 2.0;
+    p.pvv = s.pvv + q * dt;
+    return p;
+}
+
+// Measurement z of the value with variance r.
+AxisState update(const AxisState& s, double z, double r) {
+    const double innovation = z - s.x;
+    const double sVar = s.pxx + r;
+    const double kx = s.pxx / sVar, kv = s.pxv / sVar;
+    AxisState u;
+    u.x = s.x + kx * innovation;
+    u.v = s.v + kv * innovation;
+    u.pxx = (1.0 - kx) * s.pxx;
+    u.pxv = (1.0 - kx) * s.pxv;
+    u.pvv = s.pvv - kv * s.pxv;
+    return u;
+}
+
+// The rotation vector of R, chosen among its equivalents (θ + 2πn along the axis) nearest
+// `near`, so a sequence of rotations gives a continuous sequence of vectors.
+cv::Vec3d continuousRotationVector(const cv::Matx33d& r, const cv::Vec3d& near) {
+    cv::Vec3d v;
+    cv::Rodrigues(r, v);
+    const double angle = cv::norm(v);
+    if (angle < 1e-12) return v;
+    const cv::Vec3d axis = v / angle;
+    cv::Vec3d best = v;
+    for (int n = -2; n <= 2; ++n) {
+        const cv::Vec3d candidate = axis * (angle + 2.0 * CV_PI * n);
+        if (cv::norm(candidate - near) < cv::norm(best - near)) best = candidate;
+    }
+    return best;
+}
+
+// The state at a first measurement z: at rest, but with a generous rate variance.
+std::array<AxisState, 6> initialState(const std::array<double, 6>& z) {
+    std::array<AxisState, 6> state{};
+    for (size_t a = 0; a < 6; ++a) {
+        state[a].x = z[a];
+        state[a].pxx = 1.0;
+        state[a].pvv = a < 3 ? 1.0 : 10.0;
+    }
+    return state;
+}
+
+// The model's noise: white-noise acceleration densities (position m²/s³, rotation rad²/s³) and
+// the factors on the tracker's own variances.
+struct NoiseModel {
+    double positionQ = 0.1;
+    double rotationQ = 0.03;
+    double positionRScale = 1.0;
+    double rotationRScale = 1.0;
+};
+
+// The measurement variances of one tracked sample under `noise`: position (m²), rotation (rad²).
 std::array<double, 2> measurementVariances(const TrackSample& sample, const NoiseModel& noise) {
     return {noise.positionRScale * std::pow(std::max(sample.positionStdM, 1e-5), 2),
             noise.rotationRScale * std::pow(std::max(sample.rotationStdDeg, 1e-3) * kRadPerDeg, 2)};
 }
-
-namespace {
 
 // RTS step: the smoothed state at k from its filtered state, the prediction of k+1 from k, and
 // the smoothed state at k+1. C = P_k Fᵀ (P⁻_{k+1})⁻¹.
@@ -33,10 +103,6 @@ AxisState smoothStep(const AxisState& filtered, const AxisState& predicted,
     s.v += c10 * dx + c11 * dv;
     return s;  // the smoothed covariance is not needed
 }
-
-}  // namespace
-
-namespace {
 
 // The tracked samples as six coordinates: position, and the rotation relative to the first
 // tracked one as a continuous rotation vector.
@@ -143,12 +209,6 @@ NoiseModel fitNoise(const std::vector<TrackSample>& samples, const Coordinates& 
 }
 
 }  // namespace
-
-NoiseModel fitNoise(const std::vector<TrackSample>& samples, const SmootherSettings& settings) {
-    std::optional<Coordinates> c = coordinatesOf(samples);
-    if (!c) return {settings.positionQ, settings.rotationQ * kRadPerDeg * kRadPerDeg, 1.0, 1.0};
-    return fitNoise(samples, *c, settings);
-}
 
 std::vector<std::optional<cv::Matx44d>> smoothTrack(const std::vector<TrackSample>& samples,
                                                     const SmootherSettings& settings) {

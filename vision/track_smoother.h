@@ -9,7 +9,6 @@
 // Navigation", §6.2 and §8.6), so every pose uses the frames before and after it. Lost frames
 // are predicted across: a gap is bridged when short, and left without a pose when not.
 
-#include <array>
 #include <cstdint>
 #include <opencv2/core.hpp>
 #include <optional>
@@ -38,23 +37,6 @@ struct SmootherSettings {
     // A lost stretch longer than this is not bridged: its frames get no pose.
     double maxGapSeconds = 1.0;
 };
-
-// The model's noise: white-noise acceleration densities (position m²/s³, rotation rad²/s³) and
-// the factors on the tracker's own variances.
-struct NoiseModel {
-    double positionQ = 0.1;
-    double rotationQ = 0.03;
-    double positionRScale = 1.0;
-    double rotationRScale = 1.0;
-};
-
-// The measurement variances of one tracked sample under `noise`: position (m²), rotation (rad²).
-std::array<double, 2> measurementVariances(const TrackSample& sample, const NoiseModel& noise);
-
-// The settings' noise, fitted to the samples (SmootherSettings::estimateNoise) by maximum
-// likelihood of a forward filter's innovations. The live filter (vision/pose_filter.h) refits it
-// on its recent frames with this.
-NoiseModel fitNoise(const std::vector<TrackSample>& samples, const SmootherSettings& settings);
 
 // One pose per sample, smoothed; none before the first or after the last tracked frame, or
 // inside a gap longer than maxGapSeconds. Timestamps must not decrease.
