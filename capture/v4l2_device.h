@@ -13,8 +13,8 @@
 #include <vector>
 
 #include "base/result.h"
+#include "base/unique_fd.h"
 #include "capture/camera_source.h"
-#include "capture/unique_fd.h"
 
 namespace previs {
 

@@ -12,7 +12,7 @@
 #include <thread>
 
 #include "base/result.h"
-#include "capture/unique_fd.h"
+#include "base/unique_fd.h"
 
 namespace previs {
 

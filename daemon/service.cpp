@@ -18,7 +18,7 @@
 #include "base/guarded_thread.h"
 #include "base/latest_value_slot.h"
 #include "base/log.h"
-#include "capture/unique_fd.h"
+#include "base/unique_fd.h"
 #include "daemon/camera_sources.h"
 #include "daemon/control_server.h"
 #include "daemon/memory_budget.h"

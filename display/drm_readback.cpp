@@ -7,7 +7,7 @@
 #include <cerrno>
 #include <cstring>
 
-#include "capture/unique_fd.h"
+#include "base/unique_fd.h"
 #include "display/drm_util.h"
 
 namespace previs {

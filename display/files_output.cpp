@@ -12,7 +12,7 @@
 #include <opencv2/imgproc.hpp>
 #include <vector>
 
-#include "capture/unique_fd.h"
+#include "base/unique_fd.h"
 #include "display/compose.h"
 
 namespace previs {

@@ -14,7 +14,7 @@
 #include <vector>
 
 #include "base/log.h"
-#include "capture/unique_fd.h"
+#include "base/unique_fd.h"
 #include "display/compose.h"
 #include "display/drm_util.h"
 

@@ -13,7 +13,7 @@
 #include <thread>
 
 #include "base/result.h"
-#include "capture/unique_fd.h"
+#include "base/unique_fd.h"
 #include "io/press_classifier.h"
 
 struct gpiod_chip;

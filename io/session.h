@@ -16,7 +16,7 @@
 #include <vector>
 
 #include "base/result.h"
-#include "capture/unique_fd.h"
+#include "base/unique_fd.h"
 
 namespace previs {
 

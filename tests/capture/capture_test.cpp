@@ -22,10 +22,10 @@
 #include <thread>
 
 #include "base/latest_value_slot.h"
+#include "base/unique_fd.h"
 #include "capture/camera_source.h"
 #include "capture/pixel_format.h"
 #include "capture/recorded_source.h"
-#include "capture/unique_fd.h"
 #include "capture/v4l2_device.h"
 #include "io/session.h"
 

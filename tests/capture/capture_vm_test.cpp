@@ -16,9 +16,9 @@
 #include <opencv2/imgproc.hpp>
 #include <thread>
 
+#include "base/unique_fd.h"
 #include "capture/camera_source.h"
 #include "capture/pixel_format.h"
-#include "capture/unique_fd.h"
 #include "capture/v4l2_device.h"
 
 namespace previs {

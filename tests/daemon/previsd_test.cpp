@@ -25,7 +25,7 @@
 #include <sstream>
 #include <thread>
 
-#include "capture/unique_fd.h"
+#include "base/unique_fd.h"
 #include "daemon/control_server.h"
 #include "daemon/pipeline_stages.h"
 #include "daemon/take_files.h"

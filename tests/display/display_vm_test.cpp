@@ -11,7 +11,7 @@
 #include <cstdlib>
 #include <thread>
 
-#include "capture/unique_fd.h"
+#include "base/unique_fd.h"
 #include "display/compose.h"
 #include "display/drm_readback.h"
 #include "display/kms_output.h"

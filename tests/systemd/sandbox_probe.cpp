@@ -18,7 +18,7 @@
 #include <cstring>
 #include <memory>
 
-#include "capture/unique_fd.h"
+#include "base/unique_fd.h"
 
 namespace {
 
