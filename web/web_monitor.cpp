@@ -1,0 +1,596 @@
+#include "web/web_monitor.h"
+
+#include <httplib.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <cctype>
+#include <cerrno>
+#include <charconv>
+#include <cmath>
+#include <condition_variable>
+#include <cstring>
+#include <deque>
+#include <exception>
+#include <mutex>
+#include <string_view>
+#include <thread>
+#include <vector>
+
+#include "base/guarded_thread.h"
+#include "base/log.h"
+#include "web/monitor_page.h"
+#include "web/stream_encoder.h"
+
+namespace previs {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+constexpr const char* kBoundary = "previsframe";
+// How long a viewer waits for a new frame before it sends the newest one again: a render that
+// paused still shows, and a viewer that went away is noticed by the failing write.
+constexpr std::chrono::milliseconds kViewerWait{250};
+constexpr int kResendAfterWaits = 4;
+
+// Requests answered on the connection the calling worker serves now (the logger counts them):
+// a connection that ends with none was dropped before its request line was complete.
+thread_local int tlRequestsOnConnection = 0;
+
+// cpp-httplib's task queue, with a fixed number of workers: a connection holds one worker for
+// its lifetime, so the pool bounds the threads a crowd of clients can take; connections beyond
+// it wait in the queue. Each connection that ends without a request is counted.
+class ConnectionPool : public httplib::TaskQueue {
+public:
+    ConnectionPool(size_t threads, std::atomic<uint64_t>* silentConnections)
+        : silent_(silentConnections) {
+        for (size_t i = 0; i < threads; ++i)
+            workers_.emplace_back([this] { runGuarded("web worker", [this] { work(); }); });
+    }
+    ~ConnectionPool() override { shutdown(); }
+
+    void enqueue(std::function<void()> fn) override {
+        {
+            std::lock_guard lock(mutex_);
+            jobs_.push_back(std::move(fn));
+        }
+        wake_.notify_one();
+    }
+
+    void shutdown() override {
+        {
+            std::lock_guard lock(mutex_);
+            stopping_ = true;
+        }
+        wake_.notify_all();
+        for (std::thread& t : workers_)
+            if (t.joinable()) t.join();
+    }
+
+private:
+    void work() {
+        for (;;) {
+            std::function<void()> fn;
+            {
+                std::unique_lock lock(mutex_);
+                wake_.wait(lock, [&] { return stopping_ || !jobs_.empty(); });
+                if (jobs_.empty()) return;
+                fn = std::move(jobs_.front());
+                jobs_.pop_front();
+            }
+            tlRequestsOnConnection = 0;
+            fn();
+            if (tlRequestsOnConnection == 0) ++*silent_;
+        }
+    }
+
+    std::atomic<uint64_t>* silent_;
+    std::mutex mutex_;
+    std::condition_variable wake_;
+    std::deque<std::function<void()>> jobs_;
+    bool stopping_ = false;
+    std::vector<std::thread> workers_;
+};
+
+enum class Path { Page, Stream, Status, Mode, Record, Other };
+
+Path pathOf(const std::string& path) {
+    if (path == "/" || path == "/index.html") return Path::Page;
+    if (path == "/stream.mjpeg") return Path::Stream;
+    if (path == "/status.json") return Path::Status;
+    if (path == "/mode") return Path::Mode;
+    if (path == "/record") return Path::Record;
+    return Path::Other;
+}
+
+std::string trimmed(const std::string& s) {
+    const size_t b = s.find_first_not_of(" \t\r\n");
+    if (b == std::string::npos) return {};
+    const size_t e = s.find_last_not_of(" \t\r\n");
+    return s.substr(b, e - b + 1);
+}
+
+// The bytes of the header lines the client sent (cpp-httplib adds the REMOTE_/LOCAL_ ones).
+size_t headerBytes(const httplib::Request& req) {
+    size_t n = 0;
+    for (const auto& [key, value] : req.headers) {
+        if (key == "REMOTE_ADDR" || key == "REMOTE_PORT" || key == "LOCAL_ADDR" ||
+            key == "LOCAL_PORT")
+            continue;
+        n += key.size() + value.size() + 4;  // ": " and CRLF
+    }
+    return n;
+}
+
+void answer(httplib::Response& res, int status, const std::string& message) {
+    res.status = status;
+    res.set_content(message + "\n", "text/plain; charset=utf-8");
+}
+
+// The library's own error answers carry no body: a word for the ones it gives.
+std::string reasonPhrase(int status) {
+    switch (status) {
+        case 400:
+            return "bad request";
+        case 404:
+            return "not found";
+        case 413:
+            return "payload too large";
+        case 414:
+            return "request line too long";
+        case 416:
+            return "range not satisfiable";
+        default:
+            return fmt::format("error {}", status);
+    }
+}
+
+// cpp-httplib listens with SO_REUSEPORT, which would let a second previsd share the port
+// silently; SO_REUSEADDR alone still lets a restart bind while old connections linger.
+void listenSocketOptions(int sock) {
+    int yes = 1;
+    setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof(yes));
+}
+
+}  // namespace
+
+nlohmann::json toJson(const WebStats& s) {
+    return {{"viewers", s.viewers},
+            {"streamsServed", s.streamsServed},
+            {"framesSubmitted", s.framesSubmitted},
+            {"framesEncoded", s.framesEncoded},
+            {"framesSent", s.framesSent},
+            {"viewerFramesDropped", s.viewerFramesDropped},
+            {"viewersStalled", s.viewersStalled},
+            {"encodeMs", std::round(s.encodeMs * 100.0) / 100.0},
+            {"jpegBytes", s.jpegBytes},
+            {"requests", s.requests},
+            {"commands", s.commands},
+            {"rejected",
+             {{"badRequest", s.badRequest},
+              {"unauthorized", s.unauthorized},
+              {"forbidden", s.forbidden},
+              {"notFound", s.notFound},
+              {"methodNotAllowed", s.methodNotAllowed},
+              {"lengthRequired", s.lengthRequired},
+              {"payloadTooLarge", s.payloadTooLarge},
+              {"uriTooLong", s.uriTooLong},
+              {"headersTooLarge", s.headersTooLarge},
+              {"busy", s.busy},
+              {"internalError", s.internalError},
+              {"silentConnections", s.silentConnections}}}};
+}
+
+Result<ListenAddress> parseListenAddress(const std::string& listen) {
+    auto bad = [&](const char* why) {
+        return makeError(
+            "[web] listen = \"{}\": {}; expected \"HOST:PORT\" such as "
+            "\"0.0.0.0:8080\" or \"[::]:8080\"",
+            listen, why);
+    };
+    const size_t colon = listen.rfind(':');
+    if (colon == std::string::npos || colon == 0) return bad("no HOST:PORT");
+    ListenAddress a;
+    a.host = listen.substr(0, colon);
+    if (a.host.front() == '[') {
+        if (a.host.size() < 3 || a.host.back() != ']') return bad("unbalanced [ ] around the host");
+        a.host = a.host.substr(1, a.host.size() - 2);
+    } else if (a.host.find(':') != std::string::npos) {
+        return bad("an IPv6 host needs [ ]");
+    }
+    const std::string port = listen.substr(colon + 1);
+    const auto [end, ec] = std::from_chars(port.data(), port.data() + port.size(), a.port);
+    if (port.empty() || ec != std::errc() || end != port.data() + port.size() || a.port < 0 ||
+        a.port > 65535)
+        return bad("the port is not a number 0..65535");
+    return a;
+}
+
+bool bearerTokenMatches(const std::string& authorization, const std::string& token) {
+    if (token.empty()) return false;
+    constexpr std::string_view scheme = "bearer ";
+    if (authorization.size() < scheme.size()) return false;
+    for (size_t i = 0; i < scheme.size(); ++i)
+        if (std::tolower(static_cast<unsigned char>(authorization[i])) != scheme[i]) return false;
+    const std::string presented = trimmed(authorization.substr(scheme.size()));
+    // Time depends on the presented length only: every byte is compared, the first difference
+    // does not end the loop, and the configured length is not probed (index modulo its size).
+    unsigned diff = presented.size() != token.size() ? 1u : 0u;
+    for (size_t i = 0; i < presented.size(); ++i)
+        diff |= static_cast<unsigned char>(presented[i]) ^
+                static_cast<unsigned char>(token[i % token.size()]);
+    return diff == 0;
+}
+
+struct WebMonitor::Impl {
+    WebMonitorSettings settings;
+    WebMonitorHooks hooks;
+    std::unique_ptr<StreamEncoder> encoder;
+    httplib::Server server;
+    std::thread listenThread;
+    std::atomic<bool> listenDone{false};
+    int port = 0;
+
+    std::atomic<int> viewers{0};
+    std::atomic<uint64_t> streamsServed{0}, framesSent{0}, viewerFramesDropped{0},
+        viewersStalled{0}, requests{0}, commands{0}, silentConnections{0};
+    // Answers by status code (index = code − 400), counted in the logger.
+    std::array<std::atomic<uint64_t>, 200> rejected{};
+
+    void configure();
+    void route();
+    void count(int status);
+    bool headersFit(const httplib::Request& req, httplib::Response& res) const;
+    bool readBody(const httplib::Request& req, httplib::Response& res,
+                  const httplib::ContentReader& reader, std::string& body) const;
+    void servePage(const httplib::Request& req, httplib::Response& res) const;
+    void serveStatus(const httplib::Request& req, httplib::Response& res) const;
+    void serveStream(const httplib::Request& req, httplib::Response& res);
+    void serveControl(const httplib::Request& req, httplib::Response& res,
+                      const httplib::ContentReader& reader, Path path);
+    void serveOther(const httplib::Request& req, httplib::Response& res,
+                    const httplib::ContentReader* reader) const;
+    WebStats stats() const;
+};
+
+void WebMonitor::Impl::configure() {
+    const int threads = settings.maxStreams + settings.requestThreads;
+    server.new_task_queue = [this, threads] {
+        return new ConnectionPool(size_t(threads), &silentConnections);
+    };
+    server.set_socket_options(listenSocketOptions);
+    server.set_read_timeout(std::chrono::milliseconds(settings.readTimeoutMs));
+    server.set_write_timeout(std::chrono::milliseconds(settings.writeTimeoutMs));
+    server.set_keep_alive_timeout(settings.keepAliveTimeoutS);
+    server.set_keep_alive_max_count(100);
+    server.set_payload_max_length(settings.maxBodyBytes);
+    server.set_logger([this](const httplib::Request&, const httplib::Response& res) {
+        ++tlRequestsOnConnection;
+        count(res.status);
+    });
+    // The library's own answers (400, 404, 413, 414) get a body saying what happened.
+    server.set_error_handler([](const httplib::Request&, httplib::Response& res) {
+        if (res.body.empty()) answer(res, res.status, reasonPhrase(res.status));
+    });
+    server.set_exception_handler(
+        [](const httplib::Request& req, httplib::Response& res, std::exception_ptr e) {
+            std::string what = "unknown exception";
+            try {
+                std::rethrow_exception(e);
+            } catch (const std::exception& ex) {
+                what = ex.what();
+            } catch (...) {
+            }
+            logError("web: {} {}: {}", req.method, req.path, what);
+            answer(res, 500, "internal error: " + what);
+        });
+}
+
+void WebMonitor::Impl::count(int status) {
+    ++requests;
+    if (status >= 400 && status < 600) ++rejected[size_t(status - 400)];
+}
+
+void WebMonitor::Impl::route() {
+    server.Get("/", [this](const auto& req, auto& res) { servePage(req, res); });
+    server.Get("/index.html", [this](const auto& req, auto& res) { servePage(req, res); });
+    server.Get("/status.json", [this](const auto& req, auto& res) { serveStatus(req, res); });
+    server.Get("/stream.mjpeg", [this](const auto& req, auto& res) { serveStream(req, res); });
+    server.Post("/mode", [this](const httplib::Request& req, httplib::Response& res,
+                                const httplib::ContentReader& reader) {
+        serveControl(req, res, reader, Path::Mode);
+    });
+    server.Post("/record", [this](const httplib::Request& req, httplib::Response& res,
+                                  const httplib::ContentReader& reader) {
+        serveControl(req, res, reader, Path::Record);
+    });
+    // Everything else: 405 for a known path, 404 otherwise (bodies drained, bounded).
+    auto other = [this](const httplib::Request& req, httplib::Response& res,
+                        const httplib::ContentReader& reader) { serveOther(req, res, &reader); };
+    server.Get(".*", [this](const auto& req, auto& res) { serveOther(req, res, nullptr); });
+    server.Options(".*", [this](const auto& req, auto& res) { serveOther(req, res, nullptr); });
+    server.Post(".*", other);
+    server.Put(".*", other);
+    server.Patch(".*", other);
+    server.Delete(".*", other);
+}
+
+bool WebMonitor::Impl::headersFit(const httplib::Request& req, httplib::Response& res) const {
+    if (headerBytes(req) <= settings.maxHeaderBytes) return true;
+    answer(res, 431, fmt::format("request headers above {} bytes", settings.maxHeaderBytes));
+    return false;
+}
+
+bool WebMonitor::Impl::readBody(const httplib::Request& req, httplib::Response& res,
+                                const httplib::ContentReader& reader, std::string& body) const {
+    // Without a length the body would be read until the client closes (or times out).
+    if (!req.has_header("Content-Length") &&
+        req.get_header_value("Transfer-Encoding").find("chunked") == std::string::npos) {
+        answer(res, 411, "POST needs a Content-Length");
+        return false;
+    }
+    bool tooLarge = false;
+    const bool complete = reader([&](const char* data, size_t length) {
+        if (body.size() + length > settings.maxBodyBytes) {
+            tooLarge = true;
+            return false;
+        }
+        body.append(data, length);
+        return true;
+    });
+    if (complete) return true;
+    // cpp-httplib answers a Content-Length above the limit itself (413) before reading.
+    if (res.status == 413 || tooLarge)
+        answer(res, 413, fmt::format("body above {} bytes", settings.maxBodyBytes));
+    else
+        answer(res, 400, "incomplete body");
+    return false;
+}
+
+void WebMonitor::Impl::servePage(const httplib::Request& req, httplib::Response& res) const {
+    if (!headersFit(req, res)) return;
+    res.set_header("Cache-Control", "no-cache");
+    res.set_header("X-Content-Type-Options", "nosniff");
+    // Offline box: the page loads nothing but its own origin.
+    res.set_header("Content-Security-Policy",
+                   "default-src 'self'; style-src 'unsafe-inline'; script-src 'unsafe-inline'; "
+                   "img-src 'self' blob:; frame-ancestors 'none'");
+    res.set_content(kMonitorPage, "text/html; charset=utf-8");
+}
+
+void WebMonitor::Impl::serveStatus(const httplib::Request& req, httplib::Response& res) const {
+    if (!headersFit(req, res)) return;
+    std::string text = hooks.statusJson ? hooks.statusJson() : std::string("{}");
+    nlohmann::json j = nlohmann::json::parse(text, nullptr, false);
+    if (j.is_object() && !j.contains("web")) {
+        j["web"] = toJson(stats());
+        text = j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+    }
+    res.set_header("Cache-Control", "no-store");
+    res.set_content(text, "application/json");
+}
+
+struct ViewerState {
+    uint64_t lastSequence = 0;
+    int idleWaits = 0;
+    bool started = false;
+};
+
+void WebMonitor::Impl::serveStream(const httplib::Request& req, httplib::Response& res) {
+    if (!headersFit(req, res)) return;
+    int current = viewers.load();
+    do {
+        if (current >= settings.maxStreams) {
+            res.set_header("Retry-After", "2");
+            answer(res, 503,
+                   fmt::format("{} viewers already watch (the limit); try again later", current));
+            return;
+        }
+    } while (!viewers.compare_exchange_weak(current, current + 1));
+    ++streamsServed;
+    encoder->addViewer();
+    res.set_header("Cache-Control", "no-cache, no-store");
+    res.set_header("Pragma", "no-cache");
+    auto viewer = std::make_shared<ViewerState>();
+    auto provider = [this, viewer](size_t, httplib::DataSink& sink) {
+        std::shared_ptr<const EncodedFrame> frame =
+            encoder->waitNewer(viewer->lastSequence, kViewerWait);
+        if (!frame) {
+            if (++viewer->idleWaits < kResendAfterWaits || viewer->lastSequence == 0) return true;
+            frame = encoder->waitNewer(viewer->lastSequence - 1, std::chrono::milliseconds(0));
+            if (!frame) return true;
+        } else if (viewer->lastSequence && frame->sequence > viewer->lastSequence + 1) {
+            viewerFramesDropped += frame->sequence - viewer->lastSequence - 1;
+        }
+        viewer->idleWaits = 0;
+        viewer->lastSequence = frame->sequence;
+        // Each part ends with the next boundary: a browser shows a part once the boundary after
+        // it arrives, so sending it at once saves a frame of latency.
+        const std::string head = fmt::format(
+            "{}Content-Type: image/jpeg\r\nContent-Length: {}\r\n\r\n",
+            viewer->started ? "" : fmt::format("--{}\r\n", kBoundary), frame->jpeg.size());
+        const std::string tail = fmt::format("\r\n--{}\r\n", kBoundary);
+        viewer->started = true;
+        const Clock::time_point start = Clock::now();
+        if (sink.write(head.data(), head.size()) &&
+            sink.write(frame->jpeg.data(), frame->jpeg.size()) &&
+            sink.write(tail.data(), tail.size())) {
+            ++framesSent;
+            return true;
+        }
+        // A write that failed after the write timeout: the viewer stopped taking bytes. What was
+        // encoded meanwhile never reached it: its drops too.
+        if (Clock::now() - start >= std::chrono::milliseconds(settings.writeTimeoutMs) * 9 / 10)
+            ++viewersStalled;
+        viewerFramesDropped += encoder->latestSequence() - viewer->lastSequence;
+        return false;
+    };
+    res.set_content_provider(fmt::format("multipart/x-mixed-replace; boundary={}", kBoundary),
+                             provider, [this](bool) {
+                                 encoder->removeViewer();
+                                 --viewers;
+                             });
+}
+
+void WebMonitor::Impl::serveControl(const httplib::Request& req, httplib::Response& res,
+                                    const httplib::ContentReader& reader, Path path) {
+    if (!headersFit(req, res)) return;
+    std::string body;
+    if (!readBody(req, res, reader, body)) return;
+    if (settings.token.empty()) {
+        answer(res, 403, "control is off: no [web] token is configured");
+        return;
+    }
+    if (!bearerTokenMatches(req.get_header_value("Authorization"), settings.token)) {
+        res.set_header("WWW-Authenticate", "Bearer");
+        answer(res, 401, "control needs the header Authorization: Bearer TOKEN");
+        return;
+    }
+    const std::string what = trimmed(body);
+    std::string command;
+    if (path == Path::Mode && (what == "preview" || what == "refine"))
+        command = "mode " + what;
+    else if (path == Path::Mode && what == "toggle")
+        command = "toggle";
+    else if (path == Path::Record && (what == "start" || what == "stop"))
+        command = "record " + what;
+    if (command.empty()) {
+        answer(res, 400,
+               path == Path::Mode ? "POST /mode takes preview, refine or toggle"
+                                  : "POST /record takes start or stop");
+        return;
+    }
+    ++commands;
+    const std::string reply = hooks.command ? hooks.command(command) : std::string("{}");
+    const nlohmann::json j = nlohmann::json::parse(reply, nullptr, false);
+    // The service refused (a record start without space, say): a conflict with its state.
+    res.status = j.is_object() && j.value("ok", false) ? 200 : 409;
+    res.set_header("Cache-Control", "no-store");
+    res.set_content(reply, "application/json");
+}
+
+void WebMonitor::Impl::serveOther(const httplib::Request& req, httplib::Response& res,
+                                  const httplib::ContentReader* reader) const {
+    // Drains a body (bounded) so that a kept-alive connection's next request parses.
+    std::string body;
+    const bool hasBody =
+        req.has_header("Content-Length") ||
+        req.get_header_value("Transfer-Encoding").find("chunked") != std::string::npos;
+    if (reader && hasBody && !readBody(req, res, *reader, body)) return;
+    if (!headersFit(req, res)) return;
+    switch (pathOf(req.path)) {
+        case Path::Page:
+        case Path::Stream:
+        case Path::Status:
+            res.set_header("Allow", "GET, HEAD");
+            answer(res, 405, fmt::format("{} takes GET", req.path));
+            return;
+        case Path::Mode:
+        case Path::Record:
+            res.set_header("Allow", "POST");
+            answer(res, 405, fmt::format("{} takes POST", req.path));
+            return;
+        case Path::Other:
+            answer(res, 404, "not found: the monitor serves /, /stream.mjpeg and /status.json");
+            return;
+    }
+}
+
+WebStats WebMonitor::Impl::stats() const {
+    const EncoderStats e = encoder->stats();
+    WebStats s;
+    s.viewers = viewers.load();
+    s.streamsServed = streamsServed;
+    s.framesSubmitted = e.submitted;
+    s.framesEncoded = e.encoded;
+    s.framesSent = framesSent;
+    s.viewerFramesDropped = viewerFramesDropped;
+    s.viewersStalled = viewersStalled;
+    s.encodeMs = e.meanEncodeMs;
+    s.jpegBytes = e.lastJpegBytes;
+    s.requests = requests;
+    s.commands = commands;
+    auto at = [&](int code) { return rejected[size_t(code - 400)].load(); };
+    s.badRequest = at(400);
+    s.unauthorized = at(401);
+    s.forbidden = at(403);
+    s.notFound = at(404);
+    s.methodNotAllowed = at(405);
+    s.lengthRequired = at(411);
+    s.payloadTooLarge = at(413);
+    s.uriTooLong = at(414);
+    s.headersTooLarge = at(431);
+    s.busy = at(503);
+    s.internalError = at(500);
+    s.silentConnections = silentConnections;
+    return s;
+}
+
+Result<std::unique_ptr<WebMonitor>> WebMonitor::create(const WebMonitorSettings& settings,
+                                                       WebMonitorHooks hooks) {
+    Result<ListenAddress> address = parseListenAddress(settings.listen);
+    if (!address) return address.error();
+    if (settings.maxStreams < 1 || settings.maxStreams > 64)
+        return makeError("[web] max_streams must be 1..64, not {}", settings.maxStreams);
+    if (settings.requestThreads < 1 || settings.requestThreads > 64)
+        return makeError("[web] request_threads must be 1..64, not {}", settings.requestThreads);
+    if (settings.readTimeoutMs < 1 || settings.writeTimeoutMs < 1 || settings.keepAliveTimeoutS < 1)
+        return makeError("[web] timeouts must be positive");
+    Result<std::unique_ptr<StreamEncoder>> encoder =
+        StreamEncoder::create({.fps = settings.streamFps,
+                               .width = settings.streamWidth,
+                               .jpegQuality = settings.jpegQuality});
+    if (!encoder) return encoder.error();
+
+    auto impl = std::make_unique<Impl>();
+    impl->settings = settings;
+    impl->hooks = std::move(hooks);
+    impl->encoder = std::move(*encoder);
+    impl->configure();
+    impl->route();
+    errno = 0;
+    if (address->port == 0) {
+        impl->port = impl->server.bind_to_any_port(address->host);
+    } else if (impl->server.bind_to_port(address->host, address->port)) {
+        impl->port = address->port;
+    } else {
+        impl->port = -1;
+    }
+    if (impl->port < 0)
+        return makeError(
+            "[web] listen = \"{}\": cannot listen there ({}); is the address this "
+            "box's and the port free?",
+            settings.listen, errno ? std::strerror(errno) : "address not usable");
+    Impl* raw = impl.get();
+    impl->listenThread = std::thread([raw] {
+        runGuarded("web listen", [raw] { raw->server.listen_after_bind(); });
+        raw->listenDone = true;
+    });
+    logInfo("web monitor on http://{}:{}/ ({} fps, {} px wide, control {})", address->host,
+            impl->port, settings.streamFps, settings.streamWidth,
+            settings.token.empty() ? "off (no token)" : "with token");
+    return std::unique_ptr<WebMonitor>(new WebMonitor(std::move(impl)));
+}
+
+WebMonitor::WebMonitor(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+
+WebMonitor::~WebMonitor() {
+    // stop() is a no-op until the listen thread has started listening.
+    while (!impl_->server.is_running() && !impl_->listenDone)
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    impl_->server.stop();
+    impl_->encoder->stop();
+    if (impl_->listenThread.joinable()) impl_->listenThread.join();
+}
+
+void WebMonitor::submitFrame(WebFrame frame) { impl_->encoder->submit(std::move(frame)); }
+
+WebStats WebMonitor::stats() const { return impl_->stats(); }
+
+int WebMonitor::port() const { return impl_->port; }
+
+}  // namespace previs
