@@ -156,6 +156,26 @@ TEST(Freed, LayoutOfAKnownPacket) {
     EXPECT_EQ(e.bytes, expected);
 }
 
+TEST(Freed, RangeEndsAsTheVintenManualWritesThem) {
+    // free-d Installation Manual V1.4.4, Appendix B: −180° = A60000 hex, +180° = 5A0000 hex,
+    // −131,072.0 mm = 800000 hex, nearly +131,072.0 mm = 7FFFFF hex.
+    FreedPacket p;
+    p.panDeg = -180;
+    p.rollDeg = 180;
+    p.xMm = -131072;
+    p.yMm = 131072 - 1.0 / 64;
+    FreedBytes b = encodeFreed(p).bytes;
+    EXPECT_EQ((std::array{b[2], b[3], b[4]}), (std::array<uint8_t, 3>{0xA6, 0x00, 0x00}));
+    EXPECT_EQ((std::array{b[8], b[9], b[10]}), (std::array<uint8_t, 3>{0x5A, 0x00, 0x00}));
+    EXPECT_EQ((std::array{b[11], b[12], b[13]}), (std::array<uint8_t, 3>{0x80, 0x00, 0x00}));
+    EXPECT_EQ((std::array{b[14], b[15], b[16]}), (std::array<uint8_t, 3>{0x7F, 0xFF, 0xFF}));
+    FreedParse back = decodeFreed(b, std::nullopt);
+    ASSERT_TRUE(back.ok());
+    EXPECT_EQ(back.packet.panDeg, -180.0);
+    EXPECT_EQ(back.packet.xMm, -131072.0);
+    EXPECT_EQ(back.packet.yMm, 131072 - 1.0 / 64);
+}
+
 TEST(Freed, ChecksumExamples) {
     FreedBytes b{};
     b[0] = 0xD1;
