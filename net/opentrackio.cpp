@@ -6,6 +6,8 @@
 #include <cmath>
 #include <nlohmann/json.hpp>
 
+#include "base/log.h"
+
 namespace previs {
 
 namespace {
@@ -169,6 +171,8 @@ std::string OpenTrackIOEncoder::randomUrnUuid() {
 }
 
 std::string OpenTrackIOEncoder::sampleJson(const OpenTrackIOFrame& frame) {
+    // A tracked pose is finite; NaN would be written as null and fail the schema.
+    PV_DCHECK(cv::checkRange(frame.worldFromCamera));
     StagePose pose = stagePoseFromWorld(frame.worldFromCamera);
     json sample = {{"protocol", {{"name", "OpenTrackIO"}, {"version", {1, 0, 1}}}},
                    {"sampleId", randomUrnUuid()},

@@ -73,7 +73,8 @@ class OpenTrackIOEncoder {
 public:
     static Result<OpenTrackIOEncoder> create(OpenTrackIOSource source);
 
-    // The JSON sample for a frame (advances the sample sequence number).
+    // The JSON sample for a frame (advances the sample sequence number). The pose must be
+    // finite (a tracked pose always is).
     std::string sampleJson(const OpenTrackIOFrame& frame);
     // sampleJson() framed into datagrams of at most `maxSegmentPayload` payload bytes each.
     std::vector<std::vector<uint8_t>> encode(const OpenTrackIOFrame& frame,

@@ -92,7 +92,10 @@ Result<UdpSocket> UdpSocket::sender(const std::string& hostPort) {
     std::string lastError = "no address";
     for (addrinfo* ai = list->get(); ai; ai = ai->ai_next) {
         auto fd = openSocket(ai->ai_family);
-        if (!fd) return fd.error();
+        if (!fd) {  // e.g. no IPv6 on this host: the next address may be IPv4
+            lastError = fd.message();
+            continue;
+        }
         // connect(): the destination is fixed, send() needs no address and the kernel reports
         // an unreachable port back to us (ECONNREFUSED on a later send).
         if (::connect(fd->get(), ai->ai_addr, ai->ai_addrlen) == 0) {

@@ -124,15 +124,33 @@ TEST(UdpSocket, MulticastSender) {
     EXPECT_FALSE(UdpSocket::multicastSender("239.135.1.1", 55555, 1, "not-an-address").ok());
 }
 
+TEST(UdpSocket, MulticastReachesAMemberOnThisHost) {
+    // The kernel loops multicast back to members on the sending host (IP_MULTICAST_LOOP is on by
+    // default). A host without a multicast route cannot run this: it skips, saying so.
+    auto rx = UdpSocket::receiver("0.0.0.0:0", "239.135.1.200");
+    if (!rx.ok()) GTEST_SKIP() << "cannot join a multicast group here: " << rx.message();
+    auto tx = UdpSocket::multicastSender("239.135.1.200", rx->localPort(), 0);
+    ASSERT_TRUE(tx.ok()) << tx.message();
+    std::vector<uint8_t> datagram = {'O', 'T', 'r', 'k'};
+    if (tx->send(datagram) != UdpSocket::SendStatus::Sent) {
+        GTEST_SKIP() << "no multicast route on this host";
+    }
+    std::vector<uint8_t> buffer(16);
+    int n = rx->receive(buffer, 2000);
+    if (n == -EAGAIN) GTEST_SKIP() << "multicast is not looped back on this host";
+    EXPECT_EQ(n, 4);
+}
+
 TEST(UdpSocket, ErrorsNameTheAddress) {
     auto bad = UdpSocket::sender("no-such-host.invalid:40000");
     ASSERT_FALSE(bad.ok());
     EXPECT_NE(bad.message().find("no-such-host.invalid"), std::string::npos) << bad.message();
     auto used = UdpSocket::receiver("127.0.0.1:0");
     ASSERT_TRUE(used.ok());
-    auto badBind = UdpSocket::receiver("192.0.2.1:0");  // TEST-NET-1: not a local address
+    // TEST-NET-3 (RFC 5737): documentation-only, so no machine has it as its own address.
+    auto badBind = UdpSocket::receiver("203.0.113.77:0");
     ASSERT_FALSE(badBind.ok());
-    EXPECT_NE(badBind.message().find("192.0.2.1"), std::string::npos);
+    EXPECT_NE(badBind.message().find("203.0.113.77"), std::string::npos);
 }
 
 }  // namespace
