@@ -26,6 +26,9 @@ void expectStillServing(WebMonitor& monitor) {
     EXPECT_EQ(test::get(monitor.port(), "/status.json").status, 200);
 }
 
+// The start of a TLS ClientHello, then a blank line: a browser told https:// for this port.
+constexpr char kTlsHello[] = "\x16\x03\x01\x02\x00\x01\x00\x01\xfc\x03\x03\r\n\r\n";
+
 TEST(WebInput, MalformedRequestsAreAnswered400) {
     FakeService service;
     auto monitor = test::startMonitor(service);
@@ -35,7 +38,7 @@ TEST(WebInput, MalformedRequestsAreAnswered400) {
         "GET\r\n\r\n",
         "GET / HTTP/9.9 extra words\r\n\r\n",
         "BREW /pot HTTP/1.1\r\nConnection: close\r\n\r\n",
-        std::string("\x16\x03\x01\x02\x00\x01\x00\x01\xfc\x03\x03\r\n\r\n", 17),  // TLS hello
+        std::string(kTlsHello, sizeof(kTlsHello) - 1),  // a TLS ClientHello on the HTTP port
         "GET / HTTP/1.1\r\n" + std::string(9000, 'x') + ": y\r\n\r\n",  // a header line > 8 KiB
     };
     for (const std::string& request : malformed) {

@@ -214,8 +214,10 @@ TEST(WebMonitor, AStalledViewerSlowsNeitherTheRenderNorOtherViewers) {
     EXPECT_GE(st.viewerFramesDropped, 1u);
     EXPECT_EQ(st.viewers, 1);
     producer.stop();
-    // A pointer swap: far below a frame period even on a loaded machine.
-    EXPECT_LT(producer.longestSubmitUs(), 20000);
+    // A pointer swap (tens of microseconds): had it waited for the stalled viewer it would have
+    // taken the write timeout (1 s). The margin is for a busy 2-core machine descheduling the
+    // producer thread (12 ms seen), not for any wait of ours.
+    EXPECT_LT(producer.longestSubmitUs(), 200000);
 }
 
 TEST(WebMonitor, ABusyStreamLimitAnswers503) {
