@@ -105,8 +105,8 @@ private:
 
 // The local time of day of `wallClockNs` (CLOCK_REALTIME) as a timecode at `rate`. Non-drop
 // rates label HH:MM:SS with the clock's and count the frame within the second at the nominal
-// rate (as base/timecode.h does); drop-frame rates count real frames since midnight, which
-// drop-frame labels keep within a frame or two of the clock over the day.
+// rate (how takes were stamped before LTC); drop-frame rates count real frames since midnight,
+// which drop-frame labels keep within a frame or two of the clock over the day.
 Timecode clockTimecode(uint64_t wallClockNs, TimecodeRate rate);
 
 }  // namespace previs
