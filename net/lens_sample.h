@@ -2,7 +2,10 @@
 
 // The lens of one tracked frame as the protocols need it, from the calibration the tracker uses
 // (vision/camera_calibration.h gives every field but the sensor size): kept free of vision/ so
-// the protocols build without it.
+// the protocols build without it. From a CameraCalibration `c`:
+//     LensSample lens{c.fx(), c.fy(), c.cx(), c.cy(), c.imageSize().width,
+//                     c.imageSize().height, sensorWidthMm /* or kFullFrameWidthMm */,
+//                     c.distortion(), c.model() == DistortionModel::Fisheye};
 
 #include <vector>
 

@@ -8,6 +8,7 @@
 // Sending (per tracked frame, on the tracking thread):
 //     auto encoder = OpenTrackIOEncoder::create(source);          // once
 //     auto socket = UdpSocket::multicastSender(openTrackIOMulticastGroup(n), kOpenTrackIOPort);
+//         // or, for out = "HOST:PORT": UdpSocket::sender("HOST:PORT")
 //     for (auto& datagram : encoder->encode(frame)) socket->send(datagram);
 // A lost pose sends nothing: do not call encode() with a stale pose.
 //
