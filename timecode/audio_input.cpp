@@ -201,7 +201,11 @@ bool AlsaCapture::recover(long err) {
     if (err == -EPIPE) ++overruns_;
     // Samples were lost: the time line starts over.
     nextChunkNs_.reset();
-    if (snd_pcm_recover(pcm_.get(), int(err), 1) < 0 || snd_pcm_start(pcm_.get()) < 0) {
+    // After an overrun the stream is prepared again, not running; after a resume it runs.
+    int result = snd_pcm_recover(pcm_.get(), int(err), 1);
+    if (result >= 0 && snd_pcm_state(pcm_.get()) == SND_PCM_STATE_PREPARED)
+        result = snd_pcm_start(pcm_.get());
+    if (result < 0) {
         const std::string why = fmt::format("timecode audio device \"{}\": capture stopped: {}",
                                             config_.device, snd_strerror(int(err)));
         logError("{}", why);
@@ -219,10 +223,14 @@ void AlsaCapture::run() {
         while (!stop_) {
             const int ready = snd_pcm_wait(pcm_.get(), kWaitMs);
             if (ready == 0) continue;  // nothing yet; look at stop_ again
+            if (ready < 0) {
+                if (!recover(ready)) return;
+                continue;
+            }
             const snd_pcm_sframes_t n = snd_pcm_readi(pcm_.get(), interleaved.data(),
                                                       snd_pcm_uframes_t(config_.periodFrames));
-            if (n < 0 || ready < 0) {
-                if (!recover(n < 0 ? long(n) : long(ready))) return;
+            if (n < 0) {
+                if (!recover(long(n))) return;
                 continue;
             }
             for (snd_pcm_sframes_t i = 0; i < n; ++i)

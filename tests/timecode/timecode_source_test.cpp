@@ -206,6 +206,18 @@ TEST(TimecodeSource, GarbageNeverLocks) {
     EXPECT_FALSE(source->status().lastLtc);
 }
 
+TEST(TimecodeSource, WrongRateLtcNeverLocks) {
+    // 30 fps LTC on a set whose timecode is 25: the clock stands in and the status says why.
+    const LtcSignal thirty = encodeLtc(*Timecode::parse("01:00:00:00", TimecodeRate::fps30()), 60);
+    auto source = makeSource(TimecodeSourceKind::Ltc, TimecodeRate::fps25(), TimecodeRate::fps25());
+    for (const FrameTimecode& f : runTake(*source, thirty.samples, TimecodeRate::fps25()))
+        EXPECT_EQ(f.state, TimecodeState::Clock);
+    const TimecodeStatus status = source->status();
+    EXPECT_EQ(status.ltc.decoded, 0u);
+    EXPECT_GT(status.ltc.rejected, 0u);
+    EXPECT_EQ(status.jams, 0u);
+}
+
 TEST(TimecodeSource, FeedAndAskFromTwoThreads) {
     const TimecodeRate rate = TimecodeRate::fps30();
     const LtcSignal signal = encodeLtc(*Timecode::parse("06:00:00:00", rate), 300);
