@@ -156,6 +156,13 @@ void listenSocketOptions(int sock) {
     setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof(yes));
 }
 
+// One /stream.mjpeg response's progress, kept by its content provider.
+struct ViewerState {
+    uint64_t lastSequence = 0;  // of the last frame sent; 0 before the first
+    int idleWaits = 0;          // waits since then that brought no new frame
+    bool started = false;       // the opening boundary is sent
+};
+
 }  // namespace
 
 nlohmann::json toJson(const WebStats& s) {
@@ -250,6 +257,7 @@ struct WebMonitor::Impl {
     void servePage(const httplib::Request& req, httplib::Response& res) const;
     void serveStatus(const httplib::Request& req, httplib::Response& res) const;
     void serveStream(const httplib::Request& req, httplib::Response& res);
+    bool sendFrame(ViewerState& viewer, httplib::DataSink& sink);
     void serveControl(const httplib::Request& req, httplib::Response& res,
                       const httplib::ContentReader& reader, Path path);
     void serveOther(const httplib::Request& req, httplib::Response& res,
@@ -374,12 +382,6 @@ void WebMonitor::Impl::serveStatus(const httplib::Request& req, httplib::Respons
     res.set_content(text, "application/json");
 }
 
-struct ViewerState {
-    uint64_t lastSequence = 0;
-    int idleWaits = 0;
-    bool started = false;
-};
-
 void WebMonitor::Impl::serveStream(const httplib::Request& req, httplib::Response& res) {
     if (!headersFit(req, res)) return;
     int current = viewers.load();
@@ -397,43 +399,48 @@ void WebMonitor::Impl::serveStream(const httplib::Request& req, httplib::Respons
     res.set_header("Pragma", "no-cache");
     auto viewer = std::make_shared<ViewerState>();
     auto provider = [this, viewer](size_t, httplib::DataSink& sink) {
-        std::shared_ptr<const EncodedFrame> frame =
-            encoder->waitNewer(viewer->lastSequence, kViewerWait);
-        if (!frame) {
-            if (++viewer->idleWaits < kResendAfterWaits || viewer->lastSequence == 0) return true;
-            frame = encoder->waitNewer(viewer->lastSequence - 1, std::chrono::milliseconds(0));
-            if (!frame) return true;
-        } else if (viewer->lastSequence && frame->sequence > viewer->lastSequence + 1) {
-            viewerFramesDropped += frame->sequence - viewer->lastSequence - 1;
-        }
-        viewer->idleWaits = 0;
-        viewer->lastSequence = frame->sequence;
-        // Each part ends with the next boundary: a browser shows a part once the boundary after
-        // it arrives, so sending it at once saves a frame of latency.
-        const std::string head = fmt::format(
-            "{}Content-Type: image/jpeg\r\nContent-Length: {}\r\n\r\n",
-            viewer->started ? "" : fmt::format("--{}\r\n", kBoundary), frame->jpeg.size());
-        const std::string tail = fmt::format("\r\n--{}\r\n", kBoundary);
-        viewer->started = true;
-        const Clock::time_point start = Clock::now();
-        if (sink.write(head.data(), head.size()) &&
-            sink.write(frame->jpeg.data(), frame->jpeg.size()) &&
-            sink.write(tail.data(), tail.size())) {
-            ++framesSent;
-            return true;
-        }
-        // A write that failed after the write timeout: the viewer stopped taking bytes. What was
-        // encoded meanwhile never reached it: its drops too.
-        if (Clock::now() - start >= std::chrono::milliseconds(settings.writeTimeoutMs) * 9 / 10)
-            ++viewersStalled;
-        viewerFramesDropped += encoder->latestSequence() - viewer->lastSequence;
-        return false;
+        return sendFrame(*viewer, sink);
     };
     res.set_content_provider(fmt::format("multipart/x-mixed-replace; boundary={}", kBoundary),
                              provider, [this](bool) {
                                  encoder->removeViewer();
                                  --viewers;
                              });
+}
+
+// Sends the next frame to one viewer (waiting up to kViewerWait for it); false ends the stream.
+bool WebMonitor::Impl::sendFrame(ViewerState& viewer, httplib::DataSink& sink) {
+    std::shared_ptr<const EncodedFrame> frame =
+        encoder->waitNewer(viewer.lastSequence, kViewerWait);
+    if (!frame) {
+        if (++viewer.idleWaits < kResendAfterWaits || viewer.lastSequence == 0) return true;
+        frame = encoder->waitNewer(viewer.lastSequence - 1, std::chrono::milliseconds(0));
+        if (!frame) return true;
+    } else if (viewer.lastSequence && frame->sequence > viewer.lastSequence + 1) {
+        viewerFramesDropped += frame->sequence - viewer.lastSequence - 1;
+    }
+    viewer.idleWaits = 0;
+    viewer.lastSequence = frame->sequence;
+    // Each part ends with the next boundary: a browser shows a part once the boundary after
+    // it arrives, so sending it at once saves a frame of latency.
+    const std::string head =
+        fmt::format("{}Content-Type: image/jpeg\r\nContent-Length: {}\r\n\r\n",
+                    viewer.started ? "" : fmt::format("--{}\r\n", kBoundary), frame->jpeg.size());
+    const std::string tail = fmt::format("\r\n--{}\r\n", kBoundary);
+    viewer.started = true;
+    const Clock::time_point start = Clock::now();
+    if (sink.write(head.data(), head.size()) &&
+        sink.write(frame->jpeg.data(), frame->jpeg.size()) &&
+        sink.write(tail.data(), tail.size())) {
+        ++framesSent;
+        return true;
+    }
+    // A write that failed after the write timeout: the viewer stopped taking bytes. What was
+    // encoded meanwhile never reached it: its drops too.
+    if (Clock::now() - start >= std::chrono::milliseconds(settings.writeTimeoutMs) * 9 / 10)
+        ++viewersStalled;
+    viewerFramesDropped += encoder->latestSequence() - viewer.lastSequence;
+    return false;
 }
 
 void WebMonitor::Impl::serveControl(const httplib::Request& req, httplib::Response& res,

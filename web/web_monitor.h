@@ -114,9 +114,8 @@ public:
     // The bound port (the chosen one when `listen` asked for port 0).
     int port() const;
 
-    struct Impl;
-
 private:
+    struct Impl;
     explicit WebMonitor(std::unique_ptr<Impl> impl);
     std::unique_ptr<Impl> impl_;
 };

@@ -60,6 +60,16 @@ public:
         }
     }
 
+    // One read of at most `maxBytes` of what has arrived (none waited for); false once the
+    // peer closed.
+    bool receiveSome(size_t maxBytes) {
+        std::string chunk(maxBytes, '\0');
+        const ssize_t n = ::recv(fd_.get(), chunk.data(), maxBytes, MSG_DONTWAIT);
+        if (n == 0) return false;
+        if (n > 0) buffer_.append(chunk.data(), size_t(n));
+        return true;
+    }
+
     // Reads until `needle` is in the buffer, the peer closes or `timeout` passes.
     bool receiveUntil(const std::string& needle, std::chrono::milliseconds timeout) {
         const auto end = std::chrono::steady_clock::now() + timeout;

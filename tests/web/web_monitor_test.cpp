@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cstdio>
 #include <thread>
 
 #include "tests/web/synthetic_frames.h"
@@ -218,6 +219,39 @@ TEST(WebMonitor, AStalledViewerSlowsNeitherTheRenderNorOtherViewers) {
     // taken the write timeout (1 s). The margin is for a busy 2-core machine descheduling the
     // producer thread (12 ms seen), not for any wait of ours.
     EXPECT_LT(producer.longestSubmitUs(), 200000);
+}
+
+// A viewer on a slow link (it takes 64 KiB every 100 ms, a fraction of the stream): it stays
+// connected, skips to the newest frame each time it is done with one, and the skipped frames are
+// counted; the fast viewer gets every frame.
+TEST(WebMonitor, ASlowViewerSkipsToTheNewestFrame) {
+    FakeService service;
+    WebMonitorSettings s = test::testSettings();
+    s.streamFps = 10.0;
+    s.jpegQuality = 95;
+    auto monitor = test::startMonitor(service, s);
+    ASSERT_TRUE(monitor);
+    // Noise: each 640×360 JPEG is a few hundred KiB, several 100 ms reads each.
+    FrameProducer producer(*monitor, 30.0, 640, 360, true);
+    test::RawConnection slow(monitor->port(), 65536);
+    ASSERT_TRUE(slow.send("GET /stream.mjpeg HTTP/1.1\r\nHost: test\r\n\r\n"));
+    StreamViewer fast(monitor->port());
+    ASSERT_TRUE(fast.waitFrames(2, 10s));
+    const auto start = std::chrono::steady_clock::now();
+    while (std::chrono::steady_clock::now() - start < 3s) {
+        slow.receiveSome(65536);
+        std::this_thread::sleep_for(100ms);
+    }
+    const WebStats st = monitor->stats();
+    EXPECT_EQ(st.viewers, 2);
+    EXPECT_EQ(st.viewersStalled, 0u);
+    EXPECT_GE(st.viewerFramesDropped, 3u);
+    EXPECT_GE(fast.frames(), 15);
+    EXPECT_GE(test::completeParts(slow.buffer()), 1)
+        << slow.buffer().size() << " bytes read, JPEGs of " << st.jpegBytes;
+    std::printf("slow viewer: %d frames in 3 s, fast viewer %d, %llu skipped, JPEG %zu bytes\n",
+                test::completeParts(slow.buffer()), fast.frames(),
+                static_cast<unsigned long long>(st.viewerFramesDropped), st.jpegBytes);
 }
 
 TEST(WebMonitor, ABusyStreamLimitAnswers503) {
