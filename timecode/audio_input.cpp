@@ -21,6 +21,9 @@ constexpr int kWaitMs = 100;
 // A chunk whose measured time is further than this from the one its predecessor predicts starts
 // the smoothing over (an overrun, a stall): scheduling jitter is well below it.
 constexpr int64_t kResyncNs = 5'000'000;
+// How far a late measurement pulls the time line: 1/64 a chunk follows a drift of 100 ppm (1 µs
+// per 10 ms chunk) while averaging scheduling jitter down 64 times.
+constexpr int64_t kLateWeight = 64;
 
 int64_t monotonicNs() {
     timespec ts{};
@@ -164,6 +167,7 @@ Result<int> AlsaCapture::configure() {
     if ((err = snd_pcm_hw_params(pcm, hw)) < 0) return fail("cannot apply the configuration", err);
     if ((err = snd_pcm_start(pcm)) < 0) return fail("cannot start", err);
     sampleRate_ = int(rate);
+    clock_ = ChunkClock(sampleRate_);
     channels_ = int(channels);
     config_.periodFrames = int(period);
     logInfo("timecode audio: \"{}\" at {} Hz, channel {} of {}, {} frames a period", config_.device,
@@ -181,26 +185,29 @@ std::optional<std::string> AlsaCapture::failure() const {
     return failure_;
 }
 
+int64_t ChunkClock::stamp(int64_t measuredNs, int64_t frames) {
+    int64_t t = measuredNs;
+    if (nextNs_ && std::abs(measuredNs - *nextNs_) < kResyncNs) {
+        const int64_t error = measuredNs - *nextNs_;
+        t = *nextNs_ + (error > 0 ? error / kLateWeight : error / 2);
+    }
+    nextNs_ = t + frames * 1'000'000'000 / sampleRate_;
+    return t;
+}
+
 int64_t AlsaCapture::chunkTime(long frames) {
     snd_pcm_sframes_t delay = 0;
     if (snd_pcm_delay(pcm_.get(), &delay) < 0) delay = 0;
     // The first sample just read was captured (delay + frames) samples before now.
-    const int64_t measured =
-        monotonicNs() - (int64_t(delay) + frames) * 1'000'000'000 / sampleRate_;
-    // Reads are late by scheduling jitter, never early: follow the prediction from the sample
-    // count, pulled a little toward each measurement so the sound card's clock drift is tracked.
-    int64_t t = measured;
-    if (nextChunkNs_ && std::abs(measured - *nextChunkNs_) < kResyncNs)
-        t = *nextChunkNs_ + (measured - *nextChunkNs_) / 32;
-    nextChunkNs_ = t + int64_t(frames) * 1'000'000'000 / sampleRate_;
-    return t;
+    return clock_.stamp(monotonicNs() - (int64_t(delay) + frames) * 1'000'000'000 / sampleRate_,
+                        frames);
 }
 
 bool AlsaCapture::recover(long err) {
     if (err == -EAGAIN) return true;
     if (err == -EPIPE) ++overruns_;
     // Samples were lost: the time line starts over.
-    nextChunkNs_.reset();
+    clock_.reset();
     // After an overrun the stream is prepared again, not running; after a resume it runs.
     int result = snd_pcm_recover(pcm_.get(), int(err), 1);
     if (result >= 0 && snd_pcm_state(pcm_.get()) == SND_PCM_STATE_PREPARED)

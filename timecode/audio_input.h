@@ -25,6 +25,24 @@ namespace previs {
 // Called on the capture thread with consecutive chunks (mono, ±1.0 full scale).
 using AudioSink = std::function<void(std::span<const float> samples, int64_t firstSampleMonoNs)>;
 
+// The CLOCK_MONOTONIC time of each captured chunk's first sample. Each read gives a measurement
+// (now − (samples still buffered + samples read) / rate) that is late by however long the thread
+// waited to run, never early; consecutive chunks are also exactly their sample count apart on the
+// sound card's clock. So each stamp follows the previous one by the sample count, moved a little
+// toward a later measurement (the card's drift against CLOCK_MONOTONIC) and a lot toward an
+// earlier one (the prediction was late).
+class ChunkClock {
+public:
+    explicit ChunkClock(int sampleRate) : sampleRate_(sampleRate) {}
+    int64_t stamp(int64_t measuredNs, int64_t frames);
+    // Samples were lost (an overrun): start over from the next measurement.
+    void reset() { nextNs_.reset(); }
+
+private:
+    int sampleRate_;
+    std::optional<int64_t> nextNs_;
+};
+
 struct AlsaCaptureConfig {
     std::string device = "default";  // "hw:1,0", "plughw:1,0", "default"
     int channel = 0;                 // which channel of the device's frames carries LTC, from 0
@@ -59,7 +77,7 @@ private:
     void run();
     // Whether to go on after `err` from a read.
     bool recover(long err);
-    // CLOCK_MONOTONIC of the first of the `frames` just read, smoothed over reads.
+    // CLOCK_MONOTONIC of the first of the `frames` just read.
     int64_t chunkTime(long frames);
 
     AlsaCaptureConfig config_;
@@ -67,7 +85,7 @@ private:
     AudioSink sink_;
     int sampleRate_ = 0;
     int channels_ = 0;
-    std::optional<int64_t> nextChunkNs_;
+    ChunkClock clock_{48000};
     std::atomic<bool> stop_ = false;
     std::atomic<uint64_t> overruns_ = 0;
     mutable std::mutex failureMutex_;
