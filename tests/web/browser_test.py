@@ -5,7 +5,8 @@ Debian's chromium, headless, opens the page that web_test_server serves, driven 
 protocol (python3-websocket). It must see the picture change (two canvas samples of the MJPEG
 <img> differ), see the status update (the frame counter moves), and, with the token typed into
 the page's field, press the toggle button and see the mode change on the page and on the server;
-requests without the token (from the page and from outside) change nothing.
+requests without the token (from the page and from outside) change nothing. Emulated phone and
+tablet screens lay the page out without sideways scrolling and with thumb-sized buttons.
 
     browser_test.py WEB_TEST_SERVER
 
@@ -248,6 +249,23 @@ def run(server_binary):
         if post_without_token(port, "/mode", "toggle") != 401 or \
                 server_status(port)["mode"] != "refine":
             fail("a request without the token changed the mode back")
+        # Phone and tablet: no sideways scrolling, the picture fills the width, buttons a thumb
+        # can hit (at least 44 CSS px high, Apple's and Google's guidance).
+        for name, width, height in (("phone", 390, 844), ("tablet", 820, 1180)):
+            page.devtools.call("Emulation.setDeviceMetricsOverride",
+                               {"width": width, "height": height, "deviceScaleFactor": 2,
+                                "mobile": True}, page.session)
+            layout = wait_for(f"the {name} layout settles", lambda: page.eval(f"""(() => {{
+                const img = document.getElementById('stream').getBoundingClientRect();
+                const button = document.getElementById('toggle').getBoundingClientRect();
+                const fits = document.documentElement.scrollWidth <= {width};
+                return fits && img.width > {width} * 0.8 ? {{img: img.width,
+                    button: button.height}} : null;
+            }})()"""))
+            if layout["button"] < 44:
+                fail(f"{name}: the toggle button is {layout['button']} px high")
+        print(f"phone and tablet layouts fit ({time.monotonic() - started:.1f} s)")
+
         viewers = server_status(port)["web"]["viewers"]
         if viewers < 1:
             fail(f"the page's stream is not counted as a viewer ({viewers})")
