@@ -83,7 +83,15 @@ private:
                 jobs_.pop_front();
             }
             tlRequestsOnConnection = 0;
-            fn();
+            // An exception from a stream's content provider escapes cpp-httplib: the connection
+            // is lost, the worker must not be.
+            try {
+                fn();
+            } catch (const std::exception& e) {
+                logError("web: a connection ended on an error: {}", e.what());
+            } catch (...) {
+                logError("web: a connection ended on an unknown exception");
+            }
             if (tlRequestsOnConnection == 0) ++*silent_;
         }
     }
