@@ -57,6 +57,23 @@ public:
     Result<std::optional<std::vector<double>>> numbers(const toml::table& table,
                                                        std::string_view section,
                                                        std::string_view key, size_t count) const;
+    // A number within [lo, hi] (inclusive ends unless `openLow`), left as `value` when absent.
+    template <typename T>
+    Status numberIn(const toml::table& table, std::string_view section, std::string_view key,
+                    T& value, double lo, double hi, bool openLow = false) const {
+        Result<std::optional<double>> v = number(table, section, key);
+        if (!v) return v.error();
+        if (!*v) return {};
+        const double x = **v;
+        if (x < lo || x > hi || (openLow && x == lo))
+            return fail(table.get(key), "'{}' is {}; it must be in {}{}, {}]", dotted(section, key),
+                        x, openLow ? "(" : "[", lo, hi);
+        value = T(x);
+        return {};
+    }
+    // An integer within [lo, hi], left as `value` when absent.
+    Status integerIn(const toml::table& table, std::string_view section, std::string_view key,
+                     int64_t& value, int64_t lo, int64_t hi) const;
     // An existing regular file with one of `extensions` (lower case, with the dot); relative
     // paths start at the file's folder. Returns the resolved path.
     Result<std::string> file(const toml::node& node, std::string_view key, const std::string& value,

@@ -60,6 +60,11 @@ Result<TrackingStage> TrackingStage::create(const ServiceConfig& config) {
                          std::move(filter));
 }
 
+int64_t captureInstantNs(const TrackedFrame& frame, int64_t nowNs) {
+    const int64_t captured = int64_t(frame.frame->timestampNs);
+    return std::llabs(nowNs - captured) < 10'000'000'000LL ? captured : frame.receivedNs;
+}
+
 TrackedFrame TrackingStage::process(std::shared_ptr<const Frame> frame) {
     const auto start = std::chrono::steady_clock::now();
     TrackedFrame out;

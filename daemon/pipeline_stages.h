@@ -16,6 +16,7 @@
 #include "capture/frame.h"
 #include "daemon/service_config.h"
 #include "scene/scene.h"
+#include "timecode/timecode.h"
 #include "vision/board_pose.h"
 #include "vision/fisheye_to_equirect.h"
 #include "vision/light_estimator.h"
@@ -47,7 +48,14 @@ struct TrackedFrame {
     // When the tracking stage took the frame (steady clock, CLOCK_MONOTONIC), for latency when
     // the frame's own timestamp is not on this machine's clock (a recording).
     int64_t receivedNs = 0;
+    // The frame's SMPTE timecode ([timecode], docs/timecode.md); none before a source is set.
+    std::optional<Timecode> timecode;
 };
+
+// When the frame was captured on this machine's CLOCK_MONOTONIC (`nowNs`'s clock): a live
+// camera's own timestamp; a recording's is hours or days old, so there the tracking stage's
+// receipt stands in for capture. For latencies.
+int64_t captureInstantNs(const TrackedFrame& frame, int64_t nowNs);
 
 // The set's lighting from one fisheye frame: the environment map and, in the "lights" mode,
 // the light sources estimated from it (the map then holds the residual).

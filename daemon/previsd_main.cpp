@@ -2,9 +2,12 @@
 // 2 bad config or usage.
 
 #include <CLI/CLI.hpp>
+#include <cstdio>
+#include <filesystem>
 
 #include "base/command_line.h"
 #include "base/log.h"
+#include "daemon/network_dropin.h"
 #include "daemon/pipeline_stages.h"
 #include "daemon/service.h"
 #include "daemon/service_config.h"
@@ -38,13 +41,28 @@ int check(const ServiceConfig& config) {
     return 0;
 }
 
-int run(const std::string& configPath, bool checkOnly) {
+// --network-dropin: the unit's drop-in for the config's network features, on stdout.
+int printNetworkDropIn(const ServiceConfig& config) {
+    DropInOptions options;
+    options.webTokenSource =
+        (std::filesystem::absolute(config.path).parent_path() / "web-token").string();
+    Result<std::string> text = networkDropIn(config.network, options);
+    if (!text) {
+        logError("{}: {}", config.path, text.message());
+        return 2;
+    }
+    std::fputs(text->c_str(), stdout);
+    return 0;
+}
+
+int run(const std::string& configPath, bool checkOnly, bool dropIn) {
     Result<ServiceConfig> config = loadServiceConfig(configPath);
     if (!config) {
         logError("{}", config.message());
         return 2;
     }
     if (checkOnly) return check(*config);
+    if (dropIn) return printNetworkDropIn(*config);
 
     // Before any thread starts, so that only run()'s signalfd sees these.
     blockServiceSignals();
@@ -69,6 +87,10 @@ int main(int argc, char** argv) {
     app.add_option("--config", configPath, "the service config (docs/config-format.md)")
         ->required();
     app.add_flag("--check", checkOnly, "validate the config and everything it names, then exit");
+    bool dropIn = false;
+    app.add_flag("--network-dropin", dropIn,
+                 "print the systemd drop-in that opens the unit's network as far as the config's "
+                 "[freed], [opentrackio] and [web] need (docs/systemd.md), then exit");
     if (auto exitCode = parseCommandLine(app, argc, argv)) return *exitCode;
-    return runReportingExceptions("previsd", [&] { return run(configPath, checkOnly); });
+    return runReportingExceptions("previsd", [&] { return run(configPath, checkOnly, dropIn); });
 }

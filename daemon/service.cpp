@@ -120,6 +120,42 @@ std::string statusLine(const ServiceStatus& s) {
     return line;
 }
 
+namespace {
+
+// The last tracked frame's timecode and where it came from (docs/timecode.md).
+nlohmann::json timecodeJson(const std::optional<Timecode>& value, const TimecodeStatus& t) {
+    nlohmann::json j = {{"value", value ? nlohmann::json(value->toString()) : nullptr},
+                        {"rate", value ? value->rate().toString() : t.rate.toString()},
+                        {"source", toString(t.source)},
+                        {"state", toString(t.state)}};
+    if (t.source == TimecodeSourceKind::Ltc)
+        j["ltc"] = {{"decoded", t.ltc.decoded},
+                    {"rejected", t.ltc.rejected},
+                    {"dropouts", t.dropouts},
+                    {"jams", t.jams},
+                    {"lastLtc", t.lastLtc ? nlohmann::json(t.lastLtc->toString()) : nullptr}};
+    return j;
+}
+
+nlohmann::json trackingOutJson(const TrackingOutStats& s) {
+    nlohmann::json j = {{"lostNotSent", s.lostNotSent},
+                        {"dropped", s.dropped},
+                        {"failed", s.failed},
+                        {"delayMs",
+                         {{"last", std::round(s.lastDelayMs * 100.0) / 100.0},
+                          {"max", std::round(s.maxDelayMs * 100.0) / 100.0}}}};
+    j["freed"] = s.freed ? nlohmann::json{{"packets", s.freedPackets},
+                                          {"held", s.freedHeld},
+                                          {"clamped", s.freedClamped}}
+                         : nlohmann::json(nullptr);
+    j["opentrackio"] = s.openTrackIo ? nlohmann::json{{"samples", s.openTrackIoSamples},
+                                                      {"datagrams", s.openTrackIoDatagrams}}
+                                     : nlohmann::json(nullptr);
+    return j;
+}
+
+}  // namespace
+
 std::string statusJson(const ServiceStatus& s) {
     nlohmann::json j;
     j["mode"] = toString(s.mode);
@@ -180,6 +216,9 @@ std::string statusJson(const ServiceStatus& s) {
     j["trackingLost"] = lost;
     j["button"] = s.button;
     j["led"] = s.led;
+    j["timecode"] = timecodeJson(s.timecode, s.timecodeStatus);
+    j["trackingOut"] = s.trackingOut ? trackingOutJson(*s.trackingOut) : nlohmann::json(nullptr);
+    j["web"] = s.web ? toJson(*s.web) : nlohmann::json(nullptr);
     return j.dump();
 }
 
@@ -218,6 +257,12 @@ struct Service::Threads {
     std::unique_ptr<StatusLed> led;  // thread-safe; made before any thread that switches it
     std::unique_ptr<ControlServer> control;
     std::unique_ptr<TakeRecorder> recorder;
+    // The set's network (issue 39): every frame's timecode (and the LTC input feeding it), the
+    // tracking packets, the browser monitor. The last two are null unless configured.
+    std::unique_ptr<TimecodeSource> timecode;
+    std::unique_ptr<AlsaCapture> ltcInput;
+    std::unique_ptr<TrackingOut> trackingOut;
+    std::unique_ptr<WebMonitor> web;
     // A recorded scene camera's button and ctl events, fired as its frames arrive.
     std::optional<RecordedEvents> recordedEvents;
     std::function<void(const SessionEvent&)> applyEvent;
@@ -245,6 +290,9 @@ struct Service::Threads {
     std::thread trackingThread, lightingThread, renderThread;
 
     void runTracking(const ModeMachine& modes);
+    std::optional<Timecode> frameTimecode(const Frame& frame) const;
+    Status openTimecode(const ServiceConfig& config);
+    Status openWeb(const WebConfig& web, Service* service);
     void runLighting();
     // [lighting] saved (savedLightingPath; empty: off): read at start, so the virtual objects
     // are lit by the set as last seen until the first snapshot, and kept from the first snapshot
@@ -283,10 +331,75 @@ void Service::Threads::runTracking(const ModeMachine& modes) {
         auto tracked = std::make_shared<TrackedFrame>(tracking->process(std::move(frame)));
         if (tracked->lostReason != LostReason::None)
             lostFrames[size_t(tracked->lostReason)].fetch_add(1);
+        tracked->timecode = frameTimecode(*tracked->frame);
+        // On the network first: a tracker's consumers want the pose as early as it exists.
+        if (trackingOut) trackingOut->send(*tracked, tracked->timecode, recorder->recording());
         recorder->addPose(*tracked);
         // Replaced before the render thread took it: the renderer is the slow stage.
         if (trackedFrames.publish(std::move(tracked))) droppedRender.fetch_add(1);
     }
+}
+
+Status Service::Threads::openTimecode(const ServiceConfig& config) {
+    const TimecodeConfig& c = config.network.timecode;
+    TimecodeSourceConfig source;
+    source.kind = c.ltc ? TimecodeSourceKind::Ltc : TimecodeSourceKind::Clock;
+    source.rate =
+        TimecodeRate::fromFps(config.sceneCamera.fps > 0.0 ? config.sceneCamera.fps : 30.0);
+    if (!c.rate.empty()) {
+        Result<TimecodeRate> rate = TimecodeRate::parse(c.rate);
+        if (!rate) return makeError("[timecode] rate: {}", rate.message());
+        source.rate = *rate;
+        source.ltcRate = *rate;
+    }
+    source.sampleRate = c.sampleRate;
+    Result<std::unique_ptr<TimecodeSource>> made = TimecodeSource::create(source);
+    if (!made) return made.error();
+    timecode = std::move(*made);
+    if (!c.ltc) return {};
+    AlsaCaptureConfig audio;
+    audio.device = c.device;
+    audio.channel = c.channel;
+    audio.sampleRate = c.sampleRate;
+    // A missing audio input is the set's to fix, not a reason to stop previewing: the clock
+    // stands in, and the status says so.
+    Result<std::unique_ptr<AlsaCapture>> input = AlsaCapture::create(audio, timecode->audioSink());
+    if (!input)
+        logError("timecode: {}; frames carry the time of day until previsd restarts",
+                 input.message());
+    else
+        ltcInput = std::move(*input);
+    return {};
+}
+
+Status Service::Threads::openWeb(const WebConfig& c, Service* service) {
+    if (c.listen.empty()) return {};
+    Result<std::string> token = readWebToken(c);
+    if (!token) return token.error();
+    WebMonitorSettings settings;
+    settings.listen = c.listen;
+    settings.token = *token;
+    settings.streamFps = c.streamFps;
+    settings.streamWidth = c.streamWidth;
+    settings.jpegQuality = c.jpegQuality;
+    settings.maxStreams = c.maxViewers;
+    WebMonitorHooks hooks;
+    hooks.statusJson = [service] { return statusJson(service->status()); };
+    hooks.command = [service](const std::string& command) {
+        return service->handleCommand(command);
+    };
+    Result<std::unique_ptr<WebMonitor>> made = WebMonitor::create(settings, std::move(hooks));
+    if (!made) return makeError("[web] listen = '{}': {}", c.listen, made.message());
+    web = std::move(*made);
+    logInfo("web: the monitor page is at http://{}/{}", c.listen,
+            token->empty() ? " (viewing only: no token)" : "");
+    return {};
+}
+
+std::optional<Timecode> Service::Threads::frameTimecode(const Frame& frame) const {
+    // A recording's timestamps are not this machine's CLOCK_MONOTONIC: its recorded wall clock
+    // gives the time of day it was filmed at.
+    return timecode->frameTimecode(int64_t(frame.timestampNs), frame.wallClockNs).timecode;
 }
 
 void Service::Threads::restoreLighting() {
@@ -351,11 +464,8 @@ void Service::Threads::publish(PipelineRenderer& r, const TrackedFrame& frame, M
     out->rgb = std::move(image->rgb);
     const double renderMs =
         std::chrono::duration<double, std::milli>(Clock::now() - renderStart).count();
-    // A live camera's timestamp is CLOCK_MONOTONIC, the display thread's clock; a recording's
-    // is not (it is hours or days old), so there the pipeline's receipt stands in for capture.
-    const int64_t captured = int64_t(frame.frame->timestampNs);
-    out->captureTimestampNs =
-        std::llabs(nowNs() - captured) < 10'000'000'000LL ? captured : frame.receivedNs;
+    // The display thread's clock is CLOCK_MONOTONIC, as a live camera's timestamps.
+    out->captureTimestampNs = captureInstantNs(frame, nowNs());
     ServiceStatus s;
     {
         std::lock_guard lock(statusMutex);
@@ -369,6 +479,7 @@ void Service::Threads::publish(PipelineRenderer& r, const TrackedFrame& frame, M
         renderStatus.tags = frame.tags;
         renderStatus.trackingLost = frame.lost;
         renderStatus.trackMs = frame.trackMs;
+        renderStatus.timecode = frame.timecode;
         renderStatus.deviceBytes = r.renderer().deviceBytes();
         const bool photons = r.renderer().photonsActive();
         // What the shown frame used: a preview frame's budget and radius, not refinement's.
@@ -381,6 +492,7 @@ void Service::Threads::publish(PipelineRenderer& r, const TrackedFrame& frame, M
         s = renderStatus;
     }
     out->status = statusLine(s);
+    if (web) web->submitFrame(webFrameOf(std::shared_ptr<const DisplayFrame>(out)));
     display->submit(std::move(out));
 }
 
@@ -451,6 +563,7 @@ void Service::Threads::runRender(ModeMachine& modes) {
 
 void Service::Threads::stopAll() {
     control.reset();
+    web.reset();  // its hooks call into the service
     button.reset();
     // A take ends complete and durable before anything else stops (SIGTERM mid-take).
     if (recorder && recorder->recording()) {
@@ -580,9 +693,17 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config, bo
         }
     }
 
+    // The timecode and the tracking packets before the cameras: every frame has them.
+    if (Status st = t.openTimecode(config); !st) return st.error();
+    Result<std::unique_ptr<TrackingOut>> trackingOut =
+        TrackingOut::create(config.network, config.sceneCamera);
+    if (!trackingOut) return trackingOut.error();
+    t.trackingOut = std::move(*trackingOut);
+
     // Cameras: once they stream, frames flow into the stages (and into a take while one rolls).
     configError = false;
     t.recorder = std::make_unique<TakeRecorder>(config);
+    t.recorder->setTimecodeSource(t.timecode.get());
     TakeRecorder* recorder = t.recorder.get();
     t.sceneCamera = makeCameraSource(
         config.sceneCamera, config.loopSession,
@@ -620,6 +741,7 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config, bo
         [self](const std::string& command) { return self->handleCommand(command); });
     if (!control) return control.error();
     t.control = std::move(*control);
+    if (Status st = t.openWeb(config.network.web, self); !st) return st.error();
     configError = false;
     logInfo("serving {} (control socket {})", config.path, t.control->path());
     // [record] auto: a box that cannot record says so, and still previews.
@@ -716,6 +838,9 @@ ServiceStatus Service::status() const {
         s.trackingLostFrames[size_t(i)] = t.lostFrames[size_t(i)].load();
     s.button = !t.button ? "none" : t.button->connected() ? "connected" : "absent";
     s.led = !t.led ? "none" : t.led->connected() ? "connected" : "absent";
+    s.timecodeStatus = t.timecode->status();
+    if (t.trackingOut) s.trackingOut = t.trackingOut->stats();
+    if (t.web) s.web = t.web->stats();
     return s;
 }
 

@@ -20,8 +20,11 @@
 #include "daemon/mode_machine.h"
 #include "daemon/service_config.h"
 #include "daemon/take_recorder.h"
+#include "daemon/tracking_out.h"
 #include "io/session.h"
+#include "timecode/timecode_source.h"
 #include "vision/board_pose.h"
+#include "web/web_monitor.h"
 
 namespace previs {
 
@@ -73,6 +76,13 @@ struct ServiceStatus {
     std::array<uint64_t, kLostReasonCount> trackingLostFrames{};
     std::string button = "none";
     std::string led = "none";
+    // The set's network (issue 39): the timecode of the last tracked frame and its source, the
+    // tracking packets sent ([freed], [opentrackio]; none when neither is configured) and the
+    // web monitor's viewers and refused requests (none without [web]).
+    std::optional<Timecode> timecode;
+    TimecodeStatus timecodeStatus;
+    std::optional<TrackingOutStats> trackingOut;
+    std::optional<WebStats> web;
 };
 
 std::string statusJson(const ServiceStatus& status);

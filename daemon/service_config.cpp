@@ -9,6 +9,7 @@
 
 #include "capture/pixel_format.h"
 #include "config/toml_reader.h"
+#include "daemon/network_config_reader.h"
 #include "vision/board_file.h"
 
 namespace previs {
@@ -33,13 +34,6 @@ private:
         return r_.fail(at, format, std::forward<Args>(args)...);
     }
 
-    // A number within [lo, hi] (inclusive ends unless `openLow`), kept as `value` when absent.
-    template <typename T>
-    Status ranged(const toml::table& t, std::string_view section, std::string_view key, T& value,
-                  double lo, double hi, bool openLow = false) const;
-    Status integerIn(const toml::table& t, std::string_view section, std::string_view key,
-                     int64_t& value, int64_t lo, int64_t hi) const;
-
     Status parseCamera(const toml::table& t, const std::string& name, CameraConfig& c) const;
     Status parseLibcameraControls(const toml::table& t, const std::string& section,
                                   CameraConfig& c) const;
@@ -59,32 +53,6 @@ private:
     TomlReader r_;
 };
 
-template <typename T>
-Status ConfigReader::ranged(const toml::table& t, std::string_view section, std::string_view key,
-                            T& value, double lo, double hi, bool openLow) const {
-    Result<std::optional<double>> v = r_.number(t, section, key);
-    if (!v) return v.error();
-    if (!*v) return {};
-    const double x = **v;
-    if (x < lo || x > hi || (openLow && x == lo))
-        return fail(t.get(key), "'{}' is {}; it must be in {}{}, {}]",
-                    TomlReader::dotted(section, key), x, openLow ? "(" : "[", lo, hi);
-    value = T(x);
-    return {};
-}
-
-Status ConfigReader::integerIn(const toml::table& t, std::string_view section, std::string_view key,
-                               int64_t& value, int64_t lo, int64_t hi) const {
-    Result<std::optional<int64_t>> v = r_.integer(t, section, key);
-    if (!v) return v.error();
-    if (!*v) return {};
-    if (**v < lo || **v > hi)
-        return fail(t.get(key), "'{}' is {}; it must be an integer in [{}, {}]",
-                    TomlReader::dotted(section, key), **v, lo, hi);
-    value = **v;
-    return {};
-}
-
 Status ConfigReader::parseRadiometry(const toml::table& t, std::string_view section,
                                      InverseToneMapSettings& s) const {
     if (Status st = r_.checkKeys(
@@ -102,7 +70,7 @@ Status ConfigReader::parseRadiometry(const toml::table& t, std::string_view sect
                         **curve);
         s.op = *op;
     }
-    if (Status st = ranged(t, section, "exposure_stops", s.exposureStops, -64.0, 64.0); !st)
+    if (Status st = r_.numberIn(t, section, "exposure_stops", s.exposureStops, -64.0, 64.0); !st)
         return st;
     Result<std::optional<std::vector<double>>> wb = r_.numbers(t, section, "white_balance", 3);
     if (!wb) return wb.error();
@@ -116,9 +84,10 @@ Status ConfigReader::parseRadiometry(const toml::table& t, std::string_view sect
         }
     }
     const double big = std::numeric_limits<float>::max();
-    if (Status st = ranged(t, section, "max_radiance", s.maxRadiance, 0.0, big, true); !st)
+    if (Status st = r_.numberIn(t, section, "max_radiance", s.maxRadiance, 0.0, big, true); !st)
         return st;
-    if (Status st = ranged(t, section, "white_luminance", s.whiteLuminance, 0.0, big, true); !st)
+    if (Status st = r_.numberIn(t, section, "white_luminance", s.whiteLuminance, 0.0, big, true);
+        !st)
         return st;
     return {};
 }
@@ -130,11 +99,12 @@ Status ConfigReader::parseLibcameraControls(const toml::table& t, const std::str
         !st)
         return st;
     int64_t exposure = 0;
-    if (Status st = integerIn(t, section, "exposure_time_us", exposure, 1, 60'000'000); !st)
+    if (Status st = r_.integerIn(t, section, "exposure_time_us", exposure, 1, 60'000'000); !st)
         return st;
     if (exposure > 0) c.exposureUs = int32_t(exposure);
     float gain = 0.0f;
-    if (Status st = ranged(t, section, "analogue_gain", gain, 0.0, 1024.0, true); !st) return st;
+    if (Status st = r_.numberIn(t, section, "analogue_gain", gain, 0.0, 1024.0, true); !st)
+        return st;
     if (gain > 0.0f) c.analogueGain = gain;
     Result<std::optional<std::vector<double>>> gains = r_.numbers(t, section, "colour_gains", 2);
     if (!gains) return gains.error();
@@ -206,7 +176,7 @@ Status ConfigReader::parseCamera(const toml::table& t, const std::string& name,
     for (auto [key, field] : {std::pair<const char*, uint32_t*>{"width", &c.width},
                               std::pair<const char*, uint32_t*>{"height", &c.height}}) {
         int64_t v = 0;
-        if (Status st = integerIn(t, section, key, v, 1, 16384); !st) return st;
+        if (Status st = r_.integerIn(t, section, key, v, 1, 16384); !st) return st;
         if (v == 0)
             return fail(&t, "[{}] needs '{}' (pixels; the size the calibration was made at)",
                         section, key);
@@ -225,7 +195,7 @@ Status ConfigReader::parseCamera(const toml::table& t, const std::string& name,
                         supportedFormatList());
         c.pixelFormat = **format;
     }
-    if (Status st = ranged(t, section, "fps", c.fps, 0.0, 1000.0); !st) return st;
+    if (Status st = r_.numberIn(t, section, "fps", c.fps, 0.0, 1000.0); !st) return st;
 
     Result<const toml::table*> controls = r_.table(t, section, "controls");
     if (!controls) return controls.error();
@@ -330,39 +300,40 @@ Status ConfigReader::parseTracking(const toml::table& t, TrackingConfig& c) cons
                         "'tracking.until_tracked' is '{}'; use plate or scene-camera", **until);
     }
 
-    if (Status st = ranged(t, "tracking", "decimate", c.detector.decimate, 0.0, 16.0); !st)
+    if (Status st = r_.numberIn(t, "tracking", "decimate", c.detector.decimate, 0.0, 16.0); !st)
         return st;
     if (c.detector.decimate > 0.0f && c.detector.decimate < 1.0f)
         return fail(t.get("decimate"), "'tracking.decimate' is {}; use 0 (automatic) or 1 to 16",
                     c.detector.decimate);
-    if (Status st = ranged(t, "tracking", "sigma", c.detector.sigma, 0.0, 16.0); !st) return st;
+    if (Status st = r_.numberIn(t, "tracking", "sigma", c.detector.sigma, 0.0, 16.0); !st)
+        return st;
     Result<std::optional<bool>> refine = r_.boolean(t, "tracking", "refine_edges");
     if (!refine) return refine.error();
     c.detector.refineEdges = refine->value_or(c.detector.refineEdges);
     if (Status st =
-            ranged(t, "tracking", "decode_sharpening", c.detector.decodeSharpening, 0.0, 16.0);
+            r_.numberIn(t, "tracking", "decode_sharpening", c.detector.decodeSharpening, 0.0, 16.0);
         !st)
         return st;
     int64_t threads = c.detector.threads;
-    if (Status st = integerIn(t, "tracking", "threads", threads, 1, 64); !st) return st;
+    if (Status st = r_.integerIn(t, "tracking", "threads", threads, 1, 64); !st) return st;
     c.detector.threads = int(threads);
-    if (Status st = ranged(t, "tracking", "max_reproj_error_px", c.tracker.maxReprojErrorPx, 0.0,
-                           1e6, true);
+    if (Status st = r_.numberIn(t, "tracking", "max_reproj_error_px", c.tracker.maxReprojErrorPx,
+                                0.0, 1e6, true);
         !st)
         return st;
     int64_t minTags = c.tracker.minTags;
-    if (Status st = integerIn(t, "tracking", "min_tags", minTags, 1, 1024); !st) return st;
+    if (Status st = r_.integerIn(t, "tracking", "min_tags", minTags, 1, 1024); !st) return st;
     c.tracker.minTags = int(minTags);
-    if (Status st = ranged(t, "tracking", "max_position_std_fraction",
-                           c.tracker.maxPositionStdFraction, 0.0, 1e6, true);
+    if (Status st = r_.numberIn(t, "tracking", "max_position_std_fraction",
+                                c.tracker.maxPositionStdFraction, 0.0, 1e6, true);
         !st)
         return st;
-    if (Status st = ranged(t, "tracking", "max_rotation_std_deg", c.tracker.maxRotationStdDeg, 0.0,
-                           1e6, true);
+    if (Status st = r_.numberIn(t, "tracking", "max_rotation_std_deg", c.tracker.maxRotationStdDeg,
+                                0.0, 1e6, true);
         !st)
         return st;
-    if (Status st =
-            ranged(t, "tracking", "min_ambiguity_ratio", c.tracker.minAmbiguityRatio, 0.0, 1e6);
+    if (Status st = r_.numberIn(t, "tracking", "min_ambiguity_ratio", c.tracker.minAmbiguityRatio,
+                                0.0, 1e6);
         !st)
         return st;
     Result<std::optional<bool>> linearEdges = r_.boolean(t, "tracking", "linear_edges");
@@ -393,28 +364,30 @@ Status ConfigReader::parseLighting(const toml::table& t, LightingConfig& c) cons
                         **mode);
     }
     int64_t width = c.fisheye.width;
-    if (Status st = integerIn(t, "lighting", "map_width", width, 16, 16384); !st) return st;
+    if (Status st = r_.integerIn(t, "lighting", "map_width", width, 16, 16384); !st) return st;
     if (width % 2 != 0)
         return fail(t.get("map_width"),
                     "'lighting.map_width' is {}; it must be even (the map "
                     "is width x width/2)",
                     width);
     c.fisheye.width = int(width);
-    if (Status st = ranged(t, "lighting", "max_field_angle_deg", c.fisheye.maxFieldAngleDeg, 0.0,
-                           180.0, true);
+    if (Status st = r_.numberIn(t, "lighting", "max_field_angle_deg", c.fisheye.maxFieldAngleDeg,
+                                0.0, 180.0, true);
         !st)
         return st;
-    if (Status st = ranged(t, "lighting", "fill_ring_deg", c.fisheye.fillRingDeg, 0.0,
-                           c.fisheye.maxFieldAngleDeg, true);
+    if (Status st = r_.numberIn(t, "lighting", "fill_ring_deg", c.fisheye.fillRingDeg, 0.0,
+                                c.fisheye.maxFieldAngleDeg, true);
         !st)
         return st;
-    if (Status st = ranged(t, "lighting", "mean_factor", c.lights.meanFactor, 0.0, 1e12, true); !st)
+    if (Status st = r_.numberIn(t, "lighting", "mean_factor", c.lights.meanFactor, 0.0, 1e12, true);
+        !st)
         return st;
-    if (Status st = ranged(t, "lighting", "max_fraction", c.lights.maxFraction, 0.0, 1.0); !st)
+    if (Status st = r_.numberIn(t, "lighting", "max_fraction", c.lights.maxFraction, 0.0, 1.0); !st)
         return st;
-    if (Status st = ranged(t, "lighting", "update_hz", c.updateHz, 0.0, 1000.0); !st) return st;
+    if (Status st = r_.numberIn(t, "lighting", "update_hz", c.updateHz, 0.0, 1000.0); !st)
+        return st;
     int64_t maxLights = c.lights.maxLights;
-    if (Status st = integerIn(t, "lighting", "max_lights", maxLights, 0, 256); !st) return st;
+    if (Status st = r_.integerIn(t, "lighting", "max_lights", maxLights, 0, 256); !st) return st;
     c.lights.maxLights = int(maxLights);
     Result<std::optional<std::string>> saved = r_.string(t, "lighting", "saved");
     if (!saved) return saved.error();
@@ -423,7 +396,7 @@ Status ConfigReader::parseLighting(const toml::table& t, LightingConfig& c) cons
     else if (*saved)
         c.savedPath = "";
     if (Status st =
-            ranged(t, "lighting", "min_power_fraction", c.lights.minPowerFraction, 0.0, 1.0);
+            r_.numberIn(t, "lighting", "min_power_fraction", c.lights.minPowerFraction, 0.0, 1.0);
         !st)
         return st;
     return {};
@@ -448,15 +421,15 @@ Status ConfigReader::parseRender(const toml::table& t, RenderConfig& c) const {
         return st;
     int64_t width = c.width, height = c.height, spp = c.samplesPerFrame, depth = c.maxDepth,
             seed = c.seed;
-    if (Status st = integerIn(t, "render", "width", width, 0, 16384); !st) return st;
-    if (Status st = integerIn(t, "render", "height", height, 0, 16384); !st) return st;
+    if (Status st = r_.integerIn(t, "render", "width", width, 0, 16384); !st) return st;
+    if (Status st = r_.integerIn(t, "render", "height", height, 0, 16384); !st) return st;
     if ((width == 0) != (height == 0))
         return fail(&t,
                     "[render] needs both 'width' and 'height', or neither (the scene "
                     "camera's size)");
-    if (Status st = integerIn(t, "render", "samples_per_frame", spp, 1, 65536); !st) return st;
-    if (Status st = integerIn(t, "render", "max_depth", depth, 1, 1024); !st) return st;
-    if (Status st = integerIn(t, "render", "seed", seed, 0, 0xffffffffLL); !st) return st;
+    if (Status st = r_.integerIn(t, "render", "samples_per_frame", spp, 1, 65536); !st) return st;
+    if (Status st = r_.integerIn(t, "render", "max_depth", depth, 1, 1024); !st) return st;
+    if (Status st = r_.integerIn(t, "render", "seed", seed, 0, 0xffffffffLL); !st) return st;
     c.width = uint32_t(width);
     c.height = uint32_t(height);
     c.samplesPerFrame = uint32_t(spp);
@@ -473,37 +446,40 @@ Status ConfigReader::parseRender(const toml::table& t, RenderConfig& c) const {
             return fail(node, "'render.photons': {}", st.message());
     }
     int64_t previewPhotons = c.photons.previewPerIteration;
-    if (Status st =
-            integerIn(t, "render", "preview_photons", previewPhotons, 128, kMaxPhotonsPerIteration);
+    if (Status st = r_.integerIn(t, "render", "preview_photons", previewPhotons, 128,
+                                 kMaxPhotonsPerIteration);
         !st)
         return st;
     c.photons.previewPerIteration = uint32_t(previewPhotons);
-    if (Status st = ranged(t, "render", "photon_radius_m", c.photons.initialRadius, 0.0, 1e3); !st)
+    if (Status st = r_.numberIn(t, "render", "photon_radius_m", c.photons.initialRadius, 0.0, 1e3);
+        !st)
         return st;
-    if (Status st = ranged(t, "render", "photon_alpha", c.photons.alpha, 0.0, 1.0, true); !st)
+    if (Status st = r_.numberIn(t, "render", "photon_alpha", c.photons.alpha, 0.0, 1.0, true); !st)
         return st;
     int64_t neighbours = c.photons.gatherNeighbours;
-    if (Status st = integerIn(t, "render", "photon_neighbours", neighbours, 0, 1 << 20); !st)
+    if (Status st = r_.integerIn(t, "render", "photon_neighbours", neighbours, 0, 1 << 20); !st)
         return st;
     c.photons.gatherNeighbours = uint32_t(neighbours);
     Result<std::optional<bool>> splat = r_.boolean(t, "render", "photon_splat");
     if (!splat) return splat.error();
     c.photons.splatToCamera = splat->value_or(c.photons.splatToCamera);
-    if (Status st = ranged(t, "render", "resolution_scale", c.resolutionScale, 0.0, 1.0, true); !st)
+    if (Status st = r_.numberIn(t, "render", "resolution_scale", c.resolutionScale, 0.0, 1.0, true);
+        !st)
         return st;
-    if (Status st = ranged(t, "render", "preview_fps", c.previewFps, 0.0, 240.0); !st) return st;
+    if (Status st = r_.numberIn(t, "render", "preview_fps", c.previewFps, 0.0, 240.0); !st)
+        return st;
     if (Status st = stringKey(t, "render", "denoise", c.denoise); !st) return st;
     if (c.denoise != "off" && c.denoise != "on" && c.denoise != "auto")
         return fail(t.get("denoise"), "'render.denoise' is '{}': use \"off\", \"on\" or \"auto\"",
                     c.denoise);
     int64_t levels = c.denoiseLevels;
-    if (Status st = integerIn(t, "render", "denoise_levels", levels, 1, 10); !st) return st;
+    if (Status st = r_.integerIn(t, "render", "denoise_levels", levels, 1, 10); !st) return st;
     c.denoiseLevels = uint32_t(levels);
     Result<std::optional<bool>> accumulate = r_.boolean(t, "render", "preview_accumulate");
     if (!accumulate) return accumulate.error();
     c.previewAccumulate = accumulate->value_or(c.previewAccumulate);
     int64_t history = c.previewHistoryFrames;
-    if (Status st = integerIn(t, "render", "preview_history_frames", history, 1, 1024); !st)
+    if (Status st = r_.integerIn(t, "render", "preview_history_frames", history, 1, 1024); !st)
         return st;
     c.previewHistoryFrames = uint32_t(history);
     return {};
@@ -518,20 +494,24 @@ Status ConfigReader::parseRefine(const toml::table& t, RefineConfig& c) const {
         return st;
     int64_t step = c.samplesPerStep, maxSamples = int64_t(c.maxSamples),
             restartAfter = c.restartAfter;
-    if (Status st = integerIn(t, "refine", "samples_per_step", step, 1, 65536); !st) return st;
-    if (Status st = integerIn(t, "refine", "max_samples", maxSamples, 0, int64_t(1) << 40); !st)
+    if (Status st = r_.integerIn(t, "refine", "samples_per_step", step, 1, 65536); !st) return st;
+    if (Status st = r_.integerIn(t, "refine", "max_samples", maxSamples, 0, int64_t(1) << 40); !st)
         return st;
     c.samplesPerStep = uint32_t(step);
     c.maxSamples = uint64_t(maxSamples);
-    if (Status st = ranged(t, "refine", "pose_threshold_m", c.poseThresholdM, 0.0, 1e6); !st)
+    if (Status st = r_.numberIn(t, "refine", "pose_threshold_m", c.poseThresholdM, 0.0, 1e6); !st)
         return st;
-    if (Status st = ranged(t, "refine", "pose_threshold_deg", c.poseThresholdDeg, 0.0, 180.0); !st)
+    if (Status st = r_.numberIn(t, "refine", "pose_threshold_deg", c.poseThresholdDeg, 0.0, 180.0);
+        !st)
         return st;
-    if (Status st = ranged(t, "refine", "lighting_threshold", c.lightingThreshold, 0.0, 1e6); !st)
+    if (Status st = r_.numberIn(t, "refine", "lighting_threshold", c.lightingThreshold, 0.0, 1e6);
+        !st)
         return st;
-    if (Status st = integerIn(t, "refine", "restart_after", restartAfter, 1, 1000); !st) return st;
+    if (Status st = r_.integerIn(t, "refine", "restart_after", restartAfter, 1, 1000); !st)
+        return st;
     c.restartAfter = int(restartAfter);
-    if (Status st = ranged(t, "refine", "target_noise", c.targetNoise, 0.0, 1e6); !st) return st;
+    if (Status st = r_.numberIn(t, "refine", "target_noise", c.targetNoise, 0.0, 1e6); !st)
+        return st;
     return {};
 }
 
@@ -595,8 +575,9 @@ Status ConfigReader::parseButton(const toml::table& t, ButtonConfig& c) const {
         if (*b) *field = **b;
     }
     int64_t debounce = c.debounceMs, longPress = c.longPressMs;
-    if (Status st = integerIn(t, "button", "debounce_ms", debounce, 0, 1000); !st) return st;
-    if (Status st = integerIn(t, "button", "long_press_ms", longPress, 100, 60000); !st) return st;
+    if (Status st = r_.integerIn(t, "button", "debounce_ms", debounce, 0, 1000); !st) return st;
+    if (Status st = r_.integerIn(t, "button", "long_press_ms", longPress, 100, 60000); !st)
+        return st;
     if (longPress <= debounce)
         return fail(t.get("long_press_ms"),
                     "'button.long_press_ms' ({}) must be longer than "
@@ -630,21 +611,22 @@ Status ConfigReader::parseRecord(const toml::table& t, RecordConfig& c) const {
     if (!autoStart) return autoStart.error();
     c.autoStart = autoStart->value_or(false);
     int64_t v = int64_t(c.minFreeMb);
-    if (Status st = integerIn(t, "record", "min_free_mb", v, 0, 1 << 24); !st) return st;
+    if (Status st = r_.integerIn(t, "record", "min_free_mb", v, 0, 1 << 24); !st) return st;
     c.minFreeMb = uint64_t(v);
     v = c.flushIntervalMs;
-    if (Status st = integerIn(t, "record", "flush_interval_ms", v, 10, 60000); !st) return st;
+    if (Status st = r_.integerIn(t, "record", "flush_interval_ms", v, 10, 60000); !st) return st;
     c.flushIntervalMs = uint32_t(v);
     v = c.queueMb;
-    if (Status st = integerIn(t, "record", "queue_mb", v, 16, 16384); !st) return st;
+    if (Status st = r_.integerIn(t, "record", "queue_mb", v, 16, 16384); !st) return st;
     c.queueMb = uint32_t(v);
     return {};
 }
 
 Result<ServiceConfig> ConfigReader::read(const toml::table& root) {
-    if (Status st = r_.checkKeys(root, "",
-                                 {"version", "scene", "cameras", "tracking", "lighting", "render",
-                                  "refine", "output", "button", "control", "session", "record"});
+    if (Status st = r_.checkKeys(
+            root, "",
+            {"version", "scene", "cameras", "tracking", "lighting", "render", "refine", "output",
+             "button", "control", "session", "record", "freed", "opentrackio", "timecode", "web"});
         !st)
         return st.error();
     const toml::node* version = root.get("version");
@@ -755,6 +737,7 @@ Result<ServiceConfig> ConfigReader::read(const toml::table& root) {
         }
     }
     if (hasButton) config.button = std::move(button);
+    if (Status st = parseNetworkConfig(r_, root, config.network); !st) return st.error();
     return config;
 }
 

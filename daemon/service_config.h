@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "base/result.h"
+#include "daemon/network_config.h"
 #include "render/render_settings.h"
 #include "vision/board_pose.h"
 #include "vision/camera_calibration.h"
@@ -209,6 +210,8 @@ struct ServiceConfig {
     std::optional<ButtonConfig> button;
     ControlConfig control;
     RecordConfig record;
+    // The set's network: FreeD and OpenTrackIO out, the timecode source, the web monitor.
+    NetworkConfig network;
     // Recorded cameras (source = "session"): start over at the end (a demo loop) or stop the
     // service there (exit 0).
     bool loopSession = true;

@@ -12,7 +12,6 @@
 #include <opencv2/imgproc.hpp>
 
 #include "base/log.h"
-#include "base/timecode.h"
 #include "capture/pixel_format.h"
 #include "daemon/take_files.h"
 
@@ -75,8 +74,8 @@ struct TakeRecorder::Take {
         bool any = false;
     };
     std::map<std::string, CameraClock> clocks;
-    std::map<std::string, int> timecodeRates;      // per camera, once known
-    std::map<std::string, FrameItem> firstFrames;  // waiting for their rate
+    std::map<std::string, TimecodeRate> timecodeRates;  // per camera, once known
+    std::map<std::string, FrameItem> firstFrames;       // waiting for their rate
 
     uint64_t takeTimestamp(const std::string& camera, uint64_t ns, uint64_t sequence) {
         CameraClock& c = clocks[camera];
@@ -158,9 +157,11 @@ Result<std::string> TakeRecorder::start(const std::string& name,
     take->dir = dir;
     take->minFreeBytes = minFree;
     if (config_.sceneCamera.fps > 0)
-        take->timecodeRates["scene"] = timecodeRate(config_.sceneCamera.fps);
+        take->timecodeRates.insert_or_assign("scene",
+                                             TimecodeRate::fromFps(config_.sceneCamera.fps));
     if (config_.fisheyeCamera && config_.fisheyeCamera->fps > 0)
-        take->timecodeRates["fisheye"] = timecodeRate(config_.fisheyeCamera->fps);
+        take->timecodeRates.insert_or_assign("fisheye",
+                                             TimecodeRate::fromFps(config_.fisheyeCamera->fps));
     {
         std::lock_guard lock(mutex_);
         status_ = RecordStatus{};
@@ -216,8 +217,15 @@ void TakeRecorder::push(Item item, size_t bytes) {
 void TakeRecorder::addFrame(const std::string& camera, std::shared_ptr<const Frame> frame) {
     if (!frame) return;
     const size_t bytes = std::max<size_t>(frameBytes(*frame), 1);
-    if (camera == "scene") lastSceneNs_.store(frame->timestampNs);
-    push(FrameItem{camera, std::move(frame)}, bytes);
+    std::string timecode;
+    if (camera == "scene") {
+        lastSceneNs_.store(frame->timestampNs);
+        if (timecodeSource_ && keepCaptured_.load(std::memory_order_relaxed))
+            timecode =
+                timecodeSource_->frameTimecode(int64_t(frame->timestampNs), frame->wallClockNs)
+                    .timecode.toString();
+    }
+    push(FrameItem{camera, std::move(frame), std::move(timecode)}, bytes);
 }
 
 void TakeRecorder::addPose(const TrackedFrame& tracked) {
@@ -279,7 +287,10 @@ Status TakeRecorder::writeFrame(Take& take, const FrameItem& item) {
     FrameStamp stamp;
     if (frame.wallClockNs > 0) {
         stamp.wallClockNs = frame.wallClockNs;
-        stamp.timecode = timeOfDayTimecode(frame.wallClockNs, take.timecodeRates[item.camera]);
+        stamp.timecode =
+            !item.timecode.empty()
+                ? item.timecode
+                : clockTimecode(frame.wallClockNs, take.timecodeRates.at(item.camera)).toString();
     }
     const uint64_t ns = take.takeTimestamp(item.camera, frame.timestampNs, frame.sequence);
     if (Status s = take.writer.writeFrame(item.camera, frame.sequence, ns, bytes, ext, frame.width,
@@ -303,7 +314,8 @@ Status TakeRecorder::write(Take& take, Item& item) {
             return {};
         }
         const uint64_t dt = f->frame->timestampNs - pending->second.frame->timestampNs;
-        take.timecodeRates[f->camera] = dt > 0 ? timecodeRate(1e9 / double(dt)) : 30;
+        take.timecodeRates.insert_or_assign(
+            f->camera, TimecodeRate::fromFps(dt > 0 ? 1e9 / double(dt) : 30.0));
         const FrameItem first = pending->second;
         take.firstFrames.erase(pending);
         if (Status s = writeFrame(take, first); !s) return s;
@@ -360,7 +372,7 @@ void TakeRecorder::runWriter(std::unique_ptr<Take> take) {
     }
     // A camera that sent one frame only: counted at the common 30.
     for (auto& [camera, first] : take->firstFrames) {
-        take->timecodeRates[camera] = 30;
+        take->timecodeRates.insert_or_assign(camera, TimecodeRate::fps30());
         if (Status s = writeFrame(*take, first); !s && stoppedBecause.empty())
             stoppedBecause = s.message();
     }

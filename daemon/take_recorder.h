@@ -22,6 +22,7 @@
 #include "daemon/pipeline_stages.h"
 #include "daemon/service_config.h"
 #include "io/session.h"
+#include "timecode/timecode_source.h"
 
 namespace previs {
 
@@ -66,11 +67,17 @@ public:
     // after that frame, on the same clock as the frames.
     void addEvent(SessionEvent event);
     void addLighting(std::shared_ptr<const LiveLighting> lighting);
+    // Where the scene camera's frames get their timecode ([timecode], docs/timecode.md); set
+    // before the cameras start, outliving the recorder. None: the time of day.
+    void setTimecodeSource(TimecodeSource* source) { timecodeSource_ = source; }
 
 private:
     struct FrameItem {
         std::string camera;
         std::shared_ptr<const Frame> frame;
+        // The scene camera's timecode from the service's source (LTC or the clock), taken as
+        // the frame arrives; empty: the time of day at the camera's rate.
+        std::string timecode;
     };
     using Item =
         std::variant<FrameItem, PoseRecord, SessionEvent, std::shared_ptr<const LiveLighting>>;
@@ -94,6 +101,7 @@ private:
     RecordStatus status_;
     std::atomic<uint64_t> lastSceneNs_{0};
     std::atomic<bool> keepCaptured_{false};
+    TimecodeSource* timecodeSource_ = nullptr;
     std::thread writer_;
 };
 

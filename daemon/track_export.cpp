@@ -8,9 +8,9 @@
 #include <nlohmann/json.hpp>
 
 #include "base/log.h"
-#include "base/timecode.h"
 #include "daemon/take_files.h"
 #include "daemon/take_track.h"
+#include "timecode/timecode.h"
 
 namespace previs {
 
@@ -33,6 +33,15 @@ double frameRate(const TakeTrack& track) {
     return median > 0 ? 1e9 / double(median) : 0.0;
 }
 
+// The rate the take's timecodes count at: its frame rate, drop-frame when its labels are
+// (a ';' before the frames, as an LTC source at 29.97 DF writes them).
+TimecodeRate timecodeRateOf(const TakeTrack& track) {
+    const bool dropFrame = std::any_of(track.frames.begin(), track.frames.end(), [](auto& f) {
+        return f.entry.timecode.find(';') != std::string::npos;
+    });
+    return TimecodeRate::fromFps(std::max(frameRate(track), 1.0), dropFrame);
+}
+
 std::string chanLine(size_t frame, const cv::Matx44d& m, double vfov) {
     const cv::Vec3d r = chanRotationDegrees(m.get_minor<3, 3>(0, 0));
     return fmt::format("{} {:.9f} {:.9f} {:.9f} {:.9f} {:.9f} {:.9f} {:.9f}\n", frame, m(0, 3),
@@ -40,7 +49,8 @@ std::string chanLine(size_t frame, const cv::Matx44d& m, double vfov) {
 }
 
 nlohmann::ordered_json jsonLine(size_t frame, const TakeFrame& f, const cv::Matx44d& m,
-                                const CameraCalibration& calibration, int rate, bool smoothed) {
+                                const CameraCalibration& calibration, TimecodeRate rate,
+                                bool smoothed) {
     nlohmann::ordered_json j;
     j["frame"] = frame;
     nlohmann::ordered_json timing;
@@ -49,13 +59,15 @@ nlohmann::ordered_json jsonLine(size_t frame, const TakeFrame& f, const cv::Matx
     if (f.entry.wallClockNs)
         timing["sampleTimestamp"] = {{"seconds", *f.entry.wallClockNs / 1'000'000'000ull},
                                      {"nanoseconds", *f.entry.wallClockNs % 1'000'000'000ull}};
-    int hh = 0, mm = 0, ss = 0, ff = 0;
-    if (std::sscanf(f.entry.timecode.c_str(), "%d:%d:%d:%d", &hh, &mm, &ss, &ff) == 4)
-        timing["timecode"] = {{"hours", hh},
-                              {"minutes", mm},
-                              {"seconds", ss},
-                              {"frames", ff},
-                              {"frameRate", {{"num", rate}, {"denom", 1}}}};
+    // A drop-frame label ("HH:MM:SS;FF") at a take's drop-frame rate, else the camera's.
+    Result<Timecode> tc = Timecode::parse(f.entry.timecode, rate);
+    if (tc)
+        timing["timecode"] = {{"hours", tc->hours()},
+                              {"minutes", tc->minutes()},
+                              {"seconds", tc->seconds()},
+                              {"frames", tc->frames()},
+                              {"frameRate", {{"num", rate.num()}, {"denom", rate.den()}}},
+                              {"dropFrame", rate.dropFrame()}};
     j["timing"] = timing;
     nlohmann::ordered_json matrix = nlohmann::ordered_json::array();
     for (int i = 0; i < 16; ++i) matrix.push_back(m(i / 4, i % 4));
@@ -145,7 +157,7 @@ int runTrackExport(const TrackExportOptions& o) {
     for (const std::string& line : track->skippedLines) logWarning("export-track: {}", line);
     const CameraCalibration& calibration = *config->sceneCamera.calibration;
     const double vfov = verticalFovDegrees(calibration);
-    const int rate = timecodeRate(std::max(frameRate(*track), 1.0));
+    const TimecodeRate rate = timecodeRateOf(*track);
     const std::string tmp = o.outPath + ".tmp";
     std::ofstream out(tmp, std::ios::binary);
     if (!out) {

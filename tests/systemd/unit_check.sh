@@ -25,6 +25,17 @@ unit=$tmp/lib/systemd/system/previsd.service
 # Values of KEY= in the unit (one per line, in order).
 values() { sed -n "s/^$1=//p" "$unit"; }
 
+# systemd-analyze's exposure score of unit $1, at most $2.
+check_exposure() {
+    out=$(systemd-analyze security --offline=true --no-pager "$1" 2>&1) ||
+        { echo "$out"; fail "systemd-analyze security failed"; }
+    echo "$out" | grep '✗' || true
+    level=$(echo "$out" | sed -n 's/.*Overall exposure level for previsd.service: \([0-9.]*\).*/\1/p')
+    [ -n "$level" ] || { echo "$out"; fail "no 'Overall exposure level' line"; }
+    echo "exposure: $level (limit $2)"
+    awk -v l="$level" -v m="$2" 'BEGIN { exit !(l <= m) }' || fail "exposure $level is above $2"
+}
+
 case $mode in
 install)
     # The paths written into the unit follow the install prefix.
@@ -81,15 +92,30 @@ verify)
     if echo "$out" | grep -q previsd; then fail "systemd-analyze verify warns about the unit"; fi
     echo "systemd-analyze verify: no warnings"
     ;;
+security-network)
+    # Every network feature on: the drop-in previsd writes for that config, merged into the
+    # unit (a unit file may repeat a section; a drop-in's lines add to it the same way).
+    [ -n "$previsd" ] && [ -x "$previsd" ] || { echo "SKIP: no previsd binary given"; exit 77; }
+    conf=$tmp/etc/previs/previsd.toml
+    printf '\n[freed]\nout = "127.0.0.1:40000"\n\n[opentrackio]\nout = "multicast"\n\n[web]\nlisten = "0.0.0.0:8080"\n' >>"$conf"
+    echo "a-test-token" >"$tmp/etc/previs/web-token"
+    "$previsd" --config "$conf" --network-dropin >"$tmp/network.conf" ||
+        fail "previsd --network-dropin failed"
+    cat "$tmp/network.conf"
+    for line in "PrivateNetwork=no" "RestrictAddressFamilies=AF_INET AF_INET6" \
+        "SocketBindAllow=tcp:8080" "SocketBindDeny=any" \
+        "LoadCredential=web-token:$tmp/etc/previs/web-token"; do
+        grep -qxF "$line" "$tmp/network.conf" || fail "the drop-in lacks '$line'"
+    done
+    grep -q '^IPAddressAllow=.*127\.0\.0\.1' "$tmp/network.conf" || fail "FreeD's host not allowed"
+    grep -q '^IPAddressAllow=.*239\.135\.1\.1' "$tmp/network.conf" ||
+        fail "OpenTrackIO's group not allowed"
+    mkdir -p "$tmp/merged"
+    cat "$unit" "$tmp/network.conf" >"$tmp/merged/previsd.service"
+    check_exposure "$tmp/merged/previsd.service" 1.0
+    ;;
 security)
-    out=$(systemd-analyze security --offline=true --no-pager "$unit" 2>&1) ||
-        { echo "$out"; fail "systemd-analyze security failed"; }
-    echo "$out" | grep '✗' || true
-    level=$(echo "$out" | sed -n 's/.*Overall exposure level for previsd.service: \([0-9.]*\).*/\1/p')
-    [ -n "$level" ] || { echo "$out"; fail "no 'Overall exposure level' line"; }
-    echo "exposure: $level (limit $max_exposure)"
-    awk -v l="$level" -v m="$max_exposure" 'BEGIN { exit !(l <= m) }' ||
-        fail "exposure $level is above $max_exposure"
+    check_exposure "$unit" "$max_exposure"
     ;;
 devices)
     # Every device class previsd opens is let through the device cgroup with the access it needs,

@@ -1,0 +1,161 @@
+#include "daemon/tracking_out.h"
+
+#include <chrono>
+#include <cmath>
+
+#include "base/log.h"
+#include "net/freed.h"
+
+namespace previs {
+namespace {
+
+int64_t monotonicNs() {
+    return std::chrono::duration_cast<std::chrono::nanoseconds>(
+               std::chrono::steady_clock::now().time_since_epoch())
+        .count();
+}
+
+void storeMax(std::atomic<double>& max, double value) {
+    double seen = max.load();
+    while (value > seen && !max.compare_exchange_weak(seen, value)) {
+    }
+}
+
+OtrkTimecode otrkTimecode(const Timecode& t) {
+    OtrkTimecode out;
+    out.hours = t.hours();
+    out.minutes = t.minutes();
+    out.seconds = t.seconds();
+    out.frames = t.frames();
+    out.rateNum = uint32_t(t.rate().num());
+    out.rateDenom = uint32_t(t.rate().den());
+    out.dropFrame = t.dropFrame();
+    return out;
+}
+
+}  // namespace
+
+LensSample lensSample(const CameraConfig& camera) {
+    LensSample lens;
+    if (!camera.calibration) return lens;
+    const CameraCalibration& c = *camera.calibration;
+    lens.fxPx = c.fx();
+    lens.fyPx = c.fy();
+    lens.cxPx = c.cx();
+    lens.cyPx = c.cy();
+    lens.widthPx = c.imageSize().width;
+    lens.heightPx = c.imageSize().height;
+    lens.distortion = c.distortion();
+    lens.fisheye = c.model() == DistortionModel::Fisheye;
+    return lens;
+}
+
+Result<std::unique_ptr<TrackingOut>> TrackingOut::create(const NetworkConfig& network,
+                                                         const CameraConfig& sceneCamera) {
+    if (network.freed.out.empty() && network.opentrackio.out.empty())
+        return std::unique_ptr<TrackingOut>();
+    const double rate = sceneCamera.fps > 0.0 ? sceneCamera.fps : 30.0;
+    std::unique_ptr<TrackingOut> out(new TrackingOut(network, lensSample(sceneCamera), rate));
+    if (!network.freed.out.empty()) {
+        Result<UdpSocket> socket = UdpSocket::sender(network.freed.out);
+        if (!socket)
+            return makeError("[freed] out = '{}': {}", network.freed.out, socket.message());
+        out->freed_.emplace(std::move(*socket));
+    }
+    const OpenTrackIoConfig& otio = network.opentrackio;
+    if (!otio.out.empty()) {
+        const uint8_t source = uint8_t(otio.sourceNumber);
+        Result<UdpSocket> socket =
+            otio.out == "multicast"
+                ? UdpSocket::multicastSender(openTrackIOMulticastGroup(source), kOpenTrackIOPort,
+                                             otio.multicastTtl)
+                : UdpSocket::sender(otio.out);
+        if (!socket) return makeError("[opentrackio] out = '{}': {}", otio.out, socket.message());
+        out->openTrackIo_.emplace(std::move(*socket));
+        OpenTrackIOSource who;
+        who.sourceNumber = source;
+        Result<OpenTrackIOEncoder> encoder = OpenTrackIOEncoder::create(who);
+        if (!encoder) return makeError("[opentrackio]: {}", encoder.message());
+        out->encoder_.emplace(std::move(*encoder));
+    }
+    return out;
+}
+
+TrackingOut::TrackingOut(const NetworkConfig& network, LensSample lens, double frameRate)
+    : freedConfig_(network.freed), lens_(std::move(lens)), frameRate_(frameRate) {}
+
+void TrackingOut::send(const TrackedFrame& frame, const std::optional<Timecode>& timecode,
+                       bool recording) {
+    if (!frame.lost && frame.worldFromCamera) lastTrusted_ = frame.worldFromCamera;
+    const bool held = frame.lost && freedConfig_.holdWhenLost && lastTrusted_;
+    // A lost frame's worldFromCamera is the last good one: never sent as if it were current.
+    if (frame.lost && !held) {
+        lostNotSent_.fetch_add(1, std::memory_order_relaxed);
+        return;
+    }
+    const cv::Matx44d& pose = frame.lost ? *lastTrusted_ : *frame.worldFromCamera;
+    if (freed_) sendFreed(pose, held);
+    if (openTrackIo_) sendOpenTrackIo(frame, pose, timecode, recording, held);
+    const int64_t now = monotonicNs();
+    const double delayMs = double(now - captureInstantNs(frame, now)) * 1e-6;
+    lastDelayMs_.store(delayMs);
+    storeMax(maxDelayMs_, delayMs);
+}
+
+void TrackingOut::sendFreed(const cv::Matx44d& worldFromCamera, bool held) {
+    const FreedEncoded packet = encodeFreed(worldFromCamera, lens_, freedConfig_.cameraId);
+    if (packet.clamped) freedClamped_.fetch_add(1, std::memory_order_relaxed);
+    if (held) freedHeld_.fetch_add(1, std::memory_order_relaxed);
+    countSend(freed_->send(packet.bytes));
+    freedPackets_.fetch_add(1, std::memory_order_relaxed);
+}
+
+void TrackingOut::sendOpenTrackIo(const TrackedFrame& frame, const cv::Matx44d& worldFromCamera,
+                                  const std::optional<Timecode>& timecode, bool recording,
+                                  bool held) {
+    OpenTrackIOFrame sample;
+    sample.worldFromCamera = worldFromCamera;
+    sample.timestampNs = frame.frame->wallClockNs;
+    if (timecode) sample.timecode = otrkTimecode(*timecode);
+    // The tracking rate as an exact fraction: the timecode's when there is one (29.97 is
+    // 30000/1001), else the camera's in thousandths.
+    if (timecode) {
+        sample.sampleRateNum = uint32_t(timecode->rate().num());
+        sample.sampleRateDenom = uint32_t(timecode->rate().den());
+    } else {
+        sample.sampleRateNum = uint32_t(std::lround(frameRate_ * 1000.0));
+        sample.sampleRateDenom = 1000;
+    }
+    sample.trackerStatus = held ? "Optical Lost (holding the last pose)" : "Optical Good";
+    sample.recording = recording;
+    sample.lens = lens_;
+    for (const std::vector<uint8_t>& datagram : encoder_->encode(sample)) {
+        countSend(openTrackIo_->send(datagram));
+        datagrams_.fetch_add(1, std::memory_order_relaxed);
+    }
+    samples_.fetch_add(1, std::memory_order_relaxed);
+}
+
+void TrackingOut::countSend(UdpSocket::SendStatus status) {
+    if (status == UdpSocket::SendStatus::Dropped) dropped_.fetch_add(1, std::memory_order_relaxed);
+    if (status == UdpSocket::SendStatus::Failed) failed_.fetch_add(1, std::memory_order_relaxed);
+}
+
+TrackingOutStats TrackingOut::stats() const {
+    TrackingOutStats s;
+    s.freed = freed_.has_value();
+    s.openTrackIo = openTrackIo_.has_value();
+    s.freedPackets = freedPackets_.load();
+    s.freedHeld = freedHeld_.load();
+    s.freedClamped = freedClamped_.load();
+    s.openTrackIoSamples = samples_.load();
+    s.openTrackIoDatagrams = datagrams_.load();
+    s.dropped = dropped_.load();
+    s.failed = failed_.load();
+    s.lostNotSent = lostNotSent_.load();
+    s.lastDelayMs = lastDelayMs_.load();
+    s.maxDelayMs = maxDelayMs_.load();
+    return s;
+}
+
+}  // namespace previs
