@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <memory>
 #include <set>
+#include <vector>
 
 #include "net/opentrackio.h"
 #include "net/udp_socket.h"
@@ -13,15 +14,30 @@
 namespace previs {
 namespace {
 
-// Every address `host` resolves to, numeric ("" and "0.0.0.0"/"::": any).
+constexpr const char* kHeader =
+    "# Written by `previsd --config FILE --network-units DIR` for the config's network features\n"
+    "# (docs/systemd.md): the service keeps no network of its own; systemd makes this socket in\n"
+    "# the host's network and hands it over.\n";
+
+// Viewers of the web page come from the set's own networks, never the internet.
+constexpr const char* kViewerNetworks =
+    "localhost link-local 10.0.0.0/8 172.16.0.0/12 192.168.0.0/16 fc00::/7";
+
+std::string joined(const std::set<std::string>& items) {
+    std::string out;
+    for (const std::string& item : items) out += (out.empty() ? "" : " ") + item;
+    return out;
+}
+
+// Every address `host` resolves to, numeric.
 Result<std::set<std::string>> addressesOf(const std::string& host, const char* key) {
     addrinfo hints{};
     hints.ai_family = AF_UNSPEC;
     hints.ai_socktype = SOCK_DGRAM;
     addrinfo* found = nullptr;
     if (int rc = ::getaddrinfo(host.c_str(), nullptr, &hints, &found); rc != 0)
-        return makeError("{} '{}' does not resolve: {} (use an address, or resolve it on the set)",
-                         key, host, ::gai_strerror(rc));
+        return makeError("{} '{}' does not resolve: {} (use an address)", key, host,
+                         ::gai_strerror(rc));
     std::unique_ptr<addrinfo, decltype(&::freeaddrinfo)> owned(found, ::freeaddrinfo);
     std::set<std::string> out;
     for (const addrinfo* a = found; a; a = a->ai_next) {
@@ -33,60 +49,80 @@ Result<std::set<std::string>> addressesOf(const std::string& host, const char* k
     return out;
 }
 
-Status addHost(const std::string& hostPort, const char* key, std::set<std::string>& allow) {
+// A socket unit handing previsd one socket named `name`.
+std::string socketUnit(const std::string& what, const std::string& listen, const std::string& name,
+                       const std::string& allow) {
+    return fmt::format(
+        "{}[Unit]\nDescription=previs: {}\n\n[Socket]\n{}\nFileDescriptorName={}\n"
+        "Service=previsd.service\nIPAddressDeny=any\nIPAddressAllow={}\n",
+        kHeader, what, listen, name, allow);
+}
+
+// The sending socket for `hostPort` ([freed] out, [opentrackio] out): bound, as a socket unit
+// must be, to the destination's port on any address of its family.
+Result<std::string> senderUnit(const std::string& what, const std::string& hostPort,
+                               const std::string& name, const char* key) {
     Result<std::pair<std::string, std::string>> split = splitHostPort(hostPort);
     if (!split) return makeError("{}: {}", key, split.message());
     Result<std::set<std::string>> addresses = addressesOf(split->first, key);
     if (!addresses) return addresses.error();
-    allow.insert(addresses->begin(), addresses->end());
-    return {};
+    const bool v6 = addresses->begin()->find(':') != std::string::npos;
+    return socketUnit(
+        what,
+        fmt::format("ListenDatagram={}:{}\nReusePort=yes", v6 ? "[::]" : "0.0.0.0", split->second),
+        name, joined(*addresses));
 }
 
 }  // namespace
 
-Result<std::string> networkDropIn(const NetworkConfig& network, const DropInOptions& options) {
-    std::string text =
-        "# Written by `previsd --config FILE --network-dropin` for the config's network "
-        "features\n# (docs/systemd.md). Install as "
-        "/etc/systemd/system/previsd.service.d/network.conf,\n# then `systemctl daemon-reload`.\n";
-    if (!network.usesNetwork()) return text + "# No network feature is configured.\n";
-    std::set<std::string> allow;
+Result<std::map<std::string, std::string>> networkUnits(const NetworkConfig& network,
+                                                        const NetworkUnitOptions& options) {
+    std::map<std::string, std::string> units;
+    std::vector<std::string> sockets;
     if (!network.freed.out.empty()) {
-        if (Status st = addHost(network.freed.out, "[freed] out", allow); !st) return st.error();
+        Result<std::string> unit =
+            senderUnit("FreeD out (the tracked camera)", network.freed.out, "freed", "[freed] out");
+        if (!unit) return unit.error();
+        units["previsd-freed.socket"] = *unit;
+        sockets.push_back("previsd-freed.socket");
     }
     const OpenTrackIoConfig& otio = network.opentrackio;
-    if (otio.out == "multicast")
-        allow.insert(openTrackIOMulticastGroup(uint8_t(otio.sourceNumber)));
-    else if (!otio.out.empty()) {
-        if (Status st = addHost(otio.out, "[opentrackio] out", allow); !st) return st.error();
+    if (!otio.out.empty()) {
+        const std::string to =
+            otio.out == "multicast"
+                ? fmt::format("{}:{}", openTrackIOMulticastGroup(uint8_t(otio.sourceNumber)),
+                              kOpenTrackIOPort)
+                : otio.out;
+        Result<std::string> unit = senderUnit("OpenTrackIO out (the tracked camera)", to,
+                                              "opentrackio", "[opentrackio] out");
+        if (!unit) return unit.error();
+        units["previsd-opentrackio.socket"] = *unit;
+        sockets.push_back("previsd-opentrackio.socket");
     }
-    text += "[Service]\nPrivateNetwork=no\nRestrictAddressFamilies=AF_INET AF_INET6\n";
+    std::string credential;
     if (!network.web.listen.empty()) {
-        // Viewers come from the set's own networks: the private and link-local ranges, never
-        // the internet.
-        allow.insert({"localhost", "link-local", "10.0.0.0/8", "172.16.0.0/12", "192.168.0.0/16",
-                      "fc00::/7"});
-        Result<std::pair<std::string, std::string>> listen = splitHostPort(network.web.listen);
-        if (!listen) return makeError("[web] listen: {}", listen.message());
-        text += fmt::format("SocketBindAllow=tcp:{}\n", listen->second);
-        // A missing credential file would stop the unit from starting: without one the page
-        // is for viewing only.
+        units["previsd-web.socket"] =
+            socketUnit("the monitor page (docs/web-monitor.md)",
+                       "ListenStream=" + network.web.listen, "web", kViewerNetworks);
+        sockets.push_back("previsd-web.socket");
+        // A missing credential file would stop the unit from starting: without one the page is
+        // for viewing only.
         std::error_code ec;
         if (network.web.tokenFile.empty() && !options.webTokenSource.empty() &&
             std::filesystem::is_regular_file(options.webTokenSource, ec))
-            text += fmt::format("LoadCredential=web-token:{}\n", options.webTokenSource);
-        else if (network.web.tokenFile.empty())
-            text +=
-                fmt::format("# No {}: the web page is for viewing only.\n", options.webTokenSource);
+            credential = "LoadCredential=web-token:" + options.webTokenSource + "\n";
     }
-    // No socket may listen but the web monitor's: the senders never bind (connect() picks
-    // their port), and the bind hook sees only bind().
-    text += "SocketBindDeny=any\n";
-    // The unit's IPAddressDeny=any stays; these are the exceptions.
-    std::string list;
-    for (const std::string& a : allow) list += (list.empty() ? "" : " ") + a;
-    text += fmt::format("IPAddressAllow={}\n", list);
-    return text;
+    std::string names;
+    for (const std::string& s : sockets) names += (names.empty() ? "" : " ") + s;
+    std::string dropIn =
+        "# Written by `previsd --config FILE --network-units DIR` (docs/systemd.md).\n";
+    if (!sockets.empty())
+        dropIn += fmt::format("[Unit]\nRequires={0}\nAfter={0}\n\n[Service]\nSockets={0}\n{1}",
+                              names, credential);
+    else
+        dropIn += "# No network feature is configured: the unit stays as installed.\n";
+    units["previsd.service.d/network.conf"] = dropIn;
+    return units;
 }
 
 }  // namespace previs

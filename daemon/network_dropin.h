@@ -1,13 +1,14 @@
 #pragma once
 
-// The unit's network, opened only as far as the config uses it (issue 39, docs/systemd.md). The
-// installed previsd.service has no network at all (PrivateNetwork=yes, IPAddressDeny=any, only
-// AF_UNIX and AF_NETLINK sockets). `previsd --config FILE --network-dropin` prints the drop-in
-// that the config's network features need — the host's network, IPv4/IPv6 sockets, traffic to
-// and from the configured addresses only, a listening socket only on [web]'s port, the web token
-// as a credential — for /etc/systemd/system/previsd.service.d/network.conf. With no network
-// feature configured the drop-in changes nothing.
+// The unit's network, opened only as far as the config uses it (issue 39, docs/systemd.md).
+// previsd.service has no network at all (PrivateNetwork=yes, IPAddressDeny=any, only AF_UNIX and
+// AF_NETLINK sockets), and keeps it that way with every network feature on: systemd makes the
+// sockets — one socket unit per feature, in the host's network, each with its own IP allow list
+// — and hands them to previsd (socket activation, systemd/listen_fds.h). `previsd --config FILE
+// --network-units DIR` writes those units and the service's drop-in naming them, for
+// /etc/systemd/system.
 
+#include <map>
 #include <string>
 
 #include "base/result.h"
@@ -15,14 +16,18 @@
 
 namespace previs {
 
-struct DropInOptions {
+struct NetworkUnitOptions {
     // Where the unit's credential `web-token` is read from (LoadCredential=): the file
     // `web-token` beside the config (/etc/previs/web-token on the box); "" = none.
     std::string webTokenSource;
 };
 
-// The drop-in's text. Host names are resolved now (systemd's IP filters take addresses only):
-// an unresolvable name is an error naming its key.
-Result<std::string> networkDropIn(const NetworkConfig& network, const DropInOptions& options = {});
+// File name (relative to /etc/systemd/system) → content: `previsd-web.socket`,
+// `previsd-freed.socket`, `previsd-opentrackio.socket` as configured, and
+// `previsd.service.d/network.conf` (always: without a network feature it names no socket, so a
+// stale one is replaced). Host names are resolved now (systemd's IP filters take addresses
+// only): an unresolvable name is an error naming its key.
+Result<std::map<std::string, std::string>> networkUnits(const NetworkConfig& network,
+                                                        const NetworkUnitOptions& options = {});
 
 }  // namespace previs

@@ -4,6 +4,8 @@
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
+#include <map>
 
 #include "base/command_line.h"
 #include "base/log.h"
@@ -41,28 +43,40 @@ int check(const ServiceConfig& config) {
     return 0;
 }
 
-// --network-dropin: the unit's drop-in for the config's network features, on stdout.
-int printNetworkDropIn(const ServiceConfig& config) {
-    DropInOptions options;
+// --network-units DIR: the socket units and the service's drop-in for the config's network
+// features (daemon/network_dropin.h), written into DIR (/etc/systemd/system on the box).
+int writeNetworkUnits(const ServiceConfig& config, const std::string& dir) {
+    NetworkUnitOptions options;
     options.webTokenSource =
         (std::filesystem::absolute(config.path).parent_path() / "web-token").string();
-    Result<std::string> text = networkDropIn(config.network, options);
-    if (!text) {
-        logError("{}: {}", config.path, text.message());
+    Result<std::map<std::string, std::string>> units = networkUnits(config.network, options);
+    if (!units) {
+        logError("{}: {}", config.path, units.message());
         return 2;
     }
-    std::fputs(text->c_str(), stdout);
+    for (const auto& [name, text] : *units) {
+        const std::filesystem::path path = std::filesystem::path(dir) / name;
+        std::error_code ec;
+        std::filesystem::create_directories(path.parent_path(), ec);
+        std::ofstream out(path);
+        out << text;
+        if (!out.flush()) {
+            logError("cannot write {} (is {} writable?)", path.string(), dir);
+            return 2;
+        }
+        std::printf("%s\n", path.c_str());
+    }
     return 0;
 }
 
-int run(const std::string& configPath, bool checkOnly, bool dropIn) {
+int run(const std::string& configPath, bool checkOnly, const std::string& unitsDir) {
     Result<ServiceConfig> config = loadServiceConfig(configPath);
     if (!config) {
         logError("{}", config.message());
         return 2;
     }
     if (checkOnly) return check(*config);
-    if (dropIn) return printNetworkDropIn(*config);
+    if (!unitsDir.empty()) return writeNetworkUnits(*config, unitsDir);
 
     // Before any thread starts, so that only run()'s signalfd sees these.
     blockServiceSignals();
@@ -87,10 +101,12 @@ int main(int argc, char** argv) {
     app.add_option("--config", configPath, "the service config (docs/config-format.md)")
         ->required();
     app.add_flag("--check", checkOnly, "validate the config and everything it names, then exit");
-    bool dropIn = false;
-    app.add_flag("--network-dropin", dropIn,
-                 "print the systemd drop-in that opens the unit's network as far as the config's "
-                 "[freed], [opentrackio] and [web] need (docs/systemd.md), then exit");
+    std::string unitsDir;
+    app.add_option("--network-units", unitsDir,
+                   "write the systemd socket units and drop-in that give the unit the sockets the "
+                   "config's [freed], [opentrackio] and [web] need into DIR "
+                   "(/etc/systemd/system; docs/systemd.md), then exit")
+        ->type_name("DIR");
     if (auto exitCode = parseCommandLine(app, argc, argv)) return *exitCode;
-    return runReportingExceptions("previsd", [&] { return run(configPath, checkOnly, dropIn); });
+    return runReportingExceptions("previsd", [&] { return run(configPath, checkOnly, unitsDir); });
 }

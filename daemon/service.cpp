@@ -33,6 +33,7 @@
 #include "io/gpio_button.h"
 #include "io/status_led.h"
 #include "scene/scene_description.h"
+#include "systemd/listen_fds.h"
 #include "systemd/notify.h"
 
 namespace previs {
@@ -259,6 +260,7 @@ struct Service::Threads {
     std::unique_ptr<TakeRecorder> recorder;
     // The set's network (issue 39): every frame's timecode (and the LTC input feeding it), the
     // tracking packets, the browser monitor. The last two are null unless configured.
+    systemd::ListenFds passedSockets;
     std::unique_ptr<TimecodeSource> timecode;
     std::unique_ptr<AlsaCapture> ltcInput;
     std::unique_ptr<TrackingOut> trackingOut;
@@ -378,6 +380,8 @@ Status Service::Threads::openWeb(const WebConfig& c, Service* service) {
     if (!token) return token.error();
     WebMonitorSettings settings;
     settings.listen = c.listen;
+    UniqueFD passed = passedSockets.take("web");
+    settings.listenFd = passed.release();
     settings.token = *token;
     settings.streamFps = c.streamFps;
     settings.streamWidth = c.streamWidth;
@@ -693,10 +697,12 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config, bo
         }
     }
 
+    // Under systemd with the network drop-in the sockets come made (docs/systemd.md).
+    t.passedSockets = systemd::ListenFds::fromEnvironment();
     // The timecode and the tracking packets before the cameras: every frame has them.
     if (Status st = t.openTimecode(config); !st) return st.error();
     Result<std::unique_ptr<TrackingOut>> trackingOut =
-        TrackingOut::create(config.network, config.sceneCamera);
+        TrackingOut::create(config.network, config.sceneCamera, t.passedSockets);
     if (!trackingOut) return trackingOut.error();
     t.trackingOut = std::move(*trackingOut);
 

@@ -51,13 +51,14 @@ LensSample lensSample(const CameraConfig& camera) {
 }
 
 Result<std::unique_ptr<TrackingOut>> TrackingOut::create(const NetworkConfig& network,
-                                                         const CameraConfig& sceneCamera) {
+                                                         const CameraConfig& sceneCamera,
+                                                         systemd::ListenFds& passed) {
     if (network.freed.out.empty() && network.opentrackio.out.empty())
         return std::unique_ptr<TrackingOut>();
     const double rate = sceneCamera.fps > 0.0 ? sceneCamera.fps : 30.0;
     std::unique_ptr<TrackingOut> out(new TrackingOut(network, lensSample(sceneCamera), rate));
     if (!network.freed.out.empty()) {
-        Result<UdpSocket> socket = UdpSocket::sender(network.freed.out);
+        Result<UdpSocket> socket = UdpSocket::sender(network.freed.out, passed.take("freed"));
         if (!socket)
             return makeError("[freed] out = '{}': {}", network.freed.out, socket.message());
         out->freed_.emplace(std::move(*socket));
@@ -68,8 +69,8 @@ Result<std::unique_ptr<TrackingOut>> TrackingOut::create(const NetworkConfig& ne
         Result<UdpSocket> socket =
             otio.out == "multicast"
                 ? UdpSocket::multicastSender(openTrackIOMulticastGroup(source), kOpenTrackIOPort,
-                                             otio.multicastTtl)
-                : UdpSocket::sender(otio.out);
+                                             otio.multicastTtl, "", passed.take("opentrackio"))
+                : UdpSocket::sender(otio.out, passed.take("opentrackio"));
         if (!socket) return makeError("[opentrackio] out = '{}': {}", otio.out, socket.message());
         out->openTrackIo_.emplace(std::move(*socket));
         OpenTrackIOSource who;

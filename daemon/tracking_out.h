@@ -18,6 +18,7 @@
 #include "net/lens_sample.h"
 #include "net/opentrackio.h"
 #include "net/udp_socket.h"
+#include "systemd/listen_fds.h"
 #include "timecode/timecode.h"
 
 namespace previs {
@@ -43,8 +44,11 @@ class TrackingOut {
 public:
     // Opens the configured senders (none configured: nullptr, nothing to do per frame). A bad
     // address or an unresolvable host is an error naming the key.
+    // `passed`: the sockets systemd made for the unit ("freed", "opentrackio"), sent from
+    // when present (docs/systemd.md); else previsd opens its own.
     static Result<std::unique_ptr<TrackingOut>> create(const NetworkConfig& network,
-                                                       const CameraConfig& sceneCamera);
+                                                       const CameraConfig& sceneCamera,
+                                                       systemd::ListenFds& passed);
 
     // The tracking thread, once per tracked frame. `frameRate`: the scene camera's.
     void send(const TrackedFrame& frame, const std::optional<Timecode>& timecode, bool recording);

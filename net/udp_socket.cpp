@@ -1,6 +1,7 @@
 #include "net/udp_socket.h"
 
 #include <arpa/inet.h>
+#include <fcntl.h>
 #include <netdb.h>
 #include <netinet/in.h>
 #include <poll.h>
@@ -42,6 +43,34 @@ Result<UniqueFD> openSocket(int family) {
     UniqueFD fd(::socket(family, SOCK_DGRAM | SOCK_NONBLOCK | SOCK_CLOEXEC, IPPROTO_UDP));
     if (!fd.isValid()) return makeError("cannot open a UDP socket: {}", std::strerror(errno));
     return fd;
+}
+
+// A socket handed over to send to a `family` address: a datagram socket of that family, made
+// non-blocking as ours are.
+Status checkHandedOver(int fd, int family) {
+    int domain = 0, type = 0;
+    socklen_t size = sizeof domain;
+    if (::getsockopt(fd, SOL_SOCKET, SO_DOMAIN, &domain, &size) != 0 ||
+        ::getsockopt(fd, SOL_SOCKET, SO_TYPE, &type, &(size = sizeof type)) != 0 ||
+        type != SOCK_DGRAM)
+        return makeError("the socket handed over is not a datagram socket");
+    if (domain != family)
+        return makeError("the socket handed over is {}, the destination {}",
+                         domain == AF_INET6 ? "IPv6" : "IPv4",
+                         family == AF_INET6 ? "IPv6" : "IPv4");
+    const int flags = ::fcntl(fd, F_GETFL);
+    if (flags < 0 || ::fcntl(fd, F_SETFL, flags | O_NONBLOCK) != 0)
+        return makeError("cannot make the socket handed over non-blocking: {}",
+                         std::strerror(errno));
+    return {};
+}
+
+// The socket to send to a `family` address from: the handed-over one (taken only when it fits),
+// else a new one.
+Result<UniqueFD> socketFor(int family, UniqueFD& handedOver) {
+    if (!handedOver.isValid()) return openSocket(family);
+    if (Status st = checkHandedOver(handedOver.get(), family); !st) return st.error();
+    return std::move(handedOver);
 }
 
 }  // namespace
@@ -86,12 +115,12 @@ UdpSocket& UdpSocket::operator=(UdpSocket&& other) noexcept {
     return *this;
 }
 
-Result<UdpSocket> UdpSocket::sender(const std::string& hostPort) {
+Result<UdpSocket> UdpSocket::sender(const std::string& hostPort, UniqueFD handedOver) {
     auto list = resolve(hostPort, false);
     if (!list) return list.error();
     std::string lastError = "no address";
     for (addrinfo* ai = list->get(); ai; ai = ai->ai_next) {
-        auto fd = openSocket(ai->ai_family);
+        auto fd = socketFor(ai->ai_family, handedOver);
         if (!fd) {  // e.g. no IPv6 on this host: the next address may be IPv4
             lastError = fd.message();
             continue;
@@ -107,13 +136,14 @@ Result<UdpSocket> UdpSocket::sender(const std::string& hostPort) {
 }
 
 Result<UdpSocket> UdpSocket::multicastSender(const std::string& group, uint16_t port, int ttl,
-                                             const std::string& interfaceAddress) {
+                                             const std::string& interfaceAddress,
+                                             UniqueFD handedOver) {
     in_addr groupAddr{};
     if (inet_pton(AF_INET, group.c_str(), &groupAddr) != 1 ||
         !IN_MULTICAST(ntohl(groupAddr.s_addr))) {
         return makeError("'{}': not an IPv4 multicast group (224.0.0.0/4)", group);
     }
-    auto fd = openSocket(AF_INET);
+    auto fd = socketFor(AF_INET, handedOver);
     if (!fd) return fd.error();
     unsigned char hops = static_cast<unsigned char>(std::clamp(ttl, 0, 255));
     if (setsockopt(fd->get(), IPPROTO_IP, IP_MULTICAST_TTL, &hops, sizeof hops) != 0) {

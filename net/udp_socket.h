@@ -31,11 +31,15 @@ public:
     enum class SendStatus { Sent, Dropped, Failed };
 
     // A sender to HOST:PORT (IPv4 or IPv6, a name resolved once with getaddrinfo).
-    static Result<UdpSocket> sender(const std::string& hostPort);
+    // `handedOver`: a UDP socket made by someone else to send from (systemd's socket
+    // activation, so the service itself needs no network: docs/systemd.md), connected here
+    // to the first address of its family; none: a new socket.
+    static Result<UdpSocket> sender(const std::string& hostPort, UniqueFD handedOver = {});
     // A sender to an IPv4 multicast group. `ttl` is the hop limit (1: this subnet);
     // `interfaceAddress` ("" for the kernel's choice) is the local IPv4 address to send from.
     static Result<UdpSocket> multicastSender(const std::string& group, uint16_t port, int ttl = 1,
-                                             const std::string& interfaceAddress = "");
+                                             const std::string& interfaceAddress = "",
+                                             UniqueFD handedOver = {});
     // A receiver bound to HOST:PORT ("0.0.0.0:40000"; port 0 picks a free one, see localPort()).
     // `multicastGroup`, when given, is joined (IPv4) on the kernel's default interface.
     static Result<UdpSocket> receiver(const std::string& hostPort,

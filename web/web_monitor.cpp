@@ -241,11 +241,18 @@ bool bearerTokenMatches(const std::string& authorization, const std::string& tok
     return diff == 0;
 }
 
+// cpp-httplib binds its own socket; one handed over by systemd is adopted through the server's
+// protected listening socket, which listen_after_bind() then serves (and stop() closes).
+class AdoptingServer : public httplib::Server {
+public:
+    void adopt(int fd) { svr_sock_ = fd; }
+};
+
 struct WebMonitor::Impl {
     WebMonitorSettings settings;
     WebMonitorHooks hooks;
     std::unique_ptr<StreamEncoder> encoder;
-    httplib::Server server;
+    AdoptingServer server;
     std::thread listenThread;
     std::atomic<bool> listenDone{false};
     int port = 0;
@@ -545,6 +552,20 @@ WebStats WebMonitor::Impl::stats() const {
     return s;
 }
 
+namespace {
+
+// The port a listening socket is bound to; -1 when it is not a bound IP socket.
+int boundPort(int fd) {
+    sockaddr_storage a{};
+    socklen_t size = sizeof a;
+    if (::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &size) != 0) return -1;
+    if (a.ss_family == AF_INET) return ntohs(reinterpret_cast<sockaddr_in&>(a).sin_port);
+    if (a.ss_family == AF_INET6) return ntohs(reinterpret_cast<sockaddr_in6&>(a).sin6_port);
+    return -1;
+}
+
+}  // namespace
+
 Result<std::unique_ptr<WebMonitor>> WebMonitor::create(const WebMonitorSettings& settings,
                                                        WebMonitorHooks hooks) {
     Result<ListenAddress> address = parseListenAddress(settings.listen);
@@ -568,7 +589,10 @@ Result<std::unique_ptr<WebMonitor>> WebMonitor::create(const WebMonitorSettings&
     impl->configure();
     impl->route();
     errno = 0;
-    if (address->port == 0) {
+    if (settings.listenFd >= 0) {
+        impl->server.adopt(settings.listenFd);
+        impl->port = boundPort(settings.listenFd);
+    } else if (address->port == 0) {
         impl->port = impl->server.bind_to_any_port(address->host);
     } else if (impl->server.bind_to_port(address->host, address->port)) {
         impl->port = address->port;

@@ -27,7 +27,10 @@
 namespace previs {
 
 struct WebMonitorSettings {
-    std::string listen;            // "HOST:PORT" ("[::1]:8080" for IPv6); port 0 = any free port
+    std::string listen;  // "HOST:PORT" ("[::1]:8080" for IPv6); port 0 = any free port
+    // A listening TCP socket to serve on instead of binding `listen` (systemd's socket
+    // activation: the service itself has no network); the monitor owns it from create() on.
+    int listenFd = -1;
     std::string token;             // the bearer token; "" = controls refused (403), viewing open
     double streamFps = 10.0;       // MJPEG frames per second at most
     int streamWidth = 640;         // MJPEG width; the height keeps the aspect; never upscaled

@@ -5,6 +5,7 @@
 #include <fcntl.h>
 #include <fmt/format.h>
 #include <gtest/gtest.h>
+#include <netinet/in.h>
 #include <sys/mount.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
@@ -30,9 +31,13 @@
 #include "daemon/pipeline_stages.h"
 #include "daemon/take_files.h"
 #include "io/session.h"
+#include "net/freed.h"
+#include "net/opentrackio.h"
+#include "net/udp_socket.h"
 #include "tests/support/process.h"
 #include "tests/support/temp_dir.h"
 #include "tests/support/test_data.h"
+#include "tests/web/raw_http.h"
 
 namespace previs {
 namespace {
@@ -75,7 +80,7 @@ std::string demoConfig(const std::string& name, const std::string& extra = "",
     absolute("calibration", "");
     absolute("board", "");
     // Drop the demo's own [render], [refine], [output] and [control]: this test sets its own.
-    for (const char* section : {"[render]", "[refine]", "[output]", "[control]"}) {
+    for (const char* section : {"[render]", "[refine]", "[output]", "[control]", "[web]"}) {
         const size_t at = text.find(section);
         if (at == std::string::npos) continue;
         size_t end = text.find("\n[", at + 1);
@@ -523,6 +528,137 @@ TEST(Previsd, AFullDiskStopsTheTakeAndPreviewGoesOn) {
     Result<SessionInfo> info = openSession((*stopped)["record"]["path"]);
     ASSERT_TRUE(info) << info.message();
     EXPECT_GE(decodableFrames(info->cameraWithRole("scene")->dir), 1u);
+    p.signal(SIGTERM);
+    EXPECT_EQ(p.wait(30s), std::optional<int>(0)) << p.log();
+}
+
+// A listening TCP socket on the loopback, at a port the kernel chose: what systemd's socket unit
+// makes for [web].
+UniqueFD listeningSocket(int& port) {
+    UniqueFD fd(::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0));
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    socklen_t size = sizeof a;
+    if (::bind(fd.get(), reinterpret_cast<sockaddr*>(&a), sizeof a) != 0 ||
+        ::listen(fd.get(), 16) != 0 ||
+        ::getsockname(fd.get(), reinterpret_cast<sockaddr*>(&a), &size) != 0)
+        return {};
+    port = ntohs(a.sin_port);
+    return fd;
+}
+
+// Every datagram that arrives within `timeout`, until `count` have.
+std::vector<std::vector<uint8_t>> receiveDatagrams(UdpSocket& socket, size_t count,
+                                                   std::chrono::seconds timeout) {
+    std::vector<std::vector<uint8_t>> out;
+    const auto end = std::chrono::steady_clock::now() + timeout;
+    std::vector<uint8_t> buffer(65536);
+    while (out.size() < count && std::chrono::steady_clock::now() < end) {
+        const int n = socket.receive(buffer, 100);
+        if (n > 0) out.emplace_back(buffer.begin(), buffer.begin() + std::min<int>(n, 65536));
+    }
+    return out;
+}
+
+double rotationDegreesBetween(const cv::Matx44d& a, const cv::Matx44d& b) {
+    const cv::Matx33d r = a.get_minor<3, 3>(0, 0).t() * b.get_minor<3, 3>(0, 0);
+    return std::acos(std::clamp((cv::trace(r) - 1.0) / 2.0, -1.0, 1.0)) * 180.0 / CV_PI;
+}
+
+// The set's network (issue 39) on the demo: every tracked frame goes out as FreeD and as an
+// OpenTrackIO sample, each decoded here from its bytes, the two agreeing on the pose within
+// FreeD's quantisation; the frames carry the clock's timecode; the web monitor serves the
+// status, the MJPEG stream and, only with the token, the mode toggle. The web and FreeD sockets
+// are handed over as systemd's socket units do (the box's sandbox: docs/systemd.md), the
+// OpenTrackIO one previsd opens itself (a previsd run from a shell).
+TEST(Previsd, TheSetsNetworkGetsThePoseTheTimecodeAndThePicture) {
+    Result<UdpSocket> freedIn = UdpSocket::receiver("127.0.0.1:0");
+    Result<UdpSocket> otioIn = UdpSocket::receiver("127.0.0.1:0");
+    ASSERT_TRUE(freedIn && otioIn);
+    int webPort = 0;
+    // Held here, so previsd could not bind [web] listen itself: it must serve the one passed.
+    UniqueFD web = listeningSocket(webPort);
+    UniqueFD freedOut(::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0));
+    ASSERT_TRUE(web.isValid() && freedOut.isValid());
+    const fs::path dir = scratch() / "network";
+    fs::create_directories(dir);
+    writeFile(dir / "token", "s3cret-token\n");
+    const std::string config = demoConfig(
+        "network",
+        fmt::format("[freed]\nout = \"127.0.0.1:{}\"\ncamera_id = 7\n\n[opentrackio]\n"
+                    "out = \"127.0.0.1:{}\"\nsource_number = 3\n\n[web]\nlisten = "
+                    "\"127.0.0.1:{}\"\ntoken_file = \"{}\"\nstream_fps = 5\n",
+                    freedIn->localPort(), otioIn->localPort(), webPort, (dir / "token").string()));
+    const std::string socket = socketOf(config);
+    ChildProcess p({previsd(), "--config", config}, (scratch() / "network.log").string(),
+                   {{web.get(), "web"}, {freedOut.get(), "freed"}});
+    auto sent = waitFor(socket, kStartup, [](const nlohmann::json& s) {
+        return s["trackingOut"].is_object() &&
+               s["trackingOut"]["freed"]["packets"].get<int>() >= 10;
+    });
+    ASSERT_TRUE(sent && (*sent)["trackingOut"].is_object()) << p.log();
+
+    // FreeD and OpenTrackIO: the same frames in the same order (one packet and one sample per
+    // tracked frame, sent back to back), decoded from their bytes.
+    const auto freed = receiveDatagrams(*freedIn, 10, 30s);
+    ASSERT_GE(freed.size(), 10u);
+    std::vector<cv::Matx44d> freedPoses;
+    for (const auto& d : freed) {
+        FreedParse parse = decodeFreed(d, uint8_t(7));
+        ASSERT_TRUE(parse.ok()) << freedErrorName(parse.error);
+        freedPoses.push_back(worldFromFreed(parse.packet));
+    }
+    OtrkReassembler reassembler;
+    std::vector<nlohmann::json> samples;
+    for (const auto& d : receiveDatagrams(*otioIn, 40, 30s)) {
+        if (reassembler.push(d) != OtrkReassembler::Status::Complete) continue;
+        samples.push_back(nlohmann::json::parse(reassembler.payload()));
+    }
+    ASSERT_GE(samples.size(), 10u);
+    // Both sockets queued from the same first frame on: pair them by index.
+    const size_t n = std::min(freedPoses.size(), samples.size());
+    for (size_t i = 0; i < n; ++i) {
+        Result<cv::Matx44d> otio = worldFromOpenTrackIOSample(samples[i].dump());
+        ASSERT_TRUE(otio) << otio.message();
+        EXPECT_LT(cv::norm(freedPoses[i].col(3) - otio->col(3)), 1e-4) << "frame " << i;
+        EXPECT_LT(rotationDegreesBetween(freedPoses[i], *otio), 1e-3) << "frame " << i;
+        const nlohmann::json& timing = samples[i]["timing"];
+        ASSERT_TRUE(timing.contains("timecode")) << samples[i].dump();
+        if (i > 0) {
+            EXPECT_EQ(timing["sequenceNumber"].get<int64_t>(),
+                      samples[i - 1]["timing"]["sequenceNumber"].get<int64_t>() + 1);
+        }
+    }
+    auto now = waitFor(socket, kStartup,
+                       [](const nlohmann::json& st) { return st["framesShown"].get<int>() >= 1; });
+    ASSERT_TRUE(now && (*now)["framesShown"].get<int>() >= 1) << p.log();
+    EXPECT_EQ((*now)["timecode"]["source"], "clock");
+    EXPECT_EQ((*now)["timecode"]["state"], "clock");
+    EXPECT_EQ((*now)["timecode"]["value"].get<std::string>().size(), 11u) << now->dump();
+    EXPECT_EQ((*now)["trackingOut"]["failed"], 0);
+
+    // The web monitor: status, a JPEG frame, and control only with the token.
+    test::HttpReply page = test::get(webPort, "/");
+    EXPECT_EQ(page.status, 200);
+    test::HttpReply statusReply = test::get(webPort, "/status.json");
+    ASSERT_EQ(statusReply.status, 200) << statusReply.head;
+    const nlohmann::json viaWeb = nlohmann::json::parse(statusReply.body);
+    EXPECT_EQ(viaWeb["mode"], "preview");
+    EXPECT_TRUE(viaWeb["web"].is_object());
+    test::RawConnection stream(webPort);
+    ASSERT_TRUE(stream.send("GET /stream.mjpeg HTTP/1.1\r\nHost: t\r\n\r\n"));
+    ASSERT_TRUE(stream.receiveUntil("image/jpeg", 30s)) << stream.buffer().substr(0, 300);
+    ASSERT_TRUE(stream.receiveUntil(std::string("\xff\xd8\xff", 3), 30s));
+    EXPECT_EQ(test::post(webPort, "/mode", "toggle").status, 401);
+    EXPECT_EQ((*status(socket))["mode"], "preview");
+    EXPECT_EQ(test::post(webPort, "/mode", "refine", "Authorization: Bearer wrong\r\n").status,
+              401);
+    EXPECT_EQ((*status(socket))["mode"], "preview");
+    EXPECT_EQ(
+        test::post(webPort, "/mode", "refine", "Authorization: Bearer s3cret-token\r\n").status,
+        200);
+    EXPECT_EQ((*status(socket))["mode"], "refine");
     p.signal(SIGTERM);
     EXPECT_EQ(p.wait(30s), std::optional<int>(0)) << p.log();
 }

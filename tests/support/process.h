@@ -24,9 +24,14 @@
 
 namespace previs::testing {
 
+// Sockets handed to a child as systemd's socket activation does (sd_listen_fds(3)): each fd
+// becomes 3, 4, ... in the child with LISTEN_FDS, LISTEN_PID and LISTEN_FDNAMES set.
+using PassedSockets = std::vector<std::pair<int, std::string>>;
+
 class ChildProcess {
 public:
-    ChildProcess(const std::vector<std::string>& argv, const std::string& logPath)
+    ChildProcess(const std::vector<std::string>& argv, const std::string& logPath,
+                 const PassedSockets& sockets = {})
         : logPath_(logPath) {
         pid_ = ::fork();
         if (pid_ == 0) {
@@ -35,12 +40,28 @@ public:
                 ::dup2(fileno(log), STDERR_FILENO);
                 ::dup2(fileno(log), STDOUT_FILENO);
             }
+            if (!sockets.empty()) passSockets(sockets);
             std::vector<char*> args;
             for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
             args.push_back(nullptr);
             ::execv(args[0], args.data());
             ::_exit(127);
         }
+    }
+    // In the child, before exec: first out of the way (a socket may already sit on 3 or 4),
+    // then into place.
+    static void passSockets(const PassedSockets& sockets) {
+        std::vector<int> moved;
+        for (const auto& [fd, name] : sockets) moved.push_back(::fcntl(fd, F_DUPFD, 100));
+        std::string names;
+        for (size_t i = 0; i < moved.size(); ++i) {
+            ::dup2(moved[i], 3 + int(i));
+            ::close(moved[i]);
+            names += (i ? ":" : "") + sockets[i].second;
+        }
+        ::setenv("LISTEN_FDS", std::to_string(moved.size()).c_str(), 1);
+        ::setenv("LISTEN_PID", std::to_string(::getpid()).c_str(), 1);
+        ::setenv("LISTEN_FDNAMES", names.c_str(), 1);
     }
     ~ChildProcess() {
         if (pid_ > 0 && !status_) {
