@@ -221,27 +221,12 @@ std::optional<cv::Matx44d> interpolatePose(std::span<const TimedPose> series, in
                  translationOf(a.pose) * (1 - u) + translationOf(b.pose) * u);
 }
 
-Result<FreedDelay> estimateFreedDelay(std::span<const TimedPose> worldFromCamera,
-                                      std::span<const TimedPose> stageFromBody,
-                                      const FreedDelayOptions& options) {
-    if (worldFromCamera.size() < 10)
-        return makeError(
-            "only {} tracked camera frames: the delay needs a few seconds of the "
-            "board in view while the camera pans and stops",
-            worldFromCamera.size());
-    if (stageFromBody.size() < 10)
-        return makeError(
-            "only {} FreeD packets: check that the tracker sends to this box and "
-            "[freed] camera_id matches its camera id",
-            stageFromBody.size());
-    FreedDelay delay;
-    delay.peakSpeedDegPerS = peakSpeedDegPerS(worldFromCamera);
-    if (delay.peakSpeedDegPerS < options.minPeakSpeedDegPerS)
-        return makeError(
-            "the camera hardly turned (fastest {:.1f}°/s, the delay needs {}°/s): "
-            "pan and stop the camera a few times while the board is in view",
-            delay.peakSpeedDegPerS, options.minPeakSpeedDegPerS);
+namespace {
 
+// The correlation at every delay of the search grid, k·stepMs for k in [−steps, steps].
+std::vector<double> correlationCurve(std::span<const TimedPose> worldFromCamera,
+                                     std::span<const TimedPose> stageFromBody, int steps,
+                                     double stepMs) {
     const std::vector<Interval> intervals = cameraIntervals(worldFromCamera);
     RotationSeries packets;
     packets.maxGapNs = packetGapLimitNs(stageFromBody);
@@ -249,63 +234,102 @@ Result<FreedDelay> estimateFreedDelay(std::span<const TimedPose> worldFromCamera
         packets.timesNs.push_back(p.timestampNs);
         packets.rotations.push_back(quaternionOf(rotationOf(p.pose)));
     }
-
-    const int steps = int(std::lround(options.searchMs / options.stepMs));
     std::vector<double> corr(size_t(2 * steps + 1));
     for (int k = -steps; k <= steps; ++k)
-        corr[size_t(k + steps)] =
-            correlationAt(intervals, packets, std::llround(k * options.stepMs * 1e6));
+        corr[size_t(k + steps)] = correlationAt(intervals, packets, std::llround(k * stepMs * 1e6));
+    return corr;
+}
+
+// Another local maximum nearly as high as the peak, with a real valley between them, means two
+// delays fit (a motion repeated at a regular beat); bumps on the peak's own slope from tracking
+// noise have no such valley. Returns the rival's index, or nothing.
+std::optional<size_t> rivalPeak(const std::vector<double>& corr, size_t best, double margin) {
+    for (size_t i = 1; i + 1 < corr.size(); ++i) {
+        if (i == best || std::isnan(corr[i]) || corr[i] < corr[i - 1] || corr[i] < corr[i + 1] ||
+            corr[i] <= corr[best] - margin)
+            continue;
+        double valley = corr[i];
+        for (size_t k = std::min(i, best); k <= std::max(i, best); ++k)
+            if (!std::isnan(corr[k])) valley = std::min(valley, corr[k]);
+        if (corr[i] - valley >= margin) return i;
+    }
+    return std::nullopt;
+}
+
+// The checks a usable peak passes, each failure saying what to do; the peak's index if all pass.
+Result<size_t> distinctPeak(const std::vector<double>& corr, const FreedDelayOptions& options) {
+    const double steps = double(corr.size() / 2);
     size_t best = corr.size();
     for (size_t i = 0; i < corr.size(); ++i)
         if (!std::isnan(corr[i]) && (best == corr.size() || corr[i] > corr[best])) best = i;
     if (best == corr.size())
         return makeError(
-            "the FreeD packets do not cover the tracked frames at any delay within "
-            "±{} ms: were they recorded during the same take?",
+            "the FreeD packets do not cover the tracked frames at any delay within ±{} ms: "
+            "were they recorded during the same take?",
             options.searchMs);
     const double peak = corr[best];
     if (best == 0 || best + 1 == corr.size() || std::isnan(corr[best - 1]) ||
         std::isnan(corr[best + 1]))
         return makeError(
-            "the best match ({:.2f}) lies at the edge of the ±{} ms search: the "
-            "packets and the frames are further apart in time than that, or belong "
-            "to different cameras",
+            "the best match ({:.2f}) lies at the edge of the ±{} ms search: the packets and the "
+            "frames are further apart in time than that, or belong to different cameras",
             peak, options.searchMs);
     if (peak < options.minCorrelation)
         return makeError(
-            "the tracker's motion and the camera's do not match (correlation "
-            "{:.2f}, needs {}): check [freed] camera_id, and that the board stayed "
-            "in view while the camera panned and stopped",
+            "the tracker's motion and the camera's do not match (correlation {:.2f}, needs {}): "
+            "check the FreeD camera id, and that the board stayed in view while the camera "
+            "panned and stopped",
             peak, options.minCorrelation);
-    // Another local maximum nearly as high, with a real valley between it and the peak, means
-    // two delays fit (a motion repeated at a regular beat). Bumps on the peak's own slope from
-    // tracking noise have no such valley.
-    for (size_t i = 1; i + 1 < corr.size(); ++i) {
-        if (i == best || std::isnan(corr[i]) || corr[i] < corr[i - 1] || corr[i] < corr[i + 1] ||
-            corr[i] <= peak - options.minPeakMargin)
-            continue;
-        double valley = corr[i];
-        for (size_t k = std::min(i, best); k <= std::max(i, best); ++k)
-            if (!std::isnan(corr[k])) valley = std::min(valley, corr[k]);
-        if (corr[i] - valley >= options.minPeakMargin)
-            return makeError(
-                "two delays fit almost equally ({:.0f} ms: {:.3f}, {:.0f} ms: "
-                "{:.3f}): pan and stop at irregular moments, not to a beat",
-                (double(best) - steps) * options.stepMs, peak, (double(i) - steps) * options.stepMs,
-                corr[i]);
-    }
+    if (std::optional<size_t> rival = rivalPeak(corr, best, options.minPeakMargin))
+        return makeError(
+            "two delays fit almost equally ({:.0f} ms: {:.3f}, {:.0f} ms: {:.3f}): pan and stop "
+            "at irregular moments, not to a beat",
+            (double(best) - steps) * options.stepMs, peak,
+            (double(*rival) - steps) * options.stepMs, corr[*rival]);
+    return best;
+}
+
+}  // namespace
+
+Result<FreedDelay> estimateFreedDelay(std::span<const TimedPose> worldFromCamera,
+                                      std::span<const TimedPose> stageFromBody,
+                                      const FreedDelayOptions& options) {
+    if (worldFromCamera.size() < 10)
+        return makeError(
+            "only {} tracked camera frames: the delay needs a few seconds of the board in view "
+            "while the camera pans and stops",
+            worldFromCamera.size());
+    if (stageFromBody.size() < 10)
+        return makeError(
+            "only {} FreeD packets: check that the tracker sends to this box and that the "
+            "camera id is its",
+            stageFromBody.size());
+    FreedDelay delay;
+    delay.peakSpeedDegPerS = peakSpeedDegPerS(worldFromCamera);
+    if (delay.peakSpeedDegPerS < options.minPeakSpeedDegPerS)
+        return makeError(
+            "the camera hardly turned (fastest {:.1f}°/s, the delay needs {}°/s): pan and stop "
+            "the camera a few times while the board is in view",
+            delay.peakSpeedDegPerS, options.minPeakSpeedDegPerS);
+
+    const int steps = int(std::lround(options.searchMs / options.stepMs));
+    const std::vector<double> corr =
+        correlationCurve(worldFromCamera, stageFromBody, steps, options.stepMs);
+    Result<size_t> best = distinctPeak(corr, options);
+    if (!best) return best.error();
     // A parabola through the peak and its neighbours puts it between grid points.
-    const double a = corr[best - 1], b = corr[best], c = corr[best + 1];
+    const double a = corr[*best - 1], b = corr[*best], c = corr[*best + 1];
     const double denom = a - 2 * b + c;
     const double offset = denom < 0 ? std::clamp(0.5 * (a - c) / denom, -0.5, 0.5) : 0.0;
-    delay.delayMs = (double(best) - steps + offset) * options.stepMs;
-    delay.correlation = peak;
+    delay.delayMs = (double(*best) - steps + offset) * options.stepMs;
+    delay.correlation = b;
     return delay;
 }
 
 namespace {
 
 struct PosePair {
+    int64_t timestampNs = 0;  // the camera frame's
     cv::Matx44d worldFromCamera;
     cv::Matx44d stageFromBody;
 };
@@ -439,68 +463,49 @@ std::vector<double> whitenedResiduals(const FreedCalibration& c, const std::vect
     return out;
 }
 
-// Gauss–Newton on both transforms together from the closed-form start (which solves rotation
-// and translation one after the other), then the 1σ uncertainty of the mount offset from the
-// covariance (JᵀJ)⁻¹·s², s² the residual variance: large along an axis the camera never turned
-// about, since an offset along the turn axis moves the lens the same in every frame.
-FreedCalibration refine(const FreedCalibration& start, const std::vector<PosePair>& pairs,
-                        cv::Vec3d& worstOffsetAxis) {
-    double sumM2 = 0, sumRad2 = 0;
-    for (const PosePair& p : pairs) {
-        const Residual r = residualOf(start, p);
-        sumM2 += r.positionMm * r.positionMm * 1e-6;
-        sumRad2 += r.rotationDeg * r.rotationDeg / (kDegPerRad * kDegPerRad);
-    }
-    const double n = double(pairs.size());
-    // Per-axis noise of each, floored so exact data do not divide by zero.
-    const double sigmaM = std::max(std::sqrt(sumM2 / (3 * n)), 1e-6);
-    const double sigmaRad = std::max(std::sqrt(sumRad2 / (3 * n)), 1e-6);
-
-    FreedCalibration c = start;
+// JᵀJ, Jᵀr and χ² = |r|² of the whitened residuals at `c` (J by central differences).
+struct NormalEquations {
     cv::Matx<double, 12, 12> jtj;
+    cv::Matx<double, 12, 1> jtr;
     double chi2 = 0;
-    for (int iteration = 0; iteration < 6; ++iteration) {
-        const std::vector<double> r0 = whitenedResiduals(c, pairs, sigmaM, sigmaRad);
-        std::vector<std::vector<double>> columns(12);
-        for (int k = 0; k < 12; ++k) {
-            constexpr double kStep = 1e-6;  // rad or m: far below the noise, far above rounding
-            Params d;
-            d[k] = kStep;
-            const std::vector<double> plus =
-                whitenedResiduals(perturbed(c, d), pairs, sigmaM, sigmaRad);
-            d[k] = -kStep;
-            const std::vector<double> minus =
-                whitenedResiduals(perturbed(c, d), pairs, sigmaM, sigmaRad);
-            columns[size_t(k)].resize(r0.size());
-            for (size_t i = 0; i < r0.size(); ++i)
-                columns[size_t(k)][i] = (plus[i] - minus[i]) / (2 * kStep);
-        }
-        cv::Matx<double, 12, 1> jtr;
-        jtj = cv::Matx<double, 12, 12>::zeros();
-        chi2 = 0;
-        for (size_t i = 0; i < r0.size(); ++i) {
-            chi2 += r0[i] * r0[i];
-            for (int a = 0; a < 12; ++a) {
-                jtr(a) += columns[size_t(a)][i] * r0[i];
-                for (int b = 0; b < 12; ++b)
-                    jtj(a, b) += columns[size_t(a)][i] * columns[size_t(b)][i];
-            }
-        }
-        cv::Matx<double, 12, 1> step;
-        if (!cv::solve(jtj, -jtr, step, cv::DECOMP_SVD)) break;
+};
+
+NormalEquations normalEquations(const FreedCalibration& c, const std::vector<PosePair>& pairs,
+                                double sigmaM, double sigmaRad) {
+    constexpr double kStep = 1e-6;  // rad or m: far below the noise, far above rounding
+    const std::vector<double> r0 = whitenedResiduals(c, pairs, sigmaM, sigmaRad);
+    std::vector<std::vector<double>> columns(12, std::vector<double>(r0.size()));
+    for (int k = 0; k < 12; ++k) {
         Params d;
-        for (int k = 0; k < 12; ++k) d[k] = step(k);
-        const FreedCalibration next = perturbed(c, d);
-        double nextChi2 = 0;
-        for (double v : whitenedResiduals(next, pairs, sigmaM, sigmaRad)) nextChi2 += v * v;
-        if (nextChi2 >= chi2) break;
-        c = next;
-        if (chi2 - nextChi2 < 1e-9 * chi2) break;
+        d[k] = kStep;
+        const std::vector<double> plus =
+            whitenedResiduals(perturbed(c, d), pairs, sigmaM, sigmaRad);
+        d[k] = -kStep;
+        const std::vector<double> minus =
+            whitenedResiduals(perturbed(c, d), pairs, sigmaM, sigmaRad);
+        for (size_t i = 0; i < r0.size(); ++i)
+            columns[size_t(k)][i] = (plus[i] - minus[i]) / (2 * kStep);
     }
-    // s² rescales the assumed noise to the one the fit leaves.
-    const double s2 = chi2 / std::max(1.0, 6 * n - 12);
+    NormalEquations out;
+    for (size_t i = 0; i < r0.size(); ++i) {
+        out.chi2 += r0[i] * r0[i];
+        for (int a = 0; a < 12; ++a) {
+            out.jtr(a) += columns[size_t(a)][i] * r0[i];
+            for (int b = 0; b < 12; ++b)
+                out.jtj(a, b) += columns[size_t(a)][i] * columns[size_t(b)][i];
+        }
+    }
+    return out;
+}
+
+// The mount's 1σ in its worst direction from the covariance (JᵀJ)⁻¹·s², s² the residual variance
+// per degree of freedom (it rescales the assumed noise to the one the fit leaves). Large along an
+// axis the camera never turned about: an offset along the turn axis moves the lens the same in
+// every frame. Returns that worst direction of the offset (camera axes).
+cv::Vec3d setMountUncertainty(FreedCalibration& c, const NormalEquations& normal, size_t pairs) {
+    const double s2 = normal.chi2 / std::max(1.0, 6.0 * double(pairs) - 12);
     cv::Matx<double, 12, 12> covariance;
-    cv::invert(jtj, covariance, cv::DECOMP_SVD);
+    cv::invert(normal.jtj, covariance, cv::DECOMP_SVD);
     covariance *= s2;
     cv::Matx33d offset, turn;
     for (int a = 0; a < 3; ++a) {
@@ -511,55 +516,132 @@ FreedCalibration refine(const FreedCalibration& start, const std::vector<PosePai
     }
     cv::Matx31d values;
     cv::Matx33d vectors;
-    cv::eigen(offset, values, vectors);
-    worstOffsetAxis = cv::Vec3d(vectors(0, 0), vectors(0, 1), vectors(0, 2));
-    c.mountSigmaMm = std::sqrt(std::max(0.0, values(0))) * 1000.0;
-    cv::eigen(turn, values, vectors);
+    cv::eigen(turn, values, vectors);  // descending
     c.mountSigmaDeg = std::sqrt(std::max(0.0, values(0))) * kDegPerRad;
-    return c;
+    cv::eigen(offset, values, vectors);
+    c.mountSigmaMm = std::sqrt(std::max(0.0, values(0))) * 1000.0;
+    return {vectors(0, 0), vectors(0, 1), vectors(0, 2)};
+}
+
+// The per-axis noise of positions (m) and rotations (rad) the residuals of `c` show, floored so
+// exact data do not divide by zero.
+struct Noise {
+    double sigmaM = 1e-6, sigmaRad = 1e-6;
+};
+
+Noise noiseOf(const FreedCalibration& c, const std::vector<PosePair>& pairs) {
+    double sumM2 = 0, sumRad2 = 0;
+    for (const PosePair& p : pairs) {
+        const Residual r = residualOf(c, p);
+        sumM2 += r.positionMm * r.positionMm * 1e-6;
+        sumRad2 += r.rotationDeg * r.rotationDeg / (kDegPerRad * kDegPerRad);
+    }
+    const double n = 3.0 * double(pairs.size());
+    return {std::max(std::sqrt(sumM2 / n), 1e-6), std::max(std::sqrt(sumRad2 / n), 1e-6)};
+}
+
+struct Refined {
+    FreedCalibration calibration;
+    NormalEquations normal;  // at the solution
+};
+
+// Gauss–Newton on both transforms together from the closed-form start, which solves rotation
+// and translation one after the other and so does not weigh the two against each other.
+Refined refine(const FreedCalibration& start, const std::vector<PosePair>& pairs, Noise noise) {
+    Refined r{start, normalEquations(start, pairs, noise.sigmaM, noise.sigmaRad)};
+    for (int iteration = 0; iteration < 6; ++iteration) {
+        cv::Matx<double, 12, 1> step;
+        if (!cv::solve(r.normal.jtj, -r.normal.jtr, step, cv::DECOMP_SVD)) break;
+        const FreedCalibration next = perturbed(r.calibration, Params(step.val));
+        const NormalEquations nextNormal =
+            normalEquations(next, pairs, noise.sigmaM, noise.sigmaRad);
+        if (nextNormal.chi2 >= r.normal.chi2) break;
+        const bool converged = r.normal.chi2 - nextNormal.chi2 < 1e-9 * r.normal.chi2;
+        r = {next, nextNormal};
+        if (converged) break;
+    }
+    return r;
+}
+
+// The delay that fits the poses best, near the correlation's: χ² of the refined fit at delays
+// 1 ms apart over ±8 ms (the profile likelihood of the delay), a parabola through the lowest
+// and its neighbours. The full poses time the two series far better than the rotation speed
+// alone: a 1 ms error shows as 0.05° at 50°/s in every moving frame. Nothing when the lowest
+// lies at the edge (the correlation's delay is then kept). `sigmaMs` gets the curve's 1σ.
+std::optional<double> bestFitDelay(const std::vector<PosePair>& kept,
+                                   std::span<const TimedPose> stageFromBody, double delayMs,
+                                   const FreedCalibration& start, Noise noise, size_t dof,
+                                   double& sigmaMs) {
+    constexpr int kSteps = 8;
+    const int64_t maxGapNs = packetGapLimitNs(stageFromBody);
+    std::vector<double> chi2;
+    for (int k = -kSteps; k <= kSteps; ++k) {
+        const int64_t shiftNs = std::llround((delayMs + k) * 1e6);
+        std::vector<PosePair> pairs;
+        for (const PosePair& p : kept) {
+            std::optional<cv::Matx44d> body =
+                interpolatePose(stageFromBody, p.timestampNs + shiftNs, maxGapNs);
+            if (!body) return std::nullopt;  // the same frames at every delay, or no comparison
+            pairs.push_back({p.timestampNs, p.worldFromCamera, *body});
+        }
+        chi2.push_back(refine(start, pairs, noise).normal.chi2);
+    }
+    const size_t best = size_t(std::min_element(chi2.begin(), chi2.end()) - chi2.begin());
+    if (best == 0 || best + 1 == chi2.size()) return std::nullopt;
+    const double a = chi2[best - 1], b = chi2[best], c = chi2[best + 1];
+    const double curvature = a - 2 * b + c;  // per ms²
+    if (curvature <= 0) return std::nullopt;
+    // χ² rises by s² (the residual variance per degree of freedom) at 1σ: Δ = ½·curvature·σ².
+    const double s2 = b / double(std::max<size_t>(1, dof));
+    sigmaMs = std::sqrt(2 * s2 / curvature);
+    return delayMs + double(best) - kSteps + std::clamp(0.5 * (a - c) / curvature, -0.5, 0.5);
 }
 
 }  // namespace
 
-Result<FreedCalibration> solveFreedCalibration(std::span<const TimedPose> worldFromCamera,
-                                               std::span<const TimedPose> stageFromBody,
-                                               const FreedDelay& delay,
-                                               const FreedSolveOptions& options) {
-    const int64_t delayNs = std::llround(delay.delayMs * 1e6);
+namespace {
+
+constexpr size_t kMinPairs = 10;
+
+// Each tracked frame with the packet series read at its time + delay, thinned to `maxSamples`.
+std::vector<PosePair> pairsAtDelay(std::span<const TimedPose> worldFromCamera,
+                                   std::span<const TimedPose> stageFromBody, double delayMs,
+                                   size_t maxSamples) {
+    const int64_t delayNs = std::llround(delayMs * 1e6);
     const int64_t maxGapNs = packetGapLimitNs(stageFromBody);
     std::vector<PosePair> all;
     for (const TimedPose& camera : worldFromCamera) {
         std::optional<cv::Matx44d> body =
             interpolatePose(stageFromBody, camera.timestampNs + delayNs, maxGapNs);
-        if (body) all.push_back({camera.pose, *body});
+        if (body) all.push_back({camera.timestampNs, camera.pose, *body});
     }
-    constexpr size_t kMinPairs = 10;
-    if (all.size() < kMinPairs)
-        return makeError(
-            "only {} tracked frames have FreeD packets around them (needs {}): "
-            "record the board in view while the tracker sends",
-            all.size(), kMinPairs);
+    const size_t stride = std::max<size_t>(1, (all.size() + maxSamples - 1) / maxSamples);
     std::vector<PosePair> pairs;
-    const size_t stride = (all.size() + options.maxSamples - 1) / options.maxSamples;
     for (size_t i = 0; i < all.size(); i += stride) pairs.push_back(all[i]);
+    return pairs;
+}
 
+Status checkTurnAxes(const std::vector<PosePair>& pairs, double minSpreadDeg) {
     const AxisSpread spread = axisSpread(pairs);
     if (spread.turns == 0)
         return makeError(
-            "the camera never turned by more than 3° while the board was in view: "
-            "pan and tilt it by 20° or more each way");
-    if (spread.spreadDeg < options.minAxisSpreadDeg)
-        return makeError(
-            "the camera turned about one axis only ({}; the turns spread {:.1f}° "
-            "about it, {}° needed): the mount offset along that axis cannot be "
-            "measured. Record again adding {} of 20° or more each way (and rolls "
-            "on a remote head that can)",
-            motionName(spread.mainAxis), spread.spreadDeg, options.minAxisSpreadDeg,
-            std::string(motionName(spread.mainAxis)) == "tilting" ? "pans" : "tilts");
+            "the camera never turned by more than 3° while the board was in view: pan and tilt "
+            "it by 20° or more each way");
+    if (spread.spreadDeg >= minSpreadDeg) return {};
+    const std::string motion = motionName(spread.mainAxis);
+    return makeError(
+        "the camera turned about one axis only ({}; the turns spread {:.1f}° about it, {}° "
+        "needed): the mount offset along that axis cannot be measured. Record again adding {} "
+        "of 20° or more each way (and rolls on a remote head that can)",
+        motion, spread.spreadDeg, minSpreadDeg, motion == "tilting" ? "pans" : "tilts");
+}
 
-    // Solve, leave out the pairs far from the solution (a mis-tracked frame, a dropped packet
-    // bridged by interpolation), solve again until none is left out.
-    std::vector<PosePair> kept = pairs;
+// Solves, leaves out the pairs far from the solution (a mis-tracked frame, a dropped packet
+// bridged by interpolation) and solves again until none is left out. `kept` gets the inliers.
+Result<FreedCalibration> solveRobust(const std::vector<PosePair>& pairs,
+                                     const FreedSolveOptions& options,
+                                     std::vector<PosePair>& kept) {
+    kept = pairs;
     Result<FreedCalibration> solution = solveHandEye(kept);
     for (int round = 0; round < 4 && solution; ++round) {
         std::vector<double> positions, rotations;
@@ -577,31 +659,36 @@ Result<FreedCalibration> solveFreedCalibration(std::span<const TimedPose> worldF
         if (inliers.size() == kept.size()) break;
         if (inliers.size() < kMinPairs)
             return makeError(
-                "only {} of {} frames agree with one mount offset: the tracker and "
-                "the tag tracking disagree; check the board file's tag size and "
-                "that the tracker is fixed to the camera",
+                "only {} of {} frames agree with one mount offset: the tracker and the tag "
+                "tracking disagree; check the board file's tag size and that the tracker is "
+                "fixed to the camera",
                 inliers.size(), pairs.size());
         kept = std::move(inliers);
         solution = solveHandEye(kept);
     }
-    if (!solution) return solution;
-    cv::Vec3d worstAxis;
-    FreedCalibration c = refine(*solution, kept, worstAxis);
-    if (c.mountSigmaMm > options.maxMountSigmaMm || c.mountSigmaDeg > options.maxMountSigmaDeg) {
-        // The offset is unknown along the axis the camera kept turning about.
-        const char* motion = motionName(worstAxis);
-        return makeError(
-            "the mount offset is uncertain by ±{:.1f} mm and ±{:.2f}° (1σ; needs "
-            "≤ {} mm, {}°), most along the camera's {} axis: the camera turned "
-            "mostly about that axis. Record again adding {} of 20° or more each way",
-            c.mountSigmaMm, c.mountSigmaDeg, options.maxMountSigmaMm, options.maxMountSigmaDeg,
-            std::string(motion) == "panning"   ? "vertical"
-            : std::string(motion) == "tilting" ? "horizontal"
-                                               : "viewing",
-            std::string(motion) == "panning"   ? "tilts"
-            : std::string(motion) == "tilting" ? "pans"
-                                               : "pans and tilts");
-    }
+    return solution;
+}
+
+// The offset is unknown along the axis the camera kept turning about: name it and the motion
+// that would pin it.
+Error uncertainMountError(const FreedCalibration& c, const cv::Vec3d& worstAxis,
+                          const FreedSolveOptions& options) {
+    const std::string motion = motionName(worstAxis);
+    const bool pan = motion == "panning", tilt = motion == "tilting";
+    return makeError(
+        "the mount offset is uncertain by ±{:.1f} mm and ±{:.2f}° (1σ; needs ≤ {} mm, {}°), most "
+        "along the camera's {} axis: the camera turned mostly about that axis. Record again "
+        "adding {} of 20° or more each way",
+        c.mountSigmaMm, c.mountSigmaDeg, options.maxMountSigmaMm, options.maxMountSigmaDeg,
+        pan    ? "vertical"
+        : tilt ? "horizontal"
+               : "viewing",
+        pan    ? "tilts"
+        : tilt ? "pans"
+               : "pans and tilts");
+}
+
+void setResiduals(FreedCalibration& c, const std::vector<PosePair>& kept) {
     double sumMm2 = 0, sumDeg2 = 0;
     for (const PosePair& p : kept) {
         const Residual r = residualOf(c, p);
@@ -611,8 +698,45 @@ Result<FreedCalibration> solveFreedCalibration(std::span<const TimedPose> worldF
     c.rmsPositionMm = std::sqrt(sumMm2 / double(kept.size()));
     c.rmsRotationDeg = std::sqrt(sumDeg2 / double(kept.size()));
     c.samples = int(kept.size());
+}
+
+}  // namespace
+
+Result<FreedCalibration> solveFreedCalibration(std::span<const TimedPose> worldFromCamera,
+                                               std::span<const TimedPose> stageFromBody,
+                                               const FreedDelay& delay,
+                                               const FreedSolveOptions& options) {
+    std::vector<PosePair> pairs =
+        pairsAtDelay(worldFromCamera, stageFromBody, delay.delayMs, options.maxSamples);
+    if (pairs.size() < kMinPairs)
+        return makeError(
+            "only {} tracked frames have FreeD packets around them (needs {}): record the board "
+            "in view while the tracker sends",
+            pairs.size(), kMinPairs);
+    if (Status s = checkTurnAxes(pairs, options.minAxisSpreadDeg); !s) return s.error();
+    std::vector<PosePair> kept;
+    Result<FreedCalibration> solution = solveRobust(pairs, options, kept);
+    if (!solution) return solution;
+    // The delay refined on the full poses, then the pairs and the fit again at it.
+    const Noise noise = noiseOf(*solution, kept);
+    double delayMs = delay.delayMs, delaySigmaMs = 0;
+    const FreedCalibration start = refine(*solution, kept, noise).calibration;
+    if (std::optional<double> fit = bestFitDelay(kept, stageFromBody, delay.delayMs, start, noise,
+                                                 6 * kept.size() - 12, delaySigmaMs)) {
+        delayMs = *fit;
+        pairs = pairsAtDelay(worldFromCamera, stageFromBody, delayMs, options.maxSamples);
+        solution = solveRobust(pairs, options, kept);
+        if (!solution) return solution;
+    }
+    const Refined refined = refine(*solution, kept, noiseOf(*solution, kept));
+    FreedCalibration c = refined.calibration;
+    const cv::Vec3d worstAxis = setMountUncertainty(c, refined.normal, kept.size());
+    if (c.mountSigmaMm > options.maxMountSigmaMm || c.mountSigmaDeg > options.maxMountSigmaDeg)
+        return uncertainMountError(c, worstAxis, options);
+    c.delaySigmaMs = delaySigmaMs;
+    setResiduals(c, kept);
     c.rejected = int(pairs.size() - kept.size());
-    c.delayMs = delay.delayMs;
+    c.delayMs = delayMs;
     c.delayCorrelation = delay.correlation;
     return c;
 }
@@ -669,6 +793,7 @@ Status writeFreedCalibration(const std::string& path, const FreedCalibration& c)
         "version = {}\n"
         "created = \"{}\"\n"
         "delay_ms = {}\n"
+        "delay_sigma_ms = {}\n"
         "delay_correlation = {}\n"
         "world_from_stage = {}\n"
         "body_from_camera = {}\n"
@@ -678,9 +803,9 @@ Status writeFreedCalibration(const std::string& path, const FreedCalibration& c)
         "mount_sigma_deg = {}\n"
         "samples = {}\n"
         "rejected = {}\n",
-        kFormat, kVersion, c.created.empty() ? utcNow() : c.created, c.delayMs, c.delayCorrelation,
-        matrixText(c.worldFromStage), matrixText(c.bodyFromCamera), c.rmsPositionMm,
-        c.rmsRotationDeg, c.mountSigmaMm, c.mountSigmaDeg, c.samples, c.rejected);
+        kFormat, kVersion, c.created.empty() ? utcNow() : c.created, c.delayMs, c.delaySigmaMs,
+        c.delayCorrelation, matrixText(c.worldFromStage), matrixText(c.bodyFromCamera),
+        c.rmsPositionMm, c.rmsRotationDeg, c.mountSigmaMm, c.mountSigmaDeg, c.samples, c.rejected);
     // Written beside and renamed over, so a reader never sees half a file.
     const std::string tmp = path + ".tmp";
     {
@@ -706,9 +831,9 @@ Result<FreedCalibration> loadFreedCalibration(const std::string& path) {
     const TomlReader r(path, kWhat);
     if (Status s = r.checkKeys(
             root, "",
-            {"format", "version", "created", "delay_ms", "delay_correlation", "world_from_stage",
-             "body_from_camera", "rms_position_mm", "rms_rotation_deg", "mount_sigma_mm",
-             "mount_sigma_deg", "samples", "rejected"});
+            {"format", "version", "created", "delay_ms", "delay_sigma_ms", "delay_correlation",
+             "world_from_stage", "body_from_camera", "rms_position_mm", "rms_rotation_deg",
+             "mount_sigma_mm", "mount_sigma_deg", "samples", "rejected"});
         !s)
         return s.error();
     Result<std::optional<std::string>> format = r.string(root, "", "format");
@@ -729,6 +854,8 @@ Result<FreedCalibration> loadFreedCalibration(const std::string& path) {
     c.created = created->value_or("");
     if (!root.contains("delay_ms")) return r.fail(&root, "'delay_ms' is missing");
     if (Status s = r.numberIn(root, "", "delay_ms", c.delayMs, -10'000.0, 10'000.0); !s)
+        return s.error();
+    if (Status s = r.numberIn(root, "", "delay_sigma_ms", c.delaySigmaMs, 0.0, 10'000.0); !s)
         return s.error();
     if (Status s = r.numberIn(root, "", "delay_correlation", c.delayCorrelation, -1.0, 1.0); !s)
         return s.error();
@@ -811,6 +938,11 @@ Result<FreedRecording> loadFreedRecording(const std::string& path,
                 "damaged; record the take again)",
                 path, lineNo);
         const FreedParse parse = decodeFreed(bytes, cameraId);
+        if (parse.ok() || parse.error == FreedError::OtherCamera) {
+            const uint8_t id = bytes[1];
+            auto at = std::lower_bound(out.cameraIds.begin(), out.cameraIds.end(), id);
+            if (at == out.cameraIds.end() || *at != id) out.cameraIds.insert(at, id);
+        }
         if (parse.error == FreedError::OtherCamera) continue;
         if (!parse.ok()) {
             ++out.rejected;

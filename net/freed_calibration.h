@@ -39,6 +39,8 @@ struct FreedCalibration {
     // Receipt time of a packet minus the capture time of the frame showing the same instant: the
     // pose of the frame captured at t is the packet series read at t + delayMs.
     double delayMs = 0;
+    // Its 1σ from the fit of the poses (0 when the fit could not refine the correlation's).
+    double delaySigmaMs = 0;
     // The normalised cross-correlation of the two rotation speeds at the delay (1 = identical).
     double delayCorrelation = 0;
     // RMS over the samples kept of (calibrated FreeD pose vs the tag-tracked pose).
@@ -104,8 +106,9 @@ struct FreedSolveOptions {
     double maxMountSigmaDeg = 0.5;
 };
 
-// worldFromStage and bodyFromCamera (OpenCV's calibrateRobotWorldHandEye) from the frames of
-// `worldFromCamera`, each paired with the packet series read at its time + delay.delayMs.
+// worldFromStage and bodyFromCamera (OpenCV's calibrateRobotWorldHandEye, then refined together)
+// from the frames of `worldFromCamera`, each paired with the packet series read at its time +
+// delay; the delay itself is refined to the one the poses fit best, near delay.delayMs.
 Result<FreedCalibration> solveFreedCalibration(std::span<const TimedPose> worldFromCamera,
                                                std::span<const TimedPose> stageFromBody,
                                                const FreedDelay& delay,
@@ -123,6 +126,7 @@ std::string freedRecordingLine(int64_t receivedNs, std::span<const uint8_t> data
 struct FreedRecording {
     std::vector<TimedPose> stageFromBody;  // worldFromFreed of each valid packet, by time
     size_t rejected = 0;                   // datagrams decodeFreed refused (size, checksum...)
+    std::vector<uint8_t> cameraIds;        // the camera ids seen, ascending
 };
 // Reads freed.csv; packets of other cameras are skipped when `cameraId` is set. A malformed line
 // is an error naming the file and the line.

@@ -228,14 +228,21 @@ TEST(FreedCalibration, RecoversDelayAndMountOffsetFromDemoTake) {
         const double stageErrDeg =
             angleDeg(rotationOf(c->worldFromStage), rotationOf(rig.worldFromStage));
         fmt::print(
-            "seed {}: delay {:.2f} ms (corr {:.3f}); mount offset error {:.2f} mm {:.3f}° "
+            "seed {}: delay {:.2f} ms (corr {:.3f}), fitted {:.2f} ± {:.2f} ms; mount offset error "
+            "{:.2f} mm {:.3f}° "
             "(σ {:.2f} mm {:.3f}°); stage error {:.1f} mm {:.3f}°; residual {:.2f} mm {:.3f}° "
             "over {} pairs (+{} rejected)\n",
-            seed, delay->delayMs, delay->correlation, offsetErrMm, mountErrDeg, c->mountSigmaMm,
-            c->mountSigmaDeg, stageErrMm, stageErrDeg, c->rmsPositionMm, c->rmsRotationDeg,
-            c->samples, c->rejected);
+            seed, delay->delayMs, delay->correlation, c->delayMs, c->delaySigmaMs, offsetErrMm,
+            mountErrDeg, c->mountSigmaMm, c->mountSigmaDeg, stageErrMm, stageErrDeg,
+            c->rmsPositionMm, c->rmsRotationDeg, c->samples, c->rejected);
         EXPECT_NEAR(delay->delayMs, rig.delayMs, delayToleranceMs);
         EXPECT_GT(delay->correlation, 0.95);
+        // The delay the poses fit best: within 4 of its own σ (the solver's, from the curvature
+        // of the fit) of the true one plus the jitter's bias, and far tighter than the speeds'.
+        ASSERT_GT(c->delaySigmaMs, 0.0);
+        EXPECT_LT(c->delaySigmaMs, sigmaMs);
+        EXPECT_NEAR(c->delayMs, rig.delayMs + rig.jitterMs * std::sqrt(2 / M_PI),
+                    4 * c->delaySigmaMs + 0.1);
         // The residuals are the pair noise (3 axes) less what the 12 fitted parameters absorb.
         EXPECT_NEAR(c->rmsPositionMm, std::sqrt(3.0) * pairPositionMm,
                     0.35 * std::sqrt(3.0) * pairPositionMm);
@@ -328,6 +335,7 @@ FreedCalibration exampleCalibration() {
     c.worldFromStage = rig.worldFromStage;
     c.bodyFromCamera = rig.bodyFromCamera;
     c.delayMs = 47.25;
+    c.delaySigmaMs = 0.21;
     c.delayCorrelation = 0.998;
     c.rmsPositionMm = 1.1;
     c.rmsRotationDeg = 0.06;
@@ -354,6 +362,7 @@ TEST(FreedCalibration, FileRoundTripsExactly) {
         EXPECT_EQ(back->bodyFromCamera.val[i], c.bodyFromCamera.val[i]);
     }
     EXPECT_EQ(back->delayMs, c.delayMs);
+    EXPECT_EQ(back->delaySigmaMs, c.delaySigmaMs);
     EXPECT_EQ(back->delayCorrelation, c.delayCorrelation);
     EXPECT_EQ(back->rmsPositionMm, c.rmsPositionMm);
     EXPECT_EQ(back->rmsRotationDeg, c.rmsRotationDeg);
@@ -387,7 +396,7 @@ TEST(FreedCalibration, FileErrorsNameFileLineAndKey) {
         {"short_matrix.toml", replaced("world_from_stage = [", "world_from_stage = [1, "),
          "world_from_stage"},
         {"not_rigid.toml", replaced("body_from_camera = [", "body_from_camera = [2"),
-         "line 12: 'body_from_camera' is not a rigid transform"},
+         "line 13: 'body_from_camera' is not a rigid transform"},
         {"future.toml", replaced("version = 1", "version = 2"), "update previs"},
         {"wrong_format.toml", replaced("previs-freed-calibration", "previs-session"),
          "'format' is 'previs-session'"},
@@ -425,6 +434,7 @@ TEST(FreedCalibration, RecordingLinesReadBack) {
     ASSERT_EQ(r->stageFromBody.size(), 1u);  // camera 3 skipped, the cut last line ignored
     EXPECT_EQ(r->stageFromBody[0].timestampNs, 123456789);
     EXPECT_EQ(r->rejected, 1u);  // the bad checksum
+    EXPECT_EQ(r->cameraIds, (std::vector<uint8_t>{3, 7}));
     const FreedParse parse = decodeFreed(bytes, 7);
     EXPECT_EQ(r->stageFromBody[0].pose, worldFromFreed(parse.packet));
 
