@@ -205,6 +205,15 @@ cv::Matx44d applyFreedCalibration(const FreedCalibration& calibration,
     return calibration.worldFromStage * stageFromBody * calibration.bodyFromCamera;
 }
 
+std::optional<cv::Matx44d> freedWorldFromCamera(const FreedCalibration& calibration,
+                                                std::span<const TimedPose> stageFromBody,
+                                                int64_t frameNs, int64_t maxGapNs) {
+    std::optional<cv::Matx44d> body =
+        interpolatePose(stageFromBody, frameNs + std::llround(calibration.delayMs * 1e6), maxGapNs);
+    if (!body) return std::nullopt;
+    return applyFreedCalibration(calibration, *body);
+}
+
 std::optional<cv::Matx44d> interpolatePose(std::span<const TimedPose> series, int64_t timestampNs,
                                            int64_t maxGapNs) {
     const size_t hi = firstAtOrAfter(series, timestampNs);
@@ -547,9 +556,10 @@ struct Refined {
 
 // Gauss–Newton on both transforms together from the closed-form start, which solves rotation
 // and translation one after the other and so does not weigh the two against each other.
-Refined refine(const FreedCalibration& start, const std::vector<PosePair>& pairs, Noise noise) {
+Refined refine(const FreedCalibration& start, const std::vector<PosePair>& pairs, Noise noise,
+               int maxIterations = 6) {
     Refined r{start, normalEquations(start, pairs, noise.sigmaM, noise.sigmaRad)};
-    for (int iteration = 0; iteration < 6; ++iteration) {
+    for (int iteration = 0; iteration < maxIterations; ++iteration) {
         cv::Matx<double, 12, 1> step;
         if (!cv::solve(r.normal.jtj, -r.normal.jtr, step, cv::DECOMP_SVD)) break;
         const FreedCalibration next = perturbed(r.calibration, Params(step.val));
@@ -584,7 +594,9 @@ std::optional<double> bestFitDelay(const std::vector<PosePair>& kept,
             if (!body) return std::nullopt;  // the same frames at every delay, or no comparison
             pairs.push_back({p.timestampNs, p.worldFromCamera, *body});
         }
-        chi2.push_back(refine(start, pairs, noise).normal.chi2);
+        // Two steps from the fit at the correlation's delay: a few ms move it little, and
+        // Gauss–Newton converges in one step on a problem this close to linear.
+        chi2.push_back(refine(start, pairs, noise, 2).normal.chi2);
     }
     const size_t best = size_t(std::min_element(chi2.begin(), chi2.end()) - chi2.begin());
     if (best == 0 || best + 1 == chi2.size()) return std::nullopt;

@@ -11,10 +11,10 @@
 // head to the lens's optical centre) and the delay are measured once, from a take in which the
 // board is visible while the operator pans, tilts and stops the camera a few times.
 //
-// Per frame ([tracking] source = "freed"):
-//     std::optional<cv::Matx44d> stageFromBody =
-//         interpolatePose(packets, frameNs + int64_t(calibration.delayMs * 1e6), kMaxGapNs);
-//     if (stageFromBody) worldFromCamera = applyFreedCalibration(calibration, *stageFromBody);
+// Per frame ([tracking] source = "freed"), with the packets received so far as TimedPoses of
+// worldFromFreed(packet) at their receipt time:
+//     std::optional<cv::Matx44d> pose = freedWorldFromCamera(calibration, packets, frameNs);
+//     if (!pose) the frame has no pose (lost): no packets around frameNs + delay yet, or a gap.
 
 #include <cstdint>
 #include <opencv2/core.hpp>
@@ -59,11 +59,22 @@ struct FreedCalibration {
 cv::Matx44d applyFreedCalibration(const FreedCalibration& calibration,
                                   const cv::Matx44d& stageFromBody);
 
+// A longer gap between two packets is a lost stretch, not bridged: 2.5 packet intervals at
+// 25 Hz, the slowest rate trackers and PTZ heads commonly send.
+inline constexpr int64_t kFreedMaxGapNs = 100'000'000;
+
 // The pose at `timestampNs` from a time-sorted series: rotation slerped, translation lerped
 // between the two samples around it. Nothing when the time is outside the series or the two
 // samples are more than `maxGapNs` apart (a lost stretch is not bridged).
 std::optional<cv::Matx44d> interpolatePose(std::span<const TimedPose> series, int64_t timestampNs,
                                            int64_t maxGapNs);
+
+// The camera's worldFromCamera for the frame captured at `frameNs`: the packets (stageFromBody
+// at receipt time, sorted) read at frameNs + delay, then applyFreedCalibration. Nothing when the
+// packets do not reach that time yet or have a gap there.
+std::optional<cv::Matx44d> freedWorldFromCamera(const FreedCalibration& calibration,
+                                                std::span<const TimedPose> stageFromBody,
+                                                int64_t frameNs, int64_t maxGapNs = kFreedMaxGapNs);
 
 struct FreedDelay {
     double delayMs = 0;

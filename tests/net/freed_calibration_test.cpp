@@ -257,8 +257,18 @@ TEST(FreedCalibration, RecoversDelayAndMountOffsetFromDemoTake) {
         EXPECT_LT(c->mountSigmaDeg, 0.25);
         // The stage lies ~3 m from the camera: its rotation error moves it by ~5 cm per degree.
         EXPECT_LT(stageErrDeg, 3 * std::sqrt(3.0) * c->mountSigmaDeg);
-        // Every frame's FreeD pose lands where the tags put the camera.
+        // Every frame's FreeD pose lands where the tags put the camera, as the service will
+        // compute it per frame.
         EXPECT_EQ(c->rejected, 0);
+        size_t posed = 0;
+        for (const TimedPose& frame : take.truth) {
+            std::optional<cv::Matx44d> pose = freedWorldFromCamera(*c, packets, frame.timestampNs);
+            if (!pose) continue;
+            ++posed;
+            EXPECT_LT(cv::norm(translationOf(*pose) - translationOf(frame.pose)) * 1e3,
+                      3 * std::sqrt(3.0) * pairPositionMm + offsetErrMm);
+        }
+        EXPECT_GE(posed, take.truth.size() - 2);  // the first frame has no packet before it
     }
 }
 
