@@ -12,18 +12,13 @@
 #include "base/log.h"
 #include "bench/bench_progress.h"
 #include "bench/bench_scenes.h"
+#include "bench/bench_stats.h"
 #include "bench/image_compare.h"
 #include "render/renderer.h"
 
 namespace previs::bench {
 
 namespace {
-
-double median(std::vector<double> v) {
-    std::sort(v.begin(), v.end());
-    const size_t n = v.size();
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
 
 double mean(const std::vector<double>& v) {
     double s = 0.0;

@@ -12,6 +12,7 @@
 #include "base/log.h"
 #include "bench/bench_progress.h"
 #include "bench/bench_scenes.h"
+#include "bench/bench_stats.h"
 #include "gpu/context.h"
 #include "render/renderer.h"
 
@@ -20,12 +21,6 @@ namespace previs::bench {
 namespace {
 
 double mib(double bytes) { return bytes / (1024.0 * 1024.0); }
-
-double peakRssMiB() {
-    rusage usage{};
-    getrusage(RUSAGE_SELF, &usage);
-    return double(usage.ru_maxrss) / 1024.0;  // ru_maxrss is in KiB on Linux
-}
 
 // Resident set now (not the peak), from /proc/self/statm's second field (pages).
 double currentRssMiB() {

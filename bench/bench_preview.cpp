@@ -11,6 +11,7 @@
 #include "base/log.h"
 #include "bench/bench_progress.h"
 #include "bench/bench_scenes.h"
+#include "bench/bench_stats.h"
 #include "bench/image_compare.h"
 #include "display/compose.h"
 #include "gpu/context.h"
@@ -21,19 +22,6 @@
 namespace previs::bench {
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double msSince(Clock::time_point t) {
-    return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
-}
-
-double median(std::vector<double> v) {
-    if (v.empty()) return NAN;
-    std::sort(v.begin(), v.end());
-    const size_t n = v.size();
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
 
 // One preview frame's stages, in the order the service's render thread runs them
 // (daemon/pipeline_renderer.cpp, daemon/service.cpp's publish) and the display's compose. The

@@ -17,6 +17,7 @@
 #include "bench/bench_scenes.h"
 #include "bench/bench_service.h"
 #include "bench/bench_shot.h"
+#include "bench/bench_stats.h"
 #include "bench/bench_trade.h"
 #include "bench/pose_accuracy.h"
 #include "gpu/context.h"
@@ -26,18 +27,6 @@
 namespace previs::bench {
 
 namespace {
-
-double peakRssMiB() {
-    rusage usage{};
-    getrusage(RUSAGE_SELF, &usage);
-    return double(usage.ru_maxrss) / 1024.0;
-}
-
-double median(std::vector<double> v) {
-    std::sort(v.begin(), v.end());
-    size_t n = v.size();
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
 
 struct Measurement {
     double seconds = 0.0;  // median wall time of `spp` samples per pixel

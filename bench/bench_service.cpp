@@ -21,6 +21,7 @@
 
 #include "base/log.h"
 #include "bench/bench_progress.h"
+#include "bench/bench_stats.h"
 #include "capture/recorded_source.h"
 #include "daemon/pipeline_renderer.h"
 #include "daemon/pipeline_stages.h"
@@ -37,15 +38,6 @@ namespace previs::bench {
 namespace {
 
 namespace fs = std::filesystem;
-using Clock = std::chrono::steady_clock;
-
-double secondsSince(Clock::time_point t) {
-    return std::chrono::duration<double>(Clock::now() - t).count();
-}
-
-double msSince(Clock::time_point t) {
-    return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
-}
 
 // Median and 90th percentile (nearest rank) of a sample.
 struct Stat {
@@ -63,12 +55,6 @@ Stat stat(std::vector<double> v) {
     s.median = n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
     s.p90 = v[size_t(std::ceil(0.9 * double(n))) - 1];
     return s;
-}
-
-double peakRssMiB() {
-    rusage u{};
-    getrusage(RUSAGE_SELF, &u);
-    return double(u.ru_maxrss) / 1024.0;
 }
 
 double vmRssMiB() {

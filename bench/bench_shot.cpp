@@ -29,7 +29,7 @@ constexpr size_t kStillLast = 44;
 // Flicker is measured over the hold's last frames, where every variant has settled.
 constexpr size_t kFlickerFrames = 8;
 
-struct Variant {
+struct ShotVariant {
     std::string name;
     ServiceConfig config;
 };
@@ -101,7 +101,7 @@ Result<References> references(const ServiceConfig& shipped, const std::string& s
 }
 
 // `dialPoint`: what the dial chose on this machine, where the variant runs it.
-Result<std::vector<FrameRow>> run(const Variant& v, const std::string& session,
+Result<std::vector<FrameRow>> run(const ShotVariant& v, const std::string& session,
                                   const References& refs, size_t lastFrame,
                                   std::string& dialPoint) {
     auto opened = SessionReplay::open(session, v.config, Mode::Preview);
@@ -155,7 +155,7 @@ double flicker(const std::vector<FrameRow>& rows, const ImageF& ref) {
     return signal > 0.0 ? std::sqrt(variance / signal) : std::nan("");
 }
 
-double median(std::vector<double> v) {
+double upperMedian(std::vector<double> v) {
     if (v.empty()) return std::nan("");
     std::sort(v.begin(), v.end());
     return v[v.size() / 2];
@@ -170,12 +170,12 @@ int runShotBench(const ShotBenchOptions& o) {
         logError("{}", shipped.message());
         return 2;
     }
-    std::vector<Variant> variants;
+    std::vector<ShotVariant> variants;
     variants.push_back({"as shipped", *shipped});
-    Variant noDial{"shipped, dial off", *shipped};
+    ShotVariant noDial{"shipped, dial off", *shipped};
     noDial.config.render.previewFps = 0.0;
     variants.push_back(noDial);
-    Variant paper{"fixed sequence (the paper), no denoiser", *shipped};
+    ShotVariant paper{"fixed sequence (the paper), no denoiser", *shipped};
     paper.config.render.previewFps = 0.0;
     paper.config.render.previewAccumulate = false;
     paper.config.render.denoise = "off";
@@ -206,7 +206,7 @@ int runShotBench(const ShotBenchOptions& o) {
         "| held 16 | held 24 | pan 48 | pan 52 | flicker | ms/frame (median) |\n"
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     std::vector<std::string> dialPoints;
-    for (const Variant& v : variants) {
+    for (const ShotVariant& v : variants) {
         std::string dialPoint;
         Result<std::vector<FrameRow>> rows = run(v, session, *refs, last, dialPoint);
         if (!dialPoint.empty()) dialPoints.push_back(v.name + ": " + dialPoint);
@@ -231,7 +231,7 @@ int runShotBench(const ShotBenchOptions& o) {
                     << (r.frame >= kStillFirst ? long(r.frame - kStillFirst) : -1L) << ","
                     << r.sqrtRelMse << "," << r.ms << "\n";
         }
-        std::printf(" %.3f | %.0f |\n", flicker(*rows, still), median(ms));
+        std::printf(" %.3f | %.0f |\n", flicker(*rows, still), upperMedian(ms));
         std::fflush(stdout);
     }
     for (const std::string& d : dialPoints) std::printf("\nThe dial chose, %s.\n", d.c_str());

@@ -16,6 +16,7 @@
 #include "base/log.h"
 #include "bench/bench_progress.h"
 #include "bench/bench_scenes.h"
+#include "bench/bench_stats.h"
 #include "bench/image_compare.h"
 #include "gpu/context.h"
 #include "image/image.h"
@@ -26,18 +27,6 @@
 namespace previs::bench {
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double secondsSince(Clock::time_point start) {
-    return std::chrono::duration<double>(Clock::now() - start).count();
-}
-
-double median(std::vector<double> v) {
-    std::sort(v.begin(), v.end());
-    const size_t n = v.size();
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
 
 // One line of settings the trade is measured under.
 struct TradeSetting {

@@ -8,6 +8,7 @@
 
 #include "base/log.h"
 #include "bench/bench_progress.h"
+#include "bench/bench_stats.h"
 #include "bench/board_render.h"
 #include "vision/board_pose.h"
 #include "vision/tag_detector.h"
@@ -44,7 +45,7 @@ Result<std::vector<Lens>> sweepLenses() {
                              {"fisheye", std::move(fisheye).value()}};
 }
 
-struct Frame {
+struct BoardFrame {
     size_t lens = 0;
     double distanceM = 0.0;
     double angleDeg = 0.0;
@@ -65,17 +66,11 @@ struct Summary {
     double medianDeg = 0.0, maxDeg = 0.0;
 };
 
-double median(std::vector<double> v) {
-    std::sort(v.begin(), v.end());
-    size_t n = v.size();
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
 template <typename Pred>
-Summary summarise(const std::vector<Frame>& frames, Pred select) {
+Summary summarise(const std::vector<BoardFrame>& frames, Pred select) {
     Summary s;
     std::vector<double> mm, percent, deg;
-    for (const Frame& f : frames) {
+    for (const BoardFrame& f : frames) {
         if (!select(f)) continue;
         ++s.frames;
         if (!f.tracked) continue;
@@ -163,7 +158,7 @@ int runPoseSweep(GpuContext& ctx, const PoseSweepOptions& o) {
     // is noise, so the sweep logs errors only (the default level again afterwards).
     setLogLevel(LogLevel::Error);
     const auto start = std::chrono::steady_clock::now();
-    std::vector<Frame> frames;
+    std::vector<BoardFrame> frames;
     uint64_t seed = 1;
     uint32_t renderSeed = 0;
     for (size_t l = 0; l < lenses->size(); ++l) {
@@ -202,7 +197,7 @@ int runPoseSweep(GpuContext& ctx, const PoseSweepOptions& o) {
                                 // answer.
                                 tracker->reset();
                                 const TrackingState& st = tracker->track(gray);
-                                Frame f{l, d, a, blur, noise, curve, !st.lost, {}};
+                                BoardFrame f{l, d, a, blur, noise, curve, !st.lost, {}};
                                 if (f.tracked) f.error = poseError(st.pose->worldFromCamera, truth);
                                 frames.push_back(f);
                             }
@@ -237,7 +232,7 @@ int runPoseSweep(GpuContext& ctx, const PoseSweepOptions& o) {
         for (double d : distances)
             for (double a : angles)
                 printRow(fmt::format("{} | {} m | {}°", (*lenses)[l].name, d, a),
-                         summarise(frames, [&](const Frame& f) {
+                         summarise(frames, [&](const BoardFrame& f) {
                              return f.lens == l && f.distanceM == d && f.angleDeg == a &&
                                     f.curve == TransferCurve::Srgb;
                          }));
@@ -249,7 +244,7 @@ int runPoseSweep(GpuContext& ctx, const PoseSweepOptions& o) {
                 for (double n : noises)
                     printRow(
                         fmt::format("{} | {} | {} | {}", (*lenses)[l].name, curveName(c), b, n),
-                        summarise(frames, [&](const Frame& f) {
+                        summarise(frames, [&](const BoardFrame& f) {
                             return f.lens == l && f.curve == c && f.blurPx == b &&
                                    f.noiseLevels == n && f.distanceM <= 4.0 && f.angleDeg <= 60.0;
                         }));
@@ -257,11 +252,11 @@ int runPoseSweep(GpuContext& ctx, const PoseSweepOptions& o) {
     printHeader({"lens", "camera", "frames"});
     for (size_t l = 0; l < lenses->size(); ++l) {
         for (TransferCurve c : curves) {
-            printRow(
-                fmt::format("{} | {} | all", (*lenses)[l].name, curveName(c)),
-                summarise(frames, [&](const Frame& f) { return f.lens == l && f.curve == c; }));
+            printRow(fmt::format("{} | {} | all", (*lenses)[l].name, curveName(c)),
+                     summarise(frames,
+                               [&](const BoardFrame& f) { return f.lens == l && f.curve == c; }));
             printRow(fmt::format("{} | {} | ≤ 4 m, ≤ 60°", (*lenses)[l].name, curveName(c)),
-                     summarise(frames, [&](const Frame& f) {
+                     summarise(frames, [&](const BoardFrame& f) {
                          return f.lens == l && f.curve == c && f.distanceM <= 4.0 &&
                                 f.angleDeg <= 60.0;
                      }));

@@ -95,25 +95,6 @@ Result<std::shared_ptr<lc::CameraManager>> sharedCameraManager() {
     return shared;
 }
 
-// A whole dmabuf mapped read-only, unmapped on destruction.
-class DmabufMapping {
-public:
-    DmabufMapping(const uint8_t* data, size_t length) : data_(data), length_(length) {}
-    DmabufMapping(DmabufMapping&& o) noexcept
-        : data_(std::exchange(o.data_, nullptr)), length_(std::exchange(o.length_, 0)) {}
-    DmabufMapping& operator=(DmabufMapping&&) = delete;
-    DmabufMapping(const DmabufMapping&) = delete;
-    ~DmabufMapping() {
-        if (data_) ::munmap(const_cast<uint8_t*>(data_), length_);
-    }
-    const uint8_t* data() const { return data_; }
-    size_t length() const { return length_; }
-
-private:
-    const uint8_t* data_;
-    size_t length_;
-};
-
 // Brackets CPU reads of a dmabuf: on SoCs without coherent caches (the Raspberry Pi) the CPU
 // would otherwise read stale lines the ISP has since overwritten. Drivers without cache
 // maintenance accept it as a no-op; errors change nothing about the pixels, so they are ignored.
@@ -144,6 +125,32 @@ std::vector<std::string> videoNodesOf(lc::CameraManager& manager, const lc::Came
     return nodes;
 }
 
+}  // namespace
+
+// Named, not anonymous: LibcameraCamera::State (external linkage) holds these, which GCC
+// rejects (-Wsubobject-linkage) once this file is compiled inside a unity build's translation
+// unit.
+namespace libcamera_detail {
+
+// A whole dmabuf mapped read-only, unmapped on destruction.
+class DmabufMapping {
+public:
+    DmabufMapping(const uint8_t* data, size_t length) : data_(data), length_(length) {}
+    DmabufMapping(DmabufMapping&& o) noexcept
+        : data_(std::exchange(o.data_, nullptr)), length_(std::exchange(o.length_, 0)) {}
+    DmabufMapping& operator=(DmabufMapping&&) = delete;
+    DmabufMapping(const DmabufMapping&) = delete;
+    ~DmabufMapping() {
+        if (data_) ::munmap(const_cast<uint8_t*>(data_), length_);
+    }
+    const uint8_t* data() const { return data_; }
+    size_t length() const { return length_; }
+
+private:
+    const uint8_t* data_;
+    size_t length_;
+};
+
 // Completed requests handed from libcamera's thread to read(). Owned jointly with the signal
 // handlers, so a signal delivered while the camera is torn down never touches freed memory.
 struct Inbox {
@@ -162,7 +169,7 @@ struct MappedBuffer {
     bool contiguous = true;  // plane i+1 follows plane i in one dmabuf: no copy needed
 };
 
-}  // namespace
+}  // namespace libcamera_detail
 
 // Members are destroyed in reverse order, which is also the order libcamera needs: requests
 // before the buffers they name, mappings before the allocator that owns the dmabufs, the
@@ -173,10 +180,10 @@ struct LibcameraCamera::State {
     bool acquired = false;
     lc::ControlList startControls;
     std::unique_ptr<lc::FrameBufferAllocator> allocator;
-    std::vector<DmabufMapping> mappings;
-    std::map<const lc::FrameBuffer*, MappedBuffer> buffers;
+    std::vector<libcamera_detail::DmabufMapping> mappings;
+    std::map<const lc::FrameBuffer*, libcamera_detail::MappedBuffer> buffers;
     std::vector<std::unique_ptr<lc::Request>> requests;
-    std::shared_ptr<Inbox> inbox = std::make_shared<Inbox>();
+    std::shared_ptr<libcamera_detail::Inbox> inbox = std::make_shared<libcamera_detail::Inbox>();
     lc::Stream* stream = nullptr;
 
     std::string id;
@@ -403,7 +410,7 @@ Status LibcameraCamera::State::allocateBuffers() {
                          std::strerror(-r));
     std::map<int, size_t> mappingOfFd;
     for (const std::unique_ptr<lc::FrameBuffer>& buffer : allocator->buffers(stream)) {
-        MappedBuffer mapped;
+        libcamera_detail::MappedBuffer mapped;
         const lc::FrameBuffer::Plane* previous = nullptr;
         for (const lc::FrameBuffer::Plane& plane : buffer->planes()) {
             const int fd = plane.fd.get();
@@ -422,7 +429,7 @@ Status LibcameraCamera::State::allocateBuffers() {
                 found = mappingOfFd.emplace(fd, mappings.size() - 1).first;
                 mapped.fds.push_back(fd);
             }
-            const DmabufMapping& m = mappings[found->second];
+            const libcamera_detail::DmabufMapping& m = mappings[found->second];
             if (size_t(plane.offset) + plane.length > m.length())
                 return makeError("libcamera camera '{}': a buffer plane lies outside its dmabuf",
                                  id);
@@ -576,7 +583,7 @@ Result<bool> LibcameraCamera::State::read(int timeoutMs, Frame& frame) {
         logWarning("libcamera camera '{}': frame {} came back with an error; skipped", id,
                    metadata.sequence);
     if (good) {
-        const MappedBuffer& planes = mapped->second;
+        const libcamera_detail::MappedBuffer& planes = mapped->second;
         const lc::Span<const lc::FrameMetadata::Plane> used = metadata.planes();
         auto bytesUsed = [&](size_t i) {
             return i < used.size() ? std::min<size_t>(used[i].bytesused, planes.planes[i].size())

@@ -36,6 +36,12 @@ std::string modeName(const drmModeModeInfo& m) {
     return fmt::format("{}x{}@{}", m.hdisplay, m.vdisplay, m.vrefresh);
 }
 
+}  // namespace
+
+// Named, not anonymous: KmsDevice (external linkage) holds these, which GCC rejects
+// (-Wsubobject-linkage) once this file is compiled inside a unity build's translation unit.
+namespace kms_detail {
+
 // One XRGB8888 dumb buffer with its framebuffer and CPU mapping; released in reverse order.
 class DumbBuffer {
 public:
@@ -112,6 +118,10 @@ private:
     int fd_;
     uint32_t id_;
 };
+
+}  // namespace kms_detail
+
+namespace {
 
 // Property id by name on a KMS object; 0 if it has none.
 uint32_t findProperty(int fd, uint32_t object, uint32_t type, const char* name,
@@ -221,8 +231,8 @@ private:
         uint32_t crtcModeId, crtcActive, connCrtcId, planeFbId, planeCrtcId;
         uint32_t srcX, srcY, srcW, srcH, crtcX, crtcY, crtcW, crtcH;
     } prop_ = {};
-    std::unique_ptr<PropertyBlob> modeBlob_;
-    std::unique_ptr<DumbBuffer> buffers_[2];
+    std::unique_ptr<kms_detail::PropertyBlob> modeBlob_;
+    std::unique_ptr<kms_detail::DumbBuffer> buffers_[2];
     int front_ = 0;           // the buffer being scanned out
     int pendingBuffer_ = -1;  // the buffer a queued flip will show, -1 = none
 };
@@ -335,7 +345,7 @@ KmsDevice::Opened KmsDevice::open(const std::string& path, const OutputSettings&
     }
 
     for (auto& buffer : d->buffers_) {
-        auto b = DumbBuffer::create(dfd, d->mode_.hdisplay, d->mode_.vdisplay);
+        auto b = kms_detail::DumbBuffer::create(dfd, d->mode_.hdisplay, d->mode_.vdisplay);
         if (!b) return d->fail(Failure::Unavailable, fmt::format("{}: {}", path, b.message()));
         buffer = std::move(*b);
     }
@@ -391,7 +401,7 @@ int KmsDevice::modeset() {
     if (atomic_) {
         uint32_t blobId = 0;
         if (drmModeCreatePropertyBlob(fd, &mode_, sizeof(mode_), &blobId) == 0) {
-            modeBlob_ = std::make_unique<PropertyBlob>(fd, blobId);
+            modeBlob_ = std::make_unique<kms_detail::PropertyBlob>(fd, blobId);
             drm::AtomicReqPtr req(drmModeAtomicAlloc());
             const uint32_t w = mode_.hdisplay, h = mode_.vdisplay;
             drmModeAtomicAddProperty(req.get(), crtcId_, prop_.crtcModeId, blobId);
@@ -452,7 +462,7 @@ int KmsDevice::waitFlip(int timeoutMs) {
 int KmsDevice::present(const DisplayFrame& frame) {
     if (int err = waitFlip(kFlipWaitMs); err < 0) return err;
     const int back = 1 - front_;
-    DumbBuffer& buffer = *buffers_[back];
+    kms_detail::DumbBuffer& buffer = *buffers_[back];
     composeFrame(frame, mode_.hdisplay, mode_.vdisplay, buffer.pixels(), buffer.pitch());
     int ret;
     if (atomic_) {

@@ -17,7 +17,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::span<const uint32_t> probeSpirv() {
+std::span<const uint32_t> probeModule() {
     return {specialise_probe_spv, sizeof(specialise_probe_spv) / 4};
 }
 
@@ -43,45 +43,45 @@ void writeAll(const fs::path& p, const std::vector<char>& bytes) {
 
 TEST(SpirvCacheTest, AHitGivesWhatSpecialisingGives) {
     const SpirvCache cache(cacheDir("hit"));
-    auto fresh = specialiseSpirv(probeSpirv(), kAllOn);
+    auto fresh = specialiseSpirv(probeModule(), kAllOn);
     ASSERT_TRUE(fresh.ok()) << fresh.message();
-    auto first = cache.specialise(probeSpirv(), kAllOn);  // a miss: specialises and stores
+    auto first = cache.specialise(probeModule(), kAllOn);  // a miss: specialises and stores
     ASSERT_TRUE(first.ok()) << first.message();
-    const SpirvCache::Key key = SpirvCache::keyFor(probeSpirv(), kAllOn);
+    const SpirvCache::Key key = SpirvCache::keyFor(probeModule(), kAllOn);
     ASSERT_TRUE(fs::is_regular_file(cache.entryPath(key)));
     auto loaded = cache.load(key);
     ASSERT_TRUE(loaded.has_value());
     EXPECT_EQ(*loaded, *fresh);
-    auto second = cache.specialise(probeSpirv(), kAllOn);  // a hit
+    auto second = cache.specialise(probeModule(), kAllOn);  // a hit
     ASSERT_TRUE(second.ok());
     EXPECT_EQ(*second, *fresh);
 }
 
 TEST(SpirvCacheTest, OtherConstantsOrAnotherModuleAreAnotherEntry) {
-    const SpirvCache::Key on = SpirvCache::keyFor(probeSpirv(), kAllOn);
-    const SpirvCache::Key off = SpirvCache::keyFor(probeSpirv(), kSquareOff);
+    const SpirvCache::Key on = SpirvCache::keyFor(probeModule(), kAllOn);
+    const SpirvCache::Key off = SpirvCache::keyFor(probeModule(), kSquareOff);
     EXPECT_FALSE(on.low == off.low && on.high == off.high);
-    std::vector<uint32_t> changed(probeSpirv().begin(), probeSpirv().end());
+    std::vector<uint32_t> changed(probeModule().begin(), probeModule().end());
     changed.back() ^= 1u;
     const SpirvCache::Key other = SpirvCache::keyFor(changed, kAllOn);
     EXPECT_FALSE(on.low == other.low && on.high == other.high);
     // One constant fewer is another key too (the count is hashed, not only the words).
-    const SpirvCache::Key shorter = SpirvCache::keyFor(probeSpirv(), std::span(kAllOn).first(2));
+    const SpirvCache::Key shorter = SpirvCache::keyFor(probeModule(), std::span(kAllOn).first(2));
     EXPECT_FALSE(on.low == shorter.low && on.high == shorter.high);
 
     const SpirvCache cache(cacheDir("distinct"));
-    auto a = cache.specialise(probeSpirv(), kAllOn);
-    auto b = cache.specialise(probeSpirv(), kSquareOff);
+    auto a = cache.specialise(probeModule(), kAllOn);
+    auto b = cache.specialise(probeModule(), kSquareOff);
     ASSERT_TRUE(a.ok() && b.ok());
     EXPECT_NE(*a, *b);
-    EXPECT_EQ(*cache.load(off), *specialiseSpirv(probeSpirv(), kSquareOff));
+    EXPECT_EQ(*cache.load(off), *specialiseSpirv(probeModule(), kSquareOff));
 }
 
 // Every way an entry can be damaged is a miss, and specialise() then replaces it.
 TEST(SpirvCacheTest, ADamagedEntryIsAMissNeverAWrongModule) {
     const SpirvCache cache(cacheDir("damaged"));
-    const SpirvCache::Key key = SpirvCache::keyFor(probeSpirv(), kAllOn);
-    ASSERT_TRUE(cache.specialise(probeSpirv(), kAllOn).ok());
+    const SpirvCache::Key key = SpirvCache::keyFor(probeModule(), kAllOn);
+    ASSERT_TRUE(cache.specialise(probeModule(), kAllOn).ok());
     const fs::path entry = cache.entryPath(key);
     const std::vector<char> good = readAll(entry);
     ASSERT_GT(good.size(), 40u + 20u);
@@ -101,9 +101,9 @@ TEST(SpirvCacheTest, ADamagedEntryIsAMissNeverAWrongModule) {
     for (size_t i = 0; i < damaged.size(); ++i) {
         writeAll(entry, damaged[i]);
         EXPECT_FALSE(cache.load(key).has_value()) << "damage " << i;
-        auto again = cache.specialise(probeSpirv(), kAllOn);
+        auto again = cache.specialise(probeModule(), kAllOn);
         ASSERT_TRUE(again.ok());
-        EXPECT_EQ(*again, *specialiseSpirv(probeSpirv(), kAllOn)) << "damage " << i;
+        EXPECT_EQ(*again, *specialiseSpirv(probeModule(), kAllOn)) << "damage " << i;
         EXPECT_EQ(readAll(entry), good) << "damage " << i << " not replaced";
     }
 }
@@ -114,19 +114,19 @@ TEST(SpirvCacheTest, AnUnwritableFolderOnlyCostsTheSpecialisation) {
     fs::create_directories(blocker.parent_path());
     writeAll(blocker, {'x'});
     const SpirvCache cache(blocker / "spirv");
-    auto module = cache.specialise(probeSpirv(), kAllOn);
+    auto module = cache.specialise(probeModule(), kAllOn);
     ASSERT_TRUE(module.ok()) << module.message();
-    EXPECT_EQ(*module, *specialiseSpirv(probeSpirv(), kAllOn));
-    EXPECT_FALSE(cache.store(SpirvCache::keyFor(probeSpirv(), kAllOn), *module));
+    EXPECT_EQ(*module, *specialiseSpirv(probeModule(), kAllOn));
+    EXPECT_FALSE(cache.store(SpirvCache::keyFor(probeModule(), kAllOn), *module));
 }
 
 TEST(SpirvCacheTest, TheEntriesUsedLongestAgoGoFirst) {
     const fs::path dir = cacheDir("evict");
-    auto on = specialiseSpirv(probeSpirv(), kAllOn);
-    auto off = specialiseSpirv(probeSpirv(), kSquareOff);
+    auto on = specialiseSpirv(probeModule(), kAllOn);
+    auto off = specialiseSpirv(probeModule(), kSquareOff);
     ASSERT_TRUE(on.ok() && off.ok());
-    const SpirvCache::Key onKey = SpirvCache::keyFor(probeSpirv(), kAllOn);
-    const SpirvCache::Key offKey = SpirvCache::keyFor(probeSpirv(), kSquareOff);
+    const SpirvCache::Key onKey = SpirvCache::keyFor(probeModule(), kAllOn);
+    const SpirvCache::Key offKey = SpirvCache::keyFor(probeModule(), kSquareOff);
     // Room for one entry and a half.
     const uint64_t entryBytes = 40 + 4 * std::max(on->size(), off->size());
     const SpirvCache cache(dir, entryBytes * 3 / 2);
@@ -141,8 +141,8 @@ TEST(SpirvCacheTest, TheEntriesUsedLongestAgoGoFirst) {
 
 TEST(SpirvCacheTest, WritersOfTheSameEntryNeverLeaveAPartOfOne) {
     const SpirvCache cache(cacheDir("race"));
-    const SpirvCache::Key key = SpirvCache::keyFor(probeSpirv(), kAllOn);
-    const std::vector<uint32_t> expected = *specialiseSpirv(probeSpirv(), kAllOn);
+    const SpirvCache::Key key = SpirvCache::keyFor(probeModule(), kAllOn);
+    const std::vector<uint32_t> expected = *specialiseSpirv(probeModule(), kAllOn);
     std::vector<std::thread> writers;
     std::atomic<int> wrongReads{0};
     for (int t = 0; t < 4; ++t)
@@ -177,8 +177,8 @@ TEST(SpirvCacheTest, TheEnvironmentNamesTheFolderOrTurnsItOff) {
     EXPECT_FALSE(SpirvCache::fromEnvironment().enabled());
     // A disabled cache specialises and stores nothing.
     const SpirvCache off;
-    EXPECT_FALSE(off.load(SpirvCache::keyFor(probeSpirv(), kAllOn)).has_value());
-    EXPECT_TRUE(off.specialise(probeSpirv(), kAllOn).ok());
+    EXPECT_FALSE(off.load(SpirvCache::keyFor(probeModule(), kAllOn)).has_value());
+    EXPECT_TRUE(off.specialise(probeModule(), kAllOn).ok());
     const char* names[3] = {"PREVIS_SHADER_CACHE_DIR", "PREVIS_SHADER_CACHE_DISABLE",
                             "XDG_CACHE_HOME"};
     for (int i = 0; i < 3; ++i) {

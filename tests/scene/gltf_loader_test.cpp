@@ -18,6 +18,7 @@
 #include <nlohmann/json.hpp>
 
 #include "image/image.h"
+#include "tests/support/base64.h"
 #include "tests/support/temp_dir.h"
 #include "tests/support/test_data.h"
 
@@ -27,29 +28,6 @@ namespace {
 using nlohmann::json;
 
 std::filesystem::path tempDir() { return previs::testing::scratchDir("previs_scene_test"); }
-
-std::string base64(const std::vector<uint8_t>& data) {
-    static const char* table = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    std::string out;
-    size_t i = 0;
-    for (; i + 2 < data.size(); i += 3) {
-        uint32_t v = data[i] << 16 | data[i + 1] << 8 | data[i + 2];
-        for (int k = 3; k >= 0; --k) out += table[(v >> (6 * k)) & 63];
-    }
-    if (i + 1 == data.size()) {
-        uint32_t v = data[i] << 16;
-        out += table[(v >> 18) & 63];
-        out += table[(v >> 12) & 63];
-        out += "==";
-    } else if (i + 2 == data.size()) {
-        uint32_t v = data[i] << 16 | data[i + 1] << 8;
-        out += table[(v >> 18) & 63];
-        out += table[(v >> 12) & 63];
-        out += table[(v >> 6) & 63];
-        out += '=';
-    }
-    return out;
-}
 
 // Builds a glTF document and its single binary buffer.
 class GltfBuilder {
@@ -120,9 +98,9 @@ public:
         if (bin.empty()) {
             // No geometry: glTF forbids empty buffers.
         } else if (dataUri) {
-            d["buffers"] =
-                json::array({{{"byteLength", bin.size()},
-                              {"uri", "data:application/octet-stream;base64," + base64(bin)}}});
+            d["buffers"] = json::array({{{"byteLength", bin.size()},
+                                         {"uri", "data:application/octet-stream;base64," +
+                                                     previs::testing::base64(bin)}}});
         } else {
             const std::string binName = std::filesystem::path(name).stem().string() + ".bin";
             std::ofstream(tempDir() / binName, std::ios::binary)
@@ -523,9 +501,9 @@ TEST(GltfLoader, SkipsNonTrianglePrimitives) {
 TEST(GltfLoader, UndecodableTextureFallsBackToNoTexture) {
     GltfBuilder b;
     json& d = b.doc();
-    d["images"] =
-        json::array({{{"uri", "data:image/png;base64," + base64({1, 2, 3, 4, 5, 6, 7, 8})}},
-                     {{"uri", "missing_texture.png"}}});
+    d["images"] = json::array(
+        {{{"uri", "data:image/png;base64," + previs::testing::base64({1, 2, 3, 4, 5, 6, 7, 8})}},
+         {{"uri", "missing_texture.png"}}});
     d["textures"] = json::array({{{"source", 0}}, {{"source", 1}}});
     d["materials"] = json::array({{{"pbrMetallicRoughness", {{"baseColorTexture", {{"index", 0}}}}},
                                    {"emissiveTexture", {{"index", 1}}}}});

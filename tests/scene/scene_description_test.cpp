@@ -16,6 +16,7 @@
 #include "image/image.h"
 #include "scene/environment_map.h"
 #include "scene/gltf_loader.h"
+#include "tests/support/base64.h"
 #include "tests/support/temp_dir.h"
 #include "tests/support/test_data.h"
 
@@ -25,27 +26,12 @@ namespace {
 using nlohmann::json;
 namespace fs = std::filesystem;
 
-fs::path tempDir() { return previs::testing::scratchDir("previs_config_test"); }
+fs::path descriptionDir() { return previs::testing::scratchDir("previs_config_test"); }
 
 std::string writeFile(const std::string& name, const std::string& text) {
-    const fs::path path = tempDir() / name;
+    const fs::path path = descriptionDir() / name;
     std::ofstream(path) << text;
     return path.string();
-}
-
-std::string base64(const std::vector<uint8_t>& data) {
-    static const char* table = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    std::string out;
-    for (size_t i = 0; i < data.size(); i += 3) {
-        uint32_t v = uint32_t(data[i]) << 16;
-        if (i + 1 < data.size()) v |= uint32_t(data[i + 1]) << 8;
-        if (i + 2 < data.size()) v |= data[i + 2];
-        out += table[(v >> 18) & 63];
-        out += table[(v >> 12) & 63];
-        out += i + 1 < data.size() ? table[(v >> 6) & 63] : '=';
-        out += i + 2 < data.size() ? table[v & 63] : '=';
-    }
-    return out;
 }
 
 // A glTF whose every mesh node holds one triangle (so triangleIsReal lists the nodes' roles in
@@ -71,9 +57,9 @@ public:
                                         {"max", {1, 1, 0}}}})},
             {"bufferViews",
              json::array({{{"buffer", 0}, {"byteOffset", 0}, {"byteLength", bytes.size()}}})},
-            {"buffers",
-             json::array({{{"byteLength", bytes.size()},
-                           {"uri", "data:application/octet-stream;base64," + base64(bytes)}}})},
+            {"buffers", json::array({{{"byteLength", bytes.size()},
+                                      {"uri", "data:application/octet-stream;base64," +
+                                                  previs::testing::base64(bytes)}}})},
             {"cameras", json::array({{{"name", "CamA"},
                                       {"type", "perspective"},
                                       {"perspective", {{"yfov", 0.8}, {"znear", 0.01}}}},
@@ -127,7 +113,7 @@ std::string writeEnvMap(const std::string& name) {
     image.height = 4;
     image.channels = 3;
     image.pixels.assign(8 * 4 * 3, 0.5f);
-    const std::string path = (tempDir() / name).string();
+    const std::string path = (descriptionDir() / name).string();
     EXPECT_TRUE(writeExr(path, image).ok());
     return path;
 }
@@ -313,7 +299,7 @@ scale = 0.5
 TEST(SceneDescription, AbsolutePathsAndDefaults) {
     const std::string gltf = writeRoleGltf();
     const std::string env = writeEnvMap("abs.exr");
-    fs::create_directories(tempDir() / "sub");
+    fs::create_directories(descriptionDir() / "sub");
     const std::string toml = writeFile("sub/abs.toml", fmt::format(R"(version = 1
 gltf = "{}"
 [environment]
@@ -446,11 +432,11 @@ INSTANTIATE_TEST_SUITE_P(Cases, BadDescription, ::testing::ValuesIn(kBadCases),
                          });
 
 TEST(SceneDescription, MissingOrFolderDescription) {
-    const std::string missing = (tempDir() / "absent.toml").string();
+    const std::string missing = (descriptionDir() / "absent.toml").string();
     Result<Scene> a = loadSceneDescription(missing);
     ASSERT_FALSE(a.ok());
     EXPECT_NE(a.message().find(missing), std::string::npos) << a.message();
-    const std::string folder = (tempDir() / "folder.toml").string();
+    const std::string folder = (descriptionDir() / "folder.toml").string();
     fs::create_directories(folder);
     Result<Scene> b = loadScene(folder);
     ASSERT_FALSE(b.ok());
