@@ -10,6 +10,7 @@
 #include "base/log.h"
 #include "bench/bench_denoise.h"
 #include "bench/bench_memory.h"
+#include "bench/bench_network.h"
 #include "bench/bench_pose_filter.h"
 #include "bench/bench_preview.h"
 #include "bench/bench_progress.h"
@@ -75,6 +76,9 @@ std::string millions(double v) { return fmt::format("{:.2f} M", v * 1e-6); }
 }  // namespace
 
 int runBenchmarks(const BenchOptions& o) {
+    // The network's CPU costs need neither examples, data nor a Vulkan device.
+    if (o.only == "ltc") return runLtcBench(o.quick);
+    if (o.only == "network") return runNetworkEncodeBench(o.quick);
     if (o.examplesDir.empty()) {
         logError("bench: the project's examples/ folder was not found beside or above previs");
         return 2;

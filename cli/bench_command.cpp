@@ -30,9 +30,10 @@ std::function<int()> addBenchCommand(CLI::App& app) {
     cmd->add_option("--spp", o->spp, "samples per pixel of the throughput runs")
         ->check(CLI::Range(1, 4096));
     cmd->add_option("--only", o->only, "one section")
-        ->check(CLI::IsMember({"throughput", "resolution", "triangles", "specialisation",
-                               "differential", "pose", "service", "shot", "memory", "preview",
-                               "trade", "denoise", "recorder", "reach", "filter"}));
+        ->check(
+            CLI::IsMember({"throughput", "resolution", "triangles", "specialisation",
+                           "differential", "pose", "service", "shot", "memory", "preview", "trade",
+                           "denoise", "recorder", "reach", "filter", "ltc", "network"}));
     cmd->add_option("--csv", o->csvPath,
                     "service, preview, shot: also write the results as CSV to this file");
     cmd->add_option("--out-dir", o->outDir,
