@@ -19,8 +19,8 @@ constexpr const char* kHeader =
     "# (docs/systemd.md): the service keeps no network of its own; systemd makes this socket in\n"
     "# the host's network and hands it over.\n";
 
-// Viewers of the web page come from the set's own networks, never the internet.
-constexpr const char* kViewerNetworks =
+// Viewers of the web page and trackers come from the set's own networks, never the internet.
+constexpr const char* kSetNetworks =
     "localhost link-local 10.0.0.0/8 172.16.0.0/12 192.168.0.0/16 fc00::/7";
 
 std::string joined(const std::set<std::string>& items) {
@@ -99,11 +99,18 @@ Result<std::map<std::string, std::string>> networkUnits(const NetworkConfig& net
         units["previsd-opentrackio.socket"] = *unit;
         sockets.push_back("previsd-opentrackio.socket");
     }
+    if (!options.freedInListen.empty()) {
+        // Trackers on the set's networks send to it; a packet's content is checked, not trusted.
+        units["previsd-freed-in.socket"] =
+            socketUnit("FreeD in (a tracker's packets, docs/freed.md)",
+                       "ListenDatagram=" + options.freedInListen, "freed-in", kSetNetworks);
+        sockets.push_back("previsd-freed-in.socket");
+    }
     std::string credential;
     if (!network.web.listen.empty()) {
         units["previsd-web.socket"] =
             socketUnit("the monitor page (docs/web-monitor.md)",
-                       "ListenStream=" + network.web.listen, "web", kViewerNetworks);
+                       "ListenStream=" + network.web.listen, "web", kSetNetworks);
         sockets.push_back("previsd-web.socket");
         // A missing credential file would stop the unit from starting: without one the page is
         // for viewing only.

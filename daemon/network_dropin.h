@@ -20,10 +20,13 @@ struct NetworkUnitOptions {
     // Where the unit's credential `web-token` is read from (LoadCredential=): the file
     // `web-token` beside the config (/etc/previs/web-token on the box); "" = none.
     std::string webTokenSource;
+    // [tracking] listen: where a tracker's FreeD packets arrive ("" = none).
+    std::string freedInListen;
 };
 
 // File name (relative to /etc/systemd/system) → content: `previsd-web.socket`,
-// `previsd-freed.socket`, `previsd-opentrackio.socket` as configured, and
+// `previsd-freed.socket`, `previsd-opentrackio.socket`, `previsd-freed-in.socket` as configured,
+// and
 // `previsd.service.d/network.conf` (always: without a network feature it names no socket, so a
 // stale one is replaced). Host names are resolved now (systemd's IP filters take addresses
 // only): an unresolvable name is an error naming its key.

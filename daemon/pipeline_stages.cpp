@@ -48,7 +48,8 @@ double luminanceMoments(const cv::Mat& radiance, std::array<double, 9>& sh) {
 
 }  // namespace
 
-Result<TrackingStage> TrackingStage::create(const ServiceConfig& config) {
+Result<TrackingStage> TrackingStage::create(const ServiceConfig& config,
+                                            std::shared_ptr<FreedInput> freed) {
     TrackerSettings settings = config.tracking.tracker;
     settings.linearFromCode = linearFromCodeTable(config.sceneCamera.radiometry);
     Result<Tracker> tracker = Tracker::create(config.tracking.detector, *config.tracking.board,
@@ -56,8 +57,49 @@ Result<TrackingStage> TrackingStage::create(const ServiceConfig& config) {
     if (!tracker) return tracker.error();
     std::optional<PoseFilter> filter;
     if (config.tracking.poseFilter) filter.emplace();
-    return TrackingStage(std::move(*tracker), config.sceneCamera.calibration->imageSize(),
-                         std::move(filter));
+    TrackingStage stage(std::move(*tracker), config.sceneCamera.calibration->imageSize(),
+                        std::move(filter));
+    if (!config.tracking.freedSource) return stage;
+    if (!freed && config.sceneCamera.source == CameraSourceKind::Session) {
+        // The recorded camera's folder is the take's cameras/scene.
+        const std::string csv =
+            (std::filesystem::path(config.sceneCamera.device).parent_path().parent_path() /
+             "freed.csv")
+                .string();
+        Result<std::unique_ptr<FreedInput>> recorded = FreedInput::recorded(csv, config.tracking);
+        if (!recorded) return makeError("[tracking] source = \"freed\": {}", recorded.message());
+        freed = std::move(*recorded);
+    }
+    if (!freed)
+        return makeError("[tracking] source = \"freed\": no FreeD input (set [tracking] listen)");
+    stage.freedLive_ = freed->live();
+    stage.freed_ = std::move(freed);
+    if (stage.freedLive_) {
+        const double delayMs =
+            config.tracking.freedCalibration ? config.tracking.freedCalibration->delayMs : 0.0;
+        stage.freedWait_ = std::chrono::milliseconds(int64_t(std::max(delayMs, 0.0)) + 50);
+    }
+    return stage;
+}
+
+void TrackingStage::trackFreed(TrackedFrame& out) {
+    // Live packets are stamped on arrival: matched to when this machine saw the frame taken
+    // (a recording's frames carry old timestamps); recorded ones to the recorded times.
+    const int64_t frameNs =
+        freedLive_ ? captureInstantNs(out, out.receivedNs) : int64_t(out.frame->timestampNs);
+    const std::optional<cv::Matx44d> pose = freed_->worldFromCamera(frameNs, freedWait_);
+    out.lost = !pose;
+    if (!pose) {
+        out.lostReason = LostReason::NoTrackerData;
+        out.reason = "no FreeD packet near the frame's time";
+        out.worldFromCamera = lastFreed_;  // the last one, as a lost tag pose does
+        return;
+    }
+    out.lostReason = LostReason::None;
+    out.reason.clear();
+    out.worldFromCamera = pose;
+    out.trackedWorldFromCamera = pose;
+    lastFreed_ = pose;
 }
 
 int64_t captureInstantNs(const TrackedFrame& frame, int64_t nowNs) {
@@ -70,6 +112,12 @@ TrackedFrame TrackingStage::process(std::shared_ptr<const Frame> frame) {
     TrackedFrame out;
     out.receivedNs =
         std::chrono::duration_cast<std::chrono::nanoseconds>(start.time_since_epoch()).count();
+    if (freed_) {
+        out.frame = std::move(frame);
+        trackFreed(out);
+        out.trackMs = millisecondsSince(start);
+        return out;
+    }
     if (int(frame->width) != calibrated_.width || int(frame->height) != calibrated_.height) {
         out.lostReason = LostReason::FrameSize;
         out.reason =

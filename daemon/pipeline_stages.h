@@ -14,6 +14,7 @@
 
 #include "base/result.h"
 #include "capture/frame.h"
+#include "daemon/freed_input.h"
 #include "daemon/service_config.h"
 #include "scene/scene.h"
 #include "timecode/timecode.h"
@@ -86,12 +87,23 @@ Status writeLightingMap(const LiveLighting& lighting, const std::string& path);
 
 class TrackingStage {
 public:
-    static Result<TrackingStage> create(const ServiceConfig& config);
+    // With [tracking] source = "freed" the pose comes from `freed` (the service's live input);
+    // none given, from the take's own freed.csv when the scene camera is a recording.
+    static Result<TrackingStage> create(const ServiceConfig& config,
+                                        std::shared_ptr<FreedInput> freed = nullptr);
     TrackedFrame process(std::shared_ptr<const Frame> frame);
 
 private:
     TrackingStage(Tracker tracker, cv::Size calibrated, std::optional<PoseFilter> filter)
         : tracker_(std::move(tracker)), calibrated_(calibrated), filter_(std::move(filter)) {}
+    // The pose from the tracker's packets: lost (NoTrackerData) when none lies near the frame.
+    void trackFreed(TrackedFrame& out);
+    std::shared_ptr<FreedInput> freed_;
+    // Live: how long a frame waits for the packet of its instant (the calibrated delay and a
+    // packet interval); a recording's are all there.
+    std::chrono::milliseconds freedWait_{0};
+    std::optional<cv::Matx44d> lastFreed_;
+    bool freedLive_ = false;  // packets arriving now, not a take's freed.csv
     Tracker tracker_;
     cv::Size calibrated_;  // frames of another size would give plausible but wrong poses
     bool loggedSize_ = false;

@@ -47,6 +47,7 @@ int check(const ServiceConfig& config) {
 // features (daemon/network_dropin.h), written into DIR (/etc/systemd/system on the box).
 int writeNetworkUnits(const ServiceConfig& config, const std::string& dir) {
     NetworkUnitOptions options;
+    options.freedInListen = config.tracking.freedListen;
     options.webTokenSource =
         (std::filesystem::absolute(config.path).parent_path() / "web-token").string();
     Result<std::map<std::string, std::string>> units = networkUnits(config.network, options);

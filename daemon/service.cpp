@@ -155,6 +155,14 @@ nlohmann::json trackingOutJson(const TrackingOutStats& s) {
     return j;
 }
 
+// FreeD in: packets accepted and refused by why (bad input is counted, never applied).
+nlohmann::json freedInJson(const FreedInputStats& s) {
+    nlohmann::json rejected = nlohmann::json::object();
+    for (size_t i = 1; i < s.rejected.size(); ++i)
+        rejected[freedErrorName(FreedError(i))] = s.rejected[i];
+    return {{"packets", s.packets}, {"rejected", rejected}, {"calibrated", s.calibrated}};
+}
+
 }  // namespace
 
 std::string statusJson(const ServiceStatus& s) {
@@ -220,6 +228,7 @@ std::string statusJson(const ServiceStatus& s) {
     j["timecode"] = timecodeJson(s.timecode, s.timecodeStatus);
     j["trackingOut"] = s.trackingOut ? trackingOutJson(*s.trackingOut) : nlohmann::json(nullptr);
     j["web"] = s.web ? toJson(*s.web) : nlohmann::json(nullptr);
+    j["freedIn"] = s.freedIn ? freedInJson(*s.freedIn) : nlohmann::json(nullptr);
     return j.dump();
 }
 
@@ -261,6 +270,7 @@ struct Service::Threads {
     // The set's network (issue 39): every frame's timecode (and the LTC input feeding it), the
     // tracking packets, the browser monitor. The last two are null unless configured.
     systemd::ListenFds passedSockets;
+    std::shared_ptr<FreedInput> freedIn;
     std::unique_ptr<TimecodeSource> timecode;
     std::unique_ptr<AlsaCapture> ltcInput;
     std::unique_ptr<TrackingOut> trackingOut;
@@ -567,7 +577,8 @@ void Service::Threads::runRender(ModeMachine& modes) {
 
 void Service::Threads::stopAll() {
     control.reset();
-    web.reset();  // its hooks call into the service
+    web.reset();                   // its hooks call into the service
+    if (freedIn) freedIn->stop();  // it writes into the take
     button.reset();
     // A take ends complete and durable before anything else stops (SIGTERM mid-take).
     if (recorder && recorder->recording()) {
@@ -635,7 +646,22 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config, bo
     logInfo("render: {}x{} on {}, {} spp per preview frame", t.renderer->width(),
             t.renderer->height(), t.gpu->deviceName(), t.previewSamples);
 
-    Result<TrackingStage> tracking = TrackingStage::create(config);
+    // Under systemd with the network units the sockets come made (docs/systemd.md).
+    t.passedSockets = systemd::ListenFds::fromEnvironment();
+    // FreeD in: received whenever [tracking] listen is set (a take records the packets, for
+    // `previs freed-calibrate`); the pose with source = "freed".
+    t.recorder = std::make_unique<TakeRecorder>(config);
+    if (!config.tracking.freedListen.empty()) {
+        TakeRecorder* recorder = t.recorder.get();
+        Result<std::unique_ptr<FreedInput>> freed =
+            FreedInput::listen(config.tracking, t.passedSockets.take("freed-in"),
+                               [recorder](int64_t receivedNs, std::span<const uint8_t> datagram) {
+                                   recorder->addFreedPacket(receivedNs, datagram);
+                               });
+        if (!freed) return freed.error();
+        t.freedIn = std::move(*freed);
+    }
+    Result<TrackingStage> tracking = TrackingStage::create(config, t.freedIn);
     if (!tracking) return tracking.error();
     t.tracking.emplace(std::move(*tracking));
     if (config.fisheyeCamera) {
@@ -697,8 +723,6 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config, bo
         }
     }
 
-    // Under systemd with the network drop-in the sockets come made (docs/systemd.md).
-    t.passedSockets = systemd::ListenFds::fromEnvironment();
     // The timecode and the tracking packets before the cameras: every frame has them.
     if (Status st = t.openTimecode(config); !st) return st.error();
     Result<std::unique_ptr<TrackingOut>> trackingOut =
@@ -708,7 +732,6 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config, bo
 
     // Cameras: once they stream, frames flow into the stages (and into a take while one rolls).
     configError = false;
-    t.recorder = std::make_unique<TakeRecorder>(config);
     t.recorder->setTimecodeSource(t.timecode.get());
     TakeRecorder* recorder = t.recorder.get();
     t.sceneCamera = makeCameraSource(
@@ -847,6 +870,7 @@ ServiceStatus Service::status() const {
     s.timecodeStatus = t.timecode->status();
     if (t.trackingOut) s.trackingOut = t.trackingOut->stats();
     if (t.web) s.web = t.web->stats();
+    if (t.freedIn) s.freedIn = t.freedIn->stats();
     return s;
 }
 

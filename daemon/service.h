@@ -17,6 +17,7 @@
 #include <thread>
 
 #include "base/result.h"
+#include "daemon/freed_input.h"
 #include "daemon/mode_machine.h"
 #include "daemon/service_config.h"
 #include "daemon/take_recorder.h"
@@ -83,6 +84,7 @@ struct ServiceStatus {
     TimecodeStatus timecodeStatus;
     std::optional<TrackingOutStats> trackingOut;
     std::optional<WebStats> web;
+    std::optional<FreedInputStats> freedIn;  // [tracking] listen
 };
 
 std::string statusJson(const ServiceStatus& status);

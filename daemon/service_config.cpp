@@ -10,6 +10,7 @@
 #include "capture/pixel_format.h"
 #include "config/toml_reader.h"
 #include "daemon/network_config_reader.h"
+#include "net/udp_socket.h"
 #include "vision/board_file.h"
 
 namespace previs {
@@ -40,6 +41,7 @@ private:
     Status parseRadiometry(const toml::table& t, std::string_view section,
                            InverseToneMapSettings& s) const;
     Status parseTracking(const toml::table& t, TrackingConfig& c) const;
+    Status parseFreedIn(const toml::table& t, TrackingConfig& c) const;
     Status parseLighting(const toml::table& t, LightingConfig& c) const;
     Status parseRender(const toml::table& t, RenderConfig& c) const;
     Status parseRefine(const toml::table& t, RefineConfig& c) const;
@@ -254,7 +256,8 @@ Status ConfigReader::parseTracking(const toml::table& t, TrackingConfig& c) cons
             t, "tracking",
             {"board", "family", "decimate", "sigma", "refine_edges", "decode_sharpening", "threads",
              "max_reproj_error_px", "min_tags", "max_position_std_fraction", "max_rotation_std_deg",
-             "min_ambiguity_ratio", "linear_edges", "pose_filter", "until_tracked"});
+             "min_ambiguity_ratio", "linear_edges", "pose_filter", "until_tracked", "source",
+             "listen", "freed_camera_id", "freed_calibration"});
         !st)
         return st;
     Result<std::optional<std::string>> board = r_.string(t, "tracking", "board");
@@ -342,6 +345,38 @@ Status ConfigReader::parseTracking(const toml::table& t, TrackingConfig& c) cons
     Result<std::optional<bool>> poseFilter = r_.boolean(t, "tracking", "pose_filter");
     if (!poseFilter) return poseFilter.error();
     c.poseFilter = poseFilter->value_or(c.poseFilter);
+    return parseFreedIn(t, c);
+}
+
+Status ConfigReader::parseFreedIn(const toml::table& t, TrackingConfig& c) const {
+    Result<std::optional<std::string>> source = r_.string(t, "tracking", "source");
+    if (!source) return source.error();
+    if (*source && **source != "tags" && **source != "freed")
+        return fail(t.get("source"), "'tracking.source' is '{}'; use tags or freed", **source);
+    c.freedSource = *source && **source == "freed";
+    Result<std::optional<std::string>> listen = r_.string(t, "tracking", "listen");
+    if (!listen) return listen.error();
+    if (*listen) {
+        if (Result<std::pair<std::string, std::string>> split = splitHostPort(**listen); !split)
+            return fail(t.get("listen"), "'tracking.listen': {} (e.g. \"0.0.0.0:40000\")",
+                        split.message());
+        c.freedListen = **listen;
+    }
+    int64_t id = -1;
+    if (Status st = r_.integerIn(t, "tracking", "freed_camera_id", id, 0, 255); !st) return st;
+    if (id >= 0) c.freedCameraId = uint8_t(id);
+    Result<std::optional<std::string>> calibration = r_.string(t, "tracking", "freed_calibration");
+    if (!calibration) return calibration.error();
+    if (*calibration) {
+        Result<std::string> path =
+            r_.file(*t.get("freed_calibration"), "tracking.freed_calibration", **calibration,
+                    {".toml"}, "FreeD calibration");
+        if (!path) return path.error();
+        Result<FreedCalibration> loaded = loadFreedCalibration(*path);
+        if (!loaded) return fail(t.get("freed_calibration"), "{}", loaded.message());
+        c.freedCalibrationPath = *path;
+        c.freedCalibration = std::move(*loaded);
+    }
     return {};
 }
 
@@ -687,6 +722,12 @@ Result<ServiceConfig> ConfigReader::read(const toml::table& root) {
                     "missing [tracking] (at least board = \"board.toml\", the tag "
                     "layout; docs/board-format.md)");
     if (Status st = parseTracking(**tracking, config.tracking); !st) return st.error();
+    // A recorded camera replays its take's own packets (freed.csv); a live one needs them sent.
+    if (config.tracking.freedSource && config.tracking.freedListen.empty() &&
+        config.sceneCamera.source != CameraSourceKind::Session)
+        return fail(*tracking,
+                    "[tracking] source = \"freed\" needs listen = \"HOST:PORT\" (where the "
+                    "tracker sends its packets)");
 
     Result<const toml::table*> lighting = r_.table(root, "", "lighting");
     if (!lighting) return lighting.error();

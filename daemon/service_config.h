@@ -15,6 +15,7 @@
 
 #include "base/result.h"
 #include "daemon/network_config.h"
+#include "net/freed_calibration.h"
 #include "render/render_settings.h"
 #include "vision/board_pose.h"
 #include "vision/camera_calibration.h"
@@ -72,6 +73,14 @@ struct TrackingConfig {
     // Composite with the live pose filter's pose (vision/pose_filter.h) instead of each frame's
     // own: no shimmer on a held camera. The take records both.
     bool poseFilter = true;
+    // FreeD in (daemon/freed_input.h, docs/freed.md): `listen` receives a tracker's packets
+    // ("" = none; a take records them either way, so one with the board in view calibrates
+    // the tracker), and `source = "freed"` takes the pose from them instead of the tags.
+    bool freedSource = false;
+    std::string freedListen;
+    std::optional<uint8_t> freedCameraId;  // packets of other cameras are refused (counted)
+    std::string freedCalibrationPath;      // `previs freed-calibrate`'s result; "" = none
+    std::optional<FreedCalibration> freedCalibration;  // loaded from it
 };
 
 enum class LightingMode {

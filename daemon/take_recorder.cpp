@@ -14,6 +14,7 @@
 #include "base/log.h"
 #include "capture/pixel_format.h"
 #include "daemon/take_files.h"
+#include "net/freed_calibration.h"
 
 namespace previs {
 
@@ -264,6 +265,11 @@ void TakeRecorder::addEvent(SessionEvent event) {
     push(std::move(event), 0);
 }
 
+void TakeRecorder::addFreedPacket(int64_t receivedNs, std::span<const uint8_t> datagram) {
+    // Tiny beside a frame: never counted against the queue (or dropped as a frame would be).
+    push(FreedPacket{receivedNs, std::vector<uint8_t>(datagram.begin(), datagram.end())}, 0);
+}
+
 void TakeRecorder::addLighting(std::shared_ptr<const LiveLighting> lighting) {
     if (lighting) push(std::move(lighting), 0);
 }
@@ -327,6 +333,9 @@ Status TakeRecorder::write(Take& take, Item& item) {
         return take.writer.writePose(*pose);
     }
     if (auto* event = std::get_if<SessionEvent>(&item)) return take.writer.writeEvent(*event);
+    if (auto* packet = std::get_if<FreedPacket>(&item))
+        return take.writer.appendRecord("freed.csv", kFreedRecordingHeader,
+                                        freedRecordingLine(packet->receivedNs, packet->bytes));
     const auto& lit = std::get<std::shared_ptr<const LiveLighting>>(item);
     const uint64_t ns = lit->timestampNs + take.clocks["fisheye"].offsetNs;
     return take.writer.writeLighting(

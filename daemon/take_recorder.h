@@ -13,6 +13,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <span>
 #include <string>
 #include <thread>
 #include <variant>
@@ -66,12 +67,18 @@ public:
     // An event without a timestamp gets the last scene frame's (+1 ns): a replay fires it
     // after that frame, on the same clock as the frames.
     void addEvent(SessionEvent event);
+    // A tracker's FreeD datagram as received ([tracking] listen): the take's freed.csv.
+    void addFreedPacket(int64_t receivedNs, std::span<const uint8_t> datagram);
     void addLighting(std::shared_ptr<const LiveLighting> lighting);
     // Where the scene camera's frames get their timecode ([timecode], docs/timecode.md); set
     // before the cameras start, outliving the recorder. None: the time of day.
     void setTimecodeSource(TimecodeSource* source) { timecodeSource_ = source; }
 
 private:
+    struct FreedPacket {
+        int64_t receivedNs = 0;
+        std::vector<uint8_t> bytes;
+    };
     struct FrameItem {
         std::string camera;
         std::shared_ptr<const Frame> frame;
@@ -79,8 +86,8 @@ private:
         // the frame arrives; empty: the time of day at the camera's rate.
         std::string timecode;
     };
-    using Item =
-        std::variant<FrameItem, PoseRecord, SessionEvent, std::shared_ptr<const LiveLighting>>;
+    using Item = std::variant<FrameItem, PoseRecord, SessionEvent,
+                              std::shared_ptr<const LiveLighting>, FreedPacket>;
 
     struct Take;  // the writer's state, owned by its thread
     void runWriter(std::unique_ptr<Take> take);

@@ -764,6 +764,13 @@ Status SessionWriter::writePose(const PoseRecord& pose) {
     return syncIfDue();
 }
 
+Status SessionWriter::appendRecord(const std::string& relPath, const std::string& header,
+                                   const std::string& line) {
+    auto index = openIndex(relPath, header + "\n");
+    if (!index) return index.error();
+    return appendLine(**index, line);
+}
+
 Status SessionWriter::writeEvent(const SessionEvent& event) {
     auto bad = [](const std::string& v) {
         return v.empty() || v.find_first_of(",\n\r") != std::string::npos;

@@ -182,6 +182,11 @@ public:
                          const std::string& lightsJson);
     Status writePose(const PoseRecord& pose);
     Status writeEvent(const SessionEvent& event);
+    // One line (ending in a newline) of a take's own record file `relPath`, created with the
+    // line `header` on first use, in the crash-safe order of the index files: e.g. freed.csv, a
+    // tracker's packets as received.
+    Status appendRecord(const std::string& relPath, const std::string& header,
+                        const std::string& line);
     // Makes everything written so far durable (index files and folder entries).
     Status flush();
 

@@ -44,6 +44,8 @@ public:
     // `multicastGroup`, when given, is joined (IPv4) on the kernel's default interface.
     static Result<UdpSocket> receiver(const std::string& hostPort,
                                       const std::string& multicastGroup = "");
+    // A receiver on a bound socket made by someone else (systemd's socket activation).
+    static UdpSocket adoptReceiver(UniqueFD fd) { return UdpSocket(std::move(fd)); }
 
     UdpSocket(UdpSocket&& other) noexcept;
     UdpSocket& operator=(UdpSocket&& other) noexcept;

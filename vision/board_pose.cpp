@@ -263,6 +263,8 @@ const char* toString(LostReason reason) {
             return "illConditioned";
         case LostReason::FrameSize:
             return "frameSize";
+        case LostReason::NoTrackerData:
+            return "noTrackerData";
     }
     return "?";
 }

@@ -92,8 +92,9 @@ enum class LostReason {
     Reprojection,    // the corners do not fit one pose (blur, a wrong detection)
     IllConditioned,  // a pose the corners do not determine (few, small, far or grazing tags)
     FrameSize,       // the frame is not the calibrated size
+    NoTrackerData,   // [tracking] source = "freed": no packet near the frame's time
 };
-constexpr int kLostReasonCount = 7;
+constexpr int kLostReasonCount = 8;
 // "noTags", "noBoardTag", …: the status's keys.
 const char* toString(LostReason reason);
 

@@ -157,7 +157,8 @@ TEST(StatusJson, HasTheDesignFields) {
                                                  {"tooFewTags", 0},
                                                  {"reprojection", 0},
                                                  {"illConditioned", 0},
-                                                 {"frameSize", 0}}));
+                                                 {"frameSize", 0},
+                                                 {"noTrackerData", 0}}));
     EXPECT_EQ(j["button"], "none");
     EXPECT_EQ(j["led"], "none");
     s.trackingLostFrames[size_t(LostReason::IllConditioned)] = 7;

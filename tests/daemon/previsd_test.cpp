@@ -32,7 +32,9 @@
 #include "daemon/take_files.h"
 #include "io/session.h"
 #include "net/freed.h"
+#include "net/freed_calibration.h"
 #include "net/opentrackio.h"
+#include "net/stage_pose.h"
 #include "net/udp_socket.h"
 #include "tests/support/process.h"
 #include "tests/support/temp_dir.h"
@@ -659,6 +661,75 @@ TEST(Previsd, TheSetsNetworkGetsThePoseTheTimecodeAndThePicture) {
         test::post(webPort, "/mode", "refine", "Authorization: Bearer s3cret-token\r\n").status,
         200);
     EXPECT_EQ((*status(socket))["mode"], "refine");
+    p.signal(SIGTERM);
+    EXPECT_EQ(p.wait(30s), std::optional<int>(0)) << p.log();
+}
+
+// FreeD in (issue 39): a tracker's packets drive the camera instead of the tags. The pose shown
+// is the packets' (within FreeD's quantisation, no calibration: the tracker's stage is the
+// world); packets of the wrong size, checksum or camera are counted and never applied; a take
+// records every datagram as received (freed.csv), for `previs freed-calibrate` and replay.
+TEST(Previsd, AFreedTrackerDrivesTheCameraAndItsPacketsAreRecorded) {
+    Result<UdpSocket> probe = UdpSocket::receiver("127.0.0.1:0");
+    ASSERT_TRUE(probe);
+    const uint16_t port = probe->localPort();
+    probe = makeError("released");  // the port, for previsd to bind
+    const fs::path dir = scratch() / "freed_in";
+    const std::string config = demoConfig(
+        "freed_in", fmt::format("[record]\ndir = \"{}/takes\"\nmin_free_mb = 1\n", dir.string()));
+    std::string text = fileBytes(config);
+    text.replace(text.find("[tracking]\n"), 11,
+                 fmt::format("[tracking]\nsource = \"freed\"\nlisten = \"127.0.0.1:{}\"\n"
+                             "freed_camera_id = 2\n",
+                             port));
+    writeFile(config, text);
+    const std::string socket = socketOf(config);
+    ChildProcess p({previsd(), "--config", config}, (scratch() / "freed_in.log").string());
+    // The tracker: a camera 2 m back and 1.5 m up, panned 20° and tilted down 10°.
+    const cv::Matx44d sent = worldFromStagePose({cv::Vec3d(0.4, -2.0, 1.5), 20.0, -10.0, 0.0});
+    std::atomic<bool> sending{true};
+    std::thread tracker([&] {
+        Result<UdpSocket> out = UdpSocket::sender(fmt::format("127.0.0.1:{}", port));
+        if (!out) return;
+        FreedBytes good = encodeFreed(sent, LensSample{}, 2).bytes;
+        FreedBytes badSum = good, otherCamera = encodeFreed(sent, LensSample{}, 3).bytes;
+        badSum[28] ^= 0x5a;
+        const std::vector<uint8_t> tooShort(good.begin(), good.begin() + 20);
+        for (int i = 0; sending.load(); ++i) {
+            out->send(good);
+            if (i % 10 == 0) {
+                out->send(badSum);
+                out->send(otherCamera);
+                out->send(tooShort);
+            }
+            std::this_thread::sleep_for(20ms);
+        }
+    });
+    auto driven = waitFor(socket, kStartup, [](const nlohmann::json& s) {
+        return s["framesShown"].get<int>() >= 3 && s["pose"].is_object() &&
+               !s["pose"]["lost"].get<bool>() && s["freedIn"]["packets"].get<int>() > 20;
+    });
+    ASSERT_TRUE(driven && (*driven)["pose"].is_object()) << p.log();
+    cv::Matx44d shown;
+    for (int i = 0; i < 16; ++i) shown(i / 4, i % 4) = (*driven)["pose"]["worldFromCamera"][i];
+    EXPECT_LT(cv::norm(shown.col(3) - sent.col(3)), 1e-3) << driven->dump();
+    EXPECT_LT(rotationDegreesBetween(shown, sent), 0.01);
+    const nlohmann::json& rejected = (*driven)["freedIn"]["rejected"];
+    for (const char* kind : {"wrong_size", "bad_checksum", "other_camera"})
+        EXPECT_GE(rejected[kind].get<int>(), 1) << kind << ": " << driven->dump();
+    EXPECT_EQ(rejected["wrong_type"], 0);
+    // A take holds the datagrams as they came, the refused ones too.
+    auto reply = controlRequest(socket, "record start", 10000);
+    ASSERT_TRUE(reply) << reply.message();
+    const fs::path take = nlohmann::json::parse(*reply)["path"].get<std::string>();
+    std::this_thread::sleep_for(1s);
+    ASSERT_TRUE(controlRequest(socket, "record stop", 30000));
+    sending.store(false);
+    tracker.join();
+    Result<FreedRecording> recorded = loadFreedRecording((take / "freed.csv").string(), 2);
+    ASSERT_TRUE(recorded) << recorded.message();
+    EXPECT_GE(recorded->stageFromBody.size(), 10u);
+    EXPECT_GE(recorded->rejected, 1u);
     p.signal(SIGTERM);
     EXPECT_EQ(p.wait(30s), std::optional<int>(0)) << p.log();
 }
