@@ -8,6 +8,7 @@
 
 #include "base/log.h"
 #include "bench/bench_progress.h"
+#include "bench/bench_stats.h"
 #include "net/freed.h"
 #include "net/opentrackio.h"
 #include "timecode/ltc_bench.h"
@@ -21,12 +22,6 @@ double threadCpuSeconds() {
     timespec ts{};
     clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
     return double(ts.tv_sec) + double(ts.tv_nsec) * 1e-9;
-}
-
-double median(std::vector<double> v) {
-    std::sort(v.begin(), v.end());
-    const size_t n = v.size();
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
 // A camera moving on an arc and turning: every packet encodes a different pose.
