@@ -13,6 +13,7 @@
 #include "cli/compare_command.h"
 #include "cli/ctl_command.h"
 #include "cli/envmap_command.h"
+#include "cli/freed_calibrate_command.h"
 #include "cli/lights_command.h"
 #include "cli/render_command.h"
 #include "cli/replay_command.h"
@@ -40,6 +41,7 @@ int main(int argc, char** argv) {
     auto runCompare = addCompareCommand(app);
     auto runRenderSession = addRenderSessionCommand(app);
     auto runExportTrack = addExportTrackCommand(app);
+    auto runFreedCalibrate = addFreedCalibrateCommand(app);
     std::vector<std::string> names;
     for (const CLI::App* sub : app.get_subcommands({})) names.push_back(sub->get_name());
     if (argc > 1 && argv[1][0] != '-' &&
@@ -60,6 +62,7 @@ int main(int argc, char** argv) {
         if (app.got_subcommand("compare")) return runCompare();
         if (app.got_subcommand("render-session")) return runRenderSession();
         if (app.got_subcommand("export-track")) return runExportTrack();
+        if (app.got_subcommand("freed-calibrate")) return runFreedCalibrate();
         return kExitUsage;
     });
 }
