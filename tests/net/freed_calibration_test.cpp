@@ -297,6 +297,23 @@ TEST(FreedCalibration, PanOnlyCalibrationRefused) {
     EXPECT_NE(c.message().find("adding tilts"), std::string::npos) << c.message();
 }
 
+// The whole take's second arc turns about an axis only 14° from the first: enough here for a
+// 1σ of ~3 mm, so a crew asking for 2 mm is told which axis is weak and what to add.
+TEST(FreedCalibration, UncertainMountOffsetRefusedNamingTheMotion) {
+    const DemoTake take = loadDemoTake();
+    const std::vector<TimedPose> packets = recordPackets(take.truth, Rig{}, 1);
+    Result<FreedDelay> delay = estimateFreedDelay(take.tracked, packets);
+    ASSERT_TRUE(delay.ok()) << delay.message();
+    FreedSolveOptions strict;
+    strict.maxMountSigmaMm = 2;
+    Result<FreedCalibration> c = solveFreedCalibration(take.tracked, packets, *delay, strict);
+    ASSERT_FALSE(c.ok());
+    EXPECT_NE(c.message().find("the mount offset is uncertain by ±"), std::string::npos)
+        << c.message();
+    EXPECT_NE(c.message().find("vertical axis"), std::string::npos) << c.message();
+    EXPECT_NE(c.message().find("adding tilts"), std::string::npos) << c.message();
+}
+
 TEST(FreedCalibration, ApplyComposesRightToLeft) {
     FreedCalibration c;
     c.worldFromStage = rigid(rotationOfVector({0, M_PI / 2, 0}), {1, 2, 3});
