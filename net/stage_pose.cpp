@@ -8,7 +8,7 @@ namespace previs {
 
 namespace {
 
-constexpr double kDegPerRad = 180.0 / std::numbers::pi;
+constexpr double kStageDegPerRad = 180.0 / std::numbers::pi;
 
 // stageFromWorld: glTF Y-up to the stage's Z-up (a proper rotation, both frames right-handed).
 const cv::Matx33d kStageFromWorld(1, 0, 0, 0, 0, -1, 0, 1, 0);
@@ -28,7 +28,8 @@ cv::Matx33d rotationPart(const cv::Matx44d& m) {
 }  // namespace
 
 cv::Matx33d stageRotation(double panDeg, double tiltDeg, double rollDeg) {
-    double p = panDeg / kDegPerRad, t = tiltDeg / kDegPerRad, r = rollDeg / kDegPerRad;
+    double p = panDeg / kStageDegPerRad, t = tiltDeg / kStageDegPerRad,
+           r = rollDeg / kStageDegPerRad;
     cv::Matx33d rz(std::cos(p), -std::sin(p), 0, std::sin(p), std::cos(p), 0, 0, 0, 1);
     cv::Matx33d rx(1, 0, 0, 0, std::cos(t), -std::sin(t), 0, std::sin(t), std::cos(t));
     cv::Matx33d ry(std::cos(r), 0, std::sin(r), 0, 1, 0, -std::sin(r), 0, std::cos(r));
@@ -43,14 +44,14 @@ StagePose stagePoseFromWorld(const cv::Matx44d& worldFromCamera) {
     cv::Vec3d t(worldFromCamera(0, 3), worldFromCamera(1, 3), worldFromCamera(2, 3));
     pose.translationM = kStageFromWorld * t;
     double sinTilt = std::clamp(r(2, 1), -1.0, 1.0);
-    pose.tiltDeg = std::asin(sinTilt) * kDegPerRad;
+    pose.tiltDeg = std::asin(sinTilt) * kStageDegPerRad;
     double cosTilt = std::hypot(r(0, 1), r(1, 1));
     if (cosTilt > kGimbalCos) {
-        pose.panDeg = std::atan2(-r(0, 1), r(1, 1)) * kDegPerRad;
-        pose.rollDeg = std::atan2(-r(2, 0), r(2, 2)) * kDegPerRad;
+        pose.panDeg = std::atan2(-r(0, 1), r(1, 1)) * kStageDegPerRad;
+        pose.rollDeg = std::atan2(-r(2, 0), r(2, 2)) * kStageDegPerRad;
     } else {
         // R = Rz(p)Rx(±90°): R00 = cos p, R10 = sin p.
-        pose.panDeg = std::atan2(r(1, 0), r(0, 0)) * kDegPerRad;
+        pose.panDeg = std::atan2(r(1, 0), r(0, 0)) * kStageDegPerRad;
         pose.rollDeg = 0;
     }
     return pose;
