@@ -21,9 +21,9 @@ int64_t monotonicNs() {
 
 FreedInput::FreedInput(const TrackingConfig& tracking, PacketSink record)
     : cameraId_(tracking.freedCameraId),
-      calibration_(tracking.freedCalibration),
+      calibration_(tracking.freedCalibration.value_or(FreedCalibration{})),
       record_(std::move(record)) {
-    stats_.calibrated = calibration_.has_value();
+    stats_.calibrated = tracking.freedCalibration.has_value();
 }
 
 Result<std::unique_ptr<FreedInput>> FreedInput::listen(const TrackingConfig& tracking,
@@ -86,15 +86,12 @@ void FreedInput::add(int64_t receivedNs, std::span<const uint8_t> datagram) {
 
 std::optional<cv::Matx44d> FreedInput::worldFromCamera(int64_t frameNs,
                                                        std::chrono::milliseconds wait) {
-    const int64_t at = frameNs + int64_t((calibration_ ? calibration_->delayMs : 0.0) * 1e6);
+    const int64_t at = frameNs + int64_t(calibration_.delayMs * 1e6);
     std::unique_lock lock(mutex_);
     // The packet after the frame's instant may still be on its way (a positive delay).
     arrived_.wait_for(lock, wait,
                       [&] { return !series_.empty() && series_.back().timestampNs >= at; });
-    std::optional<cv::Matx44d> stageFromBody = interpolatePose(series_, at, kMaxGapNs);
-    lock.unlock();
-    if (!stageFromBody) return std::nullopt;
-    return calibration_ ? applyFreedCalibration(*calibration_, *stageFromBody) : *stageFromBody;
+    return freedWorldFromCamera(calibration_, series_, frameNs);
 }
 
 FreedInputStats FreedInput::stats() const {

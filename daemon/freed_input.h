@@ -58,14 +58,10 @@ public:
 
     // The camera's worldFromCamera for the frame captured at `frameNs`: live, waits at most
     // `wait` for the packet of that instant (frame time + delay) to arrive. None when no packet
-    // lies within kMaxGapNs on both sides of it.
+    // lies within kFreedMaxGapNs on both sides of it (net/freed_calibration.h).
     std::optional<cv::Matx44d> worldFromCamera(int64_t frameNs, std::chrono::milliseconds wait);
     FreedInputStats stats() const;
     bool live() const { return socket_.has_value(); }
-
-    // Two packets farther apart than this are not interpolated across (a tracker sends 25–60
-    // packets a second; a gap of 100 ms is lost packets, not motion).
-    static constexpr int64_t kMaxGapNs = 100'000'000;
 
 private:
     FreedInput(const TrackingConfig& tracking, PacketSink record);
@@ -73,7 +69,7 @@ private:
     void add(int64_t receivedNs, std::span<const uint8_t> datagram);
 
     std::optional<uint8_t> cameraId_;
-    std::optional<FreedCalibration> calibration_;
+    FreedCalibration calibration_;  // identity and no delay when none is configured
     PacketSink record_;
     std::optional<UdpSocket> socket_;
     mutable std::mutex mutex_;
