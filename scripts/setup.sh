@@ -38,7 +38,20 @@ case "$config" in
                  -DCMAKE_CXX_COMPILER=clang++-14) ;;
     *) echo "setup: unknown configuration '$config' (use release, asan or fuzz)" >&2; exit 2 ;;
 esac
-cmake -S "$root" -B "$build" -G Ninja -DPREVIS_WERROR=${PREVIS_WERROR:-OFF} "${flags[@]}" >&2
+# Unity build: CMake compiles each target's sources in batches of 16 as one translation unit, so
+# the CLI11/nlohmann-json/fmt/GoogleTest templates are parsed and instantiated once per batch
+# instead of once per file (BENCHMARKS.md, "CI time"). A fresh release or asan build folder (CI's)
+# is configured with it on; an existing one keeps its setting, so a developer's folder configured
+# with -DCMAKE_UNITY_BUILD=OFF (an edited file then recompiles alone, not with its batch) stays
+# so. PREVIS_UNITY=ON or OFF sets it either way. The fuzz build (clang) is not unity-checked yet.
+unity=(-DCMAKE_UNITY_BUILD_BATCH_SIZE=16)
+if [[ -n ${PREVIS_UNITY:-} ]]; then
+    unity+=(-DCMAKE_UNITY_BUILD="$PREVIS_UNITY")
+elif [[ ! -f $build/CMakeCache.txt && $config != fuzz ]]; then
+    unity+=(-DCMAKE_UNITY_BUILD=ON)
+fi
+cmake -S "$root" -B "$build" -G Ninja -DPREVIS_WERROR=${PREVIS_WERROR:-OFF} "${unity[@]}" \
+    "${flags[@]}" >&2
 targets=()
 [[ $config == fuzz ]] && targets=(--target previs_fuzzers)
 [[ -n ${2:-} ]] && targets=(--target "$2")

@@ -9,7 +9,6 @@
 #include <atomic>
 #include <cctype>
 #include <cerrno>
-#include <charconv>
 #include <cmath>
 #include <condition_variable>
 #include <cstring>
@@ -22,6 +21,7 @@
 
 #include "base/guarded_thread.h"
 #include "base/log.h"
+#include "net/udp_socket.h"
 #include "web/monitor_page.h"
 #include "web/stream_encoder.h"
 
@@ -201,28 +201,17 @@ nlohmann::json toJson(const WebStats& s) {
 }
 
 Result<ListenAddress> parseListenAddress(const std::string& listen) {
-    auto bad = [&](const char* why) {
+    // The one HOST:PORT syntax of every network key (net/udp_socket.h).
+    Result<std::pair<std::string, std::string>> split = splitHostPort(listen);
+    if (!split)
         return makeError(
             "[web] listen = \"{}\": {}; expected \"HOST:PORT\" such as "
             "\"0.0.0.0:8080\" or \"[::]:8080\"",
-            listen, why);
-    };
-    const size_t colon = listen.rfind(':');
-    if (colon == std::string::npos || colon == 0) return bad("no HOST:PORT");
-    ListenAddress a;
-    a.host = listen.substr(0, colon);
-    if (a.host.front() == '[') {
-        if (a.host.size() < 3 || a.host.back() != ']') return bad("unbalanced [ ] around the host");
-        a.host = a.host.substr(1, a.host.size() - 2);
-    } else if (a.host.find(':') != std::string::npos) {
-        return bad("an IPv6 host needs [ ]");
-    }
-    const std::string port = listen.substr(colon + 1);
-    const auto [end, ec] = std::from_chars(port.data(), port.data() + port.size(), a.port);
-    if (port.empty() || ec != std::errc() || end != port.data() + port.size() || a.port < 0 ||
-        a.port > 65535)
-        return bad("the port is not a number 0..65535");
-    return a;
+            listen, split.message());
+    if (split->first.empty())
+        return makeError("[web] listen = \"{}\": no host (\"0.0.0.0:PORT\" for every address)",
+                         listen);
+    return ListenAddress{split->first, std::stoi(split->second)};
 }
 
 bool bearerTokenMatches(const std::string& authorization, const std::string& token) {
