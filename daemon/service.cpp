@@ -405,8 +405,6 @@ Status Service::Threads::openWeb(const WebConfig& c, Service* service) {
     Result<std::unique_ptr<WebMonitor>> made = WebMonitor::create(settings, std::move(hooks));
     if (!made) return makeError("[web] listen = '{}': {}", c.listen, made.message());
     web = std::move(*made);
-    logInfo("web: the monitor page is at http://{}/{}", c.listen,
-            token->empty() ? " (viewing only: no token)" : "");
     return {};
 }
 
