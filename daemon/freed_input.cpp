@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include "base/log.h"
+#include "base/monotonic_clock.h"
 #include "daemon/service_config.h"
 
 namespace previs {
@@ -10,12 +11,6 @@ namespace {
 
 // Packets kept: seconds at a tracker's highest rate, more than any delay to look back over.
 constexpr size_t kKeptPackets = 600;
-
-int64_t steadyNowNs() {
-    return std::chrono::duration_cast<std::chrono::nanoseconds>(
-               std::chrono::steady_clock::now().time_since_epoch())
-        .count();
-}
 
 }  // namespace
 
@@ -62,7 +57,7 @@ void FreedInput::run() {
     while (!stop_.load()) {
         const int n = socket_->receive(buffer, 100);
         if (n < 0) continue;
-        const int64_t now = steadyNowNs();
+        const int64_t now = monotonicNowNs();
         // A datagram larger than the buffer is cut to it, still far from FreeD's 29 bytes.
         const std::span<const uint8_t> datagram(buffer.data(), std::min(size_t(n), buffer.size()));
         if (record_) record_(now, datagram);

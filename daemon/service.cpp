@@ -18,6 +18,7 @@
 #include "base/guarded_thread.h"
 #include "base/latest_value_slot.h"
 #include "base/log.h"
+#include "base/monotonic_clock.h"
 #include "base/unique_fd.h"
 #include "daemon/camera_sources.h"
 #include "daemon/control_server.h"
@@ -41,11 +42,6 @@ namespace previs {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-int64_t nowNs() {
-    return std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now().time_since_epoch())
-        .count();
-}
 
 // How long the render thread waits for a frame before it checks the mode (and ends its step).
 constexpr auto kRenderPoll = std::chrono::milliseconds(100);
@@ -477,7 +473,7 @@ void Service::Threads::publish(PipelineRenderer& r, const TrackedFrame& frame, M
     const double renderMs =
         std::chrono::duration<double, std::milli>(Clock::now() - renderStart).count();
     // The display thread's clock is CLOCK_MONOTONIC, as a live camera's timestamps.
-    out->captureTimestampNs = captureInstantNs(frame, nowNs());
+    out->captureTimestampNs = captureInstantNs(frame, monotonicNowNs());
     ServiceStatus s;
     {
         std::lock_guard lock(statusMutex);
@@ -803,7 +799,7 @@ void Service::updateLed() {
         setLed(refine);
         return;
     }
-    const int64_t phaseMs = (nowNs() / 1'000'000) % 1000;
+    const int64_t phaseMs = (monotonicNowNs() / 1'000'000) % 1000;
     setLed(phaseMs < (refine ? 800 : 200));
 }
 
@@ -1039,7 +1035,8 @@ int Service::run() {
             }
         }
         if (rolling || t.led) updateLed();
-        if (reportStuckStages(t.watch.stuck(nowNs(), stuckNs), reportedStuck, watchdog.has_value()))
+        if (reportStuckStages(t.watch.stuck(monotonicNowNs(), stuckNs), reportedStuck,
+                              watchdog.has_value()))
             if (watchdog) systemd::notifyWatchdog();
         if (Clock::now() - lastStatus > std::chrono::seconds(1)) {
             systemd::notifyStatus(statusLine(status()));

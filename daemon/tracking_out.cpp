@@ -4,16 +4,11 @@
 #include <cmath>
 
 #include "base/log.h"
+#include "base/monotonic_clock.h"
 #include "net/freed.h"
 
 namespace previs {
 namespace {
-
-int64_t monotonicNs() {
-    return std::chrono::duration_cast<std::chrono::nanoseconds>(
-               std::chrono::steady_clock::now().time_since_epoch())
-        .count();
-}
 
 void storeMax(std::atomic<double>& max, double value) {
     double seen = max.load();
@@ -97,7 +92,7 @@ void TrackingOut::send(const TrackedFrame& frame, const std::optional<Timecode>&
     const cv::Matx44d& pose = frame.lost ? *lastTrusted_ : *frame.worldFromCamera;
     if (freed_) sendFreed(pose, held);
     if (openTrackIo_) sendOpenTrackIo(frame, pose, timecode, recording, held);
-    const int64_t now = monotonicNs();
+    const int64_t now = monotonicNowNs();
     const double delayMs = double(now - captureInstantNs(frame, now)) * 1e-6;
     lastDelayMs_.store(delayMs);
     storeMax(maxDelayMs_, delayMs);

@@ -11,6 +11,7 @@
 
 #include "base/guarded_thread.h"
 #include "base/log.h"
+#include "base/monotonic_clock.h"
 
 namespace previs {
 
@@ -24,12 +25,6 @@ constexpr int64_t kResyncNs = 5'000'000;
 // How far a late measurement pulls the time line: 1/64 a chunk follows a drift of 100 ppm (1 µs
 // per 10 ms chunk) while averaging scheduling jitter down 64 times.
 constexpr int64_t kLateWeight = 64;
-
-int64_t monotonicNs() {
-    timespec ts{};
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return int64_t(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 
 uint32_t le32(const uint8_t* p) { return p[0] | p[1] << 8 | p[2] << 16 | uint32_t(p[3]) << 24; }
 uint16_t le16(const uint8_t* p) { return uint16_t(p[0] | p[1] << 8); }
@@ -199,7 +194,7 @@ int64_t AlsaCapture::chunkTime(long frames) {
     snd_pcm_sframes_t delay = 0;
     if (snd_pcm_delay(pcm_.get(), &delay) < 0) delay = 0;
     // The first sample just read was captured (delay + frames) samples before now.
-    return clock_.stamp(monotonicNs() - (int64_t(delay) + frames) * 1'000'000'000 / sampleRate_,
+    return clock_.stamp(monotonicNowNs() - (int64_t(delay) + frames) * 1'000'000'000 / sampleRate_,
                         frames);
 }
 
