@@ -101,7 +101,10 @@ int runBenchmarks(const BenchOptions& o) {
         return runRecorderBench(
             {.examplesDir = o.examplesDir, .dataDir = o.dataDir, .quick = o.quick});
     if (o.only == "shot")
-        return runShotBench({.examplesDir = o.examplesDir, .quick = o.quick, .csvPath = o.csvPath});
+        return runShotBench({.examplesDir = o.examplesDir,
+                             .quick = o.quick,
+                             .csvPath = o.csvPath,
+                             .referenceCache = o.referenceCache});
     if (o.only == "trade")
         return runTradeBench({.dataDir = o.dataDir,
                               .outDir = o.outDir,

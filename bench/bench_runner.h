@@ -23,7 +23,8 @@ struct BenchOptions {
     // reach (bench/pose_accuracy.h; only by name: tag reach by distance),
     // filter (bench/bench_pose_filter.h; only by name: the live pose filter's jitter and lag).
     std::string only;
-    std::string csvPath;  // service, preview: also write the results as CSV here ("" = none)
+    std::string csvPath;         // service, preview: also write the results as CSV here ("" = none)
+    std::string referenceCache;  // shot: its references' folder (bench/bench_shot.h)
     // trade: its CSVs, frames and plots go here, drawn by this script.
     std::string outDir = "bench-trade";
     std::string plotter;

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <variant>
@@ -14,6 +15,7 @@
 #include "daemon/pipeline_renderer.h"
 #include "daemon/replay.h"
 #include "daemon/service_config.h"
+#include "image/image.h"
 #include "render/renderer.h"
 
 namespace previs::bench {
@@ -62,10 +64,18 @@ struct References {
     }
 };
 
+// The reference of `frame` at `spp` in `cacheDir` ("" = no cache).
+std::string cachedReferencePath(const std::string& cacheDir, size_t frame, uint32_t spp) {
+    if (cacheDir.empty()) return {};
+    return fmt::format("{}/shot_reference_frame{}_{}spp.exr", cacheDir, frame, spp);
+}
+
 // Each reference frame refined without the denoiser: the hold's view to `spp`, the pan's to a
 // quarter of it (their error is measured frame by frame, and only compared between variants).
+// With a cache folder, a reference found there is read instead of rendered, and one rendered is
+// written there.
 Result<References> references(const ServiceConfig& shipped, const std::string& session,
-                              uint32_t spp, size_t lastFrame) {
+                              uint32_t spp, size_t lastFrame, const std::string& cacheDir) {
     ServiceConfig config = shipped;
     config.render.denoise = "off";
     config.render.previewFps = 0.0;
@@ -81,9 +91,16 @@ Result<References> references(const ServiceConfig& shipped, const std::string& s
             std::find(std::begin(kPanFrames), std::end(kPanFrames), i) != std::end(kPanFrames);
         if (i != kStillFirst && !pan) continue;
         if (!(*step)->shot.shown) return makeError("bench shot: frame {} was not tracked", i);
+        const uint32_t total = pan ? std::max<uint32_t>(1, spp / 4) : spp;
+        const std::string cached = cachedReferencePath(cacheDir, i, total);
+        if (!cached.empty() && std::filesystem::exists(cached)) {
+            Result<ImageF> image = readImage(cached);
+            if (!image) return image.error();
+            refs.added.emplace(i, std::move(*image));
+            continue;
+        }
         PipelineRenderer& r = replay.renderer();
         if (Status s = r.beginRefine(*(*step)->shot.shown, replay.lighting()); !s) return s.error();
-        const uint32_t total = pan ? std::max<uint32_t>(1, spp / 4) : spp;
         for (uint32_t done = 0; done < total;) {
             const uint32_t n = std::min<uint32_t>(64, total - done);
             if (Status s = r.refineStep(n); !s) return s.error();
@@ -94,6 +111,8 @@ Result<References> references(const ServiceConfig& shipped, const std::string& s
         if (!image) return image.error();
         Result<ImageF> added = addedToPlate(r, std::move(*image));
         if (!added) return added.error();
+        if (!cached.empty())
+            if (Status s = writeExr(cached, *added); !s) return s.error();
         refs.added.emplace(i, std::move(*added));
     }
     if (!refs.at(kStillFirst)) return makeError("bench shot: the demo take has no still view");
@@ -181,9 +200,10 @@ int runShotBench(const ShotBenchOptions& o) {
     paper.config.render.denoise = "off";
     variants.push_back(paper);
 
-    const uint32_t spp = o.quick ? 64 : o.referenceSpp;
+    // A cache makes the deep reference free after the first run, quick or not.
+    const uint32_t spp = o.quick && o.referenceCache.empty() ? 64 : o.referenceSpp;
     const size_t last = o.quick ? kStillFirst + 8 : kStillLast + 8;
-    Result<References> refs = references(*shipped, session, spp, last);
+    Result<References> refs = references(*shipped, session, spp, last, o.referenceCache);
     if (!refs) {
         logError("{}", refs.message());
         return 1;

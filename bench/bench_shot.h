@@ -19,6 +19,9 @@ struct ShotBenchOptions {
     bool quick = false;            // a 64-spp reference and the first 8 still frames: a smoke run
     uint32_t referenceSpp = 1600;  // the deep refinement of the still view
     std::string csvPath;           // per-frame rows as CSV ("" = none)
+    // References are read from this folder when there, else rendered and written there ("" =
+    // always rendered): they depend only on the take, the config and the renderer.
+    std::string referenceCache;
 };
 
 // Prints a Markdown report on stdout (progress on stderr); returns the process exit code.

@@ -36,6 +36,10 @@ std::function<int()> addBenchCommand(CLI::App& app) {
                            "denoise", "recorder", "reach", "filter", "ltc", "network"}));
     cmd->add_option("--csv", o->csvPath,
                     "service, preview, shot: also write the results as CSV to this file");
+    cmd->add_option("--reference-cache", o->referenceCache,
+                    "shot: read its references from this folder, or render them (1600 spp, "
+                    "--quick too) and write them there")
+        ->check(CLI::ExistingDirectory);
     cmd->add_option("--out-dir", o->outDir,
                     "trade: folder for its CSVs, frames and plots (default bench-trade)");
     auto quiet = std::make_shared<bool>(false);

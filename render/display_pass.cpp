@@ -196,6 +196,10 @@ shader::FilmParams DisplayPass::params(const Inputs& in, const UpsampleSettings&
     const float ln2 = 0.69314718f, sigma = upsample.rangeSigma;
     p.rangeScale = sigma > 0.0f ? ln2 * ln2 / (2.0f * sigma * sigma) : 0.0f;
     p.logEpsilon = std::max(upsample.logEpsilonFraction * plateMean_, 1e-12f);
+    const OutlineKernel outline =
+        outlineKernel(upsample, width_, height_, in.traceWidth, in.traceHeight);
+    p.maskSharpness = outline.sharpness;
+    p.maskRangeScale = outline.rangeScale;
     p.held = in.held ? 1u : 0u;
     p.denoised = in.denoised ? 1u : 0u;
     p.toneOp = toneOp(settings.tone.op);

@@ -77,6 +77,25 @@ std::vector<std::vector<std::pair<uint32_t, double>>> areaWeights(uint32_t full,
 
 using shader::fastLog2;
 
+// The outline the taps around an output pixel steer to (shared/film.h's outlineMask: −1 for
+// none) from the spatial mean of the mask (channel 3 of `low`) and its extremes over the taps.
+float outlineTarget(const ImageF& low, int i0, int j0, const std::array<double, 4>& wx,
+                    const std::array<double, 4>& wy, float sharpness) {
+    double mean = 0.0, weight = 0.0;
+    float lowest = 1.0f, highest = 0.0f;
+    for (int b = 0; b < 4; ++b)
+        for (int a = 0; a < 4; ++a) {
+            const double ws = wx[a] * wy[b];
+            if (ws == 0.0) continue;
+            const float m = low.pixels[(size_t(j0 + b) * low.width + size_t(i0 + a)) * 4 + 3];
+            mean += ws * m;
+            weight += ws;
+            lowest = std::min(lowest, m);
+            highest = std::max(highest, m);
+        }
+    return shader::outlineMask(float(mean / weight), lowest, highest, sharpness);
+}
+
 // Runs body(rowBegin, rowEnd) over [0, rows) on `threads` threads (this one included).
 template <typename Body>
 void forRows(uint32_t rows, uint32_t threads, Body body) {
@@ -94,6 +113,18 @@ void forRows(uint32_t rows, uint32_t threads, Body body) {
 }
 
 }  // namespace
+
+OutlineKernel outlineKernel(const UpsampleSettings& settings, uint32_t width, uint32_t height,
+                            uint32_t traceWidth, uint32_t traceHeight) {
+    if (!(settings.outlineSharpening > 0.0f) || !(settings.maskRangeSigma > 0.0f) ||
+        traceWidth == 0 || traceHeight == 0 || (traceWidth >= width && traceHeight >= height))
+        return {};
+    // The traced pixel's size in output pixels, the larger of the two directions.
+    const float footprint =
+        std::max(float(width) / float(traceWidth), float(height) / float(traceHeight));
+    return {.sharpness = settings.outlineSharpening * footprint,
+            .rangeScale = 1.0f / (2.0f * settings.maskRangeSigma * settings.maskRangeSigma)};
+}
 
 ImageF jointBilateralUpsample(const ImageF& low, uint32_t width, uint32_t height,
                               const ImageF* guide, const UpsampleSettings& settings) {
@@ -164,6 +195,9 @@ ImageF jointBilateralUpsample(const ImageF& low, uint32_t width, uint32_t height
         for (size_t k = 0; k < mean.size(); ++k)
             lowGuide[k] = fastLog2(std::max(float(mean[k]), 0.0f) + epsilon);
     }
+    const OutlineKernel outline =
+        nc == 4 ? outlineKernel(settings, width, height, w, h) : OutlineKernel{};
+    const float maskToTable = outline.rangeScale * kRangeSteps;
     // exp(−d²/(2σ²)) with d in natural-log units; the guide is in log2 (d_ln = ln2 · d_log2).
     const float ln2 = 0.69314718f;
     const float toTable =
@@ -188,6 +222,9 @@ ImageF jointBilateralUpsample(const ImageF& low, uint32_t width, uint32_t height
                     const float* g = &guide->pixels[(size_t(y) * width + x) * guide->channels];
                     for (int c = 0; c < 3; ++c) gp[c] = fastLog2(std::max(g[c], 0.0f) + epsilon);
                 }
+                const float target = maskToTable > 0.0f
+                                         ? outlineTarget(low, i0, j0, wx, wy, outline.sharpness)
+                                         : -1.0f;
                 // Pass 0 with the range kernel; pass 1, rarely, the spatial kernel alone.
                 double acc[4] = {};
                 double weight = 0.0, spatial = 0.0;
@@ -199,15 +236,22 @@ ImageF jointBilateralUpsample(const ImageF& low, uint32_t width, uint32_t height
                             if (wx[a] == 0.0) continue;
                             const size_t q = rowBase + size_t(i0 + a);
                             const double ws = wx[a] * wy[b];
+                            const float* v = &low.pixels[q * nc];
                             double r = 1.0;
-                            if (ranged && pass == 0) {
-                                const float* gq = &lowGuide[q * 3];
-                                const float d0 = gp[0] - gq[0], d1 = gp[1] - gq[1],
-                                            d2 = gp[2] - gq[2];
-                                const float t = (d0 * d0 + d1 * d1 + d2 * d2) * toTable;
+                            if ((ranged || target >= 0.0f) && pass == 0) {
+                                float t = 0.0f;
+                                if (ranged) {
+                                    const float* gq = &lowGuide[q * 3];
+                                    const float d0 = gp[0] - gq[0], d1 = gp[1] - gq[1],
+                                                d2 = gp[2] - gq[2];
+                                    t = (d0 * d0 + d1 * d1 + d2 * d2) * toTable;
+                                }
+                                if (target >= 0.0f) {
+                                    const float dm = target - v[3];
+                                    t += dm * dm * maskToTable;
+                                }
                                 r = t < float(kRangeTable) ? rangeTable[int(t)] : 0.0f;
                             }
-                            const float* v = &low.pixels[q * nc];
                             for (uint32_t c = 0; c < nc; ++c) acc[c] += ws * r * double(v[c]);
                             weight += ws * r;
                             spatial += ws;

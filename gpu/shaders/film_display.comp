@@ -132,6 +132,22 @@ vec4 upsampled(uvec2 p, vec3 plate) {
     taps(p.x, params.width, params.traceWidth, i0, wx);
     taps(p.y, params.height, params.traceHeight, j0, wy);
     vec3 g = logGuide(plate);
+    float outline = -1.0;
+    if (params.maskRangeScale > 0.0) {
+        float mean = 0.0, weight = 0.0, lowest = 1.0, highest = 0.0;
+        for (int b = 0; b < 4; ++b) {
+            for (int a = 0; a < 4; ++a) {
+                float ws = wx[a] * wy[b];
+                if (ws == 0.0) continue;
+                float m = fetch(estimateTexels, uint(j0 + b) * params.traceWidth + uint(i0 + a)).a;
+                mean += ws * m;
+                weight += ws;
+                lowest = min(lowest, m);
+                highest = max(highest, m);
+            }
+        }
+        outline = outlineMask(mean / weight, lowest, highest, params.maskSharpness);
+    }
     vec4 ranged = vec4(0.0), spatial = vec4(0.0);
     float rangedWeight = 0.0, spatialWeight = 0.0;
     for (int b = 0; b < 4; ++b) {
@@ -142,6 +158,7 @@ vec4 upsampled(uvec2 p, vec3 plate) {
             vec4 v = fetch(estimateTexels, q);
             vec3 d = g - fetch(lowGuideTexels, q).xyz;
             float t = params.rangeScale * dot(d, d);
+            if (outline >= 0.0) t += params.maskRangeScale * (outline - v.a) * (outline - v.a);
             float wr = t < PV_RANGE_CUT ? ws * exp(-floor(t * PV_RANGE_STEPS) / PV_RANGE_STEPS) : 0.0;
             ranged += wr * v;
             rangedWeight += wr;

@@ -135,6 +135,89 @@ TEST(Upsample, MaskStaysInsideZeroOne) {
     }
 }
 
+// A virtual object's coverage of the box [x0, x1) × [y0, y1) (output pixels) by 16 × 16
+// samples: `inside(x, y)` says whether a point is on it.
+template <typename Inside>
+float coverage(double x0, double y0, double x1, double y1, Inside inside) {
+    int n = 0;
+    for (int j = 0; j < 16; ++j)
+        for (int i = 0; i < 16; ++i)
+            n += inside(x0 + (x1 - x0) * (i + 0.5) / 16.0, y0 + (y1 - y0) * (j + 0.5) / 16.0);
+    return float(n) / 256.0f;
+}
+
+// Traced at lw × lh for a w × h output: per traced pixel the plate-free mean of an object of
+// radiance `object` over a differential `real` (a shadow), and the mask, as the path tracer's
+// means with converged coverage; and the box-filtered truth at the output's resolution.
+template <typename Inside>
+std::pair<ImageF, ImageF> tracedAndTruth(uint32_t lw, uint32_t lh, uint32_t w, uint32_t h,
+                                         Inside inside) {
+    const float object = 0.3f, real = -0.05f;
+    ImageF low = makeImage(lw, lh, 4), truth = makeImage(w, h, 4);
+    auto fill = [&](ImageF& img, uint32_t i, uint32_t j, float m) {
+        float* px = &img.pixels[(size_t(j) * img.width + i) * 4];
+        for (int c = 0; c < 3; ++c) px[c] = m * object + (1.0f - m) * real;
+        px[3] = m;
+    };
+    const double sx = double(w) / lw, sy = double(h) / lh;
+    for (uint32_t j = 0; j < lh; ++j)
+        for (uint32_t i = 0; i < lw; ++i)
+            fill(low, i, j, coverage(i * sx, j * sy, (i + 1) * sx, (j + 1) * sy, inside));
+    for (uint32_t y = 0; y < h; ++y)
+        for (uint32_t x = 0; x < w; ++x) fill(truth, x, y, coverage(x, y, x + 1, y + 1, inside));
+    return {low, truth};
+}
+
+// RMS over the output pixels where the truth or the result is neither 0 nor 1 (the outline).
+double outlineRms(const ImageF& up, const ImageF& truth) {
+    double sum = 0.0;
+    size_t n = 0;
+    for (size_t i = 0; i < truth.pixels.size(); i += 4) {
+        const float t = truth.pixels[i + 3], u = up.pixels[i + 3];
+        if ((t == 0.0f || t == 1.0f) && (u < 1e-3f || u > 1.0f - 1e-3f)) continue;
+        for (int c = 0; c < 4; ++c) sum += std::pow(up.pixels[i + c] - truth.pixels[i + c], 2.0);
+        n += 4;
+    }
+    return n ? std::sqrt(sum / double(n)) : 0.0;
+}
+
+TEST(Upsample, AVirtualObjectsOutlineIsAsSharpAsTheOutputs) {
+    // A disc the plate does not show (a constant guide), traced at 1/3 and at 1/4, and at
+    // 640×480's 213×160-like fraction.
+    const Size sizes[] = {{64, 48, 192, 144}, {48, 36, 192, 144}, {71, 53, 213, 160}};
+    for (const Size& s : sizes) {
+        auto disc = [&](double x, double y) {
+            return std::hypot(x - 0.52 * s.w, y - 0.47 * s.h) < 0.3 * s.h;
+        };
+        auto [low, truth] = tracedAndTruth(s.lowW, s.lowH, s.w, s.h, disc);
+        const ImageF guide = makeImage(s.w, s.h, 3, 0.7f);
+        UpsampleSettings blurred;
+        blurred.outlineSharpening = 0.0f;
+        const double sharp = outlineRms(jointBilateralUpsample(low, s.w, s.h, &guide), truth);
+        const double before =
+            outlineRms(jointBilateralUpsample(low, s.w, s.h, &guide, blurred), truth);
+        std::printf("%ux%u from %ux%u: outline RMS %.4f sharpened, %.4f not\n", s.w, s.h, s.lowW,
+                    s.lowH, sharp, before);
+        EXPECT_LT(sharp, 0.5 * before) << s.lowW << "x" << s.lowH;
+    }
+}
+
+TEST(Upsample, DetailFinerThanATracedPixelIsKept) {
+    // A vertical wire one output pixel wide, traced at 1/3: no traced pixel is mostly on it, so
+    // there is no outline to steepen and the wire comes out exactly as without sharpening.
+    const uint32_t w = 192, h = 144, lw = 64, lh = 48;
+    auto wire = [](double x, double) { return x >= 96.0 && x < 97.0; };
+    auto [low, truth] = tracedAndTruth(lw, lh, w, h, wire);
+    const ImageF guide = makeImage(w, h, 3, 0.7f);
+    UpsampleSettings blurred;
+    blurred.outlineSharpening = 0.0f;
+    const ImageF up = jointBilateralUpsample(low, w, h, &guide);
+    EXPECT_EQ(up.pixels, jointBilateralUpsample(low, w, h, &guide, blurred).pixels);
+    double kept = 0.0;
+    for (size_t i = 3; i < up.pixels.size(); i += 4) kept += up.pixels[i];
+    EXPECT_GT(kept, 0.9 * h);  // the B-spline's sampling keeps about all of it
+}
+
 int referenceCode(float v) { return int(std::lround(srgbEncode(v) * 255.0f)); }
 
 TEST(EncodeSrgb8, EqualsTheRoundedEncodeAtEveryStepAndElsewhere) {

@@ -34,6 +34,22 @@ PV_INLINE vec4 heldBlend(vec4 sum, float count, vec4 estimate) {
 #define PV_RANGE_CUT 16.0f
 #define PV_RANGE_STEPS 64.0f
 
+// The virtual objects' outline at the output's resolution (render/upsample.h). The mask M
+// traced at a fraction of the output is each traced pixel's coverage, and its B-spline-weighted
+// mean around an output pixel (`mean`) crosses ½ within 0.05 traced pixels of a straight outline,
+// but over a ramp 1.3–2 traced pixels wide: the upsampled objects look blurred by it. Where the
+// taps hold a pixel mostly on an object and one mostly off it (`highest`, `lowest`), the outline
+// is one the trace resolves, and the ramp is steepened by `sharpness` to about one output pixel,
+// the box-filtered full-resolution mask's; finer detail (a wire narrower than a traced pixel) is
+// left as traced (−1: no outline to steer to). The result is the mask the upsampled estimate is
+// steered to (the mask's range kernel).
+#define PV_OUTLINE_SOLID 0.75f
+PV_INLINE float outlineMask(float mean, float lowest, float highest, float sharpness) {
+    if (!(sharpness > 1.0f) || highest < PV_OUTLINE_SOLID || lowest > 1.0f - PV_OUTLINE_SOLID)
+        return -1.0f;
+    return clamp(0.5f + (mean - 0.5f) * sharpness, 0.0f, 1.0f);
+}
+
 PV_INLINE float fastLog2(float v) {
     uint bits = floatBitsToUint(v);
     float exponent = float(int((bits >> 23) & 0xffu) - 127);
@@ -130,9 +146,13 @@ struct FilmParams {
     // distance of the guide's log2 colours; 0: the spatial kernel alone.
     float rangeScale;
     float logEpsilon;  // ε added before the log (render/upsample.h)
-    uint held;         // 1: blend the held view's samples (PV_FILM_BINDING_HELD)
-    uint denoised;     // 1: the estimate's RGB is the denoiser's output (PV_FILM_BINDING_DENOISED)
-    uint toneOp;       // PV_TONE_*
+    // The outline's steepening (outlineMask's `sharpness`; ≤ 1: none) and the mask's range
+    // kernel exp(−maskRangeScale·(M_outline − M_traced)²) (0: none).
+    float maskSharpness;
+    float maskRangeScale;
+    uint held;      // 1: blend the held view's samples (PV_FILM_BINDING_HELD)
+    uint denoised;  // 1: the estimate's RGB is the denoiser's output (PV_FILM_BINDING_DENOISED)
+    uint toneOp;    // PV_TONE_*
     // Multiplies the composite before the curve: the exposure's 2^stops over the white balance
     // the plate's inverse applied (undone here, as PipelineRenderer's display does).
     vec3 exposure;
