@@ -52,8 +52,8 @@ Result<Denoiser> Denoiser::create(GpuContext& ctx, uint32_t width, uint32_t heig
          "denoiseWork"},
         {PV_DENOISE_BINDING_OUTPUT, pixels * sizeof(glm::vec4), "denoiseOutput"},
         {PV_DENOISE_BINDING_PACKED, 2 * pixels * sizeof(glm::uvec4), "denoisePacked"},
-        {PV_DENOISE_BINDING_HISTORY, 2 * PV_HISTORY_TEXELS * pixels * sizeof(glm::vec4),
-         "denoiseHistory"},
+        // A placeholder until the first temporal frame (ensureHistory).
+        {PV_DENOISE_BINDING_HISTORY, PV_HISTORY_TEXELS * sizeof(glm::vec4), "denoiseHistory"},
     };
     d.buffers_.reserve(std::size(owned));
     for (const Owned& o : owned) {
@@ -62,7 +62,11 @@ Result<Denoiser> Denoiser::create(GpuContext& ctx, uint32_t width, uint32_t heig
         d.buffers_.push_back(std::move(buffer.value()));
     }
     // (The vector's elements keep their addresses when the denoiser moves.)
-    for (size_t i = 0; i < std::size(owned); ++i) d.bound_[owned[i].binding] = &d.buffers_[i];
+    for (size_t i = 0; i < std::size(owned); ++i) {
+        d.bound_[owned[i].binding] = &d.buffers_[i];
+        if (owned[i].binding == PV_DENOISE_BINDING_HISTORY) d.historyIndex_ = i;
+    }
+    d.ctx_ = &ctx;
     d.bound_[PV_DENOISE_BINDING_WORK_TEXELS] = d.bound_[PV_DENOISE_BINDING_WORK];
     d.bound_[PV_DENOISE_BINDING_PACKED_TEXELS] = d.bound_[PV_DENOISE_BINDING_PACKED];
     d.bound_[PV_DENOISE_BINDING_HISTORY_TEXELS] = d.bound_[PV_DENOISE_BINDING_HISTORY];
@@ -87,6 +91,17 @@ Result<Denoiser> Denoiser::create(GpuContext& ctx, uint32_t width, uint32_t heig
     if (Status s = make(PV_DENOISE_STAGE_FINISH, d.finish_); !s) return s.error();
     if (Status s = d.bindGuides(*d.bound_[PV_DENOISE_BINDING_GUIDES]); !s) return s.error();
     return d;
+}
+
+Status Denoiser::ensureHistory() {
+    const size_t bytes = 2 * PV_HISTORY_TEXELS * size_t(width_) * height_ * sizeof(glm::vec4);
+    GpuBuffer& history = buffers_[historyIndex_];
+    if (history.size() >= bytes) return {};
+    auto made = GpuBuffer::create(*ctx_, bytes, "denoiseHistory");
+    if (!made) return made.error();
+    history = std::move(made.value());  // bound_ keeps pointing at the vector's element
+    boundGuides_ = 0;                   // the next bindGuides binds it to every pipeline
+    return {};
 }
 
 Status Denoiser::bindGuides(const GpuBuffer& guides) {
@@ -165,6 +180,8 @@ Result<ImageF> Denoiser::run(const ImageF& signal, std::span<const glm::vec4> gu
 
 Status Denoiser::filter(const GpuBuffer& guides, const DenoiseCamera* now) {
     lastGpuMs_ = 0.0;
+    if (now)
+        if (Status s = ensureHistory(); !s) return s;
     if (Status s = bindGuides(guides); !s) return s;
     shader::DenoiseParams params{};
     params.width = width_;

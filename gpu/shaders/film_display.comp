@@ -132,39 +132,39 @@ vec4 upsampled(uvec2 p, vec3 plate) {
     taps(p.x, params.width, params.traceWidth, i0, wx);
     taps(p.y, params.height, params.traceHeight, j0, wy);
     vec3 g = logGuide(plate);
-    float outline = -1.0;
-    if (params.maskRangeScale > 0.0) {
-        float mean = 0.0, weight = 0.0, lowest = 1.0, highest = 0.0;
-        for (int b = 0; b < 4; ++b) {
-            for (int a = 0; a < 4; ++a) {
-                float ws = wx[a] * wy[b];
-                if (ws == 0.0) continue;
-                float m = fetch(estimateTexels, uint(j0 + b) * params.traceWidth + uint(i0 + a)).a;
-                mean += ws * m;
-                weight += ws;
-                lowest = min(lowest, m);
-                highest = max(highest, m);
-            }
-        }
-        outline = outlineMask(mean / weight, lowest, highest, params.maskSharpness);
+    // One fetch per tap: the spatial kernel and the mask's extremes first (the outline needs
+    // the spatial mean of the mask), then the range kernel on the kept values.
+    vec4 values[16];
+    float plateDistance[16], spatialWeights[16];
+    vec4 spatial = vec4(0.0);
+    float spatialWeight = 0.0, lowest = 1.0, highest = 0.0;
+    for (int k = 0; k < 16; ++k) {
+        float ws = wx[k & 3] * wy[k >> 2];
+        spatialWeights[k] = ws;
+        if (ws == 0.0) continue;
+        uint q = uint(j0 + (k >> 2)) * params.traceWidth + uint(i0 + (k & 3));
+        vec4 v = fetch(estimateTexels, q);
+        vec3 d = g - fetch(lowGuideTexels, q).xyz;
+        values[k] = v;
+        plateDistance[k] = params.rangeScale * dot(d, d);
+        spatial += ws * v;
+        spatialWeight += ws;
+        lowest = min(lowest, v.a);
+        highest = max(highest, v.a);
     }
-    vec4 ranged = vec4(0.0), spatial = vec4(0.0);
-    float rangedWeight = 0.0, spatialWeight = 0.0;
-    for (int b = 0; b < 4; ++b) {
-        for (int a = 0; a < 4; ++a) {
-            float ws = wx[a] * wy[b];
-            if (ws == 0.0) continue;
-            uint q = uint(j0 + b) * params.traceWidth + uint(i0 + a);
-            vec4 v = fetch(estimateTexels, q);
-            vec3 d = g - fetch(lowGuideTexels, q).xyz;
-            float t = params.rangeScale * dot(d, d);
-            if (outline >= 0.0) t += params.maskRangeScale * (outline - v.a) * (outline - v.a);
-            float wr = t < PV_RANGE_CUT ? ws * exp(-floor(t * PV_RANGE_STEPS) / PV_RANGE_STEPS) : 0.0;
-            ranged += wr * v;
-            rangedWeight += wr;
-            spatial += ws * v;
-            spatialWeight += ws;
-        }
+    float outline = params.maskRangeScale > 0.0
+                        ? outlineMask(spatial.a / spatialWeight, lowest, highest, params.maskSharpness)
+                        : -1.0;
+    vec4 ranged = vec4(0.0);
+    float rangedWeight = 0.0;
+    for (int k = 0; k < 16; ++k) {
+        float ws = spatialWeights[k];
+        if (ws == 0.0) continue;
+        float t = plateDistance[k];
+        if (outline >= 0.0) t += params.maskRangeScale * (outline - values[k].a) * (outline - values[k].a);
+        float wr = t < PV_RANGE_CUT ? ws * exp(-floor(t * PV_RANGE_STEPS) / PV_RANGE_STEPS) : 0.0;
+        ranged += wr * values[k];
+        rangedWeight += wr;
     }
     if (rangedWeight > kMinRangeWeightFraction * spatialWeight) return ranged / rangedWeight;
     return spatial / spatialWeight;

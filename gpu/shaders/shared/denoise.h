@@ -48,6 +48,7 @@ PV_BEGIN
 // Two images (read, written; swapped each frame) of the temporal history, PV_HISTORY_TEXELS
 // vec4 per pixel: (integrated demodulated RGB, history length in frames), (EMA of the
 // luminance, EMA of its square, EMA of the frames' own variance, Σ of the squared EMA weights).
+// Made with the first temporal frame (refinement, which filters without it, never holds them).
 #define PV_DENOISE_BINDING_HISTORY 8
 #define PV_DENOISE_BINDING_HISTORY_TEXELS 9  // the same, read
 #define PV_DENOISE_BINDING_COUNT 10
