@@ -1,8 +1,10 @@
 #include "render/denoiser.h"
 
+#include <algorithm>
 #include <array>
 #include <iterator>
 
+#include "base/log.h"
 #include "denoise.spv.h"
 #include "shared/denoise.h"
 
@@ -47,12 +49,14 @@ Result<Denoiser> Denoiser::create(GpuContext& ctx, uint32_t width, uint32_t heig
     const Owned owned[] = {
         {PV_DENOISE_BINDING_PARAMS, sizeof(shader::DenoiseParams), "denoiseParams"},
         {PV_DENOISE_BINDING_COLOR, pixels * sizeof(glm::vec4), "denoiseColor"},
-        {PV_DENOISE_BINDING_GUIDES, pixels * PV_GUIDE_COUNT * sizeof(glm::vec4), "denoiseGuides"},
-        {PV_DENOISE_BINDING_WORK, PV_DENOISE_WORK_IMAGES * pixels * sizeof(glm::vec4),
+        // Guides of its own only for apply()/applyTemporal() (the service filters with the path
+        // tracer's), the temporal image and the history only for the temporal stage (refinement
+        // filters at full resolution without it): placeholders until first needed (ensureSize).
+        {PV_DENOISE_BINDING_GUIDES, PV_GUIDE_COUNT * sizeof(glm::vec4), "denoiseGuides"},
+        {PV_DENOISE_BINDING_WORK, (PV_DENOISE_WORK_IMAGES - 1) * pixels * sizeof(glm::vec4),
          "denoiseWork"},
         {PV_DENOISE_BINDING_OUTPUT, pixels * sizeof(glm::vec4), "denoiseOutput"},
         {PV_DENOISE_BINDING_PACKED, 2 * pixels * sizeof(glm::uvec4), "denoisePacked"},
-        // A placeholder until the first temporal frame (ensureHistory).
         {PV_DENOISE_BINDING_HISTORY, PV_HISTORY_TEXELS * sizeof(glm::vec4), "denoiseHistory"},
     };
     d.buffers_.reserve(std::size(owned));
@@ -62,10 +66,7 @@ Result<Denoiser> Denoiser::create(GpuContext& ctx, uint32_t width, uint32_t heig
         d.buffers_.push_back(std::move(buffer.value()));
     }
     // (The vector's elements keep their addresses when the denoiser moves.)
-    for (size_t i = 0; i < std::size(owned); ++i) {
-        d.bound_[owned[i].binding] = &d.buffers_[i];
-        if (owned[i].binding == PV_DENOISE_BINDING_HISTORY) d.historyIndex_ = i;
-    }
+    for (size_t i = 0; i < std::size(owned); ++i) d.bound_[owned[i].binding] = &d.buffers_[i];
     d.ctx_ = &ctx;
     d.bound_[PV_DENOISE_BINDING_WORK_TEXELS] = d.bound_[PV_DENOISE_BINDING_WORK];
     d.bound_[PV_DENOISE_BINDING_PACKED_TEXELS] = d.bound_[PV_DENOISE_BINDING_PACKED];
@@ -93,14 +94,18 @@ Result<Denoiser> Denoiser::create(GpuContext& ctx, uint32_t width, uint32_t heig
     return d;
 }
 
-Status Denoiser::ensureHistory() {
-    const size_t bytes = 2 * PV_HISTORY_TEXELS * size_t(width_) * height_ * sizeof(glm::vec4);
-    GpuBuffer& history = buffers_[historyIndex_];
-    if (history.size() >= bytes) return {};
-    auto made = GpuBuffer::create(*ctx_, bytes, "denoiseHistory");
+Status Denoiser::ensureSize(int binding, size_t perPixel, const char* label) {
+    const size_t bytes = perPixel * size_t(width_) * height_;
+    // bound_ points at the vector's element, which takes the new buffer.
+    auto it = std::find_if(buffers_.begin(), buffers_.end(),
+                           [&](const GpuBuffer& b) { return &b == bound_[binding]; });
+    PV_ASSERT(it != buffers_.end());
+    GpuBuffer& buffer = *it;
+    if (buffer.size() >= bytes) return {};
+    auto made = GpuBuffer::create(*ctx_, bytes, label);
     if (!made) return made.error();
-    history = std::move(made.value());  // bound_ keeps pointing at the vector's element
-    boundGuides_ = 0;                   // the next bindGuides binds it to every pipeline
+    buffer = std::move(made.value());
+    boundGuides_ = 0;  // the next bindGuides binds it to every pipeline
     return {};
 }
 
@@ -161,6 +166,10 @@ Result<ImageF> Denoiser::run(const ImageF& signal, std::span<const glm::vec4> gu
             buffers_[PV_DENOISE_BINDING_COLOR].upload(color.data(), pixels * sizeof(glm::vec4));
         !s)
         return s.error();
+    if (Status s = ensureSize(PV_DENOISE_BINDING_GUIDES, PV_GUIDE_COUNT * sizeof(glm::vec4),
+                              "denoiseGuides");
+        !s)
+        return s.error();
     GpuBuffer& ownGuides = buffers_[PV_DENOISE_BINDING_GUIDES];
     if (Status s = ownGuides.upload(guides.data(), guides.size_bytes()); !s) return s.error();
     if (Status s = filter(ownGuides, now); !s) return s.error();
@@ -180,8 +189,16 @@ Result<ImageF> Denoiser::run(const ImageF& signal, std::span<const glm::vec4> gu
 
 Status Denoiser::filter(const GpuBuffer& guides, const DenoiseCamera* now) {
     lastGpuMs_ = 0.0;
-    if (now)
-        if (Status s = ensureHistory(); !s) return s;
+    if (now) {
+        if (Status s = ensureSize(PV_DENOISE_BINDING_WORK,
+                                  PV_DENOISE_WORK_IMAGES * sizeof(glm::vec4), "denoiseWork");
+            !s)
+            return s;
+        if (Status s = ensureSize(PV_DENOISE_BINDING_HISTORY,
+                                  2 * PV_HISTORY_TEXELS * sizeof(glm::vec4), "denoiseHistory");
+            !s)
+            return s;
+    }
     if (Status s = bindGuides(guides); !s) return s;
     shader::DenoiseParams params{};
     params.width = width_;
@@ -218,11 +235,13 @@ Status Denoiser::filter(const GpuBuffer& guides, const DenoiseCamera* now) {
         historyValid_ = true;
         prevCamera_ = *now;
     }
-    // The iterations ping-pong between the two images after the prepared and temporal ones.
+    // The iterations ping-pong between the two images after the prepared one and, with the
+    // temporal stage, its image.
+    const uint32_t firstPingPong = (now ? PV_DENOISE_WORK_TEMPORAL : PV_DENOISE_WORK_PREPARED) + 1u;
     for (uint32_t i = 0; i < settings_.iterations; ++i) {
         params.stepPx = 1u << i;
         params.inImage = image;
-        params.outImage = PV_DENOISE_WORK_TEMPORAL + 1u + i % 2;
+        params.outImage = firstPingPong + i % 2;
         image = params.outImage;
         if (Status s = paramsBuffer.upload(&params, sizeof(params)); !s) return s;
         if (Status s = dispatch(*atrous_); !s) return s;

@@ -87,9 +87,9 @@ public:
 private:
     Denoiser() = default;
     Status dispatch(ComputePipeline& pipeline);
-    // The temporal history at its full size, made with the first temporal frame: refinement,
-    // which filters at full resolution without it, saves 2·PV_HISTORY_TEXELS vec4 per pixel.
-    Status ensureHistory();
+    // The buffer at `binding` at least `perPixel` bytes per pixel (made anew, and bound with the
+    // next bindGuides, when smaller): what only some uses need is made on first use (create()).
+    Status ensureSize(int binding, size_t perPixel, const char* label);
     // Binds `guides` (the denoiser's own buffer, or the path tracer's) unless it is bound.
     Status bindGuides(const GpuBuffer& guides);
     Result<ImageF> run(const ImageF& signal, std::span<const glm::vec4> guides,
@@ -108,7 +108,6 @@ private:
     DenoiseCamera prevCamera_;
     // Buffers in PV_DENOISE_BINDING_* order, then the pipelines that bind them.
     std::vector<GpuBuffer> buffers_;
-    size_t historyIndex_ = 0;  // buffers_'s history
     GpuContext* ctx_ = nullptr;
     std::array<const GpuBuffer*, PV_DENOISE_BINDING_COUNT> bound_{};  // own buffers per binding
     uint64_t boundGuides_ = 0;                                        // GpuBuffer::id

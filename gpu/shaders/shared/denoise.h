@@ -33,7 +33,8 @@ PV_BEGIN
 #define PV_DENOISE_BINDING_COLOR 1
 #define PV_DENOISE_BINDING_GUIDES 2  // PV_GUIDE_COUNT vec4 per pixel, as above (texel buffer)
 // PV_DENOISE_WORK_IMAGES images of vec4 (demodulated RGB, its luminance variance): the prepared
-// input, the temporally integrated input, then two for the iterations' ping-pong.
+// input, the temporally integrated input (preview), then two for the iterations' ping-pong
+// (without the temporal stage, images 1 and 2; the buffer then holds three).
 #define PV_DENOISE_BINDING_WORK 3
 #define PV_DENOISE_BINDING_OUTPUT 4  // the filtered signal, vec4 per pixel (w unused)
 // The work buffer again, as a texel buffer the stages read (on llvmpipe a texel fetch is a
@@ -48,7 +49,8 @@ PV_BEGIN
 // Two images (read, written; swapped each frame) of the temporal history, PV_HISTORY_TEXELS
 // vec4 per pixel: (integrated demodulated RGB, history length in frames), (EMA of the
 // luminance, EMA of its square, EMA of the frames' own variance, Σ of the squared EMA weights).
-// Made with the first temporal frame (refinement, which filters without it, never holds them).
+// Made with the first temporal frame (refinement, which filters without it, never holds them;
+// nor the temporal work image: its iterations ping-pong in images 1 and 2).
 #define PV_DENOISE_BINDING_HISTORY 8
 #define PV_DENOISE_BINDING_HISTORY_TEXELS 9  // the same, read
 #define PV_DENOISE_BINDING_COUNT 10
