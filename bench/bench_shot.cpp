@@ -6,6 +6,8 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
+#include <iterator>
 #include <map>
 #include <variant>
 
@@ -64,10 +66,20 @@ struct References {
     }
 };
 
-// The reference of `frame` at `spp` in `cacheDir` ("" = no cache).
-std::string cachedReferencePath(const std::string& cacheDir, size_t frame, uint32_t spp) {
+// The reference of `frame` at `spp` in `cacheDir` ("" = no cache), named by a hash of the
+// config's text too: another config is another reference. A change to the renderer is not seen:
+// empty the folder then (bench/bench_shot.h).
+std::string cachedReferencePath(const std::string& cacheDir, const std::string& configText,
+                                size_t frame, uint32_t spp) {
     if (cacheDir.empty()) return {};
-    return fmt::format("{}/shot_reference_frame{}_{}spp.exr", cacheDir, frame, spp);
+    return fmt::format("{}/shot_reference_{:016x}_frame{}_{}spp.exr", cacheDir,
+                       std::hash<std::string>{}(configText), frame, spp);
+}
+
+// The file's text ("" when unreadable: loadServiceConfig has read it already).
+std::string configText(const std::string& path) {
+    std::ifstream in(path);
+    return std::string(std::istreambuf_iterator<char>(in), {});
 }
 
 // Each reference frame refined without the denoiser: the hold's view to `spp`, the pan's to a
@@ -75,7 +87,8 @@ std::string cachedReferencePath(const std::string& cacheDir, size_t frame, uint3
 // With a cache folder, a reference found there is read instead of rendered, and one rendered is
 // written there.
 Result<References> references(const ServiceConfig& shipped, const std::string& session,
-                              uint32_t spp, size_t lastFrame, const std::string& cacheDir) {
+                              uint32_t spp, size_t lastFrame, const std::string& cacheDir,
+                              const std::string& configText) {
     ServiceConfig config = shipped;
     config.render.denoise = "off";
     config.render.previewFps = 0.0;
@@ -92,7 +105,7 @@ Result<References> references(const ServiceConfig& shipped, const std::string& s
         if (i != kStillFirst && !pan) continue;
         if (!(*step)->shot.shown) return makeError("bench shot: frame {} was not tracked", i);
         const uint32_t total = pan ? std::max<uint32_t>(1, spp / 4) : spp;
-        const std::string cached = cachedReferencePath(cacheDir, i, total);
+        const std::string cached = cachedReferencePath(cacheDir, configText, i, total);
         if (!cached.empty() && std::filesystem::exists(cached)) {
             Result<ImageF> image = readImage(cached);
             if (!image) return image.error();
@@ -184,7 +197,8 @@ double upperMedian(std::vector<double> v) {
 
 int runShotBench(const ShotBenchOptions& o) {
     const std::string session = o.examplesDir + "/demo/session";
-    Result<ServiceConfig> shipped = loadServiceConfig(o.examplesDir + "/demo/previsd.toml");
+    const std::string configPath = o.examplesDir + "/demo/previsd.toml";
+    Result<ServiceConfig> shipped = loadServiceConfig(configPath);
     if (!shipped) {
         logError("{}", shipped.message());
         return 2;
@@ -213,7 +227,8 @@ int runShotBench(const ShotBenchOptions& o) {
     // A cache makes the deep reference free after the first run, quick or not.
     const uint32_t spp = o.quick && o.referenceCache.empty() ? 64 : o.referenceSpp;
     const size_t last = o.quick ? kStillFirst + 8 : kStillLast + 8;
-    Result<References> refs = references(*shipped, session, spp, last, o.referenceCache);
+    Result<References> refs =
+        references(*shipped, session, spp, last, o.referenceCache, configText(configPath));
     if (!refs) {
         logError("{}", refs.message());
         return 1;

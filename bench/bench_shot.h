@@ -20,7 +20,8 @@ struct ShotBenchOptions {
     uint32_t referenceSpp = 1600;  // the deep refinement of the still view
     std::string csvPath;           // per-frame rows as CSV ("" = none)
     // References are read from this folder when there, else rendered and written there ("" =
-    // always rendered): they depend only on the take, the config and the renderer.
+    // always rendered), named by a hash of the demo config's text: empty the folder after a
+    // change to the renderer or the take, which the name does not see.
     std::string referenceCache;
 };
 

@@ -104,6 +104,8 @@ Status Denoiser::ensureSize(int binding, size_t perPixel, const char* label) {
     if (buffer.size() >= bytes) return {};
     auto made = GpuBuffer::create(*ctx_, bytes, label);
     if (!made) return made.error();
+    // The old buffer goes at once: dispatches wait for completion (ComputePipeline::dispatch), so
+    // no command still uses it.
     buffer = std::move(made.value());
     boundGuides_ = 0;  // the next bindGuides binds it to every pipeline
     return {};

@@ -13,8 +13,9 @@ PV_BEGIN
 // (the same samples as the accumulation's means), so antialiased edges get the blend their
 // colour has. Means, not sums: a mean updated by (sum − k·mean)/(n + k) stays precise after
 // millions of samples in float, where a plain sum of depths would not.
-#define PV_GUIDE_ALBEDO_DEPTH 0u  // first-hit base colour (1 for a miss or an emitter), camera distance (m)
-#define PV_GUIDE_NORMAL 1u        // first-hit shading normal facing the camera; w = samples in the means
+#define PV_GUIDE_ALBEDO_DEPTH \
+    0u  // first-hit base colour (1 for a miss or an emitter), camera distance (m)
+#define PV_GUIDE_NORMAL 1u  // first-hit shading normal facing the camera; w = samples in the means
 // Second moments of the luminance of each accumulated signal per sample: the composite without
 // the plate, L_om, L_or. With the means they give each pixel's variance (SVGF's moments). w: the
 // mask M (the fraction of samples whose first hit is virtual): Eq. 1 composites two different
@@ -34,7 +35,8 @@ PV_BEGIN
 #define PV_DENOISE_BINDING_GUIDES 2  // PV_GUIDE_COUNT vec4 per pixel, as above (texel buffer)
 // PV_DENOISE_WORK_IMAGES images of vec4 (demodulated RGB, its luminance variance): the prepared
 // input, the temporally integrated input (preview), then two for the iterations' ping-pong
-// (without the temporal stage, images 1 and 2; the buffer then holds three).
+// (without the temporal stage, images 1 and 2: the buffer holds three until the first temporal
+// frame, four from then on).
 #define PV_DENOISE_BINDING_WORK 3
 #define PV_DENOISE_BINDING_OUTPUT 4  // the filtered signal, vec4 per pixel (w unused)
 // The work buffer again, as a texel buffer the stages read (on llvmpipe a texel fetch is a
@@ -81,7 +83,7 @@ struct DenoiseParams {
     // look along −Z, +Y up), composed on the host in double so that far-from-origin worlds keep
     // their precision.
     mat4 prevCameraFromCamera;
-    vec2 tanHalfFov;           // this frame's tan of the half field of view, x and y
+    vec2 tanHalfFov;  // this frame's tan of the half field of view, x and y
     vec2 prevTanHalfFov;
     uint width;
     uint height;

@@ -41,8 +41,9 @@ PV_INLINE vec4 heldBlend(vec4 sum, float count, vec4 estimate) {
 // taps hold a pixel mostly on an object and one mostly off it (`highest`, `lowest`), the outline
 // is one the trace resolves, and the ramp is steepened by `sharpness` to about one output pixel,
 // the box-filtered full-resolution mask's; finer detail (a wire narrower than a traced pixel) is
-// left as traced (−1: no outline to steer to). The result is the mask the upsampled estimate is
-// steered to (the mask's range kernel).
+// left as traced (−1: no outline to steer to), unless a solid part of an object is among the
+// taps (within two traced pixels): such a wire is steered too, and thinned. The result is the
+// mask the upsampled estimate is steered to (the mask's range kernel).
 #define PV_OUTLINE_SOLID 0.75f
 PV_INLINE float outlineMask(float mean, float lowest, float highest, float sharpness) {
     if (!(sharpness > 1.0f) || highest < PV_OUTLINE_SOLID || lowest > 1.0f - PV_OUTLINE_SOLID)
