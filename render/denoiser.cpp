@@ -1,10 +1,8 @@
 #include "render/denoiser.h"
 
-#include <algorithm>
 #include <array>
 #include <iterator>
 
-#include "base/log.h"
 #include "denoise.spv.h"
 #include "shared/denoise.h"
 
@@ -97,10 +95,7 @@ Result<Denoiser> Denoiser::create(GpuContext& ctx, uint32_t width, uint32_t heig
 Status Denoiser::ensureSize(int binding, size_t perPixel, const char* label) {
     const size_t bytes = perPixel * size_t(width_) * height_;
     // bound_ points at the vector's element, which takes the new buffer.
-    auto it = std::find_if(buffers_.begin(), buffers_.end(),
-                           [&](const GpuBuffer& b) { return &b == bound_[binding]; });
-    PV_ASSERT(it != buffers_.end());
-    GpuBuffer& buffer = *it;
+    GpuBuffer& buffer = buffers_[size_t(bound_[binding] - buffers_.data())];
     if (buffer.size() >= bytes) return {};
     auto made = GpuBuffer::create(*ctx_, bytes, label);
     if (!made) return made.error();
