@@ -2,6 +2,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <vector>
 
 namespace previs {
@@ -25,6 +26,11 @@ struct Frame {
     // CLOCK_REALTIME when the sensor finished the frame (the capture thread's estimate from
     // timestampNs), so a take can be placed in the day; 0 when unknown.
     uint64_t wallClockNs = 0;
+    // A bracketing camera's exposure for this frame, in stops relative to its radiometry (0 = as
+    // calibrated, −4 = a sixteenth of the light): what the camera reported (libcamera's metadata)
+    // or was set to (V4L2, whose controls land a few frames late; vision/hdr_bracket.h checks
+    // it against the pictures). Empty when the camera does not bracket.
+    std::optional<float> exposureStops;
     // The frame as the camera sent it, kept only while a take rolls (CaptureOptions::
     // keepCaptured): a JPEG's bytes as they came, a raw format's planes with any line padding
     // removed; `capturedFourcc` names their V4L2 format. The recorder stores these bytes, never

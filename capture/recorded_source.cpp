@@ -52,6 +52,7 @@ Result<Frame> readRecordedFrame(const RecordedFrameEntry& e) {
     }
     frame.timestampNs = e.timestampNs;
     frame.wallClockNs = e.wallClockNs.value_or(0);
+    frame.exposureStops = e.exposureStops;
     frame.deviceSequence = uint32_t(e.sequence);
     // A recorded JPEG or raw frame goes on as its bytes, so a take recorded from a replay keeps
     // them.

@@ -150,11 +150,12 @@ Result<std::optional<std::vector<double>>> TomlReader::numbers(const toml::table
     const toml::node* node = table.get(key);
     if (!node) return std::optional<std::vector<double>>();
     const toml::array* array = node->as_array();
-    if (!array || array->size() != count)
+    if (!array || (count > 0 && array->size() != count))
         return fail(node, "'{}' must be an array of {} numbers, not {}", dotted(section, key),
-                    count, array ? fmt::format("{} elements", array->size()) : tomlTypeName(*node));
+                    count > 0 ? fmt::format("{}", count) : std::string("some"),
+                    array ? fmt::format("{} elements", array->size()) : tomlTypeName(*node));
     std::vector<double> values;
-    for (size_t i = 0; i < count; ++i) {
+    for (size_t i = 0; i < array->size(); ++i) {
         const toml::node& element = *array->get(i);
         const std::optional<double> v = asNumber(element);
         if (!v || !std::isfinite(*v))

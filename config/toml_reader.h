@@ -53,7 +53,7 @@ public:
                                            std::string_view key) const;
     Result<std::optional<bool>> boolean(const toml::table& table, std::string_view section,
                                         std::string_view key) const;
-    // An array of exactly `count` finite numbers.
+    // An array of exactly `count` finite numbers (any number of them when `count` is 0).
     Result<std::optional<std::vector<double>>> numbers(const toml::table& table,
                                                        std::string_view section,
                                                        std::string_view key, size_t count) const;

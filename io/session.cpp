@@ -157,8 +157,8 @@ std::string formatDouble(double v) { return fmt::format("{}", v); }
 constexpr std::string_view kPosesHeader = "# previs-session poses v";
 constexpr std::string_view kCameraIndexHeader = "# previs-session camera index v";
 constexpr std::string_view kLightingHeader = "# previs-session lighting v";
-// The camera index's own version (v2: wallClockNs and timecode appended).
-constexpr int kCameraIndexVersion = 2;
+// The camera index's own version (v2: wallClockNs and timecode appended; v3: exposureStops).
+constexpr int kCameraIndexVersion = 3;
 constexpr std::string_view kEventsHeader = "# previs-session events v";
 
 bool knownEvent(std::string_view source, std::string_view event, int version) {
@@ -284,6 +284,14 @@ Result<std::vector<RecordedFrameEntry>> loadCameraIndex(const std::string& camer
                     e.wallClockNs = wall;
                 }
                 e.timecode = std::string(f[6]);
+            }
+            if (f.size() >= 8 && !f[7].empty()) {
+                float stops = 0.0f;
+                if (!parseNumber(f[7], stops) || !std::isfinite(stops) || std::abs(stops) > 30.0f)
+                    return Status(makeError(
+                        "{}:{}: malformed exposureStops in '{}' (a number of stops within ±30)",
+                        path, lineNo, line));
+                e.exposureStops = stops;
             }
             if (!entries.empty() && (e.sequence <= entries.back().sequence ||
                                      e.timestampNs < entries.back().timestampNs))
@@ -709,7 +717,7 @@ Status SessionWriter::writeFrame(const std::string& camera, uint64_t sequence, u
     if (indices_.find(rel) == indices_.end())
         if (Status s = createFolder("cameras/" + camera); !s) return s;
     auto index = openIndex(rel, fmt::format("{}{}: sequence,timestampNs,file,width,height,"
-                                            "wallClockNs,timecode\n",
+                                            "wallClockNs,timecode,exposureStops\n",
                                             kCameraIndexHeader, kCameraIndexVersion));
     if (!index) return index.error();
     Index& idx = **index;
@@ -725,9 +733,12 @@ Status SessionWriter::writeFrame(const std::string& camera, uint64_t sequence, u
         return makeError("session frame {} of '{}': timecode '{}' holds a comma or newline",
                          sequence, camera, stamp.timecode);
     if (Status s = appendLine(
-            idx, fmt::format("{},{},{},{},{},{},{}\n", sequence, timestampNs, file, width, height,
+            idx, fmt::format("{},{},{},{},{},{},{},{}\n", sequence, timestampNs, file, width,
+                             height,
                              stamp.wallClockNs ? std::to_string(*stamp.wallClockNs) : std::string(),
-                             stamp.timecode));
+                             stamp.timecode,
+                             stamp.exposureStops ? fmt::format("{}", *stamp.exposureStops)
+                                                 : std::string()));
         !s)
         return s;
     idx.lastSequence = sequence;

@@ -83,6 +83,9 @@ struct RecordedFrameEntry {
     // ("HH:MM:SS:FF"); absent in older sessions.
     std::optional<uint64_t> wallClockNs;
     std::string timecode;
+    // v3: the frame's exposure in stops relative to the camera's radiometry (0 = as calibrated,
+    // −4 = a sixteenth of the light), when the camera brackets; absent otherwise.
+    std::optional<float> exposureStops;
 };
 
 // Parses cameras/<name>/index.csv of a session; a truncated last line (a crash mid-append) is
@@ -147,10 +150,11 @@ struct SessionWriterOptions {
     std::chrono::milliseconds flushInterval{1000};
 };
 
-// When a frame was captured, besides its monotonic timestamp (camera index v2 columns).
+// What a camera index line says of a frame besides its monotonic timestamp (v2 and v3 columns).
 struct FrameStamp {
     std::optional<uint64_t> wallClockNs;  // CLOCK_REALTIME
     std::string timecode;                 // "HH:MM:SS:FF", time of day at the camera's rate
+    std::optional<float> exposureStops;   // a bracketing camera's exposure (RecordedFrameEntry)
 };
 
 // Appends a session folder in the crash-safe write order of docs/session-format.md: a frame
