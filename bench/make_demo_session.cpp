@@ -1,6 +1,8 @@
-// make_demo_session: generates examples/demo/ — the phantom set (scene.gltf, board.png) and the
-// recorded session the README's demo replays (docs/session-format.md v2) — with previs's own
-// path tracer, deterministically (fixed seeds). scripts/make_demo_session.sh runs it.
+// make_demo_session: generates examples/demo/ — the phantom set (scene.gltf, board.png), the
+// recorded session the README's demo replays (docs/session-format.md v3) and, outside the take,
+// a truth folder for tests (truth/: linear renders of the mixed and real-only scenes and the
+// virtual mask at a few frames) — with previs's own path tracer, deterministically (fixed
+// seeds). scripts/make_demo_session.sh runs it.
 //
 // The set: a table with an A3 tag board (examples/demo/board.toml) lying on it, a cardboard box,
 // a floor, lit by an HDR environment map; virtual objects (a glossy red ball, a chrome ball) that
@@ -8,10 +10,19 @@
 // still while the mode button goes into refinement and back, and moves again; its frames show
 // the real set only (the plate), tone mapped by the curve previsd.toml's radiometry inverts.
 // The fisheye (fisheye.yaml, looking up) sees the environment map; the map turns a few degrees
-// while the camera moves, so live lighting is visible.
+// while the camera moves, so live lighting is visible. The fisheye brackets (DESIGN.md §4: an
+// 8-bit camera clips every lamp): at each lighting instant one frame per exposure of
+// --bracket-stops, through the same 8-bit curve as the plates.
 
+#include <Imath/half.h>
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfCompression.h>
+#include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfOutputFile.h>
 #include <apriltag/apriltag.h>
 #include <apriltag/tag36h11.h>
+#include <fmt/format.h>
 
 #include <algorithm>
 #include <array>
@@ -21,6 +32,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <glm/gtc/quaternion.hpp>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -57,6 +69,10 @@ constexpr int kStillLast = 44;
 constexpr int kFisheyeEvery = 4;
 constexpr uint64_t kStartNs = 1'000'000'000'000ULL;  // an arbitrary CLOCK_MONOTONIC origin
 constexpr uint64_t kFrameNs = 66'666'667ULL;
+// The fisheye runs at 30 fps while it brackets: a bracket's frames are 1/30 s apart, starting
+// 1 ms after the scene frame of its instant (the two cameras are not synchronised).
+constexpr uint64_t kBracketFrameNs = 33'333'333ULL;
+constexpr uint64_t kFisheyeOffsetNs = 1'000'000ULL;
 
 // The A3 sheet the tags are printed on, centred on the world origin (board.toml), and its texture
 // resolution: 0.5 mm texels put every bit edge of 80 mm tags (10 mm bits) on a texel edge.
@@ -71,6 +87,15 @@ constexpr float kInkAlbedo = 0.04f;
 constexpr float kMaxRadiance = 16.0f;
 constexpr double kNoiseSigmaLevels = 1.5;
 
+// The virtual balls (world metres): scene.gltf's spheres and the truth's regions.
+struct VirtualBall {
+    const char* name;  // in truth.toml
+    const char* node;  // in scene.gltf
+    double x, y, z, radiusM;
+};
+constexpr VirtualBall kRedBall{"red_ball", "RedBall", -0.33, 0.054, 0.06, 0.055};
+constexpr VirtualBall kChromeBall{"chrome_ball", "ChromeBall", 0.06, 0.044, 0.23, 0.045};
+
 struct Options {
     std::string demoDir;
     std::string envPath;
@@ -79,6 +104,19 @@ struct Options {
     uint32_t stillSpp = 256;
     uint32_t maxDepth = 3;
     int frames = kFrames;  // fewer for a quick look
+    // The fisheye's exposures at each lighting instant, in stops relative to its radiometry
+    // (FrameStamp::exposureStops), in capture order.
+    // At 0.6, studio_small_03's brightest channel is 2141 (7.1 stops over L_max = 16): −8 still
+    // clips 34 coloured texels (the curve scales colour by a luminance ratio), −9 clips none
+    // (code 241 before noise and JPEG), −10 leaves 35 codes of margin (220).
+    std::vector<float> bracketStops{0.0f, -5.0f, -10.0f};
+    // The truth folder: scene frames rendered as linear mixed/real/mask, with this many samples
+    // per pixel (two independent halves; 0 writes no truth folder).
+    std::vector<int> truthFrames{10, 32};
+    uint32_t truthSpp = 1024;
+    // The environment map's name relative to the shared data folder, for truth.toml (default:
+    // its path from the "envmaps" folder on).
+    std::string envName;
 };
 
 // --- the phantom set as glTF ------------------------------------------------------------------
@@ -271,8 +309,11 @@ Status writeSceneGltf(const Options& o, const TagBoard& board, const cv::Matx44d
     g.addNode("Floor", floorMesh, floor, true);
     g.addNode("Box", GltfBuilder::box({0.26f, -0.001f, -0.2f}, {0.44f, 0.139f, -0.06f}), cardboard,
               true);
-    g.addNode("RedBall", GltfBuilder::sphere({-0.33f, 0.054f, 0.06f}, 0.055f), red, false);
-    g.addNode("ChromeBall", GltfBuilder::sphere({0.06f, 0.044f, 0.23f}, 0.045f), chrome, false);
+    for (auto [ball, material] : {std::pair{kRedBall, red}, {kChromeBall, chrome}})
+        g.addNode(
+            ball.node,
+            GltfBuilder::sphere({float(ball.x), float(ball.y), float(ball.z)}, float(ball.radiusM)),
+            material, false);
 
     // The camera at the still view, so `previs render examples/demo/previs.toml` shows the shot.
     const glm::mat4 m = renderWorldFromOpenCvCamera(cameraPose);
@@ -354,13 +395,22 @@ double envRotationDeg(int i) {
 
 // --- encoding -------------------------------------------------------------------------------
 
-// Linear radiance → the camera's 8-bit frame: the tone curve the config inverts, then sensor
-// noise on the code values.
-std::vector<uint8_t> encodeFrame(const ImageF& linear, uint64_t seed, int& width, int& height) {
+// The camera's tone curve, which previsd.toml's radiometry inverts, at an exposure of `stops`
+// (the linear image × 2^stops before the curve, as a bracketed frame receives it).
+ToneMapSettings cameraCurve(float stops) {
     ToneMapSettings tm;
     tm.op = ToneMapOperator::ReinhardExtended;
     tm.maxRadiance = kMaxRadiance;
     tm.whiteLuminance = kMaxRadiance;
+    tm.exposureStops = stops;
+    return tm;
+}
+
+// Linear radiance → the camera's 8-bit frame: the tone curve the config inverts at an exposure
+// of `stops`, then sensor noise on the code values.
+std::vector<uint8_t> encodeFrame(const ImageF& linear, uint64_t seed, int& width, int& height,
+                                 float stops = 0.0f) {
+    const ToneMapSettings tm = cameraCurve(stops);
     cv::RNG rng(seed);
     width = int(linear.width);
     height = int(linear.height);
@@ -413,6 +463,314 @@ Result<ImageF> fisheyeImage(const CameraCalibration& cal, const EnvironmentSampl
     return img;
 }
 
+// The environment's brightest texel (× scale) and whether each bracket exposure keeps every
+// texel below display white: the curve acts on luminance and scales the colour, so a channel
+// clips when its display value reaches 1 (code 255), before the luminance reaches L_white for
+// a coloured lamp. Returns the shortest exposure's largest display value over the channels.
+float checkBracketClipping(const EnvironmentMap& env, const std::vector<float>& stops) {
+    glm::vec3 brightest(0.0f);
+    float maxChannel = 0.0f;
+    for (const glm::vec3& t : env.radiance) {
+        const glm::vec3 l = env.scale * t;
+        if (luminance(l) > luminance(brightest)) brightest = l;
+        maxChannel = std::max({maxChannel, l.r, l.g, l.b});
+    }
+    logInfo(
+        "environment {}: {}x{}, scale {}: brightest texel RGB ({:.1f}, {:.1f}, {:.1f}), "
+        "luminance {:.1f}; largest channel {:.1f} ({:.2f} stops over L_max = {})",
+        env.path, env.width, env.height, env.scale, brightest.r, brightest.g, brightest.b,
+        luminance(brightest), maxChannel, std::log2(maxChannel / kMaxRadiance), kMaxRadiance);
+    float shortestDisplay = 0.0f;
+    const float shortest = stops.empty() ? 0.0f : *std::min_element(stops.begin(), stops.end());
+    for (float s : stops) {
+        float display = 0.0f;
+        size_t clipped = 0;
+        for (const glm::vec3& t : env.radiance) {
+            const glm::vec3 l = env.scale * t;
+            const std::array<float, 3> enc = toneMapRgb({l.r, l.g, l.b}, cameraCurve(s));
+            const float m = std::max({enc[0], enc[1], enc[2]});
+            display = std::max(display, m);
+            clipped += m >= 1.0f;
+        }
+        logInfo("bracket {:+.1f} stops: {} texels clipped, brightest code {:.1f} of 255", s,
+                clipped, 255.0f * display);
+        if (s == shortest) shortestDisplay = display;
+    }
+    // The longest whole-stop exposure that clips no channel of any texel.
+    auto clips = [&](float s) {
+        for (const glm::vec3& t : env.radiance) {
+            const glm::vec3 l = env.scale * t;
+            const std::array<float, 3> enc = toneMapRgb({l.r, l.g, l.b}, cameraCurve(s));
+            if (std::max({enc[0], enc[1], enc[2]}) >= 1.0f) return true;
+        }
+        return false;
+    };
+    float needed = 0.0f;
+    while (needed > -30.0f && clips(needed)) needed -= 1.0f;
+    logInfo("the longest whole-stop exposure that clips no texel: {:+.0f} stops", needed);
+    return shortestDisplay;
+}
+
+// A linear image as OpenEXR half float (11 significant bits: rounding within 0.05 %, ample for
+// tests whose tolerances are ~1 %, at half the size of float), PIZ compressed (lossless; suits
+// noisy renders). 1 channel is written as "Y", 3 as RGB.
+Status writeHalfExr(const std::string& path, const ImageF& image) {
+    static const char* const kRgb[] = {"R", "G", "B"};
+    if (image.channels != 1 && image.channels != 3)
+        return makeError("{}: {} channels (1 or 3 expected)", path, image.channels);
+    std::vector<Imath::half> px(image.pixels.size());
+    for (size_t i = 0; i < px.size(); ++i) px[i] = Imath::half(image.pixels[i]);
+    try {
+        Imf::Header header{int(image.width), int(image.height)};
+        header.compression() = Imf::PIZ_COMPRESSION;
+        Imf::FrameBuffer fb;
+        const size_t xStride = sizeof(Imath::half) * image.channels;
+        for (uint32_t c = 0; c < image.channels; ++c) {
+            const char* name = image.channels == 1 ? "Y" : kRgb[c];
+            header.channels().insert(name, Imf::Channel(Imf::HALF));
+            fb.insert(name, Imf::Slice(Imf::HALF, reinterpret_cast<char*>(px.data() + c), xStride,
+                                       xStride * image.width));
+        }
+        Imf::OutputFile file(path.c_str(), header);
+        file.setFrameBuffer(fb);
+        file.writePixels(int(image.height));
+    } catch (const std::exception& e) {
+        return makeError("{}: cannot write OpenEXR: {}", path, e.what());
+    }
+    return {};
+}
+
+// --- the truth folder -------------------------------------------------------------------------
+
+// Two independent renders (halves) of one AOV and their mean.
+struct TruthAov {
+    ImageF a, b, mean;
+};
+
+struct RegionStat {
+    std::string name;
+    size_t pixels = 0;
+    double value = 0.0;   // of the mean image (a mean radiance, or a sum for the shadow)
+    double halves = 0.0;  // |value(a) − value(b)| / 2: one draw of the mean's error
+    double stdErr = 0.0;  // from the per-pixel differences of the halves (pixels independent)
+};
+
+// Mean luminance of `img` (or of real − mixed for a sum) over a pixel set.
+RegionStat regionStat(const std::string& name, const std::vector<size_t>& px,
+                      const std::function<double(const ImageF&, const ImageF&, size_t)>& f,
+                      const TruthAov& x, const TruthAov& y, bool sum) {
+    RegionStat r;
+    r.name = name;
+    r.pixels = px.size();
+    if (px.empty()) return r;
+    double va = 0.0, vb = 0.0, sq = 0.0;
+    for (size_t p : px) {
+        const double a = f(x.a, y.a, p), b = f(x.b, y.b, p);
+        va += a;
+        vb += b;
+        sq += (a - b) * (a - b);
+    }
+    // The mean's pixel p is (a_p + b_p)/2, of variance (a_p − b_p)²/4 on average.
+    const double n = sum ? 1.0 : double(px.size());
+    r.value = 0.5 * (va + vb) / n;
+    r.halves = 0.5 * std::abs(va - vb) / n;
+    r.stdErr = 0.5 * std::sqrt(sq) / n;
+    return r;
+}
+
+double lumAt(const ImageF& img, size_t p) {
+    const float* v = &img.pixels[p * img.channels];
+    return luminance(v[0], v[1], v[2]);
+}
+
+// A TOML float: `significant` digits (0: the shortest round trip of T), always with a point or
+// an exponent, never −0.
+template <typename T>
+std::string tomlFloat(T v, int significant = 0) {
+    v = v == T(0) ? T(0) : v;
+    std::string t = significant ? fmt::format("{:.{}g}", v, significant) : fmt::format("{}", v);
+    if (t.find_first_of(".en") == std::string::npos) t += ".0";
+    return t;
+}
+
+// The environment map's name in the shared data folder: its path from "envmaps" on.
+std::string envDataName(const std::string& path) {
+    std::filesystem::path rel;
+    bool found = false;
+    for (const auto& part : std::filesystem::path(path)) {
+        if (part == "envmaps") found = true;
+        if (found) rel /= part;
+    }
+    return found ? rel.string() : std::filesystem::path(path).filename().string();
+}
+
+struct TruthContext {
+    const Options& o;
+    Scene& scene;  // the whole set, real and virtual
+    GpuContext& ctx;
+    RenderSettings settings;  // the plates' settings
+    const CameraCalibration& cal;
+    std::function<std::shared_ptr<EnvironmentMap>(int)> envAt;
+};
+
+// Renders the truth frames and writes truth/ (truth.toml and the EXRs).
+Status writeTruth(TruthContext& t) {
+    const Options& o = t.o;
+    const std::string dir = o.demoDir + "/truth";
+    std::error_code ec;
+    std::filesystem::remove_all(dir, ec);
+    std::filesystem::create_directories(dir, ec);
+    if (ec) return makeError("{}: cannot create: {}", dir, ec.message());
+    RenderSettings settings = t.settings;
+    settings.differential = true;  // L_or beside L_om, as the service renders it
+    auto renderer = Renderer::create(t.ctx, t.scene, settings);
+    if (!renderer) return renderer.error();
+    Renderer& r = **renderer;
+    const uint32_t half = std::max<uint32_t>(1, o.truthSpp / 2);
+
+    const VirtualBall balls[] = {kRedBall, kChromeBall};  // to split the mask among them
+
+    std::string toml = fmt::format(
+        "# The demo's truth, for tests (bench/make_demo_session.cpp writes it with the session;\n"
+        "# it is not part of the take). Renders with the plates' renderer and settings: linear\n"
+        "# radiance, {}x{} (the plate's size and lens, scene_camera.yaml), max depth {}.\n"
+        "#   mixed: L_om, the real set and the virtual objects; real: L_or, the real set only\n"
+        "#   (what the plate encodes, before the camera curve and noise); mask: the fraction of\n"
+        "#   each pixel's camera rays whose first hit is virtual.\n"
+        "# OpenEXR half float, PIZ. Each image is the mean of two independent renders of {} spp\n"
+        "# (seeds in seeds = [a, b]); [frame.regions] gives region values of the mean with their\n"
+        "# error: halves = |value(a) - value(b)| / 2 (one draw), std_err = from the per-pixel\n"
+        "# differences of the two halves. Luminance is Rec. 709. Regions: a ball, the pixels\n"
+        "# with mask > 0.999 nearest its projected centre ({} centre ({}, {}, {}),\n"
+        "# {} ({}, {}, {})), value = mean luminance of mixed there; the shadow,\n"
+        "# the pixels with mask < 0.001 where luminance(real - mixed) > 5 % of luminance(real),\n"
+        "# value = the sum of luminance(real - mixed) over them.\n"
+        "version = 1\n"
+        "spp = {}\n"
+        "max_depth = {}\n"
+        "width = {}\n"
+        "height = {}\n"
+        "camera = \"../scene_camera.yaml\"\n"
+        "scene = \"../scene.gltf\"\n\n"
+        "[environment]\n"
+        "# relative to the shared data folder (PREVIS_DATA_DIR, ../shared/data beside the "
+        "checkout)\n"
+        "map = \"{}\"\n"
+        "scale = {}\n"
+        "# each frame's env_rotation_deg turns the map about world +Y as previs render's\n"
+        "# --env-rotation does (DESIGN.md §4: positive = counter-clockwise seen from above)\n"
+        "rotation = \"--env-rotation\"\n",
+        settings.width, settings.height, settings.maxDepth, half, kRedBall.name, kRedBall.x,
+        kRedBall.y, kRedBall.z, kChromeBall.name, kChromeBall.x, kChromeBall.y, kChromeBall.z,
+        2 * half, settings.maxDepth, settings.width, settings.height,
+        o.envName.empty() ? envDataName(o.envPath) : o.envName, tomlFloat(o.envScale));
+
+    for (int f : o.truthFrames) {
+        const cv::Matx44d pose = cameraPose(f);
+        r.setCameraPose(renderWorldFromOpenCvCamera(pose));
+        if (Status s = r.setEnvironment(t.envAt(f)); !s) return s;
+        TruthAov mixed, real, mask;
+        const uint32_t seeds[2] = {uint32_t(900000 + 2 * f), uint32_t(900000 + 2 * f + 1)};
+        for (int h = 0; h < 2; ++h) {
+            const auto start = std::chrono::steady_clock::now();
+            r.setSeed(seeds[h]);
+            if (Status s = r.reset(); !s) return s;
+            if (Status s = r.render(half); !s) return s;
+            auto m = r.image(Aov::Mixed);
+            auto re = m ? r.image(Aov::Real) : Result<ImageF>(m.error());
+            auto k = re ? r.image(Aov::Mask) : Result<ImageF>(re.error());
+            if (!k) return k.error();
+            (h ? mixed.b : mixed.a) = std::move(m).value();
+            (h ? real.b : real.a) = std::move(re).value();
+            (h ? mask.b : mask.a) = std::move(k).value();
+            logInfo(
+                "truth frame {}: half {} rendered {} spp in {:.1f} s", f, h, half,
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+        }
+        for (TruthAov* x : {&mixed, &real, &mask}) {
+            x->mean = x->a;
+            for (size_t i = 0; i < x->mean.pixels.size(); ++i)
+                x->mean.pixels[i] = 0.5f * (x->a.pixels[i] + x->b.pixels[i]);
+        }
+
+        // Regions: each ball's fully virtual pixels (the nearest projected centre), and the
+        // shadow — real pixels where the virtual objects take away more than 5 % of L_or.
+        const size_t n = size_t(settings.width) * settings.height;
+        const cv::Matx44d cameraFromWorld = pose.inv();
+        std::vector<cv::Point3d> centres;
+        for (const VirtualBall& b : balls) {
+            const cv::Vec4d c = cameraFromWorld * cv::Vec4d(b.x, b.y, b.z, 1);
+            centres.emplace_back(c[0], c[1], c[2]);
+        }
+        const std::vector<cv::Point2d> centrePx = t.cal.projectPoints(centres);
+        std::vector<std::vector<size_t>> ballPx(std::size(balls));
+        std::vector<size_t> shadowPx;
+        for (size_t p = 0; p < n; ++p) {
+            const float m = mask.mean.pixels[p];
+            const double x = double(p % settings.width), y = double(p / settings.width);
+            if (m > 0.999f) {
+                size_t best = 0;
+                for (size_t b = 1; b < centrePx.size(); ++b)
+                    if (std::hypot(x - centrePx[b].x, y - centrePx[b].y) <
+                        std::hypot(x - centrePx[best].x, y - centrePx[best].y))
+                        best = b;
+                ballPx[best].push_back(p);
+            } else if (m < 0.001f) {
+                const double lr = lumAt(real.mean, p), lm = lumAt(mixed.mean, p);
+                if (lr - lm > 0.05 * lr) shadowPx.push_back(p);
+            }
+        }
+        std::vector<RegionStat> stats;
+        for (size_t b = 0; b < std::size(balls); ++b)
+            stats.push_back(regionStat(
+                std::string(balls[b].name) + "_mean_luminance", ballPx[b],
+                [](const ImageF& m, const ImageF&, size_t p) { return lumAt(m, p); }, mixed, mixed,
+                false));
+        stats.push_back(regionStat(
+            "shadow_sum_luminance", shadowPx,
+            [](const ImageF& re, const ImageF& m, size_t p) { return lumAt(re, p) - lumAt(m, p); },
+            real, mixed, true));
+
+        const std::string stem = fmt::format("frame_{:06d}", f);
+        for (auto [aov, img] : {std::pair<const char*, const ImageF*>{"mixed", &mixed.mean},
+                                {"real", &real.mean},
+                                {"mask", &mask.mean}})
+            if (Status s = writeHalfExr(fmt::format("{}/{}.{}.exr", dir, stem, aov), *img); !s)
+                return s;
+        std::string m16;
+        for (int i = 0; i < 16; ++i)
+            m16 += fmt::format("{}{}", i ? ", " : "", tomlFloat(pose(i / 4, i % 4)));
+        toml += fmt::format(
+            "\n[[frame]]\n"
+            "index = {}  # the scene camera's frame in session/ (0-based)\n"
+            "still = {}\n"
+            "env_rotation_deg = {}\n"
+            "# OpenCV camera axes (x right, y down, z forward), row-major, as session/poses.csv\n"
+            "world_from_camera = [{}]\n"
+            "seeds = [{}, {}]\n"
+            "mixed = \"{}.mixed.exr\"\n"
+            "real = \"{}.real.exr\"\n"
+            "mask = \"{}.mask.exr\"\n",
+            f, f >= kStillFirst && f <= kStillLast ? "true" : "false", tomlFloat(envRotationDeg(f)),
+            m16, seeds[0], seeds[1], stem, stem, stem);
+        toml += "[frame.regions]\n";
+        for (const RegionStat& st : stats) {
+            toml += fmt::format("{} = {{ pixels = {}, value = {}, halves = {}, std_err = {} }}\n",
+                                st.name, st.pixels, tomlFloat(st.value, 7), tomlFloat(st.halves, 3),
+                                tomlFloat(st.stdErr, 3));
+            logInfo(
+                "truth frame {}: {} over {} px = {:.5g}, error: halves {:.3f} %, std_err "
+                "{:.3f} %",
+                f, st.name, st.pixels, st.value, 100.0 * st.halves / std::abs(st.value),
+                100.0 * st.stdErr / std::abs(st.value));
+        }
+    }
+    std::ofstream out(dir + "/truth.toml");
+    out << toml;
+    if (!out) return makeError("{}/truth.toml: cannot write", dir);
+    return {};
+}
+
 // --- main -------------------------------------------------------------------------------------
 
 int run(const Options& o) {
@@ -448,6 +806,7 @@ int run(const Options& o) {
             real.triangleIsReal.push_back(1);
         }
     logInfo("scene: {} triangles, {} real", all.triangles.size(), real.triangles.size());
+    Geometry wholeSet = std::move(scene->geometry);  // for the truth renders
     scene->geometry = std::move(real);
 
     auto env = loadEnvironmentMap(o.envPath);
@@ -456,6 +815,10 @@ int run(const Options& o) {
         return 2;
     }
     env->scale = o.envScale;
+    if (checkBracketClipping(*env, o.bracketStops) >= 1.0f)
+        logWarning(
+            "the shortest bracket exposure clips the environment's brightest texels "
+            "(--bracket-stops)");
     auto envAt = [&](int frame) {
         auto m = std::make_shared<EnvironmentMap>(*env);
         m->rotationRad = float(envRotationDeg(frame) * kPi / 180.0);
@@ -560,13 +923,24 @@ int run(const Options& o) {
                 logError("{}", fish.message());
                 return 2;
             }
-            const std::vector<uint8_t> fjpeg = encodeFrame(*fish, uint64_t(104729 + i), w, h);
-            // 1 ms after the scene frame: the two cameras are not synchronised.
-            if (Status s = writer->writeFrame("fisheye", fisheyeSeq++, t + 1'000'000, fjpeg, "jpg",
-                                              uint32_t(w), uint32_t(h));
-                !s) {
-                logError("{}", s.message());
-                return 1;
+            if (i == 0) {
+                float brightest = 0.0f;
+                for (float v : fish->pixels) brightest = std::max(brightest, v);
+                logInfo("fisheye: brightest pixel channel {:.1f} (box-filtered texels)", brightest);
+            }
+            // One frame per exposure, 1/30 s apart, each with its own sensor noise.
+            for (size_t k = 0; k < o.bracketStops.size(); ++k) {
+                FrameStamp stamp;
+                stamp.exposureStops = o.bracketStops[k];
+                const std::vector<uint8_t> fjpeg =
+                    encodeFrame(*fish, uint64_t(104729 + i + 1000 * k), w, h, o.bracketStops[k]);
+                if (Status s = writer->writeFrame("fisheye", fisheyeSeq++,
+                                                  t + kFisheyeOffsetNs + k * kBracketFrameNs, fjpeg,
+                                                  "jpg", uint32_t(w), uint32_t(h), stamp);
+                    !s) {
+                    logError("{}", s.message());
+                    return 1;
+                }
             }
         }
         // The mode button: into refinement shortly after the camera stops, back to preview
@@ -583,6 +957,16 @@ int run(const Options& o) {
         return 1;
     }
     logInfo("wrote {}", sessionDir);
+    if (o.truthSpp == 0) return 0;
+
+    *renderer = nullptr;  // the plates' renderer gives its memory back before the truth's
+    scene->geometry = std::move(wholeSet);
+    TruthContext truth{o, *scene, **ctx, settings, *sceneCal, envAt};
+    if (Status s = writeTruth(truth); !s) {
+        logError("truth: {}", s.message());
+        return 1;
+    }
+    logInfo("wrote {}/truth", o.demoDir);
     return 0;
 }
 
@@ -614,13 +998,46 @@ int main(int argc, char** argv) {
             o.maxDepth = uint32_t(std::stoul(next()));
         else if (a == "--frames")
             o.frames = std::clamp(std::stoi(next()), 1, previs::kFrames);
+        else if (a == "--bracket-stops" || a == "--truth-frames") {
+            // A comma-separated list: "0,-4,-8".
+            const std::string list = next();
+            std::vector<float> v;
+            for (size_t p = 0; p <= list.size();) {
+                const size_t e = std::min(list.find(',', p), list.size());
+                v.push_back(std::stof(list.substr(p, e - p)));
+                p = e + 1;
+            }
+            if (a == "--bracket-stops") {
+                o.bracketStops = v;
+            } else {
+                o.truthFrames.clear();
+                for (float f : v)
+                    o.truthFrames.push_back(std::clamp(int(f), 0, previs::kFrames - 1));
+            }
+        } else if (a == "--truth-spp")
+            o.truthSpp = uint32_t(std::stoul(next()));
+        else if (a == "--env-name")
+            o.envName = next();
         else {
             std::fprintf(stderr,
                          "usage: make_demo_session --demo-dir examples/demo --env MAP.hdr "
                          "[--env-scale X] [--moving-spp N] [--still-spp N] [--max-depth N] "
-                         "[--frames N]\n");
+                         "[--frames N] [--bracket-stops S1,S2,...] [--truth-frames F1,F2,...] "
+                         "[--truth-spp N (0: no truth folder)] [--env-name NAME]\n");
             return a == "--help" ? 0 : 2;
         }
+    }
+    if (o.bracketStops.empty() || o.truthFrames.empty()) {
+        std::fprintf(stderr, "make_demo_session: --bracket-stops and --truth-frames need values\n");
+        return 2;
+    }
+    // A bracket ends before the next lighting instant.
+    if (previs::kFisheyeOffsetNs + o.bracketStops.size() * previs::kBracketFrameNs >
+        previs::kFisheyeEvery * previs::kFrameNs) {
+        std::fprintf(stderr, "make_demo_session: at most %d --bracket-stops fit between instants\n",
+                     int((previs::kFisheyeEvery * previs::kFrameNs - previs::kFisheyeOffsetNs) /
+                         previs::kBracketFrameNs));
+        return 2;
     }
     if (o.demoDir.empty() || o.envPath.empty()) {
         std::fprintf(stderr, "make_demo_session: --demo-dir and --env are required (--help)\n");
