@@ -91,6 +91,7 @@ CaptureStats CaptureThread::stats() const {
     s.delivered = delivered_.load();
     s.dropped = slot_.dropped();
     s.badFrames = badFrames_.load();
+    s.withheld = withheld_.load();
     s.reconnects = reconnects_.load();
     std::lock_guard lock(problemMutex_);
     s.problem = problem_;
@@ -131,6 +132,7 @@ void CaptureThread::run() {
     using Clock = std::chrono::steady_clock;
     std::unique_ptr<FrameReader> reader;
     uint64_t badBase = 0;
+    uint64_t withheldBase = 0;
     bool everStreamed = false;
     Clock::time_point lastFrame;
     Clock::time_point lostSince;
@@ -144,6 +146,7 @@ void CaptureThread::run() {
     auto dropReader = [&](const std::string& why) {
         if (reader) {
             badBase += reader->badFrames();
+            withheldBase += reader->withheldFrames();
             reader.reset();
         }
         if (state_.load() != CaptureState::Lost) lostSince = Clock::now();
@@ -189,6 +192,7 @@ void CaptureThread::run() {
         Frame frame;
         Result<bool> got = reader->read(options_.readTimeoutMs, frame);
         badFrames_ = badBase + (reader ? reader->badFrames() : 0);
+        withheld_ = withheldBase + (reader ? reader->withheldFrames() : 0);
         if (!got) {
             dropReader(got.message());
             idle();
@@ -230,8 +234,12 @@ void CaptureThread::run() {
         }
     }
     idle();
-    if (reader) badBase += reader->badFrames();
+    if (reader) {
+        badBase += reader->badFrames();
+        withheldBase += reader->withheldFrames();
+    }
     badFrames_ = badBase;
+    withheld_ = withheldBase;
     reader.reset();
 }
 

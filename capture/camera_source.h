@@ -31,7 +31,8 @@ public:
 
     virtual Status start() = 0;
     // Waits up to `timeoutMs` for the next frame. true: `frame` was filled (all fields but
-    // `sequence`); false: no frame within the timeout, or the end of a finite source (see
+    // `sequence`); false: no frame within the timeout, a frame the source withheld (a
+    // bracketing camera's while its exposure control lands), or the end of a finite source (see
     // finished()); an error: the source is gone or broken and must be reopened.
     virtual Result<bool> read(int timeoutMs, Frame& frame) = 0;
     // A finite source (a recording) has delivered its last frame.
@@ -41,6 +42,9 @@ public:
     virtual bool isLive() const { return true; }
     // Frames the device delivered that could not be converted (skipped, never published).
     virtual uint64_t badFrames() const { return 0; }
+    // Frames a bracketing camera withheld while its exposure control landed (never published;
+    // capture/exposure_bracket.h).
+    virtual uint64_t withheldFrames() const { return 0; }
 };
 
 // Builds a started-or-startable reader; called again after every failure.
@@ -60,6 +64,7 @@ struct CaptureStats {
     uint64_t delivered = 0;   // frames published to the slot
     uint64_t dropped = 0;     // published but replaced before the consumer took them
     uint64_t badFrames = 0;   // frames the source returned that could not be converted
+    uint64_t withheld = 0;    // frames a bracketing camera withheld while its exposure landed
     uint64_t reconnects = 0;  // times streaming resumed after the device was lost
     std::string problem;      // while lost: why ("no such device", a control that did not apply)
 };
@@ -128,6 +133,7 @@ private:
     std::atomic<uint64_t> delivered_{0};
     std::atomic<uint64_t> reconnects_{0};
     std::atomic<uint64_t> badFrames_{0};
+    std::atomic<uint64_t> withheld_{0};
     mutable std::mutex problemMutex_;
     std::string problem_;  // CaptureStats::problem, under problemMutex_
 

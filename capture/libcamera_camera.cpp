@@ -24,6 +24,7 @@
 #include <utility>
 
 #include "base/log.h"
+#include "capture/exposure_bracket.h"
 #include "capture/pixel_format.h"
 
 namespace previs {
@@ -199,11 +200,21 @@ struct LibcameraCamera::State {
     const std::atomic<bool>* keepCaptured = nullptr;  // LibcameraConfig::keepCaptured
     uint64_t badFrames = 0;
     std::vector<uint8_t> scratch;  // planes gathered for conversion when not contiguous
+    // Bracketing (LibcameraConfig::bracketStops): each step's exposure time, the fixed gain, the
+    // base the labels are measured from, and the step the next queued request takes.
+    std::vector<float> bracketStops;
+    std::vector<int32_t> bracketExposureUs;
+    float bracketGain = 1.0f;
+    int32_t baseExposureUs = 0;
+    size_t nextStep = 0;
 
     ~State();
     Status open(const LibcameraConfig& config);
     Status configure(const LibcameraConfig& config);
     Status setControls(const LibcameraConfig& config);
+    Status setUpBracket(const LibcameraConfig& config);
+    // Puts the next step's exposure into a request about to be queued.
+    void setBracketControls(lc::Request* request);
     Status allocateBuffers();
     void connectSignals();
     Status start();
@@ -257,6 +268,7 @@ Status LibcameraCamera::State::open(const LibcameraConfig& config) {
     videoNodes = videoNodesOf(*manager, *camera);
     if (Status s = configure(config); !s) return s;
     if (Status s = setControls(config); !s) return s;
+    if (Status s = setUpBracket(config); !s) return s;
     if (Status s = allocateBuffers(); !s) return s;
     connectSignals();
     logInfo("libcamera camera '{}': {} {}x{} (stride {}), {} buffers{}", id, formatName, width,
@@ -403,6 +415,51 @@ Status LibcameraCamera::State::setControls(const LibcameraConfig& config) {
     return {};
 }
 
+Status LibcameraCamera::State::setUpBracket(const LibcameraConfig& config) {
+    if (config.bracketStops.empty()) return {};
+    if (!config.exposureUs || !config.analogueGain)
+        return makeError(
+            "libcamera camera '{}': bracketing needs the base exposure_us and analogue_gain in "
+            "its controls (the exposure its radiometry was calibrated at)",
+            id);
+    baseExposureUs = *config.exposureUs;
+    bracketGain = *config.analogueGain;
+    bracketExposureUs.clear();
+    std::string steps;
+    for (float stop : config.bracketStops) {
+        const double ideal = double(baseExposureUs) * std::exp2(double(stop));
+        const int64_t us = std::llround(ideal);
+        if (us < 1 || us > INT32_MAX ||
+            std::abs(std::log2(double(us) / baseExposureUs) - stop) > kMaxStepErrorStops)
+            return makeError(
+                "libcamera camera '{}': bracket stop {} needs an exposure of {:.4g} µs ({} µs × "
+                "2^{}), which whole microseconds do not reach; raise exposure_us or narrow the "
+                "bracket",
+                id, stop, ideal, baseExposureUs, stop);
+        const std::string what = fmt::format("the exposure time (µs) of bracket stop {}", stop);
+        if (Status s = checkRange<int32_t>(lc::controls::ExposureTime, int32_t(us), what.c_str());
+            !s)
+            return s;
+        bracketExposureUs.push_back(int32_t(us));
+        steps += fmt::format("{}{} µs ({:+g})", steps.empty() ? "" : ", ", us, stop);
+    }
+    bracketStops = config.bracketStops;
+    logInfo(
+        "libcamera camera '{}': bracketing through {} at analogue gain {}, each frame "
+        "labelled from its metadata",
+        id, steps, bracketGain);
+    return {};
+}
+
+void LibcameraCamera::State::setBracketControls(lc::Request* request) {
+    if (bracketStops.empty()) return;
+    // Per request: libcamera applies a request's controls to its own frame where the pipeline
+    // can (and reports in the metadata what it did where it cannot).
+    request->controls().set(lc::controls::ExposureTime, bracketExposureUs[nextStep]);
+    request->controls().set(lc::controls::AnalogueGain, bracketGain);
+    nextStep = (nextStep + 1) % bracketStops.size();
+}
+
 Status LibcameraCamera::State::allocateBuffers() {
     allocator = std::make_unique<lc::FrameBufferAllocator>(camera);
     if (int r = allocator->allocate(stream); r < 0)
@@ -496,12 +553,14 @@ Status LibcameraCamera::State::start() {
         return makeError("libcamera camera '{}': cannot start: {}", id, std::strerror(-r));
     }
     running = true;
+    nextStep = 0;
     for (size_t i = 0; i < requests.size(); ++i) {
         lc::Request* request = requests[i].get();
         request->reuse(lc::Request::ReuseBuffers);
         // Some pipelines (vimc) ignore the controls given to start(); the first request
         // carries them as well.
         if (i == 0) request->controls().merge(startControls);
+        setBracketControls(request);
         if (int r = camera->queueRequest(request); r < 0) {
             stop();
             return makeError("libcamera camera '{}': cannot queue a request: {}", id,
@@ -542,6 +601,7 @@ void LibcameraCamera::State::stop() {
 
 Status LibcameraCamera::State::requeue(lc::Request* request) {
     request->reuse(lc::Request::ReuseBuffers);
+    setBracketControls(request);
     if (int r = camera->queueRequest(request); r < 0) {
         if (r == -ENODEV) return disconnectedError();
         return makeError("libcamera camera '{}': cannot requeue a request: {}", id,
@@ -626,6 +686,16 @@ Result<bool> LibcameraCamera::State::read(int timeoutMs, Frame& frame) {
                                      .get(lc::controls::SensorTimestamp)
                                      .value_or(int64_t(metadata.timestamp)));
     frame.deviceSequence = metadata.sequence;
+    if (!bracketStops.empty()) {
+        // What the sensor did, not what was asked: a pipeline whose controls land late labels
+        // each frame with the exposure it really had.
+        const lc::ControlList& reported = request->metadata();
+        std::optional<double> exposureUs, gain;
+        if (const auto e = reported.get(lc::controls::ExposureTime)) exposureUs = double(*e);
+        if (const auto g = reported.get(lc::controls::AnalogueGain)) gain = double(*g);
+        frame.exposureStops =
+            exposureStopsFromMetadata(bracketStops, exposureUs, gain, baseExposureUs, bracketGain);
+    }
     // Requeued only after conversion: until then the camera must not overwrite the pixels.
     if (Status s = requeue(request); !s) return s.error();
     return good;

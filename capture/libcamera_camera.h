@@ -40,6 +40,10 @@ struct LibcameraConfig {
     std::optional<std::array<float, 2>> colourGains;
     // 0 = what the pipeline asks for (enough to keep its ISP busy).
     uint32_t bufferCount = 0;
+    // Exposure bracketing (capture/exposure_bracket.h): the stops from exposureUs ×
+    // analogueGain (both required) that the requests cycle through, each frame labelled from its
+    // request's metadata (Frame::exposureStops). Empty: no bracketing.
+    std::vector<float> bracketStops;
 };
 
 class LibcameraCamera : public FrameReader {

@@ -6,6 +6,7 @@
 #include <sys/ioctl.h>
 #include <sys/mman.h>
 #include <sys/stat.h>
+#include <time.h>
 
 #include <algorithm>
 #include <cctype>
@@ -34,10 +35,32 @@ int xioctl(int fd, unsigned long request, void* arg) {
 // The errors that mean the hardware is gone rather than misused.
 bool isGone(int err) { return err == ENODEV || err == ENXIO || err == EIO || err == EPIPE; }
 
-// A control name as v4l2-ctl prints it: "Exposure Time, Absolute" → "exposure_time_absolute"
-// (lower case, each run of other characters one '_', none at the ends). Comparing these forms
-// accepts both the driver's name and v4l2-ctl's, in any case.
-std::string controlKey(std::string_view name) {
+// Finds the control `name` (either form, v4l2ControlKey) into `q`; false with `names` listing the
+// controls the device has.
+bool findControl(int fd, std::string_view name, v4l2_query_ext_ctrl& q, std::string& names) {
+    q = {};
+    q.id = V4L2_CTRL_FLAG_NEXT_CTRL;
+    while (xioctl(fd, VIDIOC_QUERY_EXT_CTRL, &q) == 0) {
+        const std::string_view qname(q.name);
+        if (q.type != V4L2_CTRL_TYPE_CTRL_CLASS) {
+            if (v4l2ControlKey(qname) == v4l2ControlKey(name)) return true;
+            names += (names.empty() ? "'" : ", '") + std::string(qname) + "'";
+        }
+        q.id |= V4L2_CTRL_FLAG_NEXT_CTRL;
+    }
+    return false;
+}
+
+uint64_t monotonicNowNs() {
+    timespec ts{};
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return uint64_t(ts.tv_sec) * 1'000'000'000ull + uint64_t(ts.tv_nsec);
+}
+
+}  // namespace
+
+std::string v4l2ControlKey(std::string_view name) {
+    // Comparing these forms accepts both the driver's name and v4l2-ctl's, in any case.
     std::string key;
     for (char ch : name) {
         if (std::isalnum(uint8_t(ch)))
@@ -48,8 +71,6 @@ std::string controlKey(std::string_view name) {
     while (!key.empty() && key.back() == '_') key.pop_back();
     return key;
 }
-
-}  // namespace
 
 V4L2Device::Mapping::Mapping(Mapping&& o) noexcept
     : data(std::exchange(o.data, nullptr)), length(std::exchange(o.length, 0)) {}
@@ -103,7 +124,68 @@ Result<std::unique_ptr<V4L2Device>> V4L2Device::create(const V4L2Config& config)
                 "camera {}: control '{}' = {} not applied ({}); its pictures would not be what "
                 "the config's radiometry promises",
                 config.device, control, value, s.message());
+    if (config.bracket)
+        if (Status s = dev->setUpBracket(*config.bracket, config.controls); !s) return s.error();
     return dev;
+}
+
+Status V4L2Device::setUpBracket(const ExposureBracketConfig& bracket,
+                                const std::vector<std::pair<std::string, int32_t>>& controls) {
+    // Queried after the config's controls were set: whether an automatic mode still owns the
+    // control (INACTIVE) depends on them.
+    v4l2_query_ext_ctrl q{};
+    std::string names;
+    if (!findControl(fd_.get(), bracket.control, q, names))
+        return makeError(
+            "camera {} ({}): the bracket cycles '{}', but the camera has no such control (it has: "
+            "{}); name one that scales the light linearly in [cameras.fisheye.bracket] control",
+            path_, card_, bracket.control, names.empty() ? "none" : names);
+    if (q.type != V4L2_CTRL_TYPE_INTEGER ||
+        (q.flags & (V4L2_CTRL_FLAG_READ_ONLY | V4L2_CTRL_FLAG_DISABLED)))
+        return makeError(
+            "camera {} ({}): '{}' is not a settable integer control; it cannot be "
+            "bracketed",
+            path_, card_, q.name);
+    if (q.flags & V4L2_CTRL_FLAG_INACTIVE)
+        return makeError(
+            "camera {} ({}): '{}' is inactive: an automatic mode still sets it, so the bracket's "
+            "exposures would not be what the frames are labelled; put the camera in manual mode "
+            "in its controls first (e.g. auto_exposure = 1, manual; `v4l2-ctl -d {} -l` shows "
+            "which control owns it)",
+            path_, card_, q.name, path_);
+    std::optional<int64_t> base;
+    for (const auto& [name, value] : controls)
+        if (v4l2ControlKey(name) == v4l2ControlKey(bracket.control)) base = value;
+    if (!base)
+        return makeError(
+            "camera {}: the bracket cycles '{}' from its configured value, but the camera's "
+            "controls do not set it; add it (the exposure the radiometry was calibrated at)",
+            path_, bracket.control);
+    Result<std::vector<int64_t>> values = planExposureSteps(
+        bracket.stops, *base, ControlRange{q.minimum, q.maximum, int64_t(q.step)}, path_, q.name);
+    if (!values) return values.error();
+    bracketControlId_ = q.id;
+    bracketControlName_ = q.name;
+    bracketValues_ = std::move(*values);
+    bracketStops_ = bracket.stops;
+    cycle_.emplace(bracket.stops.size(), bracket.framesPerStep);
+    std::string steps;
+    for (size_t i = 0; i < bracketValues_.size(); ++i)
+        steps += fmt::format("{}{} ({:+g})", i ? ", " : "", bracketValues_[i], bracketStops_[i]);
+    logInfo("camera {}: bracketing '{}' through {}, each held {} frames", path_, q.name, steps,
+            std::clamp(bracket.framesPerStep, 1, kMaxFramesPerStep));
+    return {};
+}
+
+Status V4L2Device::setBracketStep(size_t step) {
+    v4l2_control c{bracketControlId_, int32_t(bracketValues_[step])};
+    if (int r = xioctl(fd_.get(), VIDIOC_S_CTRL, &c); r < 0)
+        return isGone(-r) ? Status(vanished("S_CTRL", -r))
+                          : Status(makeError("camera {}: setting '{}' to {} for the bracket "
+                                             "failed: {}",
+                                             path_, bracketControlName_, bracketValues_[step],
+                                             std::strerror(-r)));
+    return {};
 }
 
 Status V4L2Device::configure(const V4L2Config& config) {
@@ -247,6 +329,8 @@ Error V4L2Device::vanished(const char* during, int err) const {
 
 Status V4L2Device::start() {
     if (streaming_) return {};
+    if (cycle_)
+        if (Status s = setBracketStep(cycle_->start(monotonicNowNs())); !s) return s;
     for (uint32_t i = 0; i < buffers_.size(); ++i)
         if (Status s = queueBuffer(i); !s) return s;
     int type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
@@ -288,6 +372,30 @@ Result<bool> V4L2Device::read(int timeoutMs, Frame& frame) {
     }
     if (buf.index >= buffers_.size())
         return makeError("camera {}: driver returned unknown buffer {}", path_, buf.index);
+    const uint64_t timestampNs =
+        uint64_t(buf.timestamp.tv_sec) * 1000000000ull + uint64_t(buf.timestamp.tv_usec) * 1000ull;
+
+    // Bracketing: every dequeued frame, corrupt or not, takes its place in the cycle; the next
+    // step's control is set as early as possible, and a frame still settling is given back
+    // unconverted (withheld: it was taken while the control landed).
+    std::optional<float> exposureStops;
+    if (cycle_) {
+        const bool monotonic =
+            (buf.flags & V4L2_BUF_FLAG_TIMESTAMP_MASK) == V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC;
+        const ExposureCycle::Decision d =
+            cycle_->onFrame(buf.sequence, monotonic ? timestampNs : 0, monotonicNowNs());
+        if (d.set) {
+            if (Status s = setBracketStep(*d.set); !s) {
+                (void)queueBuffer(buf.index);
+                return s.error();
+            }
+        }
+        if (!d.label) {
+            if (Status s = queueBuffer(buf.index); !s) return s.error();
+            return false;
+        }
+        exposureStops = bracketStops_[*d.label];
+    }
 
     bool good = !(buf.flags & V4L2_BUF_FLAG_ERROR);
     if (!good && badFrames_ < 3)
@@ -319,36 +427,26 @@ Result<bool> V4L2Device::read(int timeoutMs, Frame& frame) {
     frame.width = width_;
     frame.height = height_;
     // vivid and UVC stamp with CLOCK_MONOTONIC (V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC).
-    frame.timestampNs =
-        uint64_t(buf.timestamp.tv_sec) * 1000000000ull + uint64_t(buf.timestamp.tv_usec) * 1000ull;
+    frame.timestampNs = timestampNs;
     frame.deviceSequence = buf.sequence;
+    frame.exposureStops = exposureStops;
     return true;
 }
 
 Status V4L2Device::setControl(std::string_view name, int32_t value) {
-    const int fd = fd_.get();
     v4l2_query_ext_ctrl q{};
-    q.id = V4L2_CTRL_FLAG_NEXT_CTRL;
     std::string names;
-    while (xioctl(fd, VIDIOC_QUERY_EXT_CTRL, &q) == 0) {
-        const std::string_view qname(q.name);
-        if (q.type != V4L2_CTRL_TYPE_CTRL_CLASS) {
-            if (controlKey(qname) == controlKey(name)) {
-                if (value < q.minimum || value > q.maximum)
-                    return makeError("camera {}: control '{}' = {} is out of range [{}, {}]", path_,
-                                     q.name, value, q.minimum, q.maximum);
-                v4l2_control c{q.id, value};
-                if (int r = xioctl(fd, VIDIOC_S_CTRL, &c); r < 0)
-                    return makeError("camera {}: setting '{}' to {} failed: {}", path_, q.name,
-                                     value, std::strerror(-r));
-                return {};
-            }
-            names += (names.empty() ? "'" : ", '") + std::string(qname) + "'";
-        }
-        q.id |= V4L2_CTRL_FLAG_NEXT_CTRL;
-    }
-    return makeError("camera {}: no control named '{}' (it has: {})", path_, name,
-                     names.empty() ? "none" : names);
+    if (!findControl(fd_.get(), name, q, names))
+        return makeError("camera {}: no control named '{}' (it has: {})", path_, name,
+                         names.empty() ? "none" : names);
+    if (value < q.minimum || value > q.maximum)
+        return makeError("camera {}: control '{}' = {} is out of range [{}, {}]", path_, q.name,
+                         value, q.minimum, q.maximum);
+    v4l2_control c{q.id, value};
+    if (int r = xioctl(fd_.get(), VIDIOC_S_CTRL, &c); r < 0)
+        return makeError("camera {}: setting '{}' to {} failed: {}", path_, q.name, value,
+                         std::strerror(-r));
+    return {};
 }
 
 }  // namespace previs

@@ -8,6 +8,7 @@
 #include <atomic>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -15,6 +16,7 @@
 #include "base/result.h"
 #include "base/unique_fd.h"
 #include "capture/camera_source.h"
+#include "capture/exposure_bracket.h"
 
 namespace previs {
 
@@ -31,7 +33,17 @@ struct V4L2Config {
     // exposure): by name as `v4l2-ctl -l` lists them, or by their short id. One that does not
     // apply fails create(): the pictures would not be what the config's radiometry promises.
     std::vector<std::pair<std::string, int32_t>> controls;
+    // Exposure bracketing (capture/exposure_bracket.h): `bracket.control` cycles from its value
+    // in `controls` through the stops, settling frames are withheld and the others delivered
+    // labelled (Frame::exposureStops). A control that is missing, inactive (an automatic mode
+    // still owns it) or cannot reach a stop fails create(). Unset: no bracketing.
+    std::optional<ExposureBracketConfig> bracket;
 };
+
+// A control name as v4l2-ctl prints it: "Exposure Time, Absolute" → "exposure_time_absolute"
+// (lower case, each run of other characters one '_', none at the ends): two names for the same
+// control compare equal in this form.
+std::string v4l2ControlKey(std::string_view name);
 
 class V4L2Device : public FrameReader {
 public:
@@ -49,11 +61,15 @@ public:
     void stop();
     Result<bool> read(int timeoutMs, Frame& frame) override;
     uint64_t badFrames() const override { return badFrames_; }
+    uint64_t withheldFrames() const override { return cycle_ ? cycle_->settleFrames() : 0; }
 
     // Sets a control by its driver name ("Exposure Time, Absolute") or v4l2-ctl's form of it
     // ("exposure_time_absolute"), case-insensitive: exposure, gain and white balance come from
     // config this way.
     Status setControl(std::string_view name, int32_t value);
+
+    // While bracketing: the cycle's state (which step, frames withheld); null otherwise.
+    const ExposureCycle* exposureCycle() const { return cycle_ ? &*cycle_ : nullptr; }
 
     const std::string& path() const { return path_; }
     const std::string& card() const { return card_; }
@@ -83,6 +99,10 @@ private:
     Status configure(const V4L2Config& config);
     Status allocateBuffers(uint32_t count);
     Status queueBuffer(uint32_t index);
+    Status setUpBracket(const ExposureBracketConfig& bracket,
+                        const std::vector<std::pair<std::string, int32_t>>& controls);
+    // Sets the bracket control to step `step`'s value (by id: no enumeration per frame).
+    Status setBracketStep(size_t step);
     // The message for a device that went away mid-stream.
     Error vanished(const char* during, int err) const;
 
@@ -99,6 +119,12 @@ private:
     double fps_ = 0;
     bool streaming_ = false;
     uint64_t badFrames_ = 0;
+    // Bracketing (V4L2Config::bracket): the control's id and name, each step's value and stops.
+    std::optional<ExposureCycle> cycle_;
+    uint32_t bracketControlId_ = 0;
+    std::string bracketControlName_;
+    std::vector<int64_t> bracketValues_;
+    std::vector<float> bracketStops_;
 };
 
 }  // namespace previs

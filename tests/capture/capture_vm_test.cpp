@@ -20,6 +20,7 @@
 #include "capture/camera_source.h"
 #include "capture/pixel_format.h"
 #include "capture/v4l2_device.h"
+#include "vision/hdr_bracket.h"
 
 namespace previs {
 namespace {
@@ -255,6 +256,139 @@ TEST(Vivid, TwoCamerasEachOnItsOwnThread) {
     std::printf("scene: %lu delivered, %lu dropped; fisheye: %lu delivered, %lu dropped\n",
                 (unsigned long)scene.stats().delivered, (unsigned long)scene.stats().dropped,
                 (unsigned long)fisheye.stats().delivered, (unsigned long)fisheye.stats().dropped);
+}
+
+// Live bracketing on a real driver (capture/exposure_bracket.h). vivid has no exposure control:
+// its Gain changes nothing in the picture, and its Contrast scales the 8-bit codes, not the
+// light (about 2.2 stops of light per stop of contrast through the sRGB curve). Neither is a
+// true exposure, so every bracket must reach the assembler labelled as cycled and leave it
+// dropped as mismatched: never merged on the labels alone.
+
+// The delivered (labelled) frames of a bracketing device; withheld frames are read() == false.
+std::vector<Frame> readBracketFrames(V4L2Device& dev, int count) {
+    std::vector<Frame> frames;
+    const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+    while (int(frames.size()) < count && std::chrono::steady_clock::now() < end) {
+        Frame f;
+        Result<bool> got = dev.read(kFrameTimeoutMs, f);
+        EXPECT_TRUE(got) << got.message();
+        if (!got) break;
+        if (*got) frames.push_back(std::move(f));
+    }
+    return frames;
+}
+
+double meanCode(const Frame& f) {
+    double sum = 0.0;
+    for (uint8_t v : f.rgb) sum += v;
+    return sum / double(f.rgb.size());
+}
+
+// Feeds `frames` (consecutive, as the capture thread numbers them) to an assembler for `stops`.
+BracketCounts assemble(const std::vector<Frame>& frames, const std::vector<float>& stops) {
+    Result<BracketAssembler> assembler =
+        BracketAssembler::create({.stops = stops}, InverseToneMapSettings{});
+    EXPECT_TRUE(assembler) << assembler.message();
+    for (size_t i = 0; i < frames.size(); ++i) {
+        const Frame& f = frames[i];
+        const cv::Mat rgb(int(f.height), int(f.width), CV_8UC3, const_cast<uint8_t*>(f.rgb.data()));
+        EXPECT_FALSE(assembler->add(rgb, i, f.timestampNs, f.exposureStops).has_value())
+            << "merged a bracket whose pictures do not match its labels";
+    }
+    std::printf("assembler: %s\n", assembler->lastDrop().c_str());
+    return assembler->counts();
+}
+
+ExposureBracketConfig cycling(std::vector<float> stops, int framesPerStep, std::string control) {
+    return {std::move(stops), framesPerStep, std::move(control)};
+}
+
+V4L2Config bracketConfig(std::vector<std::pair<std::string, int32_t>> controls,
+                         std::optional<ExposureBracketConfig> bracket) {
+    V4L2Config config;
+    config.device = "/dev/video1";
+    config.width = 320;
+    config.height = 180;
+    // 75 % colour bars: the white bar's pixels lie within the assembler's check range.
+    config.controls = {{"test_pattern", 0}, {"osd_text_mode", 2}};
+    config.controls.insert(config.controls.end(), controls.begin(), controls.end());
+    config.bracket = std::move(bracket);
+    return config;
+}
+
+TEST(VividBracket, CyclesTheControlAndDeliversOnlyEachStepsLastFrameLabelled) {
+    const int framesPerStep = 2;
+    auto dev = V4L2Device::create(
+        bracketConfig({{"contrast", 128}}, cycling({0.0f, -1.0f}, framesPerStep, "contrast")));
+    ASSERT_TRUE(dev) << dev.message();
+    ASSERT_TRUE((*dev)->start());
+    const std::vector<Frame> frames = readBracketFrames(**dev, 8);
+    ASSERT_EQ(frames.size(), 8u);
+    const ExposureCycle& cycle = *(*dev)->exposureCycle();
+    std::printf("cycle: %lu withheld, %lu restarts, %lu extended\n",
+                (unsigned long)cycle.settleFrames(), (unsigned long)cycle.restarts(),
+                (unsigned long)cycle.extended());
+    // vivid sets a control on the frame after: every delivered frame shows its label, so the
+    // pictures fall in two groups by label, the −1 ones (contrast 64) the darker.
+    double mean[2] = {0.0, 0.0};
+    for (size_t i = 0; i < frames.size(); ++i) {
+        ASSERT_TRUE(frames[i].exposureStops);
+        const int step = *frames[i].exposureStops == 0.0f ? 0 : 1;
+        if (cycle.restarts() == 0) {
+            EXPECT_EQ(step, int(i % 2)) << "frame " << i;
+            if (i > 0) {
+                EXPECT_EQ(frames[i].deviceSequence, frames[i - 1].deviceSequence + framesPerStep)
+                    << "settling frames are withheld";
+            }
+        }
+        if (i < 2) {
+            mean[step] = meanCode(frames[i]);
+        } else {
+            EXPECT_NEAR(meanCode(frames[i]), mean[step], 0.5) << "frame " << i;
+        }
+    }
+    EXPECT_LT(mean[1], 0.7 * mean[0]);
+    // Contrast is no exposure: the picture says about −2.2 stops where the label says −1.
+    const BracketCounts counts = assemble(frames, {0.0f, -1.0f});
+    EXPECT_EQ(counts.merged, 0u);
+    EXPECT_GE(counts.droppedMismatch, 3u);
+    dev->reset();  // closed before the next open: vivid streams to one owner
+    dev = V4L2Device::create(
+        bracketConfig({{"contrast", 128}}, std::nullopt));  // as the other tests expect
+    ASSERT_TRUE(dev) << dev.message();
+}
+
+TEST(VividBracket, AControlThatDoesNotChangeThePictureIsNeverMerged) {
+    // vivid has no exposure_time_absolute: refused at open, naming the device.
+    auto dev =
+        V4L2Device::create(bracketConfig({}, cycling({0.0f, -4.0f}, 2, "exposure_time_absolute")));
+    ASSERT_FALSE(dev);
+    EXPECT_NE(dev.message().find("/dev/video1"), std::string::npos) << dev.message();
+    EXPECT_NE(dev.message().find("no such control"), std::string::npos) << dev.message();
+    // Gain while automatic gain owns it: inactive, refused.
+    dev = V4L2Device::create(
+        bracketConfig({{"gain_automatic", 1}, {"gain", 128}}, cycling({0.0f, -4.0f}, 2, "gain")));
+    ASSERT_FALSE(dev);
+    EXPECT_NE(dev.message().find("inactive"), std::string::npos) << dev.message();
+    // A stop the control cannot reach: 128 × 2^-8 = 0.5 of a range starting at 0.
+    dev = V4L2Device::create(
+        bracketConfig({{"gain_automatic", 0}, {"gain", 128}}, cycling({0.0f, -8.0f}, 2, "gain")));
+    ASSERT_FALSE(dev);
+    EXPECT_NE(dev.message().find("0 to 255"), std::string::npos) << dev.message();
+
+    // In manual gain it cycles 128 → 8, which vivid ignores: labelled −4, the same picture.
+    dev = V4L2Device::create(
+        bracketConfig({{"gain_automatic", 0}, {"gain", 128}}, cycling({0.0f, -4.0f}, 2, "gain")));
+    ASSERT_TRUE(dev) << dev.message();
+    ASSERT_TRUE((*dev)->start());
+    const std::vector<Frame> frames = readBracketFrames(**dev, 6);
+    ASSERT_EQ(frames.size(), 6u);
+    const BracketCounts counts = assemble(frames, {0.0f, -4.0f});
+    EXPECT_EQ(counts.merged, 0u);
+    EXPECT_GE(counts.droppedMismatch, 2u);
+    dev->reset();  // closed before the next open: vivid streams to one owner
+    dev = V4L2Device::create(bracketConfig({{"gain_automatic", 1}}, std::nullopt));
+    ASSERT_TRUE(dev) << dev.message();
 }
 
 bool writeSysfs(const char* path, const char* value) {
