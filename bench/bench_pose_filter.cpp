@@ -155,7 +155,9 @@ Result<Sequence> renderedOrbit(GpuContext& ctx, int still, uint32_t spp) {
             .value();
     auto renderer = BoardRenderer::create(ctx, posterBoard(), "tag36h11", lens, spp);
     if (!renderer) return renderer.error();
-    auto tracker = Tracker::create({}, posterBoard(), lens);
+    TrackerSettings srgbCamera;  // the orbit is rendered through sRGB
+    srgbCamera.linearFromCode = linearFromCodeTable(InverseToneMapSettings{});
+    auto tracker = Tracker::create({}, posterBoard(), lens, srgbCamera);
     if (!tracker) return tracker.error();
     for (int i = 0; i < 2 * still; ++i) {
         benchProgress("filter: rendered orbit frame {}/{}", i + 1, 2 * still);

@@ -70,7 +70,10 @@ Result<std::vector<VisionTiming>> benchVision(const std::string& dataDir, int ru
         TagDetectorSettings s;
         s.decimate = c.decimate;
         s.threads = c.threads;
-        auto tracker = Tracker::create(s, board, *calib);
+        // Timed as for a camera whose radiometry is configured: the edge refit's cost included.
+        TrackerSettings configured;
+        configured.linearFromCode = linearFromCodeTable(InverseToneMapSettings{});
+        auto tracker = Tracker::create(s, board, *calib, configured);
         if (!tracker) return tracker.error();
         out.push_back(measure(
             fmt::format("track 1280x720 (decimate {}, {} thread(s))",

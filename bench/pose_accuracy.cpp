@@ -164,11 +164,18 @@ int runPoseSweep(GpuContext& ctx, const PoseSweepOptions& o) {
     for (size_t l = 0; l < lenses->size(); ++l) {
         const Lens& lens = (*lenses)[l];
         auto renderer = BoardRenderer::create(ctx, board, "tag36h11", lens.calibration, spp);
-        auto tracker = Tracker::create(detectorSettings, board, lens.calibration);
-        if (!renderer || !tracker) {
+        // One tracker per camera curve, each told its curve as the service is by the camera's
+        // radiometry (the edge refit inverts it: vision/tag_edges.h).
+        TrackerSettings srgbCamera, linearCamera;
+        srgbCamera.linearFromCode = linearFromCodeTable(InverseToneMapSettings{});
+        linearCamera.linearFromCode = identityLinearFromCode();
+        auto srgbTracker = Tracker::create(detectorSettings, board, lens.calibration, srgbCamera);
+        auto linearTracker =
+            Tracker::create(detectorSettings, board, lens.calibration, linearCamera);
+        if (!renderer || !srgbTracker || !linearTracker) {
             setLogLevel(LogLevel::Info);
             logError("pose sweep, {} lens: {}", lens.name,
-                     !renderer ? renderer.message() : tracker.message());
+                     !renderer ? renderer.message() : srgbTracker.message());
             return 1;
         }
         for (double d : distances) {
@@ -195,8 +202,10 @@ int runPoseSweep(GpuContext& ctx, const PoseSweepOptions& o) {
                                                                        .curve = curve});
                                 // Each frame on its own: a lost frame's held pose is not its
                                 // answer.
-                                tracker->reset();
-                                const TrackingState& st = tracker->track(gray);
+                                Tracker& tracker =
+                                    curve == TransferCurve::Srgb ? *srgbTracker : *linearTracker;
+                                tracker.reset();
+                                const TrackingState& st = tracker.track(gray);
                                 BoardFrame f{l, d, a, blur, noise, curve, !st.lost, {}};
                                 if (f.tracked) f.error = poseError(st.pose->worldFromCamera, truth);
                                 frames.push_back(f);
@@ -293,10 +302,13 @@ int runReachSweep(GpuContext& ctx, bool quick) {
     };
     TrackerSettings asDetected;
     asDetected.linearEdges = false;
+    // The frames are rendered through sRGB (TransferCurve::Srgb): the camera's curve is known.
+    TrackerSettings previs;
+    previs.linearFromCode = linearFromCodeTable(InverseToneMapSettings{});
     const Variant variants[] = {
         {"libapriltag defaults (decimate 2, its corners)", {.decimate = 2.0f}, asDetected, false},
-        {"previs, a frame on its own", {}, {}, false},
-        {"previs, after the previous frame's pose", {}, {}, true},
+        {"previs, a frame on its own", {}, previs, false},
+        {"previs, after the previous frame's pose", {}, previs, true},
     };
     struct Row {
         size_t frames = 0, tracked = 0, withinSpec = 0;

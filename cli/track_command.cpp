@@ -33,7 +33,10 @@ struct TrackOptions {
     TagDetectorSettings detector;
     int refineEdges = 1;
     int linearEdges = 1;
-    ToneCurveOptions toneCurve;  // the images' transfer curve, inverted for linearEdges
+    // The images' transfer curve, inverted for linearEdges; known only when --tone-curve names
+    // it (a refit through a guessed curve moves every edge: vision/tag_edges.h).
+    ToneCurveOptions toneCurve;
+    bool curveGiven = false;
 };
 
 nlohmann::ordered_json matrixJson(const cv::Matx44d& m) {
@@ -101,6 +104,12 @@ int run(TrackOptions& o) {
     }
 
     const LinearFromCode table = linearFromCodeTable(o.toneCurve.inverse());
+    const bool refit = o.linearEdges && o.curveGiven;
+    if (o.linearEdges && !o.curveGiven && !o.quiet)
+        logInfo(
+            "no --tone-curve: the images' transfer curve is unknown, so the tag corners are "
+            "libapriltag's; give --tone-curve (srgb, reinhard or banterle, as the camera's "
+            "radiometry) to re-fit them in linear light");
     int failures = 0;
     ProgressLine progress("track", o.quiet);
     for (size_t n = 0; n < o.images.size(); ++n) {
@@ -124,7 +133,7 @@ int run(TrackOptions& o) {
                 path, gray.cols, gray.rows, o.camera, calib->imageSize().width,
                 calib->imageSize().height);
         std::vector<TagDetection> detections = detector->detect(gray);
-        if (o.linearEdges)
+        if (refit)
             refineTagCornersInLinearLight(detections, gray, table, detector->bitsAcrossBorder(),
                                           &*calib);
 
@@ -204,7 +213,8 @@ std::function<int()> addTrackCommand(CLI::App& app) {
     cmd->add_option("--refine-edges", o->refineEdges, "refine_edges 0|1 (default 1)")
         ->check(CLI::IsMember({0, 1}));
     cmd->add_option("--linear-edges", o->linearEdges,
-                    "re-fit the corners in linear light, through --tone-curve (default 1)")
+                    "re-fit the corners in linear light through --tone-curve; without "
+                    "--tone-curve they stay libapriltag's (default 1)")
         ->check(CLI::IsMember({0, 1}));
     o->toneCurve.addTo(cmd, "", "images", false);
     cmd->add_option("--sigma", o->detector.sigma, "quad_sigma: Gaussian blur, pixels (default 0)")
@@ -212,8 +222,9 @@ std::function<int()> addTrackCommand(CLI::App& app) {
     cmd->add_option("--threads", o->detector.threads, "detector threads (default 1)")
         ->check(CLI::Range(1, 64));
     cmd->add_flag("--quiet", o->quiet, "no progress on stderr");
-    return [o, family] {
+    return [o, family, cmd] {
         o->familyGiven = family->count() > 0;
+        o->curveGiven = cmd->count("--tone-curve") > 0;
         return run(*o);
     };
 }

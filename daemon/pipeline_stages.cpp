@@ -51,7 +51,16 @@ double luminanceMoments(const cv::Mat& radiance, std::array<double, 9>& sh) {
 Result<TrackingStage> TrackingStage::create(const ServiceConfig& config,
                                             std::shared_ptr<FreedInput> freed) {
     TrackerSettings settings = config.tracking.tracker;
-    settings.linearFromCode = linearFromCodeTable(config.sceneCamera.radiometry);
+    // One radiometric model per camera: the curve the plate is linearised with is the one the
+    // tag edges are; a camera without one keeps libapriltag's corners (vision/tag_edges.h).
+    if (config.sceneCamera.radiometryGiven)
+        settings.linearFromCode = linearFromCodeTable(config.sceneCamera.radiometry);
+    else if (settings.linearEdges && !config.tracking.freedSource)
+        logInfo(
+            "{}: [cameras.scene] has no radiometry, so its tone curve is unknown and the tag "
+            "corners are libapriltag's; give [cameras.scene.radiometry] (docs/config-format.md) "
+            "for [tracking] linear_edges to re-fit them in linear light",
+            config.path);
     Result<Tracker> tracker = Tracker::create(config.tracking.detector, *config.tracking.board,
                                               *config.sceneCamera.calibration, settings);
     if (!tracker) return tracker.error();

@@ -247,6 +247,7 @@ Status ConfigReader::parseCamera(const toml::table& t, const std::string& name,
     if (*radiometry) {
         if (Status st = parseRadiometry(**radiometry, section + ".radiometry", c.radiometry); !st)
             return st;
+        c.radiometryGiven = true;
     }
     return {};
 }

@@ -59,6 +59,9 @@ struct CameraConfig {
     std::optional<CameraCalibration> calibration;
     // 8-bit frames → linear radiance in the scene's units (docs/camera-calibration.md §2).
     InverseToneMapSettings radiometry;
+    // Whether the config gave [cameras.<name>.radiometry]; without it `radiometry` holds the
+    // sRGB defaults, a guess the tag-edge refit does not build on (vision/tag_edges.h).
+    bool radiometryGiven = false;
 };
 
 struct TrackingConfig {

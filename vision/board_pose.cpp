@@ -241,8 +241,8 @@ const TrackingState& Tracker::track(const cv::Mat& gray) {
     if (state_.pose && state_.framesSinceGood <= kPredictFrames)
         predicted = predictTags(board_, calibration_, state_.pose->worldFromCamera, gray.size());
     detections_ = searchTags(detector_, gray, predicted, &search_);
-    if (settings_.linearEdges)
-        refineTagCornersInLinearLight(detections_, gray, settings_.linearFromCode,
+    if (settings_.linearEdges && settings_.linearFromCode)
+        refineTagCornersInLinearLight(detections_, gray, *settings_.linearFromCode,
                                       detector_.bitsAcrossBorder(), &calibration_);
     return update(detections_);
 }

@@ -75,10 +75,13 @@ struct TrackerSettings {
     // the good ones at 5-6 m 0.7-1.0 against 0.28 px; frontal views' two poses lie within 5°.
     double ambiguityAngleDeg = 10.0;
     double minAmbiguityRatio = 2.0;
-    // Re-fit the corners in linear light (vision/tag_edges.h) through this table, the scene
-    // camera's radiometry (pipeline_stages.cpp sets it from the config; sRGB by default).
+    // Re-fit the corners in linear light (vision/tag_edges.h) through the camera's curve: the
+    // table of its radiometric model (linearFromCodeTable of the [cameras.scene.radiometry]
+    // the service config gives; pipeline_stages.cpp). Without one the curve is unknown and the
+    // corners stay libapriltag's: a refit through a guessed curve moves every edge (sRGB
+    // assumed on ViSP's linear renders: 0.7 px outward, tag poses 30-70 mm off).
     bool linearEdges = true;
-    LinearFromCode linearFromCode = linearFromCodeTable(InverseToneMapSettings{});
+    std::optional<LinearFromCode> linearFromCode;
 };
 
 // Why a frame gave no trusted pose, by kind, so the service can count them (status
@@ -114,7 +117,8 @@ public:
 
     // 8-bit grey frame. Logs "tracking lost" / "tracking regained" on transitions only. Tags are
     // searched for where the last pose (if at most kPredictFrames old) puts them
-    // (vision/tag_search.h), their corners re-fitted in linear light (vision/tag_edges.h).
+    // (vision/tag_search.h), their corners re-fitted in linear light (vision/tag_edges.h) when
+    // the settings give the camera's curve.
     const TrackingState& track(const cv::Mat& gray);
     // The same from detections made elsewhere.
     const TrackingState& update(const std::vector<TagDetection>& detections);

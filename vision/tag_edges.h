@@ -8,6 +8,15 @@
 // step convolved with a symmetric kernel, so its centre is where half the step's area lies on
 // each side whatever the blur. This module finds that centre on profiles across each edge of a
 // detected tag, fits a line to them and intersects the lines.
+//
+// Only through the camera's own curve: the refit moves an edge by as much as the curve it
+// inverts differs from the frame's. ViSP's rendered benchmark is linear in its codes (its
+// checkerboard, finer than a pixel near the horizon, averages to half of white); read through
+// sRGB, every tag36h11 corner there moves 0.6-0.7 px outward and the tag poses go from 2-21 mm
+// to 33-71 mm off; through its true curve (gamma 1) the corners move by -0.14..+0.13 px, 0.02 px
+// outward on average, not significantly (tests/vision/tag_edges_test.cpp). So a caller without
+// the camera's radiometric model keeps libapriltag's corners (TrackerSettings::linearFromCode
+// unset, `previs track` without --tone-curve).
 
 #include <array>
 #include <opencv2/core.hpp>
@@ -39,8 +48,11 @@ struct EdgeRefineStats {
 // black border is one bit wide, and a printed tag has at least one bit of white around it, so a
 // profile of ±0.8 bit across an edge sees only ink, the edge and paper. A tag whose bits are
 // under 2.5 px, whose edges lack contrast, or whose re-fitted corner lands more than 1.5 px from
-// libapriltag's keeps libapriltag's corners. With a distorting `lens` the edges' lines are fitted
-// where they are straight: in its ideal pinhole pixels.
+// libapriltag's keeps libapriltag's corners; so does every tag of a family whose border is
+// reversed (white inside the detected quad, data bits outside: tagStandard41h12/52h13,
+// tagCircle21h7/49h12, tagCustom48h12), which fails the contrast test (paper darker than ink).
+// With a distorting `lens` the edges' lines are fitted where they are straight: in its ideal
+// pinhole pixels.
 EdgeRefineStats refineTagCornersInLinearLight(std::vector<TagDetection>& detections,
                                               const cv::Mat& gray8, const LinearFromCode& table,
                                               int bitsAcrossBorder,

@@ -212,7 +212,9 @@ protected:
     Tracker freshTracker(const CameraCalibration& calib,
                          TransferCurve curve = TransferCurve::Srgb) {
         TrackerSettings settings;
-        if (curve == TransferCurve::Linear) settings.linearFromCode = identityLinearFromCode();
+        settings.linearFromCode = curve == TransferCurve::Linear
+                                      ? identityLinearFromCode()
+                                      : linearFromCodeTable(InverseToneMapSettings{});
         return Tracker::create({}, bench::posterBoard(), calib, settings).value();
     }
 
