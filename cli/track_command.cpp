@@ -217,6 +217,11 @@ std::function<int()> addTrackCommand(CLI::App& app) {
                     "--tone-curve they stay libapriltag's (default 1)")
         ->check(CLI::IsMember({0, 1}));
     o->toneCurve.addTo(cmd, "", "images", false);
+    // Unlike the other commands', track's curve has no default: a guessed one moves the corners.
+    cmd->get_option("--tone-curve")
+        ->description(
+            "images: their transfer curve, srgb, reinhard or banterle (with --max-radiance and "
+            "--white-luminance), for --linear-edges; no default (unknown: libapriltag's corners)");
     cmd->add_option("--sigma", o->detector.sigma, "quad_sigma: Gaussian blur, pixels (default 0)")
         ->check(CLI::NonNegativeNumber);
     cmd->add_option("--threads", o->detector.threads, "detector threads (default 1)")
