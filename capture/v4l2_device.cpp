@@ -382,8 +382,18 @@ Result<bool> V4L2Device::read(int timeoutMs, Frame& frame) {
     if (cycle_) {
         const bool monotonic =
             (buf.flags & V4L2_BUF_FLAG_TIMESTAMP_MASK) == V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC;
+        const uint64_t restartsBefore = cycle_->restarts();
         const ExposureCycle::Decision d =
             cycle_->onFrame(buf.sequence, monotonic ? timestampNs : 0, monotonicNowNs());
+        // Logged at 1, 10, 100, ... restarts: a driver whose sequence never counts up one by one
+        // would otherwise bracket nothing, silently.
+        const uint64_t restarts = cycle_->restarts();
+        if (restarts != restartsBefore &&
+            (restarts == 1 || restarts == 10 || restarts == 100 || restarts % 1000 == 0))
+            logWarning(
+                "camera {}: frame {} does not follow the last one: the exposure bracket starts "
+                "over ({} times so far; frames the driver dropped)",
+                path_, buf.sequence, restarts);
         if (d.set) {
             if (Status s = setBracketStep(*d.set); !s) {
                 (void)queueBuffer(buf.index);
