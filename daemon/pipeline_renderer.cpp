@@ -71,6 +71,28 @@ std::vector<EstimatedLightSource> toLightSources(const std::vector<EstimatedLigh
 
 }  // namespace
 
+namespace {
+
+// The darkest and the brightest 8-bit codes the plate-consistency meter trusts (PlateLimits): a
+// JPEG's ringing spreads a saturated 255 a few codes down, so 250 and above count as clipped.
+constexpr uint8_t kPlateDarkCode = 16;
+constexpr uint8_t kPlateClippedCode = 250;
+
+PlateLimits plateLimitsOf(const InverseToneMapSettings& radiometry) {
+    cv::Mat codes(1, 2, CV_8UC3);
+    codes.at<cv::Vec3b>(0, 0) = cv::Vec3b(kPlateDarkCode, kPlateDarkCode, kPlateDarkCode);
+    codes.at<cv::Vec3b>(0, 1) = cv::Vec3b(kPlateClippedCode, kPlateClippedCode, kPlateClippedCode);
+    const cv::Mat linear = inverseToneMapRgb8(codes, radiometry);
+    PlateLimits limits;
+    for (int c = 0; c < 3; ++c) {
+        limits.dark[c] = linear.at<cv::Vec3f>(0, 0)[c];
+        limits.clipped[c] = linear.at<cv::Vec3f>(0, 1)[c];
+    }
+    return limits;
+}
+
+}  // namespace
+
 void renderSize(const ServiceConfig& config, uint32_t& width, uint32_t& height) {
     width = config.render.width ? config.render.width : config.sceneCamera.width;
     height = config.render.height ? config.render.height : config.sceneCamera.height;
@@ -84,6 +106,7 @@ Result<std::unique_ptr<PipelineRenderer>> PipelineRenderer::create(GpuContext& c
     p->previewSamples_ = config.render.samplesPerFrame;
     p->previewResolutionScale_ = config.render.resolutionScale;
     p->radiometry_ = config.sceneCamera.radiometry;
+    p->plateLimits_ = plateLimitsOf(p->radiometry_);
     p->display_.tone = forwardOf(p->radiometry_);
     p->display_.whiteBalance = p->radiometry_.whiteBalance;
     p->sceneCameraUntilTracked_ = config.tracking.sceneCameraUntilTracked;
@@ -381,6 +404,16 @@ Status PipelineRenderer::beginRefine(const TrackedFrame& frame,
 Status PipelineRenderer::refineStep(uint32_t samples) {
     if (!rendered_) return {};
     return renderer_->refine(samples);
+}
+
+Result<std::optional<PlateConsistency>> PipelineRenderer::measurePlateConsistency() {
+    const ImageF* plate = renderer_->plate();
+    if (!rendered_ || lightingPending_ || !plate) return std::optional<PlateConsistency>{};
+    Result<ImageF> traced = renderer_->realSurfaceMeans();
+    if (!traced) return traced.error();
+    const uint32_t across = plateMeterGridWidth(traced->width, renderer_->samplesPerPixel());
+    return previs::measurePlateConsistency(plateMeterGrid(*traced, *plate, plateLimits_, across),
+                                           plateLimits_);
 }
 
 Result<std::optional<double>> PipelineRenderer::measureNoise() {

@@ -38,6 +38,15 @@ public:
                        const std::shared_ptr<const LiveLighting>& lighting) override;
     // Adds `samples` more paths per pixel to the frozen shot.
     Status refineStep(uint32_t samples) override;
+    // The plate-consistency meter on the last frame rendered (preview's frame, or refinement's
+    // accumulation so far): L_or and the plate averaged over cells of kPlateMeterCellSamples
+    // samples or more (plateMeterGridWidth), plate pixels beyond plateLimits() left out. None while
+    // nothing is rendered or the lighting is pending (a stand-in says nothing of the set's
+    // lighting).
+    Result<std::optional<PlateConsistency>> measurePlateConsistency() override;
+    // The plate values the meter trusts: codes 16 to 249 of the scene camera's 8-bit frames
+    // through its radiometry (render/plate_consistency.h says why).
+    const PlateLimits& plateLimits() const { return plateLimits_; }
     // The convergence meter's look at the refinement (its composite's relative RMSE).
     Result<std::optional<double>> measureNoise() override;
 
@@ -82,7 +91,7 @@ public:
     // The fisheye is configured but no snapshot of it has arrived: the virtual objects are lit
     // meanwhile by the box's saved lighting (LiveLighting::restored) or, without one, by a
     // neutral environment at the plate's level (never black).
-    bool lightingPending() const { return lightingPending_; }
+    bool lightingPending() const override { return lightingPending_; }
     // Preview frames averaged into the shown one (the temporal history; 0: fixed sequence).
     uint32_t previewHistoryFrames() const;
     // Whether the last frame rendered the virtual objects (false before the first pose).
@@ -134,6 +143,7 @@ private:
     // Makes preview render with dial_[i].
     Status useDialPoint(size_t i);
     InverseToneMapSettings radiometry_;
+    PlateLimits plateLimits_;
     DisplaySettings display_;
     ImageF plate_;  // this frame's plate until it is moved into the renderer
     bool rendered_ = false;

@@ -106,6 +106,11 @@ std::string statusLine(const ServiceStatus& s) {
         line += fmt::format(" x{}", s.previewHistoryFrames);
     if (s.trackingLost) line += s.worldFromCamera ? "  TRACKING LOST (holding)" : "  NO TRACKING";
     if (s.lightingPending) line += "  LIGHTING PENDING";
+    // The lighting does not explain the plate (DESIGN.md §4): render / plate per channel.
+    if (s.plateConsistency && !s.plateConsistency->value.ok) {
+        const auto& r = s.plateConsistency->value.ratio;
+        line += fmt::format("  LIGHTING OFF x{:.2f} {:.2f} {:.2f}", r[0], r[1], r[2]);
+    }
     if (!s.fisheyeCameraProblem.empty()) line += "  FISHEYE CAMERA LOST";
     if (s.button == "absent") line += "  NO BUTTON";
     if (s.led == "absent") line += "  NO LED";
@@ -118,6 +123,24 @@ std::string statusLine(const ServiceStatus& s) {
 }
 
 namespace {
+
+// The plate-consistency meter's last reading (docs/previsd.md, "plateConsistency").
+nlohmann::json plateConsistencyJson(const std::optional<PlateConsistencyReading>& reading) {
+    if (!reading) return nullptr;
+    const PlateConsistency& v = reading->value;
+    auto rounded = [](const std::array<double, 3>& a) {
+        nlohmann::json j = nlohmann::json::array();
+        for (double x : a) j.push_back(std::round(x * 1e4) / 1e4);
+        return j;
+    };
+    return {{"ratio", rounded(v.ratio)},
+            {"spread", rounded(v.spread)},
+            {"pixels", v.pixels},
+            {"resolution", {v.gridWidth, v.gridHeight}},
+            {"ok", v.ok},
+            {"range", {kPlateConsistencyLow, kPlateConsistencyHigh}},
+            {"frame", reading->frame}};
+}
 
 // The last tracked frame's timecode and where it came from (docs/timecode.md).
 nlohmann::json timecodeJson(const std::optional<Timecode>& value, const TimecodeStatus& t) {
@@ -241,6 +264,7 @@ void blockServiceSignals() {
 struct Service::Threads {
     // Each thread's steps (base/stage_watch.h), read by run() before it feeds the watchdog; first,
     // so it outlives every thread that marks it.
+    j["plateConsistency"] = plateConsistencyJson(s.plateConsistency);
     StageWatch watch;
     Stage& renderStage = watch.add("render");
     Stage& trackingStage = watch.add("tracking");
@@ -580,7 +604,9 @@ void Service::Threads::stopAll() {
         if (!take) logError("recording: {}", take.message());
     }
     stopping.store(true);
+            if (step->plateConsistency) renderStatus.plateConsistency = step->plateConsistency;
     trackedFrames.wakeAll();
+        if (step->plateConsistency) recorder->addPlateConsistency(*step->plateConsistency);
     // Each thread finishes the step it is in (a frame's samples, a tag detection, a lighting
     // estimate); one that holds the stop up is named, so a slow stop says where it waited.
     const std::pair<std::thread*, const char*> workers[] = {

@@ -23,6 +23,7 @@
 #include "daemon/take_recorder.h"
 #include "daemon/tracking_out.h"
 #include "io/session.h"
+#include "render/plate_consistency.h"
 #include "timecode/timecode_source.h"
 #include "vision/board_pose.h"
 #include "web/web_monitor.h"
@@ -93,6 +94,9 @@ std::string statusLine(const ServiceStatus& status);
 
 class Service {
 public:
+    // The plate-consistency meter's last reading (DESIGN.md §4; daemon/shot_controller.h says
+    // when it reads); none before the first.
+    std::optional<PlateConsistencyReading> plateConsistency;
     // Opens everything the config names that must exist at start (scene, GPU, control socket,
     // button); cameras and the display may be absent and come later. `userError` (optional)
     // tells a failure the config caused (exit 2) from a runtime one (exit 1).

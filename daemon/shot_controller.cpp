@@ -68,6 +68,7 @@ Result<ShotStep> ShotController::step(std::shared_ptr<const TrackedFrame> newest
         if (frozen_) {
             // Back from refinement: the first frames re-size the traced buffers.
             frozen_.reset();
+            frozenLighting_.reset();
             fps_ = 0.0;
             lastFrame_.reset();
             liveFrameSeconds_.clear();
@@ -93,7 +94,56 @@ Result<ShotStep> ShotController::preview(std::shared_ptr<const TrackedFrame> fra
     out.shown = std::move(frame);
     out.fps = fps_;
     correctDial(ms * 1e-3);
+    meterPlate(*out.shown, lighting, out);
     return out;
+}
+
+void ShotController::meterPlate(const TrackedFrame& frame,
+                                const std::shared_ptr<const LiveLighting>& lighting, ShotStep& out,
+                                bool force) {
+    // A held pose (tracking lost) may be off by anything: the phantom set would not lie on the
+    // plate's real surfaces.
+    // A stand-in lighting says nothing of the set's.
+    if (!renderer_.rendered() || !frame.worldFromCamera || frame.lost || !frame.frame ||
+        renderer_.lightingPending())
+        return;
+    const ShotClock::TimePoint now = clock_.now();
+    // A looping recording starts its clock over: a time before the last try is a new pass.
+    if (!force && plateTried_ && now >= *plateTried_ && now - *plateTried_ < kPlateMeterPeriod)
+        return;
+    bool due = force || !platePose_;
+    if (!due) {
+        const PoseDelta d = poseDelta(*platePose_, *frame.worldFromCamera);
+        due = d.translationM > refine_.poseThresholdM || d.rotationDeg > refine_.poseThresholdDeg;
+    }
+    if (!due && lighting != plateLighting_)
+        due = !lighting || !plateLighting_ ||
+              lightingDelta(*lighting, *plateLighting_).change > refine_.lightingThreshold;
+    if (!due) return;
+    plateTried_ = now;
+    Result<std::optional<PlateConsistency>> measured = renderer_.measurePlateConsistency();
+    if (!measured) {
+        logWarning("plate consistency: {}", measured.message());
+        return;
+    }
+    if (!*measured) return;
+    platePose_ = frame.worldFromCamera;
+    plateLighting_ = lighting;
+    PlateConsistencyReading reading{**measured, frame.frame->sequence, frame.frame->timestampNs};
+    const PlateConsistency& v = reading.value;
+    // Said once as it goes out of range (and once back), not every reading.
+    if (!v.ok && (!plate_ || plate_->value.ok))
+        logWarning(
+            "plate consistency: the real-only render is {:.2f} {:.2f} {:.2f} (RGB) times the plate "
+            "over {} real-surface cells of frame {}, outside [{}, {}]: the captured lighting does "
+            "not explain the picture (a fisheye that clips the lamps reads far below 1)",
+            v.ratio[0], v.ratio[1], v.ratio[2], v.pixels, reading.frame, kPlateConsistencyLow,
+            kPlateConsistencyHigh);
+    else if (v.ok && plate_ && !plate_->value.ok)
+        logInfo("plate consistency: back within range ({:.2f} {:.2f} {:.2f})", v.ratio[0],
+                v.ratio[1], v.ratio[2]);
+    plate_ = reading;
+    out.plateConsistency = std::move(reading);
 }
 
 void ShotController::capPreviewSamples() {
@@ -127,6 +177,7 @@ void ShotController::correctDial(double frameSeconds) {
 Status ShotController::freeze(std::shared_ptr<const TrackedFrame> frame,
                               const std::shared_ptr<const LiveLighting>& lighting) {
     frozen_ = std::move(frame);
+    frozenLighting_ = lighting;
     if (Status s = renderer_.beginRefine(*frozen_, lighting); !s)
         return makeError("cannot start refinement: {}", s.message());
     refining_ = true;
@@ -192,7 +243,10 @@ Result<ShotStep> ShotController::refine(std::shared_ptr<const TrackedFrame> newe
     out.etaSeconds =
         refineEtaSeconds(total, out.noiseEstimate, refine_.targetNoise, refine_.maxSamples,
                          msSince(frozeAt_) / double(std::max<uint64_t>(total, 1)));
-    if (refineConverged(total, meter_.measured(), refine_)) {
+    const bool converged = refineConverged(total, meter_.measured(), refine_);
+    // Converged, the refinement's L_or is the meter's best input, and already there.
+    meterPlate(*frozen_, frozenLighting_, out, converged);
+    if (converged) {
         out.converged = true;
         logInfo("refinement: reached {} samples per pixel{}", total,
                 meter_.measured()

@@ -21,6 +21,7 @@
 #include "daemon/pipeline_stages.h"
 #include "daemon/refine_watch.h"
 #include "daemon/service_config.h"
+#include "render/plate_consistency.h"
 
 namespace previs {
 
@@ -74,6 +75,11 @@ public:
     // median live frame time; the new setting's description when it changed.
     virtual bool hasDial() const = 0;
     virtual std::optional<std::string> adaptDial(double liveFrameSeconds) = 0;
+    // The plate-consistency meter (render/plate_consistency.h) on the last frame rendered: none
+    // when it cannot say (nothing rendered, lighting pending, too few real surfaces in view).
+    virtual Result<std::optional<PlateConsistency>> measurePlateConsistency() = 0;
+    // The virtual objects are lit by a stand-in, not the set's captured lighting (yet).
+    virtual bool lightingPending() const = 0;
 };
 
 // Tracking's pace (the tracking thread's, or a replay's): every frame in preview; while refining a
@@ -106,6 +112,8 @@ struct ShotStep {
     std::optional<double> etaSeconds;           // refinement: until it stops
     bool restarted = false;                     // refinement started over on this step
     bool converged = false;                     // refinement just reached its stopping point
+    // The plate-consistency meter's reading, when this step took one (ShotController says when).
+    std::optional<PlateConsistencyReading> plateConsistency;
 };
 
 class ShotController {
@@ -118,6 +126,9 @@ public:
     static constexpr double kMaxPreviewFrameMs = 3000.0;
     // Preview frames timed before each live correction of the dial (their median).
     static constexpr size_t kDialWindowFrames = 15;
+    // The plate-consistency meter reads at most this often (shot time), however the camera moves:
+    // a reading costs a readback of the accumulation, and the lighting changes slowly.
+    static constexpr std::chrono::seconds kPlateMeterPeriod{1};
 
     ShotController(ShotRenderer& renderer, const ModeMachine& modes, const ShotClock& clock,
                    const RefineConfig& refine);
@@ -140,6 +151,13 @@ public:
     // Preview samples in use (the cap or the dial may have lowered the configured count).
     uint32_t previewSamples() const { return renderer_.previewSamples(); }
     const std::shared_ptr<const TrackedFrame>& frozen() const { return frozen_; }
+    // The plate-consistency meter's last reading (none before the first). A reading is taken on a
+    // rendered frame with a trusted pose (tracked, not held), the first one and then whenever
+    // the pose or the lighting moved beyond [refine]'s restart thresholds since the last one, at
+    // most every kPlateMeterPeriod: preview's frame, or refinement's accumulation so far, whose
+    // L_or is already there (only the readback costs). Once more as refinement converges: its
+    // many samples a cell read the ratio without the few-sample bias (kPlateMeterCellSamples).
+    const std::optional<PlateConsistencyReading>& plateConsistency() const { return plate_; }
 
 private:
     Result<ShotStep> preview(std::shared_ptr<const TrackedFrame> frame,
@@ -153,6 +171,11 @@ private:
     // Feeds the dial's live correction one preview frame's wall time.
     void correctDial(double frameSeconds);
     uint32_t refineStepSamples() const;
+    // Takes a plate-consistency reading of `frame` (just rendered with `lighting`) into `out` if
+    // one is due (plateConsistency() says when) or `force`d; a failed readback is logged, not
+    // fatal.
+    void meterPlate(const TrackedFrame& frame, const std::shared_ptr<const LiveLighting>& lighting,
+                    ShotStep& out, bool force = false);
     void tick();
     double msSince(ShotClock::TimePoint t) const;
 
@@ -166,6 +189,7 @@ private:
     bool refining_ = false;
     std::shared_ptr<const TrackedFrame> current_;  // the newest frame seen
     std::shared_ptr<const TrackedFrame> frozen_;
+    std::shared_ptr<const LiveLighting> frozenLighting_;  // what the frozen shot is lit by
     RefineWatch watch_;
     RefineMeter meter_;
     uint64_t restarts_ = 0;
@@ -178,6 +202,12 @@ private:
     std::vector<double> liveFrameSeconds_;  // preview frames since the dial's last correction
     double fps_ = 0.0;
     std::optional<ShotClock::TimePoint> lastFrame_;
+    // The plate-consistency meter: its last reading, the pose and lighting it was taken with, and
+    // its last try (a try without a reading waits kPlateMeterPeriod too).
+    std::optional<PlateConsistencyReading> plate_;
+    std::optional<cv::Matx44d> platePose_;
+    std::shared_ptr<const LiveLighting> plateLighting_;
+    std::optional<ShotClock::TimePoint> plateTried_;
 };
 
 }  // namespace previs

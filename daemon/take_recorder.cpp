@@ -274,6 +274,10 @@ void TakeRecorder::addLighting(std::shared_ptr<const LiveLighting> lighting) {
     if (lighting) push(std::move(lighting), 0);
 }
 
+void TakeRecorder::addPlateConsistency(const PlateConsistencyReading& reading) {
+    push(reading, 0);  // one short line, as a FreeD packet
+}
+
 Status TakeRecorder::writeFrame(Take& take, const FrameItem& item) {
     const Frame& frame = *item.frame;
     std::vector<uint8_t> png;
@@ -338,6 +342,17 @@ Status TakeRecorder::write(Take& take, Item& item) {
                                         freedRecordingLine(packet->receivedNs, packet->bytes));
     const auto& lit = std::get<std::shared_ptr<const LiveLighting>>(item);
     const uint64_t ns = lit->timestampNs + take.clocks["fisheye"].offsetNs;
+    if (auto* plate = std::get_if<PlateConsistencyReading>(&item)) {
+        // On the scene camera's clock in the take, as its poses (docs/session-format.md).
+        const PlateConsistency& v = plate->value;
+        return take.writer.appendRecord(
+            "plate_consistency.csv",
+            "timestamp_ns,frame,ratio_r,ratio_g,ratio_b,spread_r,spread_g,spread_b,pixels,ok",
+            fmt::format("{},{},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{},{}\n",
+                        plate->timestampNs + take.clocks["scene"].offsetNs, plate->frame,
+                        v.ratio[0], v.ratio[1], v.ratio[2], v.spread[0], v.spread[1], v.spread[2],
+                        v.pixels, v.ok ? 1 : 0));
+    }
     return take.writer.writeLighting(
         ns, [&](const std::string& path) { return writeLightingMap(*lit, path); },
         estimatedLightsJson(lit->lights));

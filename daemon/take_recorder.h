@@ -23,6 +23,7 @@
 #include "daemon/pipeline_stages.h"
 #include "daemon/service_config.h"
 #include "io/session.h"
+#include "render/plate_consistency.h"
 #include "timecode/timecode_source.h"
 
 namespace previs {
@@ -70,6 +71,8 @@ public:
     // A tracker's FreeD datagram as received ([tracking] listen): the take's freed.csv.
     void addFreedPacket(int64_t receivedNs, std::span<const uint8_t> datagram);
     void addLighting(std::shared_ptr<const LiveLighting> lighting);
+    // A plate-consistency reading (render/plate_consistency.h): the take's plate_consistency.csv.
+    void addPlateConsistency(const PlateConsistencyReading& reading);
     // Where the scene camera's frames get their timecode ([timecode], docs/timecode.md); set
     // before the cameras start, outliving the recorder. None: the time of day.
     void setTimecodeSource(TimecodeSource* source) { timecodeSource_ = source; }
@@ -86,8 +89,9 @@ private:
         // the frame arrives; empty: the time of day at the camera's rate.
         std::string timecode;
     };
-    using Item = std::variant<FrameItem, PoseRecord, SessionEvent,
-                              std::shared_ptr<const LiveLighting>, FreedPacket>;
+    using Item =
+        std::variant<FrameItem, PoseRecord, SessionEvent, std::shared_ptr<const LiveLighting>,
+                     FreedPacket, PlateConsistencyReading>;
 
     struct Take;  // the writer's state, owned by its thread
     void runWriter(std::unique_ptr<Take> take);

@@ -167,6 +167,19 @@ Result<ImageF> Film::image(const TracedBuffers& traced, Aov aov) const {
     return upsample(img);
 }
 
+Result<ImageF> Film::realSurfaceMeans(const TracedBuffers& traced) const {
+    if (!differential_)
+        return makeError("the real-only render L_or exists only in a differential render");
+    Result<Accumulation> read = readAccumulation(traced);
+    if (!read) return read.error();
+    ImageF img = blankImage(traced.width, traced.height, 5);
+    for (size_t i = 0; i < size_t(traced.width) * traced.height; ++i) {
+        for (int c = 0; c < 4; ++c) img.pixels[i * 5 + c] = float(read->mean(i, PV_ACCUM_REAL, c));
+        img.pixels[i * 5 + 4] = float(read->mean(i, PV_ACCUM_COMPOSITE, 3));
+    }
+    return img;
+}
+
 ImageF Film::plateFreeMeans(const Accumulation& a, const TracedBuffers& traced) {
     ImageF plateFree = blankImage(traced.width, traced.height, 4);
     for (size_t i = 0; i < size_t(traced.width) * traced.height; ++i)

@@ -71,6 +71,8 @@ public:
     Result<ImageF> image(const TracedBuffers& traced, Aov aov, bool denoised,
                          const DenoiseCamera& camera);
     Result<Convergence> convergence(const TracedBuffers& traced, uint64_t samplesPerPixel) const;
+    // Renderer::realSurfaceMeans (render/renderer.h says what it returns).
+    Result<ImageF> realSurfaceMeans(const TracedBuffers& traced) const;
     // The composite as the monitor shows it: image(Composite, denoised, camera) tone mapped to
     // 8-bit sRGB, made on the device (render/display_pass.h: upsampling, the held view, Eq. 1,
     // the curve) with one 8-bit readback; without a plate to composite, on the host.

@@ -208,6 +208,11 @@ public:
     // composite and of L_om − L_or so far, from the two interleaved replicates (none without
     // RenderSettings::convergenceMeter). One readback of the accumulation, as image() does.
     Result<Convergence> convergence() const { return film_->convergence(traced(), samples_); }
+    // What the plate-consistency meter needs (render/plate_consistency.h), at the traced size
+    // (never upsampled: the meter averages cells of it) from one readback: 5 channels, the mean
+    // of L_or (RGB), the fraction of samples whose camera ray first hit phantom geometry, and the
+    // mask M. An error in a render that is not differential.
+    Result<ImageF> realSurfaceMeans() const { return film_->realSurfaceMeans(traced()); }
     // The same, denoised where `denoised` (needs RenderSettings::denoise): Composite, Mixed and
     // Real are filtered, the composite before Eq. 1 adds the plate term (1 − M)·L_oc, so the
     // camera image itself is never filtered; the other AOVs are returned as image(aov). At a

@@ -34,6 +34,10 @@ layout(binding = PV_BINDING_HELD_SAMPLES, scalar) buffer HeldSamples { vec4 held
 vec3 gGuideAlbedo;
 vec3 gGuideNormal;
 float gGuideDepthM;
+// Whether the sample's camera ray first hit phantom (real) geometry: the real slot's w, which the
+// plate-consistency meter (render/plate_consistency.h) needs to compare L_or with the plate only
+// over real surfaces seen, never the environment behind them or a virtual object.
+bool gFirstHitReal;
 
 // Four random numbers of dimension set `set` (shared/sampler.h's table) for sample `key`.
 vec4 draw(SampleKey key, uint set) { return sampleSet(kSampler, key, set); }
@@ -540,7 +544,8 @@ void addSample(uint sampleIndex, uint pixelIndex, vec3 lm, vec3 lr, bool firstHi
     kahanAdd(gSum[PV_ACCUM_COMPOSITE], gComp[PV_ACCUM_COMPOSITE], vec4(composite, mask));
     if (params.heldWidth != 0u) addHeldSample(pixel, key, composite, mask);
     kahanAdd(gSum[PV_ACCUM_MIXED], gComp[PV_ACCUM_MIXED], vec4(lm, 1.0));
-    if (kDifferential) kahanAdd(gSum[PV_ACCUM_REAL], gComp[PV_ACCUM_REAL], vec4(lr, 0.0));
+    float realHit = gFirstHitReal ? 1.0 : 0.0;
+    if (kDifferential) kahanAdd(gSum[PV_ACCUM_REAL], gComp[PV_ACCUM_REAL], vec4(lr, realHit));
     // Replicate 1's samples (sampler.h) also into its own sums: the convergence meter
     // compares the two replicates' means.
     if (sampleIndex % params.replicates == 1u) {
@@ -549,7 +554,7 @@ void addSample(uint sampleIndex, uint pixelIndex, vec3 lm, vec3 lr, bool firstHi
                  vec4(composite, mask));
         kahanAdd(gSum[r + PV_ACCUM_MIXED], gComp[r + PV_ACCUM_MIXED], vec4(lm, 1.0));
         if (kDifferential)
-            kahanAdd(gSum[r + PV_ACCUM_REAL], gComp[r + PV_ACCUM_REAL], vec4(lr, 0.0));
+            kahanAdd(gSum[r + PV_ACCUM_REAL], gComp[r + PV_ACCUM_REAL], vec4(lr, realHit));
     }
     if (kDenoiseGuides) {
         gGuideSum[PV_GUIDE_ALBEDO_DEPTH] += vec4(gGuideAlbedo, gGuideDepthM);
@@ -576,6 +581,7 @@ void beginPath(uvec2 pixel, SampleKey key, out PathState st, out vec3 lm, out ve
     lm = vec3(0.0);
     lr = vec3(0.0);
     firstHitVirtual = false;
+    gFirstHitReal = false;
     if (kDenoiseGuides) {
         gGuideAlbedo = vec3(1.0);
         gGuideNormal = -st.ray.direction;
@@ -595,6 +601,7 @@ bool extendPath(SampleKey key, inout PathState st, inout uint mode, inout vec3 l
     bool found = intersectScene(st.ray, mode, hit);
     bool hitVirtual = found && hit.triangle >= params.realTriangleCount;
     if (hitVirtual && st.depth == 0u) firstHitVirtual = true;
+    if (found && !hitVirtual && st.depth == 0u && mode != MODE_REAL) gFirstHitReal = true;
     if (hitVirtual && mode == MODE_SHARED) {
         // The solutions part here: the real one continues this ray behind the virtual
         // object (traced after the mixed part), the mixed one shades the virtual hit.

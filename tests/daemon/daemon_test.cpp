@@ -198,6 +198,36 @@ TEST(StatusJson, HasTheDesignFields) {
     EXPECT_NE(statusLine(s).find("64K photons r 4.2 mm"), std::string::npos) << statusLine(s);
 }
 
+// The plate-consistency meter's reading (DESIGN.md §4): null before the first, then the object
+// docs/previsd.md describes; outside [0.8, 1.25] a warning on the overlay.
+TEST(StatusJson, ThePlateConsistencyReadingAndItsWarning) {
+    ServiceStatus s;
+    s.trackingLost = false;
+    EXPECT_TRUE(nlohmann::json::parse(statusJson(s))["plateConsistency"].is_null());
+    PlateConsistencyReading r;
+    r.value.ratio = {0.0812, 0.0834, 0.0967};
+    r.value.spread = {0.12, 0.11, 0.13};
+    r.value.pixels = 412;
+    r.value.gridWidth = 40;
+    r.value.gridHeight = 23;
+    r.value.ok = false;
+    r.frame = 17;
+    s.plateConsistency = r;
+    const nlohmann::json j = nlohmann::json::parse(statusJson(s))["plateConsistency"];
+    EXPECT_EQ(j["ratio"], nlohmann::json({0.0812, 0.0834, 0.0967}));
+    EXPECT_EQ(j["spread"], nlohmann::json({0.12, 0.11, 0.13}));
+    EXPECT_EQ(j["pixels"], 412);
+    EXPECT_EQ(j["resolution"], nlohmann::json({40, 23}));
+    EXPECT_EQ(j["ok"], false);
+    EXPECT_EQ(j["range"], nlohmann::json({0.8, 1.25}));
+    EXPECT_EQ(j["frame"], 17);
+    EXPECT_NE(statusLine(s).find("LIGHTING OFF x0.08 0.08 0.10"), std::string::npos)
+        << statusLine(s);
+    s.plateConsistency->value.ratio = {0.97, 1.0, 1.02};
+    s.plateConsistency->value.ok = true;
+    EXPECT_EQ(statusLine(s).find("LIGHTING OFF"), std::string::npos) << statusLine(s);
+}
+
 TEST(RecordedEvents, FireWithTheirFrameOnEveryPass) {
     // The demo take: presses recorded just before frames 22 and 42 (examples/demo/README.md).
     auto loaded = RecordedEvents::load(testing::sourcePath("examples/demo/session/cameras/scene"));

@@ -54,12 +54,24 @@ public:
         dialCorrections.push_back(liveFrameSeconds);
         return std::nullopt;
     }
+    bool lightingPending() const override { return pending; }
+    // A reading whose ratio is the number of readings so far (so a test can tell them apart).
+    Result<std::optional<PlateConsistency>> measurePlateConsistency() override {
+        ++plateReadings;
+        PlateConsistency c;
+        c.ratio = {double(plateReadings), 1.0, 1.0};
+        c.pixels = 100;
+        c.ok = true;
+        return std::optional<PlateConsistency>(c);
+    }
 
     bool dial = false;
     std::vector<uint32_t> previews, steps;
     std::vector<uint64_t> frozenOn;
     std::vector<double> dialCorrections;
     int looks = 0;
+    int plateReadings = 0;
+    bool pending = false;
     double ms_;
 
 private:
@@ -219,6 +231,69 @@ TEST(ShotController, TheDialIsCorrectedOnTheMedianOfAWindowOfLiveFrames) {
     }
     ASSERT_EQ(f.renderer.dialCorrections.size(), 2u);
     EXPECT_NEAR(f.renderer.dialCorrections[0], 0.020, 1e-9) << "the median, not the mean";
+}
+
+// The plate-consistency meter reads with a trusted pose only, once per view and lighting (a new
+// one beyond [refine]'s restart thresholds), at most every kPlateMeterPeriod.
+TEST(ShotController, ThePlateMeterReadsOnATrustedPoseWhenTheViewOrLightingChanges) {
+    Fixture f(20.0);
+    auto untracked = std::make_shared<TrackedFrame>(*frame(0));
+    untracked->worldFromCamera.reset();
+    untracked->lost = true;
+    Result<ShotStep> s = f.shot.step(untracked, nullptr);
+    ASSERT_TRUE(s);
+    EXPECT_FALSE(s->plateConsistency) << "nothing rendered";
+    auto held = std::make_shared<TrackedFrame>(*frame(1));
+    held->lost = true;  // tracking lost, the last pose held
+    ASSERT_TRUE(s = f.shot.step(held, nullptr));
+    EXPECT_FALSE(s->plateConsistency) << "a held pose is not trusted";
+    EXPECT_EQ(f.renderer.plateReadings, 0);
+    f.renderer.pending = true;
+    ASSERT_TRUE(s = f.shot.step(frame(2), nullptr));
+    EXPECT_FALSE(s->plateConsistency) << "lit by a stand-in";
+    EXPECT_EQ(f.renderer.plateReadings, 0);
+    f.renderer.pending = false;  // the first snapshot: read at once, not a period later
+
+    ASSERT_TRUE(s = f.shot.step(frame(2), nullptr));
+    ASSERT_TRUE(s->plateConsistency);
+    EXPECT_EQ(s->plateConsistency->frame, 2u);
+    EXPECT_EQ(s->plateConsistency->value.ratio[0], 1.0);
+    // The same view a while later: nothing new to read.
+    f.clock.advance(2s);
+    ASSERT_TRUE(s = f.shot.step(frame(3), nullptr));
+    EXPECT_FALSE(s->plateConsistency);
+    // Within the threshold (0.5 deg): still the same view.
+    f.clock.advance(2s);
+    ASSERT_TRUE(s = f.shot.step(frame(4, 0.3), nullptr));
+    EXPECT_FALSE(s->plateConsistency);
+    // A new view, but within a period of the last reading: not yet; after it, read.
+    ASSERT_TRUE(s = f.shot.step(frame(5, 5.0), nullptr));
+    ASSERT_TRUE(s->plateConsistency) << "2 s since the last";
+    ASSERT_TRUE(s = f.shot.step(frame(6, 10.0), nullptr));
+    EXPECT_FALSE(s->plateConsistency) << "40 ms since the last";
+    f.clock.advance(ShotController::kPlateMeterPeriod);
+    ASSERT_TRUE(s = f.shot.step(frame(7, 10.0), nullptr));
+    ASSERT_TRUE(s->plateConsistency);
+    EXPECT_EQ(f.renderer.plateReadings, 3);
+    ASSERT_TRUE(f.shot.plateConsistency());
+    EXPECT_EQ(f.shot.plateConsistency()->frame, 7u);
+
+    // Lighting: a first snapshot is a change; a small one is not; a large one is.
+    auto lit = [](double level) {
+        auto l = std::make_shared<LiveLighting>();
+        l->luminanceSh[0] = level;
+        return std::shared_ptr<const LiveLighting>(l);
+    };
+    f.clock.advance(2s);
+    ASSERT_TRUE(s = f.shot.step(frame(8, 10.0), lit(1.0)));
+    EXPECT_TRUE(s->plateConsistency);
+    f.clock.advance(2s);
+    ASSERT_TRUE(s = f.shot.step(frame(9, 10.0), lit(1.01)));
+    EXPECT_FALSE(s->plateConsistency) << "1 % is within lighting_threshold";
+    f.clock.advance(2s);
+    ASSERT_TRUE(s = f.shot.step(frame(10, 10.0), lit(1.5)));
+    EXPECT_TRUE(s->plateConsistency);
+    EXPECT_EQ(f.renderer.plateReadings, 5);
 }
 
 TEST(TrackingPace, EveryFrameInPreviewAFewASecondRefining) {

@@ -27,8 +27,9 @@ PV_BEGIN
 #define PV_BINDING_ENV_MARGINAL_CDF 13
 #define PV_BINDING_ENV_CONDITIONAL_CDF 14
 // Accumulations: 6 vec4 per pixel, [composite | mask], [mixed L_om | samples that count],
-// [real L_or | 0]; composite = M ? L_om : L_om − L_or per sample (the plate is added on
-// readback). Dropped (NaN/Inf) samples are in none of them: means divide by the count.
+// [real L_or | 1 where the camera ray's first hit is phantom geometry, else 0]; composite =
+// M ? L_om : L_om − L_or per sample (the plate is added on readback). Dropped (NaN/Inf)
+// samples are in none of them: means divide by the count.
 // Then the same three over replicate 1's samples only (odd sample indices; sampler.h), for the
 // convergence meter (render/convergence.h): replicate 0's are the totals minus these.
 #define PV_BINDING_ACCUM_SUM 15
