@@ -248,6 +248,7 @@ std::string statusJson(const ServiceStatus& s) {
     j["trackingOut"] = s.trackingOut ? trackingOutJson(*s.trackingOut) : nlohmann::json(nullptr);
     j["web"] = s.web ? toJson(*s.web) : nlohmann::json(nullptr);
     j["freedIn"] = s.freedIn ? freedInJson(*s.freedIn) : nlohmann::json(nullptr);
+    j["plateConsistency"] = plateConsistencyJson(s.plateConsistency);
     return j.dump();
 }
 
@@ -264,7 +265,6 @@ void blockServiceSignals() {
 struct Service::Threads {
     // Each thread's steps (base/stage_watch.h), read by run() before it feeds the watchdog; first,
     // so it outlives every thread that marks it.
-    j["plateConsistency"] = plateConsistencyJson(s.plateConsistency);
     StageWatch watch;
     Stage& renderStage = watch.add("render");
     Stage& trackingStage = watch.add("tracking");
@@ -569,7 +569,9 @@ void Service::Threads::runRender(ModeMachine& modes) {
         {
             std::lock_guard lock(statusMutex);
             renderStatus.refineRestarts = shot.restarts();
+            if (step->plateConsistency) renderStatus.plateConsistency = step->plateConsistency;
         }
+        if (step->plateConsistency) recorder->addPlateConsistency(*step->plateConsistency);
         switch (step->kind) {
             case ShotStep::Kind::NoFrame:
                 // A camera that delivers nothing (unplugged, never opened) must not leave the
@@ -604,9 +606,7 @@ void Service::Threads::stopAll() {
         if (!take) logError("recording: {}", take.message());
     }
     stopping.store(true);
-            if (step->plateConsistency) renderStatus.plateConsistency = step->plateConsistency;
     trackedFrames.wakeAll();
-        if (step->plateConsistency) recorder->addPlateConsistency(*step->plateConsistency);
     // Each thread finishes the step it is in (a frame's samples, a tag detection, a lighting
     // estimate); one that holds the stop up is named, so a slow stop says where it waited.
     const std::pair<std::thread*, const char*> workers[] = {

@@ -86,6 +86,9 @@ struct ServiceStatus {
     std::optional<TrackingOutStats> trackingOut;
     std::optional<WebStats> web;
     std::optional<FreedInputStats> freedIn;  // [tracking] listen
+    // The plate-consistency meter's last reading (DESIGN.md §4; daemon/shot_controller.h says
+    // when it reads); none before the first.
+    std::optional<PlateConsistencyReading> plateConsistency;
 };
 
 std::string statusJson(const ServiceStatus& status);
@@ -94,9 +97,6 @@ std::string statusLine(const ServiceStatus& status);
 
 class Service {
 public:
-    // The plate-consistency meter's last reading (DESIGN.md §4; daemon/shot_controller.h says
-    // when it reads); none before the first.
-    std::optional<PlateConsistencyReading> plateConsistency;
     // Opens everything the config names that must exist at start (scene, GPU, control socket,
     // button); cameras and the display may be absent and come later. `userError` (optional)
     // tells a failure the config caused (exit 2) from a runtime one (exit 1).

@@ -340,8 +340,6 @@ Status TakeRecorder::write(Take& take, Item& item) {
     if (auto* packet = std::get_if<FreedPacket>(&item))
         return take.writer.appendRecord("freed.csv", kFreedRecordingHeader,
                                         freedRecordingLine(packet->receivedNs, packet->bytes));
-    const auto& lit = std::get<std::shared_ptr<const LiveLighting>>(item);
-    const uint64_t ns = lit->timestampNs + take.clocks["fisheye"].offsetNs;
     if (auto* plate = std::get_if<PlateConsistencyReading>(&item)) {
         // On the scene camera's clock in the take, as its poses (docs/session-format.md).
         const PlateConsistency& v = plate->value;
@@ -353,6 +351,8 @@ Status TakeRecorder::write(Take& take, Item& item) {
                         v.ratio[0], v.ratio[1], v.ratio[2], v.spread[0], v.spread[1], v.spread[2],
                         v.pixels, v.ok ? 1 : 0));
     }
+    const auto& lit = std::get<std::shared_ptr<const LiveLighting>>(item);
+    const uint64_t ns = lit->timestampNs + take.clocks["fisheye"].offsetNs;
     return take.writer.writeLighting(
         ns, [&](const std::string& path) { return writeLightingMap(*lit, path); },
         estimatedLightsJson(lit->lights));
