@@ -296,6 +296,26 @@ TEST(ShotController, ThePlateMeterReadsOnATrustedPoseWhenTheViewOrLightingChange
     EXPECT_EQ(f.renderer.plateReadings, 5);
 }
 
+// Refinement: the first step of a new view reads (its accumulation so far), and the step that
+// converges reads again, on the same view, whatever the period: its L_or has the most samples.
+TEST(ShotController, ThePlateMeterReadsAgainAsRefinementConverges) {
+    RefineConfig c = refineConfig();
+    c.maxSamples = 25;
+    Fixture f(1.0, c, Mode::Refine);
+    std::vector<int> readOn;  // step indices with a reading
+    for (int i = 0; i < 10; ++i) {
+        Result<ShotStep> s = f.shot.step(i == 0 ? frame(7) : nullptr, nullptr);
+        ASSERT_TRUE(s);
+        if (s->plateConsistency) {
+            readOn.push_back(i);
+            EXPECT_EQ(s->plateConsistency->frame, 7u);
+            EXPECT_EQ(s->converged, i > 0) << "step " << i;
+        }
+    }
+    EXPECT_EQ(readOn.size(), 2u);
+    EXPECT_EQ(f.renderer.plateReadings, 2);
+}
+
 TEST(TrackingPace, EveryFrameInPreviewAFewASecondRefining) {
     TrackingPace pace;
     const uint64_t period = 66'666'667;  // 15 fps
