@@ -263,6 +263,7 @@ StageResult measureStages(const ServiceBenchOptions& o, uint32_t w, uint32_t h) 
             const Clock::time_point t = Clock::now();
             auto l = lighting->process(*(*fisheyes)[nextFisheye]);
             if (!l) return fail(l.message());
+            if (!*l) continue;  // a bracket in progress
             lit.push_back(msSince(t));
             current = *l;
         }

@@ -177,28 +177,84 @@ Result<LightingStage> LightingStage::create(const ServiceConfig& config) {
         FisheyeToEquirect::create(*config.fisheyeCamera->calibration, config.lighting.fisheye);
     if (!toEquirect)
         return makeError("{}: [cameras.fisheye]: {}", config.path, toEquirect.message());
+    std::optional<BracketAssembler> bracket;
+    if (config.fisheyeCamera->bracket) {
+        Result<BracketAssembler> a =
+            BracketAssembler::create(*config.fisheyeCamera->bracket, config.fisheyeCamera->radiometry);
+        if (!a) return makeError("{}: [cameras.fisheye.bracket]: {}", config.path, a.message());
+        bracket = std::move(*a);
+    }
     return LightingStage(std::move(*toEquirect), config.fisheyeCamera->radiometry,
-                         config.lighting.mode, config.lighting.lights, config.lighting.updateHz);
+                         std::move(bracket), config.lighting.mode, config.lighting.lights,
+                         config.lighting.updateHz);
 }
 
 bool LightingStage::due(const Frame& frame) const {
-    return !lastNs_ || frame.timestampNs < *lastNs_ || frame.timestampNs - *lastNs_ >= periodNs_;
+    if (bracket_ && bracket_->inProgress()) return true;
+    const bool timeHasCome =
+        !lastNs_ || frame.timestampNs < *lastNs_ || frame.timestampNs - *lastNs_ >= periodNs_;
+    // A bracket starts only at the cycle's first exposure; the frames between brackets are the
+    // camera's other exposures, which process() would only set aside.
+    return timeHasCome && (!bracket_ || bracket_->startsBracket(frame.exposureStops));
+}
+
+const BracketCounts* LightingStage::bracketCounts() const {
+    return bracket_ ? &bracket_->counts() : nullptr;
+}
+
+std::string LightingStage::lastBracketDrop() const {
+    return bracket_ ? bracket_->lastDrop() : std::string();
 }
 
 Result<std::shared_ptr<const LiveLighting>> LightingStage::process(const Frame& frame) {
-    lastNs_ = frame.timestampNs;
     const auto start = std::chrono::steady_clock::now();
     const cv::Mat rgb(int(frame.height), int(frame.width), CV_8UC3,
                       const_cast<uint8_t*>(frame.rgb.data()));
-    const cv::Mat linear = inverseToneMapRgb8(rgb, radiometry_);
-    Result<cv::Mat> map = toEquirect_.apply(linear);
-    if (!map) return map.error();
-    auto out = fromMap(*map, fmt::format("fisheye frame {}", frame.sequence));
+    Result<std::shared_ptr<LiveLighting>> out = std::shared_ptr<LiveLighting>();
+    if (bracket_) {
+        const bool starts = !bracket_->inProgress();
+        std::optional<MergedBracket> merged =
+            bracket_->add(rgb, frame.sequence, frame.timestampNs, frame.exposureStops);
+        // The period runs from a bracket's first frame, as from a single frame's.
+        if (starts && bracket_->inProgress()) lastNs_ = frame.timestampNs;
+        if (!merged) return std::shared_ptr<const LiveLighting>();
+        out = fromBracket(*merged);
+    } else {
+        lastNs_ = frame.timestampNs;
+        // A frame labelled with its exposure (a bracketing camera's, lit one frame at a time) is
+        // linearised at that exposure.
+        InverseToneMapSettings radiometry = radiometry_;
+        radiometry.exposureStops += frame.exposureStops.value_or(0.0f);
+        Result<cv::Mat> map = toEquirect_.apply(inverseToneMapRgb8(rgb, radiometry));
+        if (!map) return map.error();
+        out = fromMap(*map, fmt::format("fisheye frame {}", frame.sequence));
+    }
     if (!out) return out.error();
     (*out)->sequence = frame.sequence;
     (*out)->timestampNs = frame.timestampNs;
     (*out)->computeMs = millisecondsSince(start);
     return std::shared_ptr<const LiveLighting>(std::move(*out));
+}
+
+Result<std::shared_ptr<LiveLighting>> LightingStage::fromBracket(const MergedBracket& merged) {
+    Result<cv::Mat> map = toEquirect_.apply(merged.radiance);
+    if (!map) return map.error();
+    auto out = fromMap(*map, fmt::format("fisheye bracket {}-{}", merged.firstSequence,
+                                         merged.lastSequence));
+    if (!out) return out.error();
+    (*out)->bracketFrames = int(merged.lastSequence - merged.firstSequence + 1);
+    if (merged.clippedFraction > 0.0) {
+        Result<cv::Mat> clipped = toEquirect_.applyAny(merged.clipped);
+        if (!clipped) return clipped.error();
+        double solidAngle = 0.0;
+        for (int y = 0; y < clipped->rows; ++y)
+            for (int x = 0; x < clipped->cols; ++x)
+                if (clipped->at<uint8_t>(y, x))
+                    solidAngle += equirectTexelSolidAngle(y, clipped->cols, clipped->rows);
+        (*out)->clippedTexels = std::move(*clipped);
+        (*out)->clippedSolidAngleFraction = solidAngle / (4.0 * M_PI);
+    }
+    return out;
 }
 
 Result<std::shared_ptr<const LiveLighting>> LightingStage::restore(const std::string& path) {

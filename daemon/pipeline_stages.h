@@ -20,6 +20,7 @@
 #include "timecode/timecode.h"
 #include "vision/board_pose.h"
 #include "vision/fisheye_to_equirect.h"
+#include "vision/hdr_bracket.h"
 #include "vision/light_estimator.h"
 #include "vision/pose_filter.h"
 
@@ -77,6 +78,12 @@ struct LiveLighting {
     // Read back from the box's saved lighting (LightingStage::restore), not captured since the
     // service started: it stands in, and the status still says lighting is pending.
     bool restored = false;
+    // Merged from a bracket of this many fisheye frames (0: one frame, not bracketed).
+    int bracketFrames = 0;
+    // Texels whose light even the bracket's shortest exposure clipped (CV_8U, 255 = clipped; empty
+    // when none): their radiance is only a lower bound. Their share of the sphere's solid angle.
+    cv::Mat clippedTexels;
+    double clippedSolidAngleFraction = 0.0;
 };
 
 // Keeps `lighting`'s captured map at `path` (OpenEXR), written to a temporary name beside it and
@@ -114,9 +121,15 @@ class LightingStage {
 public:
     // Needs config.fisheyeCamera.
     static Result<LightingStage> create(const ServiceConfig& config);
-    // Whether this frame makes a new snapshot under [lighting] update_hz (by its timestamp).
+    // Whether this frame goes to process(): by its timestamp under [lighting] update_hz; with a
+    // bracket, every frame of one in progress and the first of one whose time has come.
     bool due(const Frame& fisheyeFrame) const;
+    // The snapshot this frame makes, or null when it makes none: a bracket still in progress, or
+    // dropped (bracketCounts() and lastBracketDrop() say why).
     Result<std::shared_ptr<const LiveLighting>> process(const Frame& fisheyeFrame);
+    // With [cameras.fisheye.bracket]: what became of the brackets so far; null without.
+    const BracketCounts* bracketCounts() const;
+    std::string lastBracketDrop() const;
     // The snapshot of a map saveLighting wrote (its lights estimated again, as for a frame),
     // marked restored.
     Result<std::shared_ptr<const LiveLighting>> restore(const std::string& path);
@@ -125,14 +138,19 @@ private:
     // A snapshot of an equirectangular map (linear radiance, CV_32FC3) named `name`.
     Result<std::shared_ptr<LiveLighting>> fromMap(const cv::Mat& map, const std::string& name);
     LightingStage(FisheyeToEquirect toEquirect, InverseToneMapSettings radiometry,
-                  LightingMode mode, LightEstimatorSettings lights, double updateHz)
+                  std::optional<BracketAssembler> bracket, LightingMode mode,
+                  LightEstimatorSettings lights, double updateHz)
         : toEquirect_(std::move(toEquirect)),
           radiometry_(radiometry),
+          bracket_(std::move(bracket)),
           mode_(mode),
           estimator_(lights),
           periodNs_(updateHz > 0.0 ? uint64_t(1e9 / updateHz) : 0) {}
+    // The map of one bracket's merged radiance, its clipped texels flagged.
+    Result<std::shared_ptr<LiveLighting>> fromBracket(const MergedBracket& merged);
     FisheyeToEquirect toEquirect_;
     InverseToneMapSettings radiometry_;
+    std::optional<BracketAssembler> bracket_;
     LightingMode mode_;
     LightEstimator estimator_;
     uint64_t periodNs_;

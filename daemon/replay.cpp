@@ -118,9 +118,9 @@ Status SessionReplay::lightUpTo(uint64_t timestampNs) {
     while (pendingFisheye_ && pendingFisheye_->timestampNs <= timestampNs) {
         if (lighting_->due(*pendingFisheye_)) {
             Result<std::shared_ptr<const LiveLighting>> lit = lighting_->process(*pendingFisheye_);
-            if (lit)
+            if (lit && *lit)
                 currentLighting_ = *lit;
-            else
+            else if (!lit)
                 logWarning("replay: fisheye frame {}: {}", pendingFisheye_->sequence,
                            lit.message());
         }

@@ -235,6 +235,22 @@ std::string statusJson(const ServiceStatus& s) {
     j["cameraProblems"] = {{"scene", s.sceneCameraProblem}, {"fisheye", s.fisheyeCameraProblem}};
     j["lightingUpdates"] = s.lightingUpdates;
     j["lightingPending"] = s.lightingPending;
+    if (s.brackets) {
+        const BracketCounts& b = *s.brackets;
+        j["lightCapture"] = {
+            {"bracketsMerged", b.merged},
+            {"bracketsDropped",
+             {{"unlabelled", b.droppedUnlabelled},
+              {"wrongExposure", b.droppedWrongExposure},
+              {"missing", b.droppedMissing},
+              {"mismatch", b.droppedMismatch}}},
+            {"pairsUnchecked", b.unchecked},
+            {"lastDrop", s.lastBracketDrop},
+            {"framesWithheld", s.bracketFramesWithheld},
+            {"clippedSolidAngleFraction", s.clippedSolidAngleFraction}};
+    } else {
+        j["lightCapture"] = nullptr;
+    }
     j["previewHistoryFrames"] = s.previewHistoryFrames;
     j["heldViewFrames"] = s.heldViewFrames;
     // Frames that gave no trusted pose, counted by why (vision/board_pose.h LostReason).
@@ -305,6 +321,11 @@ struct Service::Threads {
     // Frames tracking gave no trusted pose, by LostReason (status "trackingLost").
     std::array<std::atomic<uint64_t>, kLostReasonCount> lostFrames{};
     std::atomic<uint64_t> lightingUpdates{0};
+    // The lighting thread's part of the status (under statusMutex).
+    std::optional<BracketCounts> brackets;
+    std::string lastBracketDrop;
+    double clippedSolidAngleFraction = 0.0;
+    void noteBrackets(const LiveLighting* snapshot);
     // Set by a stage thread that cannot go on (its reason logged); run() then exits 1 so that
     // systemd restarts the service.
     std::atomic<bool> pipelineFailed{false};
@@ -456,6 +477,18 @@ void Service::Threads::keepLighting(const LiveLighting& lit, Clock::time_point& 
     lastSaved = now;
 }
 
+void Service::Threads::noteBrackets(const LiveLighting* snapshot) {
+    const BracketCounts* counts = lighting->bracketCounts();
+    if (!counts) return;
+    std::lock_guard lock(statusMutex);
+    if ((brackets ? brackets->dropped() : 0) == 0 && counts->dropped() > 0)
+        logWarning("lighting: a fisheye bracket was dropped: {} (further drops are counted)",
+                   lighting->lastBracketDrop());
+    brackets = *counts;
+    lastBracketDrop = lighting->lastBracketDrop();
+    if (snapshot) clippedSolidAngleFraction = snapshot->clippedSolidAngleFraction;
+}
+
 void Service::Threads::runLighting() {
     nameThread("pv-lighting");
     restoreLighting();
@@ -473,6 +506,8 @@ void Service::Threads::runLighting() {
                            frame->sequence, lit.message());
             continue;
         }
+        noteBrackets(lit->get());
+        if (!*lit) continue;  // a bracket in progress, or dropped (counted)
         lightingMs.store((*lit)->computeMs);
         recorder->addLighting(*lit);
         lightingSnapshots.publish(*lit);
@@ -878,10 +913,17 @@ ServiceStatus Service::status() const {
         const CaptureStats fisheye = t.fisheyeCamera->stats();
         s.fisheyeCamera = toString(fisheye.state);
         s.fisheyeCameraProblem = fisheye.problem;
+        s.bracketFramesWithheld = fisheye.withheld;
     } else {
         s.fisheyeCamera = "none";
     }
     s.lightingUpdates = t.lightingUpdates.load();
+    {
+        std::lock_guard lock(t.statusMutex);
+        s.brackets = t.brackets;
+        s.lastBracketDrop = t.lastBracketDrop;
+        s.clippedSolidAngleFraction = t.clippedSolidAngleFraction;
+    }
     s.record = t.recorder->status();
     for (int i = 1; i < kLostReasonCount; ++i)
         s.trackingLostFrames[size_t(i)] = t.lostFrames[size_t(i)].load();

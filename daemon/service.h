@@ -63,6 +63,14 @@ struct ServiceStatus {
     std::string sceneCamera, fisheyeCamera;  // capture states
     std::string sceneCameraProblem, fisheyeCameraProblem;  // CaptureStats::problem
     uint64_t lightingUpdates = 0;
+    // [cameras.fisheye.bracket]: the brackets merged and dropped so far, the last drop's reason,
+    // and the share of the sphere the last snapshot's light clipped in (status "lightCapture").
+    std::optional<BracketCounts> brackets;
+    std::string lastBracketDrop;
+    double clippedSolidAngleFraction = 0.0;
+    // A live V4L2 fisheye's frames withheld while its bracket's exposure control landed
+    // (CaptureStats::withheld; "lightCapture.framesWithheld").
+    uint64_t bracketFramesWithheld = 0;
     // No lighting snapshot yet: the virtual objects are lit by a neutral environment.
     bool lightingPending = false;
     // Preview: frames averaged into the shown one (temporal accumulation; 0: fixed sequence).

@@ -7,7 +7,9 @@
 #include <functional>
 #include <limits>
 
+#include "capture/exposure_bracket.h"
 #include "capture/pixel_format.h"
+#include "capture/v4l2_device.h"
 #include "config/toml_reader.h"
 #include "daemon/network_config_reader.h"
 #include "net/udp_socket.h"
@@ -36,6 +38,8 @@ private:
     }
 
     Status parseCamera(const toml::table& t, const std::string& name, CameraConfig& c) const;
+    Status parseBracket(const toml::table& camera, const std::string& cameraSection,
+                        CameraConfig& c) const;
     Status parseLibcameraControls(const toml::table& t, const std::string& section,
                                   CameraConfig& c) const;
     Status parseRadiometry(const toml::table& t, std::string_view section,
@@ -128,7 +132,7 @@ Status ConfigReader::parseCamera(const toml::table& t, const std::string& name,
     Status keys =
         fisheye ? r_.checkKeys(t, section,
                                {"source", "device", "width", "height", "format", "fps", "controls",
-                                "calibration", "radiometry", "mount_rotation_deg"})
+                                "calibration", "radiometry", "mount_rotation_deg", "bracket"})
                 : r_.checkKeys(t, section,
                                {"source", "device", "width", "height", "format", "fps", "controls",
                                 "calibration", "radiometry"});
@@ -249,6 +253,67 @@ Status ConfigReader::parseCamera(const toml::table& t, const std::string& name,
             return st;
         c.radiometryGiven = true;
     }
+    if (fisheye) return parseBracket(t, section, c);
+    return {};
+}
+
+Status ConfigReader::parseBracket(const toml::table& camera, const std::string& cameraSection,
+                                  CameraConfig& c) const {
+    Result<const toml::table*> table = r_.table(camera, cameraSection, "bracket");
+    if (!table) return table.error();
+    if (!*table) return {};
+    const toml::table& t = **table;
+    const std::string section = cameraSection + ".bracket";
+    if (Status st = r_.checkKeys(t, section,
+                                 {"stops", "tolerance_stops", "frames_per_step", "control"});
+        !st)
+        return st;
+    // How a live camera cycles its exposure (capture/exposure_bracket.h): V4L2 holds each step
+    // for frames_per_step frames of a control; libcamera labels each frame from its metadata.
+    for (const char* key : {"frames_per_step", "control"})
+        if (t.get(key) && c.source != CameraSourceKind::V4L2)
+            return fail(t.get(key), "'{}.{}' has no meaning for a {} camera (V4L2 only{})",
+                        section, key, toString(c.source),
+                        c.source == CameraSourceKind::Libcamera
+                            ? ": libcamera labels each frame from its metadata"
+                            : ": a recording's frames carry their exposures");
+    int64_t framesPerStep = c.bracketFramesPerStep;
+    if (Status st = r_.integerIn(t, section, "frames_per_step", framesPerStep, 1,
+                                 kMaxFramesPerStep);
+        !st)
+        return st;
+    c.bracketFramesPerStep = int(framesPerStep);
+    Result<std::optional<std::string>> control = r_.string(t, section, "control");
+    if (!control) return control.error();
+    if (*control) c.bracketControl = **control;
+    if (c.source == CameraSourceKind::V4L2) {
+        bool hasBase = false;
+        for (const auto& [name, value] : c.controls)
+            hasBase = hasBase || v4l2ControlKey(name) == v4l2ControlKey(c.bracketControl);
+        if (!hasBase)
+            return fail(&t,
+                        "[{}] cycles '{}' from the camera's configured value, but [{}.controls] "
+                        "does not set it; add it (the exposure the radiometry was calibrated at) "
+                        "with the camera in manual exposure (e.g. auto_exposure = 1)",
+                        section, c.bracketControl, cameraSection);
+    } else if (c.source == CameraSourceKind::Libcamera && (!c.exposureUs || !c.analogueGain)) {
+        return fail(&t,
+                    "[{}] needs the base exposure: set exposure_time_us and analogue_gain in "
+                    "[{}.controls] (those the radiometry was calibrated at)",
+                    section, cameraSection);
+    }
+    Result<std::optional<std::vector<double>>> stops = r_.numbers(t, section, "stops", 0);
+    if (!stops) return stops.error();
+    if (!*stops) return fail(&t, "[{}] needs 'stops', e.g. stops = [0, -4, -8]", section);
+    BracketSettings b;
+    for (double v : **stops) b.stops.push_back(float(v));
+    if (Status st = checkBracketStops(b.stops, section + ".stops"); !st)
+        return fail(t.get("stops"), "{}", st.message());
+    if (Status st = r_.numberIn(t, section, "tolerance_stops", b.ratioToleranceStops, 0.0, 4.0,
+                                true);
+        !st)
+        return st;
+    c.bracket = std::move(b);
     return {};
 }
 
@@ -385,7 +450,8 @@ Status ConfigReader::parseLighting(const toml::table& t, LightingConfig& c) cons
     if (Status st = r_.checkKeys(
             t, "lighting",
             {"mode", "map_width", "max_field_angle_deg", "fill_ring_deg", "mean_factor",
-             "max_fraction", "max_lights", "min_power_fraction", "update_hz", "saved"});
+             "max_fraction", "max_lights", "min_power_fraction", "update_hz", "saved",
+             "fit_to_plate"});
         !st)
         return st;
     Result<std::optional<std::string>> mode = r_.string(t, "lighting", "mode");
@@ -435,6 +501,19 @@ Status ConfigReader::parseLighting(const toml::table& t, LightingConfig& c) cons
             r_.numberIn(t, "lighting", "min_power_fraction", c.lights.minPowerFraction, 0.0, 1.0);
         !st)
         return st;
+    Result<std::optional<std::string>> fit = r_.string(t, "lighting", "fit_to_plate");
+    if (!fit) return fit.error();
+    if (*fit) {
+        if (**fit == "auto")
+            c.fitToPlate = FitToPlate::Auto;
+        else if (**fit == "on")
+            c.fitToPlate = FitToPlate::On;
+        else if (**fit == "off")
+            c.fitToPlate = FitToPlate::Off;
+        else
+            return fail(t.get("fit_to_plate"),
+                        "'lighting.fit_to_plate' is '{}'; use auto, on or off", **fit);
+    }
     return {};
 }
 

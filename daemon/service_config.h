@@ -20,6 +20,7 @@
 #include "vision/board_pose.h"
 #include "vision/camera_calibration.h"
 #include "vision/fisheye_to_equirect.h"
+#include "vision/hdr_bracket.h"
 #include "vision/inverse_tone_map.h"
 #include "vision/light_estimator.h"
 #include "vision/tag_board.h"
@@ -62,6 +63,13 @@ struct CameraConfig {
     // Whether the config gave [cameras.<name>.radiometry]; without it `radiometry` holds the
     // sRGB defaults, a guess the tag-edge refit does not build on (vision/tag_edges.h).
     bool radiometryGiven = false;
+    // [cameras.fisheye.bracket]: the exposures the camera cycles through, each complete bracket
+    // merged to radiance (vision/hdr_bracket.h); none: every frame is lit on its own.
+    std::optional<BracketSettings> bracket;
+    // [cameras.fisheye.bracket] frames_per_step and control: how a live V4L2 camera cycles its
+    // exposure (capture/exposure_bracket.h); libcamera labels from metadata and needs neither.
+    int bracketFramesPerStep = 3;
+    std::string bracketControl = "exposure_time_absolute";
 };
 
 struct TrackingConfig {
@@ -92,8 +100,14 @@ enum class LightingMode {
 };
 const char* toString(LightingMode mode);
 
+// Lighting fitted to the plate (render/lighting_fit.h): Auto fits when the lighting has clipped
+// light or the plate-consistency meter is off, On whenever the lighting or the view changes,
+// Off never.
+enum class FitToPlate { Auto, On, Off };
+
 struct LightingConfig {
     LightingMode mode = LightingMode::Environment;
+    FitToPlate fitToPlate = FitToPlate::Auto;
     FisheyeToEquirectSettings fisheye;  // mount rotation, map width, field of view, fill ring
     LightEstimatorSettings lights;
     // Lighting snapshots per second at most (0 = every fisheye frame): a room's light changes

@@ -302,6 +302,8 @@ Status TakeRecorder::writeFrame(Take& take, const FrameItem& item) {
                 ? item.timecode
                 : clockTimecode(frame.wallClockNs, take.timecodeRates.at(item.camera)).toString();
     }
+    // Every bracket frame with its exposure, so a replay merges the brackets as the box did.
+    stamp.exposureStops = frame.exposureStops;
     const uint64_t ns = take.takeTimestamp(item.camera, frame.timestampNs, frame.sequence);
     if (Status s = take.writer.writeFrame(item.camera, frame.sequence, ns, bytes, ext, frame.width,
                                           frame.height, stamp);

@@ -158,9 +158,11 @@ Result<std::vector<std::shared_ptr<const LiveLighting>>> takeLighting(const Sess
     if (!fisheye) return fisheye.error();
     for (const RecordedFrameEntry& e : *fisheye) {
         Result<Frame> frame = readRecordedFrame(e);
-        if (!frame || !stage->due(*frame)) continue;
+        if (!frame) continue;
+        frame->sequence = e.sequence;  // a bracket's frames are consecutive by their sequence
+        if (!stage->due(*frame)) continue;
         Result<std::shared_ptr<const LiveLighting>> lit = stage->process(*frame);
-        if (lit) out.push_back(*lit);
+        if (lit && *lit) out.push_back(*lit);  // null: a bracket in progress or dropped
     }
     return out;
 }

@@ -186,7 +186,7 @@ private:
 };
 
 Result<ImageF> readExr(std::span<const uint8_t> bytes, const std::string& path,
-                       const ImageLimits& limits) {
+                       const ImageLimits& limits, const std::string& layer = {}) {
     Result<std::array<int32_t, 4>> window = exrDataWindow(bytes, path);
     if (!window) return window.error();
     const int64_t w = int64_t((*window)[2]) - (*window)[0] + 1;
@@ -203,19 +203,25 @@ Result<ImageF> readExr(std::span<const uint8_t> bytes, const std::string& path,
                              path);
 
         const Imf::ChannelList& channels = header.channels();
-        std::vector<const char*> names;
-        if (channels.findChannel("R") && channels.findChannel("G") && channels.findChannel("B")) {
-            names = {"R", "G", "B"};
-            if (channels.findChannel("A")) names.push_back("A");
-        } else if (channels.findChannel("Y")) {
-            names = {"Y"};
-        } else if (channels.findChannel("R")) {
-            names = {"R"};
-        } else {
+        // A named layer's channels are "<layer>.R" ... (writeExrLayers' convention).
+        const std::string prefix = layer.empty() ? std::string() : layer + ".";
+        auto has = [&](const char* c) { return channels.findChannel(prefix + c) != nullptr; };
+        std::vector<std::string> names;
+        if (has("R") && has("G") && has("B")) {
+            names = {prefix + "R", prefix + "G", prefix + "B"};
+            if (has("A")) names.push_back(prefix + "A");
+        } else if (has("Y")) {
+            names = {prefix + "Y"};
+        } else if (has("R")) {
+            names = {prefix + "R"};
+        } else if (layer.empty()) {
             return makeError(
                 "cannot read image '{}': no R,G,B or Y channel (multi-layer EXRs need the "
                 "beauty pass in the default layer)",
                 path);
+        } else {
+            return makeError("cannot read image '{}': no layer '{}' (no {}R,G,B or {}Y channel)",
+                             path, layer, prefix, prefix);
         }
 
         ImageF image;
@@ -229,7 +235,7 @@ Result<ImageF> readExr(std::span<const uint8_t> bytes, const std::string& path,
         const size_t yStride = xStride * size_t(w);
         for (size_t c = 0; c < names.size(); ++c) {
             // Slice::Make offsets the base pointer by the data window origin for us.
-            frameBuffer.insert(names[c], Imf::Slice::Make(Imf::FLOAT, image.pixels.data() + c, dw,
+            frameBuffer.insert(names[c].c_str(), Imf::Slice::Make(Imf::FLOAT, image.pixels.data() + c, dw,
                                                           xStride, yStride));
         }
         file.setFrameBuffer(frameBuffer);
@@ -544,6 +550,15 @@ Result<ImageF> readImage(const std::string& path, const ImageLimits& limits) {
         default:
             return readLdr(*bytes, what, path, limits);
     }
+}
+
+Result<ImageF> readExrLayer(const std::string& path, const std::string& layer,
+                            const ImageLimits& limits) {
+    Result<std::vector<uint8_t>> bytes = readFileBytes(path);
+    if (!bytes) return bytes.error();
+    if (sniff(*bytes).type != ContentType::Exr)
+        return makeError("cannot read image '{}': not an OpenEXR file", path);
+    return readExr(*bytes, path, limits, layer);
 }
 
 Result<ImageRgba8> decodePngOrJpeg(std::span<const uint8_t> bytes, const std::string& name,

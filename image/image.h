@@ -41,6 +41,11 @@ struct ImageLimits {
 // never a hang or a crash.
 Result<ImageF> readImage(const std::string& path, const ImageLimits& limits = {});
 
+// One layer of a multi-layer OpenEXR (writeExrLayers' "<layer>.R", ... channels; "" the default
+// layer), with readImage's checks.
+Result<ImageF> readExrLayer(const std::string& path, const std::string& layer,
+                            const ImageLimits& limits = {});
+
 // An 8-bit RGBA image, row 0 at the top (a decoded glTF texture).
 struct ImageRgba8 {
     uint32_t width = 0;

@@ -578,10 +578,14 @@ Result<SessionWriter> SessionWriter::create(const std::string& dir,
             return makeError("session camera '{}': role '{}' is not scene or fisheye", name, role);
     }
 
+    // A session whose config names files in a folder outside it (config_dir: a generated
+    // session shipped beside its config, as the bundled demo) is a v2 session; v3 is a take,
+    // which holds everything it names and is read as untrusted (docs/session-format.md).
+    const int version = options.configDir.empty() ? kSessionFormatVersion : 2;
     std::string toml = fmt::format(
         "format = \"previs-session\"\nversion = {}\ncreated = \"{}\"\nclock = \"CLOCK_MONOTONIC\"\n"
         "previs = \"{}\"\n",
-        kSessionFormatVersion, options.created.empty() ? nowRfc3339() : options.created,
+        version, options.created.empty() ? nowRfc3339() : options.created,
         options.previsVersion.empty() ? PREVIS_VERSION : options.previsVersion);
     if (!options.configDir.empty())
         toml += fmt::format("config_dir = {}\n", tomlString(options.configDir));

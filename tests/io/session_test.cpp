@@ -5,6 +5,7 @@
 
 #include "io/session.h"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <sys/stat.h>
 
@@ -92,7 +93,9 @@ TEST(Session, RoundTrip) {
 
     auto info = openSession(dir.string());
     ASSERT_TRUE(info.ok()) << info.message();
-    EXPECT_EQ(info->version, kSessionFormatVersion);
+    // It names its config's folder outside it (config_dir): a v2 session, as the bundled demo;
+    // a take (no config_dir) is the current version (Session.TakeIsTheCurrentVersion).
+    EXPECT_EQ(info->version, 2);
     EXPECT_EQ(info->created, "2025-01-02T03:04:05Z");
     EXPECT_EQ(info->clock, "CLOCK_MONOTONIC");
     EXPECT_FALSE(info->previsVersion.empty());
@@ -310,15 +313,23 @@ TEST(Session, TmpFilesIgnored) {
     }
 }
 
+TEST(Session, TakeIsTheCurrentVersion) {
+    const fs::path dir = freshDir("take_version");
+    ASSERT_TRUE(SessionWriter::create(dir.string()).ok());
+    auto info = openSession(dir.string());
+    ASSERT_TRUE(info.ok()) << info.message();
+    EXPECT_EQ(info->version, kSessionFormatVersion);
+}
+
 TEST(Session, FrameStampsAndLightingRoundTrip) {
     const fs::path dir = freshDir("stamps");
     {
         auto writer = SessionWriter::create(dir.string());
         ASSERT_TRUE(writer.ok()) << writer.message();
         ASSERT_TRUE(writer->writeFrame("scene", 0, 100, kBytes, "jpg", 4, 4,
-                                       {1796391907500000001ull, "13:45:07:15"}));
+                                       {1796391907500000001ull, "13:45:07:15", -5.0f}));
         ASSERT_TRUE(writer->writeFrame("scene", 1, 200, kBytes, "jpg", 4, 4));
-        EXPECT_FALSE(writer->writeFrame("scene", 2, 300, kBytes, "jpg", 4, 4, {1, "a,b"}))
+        EXPECT_FALSE(writer->writeFrame("scene", 2, 300, kBytes, "jpg", 4, 4, {1, "a,b", {}}))
             << "a comma would shift the columns";
         const std::string lights = R"({"lights":[{"direction":[0,1,0]}]})";
         for (uint64_t t : {150u, 250u})
@@ -339,7 +350,9 @@ TEST(Session, FrameStampsAndLightingRoundTrip) {
     ASSERT_EQ(frames->size(), 2u);
     EXPECT_EQ((*frames)[0].wallClockNs, 1796391907500000001ull);
     EXPECT_EQ((*frames)[0].timecode, "13:45:07:15");
+    EXPECT_EQ((*frames)[0].exposureStops, -5.0f);  // a bracket frame's exposure (v3)
     EXPECT_FALSE((*frames)[1].wallClockNs.has_value());
+    EXPECT_FALSE((*frames)[1].exposureStops.has_value());
     auto lighting = loadLighting(dir.string());
     ASSERT_TRUE(lighting.ok()) << lighting.message();
     ASSERT_EQ(lighting->size(), 2u);
@@ -376,6 +389,15 @@ TEST(Session, ATakeFromElsewhereNamesOnlyFilesInsideIt) {
     ASSERT_FALSE(escaping.ok());
     EXPECT_NE(escaping.message().find("index.csv:1: malformed"), std::string::npos)
         << escaping.message();
+    // A bracket frame's exposure must be a number of stops (a hostile take cannot smuggle NaN
+    // or a 2^1000 gain into the merge).
+    for (const char* stops : {"nan", "-1e9", "x", "inf"}) {
+        writeText(dir / "cameras" / "scene" / "index.csv",
+                  fmt::format("0,1,a.jpg,4,4,,,{}\n", stops));
+        auto bad = loadCameraIndex((dir / "cameras" / "scene").string());
+        ASSERT_FALSE(bad.ok()) << stops;
+        EXPECT_NE(bad.message().find("exposureStops"), std::string::npos) << bad.message();
+    }
     EXPECT_FALSE(readSessionFile((dir / "config" / "link.toml").string()).ok());
     ASSERT_EQ(::mkfifo((dir / "fifo").c_str(), 0600), 0);
     auto fifo = readSessionFile((dir / "fifo").string());
