@@ -94,6 +94,7 @@ std::unique_ptr<CameraSource> makeCameraSource(
             c.analogueGain = camera.analogueGain;
             c.colourGains = camera.colourGains;
             c.keepCaptured = keepCaptured;
+            if (camera.bracket) c.bracketStops = camera.bracket->stops;
             return makeLibcameraSource(c, options);
 #else
             // The config reader refuses it in such a build (service_config.cpp); never another
@@ -119,6 +120,11 @@ std::unique_ptr<CameraSource> makeCameraSource(
     // error, not streaming wrong pictures; the capture thread says why and tries again.
     for (const auto& [control, value] : camera.controls)
         c.controls.emplace_back(control, int32_t(value));
+    // Bracketing: the device cycles the control and labels the frames it delivers; the lighting
+    // stage's assembler checks the labels against the pictures (vision/hdr_bracket.h).
+    if (camera.bracket)
+        c.bracket = ExposureBracketConfig{camera.bracket->stops, camera.bracketFramesPerStep,
+                                          camera.bracketControl};
     return std::make_unique<CaptureThread>(
         [c]() -> Result<std::unique_ptr<FrameReader>> {
             Result<std::unique_ptr<V4L2Device>> device = V4L2Device::create(c);

@@ -156,6 +156,36 @@ TEST(ServiceConfig, LibcameraCameraTakesItsTypedControls) {
         << bad.message();
 }
 
+// A live fisheye (V4L2 unless `source` says otherwise) with `body` appended to its section.
+std::string liveFisheye(const std::string& body, const std::string& source = "") {
+    return "[cameras.fisheye]\n" + source + "device = \"/dev/video1\"\nwidth = 640\n" +
+           "height = 480\ncalibration = \"" + kExamples + "/fisheye.yaml\"\n" + body;
+}
+
+TEST(ServiceConfig, LiveFisheyeBracketCyclesItsExposureControl) {
+    Result<ServiceConfig> c = loadServiceConfig(writeFile(
+        "bracket_v4l2.toml",
+        minimal(liveFisheye("[cameras.fisheye.controls]\nauto_exposure = 1\n"
+                            "\"Exposure Time, Absolute\" = 1000\n"
+                            "[cameras.fisheye.bracket]\nstops = [0, -4, -8]\n"
+                            "frames_per_step = 2"))));
+    ASSERT_TRUE(c) << c.message();
+    ASSERT_TRUE(c->fisheyeCamera && c->fisheyeCamera->bracket);
+    EXPECT_EQ(c->fisheyeCamera->bracket->stops, (std::vector<float>{0.0f, -4.0f, -8.0f}));
+    EXPECT_EQ(c->fisheyeCamera->bracketFramesPerStep, 2);
+    // The default control, matched against the driver's name for it in `controls`.
+    EXPECT_EQ(c->fisheyeCamera->bracketControl, "exposure_time_absolute");
+
+    c = loadServiceConfig(writeFile(
+        "bracket_libcamera.toml",
+        minimal(liveFisheye("[cameras.fisheye.controls]\nexposure_time_us = 10000\n"
+                            "analogue_gain = 1.0\n[cameras.fisheye.bracket]\nstops = [0, -4]",
+                            "source = \"libcamera\"\n"))));
+    ASSERT_TRUE(c) << c.message();
+    EXPECT_EQ(c->fisheyeCamera->source, CameraSourceKind::Libcamera);
+    ASSERT_TRUE(c->fisheyeCamera->bracket);
+}
+
 struct BadConfig {
     const char* name;
     std::string text;
@@ -327,6 +357,25 @@ position_m = [1, 0, 0]
          minimal("", "until_tracked = \"guess\""),
          {"'tracking.until_tracked' is 'guess'"}},
         {"session_loop_type", minimal("", "[session]\nloop = 1"), {"'session.loop'"}},
+        // Live bracketing (capture/exposure_bracket.h) needs the exposure it scales.
+        {"bracket_v4l2_without_base",
+         minimal(liveFisheye("[cameras.fisheye.bracket]\nstops = [0, -4]")),
+         {"[cameras.fisheye.bracket] cycles 'exposure_time_absolute'",
+          "[cameras.fisheye.controls] does not set it"}},
+        {"bracket_frames_per_step",
+         minimal(liveFisheye("controls = { gain = 100 }\n[cameras.fisheye.bracket]\n"
+                             "stops = [0, -4]\ncontrol = \"gain\"\nframes_per_step = 9")),
+         {"'cameras.fisheye.bracket.frames_per_step' is 9"}},
+        {"bracket_libcamera_without_base",
+         minimal(liveFisheye("[cameras.fisheye.bracket]\nstops = [0, -4]",
+                             "source = \"libcamera\"\n")),
+         {"needs the base exposure", "exposure_time_us and analogue_gain"}},
+        {"bracket_libcamera_control",
+         minimal(liveFisheye("[cameras.fisheye.controls]\nexposure_time_us = 10000\n"
+                             "analogue_gain = 1.0\n[cameras.fisheye.bracket]\nstops = [0, -4]\n"
+                             "control = \"gain\"",
+                             "source = \"libcamera\"\n")),
+         {"'cameras.fisheye.bracket.control' has no meaning for a libcamera camera"}},
         {"render_photon_splat_type",
          minimal("", "[render]\nphoton_splat = \"yes\""),
          {"'render.photon_splat'"}},
