@@ -69,10 +69,6 @@ std::vector<EstimatedLightSource> toLightSources(const std::vector<EstimatedLigh
     return out;
 }
 
-}  // namespace
-
-namespace {
-
 // The darkest and the brightest 8-bit codes the plate-consistency meter trusts (PlateLimits): a
 // JPEG's ringing spreads a saturated 255 a few codes down, so 250 and above count as clipped.
 constexpr uint8_t kPlateDarkCode = 16;
@@ -89,6 +85,21 @@ PlateLimits plateLimitsOf(const InverseToneMapSettings& radiometry) {
         limits.clipped[c] = linear.at<cv::Vec3f>(0, 1)[c];
     }
     return limits;
+}
+
+// The real (phantom) triangles of `geometry` on the CPU, for the lighting fit's rays.
+Result<CpuTracer> realGeometryTracer(const Geometry& geometry) {
+    Geometry real;
+    real.positions = geometry.positions;
+    real.normals = geometry.normals;
+    real.uvs = geometry.uvs;
+    for (size_t i = 0; i < geometry.triangles.size(); ++i)
+        if (geometry.triangleIsReal[i]) {
+            real.triangles.push_back(geometry.triangles[i]);
+            real.triangleMaterials.push_back(geometry.triangleMaterials[i]);
+            real.triangleIsReal.push_back(1);
+        }
+    return CpuTracer::create(real);
 }
 
 }  // namespace
@@ -137,7 +148,21 @@ Result<std::unique_ptr<PipelineRenderer>> PipelineRenderer::create(GpuContext& c
     if (!calibration) return calibration.error();
     Result<std::vector<glm::vec2>> grid = lensRayGrid(*calibration, p->width_, p->height_);
     if (!grid) return makeError("{}: scene camera calibration: {}", config.path, grid.message());
-    settings.lensGrid = std::move(*grid);
+    settings.lensGrid = *grid;
+    // The fit to the plate needs the real set on the CPU: built only when the fisheye lights the
+    // scene and the fit is not off, from the real triangles alone (the phantom set is small).
+    p->fitPolicy_ = config.lighting.fitToPlate;
+    if (config.fisheyeCamera && p->fitPolicy_ != FitToPlate::Off) {
+        Result<CpuTracer> tracer = realGeometryTracer(scene.geometry);
+        if (!tracer) return makeError("{}: the real set for the lighting fit: {}",
+                                      config.scenePath, tracer.message());
+        if (tracer->triangles().empty())
+            p->fitPolicy_ = FitToPlate::Off;  // nothing real to fit against: said by fitLighting
+        else
+            p->realTracer_ = std::make_unique<CpuTracer>(std::move(*tracer));
+        p->sceneOriginM_ = scene.originM;
+        p->lensGrid_ = std::move(*grid);
+    }
     Result<std::unique_ptr<Renderer>> renderer = Renderer::create(ctx, scene, settings);
     if (!renderer) return makeError("{}: {}", config.scenePath, renderer.message());
     p->renderer_ = std::move(*renderer);
@@ -301,8 +326,113 @@ Status PipelineRenderer::prepare(const TrackedFrame& tracked,
         renderer_->setCameraPose(pose);
     }
     // Lighting reaches the GPU only when a new snapshot arrived (no BVH rebuild, ever).
-    if (lighting && lighting != lightingShown_) return applyLighting(lighting);
+    const std::shared_ptr<const LiveLighting> lit = withCorrection(lighting);
+    if (lit && lit != lightingShown_) return applyLighting(lit);
     return {};
+}
+
+std::shared_ptr<const LiveLighting> PipelineRenderer::withCorrection(
+    const std::shared_ptr<const LiveLighting>& raw) {
+    if (raw != rawLighting_) {
+        rawLighting_ = raw;
+        correctedLighting_.reset();
+        fitsOnRaw_ = 0;
+    }
+    if (!correction_ || !raw) return raw;
+    if (!correctedLighting_) correctedLighting_ = correctedLighting(raw, *correction_);
+    return correctedLighting_;
+}
+
+Result<std::vector<PlateSample>> PipelineRenderer::plateSamples(
+    const cv::Matx44d& worldFromCamera) const {
+    const ImageF* plate = renderer_->plate();
+    if (!plate) return makeError("no plate rendered");
+    Result<ImageF> traced = renderer_->realSurfaceMeans();
+    if (!traced) return traced.error();
+    const PlateMeterGrid grid =
+        plateMeterGrid(*traced, *plate, plateLimits_,
+                       plateMeterGridWidth(traced->width, renderer_->samplesPerPixel()));
+    // Rays from the camera through each cell's centre, in the tracer's frame (the scene's).
+    const glm::vec3 origin(glm::dvec3(worldFromCamera(0, 3), worldFromCamera(1, 3),
+                                      worldFromCamera(2, 3)) -
+                           sceneOriginM_);
+    std::vector<glm::vec3> directions;
+    std::vector<size_t> cells;
+    const uint32_t w = plate->width, h = plate->height;
+    for (uint32_t cy = 0; cy < grid.height; ++cy)
+        for (uint32_t cx = 0; cx < grid.width; ++cx) {
+            const size_t cell = size_t(cy) * grid.width + cx;
+            if (!grid.realSurface[cell]) continue;
+            const PlateMeterCell c = plateMeterCell(grid, cx, cy, w, h);
+            // The lens grid's corners are pixel corners: the cell's centre lies between them.
+            const double u = 0.5 * (c.x0 + c.x1), v = 0.5 * (c.y0 + c.y1);
+            const uint32_t i = std::min(uint32_t(u), w - 1), j = std::min(uint32_t(v), h - 1);
+            const float fu = float(u - i), fv = float(v - j);
+            auto corner = [&](uint32_t a, uint32_t b) { return lensGrid_[size_t(b) * (w + 1) + a]; };
+            const glm::vec2 n = (1 - fv) * ((1 - fu) * corner(i, j) + fu * corner(i + 1, j)) +
+                                fv * ((1 - fu) * corner(i, j + 1) + fu * corner(i + 1, j + 1));
+            cv::Vec3d d(n.x, n.y, 1.0);
+            d = cv::Matx33d(worldFromCamera.get_minor<3, 3>(0, 0)) * (d / cv::norm(d));
+            directions.emplace_back(float(d[0]), float(d[1]), float(d[2]));
+            cells.push_back(cell);
+        }
+    const std::vector<std::optional<PlateSample>> hits =
+        realSurfacesAlongRays(*realTracer_, origin, directions);
+    std::vector<PlateSample> out;
+    for (size_t k = 0; k < hits.size(); ++k) {
+        if (!hits[k]) continue;
+        PlateSample s = *hits[k];
+        s.plate = grid.plate[cells[k]];
+        s.real = grid.real[cells[k]];
+        out.push_back(s);
+    }
+    return out;
+}
+
+LightingFitReport PipelineRenderer::fitLighting(const TrackedFrame& frame,
+                                                const PlateConsistency& reading) {
+    LightingFitReport r;
+    r.frame = frame.frame ? frame.frame->sequence : 0;
+    if (fitPolicy_ == FitToPlate::Off || !realTracer_) {
+        r.state = LightingFitReport::State::Off;
+        return r;
+    }
+    if (!rawLighting_ || !lightingShown_ || !lightingShown_->captured || !frame.worldFromCamera)
+        return r;
+    const std::vector<std::vector<int>> clusters = clippedClusters(rawLighting_->clippedTexels);
+    // Auto: clipped light no fit has corrected yet, or a plate the lighting does not explain.
+    size_t uncorrected = clusters.size();
+    if (correction_ && !clusters.empty())
+        (void)applyCorrection(environmentMapToMat(*rawLighting_->captured), clusters,
+                              *correction_, &uncorrected);
+    // A fit leaves the interreflections of the light it adds to the next one (lighting_fit.h):
+    // with clipped light, auto fits again while the meter is beyond kFitAgainBand of 1 and the
+    // fits keep improving, at most kMaxFitsPerLighting times a snapshot.
+    bool again = false;
+    if (!clusters.empty() && fitsOnRaw_ < kMaxFitsPerLighting)
+        for (double x : reading.ratio) again = again || std::abs(std::log(x)) > kFitAgainBand;
+    if (fitPolicy_ == FitToPlate::Auto && reading.ok && uncorrected == 0 && !again) return r;
+    Result<std::vector<PlateSample>> samples = plateSamples(*frame.worldFromCamera);
+    Result<LightingFit> fit = samples ? fitLightingToPlate(*realTracer_,
+                                                           environmentMapToMat(
+                                                               *lightingShown_->captured),
+                                                           clusters, *samples)
+                                      : Result<LightingFit>(samples.error());
+    if (!fit) {
+        r.state = LightingFitReport::State::Failed;
+        r.why = fit.message();
+        return r;
+    }
+    // The fit is relative to the lighting the frame was rendered with: it composes.
+    const LightingCorrection step = correctionFromFit(
+        environmentMapToMat(*lightingShown_->captured), clusters, *fit);
+    correction_ = correction_ ? composeCorrections(*correction_, step) : step;
+    correctedLighting_.reset();
+    ++fitsOnRaw_;
+    r.state = LightingFitReport::State::Fitted;
+    r.changed = true;
+    r.fit = *fit;
+    return r;
 }
 
 Status PipelineRenderer::applyLighting(const std::shared_ptr<const LiveLighting>& lighting) {

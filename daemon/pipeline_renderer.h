@@ -17,6 +17,7 @@
 #include "gpu/context.h"
 #include "image/image.h"
 #include "render/display_pass.h"
+#include "render/cpu_tracer.h"
 #include "render/quality_dial.h"
 #include "render/renderer.h"
 #include "render/tonemap.h"
@@ -44,6 +45,21 @@ public:
     // nothing is rendered or the lighting is pending (a stand-in says nothing of the set's
     // lighting).
     Result<std::optional<PlateConsistency>> measurePlateConsistency() override;
+    // [lighting] fit_to_plate after a meter reading (ShotRenderer::fitLighting): auto fits when
+    // the snapshot has clipped light no fit has corrected yet or the meter is off; on at every
+    // reading; off never. A fit that fails leaves the lighting as it was and says why.
+    LightingFitReport fitLighting(const TrackedFrame& frame,
+                                  const PlateConsistency& reading) override;
+    // The correction the fits so far make (none before the first).
+    const std::optional<LightingCorrection>& lightingCorrection() const { return correction_; }
+    // Forgets it (render-session fits every frame on its own).
+    void resetLightingCorrection() {
+        correction_.reset();
+        correctedLighting_.reset();
+        fitsOnRaw_ = 0;
+    }
+    // Whether fitLighting can fit at all ([lighting] fit_to_plate not off, a real set).
+    bool fitsLighting() const { return fitPolicy_ != FitToPlate::Off && realTracer_ != nullptr; }
     // The plate values the meter trusts: codes 16 to 249 of the scene camera's 8-bit frames
     // through its radiometry (render/plate_consistency.h says why).
     const PlateLimits& plateLimits() const { return plateLimits_; }
@@ -172,6 +188,24 @@ private:
     static constexpr double kMinHeldDistanceM = 0.1;
     // Held (not a raw pointer) so a new snapshot can never reuse the shown one's address.
     std::shared_ptr<const LiveLighting> lightingShown_;
+    // Lighting fitted to the plate: the policy, the real geometry on the CPU (built only when a
+    // fit can run), the lens's corner rays, the correction the fits made and the newest raw
+    // snapshot with its corrected copy.
+    FitToPlate fitPolicy_ = FitToPlate::Off;
+    std::unique_ptr<CpuTracer> realTracer_;
+    glm::dvec3 sceneOriginM_{0.0};
+    std::vector<glm::vec2> lensGrid_;
+    std::optional<LightingCorrection> correction_;
+    std::shared_ptr<const LiveLighting> rawLighting_, correctedLighting_;
+    int fitsOnRaw_ = 0;  // fits since rawLighting_ arrived
+    static constexpr int kMaxFitsPerLighting = 3;
+    // |ln ratio| beyond which a snapshot with clipped light is fitted again: the meter's 5 %.
+    static constexpr double kFitAgainBand = 0.05;
+    // The snapshot to render with: `raw` through the correction.
+    std::shared_ptr<const LiveLighting> withCorrection(const std::shared_ptr<const LiveLighting>& raw);
+    // The meter's real-surface cells of the last frame rendered as fit samples, each with the
+    // real surface its centre's camera ray meets.
+    Result<std::vector<PlateSample>> plateSamples(const cv::Matx44d& worldFromCamera) const;
 };
 
 // The render size a config asks for: [render] width/height, else the scene camera's.

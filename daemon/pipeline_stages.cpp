@@ -221,13 +221,13 @@ Result<std::shared_ptr<const LiveLighting>> LightingStage::process(const Frame& 
         out = fromBracket(*merged);
     } else {
         lastNs_ = frame.timestampNs;
-        // A frame labelled with its exposure (a bracketing camera's, lit one frame at a time) is
-        // linearised at that exposure.
-        InverseToneMapSettings radiometry = radiometry_;
-        radiometry.exposureStops += frame.exposureStops.value_or(0.0f);
-        Result<cv::Mat> map = toEquirect_.apply(inverseToneMapRgb8(rgb, radiometry));
-        if (!map) return map.error();
-        out = fromMap(*map, fmt::format("fisheye frame {}", frame.sequence));
+        // One frame is a bracket of one: linearised at its exposure (a bracketing camera's frame
+        // lit on its own is labelled), its clipped pixels flagged.
+        Result<MergedBracket> one =
+            mergeBracket({rgb}, {frame.exposureStops.value_or(0.0f)}, radiometry_);
+        if (!one) return one.error();
+        one->firstSequence = one->lastSequence = frame.sequence;
+        out = fromBracket(*one);
     }
     if (!out) return out.error();
     (*out)->sequence = frame.sequence;
@@ -239,10 +239,11 @@ Result<std::shared_ptr<const LiveLighting>> LightingStage::process(const Frame& 
 Result<std::shared_ptr<LiveLighting>> LightingStage::fromBracket(const MergedBracket& merged) {
     Result<cv::Mat> map = toEquirect_.apply(merged.radiance);
     if (!map) return map.error();
-    auto out = fromMap(*map, fmt::format("fisheye bracket {}-{}", merged.firstSequence,
-                                         merged.lastSequence));
+    auto out = fromMap(*map, bracket_ ? fmt::format("fisheye bracket {}-{}", merged.firstSequence,
+                                                    merged.lastSequence)
+                                      : fmt::format("fisheye frame {}", merged.firstSequence));
     if (!out) return out.error();
-    (*out)->bracketFrames = int(merged.lastSequence - merged.firstSequence + 1);
+    if (bracket_) (*out)->bracketFrames = int(merged.lastSequence - merged.firstSequence + 1);
     if (merged.clippedFraction > 0.0) {
         Result<cv::Mat> clipped = toEquirect_.applyAny(merged.clipped);
         if (!clipped) return clipped.error();
@@ -307,6 +308,39 @@ Status saveLighting(const LiveLighting& lighting, const std::string& path) {
         return makeError("cannot save the lighting to '{}': {}", path, ec.message());
     }
     return {};
+}
+
+std::shared_ptr<const LiveLighting> correctedLighting(
+    const std::shared_ptr<const LiveLighting>& lighting, const LightingCorrection& correction) {
+    if (!lighting || !lighting->captured) return lighting;
+    const std::vector<std::vector<int>> clusters = clippedClusters(lighting->clippedTexels);
+    auto out = std::make_shared<LiveLighting>(*lighting);
+    const cv::Mat captured =
+        applyCorrection(environmentMapToMat(*lighting->captured), clusters, correction);
+    out->totalLuminancePower = luminanceMoments(captured, out->luminanceSh);
+    out->captured = std::make_shared<const EnvironmentMap>(
+        matToEnvironmentMap(captured, lighting->captured->path + " (fitted to the plate)"));
+    if (lighting->environment == lighting->captured) {
+        out->environment = out->captured;
+    } else if (lighting->environment) {
+        // The lights were split off the map: the residual holds no clipped cluster (the
+        // lights took them), so it takes the global gain, and each light its cluster's too.
+        out->environment = std::make_shared<const EnvironmentMap>(matToEnvironmentMap(
+            applyCorrection(environmentMapToMat(*lighting->environment), {}, correction),
+            lighting->environment->path + " (fitted to the plate)"));
+        const float cosMatch = float(std::cos(kCorrectionMatchDeg * M_PI / 180.0));
+        for (EstimatedLight& l : out->lights) {
+            const glm::vec3 d(float(l.direction[0]), float(l.direction[1]), float(l.direction[2]));
+            double gain = 1.0;
+            for (const LightingCorrection::Cluster& c : correction.clusters)
+                if (glm::dot(c.direction, d) >= cosMatch) gain = c.gain;
+            for (int ch = 0; ch < 3; ++ch) {
+                l.radiance[ch] *= gain * correction.globalGain[size_t(ch)];
+                l.power[ch] *= gain * correction.globalGain[size_t(ch)];
+            }
+        }
+    }
+    return out;
 }
 
 std::string estimatedLightsJson(const std::vector<EstimatedLight>& lights) {

@@ -20,6 +20,7 @@
 #include "timecode/timecode.h"
 #include "vision/board_pose.h"
 #include "vision/fisheye_to_equirect.h"
+#include "render/lighting_fit.h"
 #include "vision/hdr_bracket.h"
 #include "vision/light_estimator.h"
 #include "vision/pose_filter.h"
@@ -156,6 +157,12 @@ private:
     uint64_t periodNs_;
     std::optional<uint64_t> lastNs_;
 };
+
+// `lighting` with a fit to the plate applied (render/lighting_fit.h): its clipped clusters and
+// every texel of its maps corrected, its estimated lights scaled by the gain of the cluster in
+// their direction and the global gain, its moments computed again. Null `lighting`: null.
+std::shared_ptr<const LiveLighting> correctedLighting(
+    const std::shared_ptr<const LiveLighting>& lighting, const LightingCorrection& correction);
 
 // The estimated lights as `previs lights --json` prints them, one line:
 // {"lights":[{"direction":[x,y,z],"solidAngleSr":s,"radiance":[r,g,b]},...]}.

@@ -124,6 +124,20 @@ std::string statusLine(const ServiceStatus& s) {
 
 namespace {
 
+// The lighting fit's last report (docs/previsd.md, "lightingFit").
+nlohmann::json lightingFitJson(const std::optional<LightingFitReport>& fit) {
+    if (!fit) return nullptr;
+    nlohmann::json j = {{"state", toString(fit->state)}, {"frame", fit->frame}};
+    if (fit->state == LightingFitReport::State::Failed) j["why"] = fit->why;
+    if (fit->state == LightingFitReport::State::Fitted) {
+        j["clusterGains"] = fit->fit.clusterGains;
+        j["globalGain"] = fit->fit.globalGain;
+        j["residual"] = {fit->fit.residualBefore, fit->fit.residualAfter};
+        j["samples"] = fit->fit.samples;
+    }
+    return j;
+}
+
 // The plate-consistency meter's last reading (docs/previsd.md, "plateConsistency").
 nlohmann::json plateConsistencyJson(const std::optional<PlateConsistencyReading>& reading) {
     if (!reading) return nullptr;
@@ -265,6 +279,7 @@ std::string statusJson(const ServiceStatus& s) {
     j["web"] = s.web ? toJson(*s.web) : nlohmann::json(nullptr);
     j["freedIn"] = s.freedIn ? freedInJson(*s.freedIn) : nlohmann::json(nullptr);
     j["plateConsistency"] = plateConsistencyJson(s.plateConsistency);
+    j["lightingFit"] = lightingFitJson(s.lightingFit);
     return j.dump();
 }
 
@@ -605,6 +620,7 @@ void Service::Threads::runRender(ModeMachine& modes) {
             std::lock_guard lock(statusMutex);
             renderStatus.refineRestarts = shot.restarts();
             if (step->plateConsistency) renderStatus.plateConsistency = step->plateConsistency;
+            if (step->lightingFit) renderStatus.lightingFit = step->lightingFit;
         }
         if (step->plateConsistency) recorder->addPlateConsistency(*step->plateConsistency);
         switch (step->kind) {

@@ -20,6 +20,7 @@
 #include "daemon/freed_input.h"
 #include "daemon/mode_machine.h"
 #include "daemon/service_config.h"
+#include "daemon/shot_controller.h"
 #include "daemon/take_recorder.h"
 #include "daemon/tracking_out.h"
 #include "io/session.h"
@@ -97,6 +98,7 @@ struct ServiceStatus {
     // The plate-consistency meter's last reading (DESIGN.md §4; daemon/shot_controller.h says
     // when it reads); none before the first.
     std::optional<PlateConsistencyReading> plateConsistency;
+    std::optional<LightingFitReport> lightingFit;  // the last lighting fit's (status "lightingFit")
 };
 
 std::string statusJson(const ServiceStatus& status);

@@ -57,6 +57,20 @@ void ShotController::tick() {
     lastFrame_ = now;
 }
 
+const char* toString(LightingFitReport::State state) {
+    switch (state) {
+        case LightingFitReport::State::NotNeeded:
+            return "not-needed";
+        case LightingFitReport::State::Fitted:
+            return "fitted";
+        case LightingFitReport::State::Failed:
+            return "failed";
+        case LightingFitReport::State::Off:
+            return "off";
+    }
+    return "?";
+}
+
 Result<ShotStep> ShotController::step(std::shared_ptr<const TrackedFrame> newest,
                                       std::shared_ptr<const LiveLighting> lighting) {
     const Mode mode = modes_.mode();
@@ -144,6 +158,31 @@ void ShotController::meterPlate(const TrackedFrame& frame,
                 v.ratio[1], v.ratio[2]);
     plate_ = reading;
     out.plateConsistency = std::move(reading);
+    fitLighting(frame, v, out);
+}
+
+void ShotController::fitLighting(const TrackedFrame& frame, const PlateConsistency& reading,
+                                 ShotStep& out) {
+    LightingFitReport fit = renderer_.fitLighting(frame, reading);
+    if (fit.state == LightingFitReport::State::NotNeeded) return;
+    const bool firstFailure = fit.state == LightingFitReport::State::Failed &&
+                              (!lightingFit_ || lightingFit_->state != fit.state);
+    if (fit.state == LightingFitReport::State::Fitted) {
+        std::string gains;
+        for (double g : fit.fit.clusterGains) gains += fmt::format(" {:.3g}", g);
+        logInfo("lighting: fitted to the plate on frame {}: clipped lights ×{}, global ×{:.3f} "
+                "{:.3f} {:.3f}; |log residual| {:.3f} -> {:.3f} over {} cells",
+                fit.frame, gains.empty() ? " (none)" : gains, fit.fit.globalGain[0],
+                fit.fit.globalGain[1], fit.fit.globalGain[2], fit.fit.residualBefore,
+                fit.fit.residualAfter, fit.fit.samples);
+    } else if (firstFailure) {
+        logWarning("lighting: the fit to the plate failed on frame {} ({}); the last good "
+                   "lighting stays",
+                   fit.frame, fit.why);
+    }
+    if (fit.changed && refining_) refitRestart_ = true;
+    lightingFit_ = fit;
+    out.lightingFit = std::move(fit);
 }
 
 void ShotController::capPreviewSamples() {
@@ -216,6 +255,8 @@ Result<ShotStep> ShotController::refine(std::shared_ptr<const TrackedFrame> newe
         std::optional<std::string> restart;
         if (newest) restart = watch_.observeFrame(*newest);
         if (!restart) restart = watch_.observeLighting(lighting);
+        if (!restart && refitRestart_) restart = "the lighting was fitted to the plate";
+        refitRestart_ = false;
         if (restart) {
             logInfo("refinement: restarting on frame {}: {}", current_->frame->sequence, *restart);
             ++restarts_;

@@ -52,6 +52,17 @@ private:
     TimePoint now_{};
 };
 
+// What the last lighting fit did (status "lightingFit"; docs/previsd.md).
+struct LightingFitReport {
+    enum class State { NotNeeded, Fitted, Failed, Off };
+    State state = State::NotNeeded;
+    bool changed = false;  // the lighting rendered with changed
+    std::string why;       // Failed: the reason (the last good lighting stays)
+    LightingFit fit;       // Fitted: the gains (relative to the lighting it was fitted on)
+    uint64_t frame = 0;    // the scene camera frame it was fitted on
+};
+const char* toString(LightingFitReport::State state);
+
 // What the shot needs of the render stage (PipelineRenderer implements it).
 class ShotRenderer {
 public:
@@ -78,9 +89,16 @@ public:
     // The plate-consistency meter (render/plate_consistency.h) on the last frame rendered: none
     // when it cannot say (nothing rendered, lighting pending, too few real surfaces in view).
     virtual Result<std::optional<PlateConsistency>> measurePlateConsistency() = 0;
+    // Lighting fitted to the plate ([lighting] fit_to_plate, render/lighting_fit.h) after a meter
+    // reading on `frame`, the last frame rendered: fits when the policy asks, and from the next
+    // frame renders with the corrected lighting. What it did; `changed` when the lighting it
+    // renders with is now another (a refinement must start over).
+    virtual LightingFitReport fitLighting(const TrackedFrame& frame,
+                                          const PlateConsistency& reading) = 0;
     // The virtual objects are lit by a stand-in, not the set's captured lighting (yet).
     virtual bool lightingPending() const = 0;
 };
+
 
 // Tracking's pace (the tracking thread's, or a replay's): every frame in preview; while refining a
 // pose only serves the restart check, so a few a second do and the CPU goes to the samples. By the
@@ -114,6 +132,8 @@ struct ShotStep {
     bool converged = false;                     // refinement just reached its stopping point
     // The plate-consistency meter's reading, when this step took one (ShotController says when).
     std::optional<PlateConsistencyReading> plateConsistency;
+    // What the lighting fit did after that reading, when it tried (or is off).
+    std::optional<LightingFitReport> lightingFit;
 };
 
 class ShotController {
@@ -158,6 +178,8 @@ public:
     // L_or is already there (only the readback costs). Once more as refinement converges: its
     // many samples a cell read the ratio without the few-sample bias (kPlateMeterCellSamples).
     const std::optional<PlateConsistencyReading>& plateConsistency() const { return plate_; }
+    // The last lighting fit's report (none before the first try).
+    const std::optional<LightingFitReport>& lightingFit() const { return lightingFit_; }
 
 private:
     Result<ShotStep> preview(std::shared_ptr<const TrackedFrame> frame,
@@ -168,6 +190,8 @@ private:
                             const std::shared_ptr<const LiveLighting>& lighting);
     // Lowers the preview's samples so one frame fits kMaxPreviewFrameMs (logged once).
     void capPreviewSamples();
+    // After a meter reading: the renderer's lighting fit (ShotRenderer::fitLighting), logged.
+    void fitLighting(const TrackedFrame& frame, const PlateConsistency& reading, ShotStep& out);
     // Feeds the dial's live correction one preview frame's wall time.
     void correctDial(double frameSeconds);
     uint32_t refineStepSamples() const;
@@ -205,6 +229,8 @@ private:
     // The plate-consistency meter: its last reading, the pose and lighting it was taken with, and
     // its last try (a try without a reading waits kPlateMeterPeriod too).
     std::optional<PlateConsistencyReading> plate_;
+    std::optional<LightingFitReport> lightingFit_;
+    bool refitRestart_ = false;  // a fit changed the lighting: refinement starts over
     std::optional<cv::Matx44d> platePose_;
     std::shared_ptr<const LiveLighting> plateLighting_;
     std::optional<ShotClock::TimePoint> plateTried_;

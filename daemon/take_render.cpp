@@ -209,22 +209,26 @@ public:
             if (Status s = r_.beginRefine(tracked, lighting); !s) return s;
             if (Status s = r_.refineStep(1); !s) return s;
         }
-        if (Status s = r_.beginRefine(tracked, lighting); !s) return s;
-        r_.renderer().setSeed(takeFrameSeed(seed_, index));
+        r_.resetLightingCorrection();  // each frame fits on its own: frames render alike anywhere
         std::optional<double> noise;
-        constexpr uint32_t kStep = 16;  // samples between looks of the meter
         uint32_t done = 0;
-        while (done < spp_ && !gStop.load()) {
-            const uint32_t n = std::min(kStep, spp_ - done);
-            if (Status s = r_.refineStep(n); !s) return s;
-            done += n;
-            if (target_ > 0.0 && done < spp_) {
-                Result<std::optional<double>> measured = r_.measureNoise();
-                if (!measured) return measured.error();
-                noise = *measured;
-                if (noise && *noise <= target_) break;
-            }
+        if (Status s = accumulate(index, tracked, lighting, noise, done); !s) return s;
+        // [lighting] fit_to_plate, as the service fits: the finished accumulation is metered, and
+        // when the fit changes the lighting the frame renders again with it. Nothing more is
+        // rendered when the lighting already explains the plate.
+        // A fit that changed the lighting is checked by short renders and fitted again while the
+        // fit asks (it leaves interreflections to the next), then the frame renders in full.
+        bool refitted = false;
+        for (int pass = 0; pass < kMaxFitPasses; ++pass) {
+            Result<bool> refit = fitLighting(index, tracked);
+            if (!refit) return refit.error();
+            if (!*refit) break;
+            refitted = true;
+            if (Status s = accumulate(index, tracked, lighting, noise, done, kFitSamples); !s)
+                return s;
         }
+        if (refitted)
+            if (Status s = accumulate(index, tracked, lighting, noise, done); !s) return s;
         if (gStop.load()) return makeError("interrupted");
         lastSamples_ = done;
         lastNoise_ = noise;
@@ -236,6 +240,50 @@ public:
     std::optional<double> lastNoise() const { return lastNoise_; }
 
 private:
+    // The frame from a fresh accumulation with its own seed, up to spp_ or target_.
+    Status accumulate(size_t index, const TrackedFrame& tracked,
+                      const std::shared_ptr<const LiveLighting>& lighting,
+                      std::optional<double>& noise, uint32_t& done, uint32_t most = 0) {
+        if (Status s = r_.beginRefine(tracked, lighting); !s) return s;
+        r_.renderer().setSeed(takeFrameSeed(seed_, index));
+        constexpr uint32_t kStep = 16;  // samples between looks of the meter
+        const uint32_t spp = most > 0 ? std::min(most, spp_) : spp_;
+        noise.reset();
+        done = 0;
+        while (done < spp && !gStop.load()) {
+            const uint32_t n = std::min(kStep, spp - done);
+            if (Status s = r_.refineStep(n); !s) return s;
+            done += n;
+            if (target_ > 0.0 && done < spp) {
+                Result<std::optional<double>> measured = r_.measureNoise();
+                if (!measured) return measured.error();
+                noise = *measured;
+                if (noise && *noise <= target_) break;
+            }
+        }
+        return {};
+    }
+
+    // Meters the frame and fits its lighting to the plate (PipelineRenderer::fitLighting);
+    // whether the lighting changed.
+    Result<bool> fitLighting(size_t index, const TrackedFrame& tracked) {
+        if (!r_.fitsLighting() || gStop.load()) return false;
+        Result<std::optional<PlateConsistency>> reading = r_.measurePlateConsistency();
+        if (!reading) return reading.error();
+        if (!*reading) return false;
+        const LightingFitReport fit = r_.fitLighting(tracked, **reading);
+        if (fit.state == LightingFitReport::State::Failed)
+            logWarning("render-session: frame {}: the fit to the plate failed ({}); rendered with "
+                       "the lighting as captured",
+                       index, fit.why);
+        return fit.changed;
+    }
+
+    // The fit's own renders: enough samples for the meter's cells (kPlateMeterCellSamples), and
+    // how many times it may fit a frame.
+    static constexpr uint32_t kFitSamples = 32;
+    static constexpr int kMaxFitPasses = 3;
+
     Status write(size_t index, std::optional<double> noise) {
         Result<ImageF> composite = r_.composite(noise);
         if (!composite) return composite.error();

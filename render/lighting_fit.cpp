@@ -303,6 +303,28 @@ LightingCorrection correctionFromFit(const cv::Mat& map,
     return c;
 }
 
+LightingCorrection composeCorrections(const LightingCorrection& earlier,
+                                      const LightingCorrection& later) {
+    const float cosMatch = float(std::cos(kCorrectionMatchDeg * M_PI / 180.0));
+    LightingCorrection out;
+    for (int c = 0; c < 3; ++c)
+        out.globalGain[size_t(c)] = earlier.globalGain[size_t(c)] * later.globalGain[size_t(c)];
+    std::vector<bool> carried(earlier.clusters.size(), false);
+    for (const LightingCorrection::Cluster& l : later.clusters) {
+        double gain = l.gain;
+        for (size_t e = 0; e < earlier.clusters.size(); ++e)
+            if (!carried[e] && glm::dot(earlier.clusters[e].direction, l.direction) >= cosMatch) {
+                gain *= earlier.clusters[e].gain;
+                carried[e] = true;
+                break;
+            }
+        out.clusters.push_back({l.direction, gain});
+    }
+    for (size_t e = 0; e < earlier.clusters.size(); ++e)
+        if (!carried[e]) out.clusters.push_back(earlier.clusters[e]);
+    return out;
+}
+
 cv::Mat applyCorrection(const cv::Mat& map, const std::vector<std::vector<int>>& clusters,
                         const LightingCorrection& correction, size_t* unmatched) {
     cv::Mat out = map.clone();

@@ -87,6 +87,10 @@ LightingCorrection correctionFromFit(const cv::Mat& map,
                                      const std::vector<std::vector<int>>& clusters,
                                      const LightingFit& fit);
 
+// `later` applied after `earlier` (a fit on the map `earlier` had corrected): gains multiply.
+LightingCorrection composeCorrections(const LightingCorrection& earlier,
+                                      const LightingCorrection& later);
+
 // Clusters of a later snapshot take the gain of the corrected cluster within this angle.
 constexpr double kCorrectionMatchDeg = 5.0;
 

@@ -69,6 +69,14 @@ uint32_t plateMeterGridWidth(uint32_t tracedWidth, uint64_t samplesPerPixel) {
     return std::clamp(across, 1u, kPlateMeterGridWidth);
 }
 
+PlateMeterCell plateMeterCell(const PlateMeterGrid& grid, uint32_t cx, uint32_t cy, uint32_t width,
+                              uint32_t height) {
+    return {uint32_t(uint64_t(cx) * width / grid.width),
+            uint32_t(uint64_t(cx + 1) * width / grid.width),
+            uint32_t(uint64_t(cy) * height / grid.height),
+            uint32_t(uint64_t(cy + 1) * height / grid.height)};
+}
+
 PlateMeterGrid plateMeterGrid(const ImageF& traced, const ImageF& plate, const PlateLimits& limits,
                               uint32_t gridWidth) {
     PlateMeterGrid g;
@@ -91,10 +99,7 @@ PlateMeterGrid plateMeterGrid(const ImageF& traced, const ImageF& plate, const P
         for (uint32_t cx = 0; cx < g.width; ++cx) {
             const size_t cell = size_t(cy) * g.width + cx;
             // The cell's traced pixels and output pixels: the same fraction of each image.
-            const uint32_t tx0 = cx * traced.width / g.width,
-                           tx1 = (cx + 1) * traced.width / g.width;
-            const uint32_t ty0 = cy * traced.height / g.height,
-                           ty1 = (cy + 1) * traced.height / g.height;
+            const auto [tx0, tx1, ty0, ty1] = plateMeterCell(g, cx, cy, traced.width, traced.height);
             glm::dvec3 sum(0.0);
             bool allReal = true;
             for (uint32_t y = ty0; y < ty1; ++y)
@@ -105,10 +110,7 @@ PlateMeterGrid plateMeterGrid(const ImageF& traced, const ImageF& plate, const P
             const double tracedCount = double(tx1 - tx0) * double(ty1 - ty0);
             g.real[cell] = glm::vec3(sum / std::max(tracedCount, 1.0));
             clean[cell] = allReal && tracedCount > 0.0;
-            const uint32_t px0 = uint32_t(uint64_t(cx) * plate.width / g.width),
-                           px1 = uint32_t(uint64_t(cx + 1) * plate.width / g.width);
-            const uint32_t py0 = uint32_t(uint64_t(cy) * plate.height / g.height),
-                           py1 = uint32_t(uint64_t(cy + 1) * plate.height / g.height);
+            const auto [px0, px1, py0, py1] = plateMeterCell(g, cx, cy, plate.width, plate.height);
             glm::dvec3 plateSum(0.0);
             for (uint32_t y = py0; y < py1; ++y)
                 for (uint32_t x = px0; x < px1; ++x)

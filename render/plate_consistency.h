@@ -102,6 +102,14 @@ std::optional<PlateConsistency> measurePlateConsistency(const PlateMeterGrid& gr
 PlateMeterGrid plateMeterGrid(const ImageF& traced, const ImageF& plate, const PlateLimits& limits,
                               uint32_t gridWidth = kPlateMeterGridWidth);
 
+// The pixels [x0, x1) × [y0, y1) of a width × height image that cell (cx, cy) of `grid` covers:
+// the same fraction of any image, traced or output.
+struct PlateMeterCell {
+    uint32_t x0 = 0, x1 = 0, y0 = 0, y1 = 0;
+};
+PlateMeterCell plateMeterCell(const PlateMeterGrid& grid, uint32_t cx, uint32_t cy, uint32_t width,
+                              uint32_t height);
+
 // The q-quantile (0 ≤ q ≤ 1) of `values` by linear interpolation between order statistics (the
 // median of an even count is the mean of the middle two); reorders `values`. NaN when empty.
 double quantile(std::vector<double>& values, double q);

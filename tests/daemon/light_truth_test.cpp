@@ -11,6 +11,7 @@
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <sstream>
 
 #include "bench/light_truth.h"
@@ -48,6 +49,43 @@ Result<BoxFrame> renderFrame(const std::string& take, int frame, const fs::path&
     return loadBoxFrame((out / fmt::format("frame_{:06d}.exr", frame)).string());
 }
 
+// The demo take as a box with an 8-bit fisheye and no bracket would have recorded it: only the
+// 0-stop frames of each bracket (their lamps clipped at 16), the config without its bracket and
+// with `[lighting] fit_to_plate = FIT`. Its config's files are the demo's.
+fs::path singleExposureTake(const fs::path& dir, const std::string& fit) {
+    const fs::path take = dir / "single_exposure";
+    fs::remove_all(take);
+    fs::create_directories(dir);
+    fs::copy(kDemoTake, take, fs::copy_options::recursive);
+    const fs::path index = take / "cameras" / "fisheye" / "index.csv";
+    std::istringstream lines(fileText(index));
+    std::string kept, line;
+    while (std::getline(lines, line))
+        if (line.starts_with("#") || line.ends_with(",0")) kept += line + "\n";
+    std::ofstream(index) << kept;
+    std::string config = fileText(take / "config.toml");
+    const size_t bracket = config.find("[cameras.fisheye.bracket]");
+    EXPECT_NE(bracket, std::string::npos);
+    config.erase(bracket, config.find("\n\n", bracket) - bracket);
+    const std::string lighting = "[lighting]\n";
+    config.insert(config.find(lighting) + lighting.size(),
+                  fmt::format("fit_to_plate = \"{}\"\n", fit));
+    std::ofstream(take / "config.toml") << config;
+    std::string session = fileText(take / "session.toml");
+    const std::string configDir = "config_dir = \"..\"";
+    session.replace(session.find(configDir), configDir.size(),
+                    fmt::format("config_dir = \"{}\"", fs::path(kDemoTake).parent_path().string()));
+    std::ofstream(take / "session.toml") << session;
+    return take;
+}
+
+const TruthFrame& stillFrame(const std::vector<TruthFrame>& truth) {
+    const auto still =
+        std::find_if(truth.begin(), truth.end(), [](const TruthFrame& f) { return f.still; });
+    EXPECT_NE(still, truth.end()) << "truth.toml has no still frame";
+    return *still;
+}
+
 void report(const char* what, const TruthScore& s) {
     std::string objects;
     for (size_t i = 0; i < s.objectRatios.size(); ++i)
@@ -60,13 +98,11 @@ void report(const char* what, const TruthScore& s) {
 TEST(LightTruth, DemoRefinedStillFrameIsLitAndShadowedAsTheSet) {
     Result<std::vector<TruthFrame>> truth = loadTruth(kDemoTruth);
     ASSERT_TRUE(truth.ok()) << truth.message();
-    const auto still = std::find_if(truth->begin(), truth->end(),
-                                    [](const TruthFrame& f) { return f.still; });
-    ASSERT_NE(still, truth->end()) << "truth.toml has no still frame";
+    const TruthFrame& still = stillFrame(*truth);
     const fs::path dir = testing::scratchDir("previs_light_truth") / "demo";
-    Result<BoxFrame> box = renderFrame(kDemoTake, still->index, dir);
+    Result<BoxFrame> box = renderFrame(kDemoTake, still.index, dir);
     ASSERT_TRUE(box.ok()) << box.message();
-    Result<TruthScore> score = scoreAgainstTruth(*box, *still);
+    Result<TruthScore> score = scoreAgainstTruth(*box, still);
     ASSERT_TRUE(score.ok()) << score.message();
     report("demo, bracketed fisheye", *score);
     // The issue's targets.
@@ -75,6 +111,36 @@ TEST(LightTruth, DemoRefinedStillFrameIsLitAndShadowedAsTheSet) {
     EXPECT_GE(score->shadowIoU, 0.9);
     ASSERT_EQ(score->objectRatios.size(), 2u) << "the red and the chrome ball";
     for (double r : score->objectRatios) EXPECT_NEAR(r, 1.0, 0.10);
+}
+
+// The same frame from a single 8-bit fisheye exposure: the lamps clip, and only the fit to the
+// plate (render/lighting_fit.h) can find their power. Without it the box is where the issue
+// found it (balls at 0.2-0.3 of the truth), with it within the issue's targets.
+TEST(LightTruth, ASingleClippedExposureIsFittedToThePlate) {
+    Result<std::vector<TruthFrame>> truth = loadTruth(kDemoTruth);
+    ASSERT_TRUE(truth.ok()) << truth.message();
+    const TruthFrame& still = stillFrame(*truth);
+    const fs::path dir = testing::scratchDir("previs_light_truth");
+    std::map<std::string, TruthScore> scores;
+    for (const std::string fit : {"off", "auto"}) {
+        const fs::path take = singleExposureTake(dir / fit, fit);
+        Result<BoxFrame> box = renderFrame(take.string(), still.index, dir / fit);
+        ASSERT_TRUE(box.ok()) << box.message();
+        Result<TruthScore> score = scoreAgainstTruth(*box, still);
+        ASSERT_TRUE(score.ok()) << score.message();
+        report(fit == "off" ? "demo, one clipped exposure, no fit" : "demo, one clipped exposure, fitted",
+               *score);
+        scores[fit] = *score;
+    }
+    // Without the fit the clipped lamps leave the balls and their shadows far too dim.
+    EXPECT_LT(scores["off"].shadowEnergyRatio, 0.3);
+    for (double r : scores["off"].objectRatios) EXPECT_LT(r, 0.5);
+    // The issue's targets for the fit alone.
+    const TruthScore& fitted = scores["auto"];
+    EXPECT_GE(fitted.shadowEnergyRatio, 0.8);
+    EXPECT_LE(fitted.shadowEnergyRatio, 1.2);
+    ASSERT_EQ(fitted.objectRatios.size(), 2u);
+    for (double r : fitted.objectRatios) EXPECT_NEAR(r, 1.0, 0.15);
 }
 
 }  // namespace

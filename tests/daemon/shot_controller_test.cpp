@@ -64,6 +64,13 @@ public:
         c.ok = true;
         return std::optional<PlateConsistency>(c);
     }
+    // The lighting fit after each reading: `nextFit`, once (then not needed).
+    LightingFitReport fitLighting(const TrackedFrame&, const PlateConsistency&) override {
+        ++fits;
+        LightingFitReport r = nextFit;
+        nextFit = {};
+        return r;
+    }
 
     bool dial = false;
     std::vector<uint32_t> previews, steps;
@@ -71,6 +78,8 @@ public:
     std::vector<double> dialCorrections;
     int looks = 0;
     int plateReadings = 0;
+    int fits = 0;
+    LightingFitReport nextFit;
     bool pending = false;
     double ms_;
 
@@ -314,6 +323,32 @@ TEST(ShotController, ThePlateMeterReadsAgainAsRefinementConverges) {
     }
     EXPECT_EQ(readOn.size(), 2u);
     EXPECT_EQ(f.renderer.plateReadings, 2);
+}
+
+// A fit that changes the lighting while refining starts the accumulation over (its samples were
+// lit by the lighting before); one that failed does not, and is kept for the status.
+TEST(ShotController, ALightingFitRestartsRefinementAndAFailedOneDoesNot) {
+    Fixture f(1.0, refineConfig(), Mode::Refine);
+    f.renderer.nextFit.state = LightingFitReport::State::Fitted;
+    f.renderer.nextFit.changed = true;
+    Result<ShotStep> s = f.shot.step(frame(7), nullptr);
+    ASSERT_TRUE(s);
+    ASSERT_TRUE(s->lightingFit.has_value());
+    EXPECT_EQ(s->lightingFit->state, LightingFitReport::State::Fitted);
+    s = f.shot.step(nullptr, nullptr);
+    ASSERT_TRUE(s);
+    EXPECT_TRUE(s->restarted);
+    EXPECT_EQ(f.renderer.frozenOn.size(), 2u);
+
+    Fixture g(1.0, refineConfig(), Mode::Refine);
+    g.renderer.nextFit.state = LightingFitReport::State::Failed;
+    g.renderer.nextFit.why = "too few samples";
+    ASSERT_TRUE(g.shot.step(frame(7), nullptr));
+    s = g.shot.step(nullptr, nullptr);
+    ASSERT_TRUE(s);
+    EXPECT_FALSE(s->restarted);
+    ASSERT_TRUE(g.shot.lightingFit().has_value());
+    EXPECT_EQ(g.shot.lightingFit()->why, "too few samples");
 }
 
 TEST(TrackingPace, EveryFrameInPreviewAFewASecondRefining) {
