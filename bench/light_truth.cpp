@@ -92,11 +92,11 @@ Result<BoxFrame> loadBoxFrame(const std::string& exrPath) {
 Result<TruthScore> scoreAgainstTruth(const BoxFrame& box, const TruthFrame& truth) {
     const int w = int(box.real.width), h = int(box.real.height);
     if (w == 0 || h == 0 || int(truth.real.width) % w != 0 ||
-        int(truth.real.width) / w != int(truth.real.height) / h ||
-        int(truth.real.height) % h != 0)
-        return makeError("the box's frame ({}x{}) is not the truth's ({}x{}) shrunk by a whole "
-                         "factor",
-                         w, h, truth.real.width, truth.real.height);
+        int(truth.real.width) / w != int(truth.real.height) / h || int(truth.real.height) % h != 0)
+        return makeError(
+            "the box's frame ({}x{}) is not the truth's ({}x{}) shrunk by a whole "
+            "factor",
+            w, h, truth.real.width, truth.real.height);
     const int factor = int(truth.real.width) / w;
     const cv::Mat tReal = shrink(luminanceOf(truth.real), factor);
     const cv::Mat tMixed = shrink(luminanceOf(truth.mixed), factor);
@@ -125,7 +125,8 @@ Result<TruthScore> scoreAgainstTruth(const BoxFrame& box, const TruthFrame& trut
     const int n = cv::connectedComponentsWithStats(solid, labels, stats, centroids, 8, CV_32S);
     std::vector<std::pair<double, int>> parts;  // (centroid x, label)
     for (int l = 1; l < n; ++l)
-        if (stats.at<int>(l, cv::CC_STAT_AREA) >= 12) parts.emplace_back(centroids.at<double>(l, 0), l);
+        if (stats.at<int>(l, cv::CC_STAT_AREA) >= 12)
+            parts.emplace_back(centroids.at<double>(l, 0), l);
     std::sort(parts.begin(), parts.end());
     for (auto [x, l] : parts) {
         const cv::Mat in = labels == l;

@@ -53,6 +53,7 @@ shown = (b["framesShown"] - a["framesShown"]) / (t1 - t0)
 med = lambda k: statistics.median(r[k] for _, r in rows)
 print(f"frames shown/s {shown:.2f} over {t1 - t0:.0f} s; medians: fps {med('fps'):.2f}, "
       f"latencyMs {med('latencyMs'):.0f}, renderMs {med('renderMs'):.0f}, "
+      f"lightingMs {med('lightingMs'):.0f}, "
       f"dropped {b['framesDropped'] - a['framesDropped']}, mode {b['mode']}, "
       f"history {b.get('previewHistoryFrames')}")
 EOF

@@ -794,17 +794,8 @@ int run(const Options& o) {
         return 1;
     }
     // The plate shows the real set only: drop the virtual triangles.
-    Geometry real;
     const Geometry& all = scene->geometry;
-    real.positions = all.positions;
-    real.normals = all.normals;
-    real.uvs = all.uvs;
-    for (size_t t = 0; t < all.triangles.size(); ++t)
-        if (all.triangleIsReal[t]) {
-            real.triangles.push_back(all.triangles[t]);
-            real.triangleMaterials.push_back(all.triangleMaterials[t]);
-            real.triangleIsReal.push_back(1);
-        }
+    Geometry real = realGeometry(all);
     logInfo("scene: {} triangles, {} real", all.triangles.size(), real.triangles.size());
     Geometry wholeSet = std::move(scene->geometry);  // for the truth renders
     scene->geometry = std::move(real);

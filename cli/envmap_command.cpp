@@ -58,9 +58,10 @@ Result<cv::Mat> mergedBracket(const EnvmapOptions& o) {
         auto image = readImage(path);
         if (!image) return image.error();
         if (!image->ldrSrgb)
-            return makeError("{}: a bracket is of 8-bit frames (PNG/JPEG); an EXR is already "
-                             "merged, give it alone",
-                             path);
+            return makeError(
+                "{}: a bracket is of 8-bit frames (PNG/JPEG); an EXR is already "
+                "merged, give it alone",
+                path);
         cv::Mat rgb(int(image->height), int(image->width), CV_8UC3);
         for (uint32_t y = 0; y < image->height; ++y)
             for (uint32_t x = 0; x < image->width; ++x)
@@ -68,9 +69,8 @@ Result<cv::Mat> mergedBracket(const EnvmapOptions& o) {
                     rgb.at<cv::Vec3b>(int(y), int(x))[c] = cv::saturate_cast<uint8_t>(
                         255.0f * image->at(x, y, image->channels >= 3 ? uint32_t(c) : 0u) + 0.5f);
         if (!frames.empty() && rgb.size() != frames[0].size())
-            return makeError("{}: {}x{}, but {} is {}x{}; a bracket's frames share one size",
-                             path, rgb.cols, rgb.rows, o.images[0], frames[0].cols,
-                             frames[0].rows);
+            return makeError("{}: {}x{}, but {} is {}x{}; a bracket's frames share one size", path,
+                             rgb.cols, rgb.rows, o.images[0], frames[0].cols, frames[0].rows);
         frames.push_back(std::move(rgb));
     }
     const InverseToneMapSettings radiometry = o.curve.inverse();
@@ -78,16 +78,18 @@ Result<cv::Mat> mergedBracket(const EnvmapOptions& o) {
         const std::optional<float> measured =
             measuredStopsBetween(frames[i - 1], frames[i], radiometry, 64);
         if (measured && std::abs(*measured - (stops[i] - stops[i - 1])) > 0.5f)
-            return makeError("{} and {} differ by {:.2f} stops in their pictures, not the {:.2f} "
-                             "--stops says; check their order and exposures",
-                             o.images[i - 1], o.images[i], *measured, stops[i] - stops[i - 1]);
+            return makeError(
+                "{} and {} differ by {:.2f} stops in their pictures, not the {:.2f} "
+                "--stops says; check their order and exposures",
+                o.images[i - 1], o.images[i], *measured, stops[i] - stops[i - 1]);
     }
     Result<MergedBracket> merged = mergeBracket(frames, stops, radiometry);
     if (!merged) return merged.error();
     if (merged->clippedFraction > 0.0 && !o.quiet)
-        logWarning("{:.3f} % of the pixels clip even at {} stops: their light is a lower bound; "
-                   "add a shorter exposure",
-                   100.0 * merged->clippedFraction, *std::min_element(stops.begin(), stops.end()));
+        logWarning(
+            "{:.3f} % of the pixels clip even at {} stops: their light is a lower bound; "
+            "add a shorter exposure",
+            100.0 * merged->clippedFraction, *std::min_element(stops.begin(), stops.end()));
     return std::move(merged->radiance);
 }
 

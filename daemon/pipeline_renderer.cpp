@@ -87,21 +87,6 @@ PlateLimits plateLimitsOf(const InverseToneMapSettings& radiometry) {
     return limits;
 }
 
-// The real (phantom) triangles of `geometry` on the CPU, for the lighting fit's rays.
-Result<CpuTracer> realGeometryTracer(const Geometry& geometry) {
-    Geometry real;
-    real.positions = geometry.positions;
-    real.normals = geometry.normals;
-    real.uvs = geometry.uvs;
-    for (size_t i = 0; i < geometry.triangles.size(); ++i)
-        if (geometry.triangleIsReal[i]) {
-            real.triangles.push_back(geometry.triangles[i]);
-            real.triangleMaterials.push_back(geometry.triangleMaterials[i]);
-            real.triangleIsReal.push_back(1);
-        }
-    return CpuTracer::create(real);
-}
-
 }  // namespace
 
 void renderSize(const ServiceConfig& config, uint32_t& width, uint32_t& height) {
@@ -153,9 +138,10 @@ Result<std::unique_ptr<PipelineRenderer>> PipelineRenderer::create(GpuContext& c
     // scene and the fit is not off, from the real triangles alone (the phantom set is small).
     p->fitPolicy_ = config.lighting.fitToPlate;
     if (config.fisheyeCamera && p->fitPolicy_ != FitToPlate::Off) {
-        Result<CpuTracer> tracer = realGeometryTracer(scene.geometry);
-        if (!tracer) return makeError("{}: the real set for the lighting fit: {}",
-                                      config.scenePath, tracer.message());
+        Result<CpuTracer> tracer = CpuTracer::create(realGeometry(scene.geometry));
+        if (!tracer)
+            return makeError("{}: the real set for the lighting fit: {}", config.scenePath,
+                             tracer.message());
         if (tracer->triangles().empty())
             p->fitPolicy_ = FitToPlate::Off;  // nothing real to fit against: said by fitLighting
         else
@@ -353,9 +339,9 @@ Result<std::vector<PlateSample>> PipelineRenderer::plateSamples(
         plateMeterGrid(*traced, *plate, plateLimits_,
                        plateMeterGridWidth(traced->width, renderer_->samplesPerPixel()));
     // Rays from the camera through each cell's centre, in the tracer's frame (the scene's).
-    const glm::vec3 origin(glm::dvec3(worldFromCamera(0, 3), worldFromCamera(1, 3),
-                                      worldFromCamera(2, 3)) -
-                           sceneOriginM_);
+    const glm::vec3 origin(
+        glm::dvec3(worldFromCamera(0, 3), worldFromCamera(1, 3), worldFromCamera(2, 3)) -
+        sceneOriginM_);
     std::vector<glm::vec3> directions;
     std::vector<size_t> cells;
     const uint32_t w = plate->width, h = plate->height;
@@ -368,7 +354,9 @@ Result<std::vector<PlateSample>> PipelineRenderer::plateSamples(
             const double u = 0.5 * (c.x0 + c.x1), v = 0.5 * (c.y0 + c.y1);
             const uint32_t i = std::min(uint32_t(u), w - 1), j = std::min(uint32_t(v), h - 1);
             const float fu = float(u - i), fv = float(v - j);
-            auto corner = [&](uint32_t a, uint32_t b) { return lensGrid_[size_t(b) * (w + 1) + a]; };
+            auto corner = [&](uint32_t a, uint32_t b) {
+                return lensGrid_[size_t(b) * (w + 1) + a];
+            };
             const glm::vec2 n = (1 - fv) * ((1 - fu) * corner(i, j) + fu * corner(i + 1, j)) +
                                 fv * ((1 - fu) * corner(i, j + 1) + fu * corner(i + 1, j + 1));
             cv::Vec3d d(n.x, n.y, 1.0);
@@ -403,8 +391,8 @@ LightingFitReport PipelineRenderer::fitLighting(const TrackedFrame& frame,
     // Auto: clipped light no fit has corrected yet, or a plate the lighting does not explain.
     size_t uncorrected = clusters.size();
     if (correction_ && !clusters.empty())
-        (void)applyCorrection(environmentMapToMat(*rawLighting_->captured), clusters,
-                              *correction_, &uncorrected);
+        (void)applyCorrection(environmentMapToMat(*rawLighting_->captured), clusters, *correction_,
+                              &uncorrected);
     // A fit leaves the interreflections of the light it adds to the next one (lighting_fit.h):
     // with clipped light, auto fits again while the meter is beyond kFitAgainBand of 1 and the
     // fits keep improving, at most kMaxFitsPerLighting times a snapshot.
@@ -413,19 +401,18 @@ LightingFitReport PipelineRenderer::fitLighting(const TrackedFrame& frame,
         for (double x : reading.ratio) again = again || std::abs(std::log(x)) > kFitAgainBand;
     if (fitPolicy_ == FitToPlate::Auto && reading.ok && uncorrected == 0 && !again) return r;
     Result<std::vector<PlateSample>> samples = plateSamples(*frame.worldFromCamera);
-    Result<LightingFit> fit = samples ? fitLightingToPlate(*realTracer_,
-                                                           environmentMapToMat(
-                                                               *lightingShown_->captured),
-                                                           clusters, *samples)
-                                      : Result<LightingFit>(samples.error());
+    Result<LightingFit> fit =
+        samples ? fitLightingToPlate(*realTracer_, environmentMapToMat(*lightingShown_->captured),
+                                     clusters, *samples)
+                : Result<LightingFit>(samples.error());
     if (!fit) {
         r.state = LightingFitReport::State::Failed;
         r.why = fit.message();
         return r;
     }
     // The fit is relative to the lighting the frame was rendered with: it composes.
-    const LightingCorrection step = correctionFromFit(
-        environmentMapToMat(*lightingShown_->captured), clusters, *fit);
+    const LightingCorrection step =
+        correctionFromFit(environmentMapToMat(*lightingShown_->captured), clusters, *fit);
     correction_ = correction_ ? composeCorrections(*correction_, step) : step;
     correctedLighting_.reset();
     ++fitsOnRaw_;

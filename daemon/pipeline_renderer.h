@@ -16,8 +16,8 @@
 #include "daemon/shot_controller.h"
 #include "gpu/context.h"
 #include "image/image.h"
-#include "render/display_pass.h"
 #include "render/cpu_tracer.h"
+#include "render/display_pass.h"
 #include "render/quality_dial.h"
 #include "render/renderer.h"
 #include "render/tonemap.h"
@@ -202,7 +202,8 @@ private:
     // |ln ratio| beyond which a snapshot with clipped light is fitted again: the meter's 5 %.
     static constexpr double kFitAgainBand = 0.05;
     // The snapshot to render with: `raw` through the correction.
-    std::shared_ptr<const LiveLighting> withCorrection(const std::shared_ptr<const LiveLighting>& raw);
+    std::shared_ptr<const LiveLighting> withCorrection(
+        const std::shared_ptr<const LiveLighting>& raw);
     // The meter's real-surface cells of the last frame rendered as fit samples, each with the
     // real surface its centre's camera ray meets.
     Result<std::vector<PlateSample>> plateSamples(const cv::Matx44d& worldFromCamera) const;

@@ -179,8 +179,8 @@ Result<LightingStage> LightingStage::create(const ServiceConfig& config) {
         return makeError("{}: [cameras.fisheye]: {}", config.path, toEquirect.message());
     std::optional<BracketAssembler> bracket;
     if (config.fisheyeCamera->bracket) {
-        Result<BracketAssembler> a =
-            BracketAssembler::create(*config.fisheyeCamera->bracket, config.fisheyeCamera->radiometry);
+        Result<BracketAssembler> a = BracketAssembler::create(*config.fisheyeCamera->bracket,
+                                                              config.fisheyeCamera->radiometry);
         if (!a) return makeError("{}: [cameras.fisheye.bracket]: {}", config.path, a.message());
         bracket = std::move(*a);
     }

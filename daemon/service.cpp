@@ -251,17 +251,16 @@ std::string statusJson(const ServiceStatus& s) {
     j["lightingPending"] = s.lightingPending;
     if (s.brackets) {
         const BracketCounts& b = *s.brackets;
-        j["lightCapture"] = {
-            {"bracketsMerged", b.merged},
-            {"bracketsDropped",
-             {{"unlabelled", b.droppedUnlabelled},
-              {"wrongExposure", b.droppedWrongExposure},
-              {"missing", b.droppedMissing},
-              {"mismatch", b.droppedMismatch}}},
-            {"pairsUnchecked", b.unchecked},
-            {"lastDrop", s.lastBracketDrop},
-            {"framesWithheld", s.bracketFramesWithheld},
-            {"clippedSolidAngleFraction", s.clippedSolidAngleFraction}};
+        j["lightCapture"] = {{"bracketsMerged", b.merged},
+                             {"bracketsDropped",
+                              {{"unlabelled", b.droppedUnlabelled},
+                               {"wrongExposure", b.droppedWrongExposure},
+                               {"missing", b.droppedMissing},
+                               {"mismatch", b.droppedMismatch}}},
+                             {"pairsUnchecked", b.unchecked},
+                             {"lastDrop", s.lastBracketDrop},
+                             {"framesWithheld", s.bracketFramesWithheld},
+                             {"clippedSolidAngleFraction", s.clippedSolidAngleFraction}};
     } else {
         j["lightCapture"] = nullptr;
     }

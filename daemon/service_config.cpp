@@ -264,22 +264,22 @@ Status ConfigReader::parseBracket(const toml::table& camera, const std::string& 
     if (!*table) return {};
     const toml::table& t = **table;
     const std::string section = cameraSection + ".bracket";
-    if (Status st = r_.checkKeys(t, section,
-                                 {"stops", "tolerance_stops", "frames_per_step", "control"});
+    if (Status st =
+            r_.checkKeys(t, section, {"stops", "tolerance_stops", "frames_per_step", "control"});
         !st)
         return st;
     // How a live camera cycles its exposure (capture/exposure_bracket.h): V4L2 holds each step
     // for frames_per_step frames of a control; libcamera labels each frame from its metadata.
     for (const char* key : {"frames_per_step", "control"})
         if (t.get(key) && c.source != CameraSourceKind::V4L2)
-            return fail(t.get(key), "'{}.{}' has no meaning for a {} camera (V4L2 only{})",
-                        section, key, toString(c.source),
+            return fail(t.get(key), "'{}.{}' has no meaning for a {} camera (V4L2 only{})", section,
+                        key, toString(c.source),
                         c.source == CameraSourceKind::Libcamera
                             ? ": libcamera labels each frame from its metadata"
                             : ": a recording's frames carry their exposures");
     int64_t framesPerStep = c.bracketFramesPerStep;
-    if (Status st = r_.integerIn(t, section, "frames_per_step", framesPerStep, 1,
-                                 kMaxFramesPerStep);
+    if (Status st =
+            r_.integerIn(t, section, "frames_per_step", framesPerStep, 1, kMaxFramesPerStep);
         !st)
         return st;
     c.bracketFramesPerStep = int(framesPerStep);
@@ -309,8 +309,8 @@ Status ConfigReader::parseBracket(const toml::table& camera, const std::string& 
     for (double v : **stops) b.stops.push_back(float(v));
     if (Status st = checkBracketStops(b.stops, section + ".stops"); !st)
         return fail(t.get("stops"), "{}", st.message());
-    if (Status st = r_.numberIn(t, section, "tolerance_stops", b.ratioToleranceStops, 0.0, 4.0,
-                                true);
+    if (Status st =
+            r_.numberIn(t, section, "tolerance_stops", b.ratioToleranceStops, 0.0, 4.0, true);
         !st)
         return st;
     c.bracket = std::move(b);
@@ -447,11 +447,10 @@ Status ConfigReader::parseFreedIn(const toml::table& t, TrackingConfig& c) const
 }
 
 Status ConfigReader::parseLighting(const toml::table& t, LightingConfig& c) const {
-    if (Status st = r_.checkKeys(
-            t, "lighting",
-            {"mode", "map_width", "max_field_angle_deg", "fill_ring_deg", "mean_factor",
-             "max_fraction", "max_lights", "min_power_fraction", "update_hz", "saved",
-             "fit_to_plate"});
+    if (Status st = r_.checkKeys(t, "lighting",
+                                 {"mode", "map_width", "max_field_angle_deg", "fill_ring_deg",
+                                  "mean_factor", "max_fraction", "max_lights", "min_power_fraction",
+                                  "update_hz", "saved", "fit_to_plate"});
         !st)
         return st;
     Result<std::optional<std::string>> mode = r_.string(t, "lighting", "mode");

@@ -170,15 +170,17 @@ void ShotController::fitLighting(const TrackedFrame& frame, const PlateConsisten
     if (fit.state == LightingFitReport::State::Fitted) {
         std::string gains;
         for (double g : fit.fit.clusterGains) gains += fmt::format(" {:.3g}", g);
-        logInfo("lighting: fitted to the plate on frame {}: clipped lights ×{}, global ×{:.3f} "
-                "{:.3f} {:.3f}; |log residual| {:.3f} -> {:.3f} over {} cells",
-                fit.frame, gains.empty() ? " (none)" : gains, fit.fit.globalGain[0],
-                fit.fit.globalGain[1], fit.fit.globalGain[2], fit.fit.residualBefore,
-                fit.fit.residualAfter, fit.fit.samples);
+        logInfo(
+            "lighting: fitted to the plate on frame {}: clipped lights ×{}, global ×{:.3f} "
+            "{:.3f} {:.3f}; |log residual| {:.3f} -> {:.3f} over {} cells",
+            fit.frame, gains.empty() ? " (none)" : gains, fit.fit.globalGain[0],
+            fit.fit.globalGain[1], fit.fit.globalGain[2], fit.fit.residualBefore,
+            fit.fit.residualAfter, fit.fit.samples);
     } else if (firstFailure) {
-        logWarning("lighting: the fit to the plate failed on frame {} ({}); the last good "
-                   "lighting stays",
-                   fit.frame, fit.why);
+        logWarning(
+            "lighting: the fit to the plate failed on frame {} ({}); the last good "
+            "lighting stays",
+            fit.frame, fit.why);
     }
     if (fit.changed && refining_) refitRestart_ = true;
     lightingFit_ = fit;

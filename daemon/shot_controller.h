@@ -99,7 +99,6 @@ public:
     virtual bool lightingPending() const = 0;
 };
 
-
 // Tracking's pace (the tracking thread's, or a replay's): every frame in preview; while refining a
 // pose only serves the restart check, so a few a second do and the CPU goes to the samples. By the
 // frames' capture times, so live and replay agree.

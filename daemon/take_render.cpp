@@ -273,9 +273,10 @@ private:
         if (!*reading) return false;
         const LightingFitReport fit = r_.fitLighting(tracked, **reading);
         if (fit.state == LightingFitReport::State::Failed)
-            logWarning("render-session: frame {}: the fit to the plate failed ({}); rendered with "
-                       "the lighting as captured",
-                       index, fit.why);
+            logWarning(
+                "render-session: frame {}: the fit to the plate failed ({}); rendered with "
+                "the lighting as captured",
+                index, fit.why);
         return fit.changed;
     }
 

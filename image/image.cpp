@@ -235,8 +235,9 @@ Result<ImageF> readExr(std::span<const uint8_t> bytes, const std::string& path,
         const size_t yStride = xStride * size_t(w);
         for (size_t c = 0; c < names.size(); ++c) {
             // Slice::Make offsets the base pointer by the data window origin for us.
-            frameBuffer.insert(names[c].c_str(), Imf::Slice::Make(Imf::FLOAT, image.pixels.data() + c, dw,
-                                                          xStride, yStride));
+            frameBuffer.insert(
+                names[c].c_str(),
+                Imf::Slice::Make(Imf::FLOAT, image.pixels.data() + c, dw, xStride, yStride));
         }
         file.setFrameBuffer(frameBuffer);
         file.readPixels(dw.min.y, dw.max.y);

@@ -737,12 +737,12 @@ Status SessionWriter::writeFrame(const std::string& camera, uint64_t sequence, u
         return makeError("session frame {} of '{}': timecode '{}' holds a comma or newline",
                          sequence, camera, stamp.timecode);
     if (Status s = appendLine(
-            idx, fmt::format("{},{},{},{},{},{},{},{}\n", sequence, timestampNs, file, width,
-                             height,
-                             stamp.wallClockNs ? std::to_string(*stamp.wallClockNs) : std::string(),
-                             stamp.timecode,
-                             stamp.exposureStops ? fmt::format("{}", *stamp.exposureStops)
-                                                 : std::string()));
+            idx,
+            fmt::format(
+                "{},{},{},{},{},{},{},{}\n", sequence, timestampNs, file, width, height,
+                stamp.wallClockNs ? std::to_string(*stamp.wallClockNs) : std::string(),
+                stamp.timecode,
+                stamp.exposureStops ? fmt::format("{}", *stamp.exposureStops) : std::string()));
         !s)
         return s;
     idx.lastSequence = sequence;

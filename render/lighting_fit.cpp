@@ -20,8 +20,7 @@ glm::dvec3 texelDirection(int x, int y, int width, int height) {
 }
 
 double texelSolidAngle(int y, int width, int height) {
-    return 2.0 * M_PI / width *
-           (std::cos(M_PI * y / height) - std::cos(M_PI * (y + 1) / height));
+    return 2.0 * M_PI / width * (std::cos(M_PI * y / height) - std::cos(M_PI * (y + 1) / height));
 }
 
 // A direction's light as seen from a surface: RGB radiance × solid angle.
@@ -101,8 +100,8 @@ std::vector<DirectionalLight> clusterLights(const cv::Mat& map, const std::vecto
 }
 
 struct Sample {
-    std::array<double, 3> logRatio;                // log(L_or / plate) per channel
-    std::vector<std::array<double, 3>> fraction;   // f_k per channel: a lamp has its own colour
+    std::array<double, 3> logRatio;               // log(L_or / plate) per channel
+    std::vector<std::array<double, 3>> fraction;  // f_k per channel: a lamp has its own colour
 };
 
 // log(1 + Σ h_k f_kc) for channel c, and its gradient.
@@ -158,7 +157,8 @@ std::vector<std::vector<int>> clippedClusters(const cv::Mat& clippedTexels) {
     std::vector<std::vector<int>> byRoot(static_cast<size_t>(n));
     for (int y = 0; y < labels.rows; ++y)
         for (int x = 0; x < w; ++x)
-            if (const int l = labels.at<int>(y, x); l > 0) byRoot[size_t(root(l))].push_back(y * w + x);
+            if (const int l = labels.at<int>(y, x); l > 0)
+                byRoot[size_t(root(l))].push_back(y * w + x);
     std::vector<std::vector<int>> out;
     for (auto& c : byRoot)
         if (!c.empty()) out.push_back(std::move(c));
@@ -174,7 +174,8 @@ Result<LightingFit> fitLightingToPlate(const CpuTracer& tracer, const cv::Mat& m
     cv::Mat inCluster = cv::Mat::zeros(map.size(), CV_8U);
     for (const auto& c : clusters)
         for (int t : c) inCluster.data[t] = 1;
-    const std::vector<DirectionalLight> rest = coarseLights(map, inCluster, settings.coarseMapWidth);
+    const std::vector<DirectionalLight> rest =
+        coarseLights(map, inCluster, settings.coarseMapWidth);
     std::vector<std::vector<DirectionalLight>> clusterDirs;
     for (const auto& c : clusters)
         clusterDirs.push_back(clusterLights(map, c, settings.maxTexelsPerCluster));
@@ -191,9 +192,10 @@ Result<LightingFit> fitLightingToPlate(const CpuTracer& tracer, const cv::Mat& m
         if (ok) usable.push_back(&s);
     }
     if (usable.size() < settings.minSamples)
-        return makeError("lighting fit: {} usable plate samples, {} needed (is the pose trusted "
-                         "and a real surface in view?)",
-                         usable.size(), settings.minSamples);
+        return makeError(
+            "lighting fit: {} usable plate samples, {} needed (is the pose trusted "
+            "and a real surface in view?)",
+            usable.size(), settings.minSamples);
     std::vector<Sample> samples(usable.size());
     cv::parallel_for_(cv::Range(0, int(usable.size())), [&](const cv::Range& range) {
         for (int i = range.start; i < range.end; ++i) {
@@ -219,15 +221,14 @@ Result<LightingFit> fitLightingToPlate(const CpuTracer& tracer, const cv::Mat& m
     const int n = int(3 + k);
     std::array<double, 3> logGain{0, 0, 0};
     std::vector<double> h(k, 0.0);
-    const double priorWeight =
-        1.0 / std::pow(settings.globalGainSigmaStops * std::log(2.0), 2.0);
+    const double priorWeight = 1.0 / std::pow(settings.globalGainSigmaStops * std::log(2.0), 2.0);
     std::vector<double> grad(k);
     for (int iteration = 0; iteration < settings.iterations; ++iteration) {
         cv::Mat a = cv::Mat::zeros(n, n, CV_64F), b = cv::Mat::zeros(n, 1, CV_64F);
         for (const Sample& s : samples) {
             for (int ch = 0; ch < 3; ++ch) {
-                const double r = logGain[size_t(ch)] + clusterTerm(h, s, ch, &grad) +
-                                 s.logRatio[size_t(ch)];
+                const double r =
+                    logGain[size_t(ch)] + clusterTerm(h, s, ch, &grad) + s.logRatio[size_t(ch)];
                 const double w = huberWeight(r, settings.huberLog);
                 // J row: ∂r/∂logG_ch = 1, ∂r/∂h_k = f_k / (1 + Σ h f).
                 std::vector<std::pair<int, double>> j{{ch, 1.0}};
@@ -250,8 +251,7 @@ Result<LightingFit> fitLightingToPlate(const CpuTracer& tracer, const cv::Mat& m
         // stays where it is).
         for (size_t q = 0; q < k; ++q) a.at<double>(int(3 + q), int(3 + q)) += 1e-9;
         cv::Mat step;
-        if (!cv::solve(a, b, step, cv::DECOMP_CHOLESKY) &&
-            !cv::solve(a, b, step, cv::DECOMP_SVD))
+        if (!cv::solve(a, b, step, cv::DECOMP_CHOLESKY) && !cv::solve(a, b, step, cv::DECOMP_SVD))
             return makeError("lighting fit: the system is singular");
         double largest = 0.0;
         for (int ch = 0; ch < 3; ++ch) {
@@ -260,7 +260,8 @@ Result<LightingFit> fitLightingToPlate(const CpuTracer& tracer, const cv::Mat& m
         }
         for (size_t q = 0; q < k; ++q) {
             const double before = h[q];
-            h[q] = std::clamp(h[q] + step.at<double>(int(3 + q)), 0.0, settings.maxClusterGain - 1.0);
+            h[q] =
+                std::clamp(h[q] + step.at<double>(int(3 + q)), 0.0, settings.maxClusterGain - 1.0);
             largest = std::max(largest, std::abs(h[q] - before) / (1.0 + before));
         }
         if (largest < 1e-6) break;
@@ -275,9 +276,10 @@ Result<LightingFit> fitLightingToPlate(const CpuTracer& tracer, const cv::Mat& m
     for (double g : fit.globalGain)
         if (!std::isfinite(g)) return makeError("lighting fit: no finite solution");
     if (!(fit.residualAfter <= fit.residualBefore))
-        return makeError("lighting fit: the fitted lighting explains the plate no better (log "
-                         "residual {:.3f} against {:.3f})",
-                         fit.residualAfter, fit.residualBefore);
+        return makeError(
+            "lighting fit: the fitted lighting explains the plate no better (log "
+            "residual {:.3f} against {:.3f})",
+            fit.residualAfter, fit.residualBefore);
     return fit;
 }
 
@@ -345,8 +347,8 @@ cv::Mat applyCorrection(const cv::Mat& map, const std::vector<std::vector<int>>&
         for (int t : cluster) texels[t] *= float(best->gain);
     }
     if (unmatched) *unmatched = missed;
-    return out.mul(cv::Scalar(correction.globalGain[0], correction.globalGain[1],
-                              correction.globalGain[2]));
+    return out.mul(
+        cv::Scalar(correction.globalGain[0], correction.globalGain[1], correction.globalGain[2]));
 }
 
 std::vector<std::optional<PlateSample>> realSurfacesAlongRays(

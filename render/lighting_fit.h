@@ -16,9 +16,9 @@
 // holding log G near 0. The extra light's own interreflections are left out: second order.
 
 #include <array>
-#include <optional>
 #include <glm/glm.hpp>
 #include <opencv2/core.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -29,8 +29,8 @@ namespace previs {
 
 // One real surface point the camera sees with a trusted pose, away from the virtual objects.
 struct PlateSample {
-    glm::vec3 plate{0.0f};  // the plate, linear radiance
-    glm::vec3 real{0.0f};   // L_or there, rendered with the map as captured
+    glm::vec3 plate{0.0f};     // the plate, linear radiance
+    glm::vec3 real{0.0f};      // L_or there, rendered with the map as captured
     glm::vec3 position{0.0f};  // world (the tracer's frame)
     glm::vec3 normal{0.0f};    // world, unit, facing the camera
 };
@@ -54,7 +54,7 @@ struct LightingFitSettings {
 };
 
 struct LightingFit {
-    std::vector<double> clusterGains;       // g_k, one per cluster
+    std::vector<double> clusterGains;           // g_k, one per cluster
     std::array<double, 3> globalGain{1, 1, 1};  // G_c
     // The median over the samples used and their channels of |log(L_or' / plate)|, before the
     // fit (all gains 1) and after: how well the fitted lighting explains the plate (0.01 ≈ 1 %).

@@ -99,7 +99,8 @@ PlateMeterGrid plateMeterGrid(const ImageF& traced, const ImageF& plate, const P
         for (uint32_t cx = 0; cx < g.width; ++cx) {
             const size_t cell = size_t(cy) * g.width + cx;
             // The cell's traced pixels and output pixels: the same fraction of each image.
-            const auto [tx0, tx1, ty0, ty1] = plateMeterCell(g, cx, cy, traced.width, traced.height);
+            const auto [tx0, tx1, ty0, ty1] =
+                plateMeterCell(g, cx, cy, traced.width, traced.height);
             glm::dvec3 sum(0.0);
             bool allReal = true;
             for (uint32_t y = ty0; y < ty1; ++y)

@@ -64,6 +64,22 @@ struct Geometry {
     std::vector<uint8_t> triangleIsReal;  // 1: phantom of a real object; 0: virtual
 };
 
+// The real (phantom) triangles of `geometry` alone, its vertices kept as they are: what a plate
+// shows of the set, and what the lighting fit casts against.
+inline Geometry realGeometry(const Geometry& geometry) {
+    Geometry real;
+    real.positions = geometry.positions;
+    real.normals = geometry.normals;
+    real.uvs = geometry.uvs;
+    for (size_t t = 0; t < geometry.triangles.size(); ++t)
+        if (geometry.triangleIsReal[t]) {
+            real.triangles.push_back(geometry.triangles[t]);
+            real.triangleMaterials.push_back(geometry.triangleMaterials[t]);
+            real.triangleIsReal.push_back(1);
+        }
+    return real;
+}
+
 enum class LightType { Point, Spot, Directional };
 
 struct PunctualLight {

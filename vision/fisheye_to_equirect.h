@@ -37,12 +37,12 @@ public:
     // width × width/2): each texel the mean, weighted by solid angle, of the bilinearly
     // interpolated image over sub-directions spread across the texel, dense enough (at least two
     // per fisheye pixel each way) that the integral of the interpolated image over the texel is
-    // the sum of the pixels it covers times their solid angles. Fill rule for the directions the lens does not see: they get
-    // one constant radiance, the solid-angle-weighted mean over the outermost fillRingDeg of
-    // the seen field (the "lowest visible ring" for an upward-looking lens). A constant keeps
-    // the unseen part's power plausible (the ground reflects roughly the mean of what it sees)
-    // without inventing a second sun as mirroring the visible hemisphere would.
-    // Non-finite or negative input radiance is taken as 0.
+    // the sum of the pixels it covers times their solid angles. Fill rule for the directions the
+    // lens does not see: they get one constant radiance, the solid-angle-weighted mean over the
+    // outermost fillRingDeg of the seen field (the "lowest visible ring" for an upward-looking
+    // lens). A constant keeps the unseen part's power plausible (the ground reflects roughly the
+    // mean of what it sees) without inventing a second sun as mirroring the visible hemisphere
+    // would. Non-finite or negative input radiance is taken as 0.
     Result<cv::Mat> apply(const cv::Mat& linearRgb) const;
     // A per-pixel flag (CV_8U, the calibration's size, non-zero = set) → the map's texels whose
     // footprint holds a flagged pixel (CV_8U, 255 = set; unseen texels are never set). For the

@@ -103,8 +103,7 @@ Result<MergedBracket> mergeBracket(const std::vector<cv::Mat>& rgb8,
 }
 
 std::optional<float> measuredStopsBetween(const cv::Mat& rgb8A, const cv::Mat& rgb8B,
-                                          const InverseToneMapSettings& radiometry,
-                                          int minPixels) {
+                                          const InverseToneMapSettings& radiometry, int minPixels) {
     PV_ASSERT(rgb8A.type() == CV_8UC3 && rgb8B.type() == CV_8UC3 && rgb8A.size() == rgb8B.size());
     const cv::Mat a = rgb8A.isContinuous() ? rgb8A : rgb8A.clone();
     const cv::Mat b = rgb8B.isContinuous() ? rgb8B : rgb8B.clone();
@@ -176,9 +175,8 @@ std::optional<MergedBracket> BracketAssembler::add(const cv::Mat& rgb8, uint64_t
     const size_t next = frames_.size();
     const bool isNext = std::abs(*exposureStops - settings_.stops[next]) < kSameStops;
     if (!frames_.empty() && sequence != lastSequence_ + 1) {
-        drop(counts_.droppedMissing,
-             fmt::format("frames {} to {} are missing from the bracket", lastSequence_ + 1,
-                         sequence - 1));
+        drop(counts_.droppedMissing, fmt::format("frames {} to {} are missing from the bracket",
+                                                 lastSequence_ + 1, sequence - 1));
     } else if (!isNext && !frames_.empty() && startsBracket(exposureStops)) {
         drop(counts_.droppedMissing,
              fmt::format("the bracket from frame {} was cut short by frame {}", firstSequence_,
@@ -206,8 +204,8 @@ std::optional<MergedBracket> BracketAssembler::add(const cv::Mat& rgb8, uint64_t
 std::optional<MergedBracket> BracketAssembler::complete() {
     const std::vector<float>& stops = settings_.stops;
     for (size_t i = 1; i < frames_.size(); ++i) {
-        const std::optional<float> measured = measuredStopsBetween(
-            frames_[i - 1], frames_[i], radiometry_, settings_.minCheckPixels);
+        const std::optional<float> measured =
+            measuredStopsBetween(frames_[i - 1], frames_[i], radiometry_, settings_.minCheckPixels);
         const float expected = stops[i] - stops[i - 1];
         if (!measured) {
             if (exposureOrderContradicted(frames_[i - 1], frames_[i], expected,

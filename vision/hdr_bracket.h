@@ -45,8 +45,8 @@ Status checkBracketStops(const std::vector<float>& stops, const std::string& whe
 constexpr int kClippedCode = 250;
 
 struct MergedBracket {
-    cv::Mat radiance;  // CV_32FC3 linear RGB, the frames' size
-    cv::Mat clipped;   // CV_8U, 255 where even the shortest exposure clipped
+    cv::Mat radiance;              // CV_32FC3 linear RGB, the frames' size
+    cv::Mat clipped;               // CV_8U, 255 where even the shortest exposure clipped
     double clippedFraction = 0.0;  // of the pixels
     uint64_t firstSequence = 0;
     uint64_t lastSequence = 0;
@@ -56,12 +56,12 @@ struct MergedBracket {
 // Brackets seen so far, by what became of them (status and takes report these).
 struct BracketCounts {
     uint64_t merged = 0;
-    uint64_t droppedUnlabelled = 0;    // a frame came without its exposure
-    uint64_t droppedWrongExposure = 0; // a label not in the bracket, or out of its order
-    uint64_t droppedMissing = 0;       // a frame lost (a sequence gap) or a bracket cut short
-    uint64_t droppedMismatch = 0;      // the pictures disagree with the labels (late controls)
-    uint64_t unchecked = 0;            // frame pairs merged on their labels and order alone
-                                       // (too few pixels well exposed in both for a ratio)
+    uint64_t droppedUnlabelled = 0;     // a frame came without its exposure
+    uint64_t droppedWrongExposure = 0;  // a label not in the bracket, or out of its order
+    uint64_t droppedMissing = 0;        // a frame lost (a sequence gap) or a bracket cut short
+    uint64_t droppedMismatch = 0;       // the pictures disagree with the labels (late controls)
+    uint64_t unchecked = 0;             // frame pairs merged on their labels and order alone
+                                        // (too few pixels well exposed in both for a ratio)
     uint64_t dropped() const {
         return droppedUnlabelled + droppedWrongExposure + droppedMissing + droppedMismatch;
     }
@@ -80,8 +80,7 @@ Result<MergedBracket> mergeBracket(const std::vector<cv::Mat>& rgb8,
 // log2(luminance b / luminance a) over pixels whose channels all lie within [24, 230] in both
 // (away from noise and the curve's shoulder); nullopt with fewer than minPixels such pixels.
 std::optional<float> measuredStopsBetween(const cv::Mat& rgb8A, const cv::Mat& rgb8B,
-                                          const InverseToneMapSettings& radiometry,
-                                          int minPixels);
+                                          const InverseToneMapSettings& radiometry, int minPixels);
 
 // Whether the pictures order the two frames against their labels: of the pixels whose brightest
 // channel differs by more than a few codes between them, more go the wrong way (brighter in the

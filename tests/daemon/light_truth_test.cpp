@@ -5,6 +5,8 @@
 // balls' shadows take as much light from the real table as they would on the set, in the same
 // place, and the balls are as bright as the truth.
 
+#include "bench/light_truth.h"
+
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
@@ -14,7 +16,6 @@
 #include <map>
 #include <sstream>
 
-#include "bench/light_truth.h"
 #include "tests/support/process.h"
 #include "tests/support/temp_dir.h"
 #include "tests/support/test_data.h"
@@ -40,10 +41,22 @@ std::string fileText(const fs::path& path) {
 // in the hundreds; the truth's own error is in truth.toml, 0.1–0.3 %).
 Result<BoxFrame> renderFrame(const std::string& take, int frame, const fs::path& dir) {
     const fs::path out = dir / "render";
-    const std::vector<std::string> argv{
-        PREVIS_BINARY, "render-session", take, "--out", out.string(), "--frames",
-        fmt::format("{}:{}", frame, frame + 1), "--spp", "64", "--width", "320", "--height",
-        "180", "--aov", "mixed,real,mask", "--quiet"};
+    const std::vector<std::string> argv{PREVIS_BINARY,
+                                        "render-session",
+                                        take,
+                                        "--out",
+                                        out.string(),
+                                        "--frames",
+                                        fmt::format("{}:{}", frame, frame + 1),
+                                        "--spp",
+                                        "64",
+                                        "--width",
+                                        "320",
+                                        "--height",
+                                        "180",
+                                        "--aov",
+                                        "mixed,real,mask",
+                                        "--quiet"};
     if (int rc = testing::runProcess(argv, (dir / "render.log").string(), 600s); rc != 0)
         return makeError("render-session exited {}: {}", rc, fileText(dir / "render.log"));
     return loadBoxFrame((out / fmt::format("frame_{:06d}.exr", frame)).string());
@@ -128,7 +141,8 @@ TEST(LightTruth, ASingleClippedExposureIsFittedToThePlate) {
         ASSERT_TRUE(box.ok()) << box.message();
         Result<TruthScore> score = scoreAgainstTruth(*box, still);
         ASSERT_TRUE(score.ok()) << score.message();
-        report(fit == "off" ? "demo, one clipped exposure, no fit" : "demo, one clipped exposure, fitted",
+        report(fit == "off" ? "demo, one clipped exposure, no fit"
+                            : "demo, one clipped exposure, fitted",
                *score);
         scores[fit] = *score;
     }
@@ -153,16 +167,31 @@ TEST(LightTruth, AnOutdoorSunBeyondTheBracketIsFittedToThePlate) {
     if (data.empty() || !fs::exists(map)) GTEST_SKIP() << "no shared data (PREVIS_DATA_DIR)";
     const fs::path dir = testing::scratchDir("previs_light_truth") / "outdoor";
     fs::create_directories(dir);
-    for (const char* file : {"previsd.toml", "previs.toml", "board.toml", "scene_camera.yaml",
-                             "fisheye.yaml"})
+    for (const char* file :
+         {"previsd.toml", "previs.toml", "board.toml", "scene_camera.yaml", "fisheye.yaml"})
         fs::copy_file(fs::path(kDemoTake).parent_path() / file, dir / file,
                       fs::copy_options::overwrite_existing);
     // The first still frame (20) after the arc; few samples for the tracked arc's plates, the
     // still plate and the truth as a test needs them (region sums, not pixels).
-    const std::vector<std::string> generate{
-        MAKE_DEMO_SESSION_BINARY, "--demo-dir", dir.string(), "--env", map, "--env-name",
-        "envmaps/polyhaven_1k_hdr/rooitou_park_1k.hdr", "--env-scale", "1.0", "--frames", "21",
-        "--moving-spp", "2", "--still-spp", "32", "--truth-frames", "20", "--truth-spp", "128"};
+    const std::vector<std::string> generate{MAKE_DEMO_SESSION_BINARY,
+                                            "--demo-dir",
+                                            dir.string(),
+                                            "--env",
+                                            map,
+                                            "--env-name",
+                                            "envmaps/polyhaven_1k_hdr/rooitou_park_1k.hdr",
+                                            "--env-scale",
+                                            "1.0",
+                                            "--frames",
+                                            "21",
+                                            "--moving-spp",
+                                            "2",
+                                            "--still-spp",
+                                            "32",
+                                            "--truth-frames",
+                                            "20",
+                                            "--truth-spp",
+                                            "128"};
     ASSERT_EQ(testing::runProcess(generate, (dir / "generate.log").string(), 600s), 0)
         << fileText(dir / "generate.log");
     Result<std::vector<TruthFrame>> truth = loadTruth((dir / "truth").string());

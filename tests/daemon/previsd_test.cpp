@@ -371,9 +371,9 @@ TEST(Previsd, RunsTheDemoTogglesRefinementAndStopsOnSigterm) {
         testing::runProcess({previs(), "ctl", "--socket", socket, "status", "--json"}, ctlLog, 30s),
         0);
     const nlohmann::json viaCli = nlohmann::json::parse(fileBytes(ctlLog));
-    for (const char* key : {"mode", "framesShown", "framesDropped", "samples", "noiseEstimate",
-                            "etaSeconds", "fps", "recording", "display", "pose", "uptimeSeconds",
-                            "plateConsistency"})
+    for (const char* key :
+         {"mode", "framesShown", "framesDropped", "samples", "noiseEstimate", "etaSeconds", "fps",
+          "recording", "display", "pose", "uptimeSeconds", "plateConsistency"})
         EXPECT_TRUE(viaCli.contains(key)) << key << " missing from " << viaCli.dump();
     ASSERT_EQ(testing::runProcess({previs(), "ctl", "--socket", socket, "status"}, ctlLog, 30s), 0);
     EXPECT_NE(fileBytes(ctlLog).find("mode      preview"), std::string::npos) << fileBytes(ctlLog);

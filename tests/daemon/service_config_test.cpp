@@ -164,11 +164,10 @@ std::string liveFisheye(const std::string& body, const std::string& source = "")
 
 TEST(ServiceConfig, LiveFisheyeBracketCyclesItsExposureControl) {
     Result<ServiceConfig> c = loadServiceConfig(writeFile(
-        "bracket_v4l2.toml",
-        minimal(liveFisheye("[cameras.fisheye.controls]\nauto_exposure = 1\n"
-                            "\"Exposure Time, Absolute\" = 1000\n"
-                            "[cameras.fisheye.bracket]\nstops = [0, -4, -8]\n"
-                            "frames_per_step = 2"))));
+        "bracket_v4l2.toml", minimal(liveFisheye("[cameras.fisheye.controls]\nauto_exposure = 1\n"
+                                                 "\"Exposure Time, Absolute\" = 1000\n"
+                                                 "[cameras.fisheye.bracket]\nstops = [0, -4, -8]\n"
+                                                 "frames_per_step = 2"))));
     ASSERT_TRUE(c) << c.message();
     ASSERT_TRUE(c->fisheyeCamera && c->fisheyeCamera->bracket);
     EXPECT_EQ(c->fisheyeCamera->bracket->stops, (std::vector<float>{0.0f, -4.0f, -8.0f}));
@@ -367,8 +366,8 @@ position_m = [1, 0, 0]
                              "stops = [0, -4]\ncontrol = \"gain\"\nframes_per_step = 9")),
          {"'cameras.fisheye.bracket.frames_per_step' is 9"}},
         {"bracket_libcamera_without_base",
-         minimal(liveFisheye("[cameras.fisheye.bracket]\nstops = [0, -4]",
-                             "source = \"libcamera\"\n")),
+         minimal(
+             liveFisheye("[cameras.fisheye.bracket]\nstops = [0, -4]", "source = \"libcamera\"\n")),
          {"needs the base exposure", "exposure_time_us and analogue_gain"}},
         {"bracket_libcamera_control",
          minimal(liveFisheye("[cameras.fisheye.controls]\nexposure_time_us = 10000\n"

@@ -37,11 +37,11 @@ Geometry set() {
     Geometry g;
     addQuad(g, {-2, 0, -2}, {-2, 0, 2}, {2, 0, 2}, {2, 0, -2});
     const float s = 0.2f, h = 0.4f;
-    addQuad(g, {-s, h, -s}, {-s, h, s}, {s, h, s}, {s, h, -s});      // top
-    addQuad(g, {-s, 0, s}, {s, 0, s}, {s, h, s}, {-s, h, s});        // +z
-    addQuad(g, {s, 0, -s}, {-s, 0, -s}, {-s, h, -s}, {s, h, -s});    // −z
-    addQuad(g, {s, 0, s}, {s, 0, -s}, {s, h, -s}, {s, h, s});        // +x
-    addQuad(g, {-s, 0, -s}, {-s, 0, s}, {-s, h, s}, {-s, h, -s});    // −x
+    addQuad(g, {-s, h, -s}, {-s, h, s}, {s, h, s}, {s, h, -s});    // top
+    addQuad(g, {-s, 0, s}, {s, 0, s}, {s, h, s}, {-s, h, s});      // +z
+    addQuad(g, {s, 0, -s}, {-s, 0, -s}, {-s, h, -s}, {s, h, -s});  // −z
+    addQuad(g, {s, 0, s}, {s, 0, -s}, {s, h, -s}, {s, h, s});      // +x
+    addQuad(g, {-s, 0, -s}, {-s, 0, s}, {-s, h, s}, {-s, h, -s});  // −x
     return g;
 }
 
@@ -59,7 +59,8 @@ double solidAngle(int y) {
 cv::Mat sky(float lamp) {
     cv::Mat m(kMapH, kMapW, CV_32FC3, cv::Scalar(0.35, 0.4, 0.5));
     for (int y = 10; y < 12; ++y)
-        for (int x = 20; x < 23; ++x) m.at<cv::Vec3f>(y, x) = cv::Vec3f(lamp, 0.9f * lamp, 0.8f * lamp);
+        for (int x = 20; x < 23; ++x)
+            m.at<cv::Vec3f>(y, x) = cv::Vec3f(lamp, 0.9f * lamp, 0.8f * lamp);
     return m;
 }
 
@@ -197,7 +198,8 @@ TEST(LightingFit, RaysFindTheRealSurfaces) {
     ASSERT_TRUE(tracer.ok());
     const glm::vec3 eye(0.0f, 2.0f, 0.0f);
     const auto hits = realSurfacesAlongRays(
-        *tracer, eye, {glm::normalize(glm::vec3(1, -1, 0)), glm::vec3(0, -1, 0), glm::vec3(0, 1, 0)});
+        *tracer, eye,
+        {glm::normalize(glm::vec3(1, -1, 0)), glm::vec3(0, -1, 0), glm::vec3(0, 1, 0)});
     ASSERT_TRUE(hits[0] && hits[1]);
     EXPECT_FALSE(hits[2]);
     EXPECT_NEAR(hits[0]->position.y, 0.0f, 1e-4f);

@@ -2,19 +2,19 @@
 // bracket's checks, and the fisheye → map step keeping a small sun's power
 // (vision/fisheye_to_equirect.h).
 
+#include "vision/hdr_bracket.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <random>
-
 #include <opencv2/imgproc.hpp>
+#include <random>
 
 #include "base/luminance.h"
 #include "render/tonemap.h"
 #include "vision/camera_calibration.h"
 #include "vision/equirect.h"
 #include "vision/fisheye_to_equirect.h"
-#include "vision/hdr_bracket.h"
 
 namespace previs {
 namespace {
@@ -110,9 +110,10 @@ TEST(HdrBracket, MergeRecoversRadianceSevenStopsAboveClipping) {
         }
     std::sort(wallError.begin(), wallError.end());
     const double wallMedian = wallError[wallError.size() / 2];
-    std::printf("lamp power merged/truth %.4f, wall median |error| %.4f, red patch %.4f %.4f %.4f\n",
-                lampMerged / lampTruth, wallMedian, redSum[0] / redTruth[0],
-                redSum[1] / redTruth[1], redSum[2] / redTruth[2]);
+    std::printf(
+        "lamp power merged/truth %.4f, wall median |error| %.4f, red patch %.4f %.4f %.4f\n",
+        lampMerged / lampTruth, wallMedian, redSum[0] / redTruth[0], redSum[1] / redTruth[1],
+        redSum[2] / redTruth[2]);
     EXPECT_NEAR(lampMerged / lampTruth, 1.0, 0.02);
     EXPECT_LT(wallMedian, 0.03);
     // The red patch's red channel clips at 0 and −4 stops (the curve keeps colour ratios, so red
@@ -283,9 +284,8 @@ TEST(HdrBracket, StopsAreChecked) {
 // An equidistant 190° lens on 640×480 (the demo's, examples/demo/fisheye.yaml): θ = r / f.
 CameraCalibration equidistantLens() {
     const double f = 144.75;
-    auto c = CameraCalibration::create(cv::Matx33d(f, 0, 319.5, 0, f, 239.5, 0, 0, 1),
-                                       {0, 0, 0, 0}, {640, 480}, DistortionModel::Fisheye,
-                                       "equidistant");
+    auto c = CameraCalibration::create(cv::Matx33d(f, 0, 319.5, 0, f, 239.5, 0, 0, 1), {0, 0, 0, 0},
+                                       {640, 480}, DistortionModel::Fisheye, "equidistant");
     EXPECT_TRUE(c.ok());
     return *c;
 }
@@ -335,8 +335,8 @@ double mapPower(const cv::Mat& map, cv::Vec3d* centroid = nullptr) {
     cv::Vec3d weighted(0, 0, 0);
     for (int y = 0; y < map.rows; ++y)
         for (int x = 0; x < map.cols; ++x) {
-            const double p = map.at<cv::Vec3f>(y, x)[1] *
-                             equirectTexelSolidAngle(y, map.cols, map.rows);
+            const double p =
+                map.at<cv::Vec3f>(y, x)[1] * equirectTexelSolidAngle(y, map.cols, map.rows);
             power += p;
             weighted += p * equirectTexelDirection(x, y, map.cols, map.rows);
         }
@@ -371,17 +371,17 @@ TEST_P(SmallSun, KeepsItsPowerAndDirectionInTheMap) {
     cv::Vec3d centroid;
     const double power = mapPower(*map, &centroid);
     const cv::Vec3d trueDir = f->worldFromFisheye() * (fisheyeDir / cv::norm(fisheyeDir));
-    const double errorDeg =
-        std::acos(std::clamp(centroid.dot(trueDir), -1.0, 1.0)) * 180.0 / M_PI;
+    const double errorDeg = std::acos(std::clamp(centroid.dot(trueDir), -1.0, 1.0)) * 180.0 / M_PI;
     // What point sampling each texel's centre (the lookup before) keeps of the same sun.
     cv::Mat pointSampled;
     cv::remap(frame.image, pointSampled, f->mapX(), f->mapY(), cv::INTER_LINEAR,
               cv::BORDER_CONSTANT);
     const double pointPower = mapPower(pointSampled);
-    std::printf("map %d, sun %.2f° radius at %.0f° off axis: power map/truth %.4f (point "
-                "sampled %.3f), direction %.3f°\n",
-                c.mapWidth, c.radiusDeg, c.offAxisDeg, power / frame.truePower,
-                pointPower / frame.truePower, errorDeg);
+    std::printf(
+        "map %d, sun %.2f° radius at %.0f° off axis: power map/truth %.4f (point "
+        "sampled %.3f), direction %.3f°\n",
+        c.mapWidth, c.radiusDeg, c.offAxisDeg, power / frame.truePower,
+        pointPower / frame.truePower, errorDeg);
     EXPECT_NEAR(power / frame.truePower, 1.0, 0.02);
     EXPECT_LT(errorDeg, 0.5 * 360.0 / c.mapWidth);
 }
