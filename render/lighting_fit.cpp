@@ -6,21 +6,20 @@
 #include <opencv2/imgproc.hpp>
 
 #include "base/luminance.h"
+#include "vision/equirect.h"
 
 namespace previs {
 
 namespace {
 
-// DESIGN.md §4's equirectangular parameterisation (vision/equirect.h's, which render/ cannot
-// include: vision sits below render only through scene/).
+// DESIGN.md §4's equirectangular parameterisation, from its one owner (vision/equirect.h).
 glm::dvec3 texelDirection(int x, int y, int width, int height) {
-    const double phi = ((x + 0.5) / width - 0.5) * 2.0 * M_PI;
-    const double lat = (0.5 - (y + 0.5) / height) * M_PI;
-    return {std::cos(lat) * std::cos(phi), std::sin(lat), std::cos(lat) * std::sin(phi)};
+    const cv::Vec3d d = equirectTexelDirection(x, y, width, height);
+    return {d[0], d[1], d[2]};
 }
 
 double texelSolidAngle(int y, int width, int height) {
-    return 2.0 * M_PI / width * (std::cos(M_PI * y / height) - std::cos(M_PI * (y + 1) / height));
+    return equirectTexelSolidAngle(y, width, height);
 }
 
 // A direction's light as seen from a surface: RGB radiance × solid angle.
