@@ -105,11 +105,8 @@ int run(TrackOptions& o) {
 
     const LinearFromCode table = linearFromCodeTable(o.toneCurve.inverse());
     const bool refit = o.linearEdges && o.curveGiven;
-    if (o.linearEdges && !o.curveGiven && !o.quiet)
-        logInfo(
-            "no --tone-curve: the images' transfer curve is unknown, so the tag corners are "
-            "libapriltag's; give --tone-curve (srgb, reinhard or banterle, as the camera's "
-            "radiometry) to re-fit them in linear light");
+    // Said once, with the first image that decodes: a run that only fails says one line.
+    bool toldCurve = !o.linearEdges || o.curveGiven || o.quiet;
     int failures = 0;
     ProgressLine progress("track", o.quiet);
     for (size_t n = 0; n < o.images.size(); ++n) {
@@ -125,6 +122,13 @@ int run(TrackOptions& o) {
             logError("{}: cannot decode the image (not found, or not a format OpenCV reads)", path);
             ++failures;
             continue;
+        }
+        if (!toldCurve) {
+            logInfo(
+                "no --tone-curve: the images' transfer curve is unknown, so the tag corners are "
+                "libapriltag's; give --tone-curve (srgb, reinhard or banterle, as the camera's "
+                "radiometry) to re-fit them in linear light");
+            toldCurve = true;
         }
         if (gray.size() != calib->imageSize())
             logWarning(
