@@ -931,7 +931,7 @@ std::vector<Shot> stillShots(int count) {
 // Writes the session: `shots` as the scene camera; a fisheye frame every 4th scene frame (1 ms
 // before it, so the first scene frame is already lit), the demo's fisheye frame `fisheye(j)`.
 fs::path editedSession(const std::string& name, const std::vector<Shot>& shots,
-                       const std::function<int(int)>& fisheye) {
+                       const std::function<int(int)>& fisheye, bool bracketed = false) {
     const fs::path demo = fs::path(kDemo) / "session";
     const fs::path dir = scratch() / name;
     fs::remove_all(dir);
@@ -964,15 +964,44 @@ fs::path editedSession(const std::string& name, const std::vector<Shot>& shots,
         }
         scene << fmt::format("{},{},{},640,360\n", i, kT0 + i * kFramePeriodNs, file);
     }
+    if (bracketed) {
+        // Lighting instant j shows the demo's instant fisheye(j): its whole bracket, three
+        // frames 1/30 s apart labelled with their exposures (the demo config's stops), the last
+        // 1 ms before scene frame 4j.
+        std::ofstream fish(dir / "cameras/fisheye/index.csv");
+        fish << "# previs-session camera index v3: sequence,timestampNs,file,width,height,"
+                "wallClockNs,timecode,exposureStops\n";
+        const int stops[] = {0, -5, -10};
+        for (size_t j = 0; 4 * j < shots.size(); ++j)
+            for (size_t k = 0; k < 3; ++k) {
+                const size_t sequence = 3 * j + k;
+                const std::string file = fmt::format("{:012d}.jpg", sequence);
+                fs::copy_file(demo / "cameras/fisheye" /
+                                  fmt::format("{:012d}.jpg", 3 * fisheye(int(j)) + int(k)),
+                              dir / "cameras/fisheye" / file);
+                fish << fmt::format("{},{},{},640,480,,,{}\n", sequence,
+                                    kT0 + 4 * j * kFramePeriodNs - 1'000'000 - (2 - k) * 33'333'333,
+                                    file, stops[k]);
+            }
+        return dir;
+    }
+    // Lighting instant j shows the 0-stop frame of the demo's instant fisheye(j), lit on its own
+    // (the config's bracket removed below): these tests are about refinement's rules, and a
+    // soft light (the lamps clipped) keeps their noise where their thresholds were set.
     std::ofstream fish(dir / "cameras/fisheye/index.csv");
     fish << header;
     for (size_t j = 0; 4 * j < shots.size(); ++j) {
         const std::string file = fmt::format("{:012d}.jpg", j);
-        fs::copy_file(demo / "cameras/fisheye" / fmt::format("{:012d}.jpg", fisheye(int(j))),
+        fs::copy_file(demo / "cameras/fisheye" / fmt::format("{:012d}.jpg", 3 * fisheye(int(j))),
                       dir / "cameras/fisheye" / file);
         fish << fmt::format("{},{},{},640,480\n", j, kT0 + 4 * j * kFramePeriodNs - 1'000'000,
                             file);
     }
+    std::string config = fileBytes(dir / "config.toml");
+    const size_t bracket = config.find("[cameras.fisheye.bracket]");
+    EXPECT_NE(bracket, std::string::npos);
+    config.erase(bracket, config.find("\n\n", bracket) - bracket);
+    std::ofstream(dir / "config.toml") << config;
     return dir;
 }
 
@@ -1123,10 +1152,10 @@ TEST(ReplayRefine, LightingThatTurnsRestartsOnce) {
     // A still camera; from the 7th fisheye frame (scene frame 24) on, the environment has turned
     // by 8° (10° → 18°) — the total power stays within 1 %, so only a direction-sensitive measure
     // sees it.
-    const RefineRun run =
-        replayRefine(editedSession("refine_light", stillShots(75),
-                                   [](int j) { return j < 6 ? heldFisheye(j) : 14; }),
-                     "refine_light");
+    const RefineRun run = replayRefine(editedSession(
+                                           "refine_light", stillShots(75),
+                                           [](int j) { return j < 6 ? heldFisheye(j) : 14; }, true),
+                                       "refine_light");
     ASSERT_EQ(run.rows.size(), 75u) << run.log;
     // [lighting] update_hz = 2 takes every other fisheye frame (8 scene frames apart): the
     // changed ones at scene frames 24, 32 and 40; the third restarts.
