@@ -400,19 +400,18 @@ LightingFitReport PipelineRenderer::fitLighting(const TrackedFrame& frame,
     if (!clusters.empty() && fitsOnRaw_ < kMaxFitsPerLighting)
         for (double x : reading.ratio) again = again || std::abs(std::log(x)) > kFitAgainBand;
     if (fitPolicy_ == FitToPlate::Auto && reading.ok && uncorrected == 0 && !again) return r;
+    // The map the frame was rendered with, converted once for the fit and its correction.
+    const cv::Mat shown = environmentMapToMat(*lightingShown_->captured);
     Result<std::vector<PlateSample>> samples = plateSamples(*frame.worldFromCamera);
-    Result<LightingFit> fit =
-        samples ? fitLightingToPlate(*realTracer_, environmentMapToMat(*lightingShown_->captured),
-                                     clusters, *samples)
-                : Result<LightingFit>(samples.error());
+    Result<LightingFit> fit = samples ? fitLightingToPlate(*realTracer_, shown, clusters, *samples)
+                                      : Result<LightingFit>(samples.error());
     if (!fit) {
         r.state = LightingFitReport::State::Failed;
         r.why = fit.message();
         return r;
     }
     // The fit is relative to the lighting the frame was rendered with: it composes.
-    const LightingCorrection step =
-        correctionFromFit(environmentMapToMat(*lightingShown_->captured), clusters, *fit);
+    const LightingCorrection step = correctionFromFit(shown, clusters, *fit);
     correction_ = correction_ ? composeCorrections(*correction_, step) : step;
     correctedLighting_.reset();
     ++fitsOnRaw_;
