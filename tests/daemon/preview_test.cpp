@@ -211,12 +211,12 @@ Result<ImageF> refined(Demo& d, uint32_t samples) {
 }
 
 TEST(Preview, AHeldCameraConvergesTowardRefinementTheFixedSequenceDoesNot) {
-    Demo d = demo();
     // Open, for issue 53 (the preview that converges): on the demo regenerated with today's
     // renderer (issue 51) the accumulated preview's error falls 1.98-1.99x over 16 frames, not
     // the 2x asserted below (4096-spp reference: 1.99x, so not the reference's noise). Skipped,
     // not loosened, until the accumulation is looked at there.
     GTEST_SKIP() << "issue 53: the held preview gains 1.99x in 16 frames on the regenerated demo";
+    Demo d = demo();
     d.lighting = d.clippedLighting;
     Result<ImageF> reference = refined(d, 1024);
     ASSERT_TRUE(reference) << reference.message();
