@@ -109,8 +109,10 @@ Result<std::unique_ptr<ControlServer>> ControlServer::create(const std::string& 
         new ControlServer(path, std::move(fd), std::move(handler)));
     if (!server->wake_.isValid())
         return makeError("control socket: eventfd: {}", std::strerror(errno));
-    server->thread_ =
-        std::thread([s = server.get()] { runGuarded("control socket", [s] { s->run(); }); });
+    // Every thread waits on the same non-blocking listener; one wins each connection.
+    for (int i = 0; i < kServingThreads; ++i)
+        server->threads_.emplace_back(
+            [s = server.get()] { runGuarded("control socket", [s] { s->run(); }); });
     return server;
 }
 
@@ -124,7 +126,7 @@ ControlServer::~ControlServer() {
     const uint64_t one = 1;
     if (wake_.isValid()) [[maybe_unused]]
         ssize_t n = ::write(wake_.get(), &one, sizeof(one));
-    if (thread_.joinable()) thread_.join();
+    for (std::thread& thread : threads_) thread.join();
     ::unlink(path_.c_str());
 }
 
@@ -139,7 +141,7 @@ void ControlServer::run() {
                      std::strerror(errno));
             return;
         }
-        if (fds[1].revents) return;
+        if (fds[1].revents) return;  // never read: it stays readable for every thread
         if (!(fds[0].revents & POLLIN)) continue;
         UniqueFD client(::accept4(listener_.get(), nullptr, nullptr, SOCK_CLOEXEC));
         if (!client.isValid()) continue;

@@ -120,7 +120,28 @@ void TakeRecorder::finishWriter() {
 
 Result<std::string> TakeRecorder::start(const std::string& name,
                                         std::shared_ptr<const LiveLighting> lighting) {
-    if (recording()) return makeError("already recording {}", status().path);
+    {
+        std::lock_guard lock(mutex_);
+        if (phase_ == Phase::Starting) return makeError("already recording (a take is starting)");
+        if (phase_ == Phase::Stopping)
+            return makeError("the take {} is still stopping; start again once it has stopped",
+                             status_.path);
+        // Rolling without recording: the take stopped by itself (a full disk) and may restart.
+        if (phase_ == Phase::Rolling && status_.recording)
+            return makeError("already recording {}", status_.path);
+        phase_ = Phase::Starting;
+    }
+    Result<std::string> opened = openTake(name, std::move(lighting));
+    {
+        std::lock_guard lock(mutex_);
+        phase_ = opened ? Phase::Rolling : Phase::Idle;
+    }
+    phaseChanged_.notify_all();
+    return opened;
+}
+
+Result<std::string> TakeRecorder::openTake(const std::string& name,
+                                           std::shared_ptr<const LiveLighting> lighting) {
     finishWriter();  // a take that stopped by itself
     if (!validTakeName(name))
         return makeError("take name '{}': use at most 64 letters, digits, '-' and '_'", name);
@@ -180,20 +201,30 @@ Result<std::string> TakeRecorder::start(const std::string& name,
 }
 
 Result<std::string> TakeRecorder::stop() {
-    std::string dir;
-    {
-        std::lock_guard lock(mutex_);
-        if (!status_.recording) return makeError("not recording");
-        accepting_ = false;
-        draining_ = true;
-        dir = status_.path;
+    std::unique_lock lock(mutex_);
+    phaseChanged_.wait(lock, [&] { return phase_ != Phase::Starting; });
+    if (phase_ == Phase::Stopping) {
+        const uint64_t seen = stopsFinished_;
+        phaseChanged_.wait(lock, [&] { return stopsFinished_ != seen; });
+        return lastStopped_;
     }
+    if (!status_.recording) return makeError("not recording");
+    phase_ = Phase::Stopping;
+    accepting_ = false;
+    draining_ = true;
+    const std::string dir = status_.path;
+    lock.unlock();
     keepCaptured_.store(false);
     wake_.notify_all();
     finishWriter();
-    const RecordStatus s = status();
-    logInfo("recording: take {} stopped: {} frames, {:.1f} MiB, {} dropped", dir, s.frames,
-            double(s.bytes) / (1 << 20), s.dropped);
+    lock.lock();
+    logInfo("recording: take {} stopped: {} frames, {:.1f} MiB, {} dropped", dir, status_.frames,
+            double(status_.bytes) / (1 << 20), status_.dropped);
+    phase_ = Phase::Idle;
+    lastStopped_ = dir;
+    ++stopsFinished_;
+    lock.unlock();
+    phaseChanged_.notify_all();
     return dir;
 }
 

@@ -47,14 +47,19 @@ public:
     TakeRecorder(const TakeRecorder&) = delete;
     TakeRecorder& operator=(const TakeRecorder&) = delete;
 
+    // Start and stop are one state machine that any thread may drive at once (the page, the
+    // control socket, the button, SIGTERM): idle → starting → rolling → stopping → idle.
+    //
     // Creates the take's folder under [record] dir — `YYYY-MM-DD_HHMMSS[_NAME]`, NAME letters,
     // digits, '-' and '_' — copies in what the config names (daemon/take_files.h), and starts
     // the writer. `lighting`: the snapshot in effect, so the take is lit from its first frame.
-    // Refuses (one line) when already recording, when the folder cannot be written or when its
-    // disk has less than [record] min_free_mb free.
+    // Refuses (one line) while a take starts, rolls or stops, when the folder cannot be written
+    // or when its disk has less than [record] min_free_mb free.
     Result<std::string> start(const std::string& name,
                               std::shared_ptr<const LiveLighting> lighting = nullptr);
-    // Writes what is queued, makes it durable and ends the take; returns its folder.
+    // Writes what is queued, makes it durable and ends the take; returns its folder. A stop
+    // while the take starts waits for the start, then stops it; a stop while another stops
+    // waits for that one and answers its outcome.
     Result<std::string> stop();
     bool recording() const;
     RecordStatus status() const;
@@ -94,6 +99,9 @@ private:
                      FreedPacket, PlateConsistencyReading>;
 
     struct Take;  // the writer's state, owned by its thread
+    // start()'s work once it owns the starting phase: the folder, the files, the writer.
+    Result<std::string> openTake(const std::string& name,
+                                 std::shared_ptr<const LiveLighting> lighting);
     void runWriter(std::unique_ptr<Take> take);
     Status write(Take& take, Item& item);
     Status writeFrame(Take& take, const FrameItem& item);
@@ -110,6 +118,13 @@ private:
     bool accepting_ = false;  // a take rolls and takes items
     bool draining_ = false;   // stop(): write what is queued, then end
     RecordStatus status_;
+    // Who may touch writer_: only the thread that moved the phase to Starting or Stopping
+    // (under mutex_), so the writer is started once and joined once.
+    enum class Phase { Idle, Starting, Rolling, Stopping };
+    Phase phase_ = Phase::Idle;
+    std::condition_variable phaseChanged_;
+    uint64_t stopsFinished_ = 0;  // a stop that waited for another answers with its folder
+    std::string lastStopped_;
     std::atomic<uint64_t> lastSceneNs_{0};
     std::atomic<bool> keepCaptured_{false};
     TimecodeSource* timecodeSource_ = nullptr;

@@ -7,9 +7,13 @@
 
 #include <atomic>
 #include <cmath>
+#include <condition_variable>
+#include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <thread>
 
 #include "daemon/control_server.h"
@@ -19,6 +23,8 @@
 #include "daemon/recorded_events.h"
 #include "daemon/service.h"
 #include "daemon/service_config.h"
+#include "daemon/take_recorder.h"
+#include "io/session.h"
 #include "scene/scene.h"
 #include "tests/support/temp_dir.h"
 #include "tests/support/test_data.h"
@@ -92,6 +98,168 @@ TEST(ControlServer, SilentClientDoesNotBlockOthers) {
     Result<std::string> reply = controlRequest(path, "status", 10000);
     EXPECT_TRUE(reply) << reply.message();
     ::close(silent);
+}
+
+// A hang guard for tests of threads that could deadlock: past the deadline the test binary ends
+// with a message (a stuck join cannot be cancelled), so a hang fails instead of stalling CI.
+class HangGuard {
+public:
+    HangGuard(const char* what, std::chrono::seconds deadline)
+        : thread_([this, what, deadline] {
+              std::unique_lock lock(mutex_);
+              if (!done_.wait_for(lock, deadline, [this] { return finished_; })) {
+                  std::fprintf(stderr, "FAIL: %s did not finish within %lld s (a hang)\n", what,
+                               static_cast<long long>(deadline.count()));
+                  std::_Exit(1);
+              }
+          }) {}
+    ~HangGuard() {
+        {
+            std::lock_guard lock(mutex_);
+            finished_ = true;
+        }
+        done_.notify_all();
+        thread_.join();
+    }
+
+private:
+    std::mutex mutex_;
+    std::condition_variable done_;
+    bool finished_ = false;
+    std::thread thread_;
+};
+
+// `record stop` waits while the take drains; the socket answers status meanwhile (issue 52).
+TEST(ControlServer, AnswersStatusWhileARecordStopDrains) {
+    HangGuard guard("the control socket test", std::chrono::seconds(60));
+    const std::string path = socketPath("draining.sock");
+    std::mutex mutex;
+    std::condition_variable changed;
+    bool stopEntered = false, drained = false;
+    auto server = ControlServer::create(path, [&](const std::string& command) -> std::string {
+        if (command != "record stop") return "{\"status\": true}";
+        std::unique_lock lock(mutex);
+        stopEntered = true;
+        changed.notify_all();
+        changed.wait(lock, [&] { return drained; });
+        return "{\"ok\": true, \"path\": \"take\"}";
+    });
+    ASSERT_TRUE(server) << server.message();
+    Result<std::string> stopReply = makeError("no reply");
+    std::thread stopper([&] { stopReply = controlRequest(path, "record stop", 30000); });
+    {
+        std::unique_lock lock(mutex);
+        changed.wait(lock, [&] { return stopEntered; });
+    }
+    Result<std::string> status = controlRequest(path, "status", 3000);
+    EXPECT_TRUE(status) << status.message();
+    {
+        std::lock_guard lock(mutex);
+        drained = true;
+    }
+    changed.notify_all();
+    stopper.join();
+    ASSERT_TRUE(stopReply) << stopReply.message();
+    EXPECT_EQ(nlohmann::json::parse(*stopReply)["path"], "take");
+}
+
+ServiceConfig recorderConfig(const std::string& name) {
+    Result<ServiceConfig> config =
+        loadServiceConfig(testing::sourcePath("examples/demo/previsd.toml"));
+    EXPECT_TRUE(config) << config.message();
+    ServiceConfig c = config ? *config : ServiceConfig{};
+    const fs::path takes = testing::scratchDir("previs_daemon_test") / name;
+    fs::remove_all(takes);
+    c.record.dir = takes.string();
+    c.record.minFreeMb = 0;
+    return c;
+}
+
+// A double tap (the page, the control socket, the button at once): one take starts, the other
+// starts are answered "already recording"; stops at once end it once and answer its folder.
+TEST(TakeRecorder, SimultaneousStartsStartOneTakeAndSimultaneousStopsShareItsEnd) {
+    HangGuard guard("simultaneous starts and stops", std::chrono::seconds(60));
+    TakeRecorder recorder(recorderConfig("double_tap"));
+    constexpr int kCallers = 8;
+    std::vector<Result<std::string>> starts(kCallers, makeError("not run"));
+    std::vector<std::thread> callers;
+    for (int i = 0; i < kCallers; ++i)
+        callers.emplace_back([&, i] { starts[size_t(i)] = recorder.start(""); });
+    for (std::thread& t : callers) t.join();
+    callers.clear();
+    std::string take;
+    for (const Result<std::string>& r : starts) {
+        if (r) {
+            EXPECT_TRUE(take.empty()) << "two takes started: " << take << " and " << *r;
+            take = *r;
+        } else {
+            EXPECT_NE(r.message().find("already recording"), std::string::npos) << r.message();
+        }
+    }
+    ASSERT_FALSE(take.empty());
+    for (int n = 0; n < 200; ++n) recorder.addEvent({0, "test", "event=" + std::to_string(n)});
+    std::vector<Result<std::string>> stops(kCallers, makeError("not run"));
+    for (int i = 0; i < kCallers; ++i)
+        callers.emplace_back([&, i] { stops[size_t(i)] = recorder.stop(); });
+    for (std::thread& t : callers) t.join();
+    int ended = 0;
+    for (const Result<std::string>& r : stops) {
+        if (!r) {
+            // A stop that came after the take ended (not during its drain).
+            EXPECT_EQ(r.message(), "not recording");
+            continue;
+        }
+        EXPECT_EQ(*r, take);
+        ++ended;
+    }
+    EXPECT_GE(ended, 1);
+    EXPECT_FALSE(recorder.recording());
+    Result<SessionInfo> session = openSession(take);
+    EXPECT_TRUE(session) << session.message();
+}
+
+// Threads hammering start and stop as the page's and the socket's callers do: never a crash,
+// a hang or a second writer; every take that started ends as a session that opens.
+TEST(TakeRecorder, HammeredStartAndStopNeverCrashHangOrLoseATake) {
+    HangGuard guard("start/stop hammering", std::chrono::seconds(90));
+    const ServiceConfig config = recorderConfig("hammer");
+    std::set<std::string> started;
+    {
+        TakeRecorder recorder(config);
+        std::mutex startedMutex;
+        std::atomic<bool> producing{true};
+        std::thread producer([&] {
+            while (producing.load()) {
+                recorder.addEvent({0, "test", "event"});
+                std::this_thread::sleep_for(std::chrono::milliseconds(1));
+            }
+        });
+        std::vector<std::thread> callers;
+        for (int i = 0; i < 6; ++i)
+            callers.emplace_back([&, i] {
+                for (int n = 0; n < 8; ++n) {
+                    if ((n + i) % 2 == 0) {
+                        Result<std::string> r = recorder.start("");
+                        if (r) {
+                            std::lock_guard lock(startedMutex);
+                            EXPECT_TRUE(started.insert(*r).second) << *r << " started twice";
+                        }
+                    } else {
+                        (void)recorder.stop();
+                    }
+                }
+            });
+        for (std::thread& t : callers) t.join();
+        (void)recorder.stop();
+        EXPECT_FALSE(recorder.recording());
+        producing.store(false);
+        producer.join();
+    }
+    EXPECT_FALSE(started.empty());
+    for (const std::string& take : started) {
+        Result<SessionInfo> session = openSession(take);
+        EXPECT_TRUE(session) << take << ": " << session.message();
+    }
 }
 
 TEST(ControlServer, ReplacesAStaleSocketButNotALiveOne) {
