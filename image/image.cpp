@@ -10,6 +10,7 @@
 #include <OpenEXR/ImfOutputFile.h>
 #include <png.h>
 #include <stb_image.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <array>
@@ -24,6 +25,7 @@
 #include <limits>
 #include <memory>
 #include <optional>
+#include <stdexcept>
 #include <string_view>
 
 #include "base/strings.h"
@@ -604,12 +606,9 @@ std::vector<std::string> exrChannelNames(const ExrLayer& layer) {
     return names;
 }
 
-}  // namespace
-
-Status writeExrLayers(const std::string& path, const std::vector<ExrLayer>& layers) {
-    if (lowerExtension(path) != ".exr")
-        return makeError("cannot write EXR image '{}': the file name must end in .exr", path);
-    if (layers.empty()) return makeError("cannot write EXR image '{}': no layers", path);
+// The checks writeExrLayers makes before writing anything (`name`: the file, for messages).
+Status checkExrLayers(const std::string& name, const std::vector<ExrLayer>& layers) {
+    if (layers.empty()) return makeError("cannot write EXR image '{}': no layers", name);
     const uint32_t width = layers.front().image->width, height = layers.front().image->height;
     for (const ExrLayer& layer : layers) {
         const ImageF& image = *layer.image;
@@ -620,33 +619,104 @@ Status writeExrLayers(const std::string& path, const std::vector<ExrLayer>& laye
             return makeError(
                 "cannot write EXR image '{}': layer '{}' is empty, of another size or has {} "
                 "channels (use 1, 3 or 4)",
-                path, layer.name, image.channels);
+                name, layer.name, image.channels);
     }
+    return {};
+}
+
+// Writes checked layers to an OpenEXR output (a file name or a stream).
+template <typename Target>
+void writeExrTo(Target&& target, const std::vector<ExrLayer>& layers) {
+    const uint32_t width = layers.front().image->width, height = layers.front().image->height;
+    Imf::Header header{int(width), int(height)};
+    header.compression() = Imf::ZIP_COMPRESSION;
+    Imf::FrameBuffer frameBuffer;
+    for (const ExrLayer& layer : layers) {
+        const ImageF& image = *layer.image;
+        const std::vector<std::string> names = exrChannelNames(layer);
+        const size_t xStride = sizeof(float) * image.channels;
+        const size_t yStride = xStride * image.width;
+        for (size_t c = 0; c < names.size(); ++c) {
+            header.channels().insert(names[c], Imf::Channel(Imf::FLOAT));
+            // OpenEXR only reads through this pointer; its API is not const-correct.
+            char* base = reinterpret_cast<char*>(const_cast<float*>(image.pixels.data() + c));
+            frameBuffer.insert(names[c], Imf::Slice(Imf::FLOAT, base, xStride, yStride));
+        }
+    }
+    Imf::OutputFile file(std::forward<Target>(target), header);
+    file.setFrameBuffer(frameBuffer);
+    file.writePixels(int(height));
+}
+
+// An OpenEXR output stream on a descriptor the caller owns (an AtomicFile's temporary): the
+// writer seeks back to fill in the line offsets, so the file must be seekable. The first error
+// is kept, since OpenEXR swallows what its destructor's last write throws.
+class FdOStream : public Imf::OStream {
+public:
+    FdOStream(int fd, const std::string& name) : Imf::OStream(name.c_str()), fd_(fd) {}
+
+    void write(const char c[], int n) override {
+        for (size_t done = 0; done < size_t(n);) {
+            const ssize_t w = ::write(fd_, c + done, size_t(n) - done);
+            if (w < 0 && errno == EINTR) continue;
+            if (w <= 0) fail(w < 0 ? errno : ENOSPC);
+            done += size_t(w);
+        }
+    }
+    uint64_t tellp() override {
+        const off_t at = ::lseek(fd_, 0, SEEK_CUR);
+        if (at < 0) fail(errno);
+        return uint64_t(at);
+    }
+    void seekp(uint64_t pos) override {
+        if (::lseek(fd_, off_t(pos), SEEK_SET) < 0) fail(errno);
+    }
+    int error() const { return error_; }
+
+private:
+    [[noreturn]] void fail(int err) {
+        if (error_ == 0) error_ = err;
+        throw std::runtime_error(std::strerror(err));
+    }
+    int fd_;
+    int error_ = 0;
+};
+
+}  // namespace
+
+Status writeExrLayers(const std::string& path, const std::vector<ExrLayer>& layers) {
+    if (lowerExtension(path) != ".exr")
+        return makeError("cannot write EXR image '{}': the file name must end in .exr", path);
+    if (Status s = checkExrLayers(path, layers); !s) return s;
     if (Status s = checkWritableFolder(path); !s) return s;
     try {
-        Imf::Header header{int(width), int(height)};
-        header.compression() = Imf::ZIP_COMPRESSION;
-        Imf::FrameBuffer frameBuffer;
-        for (const ExrLayer& layer : layers) {
-            const ImageF& image = *layer.image;
-            const std::vector<std::string> names = exrChannelNames(layer);
-            const size_t xStride = sizeof(float) * image.channels;
-            const size_t yStride = xStride * image.width;
-            for (size_t c = 0; c < names.size(); ++c) {
-                header.channels().insert(names[c], Imf::Channel(Imf::FLOAT));
-                // OpenEXR only reads through this pointer; its API is not const-correct.
-                char* base = reinterpret_cast<char*>(const_cast<float*>(image.pixels.data() + c));
-                frameBuffer.insert(names[c], Imf::Slice(Imf::FLOAT, base, xStride, yStride));
-            }
-        }
-        Imf::OutputFile file(path.c_str(), header);
-        file.setFrameBuffer(frameBuffer);
-        file.writePixels(int(height));
+        writeExrTo(path.c_str(), layers);
     } catch (const std::exception& e) {
         return makeError("cannot write EXR image '{}': {} (check the folder is writable)", path,
                          e.what());
     }
     return {};
+}
+
+Status writeExrLayers(int fd, const std::string& name, const std::vector<ExrLayer>& layers) {
+    if (Status s = checkExrLayers(name, layers); !s) return s;
+    FdOStream stream(fd, name);
+    try {
+        writeExrTo(stream, layers);
+    } catch (const std::exception& e) {
+        return makeError("cannot write EXR image '{}': {} (is the disk full?)", name, e.what());
+    }
+    if (stream.error() != 0)
+        return makeError("cannot write EXR image '{}': {} (is the disk full?)", name,
+                         std::strerror(stream.error()));
+    return {};
+}
+
+Status writeExr(int fd, const std::string& name, const ImageF& image) {
+    if (image.channels != 1 && image.channels != 3 && image.channels != 4)
+        return makeError("cannot write EXR image '{}': {} channels (use 1, 3 or 4)", name,
+                         image.channels);
+    return writeExrLayers(fd, name, {ExrLayer{"", &image}});
 }
 
 bool isCompleteExr(const std::string& path) {
@@ -694,6 +764,35 @@ Status writePng(const std::string& path, uint32_t width, uint32_t height,
                          reason);
     }
     return {};
+}
+
+Result<std::vector<uint8_t>> encodePng(uint32_t width, uint32_t height,
+                                       const std::vector<uint8_t>& rgb8, const std::string& name) {
+    if (width == 0 || height == 0 || rgb8.size() != size_t(width) * height * 3)
+        return makeError("cannot encode PNG image '{}': {} bytes for {}x{} RGB (need {})", name,
+                         rgb8.size(), width, height, size_t(width) * height * 3);
+    png_image png;
+    std::memset(&png, 0, sizeof(png));
+    png.version = PNG_IMAGE_VERSION;
+    png.width = width;
+    png.height = height;
+    png.format = PNG_FORMAT_RGB;
+    // The same encoder and settings as writePng (png_image_write_to_file), so the same bytes:
+    // asked for the size first, then written.
+    png_alloc_size_t size = 0;
+    if (!png_image_write_to_memory(&png, nullptr, &size, 0, rgb8.data(), 0, nullptr)) {
+        const std::string reason = png.message;
+        png_image_free(&png);
+        return makeError("cannot encode PNG image '{}': {}", name, reason);
+    }
+    std::vector<uint8_t> bytes(size);
+    if (!png_image_write_to_memory(&png, bytes.data(), &size, 0, rgb8.data(), 0, nullptr)) {
+        const std::string reason = png.message;
+        png_image_free(&png);
+        return makeError("cannot encode PNG image '{}': {}", name, reason);
+    }
+    bytes.resize(size);
+    return bytes;
 }
 
 }  // namespace previs

@@ -73,11 +73,20 @@ struct ExrLayer {
 // Writes layers of one size into one EXR, float32 and ZIP as writeExr.
 Status writeExrLayers(const std::string& path, const std::vector<ExrLayer>& layers);
 
+// writeExr and writeExrLayers to an open, seekable descriptor the caller owns (an AtomicFile's
+// temporary, base/atomic_file.h), the same bytes as to a file; `name` names it in errors.
+Status writeExr(int fd, const std::string& name, const ImageF& image);
+Status writeExrLayers(int fd, const std::string& name, const std::vector<ExrLayer>& layers);
+
 // Whether `path` is an EXR whose header reads and whose every scanline is present.
 bool isCompleteExr(const std::string& path);
 
 // Writes an 8-bit RGB PNG; rgb8 holds width*height*3 bytes, row 0 at the top.
 Status writePng(const std::string& path, uint32_t width, uint32_t height,
                 const std::vector<uint8_t>& rgb8);
+
+// The bytes writePng writes, in memory (for an AtomicFile); `name` names the image in errors.
+Result<std::vector<uint8_t>> encodePng(uint32_t width, uint32_t height,
+                                       const std::vector<uint8_t>& rgb8, const std::string& name);
 
 }  // namespace previs
