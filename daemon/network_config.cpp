@@ -1,3 +1,4 @@
+#include <algorithm>
 #include <cctype>
 #include <cstdlib>
 #include <filesystem>
@@ -20,6 +21,11 @@ Status hostPortKey(const TomlReader& r, const toml::table& t, std::string_view s
     Result<std::optional<std::string>> v = r.string(t, section, key);
     if (!v) return v.error();
     if (!*v) return {};
+    if (hasControlCharacter(**v))
+        return r.fail(t.get(key),
+                      "'{}' holds a control character (a newline?); write HOST:PORT alone, e.g. "
+                      "\"192.168.1.20:40000\"",
+                      TomlReader::dotted(section, key));
     Result<std::pair<std::string, std::string>> split = splitHostPort(**v);
     if (!split)
         return r.fail(t.get(key), "'{}' is '{}': {} (use HOST:PORT, e.g. \"192.168.1.20:40000\")",
@@ -145,7 +151,29 @@ Status parseNetworkConfig(const TomlReader& r, const toml::table& root, NetworkC
     return {};
 }
 
-Result<std::string> readWebToken(const WebConfig& web) {
+bool hasControlCharacter(std::string_view value) {
+    return std::any_of(value.begin(), value.end(),
+                       [](char c) { return std::iscntrl(static_cast<unsigned char>(c)) != 0; });
+}
+
+namespace {
+
+// What is wrong with a token, or "" when nothing is.
+std::string tokenProblem(const std::string& token) {
+    if (token.empty()) return "is empty";
+    if (hasControlCharacter(token)) return "holds a control character (a tab or a second line?)";
+    if (std::isspace(static_cast<unsigned char>(token.front())) ||
+        std::isspace(static_cast<unsigned char>(token.back())))
+        return "starts or ends with a space, which an Authorization header cannot carry";
+    if (token.size() < kMinWebTokenChars)
+        return fmt::format("is {} characters long, under the {} required", token.size(),
+                           kMinWebTokenChars);
+    return {};
+}
+
+}  // namespace
+
+Result<std::string> readWebToken(const WebConfig& web, const std::string& configPath) {
     std::string path = web.tokenFile;
     if (path.empty()) {
         const char* credentials = std::getenv("CREDENTIALS_DIRECTORY");
@@ -154,22 +182,29 @@ Result<std::string> readWebToken(const WebConfig& web) {
         std::error_code ec;
         if (!fs::exists(path, ec)) return std::string();
     }
+    return readWebTokenFile(path, configPath,
+                            web.tokenFile.empty() ? kWebTokenCredentialKey : "[web] token_file");
+}
+
+Result<std::string> readWebTokenFile(const std::string& path, const std::string& configPath,
+                                     std::string_view key) {
     std::ifstream in(path);
     if (!in)
         return makeError(
-            "cannot read the web token file '{}' (check it exists and is readable by the service)",
-            path);
+            "{}: {}: cannot read the web token file '{}' (check it exists and is readable by the "
+            "service)",
+            configPath, key, path);
     std::stringstream text;
     text << in.rdbuf();
-    // The file's trailing newline (echo, an editor) is not part of the token.
+    // The file's line ending (echo, an editor) is not part of the token.
     std::string token = text.str();
-    while (!token.empty() && std::isspace(static_cast<unsigned char>(token.back())))
-        token.pop_back();
-    if (token.empty())
+    if (token.ends_with('\n')) token.pop_back();
+    if (token.ends_with('\r')) token.pop_back();
+    if (const std::string problem = tokenProblem(token); !problem.empty())
         return makeError(
-            "the web token file '{}' is empty (write a long random token into it, e.g. "
-            "`openssl rand -hex 24`)",
-            path);
+            "{}: {}: the token in '{}' {}; write one line of at least {} characters without "
+            "spaces, e.g. `openssl rand -hex 24 > {}`",
+            configPath, key, path, problem, kMinWebTokenChars, path);
     return token;
 }
 

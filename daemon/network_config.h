@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <string>
+#include <string_view>
 
 #include "base/result.h"
 
@@ -63,8 +64,26 @@ struct NetworkConfig {
     }
 };
 
-// The web monitor's bearer token: `tokenFile`, else the unit's credential, else none (""). A
-// token file that exists but cannot be read, or is empty, is an error naming it.
-Result<std::string> readWebToken(const WebConfig& web);
+// Whether `value` holds a control character (a newline, a tab, DEL). previsd writes addresses
+// into systemd units (`previsd --network-units`), where a newline would start a setting of its
+// own: the config refuses them.
+bool hasControlCharacter(std::string_view value);
+
+// The shortest web token accepted: a guessable token opens the box's controls to the set.
+constexpr size_t kMinWebTokenChars = 16;
+
+// The web monitor's bearer token: `tokenFile`, else the unit's credential, else none (""). One
+// line ending (echo, an editor) is not part of it. A token file that cannot be read, or whose
+// token is shorter than kMinWebTokenChars, starts or ends with white space or holds a control
+// character (it could never be presented in an Authorization header) is an error naming the
+// file, `configPath` and the key.
+Result<std::string> readWebToken(const WebConfig& web, const std::string& configPath);
+// The same for the token file `path`, named in errors by `key`.
+Result<std::string> readWebTokenFile(const std::string& path, const std::string& configPath,
+                                     std::string_view key);
+
+// The key the unit's credential is named by in errors.
+constexpr std::string_view kWebTokenCredentialKey =
+    "the unit's credential web-token (the file web-token beside the config)";
 
 }  // namespace previs

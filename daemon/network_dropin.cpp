@@ -49,12 +49,16 @@ Result<std::set<std::string>> addressesOf(const std::string& host, const char* k
     return out;
 }
 
-// A socket unit handing previsd one socket named `name`.
+// A socket unit handing previsd one socket named `name`. BindsTo=: the socket lives only while
+// previsd does, so a packet never starts a previsd an operator stopped or that exited 2 (a config
+// error); `systemctl start previsd` brings its sockets back. FreeBind=: an address that is not up
+// yet at boot (a DHCP lease, a cable plugged in later) does not keep previsd from starting.
 std::string socketUnit(const std::string& what, const std::string& listen, const std::string& name,
                        const std::string& allow) {
     return fmt::format(
-        "{}[Unit]\nDescription=previs: {}\n\n[Socket]\n{}\nFileDescriptorName={}\n"
-        "Service=previsd.service\nIPAddressDeny=any\nIPAddressAllow={}\n",
+        "{}[Unit]\nDescription=previs: {}\nBindsTo=previsd.service\n\n[Socket]\n{}\n"
+        "FreeBind=yes\nFileDescriptorName={}\nService=previsd.service\nIPAddressDeny=any\n"
+        "IPAddressAllow={}\n",
         kHeader, what, listen, name, allow);
 }
 
@@ -77,6 +81,19 @@ Result<std::string> senderUnit(const std::string& what, const std::string& hostP
 
 Result<std::map<std::string, std::string>> networkUnits(const NetworkConfig& network,
                                                         const NetworkUnitOptions& options) {
+    // Each value is written into a unit as a setting's value: a newline would add a setting.
+    const std::pair<const char*, const std::string&> written[] = {
+        {"[freed] out", network.freed.out},
+        {"[opentrackio] out", network.opentrackio.out},
+        {"[tracking] listen", options.freedInListen},
+        {"[web] listen", network.web.listen},
+        {"the config's folder", options.webTokenSource}};
+    for (const auto& [key, value] : written)
+        if (hasControlCharacter(value))
+            return makeError(
+                "{} holds a control character (a newline?), which would end up in a systemd unit "
+                "as a setting of its own; write it on one line",
+                key);
     std::map<std::string, std::string> units;
     std::vector<std::string> sockets;
     if (!network.freed.out.empty()) {

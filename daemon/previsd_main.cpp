@@ -37,6 +37,12 @@ int check(const ServiceConfig& config) {
             return 2;
         }
     }
+    if (!config.network.web.listen.empty()) {
+        if (Result<std::string> token = readWebToken(config.network.web, config.path); !token) {
+            logError("{}", token.message());
+            return 2;
+        }
+    }
     logInfo("{}: OK (scene {} with {} triangles; output {}; button {})", config.path,
             config.scenePath, scene->geometry.triangles.size(), toString(config.output.kind),
             config.button ? config.button->chip + ":" + config.button->line : "none");
@@ -50,6 +56,17 @@ int writeNetworkUnits(const ServiceConfig& config, const std::string& dir) {
     options.freedInListen = config.tracking.freedListen;
     options.webTokenSource =
         (std::filesystem::absolute(config.path).parent_path() / "web-token").string();
+    // The token the unit will load as its credential, checked now rather than at start.
+    std::error_code statFailed;
+    if (!config.network.web.listen.empty() && config.network.web.tokenFile.empty() &&
+        std::filesystem::is_regular_file(options.webTokenSource, statFailed)) {
+        if (Result<std::string> token =
+                readWebTokenFile(options.webTokenSource, config.path, kWebTokenCredentialKey);
+            !token) {
+            logError("{}", token.message());
+            return 2;
+        }
+    }
     Result<std::map<std::string, std::string>> units = networkUnits(config.network, options);
     if (!units) {
         logError("{}: {}", config.path, units.message());
@@ -81,6 +98,7 @@ int run(const std::string& configPath, bool checkOnly, const std::string& unitsD
 
     // Before any thread starts, so that only run()'s signalfd sees these.
     blockServiceSignals();
+    raiseOpenFileLimit();
     bool userError = false;
     Result<std::unique_ptr<Service>> service = Service::create(*config, &userError);
     if (!service) {

@@ -4,6 +4,7 @@
 #include <pthread.h>
 #include <signal.h>
 #include <sys/eventfd.h>
+#include <sys/resource.h>
 #include <sys/signalfd.h>
 #include <unistd.h>
 
@@ -282,6 +283,23 @@ std::string statusJson(const ServiceStatus& s) {
     return j.dump();
 }
 
+uint64_t raiseOpenFileLimit() {
+    rlimit limit{};
+    if (::getrlimit(RLIMIT_NOFILE, &limit) != 0) return 0;
+    if (limit.rlim_cur < limit.rlim_max) {
+        rlimit raised = limit;
+        raised.rlim_cur = limit.rlim_max;
+        if (::setrlimit(RLIMIT_NOFILE, &raised) == 0) limit = raised;
+    }
+    if (limit.rlim_cur < kWantedOpenFiles)
+        logWarning(
+            "descriptors: previsd may open only {} files (hard limit {}); the web's clients could "
+            "leave the cameras and a take without: raise it to {} (LimitNOFILE= in the unit, "
+            "ulimit -Hn in a shell)",
+            uint64_t(limit.rlim_cur), uint64_t(limit.rlim_max), kWantedOpenFiles);
+    return limit.rlim_cur;
+}
+
 void blockServiceSignals() {
     sigset_t set;
     sigemptyset(&set);
@@ -441,7 +459,7 @@ Status Service::Threads::openTimecode(const ServiceConfig& config) {
 
 Status Service::Threads::openWeb(const WebConfig& c, Service* service) {
     if (c.listen.empty()) return {};
-    Result<std::string> token = readWebToken(c);
+    Result<std::string> token = readWebToken(c, service->config_.path);
     if (!token) return token.error();
     WebMonitorSettings settings;
     settings.listen = c.listen;

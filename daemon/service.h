@@ -157,4 +157,13 @@ private:
 // only run()'s signalfd sees them.
 void blockServiceSignals();
 
+// The descriptors previsd wants at least: the cameras' buffers, a take's files, the GPU's, the
+// sockets (the unit's LimitNOFILE= is 16384; docs/systemd.md).
+constexpr uint64_t kWantedOpenFiles = 4096;
+
+// Raises the soft limit on open descriptors to the hard one (a shell's soft limit is 1024, which
+// the network's clients could leave the cameras and the take without) and returns the soft
+// limit in effect. Logs once when it stays under kWantedOpenFiles.
+uint64_t raiseOpenFileLimit();
+
 }  // namespace previs

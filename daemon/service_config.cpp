@@ -423,6 +423,10 @@ Status ConfigReader::parseFreedIn(const toml::table& t, TrackingConfig& c) const
     Result<std::optional<std::string>> listen = r_.string(t, "tracking", "listen");
     if (!listen) return listen.error();
     if (*listen) {
+        if (hasControlCharacter(**listen))
+            return fail(t.get("listen"),
+                        "'tracking.listen' holds a control character (a newline?); write "
+                        "HOST:PORT alone, e.g. \"0.0.0.0:40000\"");
         if (Result<std::pair<std::string, std::string>> split = splitHostPort(**listen); !split)
             return fail(t.get("listen"), "'tracking.listen': {} (e.g. \"0.0.0.0:40000\")",
                         split.message());

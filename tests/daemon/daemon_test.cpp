@@ -1,6 +1,8 @@
 // Host tests of the service's pieces that need no GPU: the mode machine, the control socket,
 // the status JSON contract (DESIGN.md §3) and the camera-convention conversions.
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <sys/resource.h>
 #include <sys/socket.h>
 #include <sys/un.h>
 #include <unistd.h>
@@ -19,6 +21,7 @@
 #include "daemon/control_server.h"
 #include "daemon/memory_budget.h"
 #include "daemon/mode_machine.h"
+#include "daemon/network_dropin.h"
 #include "daemon/pipeline_stages.h"
 #include "daemon/recorded_events.h"
 #include "daemon/service.h"
@@ -262,6 +265,63 @@ TEST(TakeRecorder, HammeredStartAndStopNeverCrashHangOrLoseATake) {
     }
 }
 
+// A shell's soft limit of 1024 is raised to the hard one at start (issue 52, High 2).
+TEST(Descriptors, TheSoftLimitIsRaisedToTheHardOne) {
+    rlimit before{};
+    ASSERT_EQ(::getrlimit(RLIMIT_NOFILE, &before), 0);
+    if (before.rlim_max < 512) GTEST_SKIP() << "hard limit " << before.rlim_max;
+    const rlimit low{256, before.rlim_max};
+    ASSERT_EQ(::setrlimit(RLIMIT_NOFILE, &low), 0);
+    EXPECT_EQ(raiseOpenFileLimit(), uint64_t(before.rlim_max));
+    rlimit after{};
+    ASSERT_EQ(::getrlimit(RLIMIT_NOFILE, &after), 0);
+    EXPECT_EQ(after.rlim_cur, before.rlim_max);
+    ::setrlimit(RLIMIT_NOFILE, &before);
+}
+
+// With the process a few descriptors short of its limit (the network took the rest), a take
+// still starts, records its frames and ends as a session that opens: what the unit's
+// LimitNOFILE= and the web's connection bound keep for it.
+TEST(TakeRecorder, ATakeRecordsWithTheProcessNearItsDescriptorLimit) {
+    TakeRecorder recorder(recorderConfig("near_fd_limit"));
+    rlimit before{};
+    ASSERT_EQ(::getrlimit(RLIMIT_NOFILE, &before), 0);
+    size_t open = 0;
+    for ([[maybe_unused]] const auto& entry : fs::directory_iterator("/proc/self/fd")) ++open;
+    const rlimit tight{rlim_t(open + 256), before.rlim_max};
+    ASSERT_EQ(::setrlimit(RLIMIT_NOFILE, &tight), 0);
+    // Everything but kLeft descriptors taken, as idle connections would.
+    constexpr int kLeft = 16;
+    std::vector<int> taken;
+    for (int fd; (fd = ::open("/dev/null", O_RDONLY | O_CLOEXEC)) >= 0;) taken.push_back(fd);
+    for (int i = 0; i < kLeft && !taken.empty(); ++i) {
+        ::close(taken.back());
+        taken.pop_back();
+    }
+    Result<std::string> take = recorder.start("near_limit");
+    constexpr int kFrames = 20;
+    for (int n = 0; take && n < kFrames; ++n) {
+        auto frame = std::make_shared<Frame>();
+        frame->width = 8;
+        frame->height = 8;
+        frame->rgb.assign(8 * 8 * 3, uint8_t(n));
+        frame->timestampNs = uint64_t(n + 1) * 33'000'000;
+        frame->sequence = uint64_t(n);
+        frame->wallClockNs = 1'700'000'000'000'000'000ull + frame->timestampNs;
+        recorder.addFrame("scene", frame);
+    }
+    Result<std::string> stopped = take ? recorder.stop() : take;
+    const RecordStatus status = recorder.status();
+    for (int fd : taken) ::close(fd);
+    ::setrlimit(RLIMIT_NOFILE, &before);
+    ASSERT_TRUE(take) << take.message();
+    ASSERT_TRUE(stopped) << stopped.message();
+    EXPECT_TRUE(status.stoppedBecause.empty()) << status.stoppedBecause;
+    EXPECT_EQ(status.frames, uint64_t(kFrames));
+    Result<SessionInfo> session = openSession(*take);
+    ASSERT_TRUE(session) << session.message();
+}
+
 TEST(ControlServer, ReplacesAStaleSocketButNotALiveOne) {
     const std::string path = socketPath("stale.sock");
     {
@@ -291,6 +351,48 @@ TEST(ControlServer, ClientNamesTheSocketWhenNoServerRuns) {
     ASSERT_FALSE(reply);
     EXPECT_NE(reply.message().find("nobody.sock"), std::string::npos) << reply.message();
     EXPECT_NE(reply.message().find("is previsd running"), std::string::npos);
+}
+
+// A control character in any value written into a generated unit is refused, naming where it
+// came from (issue 52): the config refuses it first, this keeps a newline from ever adding a
+// setting to a unit systemd runs as root.
+TEST(NetworkUnits, AValueWithANewlineIsRefusedNotWrittenIntoAUnit) {
+    NetworkConfig network;
+    network.web.listen = "127.0.0.1:8080\nExecStartPre=/bin/sh -c id";
+    Result<std::map<std::string, std::string>> units = networkUnits(network);
+    ASSERT_FALSE(units);
+    EXPECT_NE(units.message().find("[web] listen holds a control character"), std::string::npos)
+        << units.message();
+    network.web.listen = "127.0.0.1:8080";
+    NetworkUnitOptions options;
+    options.webTokenSource = "/etc/pre\nvis/web-token";
+    units = networkUnits(network, options);
+    ASSERT_FALSE(units);
+    EXPECT_NE(units.message().find("the config's folder"), std::string::npos) << units.message();
+    options.webTokenSource = "/etc/previs/web-token";
+    units = networkUnits(network, options);
+    ASSERT_TRUE(units) << units.message();
+}
+
+// Each socket unit lives only while previsd does (BindsTo=: a packet never starts a previsd an
+// operator stopped or that exited 2) and binds an address that is not up yet (FreeBind=).
+// tests/systemd/socket_units_vm.sh checks both under systemd.
+TEST(NetworkUnits, SocketsAreBoundToTheServiceAndBindAnAddressNotUpYet) {
+    NetworkConfig network;
+    network.web.listen = "192.0.2.77:8080";
+    network.freed.out = "127.0.0.1:40000";
+    NetworkUnitOptions options;
+    options.freedInListen = "0.0.0.0:40001";
+    Result<std::map<std::string, std::string>> units = networkUnits(network, options);
+    ASSERT_TRUE(units) << units.message();
+    int sockets = 0;
+    for (const auto& [name, text] : *units) {
+        if (!name.ends_with(".socket")) continue;
+        ++sockets;
+        EXPECT_NE(text.find("\nBindsTo=previsd.service\n"), std::string::npos) << name << text;
+        EXPECT_NE(text.find("\nFreeBind=yes\n"), std::string::npos) << name << text;
+    }
+    EXPECT_EQ(sockets, 3);
 }
 
 TEST(StatusJson, HasTheDesignFields) {

@@ -10,6 +10,7 @@
 #include <fstream>
 #include <string>
 
+#include "daemon/network_config.h"
 #include "tests/support/temp_dir.h"
 #include "tests/support/test_data.h"
 
@@ -375,6 +376,16 @@ position_m = [1, 0, 0]
                              "control = \"gain\"",
                              "source = \"libcamera\"\n")),
          {"'cameras.fisheye.bracket.control' has no meaning for a libcamera camera"}},
+        // Written into the generated socket units (issue 52): a newline would add a setting.
+        {"web_listen_newline",
+         minimal("", "[web]\nlisten = \"127.0.0.1\\nExecStartPre=/bin/sh:8080\""),
+         {"'web.listen' holds a control character"}},
+        {"tracking_listen_newline",
+         minimal("", "listen = \"0.0.0.0\\n[Socket]\\nFreeBind=no:40000\""),
+         {"'tracking.listen' holds a control character"}},
+        {"freed_out_tab",
+         minimal("", "[freed]\nout = \"10.0.0.\\t2:40000\""),
+         {"'freed.out' holds a control character"}},
         {"render_photon_splat_type",
          minimal("", "[render]\nphoton_splat = \"yes\""),
          {"'render.photon_splat'"}},
@@ -488,6 +499,48 @@ TEST(ServiceConfig, MissingFileAndFolder) {
     Result<ServiceConfig> folder = loadServiceConfig(tempDir().string());
     ASSERT_FALSE(folder);
     EXPECT_NE(folder.message().find("not a regular file"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace previs
+
+namespace previs {
+namespace {
+
+// The web token (issue 52): one line ending is allowed; a short token, white space at either
+// end (which no Authorization header carries) and control characters are refused in one line
+// naming the config, the key and the token file.
+TEST(WebToken, ShortPaddedOrControlTokensAreRefusedNamingTheConfigAndKey) {
+    const std::string config = "/etc/previs/previsd.toml";
+    WebConfig web;
+    web.tokenFile = writeFile("token_ok", "0123456789abcdef0123\n");
+    Result<std::string> ok = readWebToken(web, config);
+    ASSERT_TRUE(ok) << ok.message();
+    EXPECT_EQ(*ok, "0123456789abcdef0123");
+    web.tokenFile = writeFile("token_crlf", "0123456789abcdef\r\n");
+    ok = readWebToken(web, config);
+    ASSERT_TRUE(ok) << ok.message();
+    EXPECT_EQ(*ok, "0123456789abcdef");
+    const std::pair<const char*, const char*> bad[] = {
+        {"token_short", "s3cret-token\n"},
+        {"token_leading_space", " 0123456789abcdef0123\n"},
+        {"token_trailing_space", "0123456789abcdef0123 \n"},
+        {"token_tab", "0123456789\tabcdef0123\n"},
+        {"token_two_lines", "0123456789abcdef0123\n\n"},
+        {"token_empty", ""},
+    };
+    for (const auto& [name, text] : bad) {
+        web.tokenFile = writeFile(name, text);
+        Result<std::string> token = readWebToken(web, config);
+        ASSERT_FALSE(token) << name << " was accepted";
+        for (const std::string& part : {config, std::string("[web] token_file"), web.tokenFile})
+            EXPECT_NE(token.message().find(part), std::string::npos)
+                << name << ": '" << part << "' not in: " << token.message();
+        EXPECT_EQ(token.message().find('\n'), std::string::npos) << token.message();
+    }
+    web.tokenFile = writeFile("token_short", "s3cret-token\n");
+    EXPECT_NE(readWebToken(web, config).message().find("at least 16 characters"),
+              std::string::npos);
 }
 
 }  // namespace

@@ -100,7 +100,7 @@ security-network)
     conf=$tmp/etc/previs/previsd.toml
     grep -q '^\[web\]' "$conf" || printf '\n[web]\nlisten = "0.0.0.0:8080"\n' >>"$conf"
     printf '\n[freed]\nout = "127.0.0.1:40000"\n\n[opentrackio]\nout = "multicast"\n' >>"$conf"
-    echo "a-test-token" >"$tmp/etc/previs/web-token"
+    echo "a-test-token-of-24-chars" >"$tmp/etc/previs/web-token"
     units=$tmp/etc/systemd/system
     "$previsd" --config "$conf" --network-units "$units" || fail "previsd --network-units failed"
     dropin=$units/previsd.service.d/network.conf
@@ -114,6 +114,11 @@ security-network)
     grep -qx 'IPAddressAllow=239.135.1.1' "$units/previsd-opentrackio.socket" ||
         fail "OpenTrackIO's socket is not limited to its group"
     grep -qx 'ListenStream=0.0.0.0:8080' "$units/previsd-web.socket" || fail "no web socket"
+    # A packet never starts a previsd that was stopped or exited 2; an address not up yet binds.
+    for s in "$units"/previsd-*.socket; do
+        grep -qx 'BindsTo=previsd.service' "$s" || fail "$s does not live and die with previsd"
+        grep -qx 'FreeBind=yes' "$s" || fail "$s cannot bind an address that is not up yet"
+    done
     mkdir -p "$tmp/merged"
     cat "$unit" "$dropin" >"$tmp/merged/previsd.service"
     sed -i "s#^ExecStart=.*#ExecStart=/bin/true#; s#^ExecReload=.*#ExecReload=/bin/true#" \
@@ -149,6 +154,8 @@ devices)
     # Bounded memory and tasks, sized in the unit's comment from the measured peak.
     [ "$(values MemoryMax)" = "4G" ] || fail "MemoryMax= is '$(values MemoryMax)', not 4G"
     [ "$(values TasksMax)" = "512" ] || fail "TasksMax= is '$(values TasksMax)', not 512"
+    # Descriptors for the cameras and a take whatever the network does (issue 52).
+    [ "$(values LimitNOFILE)" = "16384" ] || fail "LimitNOFILE= is '$(values LimitNOFILE)', not 16384"
     # Settings that would cut previsd off its devices or its JIT.
     [ "$(values MemoryDenyWriteExecute)" != "yes" ] || fail "MemoryDenyWriteExecute=yes breaks llvmpipe"
     echo "device access settings OK"
