@@ -122,9 +122,16 @@ ImageF Film::compositeOverPlate(const ImageF& plateFree) const {
     ImageF out = blankImage(width_, height_, 3);
     for (size_t i = 0; i < size_t(width_) * height_; ++i) {
         const double mask = up.pixels[i * 4 + 3];
-        for (int c = 0; c < 3; ++c)
-            out.pixels[i * 3 + c] = float(compositeSum(up.pixels[i * 4 + c], mask, 1.0,
-                                                       plate_->pixels[i * plate_->channels + c]));
+        for (int c = 0; c < 3; ++c) {
+            const double mean = compositeSum(up.pixels[i * 4 + c], mask, 1.0,
+                                             plate_->pixels[i * plate_->channels + c]);
+            // Light is never negative, but Eq. 1's mean is where a virtual shadow (L_om − L_or
+            // < 0) takes more than the plate holds there (noise, or a plate darker than the real
+            // scene renders). Clamped here, on the mean: per sample it would bias the estimate.
+            // The display pass clamps the same (film_display.comp); the differential layer
+            // (Mixed − Real) stays signed.
+            out.pixels[i * 3 + c] = float(std::max(mean, 0.0));
+        }
     }
     return out;
 }

@@ -362,6 +362,39 @@ TEST_F(DifferentialTest, VirtualObjectsShadowReflectBleedAndAreOccluded) {
     EXPECT_NEAR(at(box, 2), 0.5, kPixelT * sigma(box, 2) + 0.02) << "blue shows through the box";
 }
 
+// Where a virtual shadow takes more light than the plate holds (here a plate darker than the
+// real scene renders; on set also noise), Eq. 1's mean L_oc + L_om − L_or is below zero. The
+// composite is light: clamped at zero once accumulated. The differential L_om − L_or, which a
+// compositor adds to its own plate, keeps its sign.
+TEST_F(DifferentialTest, CompositeIsNeverNegativeAndTheDifferentialStaysSigned) {
+    Scene s = realSet();
+    addSphere(s, {0.6f, 0.5f, 0.0f}, 0.2f, addMaterial(s, lambert(glm::vec3(0.5f))), false, 8, 16);
+    RenderSettings rs = differentialSettings(16, 16);
+    rs.maxDepth = 2;
+    ImageF plate;
+    plate.width = rs.width;
+    plate.height = rs.height;
+    plate.channels = 3;
+    plate.pixels.assign(size_t(rs.width) * rs.height * 3, 0.05f);
+    auto renderer = Renderer::create(ctx(), s, rs);
+    ASSERT_TRUE(renderer.ok()) << renderer.message();
+    Renderer& r = **renderer;
+    ASSERT_TRUE(r.setPlate(plate).ok());
+    r.setSeed(7);
+    ASSERT_TRUE(r.render(8).ok());
+    const ImageF composite = take(r.image(Aov::Composite));
+    const ImageF mixed = take(r.image(Aov::Mixed));
+    const ImageF real = take(r.image(Aov::Real));
+    ASSERT_EQ(composite.pixels.size(), mixed.pixels.size());
+    for (size_t i = 0; i < composite.pixels.size(); ++i)
+        ASSERT_GE(composite.pixels[i], 0.0f) << "pixel " << i / 3 << " channel " << i % 3;
+    // The shadow's differential is about −0.47 (the sun's 3·cos45° on albedo 0.7).
+    const glm::ivec2 shadow = pixelOf(s, rs, {0.1f, 0.0f, 0.0f});
+    const size_t at = (size_t(shadow.y) * rs.width + shadow.x) * 3;
+    EXPECT_LT(mixed.pixels[at] - real.pixels[at], -0.2f) << "the differential lost its sign";
+    EXPECT_EQ(composite.pixels[at], 0.0f);
+}
+
 }  // namespace
 }  // namespace previs::testing
 
