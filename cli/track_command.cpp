@@ -138,8 +138,7 @@ int run(TrackOptions& o) {
                 calib->imageSize().height);
         std::vector<TagDetection> detections = detector->detect(gray);
         if (refit)
-            refineTagCornersInLinearLight(detections, gray, table, detector->bitsAcrossBorder(),
-                                          &*calib);
+            refineTagCornersInLinearLight(detections, gray, table, detector->border(), &*calib);
 
         std::vector<std::optional<cv::Matx44d>> tagPoses(detections.size());
         if (o.tagSizeM)

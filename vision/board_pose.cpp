@@ -243,7 +243,7 @@ const TrackingState& Tracker::track(const cv::Mat& gray) {
     detections_ = searchTags(detector_, gray, predicted, &search_);
     if (settings_.linearEdges && settings_.linearFromCode)
         refineTagCornersInLinearLight(detections_, gray, *settings_.linearFromCode,
-                                      detector_.bitsAcrossBorder(), &calibration_);
+                                      detector_.border(), &calibration_);
     return update(detections_);
 }
 

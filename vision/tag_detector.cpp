@@ -119,7 +119,9 @@ Result<TagDetector> TagDetector::create(const TagDetectorSettings& settings) {
     return detector;
 }
 
-int TagDetector::bitsAcrossBorder() const { return family_->width_at_border; }
+TagBorder TagDetector::border() const {
+    return {family_->width_at_border, family_->reversed_border};
+}
 
 std::vector<TagDetection> TagDetector::detect(const cv::Mat& gray) {
     return detect(gray, settings_.decimate > 0.0f ? settings_.decimate : 1.0f);

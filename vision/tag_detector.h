@@ -35,6 +35,14 @@ struct TagDetectorSettings {
 // Families Debian's libapriltag 3.3 ships.
 const std::vector<std::string>& supportedTagFamilies();
 
+// The edge the detector's quad follows: `bits` across it (the family's width_at_border: 8 for
+// tag36h11), ink inside and paper outside, or the other way round when `reversed` (the white
+// ring inside a black one of tagStandard41h12/52h13, tagCircle21h7/49h12, tagCustom48h12).
+struct TagBorder {
+    int bits = 8;
+    bool reversed = false;
+};
+
 struct TagDetection {
     int id = -1;
     int hamming = 0;
@@ -67,8 +75,8 @@ public:
     std::vector<TagDetection> detect(const cv::Mat& gray, float decimate);
 
     const TagDetectorSettings& settings() const { return settings_; }
-    // The family's black square in bits (its width_at_border: 8 for tag36h11).
-    int bitsAcrossBorder() const;
+    // The family's quad edge (its width_at_border and reversed_border).
+    TagBorder border() const;
 
 private:
     TagDetector() = default;

@@ -175,7 +175,8 @@ std::array<cv::Point2d, 4> fromIdeal(const CameraCalibration* lens,
 // edge's profiles reach `window` pixels each side (0: as far as the border allows); `spread`
 // receives each edge's blur.
 std::optional<std::array<cv::Point2d, 4>> refineQuad(const std::array<cv::Point2d, 4>& c,
-                                                     const LinearFrame& linear, int bits,
+                                                     const LinearFrame& linear,
+                                                     const TagBorder& border,
                                                      const CameraCalibration* lens,
                                                      const std::array<double, 4>& window,
                                                      std::array<double, 4>& spread) {
@@ -187,6 +188,8 @@ std::optional<std::array<cv::Point2d, 4>> refineQuad(const std::array<cv::Point2
         const cv::Point2d u = (b - a) * (1.0 / length);
         cv::Point2d n(u.y, -u.x);
         if (n.dot(0.5 * (a + b) - centre) < 0) n = -n;
+        // Profiles run from ink to paper: inward across a reversed border.
+        if (border.reversed) n = -n;
         // The border's width along the profile: the tag's extent across this edge, in bits (in
         // perspective the extent along the edge says nothing about it).
         double lo = 0.0, hi = 0.0;
@@ -194,8 +197,8 @@ std::optional<std::array<cv::Point2d, 4>> refineQuad(const std::array<cv::Point2
             lo = std::min(lo, n.dot(p - a));
             hi = std::max(hi, n.dot(p - a));
         }
-        const double bitPx = (hi - lo) / bits;
-        if (bitPx < kMinBitPx || length / bits < kMinBitPx) return std::nullopt;
+        const double bitPx = (hi - lo) / border.bits;
+        if (bitPx < kMinBitPx || length / border.bits < kMinBitPx) return std::nullopt;
         double r = std::min(kProfileBits * bitPx, kMaxProfilePx);
         if (window[i] > 0.0) r = std::min(r, window[i]);
         // Stay a profile's length clear of the corners, where the other edge's blur enters.
@@ -262,8 +265,9 @@ LinearFromCode identityLinearFromCode() {
 
 EdgeRefineStats refineTagCornersInLinearLight(std::vector<TagDetection>& detections,
                                               const cv::Mat& gray8, const LinearFromCode& table,
-                                              int bitsAcrossBorder, const CameraCalibration* lens) {
-    PV_ASSERT(gray8.type() == CV_8UC1 && bitsAcrossBorder > 0);
+                                              const TagBorder& border,
+                                              const CameraCalibration* lens) {
+    PV_ASSERT(gray8.type() == CV_8UC1 && border.bits > 0);
     const LinearFrame linear{gray8, table};
     EdgeRefineStats stats;
     for (TagDetection& d : detections) {
@@ -272,7 +276,7 @@ EdgeRefineStats refineTagCornersInLinearLight(std::vector<TagDetection>& detecti
         std::optional<std::array<cv::Point2d, 4>> quad = detected;
         std::array<double, 4> window{}, spread{};
         for (int pass = 0; pass < kPasses && quad; ++pass) {
-            quad = refineQuad(*quad, linear, bitsAcrossBorder, lens, window, spread);
+            quad = refineQuad(*quad, linear, border, lens, window, spread);
             for (int i = 0; i < 4; ++i)
                 window[i] = std::max(kMinWindowPx, kWindowSpreads * spread[i] + kWindowSlackPx);
         }

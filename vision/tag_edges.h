@@ -14,9 +14,12 @@
 // checkerboard, finer than a pixel near the horizon, averages to half of white); read through
 // sRGB, every tag36h11 corner there moves 0.6-0.7 px outward and the tag poses go from 2-21 mm
 // to 33-71 mm off; through its true curve (gamma 1) the corners move by -0.14..+0.13 px, 0.02 px
-// outward on average, not significantly (tests/vision/tag_edges_test.cpp). So a caller without
-// the camera's radiometric model keeps libapriltag's corners (TrackerSettings::linearFromCode
-// unset, `previs track` without --tone-curve).
+// outward on average, not significantly. The same renders recorded through sRGB put
+// libapriltag's edges 0.5-1.3 px off on every family; the refit through sRGB brings them back
+// to within 0.6 px of the truth and every tag within ViSP's thresholds
+// (tests/vision/tag_edges_test.cpp, bench/visp_tag_poses.h). So a caller without the camera's
+// radiometric model keeps libapriltag's corners (TrackerSettings::linearFromCode unset, `previs
+// track` without --tone-curve).
 
 #include <array>
 #include <opencv2/core.hpp>
@@ -44,18 +47,16 @@ struct EdgeRefineStats {
 };
 
 // Re-fits the corners of each detection on the 8-bit grey frame they came from, read in linear
-// light through `table`. `bitsAcrossBorder` is the family's width_at_border (8 for tag36h11): the
-// black border is one bit wide, and a printed tag has at least one bit of white around it, so a
-// profile of ±0.8 bit across an edge sees only ink, the edge and paper. A tag whose bits are
-// under 2.5 px, whose edges lack contrast, or whose re-fitted corner lands more than 1.5 px from
-// libapriltag's keeps libapriltag's corners; so does every tag of a family whose border is
-// reversed (white inside the detected quad, data bits outside: tagStandard41h12/52h13,
-// tagCircle21h7/49h12, tagCustom48h12), which fails the contrast test (paper darker than ink).
-// With a distorting `lens` the edges' lines are fitted where they are straight: in its ideal
-// pinhole pixels.
+// light through `table`. `border` is the family's quad edge (TagDetector::border): `bits` across
+// it, and on each side of it one bit of a single tone (the black border and the white margin of
+// tag36h11; the white ring inside the black one of a reversed border), so a profile of ±0.8 bit
+// across an edge sees only ink, the edge and paper. A tag whose bits are under 2.5 px, whose
+// edges lack contrast (or have ink and paper the wrong way round), or whose re-fitted corner
+// lands more than 1.5 px from libapriltag's keeps libapriltag's corners. With a distorting `lens`
+// the edges' lines are fitted where they are straight: in its ideal pinhole pixels.
 EdgeRefineStats refineTagCornersInLinearLight(std::vector<TagDetection>& detections,
                                               const cv::Mat& gray8, const LinearFromCode& table,
-                                              int bitsAcrossBorder,
+                                              const TagBorder& border,
                                               const CameraCalibration* lens = nullptr);
 
 }  // namespace previs

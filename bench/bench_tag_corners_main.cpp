@@ -1,0 +1,32 @@
+// previs_bench_tag_corners [DATA_DIR]: the box's tag corners and poses against ViSP's rendered
+// benchmark's truth, by family and way of placing the corners (bench/visp_tag_poses.h), as the
+// table of BENCHMARKS.md "Tag corners on third-party images".
+#include <cstdio>
+
+#include "base/data_paths.h"
+#include "base/log.h"
+#include "bench/visp_tag_poses.h"
+
+int main(int argc, char** argv) {
+    const auto shared = previs::sharedDataDir();
+    if (argc <= 1 && !shared) {
+        previs::logError("no shared data found: pass DATA_DIR or set PREVIS_DATA_DIR");
+        return 2;
+    }
+    const std::string data = argc > 1 ? argv[1] : shared->string();
+    std::vector<previs::bench::VispFamilyResult> results;
+    for (previs::bench::VispImage image :
+         {previs::bench::VispImage::AsRendered, previs::bench::VispImage::ThroughSrgb}) {
+        for (const previs::bench::VispTagFamily& f : previs::bench::vispTagFamilies()) {
+            auto r = previs::bench::measureVispFamily(data, f, image,
+                                                      previs::bench::vispCornerMethods());
+            if (!r) {
+                previs::logError("{}", r.message());
+                return 1;
+            }
+            results.push_back(std::move(r).value());
+        }
+    }
+    std::fputs(previs::bench::vispTagTable(results).c_str(), stdout);
+    return 0;
+}
