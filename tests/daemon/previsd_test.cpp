@@ -586,7 +586,7 @@ TEST(Previsd, TheSetsNetworkGetsThePoseTheTimecodeAndThePicture) {
     ASSERT_TRUE(web.isValid() && freedOut.isValid());
     const fs::path dir = scratch() / "network";
     fs::create_directories(dir);
-    writeFile(dir / "token", "s3cret-token\n");
+    writeFile(dir / "token", "s3cret-token-0123456789\n");
     const std::string config = demoConfig(
         "network",
         fmt::format("[freed]\nout = \"127.0.0.1:{}\"\ncamera_id = 7\n\n[opentrackio]\n"
@@ -650,7 +650,8 @@ TEST(Previsd, TheSetsNetworkGetsThePoseTheTimecodeAndThePicture) {
     EXPECT_EQ(viaWeb["mode"], "preview");
     EXPECT_TRUE(viaWeb["web"].is_object());
     test::RawConnection stream(webPort);
-    ASSERT_TRUE(stream.send("GET /stream.mjpeg HTTP/1.1\r\nHost: t\r\n\r\n"));
+    ASSERT_TRUE(stream.send(
+        fmt::format("GET /stream.mjpeg HTTP/1.1\r\nHost: 127.0.0.1:{}\r\n\r\n", webPort)));
     ASSERT_TRUE(stream.receiveUntil("image/jpeg", 30s)) << stream.buffer().substr(0, 300);
     ASSERT_TRUE(stream.receiveUntil(std::string("\xff\xd8\xff", 3), 30s));
     EXPECT_EQ(test::post(webPort, "/mode", "toggle").status, 401);
@@ -659,11 +660,68 @@ TEST(Previsd, TheSetsNetworkGetsThePoseTheTimecodeAndThePicture) {
               401);
     EXPECT_EQ((*status(socket))["mode"], "preview");
     EXPECT_EQ(
-        test::post(webPort, "/mode", "refine", "Authorization: Bearer s3cret-token\r\n").status,
+        test::post(webPort, "/mode", "refine", "Authorization: Bearer s3cret-token-0123456789\r\n")
+            .status,
         200);
     EXPECT_EQ((*status(socket))["mode"], "refine");
     p.signal(SIGTERM);
     EXPECT_EQ(p.wait(30s), std::optional<int>(0)) << p.log();
+}
+
+// A double tap on the page, the control socket and both at once (issue 52): starts and stops
+// hammered from several threads through POST /record and `record start|stop` never end previsd
+// or hang it; the take rolling at the end is closed by SIGTERM and opens as a session.
+TEST(Previsd, StartsAndStopsFromThePageAndTheSocketAtOnceNeverEndOrHangIt) {
+    int webPort = 0;
+    UniqueFD web = listeningSocket(webPort);
+    ASSERT_TRUE(web.isValid());
+    const fs::path dir = scratch() / "double_tap";
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    const std::string token = "double-tap-token-0123456789";
+    writeFile(dir / "token", token + "\n");
+    const std::string config =
+        demoConfig("double_tap",
+                   fmt::format("[record]\ndir = \"{}/takes\"\nmin_free_mb = 1\n\n[web]\nlisten = "
+                               "\"127.0.0.1:{}\"\ntoken_file = \"{}\"\nstream_fps = 1\n",
+                               dir.string(), webPort, (dir / "token").string()));
+    const std::string socket = socketOf(config);
+    ChildProcess p({previsd(), "--config", config}, (dir / "previsd.log").string(),
+                   {{web.get(), "web"}});
+    auto up = waitFor(socket, kStartup,
+                      [](const nlohmann::json& s) { return s["framesShown"].get<int>() >= 1; });
+    ASSERT_TRUE(up) << p.log();
+    const std::string auth = "Authorization: Bearer " + token + "\r\n";
+    std::vector<std::thread> callers;
+    for (int i = 0; i < 4; ++i)
+        callers.emplace_back([&, i] {
+            for (int n = 0; n < 6; ++n) {
+                const char* what = (n + i / 2) % 2 == 0 ? "start" : "stop";
+                if (i % 2 == 0)
+                    (void)test::post(webPort, "/record", what, auth);
+                else
+                    (void)controlRequest(socket, std::string("record ") + what, 30000);
+            }
+        });
+    for (std::thread& t : callers) t.join();
+    ASSERT_TRUE(p.running()) << p.log();
+    // Rolling at the end, whatever the order was: SIGTERM must close it.
+    Result<std::string> start = controlRequest(socket, "record start", 30000);
+    ASSERT_TRUE(start) << start.message() << p.log();
+    auto rolling = waitFor(socket, 60s, [](const nlohmann::json& s) {
+        return s["recording"] == true && s["record"]["frames"].get<int>() >= 2;
+    });
+    ASSERT_TRUE(rolling && (*rolling)["recording"] == true) << p.log();
+    const std::string take = (*rolling)["record"]["path"];
+    p.signal(SIGTERM);
+    std::optional<int> code = p.wait(30s);
+    ASSERT_TRUE(code) << "still running 30 s after SIGTERM; its threads:\n"
+                      << p.threads() << p.log();
+    EXPECT_EQ(*code, 0) << p.log();
+    Result<SessionInfo> info = openSession(take);
+    ASSERT_TRUE(info) << info.message();
+    ASSERT_NE(info->cameraWithRole("scene"), nullptr);
+    EXPECT_GE(decodableFrames(info->cameraWithRole("scene")->dir), 2u);
 }
 
 // FreeD in (issue 39): a tracker's packets drive the camera instead of the tags. The pose shown
