@@ -60,13 +60,16 @@ void FreedInput::run() {
         const int64_t now = monotonicNowNs();
         // A datagram larger than the buffer is cut to it, still far from FreeD's 29 bytes.
         const std::span<const uint8_t> datagram(buffer.data(), std::min(size_t(n), buffer.size()));
-        if (record_) record_(now, datagram);
-        add(now, datagram);
+        const FreedParse parse = decodeFreed(datagram, cameraId_);
+        // Only what the pose is read from goes into the take: the configured tracker's valid
+        // packets (a refused datagram is counted, never recorded, so a flood of junk costs the
+        // take nothing).
+        if (record_ && parse.ok()) record_(now, datagram);
+        add(now, parse);
     }
 }
 
-void FreedInput::add(int64_t receivedNs, std::span<const uint8_t> datagram) {
-    const FreedParse parse = decodeFreed(datagram, cameraId_);
+void FreedInput::add(int64_t receivedNs, const FreedParse& parse) {
     std::lock_guard lock(mutex_);
     if (!parse.ok()) {
         ++stats_.rejected[size_t(parse.error)];

@@ -3,8 +3,9 @@
 // FreeD in (issue 39, docs/freed.md "FreeD in"): a tracker's or PTZ head's packets, received on
 // [tracking] listen, give the camera pose instead of the tags when [tracking] source = "freed".
 // Each packet is stamped with CLOCK_MONOTONIC at receipt (the cameras' clock), kept for a few
-// seconds, and recorded into a rolling take (freed.csv, as received), so a take with the board
-// in view calibrates the tracker (`previs freed-calibrate`) and a take with the tracker replays.
+// seconds, and recorded into a rolling take (freed.csv: the configured camera's valid packets as
+// received, within the recorder's budget, daemon/take_recorder.h), so a take with the board in
+// view calibrates the tracker (`previs freed-calibrate`) and a take with the tracker replays.
 // A frame's pose is the packet series read at the frame's capture time plus the calibrated delay,
 // mapped through the calibration's mount offset and world (net/freed_calibration.h).
 
@@ -40,7 +41,8 @@ struct FreedInputStats {
 
 class FreedInput {
 public:
-    // Each datagram as received (every one, refused or not: the take keeps what came).
+    // Each valid packet of the configured camera, as received (a refused datagram is counted in
+    // stats(), never passed on).
     using PacketSink = std::function<void(int64_t receivedNs, std::span<const uint8_t> datagram)>;
 
     // Live: receives on [tracking] listen, or on `passed` (systemd's socket, docs/systemd.md),
@@ -66,7 +68,7 @@ public:
 private:
     FreedInput(const TrackingConfig& tracking, PacketSink record);
     void run();
-    void add(int64_t receivedNs, std::span<const uint8_t> datagram);
+    void add(int64_t receivedNs, const FreedParse& parse);
 
     std::optional<uint8_t> cameraId_;
     FreedCalibration calibration_;  // identity and no delay when none is configured

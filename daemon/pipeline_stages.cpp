@@ -284,8 +284,8 @@ Result<std::shared_ptr<LiveLighting>> LightingStage::fromMap(const cv::Mat& map,
     return out;
 }
 
-Status writeLightingMap(const LiveLighting& lighting, const std::string& path) {
-    if (!lighting.captured) return makeError("lighting '{}': no captured map", path);
+Status writeLightingMap(const LiveLighting& lighting, AtomicFile& file) {
+    if (!lighting.captured) return makeError("lighting '{}': no captured map", file.path());
     const EnvironmentMap& map = *lighting.captured;
     ImageF image;
     image.width = map.width;
@@ -294,19 +294,16 @@ Status writeLightingMap(const LiveLighting& lighting, const std::string& path) {
     image.pixels.reserve(map.radiance.size() * 3);
     for (const glm::vec3& v : map.radiance)
         image.pixels.insert(image.pixels.end(), {v.r, v.g, v.b});
-    return writeExr(path, image);
+    return writeExr(file.fd(), file.path(), image);
 }
 
 Status saveLighting(const LiveLighting& lighting, const std::string& path) {
-    // A ".tmp.exr" name keeps the extension the writer goes by.
-    const std::string temporary = path + ".tmp.exr";
-    if (Status s = writeLightingMap(lighting, temporary); !s) return s;
-    std::error_code ec;
-    std::filesystem::rename(temporary, path, ec);
-    if (ec) {
-        std::filesystem::remove(temporary, ec);
-        return makeError("cannot save the lighting to '{}': {}", path, ec.message());
-    }
+    // Not synced, as before: the next save follows within seconds.
+    Result<AtomicFile> file = AtomicFile::create(path, {.durable = false});
+    if (!file) return makeError("cannot save the lighting: {}", file.message());
+    if (Status s = writeLightingMap(lighting, *file); !s) return s;
+    if (Status s = file->commit(); !s)
+        return makeError("cannot save the lighting: {}", s.message());
     return {};
 }
 

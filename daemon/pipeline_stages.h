@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "base/atomic_file.h"
 #include "base/result.h"
 #include "capture/frame.h"
 #include "daemon/freed_input.h"
@@ -87,11 +88,11 @@ struct LiveLighting {
     double clippedSolidAngleFraction = 0.0;
 };
 
-// Keeps `lighting`'s captured map at `path` (OpenEXR), written to a temporary name beside it and
-// renamed, so the file is whole or absent even when the box loses power while writing.
+// Keeps `lighting`'s captured map at `path` (OpenEXR), written to a temporary beside it and
+// renamed (base/atomic_file.h), so the file is whole or absent.
 Status saveLighting(const LiveLighting& lighting, const std::string& path);
-// Writes `lighting`'s captured map to `path` as OpenEXR (no rename; the caller makes it whole).
-Status writeLightingMap(const LiveLighting& lighting, const std::string& path);
+// Writes `lighting`'s captured map into `file` as OpenEXR; the caller commits it.
+Status writeLightingMap(const LiveLighting& lighting, AtomicFile& file);
 
 class TrackingStage {
 public:

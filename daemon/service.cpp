@@ -81,6 +81,8 @@ OutputSettings outputSettings(const OutputConfig& c) {
     s.card = c.card;
     s.connector = c.connector;
     s.mode = c.mode;
+    s.files = {
+        .keepFrames = c.keepFrames, .maxBytes = c.maxMb << 20, .minFreeBytes = c.minFreeMb << 20};
     return s;
 }
 
@@ -221,6 +223,7 @@ std::string statusJson(const ServiceStatus& s) {
                             {"dropped", s.record.dropped},
                             {"bytes", s.record.bytes},
                             {"freeBytes", s.record.freeBytes}};
+        r["freedDropped"] = s.record.freedDropped;  // FreeD packets left out (issue 52)
         if (!s.record.stoppedBecause.empty()) r["stoppedBecause"] = s.record.stoppedBecause;
         j["record"] = r;
     } else {

@@ -634,7 +634,10 @@ Status ConfigReader::parseRefine(const toml::table& t, RefineConfig& c) const {
 }
 
 Status ConfigReader::parseOutput(const toml::table& t, OutputConfig& c) const {
-    if (Status st = r_.checkKeys(t, "output", {"kind", "folder", "card", "connector", "mode"}); !st)
+    if (Status st = r_.checkKeys(t, "output",
+                                 {"kind", "folder", "card", "connector", "mode", "keep_frames",
+                                  "max_mb", "min_free_mb"});
+        !st)
         return st;
     std::string kind = "none";
     if (Status st = stringKey(t, "output", "kind", kind); !st) return st;
@@ -657,6 +660,15 @@ Status ConfigReader::parseOutput(const toml::table& t, OutputConfig& c) const {
             return fail(&t, "[output] kind = \"files\" needs 'folder' (where the PNG frames go)");
         c.folder = (r_.folder() / fs::path(c.folder)).lexically_normal().string();
     }
+    auto count = [&](const char* key, uint64_t& field, int64_t low, int64_t high) {
+        int64_t value = int64_t(field);
+        Status st = r_.integerIn(t, "output", key, value, low, high);
+        field = uint64_t(value);
+        return st;
+    };
+    if (Status st = count("keep_frames", c.keepFrames, 1, 10'000'000); !st) return st;
+    if (Status st = count("max_mb", c.maxMb, 1, 1 << 24); !st) return st;
+    if (Status st = count("min_free_mb", c.minFreeMb, 0, 1 << 24); !st) return st;
     if (!c.mode.empty()) {
         unsigned w = 0, h = 0, hz = 0;
         char tail = 0;

@@ -186,6 +186,11 @@ struct OutputConfig {
     std::string card;       // kms: "/dev/dri/card0"; "" = the first card with a connected display
     std::string connector;  // kms: "Virtual-1", "HDMI-A-1"; "" = the first connected
     std::string mode;       // kms: "1920x1080" or "1920x1080@60"; "" = the preferred mode
+    // files: a ring of the newest frames, at most so many and so many MiB, and none written
+    // while the folder's disk has less than min_free_mb free (display/files_output.h).
+    uint64_t keepFrames = 1000;
+    uint64_t maxMb = 1024;
+    uint64_t minFreeMb = 1024;
 };
 
 // The mode button and the status LED (libgpiod). Absent: no button (the socket still works).

@@ -187,6 +187,7 @@ Result<std::string> TakeRecorder::openTake(const std::string& name,
     {
         std::lock_guard lock(mutex_);
         status_ = RecordStatus{};
+        freedRate_ = FreedRate{};
         status_.recording = true;
         status_.path = dir;
         status_.freeBytes = *free;
@@ -297,8 +298,38 @@ void TakeRecorder::addEvent(SessionEvent event) {
 }
 
 void TakeRecorder::addFreedPacket(int64_t receivedNs, std::span<const uint8_t> datagram) {
-    // Tiny beside a frame: never counted against the queue (or dropped as a frame would be).
-    push(FreedPacket{receivedNs, std::vector<uint8_t>(datagram.begin(), datagram.end())}, 0);
+    // Counted against the queue as what it costs in memory, within its own share of it, and at
+    // most kFreedRecordHz: a flood of valid packets is bounded in memory, in the take's
+    // freed.csv and in the time a stop takes to drain, and never crowds out a frame.
+    const size_t bytes = sizeof(std::pair<Item, size_t>) + datagram.size();
+    {
+        std::lock_guard lock(mutex_);
+        if (!accepting_) return;
+        if (!freedRate_.take(receivedNs) ||
+            freedQueuedBytes_ + bytes > queueLimitBytes_ / kFreedQueueShare ||
+            queuedBytes_ + bytes > queueLimitBytes_) {
+            if (status_.freedDropped++ % 1000 == 0)
+                logWarning(
+                    "recording: FreeD packets beyond {} a second or the queue's share: {} left "
+                    "out of the take so far (a flood on [tracking] listen?)",
+                    kFreedRecordHz, status_.freedDropped);
+            return;
+        }
+        freedQueuedBytes_ += bytes;
+        queuedBytes_ += bytes;
+        queue_.emplace_back(FreedPacket{receivedNs, {datagram.begin(), datagram.end()}}, bytes);
+    }
+    wake_.notify_one();
+}
+
+bool TakeRecorder::FreedRate::take(int64_t nowNs) {
+    if (lastNs != 0 && nowNs > lastNs)
+        tokens = std::min(double(kFreedBurst),
+                          tokens + double(nowNs - lastNs) * 1e-9 * double(kFreedRecordHz));
+    lastNs = std::max(lastNs, nowNs);
+    if (tokens < 1.0) return false;
+    tokens -= 1.0;
+    return true;
 }
 
 void TakeRecorder::addLighting(std::shared_ptr<const LiveLighting> lighting) {
@@ -387,7 +418,7 @@ Status TakeRecorder::write(Take& take, Item& item) {
     const auto& lit = std::get<std::shared_ptr<const LiveLighting>>(item);
     const uint64_t ns = lit->timestampNs + take.clocks["fisheye"].offsetNs;
     return take.writer.writeLighting(
-        ns, [&](const std::string& path) { return writeLightingMap(*lit, path); },
+        ns, [&](AtomicFile& file) { return writeLightingMap(*lit, file); },
         estimatedLightsJson(lit->lights));
 }
 
@@ -397,13 +428,18 @@ void TakeRecorder::runWriter(std::unique_ptr<Take> take) {
     for (;;) {
         std::optional<std::pair<Item, size_t>> next;
         {
+            // Idle, the writer still makes what it wrote durable when due (flushIfDue below).
+            const std::optional<Clock::time_point> flushDue = take->writer.flushDue();
+            const Clock::time_point wakeBy = std::min(Clock::now() + std::chrono::milliseconds(200),
+                                                      flushDue.value_or(Clock::time_point::max()));
             std::unique_lock lock(mutex_);
-            wake_.wait_for(lock, std::chrono::milliseconds(200),
-                           [&] { return !queue_.empty() || draining_; });
+            wake_.wait_until(lock, wakeBy, [&] { return !queue_.empty() || draining_; });
             if (!queue_.empty()) {
                 next = std::move(queue_.front());
                 queue_.pop_front();
                 queuedBytes_ -= next->second;
+                if (std::holds_alternative<FreedPacket>(next->first))
+                    freedQueuedBytes_ -= next->second;
             } else if (draining_) {
                 break;
             }
@@ -413,6 +449,10 @@ void TakeRecorder::runWriter(std::unique_ptr<Take> take) {
                 stoppedBecause = s.message();
                 break;
             }
+        }
+        if (Status s = take->writer.flushIfDue(); !s) {
+            stoppedBecause = s.message();
+            break;
         }
         if (Clock::now() - take->lastSpaceCheck > std::chrono::seconds(1)) {
             take->lastSpaceCheck = Clock::now();
@@ -447,6 +487,7 @@ void TakeRecorder::runWriter(std::unique_ptr<Take> take) {
     }
     queue_.clear();
     queuedBytes_ = 0;
+    freedQueuedBytes_ = 0;
     keepCaptured_.store(false);
     accepting_ = false;
     draining_ = false;

@@ -34,7 +34,9 @@ struct RecordStatus {
     std::string path;      // the take's folder (the last take's after it stopped)
     uint64_t frames = 0;   // scene-camera frames written
     uint64_t dropped = 0;  // frames the recorder could not take (queue full)
-    uint64_t bytes = 0;    // bytes written to the take
+    // FreeD packets left out of freed.csv: beyond kFreedRecordHz or FreeD's share of the queue.
+    uint64_t freedDropped = 0;
+    uint64_t bytes = 0;  // bytes written to the take
     uint64_t freeBytes = 0;
     // Set when the take stopped by itself (a full disk, a write error); cleared by the next start.
     std::string stoppedBecause;
@@ -73,8 +75,14 @@ public:
     // An event without a timestamp gets the last scene frame's (+1 ns): a replay fires it
     // after that frame, on the same clock as the frames.
     void addEvent(SessionEvent event);
-    // A tracker's FreeD datagram as received ([tracking] listen): the take's freed.csv.
+    // A tracker's valid FreeD packet as received ([tracking] listen; daemon/freed_input.h passes
+    // only the configured camera's): the take's freed.csv. At most kFreedRecordHz (bursts of
+    // kFreedBurst) and 1/kFreedQueueShare of [record] queue_mb; the rest counted in freedDropped.
     void addFreedPacket(int64_t receivedNs, std::span<const uint8_t> datagram);
+    // Far above any tracker's rate (FreeD runs at the video rate, 240 Hz at most).
+    static constexpr int kFreedRecordHz = 1000;
+    static constexpr int kFreedBurst = 250;
+    static constexpr uint64_t kFreedQueueShare = 32;
     void addLighting(std::shared_ptr<const LiveLighting> lighting);
     // A plate-consistency reading (render/plate_consistency.h): the take's plate_consistency.csv.
     void addPlateConsistency(const PlateConsistencyReading& reading);
@@ -98,6 +106,13 @@ private:
         std::variant<FrameItem, PoseRecord, SessionEvent, std::shared_ptr<const LiveLighting>,
                      FreedPacket, PlateConsistencyReading>;
 
+    // A token bucket on the packets' receipt times: kFreedRecordHz, kFreedBurst deep.
+    struct FreedRate {
+        double tokens = kFreedBurst;
+        int64_t lastNs = 0;
+        bool take(int64_t nowNs);
+    };
+
     struct Take;  // the writer's state, owned by its thread
     // start()'s work once it owns the starting phase: the folder, the files, the writer.
     Result<std::string> openTake(const std::string& name,
@@ -115,6 +130,8 @@ private:
     std::condition_variable wake_;
     std::deque<std::pair<Item, size_t>> queue_;
     size_t queuedBytes_ = 0;
+    size_t freedQueuedBytes_ = 0;  // FreeD's part of queuedBytes_
+    FreedRate freedRate_;
     bool accepting_ = false;  // a take rolls and takes items
     bool draining_ = false;   // stop(): write what is queued, then end
     RecordStatus status_;

@@ -10,6 +10,7 @@
 #include <map>
 #include <set>
 
+#include "base/atomic_file.h"
 #include "base/log.h"
 #include "capture/recorded_source.h"
 #include "daemon/pipeline_renderer.h"
@@ -304,22 +305,20 @@ private:
             layers.push_back(std::move(*layer));
             names.push_back(name);
         }
-        std::vector<ExrLayer> exr{{"", &rgba}};
-        for (size_t i = 0; i < layers.size(); ++i) exr.push_back({names[i], &layers[i]});
+        std::vector<ExrLayer> layersOut{{"", &rgba}};
+        for (size_t i = 0; i < layers.size(); ++i) layersOut.push_back({names[i], &layers[i]});
         const std::string exrPath = framePath(o_.outDir, index, "exr");
         const std::string pngPath = framePath(o_.outDir, index, "png");
-        // Temporary names keep the extension the writers go by; both renamed once both exist.
-        const std::string exrTmp = exrPath + ".tmp.exr", pngTmp = pngPath + ".tmp.png";
         const DisplayImage shown = r_.toDisplay(std::move(*composite));
-        Status s = writeExrLayers(exrTmp, exr);
-        if (s) s = writePng(pngTmp, shown.width, shown.height, shown.rgb);
-        std::error_code ec;
-        if (s) fs::rename(pngTmp, pngPath, ec);
-        if (s && !ec) fs::rename(exrTmp, exrPath, ec);
-        if (s && ec) s = makeError("{}: {}", exrPath, ec.message());
-        fs::remove(exrTmp, ec);
-        fs::remove(pngTmp, ec);
-        return s;
+        Result<std::vector<uint8_t>> png = encodePng(shown.width, shown.height, shown.rgb, pngPath);
+        if (!png) return png.error();
+        // The EXR marks a frame done (a resubmission renders what lacks one): the PNG is renamed
+        // into place first. Not synced, as before: a frame lost to a power cut renders again.
+        Result<AtomicFile> exr = AtomicFile::create(exrPath, {.durable = false});
+        if (!exr) return exr.error();
+        if (Status s = writeExrLayers(exr->fd(), exrPath, layersOut); !s) return s;
+        if (Status s = writeFileAtomic(pngPath, *png, {.durable = false}); !s) return s;
+        return exr->commit();
     }
 
     Result<ImageF> aov(const std::string& name) {

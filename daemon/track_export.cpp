@@ -7,6 +7,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
+#include "base/atomic_file.h"
 #include "base/log.h"
 #include "daemon/take_files.h"
 #include "daemon/take_track.h"
@@ -158,12 +159,7 @@ int runTrackExport(const TrackExportOptions& o) {
     const CameraCalibration& calibration = *config->sceneCamera.calibration;
     const double vfov = verticalFovDegrees(calibration);
     const TimecodeRate rate = timecodeRateOf(*track);
-    const std::string tmp = o.outPath + ".tmp";
-    std::ofstream out(tmp, std::ios::binary);
-    if (!out) {
-        logError("export-track: cannot write {}", tmp);
-        return 2;
-    }
+    std::string text;
     size_t written = 0, gaps = 0;
     for (size_t i = 0; i < track->frames.size(); ++i) {
         const TakeFrame& f = track->frames[i];
@@ -173,16 +169,17 @@ int runTrackExport(const TrackExportOptions& o) {
             continue;
         }
         if (ext == ".chan")
-            out << chanLine(i, *pose, vfov);
+            text += chanLine(i, *pose, vfov);
         else
-            out << jsonLine(i, f, *pose, calibration, rate, o.smoothed).dump() << "\n";
+            text += jsonLine(i, f, *pose, calibration, rate, o.smoothed).dump() + "\n";
         ++written;
     }
-    out.close();
-    std::error_code ec;
-    if (!out || (fs::rename(tmp, o.outPath, ec), ec)) {
-        fs::remove(tmp, ec);
-        logError("export-track: cannot write {} (is the disk full?)", o.outPath);
+    // Whole or not at all, beside the target (base/atomic_file.h); not synced, as before.
+    if (Status s =
+            writeFileAtomic(o.outPath, {reinterpret_cast<const uint8_t*>(text.data()), text.size()},
+                            {.durable = false});
+        !s) {
+        logError("export-track: cannot write {}: {}", o.outPath, s.message());
         return 1;
     }
     logInfo("export-track: {} frame(s) of {} written to {}{}", written, track->frames.size(),

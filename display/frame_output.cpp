@@ -8,7 +8,7 @@ namespace previs {
 Result<std::unique_ptr<FrameOutput>> makeFrameOutput(const OutputSettings& settings) {
     if (settings.kind == "none") return std::unique_ptr<FrameOutput>(new NoneOutput);
     if (settings.kind == "files") {
-        auto out = FilesOutput::create(settings.folder);
+        auto out = FilesOutput::create(settings.folder, settings.files);
         if (!out) return out.error();
         return std::unique_ptr<FrameOutput>(std::move(*out));
     }

@@ -38,6 +38,15 @@ public:
     virtual bool lastFrameDropped() const { return false; }
 };
 
+// What the files output keeps ([output] keep_frames, max_mb, min_free_mb): a service that runs
+// for days writes a frame per render, so the folder holds a ring of the newest frames and never
+// takes the disk's last free space.
+struct FilesOutputLimits {
+    uint64_t keepFrames = 1000;                 // the newest this many frames
+    uint64_t maxBytes = uint64_t(1) << 30;      // and at most this many bytes of them
+    uint64_t minFreeBytes = uint64_t(1) << 30;  // no frame written below this much free space
+};
+
 // The service config's [output] table (docs/config-format.md).
 struct OutputSettings {
     std::string kind = "none";  // "kms" | "files" | "none"
@@ -47,6 +56,7 @@ struct OutputSettings {
     std::string connector{};    // kms: "" = first connected, else a name like "Virtual-1"
     std::string mode{};         // kms: "" = preferred, else "WIDTHxHEIGHT" or "WIDTHxHEIGHT@HZ"
     bool forceLegacy = false;   // kms: legacy SetCrtc/PageFlip even where atomic works (tests)
+    FilesOutputLimits files{};  // files: the ring's size and the free-space floor
 };
 
 // Builds the configured output. Errors are the user's (unknown kind, a folder that cannot be

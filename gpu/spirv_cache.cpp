@@ -13,6 +13,7 @@
 #include <string_view>
 #include <system_error>
 
+#include "base/atomic_file.h"
 #include "base/log.h"
 #include "gpu/spirv_specialise.h"
 
@@ -116,29 +117,20 @@ bool SpirvCache::store(const Key& key, std::span<const uint32_t> module) const {
         logDebug("shader cache {}: {}; specialising without it", dir_.string(), ec.message());
         return false;
     }
-    // A name no other writer uses; rename() then replaces any entry atomically, so a reader
+    // A temporary no other writer uses; rename() then replaces any entry atomically, so a reader
     // (another process of the same build) sees the old file or the new one, never a part.
-    std::random_device random;
-    const fs::path final = entryPath(key);
-    const fs::path temporary =
-        dir_ / fmt::format(".{}.{}.{:08x}.tmp", keyName(key), ::getpid(), random());
     EntryHeader h{kEntryMagic, kEntryFormat,  key.low,
                   key.high,    module.size(), XXH3_64bits(module.data(), module.size_bytes())};
-    bool written = false;
-    {
-        std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
-        if (out) {
-            out.write(reinterpret_cast<const char*>(&h), sizeof(h));
-            out.write(reinterpret_cast<const char*>(module.data()),
-                      std::streamsize(module.size_bytes()));
-            out.close();
-            written = bool(out);
-        }
-    }
-    if (written) fs::rename(temporary, final, ec);
-    if (!written || ec) {
-        fs::remove(temporary, ec);
-        logDebug("shader cache {}: cannot write an entry; specialising without it", dir_.string());
+    Result<AtomicFile> file =
+        AtomicFile::create(entryPath(key).string(), {.durable = false, .hidden = true});
+    Status written = file ? file->write({reinterpret_cast<const uint8_t*>(&h), sizeof(h)})
+                          : Status(file.error());
+    if (written)
+        written =
+            file->write({reinterpret_cast<const uint8_t*>(module.data()), module.size_bytes()});
+    if (written) written = file->commit();
+    if (!written) {
+        logDebug("shader cache {}: {}; specialising without it", dir_.string(), written.message());
         return false;
     }
     evictOver(maxBytes_);

@@ -18,6 +18,7 @@
 #include <sstream>
 #include <string_view>
 
+#include "base/atomic_file.h"
 #include "base/log.h"
 
 #ifndef PREVIS_VERSION
@@ -104,23 +105,6 @@ std::string nowRfc3339() {
 
 std::string errnoText() { return std::strerror(errno); }
 
-// write() until done: a regular file takes all bytes in one call unless the disk is full or a
-// signal interrupts it; an index line must still be one call (docs/session-format.md), which the
-// caller ensures by checking that the first call wrote everything.
-Status writeAll(int fd, const void* data, size_t size, const std::string& path) {
-    const auto* p = static_cast<const uint8_t*>(data);
-    while (size > 0) {
-        const ssize_t n = ::write(fd, p, size);
-        if (n < 0) {
-            if (errno == EINTR) continue;
-            return makeError("{}: write failed: {} (is the disk full?)", path, errnoText());
-        }
-        p += n;
-        size -= size_t(n);
-    }
-    return {};
-}
-
 Status writeTextAtomic(const std::string& path, const std::string& text) {
     return writeFileAtomic(path,
                            std::span(reinterpret_cast<const uint8_t*>(text.data()), text.size()));
@@ -172,25 +156,6 @@ bool knownEvent(std::string_view source, std::string_view event, int version) {
 }
 
 }  // namespace
-
-Status writeFileAtomic(const std::string& path, std::span<const uint8_t> bytes) {
-    const std::string tmp = path + ".tmp";
-    UniqueFD fd(::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644));
-    if (!fd.isValid()) return makeError("{}: cannot create: {}", tmp, errnoText());
-    // On failure the partial .tmp goes: a full disk must not fill further.
-    if (Status s = writeAll(fd.get(), bytes.data(), bytes.size(), tmp); !s) {
-        ::unlink(tmp.c_str());
-        return s;
-    }
-    if (::fdatasync(fd.get()) != 0) {
-        ::unlink(tmp.c_str());
-        return makeError("{}: fdatasync failed: {}", tmp, errnoText());
-    }
-    fd.reset();
-    if (::rename(tmp.c_str(), path.c_str()) != 0)
-        return makeError("{}: cannot rename to {}: {}", tmp, path, errnoText());
-    return {};
-}
 
 const SessionCamera* SessionInfo::cameraWithRole(const std::string& role) const {
     for (const SessionCamera& c : cameras)
@@ -667,6 +632,21 @@ Status SessionWriter::syncIfDue() {
     return flush();
 }
 
+bool SessionWriter::unsynced() const {
+    return newEntries_ || std::any_of(indices_.begin(), indices_.end(),
+                                      [](const auto& index) { return index.second.dirty; });
+}
+
+std::optional<std::chrono::steady_clock::time_point> SessionWriter::flushDue() const {
+    if (!unsynced()) return std::nullopt;
+    return lastSync_ + flushInterval_;
+}
+
+Status SessionWriter::flushIfDue() {
+    if (!unsynced()) return {};
+    return syncIfDue();
+}
+
 Status SessionWriter::flush() {
     Status result;
     // Folders first: a durable index line must never name a file whose rename is not.
@@ -783,7 +763,8 @@ Status SessionWriter::appendRecord(const std::string& relPath, const std::string
                                    const std::string& line) {
     auto index = openIndex(relPath, header + "\n");
     if (!index) return index.error();
-    return appendLine(**index, line);
+    if (Status s = appendLine(**index, line); !s) return s;
+    return syncIfDue();
 }
 
 Status SessionWriter::writeEvent(const SessionEvent& event) {
@@ -806,7 +787,7 @@ Status SessionWriter::writeEvent(const SessionEvent& event) {
 }
 
 Status SessionWriter::writeLighting(uint64_t timestampNs,
-                                    const std::function<Status(const std::string& path)>& writeMap,
+                                    const std::function<Status(AtomicFile& file)>& writeMap,
                                     const std::string& lightsJson) {
     if (lightsJson.find_first_of("\n\r") != std::string::npos)
         return makeError("session lighting at {} ns: the lights JSON must be one line",
@@ -818,23 +799,10 @@ Status SessionWriter::writeLighting(uint64_t timestampNs,
         fmt::format("{}{}: timestampNs,file,lights\n", kLightingHeader, kSessionFormatVersion));
     if (!index) return index.error();
     const std::string file = fmt::format("{:06d}.exr", lightingSnapshots_);
-    const std::string path = dir_ + "/lighting/" + file;
-    // The EXR writer goes by the extension: "<n>.tmp.exr", which readers and cleanup treat as
-    // a *.tmp file.
-    const std::string tmp = dir_ + "/lighting/" + fmt::format("{:06d}.tmp.exr", lightingSnapshots_);
-    if (Status s = writeMap(tmp); !s) {
-        ::unlink(tmp.c_str());
-        return s;
-    }
-    {
-        UniqueFD fd(::open(tmp.c_str(), O_RDONLY | O_CLOEXEC));
-        if (!fd.isValid() || ::fdatasync(fd.get()) != 0) {
-            ::unlink(tmp.c_str());
-            return makeError("{}: fdatasync failed: {}", tmp, errnoText());
-        }
-    }
-    if (::rename(tmp.c_str(), path.c_str()) != 0)
-        return makeError("{}: cannot rename to {}: {}", tmp, path, errnoText());
+    Result<AtomicFile> map = AtomicFile::create(dir_ + "/lighting/" + file);
+    if (!map) return map.error();
+    if (Status s = writeMap(*map); !s) return s;
+    if (Status s = map->commit(); !s) return s;
     newEntries_ = true;
     ++lightingSnapshots_;
     if (Status s = appendLine(**index, fmt::format("{},{},{}\n", timestampNs, file, lightsJson));

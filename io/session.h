@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "base/atomic_file.h"
 #include "base/result.h"
 #include "base/unique_fd.h"
 
@@ -61,10 +62,6 @@ Result<SessionInfo> openSession(const std::string& dir);
 // when `folder`). Returns the absolute path, or one line naming `what` and the path.
 Result<std::string> containedPath(const std::string& root, const std::string& relative,
                                   const std::string& what, bool folder = false);
-
-// Writes a whole file durably: `path` either does not exist or holds all of `bytes` (tmp +
-// fdatasync + rename; the caller fsyncs the folder).
-Status writeFileAtomic(const std::string& path, std::span<const uint8_t> bytes);
 
 // fsync()s a folder, so the entries (new files, renames) in it survive a power cut.
 Status syncFolder(const std::string& dir);
@@ -179,10 +176,10 @@ public:
     Status writeFrame(const std::string& camera, uint64_t sequence, uint64_t timestampNs,
                       std::span<const uint8_t> encoded, const std::string& ext, uint32_t width,
                       uint32_t height, const FrameStamp& stamp = {});
-    // A lighting snapshot: `writeMap(path)` writes the environment map as OpenEXR to `path` (a
-    // temporary name, made durable and renamed here), then its index line follows.
+    // A lighting snapshot: `writeMap(file)` writes the environment map as OpenEXR into `file`
+    // (lighting/<n>.exr's temporary, made durable and renamed here), then its index line follows.
     Status writeLighting(uint64_t timestampNs,
-                         const std::function<Status(const std::string& path)>& writeMap,
+                         const std::function<Status(AtomicFile& file)>& writeMap,
                          const std::string& lightsJson);
     Status writePose(const PoseRecord& pose);
     Status writeEvent(const SessionEvent& event);
@@ -193,6 +190,12 @@ public:
                         const std::string& line);
     // Makes everything written so far durable (index files and folder entries).
     Status flush();
+    // The writer syncs as it writes, so what came just before a quiet spell would wait for the
+    // next write: its owner calls flushIfDue() when idle too, by flushDue() at the latest, so
+    // nothing written waits longer than flushInterval to be durable.
+    Status flushIfDue();
+    // When what is written but not yet durable must be made so; none when nothing waits.
+    std::optional<std::chrono::steady_clock::time_point> flushDue() const;
 
     const std::string& dir() const { return dir_; }
 
@@ -210,6 +213,7 @@ private:
     Result<Index*> openIndex(const std::string& relPath, const std::string& header);
     Status appendLine(Index& index, const std::string& line);
     Status syncIfDue();
+    bool unsynced() const;
     // Creates a folder under dir_ (and its missing parents), to be made durable at the next flush.
     Status createFolder(const std::string& relPath);
 

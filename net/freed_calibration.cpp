@@ -11,6 +11,7 @@
 #include <fstream>
 #include <opencv2/calib3d.hpp>
 
+#include "base/atomic_file.h"
 #include "config/toml_reader.h"
 #include "net/freed.h"
 
@@ -818,21 +819,11 @@ Status writeFreedCalibration(const std::string& path, const FreedCalibration& c)
         kFormat, kVersion, c.created.empty() ? utcNow() : c.created, c.delayMs, c.delaySigmaMs,
         c.delayCorrelation, matrixText(c.worldFromStage), matrixText(c.bodyFromCamera),
         c.rmsPositionMm, c.rmsRotationDeg, c.mountSigmaMm, c.mountSigmaDeg, c.samples, c.rejected);
-    // Written beside and renamed over, so a reader never sees half a file.
-    const std::string tmp = path + ".tmp";
-    {
-        std::ofstream out(tmp, std::ios::trunc);
-        out << text;
-        out.close();
-        if (!out)
-            return makeError("cannot write '{}': {}; choose another --out", tmp,
-                             std::strerror(errno));
-    }
-    if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-        const int err = errno;
-        std::remove(tmp.c_str());
-        return makeError("cannot write '{}': {}; choose another --out", path, std::strerror(err));
-    }
+    // Written beside and renamed over, so a reader never sees half a file; not synced, as before.
+    if (Status s = writeFileAtomic(
+            path, {reinterpret_cast<const uint8_t*>(text.data()), text.size()}, {.durable = false});
+        !s)
+        return makeError("{}; choose another --out", s.message());
     return {};
 }
 

@@ -15,6 +15,7 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "capture/recorded_source.h"
@@ -313,6 +314,60 @@ TEST(Session, TmpFilesIgnored) {
     }
 }
 
+// Issue 52: the writer's temporaries are new files of its own. Links planted at the names the
+// writer used to take ("<file>.tmp", "lighting/<n>.tmp.exr") are neither followed nor truncated.
+TEST(Session, WriterNeverWritesThroughAPlantedTemporary) {
+    const fs::path dir = freshDir("planted");
+    const fs::path victim = testing::scratchDir("session_test") / "planted_victim";
+    writeText(victim, "keep me");
+    fs::create_directories(dir / "cameras" / "scene");
+    fs::create_directories(dir / "lighting");
+    for (const fs::path& link :
+         {dir / "session.toml.tmp", dir / "config.toml.tmp",
+          dir / "cameras" / "scene" / "000000000000.png.tmp", dir / "lighting" / "000000.tmp.exr"})
+        fs::create_symlink(victim, link);
+    {
+        SessionWriterOptions options;
+        options.configToml = "[cameras.scene]\n";
+        auto writer = SessionWriter::create(dir.string(), options);
+        ASSERT_TRUE(writer.ok()) << writer.message();
+        ASSERT_TRUE(writer->writeFrame("scene", 0, 100, kBytes, "png", 4, 4));
+        ASSERT_TRUE(writer->writeLighting(
+            150,
+            [](AtomicFile& file) {
+                const std::string bytes = "exr bytes";
+                return file.write({reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()});
+            },
+            ""));
+    }
+    EXPECT_EQ(readText(victim), "keep me");
+    EXPECT_EQ(readText(dir / "cameras" / "scene" / "000000000000.png"),
+              std::string(kBytes.begin(), kBytes.end()));
+    EXPECT_EQ(readText(dir / "lighting" / "000000.exr"), "exr bytes");
+    EXPECT_EQ(readText(dir / "config.toml"), "[cameras.scene]\n");
+    EXPECT_TRUE(fs::is_symlink(dir / "session.toml.tmp")) << "what was there is left as it was";
+}
+
+// Issue 52: what is written just before a quiet spell is made durable within flushInterval
+// when its owner asks while idle (the recorder's writer thread does; takes_test checks the
+// file itself), not at the next write.
+TEST(Session, WriterSaysWhenAnIdleFlushIsDue) {
+    const fs::path dir = freshDir("idle_flush");
+    SessionWriterOptions options;
+    options.flushInterval = std::chrono::milliseconds(50);
+    auto writer = SessionWriter::create(dir.string(), options);
+    ASSERT_TRUE(writer.ok()) << writer.message();
+    EXPECT_FALSE(writer->flushDue().has_value()) << "nothing written yet";
+    ASSERT_TRUE(writer->writeEvent({100, "ctl", "mode=refine"}));
+    const std::optional<std::chrono::steady_clock::time_point> due = writer->flushDue();
+    ASSERT_TRUE(due.has_value()) << "a line waits to be made durable";
+    EXPECT_LE(*due - std::chrono::steady_clock::now(), options.flushInterval);
+    std::this_thread::sleep_until(*due);
+    ASSERT_TRUE(writer->flushIfDue());
+    EXPECT_FALSE(writer->flushDue().has_value()) << "flushed while idle";
+    EXPECT_TRUE(writer->flushIfDue()) << "nothing to do is no error";
+}
+
 TEST(Session, TakeIsTheCurrentVersion) {
     const fs::path dir = freshDir("take_version");
     ASSERT_TRUE(SessionWriter::create(dir.string()).ok());
@@ -335,15 +390,16 @@ TEST(Session, FrameStampsAndLightingRoundTrip) {
         for (uint64_t t : {150u, 250u})
             ASSERT_TRUE(writer->writeLighting(
                 t,
-                [](const std::string& path) -> Status {
-                    std::ofstream(path) << "exr bytes";
-                    return {};
+                [](AtomicFile& file) {
+                    const std::string bytes = "exr bytes";
+                    return file.write(
+                        {reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()});
                 },
                 lights));
         EXPECT_FALSE(writer->writeLighting(
-            300, [](const std::string&) { return Status(makeError("disk full")); }, lights));
+            300, [](AtomicFile&) { return Status(makeError("disk full")); }, lights));
         EXPECT_FALSE(writer->writeLighting(
-            300, [](const std::string&) { return Status{}; }, "two\nlines"));
+            300, [](AtomicFile&) { return Status{}; }, "two\nlines"));
     }
     auto frames = loadCameraIndex((dir / "cameras" / "scene").string());
     ASSERT_TRUE(frames.ok()) << frames.message();

@@ -1,0 +1,217 @@
+// Issue 52, the take recorder's writing: a FreeD flood on loopback against the real FreeD input
+// and recorder is bounded (only the configured tracker's valid packets are recorded, at most
+// TakeRecorder::kFreedRecordHz, the rest counted) and `record stop` returns at once; and what the
+// writer wrote before a quiet spell is made durable within flush_interval_ms, not at the next
+// write.
+
+#include <arpa/inet.h>
+#include <fcntl.h>
+#include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "base/unique_fd.h"
+#include "daemon/freed_input.h"
+#include "daemon/service_config.h"
+#include "daemon/take_recorder.h"
+#include "net/freed.h"
+#include "net/freed_calibration.h"
+#include "tests/support/temp_dir.h"
+#include "tests/support/test_data.h"
+
+namespace previs {
+namespace {
+
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+
+// Past the deadline the binary ends with a message: a stuck stop cannot be cancelled.
+class HangGuard {
+public:
+    HangGuard(const char* what, std::chrono::seconds deadline)
+        : thread_([this, what, deadline] {
+              std::unique_lock lock(mutex_);
+              if (!done_.wait_for(lock, deadline, [this] { return finished_; })) {
+                  std::fprintf(stderr, "FAIL: %s did not finish within %lld s (a hang)\n", what,
+                               static_cast<long long>(deadline.count()));
+                  std::_Exit(1);
+              }
+          }) {}
+    ~HangGuard() {
+        {
+            std::lock_guard lock(mutex_);
+            finished_ = true;
+        }
+        done_.notify_all();
+        thread_.join();
+    }
+
+private:
+    std::mutex mutex_;
+    std::condition_variable done_;
+    bool finished_ = false;
+    std::thread thread_;
+};
+
+ServiceConfig recorderConfig(const std::string& name) {
+    Result<ServiceConfig> config =
+        loadServiceConfig(testing::sourcePath("examples/demo/previsd.toml"));
+    EXPECT_TRUE(config) << config.message();
+    ServiceConfig c = config ? *config : ServiceConfig{};
+    const fs::path takes = testing::scratchDir("previs_take_writers_test") / name;
+    fs::remove_all(takes);
+    c.record.dir = takes.string();
+    c.record.minFreeMb = 0;
+    return c;
+}
+
+// A bound loopback UDP socket, as systemd would pass it, and its port.
+UniqueFD loopbackReceiver(uint16_t& port) {
+    UniqueFD fd(::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0));
+    sockaddr_in addr{};
+    addr.sin_family = AF_INET;
+    addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    socklen_t size = sizeof(addr);
+    if (!fd.isValid() || ::bind(fd.get(), reinterpret_cast<sockaddr*>(&addr), size) != 0 ||
+        ::getsockname(fd.get(), reinterpret_cast<sockaddr*>(&addr), &size) != 0)
+        return {};
+    port = ntohs(addr.sin_port);
+    return fd;
+}
+
+TEST(FreedFlood, OnlyTheTrackersValidPacketsAreRecordedWithinABoundAndDropsAreCounted) {
+    HangGuard guard("a FreeD flood and record stop", std::chrono::seconds(120));
+    ServiceConfig config = recorderConfig("flood");
+    config.record.queueMb = 16;  // the smallest budget allowed
+    TakeRecorder recorder(config);
+    Result<std::string> take = recorder.start("flood");
+    ASSERT_TRUE(take) << take.message();
+
+    uint16_t port = 0;
+    UniqueFD passed = loopbackReceiver(port);
+    ASSERT_TRUE(passed.isValid()) << std::strerror(errno);
+    TrackingConfig tracking = config.tracking;
+    tracking.freedCameraId = 2;
+    auto input = FreedInput::listen(tracking, std::move(passed),
+                                    [&](int64_t receivedNs, std::span<const uint8_t> datagram) {
+                                        recorder.addFreedPacket(receivedNs, datagram);
+                                    });
+    ASSERT_TRUE(input) << input.message();
+
+    // The flood: the tracker's own packets as fast as loopback takes them, mixed with another
+    // camera's, broken checksums and short datagrams.
+    UniqueFD out(::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0));
+    sockaddr_in to{};
+    to.sin_family = AF_INET;
+    to.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    to.sin_port = htons(port);
+    ASSERT_EQ(::connect(out.get(), reinterpret_cast<sockaddr*>(&to), sizeof(to)), 0);
+    const FreedBytes good = encodeFreed(FreedPacket{.cameraId = 2, .panDeg = 10}).bytes;
+    FreedBytes badSum = good;
+    badSum[28] ^= 0x5a;
+    const FreedBytes otherCamera = encodeFreed(FreedPacket{.cameraId = 3}).bytes;
+    const std::vector<const uint8_t*> kinds = {good.data(), badSum.data(), otherCamera.data()};
+    const auto floodEnd = std::chrono::steady_clock::now() + 1500ms;
+    uint64_t sent = 0;
+    while (std::chrono::steady_clock::now() < floodEnd) {
+        for (int i = 0; i < 64; ++i, ++sent) {
+            // Errors (a full socket buffer) are part of a flood: the next one goes on.
+            [[maybe_unused]] ssize_t n =
+                sent % 4 == 3 ? ::send(out.get(), good.data(), 20, MSG_DONTWAIT)
+                              : ::send(out.get(), kinds[sent % 4], good.size(), MSG_DONTWAIT);
+        }
+    }
+    std::this_thread::sleep_for(100ms);  // what is in the socket's buffer arrives
+    const RecordStatus during = recorder.status();
+    const auto stopStart = std::chrono::steady_clock::now();
+    Result<std::string> stopped = recorder.stop();
+    const double stopSeconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - stopStart).count();
+    ASSERT_TRUE(stopped) << stopped.message();
+    (*input)->stop();
+    const FreedInputStats stats = (*input)->stats();
+
+    ASSERT_GT(stats.packets, uint64_t(3 * TakeRecorder::kFreedBurst))
+        << "the flood reached the input (" << sent << " sent)";
+    const fs::path csv = fs::path(*take) / "freed.csv";
+    Result<FreedRecording> recorded = loadFreedRecording(csv.string(), 2);
+    ASSERT_TRUE(recorded) << recorded.message();
+    EXPECT_EQ(recorded->rejected, 0u) << "a refused datagram is never recorded";
+    EXPECT_EQ(recorded->cameraIds, std::vector<uint8_t>{2}) << "nor another camera's";
+    const std::vector<TimedPose>& poses = recorded->stageFromBody;
+    ASSERT_FALSE(poses.empty());
+    // The token bucket's own bound, on the packets' receipt times (no wall clock involved).
+    const double spanS = double(poses.back().timestampNs - poses.front().timestampNs) * 1e-9;
+    EXPECT_LE(double(poses.size()),
+              TakeRecorder::kFreedRecordHz * spanS + TakeRecorder::kFreedBurst + 1)
+        << poses.size() << " packets recorded over " << spanS << " s";
+    EXPECT_LE(fs::file_size(csv), uint64_t(100) * (poses.size() + 1)) << "about 80 bytes a line";
+    // Every valid packet is recorded or counted, none left waiting in memory.
+    const RecordStatus after = recorder.status();
+    EXPECT_GT(during.freedDropped, 0u);
+    EXPECT_EQ(poses.size() + after.freedDropped, stats.packets);
+    EXPECT_LT(stopSeconds, 30.0) << "a hang guard only: the drain is a few hundred lines";
+    EXPECT_EQ(after.dropped, 0u) << "no frame was crowded out";
+}
+
+// cachestat(2) (Linux 6.5): the pages of a file not yet written back; its number is the same on
+// every architecture (the generic syscall table), and older headers do not name it.
+struct CacheStat {
+    uint64_t cache, dirty, writeback, evicted, recentlyEvicted;
+};
+std::optional<uint64_t> unsyncedPages(const fs::path& file) {
+    UniqueFD fd(::open(file.c_str(), O_RDONLY | O_CLOEXEC));
+    if (!fd.isValid()) return std::nullopt;
+    struct {
+        uint64_t offset = 0, length = 0;  // the whole file
+    } range;
+    CacheStat stat{};
+    constexpr long kCachestat = 451;
+    if (::syscall(kCachestat, fd.get(), &range, &stat, 0) != 0) return std::nullopt;
+    return stat.dirty + stat.writeback;
+}
+
+TEST(TakeWriter, WhatCameBeforeAQuietSpellIsMadeDurableWithoutAnotherWrite) {
+    HangGuard guard("an idle take", std::chrono::seconds(60));
+    ServiceConfig config = recorderConfig("idle");
+    config.record.flushIntervalMs = 1000;
+    TakeRecorder recorder(config);
+    Result<std::string> take = recorder.start("idle");
+    ASSERT_TRUE(take) << take.message();
+    const fs::path events = fs::path(*take) / "events.csv";
+    // The first line is synced as it comes (the last sync is older than the interval); the
+    // ones right after it wait for the interval to pass.
+    for (int i = 0; i < 3; ++i) recorder.addEvent({uint64_t(100 + i), "ctl", "mode=refine"});
+    const auto deadline = std::chrono::steady_clock::now() + 5s;
+    while (!fs::exists(events) && std::chrono::steady_clock::now() < deadline)
+        std::this_thread::sleep_for(10ms);
+    ASSERT_TRUE(fs::exists(events));
+    if (!unsyncedPages(events)) GTEST_SKIP() << "no cachestat(2) here (Linux 6.5 or later)";
+    // Nothing more is written: within the interval (plus a loaded machine's margin) the lines
+    // must be on the disk. Without the idle flush they wait for the kernel's writeback (30 s).
+    std::optional<uint64_t> pages;
+    while ((pages = unsyncedPages(events)).value_or(1) != 0 &&
+           std::chrono::steady_clock::now() < deadline + 5s)
+        std::this_thread::sleep_for(50ms);
+    EXPECT_EQ(pages, std::optional<uint64_t>(0)) << "events.csv still unsynced after ~10 s idle";
+    ASSERT_TRUE(recorder.stop());
+}
+
+}  // namespace
+}  // namespace previs
