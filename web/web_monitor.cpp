@@ -1,7 +1,9 @@
 #include "web/web_monitor.h"
 
+#include <arpa/inet.h>
 #include <httplib.h>
 #include <netinet/in.h>
+#include <poll.h>
 #include <sys/socket.h>
 
 #include <algorithm>
@@ -22,6 +24,7 @@
 #include "base/guarded_thread.h"
 #include "base/log.h"
 #include "net/udp_socket.h"
+#include "web/http_connections.h"
 #include "web/monitor_page.h"
 #include "web/stream_encoder.h"
 
@@ -37,71 +40,73 @@ constexpr const char* kBoundary = "previsframe";
 constexpr std::chrono::milliseconds kViewerWait{250};
 constexpr int kResendAfterWaits = 4;
 
-// Requests answered on the connection the calling worker serves now (the logger counts them):
-// a connection that ends with none was dropped before its request line was complete.
-thread_local int tlRequestsOnConnection = 0;
+constexpr int kListenBacklog = 128;
+// Requests answered on one connection before it is closed (cpp-httplib's keep-alive count).
+constexpr int kKeepAliveMaxCount = 100;
 
-// cpp-httplib's task queue, with a fixed number of workers: a connection holds one worker for
-// its lifetime, so the pool bounds the threads a crowd of clients can take; connections beyond
-// it wait in the queue. Each connection that ends without a request is counted.
-class ConnectionPool : public httplib::TaskQueue {
+// cpp-httplib's task queue, run on its accept thread: each accepted socket goes straight to
+// the connection hub (WebMonitor::Impl::admit), which bounds and holds it; no job waits here.
+class AcceptQueue : public httplib::TaskQueue {
 public:
-    ConnectionPool(size_t threads, std::atomic<uint64_t>* silentConnections)
-        : silent_(silentConnections) {
-        for (size_t i = 0; i < threads; ++i)
-            workers_.emplace_back([this] { runGuarded("web worker", [this] { work(); }); });
-    }
-    ~ConnectionPool() override { shutdown(); }
+    void enqueue(std::function<void()> fn) override { fn(); }
+    void shutdown() override {}
+};
 
-    void enqueue(std::function<void()> fn) override {
-        {
-            std::lock_guard lock(mutex_);
-            jobs_.push_back(std::move(fn));
-        }
-        wake_.notify_one();
-    }
+// A whole request the hub has read into memory, and the socket to answer on: cpp-httplib parses
+// the bytes and writes its answer here. Nothing waits for the client to send: a read beyond the
+// request fails at once (the hub already decided where the request ends).
+class ConnectionStream final : public httplib::Stream {
+public:
+    ConnectionStream(Connection& connection, int writeTimeoutMs)
+        : c_(connection), writeTimeoutMs_(writeTimeoutMs) {}
 
-    void shutdown() override {
-        {
-            std::lock_guard lock(mutex_);
-            stopping_ = true;
-        }
-        wake_.notify_all();
-        for (std::thread& t : workers_)
-            if (t.joinable()) t.join();
+    bool is_readable() const override { return c_.pending() > 0; }
+    bool is_writable() const override {
+        pollfd p{c_.fd.get(), POLLOUT, 0};
+        return ::poll(&p, 1, writeTimeoutMs_) > 0 && (p.revents & (POLLERR | POLLHUP)) == 0;
     }
+    ssize_t read(char* ptr, size_t size) override {
+        const size_t n = std::min(size, c_.pending());
+        if (n == 0) return -1;
+        std::memcpy(ptr, c_.buffer.data() + c_.readPos, n);
+        c_.readPos += n;
+        return ssize_t(n);
+    }
+    ssize_t write(const char* ptr, size_t size) override {
+        for (;;) {
+            const ssize_t n = ::send(c_.fd.get(), ptr, size, MSG_NOSIGNAL);
+            if (n >= 0) return n;
+            if (errno == EINTR) continue;
+            // The socket is non-blocking (the hub's): wait for room, up to the write timeout.
+            if ((errno != EAGAIN && errno != EWOULDBLOCK) || !is_writable()) return -1;
+        }
+    }
+    void get_remote_ip_and_port(std::string& ip, int& port) const override {
+        ip = c_.address;
+        port = c_.port;
+    }
+    void get_local_ip_and_port(std::string& ip, int& port) const override {
+        sockaddr_storage a{};
+        socklen_t size = sizeof a;
+        char text[INET6_ADDRSTRLEN] = {};
+        port = -1;
+        if (::getsockname(c_.fd.get(), reinterpret_cast<sockaddr*>(&a), &size) != 0) return;
+        if (a.ss_family == AF_INET) {
+            const auto& v4 = reinterpret_cast<const sockaddr_in&>(a);
+            ::inet_ntop(AF_INET, &v4.sin_addr, text, sizeof text);
+            port = ntohs(v4.sin_port);
+        } else if (a.ss_family == AF_INET6) {
+            const auto& v6 = reinterpret_cast<const sockaddr_in6&>(a);
+            ::inet_ntop(AF_INET6, &v6.sin6_addr, text, sizeof text);
+            port = ntohs(v6.sin6_port);
+        }
+        ip = text;
+    }
+    socket_t socket() const override { return c_.fd.get(); }
 
 private:
-    void work() {
-        for (;;) {
-            std::function<void()> fn;
-            {
-                std::unique_lock lock(mutex_);
-                wake_.wait(lock, [&] { return stopping_ || !jobs_.empty(); });
-                if (jobs_.empty()) return;
-                fn = std::move(jobs_.front());
-                jobs_.pop_front();
-            }
-            tlRequestsOnConnection = 0;
-            // An exception from a stream's content provider escapes cpp-httplib: the connection
-            // is lost, the worker must not be.
-            try {
-                fn();
-            } catch (const std::exception& e) {
-                logError("web: a connection ended on an error: {}", e.what());
-            } catch (...) {
-                logError("web: a connection ended on an unknown exception");
-            }
-            if (tlRequestsOnConnection == 0) ++*silent_;
-        }
-    }
-
-    std::atomic<uint64_t>* silent_;
-    std::mutex mutex_;
-    std::condition_variable wake_;
-    std::deque<std::function<void()>> jobs_;
-    bool stopping_ = false;
-    std::vector<std::thread> workers_;
+    Connection& c_;
+    const int writeTimeoutMs_;
 };
 
 enum class Path { Page, Stream, Status, Mode, Record, Other };
@@ -120,18 +125,6 @@ std::string trimmed(const std::string& s) {
     if (b == std::string::npos) return {};
     const size_t e = s.find_last_not_of(" \t\r\n");
     return s.substr(b, e - b + 1);
-}
-
-// The bytes of the header lines the client sent (cpp-httplib adds the REMOTE_/LOCAL_ ones).
-size_t headerBytes(const httplib::Request& req) {
-    size_t n = 0;
-    for (const auto& [key, value] : req.headers) {
-        if (key == "REMOTE_ADDR" || key == "REMOTE_PORT" || key == "LOCAL_ADDR" ||
-            key == "LOCAL_PORT")
-            continue;
-        n += key.size() + value.size() + 4;  // ": " and CRLF
-    }
-    return n;
 }
 
 void answer(httplib::Response& res, int status, const std::string& message) {
@@ -164,6 +157,16 @@ void listenSocketOptions(int sock) {
     setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof(yes));
 }
 
+// The kernel's send queue of a connection: Linux grows it up to 4 MiB, many seconds of stream
+// for a slow viewer, who would see the picture that late instead of skipping to the newest
+// frame. 128 KiB (the kernel doubles it) holds a few frames at the default size and still fills
+// a Wi-Fi link's round trip.
+constexpr int kSendBufferBytes = 128 * 1024;
+
+void boundSendBuffer(int fd) {
+    setsockopt(fd, SOL_SOCKET, SO_SNDBUF, &kSendBufferBytes, sizeof(kSendBufferBytes));
+}
+
 // One /stream.mjpeg response's progress, kept by its content provider.
 struct ViewerState {
     uint64_t lastSequence = 0;  // of the last frame sent; 0 before the first
@@ -185,18 +188,22 @@ nlohmann::json toJson(const WebStats& s) {
             {"jpegBytes", s.jpegBytes},
             {"requests", s.requests},
             {"commands", s.commands},
+            {"connections", s.connections},
             {"rejected",
              {{"badRequest", s.badRequest},
               {"unauthorized", s.unauthorized},
               {"forbidden", s.forbidden},
               {"notFound", s.notFound},
               {"methodNotAllowed", s.methodNotAllowed},
+              {"requestTimeout", s.requestTimeout},
+              {"misdirected", s.misdirected},
               {"lengthRequired", s.lengthRequired},
               {"payloadTooLarge", s.payloadTooLarge},
               {"uriTooLong", s.uriTooLong},
               {"headersTooLarge", s.headersTooLarge},
               {"busy", s.busy},
               {"internalError", s.internalError},
+              {"connectionsRefused", s.connectionsRefused},
               {"silentConnections", s.silentConnections}}}};
 }
 
@@ -230,32 +237,116 @@ bool bearerTokenMatches(const std::string& authorization, const std::string& tok
     return diff == 0;
 }
 
+bool hostIsThisMonitor(const std::string& host, const std::vector<std::string>& names) {
+    if (host.empty()) return true;
+    std::string name;
+    if (host.front() == '[') {
+        const size_t close = host.find(']');
+        if (close == std::string::npos) return false;
+        in6_addr v6{};
+        return ::inet_pton(AF_INET6, host.substr(1, close - 1).c_str(), &v6) == 1;
+    }
+    name = host.substr(0, host.find(':'));
+    if (host.find(':') != host.rfind(':')) return false;  // a bare IPv6 is no Host value
+    in_addr v4{};
+    if (::inet_pton(AF_INET, name.c_str(), &v4) == 1) return true;
+    auto canonical = [](std::string n) {
+        std::transform(n.begin(), n.end(), n.begin(),
+                       [](unsigned char ch) { return char(std::tolower(ch)); });
+        if (!n.empty() && n.back() == '.') n.pop_back();
+        return n;
+    };
+    name = canonical(name);
+    if (name == "localhost" || name.ends_with(".localhost")) return true;
+    return std::any_of(names.begin(), names.end(),
+                       [&](const std::string& n) { return !n.empty() && canonical(n) == name; });
+}
+
+std::string validUtf8(const std::string& text) {
+    std::string out;
+    out.reserve(text.size());
+    const auto byte = [&](size_t i) { return static_cast<unsigned char>(text[i]); };
+    for (size_t i = 0; i < text.size();) {
+        const unsigned char lead = byte(i);
+        // The sequence's length and the range its second byte must fall in (Unicode 15, table
+        // 3-7: no overlong forms, no surrogates, nothing above U+10FFFF).
+        size_t length = 0;
+        unsigned char low = 0x80, high = 0xBF;
+        if (lead < 0x80)
+            length = 1;
+        else if (lead >= 0xC2 && lead <= 0xDF)
+            length = 2;
+        else if (lead >= 0xE0 && lead <= 0xEF) {
+            length = 3;
+            if (lead == 0xE0) low = 0xA0;
+            if (lead == 0xED) high = 0x9F;
+        } else if (lead >= 0xF0 && lead <= 0xF4) {
+            length = 4;
+            if (lead == 0xF0) low = 0x90;
+            if (lead == 0xF4) high = 0x8F;
+        }
+        size_t good = length > 0 ? 1 : 0;
+        while (good > 0 && good < length && i + good < text.size()) {
+            const unsigned char next = byte(i + good);
+            const bool inRange =
+                good == 1 ? next >= low && next <= high : next >= 0x80 && next <= 0xBF;
+            if (!inRange) break;
+            ++good;
+        }
+        if (length > 0 && good == length) {
+            out.append(text, i, length);
+            i += length;
+        } else {
+            out += "\xEF\xBF\xBD";  // U+FFFD for the maximal ill-formed part
+            i += std::max<size_t>(good, 1);
+        }
+    }
+    return out;
+}
+
 // cpp-httplib binds its own socket; one handed over by systemd is adopted through the server's
-// protected listening socket, which listen_after_bind() then serves (and stop() closes).
-class AdoptingServer : public httplib::Server {
+// protected listening socket, which listen_after_bind() then serves (and stop() closes). Each
+// accepted socket goes to `admit` instead of the library's own per-connection loop, and a
+// worker runs the library on one whole request at a time (serveOne).
+class MonitorServer : public httplib::Server {
 public:
     void adopt(int fd) { svr_sock_ = fd; }
+    // cpp-httplib listens with a backlog of 5: a burst of connections (a page and its status
+    // polls from a few phones) would wait a second each for SYN retries. Waiting connections are
+    // the kernel's, not descriptors of ours.
+    void raiseBacklog() { ::listen(svr_sock_, kListenBacklog); }
+    std::function<void(UniqueFD)> admit;
+    bool serveOne(httplib::Stream& stream, bool lastOnConnection, bool& connectionClosed) {
+        return process_request(stream, lastOnConnection, connectionClosed, nullptr);
+    }
+
+private:
+    bool process_and_close_socket(socket_t sock) override {
+        admit(UniqueFD(sock));
+        return true;
+    }
 };
 
 struct WebMonitor::Impl {
     WebMonitorSettings settings;
     WebMonitorHooks hooks;
     std::unique_ptr<StreamEncoder> encoder;
-    AdoptingServer server;
+    MonitorServer server;
+    std::unique_ptr<ConnectionHub> hub;
     std::thread listenThread;
     std::atomic<bool> listenDone{false};
     int port = 0;
 
     std::atomic<int> viewers{0};
     std::atomic<uint64_t> streamsServed{0}, framesSent{0}, viewerFramesDropped{0},
-        viewersStalled{0}, requests{0}, commands{0}, silentConnections{0};
+        viewersStalled{0}, requests{0}, commands{0};
     // Answers by status code (index = code − 400), counted in the logger.
     std::array<std::atomic<uint64_t>, 200> rejected{};
 
     void configure();
     void route();
     void count(int status);
-    bool headersFit(const httplib::Request& req, httplib::Response& res) const;
+    bool serve(Connection& connection);
     bool readBody(const httplib::Request& req, httplib::Response& res,
                   const httplib::ContentReader& reader, std::string& body) const;
     void servePage(const httplib::Request& req, httplib::Response& res) const;
@@ -270,19 +361,31 @@ struct WebMonitor::Impl {
 };
 
 void WebMonitor::Impl::configure() {
-    const int threads = settings.maxStreams + settings.requestThreads;
-    server.new_task_queue = [this, threads] {
-        return new ConnectionPool(size_t(threads), &silentConnections);
+    server.new_task_queue = [] { return new AcceptQueue; };
+    server.admit = [this](UniqueFD fd) {
+        boundSendBuffer(fd.get());
+        hub->admit(std::move(fd));
     };
     server.set_socket_options(listenSocketOptions);
     server.set_read_timeout(std::chrono::milliseconds(settings.readTimeoutMs));
     server.set_write_timeout(std::chrono::milliseconds(settings.writeTimeoutMs));
     server.set_keep_alive_timeout(settings.keepAliveTimeoutS);
-    server.set_keep_alive_max_count(100);
+    server.set_keep_alive_max_count(kKeepAliveMaxCount);
     server.set_payload_max_length(settings.maxBodyBytes);
-    server.set_logger([this](const httplib::Request&, const httplib::Response& res) {
-        ++tlRequestsOnConnection;
-        count(res.status);
+    server.set_logger(
+        [this](const httplib::Request&, const httplib::Response& res) { count(res.status); });
+    // DNS rebinding: a page from another name must not read the status or the stream.
+    std::vector<std::string> names = settings.hostNames;
+    Result<ListenAddress> listen = parseListenAddress(settings.listen);
+    if (listen) names.push_back(listen->host);
+    server.set_pre_routing_handler([names](const httplib::Request& req, httplib::Response& res) {
+        const std::string host = req.get_header_value("Host");
+        if (hostIsThisMonitor(host, names)) return httplib::Server::HandlerResponse::Unhandled;
+        answer(res, 421,
+               fmt::format("Host '{}' is not this monitor's address: open it by its IP address "
+                           "or add the name to the monitor's host names",
+                           host.substr(0, 200)));
+        return httplib::Server::HandlerResponse::Handled;
     });
     // The library's own answers (400, 404, 413, 414) get a body saying what happened.
     server.set_error_handler([](const httplib::Request&, httplib::Response& res) {
@@ -305,6 +408,16 @@ void WebMonitor::Impl::configure() {
 void WebMonitor::Impl::count(int status) {
     ++requests;
     if (status >= 400 && status < 600) ++rejected[size_t(status - 400)];
+}
+
+// A worker, for one whole request the hub read: cpp-httplib parses it, routes it and writes
+// the answer. True keeps the connection for the next request.
+bool WebMonitor::Impl::serve(Connection& connection) {
+    ConnectionStream stream(connection, settings.writeTimeoutMs);
+    const bool last = connection.requests >= kKeepAliveMaxCount;
+    bool closed = false;
+    const bool written = server.serveOne(stream, last, closed);
+    return written && !closed && !last;
 }
 
 void WebMonitor::Impl::route() {
@@ -331,17 +444,11 @@ void WebMonitor::Impl::route() {
     server.Delete(".*", other);
 }
 
-bool WebMonitor::Impl::headersFit(const httplib::Request& req, httplib::Response& res) const {
-    if (headerBytes(req) <= settings.maxHeaderBytes) return true;
-    answer(res, 431, fmt::format("request headers above {} bytes", settings.maxHeaderBytes));
-    return false;
-}
-
 bool WebMonitor::Impl::readBody(const httplib::Request& req, httplib::Response& res,
                                 const httplib::ContentReader& reader, std::string& body) const {
-    // Without a length the body would be read until the client closes (or times out).
-    if (!req.has_header("Content-Length") &&
-        req.get_header_value("Transfer-Encoding").find("chunked") == std::string::npos) {
+    // Without a length the body would be read until the client closes (the hub refuses
+    // chunked bodies before this).
+    if (!req.has_header("Content-Length")) {
         answer(res, 411, "POST needs a Content-Length");
         return false;
     }
@@ -355,7 +462,7 @@ bool WebMonitor::Impl::readBody(const httplib::Request& req, httplib::Response& 
         return true;
     });
     if (complete) return true;
-    // cpp-httplib answers a Content-Length above the limit itself (413) before reading.
+    // The hub answers a Content-Length above the limit (413) before a worker sees it.
     if (res.status == 413 || tooLarge)
         answer(res, 413, fmt::format("body above {} bytes", settings.maxBodyBytes));
     else
@@ -363,8 +470,7 @@ bool WebMonitor::Impl::readBody(const httplib::Request& req, httplib::Response& 
     return false;
 }
 
-void WebMonitor::Impl::servePage(const httplib::Request& req, httplib::Response& res) const {
-    if (!headersFit(req, res)) return;
+void WebMonitor::Impl::servePage(const httplib::Request&, httplib::Response& res) const {
     res.set_header("Cache-Control", "no-cache");
     res.set_header("X-Content-Type-Options", "nosniff");
     // Offline box: the page loads nothing but its own origin.
@@ -374,20 +480,22 @@ void WebMonitor::Impl::servePage(const httplib::Request& req, httplib::Response&
     res.set_content(kMonitorPage, "text/html; charset=utf-8");
 }
 
-void WebMonitor::Impl::serveStatus(const httplib::Request& req, httplib::Response& res) const {
-    if (!headersFit(req, res)) return;
-    std::string text = hooks.statusJson ? hooks.statusJson() : std::string("{}");
+void WebMonitor::Impl::serveStatus(const httplib::Request&, httplib::Response& res) const {
+    const std::string text = hooks.statusJson ? hooks.statusJson() : std::string("{}");
     nlohmann::json j = nlohmann::json::parse(text, nullptr, false);
-    if (j.is_object() && !j.contains("web")) {
-        j["web"] = toJson(stats());
-        text = j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+    // A camera's or a file's name may hold any bytes: the answer is valid JSON whatever they are.
+    if (j.is_discarded()) j = nlohmann::json::parse(validUtf8(text), nullptr, false);
+    if (j.is_discarded()) {
+        answer(res, 500, "the service's status is not JSON");
+        return;
     }
+    if (j.is_object() && !j.contains("web")) j["web"] = toJson(stats());
     res.set_header("Cache-Control", "no-store");
-    res.set_content(text, "application/json");
+    res.set_content(j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace),
+                    "application/json");
 }
 
-void WebMonitor::Impl::serveStream(const httplib::Request& req, httplib::Response& res) {
-    if (!headersFit(req, res)) return;
+void WebMonitor::Impl::serveStream(const httplib::Request&, httplib::Response& res) {
     int current = viewers.load();
     do {
         if (current >= settings.maxStreams) {
@@ -449,7 +557,6 @@ bool WebMonitor::Impl::sendFrame(ViewerState& viewer, httplib::DataSink& sink) {
 
 void WebMonitor::Impl::serveControl(const httplib::Request& req, httplib::Response& res,
                                     const httplib::ContentReader& reader, Path path) {
-    if (!headersFit(req, res)) return;
     std::string body;
     if (!readBody(req, res, reader, body)) return;
     if (settings.token.empty()) {
@@ -488,11 +595,7 @@ void WebMonitor::Impl::serveOther(const httplib::Request& req, httplib::Response
                                   const httplib::ContentReader* reader) const {
     // Drains a body (bounded) so that a kept-alive connection's next request parses.
     std::string body;
-    const bool hasBody =
-        req.has_header("Content-Length") ||
-        req.get_header_value("Transfer-Encoding").find("chunked") != std::string::npos;
-    if (reader && hasBody && !readBody(req, res, *reader, body)) return;
-    if (!headersFit(req, res)) return;
+    if (reader && req.has_header("Content-Length") && !readBody(req, res, *reader, body)) return;
     switch (pathOf(req.path)) {
         case Path::Page:
         case Path::Stream:
@@ -531,13 +634,18 @@ WebStats WebMonitor::Impl::stats() const {
     s.forbidden = at(403);
     s.notFound = at(404);
     s.methodNotAllowed = at(405);
+    s.requestTimeout = at(408);
+    s.misdirected = at(421);
     s.lengthRequired = at(411);
     s.payloadTooLarge = at(413);
     s.uriTooLong = at(414);
     s.headersTooLarge = at(431);
     s.busy = at(503);
     s.internalError = at(500);
-    s.silentConnections = silentConnections;
+    const ConnectionStats connections = hub->stats();
+    s.connections = connections.open;
+    s.connectionsRefused = connections.refused;
+    s.silentConnections = connections.silent;
     return s;
 }
 
@@ -563,8 +671,15 @@ Result<std::unique_ptr<WebMonitor>> WebMonitor::create(const WebMonitorSettings&
         return makeError("[web] max_streams must be 1..64, not {}", settings.maxStreams);
     if (settings.requestThreads < 1 || settings.requestThreads > 64)
         return makeError("[web] request_threads must be 1..64, not {}", settings.requestThreads);
-    if (settings.readTimeoutMs < 1 || settings.writeTimeoutMs < 1 || settings.keepAliveTimeoutS < 1)
+    if (settings.readTimeoutMs < 1 || settings.writeTimeoutMs < 1 ||
+        settings.keepAliveTimeoutS < 1 || settings.requestDeadlineMs < 1)
         return makeError("[web] timeouts must be positive");
+    if (settings.maxConnectionsPerAddress < 1 ||
+        settings.maxConnections < settings.maxConnectionsPerAddress)
+        return makeError(
+            "[web] connection bounds: {} per address, {} in all; need 1 <= per "
+            "address <= in all",
+            settings.maxConnectionsPerAddress, settings.maxConnections);
     Result<std::unique_ptr<StreamEncoder>> encoder =
         StreamEncoder::create({.fps = settings.streamFps,
                                .width = settings.streamWidth,
@@ -575,6 +690,20 @@ Result<std::unique_ptr<WebMonitor>> WebMonitor::create(const WebMonitorSettings&
     impl->settings = settings;
     impl->hooks = std::move(hooks);
     impl->encoder = std::move(*encoder);
+    Impl* raw = impl.get();
+    Result<std::unique_ptr<ConnectionHub>> hub = ConnectionHub::create(
+        {.maxConnections = settings.maxConnections,
+         .maxPerAddress = settings.maxConnectionsPerAddress,
+         .maxHeaderBytes = settings.maxHeaderBytes,
+         .maxHeaderLines = settings.maxHeaderLines,
+         .maxBodyBytes = settings.maxBodyBytes,
+         .idleTimeout = std::chrono::seconds(settings.keepAliveTimeoutS),
+         .readTimeout = std::chrono::milliseconds(settings.readTimeoutMs),
+         .requestDeadline = std::chrono::milliseconds(settings.requestDeadlineMs),
+         .workers = settings.maxStreams + settings.requestThreads},
+        [raw](Connection& c) { return raw->serve(c); }, [raw](int status) { raw->count(status); });
+    if (!hub) return hub.error();
+    impl->hub = std::move(*hub);
     impl->configure();
     impl->route();
     errno = 0;
@@ -588,12 +717,12 @@ Result<std::unique_ptr<WebMonitor>> WebMonitor::create(const WebMonitorSettings&
     } else {
         impl->port = -1;
     }
+    if (impl->port >= 0 && settings.listenFd < 0) impl->server.raiseBacklog();
     if (impl->port < 0)
         return makeError(
             "[web] listen = \"{}\": cannot listen there ({}); is the address this "
             "box's and the port free?",
             settings.listen, errno ? std::strerror(errno) : "address not usable");
-    Impl* raw = impl.get();
     impl->listenThread = std::thread([raw] {
         runGuarded("web listen", [raw] { raw->server.listen_after_bind(); });
         raw->listenDone = true;
@@ -613,6 +742,7 @@ WebMonitor::~WebMonitor() {
     impl_->server.stop();
     impl_->encoder->stop();
     if (impl_->listenThread.joinable()) impl_->listenThread.join();
+    impl_->hub->stop();
 }
 
 void WebMonitor::submitFrame(WebFrame frame) { impl_->encoder->submit(std::move(frame)); }

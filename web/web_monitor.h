@@ -12,7 +12,9 @@
 //   ... on the display thread, after each frame shown: web->submitFrame(webFrameOf(frame));
 //   ... in the status object: j["web"] = toJson(web->stats());
 // submitFrame never blocks (a pointer swap); everything else runs on the monitor's own threads:
-// one encoder thread and a fixed pool of HTTP workers. Destroying the monitor stops them all.
+// one encoder thread, one thread that holds the connections while they are idle or still sending
+// (web/http_connections.h) and a fixed pool of HTTP workers for whole requests. Destroying the
+// monitor stops them all.
 
 #include <cstddef>
 #include <cstdint>
@@ -20,6 +22,7 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <vector>
 
 #include "base/result.h"
 #include "web/web_frame.h"
@@ -31,17 +34,26 @@ struct WebMonitorSettings {
     // A listening TCP socket to serve on instead of binding `listen` (systemd's socket
     // activation: the service itself has no network); the monitor owns it from create() on.
     int listenFd = -1;
-    std::string token;             // the bearer token; "" = controls refused (403), viewing open
-    double streamFps = 10.0;       // MJPEG frames per second at most
-    int streamWidth = 640;         // MJPEG width; the height keeps the aspect; never upscaled
-    int jpegQuality = 80;          // 1..100
-    int maxStreams = 4;            // concurrent /stream.mjpeg viewers; one more gets 503
-    int requestThreads = 8;        // workers for everything else (page, status, control, errors)
-    int readTimeoutMs = 5000;      // a client silent this long between bytes is dropped
-    int writeTimeoutMs = 5000;     // a viewer that takes no bytes this long is dropped
-    int keepAliveTimeoutS = 5;     // an idle kept-alive connection is closed after this
-    size_t maxBodyBytes = 1024;    // POST bodies above this: 413
-    size_t maxHeaderBytes = 8192;  // all header lines together above this: 431
+    std::string token;              // the bearer token; "" = controls refused (403), viewing open
+    double streamFps = 10.0;        // MJPEG frames per second at most
+    int streamWidth = 640;          // MJPEG width; the height keeps the aspect; never upscaled
+    int jpegQuality = 80;           // 1..100
+    int maxStreams = 4;             // concurrent /stream.mjpeg viewers; one more gets 503
+    int requestThreads = 8;         // workers for everything else (page, status, control, errors)
+    int readTimeoutMs = 5000;       // a client silent this long in the middle of a request: 408
+    int requestDeadlineMs = 10000;  // a request not whole this long after its first byte: 408
+    int writeTimeoutMs = 5000;      // a viewer that takes no bytes this long is dropped
+    int keepAliveTimeoutS = 5;      // a connection idle this long (no request begun) is closed
+    size_t maxBodyBytes = 1024;     // POST bodies above this: 413
+    size_t maxHeaderBytes = 8192;   // all header lines together above this: 431
+    size_t maxHeaderLines = 100;    // more header lines than this: 431
+    // Connections open at once, from one client address and in all; one more is answered 503
+    // and closed at once (so a crowd of clients cannot take the process's descriptors).
+    int maxConnectionsPerAddress = 16;
+    int maxConnections = 64;
+    // The names this monitor is reached by (Host check against DNS rebinding): requests whose
+    // Host is none of these, the listen address's host, "localhost" or an IP literal get 421.
+    std::vector<std::string> hostNames;
 };
 
 // What the monitor asks the service. Both are called on an HTTP worker thread, concurrently with
@@ -71,19 +83,23 @@ struct WebStats {
     size_t jpegBytes = 0;              // size of the newest encoded frame
     uint64_t requests = 0;             // HTTP requests answered (all codes)
     uint64_t commands = 0;             // control commands passed to the hook
+    int connections = 0;               // connections open now
     uint64_t badRequest = 0;           // 400: unparsable request line or header, bad body
     uint64_t unauthorized = 0;         // 401: POST without the right bearer token
     uint64_t forbidden = 0;            // 403: control with no token configured
     uint64_t notFound = 0;             // 404
     uint64_t methodNotAllowed = 0;     // 405
-    uint64_t lengthRequired = 0;       // 411: POST without Content-Length
+    uint64_t requestTimeout = 0;       // 408: a request not whole within its deadline
+    uint64_t misdirected = 0;          // 421: a Host that is not this monitor's (rebinding)
+    uint64_t lengthRequired = 0;       // 411: POST without Content-Length, or chunked
     uint64_t payloadTooLarge = 0;      // 413: body above maxBodyBytes
-    uint64_t uriTooLong = 0;           // 414: request line above 8 KiB (cpp-httplib's limit)
-    uint64_t headersTooLarge = 0;      // 431: headers above maxHeaderBytes
+    uint64_t uriTooLong = 0;           // 414: request line above 8 KiB
+    uint64_t headersTooLarge = 0;      // 431: headers above maxHeaderBytes or maxHeaderLines
     uint64_t busy = 0;                 // 503: a stream beyond maxStreams
     uint64_t internalError = 0;        // 500: a hook threw
-    uint64_t silentConnections = 0;    // closed without a complete request line (read timeout,
-                                       // a client that hung up or a browser's spare connection)
+    uint64_t connectionsRefused = 0;   // 503 at connect: maxConnections(PerAddress) reached
+    uint64_t silentConnections = 0;    // closed before a whole request (idle, a client that
+                                       // hung up or a browser's spare connection)
 };
 
 nlohmann::json toJson(const WebStats& stats);
@@ -99,6 +115,15 @@ Result<ListenAddress> parseListenAddress(const std::string& listen);
 // comparison takes the same time wherever the first difference is (no timing oracle on the
 // set's network); an empty configured token never matches.
 bool bearerTokenMatches(const std::string& authorization, const std::string& token);
+
+// Whether a Host header value names this monitor: empty (a client that sends none is no
+// browser), an IP literal, "localhost" (or a name under it), or one of `names` (any case, a
+// trailing dot ignored); the port is not looked at. A page served from any other name reached
+// this box through DNS rebinding and must not read it.
+bool hostIsThisMonitor(const std::string& host, const std::vector<std::string>& names);
+
+// `text` with every byte that is not part of well-formed UTF-8 replaced by U+FFFD.
+std::string validUtf8(const std::string& text);
 
 class WebMonitor {
 public:

@@ -20,11 +20,18 @@ namespace previs::test {
 class RawConnection {
 public:
     // Connects to 127.0.0.1:port; receiveBuffer > 0 shrinks the socket's receive buffer first
-    // (a viewer that cannot take much before it stalls).
-    explicit RawConnection(int port, int receiveBuffer = 0) {
+    // (a viewer that cannot take much before it stalls); `source` is the client's own address
+    // (any of 127.0.0.0/8: clients on different addresses without configuring any).
+    explicit RawConnection(int port, int receiveBuffer = 0, const char* source = nullptr) {
         fd_ = UniqueFD(::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0));
         if (receiveBuffer > 0)
             setsockopt(fd_.get(), SOL_SOCKET, SO_RCVBUF, &receiveBuffer, sizeof(receiveBuffer));
+        if (source) {
+            sockaddr_in s{};
+            s.sin_family = AF_INET;
+            ::inet_pton(AF_INET, source, &s.sin_addr);
+            if (::bind(fd_.get(), reinterpret_cast<sockaddr*>(&s), sizeof(s)) != 0) return;
+        }
         sockaddr_in a{};
         a.sin_family = AF_INET;
         a.sin_port = htons(uint16_t(port));
@@ -136,12 +143,14 @@ inline HttpReply roundTrip(int port, const std::string& request,
 }
 
 inline HttpReply get(int port, const std::string& path) {
-    return roundTrip(port, "GET " + path + " HTTP/1.1\r\nHost: test\r\nConnection: close\r\n\r\n");
+    return roundTrip(port,
+                     "GET " + path + " HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n");
 }
 
 inline HttpReply post(int port, const std::string& path, const std::string& body,
                       const std::string& extraHeaders = "") {
-    return roundTrip(port, "POST " + path + " HTTP/1.1\r\nHost: test\r\nConnection: close\r\n" +
+    return roundTrip(port, "POST " + path +
+                               " HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n" +
                                extraHeaders + "Content-Length: " + std::to_string(body.size()) +
                                "\r\n\r\n" + body);
 }

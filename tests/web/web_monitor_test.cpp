@@ -129,7 +129,7 @@ TEST(WebMonitor, StreamsJpegFramesThatChange) {
     ASSERT_TRUE(monitor);
     FrameProducer producer(*monitor, 30.0, 1280, 720, false);
     test::RawConnection c(monitor->port());
-    ASSERT_TRUE(c.send("GET /stream.mjpeg HTTP/1.1\r\nHost: test\r\n\r\n"));
+    ASSERT_TRUE(c.send("GET /stream.mjpeg HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"));
     ASSERT_TRUE(test::eventually([&] {
         c.receiveFor(20ms);
         return test::completeParts(c.buffer()) >= 3;
@@ -201,7 +201,7 @@ TEST(WebMonitor, AStalledViewerSlowsNeitherTheRenderNorOtherViewers) {
     // Noisy 1280×720 frames encode to a few hundred KiB: the stalled socket fills at once.
     FrameProducer producer(*monitor, 30.0, 1280, 720, true);
     test::RawConnection stalled(monitor->port(), 4096);
-    ASSERT_TRUE(stalled.send("GET /stream.mjpeg HTTP/1.1\r\nHost: test\r\n\r\n"));
+    ASSERT_TRUE(stalled.send("GET /stream.mjpeg HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"));
     StreamViewer healthy(monitor->port());
     ASSERT_TRUE(healthy.waitFrames(2, 10s));
     const int framesBefore = healthy.frames();
@@ -234,7 +234,7 @@ TEST(WebMonitor, ASlowViewerSkipsToTheNewestFrame) {
     // Noise: each 640×360 JPEG is a few hundred KiB, several 100 ms reads each.
     FrameProducer producer(*monitor, 30.0, 640, 360, true);
     test::RawConnection slow(monitor->port(), 65536);
-    ASSERT_TRUE(slow.send("GET /stream.mjpeg HTTP/1.1\r\nHost: test\r\n\r\n"));
+    ASSERT_TRUE(slow.send("GET /stream.mjpeg HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"));
     StreamViewer fast(monitor->port());
     ASSERT_TRUE(fast.waitFrames(2, 10s));
     const auto start = std::chrono::steady_clock::now();

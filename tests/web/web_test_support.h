@@ -86,7 +86,7 @@ inline int completeParts(const std::string& bytes) {
 class StreamViewer {
 public:
     explicit StreamViewer(int port) : connection_(port) {
-        connection_.send("GET /stream.mjpeg HTTP/1.1\r\nHost: test\r\n\r\n");
+        connection_.send("GET /stream.mjpeg HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
         thread_ = std::thread([this] {
             while (!stop_) {
                 const bool open = connection_.receiveFor(std::chrono::milliseconds(50));
