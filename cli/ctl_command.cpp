@@ -47,11 +47,17 @@ void printStatus(const nlohmann::json& s) {
     std::printf("uptime    %.0f s\n", s.value("uptimeSeconds", 0.0));
 }
 
+constexpr int kRecordTimeoutMs = 120'000;
+
 int run(const CtlOptions& o, const std::string& command, bool status) {
     ControlConfig control;
     control.socketPath = o.socket;
     const std::string path = controlSocketPath(control);
-    Result<std::string> reply = controlRequest(path, command);
+    // `record stop` answers once the take is on disk (its queue, up to [record] queue_mb, drains
+    // first) and `record start` once the config's files are copied into the take: seconds on a
+    // slow card, where every other command takes microseconds.
+    const int timeoutMs = command.starts_with("record ") ? kRecordTimeoutMs : 5000;
+    Result<std::string> reply = controlRequest(path, command, timeoutMs);
     if (!reply) {
         logError("{}", reply.message());
         return 1;
