@@ -11,6 +11,8 @@ DisplayThread::DisplayThread(std::unique_ptr<FrameOutput> output, Stage* stage)
     : output_(std::move(output)), stage_(stage) {
     stats_.kind = output_->kind();
     thread_ = std::thread([this] {
+        // Names show in top -H and /proc/PID/task/*/comm (15 characters at most).
+        pthread_setname_np(pthread_self(), "pv-display");
         // run() returns only when stopping; an exception from an output counts as a failed
         // frame and the loop goes on with the next one.
         for (bool failed = true; failed;) {

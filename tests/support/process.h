@@ -73,6 +73,7 @@ public:
     ChildProcess& operator=(const ChildProcess&) = delete;
 
     void signal(int sig) const { ::kill(pid_, sig); }
+    pid_t pid() const { return pid_; }
     // The exit code, or nullopt if it is still running after `timeout` (or died by a signal:
     // then 128 + signal).
     std::optional<int> wait(std::chrono::milliseconds timeout) {
