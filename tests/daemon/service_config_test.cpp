@@ -543,5 +543,25 @@ TEST(WebToken, ShortPaddedOrControlTokensAreRefusedNamingTheConfigAndKey) {
               std::string::npos);
 }
 
+// Issue 52: the files output's ring and free-space floor are configurable, with bounded defaults.
+TEST(ServiceConfig, FilesOutputRingAndFloor) {
+    const std::string files = "[output]\nkind = \"files\"\nfolder = \"f\"\n";
+    Result<ServiceConfig> c = loadServiceConfig(writeFile(
+        "files_ring.toml", minimal("", files + "keep_frames = 50\nmax_mb = 20\nmin_free_mb = 0")));
+    ASSERT_TRUE(c) << c.message();
+    EXPECT_EQ(c->output.keepFrames, 50u);
+    EXPECT_EQ(c->output.maxMb, 20u);
+    EXPECT_EQ(c->output.minFreeMb, 0u);
+    c = loadServiceConfig(writeFile("files_default.toml", minimal("", files)));
+    ASSERT_TRUE(c) << c.message();
+    EXPECT_EQ(c->output.keepFrames, 1000u);
+    EXPECT_EQ(c->output.maxMb, 1024u);
+    EXPECT_EQ(c->output.minFreeMb, 1024u);
+    Result<ServiceConfig> bad =
+        loadServiceConfig(writeFile("files_zero.toml", minimal("", files + "keep_frames = 0")));
+    ASSERT_FALSE(bad);
+    EXPECT_NE(bad.message().find("output.keep_frames"), std::string::npos) << bad.message();
+}
+
 }  // namespace
 }  // namespace previs
