@@ -123,18 +123,20 @@ class Page:
     def text(self, element_id):
         return self.eval(f"document.getElementById('{element_id}')?.textContent ?? null")
 
-    def click(self, element_id):
-        """A real click: mouse pressed and released at the button's centre."""
+    def click(self, element_id, taps=1):
+        """A real click (taps=2: a double tap): mouse pressed and released at the button's
+        centre, each tap sent as soon as the browser took the one before."""
         box = self.eval(f"""(() => {{
             const e = document.getElementById('{element_id}');
             e.scrollIntoView({{block: 'center'}});
             const r = e.getBoundingClientRect();
             return {{x: r.left + r.width / 2, y: r.top + r.height / 2}};
         }})()""")
-        for kind in ("mousePressed", "mouseReleased"):
-            self.devtools.call("Input.dispatchMouseEvent",
-                               {"type": kind, "x": box["x"], "y": box["y"], "button": "left",
-                                "clickCount": 1}, self.session)
+        for tap in range(1, taps + 1):
+            for kind in ("mousePressed", "mouseReleased"):
+                self.devtools.call("Input.dispatchMouseEvent",
+                                   {"type": kind, "x": box["x"], "y": box["y"], "button": "left",
+                                    "clickCount": tap}, self.session)
 
     def type_into(self, element_id, text):
         self.eval(f"document.getElementById('{element_id}').focus()")
@@ -177,7 +179,10 @@ def run(server_binary):
     profile = tempfile.mkdtemp(prefix="previs-web-chromium-")
     devtools = None
     try:
-        server = subprocess.Popen([server_binary, "--token", TOKEN, "--fps", "10"],
+        # Each control command takes 1 s, as a record start opening a take may: a second
+        # tap arrives while the first request is in flight.
+        server = subprocess.Popen([server_binary, "--token", TOKEN, "--fps", "10",
+                                   "--command-delay-ms", "1000"],
                                   stdin=subprocess.PIPE, stdout=subprocess.PIPE)
         children.append(server)
         listening = read_line_matching(server.stdout, r"LISTENING (\d+)", 30)
@@ -249,6 +254,24 @@ def run(server_binary):
         if post_without_token(port, "/mode", "toggle") != 401 or \
                 server_status(port)["mode"] != "refine":
             fail("a request without the token changed the mode back")
+
+        # A double tap on Record start sends one request: the buttons are disabled while it is
+        # in flight (issue 52: two concurrent starts ended previsd), and come back after it.
+        commands = server_status(port)["web"]["commands"]
+        page.click("recStart", taps=2)
+        if not page.eval("document.getElementById('recStop').disabled"):
+            fail("the buttons are not disabled while a request is in flight")
+        wait_for("the page reports the record start accepted",
+                 lambda: (page.text("result") or "").startswith("200"))
+        wait_for("the buttons come back", lambda: not page.eval(
+            "document.getElementById('recStart').disabled"))
+        time.sleep(1.5)  # a second request, had one been sent, has reached the server by now
+        status = server_status(port)
+        if status["web"]["commands"] != commands + 1:
+            fail(f"a double tap sent {status['web']['commands'] - commands} requests, not 1")
+        if not status["recording"]:
+            fail("the record start did not reach the server")
+        print(f"a double tap sends one request ({time.monotonic() - started:.1f} s)")
         # Phone and tablet: no sideways scrolling, the picture fills the width, buttons a thumb
         # can hit (at least 44 CSS px high, Apple's and Google's guidance).
         for name, width, height in (("phone", 390, 844), ("tablet", 820, 1180)):

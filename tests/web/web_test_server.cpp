@@ -3,7 +3,10 @@
 // Service has. Prints "LISTENING PORT" on stdout once it serves; runs until stdin closes or
 // SIGTERM.
 //
-//   web_test_server [--listen HOST:PORT] [--token TOKEN] [--fps N]
+//   web_test_server [--listen HOST:PORT] [--token TOKEN] [--fps N] [--command-delay-ms N]
+//
+// --command-delay-ms makes each control command take that long (a record start that opens a
+// take), so a second tap can arrive while the first request is in flight.
 
 #include <poll.h>
 #include <unistd.h>
@@ -29,6 +32,7 @@ void onSignal(int) { gStop = true; }
 // What previsd's Service answers, reduced to the states the page shows.
 class FakeService {
 public:
+    explicit FakeService(int commandDelayMs) : commandDelayMs_(commandDelayMs) {}
     std::string statusJson() {
         std::lock_guard lock(mutex_);
         nlohmann::json j = {{"mode", mode_},
@@ -43,6 +47,7 @@ public:
         return j.dump();
     }
     std::string command(const std::string& c) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(commandDelayMs_));
         std::lock_guard lock(mutex_);
         if (c == "toggle")
             mode_ = mode_ == "preview" ? "refine" : "preview";
@@ -64,6 +69,7 @@ public:
     }
 
 private:
+    const int commandDelayMs_;
     std::mutex mutex_;
     std::string mode_ = "preview";
     bool recording_ = false;
@@ -77,6 +83,7 @@ int main(int argc, char** argv) {
     settings.listen = "127.0.0.1:0";
     settings.token = "test-token";
     double renderFps = 30.0;
+    int commandDelayMs = 0;
     for (int i = 1; i + 1 < argc; i += 2) {
         const std::string key = argv[i];
         if (key == "--listen")
@@ -85,6 +92,8 @@ int main(int argc, char** argv) {
             settings.token = argv[i + 1];
         else if (key == "--fps")
             settings.streamFps = std::stod(argv[i + 1]);
+        else if (key == "--command-delay-ms")
+            commandDelayMs = std::stoi(argv[i + 1]);
         else {
             std::fprintf(stderr, "web_test_server: unknown option %s\n", key.c_str());
             return 2;
@@ -92,7 +101,7 @@ int main(int argc, char** argv) {
     }
     std::signal(SIGTERM, onSignal);
     std::signal(SIGINT, onSignal);
-    FakeService service;
+    FakeService service(commandDelayMs);
     auto monitor = previs::WebMonitor::create(
         settings, {.statusJson = [&] { return service.statusJson(); },
                    .command = [&](const std::string& c) { return service.command(c); }});
