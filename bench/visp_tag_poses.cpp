@@ -204,14 +204,14 @@ double vispRotationThresholdRad(int id) {
     return t[std::clamp(id, 0, kTags - 1)];
 }
 
-Result<VispFamilyResult> measureVispFamily(const std::string& dataDir, const VispTagFamily& family,
-                                           VispImage image,
-                                           const std::vector<CornerMethod>& methods) {
+Result<std::vector<VispFamilyResult>> measureVispFamily(const std::string& dataDir,
+                                                        const VispTagFamily& family,
+                                                        const std::vector<VispImage>& images,
+                                                        const std::vector<CornerMethod>& methods) {
     const std::string dir = folder(dataDir);
     const std::string path = dir + family.file + "_640x480.png";
-    cv::Mat gray = cv::imread(path, cv::IMREAD_GRAYSCALE);
-    if (gray.empty()) return makeError("{}: cannot read the image", path);
-    if (image == VispImage::ThroughSrgb) gray = throughSrgb(gray);
+    const cv::Mat rendered = cv::imread(path, cv::IMREAD_GRAYSCALE);
+    if (rendered.empty()) return makeError("{}: cannot read the image", path);
     Result<CameraCalibration> camera = vispCamera();
     if (!camera) return camera.error();
     std::vector<cv::Matx44d> truth;
@@ -224,38 +224,103 @@ Result<VispFamilyResult> measureVispFamily(const std::string& dataDir, const Vis
     }
     Result<TagBoard> tagBoard = TagBoard::create(board, "ViSP benchmark truth");
     if (!tagBoard) return tagBoard.error();
-
-    VispFamilyResult out;
-    out.family = family;
-    out.image = image;
     Result<std::vector<std::array<cv::Point2d, 4>>> published =
         readPublishedCorners(dir + "corners_" + family.file + ".txt");
     if (!published) return published.error();
-    out.published = *published;
 
+    // One detector and one tracker for every image: their decode tables take seconds to build.
     TagDetectorSettings full = detectorSettings(family);
     full.decimate = 1.0f;
     Result<TagDetector> detector = TagDetector::create(full);
     if (!detector) return detector.error();
-    out.libapriltag = sortedById(detector->detect(gray));
-
     Result<Tracker> tracker = Tracker::create(detectorSettings(family), *tagBoard, *camera);
     if (!tracker) return tracker.error();
-    for (const CornerMethod& m : methods) {
-        std::vector<TagDetection> tags = out.libapriltag;
-        if (m.curve) {
-            // What Tracker::track does with TrackerSettings::linearFromCode set.
-            refineTagCornersInLinearLight(tags, gray, *m.curve, detector->border(), &*camera);
-        } else {
-            // The box as configured by default: the tracker itself, no curve told.
-            tracker->reset();
-            tracker->track(gray);
-            tags = sortedById(tracker->detections());
+    std::vector<VispFamilyResult> results;
+    for (VispImage image : images) {
+        const cv::Mat gray = image == VispImage::ThroughSrgb ? throughSrgb(rendered) : rendered;
+        VispFamilyResult& out = results.emplace_back();
+        out.family = family;
+        out.image = image;
+        out.published = *published;
+        out.libapriltag = sortedById(detector->detect(gray));
+        for (const CornerMethod& m : methods) {
+            std::vector<TagDetection> tags = out.libapriltag;
+            if (m.curve) {
+                // What Tracker::track does with TrackerSettings::linearFromCode set.
+                refineTagCornersInLinearLight(tags, gray, *m.curve, detector->border(), &*camera);
+            } else {
+                // The box as configured by default: the tracker itself, no curve told.
+                tracker->reset();
+                tracker->track(gray);
+                tags = sortedById(tracker->detections());
+            }
+            out.methods.push_back(
+                measureMethod(m.name, tags, out.libapriltag, *tracker, family, truth, *camera));
         }
-        out.methods.push_back(
-            measureMethod(m.name, tags, out.libapriltag, *tracker, family, truth, *camera));
+    }
+    return results;
+}
+
+Result<std::vector<DuckietownYaw>> measureDuckietownYaw(const std::string& dataDir,
+                                                        const std::vector<CornerMethod>& methods) {
+    const std::string dir = dataDir + "/apriltag/duckietown_rotation/";
+    // README §3: K from the upstream test_info.yaml, rectified (no distortion), a 0.065 m tag.
+    Result<CameraCalibration> camera = CameraCalibration::create(
+        cv::Matx33d(329.8729619143081, 0, 528, 0, 332.94611303946357, 396, 0, 0, 1), {},
+        cv::Size(1056, 792), DistortionModel::Pinhole, "duckietown camera");
+    if (!camera) return camera.error();
+    TagDetectorSettings settings;
+    settings.decimate = 1.0f;
+    Result<TagDetector> detector = TagDetector::create(settings);
+    if (!detector) return detector.error();
+    std::vector<DuckietownYaw> out(methods.size());
+    for (int angle : {-70, -60, -40, -30, -20, 0, 20, 40, 50, 70}) {
+        const std::string path = dir + "test_image_rotation_" + std::to_string(angle) + ".png";
+        const cv::Mat gray = cv::imread(path, cv::IMREAD_GRAYSCALE);
+        if (gray.empty()) return makeError("{}: cannot read the image", path);
+        const std::vector<TagDetection> detected = detector->detect(gray);
+        if (detected.size() != 1)
+            return makeError("{}: {} tags, expected 1", path, detected.size());
+        for (size_t m = 0; m < methods.size(); ++m) {
+            std::vector<TagDetection> tags = detected;
+            if (methods[m].curve)
+                refineTagCornersInLinearLight(tags, gray, *methods[m].curve, detector->border(),
+                                              &*camera);
+            std::optional<cv::Matx44d> pose = estimateTagPose(tags[0], *camera, 0.065);
+            if (!pose) return makeError("{}: no pose", path);
+            const double yaw = std::atan2((*pose)(0, 2), (*pose)(2, 2)) * 180.0 / kPi;
+            out[m].method = methods[m].name;
+            out[m].angleAndYawDeg.push_back({double(angle), yaw});
+        }
+    }
+    for (DuckietownYaw& d : out) {
+        // The yaw turns against the file's angle (README: about −angle + 2°).
+        std::vector<double> errors;
+        for (size_t i = 0; i < d.angleAndYawDeg.size(); ++i)
+            for (size_t j = i + 1; j < d.angleAndYawDeg.size(); ++j) {
+                const auto& a = d.angleAndYawDeg[i];
+                const auto& b = d.angleAndYawDeg[j];
+                errors.push_back(std::abs((a[1] - b[1]) + (a[0] - b[0])));
+            }
+        std::sort(errors.begin(), errors.end());
+        d.medianPairErrorDeg = errors[errors.size() / 2];
+        d.maxPairErrorDeg = errors.back();
     }
     return out;
+}
+
+std::string duckietownTable(const std::vector<DuckietownYaw>& results) {
+    std::string s =
+        "| corners | yaw + file angle per photo, ° (−70 … 70) | pair error median, ° | "
+        "max, ° |\n|---|---|---|---|\n";
+    for (const DuckietownYaw& d : results) {
+        std::string yaws;
+        for (const auto& [angle, yaw] : d.angleAndYawDeg)
+            yaws += (yaws.empty() ? "" : ", ") + fmt::format("{:+.1f}", yaw + angle);
+        s += fmt::format("| {} | {} | {:.2f} | {:.2f} |\n", d.method, yaws, d.medianPairErrorDeg,
+                         d.maxPairErrorDeg);
+    }
+    return s;
 }
 
 std::string vispTagTable(const std::vector<VispFamilyResult>& results) {

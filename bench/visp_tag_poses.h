@@ -88,10 +88,25 @@ struct VispFamilyResult {
 double vispTranslationThresholdM(int id);
 double vispRotationThresholdRad(int id);
 
-// `dataDir`: the shared data folder (sharedDataDir()). An error names the missing file.
-Result<VispFamilyResult> measureVispFamily(const std::string& dataDir, const VispTagFamily& family,
-                                           VispImage image,
-                                           const std::vector<CornerMethod>& methods);
+// One result per image. `dataDir`: the shared data folder (sharedDataDir()). An error names the
+// missing file.
+Result<std::vector<VispFamilyResult>> measureVispFamily(const std::string& dataDir,
+                                                        const VispTagFamily& family,
+                                                        const std::vector<VispImage>& images,
+                                                        const std::vector<CornerMethod>& methods);
+
+// Real photos with a weaker truth: duckietown_rotation (README §3), one tag36h11 tag turned by
+// a known yaw (hand-placed, within a few degrees) in front of a rectified Duckiebot camera. Per
+// method, the tag's yaw in each photo (estimateTagPose; the normal's angle in the camera's x-z
+// plane), and over all pairs of photos the error of the yaw difference against the file names'.
+struct DuckietownYaw {
+    std::string method;
+    std::vector<std::array<double, 2>> angleAndYawDeg;  // per photo: file angle, measured yaw
+    double medianPairErrorDeg = 0.0, maxPairErrorDeg = 0.0;
+};
+Result<std::vector<DuckietownYaw>> measureDuckietownYaw(const std::string& dataDir,
+                                                        const std::vector<CornerMethod>& methods);
+std::string duckietownTable(const std::vector<DuckietownYaw>& results);
 
 // The table BENCHMARKS.md quotes: one row per family, image and method.
 std::string vispTagTable(const std::vector<VispFamilyResult>& results);
