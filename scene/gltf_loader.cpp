@@ -1,15 +1,19 @@
 #include "scene/gltf_loader.h"
 
+#include <fcntl.h>
 #include <fnmatch.h>
+#include <sys/stat.h>
 #include <tiny_gltf.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <array>
+#include <cctype>
+#include <cerrno>
 #include <cmath>
 #include <cstring>
 #include <exception>
 #include <filesystem>
-#include <fstream>
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/quaternion.hpp>
 #include <glm/gtc/type_ptr.hpp>
@@ -24,6 +28,7 @@
 
 #include "base/log.h"
 #include "base/strings.h"
+#include "base/unique_fd.h"
 #include "image/image.h"
 
 namespace previs {
@@ -50,79 +55,231 @@ constexpr double kLumensPerWatt = 683.0;
 // exhaust the stack).
 constexpr int kMaxNodeDepth = 256;
 
-struct ImageLoadContext {
-    std::map<int, std::string> failures;  // glTF image index -> why it did not decode
+// What a glTF may make previs read (DESIGN.md §7: a scene is a file someone sends). tinygltf's
+// own file callbacks read a folder as if it were a file of absurd size (an image URI that decodes
+// to a NUL byte, tinygltf's tests/issue-416.gltf, ends in std::bad_alloc), block on a FIFO,
+// expand `~` and `$VARIABLES`, follow `../` and absolute URIs anywhere on the machine and look
+// in the working folder too. These resolve a URI against the glTF's folder only, refuse one that
+// leaves it, read regular files only, and keep every byte read and every pixel decoded within
+// GltfLoadOptions::maxDataBytes.
+class SceneFiles {
+public:
+    SceneFiles(std::filesystem::path folder, uint64_t budget)
+        : folder_(std::move(folder)), budget_(budget), left_(budget) {}
+
+    // The file a URI names inside the glTF's folder, symbolic links and `..` resolved; nullopt
+    // when there is none (a missing file is the caller's fallback; a refused URI is recorded).
+    std::optional<std::filesystem::path> resolve(const std::string& uri);
+    // The whole file `uri` names, counted against the budget; an error text when it cannot be.
+    Result<std::vector<unsigned char>> read(const std::string& uri);
+    // Takes `bytes` from the budget for `what` (an image's decoded pixels, the glTF itself);
+    // false, with the refusal recorded, when they do not fit.
+    bool take(uint64_t bytes, const std::string& what);
+
+    // The first URI refused or budget exceeded: the load fails with this, whatever tinygltf
+    // made of the missing file.
+    const std::string& refusal() const { return refusal_; }
+    std::map<int, std::string> imageFailures;  // glTF image index -> why it did not decode
+
+private:
+    void refuse(std::string why) {
+        if (refusal_.empty()) refusal_ = std::move(why);
+    }
+
+    std::filesystem::path folder_;  // canonical
+    uint64_t budget_;
+    uint64_t left_;
+    std::string refusal_;
 };
 
-// Decodes every image to RGBA8 with stb. A texture that does not decode is not fatal: the image
-// is left empty and the material loses that texture (fallback "no texture", i.e. the material's
-// factors alone), with a warning. On set, a preview with a missing texture beats no preview.
+// "scheme:" of an absolute URI (RFC 3986 §3.1); empty for a relative reference.
+std::string uriScheme(const std::string& uri) {
+    if (uri.empty() || !std::isalpha(static_cast<unsigned char>(uri[0]))) return {};
+    for (size_t i = 1; i < uri.size(); ++i) {
+        const unsigned char c = static_cast<unsigned char>(uri[i]);
+        if (c == ':') return uri.substr(0, i);
+        if (!std::isalnum(c) && c != '+' && c != '-' && c != '.') return {};
+    }
+    return {};
+}
+
+std::string byteSize(uint64_t bytes) {
+    if (bytes < (uint64_t(16) << 10)) return fmt::format("{} bytes", bytes);
+    if (bytes < (uint64_t(16) << 20)) return fmt::format("{} KiB", bytes >> 10);
+    return fmt::format("{} MiB", bytes >> 20);
+}
+
+std::optional<std::filesystem::path> SceneFiles::resolve(const std::string& uri) {
+    namespace fs = std::filesystem;
+    const std::string fix = fmt::format(
+        "previs reads a scene's buffers and images only from inside the glTF's folder '{}' (or "
+        "from data: URIs): copy the file there and name it by a path relative to the glTF",
+        folder_.string());
+    // A name with a NUL byte names no file: the texture falls back (TinygltfIssue416).
+    if (uri.empty() || uri.find('\0') != std::string::npos) return std::nullopt;
+    if (uri.front() == '/') {
+        refuse(fmt::format("the URI '{}' is an absolute path; {}", uri, fix));
+        return std::nullopt;
+    }
+    if (const std::string scheme = uriScheme(uri); !scheme.empty()) {
+        // A data: URI of a media type tinygltf does not decode: no file, the texture falls back.
+        if (scheme != "data")
+            refuse(fmt::format("the URI '{}' is a {}: URI; {}", uri, scheme, fix));
+        return std::nullopt;
+    }
+    std::error_code ec;
+    const fs::path target = fs::weakly_canonical(folder_ / uri, ec);
+    if (ec) return std::nullopt;
+    const fs::path inside = target.lexically_relative(folder_);
+    if (inside.empty() || *inside.begin() == "..") {
+        refuse(fmt::format(
+            "the URI '{}' leads outside the glTF's folder (after resolving '..' and symbolic "
+            "links); {}",
+            uri, fix));
+        return std::nullopt;
+    }
+    return target;
+}
+
+bool SceneFiles::take(uint64_t bytes, const std::string& what) {
+    if (bytes <= left_) {
+        left_ -= bytes;
+        return true;
+    }
+    refuse(fmt::format(
+        "its buffers and images need more than the {} previs gives a scene ({} needs {}, {} "
+        "left); make the textures smaller or split the scene",
+        byteSize(budget_), what, byteSize(bytes), byteSize(left_)));
+    return false;
+}
+
+// A GLB's 32-bit length bounds every valid buffer or image file.
+constexpr uint64_t kMaxExternalFileBytes = uint64_t(1) << 32;
+
+// The regular file at `path`, whole, if it holds at most `maxBytes`: opened without waiting (a
+// FIFO is refused, not read) and, unless `followLink`, without following a link.
+Result<std::vector<unsigned char>> readRegularFile(const std::string& path, bool followLink,
+                                                   uint64_t maxBytes, uint64_t* size) {
+    const int flags = O_RDONLY | O_CLOEXEC | O_NONBLOCK | (followLink ? 0 : O_NOFOLLOW);
+    UniqueFD fd(::open(path.c_str(), flags));
+    if (!fd.isValid()) return makeError("{}", std::strerror(errno));
+    struct stat st {};
+    if (::fstat(fd.get(), &st) != 0) return makeError("{}", std::strerror(errno));
+    if (!S_ISREG(st.st_mode)) return makeError("not a regular file");
+    *size = uint64_t(st.st_size);
+    if (*size > maxBytes) return makeError("{} bytes, more than {}", *size, maxBytes);
+    std::vector<unsigned char> bytes(size_t(st.st_size));
+    size_t got = 0;
+    while (got < bytes.size()) {
+        const ssize_t n = ::read(fd.get(), bytes.data() + got, bytes.size() - got);
+        if (n < 0 && errno == EINTR) continue;
+        if (n < 0) return makeError("{}", std::strerror(errno));
+        if (n == 0) return makeError("cut short while reading");
+        got += size_t(n);
+    }
+    return bytes;
+}
+
+Result<std::vector<unsigned char>> SceneFiles::read(const std::string& uri) {
+    const std::optional<std::filesystem::path> path = resolve(uri);
+    if (!path) return makeError("{}", refusal_.empty() ? "no such file" : refusal_);
+    const uint64_t most = std::min(kMaxExternalFileBytes, left_);
+    uint64_t size = 0;
+    // The path is canonical: a link found there now was swapped in since, it is not the scene's.
+    Result<std::vector<unsigned char>> bytes = readRegularFile(path->string(), false, most, &size);
+    if (!bytes && size > most && size <= kMaxExternalFileBytes)
+        take(size, fmt::format("'{}'", uri));  // over the budget: records why
+    if (bytes) take(size, fmt::format("'{}'", uri));
+    return bytes;
+}
+
+bool externalFileExists(const std::string& uri, void* user) {
+    std::optional<std::filesystem::path> path = static_cast<SceneFiles*>(user)->resolve(uri);
+    std::error_code ec;
+    return path && std::filesystem::is_regular_file(*path, ec);
+}
+
+std::string expandNothing(const std::string& path, void* /*user*/) { return path; }
+
+bool readExternalFile(std::vector<unsigned char>* out, std::string* err, const std::string& uri,
+                      void* user) {
+    Result<std::vector<unsigned char>> bytes = static_cast<SceneFiles*>(user)->read(uri);
+    if (!bytes) {
+        *err = bytes.message();
+        return false;
+    }
+    *out = std::move(*bytes);
+    return true;
+}
+
+// The width and height a PNG's IHDR or a JPEG's frame header declares, read before any pixel is
+// decoded; nullopt for anything else (the decoder then refuses it).
+std::optional<std::pair<uint32_t, uint32_t>> declaredSize(std::span<const uint8_t> b) {
+    auto be16 = [&](size_t at) { return uint32_t(b[at]) << 8 | b[at + 1]; };
+    auto be32 = [&](size_t at) { return be16(at) << 16 | be16(at + 2); };
+    static const uint8_t kPng[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+    if (b.size() >= 24 && std::memcmp(b.data(), kPng, 8) == 0 &&
+        std::memcmp(b.data() + 12, "IHDR", 4) == 0)
+        return std::pair(be32(16), be32(20));
+    if (b.size() < 4 || b[0] != 0xff || b[1] != 0xd8) return std::nullopt;
+    // JPEG (ITU T.81 B.1.1): marker segments, each 0xFF, a code and a 16-bit length, up to the
+    // frame header SOFn (0xC0-0xCF but DHT C4, JPG C8, DAC CC): P, Y (height), X (width).
+    for (size_t at = 2; at + 4 <= b.size();) {
+        if (b[at] != 0xff) return std::nullopt;
+        const uint8_t code = b[at + 1];
+        if (code == 0xff) {  // fill byte
+            ++at;
+            continue;
+        }
+        if (code >= 0xc0 && code <= 0xcf && code != 0xc4 && code != 0xc8 && code != 0xcc)
+            return at + 9 <= b.size() ? std::optional(std::pair(be16(at + 7), be16(at + 5)))
+                                      : std::nullopt;
+        if (code == 0xda || code == 0xd9) return std::nullopt;  // scan or end before a frame
+        at += 2 + be16(at + 2);
+    }
+    return std::nullopt;
+}
+
+// Decodes every image to RGBA8. A texture that does not decode is not fatal: the image is left
+// empty and the material loses that texture (fallback "no texture", i.e. the material's factors
+// alone), with a warning. On set, a preview with a missing texture beats no preview. An image
+// whose declared size does not fit the scene's budget fails the load, before it is decoded.
 bool decodeImage(tinygltf::Image* image, const int imageIndex, std::string* /*err*/,
                  std::string* /*warn*/, int /*reqWidth*/, int /*reqHeight*/,
                  const unsigned char* bytes, int size, void* user) {
-    auto* context = static_cast<ImageLoadContext*>(user);
+    auto* files = static_cast<SceneFiles*>(user);
+    const std::span<const uint8_t> encoded(bytes, size > 0 ? size_t(size) : 0);
+    const std::string name = fmt::format("image {}", imageIndex);
+    auto what = [&](uint32_t width, uint32_t height) {
+        return fmt::format("image {} ('{}', {}x{} pixels decoded)", imageIndex,
+                           image->name.empty() ? image->uri : image->name, width, height);
+    };
+    uint64_t taken = 0;
+    if (const std::optional<std::pair<uint32_t, uint32_t>> declared = declaredSize(encoded)) {
+        const auto [width, height] = *declared;
+        taken = uint64_t(width) * height * 4;
+        if (!files->take(taken, what(width, height))) return false;
+    }
     // Through image/'s checks (content type, size limit from the header), not straight to stb:
     // a hostile texture must not hang or exhaust the loader.
-    Result<ImageRgba8> decoded =
-        size > 0 ? decodePngOrJpeg(std::span<const uint8_t>(bytes, size_t(size)),
-                                   fmt::format("image {}", imageIndex))
-                 : Result<ImageRgba8>(makeError("image {} is empty", imageIndex));
+    Result<ImageRgba8> decoded = size > 0 ? decodePngOrJpeg(encoded, name)
+                                          : Result<ImageRgba8>(makeError("{} is empty", name));
     if (!decoded) {
-        context->failures[imageIndex] = decoded.message();
+        files->imageFailures[imageIndex] = decoded.message();
         image->image.clear();
         image->width = image->height = 0;
         return true;
     }
+    // A header this reader could not size is counted once decoded (image/ caps it per axis).
+    if (decoded->pixels.size() > taken &&
+        !files->take(decoded->pixels.size() - taken, what(decoded->width, decoded->height)))
+        return false;
     image->width = int(decoded->width);
     image->height = int(decoded->height);
     image->component = 4;
     image->bits = 8;
     image->pixel_type = TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE;
     image->image = std::move(decoded->pixels);
-    return true;
-}
-
-// tinygltf's default file callbacks read a folder as if it were a file, of absurd size: an image
-// URI that decodes to a NUL byte ("%!Q...", tinygltf's tests/issue-416.gltf) names the glTF's own
-// folder and ends in std::bad_alloc. They also expand `~` and `$VARIABLES` in URIs. These take a
-// URI's name literally and read regular files only, up to kMaxExternalFileBytes (a GLB's 32-bit
-// limit: no valid buffer or image is larger).
-constexpr uint64_t kMaxExternalFileBytes = uint64_t(1) << 32;
-
-bool externalFileExists(const std::string& path, void* /*user*/) {
-    std::error_code ec;
-    return path.find('\0') == std::string::npos && std::filesystem::is_regular_file(path, ec);
-}
-
-std::string expandNothing(const std::string& path, void* /*user*/) { return path; }
-
-bool readExternalFile(std::vector<unsigned char>* out, std::string* err, const std::string& path,
-                      void* /*user*/) {
-    std::error_code ec;
-    if (path.find('\0') != std::string::npos) {
-        *err = "the URI decodes to a name containing a NUL byte";
-        return false;
-    }
-    if (!std::filesystem::is_regular_file(path, ec)) {
-        *err = "not a regular file";
-        return false;
-    }
-    const uint64_t size = std::filesystem::file_size(path, ec);
-    if (ec) {
-        *err = ec.message();
-        return false;
-    }
-    if (size > kMaxExternalFileBytes) {
-        *err = fmt::format("{} bytes, more than the {} a glTF buffer or image can have", size,
-                           kMaxExternalFileBytes);
-        return false;
-    }
-    std::ifstream file(path, std::ios::binary);
-    out->resize(size);
-    if (!file.read(reinterpret_cast<char*>(out->data()), std::streamsize(size))) {
-        *err = "read error";
-        return false;
-    }
     return true;
 }
 
@@ -192,6 +349,10 @@ private:
     Status checkExtensions() const;
     Result<std::optional<bool>> roleByName(const tinygltf::Node& node, int nodeIndex);
     Status loadMaterials();
+    // Warns, once per material, when `material` is glTF's thin wall by default (no volume, no
+    // previs.toml override) on the closed mesh `meshIndex`: what Blender writes for solid glass.
+    void checkThinGlassOnClosedMesh(uint32_t material, int meshIndex);
+    bool meshIsClosed(int meshIndex);
     void clampToSpecification(Material& m, glm::vec3& emissive, float& strength) const;
     Result<int> textureFor(int gltfTexture, bool srgb, const std::string& materialName);
     // Transforms are composed in double and are relative to scene_.originM (the "world" of
@@ -226,6 +387,11 @@ private:
     using TextureKey = std::tuple<int, bool, int, int, bool>;
     std::map<TextureKey, int> textureMap_;
     std::set<int> warnedImages_;
+    // Materials that are thin walls by glTF's default only (transmissive, no volume, no
+    // override), until the warning about them is given.
+    std::set<uint32_t> thinByDefault_;
+    std::map<int, bool> closedMeshes_;  // glTF mesh -> whether it is closed (computed once)
+    std::set<std::string> overriddenMaterials_;  // thinWalledByMaterial names that matched
     size_t degenerateTriangles_ = 0;
     size_t skippedPrimitives_ = 0;
     size_t replacedNormals_ = 0;
@@ -441,6 +607,13 @@ Status Loader::loadMaterials() {
         // thicknessFactor's value only matters to rasterisers (a path tracer has the mesh).
         const tinygltf::Value* volume = findExtension(m.extensions, "KHR_materials_volume");
         out.thinWalled = !(numberOr(volume, "thicknessFactor", 0.0f) > 0.0f);
+        if (auto it = options_.thinWalledByMaterial.find(out.name);
+            it != options_.thinWalledByMaterial.end()) {
+            out.thinWalled = it->second;  // the description, written for this shot, wins
+            overriddenMaterials_.insert(out.name);
+        } else if (out.thinWalled && out.transmission > 0.0f) {
+            thinByDefault_.insert(uint32_t(i));
+        }
         if (!out.thinWalled) {
             out.attenuationColor = vec3Or(volume, "attenuationColor", glm::vec3(1.0f));
             out.attenuationDistanceM =
@@ -833,6 +1006,7 @@ Status Loader::loadPrimitive(const tinygltf::Mesh& mesh, int meshIndex, size_t p
         material = uint32_t(defaultMaterial_);
     }
 
+    checkThinGlassOnClosedMesh(material, meshIndex);
     shiftTextureCoordinates(uvs, scene_.materials[material]);
 
     const glm::mat3 linear{glm::dmat3(worldFromMesh)};
@@ -948,6 +1122,63 @@ Status Loader::loadPrimitive(const tinygltf::Mesh& mesh, int meshIndex, size_t p
         g.triangleIsReal.push_back(real ? 1 : 0);
     }
     return {};
+}
+
+// Closed: every edge of its triangles, vertices welded by position (exporters split them along
+// UV seams and sharp edges), is shared by an even number of them, so the mesh bounds a volume.
+bool Loader::meshIsClosed(int meshIndex) {
+    if (auto it = closedMeshes_.find(meshIndex); it != closedMeshes_.end()) return it->second;
+    std::map<std::array<float, 3>, uint32_t> welded;
+    std::map<std::pair<uint32_t, uint32_t>, uint32_t> edgeUses;
+    for (const tinygltf::Primitive& prim : model_.meshes[meshIndex].primitives) {
+        auto position = prim.attributes.find("POSITION");
+        if (prim.mode != TINYGLTF_MODE_TRIANGLES || position == prim.attributes.end()) continue;
+        std::vector<float> positions;
+        std::vector<uint32_t> indices;
+        size_t count = 0;
+        // A primitive that does not read is the primitive loader's error to report.
+        if (!readFloats(position->second, TINYGLTF_TYPE_VEC3, false, "", positions, count) ||
+            !std::all_of(positions.begin(), positions.end(),
+                         [](float v) { return std::isfinite(v); }))
+            return closedMeshes_[meshIndex] = false;
+        if (prim.indices >= 0) {
+            if (!readIndices(prim.indices, "", indices)) return closedMeshes_[meshIndex] = false;
+        } else {
+            for (size_t i = 0; i < count; ++i) indices.push_back(uint32_t(i));
+        }
+        std::vector<uint32_t> id(count);
+        for (size_t v = 0; v < count; ++v)
+            id[v] = welded
+                        .emplace(std::array<float, 3>{positions[3 * v], positions[3 * v + 1],
+                                                      positions[3 * v + 2]},
+                                 uint32_t(welded.size()))
+                        .first->second;
+        for (size_t t = 0; t + 2 < indices.size(); t += 3) {
+            for (int k = 0; k < 3; ++k) {
+                const uint32_t a = indices[t + k], b = indices[t + (k + 1) % 3];
+                if (a >= count || b >= count) return closedMeshes_[meshIndex] = false;
+                if (id[a] != id[b]) ++edgeUses[std::minmax(id[a], id[b])];
+            }
+        }
+    }
+    bool closed = !edgeUses.empty();
+    for (const auto& [edge, uses] : edgeUses) closed = closed && uses % 2 == 0;
+    return closedMeshes_[meshIndex] = closed;
+}
+
+void Loader::checkThinGlassOnClosedMesh(uint32_t material, int meshIndex) {
+    if (!thinByDefault_.count(material) || !meshIsClosed(meshIndex)) return;
+    thinByDefault_.erase(material);  // once per material
+    const std::string& name = scene_.materials[material].name;
+    logWarning(
+        "glTF '{}': material '{}' is transmissive without KHR_materials_volume, a thin wall by "
+        "glTF's rule (light passes unbent), but it is on the closed mesh '{}', which is most "
+        "often meant as solid glass (Blender's exporter writes its glass so unless the material "
+        "has a thickness); if it is solid, give the material a thickness in Blender (glTF "
+        "Material Output > Thickness) and export again, or write `thin_walled = false` under "
+        "[materials.\"{}\"] in the scene's previs.toml; `thin_walled = true` keeps the thin wall "
+        "and this warning quiet",
+        path_, name, model_.meshes[meshIndex].name, name);
 }
 
 // Far from the origin a float texture coordinate keeps few fraction bits (at 1e7 none), and the
@@ -1098,6 +1329,19 @@ Result<Scene> Loader::run() {
                 path_, options_.roleRules[i].second ? "real" : "virtual",
                 options_.roleRules[i].first, originSuffix());
     }
+    for (const auto& override : options_.thinWalledByMaterial) {
+        const std::string& name = override.first;
+        if (overriddenMaterials_.count(name)) continue;
+        std::string names;
+        for (const Material& m : scene_.materials)
+            names += fmt::format("{}'{}'", names.empty() ? "" : ", ", m.name);
+        logWarning(
+            "glTF '{}': thin_walled is set for the material '{}'{}, but the file has no material "
+            "of that name ({}); check its spelling (names are case-sensitive)",
+            path_, name,
+            options_.materialsOrigin.empty() ? std::string() : " in " + options_.materialsOrigin,
+            names.empty() ? std::string("it has none") : "materials: " + names);
+    }
     if (degenerateTriangles_ > 0)
         logWarning("glTF '{}': dropped {} degenerate triangles (zero area or repeated index)",
                    path_, degenerateTriangles_);
@@ -1122,21 +1366,38 @@ Result<Scene> loadGltf(const std::string& path, const GltfLoadOptions& options) 
         return makeError("cannot load glTF '{}': unsupported extension '{}' (use .gltf or .glb)",
                          path, ext);
 
+    // URIs resolve against the glTF's own folder (SceneFiles), never the working folder.
+    std::filesystem::path folder =
+        std::filesystem::weakly_canonical(std::filesystem::absolute(path, ec).parent_path(), ec);
+    if (ec) return makeError("cannot load glTF '{}': {}", path, ec.message());
+    SceneFiles files(std::move(folder), options.maxDataBytes);
+    uint64_t fileBytes = 0;
+    Result<std::vector<unsigned char>> text = readRegularFile(
+        path, true, std::min(kMaxExternalFileBytes - 1, options.maxDataBytes), &fileBytes);
+    if (!text) return makeError("cannot load glTF '{}': {}", path, text.message());
+    files.take(fileBytes, "the file itself");
+    if (text->empty()) return makeError("cannot load glTF '{}': the file is empty", path);
+
     tinygltf::TinyGLTF gltf;
-    ImageLoadContext images;
-    gltf.SetImageLoader(&decodeImage, &images);
+    gltf.SetImageLoader(&decodeImage, &files);
     gltf.SetFsCallbacks(tinygltf::FsCallbacks{&externalFileExists, &expandNothing,
-                                              &readExternalFile, nullptr, nullptr});
+                                              &readExternalFile, nullptr, &files});
     tinygltf::Model model;
     std::string err;
     std::string warn;
     bool ok = false;
     try {
-        ok = ext == ".glb" ? gltf.LoadBinaryFromFile(&model, &err, &warn, path)
-                           : gltf.LoadASCIIFromFile(&model, &err, &warn, path);
+        // No base folder: tinygltf hands the callbacks each URI as it is.
+        ok = ext == ".glb" ? gltf.LoadBinaryFromMemory(&model, &err, &warn, text->data(),
+                                                       unsigned(text->size()), "")
+                           : gltf.LoadASCIIFromString(&model, &err, &warn,
+                                                      reinterpret_cast<const char*>(text->data()),
+                                                      unsigned(text->size()), "");
     } catch (const std::exception& e) {
         return makeError("cannot load glTF '{}': {}", path, e.what());
     }
+    if (!files.refusal().empty())
+        return makeError("cannot load glTF '{}': {}", path, files.refusal());
     if (!ok) {
         std::string reason = err.empty() ? std::string("malformed file") : oneLine(err);
         if (reason.find("json.exception") != std::string::npos)
@@ -1147,7 +1408,7 @@ Result<Scene> loadGltf(const std::string& path, const GltfLoadOptions& options) 
     }
     if (!warn.empty()) logDebug("glTF '{}': tinygltf: {}", path, oneLine(warn));
 
-    Loader loader(path, std::move(model), std::move(images.failures), options);
+    Loader loader(path, std::move(model), std::move(files.imageFailures), options);
     return loader.run();
 }
 

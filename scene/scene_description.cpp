@@ -57,6 +57,7 @@ private:
 
     Status parse(const toml::table& root, Description& d) const;
     Status parseRoles(const toml::table& roles, Description& d) const;
+    Status parseMaterials(const toml::table& materials, Description& d) const;
 
     TomlReader r_;
 };
@@ -88,8 +89,32 @@ Status DescriptionReader::parseRoles(const toml::table& roles, Description& d) c
     return {};
 }
 
+// [materials."<glTF material name>"] tables, each with thin_walled = true|false.
+Status DescriptionReader::parseMaterials(const toml::table& materials, Description& d) const {
+    for (const auto& [key, node] : materials) {
+        const std::string name(key.str());
+        const std::string section = fmt::format("materials.\"{}\"", name);
+        const toml::table* material = node.as_table();
+        if (!material)
+            return fail(&node,
+                        "'{}' must be a table naming a glTF material, e.g. [materials.\"Glass\"] "
+                        "with thin_walled = false, not {}",
+                        section, tomlTypeName(node));
+        if (Status s = r_.checkKeys(*material, section, {"thin_walled"}); !s) return s;
+        Result<std::optional<bool>> thin = r_.boolean(*material, section, "thin_walled");
+        if (!thin) return thin.error();
+        if (!*thin)
+            return fail(&node, "[{}] needs thin_walled = true or false (or leave the table out)",
+                        section);
+        d.gltfOptions.thinWalledByMaterial[name] = **thin;
+    }
+    d.gltfOptions.materialsOrigin = fmt::format("[materials] of '{}'", r_.path());
+    return {};
+}
+
 Status DescriptionReader::parse(const toml::table& root, Description& d) const {
-    if (Status s = r_.checkKeys(root, "", {"version", "gltf", "environment", "roles", "camera"});
+    if (Status s = r_.checkKeys(root, "",
+                                {"version", "gltf", "environment", "roles", "materials", "camera"});
         !s)
         return s;
 
@@ -153,6 +178,12 @@ Status DescriptionReader::parse(const toml::table& root, Description& d) const {
     if (!roles) return roles.error();
     if (*roles) {
         if (Status s = parseRoles(**roles, d); !s) return s;
+    }
+
+    Result<const toml::table*> materials = r_.table(root, "", "materials");
+    if (!materials) return materials.error();
+    if (*materials) {
+        if (Status s = parseMaterials(**materials, d); !s) return s;
     }
 
     Result<const toml::table*> camera = r_.table(root, "", "camera");

@@ -2,7 +2,8 @@
 
 // The previs.toml scene description (DESIGN.md §3, §4; the format is in docs/scene-format.md):
 // a glTF file plus what the tool that wrote it could not say — roles by node name, the
-// environment map and its orientation, the camera to use and its lens.
+// environment map and its orientation, which transmissive materials are thin walls or solids,
+// the camera to use and its lens.
 
 #include <string>
 

@@ -373,6 +373,109 @@ TEST(GltfLoader, TransmissionIsThinWalledUnlessItHasAVolume) {
         << refused.message();
 }
 
+// A 2 m cube as Blender's glTF exporter writes one: 24 vertices (each face its own four, for its
+// normal and texture coordinates), 36 indices.
+int addBlenderCube(GltfBuilder& b, int material) {
+    std::vector<glm::vec3> positions, normals;
+    std::vector<glm::vec2> uvs;
+    std::vector<uint16_t> indices;
+    for (int axis = 0; axis < 3; ++axis) {
+        for (float side : {-1.0f, 1.0f}) {
+            const uint16_t first = uint16_t(positions.size());
+            for (glm::vec2 corner : {glm::vec2(-1, -1), {1, -1}, {1, 1}, {-1, 1}}) {
+                glm::vec3 p;
+                p[axis] = side;
+                p[(axis + 1) % 3] = corner.x * side;
+                p[(axis + 2) % 3] = corner.y;
+                glm::vec3 n(0.0f);
+                n[axis] = side;
+                positions.push_back(p);
+                normals.push_back(n);
+                uvs.push_back(0.5f * (corner + 1.0f));
+            }
+            for (int k : {0, 1, 2, 0, 2, 3}) indices.push_back(uint16_t(first + k));
+        }
+    }
+    const int pos = b.addPositions(positions);
+    const int nrm = b.addVec3(normals);
+    const int uv = b.addAccessor(uvs.data(), uvs.size() * 8, 5126, "VEC2", uvs.size());
+    const int idx = b.addIndices(indices);
+    const int mesh = b.addMesh(
+        json::array({{{"attributes", {{"POSITION", pos}, {"NORMAL", nrm}, {"TEXCOORD_0", uv}}},
+                      {"indices", idx},
+                      {"material", material}}}));
+    b.doc()["meshes"][mesh]["name"] = "Cube";
+    return mesh;
+}
+
+// Blender's exporter writes glass (Principled BSDF, Transmission 1) as KHR_materials_transmission
+// without KHR_materials_volume unless the material has a thickness: a thin wall by glTF's rule,
+// which previs keeps, but on a closed mesh almost always meant as solid glass. One warning per
+// such material, naming it, the mesh and the fix; none for thin glass on an open mesh; a
+// previs.toml override (thinWalledByMaterial) decides and silences it.
+TEST(GltfLoader, BlendersDefaultGlassOnAClosedMeshWarnsOncePerMaterial) {
+    GltfBuilder b;
+    json& d = b.doc();
+    d["asset"]["generator"] = "Khronos glTF Blender I/O v3.4.50";
+    d["extensionsUsed"] = {"KHR_materials_transmission"};
+    auto glassMaterial = [](const char* name) {
+        return json{{"name", name},
+                    {"pbrMetallicRoughness", {{"metallicFactor", 0}, {"roughnessFactor", 0}}},
+                    {"extensions", {{"KHR_materials_transmission", {{"transmissionFactor", 1}}}}}};
+    };
+    d["materials"] = json::array({glassMaterial("Glass"), glassMaterial("Window")});
+    const int cube = addBlenderCube(b, 0);
+    b.addNode({{"name", "Cube"}, {"mesh", cube}});
+    b.addNode({{"name", "Cube.001"}, {"mesh", cube}, {"translation", {3, 0, 0}}});
+    b.addNode({{"name", "Shard"}, {"mesh", b.addTriangleMesh(0)}});
+    b.addNode({{"name", "Pane"}, {"mesh", b.addTriangleMesh(1)}});
+    const std::string path = b.writeGltf("blender_glass.gltf");
+
+    auto load = [&](const GltfLoadOptions& options, std::string& log) {
+        ::testing::internal::CaptureStderr();
+        Result<Scene> scene = loadGltf(path, options);
+        log = ::testing::internal::GetCapturedStderr();
+        std::printf("%s", log.c_str());
+        return scene;
+    };
+    auto count = [](const std::string& log, const std::string& needle) {
+        int n = 0;
+        for (size_t at = log.find(needle); at != std::string::npos; at = log.find(needle, at + 1))
+            ++n;
+        return n;
+    };
+    std::string log;
+    Result<Scene> byDefault = load({}, log);
+    ASSERT_TRUE(byDefault.ok()) << byDefault.message();
+    EXPECT_TRUE(byDefault->materials[0].thinWalled);  // glTF's rule holds without an override
+    EXPECT_TRUE(byDefault->materials[1].thinWalled);
+    EXPECT_EQ(count(log, "\n"), 1) << log;  // two cube instances, one material: one line
+    for (const char* what :
+         {"blender_glass.gltf", "material 'Glass'", "closed mesh 'Cube'", "KHR_materials_volume",
+          "Thickness", "`thin_walled = false` under [materials.\"Glass\"]"})
+        EXPECT_NE(log.find(what), std::string::npos) << what << " missing in: " << log;
+    EXPECT_EQ(count(log, "Window"), 0) << "thin glass on an open mesh is what glTF means: " << log;
+
+    GltfLoadOptions solid;
+    solid.thinWalledByMaterial = {{"Glass", false}, {"Window", true}};
+    Result<Scene> overridden = load(solid, log);
+    ASSERT_TRUE(overridden.ok()) << overridden.message();
+    EXPECT_FALSE(overridden->materials[0].thinWalled);
+    EXPECT_TRUE(std::isinf(overridden->materials[0].attenuationDistanceM));  // clear
+    EXPECT_TRUE(overridden->materials[1].thinWalled);
+    EXPECT_EQ(log, "");
+
+    GltfLoadOptions thin;
+    thin.thinWalledByMaterial = {{"Glass", true}, {"Glas", false}};
+    thin.materialsOrigin = "[materials] of 'shot/previs.toml'";
+    Result<Scene> kept = load(thin, log);
+    ASSERT_TRUE(kept.ok()) << kept.message();
+    EXPECT_TRUE(kept->materials[0].thinWalled);
+    EXPECT_EQ(count(log, "\n"), 1) << log;  // only the misspelt name
+    for (const char* what : {"'Glas'", "[materials] of 'shot/previs.toml'", "'Glass', 'Window'"})
+        EXPECT_NE(log.find(what), std::string::npos) << what << " missing in: " << log;
+}
+
 TEST(GltfLoader, LightsAndCameras) {
     GltfBuilder b;
     json& d = b.doc();
@@ -537,6 +640,150 @@ TEST(GltfLoader, BufferUriNamingAFifoIsRefused) {
     ASSERT_FALSE(r.ok());
     EXPECT_NE(r.message().find("fifo_buffer.gltf"), std::string::npos) << r.message();
     EXPECT_NE(r.message().find("pipe.bin"), std::string::npos) << r.message();
+}
+
+// A glTF in `folder` whose one triangle's buffer is `bufferUri` (holding the right bytes
+// wherever it points: inside.bin and ../outside.bin, `bufferBytes` long when more than the
+// triangle) and whose one texture is `imageUri` (none when empty).
+std::string writeSceneInFolder(const std::filesystem::path& folder, const std::string& bufferUri,
+                               const std::string& imageUri = {}, size_t bufferBytes = 0) {
+    std::filesystem::create_directories(folder);
+    GltfBuilder b;
+    b.doc()["materials"] = json::array({json::object()});
+    b.addNode({{"mesh", b.addTriangleMesh(0)}});
+    if (b.bin().size() < bufferBytes) b.bin().resize(bufferBytes);
+    b.doc()["buffers"] = json::array({{{"byteLength", b.bin().size()}, {"uri", bufferUri}}});
+    if (!imageUri.empty()) {
+        b.doc()["images"] = json::array({{{"uri", imageUri}}});
+        b.doc()["textures"] = json::array({{{"source", 0}}});
+        b.doc()["materials"][0]["emissiveTexture"] = {{"index", 0}};
+    }
+    for (const char* name : {"inside.bin", "../outside.bin"})
+        std::ofstream(folder / name, std::ios::binary)
+            .write(reinterpret_cast<const char*>(b.bin().data()), std::streamsize(b.bin().size()));
+    const std::filesystem::path path = folder / "scene.gltf";
+    std::ofstream(path) << b.doc().dump(1);
+    return path.string();
+}
+
+// A scene is a file someone sends: it may make previs read the files inside its own folder and
+// nothing else — not `../`, not an absolute path, not a link out, not another scheme, and not
+// the working folder tinygltf also searches — each refused with one line naming the glTF file
+// and the URI, whether a buffer or an image names it.
+TEST(GltfLoader, UrisLeavingTheScenesFolderAreRefused) {
+    const auto root = tempDir() / "containment";
+    std::filesystem::remove_all(root);
+    const auto folder = root / "scene";
+    writeSceneInFolder(folder, "inside.bin");
+    std::filesystem::create_directories(folder / "sub");
+    std::filesystem::create_symlink("../outside.bin", folder / "link_out.bin");
+    std::filesystem::create_symlink("inside.bin", folder / "link_in.bin");
+    ASSERT_TRUE(writePng((root / "outside.png").string(), 1, 1, {255, 0, 0}).ok());
+    ASSERT_TRUE(writePng((folder / "inside.png").string(), 1, 1, {255, 0, 0}).ok());
+    const std::string outside = (root / "outside.bin").string();
+    const std::pair<std::string, std::string> refused[] = {
+        {"../outside.bin", "outside the glTF's folder"},
+        {"%2E%2E/outside.bin", "outside the glTF's folder"},  // tinygltf decodes the URI first
+        {"sub/../../outside.bin", "outside the glTF's folder"},
+        {"link_out.bin", "outside the glTF's folder"},
+        {outside, "is an absolute path"},
+        {"file://" + outside, "is a file: URI"},
+        {"http://example.com/outside.bin", "is a http: URI"},
+    };
+    for (const auto& [uri, why] : refused) {
+        Result<Scene> r = loadGltf(writeSceneInFolder(folder, uri));
+        ASSERT_FALSE(r.ok()) << uri << " loaded";
+        std::printf("%s\n", r.message().c_str());
+        EXPECT_NE(r.message().find("scene.gltf"), std::string::npos) << r.message();
+        EXPECT_NE(r.message().find(why), std::string::npos) << r.message();
+        EXPECT_NE(r.message().find("copy the file there"), std::string::npos) << r.message();
+        EXPECT_EQ(r.message().find('\n'), std::string::npos) << r.message();
+    }
+    // An image is refused the same way, not dropped with a warning.
+    Result<Scene> image = loadGltf(writeSceneInFolder(folder, "inside.bin", "../outside.png"));
+    ASSERT_FALSE(image.ok());
+    EXPECT_NE(image.message().find("'../outside.png'"), std::string::npos) << image.message();
+
+    // What stays inside loads: `..` that comes back, a link to a file beside it.
+    for (const std::string uri : {"inside.bin", "sub/../inside.bin", "link_in.bin"}) {
+        Result<Scene> r = loadGltf(writeSceneInFolder(folder, uri, "sub/../inside.png"));
+        ASSERT_TRUE(r.ok()) << uri << ": " << r.message();
+        EXPECT_EQ(r->geometry.triangles.size(), 1u);
+        EXPECT_EQ(r->textures.size(), 1u);
+    }
+
+    // tinygltf looks for a URI in the working folder when the glTF's has no such file.
+    std::filesystem::remove(folder / "inside.bin");
+    const std::filesystem::path workingFolder = std::filesystem::current_path();
+    std::filesystem::current_path(root);
+    std::filesystem::copy_file(root / "outside.bin", root / "inside.bin");
+    Result<Scene> fromWorkingFolder = loadGltf((folder / "scene.gltf").string());
+    std::filesystem::current_path(workingFolder);
+    EXPECT_FALSE(fromWorkingFolder.ok()) << "read the working folder's inside.bin";
+}
+
+// Every byte a scene makes previs read and every pixel it decodes come out of one budget: a
+// buffer or an image over it is refused with one line, an image by the size its header
+// declares, before a pixel is decoded.
+TEST(GltfLoader, ScenesOverTheirMemoryBudgetAreRefused) {
+    const auto folder = tempDir() / "budget";
+    std::filesystem::remove_all(folder);
+    std::filesystem::create_directories(folder);
+    ASSERT_TRUE(
+        writePng((folder / "big.png").string(), 512, 512, std::vector<uint8_t>(512 * 512 * 3, 7))
+            .ok());
+    GltfLoadOptions tight;
+    tight.maxDataBytes = 512 * 512 * 4 - 1;  // less than the texture's decoded pixels alone
+    Result<Scene> image = loadGltf(writeSceneInFolder(folder, "inside.bin", "big.png"), tight);
+    ASSERT_FALSE(image.ok());
+    std::printf("%s\n", image.message().c_str());
+    EXPECT_NE(image.message().find("scene.gltf"), std::string::npos) << image.message();
+    EXPECT_NE(image.message().find("512x512"), std::string::npos) << image.message();
+    GltfLoadOptions roomy;
+    roomy.maxDataBytes = 512 * 512 * 4 + 64 * 1024;
+    EXPECT_TRUE(loadGltf((folder / "scene.gltf").string(), roomy).ok());
+
+    // A PNG of a few bytes declaring 16384 x 16384 (1 GiB decoded): refused by its header.
+    std::vector<uint8_t> header;
+    {
+        std::ifstream in(folder / "big.png", std::ios::binary);
+        header.assign(std::istreambuf_iterator<char>(in), {});
+        header.resize(33);  // signature and IHDR only
+        for (int at : {16, 20}) {
+            header[at] = 0;
+            header[at + 1] = 0;
+            header[at + 2] = 0x40;
+            header[at + 3] = 0;
+        }
+        std::ofstream(folder / "huge.png", std::ios::binary)
+            .write(reinterpret_cast<const char*>(header.data()), std::streamsize(header.size()));
+    }
+    GltfLoadOptions quarter;
+    quarter.maxDataBytes = uint64_t(256) << 20;
+    Result<Scene> huge = loadGltf(writeSceneInFolder(folder, "inside.bin", "huge.png"), quarter);
+    ASSERT_FALSE(huge.ok());
+    EXPECT_NE(huge.message().find("16384x16384"), std::string::npos) << huge.message();
+    // The same as a JPEG: start of image, an APP0 segment, then the frame header (SOF0: 8-bit
+    // precision, height 0x4000, width 0x3000, 3 components) and nothing more.
+    {
+        const std::vector<uint8_t> jpeg = {0xff, 0xd8, 0xff, 0xe0, 0x00, 0x04, 'J',  'F',  0xff,
+                                           0xc0, 0x00, 0x11, 0x08, 0x40, 0x00, 0x30, 0x00, 0x03,
+                                           1,    0x11, 0,    2,    0x11, 1,    3,    0x11, 1};
+        std::ofstream(folder / "huge.jpg", std::ios::binary)
+            .write(reinterpret_cast<const char*>(jpeg.data()), std::streamsize(jpeg.size()));
+    }
+    Result<Scene> hugeJpeg =
+        loadGltf(writeSceneInFolder(folder, "inside.bin", "huge.jpg"), quarter);
+    ASSERT_FALSE(hugeJpeg.ok());
+    EXPECT_NE(hugeJpeg.message().find("12288x16384"), std::string::npos) << hugeJpeg.message();
+
+    GltfLoadOptions small;
+    small.maxDataBytes = 16 * 1024;
+    Result<Scene> buffer = loadGltf(writeSceneInFolder(folder, "inside.bin", {}, 64 * 1024), small);
+    ASSERT_FALSE(buffer.ok());
+    std::printf("%s\n", buffer.message().c_str());
+    EXPECT_NE(buffer.message().find("more than the 16 KiB"), std::string::npos) << buffer.message();
+    EXPECT_NE(buffer.message().find("'inside.bin'"), std::string::npos) << buffer.message();
 }
 
 // Blender 3.4's own exporter, default lighting mode (tests/data/light_units/make_light_units.py):

@@ -238,6 +238,35 @@ real = ["Tabel*", "Table"]
     EXPECT_EQ(log.find("'Table'"), std::string::npos) << log;
 }
 
+// [materials."<name>"] thin_walled overrides glTF's thin-wall rule per material (Blender's default
+// glass: transmission without a volume). Names with spaces are quoted TOML keys.
+TEST(SceneDescription, MaterialsThinWalledOverride) {
+    TinyGltf g;
+    g.addMesh("Vase");
+    std::ifstream written(g.write("glass.gltf"));
+    json doc = json::parse(written);
+    const json glass = {{"KHR_materials_transmission", {{"transmissionFactor", 1}}}};
+    const json volume = {{"KHR_materials_transmission", {{"transmissionFactor", 1}}},
+                         {"KHR_materials_volume", {{"thicknessFactor", 0.1}}}};
+    doc["materials"] = json::array({{{"name", "Blender Glass"}, {"extensions", glass}},
+                                    {{"name", "Lens"}, {"extensions", volume}},
+                                    {{"name", "Pane"}, {"extensions", glass}}});
+    doc["meshes"][0]["primitives"][0]["material"] = 0;
+    writeFile("glass.gltf", doc.dump());
+    const std::string toml = writeFile("glass.toml", R"(version = 1
+gltf = "glass.gltf"
+[materials."Blender Glass"]
+thin_walled = false
+[materials.Lens]
+thin_walled = true
+)");
+    Result<Scene> scene = loadSceneDescription(toml);
+    ASSERT_TRUE(scene.ok()) << scene.message();
+    EXPECT_FALSE(scene->materials[0].thinWalled);  // solid, as the description says
+    EXPECT_TRUE(scene->materials[1].thinWalled);   // the override beats the volume too
+    EXPECT_TRUE(scene->materials[2].thinWalled);   // no override: glTF's rule
+}
+
 TEST(SceneDescription, CameraAndEnvironmentOverrides) {
     writeRoleGltf();
     writeEnvMap("studio.exr");
@@ -347,7 +376,7 @@ TEST_P(BadDescription, OneMessageNamingFileAndKey) {
 const BadCase kBadCases[] = {
     {"unknown_key",
      "version = 1\ngltf = \"roles.gltf\"\ngltff = \"x\"\n",
-     {"line 3", "'gltff'", "version, gltf, environment, roles, camera"}},
+     {"line 3", "'gltff'", "version, gltf, environment, roles, materials, camera"}},
     {"unknown_environment_key",
      "version = 1\ngltf = \"roles.gltf\"\n[environment]\nmap = \"env.exr\"\nrotation = 3\n",
      {"line 5", "'rotation'", "[environment]", "map, rotation_deg, scale"}},
@@ -419,6 +448,18 @@ const BadCase kBadCases[] = {
     {"camera_not_table",
      "version = 1\ngltf = \"roles.gltf\"\ncamera = \"CamA\"\n",
      {"'camera'", "table"}},
+    {"materials_not_table",
+     "version = 1\ngltf = \"roles.gltf\"\n[materials]\nGlass = false\n",
+     {"line 4", "'materials.\"Glass\"'", "table", "thin_walled = false"}},
+    {"materials_thin_walled_string",
+     "version = 1\ngltf = \"roles.gltf\"\n[materials.Glass]\nthin_walled = \"no\"\n",
+     {"line 4", "thin_walled", "true or false"}},
+    {"materials_unknown_key",
+     "version = 1\ngltf = \"roles.gltf\"\n[materials.Glass]\nthin = false\n",
+     {"'thin'", "thin_walled"}},
+    {"materials_empty",
+     "version = 1\ngltf = \"roles.gltf\"\n[materials.Glass]\n",
+     {"[materials.\"Glass\"]", "needs thin_walled"}},
     {"syntax_error", "version = 1\ngltf = \n", {"line 2", "not valid TOML"}},
     {"duplicate_key",
      "version = 1\nversion = 1\ngltf = \"roles.gltf\"\n",
