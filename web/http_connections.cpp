@@ -278,6 +278,7 @@ void ConnectionHub::receive(std::unique_ptr<Connection>& slot) {
     // Room for the largest request within the bounds, plus a byte to see one beyond them.
     const size_t capacity =
         limits_.maxRequestLineBytes + limits_.maxHeaderBytes + limits_.maxBodyBytes + 8;
+    bool ended = false;  // the client sent all it will (or the socket broke)
     for (;;) {
         const size_t room =
             c.lingering ? chunk.size() : capacity + 1 - std::min(capacity + 1, c.pending());
@@ -286,10 +287,8 @@ void ConnectionHub::receive(std::unique_ptr<Connection>& slot) {
         if (got < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) break;
         if (got < 0 && errno == EINTR) continue;
         if (got <= 0) {
-            // The client hung up (or the socket broke) before a whole request.
-            if (!c.lingering && c.requests == 0) ++silent_;
-            watched_.erase(fd);
-            return;
+            ended = true;
+            break;
         }
         if (c.lingering) continue;
         const Clock::time_point now = Clock::now();
@@ -297,13 +296,17 @@ void ConnectionHub::receive(std::unique_ptr<Connection>& slot) {
         c.lastActivity = now;
         c.buffer.append(chunk.data(), size_t(got));
     }
-    if (c.lingering) return;
-    const Scan s = scan(c);
+    const Scan s = c.lingering ? Scan::Closed : scan(c);
     if (s == Scan::Whole) {
+        // Served even when the client has half-closed after it (the answer can still go out).
         ::epoll_ctl(epoll_.get(), EPOLL_CTL_DEL, fd, nullptr);
         std::unique_ptr<Connection> whole = std::move(slot);
         watched_.erase(fd);
         lend(std::move(whole));
+    } else if (ended) {
+        // Hung up before a whole request (a browser's spare connection, a scanner).
+        if (!c.lingering && c.requests == 0) ++silent_;
+        watched_.erase(fd);
     } else if (s == Scan::Partial && c.pending() > capacity) {
         answerAndLinger(c, 431, "request above the monitor's bounds");
     }

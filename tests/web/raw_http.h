@@ -97,6 +97,9 @@ public:
         return false;
     }
 
+    // Says the request is all sent (a half-close); the reply can still be read.
+    void shutdownWrite() { ::shutdown(fd_.get(), SHUT_WR); }
+
     std::string& buffer() { return buffer_; }
 
 private:

@@ -175,6 +175,10 @@ TEST(WebHostile, SlowlorisClientsHoldNoWorkerPastTheDeadline) {
     const int port = monitor->port();
     std::vector<std::unique_ptr<RawConnection>> slow;
     for (int i = 0; i < 14; ++i) slow.push_back(std::make_unique<RawConnection>(port));
+    // And one that sends its head whole, then withholds the body it declared.
+    auto withheld = std::make_unique<RawConnection>(port);
+    ASSERT_TRUE(
+        withheld->send("POST /record HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: 5\r\n\r\nst"));
     std::atomic<bool> stop{false};
     std::thread dribble([&] {
         const std::string request =
@@ -195,7 +199,10 @@ TEST(WebHostile, SlowlorisClientsHoldNoWorkerPastTheDeadline) {
     }
     stop = true;
     dribble.join();
-    EXPECT_EQ(monitor->stats().requestTimeout, 14u);
+    EXPECT_TRUE(withheld->receiveToClose(10s)) << "a withheld body kept its connection";
+    EXPECT_EQ(test::parseReply(withheld->buffer()).status, 408);
+    EXPECT_EQ(monitor->stats().requestTimeout, 15u);
+    EXPECT_EQ(service.commandCount(), 0u);
     std::printf("status served in %lld ms beside 14 dribbling clients\n",
                 static_cast<long long>(
                     std::chrono::duration_cast<std::chrono::milliseconds>(took).count()));

@@ -111,6 +111,19 @@ TEST(WebInput, OversizedBodiesAre413AndHeaders431) {
     expectStillServing(*monitor);
 }
 
+// A client that half-closes after its request (nc -N, some scripts) still gets its answer.
+TEST(WebInput, AHalfClosedClientIsAnswered) {
+    FakeService service;
+    auto monitor = test::startMonitor(service);
+    ASSERT_TRUE(monitor);
+    test::RawConnection c(monitor->port());
+    ASSERT_TRUE(c.send("GET /status.json HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"));
+    c.shutdownWrite();
+    EXPECT_TRUE(c.receiveToClose(10s));
+    EXPECT_EQ(test::parseReply(c.buffer()).status, 200);
+    EXPECT_EQ(monitor->stats().silentConnections, 0u);
+}
+
 // Clients that connect and then send nothing, or stop mid-request: the silent one is dropped
 // after the idle timeout, the others are answered 408 after the read timeout, each counted; and
 // meanwhile the page, the status and the stream keep being served even though the slow clients
