@@ -257,7 +257,13 @@ public:
         }
     }
     ~ThreadHeldInRename() {
-        if (tid_ >= 0) ::ptrace(PTRACE_DETACH, tid_, nullptr, nullptr);
+        if (tid_ < 0 || ::ptrace(PTRACE_DETACH, tid_, nullptr, nullptr) == 0) return;
+        // Running (no rename came): a detach needs it stopped first.
+        ::ptrace(PTRACE_INTERRUPT, tid_, nullptr, nullptr);
+        int status = 0;
+        for (int i = 0; i < 1000 && ::waitpid(tid_, &status, __WALL | WNOHANG) == 0; ++i)
+            std::this_thread::sleep_for(1ms);
+        ::ptrace(PTRACE_DETACH, tid_, nullptr, nullptr);
     }
     ThreadHeldInRename(const ThreadHeldInRename&) = delete;
     ThreadHeldInRename& operator=(const ThreadHeldInRename&) = delete;
