@@ -96,8 +96,10 @@ void FilesOutput::remember(uint64_t index, uint64_t bytes) {
     totalBytes_ += bytes;
     // A frame written again leaves its older place behind: compact before those pile up.
     if (order_.size() > 2 * frames_.size() + 64) {
-        std::erase_if(order_,
-                      [&](const auto& o) { return frames_.at(o.first).second != o.second; });
+        std::erase_if(order_, [&](const auto& o) {
+            const auto it = frames_.find(o.first);
+            return it == frames_.end() || it->second.second != o.second;
+        });
     }
 }
 

@@ -90,6 +90,17 @@ TEST(FilesOutputRing, APreviousRunsFramesCountAndItsTemporariesGo) {
                                      "frame_000019.png", "notes.txt"}));
 }
 
+TEST(FilesOutputRing, AFrameWrittenAgainCountsOnceAndAsItsNewestWrite) {
+    // Indices that come round again (a new run, a looping source): the ring holds the files
+    // written last, each once.
+    const fs::path dir = freshDir("again");
+    auto out = FilesOutput::create(dir.string(), ring(3));
+    ASSERT_TRUE(out.ok()) << out.message();
+    for (uint64_t i = 0; i < 300; ++i) ASSERT_TRUE(showFrame(**out, i % 5));
+    EXPECT_EQ(names(dir),
+              (std::set<std::string>{"frame_000002.png", "frame_000003.png", "frame_000004.png"}));
+}
+
 TEST(FilesOutputRing, BelowTheFreeSpaceFloorNothingIsWritten) {
     const fs::path dir = freshDir("floor");
     fs::create_directories(dir);
