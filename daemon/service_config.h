@@ -190,7 +190,7 @@ struct OutputConfig {
     // while the folder's disk has less than min_free_mb free (display/files_output.h).
     uint64_t keepFrames = 1000;
     uint64_t maxMb = 1024;
-    uint64_t minFreeMb = 1024;
+    uint64_t minFreeMb = 256;
 };
 
 // The mode button and the status LED (libgpiod). Absent: no button (the socket still works).

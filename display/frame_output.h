@@ -42,9 +42,9 @@ public:
 // for days writes a frame per render, so the folder holds a ring of the newest frames and never
 // takes the disk's last free space.
 struct FilesOutputLimits {
-    uint64_t keepFrames = 1000;                 // the newest this many frames
-    uint64_t maxBytes = uint64_t(1) << 30;      // and at most this many bytes of them
-    uint64_t minFreeBytes = uint64_t(1) << 30;  // no frame written below this much free space
+    uint64_t keepFrames = 1000;                   // the newest this many frames
+    uint64_t maxBytes = uint64_t(1) << 30;        // and at most this many bytes of them
+    uint64_t minFreeBytes = uint64_t(256) << 20;  // no frame written below this much free space
 };
 
 // The service config's [output] table (docs/config-format.md).

@@ -556,7 +556,7 @@ TEST(ServiceConfig, FilesOutputRingAndFloor) {
     ASSERT_TRUE(c) << c.message();
     EXPECT_EQ(c->output.keepFrames, 1000u);
     EXPECT_EQ(c->output.maxMb, 1024u);
-    EXPECT_EQ(c->output.minFreeMb, 1024u);
+    EXPECT_EQ(c->output.minFreeMb, 256u);
     Result<ServiceConfig> bad =
         loadServiceConfig(writeFile("files_zero.toml", minimal("", files + "keep_frames = 0")));
     ASSERT_FALSE(bad);
