@@ -4,7 +4,9 @@
 #include <sys/random.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <cerrno>
+#include <chrono>
 #include <cstring>
 #include <filesystem>
 #include <utility>
@@ -22,10 +24,13 @@ constexpr int kNameAttempts = 16;
 uint64_t randomBits() {
     uint64_t bits = 0;
     // getrandom() of 8 bytes from the urandom pool does not block once it is initialised (early
-    // boot only); a short read leaves some bits zero, which O_EXCL still makes safe.
-    while (::getrandom(&bits, sizeof bits, 0) < 0 && errno == EINTR) {
+    // boot only). Should it fail, the clock and a counter still make each name new; O_EXCL keeps
+    // any name safe.
+    while (::getrandom(&bits, sizeof bits, GRND_NONBLOCK) < 0 && errno == EINTR) {
     }
-    return bits;
+    static std::atomic<uint64_t> counter{0};
+    const uint64_t now = uint64_t(std::chrono::steady_clock::now().time_since_epoch().count());
+    return bits ^ (now * 0x9e3779b97f4a7c15ull) ^ counter.fetch_add(1);
 }
 
 std::string temporaryName(const std::string& path, bool hidden) {
