@@ -44,6 +44,8 @@
 
 #include "base/log.h"
 #include "bench/board_render.h"
+#include "daemon/service_config.h"
+#include "daemon/take_files.h"
 #include "gpu/context.h"
 #include "image/image.h"
 #include "io/session.h"
@@ -613,6 +615,17 @@ struct TruthContext {
     std::function<std::shared_ptr<EnvironmentMap>(int)> envAt;
 };
 
+// previsd.toml and every file it names, copied into the session as the take recorder copies
+// them (daemon/take_files.h), and the session's config.toml naming the copies.
+Status copyDemoConfig(const std::string& demoDir, const std::string& sessionDir) {
+    Result<ServiceConfig> live = loadServiceConfig(demoDir + "/previsd.toml");
+    if (!live) return live.error();
+    Result<std::string> config = copyConfigIntoTake(*live, sessionDir);
+    if (!config) return config.error();
+    return writeFileAtomic(sessionDir + "/config.toml",
+                           {reinterpret_cast<const uint8_t*>(config->data()), config->size()});
+}
+
 // Renders the truth frames and writes truth/ (truth.toml and the EXRs).
 Status writeTruth(TruthContext& t) {
     const Options& o = t.o;
@@ -842,12 +855,10 @@ int run(const Options& o) {
     const std::string sessionDir = o.demoDir + "/session";
     std::error_code ec;
     std::filesystem::remove_all(sessionDir, ec);
-    std::ifstream configIn(o.demoDir + "/previsd.toml");
-    std::string config((std::istreambuf_iterator<char>(configIn)), {});
+    // The session is a take like any other (docs/session-format.md, "A take is untrusted"): its
+    // config.toml names copies inside it, written once its camera folders exist (below).
     SessionWriterOptions wo;
     wo.cameraRoles = {{"scene", "scene"}, {"fisheye", "fisheye"}};
-    wo.configToml = config;
-    wo.configDir = "..";                  // previsd.toml's folder, relative to the session
     wo.created = "2025-01-01T12:00:00Z";  // fixed: regeneration is byte-identical
     auto writer = SessionWriter::create(sessionDir, wo);
     if (!writer) {
@@ -944,6 +955,10 @@ int run(const Options& o) {
         }
     }
     if (Status s = writer->flush(); !s) {
+        logError("{}", s.message());
+        return 1;
+    }
+    if (Status s = copyDemoConfig(o.demoDir, sessionDir); !s) {
         logError("{}", s.message());
         return 1;
     }

@@ -11,6 +11,7 @@
 
 #include "base/log.h"
 #include "capture/pixel_format.h"
+#include "image/image.h"
 
 namespace previs {
 
@@ -24,6 +25,13 @@ Result<Frame> readRecordedFrame(const RecordedFrameEntry& e) {
     frame.height = e.height;
     const std::string ext = e.file.substr(e.file.rfind('.') + 1);
     if (ext == "jpg" || ext == "png") {
+        // The header's size first: a few kilobytes may declare 30000 x 30000, which would cost
+        // gigabytes and minutes to decode before the size could be compared.
+        Result<ImageSize> declared = encodedImageSize(*bytes, e.file);
+        if (!declared) return declared.error();
+        if (declared->width != e.width || declared->height != e.height)
+            return makeError("{}: declares {}x{} pixels, its index line {}x{}; not decoded", e.file,
+                             declared->width, declared->height, e.width, e.height);
         cv::Mat bgr;
         try {
             bgr = cv::imdecode(cv::Mat(1, int(bytes->size()), CV_8UC1, bytes->data()),

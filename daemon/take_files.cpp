@@ -7,6 +7,7 @@
 #include <set>
 #include <sstream>
 
+#include "base/bounded_file.h"
 #include "base/log.h"
 #include "io/session.h"
 
@@ -60,7 +61,18 @@ Result<nlohmann::json> gltfJson(const std::string& path) {
     return j;
 }
 
-Status addGltfFiles(const fs::path& gltf, std::vector<std::string>& files) {
+// A file the scene names, checked inside `takeDir` (when given) before anything reads it.
+Status checkScenePath(const fs::path& file, const std::string& takeDir, const std::string& by) {
+    if (takeDir.empty()) return {};
+    const fs::path root = fs::absolute(takeDir).lexically_normal();
+    const std::string rel = file.lexically_relative(root).string();
+    Result<std::string> p = containedPath(takeDir, rel.empty() ? file.string() : rel, by);
+    if (!p) return p.error();
+    return {};
+}
+
+Status addGltfFiles(const fs::path& gltf, const std::string& takeDir,
+                    std::vector<std::string>& files) {
     Result<nlohmann::json> j = gltfJson(gltf.string());
     if (!j) return j.error();
     for (const char* list : {"buffers", "images"}) {
@@ -70,7 +82,9 @@ Status addGltfFiles(const fs::path& gltf, std::vector<std::string>& files) {
             if (!item.is_object() || !item.contains("uri") || !item["uri"].is_string()) continue;
             const std::string uri = item["uri"].get<std::string>();
             if (uri.rfind("data:", 0) == 0) continue;
-            files.push_back((gltf.parent_path() / decodeUri(uri)).lexically_normal().string());
+            const fs::path file = (gltf.parent_path() / decodeUri(uri)).lexically_normal();
+            if (Status s = checkScenePath(file, takeDir, gltf.string()); !s) return s;
+            files.push_back(file.string());
         }
     }
     return {};
@@ -78,21 +92,31 @@ Status addGltfFiles(const fs::path& gltf, std::vector<std::string>& files) {
 
 }  // namespace
 
-Result<std::vector<std::string>> sceneFiles(const std::string& scenePath) {
+Result<std::vector<std::string>> sceneFiles(const std::string& scenePath,
+                                            const std::string& takeDir) {
     const fs::path scene = fs::absolute(scenePath).lexically_normal();
     std::vector<std::string> files{scene.string()};
+    if (Status s = checkScenePath(scene, takeDir, scenePath); !s) return s.error();
     try {
         if (lowerExtension(scene) == ".toml") {
-            const toml::table t = toml::parse_file(scene.string());
+            Result<std::string> text = readBoundedText(scene.string(), kMaxSessionFileBytes,
+                                                       FileLinks::Follow, "scene description");
+            if (!text) return text.error();
+            const toml::table t = toml::parse(*text, scene.string());
             const std::optional<std::string> gltf = t["gltf"].value<std::string>();
             if (!gltf) return makeError("{}: the description names no 'gltf'", scene.string());
             const fs::path gltfPath = (scene.parent_path() / *gltf).lexically_normal();
+            if (Status s = checkScenePath(gltfPath, takeDir, scene.string()); !s) return s.error();
             files.push_back(gltfPath.string());
-            if (Status s = addGltfFiles(gltfPath, files); !s) return s.error();
+            if (Status s = addGltfFiles(gltfPath, takeDir, files); !s) return s.error();
             const std::optional<std::string> map = t["environment"]["map"].value<std::string>();
-            if (map && *map != "studio")
-                files.push_back((scene.parent_path() / *map).lexically_normal().string());
-        } else if (Status s = addGltfFiles(scene, files); !s) {
+            if (map && *map != "studio") {
+                const fs::path mapPath = (scene.parent_path() / *map).lexically_normal();
+                if (Status s = checkScenePath(mapPath, takeDir, scene.string()); !s)
+                    return s.error();
+                files.push_back(mapPath.string());
+            }
+        } else if (Status s = addGltfFiles(scene, takeDir, files); !s) {
             return s.error();
         }
     } catch (const std::exception& e) {
@@ -196,17 +220,29 @@ Result<std::string> copyConfigIntoTake(const ServiceConfig& config, const std::s
     return text.str();
 }
 
-Status checkTakeContained(const std::string& takeDir, const std::string& configPath) {
+Status checkTakeContained(const std::string& takeDir, const std::string& configPath,
+                          const std::string& configDirInTake) {
+    const fs::path root = fs::absolute(takeDir).lexically_normal();
+    const std::string configRel =
+        fs::absolute(configPath).lexically_normal().lexically_relative(root).string();
+    if (Result<std::string> self = containedPath(takeDir, configRel, configPath); !self)
+        return self.error();
+    Result<std::string> text =
+        readBoundedText(configPath, kMaxSessionFileBytes, FileLinks::Refuse, "take config");
+    if (!text) return text.error();
     toml::table t;
     try {
-        t = toml::parse_file(configPath);
+        t = toml::parse(*text, configPath);
     } catch (const std::exception& e) {
         return makeError("{}: {}", configPath, e.what());
     }
+    // The config's relative paths start at config_dir, itself inside the take (openSession).
     auto check = [&](const toml::node_view<toml::node>& node, bool folder) -> Result<std::string> {
         const std::optional<std::string> v = node.value<std::string>();
         if (!v) return std::string();
-        return containedPath(takeDir, *v, configPath, folder);
+        // An absolute path stays absolute when joined, and is refused.
+        return containedPath(takeDir, (fs::path(configDirInTake) / *v).string(), configPath,
+                             folder);
     };
     Result<std::string> scene = check(t["scene"], false);
     if (!scene) return scene.error();
@@ -217,25 +253,22 @@ Status checkTakeContained(const std::string& takeDir, const std::string& configP
                     !p)
                     return p.error();
         }
-    if (Result<std::string> p = check(t["tracking"]["board"], false); !p) return p.error();
+    // Every file the config loader reads: a FreeD calibration is checked as the board is.
+    for (const toml::node_view<toml::node> node :
+         {t["tracking"]["board"], t["tracking"]["freed_calibration"], t["lighting"]["saved"]})
+        if (Result<std::string> p = check(node, false); !p) return p.error();
     if (scene->empty()) return {};
-    Result<std::vector<std::string>> files = sceneFiles(*scene);
+    Result<std::vector<std::string>> files = sceneFiles(*scene, takeDir);
     if (!files) return files.error();
-    const fs::path root = fs::absolute(takeDir).lexically_normal();
-    for (const std::string& f : *files) {
-        const std::string rel = fs::path(f).lexically_relative(root).string();
-        if (Result<std::string> p = containedPath(takeDir, rel.empty() ? f : rel, *scene); !p)
-            return p.error();
-    }
     return {};
 }
 
 Result<ServiceConfig> loadSessionConfig(const SessionInfo& session) {
     if (session.configPath.empty())
         return makeError("{}: the session has no config.toml; give one with --config", session.dir);
-    // v1 and v2 sessions (the bundled demo) name their config's folder, outside the session.
-    if (session.version >= 3)
-        if (Status s = checkTakeContained(session.dir, session.configPath); !s) return s.error();
+    // Whatever version it declares: a v2 label must not switch the checks off.
+    if (Status s = checkTakeContained(session.dir, session.configPath, session.configDirInTake); !s)
+        return s.error();
     return loadServiceConfig(session.configPath, session.configDir);
 }
 

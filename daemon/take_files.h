@@ -18,8 +18,9 @@ namespace previs {
 // The files a scene file names, absolute and normalised, the scene file itself first: a
 // description's glTF and environment map (not the bundled "studio"), a glTF's external buffers
 // and images (data: URIs hold their bytes inline). A .glb's external URIs are read from its
-// JSON chunk.
-Result<std::vector<std::string>> sceneFiles(const std::string& scenePath);
+// JSON chunk. With `takeDir`, each file must lie inside it (containedPath) before it is read.
+Result<std::vector<std::string>> sceneFiles(const std::string& scenePath,
+                                            const std::string& takeDir = "");
 
 // Copies what `config` names into TAKE/config/ and returns the text of TAKE/config.toml: the
 // original with its paths pointing at the copies (relative to the take folder), its cameras
@@ -28,12 +29,14 @@ Result<std::vector<std::string>> sceneFiles(const std::string& scenePath);
 // config/recorded-from.toml.
 Result<std::string> copyConfigIntoTake(const ServiceConfig& config, const std::string& takeDir);
 
-// A v3 take's config and scene name only files inside the take (no absolute path, no "..", no
-// symbolic link): one line naming the file and the path when not.
-Status checkTakeContained(const std::string& takeDir, const std::string& configPath);
+// A take's config and scene name only files inside the take (no absolute path, no "..", no
+// symbolic link, regular files of bounded size): one line naming the file and the path when
+// not. `configDirInTake`: session.toml's config_dir, where the config's relative paths start.
+Status checkTakeContained(const std::string& takeDir, const std::string& configPath,
+                          const std::string& configDirInTake = "");
 
 // The service config a session was recorded with (its config.toml; docs/session-format.md),
-// checked with checkTakeContained for a v3 take first.
+// checked with checkTakeContained first, whatever version the session declares.
 Result<ServiceConfig> loadSessionConfig(const SessionInfo& session);
 
 }  // namespace previs

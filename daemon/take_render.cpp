@@ -145,7 +145,15 @@ Result<std::vector<std::shared_ptr<const LiveLighting>>> takeLighting(const Sess
     if (!stage) return stage.error();
     Result<std::vector<LightingRecord>> recorded = loadLighting(session.dir);
     if (!recorded) return recorded.error();
+    const int mapWidth = config.lighting.fisheye.width;
     for (const LightingRecord& r : *recorded) {
+        // The map's header first: a small file may declare a size that costs gigabytes.
+        Result<ImageSize> size = imageFileSize(r.mapFile);
+        if (!size) return size.error();
+        if (size->width > uint32_t(mapWidth) || size->height > uint32_t(mapWidth / 2))
+            return makeError(
+                "{}: a {}x{} map, larger than the take's config makes ({}x{}); not decoded",
+                r.mapFile, size->width, size->height, mapWidth, mapWidth / 2);
         Result<std::shared_ptr<const LiveLighting>> lit = stage->restore(r.mapFile);
         if (!lit) return lit.error();
         auto snapshot = std::make_shared<LiveLighting>(**lit);

@@ -28,6 +28,7 @@
 #include <stdexcept>
 #include <string_view>
 
+#include "base/bounded_file.h"
 #include "base/strings.h"
 
 namespace previs {
@@ -106,13 +107,10 @@ Sniffed sniff(std::span<const uint8_t> bytes) {
     return {ContentType::Other, "not an image this reader knows"};
 }
 
-Result<std::vector<uint8_t>> readFileBytes(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) return makeError("cannot read image '{}': {}", path, std::strerror(errno));
-    std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)),
-                               std::istreambuf_iterator<char>());
-    if (in.bad()) return makeError("cannot read image '{}': read error", path);
-    return bytes;
+// A FIFO or a device is refused, never waited on, and the size is bounded before reading (base/
+// bounded_file.h); links are followed: the operator names images, a take's are checked before.
+Result<std::vector<uint8_t>> readFileBytes(const std::string& path, const ImageLimits& limits) {
+    return readBoundedFile(path, limits.maxFileBytes, FileLinks::Follow, "image");
 }
 
 Status checkSize(const std::string& path, const char* format, int64_t w, int64_t h,
@@ -532,7 +530,7 @@ Result<ImageF> readImage(const std::string& path, const ImageLimits& limits) {
         return makeError(
             "cannot read image '{}': unsupported extension '{}' (use .exr, .hdr, .png, .jpg)", path,
             ext);
-    Result<std::vector<uint8_t>> bytes = readFileBytes(path);
+    Result<std::vector<uint8_t>> bytes = readFileBytes(path, limits);
     if (!bytes) return bytes.error();
     const Sniffed what = sniff(*bytes);
     if (what.type != expected) {
@@ -557,11 +555,54 @@ Result<ImageF> readImage(const std::string& path, const ImageLimits& limits) {
 
 Result<ImageF> readExrLayer(const std::string& path, const std::string& layer,
                             const ImageLimits& limits) {
-    Result<std::vector<uint8_t>> bytes = readFileBytes(path);
+    Result<std::vector<uint8_t>> bytes = readFileBytes(path, limits);
     if (!bytes) return bytes.error();
     if (sniff(*bytes).type != ContentType::Exr)
         return makeError("cannot read image '{}': not an OpenEXR file", path);
     return readExr(*bytes, path, limits, layer);
+}
+
+Result<ImageSize> encodedImageSize(std::span<const uint8_t> bytes, const std::string& name) {
+    const Sniffed what = sniff(bytes);
+    auto size = [&](int64_t w, int64_t h) -> Result<ImageSize> {
+        if (w <= 0 || h <= 0 || w > INT32_MAX || h > INT32_MAX)
+            return makeError("cannot read image '{}': its header says {}x{} pixels (corrupt file)",
+                             name, w, h);
+        return ImageSize{uint32_t(w), uint32_t(h)};
+    };
+    switch (what.type) {
+        case ContentType::Exr: {
+            Result<std::array<int32_t, 4>> window = exrDataWindow(bytes, name);
+            if (!window) return window.error();
+            const auto& b = *window;
+            return size(int64_t(b[2]) - b[0] + 1, int64_t(b[3]) - b[1] + 1);
+        }
+        case ContentType::Hdr: {
+            Result<HdrLayout> layout = parseHdrHeader(bytes, name);
+            if (!layout) return layout.error();
+            return size(layout->width, layout->height);
+        }
+        case ContentType::Png:
+        case ContentType::Jpeg: {
+            if (what.type == ContentType::Jpeg)
+                if (Status s = checkJpegTables(bytes, name); !s) return s.error();
+            int w = 0, h = 0, channels = 0;
+            if (bytes.size() > size_t(INT32_MAX) ||
+                !stbi_info_from_memory(bytes.data(), int(bytes.size()), &w, &h, &channels))
+                return makeError("cannot decode image '{}': {} with a corrupt header", name,
+                                 what.name);
+            return size(w, h);
+        }
+        case ContentType::Other:
+            break;
+    }
+    return makeError("cannot read image '{}': it is {}", name, what.name);
+}
+
+Result<ImageSize> imageFileSize(const std::string& path, const ImageLimits& limits) {
+    Result<std::vector<uint8_t>> bytes = readFileBytes(path, limits);
+    if (!bytes) return bytes.error();
+    return encodedImageSize(*bytes, path);
 }
 
 Result<ImageRgba8> decodePngOrJpeg(std::span<const uint8_t> bytes, const std::string& name,

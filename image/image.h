@@ -33,6 +33,9 @@ struct ImageF {
 struct ImageLimits {
     uint32_t maxWidth = 16384;
     uint32_t maxHeight = 16384;
+    // The file itself, checked before it is read (a FIFO or a device is refused): 2 GiB holds an
+    // uncompressed 16384 x 8192 RGBA float map.
+    uint64_t maxFileBytes = uint64_t(2) << 30;
 };
 
 // Reads .exr (float; channels R,G,B[,A] or Y), .hdr (Radiance RGBE), .png/.jpg/.jpeg. The
@@ -45,6 +48,19 @@ Result<ImageF> readImage(const std::string& path, const ImageLimits& limits = {}
 // layer), with readImage's checks.
 Result<ImageF> readExrLayer(const std::string& path, const std::string& layer,
                             const ImageLimits& limits = {});
+
+struct ImageSize {
+    uint32_t width = 0;
+    uint32_t height = 0;
+};
+
+// The size an image's header declares (OpenEXR's data window, Radiance, PNG, JPEG), no pixel
+// decoded: a caller that knows what size to expect refuses a 38 KB JPEG that declares 30000 x
+// 30000 before decoding costs gigabytes. `name` names the image in errors.
+Result<ImageSize> encodedImageSize(std::span<const uint8_t> bytes, const std::string& name);
+
+// The same for a file (read as readImage reads it).
+Result<ImageSize> imageFileSize(const std::string& path, const ImageLimits& limits = {});
 
 // An 8-bit RGBA image, row 0 at the top (a decoded glTF texture).
 struct ImageRgba8 {

@@ -19,6 +19,7 @@
 #include <string_view>
 
 #include "base/atomic_file.h"
+#include "base/bounded_file.h"
 #include "base/log.h"
 
 #ifndef PREVIS_VERSION
@@ -57,11 +58,11 @@ std::vector<std::string_view> splitFields(std::string_view line) {
 Status forEachLine(const std::string& path, std::string_view header, int& version,
                    const std::function<Status(int lineNo, std::string_view line)>& onLine,
                    std::vector<std::string>* skipped = nullptr) {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) return makeError("{}: cannot open ({})", path, std::strerror(errno));
-    std::stringstream buffer;
-    buffer << in.rdbuf();
-    const std::string text = buffer.str();
+    // A take is untrusted: no link followed, no FIFO waited on, the size bounded before reading.
+    Result<std::string> read =
+        readBoundedText(path, kMaxSessionIndexBytes, FileLinks::Refuse, "session index");
+    if (!read) return read.error();
+    const std::string& text = *read;
     size_t pos = 0;
     int lineNo = 0;
     while (pos < text.size()) {
@@ -76,7 +77,7 @@ Status forEachLine(const std::string& path, std::string_view header, int& versio
             rest = rest.substr(0, rest.find(':'));
             int v = 0;
             if (!parseNumber(rest, v) || v < 1)
-                return makeError("{}:{}: unreadable format version in '{}'", path, lineNo, line);
+                return makeError("{}:{}: unreadable format version in the header", path, lineNo);
             if (v > kSessionFormatVersion)
                 return makeError(
                     "{}: format version {} is newer than this previs reads ({}); read it with a "
@@ -92,6 +93,12 @@ Status forEachLine(const std::string& path, std::string_view header, int& versio
         }
     }
     return {};
+}
+
+// Whether a take holds `path` at all (a link counts: it is refused when read, not skipped).
+bool present(const std::string& path) {
+    std::error_code ec;
+    return fs::exists(fs::symlink_status(path, ec));
 }
 
 std::string nowRfc3339() {
@@ -173,50 +180,39 @@ Result<std::string> containedPath(const std::string& root, const std::string& re
     if (relative.empty()) return refuse("is empty");
     if (rel.is_absolute()) return refuse("is an absolute path");
     fs::path at(root);
+    bool below = false;  // the root itself is the caller's: it may be reached through a link
     for (const fs::path& part : rel) {
         if (part == "..") return refuse("leaves the folder ('..')");
         if (part == "." || part.empty()) continue;
         at /= part;
+        below = true;
         std::error_code ec;
         const fs::file_status st = fs::symlink_status(at, ec);
         if (ec || !fs::exists(st)) return refuse("does not exist");
         if (fs::is_symlink(st)) return refuse("goes through a symbolic link");
     }
-    std::error_code ec;
-    const fs::file_status st = fs::symlink_status(at, ec);
-    if (folder ? !fs::is_directory(st) : !fs::is_regular_file(st))
-        return refuse(folder ? "is not a folder" : "is not a regular file");
+    if (folder) {
+        std::error_code ec;
+        if (!fs::is_directory(below ? fs::symlink_status(at, ec) : fs::status(at, ec)))
+            return refuse("is not a folder");
+        return at.string();
+    }
+    // Checked as it will be read: a FIFO or a device is refused, never waited on.
+    if (Status s = checkBoundedFile(at.string(), kMaxSessionFileBytes, FileLinks::Refuse, what); !s)
+        return makeError("{}; a session names only regular files of its own", s.message());
     return at.string();
 }
 
 Status syncFolder(const std::string& dir) { return syncDir(dir); }
 
 Result<std::vector<uint8_t>> readSessionFile(const std::string& path) {
-    UniqueFD fd(::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NOFOLLOW | O_NONBLOCK));
-    if (!fd.isValid()) return makeError("{}: cannot open: {}", path, errnoText());
-    struct stat st {};
-    if (::fstat(fd.get(), &st) != 0) return makeError("{}: cannot stat: {}", path, errnoText());
-    if (!S_ISREG(st.st_mode)) return makeError("{}: not a regular file", path);
-    if (uint64_t(st.st_size) > kMaxSessionFileBytes)
-        return makeError("{}: {} bytes, more than a session file may hold ({} MiB)", path,
-                         st.st_size, kMaxSessionFileBytes >> 20);
-    std::vector<uint8_t> bytes(size_t(st.st_size));
-    size_t got = 0;
-    while (got < bytes.size()) {
-        const ssize_t n = ::read(fd.get(), bytes.data() + got, bytes.size() - got);
-        if (n < 0 && errno == EINTR) continue;
-        if (n < 0) return makeError("{}: read failed: {}", path, errnoText());
-        if (n == 0) return makeError("{}: cut short while reading", path);
-        got += size_t(n);
-    }
-    return bytes;
+    return readBoundedFile(path, kMaxSessionFileBytes, FileLinks::Refuse, "session file");
 }
 
 Result<std::vector<RecordedFrameEntry>> loadCameraIndex(const std::string& cameraDir,
                                                         std::vector<std::string>* skipped) {
     const std::string path = cameraDir + "/index.csv";
-    std::error_code ec;
-    if (!fs::is_regular_file(path, ec))
+    if (!present(path))
         return makeError(
             "{}: cannot open (is {} a session camera folder? see "
             "docs/session-format.md)",
@@ -237,15 +233,15 @@ Result<std::vector<RecordedFrameEntry>> loadCameraIndex(const std::string& camer
                 !parseNumber(f[4], e.height) || e.width == 0 || e.height == 0 || e.width > 16384 ||
                 e.height > 16384)
                 return Status(
-                    makeError("{}:{}: malformed frame line '{}' (expected "
-                              "sequence,timestampNs,file,width,height)",
-                              path, lineNo, line));
+                    makeError("{}:{}: malformed frame line (expected "
+                              "sequence,timestampNs,file,width,height; file a plain name, sizes "
+                              "1 to 16384)",
+                              path, lineNo));
             if (f.size() >= 7) {
                 uint64_t wall = 0;
                 if (!f[5].empty()) {
                     if (!parseNumber(f[5], wall))
-                        return Status(
-                            makeError("{}:{}: malformed wallClockNs in '{}'", path, lineNo, line));
+                        return Status(makeError("{}:{}: malformed wallClockNs", path, lineNo));
                     e.wallClockNs = wall;
                 }
                 e.timecode = std::string(f[6]);
@@ -253,9 +249,9 @@ Result<std::vector<RecordedFrameEntry>> loadCameraIndex(const std::string& camer
             if (f.size() >= 8 && !f[7].empty()) {
                 float stops = 0.0f;
                 if (!parseNumber(f[7], stops) || !std::isfinite(stops) || std::abs(stops) > 30.0f)
-                    return Status(makeError(
-                        "{}:{}: malformed exposureStops in '{}' (a number of stops within ±30)",
-                        path, lineNo, line));
+                    return Status(
+                        makeError("{}:{}: malformed exposureStops (a number of stops within ±30)",
+                                  path, lineNo));
                 e.exposureStops = stops;
             }
             if (!entries.empty() && (e.sequence <= entries.back().sequence ||
@@ -275,7 +271,9 @@ Result<std::vector<LightingRecord>> loadLighting(const std::string& dir) {
     const std::string lightingDir = dir + "/lighting";
     const std::string path = lightingDir + "/index.csv";
     std::error_code ec;
-    if (!fs::exists(path, ec)) return std::vector<LightingRecord>{};
+    if (fs::is_symlink(fs::symlink_status(lightingDir, ec)))
+        return makeError("{}: is a symbolic link; a take holds its lighting itself", lightingDir);
+    if (!present(path)) return std::vector<LightingRecord>{};
     int version = 1;
     std::vector<LightingRecord> records;
     Status s = forEachLine(path, kLightingHeader, version, [&](int lineNo, std::string_view line) {
@@ -289,7 +287,9 @@ Result<std::vector<LightingRecord>> loadLighting(const std::string& dir) {
             file.empty() || file.find('/') != std::string_view::npos || file == "..")
             return Status(makeError(
                 "{}:{}: malformed lighting line (expected timestampNs,file,lights)", path, lineNo));
-        Result<std::string> map = containedPath(lightingDir, std::string(file), path);
+        // Through the take's own lighting/ (not a link to elsewhere), to a regular file.
+        Result<std::string> map =
+            containedPath(dir, "lighting/" + std::string(file), fmt::format("{}:{}", path, lineNo));
         if (!map) return Status(map.error());
         r.mapFile = *map;
         r.lightsJson = std::string(line.substr(b + 1));
@@ -300,40 +300,18 @@ Result<std::vector<LightingRecord>> loadLighting(const std::string& dir) {
     return records;
 }
 
-namespace {
-
-// A killed recorder leaves at most one *.tmp per file it was writing; a reader ignores them,
-// and the next open removes them — only those older than a minute, so opening a take that is
-// still being recorded never takes a file from under its writer.
-void removeLeftoverTmp(const std::string& dir) {
-    const auto cutoff = fs::file_time_type::clock::now() - std::chrono::minutes(1);
-    std::error_code ec;
-    size_t removed = 0;
-    for (auto it = fs::recursive_directory_iterator(dir, ec);
-         !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
-        if (it.depth() > 2) it.disable_recursion_pending();
-        const std::string name = it->path().filename().string();
-        if (!it->is_regular_file(ec) || !(name.ends_with(".tmp") || name.ends_with(".tmp.exr")))
-            continue;
-        if (std::error_code t; fs::last_write_time(it->path(), t) > cutoff || t) continue;
-        std::error_code rm;
-        if (fs::remove(it->path(), rm)) ++removed;
-    }
-    if (removed > 0)
-        logInfo("{}: removed {} unfinished file(s) (*.tmp) a stopped recorder left", dir, removed);
-}
-
-}  // namespace
-
 Result<SessionInfo> openSession(const std::string& dir) {
     const std::string path = dir + "/session.toml";
     std::error_code ec;
-    if (!fs::is_regular_file(path, ec))
+    if (!present(path))
         return makeError("{}: not a session folder (no session.toml; see docs/session-format.md)",
                          dir);
+    Result<std::string> description =
+        readBoundedText(path, kMaxSessionTomlBytes, FileLinks::Refuse, "session description");
+    if (!description) return description.error();
     toml::table table;
     try {
-        table = toml::parse_file(path);
+        table = toml::parse(*description, path);
     } catch (const toml::parse_error& e) {
         return makeError("{}: line {}: not valid TOML: {}", path, e.source().begin.line,
                          e.description());
@@ -342,7 +320,6 @@ Result<SessionInfo> openSession(const std::string& dir) {
     }
     SessionInfo info;
     info.dir = dir;
-    removeLeftoverTmp(dir);
     if (table["format"].value_or(std::string()) != "previs-session")
         return makeError("{}: format is not \"previs-session\" (not a previs session)", path);
     const std::optional<int64_t> version = table["version"].value<int64_t>();
@@ -366,19 +343,18 @@ Result<SessionInfo> openSession(const std::string& dir) {
     }
     info.clock = table["clock"].value_or(std::string("CLOCK_MONOTONIC"));
     info.previsVersion = table["previs"].value_or(std::string());
-    if (fs::is_regular_file(dir + "/config.toml", ec)) {
+    if (present(dir + "/config.toml")) {
         info.configPath = dir + "/config.toml";
-        // Relative paths in config.toml start at the original config's folder (v2), which v1
-        // did not record: there they start at the session folder.
+        // Relative paths in config.toml start at config_dir (v2), else at the session folder. A
+        // take is untrusted whatever version it declares: config_dir names a folder inside it.
         const std::string configDir = table["config_dir"].value_or(std::string());
-        if (configDir.empty())
+        info.configDirInTake = configDir;
+        if (configDir.empty()) {
             info.configDir = dir;
-        else if (fs::path(configDir).is_absolute())
-            info.configDir = configDir;
-        else {
-            fs::path p = (fs::path(dir) / configDir).lexically_normal();
-            if (p.filename().empty()) p = p.parent_path();  // "a/b/.." normalises to "a/"
-            info.configDir = p.string();
+        } else {
+            Result<std::string> inside = containedPath(dir, configDir, path + ": config_dir", true);
+            if (!inside) return inside.error();
+            info.configDir = *inside;
         }
     }
 
@@ -396,9 +372,15 @@ Result<SessionInfo> openSession(const std::string& dir) {
         }
     }
     const fs::path camerasDir = fs::path(dir) / "cameras";
+    if (fs::is_symlink(fs::symlink_status(camerasDir, ec)))
+        return makeError("{}: is a symbolic link; a take holds its camera folders itself",
+                         camerasDir.string());
     if (fs::is_directory(camerasDir, ec)) {
         for (const fs::directory_entry& entry : fs::directory_iterator(camerasDir, ec)) {
-            if (!entry.is_directory() || !fs::is_regular_file(entry.path() / "index.csv", ec))
+            if (entry.is_symlink(ec))
+                return makeError("{}: is a symbolic link; a take holds its camera folders itself",
+                                 entry.path().string());
+            if (!entry.is_directory(ec) || !present((entry.path() / "index.csv").string()))
                 continue;
             SessionCamera cam;
             cam.name = entry.path().filename().string();
@@ -442,8 +424,7 @@ const char* poseKindName(PoseKind kind) {
 
 Result<std::vector<PoseRecord>> loadPoses(const std::string& dir) {
     const std::string path = dir + "/poses.csv";
-    std::error_code ec;
-    if (!fs::exists(path, ec)) return std::vector<PoseRecord>{};
+    if (!present(path)) return std::vector<PoseRecord>{};
     // v1 files had no header; their columns lack `frame`.
     int version = 1;
     std::vector<PoseRecord> poses;
@@ -451,7 +432,7 @@ Result<std::vector<PoseRecord>> loadPoses(const std::string& dir) {
         const std::vector<std::string_view> f = splitFields(line);
         const size_t base = version >= 2 ? 2 : 1;  // index of `kind`
         auto malformed = [&](std::string_view why) -> Status {
-            return makeError("{}:{}: malformed pose line ({}): '{}'", path, lineNo, why, line);
+            return makeError("{}:{}: malformed pose line ({})", path, lineNo, why);
         };
         if (f.size() < base + 19) return malformed("too few columns");
         PoseRecord p;
@@ -499,8 +480,7 @@ Result<std::vector<PoseRecord>> loadPoses(const std::string& dir) {
 Result<std::vector<SessionEvent>> loadEvents(const std::string& dir, size_t* skippedUnknown) {
     if (skippedUnknown) *skippedUnknown = 0;
     const std::string path = dir + "/events.csv";
-    std::error_code ec;
-    if (!fs::exists(path, ec)) return std::vector<SessionEvent>{};
+    if (!present(path)) return std::vector<SessionEvent>{};
     int version = 1;
     size_t skipped = 0;
     std::vector<SessionEvent> events;
@@ -508,9 +488,8 @@ Result<std::vector<SessionEvent>> loadEvents(const std::string& dir, size_t* ski
         const std::vector<std::string_view> f = splitFields(line);
         SessionEvent e;
         if (f.size() < 3 || !parseNumber(f[0], e.timestampNs) || f[1].empty() || f[2].empty())
-            return Status(
-                makeError("{}:{}: malformed event line '{}' (expected timestampNs,source,event)",
-                          path, lineNo, line));
+            return Status(makeError(
+                "{}:{}: malformed event line (expected timestampNs,source,event)", path, lineNo));
         // Later issues add sources; an old reader replays what it knows.
         if (!knownEvent(f[1], f[2], version)) {
             ++skipped;

@@ -27,6 +27,12 @@ constexpr int kSessionFormatVersion = 3;
 // The largest file a session may name (a frame, a lighting map): checked before decoding, since a
 // take that left the box is untrusted input.
 constexpr uint64_t kMaxSessionFileBytes = uint64_t(256) << 20;
+// The largest index a session may hold (a camera's index.csv, poses.csv, events.csv,
+// lighting/index.csv), checked before it is read: a camera index of 64 MiB lists some 700 000
+// frames (over 6 h at 30 fps), while a sparse or endless file costs nothing.
+constexpr uint64_t kMaxSessionIndexBytes = uint64_t(64) << 20;
+// session.toml: a few lines.
+constexpr uint64_t kMaxSessionTomlBytes = uint64_t(1) << 20;
 
 struct SessionCamera {
     std::string name;   // the folder under cameras/
@@ -45,6 +51,7 @@ struct SessionInfo {
     // folder its relative paths are resolved against (docs/session-format.md, config.toml).
     std::string configPath;
     std::string configDir;
+    std::string configDirInTake;         // config_dir as session.toml gives it ("" without one)
     std::vector<SessionCamera> cameras;  // sorted by name
 
     // The camera with this role, or nullptr.
@@ -52,21 +59,23 @@ struct SessionInfo {
 };
 
 // Reads session.toml, checks format and version, and lists the cameras present (folders
-// under cameras/ with an index.csv, each index parsed).
-// Also removes *.tmp files a killed recorder left (best effort: a read-only copy keeps them,
-// and readers ignore them).
+// under cameras/ with an index.csv, each index parsed). The folder is untrusted whatever
+// version it declares: a config_dir outside it, or a camera folder that is a symbolic link, is
+// refused. Nothing is written or removed (a reader ignores *.tmp files).
 Result<SessionInfo> openSession(const std::string& dir);
 
 // A path a session names (a frame file, a copied config file, `config_dir`): relative, without
-// "..", resolving inside `root` through no symbolic link, to an existing regular file (or folder
-// when `folder`). Returns the absolute path, or one line naming `what` and the path.
+// "..", resolving inside `root` through no symbolic link, to an existing regular file of at most
+// kMaxSessionFileBytes (or folder when `folder`). Returns the path under `root`, or one line
+// naming `what` and the path.
 Result<std::string> containedPath(const std::string& root, const std::string& relative,
                                   const std::string& what, bool folder = false);
 
 // fsync()s a folder, so the entries (new files, renames) in it survive a power cut.
 Status syncFolder(const std::string& dir);
 
-// Reads a regular file of at most kMaxSessionFileBytes without following a symbolic link.
+// Reads a regular file of at most kMaxSessionFileBytes without following a symbolic link
+// (base/bounded_file.h: a FIFO or a device is refused, never waited on).
 Result<std::vector<uint8_t>> readSessionFile(const std::string& path);
 
 // One line of cameras/<name>/index.csv.

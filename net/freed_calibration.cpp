@@ -8,10 +8,12 @@
 #include <cstdio>
 #include <cstring>
 #include <ctime>
+#include <filesystem>
 #include <fstream>
 #include <opencv2/calib3d.hpp>
 
 #include "base/atomic_file.h"
+#include "base/bounded_file.h"
 #include "config/toml_reader.h"
 #include "net/freed.h"
 
@@ -904,17 +906,23 @@ int hexDigit(char c) {
 
 Result<FreedRecording> loadFreedRecording(const std::string& path,
                                           std::optional<uint8_t> cameraId) {
-    std::ifstream in(path);
-    if (!in)
-        return makeError("cannot read '{}': {}; the take has no recorded FreeD packets", path,
-                         std::strerror(errno));
+    std::error_code statError;
+    if (!std::filesystem::exists(std::filesystem::symlink_status(path, statError)))
+        return makeError("cannot read '{}': no such file; the take has no recorded FreeD packets",
+                         path);
+    // A take is untrusted: no link followed, no FIFO waited on, the size bounded before reading.
+    Result<std::string> text =
+        readBoundedText(path, kMaxFreedRecordingBytes, FileLinks::Refuse, "FreeD recording");
+    if (!text) return text.error();
     FreedRecording out;
-    std::string line;
     size_t lineNo = 0;
-    while (std::getline(in, line)) {
-        ++lineNo;
+    for (size_t pos = 0; pos < text->size();) {
+        const size_t eol = text->find('\n', pos);
         // A last line without its '\n' was cut mid-write (docs/session-format.md): ignored.
-        if (in.eof()) break;
+        if (eol == std::string::npos) break;
+        const std::string_view line(text->data() + pos, eol - pos);
+        pos = eol + 1;
+        ++lineNo;
         if (lineNo == 1) {
             if (line != kFreedRecordingHeader)
                 return makeError("'{}' line 1: expected the header '{}'", path,

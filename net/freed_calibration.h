@@ -139,8 +139,10 @@ struct FreedRecording {
     size_t rejected = 0;                   // datagrams decodeFreed refused (size, checksum...)
     std::vector<uint8_t> cameraIds;        // the camera ids seen, ascending
 };
-// Reads freed.csv; packets of other cameras are skipped when `cameraId` is set. A malformed line
-// is an error naming the file and the line.
+// The largest freed.csv read (checked before reading): about 4 h of a tracker at 60 Hz.
+inline constexpr uint64_t kMaxFreedRecordingBytes = uint64_t(256) << 20;
+// Reads freed.csv (a regular file, no link followed); packets of other cameras are skipped when
+// `cameraId` is set. A malformed line is an error naming the file and the line.
 Result<FreedRecording> loadFreedRecording(const std::string& path, std::optional<uint8_t> cameraId);
 
 }  // namespace previs

@@ -144,6 +144,40 @@ TEST(PixelFormat, ATakeKeepsRawFramesAndReplaysThePixelsCaptureConverted) {
     std::filesystem::remove_all(dir);
 }
 
+// Issue 52: a 38 KB JPEG declaring 30000 x 30000 cost 2.7 GB and 108 s before its size was
+// compared with the index. The header is read first: refused at once, naming the file and both
+// sizes (a PNG likewise; an index line is at most 16384 a side, loadCameraIndex).
+TEST(RecordedFrame, ADeclaredSizeUnlikeTheIndexIsRefusedBeforeDecoding) {
+    const std::filesystem::path dir =
+        std::filesystem::temp_directory_path() / fmt::format("previs_huge_jpeg_{}", ::getpid());
+    std::filesystem::create_directories(dir);
+    std::vector<uchar> jpeg;
+    ASSERT_TRUE(cv::imencode(".jpg", cv::Mat(36, 64, CV_8UC3, cv::Scalar(1, 2, 3)), jpeg));
+    // The baseline frame header (SOF0: FF C0, length, precision, height, width), its size raised.
+    size_t sof = 2;
+    while (sof + 9 < jpeg.size() && !(jpeg[sof] == 0xff && jpeg[sof + 1] == 0xc0))
+        sof += 2 + (size_t(jpeg[sof + 2]) << 8 | jpeg[sof + 3]);
+    ASSERT_LT(sof + 9, jpeg.size());
+    for (size_t at : {sof + 5, sof + 7}) {
+        jpeg[at] = uchar(30000 >> 8);
+        jpeg[at + 1] = uchar(30000 & 0xff);
+    }
+    RecordedFrameEntry entry;
+    entry.file = (dir / "000000000000.jpg").string();
+    entry.width = 64;
+    entry.height = 36;
+    std::ofstream(entry.file, std::ios::binary)
+        .write(reinterpret_cast<const char*>(jpeg.data()), std::streamsize(jpeg.size()));
+    const auto start = std::chrono::steady_clock::now();
+    Result<Frame> frame = readRecordedFrame(entry);
+    ASSERT_FALSE(frame);
+    EXPECT_NE(frame.message().find("declares 30000x30000"), std::string::npos) << frame.message();
+    EXPECT_NE(frame.message().find(entry.file), std::string::npos) << frame.message();
+    std::printf("refused in %.3f s\n",
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+    std::filesystem::remove_all(dir);
+}
+
 TEST(PixelFormat, Nv12KnownColour) {
     // 2x2 pure red: four Y samples, one interleaved Cb/Cr pair.
     const std::vector<uint8_t> nv12 = {81, 81, 81, 81, 90, 240};

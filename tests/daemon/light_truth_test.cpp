@@ -84,11 +84,6 @@ fs::path singleExposureTake(const fs::path& dir, const std::string& fit) {
     config.insert(config.find(lighting) + lighting.size(),
                   fmt::format("fit_to_plate = \"{}\"\n", fit));
     std::ofstream(take / "config.toml") << config;
-    std::string session = fileText(take / "session.toml");
-    const std::string configDir = "config_dir = \"..\"";
-    session.replace(session.find(configDir), configDir.size(),
-                    fmt::format("config_dir = \"{}\"", fs::path(kDemoTake).parent_path().string()));
-    std::ofstream(take / "session.toml") << session;
     return take;
 }
 

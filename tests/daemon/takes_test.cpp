@@ -6,6 +6,7 @@
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <signal.h>
+#include <sys/stat.h>
 
 #include <algorithm>
 #include <chrono>
@@ -100,17 +101,7 @@ TEST(RenderSession, ABadFrameIsNamedAndTheRestRenders) {
     // A copy of the demo take with one frame that does not decode and a corrupt index line.
     const fs::path take = scratch() / "bad_take";
     fs::remove_all(take);
-    fs::copy(kDemoTake, take, fs::copy_options::recursive);
-    {
-        std::ifstream in(take / "session.toml");
-        std::stringstream ss;
-        ss << in.rdbuf();
-        std::string toml = ss.str();
-        const size_t at = toml.find("config_dir = \"..\"");
-        ASSERT_NE(at, std::string::npos) << toml;
-        toml.replace(at, 17, "config_dir = \"" + fs::path(kDemoTake).parent_path().string() + "\"");
-        std::ofstream(take / "session.toml") << toml;
-    }
+    fs::copy(kDemoTake, take, fs::copy_options::recursive);  // it holds its config
     const fs::path index = take / "cameras" / "scene" / "index.csv";
     std::string frame2;
     {
@@ -173,6 +164,53 @@ struct BlenderCamera {
 // matrices are float32).
 double angleDegrees(const cv::Vec3d& a, const cv::Vec3d& b) {
     return std::atan2(cv::norm(a.cross(b)), a.dot(b)) * 180.0 / CV_PI;
+}
+
+// Issue 52: a take is untrusted. A FIFO as events.csv, lighting/index.csv or freed.csv hung
+// replay, render-session and export-track forever, and a take whose config_dir named a folder
+// outside it replayed (exit 0). Each is now refused at once with a line naming the file; the
+// timeout only guards against a regression hanging CI.
+TEST(HostileTake, AFifoOrAFolderOutsideIsRefusedByEveryReader) {
+    const fs::path dir = scratch() / "hostile";
+    const fs::path take = dir / "take";
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    fs::copy(kDemoTake, take, fs::copy_options::recursive);
+    auto refused = [&](const std::vector<std::string>& argv, const std::string& log,
+                       const std::string& named) {
+        const fs::path path = dir / log;
+        EXPECT_EQ(testing::runProcess(argv, path.string(), 120s), 2) << fileBytes(path);
+        EXPECT_NE(fileBytes(path).find(named), std::string::npos) << fileBytes(path);
+    };
+    const std::string out = (dir / "out").string();
+
+    fs::rename(take / "events.csv", dir / "events.csv");
+    ASSERT_EQ(::mkfifo((take / "events.csv").c_str(), 0600), 0);
+    refused({PREVIS_BINARY, "replay", take.string(), "--out", out}, "events.log",
+            "events.csv: is a FIFO");
+    fs::remove(take / "events.csv");
+    fs::rename(dir / "events.csv", take / "events.csv");
+
+    fs::create_directories(take / "lighting");
+    ASSERT_EQ(::mkfifo((take / "lighting" / "index.csv").c_str(), 0600), 0);
+    refused(renderSession(take.string(), out, "0:1"), "lighting.log",
+            "lighting/index.csv: is a FIFO");
+    fs::remove_all(take / "lighting");
+
+    const std::string config = fileBytes(take / "config.toml");
+    std::string freed = config;
+    freed.insert(freed.find("[tracking]\n") + 11, "source = 'freed'\n");
+    std::ofstream(take / "config.toml") << freed;
+    ASSERT_EQ(::mkfifo((take / "freed.csv").c_str(), 0600), 0);
+    refused({PREVIS_BINARY, "export-track", take.string(), "--out", out + ".chan"}, "freed.log",
+            "freed.csv: is a FIFO");
+    std::ofstream(take / "config.toml") << config;
+
+    // Before the first table, where session.toml's own keys are.
+    std::string session = fileBytes(take / "session.toml");
+    session.insert(session.find("\n[") + 1, "config_dir = \"..\"\n");
+    std::ofstream(take / "session.toml") << session;
+    refused({PREVIS_BINARY, "replay", take.string(), "--out", out}, "config_dir.log", "config_dir");
 }
 
 TEST(ExportTrack, BlenderImportsTheChanAsTheTrackedCamera) {

@@ -1,11 +1,13 @@
 // The pieces of a final render and a track hand-off that need no GPU: frame ranges as post tools
 // write them, the farm's plan, the per-frame seed, Nuke's ZXY angles, and the track smoother on
-// synthetic motion with known truth.
+// synthetic motion with known truth; what a take may name (TakeFiles).
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
+#include <fstream>
 #include <map>
 #include <opencv2/calib3d.hpp>
 #include <random>
@@ -16,6 +18,8 @@
 #include "daemon/take_track.h"
 #include "daemon/track_export.h"
 #include "io/session.h"
+#include "net/freed_calibration.h"
+#include "tests/support/temp_dir.h"
 #include "tests/support/test_data.h"
 #include "vision/pose_filter.h"
 #include "vision/track_smoother.h"
@@ -164,6 +168,88 @@ TEST(TrackSmoother, ReducesTrackerNoiseOnSmoothMotionAndBridgesShortGaps) {
 // a blurred edge's midpoint. Without a bias, the stretch's mean error is what corners accurate
 // to the rendered-board tests' quarter pixel allow: the tracker's own one sigma (positionStdM,
 // for 0.5 px corner noise) halved.
+namespace fs = std::filesystem;
+
+std::string fileText(const fs::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+// The shipped demo is a take like any other (issue 52): it holds copies of everything its config
+// names, exactly as the recorder copies them from examples/demo/previsd.toml, so it replays,
+// renders and exports under the untrusted-take rules, with no config_dir outside it.
+TEST(TakeFiles, TheShippedDemoTakeHoldsWhatItsConfigNames) {
+    const fs::path demo = testing::sourcePath("examples/demo");
+    Result<ServiceConfig> live = loadServiceConfig((demo / "previsd.toml").string());
+    ASSERT_TRUE(live) << live.message();
+    const fs::path copy = testing::scratchDir("takes_unit") / "demo_config";
+    fs::remove_all(copy);
+    fs::create_directories(copy);
+    Result<std::string> configToml = copyConfigIntoTake(*live, copy.string());
+    ASSERT_TRUE(configToml) << configToml.message();
+    const fs::path take = demo / "session";
+    EXPECT_EQ(fileText(take / "config.toml"), *configToml)
+        << "regenerate with scripts/make_demo_session.sh; the copy is in " << copy;
+    size_t files = 0;
+    for (const auto& entry : fs::recursive_directory_iterator(copy / "config")) {
+        if (!entry.is_regular_file()) continue;
+        ++files;
+        const fs::path rel = entry.path().lexically_relative(copy);
+        EXPECT_EQ(fileText(take / rel), fileText(entry.path())) << rel;
+    }
+    size_t shipped = 0;
+    for (const auto& entry : fs::recursive_directory_iterator(take / "config"))
+        shipped += entry.is_regular_file() ? 1 : 0;
+    EXPECT_EQ(shipped, files);
+
+    Result<SessionInfo> session = openSession(take.string());
+    ASSERT_TRUE(session) << session.message();
+    EXPECT_EQ(session->configDirInTake, "");
+    Result<ServiceConfig> config = loadSessionConfig(*session);
+    ASSERT_TRUE(config) << config.message();
+    EXPECT_EQ(fs::path(config->scenePath).lexically_relative(take).begin()->string(), "config");
+}
+
+// A take is untrusted whatever version it declares (issue 52): a v2 take's config naming a file
+// by an absolute path, through a link, or a FreeD calibration outside it is refused.
+TEST(TakeFiles, AnyVersionNamesOnlyFilesInsideTheTake) {
+    const fs::path take = testing::scratchDir("takes_unit") / "v2_hostile";
+    fs::remove_all(take);
+    for (const char* camera : {"scene", "fisheye"}) {
+        fs::create_directories(take / "cameras" / camera);
+        std::ofstream(take / "cameras" / camera / "index.csv") << "";
+    }
+    fs::copy(testing::sourcePath("examples/demo/session/config"), take / "config",
+             fs::copy_options::recursive);
+    const std::string demoConfig =
+        fileText(testing::sourcePath("examples/demo/session/config.toml"));
+    std::ofstream(take / "session.toml") << "format = \"previs-session\"\nversion = 2\n";
+    auto refused = [&](const std::string& config, const std::string& named) {
+        std::ofstream(take / "config.toml") << config;
+        Result<SessionInfo> session = openSession(take.string());
+        ASSERT_TRUE(session) << session.message();
+        Result<ServiceConfig> loaded = loadSessionConfig(*session);
+        ASSERT_FALSE(loaded) << named;
+        EXPECT_NE(loaded.message().find(named), std::string::npos) << loaded.message();
+    };
+    auto replace = [&](std::string text, const std::string& from, const std::string& to) {
+        const size_t at = text.find(from);
+        EXPECT_NE(at, std::string::npos) << from;
+        return text.replace(at, from.size(), to);
+    };
+    const std::string board = "config/board/board.toml";
+    const std::string absolute = (take / board).string();
+    // toml++ writes the recorder's strings in single quotes.
+    refused(replace(demoConfig, "'" + board + "'", "'" + absolute + "'"), "absolute");
+    fs::create_directory_symlink(take / "config", take / "linked");
+    refused(replace(demoConfig, "'" + board + "'", "'linked/board/board.toml'"), "symbolic link");
+    // A valid calibration, so only the check can refuse it (v3 did not check this key either).
+    ASSERT_TRUE(writeFreedCalibration((take.parent_path() / "v2_freed.toml").string(), {}));
+    refused(replace(demoConfig, "[tracking]\n",
+                    "[tracking]\nfreed_calibration = \"../v2_freed.toml\"\n"),
+            "leaves the folder");
+}
+
 TEST(TakeTrack, TheDemoTakesStillStretchIsTrackedWithoutBias) {
     Result<SessionInfo> session = openSession(testing::sourcePath("examples/demo/session"));
     ASSERT_TRUE(session) << session.message();

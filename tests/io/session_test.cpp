@@ -1,19 +1,25 @@
 // The session format v3 (docs/session-format.md): what SessionWriter writes, openSession,
 // loadPoses, loadEvents, loadLighting and the camera index reader read back; the crash cases the
 // format promises to survive (a cut last line, a stray *.tmp), a future version refused, and a
-// take from elsewhere kept inside its folder.
+// take from elsewhere kept inside its folder: hostile files (a FIFO, /dev/zero, a sparse file, a
+// link to a file outside) refused at once, naming the file and never echoing its content.
 
 #include "io/session.h"
 
+#include <fcntl.h>
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <condition_variable>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <mutex>
 #include <string>
 #include <thread>
 #include <vector>
@@ -56,7 +62,7 @@ TEST(Session, RoundTrip) {
         SessionWriterOptions options;
         options.cameraRoles = {{"scene", "scene"}, {"fisheye", "fisheye"}};
         options.configToml = "[cameras.scene]\nsource = \"session\"\n";
-        options.configDir = "..";
+        options.configDir = ".";  // inside the session: anything outside is refused
         options.created = "2025-01-02T03:04:05Z";
         auto writer = SessionWriter::create(dir.string(), options);
         ASSERT_TRUE(writer.ok()) << writer.message();
@@ -94,15 +100,15 @@ TEST(Session, RoundTrip) {
 
     auto info = openSession(dir.string());
     ASSERT_TRUE(info.ok()) << info.message();
-    // It names its config's folder outside it (config_dir): a v2 session, as the bundled demo;
-    // a take (no config_dir) is the current version (Session.TakeIsTheCurrentVersion).
+    // It names its config's folder (config_dir): a v2 session; a take (no config_dir) is the
+    // current version (Session.TakeIsTheCurrentVersion).
     EXPECT_EQ(info->version, 2);
     EXPECT_EQ(info->created, "2025-01-02T03:04:05Z");
     EXPECT_EQ(info->clock, "CLOCK_MONOTONIC");
     EXPECT_FALSE(info->previsVersion.empty());
     EXPECT_EQ(fs::path(info->configPath), dir / "config.toml");
     EXPECT_EQ(readText(info->configPath), "[cameras.scene]\nsource = \"session\"\n");
-    EXPECT_EQ(fs::path(info->configDir), dir.parent_path());
+    EXPECT_EQ(fs::path(info->configDir), dir);
     ASSERT_EQ(info->cameras.size(), 2u);
     EXPECT_EQ(info->cameras[0].name, "fisheye");
     EXPECT_EQ(info->cameras[0].role, "fisheye");
@@ -288,22 +294,21 @@ TEST(Session, TmpFilesIgnored) {
     writeText(dir / "cameras" / "scene" / "000000000001.png.tmp", "half a frame");
     writeText(dir / "cameras" / "scene" / "index.csv.tmp", "garbage\n");
     writeText(dir / "session.toml.tmp", "garbage");
-    // Leftovers of a killed recorder are old; a live recorder's file is fresh and must stay.
+    // Old leftovers of a killed recorder: a reader is only given the take to read, so it
+    // removes nothing (issue 52), however old.
     const auto old = fs::file_time_type::clock::now() - std::chrono::minutes(2);
     for (const fs::path& p :
          {dir / "cameras" / "scene" / "000000000001.png.tmp",
           dir / "cameras" / "scene" / "index.csv.tmp", dir / "session.toml.tmp"})
         fs::last_write_time(p, old);
-    writeText(dir / "cameras" / "scene" / "000000000002.png.tmp", "being written");
     auto info = openSession(dir.string());
     ASSERT_TRUE(info.ok()) << info.message();
     ASSERT_EQ(info->cameras.size(), 1u);
     EXPECT_EQ(info->cameras[0].frames, 1u);
-    EXPECT_FALSE(fs::exists(dir / "cameras" / "scene" / "000000000001.png.tmp"))
-        << "opening a take removes what a killed recorder left";
-    EXPECT_FALSE(fs::exists(dir / "session.toml.tmp"));
-    EXPECT_TRUE(fs::exists(dir / "cameras" / "scene" / "000000000002.png.tmp"))
-        << "a file a recorder may still be writing is left alone";
+    for (const fs::path& p :
+         {dir / "cameras" / "scene" / "000000000001.png.tmp",
+          dir / "cameras" / "scene" / "index.csv.tmp", dir / "session.toml.tmp"})
+        EXPECT_TRUE(fs::exists(p)) << "a reader deleted " << p;
     EXPECT_TRUE(fs::exists(dir / "cameras" / "scene" / "000000000000.png"));
     // Recording goes on after the crash's leftovers: the .tmp is simply overwritten.
     {
@@ -462,6 +467,171 @@ TEST(Session, ATakeFromElsewhereNamesOnlyFilesInsideIt) {
     auto file = readSessionFile((dir / "config" / "board.toml").string());
     ASSERT_TRUE(file.ok()) << file.message();
     EXPECT_EQ(file->size(), 1u);
+}
+
+// A reader that regresses to waiting on a FIFO must fail the test, not hang CI: past a deadline
+// far beyond any loaded machine's time, the process stops with a message.
+class HangGuard {
+public:
+    explicit HangGuard(const char* what)
+        : thread_([this, what] {
+              std::unique_lock lock(mutex_);
+              if (!done_.wait_for(lock, std::chrono::seconds(60), [this] { return finished_; })) {
+                  std::fprintf(stderr, "HangGuard: %s did not return in 60 s (a hang)\n", what);
+                  std::abort();
+              }
+          }) {}
+    ~HangGuard() {
+        {
+            std::lock_guard lock(mutex_);
+            finished_ = true;
+        }
+        done_.notify_one();
+        thread_.join();
+    }
+
+private:
+    std::mutex mutex_;
+    std::condition_variable done_;
+    bool finished_ = false;
+    std::thread thread_;
+};
+
+// A take with one camera frame, written as the recorder writes it.
+fs::path smallTake(const std::string& name) {
+    const fs::path dir = freshDir(name);
+    auto writer = SessionWriter::create(dir.string());
+    EXPECT_TRUE(writer.ok()) << writer.message();
+    EXPECT_TRUE(writer->writeFrame("scene", 0, 100, kBytes, "png", 4, 4));
+    EXPECT_TRUE(writer->writeEvent({5, "mode-button", "short-press"}));
+    return dir;
+}
+
+void makeFifo(const fs::path& p) {
+    fs::remove(p);
+    ASSERT_EQ(::mkfifo(p.c_str(), 0600), 0) << p;
+}
+
+// Issue 52: a FIFO for any file of a take hung replay, render-session and export-track forever.
+TEST(Session, AFifoInATakeIsRefusedAtOnce) {
+    const fs::path dir = smallTake("fifo_take");
+    HangGuard guard("a reader given a FIFO");
+    makeFifo(dir / "events.csv");
+    auto events = loadEvents(dir.string());
+    ASSERT_FALSE(events.ok());
+    EXPECT_NE(events.message().find("events.csv"), std::string::npos) << events.message();
+    EXPECT_NE(events.message().find("a FIFO"), std::string::npos) << events.message();
+
+    makeFifo(dir / "poses.csv");
+    EXPECT_FALSE(loadPoses(dir.string()).ok());
+    fs::create_directories(dir / "lighting");
+    makeFifo(dir / "lighting" / "index.csv");
+    auto lighting = loadLighting(dir.string());
+    ASSERT_FALSE(lighting.ok());
+    EXPECT_NE(lighting.message().find("lighting/index.csv"), std::string::npos)
+        << lighting.message();
+    // An indexed map that is a FIFO, and a camera index that is one.
+    writeText(dir / "lighting" / "index.csv.new", "1,000000.exr,{\"lights\":[]}\n");
+    fs::rename(dir / "lighting" / "index.csv.new", dir / "lighting" / "index.csv");
+    makeFifo(dir / "lighting" / "000000.exr");
+    EXPECT_FALSE(loadLighting(dir.string()).ok());
+    makeFifo(dir / "cameras" / "scene" / "index.csv");
+    auto camera = openSession(dir.string());
+    ASSERT_FALSE(camera.ok());
+    EXPECT_NE(camera.message().find("index.csv"), std::string::npos) << camera.message();
+    makeFifo(dir / "session.toml");
+    EXPECT_FALSE(openSession(dir.string()).ok());
+}
+
+// A link to /dev/zero, or a sparse 3 GiB index, grew memory without bound: refused before a
+// byte is read.
+TEST(Session, EndlessOrHugeIndexFilesAreRefusedUnread) {
+    const fs::path dir = smallTake("huge_take");
+    HangGuard guard("a reader given /dev/zero or a sparse file");
+    fs::remove(dir / "events.csv");
+    fs::create_symlink("/dev/zero", dir / "events.csv");
+    auto zero = loadEvents(dir.string());
+    ASSERT_FALSE(zero.ok());
+    EXPECT_NE(zero.message().find("symbolic link"), std::string::npos) << zero.message();
+
+    // Sparse files: 3 GiB long, no block on disk.
+    auto sparse = [](const fs::path& p) {
+        const int fd = ::open(p.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+        ASSERT_GE(fd, 0);
+        EXPECT_EQ(::ftruncate(fd, off_t(3) << 30), 0);
+        ::close(fd);
+    };
+    sparse(dir / "poses.csv");
+    auto huge = loadPoses(dir.string());
+    ASSERT_FALSE(huge.ok());
+    EXPECT_NE(huge.message().find("more than such a file may hold"), std::string::npos)
+        << huge.message();
+    sparse(dir / "cameras" / "scene" / "index.csv");
+    EXPECT_FALSE(openSession(dir.string()).ok());
+}
+
+// An index linked to any readable file printed its lines in warnings, which a farm sends back
+// to whoever submitted the take: a link is refused, and a malformed line is named by file and
+// number only.
+TEST(Session, ARejectedFileIsNamedNeverEchoed) {
+    const fs::path dir = smallTake("echo_take");
+    const fs::path secret = dir.parent_path() / "echo_secret.txt";
+    writeText(secret, "root:SECRET-HASH:19000:0:99999:7:::\n");
+    const fs::path index = dir / "cameras" / "scene" / "index.csv";
+    fs::remove(index);
+    fs::create_symlink(secret, index);
+    auto linked = loadCameraIndex(index.parent_path().string());
+    ASSERT_FALSE(linked.ok());
+    EXPECT_EQ(linked.message().find("SECRET"), std::string::npos) << linked.message();
+    EXPECT_NE(linked.message().find("symbolic link"), std::string::npos) << linked.message();
+
+    // The same line in the take's own files: named by its number, never printed.
+    fs::remove(index);
+    fs::copy_file(secret, index);
+    std::vector<std::string> skipped;
+    auto lenient = loadCameraIndex(index.parent_path().string(), &skipped);
+    ASSERT_TRUE(lenient.ok()) << lenient.message();
+    ASSERT_EQ(skipped.size(), 1u);
+    EXPECT_NE(skipped[0].find("index.csv:1:"), std::string::npos) << skipped[0];
+    fs::copy_file(secret, dir / "events.csv", fs::copy_options::overwrite_existing);
+    fs::copy_file(secret, dir / "poses.csv", fs::copy_options::overwrite_existing);
+    fs::create_directories(dir / "lighting");
+    fs::copy_file(secret, dir / "lighting" / "index.csv");
+    for (const std::string& message :
+         {skipped[0], loadEvents(dir.string()).error().message,
+          loadPoses(dir.string()).error().message, loadLighting(dir.string()).error().message})
+        EXPECT_EQ(message.find("SECRET"), std::string::npos) << message;
+}
+
+// A take is untrusted whatever version it declares (issue 52): a v2 label does not let its
+// config's folder (config_dir) or its camera folders lie outside it.
+TEST(Session, AnyVersionKeepsItsFoldersInside) {
+    const fs::path dir = smallTake("v2_take");
+    const fs::path outside = dir.parent_path() / "v2_outside";
+    fs::remove_all(outside);
+    fs::create_directories(outside);
+    writeText(dir / "config.toml", "scene = \"scene.gltf\"\n");
+    for (const std::string& configDir :
+         std::vector<std::string>{"..", outside.string(), "missing"}) {
+        writeText(dir / "session.toml",
+                  fmt::format("format = \"previs-session\"\nversion = 2\nconfig_dir = \"{}\"\n",
+                              configDir));
+        auto info = openSession(dir.string());
+        ASSERT_FALSE(info.ok()) << configDir;
+        EXPECT_NE(info.message().find("config_dir"), std::string::npos) << info.message();
+    }
+    writeText(dir / "session.toml", "format = \"previs-session\"\nversion = 2\n");
+    ASSERT_TRUE(openSession(dir.string()).ok());
+    // A camera folder linked to frames elsewhere.
+    fs::rename(dir / "cameras" / "scene", outside / "scene");
+    fs::create_directory_symlink(outside / "scene", dir / "cameras" / "scene");
+    auto linked = openSession(dir.string());
+    ASSERT_FALSE(linked.ok());
+    EXPECT_NE(linked.message().find("symbolic link"), std::string::npos) << linked.message();
+    fs::remove(dir / "cameras" / "scene");
+    fs::remove(dir / "cameras");
+    fs::create_directory_symlink(outside, dir / "cameras");
+    EXPECT_FALSE(openSession(dir.string()).ok());
 }
 
 }  // namespace
