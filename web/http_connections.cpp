@@ -2,9 +2,11 @@
 
 #include <arpa/inet.h>
 #include <fcntl.h>
+#include <linux/sockios.h>
 #include <netinet/in.h>
 #include <sys/epoll.h>
 #include <sys/eventfd.h>
+#include <sys/ioctl.h>
 #include <sys/socket.h>
 
 #include <algorithm>
@@ -30,6 +32,21 @@ constexpr std::chrono::milliseconds kLinger{2000};
 // How often the poll thread looks at the timeouts when nothing arrives.
 constexpr int kTickMs = 100;
 constexpr size_t kReceiveChunk = 16384;
+// A connection's next request waits until the answers before it have mostly left the kernel's
+// send queue: then the next answer (the page, 8 KiB, is the largest that is not a stream) fits
+// without its worker waiting, however slowly the client reads.
+constexpr int kUnsentBeforeNextRequest = 64 * 1024;
+
+bool whole(const Connection& c) {
+    return !c.lingering && c.requestEnd > 0 && c.pending() >= c.requestEnd;
+}
+
+// Whether the answers already sent on `c` still wait in the kernel for a client that reads
+// slowly (or not at all).
+bool answersPending(const Connection& c) {
+    int unsent = 0;
+    return ::ioctl(c.fd.get(), SIOCOUTQ, &unsent) == 0 && unsent > kUnsentBeforeNextRequest;
+}
 
 const char* reasonOf(int status) {
     switch (status) {
@@ -244,15 +261,19 @@ void ConnectionHub::poll() {
         }
         for (std::unique_ptr<Connection>& c : handed) {
             // A connection back from a worker may hold the next request already.
-            if (c->pending() > 0 && scan(*c) == Scan::Whole) {
+            if (c->pending() > 0) scan(*c);
+            if (whole(*c) && !answersPending(*c)) {
                 lend(std::move(c));
                 continue;
             }
+            // A whole request waiting for its answers to drain is not polled for more bytes
+            // (expire() looks at it each tick); any other connection is.
+            const int fd = c->fd.get();
             epoll_event e{};
             e.events = EPOLLIN | EPOLLRDHUP;
-            e.data.fd = c->fd.get();
-            if (::epoll_ctl(epoll_.get(), EPOLL_CTL_ADD, c->fd.get(), &e) == 0)
-                watched_[c->fd.get()] = std::move(c);
+            e.data.fd = fd;
+            if (whole(*c) || ::epoll_ctl(epoll_.get(), EPOLL_CTL_ADD, fd, &e) == 0)
+                watched_[fd] = std::move(c);
         }
         for (int i = 0; i < n; ++i) {
             const int fd = events[size_t(i)].data.fd;
@@ -298,11 +319,13 @@ void ConnectionHub::receive(std::unique_ptr<Connection>& slot) {
     }
     const Scan s = c.lingering ? Scan::Closed : scan(c);
     if (s == Scan::Whole) {
-        // Served even when the client has half-closed after it (the answer can still go out).
+        // Served even when the client has half-closed after it (the answer can still go out);
+        // not polled while it waits for a worker or for its earlier answers to drain.
         ::epoll_ctl(epoll_.get(), EPOLL_CTL_DEL, fd, nullptr);
-        std::unique_ptr<Connection> whole = std::move(slot);
+        if (answersPending(c)) return;
+        std::unique_ptr<Connection> request = std::move(slot);
         watched_.erase(fd);
-        lend(std::move(whole));
+        lend(std::move(request));
     } else if (ended) {
         // Hung up before a whole request (a browser's spare connection, a scanner).
         if (!c.lingering && c.requests == 0) ++silent_;
@@ -374,11 +397,21 @@ void ConnectionHub::answerAndLinger(Connection& c, int status, const std::string
 }
 
 void ConnectionHub::expire(Clock::time_point now) {
+    std::vector<std::unique_ptr<Connection>> drained;
     for (auto it = watched_.begin(); it != watched_.end();) {
         Connection& c = *it->second;
         bool drop = false;
         if (c.lingering) {
             drop = now >= c.lingerUntil;
+        } else if (whole(c)) {
+            // Its earlier answers were waiting in the kernel: lent once they left, dropped if
+            // the client takes none of them for the read timeout.
+            if (!answersPending(c)) {
+                drained.push_back(std::move(it->second));
+                drop = true;
+            } else {
+                drop = now - c.lastActivity >= limits_.readTimeout;
+            }
         } else if (c.pending() == 0) {
             drop = now - c.lastActivity >= limits_.idleTimeout;
             if (drop && c.requests == 0) ++silent_;
@@ -392,6 +425,7 @@ void ConnectionHub::expire(Clock::time_point now) {
         }
         it = drop ? watched_.erase(it) : std::next(it);
     }
+    for (std::unique_ptr<Connection>& c : drained) lend(std::move(c));
 }
 
 void ConnectionHub::lend(std::unique_ptr<Connection> c) {

@@ -12,9 +12,7 @@
 #include <cctype>
 #include <cerrno>
 #include <cmath>
-#include <condition_variable>
 #include <cstring>
-#include <deque>
 #include <exception>
 #include <mutex>
 #include <string_view>
@@ -45,7 +43,8 @@ constexpr int kListenBacklog = 128;
 constexpr int kKeepAliveMaxCount = 100;
 
 // cpp-httplib's task queue, run on its accept thread: each accepted socket goes straight to
-// the connection hub (WebMonitor::Impl::admit), which bounds and holds it; no job waits here.
+// the connection hub (MonitorServer::admit, ConnectionHub::admit), which bounds and holds it; no
+// job waits here.
 class AcceptQueue : public httplib::TaskQueue {
 public:
     void enqueue(std::function<void()> fn) override { fn(); }

@@ -235,6 +235,33 @@ TEST(WebHostile, IdleConnectionsTakeNoWorker) {
     EXPECT_EQ(monitor->stats().connections, 20);
 }
 
+// Clients that pipeline requests and never read the answers (a slow-read attack), more of them
+// than the workers: their answers wait in the kernel, not in a worker blocked on writing, so a
+// new request is answered at once.
+TEST(WebHostile, ClientsThatReadNoAnswersHoldNoWorker) {
+    FakeService service;
+    WebMonitorSettings s = test::testSettings();
+    s.maxStreams = 1;
+    s.requestThreads = 2;
+    s.writeTimeoutMs = 30000;
+    s.keepAliveTimeoutS = 30;
+    auto monitor = test::startMonitor(service, s);
+    ASSERT_TRUE(monitor);
+    const int port = monitor->port();
+    std::string pipelined;
+    // 2000 pages (about 16 MiB) each: more than Linux would queue for a socket (4 MiB at most).
+    for (int i = 0; i < 2000; ++i) pipelined += "GET / HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n";
+    std::vector<std::unique_ptr<RawConnection>> readers;
+    for (int i = 0; i < 4; ++i) {
+        readers.push_back(std::make_unique<RawConnection>(port, 4096));
+        ASSERT_TRUE(readers.back()->send(pipelined));
+    }
+    ASSERT_TRUE(test::eventually([&] { return monitor->stats().requests >= 4 * 5; }));
+    const test::HttpReply status = test::get(port, "/status.json");
+    EXPECT_EQ(status.status, 200) << "a request waited behind clients that read nothing";
+    EXPECT_LT(monitor->stats().requests, 4u * 2000u);
+}
+
 // Thousands of ranges over the page: one whole answer, not a copy of the page per range (the
 // review turned 7.9 KB of request into 19.9 MB of answer).
 TEST(WebHostile, ManyRangesAreAnsweredOnceInFull) {
