@@ -198,6 +198,15 @@ Result<std::string> copyConfigIntoTake(const ServiceConfig& config, const std::s
     if (Status s = copyInto(config.tracking.boardPath, take / board); !s) return s.error();
     if (toml::table* tracking = t["tracking"].as_table())
         tracking->insert_or_assign("board", board.string());
+    // A FreeD tracker's calibration too: a take names nothing outside itself (issue 52).
+    if (!config.tracking.freedCalibrationPath.empty()) {
+        const fs::path freed =
+            fs::path("config/freed") / fs::path(config.tracking.freedCalibrationPath).filename();
+        if (Status s = copyInto(config.tracking.freedCalibrationPath, take / freed); !s)
+            return s.error();
+        if (toml::table* tracking = t["tracking"].as_table())
+            tracking->insert_or_assign("freed_calibration", freed.string());
+    }
     if (toml::table* lighting = t["lighting"].as_table()) lighting->erase("saved");
     for (const char* boxOnly : {"output", "button", "control", "record", "session"})
         t.erase(boxOnly);

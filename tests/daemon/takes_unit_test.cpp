@@ -1,6 +1,7 @@
 // The pieces of a final render and a track hand-off that need no GPU: frame ranges as post tools
 // write them, the farm's plan, the per-frame seed, Nuke's ZXY angles, and the track smoother on
 // synthetic motion with known truth; what a take may name (TakeFiles).
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -248,6 +249,45 @@ TEST(TakeFiles, AnyVersionNamesOnlyFilesInsideTheTake) {
     refused(replace(demoConfig, "[tracking]\n",
                     "[tracking]\nfreed_calibration = \"../v2_freed.toml\"\n"),
             "leaves the folder");
+}
+
+// A take recorded with a FreeD tracker's calibration holds a copy of it, so the check above
+// (which now covers freed_calibration) still lets the take replay on any machine.
+TEST(TakeFiles, ARecordedTakeHoldsItsFreedCalibration) {
+    const fs::path demo = testing::sourcePath("examples/demo");
+    const fs::path dir = testing::scratchDir("takes_unit") / "freed_take";
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    ASSERT_TRUE(writeFreedCalibration((dir / "freed_calibration.toml").string(), {}));
+    // The demo's config with its paths made absolute, as a box's /etc/previs config names them.
+    std::string text = fileText(demo / "previsd.toml");
+    for (const std::string name : {"previs.toml", "session/cameras/scene", "scene_camera.yaml",
+                                   "session/cameras/fisheye", "fisheye.yaml", "board.toml"}) {
+        const size_t at = text.find('"' + name + '"');
+        ASSERT_NE(at, std::string::npos) << name;
+        text.replace(at + 1, name.size(), (demo / name).string());
+    }
+    text.insert(
+        text.find("[tracking]\n") + 11,
+        fmt::format("freed_calibration = \"{}\"\n", (dir / "freed_calibration.toml").string()));
+    std::ofstream(dir / "previsd.toml") << text;
+    Result<ServiceConfig> live = loadServiceConfig((dir / "previsd.toml").string());
+    ASSERT_TRUE(live) << live.message();
+
+    const fs::path take = dir / "take";
+    fs::create_directories(take);
+    fs::copy(demo / "session" / "cameras", take / "cameras", fs::copy_options::recursive);
+    Result<std::string> configToml = copyConfigIntoTake(*live, take.string());
+    ASSERT_TRUE(configToml) << configToml.message();
+    EXPECT_NE(configToml->find("config/freed/freed_calibration.toml"), std::string::npos)
+        << *configToml;
+    std::ofstream(take / "config.toml") << *configToml;
+    std::ofstream(take / "session.toml") << "format = \"previs-session\"\nversion = 3\n";
+    Result<SessionInfo> session = openSession(take.string());
+    ASSERT_TRUE(session) << session.message();
+    Result<ServiceConfig> config = loadSessionConfig(*session);
+    ASSERT_TRUE(config) << config.message();
+    EXPECT_TRUE(config->tracking.freedCalibration.has_value());
 }
 
 TEST(TakeTrack, TheDemoTakesStillStretchIsTrackedWithoutBias) {
