@@ -335,10 +335,21 @@ void ConnectionHub::receive(std::unique_ptr<Connection>& slot) {
     }
 }
 
-// Follows the request at readPos as bytes arrive (each byte looked at once): whole, still
-// partial, or answered because it broke a bound.
+// Follows the request at readPos as bytes arrive: whole, still partial, or answered because it
+// broke a bound.
 ConnectionHub::Scan ConnectionHub::scan(Connection& c) {
-    if (c.requestEnd > 0) return c.pending() >= c.requestEnd ? Scan::Whole : Scan::Partial;
+    if (c.requestEnd == 0) {
+        const size_t headEnd = scanHead(c);
+        if (c.lingering) return Scan::Closed;
+        if (headEnd == 0) return Scan::Partial;
+        if (!takeHead(c, headEnd)) return Scan::Closed;
+    }
+    return c.pending() >= c.requestEnd ? Scan::Whole : Scan::Partial;
+}
+
+// Looks at each new byte of the head once; returns where the head ends (after its blank line),
+// 0 while it is incomplete or once it is answered for breaking a bound.
+size_t ConnectionHub::scanHead(Connection& c) {
     const std::string_view data(c.buffer.data() + c.readPos, c.pending());
     size_t headEnd = 0;
     for (; c.scanned < data.size() && headEnd == 0; ++c.scanned) {
@@ -350,40 +361,45 @@ ConnectionHub::Scan ConnectionHub::scan(Connection& c) {
         } else if (++c.headerLines > limits_.maxHeaderLines) {
             answerAndLinger(c, 431,
                             fmt::format("more than {} header lines", limits_.maxHeaderLines));
-            return Scan::Closed;
+            return 0;
         }
     }
     if (c.requestLineEnd == std::string::npos) {
-        if (data.size() <= limits_.maxRequestLineBytes + 2) return Scan::Partial;
-        answerAndLinger(c, 414,
-                        fmt::format("request line above {} bytes", limits_.maxRequestLineBytes));
-        return Scan::Closed;
+        if (data.size() > limits_.maxRequestLineBytes + 2)
+            answerAndLinger(
+                c, 414, fmt::format("request line above {} bytes", limits_.maxRequestLineBytes));
+        return 0;
     }
     // The header lines with their line ends, the blank line that ends them excluded.
     const size_t headerBytes = (headEnd ? headEnd - 2 : data.size()) - (c.requestLineEnd + 1);
     if (headerBytes > limits_.maxHeaderBytes) {
         answerAndLinger(c, 431,
                         fmt::format("request headers above {} bytes", limits_.maxHeaderBytes));
-        return Scan::Closed;
+        return 0;
     }
-    if (headEnd == 0) return Scan::Partial;
+    return headEnd;
+}
 
-    HeadFacts facts = readHead(data.substr(0, headEnd), c.requestLineEnd);
+// A whole head: its body must have a length within the bound; Range lines are dropped. False
+// when it was answered instead.
+bool ConnectionHub::takeHead(Connection& c, size_t headEnd) {
+    const HeadFacts facts =
+        readHead(std::string_view(c.buffer).substr(c.readPos, headEnd), c.requestLineEnd);
     if (facts.chunked) {
         answerAndLinger(c, 411, "send the body with a Content-Length, not chunked");
-        return Scan::Closed;
+        return false;
     }
     if (facts.badLength) {
         answerAndLinger(c, 400, "Content-Length is not one number");
-        return Scan::Closed;
+        return false;
     }
     if (facts.contentLength > limits_.maxBodyBytes) {
         answerAndLinger(c, 413, fmt::format("body above {} bytes", limits_.maxBodyBytes));
-        return Scan::Closed;
+        return false;
     }
     c.buffer.replace(c.readPos, headEnd, facts.head);
     c.requestEnd = facts.head.size() + facts.contentLength;
-    return c.pending() >= c.requestEnd ? Scan::Whole : Scan::Partial;
+    return true;
 }
 
 void ConnectionHub::answerAndLinger(Connection& c, int status, const std::string& message) {

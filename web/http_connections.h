@@ -108,6 +108,8 @@ private:
     void work();
     void receive(std::unique_ptr<Connection>& c);
     Scan scan(Connection& c);
+    size_t scanHead(Connection& c);
+    bool takeHead(Connection& c, size_t headEnd);
     void answerAndLinger(Connection& c, int status, const std::string& message);
     void expire(Connection::Clock::time_point now);
     void watch(std::unique_ptr<Connection> c);
