@@ -212,34 +212,6 @@ bool readExternalFile(std::vector<unsigned char>* out, std::string* err, const s
     return true;
 }
 
-// The width and height a PNG's IHDR or a JPEG's frame header declares, read before any pixel is
-// decoded; nullopt for anything else (the decoder then refuses it).
-std::optional<std::pair<uint32_t, uint32_t>> declaredSize(std::span<const uint8_t> b) {
-    auto be16 = [&](size_t at) { return uint32_t(b[at]) << 8 | b[at + 1]; };
-    auto be32 = [&](size_t at) { return be16(at) << 16 | be16(at + 2); };
-    static const uint8_t kPng[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
-    if (b.size() >= 24 && std::memcmp(b.data(), kPng, 8) == 0 &&
-        std::memcmp(b.data() + 12, "IHDR", 4) == 0)
-        return std::pair(be32(16), be32(20));
-    if (b.size() < 4 || b[0] != 0xff || b[1] != 0xd8) return std::nullopt;
-    // JPEG (ITU T.81 B.1.1): marker segments, each 0xFF, a code and a 16-bit length, up to the
-    // frame header SOFn (0xC0-0xCF but DHT C4, JPG C8, DAC CC): P, Y (height), X (width).
-    for (size_t at = 2; at + 4 <= b.size();) {
-        if (b[at] != 0xff) return std::nullopt;
-        const uint8_t code = b[at + 1];
-        if (code == 0xff) {  // fill byte
-            ++at;
-            continue;
-        }
-        if (code >= 0xc0 && code <= 0xcf && code != 0xc4 && code != 0xc8 && code != 0xcc)
-            return at + 9 <= b.size() ? std::optional(std::pair(be16(at + 7), be16(at + 5)))
-                                      : std::nullopt;
-        if (code == 0xda || code == 0xd9) return std::nullopt;  // scan or end before a frame
-        at += 2 + be16(at + 2);
-    }
-    return std::nullopt;
-}
-
 // Decodes every image to RGBA8. A texture that does not decode is not fatal: the image is left
 // empty and the material loses that texture (fallback "no texture", i.e. the material's factors
 // alone), with a warning. On set, a preview with a missing texture beats no preview. An image
@@ -255,10 +227,9 @@ bool decodeImage(tinygltf::Image* image, const int imageIndex, std::string* /*er
                            image->name.empty() ? image->uri : image->name, width, height);
     };
     uint64_t taken = 0;
-    if (const std::optional<std::pair<uint32_t, uint32_t>> declared = declaredSize(encoded)) {
-        const auto [width, height] = *declared;
-        taken = uint64_t(width) * height * 4;
-        if (!files->take(taken, what(width, height))) return false;
+    if (const Result<ImageSize> declared = encodedImageSize(encoded, name); declared) {
+        taken = uint64_t(declared->width) * declared->height * 4;
+        if (!files->take(taken, what(declared->width, declared->height))) return false;
     }
     // Through image/'s checks (content type, size limit from the header), not straight to stb:
     // a hostile texture must not hang or exhaust the loader.
@@ -270,7 +241,7 @@ bool decodeImage(tinygltf::Image* image, const int imageIndex, std::string* /*er
         image->width = image->height = 0;
         return true;
     }
-    // A header this reader could not size is counted once decoded (image/ caps it per axis).
+    // A header that could not be sized does not decode either; counted once decoded all the same.
     if (decoded->pixels.size() > taken &&
         !files->take(decoded->pixels.size() - taken, what(decoded->width, decoded->height)))
         return false;
