@@ -380,10 +380,10 @@ void WebMonitor::Impl::configure() {
     server.set_pre_routing_handler([names](const httplib::Request& req, httplib::Response& res) {
         const std::string host = req.get_header_value("Host");
         if (hostIsThisMonitor(host, names)) return httplib::Server::HandlerResponse::Unhandled;
+        // The name is not echoed: the client chose it.
         answer(res, 421,
-               fmt::format("Host '{}' is not this monitor's address: open it by its IP address "
-                           "or add the name to the monitor's host names",
-                           host.substr(0, 200)));
+               "the Host this request names is not this monitor's: open the page by the box's "
+               "IP address, or add the name to [web] host_names");
         return httplib::Server::HandlerResponse::Handled;
     });
     // The library's own answers (400, 404, 413, 414) get a body saying what happened.
