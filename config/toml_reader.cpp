@@ -166,6 +166,27 @@ Result<std::optional<std::vector<double>>> TomlReader::numbers(const toml::table
     return std::optional<std::vector<double>>(std::move(values));
 }
 
+Result<std::optional<std::vector<std::string>>> TomlReader::strings(const toml::table& table,
+                                                                    std::string_view section,
+                                                                    std::string_view key) const {
+    const toml::node* node = table.get(key);
+    if (!node) return std::optional<std::vector<std::string>>();
+    const toml::array* array = node->as_array();
+    if (!array)
+        return fail(node, "'{}' must be an array of strings, not {}", dotted(section, key),
+                    tomlTypeName(*node));
+    std::vector<std::string> values;
+    for (size_t i = 0; i < array->size(); ++i) {
+        const toml::node& element = *array->get(i);
+        const auto* v = element.as_string();
+        if (!v)
+            return fail(&element, "'{}[{}]' must be a string, not {}", dotted(section, key), i,
+                        tomlTypeName(element));
+        values.push_back(v->get());
+    }
+    return std::optional<std::vector<std::string>>(std::move(values));
+}
+
 Result<std::string> TomlReader::file(const toml::node& node, std::string_view key,
                                      const std::string& value,
                                      std::initializer_list<std::string_view> extensions,

@@ -57,6 +57,10 @@ public:
     Result<std::optional<std::vector<double>>> numbers(const toml::table& table,
                                                        std::string_view section,
                                                        std::string_view key, size_t count) const;
+    // An array of strings (any number of them).
+    Result<std::optional<std::vector<std::string>>> strings(const toml::table& table,
+                                                            std::string_view section,
+                                                            std::string_view key) const;
     // A number within [lo, hi] (inclusive ends unless `openLow`), left as `value` when absent.
     template <typename T>
     Status numberIn(const toml::table& table, std::string_view section, std::string_view key,

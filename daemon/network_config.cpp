@@ -98,9 +98,9 @@ Status parseTimecode(const TomlReader& r, const toml::table& t, TimecodeConfig& 
 }
 
 Status parseWeb(const TomlReader& r, const toml::table& t, WebConfig& c) {
-    if (Status st = r.checkKeys(
-            t, "web",
-            {"listen", "token_file", "stream_fps", "stream_width", "jpeg_quality", "max_viewers"});
+    if (Status st = r.checkKeys(t, "web",
+                                {"listen", "token_file", "stream_fps", "stream_width",
+                                 "jpeg_quality", "max_viewers", "host_names"});
         !st)
         return st;
     if (Status st = hostPortKey(r, t, "web", "listen", c.listen); !st) return st;
@@ -120,6 +120,15 @@ Status parseWeb(const TomlReader& r, const toml::table& t, WebConfig& c) {
     v = c.maxViewers;
     if (Status st = r.integerIn(t, "web", "max_viewers", v, 1, 64); !st) return st;
     c.maxViewers = int(v);
+    Result<std::optional<std::vector<std::string>>> names = r.strings(t, "web", "host_names");
+    if (!names) return names.error();
+    if (*names) c.hostNames = **names;
+    for (const std::string& name : c.hostNames)
+        if (name.empty() || hasControlCharacter(name) ||
+            name.find_first_of(" /:") != std::string::npos)
+            return r.fail(&t,
+                          "'web.host_names' holds '{}', not a host name (e.g. \"previs.local\")",
+                          hasControlCharacter(name) ? std::string("a control character") : name);
     return {};
 }
 

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "base/result.h"
 
@@ -50,6 +51,9 @@ struct WebConfig {
     int streamWidth = 640;
     int jpegQuality = 80;
     int maxViewers = 4;
+    // Names the page is opened by besides IP literals, localhost and the listen host (the
+    // monitor answers any other Host 421: DNS rebinding, docs/web-monitor.md).
+    std::vector<std::string> hostNames;
 };
 
 struct NetworkConfig {

@@ -283,7 +283,8 @@ std::string statusJson(const ServiceStatus& s) {
     j["freedIn"] = s.freedIn ? freedInJson(*s.freedIn) : nlohmann::json(nullptr);
     j["plateConsistency"] = plateConsistencyJson(s.plateConsistency);
     j["lightingFit"] = lightingFitJson(s.lightingFit);
-    return j.dump();
+    // A camera's name may hold any bytes: invalid UTF-8 becomes U+FFFD, never a throw.
+    return j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
 }
 
 uint64_t raiseOpenFileLimit() {
@@ -473,6 +474,7 @@ Status Service::Threads::openWeb(const WebConfig& c, Service* service) {
     settings.streamWidth = c.streamWidth;
     settings.jpegQuality = c.jpegQuality;
     settings.maxStreams = c.maxViewers;
+    settings.hostNames = c.hostNames;
     WebMonitorHooks hooks;
     hooks.statusJson = [service] { return statusJson(service->status()); };
     hooks.command = [service](const std::string& command) {

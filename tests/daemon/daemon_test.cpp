@@ -471,6 +471,18 @@ TEST(StatusJson, HasTheDesignFields) {
 
 // The plate-consistency meter's reading (DESIGN.md §4): null before the first, then the object
 // docs/previsd.md describes; outside [0.8, 1.25] a warning on the overlay.
+// A camera's problem line carries what the driver or a file name held, in any bytes: the status
+// stays valid JSON (invalid UTF-8 as U+FFFD) instead of failing (issue 52).
+TEST(StatusJson, IsValidWhateverBytesACameraNameHolds) {
+    ServiceStatus s;
+    s.sceneCameraProblem = "cannot open /dev/video\xff\xfe: No such device";
+    std::string text;
+    ASSERT_NO_THROW(text = statusJson(s));
+    const nlohmann::json j = nlohmann::json::parse(text);
+    EXPECT_NE(text.find("\xef\xbf\xbd"), std::string::npos) << text;  // U+FFFD
+    EXPECT_TRUE(j.is_object());
+}
+
 TEST(StatusJson, ThePlateConsistencyReadingAndItsWarning) {
     ServiceStatus s;
     s.trackingLost = false;

@@ -383,6 +383,12 @@ position_m = [1, 0, 0]
         {"tracking_listen_newline",
          minimal("", "listen = \"0.0.0.0\\n[Socket]\\nFreeBind=no:40000\""),
          {"'tracking.listen' holds a control character"}},
+        {"web_host_names_not_a_name",
+         minimal("", "[web]\nlisten = \"0.0.0.0:8080\"\nhost_names = [\"evil.example/x\"]"),
+         {"'web.host_names' holds 'evil.example/x', not a host name"}},
+        {"web_host_names_not_strings",
+         minimal("", "[web]\nlisten = \"0.0.0.0:8080\"\nhost_names = [3]"),
+         {"'web.host_names[0]' must be a string"}},
         {"freed_out_tab",
          minimal("", "[freed]\nout = \"10.0.0.\\t2:40000\""),
          {"'freed.out' holds a control character"}},
@@ -561,6 +567,18 @@ TEST(ServiceConfig, FilesOutputRingAndFloor) {
         loadServiceConfig(writeFile("files_zero.toml", minimal("", files + "keep_frames = 0")));
     ASSERT_FALSE(bad);
     EXPECT_NE(bad.message().find("output.keep_frames"), std::string::npos) << bad.message();
+}
+
+// The names the monitor page is opened by pass to its Host check (docs/web-monitor.md).
+TEST(ServiceConfig, WebHostNames) {
+    const std::string web = "[web]\nlisten = \"0.0.0.0:8080\"\n";
+    Result<ServiceConfig> c = loadServiceConfig(writeFile(
+        "host_names.toml", minimal("", web + "host_names = [\"previs.local\", \"box-3\"]")));
+    ASSERT_TRUE(c) << c.message();
+    EXPECT_EQ(c->network.web.hostNames, (std::vector<std::string>{"previs.local", "box-3"}));
+    c = loadServiceConfig(writeFile("host_names_default.toml", minimal("", web)));
+    ASSERT_TRUE(c) << c.message();
+    EXPECT_TRUE(c->network.web.hostNames.empty());
 }
 
 }  // namespace
