@@ -515,6 +515,12 @@ Result<SessionWriter> SessionWriter::create(const std::string& dir,
         return makeError("{}: already holds a session; record into a new folder", dir);
     if (::mkdir(dir.c_str(), 0755) != 0 && errno != EEXIST)
         return makeError("{}: cannot create the session folder: {}", dir, errnoText());
+    // A reader refuses a config_dir outside the session: never write one.
+    if (const fs::path configDir(options.configDir);
+        configDir.is_absolute() || std::any_of(configDir.begin(), configDir.end(),
+                                               [](const fs::path& p) { return p == ".."; }))
+        return makeError("{}: config_dir '{}' leaves the session; name a folder inside it", dir,
+                         options.configDir);
     for (const auto& [name, role] : options.cameraRoles) {
         if (!validCameraName(name))
             return makeError("session camera name '{}': use letters, digits, '-', '_', '.'", name);

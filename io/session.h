@@ -146,7 +146,8 @@ struct SessionWriterOptions {
     // cameras not listed here (they get no role).
     std::map<std::string, std::string> cameraRoles;
     // The service config in effect, copied to config.toml as is (empty: no config.toml), and
-    // the folder its relative paths start at: absolute, or relative to the session folder.
+    // the folder its relative paths start at: a folder inside the session, relative to it
+    // (readers refuse anything else, docs/session-format.md).
     std::string configToml;
     std::string configDir;
     std::string created;        // RFC 3339; empty: now (UTC)

@@ -603,6 +603,22 @@ TEST(Session, ARejectedFileIsNamedNeverEchoed) {
         EXPECT_EQ(message.find("SECRET"), std::string::npos) << message;
 }
 
+// The writer never makes a session its own readers would refuse: no config_dir outside it.
+TEST(Session, WriterRefusesAConfigDirOutsideTheSession) {
+    for (const std::string configDir : {"..", "/etc", "config/../.."}) {
+        const fs::path dir = fs::path(::testing::TempDir()) / "previs_config_dir_out";
+        fs::remove_all(dir);
+        SessionWriterOptions options;
+        options.configToml = "scene = \"scene.gltf\"\n";
+        options.configDir = configDir;
+        auto writer = SessionWriter::create(dir.string(), options);
+        ASSERT_FALSE(writer.ok()) << configDir;
+        EXPECT_NE(writer.message().find("leaves the session"), std::string::npos)
+            << writer.message();
+        EXPECT_FALSE(fs::exists(dir / "session.toml"));
+    }
+}
+
 // A take is untrusted whatever version it declares (issue 52): a v2 label does not let its
 // config's folder (config_dir) or its camera folders lie outside it.
 TEST(Session, AnyVersionKeepsItsFoldersInside) {
