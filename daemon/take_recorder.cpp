@@ -48,7 +48,7 @@ std::string takeFolderName(const std::string& name) {
 size_t frameBytes(const Frame& f) { return f.captured ? f.captured->size() : f.rgb.size(); }
 
 // A frame that came without its captured bytes (none kept): lossless PNG at zlib level 1.
-Result<std::vector<uint8_t>> encodePng(const Frame& f) {
+Result<std::vector<uint8_t>> encodeFramePng(const Frame& f) {
     cv::Mat bgr;
     cv::cvtColor(cv::Mat(int(f.height), int(f.width), CV_8UC3, const_cast<uint8_t*>(f.rgb.data())),
                  bgr, cv::COLOR_RGB2BGR);
@@ -351,7 +351,7 @@ Status TakeRecorder::writeFrame(Take& take, const FrameItem& item) {
         ext = isJpegFourcc(frame.capturedFourcc) ? "jpg" : fourccToString(frame.capturedFourcc);
         for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
     } else {
-        Result<std::vector<uint8_t>> encoded = encodePng(frame);
+        Result<std::vector<uint8_t>> encoded = encodeFramePng(frame);
         if (!encoded) return encoded.error();
         png = std::move(*encoded);
         bytes = png;
