@@ -60,6 +60,22 @@ TimecodeRate TimecodeRate::fromFps(double fps, bool dropFrame) {
         if (named.rate.dropFrame()) continue;
         if (std::abs(named.rate.fps() - fps) < std::abs(best->rate.fps() - fps)) best = &named;
     }
+    // A slow camera (15 fps) is labelled at the rate it divides, not the nearest (23.976).
+    constexpr double kTolerance = 0.005;
+    constexpr int kMostLabelsAFrame = 8;
+    for (int k = 1; k <= kMostLabelsAFrame && fps > 0.0; ++k) {
+        const NamedRate* match = nullptr;
+        for (const NamedRate& named : kNamedRates) {
+            const double off = std::abs(named.rate.fps() - k * fps);
+            if (!named.rate.dropFrame() && off <= kTolerance * named.rate.fps() &&
+                (!match || off < std::abs(match->rate.fps() - k * fps)))
+                match = &named;
+        }
+        if (match) {
+            best = match;
+            break;
+        }
+    }
     TimecodeRate rate = best->rate;
     // Only the 1000/1001 rates have a drop-frame form.
     if (dropFrame && rate.den_ == 1001 && rate.nominal() % 30 == 0) rate.dropFrame_ = true;
@@ -75,6 +91,24 @@ std::string TimecodeRate::toString() const {
     // 29.970 → 29.97, 23.976 stays.
     if (den_ != 1 && text.back() == '0') text.pop_back();
     return dropFrame_ ? text + " DF" : text;
+}
+
+TimecodeRate labelRate(std::string_view label, std::string_view recorded,
+                       std::optional<TimecodeRate> configured, double cameraFps) {
+    if (!recorded.empty())
+        if (Result<TimecodeRate> rate = TimecodeRate::parse(recorded)) return *rate;
+    const bool dropFrame = label.find_first_of(";.") != std::string_view::npos;
+    if (configured)
+        return configured->dropFrame() == dropFrame
+                   ? *configured
+                   : TimecodeRate::fromFps(configured->fps(), dropFrame);
+    return TimecodeRate::fromFps(cameraFps > 0.0 ? cameraFps : 30.0, dropFrame);
+}
+
+std::string TimecodeRate::name() const {
+    for (const NamedRate& named : kNamedRates)
+        if (named.rate == *this) return std::string(named.name);
+    return toString();  // every rate is a named one; kept total
 }
 
 std::optional<Timecode> Timecode::fromFields(int hours, int minutes, int seconds, int frames,

@@ -31,8 +31,10 @@ public:
     // "23.976", "24", "25", "29.97", "29.97df", "30", "50", "59.94", "59.94df", "60" (the
     // config's `[timecode] rate`); an error names the value and lists these.
     static Result<TimecodeRate> parse(std::string_view text);
-    // The rate of a camera running at `fps` (the nearest of the standard rates, non-drop-frame
-    // unless `dropFrame` and the rate is 29.97 or 59.94).
+    // The rate a camera running at `fps` is labelled at: the standard rate within 0.5 % of it,
+    // else of the smallest whole multiple of it (15 fps counts at 30, 12.5 at 25, 12 at 24: every
+    // frame a whole number of labels on), else the nearest; non-drop-frame unless `dropFrame`
+    // and the rate is 29.97 or 59.94.
     static TimecodeRate fromFps(double fps, bool dropFrame = false);
 
     int num() const { return num_; }
@@ -49,6 +51,8 @@ public:
     int64_t frameNs() const { return (int64_t(1'000'000'000) * den_ + num_ / 2) / num_; }
     // "29.97 DF", "25", "23.976".
     std::string toString() const;
+    // The name parse() reads back: "29.97df", "25", "23.976" (a take's index, the config).
+    std::string name() const;
 
     bool operator==(const TimecodeRate&) const = default;
 
@@ -102,6 +106,14 @@ private:
     int frames_ = 0;
     TimecodeRate rate_;
 };
+
+// The rate a recorded label counts at (issue 54, docs/session-format.md), the one rule for every
+// reader of a take: the rate the recorder wrote beside the label (`recorded`, a name parse()
+// reads), else — a take from before that column, or a name this previs does not know — the rate
+// the box labelled at: `configured` ([timecode] rate), else the camera's `cameraFps` (fromFps),
+// else 30; drop-frame when the label says so (';' or '.' before the frames).
+TimecodeRate labelRate(std::string_view label, std::string_view recorded,
+                       std::optional<TimecodeRate> configured, double cameraFps);
 
 // The local time of day of `wallClockNs` (CLOCK_REALTIME) as a timecode at `rate`. Non-drop
 // rates label HH:MM:SS with the clock's and count the frame within the second at the nominal

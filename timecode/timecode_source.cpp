@@ -121,17 +121,26 @@ const TimecodeSource::Anchor& TimecodeSource::anchorFor(int64_t t) const {
     return anchors_.front();
 }
 
-FrameTimecode TimecodeSource::frameTimecode(int64_t monoNs, uint64_t realtimeNs) {
+TimecodeRate TimecodeSource::clockRate() const {
+    if (config_.rate) return *config_.rate;
+    const std::optional<FrameRate> measured = cameraRate_.rate();
+    return measured ? TimecodeRate::fromFps(measured->fps()) : TimecodeRate::fps30();
+}
+
+FrameTimecode TimecodeSource::frameTimecode(int64_t monoNs, uint64_t realtimeNs,
+                                            std::optional<uint64_t> sequence) {
     std::lock_guard lock(mutex_);
-    FrameTimecode result{Timecode(config_.rate), TimecodeState::Clock, std::nullopt};
+    if (sequence) cameraRate_.add(monoNs, *sequence);
+    const TimecodeRate rate = clockRate();
+    FrameTimecode result{Timecode(rate), TimecodeState::Clock, std::nullopt};
     const int64_t t = monoNs + config_.cameraOffsetNs;
     if (anchors_.empty()) {
-        result.timecode = clockTimecode(realtimeNs, config_.rate);
+        result.timecode = clockTimecode(realtimeNs, rate);
         result.state = TimecodeState::Clock;
     } else {
         const Anchor& anchor = anchorFor(t);
-        const TimecodeRate rate = anchor.timecode.rate();
-        result.timecode = anchor.timecode.plus(framesBetween(anchor.startNs, t, rate));
+        result.timecode =
+            anchor.timecode.plus(framesBetween(anchor.startNs, t, anchor.timecode.rate()));
         const Anchor& latest = anchors_.back();
         if (t - latest.endNs > config_.dropoutNs) {
             result.state = TimecodeState::Freewheel;

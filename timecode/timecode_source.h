@@ -19,6 +19,7 @@
 
 #include "base/result.h"
 #include "timecode/audio_input.h"
+#include "timecode/frame_rate.h"
 #include "timecode/ltc_decoder.h"
 #include "timecode/timecode.h"
 
@@ -35,8 +36,10 @@ Result<TimecodeSourceKind> parseTimecodeSourceKind(std::string_view text);
 
 struct TimecodeSourceConfig {
     TimecodeSourceKind kind = TimecodeSourceKind::Clock;
-    // The clock's timecode rate (the camera's), also used before LTC first locks.
-    TimecodeRate rate = TimecodeRate::fps25();
+    // The clock's timecode rate (the camera's), also used before LTC first locks. Nothing: the
+    // camera's rate measured from the frames asked (FrameRateMeter; TimecodeRate::fromFps, so
+    // a 15 fps camera counts at 30), 30 until the second frame.
+    std::optional<TimecodeRate> rate = TimecodeRate::fps25();
     // The rate the LTC must have; nothing: taken from the signal (24, 25, 30, 29.97 DF).
     std::optional<TimecodeRate> ltcRate;
     int sampleRate = 48000;
@@ -78,8 +81,10 @@ public:
     AudioSink audioSink();
 
     // The timecode of the frame captured at `monoNs` (CLOCK_MONOTONIC) / `realtimeNs`
-    // (CLOCK_REALTIME, for the clock state).
-    FrameTimecode frameTimecode(int64_t monoNs, uint64_t realtimeNs);
+    // (CLOCK_REALTIME, for the clock state). `sequence`: the camera's count of the frame, from
+    // which (with `monoNs`) the rate is measured when the config names none.
+    FrameTimecode frameTimecode(int64_t monoNs, uint64_t realtimeNs,
+                                std::optional<uint64_t> sequence = std::nullopt);
     TimecodeStatus status() const;
 
 private:
@@ -92,12 +97,14 @@ private:
     TimecodeSource(const TimecodeSourceConfig& config, std::optional<LtcDecoder> decoder)
         : config_(config), decoder_(std::move(decoder)) {
         status_.source = config.kind;
-        status_.rate = config.rate;
+        status_.rate = clockRate();
     }
 
     void publish(const std::vector<LtcFrame>& frames, int64_t firstSampleMonoNs,
                  int64_t firstSample);
     const Anchor& anchorFor(int64_t t) const;
+    // The configured rate, else the measured one (mutex_ held, or before any thread starts).
+    TimecodeRate clockRate() const;
 
     const TimecodeSourceConfig config_;
     // Audio thread only.
@@ -109,6 +116,7 @@ private:
     // not extrapolated across a jam.
     std::deque<Anchor> anchors_;
     bool dropoutCounted_ = false;
+    FrameRateMeter cameraRate_;  // without a configured rate
     TimecodeStatus status_;
 };
 
