@@ -250,15 +250,19 @@ void TakeRecorder::push(Item item, size_t bytes) {
 void TakeRecorder::addFrame(const std::string& camera, std::shared_ptr<const Frame> frame) {
     if (!frame) return;
     const size_t bytes = std::max<size_t>(frameBytes(*frame), 1);
-    std::string timecode;
+    std::string timecode, rate;
     if (camera == "scene") {
         lastSceneNs_.store(frame->timestampNs);
-        if (timecodeSource_ && keepCaptured_.load(std::memory_order_relaxed))
-            timecode =
-                timecodeSource_->frameTimecode(int64_t(frame->timestampNs), frame->wallClockNs)
-                    .timecode.toString();
+        if (timecodeSource_ && keepCaptured_.load(std::memory_order_relaxed)) {
+            const Timecode label = timecodeSource_
+                                       ->frameTimecode(int64_t(frame->timestampNs),
+                                                       frame->wallClockNs, frame->sequence)
+                                       .timecode;
+            timecode = label.toString();
+            rate = label.rate().name();
+        }
     }
-    push(FrameItem{camera, std::move(frame), std::move(timecode)}, bytes);
+    push(FrameItem{camera, std::move(frame), std::move(timecode), std::move(rate)}, bytes);
 }
 
 void TakeRecorder::addPose(const TrackedFrame& tracked) {
@@ -359,10 +363,15 @@ Status TakeRecorder::writeFrame(Take& take, const FrameItem& item) {
     FrameStamp stamp;
     if (frame.wallClockNs > 0) {
         stamp.wallClockNs = frame.wallClockNs;
-        stamp.timecode =
-            !item.timecode.empty()
-                ? item.timecode
-                : clockTimecode(frame.wallClockNs, take.timecodeRates.at(item.camera)).toString();
+        // The label and the rate it counts at, recorded together (docs/session-format.md).
+        if (!item.timecode.empty()) {
+            stamp.timecode = item.timecode;
+            stamp.timecodeRate = item.timecodeRate;
+        } else {
+            const TimecodeRate rate = take.timecodeRates.at(item.camera);
+            stamp.timecode = clockTimecode(frame.wallClockNs, rate).toString();
+            stamp.timecodeRate = rate.name();
+        }
     }
     // Every bracket frame with its exposure, so a replay merges the brackets as the box did.
     stamp.exposureStops = frame.exposureStops;

@@ -99,8 +99,10 @@ private:
         std::string camera;
         std::shared_ptr<const Frame> frame;
         // The scene camera's timecode from the service's source (LTC or the clock), taken as
-        // the frame arrives; empty: the time of day at the camera's rate.
+        // the frame arrives, and the rate it counts at ("30", "29.97df"); empty: the time of day
+        // at the camera's rate.
         std::string timecode;
+        std::string timecodeRate;
     };
     using Item =
         std::variant<FrameItem, PoseRecord, SessionEvent, std::shared_ptr<const LiveLighting>,

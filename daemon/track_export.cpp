@@ -21,26 +21,18 @@ namespace {
 
 constexpr double kDegrees = 180.0 / CV_PI;
 
-// The take's frame rate from the median interval of its scene frames (0 when unknown).
-double frameRate(const TakeTrack& track) {
-    std::vector<uint64_t> intervals;
-    for (size_t i = 1; i < track.frames.size(); ++i)
-        intervals.push_back(track.frames[i].entry.timestampNs -
-                            track.frames[i - 1].entry.timestampNs);
-    if (intervals.empty()) return 0.0;
-    std::nth_element(intervals.begin(), intervals.begin() + ptrdiff_t(intervals.size() / 2),
-                     intervals.end());
-    const uint64_t median = intervals[intervals.size() / 2];
-    return median > 0 ? 1e9 / double(median) : 0.0;
-}
+// What a take's labels count at when a frame does not say (older takes): the box's own rule.
+struct LabelFallback {
+    std::optional<TimecodeRate> configured;
+    double cameraFps = 0.0;
+};
 
-// The rate the take's timecodes count at: its frame rate, drop-frame when its labels are
-// (a ';' before the frames, as an LTC source at 29.97 DF writes them).
-TimecodeRate timecodeRateOf(const TakeTrack& track) {
-    const bool dropFrame = std::any_of(track.frames.begin(), track.frames.end(), [](auto& f) {
-        return f.entry.timecode.find(';') != std::string::npos;
-    });
-    return TimecodeRate::fromFps(std::max(frameRate(track), 1.0), dropFrame);
+LabelFallback labelFallback(const ServiceConfig& config) {
+    LabelFallback f;
+    if (Result<TimecodeRate> rate = TimecodeRate::parse(config.network.timecode.rate))
+        f.configured = *rate;
+    f.cameraFps = config.sceneCamera.fps;
+    return f;
 }
 
 std::string chanLine(size_t frame, const cv::Matx44d& m, double vfov) {
@@ -50,7 +42,7 @@ std::string chanLine(size_t frame, const cv::Matx44d& m, double vfov) {
 }
 
 nlohmann::ordered_json jsonLine(size_t frame, const TakeFrame& f, const cv::Matx44d& m,
-                                const CameraCalibration& calibration, TimecodeRate rate,
+                                const CameraCalibration& calibration, const LabelFallback& fallback,
                                 bool smoothed) {
     nlohmann::ordered_json j;
     j["frame"] = frame;
@@ -60,7 +52,9 @@ nlohmann::ordered_json jsonLine(size_t frame, const TakeFrame& f, const cv::Matx
     if (f.entry.wallClockNs)
         timing["sampleTimestamp"] = {{"seconds", *f.entry.wallClockNs / 1'000'000'000ull},
                                      {"nanoseconds", *f.entry.wallClockNs % 1'000'000'000ull}};
-    // A drop-frame label ("HH:MM:SS;FF") at a take's drop-frame rate, else the camera's.
+    // The label the take holds, at the rate it was labelled at (timecode/timecode.h labelRate).
+    const TimecodeRate rate =
+        labelRate(f.entry.timecode, f.entry.timecodeRate, fallback.configured, fallback.cameraFps);
     Result<Timecode> tc = Timecode::parse(f.entry.timecode, rate);
     if (tc)
         timing["timecode"] = {{"hours", tc->hours()},
@@ -158,7 +152,7 @@ int runTrackExport(const TrackExportOptions& o) {
     for (const std::string& line : track->skippedLines) logWarning("export-track: {}", line);
     const CameraCalibration& calibration = *config->sceneCamera.calibration;
     const double vfov = verticalFovDegrees(calibration);
-    const TimecodeRate rate = timecodeRateOf(*track);
+    const LabelFallback fallback = labelFallback(*config);
     std::string text;
     size_t written = 0, gaps = 0;
     for (size_t i = 0; i < track->frames.size(); ++i) {
@@ -171,7 +165,7 @@ int runTrackExport(const TrackExportOptions& o) {
         if (ext == ".chan")
             text += chanLine(i, *pose, vfov);
         else
-            text += jsonLine(i, f, *pose, calibration, rate, o.smoothed).dump() + "\n";
+            text += jsonLine(i, f, *pose, calibration, fallback, o.smoothed).dump() + "\n";
         ++written;
     }
     // Whole or not at all, beside the target (base/atomic_file.h); not synced, as before.

@@ -148,7 +148,8 @@ std::string formatDouble(double v) { return fmt::format("{}", v); }
 constexpr std::string_view kPosesHeader = "# previs-session poses v";
 constexpr std::string_view kCameraIndexHeader = "# previs-session camera index v";
 constexpr std::string_view kLightingHeader = "# previs-session lighting v";
-// The camera index's own version (v2: wallClockNs and timecode appended; v3: exposureStops).
+// The camera index's own version (v2: wallClockNs and timecode appended; v3: exposureStops, then
+// timecodeRate appended: a column old readers ignore keeps the version).
 constexpr int kCameraIndexVersion = 3;
 constexpr std::string_view kEventsHeader = "# previs-session events v";
 
@@ -253,6 +254,11 @@ Result<std::vector<RecordedFrameEntry>> loadCameraIndex(const std::string& camer
                         makeError("{}:{}: malformed exposureStops (a number of stops within ±30)",
                                   path, lineNo));
                 e.exposureStops = stops;
+            }
+            if (f.size() >= 9) {
+                if (f[8].size() > 16)
+                    return Status(makeError("{}:{}: malformed timecodeRate", path, lineNo));
+                e.timecodeRate = std::string(f[8]);
             }
             if (!entries.empty() && (e.sequence <= entries.back().sequence ||
                                      e.timestampNs < entries.back().timestampNs))
@@ -686,7 +692,7 @@ Status SessionWriter::writeFrame(const std::string& camera, uint64_t sequence, u
     if (indices_.find(rel) == indices_.end())
         if (Status s = createFolder("cameras/" + camera); !s) return s;
     auto index = openIndex(rel, fmt::format("{}{}: sequence,timestampNs,file,width,height,"
-                                            "wallClockNs,timecode,exposureStops\n",
+                                            "wallClockNs,timecode,exposureStops,timecodeRate\n",
                                             kCameraIndexHeader, kCameraIndexVersion));
     if (!index) return index.error();
     Index& idx = **index;
@@ -698,16 +704,17 @@ Status SessionWriter::writeFrame(const std::string& camera, uint64_t sequence, u
     const std::string file = fmt::format("{:012d}.{}", sequence, ext);
     if (Status s = writeFileAtomic(camDir + "/" + file, encoded); !s) return s;
     newEntries_ = true;
-    if (stamp.timecode.find_first_of(",\n\r") != std::string::npos)
-        return makeError("session frame {} of '{}': timecode '{}' holds a comma or newline",
-                         sequence, camera, stamp.timecode);
+    for (const std::string* field : {&stamp.timecode, &stamp.timecodeRate})
+        if (field->find_first_of(",\n\r") != std::string::npos)
+            return makeError("session frame {} of '{}': timecode '{}' holds a comma or newline",
+                             sequence, camera, *field);
     if (Status s = appendLine(
-            idx,
-            fmt::format(
-                "{},{},{},{},{},{},{},{}\n", sequence, timestampNs, file, width, height,
-                stamp.wallClockNs ? std::to_string(*stamp.wallClockNs) : std::string(),
-                stamp.timecode,
-                stamp.exposureStops ? fmt::format("{}", *stamp.exposureStops) : std::string()));
+            idx, fmt::format(
+                     "{},{},{},{},{},{},{},{},{}\n", sequence, timestampNs, file, width, height,
+                     stamp.wallClockNs ? std::to_string(*stamp.wallClockNs) : std::string(),
+                     stamp.timecode,
+                     stamp.exposureStops ? fmt::format("{}", *stamp.exposureStops) : std::string(),
+                     stamp.timecodeRate));
         !s)
         return s;
     idx.lastSequence = sequence;

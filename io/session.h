@@ -85,10 +85,13 @@ struct RecordedFrameEntry {
     std::string file;  // absolute path
     uint32_t width = 0;
     uint32_t height = 0;
-    // v3: CLOCK_REALTIME at capture, and the time-of-day timecode at the camera's rate
-    // ("HH:MM:SS:FF"); absent in older sessions.
+    // v3: CLOCK_REALTIME at capture, and the frame's timecode label ("HH:MM:SS:FF"); absent in
+    // older sessions.
     std::optional<uint64_t> wallClockNs;
     std::string timecode;
+    // The rate the label counts at as the recorder wrote it ("30", "29.97df": TimecodeRate's
+    // names), empty in takes from before the column (then timecode/timecode.h's labelRate rule).
+    std::string timecodeRate;
     // v3: the frame's exposure in stops relative to the camera's radiometry (0 = as calibrated,
     // −4 = a sixteenth of the light), when the camera brackets; absent otherwise.
     std::optional<float> exposureStops;
@@ -160,8 +163,9 @@ struct SessionWriterOptions {
 // What a camera index line says of a frame besides its monotonic timestamp (v2 and v3 columns).
 struct FrameStamp {
     std::optional<uint64_t> wallClockNs;  // CLOCK_REALTIME
-    std::string timecode;                 // "HH:MM:SS:FF", time of day at the camera's rate
+    std::string timecode;                 // "HH:MM:SS:FF", the frame's label
     std::optional<float> exposureStops;   // a bracketing camera's exposure (RecordedFrameEntry)
+    std::string timecodeRate;             // the label's rate, "30", "29.97df"
 };
 
 // Appends a session folder in the crash-safe write order of docs/session-format.md: a frame

@@ -387,7 +387,7 @@ TEST(Session, FrameStampsAndLightingRoundTrip) {
         auto writer = SessionWriter::create(dir.string());
         ASSERT_TRUE(writer.ok()) << writer.message();
         ASSERT_TRUE(writer->writeFrame("scene", 0, 100, kBytes, "jpg", 4, 4,
-                                       {1796391907500000001ull, "13:45:07:15", -5.0f}));
+                                       {1796391907500000001ull, "13:45:07:15", -5.0f, "30"}));
         ASSERT_TRUE(writer->writeFrame("scene", 1, 200, kBytes, "jpg", 4, 4));
         EXPECT_FALSE(writer->writeFrame("scene", 2, 300, kBytes, "jpg", 4, 4, {1, "a,b", {}}))
             << "a comma would shift the columns";
@@ -412,6 +412,8 @@ TEST(Session, FrameStampsAndLightingRoundTrip) {
     EXPECT_EQ((*frames)[0].wallClockNs, 1796391907500000001ull);
     EXPECT_EQ((*frames)[0].timecode, "13:45:07:15");
     EXPECT_EQ((*frames)[0].exposureStops, -5.0f);  // a bracket frame's exposure (v3)
+    EXPECT_EQ((*frames)[0].timecodeRate, "30") << "the rate the label counts at (issue 54)";
+    EXPECT_EQ((*frames)[1].timecodeRate, "");
     EXPECT_FALSE((*frames)[1].wallClockNs.has_value());
     EXPECT_FALSE((*frames)[1].exposureStops.has_value());
     auto lighting = loadLighting(dir.string());
