@@ -50,7 +50,8 @@ Result<std::unique_ptr<TrackingOut>> TrackingOut::create(const NetworkConfig& ne
                                                          systemd::ListenFds& passed) {
     if (network.freed.out.empty() && network.opentrackio.out.empty())
         return std::unique_ptr<TrackingOut>();
-    const double rate = sceneCamera.fps > 0.0 ? sceneCamera.fps : 30.0;
+    std::optional<FrameRate> rate;
+    if (sceneCamera.fps > 0.0) rate = snapFrameRate(sceneCamera.fps);
     std::unique_ptr<TrackingOut> out(new TrackingOut(network, lensSample(sceneCamera), rate));
     if (!network.freed.out.empty()) {
         Result<UdpSocket> socket = UdpSocket::sender(network.freed.out, passed.take("freed"));
@@ -77,19 +78,25 @@ Result<std::unique_ptr<TrackingOut>> TrackingOut::create(const NetworkConfig& ne
     return out;
 }
 
-TrackingOut::TrackingOut(const NetworkConfig& network, LensSample lens, double frameRate)
-    : freedConfig_(network.freed), lens_(std::move(lens)), frameRate_(frameRate) {}
+TrackingOut::TrackingOut(const NetworkConfig& network, LensSample lens,
+                         std::optional<FrameRate> rate)
+    : freedConfig_(network.freed), lens_(std::move(lens)), configuredRate_(rate) {}
 
 void TrackingOut::send(const TrackedFrame& frame, const std::optional<Timecode>& timecode,
                        bool recording) {
-    if (!frame.lost && frame.worldFromCamera) lastTrusted_ = frame.worldFromCamera;
+    if (frame.frame) measuredRate_.add(int64_t(frame.frame->timestampNs), frame.frame->sequence);
+    // The pose of this very frame, not the display's filter (which lags a moving camera).
+    const std::optional<cv::Matx44d>& own =
+        frame.trackedWorldFromCamera ? frame.trackedWorldFromCamera : frame.worldFromCamera;
+    if (!frame.lost && own) lastTrusted_ = own;
     const bool held = frame.lost && freedConfig_.holdWhenLost && lastTrusted_;
     // A lost frame's worldFromCamera is the last good one: never sent as if it were current.
     if (frame.lost && !held) {
         lostNotSent_.fetch_add(1, std::memory_order_relaxed);
         return;
     }
-    const cv::Matx44d& pose = frame.lost ? *lastTrusted_ : *frame.worldFromCamera;
+    if (!frame.lost && !own) return;
+    const cv::Matx44d& pose = frame.lost ? *lastTrusted_ : *own;
     if (freed_) sendFreed(pose, held);
     if (openTrackIo_) sendOpenTrackIo(frame, pose, timecode, recording, held);
     const int64_t now = monotonicNowNs();
@@ -113,15 +120,11 @@ void TrackingOut::sendOpenTrackIo(const TrackedFrame& frame, const cv::Matx44d& 
     sample.worldFromCamera = worldFromCamera;
     sample.timestampNs = frame.frame->wallClockNs;
     if (timecode) sample.timecode = otrkTimecode(*timecode);
-    // The tracking rate as an exact fraction: the timecode's when there is one (29.97 is
-    // 30000/1001), else the camera's in thousandths.
-    if (timecode) {
-        sample.sampleRateNum = uint32_t(timecode->rate().num());
-        sample.sampleRateDenom = uint32_t(timecode->rate().den());
-    } else {
-        sample.sampleRateNum = uint32_t(std::lround(frameRate_ * 1000.0));
-        sample.sampleRateDenom = 1000;
-    }
+    // The rate samples are sent at, the camera's (a 15 fps camera's timecode counts at 30): as
+    // configured, else measured; left out until the second frame says it.
+    const std::optional<FrameRate> rate = configuredRate_ ? configuredRate_ : measuredRate_.rate();
+    sample.sampleRateNum = rate ? rate->num : 0;
+    sample.sampleRateDenom = rate ? rate->den : 1;
     sample.trackerStatus = held ? "Optical Lost (holding the last pose)" : "Optical Good";
     sample.recording = recording;
     sample.lens = lens_;

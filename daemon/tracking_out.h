@@ -3,9 +3,10 @@
 // The tracked camera on the set's network (issue 39): for each tracked frame one FreeD D1 packet
 // ([freed], docs/freed.md) and one SMPTE RIS OpenTrackIO sample ([opentrackio],
 // docs/opentrackio.md), sent from the tracking thread as soon as the pose exists. Sending never
-// blocks: a full socket buffer drops the datagram (counted). The pose sent is the one the
-// composite uses (the live filter's with [tracking] pose_filter), so Unreal or disguise draw
-// what the box draws.
+// blocks: a full socket buffer drops the datagram (counted). The pose sent is the one tracked on
+// that very frame, stamped with its capture time (issue 54): a receiver composites its own render
+// against that frame, and the live pose filter ([tracking] pose_filter) lags a moving camera, so
+// it stays the box's display's own.
 
 #include <atomic>
 #include <memory>
@@ -19,6 +20,7 @@
 #include "net/opentrackio.h"
 #include "net/udp_socket.h"
 #include "systemd/listen_fds.h"
+#include "timecode/frame_rate.h"
 #include "timecode/timecode.h"
 
 namespace previs {
@@ -50,12 +52,12 @@ public:
                                                        const CameraConfig& sceneCamera,
                                                        systemd::ListenFds& passed);
 
-    // The tracking thread, once per tracked frame. `frameRate`: the scene camera's.
+    // The tracking thread, once per tracked frame.
     void send(const TrackedFrame& frame, const std::optional<Timecode>& timecode, bool recording);
     TrackingOutStats stats() const;
 
 private:
-    TrackingOut(const NetworkConfig& network, LensSample lens, double frameRate);
+    TrackingOut(const NetworkConfig& network, LensSample lens, std::optional<FrameRate> rate);
     void sendFreed(const cv::Matx44d& worldFromCamera, bool held);
     void sendOpenTrackIo(const TrackedFrame& frame, const cv::Matx44d& worldFromCamera,
                          const std::optional<Timecode>& timecode, bool recording, bool held);
@@ -63,7 +65,9 @@ private:
 
     FreedOutConfig freedConfig_;
     LensSample lens_;
-    double frameRate_;
+    // OpenTrackIO's sampleRate: the scene camera's configured fps, else measured on the frames.
+    std::optional<FrameRate> configuredRate_;
+    FrameRateMeter measuredRate_;
     std::optional<UdpSocket> freed_, openTrackIo_;
     std::optional<OpenTrackIOEncoder> encoder_;
     std::optional<cv::Matx44d> lastTrusted_;  // the tracking thread's

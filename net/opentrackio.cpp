@@ -56,9 +56,9 @@ json timingJson(const OpenTrackIOFrame& frame, uint32_t sequence) {
                    {"sampleTimestamp",
                     {{"seconds", frame.timestampNs / 1'000'000'000u},
                      {"nanoseconds", frame.timestampNs % 1'000'000'000u}}},
-                   {"sequenceNumber", sequence},
-                   {"sampleRate", rational(std::max(frame.sampleRateNum, 1u),
-                                           std::max(frame.sampleRateDenom, 1u))}};
+                   {"sequenceNumber", sequence}};
+    if (frame.sampleRateNum > 0)
+        timing["sampleRate"] = rational(frame.sampleRateNum, std::max(frame.sampleRateDenom, 1u));
     if (frame.timecode) {
         const OtrkTimecode& tc = *frame.timecode;
         timing["timecode"] = {

@@ -57,8 +57,9 @@ struct OpenTrackIOFrame {
     cv::Matx44d worldFromCamera = cv::Matx44d::eye();  // OpenCV camera axes, our Y-up world
     uint64_t timestampNs = 0;  // capture instant, ns since the PTP/Unix epoch (CLOCK_REALTIME)
     std::optional<OtrkTimecode> timecode;
-    uint32_t sampleRateNum = 24, sampleRateDenom = 1;  // the tracking rate, e.g. 24000/1001
-    std::string trackerStatus = "Optical Good";        // free text, non-blank
+    // The rate samples are sent at, e.g. 24000/1001; num 0: not known yet, sampleRate left out.
+    uint32_t sampleRateNum = 24, sampleRateDenom = 1;
+    std::string trackerStatus = "Optical Good";  // free text, non-blank
     bool recording = false;
     std::optional<LensSample> lens;
 };
