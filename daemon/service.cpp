@@ -433,8 +433,10 @@ Status Service::Threads::openTimecode(const ServiceConfig& config) {
     const TimecodeConfig& c = config.network.timecode;
     TimecodeSourceConfig source;
     source.kind = c.ltc ? TimecodeSourceKind::Ltc : TimecodeSourceKind::Clock;
-    source.rate =
-        TimecodeRate::fromFps(config.sceneCamera.fps > 0.0 ? config.sceneCamera.fps : 30.0);
+    // A camera without an fps: its rate measured on its frames (issue 54), not a guessed 30.
+    source.rate = config.sceneCamera.fps > 0.0
+                      ? std::optional(TimecodeRate::fromFps(config.sceneCamera.fps))
+                      : std::nullopt;
     if (!c.rate.empty()) {
         Result<TimecodeRate> rate = TimecodeRate::parse(c.rate);
         if (!rate) return makeError("[timecode] rate: {}", rate.message());
@@ -489,7 +491,8 @@ Status Service::Threads::openWeb(const WebConfig& c, Service* service) {
 std::optional<Timecode> Service::Threads::frameTimecode(const Frame& frame) const {
     // A recording's timestamps are not this machine's CLOCK_MONOTONIC: its recorded wall clock
     // gives the time of day it was filmed at.
-    return timecode->frameTimecode(int64_t(frame.timestampNs), frame.wallClockNs).timecode;
+    return timecode->frameTimecode(int64_t(frame.timestampNs), frame.wallClockNs, frame.sequence)
+        .timecode;
 }
 
 void Service::Threads::restoreLighting() {

@@ -274,6 +274,69 @@ TEST(ExportTrack, BlenderImportsTheChanAsTheTrackedCamera) {
     EXPECT_NEAR(blender.begin()->second.angleY, 2.0 * std::atan(180.0 / 554.2562584220408), 1e-5);
 }
 
+// A take as previsd labels a 15 fps camera (issue 54): its clock counts 30 labels a second, so
+// frames go 10:00:00:00, :02, ... :28, 10:00:01:00; `rateColumn` appends the index's
+// timecodeRate, empty for a take recorded before it. Frame i's label is 2i labels on.
+fs::path takeLabelledAt30(const std::string& name, const std::string& rateColumn) {
+    const fs::path take = scratch() / name;
+    fs::remove_all(take);
+    fs::copy(kDemoTake, take, fs::copy_options::recursive);
+    const fs::path index = take / "cameras" / "scene" / "index.csv";
+    std::ifstream in(index);
+    std::string text;
+    for (std::string line; std::getline(in, line);) {
+        if (!line.empty() && line[0] != '#') {
+            const int sequence = std::stoi(line.substr(0, line.find(',')));
+            size_t fifth = 0;
+            for (int i = 0; i < 5; ++i) fifth = line.find(',', fifth) + 1;
+            line = line.substr(0, fifth) +
+                   fmt::format("{},10:00:{:02d}:{:02d},",
+                               1796551200000000000ull + uint64_t(sequence) * 66666667ull,
+                               2 * sequence / 30, 2 * sequence % 30);
+            if (!rateColumn.empty()) line += "," + rateColumn;
+        }
+        text += line + "\n";
+    }
+    in.close();
+    std::ofstream(index, std::ios::trunc) << text;
+    return take;
+}
+
+// The JSON lines carry every frame's label as the take holds it, at the rate it counts at: a
+// 15 fps camera's labels 24–29 are not dropped (issue 54: the export parsed them at 23.976),
+// with the rate column and, for older takes, by the documented fallback (30).
+TEST(ExportTrack, TheJsonLinesCarryTheLabelsTheTakeHolds) {
+    for (const std::string rate : {"30", ""}) {
+        SCOPED_TRACE(rate.empty() ? "a take without the timecodeRate column" : "timecodeRate 30");
+        const fs::path take = takeLabelledAt30("labelled_30" + rate, rate);
+        const fs::path out = scratch() / ("labels" + rate + ".jsonl");
+        ASSERT_EQ(run({PREVIS_BINARY, "export-track", take.string(), "--out", out.string()},
+                      scratch() / "labels.log"),
+                  0)
+            << fileBytes(scratch() / "labels.log");
+        std::ifstream track(out);
+        size_t lines = 0, highLabels = 0;
+        int64_t lastCount = -1;
+        for (std::string line; std::getline(track, line); ++lines) {
+            const nlohmann::json j = nlohmann::json::parse(line);
+            const int frame = j["frame"];  // the index line: frame i is 2i labels on
+            ASSERT_TRUE(j["timing"].contains("timecode")) << "frame " << frame << ": " << line;
+            const nlohmann::json& tc = j["timing"]["timecode"];
+            EXPECT_EQ(tc["seconds"].get<int>() * 30 + tc["frames"].get<int>(), 2 * frame)
+                << tc.dump();
+            EXPECT_EQ(tc["frameRate"]["num"].get<int>(), 30) << tc.dump();
+            EXPECT_EQ(tc["frameRate"]["denom"].get<int>(), 1) << tc.dump();
+            EXPECT_EQ(tc["dropFrame"], false);
+            const int64_t count = tc["seconds"].get<int>() * 30 + tc["frames"].get<int>();
+            EXPECT_GT(count, lastCount) << "labels increase";
+            lastCount = count;
+            highLabels += tc["frames"].get<int>() >= 24;
+        }
+        EXPECT_GT(lines, 50u);
+        EXPECT_GE(highLabels, 8u) << "the labels 24–28 of each second are there";
+    }
+}
+
 // A single-node Slurm cluster from Debian's packages (scripts/slurm/test-cluster.sh), stopped
 // when the test ends.
 class SlurmCluster {
