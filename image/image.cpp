@@ -8,12 +8,15 @@
 #include <OpenEXR/ImfIO.h>
 #include <OpenEXR/ImfInputFile.h>
 #include <OpenEXR/ImfOutputFile.h>
+#include <OpenEXR/ImfStandardAttributes.h>
+#include <OpenEXR/ImfStringAttribute.h>
 #include <png.h>
 #include <stb_image.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <array>
+#include <cctype>
 #include <cerrno>
 #include <cinttypes>
 #include <cstdio>
@@ -665,12 +668,47 @@ Status checkExrLayers(const std::string& name, const std::vector<ExrLayer>& laye
     return {};
 }
 
+// "HH:MM:SS:FF" (';' before FF: drop frame) as OpenEXR's TimeCode, which checks the ranges.
+Result<Imf::TimeCode> exrTimeCode(const std::string& name, const std::string& text) {
+    auto field = [&](size_t at) { return (text[at] - '0') * 10 + (text[at + 1] - '0'); };
+    bool digits =
+        text.size() == 11 && text[2] == ':' && text[5] == ':' && (text[8] == ':' || text[8] == ';');
+    for (const size_t at : {size_t(0), size_t(3), size_t(6), size_t(9)})
+        digits = digits && std::isdigit(uint8_t(text[at])) && std::isdigit(uint8_t(text[at + 1]));
+    try {
+        if (digits) return Imf::TimeCode(field(0), field(3), field(6), field(9), text[8] == ';');
+    } catch (const std::exception&) {  // a field out of its range: the message below
+    }
+    return makeError("cannot write EXR image '{}': timecode '{}' is not HH:MM:SS:FF", name, text);
+}
+
+Imath::M44f exrMatrix(const std::array<float, 16>& m) {
+    return Imath::M44f(m[0], m[1], m[2], m[3], m[4], m[5], m[6], m[7], m[8], m[9], m[10], m[11],
+                       m[12], m[13], m[14], m[15]);
+}
+
+// The standard attributes that are set (the timecode already read).
+void addExrAttributes(Imf::Header& header, const ExrFrameAttributes& a,
+                      const std::optional<Imf::TimeCode>& timeCode) {
+    if (timeCode) Imf::addTimeCode(header, *timeCode);
+    if (a.fpsNum > 0 && a.fpsDen > 0)
+        Imf::addFramesPerSecond(header, Imf::Rational(a.fpsNum, unsigned(a.fpsDen)));
+    if (a.worldToCamera) Imf::addWorldToCamera(header, exrMatrix(*a.worldToCamera));
+    if (a.worldToNDC) Imf::addWorldToNDC(header, exrMatrix(*a.worldToNDC));
+    if (!a.capDate.empty()) Imf::addCapDate(header, a.capDate);
+    if (a.utcOffset) Imf::addUtcOffset(header, *a.utcOffset);
+    for (const auto& [key, value] : a.strings) header.insert(key, Imf::StringAttribute(value));
+}
+
 // Writes checked layers to an OpenEXR output (a file name or a stream).
 template <typename Target>
-void writeExrTo(Target&& target, const std::vector<ExrLayer>& layers) {
+void writeExrTo(Target&& target, const std::vector<ExrLayer>& layers,
+                const ExrFrameAttributes& attributes = {},
+                const std::optional<Imf::TimeCode>& timeCode = {}) {
     const uint32_t width = layers.front().image->width, height = layers.front().image->height;
     Imf::Header header{int(width), int(height)};
     header.compression() = Imf::ZIP_COMPRESSION;
+    addExrAttributes(header, attributes, timeCode);
     Imf::FrameBuffer frameBuffer;
     for (const ExrLayer& layer : layers) {
         const ImageF& image = *layer.image;
@@ -739,11 +777,18 @@ Status writeExrLayers(const std::string& path, const std::vector<ExrLayer>& laye
     return {};
 }
 
-Status writeExrLayers(int fd, const std::string& name, const std::vector<ExrLayer>& layers) {
+Status writeExrLayers(int fd, const std::string& name, const std::vector<ExrLayer>& layers,
+                      const ExrFrameAttributes& attributes) {
     if (Status s = checkExrLayers(name, layers); !s) return s;
+    std::optional<Imf::TimeCode> timeCode;
+    if (!attributes.timeCode.empty()) {
+        Result<Imf::TimeCode> read = exrTimeCode(name, attributes.timeCode);
+        if (!read) return read.error();
+        timeCode = *read;
+    }
     FdOStream stream(fd, name);
     try {
-        writeExrTo(stream, layers);
+        writeExrTo(stream, layers, attributes, timeCode);
     } catch (const std::exception& e) {
         return makeError("cannot write EXR image '{}': {} (is the disk full?)", name, e.what());
     }

@@ -3,9 +3,12 @@
 // Image files in and out: OpenEXR (linear float), Radiance .hdr, PNG/JPEG (8-bit, sRGB-encoded).
 // Every error names the file, what is wrong and what to do.
 
+#include <array>
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "base/result.h"
@@ -86,13 +89,27 @@ struct ExrLayer {
     const ImageF* image = nullptr;
 };
 
+// OpenEXR's standard attributes (ImfStandardAttributes.h) that a frame carries for post, each
+// written only when set. Matrices are as Imath stores them: row-major, for row vectors
+// (p' = p · M, the translation in the last row).
+struct ExrFrameAttributes {
+    std::string timeCode;        // SMPTE "HH:MM:SS:FF" (';' before FF: drop frame)
+    int fpsNum = 0, fpsDen = 0;  // framesPerSecond; 0 = none
+    std::optional<std::array<float, 16>> worldToCamera, worldToNDC;
+    std::string capDate;             // "YYYY:MM:DD hh:mm:ss", local time
+    std::optional<float> utcOffset;  // seconds: UTC = local time + utcOffset
+    std::vector<std::pair<std::string, std::string>> strings;  // other string attributes
+};
+
 // Writes layers of one size into one EXR, float32 and ZIP as writeExr.
 Status writeExrLayers(const std::string& path, const std::vector<ExrLayer>& layers);
 
 // writeExr and writeExrLayers to an open, seekable descriptor the caller owns (an AtomicFile's
 // temporary, base/atomic_file.h), the same bytes as to a file; `name` names it in errors.
+// A timeCode that does not read as one is an error, before anything is written.
 Status writeExr(int fd, const std::string& name, const ImageF& image);
-Status writeExrLayers(int fd, const std::string& name, const std::vector<ExrLayer>& layers);
+Status writeExrLayers(int fd, const std::string& name, const std::vector<ExrLayer>& layers,
+                      const ExrFrameAttributes& attributes = {});
 
 // Whether `path` is an EXR whose header reads and whose every scanline is present.
 bool isCompleteExr(const std::string& path);
