@@ -29,6 +29,7 @@
 #include "daemon/take_recorder.h"
 #include "io/session.h"
 #include "scene/scene.h"
+#include "tests/daemon/recorder_fixtures.h"
 #include "tests/support/temp_dir.h"
 #include "tests/support/test_data.h"
 #include "vision/lens_grid.h"
@@ -37,6 +38,8 @@ namespace previs {
 namespace {
 
 namespace fs = std::filesystem;
+using testing::HangGuard;
+using testing::recorderConfig;
 
 std::string socketPath(const std::string& name) {
     return (testing::scratchDir("previs_daemon_test") / name).string();
@@ -104,35 +107,6 @@ TEST(ControlServer, SilentClientDoesNotBlockOthers) {
     ::close(silent);
 }
 
-// A hang guard for tests of threads that could deadlock: past the deadline the test binary ends
-// with a message (a stuck join cannot be cancelled), so a hang fails instead of stalling CI.
-class HangGuard {
-public:
-    HangGuard(const char* what, std::chrono::seconds deadline)
-        : thread_([this, what, deadline] {
-              std::unique_lock lock(mutex_);
-              if (!done_.wait_for(lock, deadline, [this] { return finished_; })) {
-                  std::fprintf(stderr, "FAIL: %s did not finish within %lld s (a hang)\n", what,
-                               static_cast<long long>(deadline.count()));
-                  std::_Exit(1);
-              }
-          }) {}
-    ~HangGuard() {
-        {
-            std::lock_guard lock(mutex_);
-            finished_ = true;
-        }
-        done_.notify_all();
-        thread_.join();
-    }
-
-private:
-    std::mutex mutex_;
-    std::condition_variable done_;
-    bool finished_ = false;
-    std::thread thread_;
-};
-
 // `record stop` waits while the take drains; the socket answers status meanwhile (issue 52).
 TEST(ControlServer, AnswersStatusWhileARecordStopDrains) {
     HangGuard guard("the control socket test", std::chrono::seconds(60));
@@ -165,18 +139,6 @@ TEST(ControlServer, AnswersStatusWhileARecordStopDrains) {
     stopper.join();
     ASSERT_TRUE(stopReply) << stopReply.message();
     EXPECT_EQ(nlohmann::json::parse(*stopReply)["path"], "take");
-}
-
-ServiceConfig recorderConfig(const std::string& name) {
-    Result<ServiceConfig> config =
-        loadServiceConfig(testing::sourcePath("examples/demo/previsd.toml"));
-    EXPECT_TRUE(config) << config.message();
-    ServiceConfig c = config ? *config : ServiceConfig{};
-    const fs::path takes = testing::scratchDir("previs_daemon_test") / name;
-    fs::remove_all(takes);
-    c.record.dir = takes.string();
-    c.record.minFreeMb = 0;
-    return c;
 }
 
 // A double tap (the page, the control socket, the button at once): one take starts, the other

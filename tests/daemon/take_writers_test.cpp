@@ -32,6 +32,7 @@
 #include "daemon/take_recorder.h"
 #include "net/freed.h"
 #include "net/freed_calibration.h"
+#include "tests/daemon/recorder_fixtures.h"
 #include "tests/support/temp_dir.h"
 #include "tests/support/test_data.h"
 
@@ -40,46 +41,8 @@ namespace {
 
 namespace fs = std::filesystem;
 using namespace std::chrono_literals;
-
-// Past the deadline the binary ends with a message: a stuck stop cannot be cancelled.
-class HangGuard {
-public:
-    HangGuard(const char* what, std::chrono::seconds deadline)
-        : thread_([this, what, deadline] {
-              std::unique_lock lock(mutex_);
-              if (!done_.wait_for(lock, deadline, [this] { return finished_; })) {
-                  std::fprintf(stderr, "FAIL: %s did not finish within %lld s (a hang)\n", what,
-                               static_cast<long long>(deadline.count()));
-                  std::_Exit(1);
-              }
-          }) {}
-    ~HangGuard() {
-        {
-            std::lock_guard lock(mutex_);
-            finished_ = true;
-        }
-        done_.notify_all();
-        thread_.join();
-    }
-
-private:
-    std::mutex mutex_;
-    std::condition_variable done_;
-    bool finished_ = false;
-    std::thread thread_;
-};
-
-ServiceConfig recorderConfig(const std::string& name) {
-    Result<ServiceConfig> config =
-        loadServiceConfig(testing::sourcePath("examples/demo/previsd.toml"));
-    EXPECT_TRUE(config) << config.message();
-    ServiceConfig c = config ? *config : ServiceConfig{};
-    const fs::path takes = testing::scratchDir("previs_take_writers_test") / name;
-    fs::remove_all(takes);
-    c.record.dir = takes.string();
-    c.record.minFreeMb = 0;
-    return c;
-}
+using testing::HangGuard;
+using testing::recorderConfig;
 
 // A bound loopback UDP socket, as systemd would pass it, and its port.
 UniqueFD loopbackReceiver(uint16_t& port) {
