@@ -25,16 +25,19 @@ TEST(FrameRate, SnapsToTheStandardRateNearby) {
 TEST(FrameRate, MeasuresTheMedianIntervalPerFrameRobustly) {
     FrameRateMeter meter;
     EXPECT_FALSE(meter.rate());
+    const int64_t start = 1'000'000'000'000;
     uint64_t sequence = 0;
-    int64_t t = 1'000'000'000'000;
-    meter.add(t, sequence);
+    meter.add(start, sequence);
     EXPECT_FALSE(meter.rate()) << "one frame has no interval";
+    uint32_t noise = 12345;
     for (int i = 1; i < 40; ++i) {
-        // Jitter of ±4 ms, every third frame skipped by the consumer, and one late frame.
-        const uint64_t step = i % 3 == 0 ? 2 : 1;
-        sequence += step;
-        t += int64_t(step) * k15FpsNs + (i % 2 ? 4'000'000 : -4'000'000) +
-             (i == 17 ? 30'000'000 : 0);
+        // Timestamps within ±0.5 ms of the frame's instant, every third frame skipped by the
+        // consumer, and one frame stamped 30 ms late.
+        sequence += i % 3 == 0 ? 2 : 1;
+        noise = noise * 1103515245u + 12345u;
+        const int64_t jitter = int64_t(noise % 1'000'001) - 500'000;
+        const int64_t t =
+            start + int64_t(sequence) * k15FpsNs + jitter + (i == 17 ? 30'000'000 : 0);
         meter.add(t, sequence);
         meter.add(t, sequence);  // a second caller asking for the same frame
     }
