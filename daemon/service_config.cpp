@@ -861,7 +861,7 @@ Result<ServiceConfig> ConfigReader::read(const toml::table& root) {
              config.loopSession = loop->value_or(true);
              Result<std::optional<bool>> events = r_.boolean(t, "session", "events");
              if (!events) return events.error();
-             config.replaySessionEvents = events->value_or(true);
+             config.replaySessionEvents = events->value_or(false);
              return {};
          }},
     };

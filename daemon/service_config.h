@@ -247,7 +247,8 @@ struct ServiceConfig {
     // service there (exit 0).
     bool loopSession = true;
     // Recorded cameras: replay the session's button and ctl events (events.csv) with its frames.
-    bool replaySessionEvents = true;
+    // Off by default: live playback leaves the mode to the crew (`previs replay` follows them).
+    bool replaySessionEvents = false;
 };
 
 // The control socket the config names, or the default (DESIGN.md §3).

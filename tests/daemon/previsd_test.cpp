@@ -179,6 +179,67 @@ TEST(Previsd, CheckAcceptsTheDemoAndNamesTheKeyOfABadConfig) {
               2);
 }
 
+// --check looks at the takes folder as a take would find it (issue 54): there or creatable,
+// writable, with [record] min_free_mb free; each problem one line naming the folder.
+TEST(Previsd, CheckNamesATakesFolderThatCouldNotTakeATake) {
+    const fs::path dir = scratch() / "check_takes";
+    fs::create_directories(dir);
+    writeFile(dir / "a-file", "not a folder\n");
+    auto checked = [&](const std::string& name, const std::string& record) {
+        const std::string config = demoConfig(name, record);
+        const std::string log = (scratch() / (name + ".log")).string();
+        const int code = testing::runProcess({previsd(), "--config", config, "--check"}, log, 120s);
+        return std::pair{code, fileBytes(log)};
+    };
+    auto [ok, okLog] =
+        checked("check_takes_ok", fmt::format("[record]\ndir = \"{}/not-yet/takes\"\n"
+                                              "min_free_mb = 1\n",
+                                              dir.string()));
+    EXPECT_EQ(ok, 0) << okLog;
+    EXPECT_NE(okLog.find("takes in " + (dir / "not-yet/takes").string()), std::string::npos)
+        << okLog;
+    EXPECT_FALSE(fs::exists(dir / "not-yet")) << "a check creates nothing";
+    auto [blocked, blockedLog] = checked(
+        "check_takes_file", fmt::format("[record]\ndir = \"{}/a-file/takes\"\n", dir.string()));
+    EXPECT_EQ(blocked, 2) << blockedLog;
+    EXPECT_NE(blockedLog.find((dir / "a-file").string() + " is not a folder"), std::string::npos)
+        << blockedLog;
+    auto [full, fullLog] =
+        checked("check_takes_full",
+                fmt::format("[record]\ndir = \"{}\"\nmin_free_mb = 1000000000\n", dir.string()));
+    EXPECT_EQ(full, 2) << fullLog;
+    EXPECT_NE(fullLog.find("under [record] min_free_mb = 1000000000"), std::string::npos)
+        << fullLog;
+    EXPECT_NE(fullLog.find(dir.string()), std::string::npos) << fullLog;
+}
+
+// The demo's controls in one step (issue 54): `scripts/example.sh --live` makes a token once,
+// keeps it, and gives it to previsd as the unit's credential would, the config as shipped.
+TEST(Previsd, TheLiveDemoScriptTurnsThePagesControlsOnInOneStep) {
+    const fs::path dir = scratch() / "live_demo";
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    const std::string build = fs::path(previsd()).parent_path().parent_path().string();
+    auto check = [&](const std::string& log) {
+        return testing::runProcess(
+            {"/usr/bin/env", "PREVIS_BUILD=" + build, "PREVIS_OUT=" + dir.string(), "/bin/bash",
+             testing::sourcePath("scripts/example.sh"), "--live", "--check"},
+            (dir / log).string(), 120s);
+    };
+    ASSERT_EQ(check("first.log"), 0) << fileBytes(dir / "first.log");
+    EXPECT_NE(fileBytes(dir / "first.log").find("web monitor with control (token)"),
+              std::string::npos)
+        << fileBytes(dir / "first.log");
+    const fs::path token = dir / "live" / "credentials" / "web-token";
+    const std::string first = fileBytes(token);
+    EXPECT_GE(first.size(), 16u);
+    struct stat st {};
+    ASSERT_EQ(::stat(token.c_str(), &st), 0);
+    EXPECT_EQ(st.st_mode & 0777, 0600u) << "the token is the demo user's alone";
+    ASSERT_EQ(check("second.log"), 0) << fileBytes(dir / "second.log");
+    EXPECT_EQ(fileBytes(token), first) << "a phone signed in keeps working";
+}
+
 // A GPIO chip that is not there at start (an expander that probes late, udev's rule not yet
 // applied) is not a config error: previsd starts without the button and LED, says so in its
 // status and on the display, and keeps looking (the VM test io_vm sees them come).
@@ -690,6 +751,30 @@ void expectNetworkPosesNearTheTruth(const std::vector<cv::Matx44d>& sent) {
     EXPECT_LT(worstDeg, 0.15) << "degrees off the truth while the camera moves";
 }
 
+// A port another program holds is one line naming [web] listen once (issue 54: it said it twice).
+TEST(Previsd, AWebPortInUseIsOneLineNamingItsListenOnce) {
+    int port = 0;
+    UniqueFD held = listeningSocket(port);
+    ASSERT_TRUE(held.isValid());
+    const std::string config = demoConfig(
+        "port_in_use", fmt::format("[web]\nlisten = \"127.0.0.1:{}\"\n", port), "kind = \"none\"");
+    const std::string log = (scratch() / "port_in_use.log").string();
+    const int code = testing::runProcess({previsd(), "--config", config}, log, kStartup);
+    EXPECT_NE(code, 0) << fileBytes(log);
+    EXPECT_NE(code, -1) << "still running: " << fileBytes(log);
+    std::string line;
+    for (std::stringstream lines(fileBytes(log)); std::getline(lines, line);)
+        if (line.find("[web]") != std::string::npos) break;
+    EXPECT_NE(line.find(fmt::format("[web] listen = \"127.0.0.1:{}\"", port)), std::string::npos)
+        << fileBytes(log);
+    size_t named = 0;
+    for (size_t at = line.find("listen ="); at != std::string::npos;
+         at = line.find("listen =", at + 1))
+        ++named;
+    EXPECT_EQ(named, 1u) << line;
+    EXPECT_NE(line.find("Address already in use"), std::string::npos) << line;
+}
+
 // The set's network (issue 39) on the demo: every tracked frame goes out as FreeD and as an
 // OpenTrackIO sample, each decoded here from its bytes, the two agreeing on the pose within
 // FreeD's quantisation; the frames carry the clock's timecode; the web monitor serves the
@@ -961,7 +1046,8 @@ TEST(Previsd, SigintStopsFromRefinement) {
 }
 
 TEST(Previsd, SessionThatDoesNotLoopEndsTheService) {
-    const std::string config = demoConfig("once", "[session]\nloop = false\n", "kind = \"none\"");
+    const std::string config =
+        demoConfig("once", "[session]\nloop = false\nevents = true\n", "kind = \"none\"");
     ChildProcess p({previsd(), "--config", config}, (scratch() / "once.log").string());
     // The demo is about 4 s of footage; then 3 s of grace.
     std::optional<int> code = p.wait(kStartup);
@@ -973,6 +1059,36 @@ TEST(Previsd, SessionThatDoesNotLoopEndsTheService) {
         << p.log();
     EXPECT_NE(p.log().find("mode: refine -> preview (session mode-button)"), std::string::npos)
         << p.log();
+}
+
+// The demo played live leaves the mode to the crew (issue 54): the take's recorded presses replay
+// only with [session] events = true, so refinement set from the control socket holds over whole
+// passes of the looping take (each of which holds two presses and a start-over).
+TEST(Previsd, AModeSetByTheCrewHoldsAcrossTheDemosLoops) {
+    // A [session] table without keys: the demo's own default for its recorded presses.
+    const std::string config = demoConfig("crew_mode", "[session]\n", "kind = \"none\"");
+    const std::string socket = socketOf(config);
+    ChildProcess p({previsd(), "--config", config}, (scratch() / "crew_mode.log").string());
+    auto up = waitFor(socket, kStartup,
+                      [](const nlohmann::json& s) { return s["framesShown"].get<int>() >= 1; });
+    ASSERT_TRUE(up) << p.log();
+    Result<std::string> set = controlRequest(socket, "mode refine", 30000);
+    ASSERT_TRUE(set) << set.message() << p.log();
+    // The take is 4 s long (60 frames at 15 fps) and plays at its recorded timing, whatever the
+    // machine's load: 10 s is more than two passes.
+    const auto end = std::chrono::steady_clock::now() + 10s;
+    int looks = 0;
+    while (std::chrono::steady_clock::now() < end) {
+        if (std::optional<nlohmann::json> s = status(socket)) {
+            ++looks;
+            ASSERT_EQ((*s)["mode"], "refine") << "after " << looks << " looks\n" << p.log();
+        }
+        std::this_thread::sleep_for(100ms);
+    }
+    EXPECT_GE(looks, 10) << p.log();
+    EXPECT_EQ(p.log().find("(session"), std::string::npos) << p.log();
+    p.signal(SIGTERM);
+    EXPECT_EQ(p.wait(30s), std::optional<int>(0)) << p.log();
 }
 
 // frames.csv, one map per row.

@@ -467,6 +467,13 @@ loop = false
     EXPECT_EQ(c->button->debounceMs, 20);
     EXPECT_EQ(controlSocketPath(c->control), (tempDir() / "ctl/previsd.sock").string());
     EXPECT_FALSE(c->loopSession);
+    // Live playback leaves the mode to the crew unless the session's presses are asked for
+    // (issue 54: the demo undid every toggle within a second).
+    EXPECT_FALSE(c->replaySessionEvents);
+    Result<ServiceConfig> withEvents =
+        loadServiceConfig(writeFile("events.toml", minimal("", "[session]\nevents = true")));
+    ASSERT_TRUE(withEvents) << withEvents.message();
+    EXPECT_TRUE(withEvents->replaySessionEvents);
 }
 
 TEST(ServiceConfig, DefaultControlSocketFollowsRuntimeDirectory) {
