@@ -1,11 +1,35 @@
 #include "cli/take_commands.h"
 
+#include <unistd.h>
+
+#include <filesystem>
 #include <memory>
 
+#include "base/log.h"
+#include "base/output_path.h"
 #include "daemon/take_render.h"
 #include "daemon/track_export.h"
 
 namespace previs {
+
+namespace {
+
+// Before the take is tracked: the file is written beside itself and renamed, so its folder must
+// take a new file even where the file itself exists and is writable.
+Status checkTrackOut(const std::string& path) {
+    if (Status s = checkOutputFile("--out", path); !s) return s;
+    const std::filesystem::path folder = std::filesystem::path(path).has_parent_path()
+                                             ? std::filesystem::path(path).parent_path()
+                                             : std::filesystem::path(".");
+    if (::access(folder.c_str(), W_OK | X_OK) != 0)
+        return makeError(
+            "--out {}: the folder {} is not writable (the file is written there "
+            "under a temporary name, then renamed)",
+            path, folder.string());
+    return {};
+}
+
+}  // namespace
 
 std::function<int()> addRenderSessionCommand(CLI::App& app) {
     auto o = std::make_shared<TakeRenderOptions>();
@@ -50,7 +74,13 @@ std::function<int()> addExportTrackCommand(CLI::App& app) {
     cmd->add_option("--out", o->outPath, "FILE.chan (Nuke, Blender) or FILE.jsonl")->required();
     cmd->add_flag("--smoothed", o->smoothed,
                   "the track smoothed over the whole take (as render-session renders it)");
-    return [o] { return runTrackExport(*o); };
+    return [o] {
+        if (Status s = checkTrackOut(o->outPath); !s) {
+            logError("export-track: {}", s.message());
+            return 2;
+        }
+        return runTrackExport(*o);
+    };
 }
 
 }  // namespace previs

@@ -1,8 +1,13 @@
 // previsd: the on-set service (DESIGN.md §3). Exit codes: 0 clean stop, 1 runtime failure,
 // 2 bad config or usage.
 
+#include <sys/statvfs.h>
+#include <unistd.h>
+
 #include <CLI/CLI.hpp>
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -18,6 +23,38 @@
 using namespace previs;
 
 namespace {
+
+// Whether a take could start now (as TakeRecorder::openTake would find the folder): it exists or
+// can be made, this user can write there, and the disk has [record] min_free_mb free. Nothing is
+// created.
+Status checkTakesFolder(const RecordConfig& record) {
+    namespace fs = std::filesystem;
+    const fs::path root = takesFolder(record);
+    fs::path existing = root;
+    std::error_code ec;
+    while (!fs::exists(existing, ec) && existing.has_parent_path() &&
+           existing != existing.parent_path())
+        existing = existing.parent_path();
+    if (!fs::is_directory(existing, ec))
+        return makeError("takes folder {}: {} is not a folder; set [record] dir to a folder",
+                         root.string(), existing.string());
+    if (::access(existing.c_str(), W_OK | X_OK) != 0)
+        return makeError(
+            "takes folder {}: {} is not writable by this user ({}); set [record] dir "
+            "to a folder previsd can write",
+            root.string(), existing.string(), std::strerror(errno));
+    struct statvfs st {};
+    if (::statvfs(existing.c_str(), &st) != 0)
+        return makeError("takes folder {}: cannot read the free space of {}: {}", root.string(),
+                         existing.string(), std::strerror(errno));
+    const uint64_t freeMb = (uint64_t(st.f_bavail) * uint64_t(st.f_frsize)) >> 20;
+    if (freeMb < record.minFreeMb)
+        return makeError(
+            "takes folder {}: {} MiB free, under [record] min_free_mb = {}; a take "
+            "would not start (free space, or set [record] dir to a larger disk)",
+            root.string(), freeMb, record.minFreeMb);
+    return {};
+}
 
 // --check: everything the config names, loaded and validated, without opening devices that may
 // legitimately be absent at check time (cameras, display, button).
@@ -37,15 +74,25 @@ int check(const ServiceConfig& config) {
             return 2;
         }
     }
+    std::string web = "off";
     if (!config.network.web.listen.empty()) {
-        if (Result<std::string> token = readWebToken(config.network.web, config.path); !token) {
+        Result<std::string> token = readWebToken(config.network.web, config.path);
+        if (!token) {
             logError("{}", token.message());
             return 2;
         }
+        web = token->empty() ? "view only (no token)" : "with control (token)";
     }
-    logInfo("{}: OK (scene {} with {} triangles; output {}; button {})", config.path,
-            config.scenePath, scene->geometry.triangles.size(), toString(config.output.kind),
-            config.button ? config.button->chip + ":" + config.button->line : "none");
+    if (Status takes = checkTakesFolder(config.record); !takes) {
+        logError("{}: {}", config.path, takes.message());
+        return 2;
+    }
+    logInfo(
+        "{}: OK (scene {} with {} triangles; output {}; button {}; web monitor {}; takes in {})",
+        config.path, config.scenePath, scene->geometry.triangles.size(),
+        toString(config.output.kind),
+        config.button ? config.button->chip + ":" + config.button->line : "none", web,
+        takesFolder(config.record));
     return 0;
 }
 

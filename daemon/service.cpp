@@ -483,7 +483,7 @@ Status Service::Threads::openWeb(const WebConfig& c, Service* service) {
         return service->handleCommand(command);
     };
     Result<std::unique_ptr<WebMonitor>> made = WebMonitor::create(settings, std::move(hooks));
-    if (!made) return makeError("[web] listen = '{}': {}", c.listen, made.message());
+    if (!made) return made.error();  // each names the [web] key it is about
     web = std::move(*made);
     return {};
 }
