@@ -5,7 +5,9 @@
 #include <algorithm>
 #include <atomic>
 #include <charconv>
+#include <cmath>
 #include <cstdio>
+#include <ctime>
 #include <filesystem>
 #include <map>
 #include <set>
@@ -118,6 +120,42 @@ std::vector<std::string> planFrameRanges(const std::vector<size_t>& frames, size
     return ranges;
 }
 
+namespace {
+
+// Imath's layout of a transform given for column vectors: its transpose, row-major.
+std::array<float, 16> imathLayout(const cv::Matx44d& columnForm) {
+    std::array<float, 16> m{};
+    for (int r = 0; r < 4; ++r)
+        for (int c = 0; c < 4; ++c) m[size_t(r * 4 + c)] = float(columnForm(c, r));
+    return m;
+}
+
+}  // namespace
+
+std::array<float, 16> exrWorldToCamera(const cv::Matx44d& worldFromCamera) {
+    const cv::Matx44d yUp = cv::Matx44d::diag({1.0, -1.0, 1.0, 1.0});
+    return imathLayout(yUp * worldFromCamera.inv());
+}
+
+std::array<float, 16> exrWorldToNDC(const cv::Matx44d& worldFromCamera, const cv::Matx33d& k,
+                                    cv::Size size) {
+    const double w = size.width, h = size.height;
+    // Pixels (u, v) with centres at integers, as OpenCV projects; NDC = ((u + ½)/W, (v + ½)/H).
+    const cv::Matx44d projection(k(0, 0) / w, k(0, 1) / w, (k(0, 2) + 0.5) / w, 0.0,  //
+                                 0.0, k(1, 1) / h, (k(1, 2) + 0.5) / h, 0.0,          //
+                                 0.0, 0.0, 0.0, 1.0,                                  //
+                                 0.0, 0.0, 1.0, 0.0);
+    return imathLayout(projection * worldFromCamera.inv());
+}
+
+std::pair<int, int> exrFramesPerSecond(double fps) {
+    if (!(fps > 0.0)) return {0, 0};
+    const double whole = std::round(fps), video = std::round(fps * 1.001);
+    const double offWhole = std::abs(fps - whole), offVideo = std::abs(fps - video / 1.001);
+    if (std::min(offWhole, offVideo) > fps * 1e-3) return {int(std::round(fps * 1000.0)), 1000};
+    return offVideo < offWhole ? std::pair{int(video) * 1000, 1001} : std::pair{int(whole), 1};
+}
+
 uint32_t takeFrameSeed(uint32_t seed, uint64_t index) {
     uint64_t z = (uint64_t(seed) << 32 ^ index) + 0x9e3779b97f4a7c15ull;
     z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
@@ -203,7 +241,8 @@ public:
 
     // Renders and writes frame `index`; an error names what failed.
     Status render(size_t index, const TakeFrame& f, const cv::Matx44d& pose,
-                  const std::shared_ptr<const LiveLighting>& lighting) {
+                  const std::shared_ptr<const LiveLighting>& lighting,
+                  const ExrFrameAttributes& attributes) {
         Result<Frame> plate = readRecordedFrame(f.entry);
         if (!plate) return plate.error();
         TrackedFrame tracked;
@@ -241,7 +280,7 @@ public:
         if (gStop.load()) return makeError("interrupted");
         lastSamples_ = done;
         lastNoise_ = noise;
-        return write(index, noise);
+        return write(index, noise, attributes);
     }
 
     // The last frame's samples per pixel and the meter's estimate (none when not measured).
@@ -294,7 +333,7 @@ private:
     static constexpr uint32_t kFitSamples = 32;
     static constexpr int kMaxFitPasses = 3;
 
-    Status write(size_t index, std::optional<double> noise) {
+    Status write(size_t index, std::optional<double> noise, const ExrFrameAttributes& attributes) {
         Result<ImageF> composite = r_.composite(noise);
         if (!composite) return composite.error();
         ImageF rgba;
@@ -324,7 +363,7 @@ private:
         // into place first. Not synced, as before: a frame lost to a power cut renders again.
         Result<AtomicFile> exr = AtomicFile::create(exrPath, {.durable = false});
         if (!exr) return exr.error();
-        if (Status s = writeExrLayers(exr->fd(), exrPath, layersOut); !s) return s;
+        if (Status s = writeExrLayers(exr->fd(), exrPath, layersOut, attributes); !s) return s;
         if (Status s = writeFileAtomic(pngPath, *png, {.durable = false}); !s) return s;
         return exr->commit();
     }
@@ -353,6 +392,45 @@ private:
     uint32_t lastSamples_ = 0;
     std::optional<double> lastNoise_;
 };
+
+// The take's frame rate: the camera's configured fps, else its frames' median interval.
+double takeFrameRate(const TakeTrack& track, const ServiceConfig& config) {
+    if (config.sceneCamera.fps > 0.0) return config.sceneCamera.fps;
+    std::vector<uint64_t> intervals;
+    for (size_t i = 1; i < track.frames.size(); ++i)
+        intervals.push_back(track.frames[i].entry.timestampNs -
+                            track.frames[i - 1].entry.timestampNs);
+    if (intervals.empty()) return 0.0;
+    std::nth_element(intervals.begin(), intervals.begin() + ptrdiff_t(intervals.size() / 2),
+                     intervals.end());
+    const uint64_t median = intervals[intervals.size() / 2];
+    return median > 0 ? 1e9 / double(median) : 0.0;
+}
+
+// A frame's standard attributes for post (docs/takes.md, "EXR attributes"): the take's
+// timecode label, its rate, the camera it was rendered with, when it was captured, the take.
+ExrFrameAttributes postAttributes(const TakeFrame& f, const cv::Matx44d& pose,
+                                  const CameraCalibration& calibration, std::pair<int, int> fps,
+                                  const std::string& take) {
+    ExrFrameAttributes a;
+    a.timeCode = f.entry.timecode;
+    a.fpsNum = fps.first;
+    a.fpsDen = fps.second;
+    a.worldToCamera = exrWorldToCamera(pose);
+    a.worldToNDC = exrWorldToNDC(pose, calibration.cameraMatrix(), calibration.imageSize());
+    if (f.entry.wallClockNs) {
+        const time_t seconds = time_t(*f.entry.wallClockNs / 1000000000u);
+        std::tm local{};
+        if (::localtime_r(&seconds, &local)) {
+            char text[32];
+            std::strftime(text, sizeof text, "%Y:%m:%d %H:%M:%S", &local);
+            a.capDate = text;
+            a.utcOffset = float(-local.tm_gmtoff);
+        }
+    }
+    a.strings.emplace_back("take", take);
+    return a;
+}
 
 struct Prepared {
     SessionInfo session;
@@ -465,6 +543,10 @@ int runTakeRender(const TakeRenderOptions& o) {
                           : o.targetNoise >= 0.0 ? o.targetNoise
                                                  : p.config.refine.targetNoise;
     FrameRenderer frames(**renderer, o, spp, target, p.config.render.seed);
+    const std::pair<int, int> fps = exrFramesPerSecond(takeFrameRate(*track, p.config));
+    fs::path takeDir = fs::absolute(p.session.dir).lexically_normal();
+    if (takeDir.filename().empty()) takeDir = takeDir.parent_path();  // "TAKE/"
+    const std::string take = takeDir.filename().string();
     size_t failed = track->skippedLines.size(), rendered = 0;
     const auto start = std::chrono::steady_clock::now();
     for (size_t index : todo) {
@@ -472,10 +554,12 @@ int runTakeRender(const TakeRenderOptions& o) {
         if (index >= track->frames.size()) continue;
         const TakeFrame& f = track->frames[index];
         const std::optional<cv::Matx44d>& pose = o.rawPoses ? f.tracked : f.smoothed;
-        Status s = !f.problem.empty() ? Status(makeError("{}", f.problem))
-                   : !pose
-                       ? Status(makeError("no camera pose (tracking lost, not bridged)"))
-                       : frames.render(index, f, *pose, lightingAt(*lighting, f.entry.timestampNs));
+        Status s =
+            !f.problem.empty() ? Status(makeError("{}", f.problem))
+            : !pose            ? Status(makeError("no camera pose (tracking lost, not bridged)"))
+                               : frames.render(
+                                     index, f, *pose, lightingAt(*lighting, f.entry.timestampNs),
+                                     postAttributes(f, *pose, *p.config.sceneCamera.calibration, fps, take));
         if (gStop.load()) break;
         if (!s) {
             logError("render-session: frame {} ({}): {}; skipped", index, f.entry.file,

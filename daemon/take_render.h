@@ -8,9 +8,12 @@
 // .png, each to a temporary name and renamed: a frame that exists is complete, and a frame
 // already there is not rendered again.
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
+#include <opencv2/core.hpp>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "base/result.h"
@@ -43,6 +46,20 @@ std::vector<std::string> planFrameRanges(const std::vector<size_t>& frames, size
 
 // The seed of frame `index` of a take rendered with `seed`: a hash of both (splitmix64).
 uint32_t takeFrameSeed(uint32_t seed, uint64_t index);
+
+// What each frame's EXR tells a compositor of its camera (OpenEXR's standard attributes, in
+// Imath's row-major layout for row vectors, p' = p · M), from a pose in the tracker's axes (OpenCV:
+// x right, y down, z forward). worldToCamera: into RenderMan's camera space (x right, y up,
+// z forward, left-handed), as ImfStandardAttributes.h defines it.
+std::array<float, 16> exrWorldToCamera(const cv::Matx44d& worldFromCamera);
+// worldToNDC: the calibration's pinhole (`k` at `size`; its distortion is not in a matrix) onto
+// the image, (0, 0) the top-left corner of the frame and (1, 1) its bottom-right (pixel centres
+// at x + 0.5), y down; x and y divided by w, z discarded.
+std::array<float, 16> exrWorldToNDC(const cv::Matx44d& worldFromCamera, const cv::Matx33d& k,
+                                    cv::Size size);
+// framesPerSecond as a rational: N/1 or N·1000/1001 (the video rates) when `fps` is within
+// 0.1 % of one, else to a thousandth; {0, 0} when `fps` is not positive.
+std::pair<int, int> exrFramesPerSecond(double fps);
 
 // Exit code: 0 every frame rendered or already there; 1 a frame could not be (each named);
 // 2 the take or the options are unusable; 128 + the signal when SIGTERM or SIGINT stopped it

@@ -3,6 +3,10 @@
 // frames are kept; a bad frame costs only itself; SIGTERM leaves no partial frame), `previs
 // export-track` read back by Blender's own .chan importer, and a Slurm array on a real
 // single-node cluster rendering what one machine renders.
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfInputFile.h>
+#include <OpenEXR/ImfStandardAttributes.h>
+#include <OpenEXR/ImfStringAttribute.h>
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <signal.h>
@@ -211,6 +215,135 @@ TEST(HostileTake, AFifoOrAFolderOutsideIsRefusedByEveryReader) {
     session.insert(session.find("\n[") + 1, "config_dir = \"..\"\n");
     std::ofstream(take / "session.toml") << session;
     refused({PREVIS_BINARY, "replay", take.string(), "--out", out}, "config_dir.log", "config_dir");
+}
+
+// --out is checked before the take is tracked (issue 54: the whole take was tracked first, then
+// the error named a temporary file without saying why): one line naming the folder, exit 2.
+TEST(ExportTrack, AnOutThatCannotBeWrittenIsRefusedBeforeTracking) {
+    const fs::path dir = scratch() / "export_out";
+    fs::create_directories(dir);
+    const fs::path out = dir / "no-such-folder" / "take.chan";
+    const fs::path log = dir / "refused.log";
+    EXPECT_EQ(run({PREVIS_BINARY, "export-track", kDemoTake, "--out", out.string()}, log), 2)
+        << fileBytes(log);
+    const std::string text = fileBytes(log);
+    EXPECT_NE(text.find("the folder " + out.parent_path().string() + " does not exist"),
+              std::string::npos)
+        << text;
+    EXPECT_EQ(text.find(".tmp"), std::string::npos) << text;
+    EXPECT_EQ(std::count(text.begin(), text.end(), '\n'), 1) << text;
+}
+
+// The demo take with what a take recorded by previsd holds besides: each frame's wall clock and
+// timecode label (at 15 fps from 10:00:00:00, 2026-12-06 10:00:00 UTC).
+fs::path labelledTake() {
+    const fs::path take = scratch() / "labelled_take";
+    fs::remove_all(take);
+    fs::copy(kDemoTake, take, fs::copy_options::recursive);
+    const fs::path index = take / "cameras" / "scene" / "index.csv";
+    std::ifstream in(index);
+    std::string text;
+    for (std::string line; std::getline(in, line);) {
+        if (!line.empty() && line[0] != '#') {
+            // sequence,timestampNs,file,width,height,wallClockNs,timecode,exposureStops
+            const int sequence = std::stoi(line.substr(0, line.find(',')));
+            const size_t fifth = [&] {
+                size_t at = 0;
+                for (int i = 0; i < 5; ++i) at = line.find(',', at) + 1;
+                return at;
+            }();
+            line = line.substr(0, fifth) +
+                   fmt::format("{},10:00:{:02d}:{:02d},",
+                               1796551200000000000ull + uint64_t(sequence) * 66666667ull,
+                               sequence / 15, sequence % 15);
+        }
+        text += line + "\n";
+    }
+    in.close();
+    std::ofstream(index, std::ios::trunc) << text;
+    return take;
+}
+
+// Each frame of a final render carries OpenEXR's standard attributes for post (issue 54), read
+// back by OpenEXR and by OpenImageIO's oiiotool: the take's timecode label, its frame rate, the
+// camera it was rendered with (where the demo's camera truly was), the capture date, the take;
+// the layers keep their names.
+TEST(RenderSession, EachFrameCarriesTheStandardAttributesPostReads) {
+    const fs::path take = labelledTake();
+    const fs::path out = scratch() / "attributes";
+    fs::remove_all(out);
+    std::vector<std::string> argv = renderSession(take.string(), out, "12:13");
+    argv.insert(argv.begin(), {"/usr/bin/env", "TZ=UTC"});
+    ASSERT_EQ(run(argv, scratch() / "attributes.log"), 0)
+        << fileBytes(scratch() / "attributes.log");
+    const fs::path frame = out / "frame_000012.exr";
+    Imf::InputFile file(frame.c_str());
+    const Imf::Header& h = file.header();
+    ASSERT_TRUE(Imf::hasTimeCode(h));
+    EXPECT_EQ(Imf::timeCode(h).seconds(), 0);
+    EXPECT_EQ(Imf::timeCode(h).frame(), 12);
+    ASSERT_TRUE(Imf::hasFramesPerSecond(h));
+    EXPECT_EQ(Imf::framesPerSecond(h).n, 15);
+    EXPECT_EQ(Imf::framesPerSecond(h).d, 1u);
+    ASSERT_TRUE(Imf::hasCapDate(h));
+    EXPECT_EQ(Imf::capDate(h), "2026:12:06 10:00:00");
+    ASSERT_TRUE(Imf::hasUtcOffset(h));
+    EXPECT_EQ(Imf::utcOffset(h), 0.0f);
+    const auto* name = h.findTypedAttribute<Imf::StringAttribute>("take");
+    ASSERT_NE(name, nullptr);
+    EXPECT_EQ(name->value(), "labelled_take");
+    for (const char* channel : {"R", "A", "mixed.R", "real.B", "mask.R", "differential.G"})
+        EXPECT_NE(h.channels().findChannel(channel), nullptr) << channel;
+    // The camera's position: the inverse of worldToCamera's translation, against the take's
+    // ground truth for frame 12 (poses.csv; the smoothed track is within a few millimetres).
+    ASSERT_TRUE(Imf::hasWorldToCamera(h) && Imf::hasWorldToNDC(h));
+    const Imath::M44f cameraToWorld = Imf::worldToCamera(h).inverse();
+    std::ifstream poses(take / "poses.csv");
+    std::vector<double> truth;
+    for (std::string line; std::getline(poses, line);)
+        if (line.find(",12,truth,") != std::string::npos) {
+            std::stringstream cells(line);
+            for (std::string cell; std::getline(cells, cell, ',');)
+                truth.push_back(
+                    cell.empty() || !std::isdigit(uint8_t(cell.back())) ? 0.0 : std::stod(cell));
+        }
+    ASSERT_GE(truth.size(), 19u);
+    // m03, m13, m23 after timestampNs, frame and kind.
+    const cv::Vec3d truePosition(truth[3 + 3], truth[3 + 7], truth[3 + 11]);
+    const cv::Vec3d position(cameraToWorld[3][0], cameraToWorld[3][1], cameraToWorld[3][2]);
+    EXPECT_LT(cv::norm(position - truePosition), 0.01) << position << " vs " << truePosition;
+    // The world's origin (the board's centre, in view) projects inside the frame.
+    const Imath::V4f origin = Imath::V4f(0, 0, 0, 1) * Imf::worldToNDC(h);
+    EXPECT_GT(origin.x / origin.w, 0.0f);
+    EXPECT_LT(origin.x / origin.w, 1.0f);
+    EXPECT_GT(origin.y / origin.w, 0.0f);
+    EXPECT_LT(origin.y / origin.w, 1.0f);
+
+    // OpenImageIO, a reader that is not ours, as post's tools read the file.
+    if (testing::runProcess({"/bin/sh", "-c", "command -v oiiotool"},
+                            (scratch() / "which_oiio.log").string(), 30s) != 0)
+        GTEST_SKIP()
+            << "Debian's openimageio-tools is not installed (scripts/setup.sh installs it)";
+    const fs::path info = scratch() / "oiiotool.log";
+    ASSERT_EQ(run(onPath({"oiiotool", "--info", "-v", frame.string()}), info), 0)
+        << fileBytes(info);
+    const std::string text = fileBytes(info);
+    for (const char* expected : {"smpte:TimeCode: 10:00:00:12", "framesPerSecond: 15/1",
+                                 "DateTime: \"2026:12:06 10:00:00\"", "take: \"labelled_take\"",
+                                 "worldToCamera:", "worldToNDC:"})
+        EXPECT_NE(text.find(expected), std::string::npos) << expected << " not in\n" << text;
+    // Its reading of the camera is OpenEXR's, element for element.
+    const size_t at = text.find("worldToCamera:");
+    ASSERT_NE(at, std::string::npos);
+    std::stringstream numbers(text.substr(at + 14, text.find('\n', at) - at - 14));
+    const Imath::M44f m = Imf::worldToCamera(h);
+    for (int i = 0; i < 16; ++i) {
+        float value = 0.0f;
+        char comma = 0;
+        ASSERT_TRUE(numbers >> value) << text.substr(at, 300);
+        if (i < 15) numbers >> comma;
+        EXPECT_NEAR(value, m[i / 4][i % 4], 1e-5f) << "element " << i;
+    }
 }
 
 TEST(ExportTrack, BlenderImportsTheChanAsTheTrackedCamera) {

@@ -81,6 +81,73 @@ cv::Matx33d rotation(char axis, double deg) {
     return {c, -s, 0, s, c, 0, 0, 0, 1};
 }
 
+// A camera off the world's axes, looking at the origin (OpenCV axes: x right, y down, z ahead).
+cv::Matx44d lookingAtTheOrigin(const cv::Vec3d& position) {
+    const cv::Vec3d z = cv::normalize(-position);
+    const cv::Vec3d x = cv::normalize(z.cross(cv::Vec3d(0, -1, 0)));
+    const cv::Vec3d y = z.cross(x);
+    return {x[0], y[0], z[0], position[0], x[1], y[1], z[1], position[1],
+            x[2], y[2], z[2], position[2], 0,    0,    0,    1};
+}
+
+// Row vector times an Imath-layout matrix (OpenEXR's p' = p · M).
+cv::Vec4d timesImath(const cv::Vec4d& p, const std::array<float, 16>& m) {
+    cv::Vec4d out;
+    for (int c = 0; c < 4; ++c)
+        for (int r = 0; r < 4; ++r) out[c] += p[r] * double(m[size_t(r * 4 + c)]);
+    return out;
+}
+
+// worldToNDC as OpenEXR defines it, against OpenCV's own projection of the same points with the
+// calibration's pinhole: (0, 0) the frame's top-left corner, (1, 1) its bottom-right, y down.
+TEST(ExrCamera, WorldToNdcIsOpenCvsProjectionOverTheFrame) {
+    const cv::Matx33d k(554.26, 0.4, 321.5, 0, 550.1, 178.25, 0, 0, 1);
+    const cv::Size size(640, 360);
+    const cv::Matx44d worldFromCamera = lookingAtTheOrigin({0.7, 0.45, -0.9});
+    const std::array<float, 16> ndc = exrWorldToNDC(worldFromCamera, k, size);
+    const cv::Matx44d cameraFromWorld = worldFromCamera.inv();
+    const cv::Matx33d r = cameraFromWorld.get_minor<3, 3>(0, 0);
+    cv::Vec3d rvec;
+    cv::Rodrigues(r, rvec);
+    const cv::Vec3d t(cameraFromWorld(0, 3), cameraFromWorld(1, 3), cameraFromWorld(2, 3));
+    const std::vector<cv::Point3d> points = {{0, 0, 0}, {0.1, 0.05, -0.02}, {-0.2, 0.1, 0.15}};
+    std::vector<cv::Point2d> pixels;
+    cv::projectPoints(points, rvec, t, k, cv::noArray(), pixels);
+    for (size_t i = 0; i < points.size(); ++i) {
+        const cv::Vec4d h = timesImath({points[i].x, points[i].y, points[i].z, 1.0}, ndc);
+        EXPECT_NEAR(h[0] / h[3], (pixels[i].x + 0.5) / size.width, 1e-6) << i;
+        EXPECT_NEAR(h[1] / h[3], (pixels[i].y + 0.5) / size.height, 1e-6) << i;
+    }
+    // The camera looks at the origin: it lands near the frame's centre (the principal point).
+    const cv::Vec4d origin = timesImath({0, 0, 0, 1}, ndc);
+    EXPECT_NEAR(origin[0] / origin[3], 322.0 / 640, 1e-6);
+}
+
+// worldToCamera as OpenEXR defines it (RenderMan's camera space): the camera at the origin, +z
+// ahead, +y up in the picture, +x right.
+TEST(ExrCamera, WorldToCameraIsRenderMansCameraSpace) {
+    const cv::Matx44d worldFromCamera = lookingAtTheOrigin({0.7, 0.45, -0.9});
+    const std::array<float, 16> m = exrWorldToCamera(worldFromCamera);
+    const cv::Vec4d camera = timesImath({0.7, 0.45, -0.9, 1.0}, m);
+    EXPECT_NEAR(cv::norm(cv::Vec3d(camera[0], camera[1], camera[2])), 0.0, 1e-6);
+    const cv::Vec4d origin = timesImath({0, 0, 0, 1}, m);
+    EXPECT_NEAR(origin[2], std::sqrt(0.7 * 0.7 + 0.45 * 0.45 + 0.9 * 0.9), 1e-6);
+    EXPECT_NEAR(origin[0], 0.0, 1e-6);
+    // A point one step along the OpenCV camera's "down" is below: negative y.
+    const cv::Vec4d h = worldFromCamera * cv::Vec4d(0, 0.1, 1, 1);
+    EXPECT_LT(timesImath(h, m)[1], -0.05);
+}
+
+TEST(ExrCamera, FramesPerSecondIsTheVideoRateItIs) {
+    EXPECT_EQ(exrFramesPerSecond(15.0), (std::pair{15, 1}));
+    EXPECT_EQ(exrFramesPerSecond(1e9 / 66666667.0), (std::pair{15, 1}));
+    EXPECT_EQ(exrFramesPerSecond(30000.0 / 1001.0), (std::pair{30000, 1001}));
+    EXPECT_EQ(exrFramesPerSecond(24000.0 / 1001.0), (std::pair{24000, 1001}));
+    EXPECT_EQ(exrFramesPerSecond(25.0), (std::pair{25, 1}));
+    EXPECT_EQ(exrFramesPerSecond(12.345), (std::pair{12345, 1000}));
+    EXPECT_EQ(exrFramesPerSecond(0.0), (std::pair{0, 0}));
+}
+
 TEST(Chan, ZxyAnglesOfTheCameraLookingAlongMinusZ) {
     const cv::Matx33d flip(1, 0, 0, 0, -1, 0, 0, 0, -1);  // OpenCV camera → −Z forward, +Y up
     for (const cv::Vec3d& angles : {cv::Vec3d(-40, -35, 0.2), cv::Vec3d(10, 170, -30),
