@@ -389,7 +389,7 @@ TEST(Session, FrameStampsAndLightingRoundTrip) {
         ASSERT_TRUE(writer->writeFrame("scene", 0, 100, kBytes, "jpg", 4, 4,
                                        {1796391907500000001ull, "13:45:07:15", -5.0f, "30"}));
         ASSERT_TRUE(writer->writeFrame("scene", 1, 200, kBytes, "jpg", 4, 4));
-        EXPECT_FALSE(writer->writeFrame("scene", 2, 300, kBytes, "jpg", 4, 4, {1, "a,b", {}}))
+        EXPECT_FALSE(writer->writeFrame("scene", 2, 300, kBytes, "jpg", 4, 4, {1, "a,b", {}, ""}))
             << "a comma would shift the columns";
         const std::string lights = R"({"lights":[{"direction":[0,1,0]}]})";
         for (uint64_t t : {150u, 250u})
