@@ -292,7 +292,7 @@ TEST(RenderSession, EachFrameCarriesTheStandardAttributesPostReads) {
     const auto* name = h.findTypedAttribute<Imf::StringAttribute>("take");
     ASSERT_NE(name, nullptr);
     EXPECT_EQ(name->value(), "labelled_take");
-    for (const char* channel : {"R", "A", "mixed.R", "real.B", "mask.R", "differential.G"})
+    for (const char* channel : {"R", "A", "mixed.R", "real.B", "mask.Y", "differential.G"})
         EXPECT_NE(h.channels().findChannel(channel), nullptr) << channel;
     // The camera's position: the inverse of worldToCamera's translation, against the take's
     // ground truth for frame 12 (poses.csv; the smoothed track is within a few millimetres).
