@@ -101,7 +101,8 @@ cv::Vec4d timesImath(const cv::Vec4d& p, const std::array<float, 16>& m) {
 // worldToNDC as OpenEXR defines it, against OpenCV's own projection of the same points with the
 // calibration's pinhole: (0, 0) the frame's top-left corner, (1, 1) its bottom-right, y down.
 TEST(ExrCamera, WorldToNdcIsOpenCvsProjectionOverTheFrame) {
-    const cv::Matx33d k(554.26, 0.4, 321.5, 0, 550.1, 178.25, 0, 0, 1);
+    // No skew: OpenCV's projection has none.
+    const cv::Matx33d k(554.26, 0, 321.5, 0, 550.1, 178.25, 0, 0, 1);
     const cv::Size size(640, 360);
     const cv::Matx44d worldFromCamera = lookingAtTheOrigin({0.7, 0.45, -0.9});
     const std::array<float, 16> ndc = exrWorldToNDC(worldFromCamera, k, size);
