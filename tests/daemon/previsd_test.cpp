@@ -8,6 +8,7 @@
 #include <netinet/in.h>
 #include <sys/mount.h>
 #include <sys/ptrace.h>
+#include <sys/resource.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <sys/syscall.h>
@@ -933,6 +934,78 @@ TEST(Previsd, StartsAndStopsFromThePageAndTheSocketAtOnceNeverEndOrHangIt) {
     ASSERT_TRUE(info) << info.message();
     ASSERT_NE(info->cameraWithRole("scene"), nullptr);
     EXPECT_GE(decodableFrames(info->cameraWithRole("scene")->dir), 2u);
+}
+
+// The review's descriptor attack (issue 52): previsd held to the 1024 descriptors an unconfigured
+// process gets, a take rolling, and 1100 idle connections to the monitor from 70 addresses. The
+// take goes on gaining frames through the flood, every frame it wrote decodes, nothing says
+// "Too many open files", and the page answers again once the crowd is gone.
+TEST(Previsd, ARollingTakeKeepsItsFramesThroughAConnectionFlood) {
+    int webPort = 0;
+    UniqueFD web = listeningSocket(webPort);
+    ASSERT_TRUE(web.isValid());
+    const fs::path dir = scratch() / "flood";
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    const std::string config = demoConfig(
+        "flood", fmt::format("[record]\ndir = \"{}/takes\"\nmin_free_mb = 1\n\n[web]\nlisten = "
+                             "\"127.0.0.1:{}\"\nstream_fps = 1\n",
+                             dir.string(), webPort));
+    const std::string socket = socketOf(config);
+    ChildProcess p({"/usr/bin/prlimit", "--nofile=1024:1024", previsd(), "--config", config},
+                   (dir / "previsd.log").string(), {{web.get(), "web"}});
+    ASSERT_TRUE(waitFor(socket, kStartup, [](const nlohmann::json& s) {
+        return s["framesShown"].get<int>() >= 1;
+    })) << p.log();
+    Result<std::string> start = controlRequest(socket, "record start", 30000);
+    ASSERT_TRUE(start) << start.message() << p.log();
+    auto framesRecorded = [&] {
+        std::optional<nlohmann::json> s = status(socket);
+        return s && s->contains("record") ? (*s)["record"]["frames"].get<int>() : -1;
+    };
+    ASSERT_TRUE(waitFor(socket, 60s, [](const nlohmann::json& s) {
+        return s["recording"] == true && s["record"]["frames"].get<int>() >= 2;
+    })) << p.log();
+
+    // The test's own descriptors: 1100 sockets need more than its soft limit may allow.
+    rlimit files{};
+    ::getrlimit(RLIMIT_NOFILE, &files);
+    files.rlim_cur = std::min<rlim_t>(files.rlim_max, 4096);
+    ASSERT_EQ(::setrlimit(RLIMIT_NOFILE, &files), 0);
+    std::vector<std::unique_ptr<test::RawConnection>> crowd;
+    for (int i = 0; i < 1100; ++i) {
+        const std::string source = fmt::format("127.0.{}.{}", 1 + i / 16 / 250, 1 + i / 16 % 250);
+        crowd.push_back(std::make_unique<test::RawConnection>(webPort, 0, source.c_str()));
+    }
+    const int before = framesRecorded();
+    std::printf("flood: %zu connections open\n", crowd.size());
+    std::this_thread::sleep_for(3s);
+    const int during = framesRecorded();
+    EXPECT_GT(during, before) << "the take stopped gaining frames under the flood\n" << p.log();
+    crowd.clear();
+    ASSERT_TRUE(p.running()) << p.log();
+
+    // The page serves again within its idle timeout once the crowd has gone.
+    test::HttpReply page;
+    for (auto end = std::chrono::steady_clock::now() + 30s;
+         page.status != 200 && std::chrono::steady_clock::now() < end;
+         std::this_thread::sleep_for(200ms))
+        page = test::get(webPort, "/status.json");
+    EXPECT_EQ(page.status, 200) << page.head;
+    std::printf("flood: page answers again\n");
+
+    Result<std::string> stop = controlRequest(socket, "record stop", 60000);
+    ASSERT_TRUE(stop) << stop.message() << p.log();
+    const nlohmann::json stopped = nlohmann::json::parse(*stop);
+    p.signal(SIGTERM);
+    ASSERT_TRUE(p.wait(30s)) << p.log();
+    EXPECT_EQ(p.log().find("Too many open files"), std::string::npos) << p.log();
+    Result<SessionInfo> info = openSession(stopped["path"].get<std::string>());
+    ASSERT_TRUE(info) << info.message();
+    ASSERT_NE(info->cameraWithRole("scene"), nullptr);
+    const size_t frames = info->cameraWithRole("scene")->frames;
+    EXPECT_GE(frames, 2u);
+    EXPECT_EQ(decodableFrames(info->cameraWithRole("scene")->dir), frames);
 }
 
 // `previs ctl record stop` waits for the take to drain, however long the disk takes (issue 52):
