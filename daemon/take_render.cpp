@@ -22,6 +22,7 @@
 #include "gpu/context.h"
 #include "image/image.h"
 #include "scene/scene_description.h"
+#include "timecode/frame_rate.h"
 
 namespace previs {
 
@@ -150,10 +151,8 @@ std::array<float, 16> exrWorldToNDC(const cv::Matx44d& worldFromCamera, const cv
 
 std::pair<int, int> exrFramesPerSecond(double fps) {
     if (!(fps > 0.0)) return {0, 0};
-    const double whole = std::round(fps), video = std::round(fps * 1.001);
-    const double offWhole = std::abs(fps - whole), offVideo = std::abs(fps - video / 1.001);
-    if (std::min(offWhole, offVideo) > fps * 1e-3) return {int(std::round(fps * 1000.0)), 1000};
-    return offVideo < offWhole ? std::pair{int(video) * 1000, 1001} : std::pair{int(whole), 1};
+    const FrameRate rate = snapFrameRate(fps);
+    return {int(rate.num), int(rate.den)};
 }
 
 uint32_t takeFrameSeed(uint32_t seed, uint64_t index) {

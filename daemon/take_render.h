@@ -57,8 +57,9 @@ std::array<float, 16> exrWorldToCamera(const cv::Matx44d& worldFromCamera);
 // at x + 0.5), y down; x and y divided by w, z discarded.
 std::array<float, 16> exrWorldToNDC(const cv::Matx44d& worldFromCamera, const cv::Matx33d& k,
                                     cv::Size size);
-// framesPerSecond as a rational: N/1 or N·1000/1001 (the video rates) when `fps` is within
-// 0.1 % of one, else to a thousandth; {0, 0} when `fps` is not positive.
+// framesPerSecond as a rational: the standard rate `fps` is (timecode/frame_rate.h
+// snapFrameRate, the one rule for a camera's rate), else to a thousandth; {0, 0} when `fps` is
+// not positive.
 std::pair<int, int> exrFramesPerSecond(double fps);
 
 // Exit code: 0 every frame rendered or already there; 1 a frame could not be (each named);
