@@ -26,8 +26,8 @@ const char* kindOf(mode_t mode) {
 // (it is refused right after, by fstat); it changes nothing for a regular file.
 Result<UniqueFD> openChecked(const std::string& path, uint64_t maxBytes, FileLinks links,
                              const std::string& what, uint64_t& size) {
-    const int flags =
-        O_RDONLY | O_CLOEXEC | O_NONBLOCK | O_NOCTTY | (links == FileLinks::Refuse ? O_NOFOLLOW : 0);
+    const int flags = O_RDONLY | O_CLOEXEC | O_NONBLOCK | O_NOCTTY |
+                      (links == FileLinks::Refuse ? O_NOFOLLOW : 0);
     UniqueFD fd(::open(path.c_str(), flags));
     if (!fd.isValid()) {
         if (errno == ELOOP && links == FileLinks::Refuse)

@@ -25,6 +25,7 @@
 #include <vector>
 
 #include "capture/recorded_source.h"
+#include "tests/support/hang_guard.h"
 #include "tests/support/temp_dir.h"
 
 namespace previs {
@@ -471,34 +472,6 @@ TEST(Session, ATakeFromElsewhereNamesOnlyFilesInsideIt) {
     EXPECT_EQ(file->size(), 1u);
 }
 
-// A reader that regresses to waiting on a FIFO must fail the test, not hang CI: past a deadline
-// far beyond any loaded machine's time, the process stops with a message.
-class HangGuard {
-public:
-    explicit HangGuard(const char* what)
-        : thread_([this, what] {
-              std::unique_lock lock(mutex_);
-              if (!done_.wait_for(lock, std::chrono::seconds(60), [this] { return finished_; })) {
-                  std::fprintf(stderr, "HangGuard: %s did not return in 60 s (a hang)\n", what);
-                  std::abort();
-              }
-          }) {}
-    ~HangGuard() {
-        {
-            std::lock_guard lock(mutex_);
-            finished_ = true;
-        }
-        done_.notify_one();
-        thread_.join();
-    }
-
-private:
-    std::mutex mutex_;
-    std::condition_variable done_;
-    bool finished_ = false;
-    std::thread thread_;
-};
-
 // A take with one camera frame, written as the recorder writes it.
 fs::path smallTake(const std::string& name) {
     const fs::path dir = freshDir(name);
@@ -517,7 +490,7 @@ void makeFifo(const fs::path& p) {
 // Issue 52: a FIFO for any file of a take hung replay, render-session and export-track forever.
 TEST(Session, AFifoInATakeIsRefusedAtOnce) {
     const fs::path dir = smallTake("fifo_take");
-    HangGuard guard("a reader given a FIFO");
+    testing::HangGuard guard("a reader given a FIFO", std::chrono::seconds(60));
     makeFifo(dir / "events.csv");
     auto events = loadEvents(dir.string());
     ASSERT_FALSE(events.ok());
@@ -549,7 +522,7 @@ TEST(Session, AFifoInATakeIsRefusedAtOnce) {
 // byte is read.
 TEST(Session, EndlessOrHugeIndexFilesAreRefusedUnread) {
     const fs::path dir = smallTake("huge_take");
-    HangGuard guard("a reader given /dev/zero or a sparse file");
+    testing::HangGuard guard("a reader given /dev/zero or a sparse file", std::chrono::seconds(60));
     fs::remove(dir / "events.csv");
     fs::create_symlink("/dev/zero", dir / "events.csv");
     auto zero = loadEvents(dir.string());
