@@ -17,6 +17,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
@@ -234,10 +235,12 @@ TEST(ExportTrack, AnOutThatCannotBeWrittenIsRefusedBeforeTracking) {
     EXPECT_EQ(std::count(text.begin(), text.end(), '\n'), 1) << text;
 }
 
-// The demo take with what a take recorded by previsd holds besides: each frame's wall clock and
-// timecode label (at 15 fps from 10:00:00:00, 2026-12-06 10:00:00 UTC).
-fs::path labelledTake() {
-    const fs::path take = scratch() / "labelled_take";
+// A copy of the demo take, `name`, whose scene frames carry what previsd records besides: a wall
+// clock (from 2026-12-06 10:00:00 UTC at 15 fps), the timecode `label(sequence)` and, unless
+// empty, the index's timecodeRate column `rateColumn`.
+fs::path demoTakeLabelled(const std::string& name, const std::function<std::string(int)>& label,
+                          const std::string& rateColumn = "") {
+    const fs::path take = scratch() / name;
     fs::remove_all(take);
     fs::copy(kDemoTake, take, fs::copy_options::recursive);
     const fs::path index = take / "cameras" / "scene" / "index.csv";
@@ -247,21 +250,25 @@ fs::path labelledTake() {
         if (!line.empty() && line[0] != '#') {
             // sequence,timestampNs,file,width,height,wallClockNs,timecode,exposureStops
             const int sequence = std::stoi(line.substr(0, line.find(',')));
-            const size_t fifth = [&] {
-                size_t at = 0;
-                for (int i = 0; i < 5; ++i) at = line.find(',', at) + 1;
-                return at;
-            }();
+            size_t fifth = 0;
+            for (int i = 0; i < 5; ++i) fifth = line.find(',', fifth) + 1;
             line = line.substr(0, fifth) +
-                   fmt::format("{},10:00:{:02d}:{:02d},",
-                               1796551200000000000ull + uint64_t(sequence) * 66666667ull,
-                               sequence / 15, sequence % 15);
+                   fmt::format("{},{},", 1796551200000000000ull + uint64_t(sequence) * 66666667ull,
+                               label(sequence));
+            if (!rateColumn.empty()) line += "," + rateColumn;
         }
         text += line + "\n";
     }
     in.close();
     std::ofstream(index, std::ios::trunc) << text;
     return take;
+}
+
+// The demo take labelled at 15 fps from 10:00:00:00.
+fs::path labelledTake() {
+    return demoTakeLabelled("labelled_take", [](int sequence) {
+        return fmt::format("10:00:{:02d}:{:02d}", sequence / 15, sequence % 15);
+    });
 }
 
 // Each frame of a final render carries OpenEXR's standard attributes for post (issue 54), read
@@ -411,28 +418,12 @@ TEST(ExportTrack, BlenderImportsTheChanAsTheTrackedCamera) {
 // frames go 10:00:00:00, :02, ... :28, 10:00:01:00; `rateColumn` appends the index's
 // timecodeRate, empty for a take recorded before it. Frame i's label is 2i labels on.
 fs::path takeLabelledAt30(const std::string& name, const std::string& rateColumn) {
-    const fs::path take = scratch() / name;
-    fs::remove_all(take);
-    fs::copy(kDemoTake, take, fs::copy_options::recursive);
-    const fs::path index = take / "cameras" / "scene" / "index.csv";
-    std::ifstream in(index);
-    std::string text;
-    for (std::string line; std::getline(in, line);) {
-        if (!line.empty() && line[0] != '#') {
-            const int sequence = std::stoi(line.substr(0, line.find(',')));
-            size_t fifth = 0;
-            for (int i = 0; i < 5; ++i) fifth = line.find(',', fifth) + 1;
-            line = line.substr(0, fifth) +
-                   fmt::format("{},10:00:{:02d}:{:02d},",
-                               1796551200000000000ull + uint64_t(sequence) * 66666667ull,
-                               2 * sequence / 30, 2 * sequence % 30);
-            if (!rateColumn.empty()) line += "," + rateColumn;
-        }
-        text += line + "\n";
-    }
-    in.close();
-    std::ofstream(index, std::ios::trunc) << text;
-    return take;
+    return demoTakeLabelled(
+        name,
+        [](int sequence) {
+            return fmt::format("10:00:{:02d}:{:02d}", 2 * sequence / 30, 2 * sequence % 30);
+        },
+        rateColumn);
 }
 
 // The JSON lines carry every frame's label as the take holds it, at the rate it counts at: a
