@@ -827,6 +827,20 @@ bool isCompleteExr(const std::string& path) {
     }
 }
 
+namespace {
+// libpng's simplified writer for an 8-bit RGB image: writePng and encodePng use the same one, so
+// a frame written to a file and one encoded to memory are the same bytes.
+png_image rgbPngImage(uint32_t width, uint32_t height) {
+    png_image png;
+    std::memset(&png, 0, sizeof(png));
+    png.version = PNG_IMAGE_VERSION;
+    png.width = width;
+    png.height = height;
+    png.format = PNG_FORMAT_RGB;
+    return png;
+}
+}  // namespace
+
 Status writePng(const std::string& path, uint32_t width, uint32_t height,
                 const std::vector<uint8_t>& rgb8) {
     if (lowerExtension(path) != ".png")
@@ -836,12 +850,7 @@ Status writePng(const std::string& path, uint32_t width, uint32_t height,
                          rgb8.size(), width, height, size_t(width) * height * 3);
     if (Status s = checkWritableFolder(path); !s) return s;
 
-    png_image png;
-    std::memset(&png, 0, sizeof(png));
-    png.version = PNG_IMAGE_VERSION;
-    png.width = width;
-    png.height = height;
-    png.format = PNG_FORMAT_RGB;
+    png_image png = rgbPngImage(width, height);
     errno = 0;
     if (!png_image_write_to_file(&png, path.c_str(), 0, rgb8.data(), 0, nullptr)) {
         const std::string reason = errno ? std::strerror(errno) : png.message;
@@ -857,12 +866,7 @@ Result<std::vector<uint8_t>> encodePng(uint32_t width, uint32_t height,
     if (width == 0 || height == 0 || rgb8.size() != size_t(width) * height * 3)
         return makeError("cannot encode PNG image '{}': {} bytes for {}x{} RGB (need {})", name,
                          rgb8.size(), width, height, size_t(width) * height * 3);
-    png_image png;
-    std::memset(&png, 0, sizeof(png));
-    png.version = PNG_IMAGE_VERSION;
-    png.width = width;
-    png.height = height;
-    png.format = PNG_FORMAT_RGB;
+    png_image png = rgbPngImage(width, height);
     // The same encoder and settings as writePng (png_image_write_to_file), so the same bytes:
     // asked for the size first, then written.
     png_alloc_size_t size = 0;
