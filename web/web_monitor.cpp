@@ -108,7 +108,7 @@ private:
     const int writeTimeoutMs_;
 };
 
-enum class Path { Page, Stream, Status, Mode, Record, Other };
+enum class Path { Page, Stream, Status, Mode, Record, Control, Other };
 
 Path pathOf(const std::string& path) {
     if (path == "/" || path == "/index.html") return Path::Page;
@@ -116,6 +116,7 @@ Path pathOf(const std::string& path) {
     if (path == "/status.json") return Path::Status;
     if (path == "/mode") return Path::Mode;
     if (path == "/record") return Path::Record;
+    if (path == "/control") return Path::Control;
     return Path::Other;
 }
 
@@ -352,6 +353,8 @@ struct WebMonitor::Impl {
     void serveStatus(const httplib::Request& req, httplib::Response& res) const;
     void serveStream(const httplib::Request& req, httplib::Response& res);
     bool sendFrame(ViewerState& viewer, httplib::DataSink& sink);
+    bool mayControl(const httplib::Request& req, httplib::Response& res) const;
+    void serveSignIn(const httplib::Request& req, httplib::Response& res) const;
     void serveControl(const httplib::Request& req, httplib::Response& res,
                       const httplib::ContentReader& reader, Path path);
     void serveOther(const httplib::Request& req, httplib::Response& res,
@@ -424,6 +427,7 @@ void WebMonitor::Impl::route() {
     server.Get("/index.html", [this](const auto& req, auto& res) { servePage(req, res); });
     server.Get("/status.json", [this](const auto& req, auto& res) { serveStatus(req, res); });
     server.Get("/stream.mjpeg", [this](const auto& req, auto& res) { serveStream(req, res); });
+    server.Get("/control", [this](const auto& req, auto& res) { serveSignIn(req, res); });
     server.Post("/mode", [this](const httplib::Request& req, httplib::Response& res,
                                 const httplib::ContentReader& reader) {
         serveControl(req, res, reader, Path::Mode);
@@ -489,6 +493,8 @@ void WebMonitor::Impl::serveStatus(const httplib::Request&, httplib::Response& r
         return;
     }
     if (j.is_object() && !j.contains("web")) j["web"] = toJson(stats());
+    // Whether the page should offer its controls (a sign-in) or say that control is off.
+    if (j.is_object() && j["web"].is_object()) j["web"]["control"] = !settings.token.empty();
     res.set_header("Cache-Control", "no-store");
     res.set_content(j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace),
                     "application/json");
@@ -554,19 +560,30 @@ bool WebMonitor::Impl::sendFrame(ViewerState& viewer, httplib::DataSink& sink) {
     return false;
 }
 
-void WebMonitor::Impl::serveControl(const httplib::Request& req, httplib::Response& res,
-                                    const httplib::ContentReader& reader, Path path) {
-    std::string body;
-    if (!readBody(req, res, reader, body)) return;
+// Whether the request presented the token; else answers 403 (control off) or 401.
+bool WebMonitor::Impl::mayControl(const httplib::Request& req, httplib::Response& res) const {
     if (settings.token.empty()) {
         answer(res, 403, "control is off: no [web] token is configured");
-        return;
+        return false;
     }
     if (!bearerTokenMatches(req.get_header_value("Authorization"), settings.token)) {
         res.set_header("WWW-Authenticate", "Bearer");
         answer(res, 401, "control needs the header Authorization: Bearer TOKEN");
-        return;
+        return false;
     }
+    return true;
+}
+
+// The page's sign-in: whether a token may control, checked without doing anything.
+void WebMonitor::Impl::serveSignIn(const httplib::Request& req, httplib::Response& res) const {
+    res.set_header("Cache-Control", "no-store");
+    if (mayControl(req, res)) answer(res, 200, "signed in");
+}
+
+void WebMonitor::Impl::serveControl(const httplib::Request& req, httplib::Response& res,
+                                    const httplib::ContentReader& reader, Path path) {
+    std::string body;
+    if (!readBody(req, res, reader, body) || !mayControl(req, res)) return;
     const std::string what = trimmed(body);
     std::string command;
     if (path == Path::Mode && (what == "preview" || what == "refine"))
@@ -599,6 +616,7 @@ void WebMonitor::Impl::serveOther(const httplib::Request& req, httplib::Response
         case Path::Page:
         case Path::Stream:
         case Path::Status:
+        case Path::Control:
             res.set_header("Allow", "GET, HEAD");
             answer(res, 405, fmt::format("{} takes GET", req.path));
             return;

@@ -2,8 +2,10 @@
 
 // The browser monitor (issue 39, DESIGN.md `[web] listen`, docs/web-monitor.md): an HTTP server
 // on the set's network with one page (`/`), the live composite as MJPEG (`/stream.mjpeg`), the
-// service status (`/status.json`) and, for a client presenting the configured bearer token, the
-// mode and record controls (`POST /mode`, `POST /record`). Built on Debian's cpp-httplib.
+// service status (`/status.json`, with `web.control`: whether a token is configured) and, for a
+// client presenting the configured bearer token, the mode and record controls (`POST /mode`,
+// `POST /record`); `GET /control` checks a token without acting (the page's sign-in). Built on
+// Debian's cpp-httplib.
 //
 // How previsd uses it:
 //   auto web = WebMonitor::create(settings, {

@@ -145,9 +145,9 @@ inline HttpReply roundTrip(int port, const std::string& request,
     return parseReply(c.buffer());
 }
 
-inline HttpReply get(int port, const std::string& path) {
-    return roundTrip(port,
-                     "GET " + path + " HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n");
+inline HttpReply get(int port, const std::string& path, const std::string& extraHeaders = "") {
+    return roundTrip(port, "GET " + path + " HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n" +
+                               extraHeaders + "\r\n");
 }
 
 inline HttpReply post(int port, const std::string& path, const std::string& body,

@@ -306,6 +306,30 @@ TEST(WebMonitor, ControlNeedsTheToken) {
     EXPECT_EQ(test::post(port, "/record", "start", auth).status, 409);
 }
 
+// The page's sign-in (GET /control) checks a token without doing anything, and the status says
+// whether control is on at all (the page then says so instead of offering a sign-in).
+TEST(WebMonitor, SignInChecksTheTokenAndDoesNothing) {
+    FakeService service;
+    auto monitor = test::startMonitor(service);
+    ASSERT_TRUE(monitor);
+    const int port = monitor->port();
+    EXPECT_EQ(test::get(port, "/control").status, 401);
+    EXPECT_EQ(test::get(port, "/control", "Authorization: Bearer wrong\r\n").status, 401);
+    EXPECT_EQ(test::get(port, "/control", "Authorization: Bearer s3cret-token\r\n").status, 200);
+    EXPECT_EQ(test::post(port, "/control", "x").status, 405);
+    EXPECT_EQ(service.commandCount(), 0u);
+    EXPECT_EQ(monitor->stats().unauthorized, 2u);
+    EXPECT_EQ(nlohmann::json::parse(test::get(port, "/status.json").body)["web"]["control"], true);
+
+    WebMonitorSettings s = test::testSettings();
+    s.token.clear();
+    auto off = test::startMonitor(service, s);
+    ASSERT_TRUE(off);
+    EXPECT_EQ(test::get(off->port(), "/control", "Authorization: Bearer \r\n").status, 403);
+    EXPECT_EQ(nlohmann::json::parse(test::get(off->port(), "/status.json").body)["web"]["control"],
+              false);
+}
+
 TEST(WebMonitor, WithoutATokenControlIsOffAndViewingWorks) {
     FakeService service;
     WebMonitorSettings s = test::testSettings();
