@@ -14,8 +14,9 @@ for config in release asan; do
     # services (vm-release) take minutes under an emulated CPU with ASan; the host code both
     # exercise runs sanitized in the host tests. A single device's VM test (vm) runs only there:
     # one VM boot per test in the whole run. Likewise the GPU tests labelled gpu-sanitized
-    # (previsd end to end, preview, the Vulkan wrappers) run once, sanitized: the optimised previsd
-    # still runs end to end in the release stage's VM test (previsd_vm).
+    # (previsd's service cases end to end, the Vulkan wrappers, the film's upsampling) run once,
+    # sanitized: the optimised previsd still runs end to end in the release stage's VM test
+    # (previsd_vm); the preview and replay cases whose time is renders run in the release stage.
     target=() select=(-LE '^(vm|gpu-sanitized)$')
     if [[ $config == asan ]]; then
         target=(previs_sanitized_tests)
