@@ -51,8 +51,15 @@ if [[ -n ${PREVIS_UNITY:-} ]]; then
 elif [[ ! -f $build/CMakeCache.txt && $config != fuzz ]]; then
     unity+=(-DCMAKE_UNITY_BUILD=ON)
 fi
+# Links with lld (package lld) where it is installed: an ASan test's link took 2.4 CPU-s against
+# bfd's 6.9 (test_compare), an optimised one 0.33 against 1.13 (test_previsd); the sanitized
+# build links 50 executables, the optimised 74.
+linker=()
+if command -v ld.lld >/dev/null; then
+    for kind in EXE SHARED MODULE; do linker+=("-DCMAKE_${kind}_LINKER_FLAGS=-fuse-ld=lld"); done
+fi
 cmake -S "$root" -B "$build" -G Ninja -DPREVIS_WERROR=${PREVIS_WERROR:-OFF} "${unity[@]}" \
-    "${flags[@]}" >&2
+    "${linker[@]}" "${flags[@]}" >&2
 targets=()
 [[ $config == fuzz ]] && targets=(--target previs_fuzzers)
 [[ -n ${2:-} ]] && targets=(--target "$2")
