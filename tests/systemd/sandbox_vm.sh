@@ -5,11 +5,13 @@
 # the manager afterwards). The probe streams from a camera, queries the media device, becomes DRM
 # master, requests a GPIO line, and checks that the device cgroup refuses devices DeviceAllow= does
 # not list (an input device, uinput). Then `vulkaninfo --summary` runs under the same sandbox.
-# Usage: sandbox_vm.sh SOURCE_DIR PROBE_BINARY. Exits 77 outside the VM.
+# Given PREVISD_BINARY, the socket units' checks (socket_units_vm.sh) run last, in the same boot.
+# Usage: sandbox_vm.sh SOURCE_DIR PROBE_BINARY [PREVISD_BINARY]. Exits 77 outside the VM.
 set -euo pipefail
 [ -n "${VMTEST:-}" ] || { echo "not in the test VM (VMTEST unset): skipped"; exit 77; }
 src=$1
 probe=$2
+previsd=${3:-}
 
 # What the box has after `cmake --install --prefix /usr` and systemd-sysusers: group previs and
 # the udev rule.
@@ -150,3 +152,6 @@ starts=$(restart_case /usr/local/bin/previs-hang notify 2 2 90)
 grep -q "^result watchdog$" /run/previs-starts.log ||
     { cat /run/previs-starts.log; echo "FAIL: systemd did not end it for its watchdog"; exit 1; }
 echo "a process that stops feeding the watchdog: killed and started again: OK"
+
+# Its own namespace, /run and unit folder: nothing above is seen or touched.
+[ -z "$previsd" ] || exec bash "$src/tests/systemd/socket_units_vm.sh" "$src" "$previsd"
