@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Installs the Debian packages previs needs (skipping those present), then configures and
 # builds one configuration. Usage: scripts/setup.sh [release|asan|fuzz] [TARGET]   (default
-# release, every target; TARGET builds only that one and what it needs)
+# release, every target; TARGET builds only that one and what it needs; PREVIS_BUILD_JOBS: how
+# many compile jobs, default one a core)
 # fuzz: clang-14 with libFuzzer+ASan+UBSan in build-fuzz, only the fuzz targets (docs/fuzzing.md).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
@@ -63,5 +64,5 @@ cmake -S "$root" -B "$build" -G Ninja -DPREVIS_WERROR=${PREVIS_WERROR:-OFF} "${u
 targets=()
 [[ $config == fuzz ]] && targets=(--target previs_fuzzers)
 [[ -n ${2:-} ]] && targets=(--target "$2")
-cmake --build "$build" -j"$(nproc)" "${targets[@]}" >&2
+cmake --build "$build" -j"${PREVIS_BUILD_JOBS:-$(nproc)}" "${targets[@]}" >&2
 echo "$build"

@@ -7,6 +7,35 @@ root=$(cd "$(dirname "$0")/.." && pwd)
 export PREVIS_WERROR=ON
 stage() { echo "== $1: $(($(date +%s) - started)) s since the start ==" >&2; }
 started=$(date +%s)
+
+# The next stage's build starts while a stage's tests run, one compile job at the lowest priority
+# (nice 19): it takes only the CPU the tests leave idle (VM tests waiting on the emulated
+# machine's timers, previsd's cases waiting on frames and signals) and barely slows them. When
+# the tests are done it is stopped (ninja keeps every object it finished) and the stage's own
+# build goes on from there on every core (and shows any error again, with its output).
+early_pid="" early_log=""
+start_early_build() {
+    early_log=$(mktemp "${TMPDIR:-/tmp}/previs-early-build.XXXXXX")
+    # Job control for this one job: its own process group, so stopping it reaches cmake and ninja.
+    # Not setsid: a new session is a new autogroup, which the kernel shares the CPU with as an
+    # equal, whatever its nice.
+    set -m
+    PREVIS_BUILD_JOBS=1 nice -n 19 "$root/scripts/setup.sh" "$@" >/dev/null 2>"$early_log" &
+    early_pid=$!
+    set +m
+}
+stop_early_build() {
+    [[ -n $early_pid ]] || return 0
+    kill -TERM -- "-$early_pid" 2>/dev/null || true
+    wait "$early_pid" 2>/dev/null || true
+    # ninja ends its compilers before it exits: wait for the whole group to be gone.
+    while kill -0 -- "-$early_pid" 2>/dev/null; do sleep 0.2; done
+    echo "early build: $(grep -c '^\[' "$early_log" || true) steps done while the tests ran" >&2
+    rm -f "$early_log"
+    early_pid=""
+}
+trap stop_early_build EXIT
+
 for config in release asan; do
     # The sanitized run builds and runs the host tests, the VM tests of single devices and the
     # GPU tests labelled gpu-sanitized (tests/CMakeLists.txt, previs_sanitized_tests): the other GPU
@@ -17,17 +46,21 @@ for config in release asan; do
     # (previsd's service cases end to end, the Vulkan wrappers, the film's upsampling) run once,
     # sanitized: the optimised previsd still runs end to end in the release stage's VM test
     # (previsd_vm); the preview and replay cases whose time is renders run in the release stage.
-    target=() select=(-LE '^(vm|gpu-sanitized)$')
+    target=() select=(-LE '^(vm|gpu-sanitized)$') next=(asan previs_sanitized_tests)
     if [[ $config == asan ]]; then
         target=(previs_sanitized_tests)
         select=(-L '^(unit|vm|gpu-sanitized)$')
+        next=(fuzz)
     fi
     stage "build ($config)"
+    stop_early_build
     build=$("$root/scripts/setup.sh" "$config" "${target[@]}")
+    start_early_build "${next[@]}"
     stage "tests ($config)"
     ctest --test-dir "$build" --output-on-failure -j"$(nproc)" --timeout 600 "${select[@]}"
 done
 stage "build (fuzz)"
+stop_early_build
 build=$("$root/scripts/setup.sh" fuzz)
 stage "fuzz targets on their seed corpora"
 # Each target runs PREVIS_FUZZ_SECONDS (fuzz/CMakeLists.txt) on one core.
