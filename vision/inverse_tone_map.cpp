@@ -22,6 +22,11 @@ inline float banterleRatio(float ld, float maxRadiance, float whiteLuminance) {
     return 2.0f * maxRadiance / (whiteLuminance * (root + a));
 }
 
+// The camera's calibration, last: exposure and white balance.
+inline void scale(float rgb[3], const InverseToneMapSettings& s, float exposureScale) {
+    for (int c = 0; c < 3; ++c) rgb[c] *= exposureScale * s.whiteBalance[c];
+}
+
 // Linear display values (after the sRGB decode) → radiance.
 inline void untonemap(float rgb[3], const InverseToneMapSettings& s, float exposureScale) {
     if (s.op == InverseToneMapOperator::Banterle) {
@@ -38,7 +43,7 @@ inline void untonemap(float rgb[3], const InverseToneMapSettings& s, float expos
         const float k = 1.0f / (1.0f - ld);
         for (int c = 0; c < 3; ++c) rgb[c] *= k;
     }
-    for (int c = 0; c < 3; ++c) rgb[c] *= exposureScale * s.whiteBalance[c];
+    scale(rgb, s, exposureScale);
 }
 
 inline float sanitize(float v) { return std::isfinite(v) ? std::clamp(v, 0.0f, 1.0f) : 0.0f; }
@@ -70,8 +75,14 @@ float banterleInverseCurve(float displayLuminance, float maxRadiance, float whit
 std::array<float, 3> inverseToneMapRgb(const std::array<float, 3>& encoded,
                                        const InverseToneMapSettings& settings) {
     float rgb[3];
-    for (int c = 0; c < 3; ++c) rgb[c] = srgbDecode(sanitize(encoded[c]));
-    untonemap(rgb, settings, std::exp2(-settings.exposureStops));
+    for (int c = 0; c < 3; ++c) rgb[c] = sanitize(encoded[c]);
+    if (settings.colour) {
+        settings.colour->applyFloat(rgb, 1, 1, sizeof rgb);
+        scale(rgb, settings, std::exp2(-settings.exposureStops));
+    } else {
+        for (float& v : rgb) v = srgbDecode(v);
+        untonemap(rgb, settings, std::exp2(-settings.exposureStops));
+    }
     return {rgb[0], rgb[1], rgb[2]};
 }
 
@@ -88,8 +99,16 @@ ImageF inverseToneMap(const ImageF& image, const InverseToneMapSettings& setting
     for (size_t i = 0; i < n; ++i) {
         const float* p = image.pixels.data() + i * image.channels;
         float rgb[3];
-        for (int c = 0; c < 3; ++c) rgb[c] = srgbDecode(sanitize(p[image.channels >= 3 ? c : 0]));
-        untonemap(rgb, settings, exposureScale);
+        for (int c = 0; c < 3; ++c) rgb[c] = sanitize(p[image.channels >= 3 ? c : 0]);
+        if (settings.colour) {
+            // One pixel at a time keeps this path short; it serves stills (previs envmap and
+            // render), not video: frames go through inverseToneMapRgb8.
+            settings.colour->applyFloat(rgb, 1, 1, sizeof rgb);
+            scale(rgb, settings, exposureScale);
+        } else {
+            for (float& v : rgb) v = srgbDecode(v);
+            untonemap(rgb, settings, exposureScale);
+        }
         float* q = out.pixels.data() + i * out.channels;
         q[0] = rgb[0];
         q[1] = rgb[1];
@@ -99,8 +118,28 @@ ImageF inverseToneMap(const ImageF& image, const InverseToneMapSettings& setting
     return out;
 }
 
+namespace {
+
+// The camera's own encoding through OpenColorIO (a table for the curve, then the gamut matrix),
+// then its calibration's gains.
+cv::Mat colourToLinear(const cv::Mat& rgb8, const InverseToneMapSettings& settings) {
+    cv::Mat out(rgb8.size(), CV_32FC3);
+    if (rgb8.empty()) return out;
+    settings.colour->apply8(rgb8.ptr<uint8_t>(0), std::ptrdiff_t(rgb8.step[0]), out.ptr<float>(0),
+                            std::ptrdiff_t(out.step[0]), rgb8.cols, rgb8.rows);
+    const float exposureScale = std::exp2(-settings.exposureStops);
+    const cv::Scalar gains(exposureScale * settings.whiteBalance[0],
+                           exposureScale * settings.whiteBalance[1],
+                           exposureScale * settings.whiteBalance[2]);
+    if (gains != cv::Scalar(1.0, 1.0, 1.0)) cv::multiply(out, gains, out);
+    return out;
+}
+
+}  // namespace
+
 cv::Mat inverseToneMapRgb8(const cv::Mat& rgb8, const InverseToneMapSettings& settings) {
     PV_ASSERT(rgb8.type() == CV_8UC3);
+    if (settings.colour) return colourToLinear(rgb8, settings);
     float table[256];
     for (int i = 0; i < 256; ++i) table[i] = srgbDecode(float(i) / 255.0f);
     const float exposureScale = std::exp2(-settings.exposureStops);

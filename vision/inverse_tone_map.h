@@ -7,10 +7,12 @@
 // (previs envmap) and for plates, so both end in the same units (docs/radiometric-calibration.md).
 
 #include <array>
+#include <memory>
 #include <opencv2/core.hpp>
 #include <optional>
 #include <string>
 
+#include "colour/ocio_colour.h"
 #include "image/image.h"
 
 namespace previs {
@@ -49,6 +51,11 @@ struct InverseToneMapSettings {
     // camera (docs/camera-calibration.md §2).
     float maxRadiance = 16.0f;
     float whiteLuminance = 16.0f;
+    // A camera that sends Rec.709 or a log encoding ([cameras.*.colour], colour/ocio_colour.h):
+    // OpenColorIO decodes it to the working space in place of the sRGB decode and `op`;
+    // exposure and white balance still apply after it. Null (the demo's, and any camera without
+    // the section): the curves above, and OCIO is never touched.
+    std::shared_ptr<const CameraColourTransform> colour;
 };
 
 // sRGB transfer function, decoding (IEC 61966-2-1): encoded value in [0,1] → linear.

@@ -1,0 +1,242 @@
+#include "colour/ocio_colour.h"
+
+#include <OpenColorIO/OpenColorIO.h>
+
+#include <cerrno>
+#include <cstring>
+#include <fstream>
+#include <vector>
+
+#include "colour/ocio_builtin_config.h"
+
+namespace previs {
+
+namespace OCIO = OCIO_NAMESPACE;
+
+struct CameraColourTransform::Processors {
+    OCIO::ConstCPUProcessorRcPtr from8;
+    OCIO::ConstCPUProcessorRcPtr fromFloat;
+};
+
+struct DisplayColourTransform::Processors {
+    OCIO::ConstCPUProcessorRcPtr toU8;
+};
+
+namespace {
+
+// Names for a message: at most `most`, then how many there are in all.
+std::string someNames(const std::vector<std::string>& names, size_t most = 12) {
+    std::string out;
+    for (size_t i = 0; i < names.size() && i < most; ++i)
+        out += (i ? ", " : "") + ("\"" + names[i] + "\"");
+    if (names.size() > most) out += fmt::format(", … ({} in all)", names.size());
+    return out;
+}
+
+std::string configName(const OcioSource& source) {
+    return source.configPath.empty() ? "OCIO's built-in transforms" : "'" + source.configPath + "'";
+}
+
+Result<OCIO::ConstConfigRcPtr> loadConfig(const OcioSource& source) {
+    if (source.configPath.empty()) return builtinColourConfig();
+    // OCIO's own message for a missing file does not say which key named it.
+    std::ifstream probe(source.configPath);
+    if (!probe)
+        return makeError(
+            "'{}.ocio_config': cannot read '{}' ({}); name a readable OCIO config "
+            "file, or leave ocio_config out for the built-in camera transforms",
+            source.key, source.configPath, std::strerror(errno));
+    try {
+        OCIO::ConstConfigRcPtr config = OCIO::Config::CreateFromFile(source.configPath.c_str());
+        config->validate();
+        return config;
+    } catch (const OCIO::Exception& e) {
+        return makeError("'{}.ocio_config': '{}' is not a valid OCIO config: {}", source.key,
+                         source.configPath, e.what());
+    }
+}
+
+std::vector<std::string> sceneSpaces(const OCIO::ConstConfigRcPtr& config) {
+    std::vector<std::string> names;
+    for (int i = 0; i < config->getNumColorSpaces(); ++i) {
+        const char* name = config->getColorSpaceNameByIndex(i);
+        OCIO::ConstColorSpaceRcPtr cs = config->getColorSpace(name);
+        if (cs && cs->getReferenceSpaceType() == OCIO::REFERENCE_SPACE_SCENE &&
+            std::strcmp(cs->getFamily(), "Display") != 0)
+            names.emplace_back(name);
+    }
+    return names;
+}
+
+Status checkInput(const OcioSource& source, const OCIO::ConstConfigRcPtr& config,
+                  const std::string& input) {
+    if (!input.empty() && config->getColorSpace(input.c_str())) return {};
+    const std::vector<std::string> valid =
+        source.configPath.empty() ? builtinCameraColourSpaces() : sceneSpaces(config);
+    if (input.empty())
+        return makeError("[{}] needs 'input', the camera's colour space in {}, e.g. {}", source.key,
+                         configName(source), someNames(valid));
+    return makeError("'{}.input' is '{}', not a colour space of {}; use one of {}", source.key,
+                     input, configName(source), someNames(valid));
+}
+
+// A user's config reaches the working space through ACES2065-1 (its aces_interchange role).
+Status checkInterchange(const OcioSource& source, const OCIO::ConstConfigRcPtr& config) {
+    if (source.configPath.empty() || config->getColorSpace(OCIO::ROLE_INTERCHANGE_SCENE)) return {};
+    return makeError(
+        "'{}.ocio_config': '{}' has no aces_interchange role, which previs needs to reach its "
+        "working space (linear Rec.709); add 'aces_interchange: <its ACES2065-1 colour space>' "
+        "to the config's roles",
+        source.key, source.configPath);
+}
+
+OCIO::ConstProcessorRcPtr cameraProcessor(const OcioSource& source,
+                                          const OCIO::ConstConfigRcPtr& config,
+                                          const std::string& input) {
+    if (source.configPath.empty()) return config->getProcessor(input.c_str(), kWorkingColourSpace);
+    return OCIO::Config::GetProcessorFromConfigs(config, input.c_str(), builtinColourConfig(),
+                                                 kWorkingColourSpace);
+}
+
+}  // namespace
+
+CameraColourTransform::CameraColourTransform(std::unique_ptr<const Processors> processors,
+                                             std::string description)
+    : processors_(std::move(processors)), description_(std::move(description)) {}
+
+CameraColourTransform::~CameraColourTransform() = default;
+
+Result<std::shared_ptr<const CameraColourTransform>> CameraColourTransform::create(
+    const OcioSource& source, const std::string& input) {
+    Result<OCIO::ConstConfigRcPtr> config = loadConfig(source);
+    if (!config) return config.error();
+    if (Status s = checkInput(source, *config, input); !s) return s.error();
+    if (Status s = checkInterchange(source, *config); !s) return s.error();
+    try {
+        OCIO::ConstProcessorRcPtr processor = cameraProcessor(source, *config, input);
+        auto p = std::make_unique<Processors>();
+        // For 8-bit input OCIO folds the per-channel curve into a 256-entry table
+        // (OPTIMIZATION_COMP_SEPARABLE_PREFIX): the matrix is all that is left per pixel.
+        p->from8 = processor->getOptimizedCPUProcessor(OCIO::BIT_DEPTH_UINT8, OCIO::BIT_DEPTH_F32,
+                                                       OCIO::OPTIMIZATION_DEFAULT);
+        p->fromFloat = processor->getOptimizedCPUProcessor(OCIO::OPTIMIZATION_DEFAULT);
+        const std::string description = fmt::format("'{}' from {}", input, configName(source));
+        return std::shared_ptr<const CameraColourTransform>(
+            new CameraColourTransform(std::move(p), description));
+    } catch (const OCIO::Exception& e) {
+        return makeError("'{}.input' '{}' in {}: OCIO cannot build its transform: {}", source.key,
+                         input, configName(source), e.what());
+    }
+}
+
+void CameraColourTransform::apply8(const uint8_t* src, std::ptrdiff_t srcStrideBytes, float* dst,
+                                   std::ptrdiff_t dstStrideBytes, int width, int height) const {
+    const OCIO::PackedImageDesc in(const_cast<uint8_t*>(src), width, height, 3,
+                                   OCIO::BIT_DEPTH_UINT8, 1, 3, srcStrideBytes);
+    OCIO::PackedImageDesc out(dst, width, height, 3, OCIO::BIT_DEPTH_F32, 4, 12, dstStrideBytes);
+    processors_->from8->apply(in, out);
+}
+
+void CameraColourTransform::applyFloat(float* rgb, int width, int height,
+                                       std::ptrdiff_t strideBytes) const {
+    OCIO::PackedImageDesc image(rgb, width, height, 3, OCIO::BIT_DEPTH_F32, 4, 12, strideBytes);
+    processors_->fromFloat->apply(image);
+}
+
+namespace {
+
+std::vector<std::string> displaysOf(const OCIO::ConstConfigRcPtr& config) {
+    std::vector<std::string> names;
+    for (int i = 0; i < config->getNumDisplays(); ++i) names.emplace_back(config->getDisplay(i));
+    return names;
+}
+
+std::vector<std::string> viewsOf(const OCIO::ConstConfigRcPtr& config, const std::string& display) {
+    std::vector<std::string> names;
+    for (int i = 0; i < config->getNumViews(display.c_str()); ++i)
+        names.emplace_back(config->getView(display.c_str(), i));
+    return names;
+}
+
+bool contains(const std::vector<std::string>& names, const std::string& name) {
+    for (const std::string& n : names)
+        if (n == name) return true;
+    return false;
+}
+
+// The display and view, the config's defaults for those not named; an error lists what exists.
+Status resolveDisplayView(const OcioSource& source, const OCIO::ConstConfigRcPtr& config,
+                          std::string& display, std::string& view) {
+    if (display.empty()) display = config->getDefaultDisplay();
+    const std::vector<std::string> displays = displaysOf(config);
+    if (!contains(displays, display))
+        return makeError("'{}.display' is '{}', not a display of {}; use one of {}", source.key,
+                         display, configName(source), someNames(displays));
+    if (view.empty()) view = config->getDefaultView(display.c_str());
+    const std::vector<std::string> views = viewsOf(config, display);
+    if (!contains(views, view))
+        return makeError("'{}.view' is '{}', not a view of the display '{}' in {}; use one of {}",
+                         source.key, view, display, configName(source), someNames(views));
+    return {};
+}
+
+// Working space → the view. A user's config is entered at its aces_interchange colour space.
+OCIO::ConstProcessorRcPtr displayProcessor(const OcioSource& source,
+                                           const OCIO::ConstConfigRcPtr& config,
+                                           const std::string& display, const std::string& view) {
+    OCIO::DisplayViewTransformRcPtr dv = OCIO::DisplayViewTransform::Create();
+    dv->setDisplay(display.c_str());
+    dv->setView(view.c_str());
+    if (source.configPath.empty()) {
+        dv->setSrc(kWorkingColourSpace);
+        return config->getProcessor(dv);
+    }
+    const char* aces = config->getColorSpace(OCIO::ROLE_INTERCHANGE_SCENE)->getName();
+    dv->setSrc(aces);
+    OCIO::ConstProcessorRcPtr toAces = OCIO::Config::GetProcessorFromConfigs(
+        builtinColourConfig(), kWorkingColourSpace, config, aces);
+    OCIO::GroupTransformRcPtr all = OCIO::GroupTransform::Create();
+    all->appendTransform(toAces->createGroupTransform());
+    all->appendTransform(config->getProcessor(dv)->createGroupTransform());
+    return config->getProcessor(all);
+}
+
+}  // namespace
+
+DisplayColourTransform::DisplayColourTransform(std::unique_ptr<const Processors> processors,
+                                               std::string description)
+    : processors_(std::move(processors)), description_(std::move(description)) {}
+
+DisplayColourTransform::~DisplayColourTransform() = default;
+
+Result<std::shared_ptr<const DisplayColourTransform>> DisplayColourTransform::create(
+    const OcioSource& source, const std::string& displayName, const std::string& viewName) {
+    Result<OCIO::ConstConfigRcPtr> config = loadConfig(source);
+    if (!config) return config.error();
+    std::string display = displayName, view = viewName;
+    if (Status s = resolveDisplayView(source, *config, display, view); !s) return s.error();
+    if (Status s = checkInterchange(source, *config); !s) return s.error();
+    try {
+        OCIO::ConstProcessorRcPtr processor = displayProcessor(source, *config, display, view);
+        auto p = std::make_unique<Processors>();
+        p->toU8 = processor->getOptimizedCPUProcessor(OCIO::BIT_DEPTH_F32, OCIO::BIT_DEPTH_UINT8,
+                                                      OCIO::OPTIMIZATION_DEFAULT);
+        const std::string description =
+            fmt::format("display '{}', view '{}' from {}", display, view, configName(source));
+        return std::shared_ptr<const DisplayColourTransform>(
+            new DisplayColourTransform(std::move(p), description));
+    } catch (const OCIO::Exception& e) {
+        return makeError("[{}] display '{}', view '{}' in {}: OCIO cannot build the transform: {}",
+                         source.key, display, view, configName(source), e.what());
+    }
+}
+
+void DisplayColourTransform::apply(const float* rgb, int width, int height, uint8_t* out) const {
+    const OCIO::PackedImageDesc in(const_cast<float*>(rgb), width, height, 3, OCIO::BIT_DEPTH_F32,
+                                   4, 12, ptrdiff_t(width) * 12);
+    OCIO::PackedImageDesc dst(out, width, height, 3, OCIO::BIT_DEPTH_UINT8, 1, 3,
+                              ptrdiff_t(width) * 3);
+    processors_->toU8->apply(in, dst);
+}
+
+}  // namespace previs

@@ -1,0 +1,80 @@
+#pragma once
+
+// Camera and display colour through OpenColorIO (issue 54): a camera that sends Rec.709 or a log
+// encoding (ARRI LogC3, Sony S-Log3, Panasonic V-Log, Canon Log 2/3, RED Log3G10) is decoded to
+// the renderer's scene-linear working space (linear Rec.709 primaries, colour/
+// ocio_builtin_config.h), and the working space is shown through a display's view. Either from
+// OCIO 2.1's built-in transforms (colour/ocio_builtin_config.h) or from a config file the user
+// names, connected through its aces_interchange role. Built only when configured: a camera
+// with the hand-written curves (vision/inverse_tone_map.h) never touches OCIO.
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "base/result.h"
+
+namespace previs {
+
+// Where a colour transform comes from: a config file ("" = the built-in one) and, for error
+// messages, the config key that named it ("cameras.scene.colour").
+struct OcioSource {
+    std::string configPath;
+    std::string key;
+};
+
+// A camera's encoding → the working space. Immutable and thread-safe once built (OCIO's CPU
+// processors are), so one is shared by every thread that linearises the camera's frames.
+class CameraColourTransform {
+public:
+    // `input`: a colour space (or alias or role) of the config. An unknown name, an unreadable
+    // config or one without an aces_interchange role is one message naming the key and the file,
+    // with a few valid names.
+    static Result<std::shared_ptr<const CameraColourTransform>> create(const OcioSource& source,
+                                                                       const std::string& input);
+    ~CameraColourTransform();
+
+    // 8-bit RGB (rows of `width` packed triples, `srcStrideBytes` apart) → float RGB in the
+    // working space, `dstStrideBytes` apart. Through OCIO's processor optimised for 8-bit input:
+    // the curve becomes a 256-entry table, then the gamut matrix.
+    void apply8(const uint8_t* src, std::ptrdiff_t srcStrideBytes, float* dst,
+                std::ptrdiff_t dstStrideBytes, int width, int height) const;
+    // Float RGB code values in [0, 1] (an 8-bit image read as floats) → working space, in place.
+    void applyFloat(float* rgb, int width, int height, std::ptrdiff_t strideBytes) const;
+
+    // "ARRI LogC3 (EI800) (built-in)", "LogC3 from /etc/previs/studio.ocio": for the log.
+    const std::string& description() const { return description_; }
+
+    struct Processors;
+
+private:
+    CameraColourTransform(std::unique_ptr<const Processors> processors, std::string description);
+    std::unique_ptr<const Processors> processors_;
+    std::string description_;
+};
+
+// The working space → a display's view, encoded in 8 bits for that display.
+class DisplayColourTransform {
+public:
+    // `display`/`view`: "" = the config's default display and that display's default view (the
+    // built-in config's: "sRGB", "ACES 1.0 - SDR Video").
+    static Result<std::shared_ptr<const DisplayColourTransform>> create(const OcioSource& source,
+                                                                        const std::string& display,
+                                                                        const std::string& view);
+    ~DisplayColourTransform();
+
+    // Float RGB in the working space (3 floats a pixel, rows packed) → 8-bit RGB, rows packed.
+    void apply(const float* rgb, int width, int height, uint8_t* out) const;
+
+    const std::string& description() const { return description_; }
+
+    struct Processors;
+
+private:
+    DisplayColourTransform(std::unique_ptr<const Processors> processors, std::string description);
+    std::unique_ptr<const Processors> processors_;
+    std::string description_;
+};
+
+}  // namespace previs
