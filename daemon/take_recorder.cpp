@@ -111,7 +111,10 @@ bool TakeRecorder::recording() const {
 
 RecordStatus TakeRecorder::status() const {
     std::lock_guard lock(mutex_);
-    return status_;
+    RecordStatus s = status_;
+    if (s.recording)
+        s.seconds = std::chrono::duration<double>(Clock::now() - rollingSince_).count();
+    return s;
 }
 
 void TakeRecorder::finishWriter() {
@@ -189,6 +192,7 @@ Result<std::string> TakeRecorder::openTake(const std::string& name,
         status_ = RecordStatus{};
         freedRate_ = FreedRate{};
         status_.recording = true;
+        rollingSince_ = Clock::now();
         status_.path = dir;
         status_.freeBytes = *free;
         accepting_ = true;
@@ -500,6 +504,8 @@ void TakeRecorder::runWriter(std::unique_ptr<Take> take) {
     keepCaptured_.store(false);
     accepting_ = false;
     draining_ = false;
+    if (status_.recording)
+        status_.seconds = std::chrono::duration<double>(Clock::now() - rollingSince_).count();
     status_.recording = false;
 }
 

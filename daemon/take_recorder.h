@@ -7,6 +7,7 @@
 // queue (never wait on the disk); a frame the queue cannot take is counted and logged.
 
 #include <atomic>
+#include <chrono>
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
@@ -38,6 +39,7 @@ struct RecordStatus {
     uint64_t freedDropped = 0;
     uint64_t bytes = 0;  // bytes written to the take
     uint64_t freeBytes = 0;
+    double seconds = 0.0;  // how long the take has rolled (wall time since its start)
     // Set when the take stopped by itself (a full disk, a write error); cleared by the next start.
     std::string stoppedBecause;
 };
@@ -137,6 +139,7 @@ private:
     bool accepting_ = false;  // a take rolls and takes items
     bool draining_ = false;   // stop(): write what is queued, then end
     RecordStatus status_;
+    std::chrono::steady_clock::time_point rollingSince_{};  // the take's start (status.seconds)
     // Who may touch writer_: only the thread that moved the phase to Starting or Stopping
     // (under mutex_), so the writer is started once and joined once.
     enum class Phase { Idle, Starting, Rolling, Stopping };

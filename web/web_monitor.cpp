@@ -492,7 +492,7 @@ void WebMonitor::Impl::serveStatus(const httplib::Request&, httplib::Response& r
         answer(res, 500, "the service's status is not JSON");
         return;
     }
-    if (j.is_object() && !j.contains("web")) j["web"] = toJson(stats());
+    if (j.is_object() && (!j.contains("web") || j["web"].is_null())) j["web"] = toJson(stats());
     // Whether the page should offer its controls (a sign-in) or say that control is off.
     if (j.is_object() && j["web"].is_object()) j["web"]["control"] = !settings.token.empty();
     res.set_header("Cache-Control", "no-store");

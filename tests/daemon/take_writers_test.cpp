@@ -21,6 +21,7 @@
 #include <filesystem>
 #include <fstream>
 #include <mutex>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <thread>
@@ -28,6 +29,7 @@
 
 #include "base/unique_fd.h"
 #include "daemon/freed_input.h"
+#include "daemon/service.h"
 #include "daemon/service_config.h"
 #include "daemon/take_recorder.h"
 #include "net/freed.h"
@@ -173,6 +175,23 @@ TEST(TakeWriter, WhatCameBeforeAQuietSpellIsMadeDurableWithoutAnotherWrite) {
            std::chrono::steady_clock::now() < deadline + 5s)
         std::this_thread::sleep_for(50ms);
     EXPECT_EQ(pages, std::optional<uint64_t>(0)) << "events.csv still unsynced after ~10 s idle";
+    ASSERT_TRUE(recorder.stop());
+}
+
+// Issue 54 part 6: the monitor page shows REC with the take's duration, so the status says how
+// long the take has rolled (wall time: a sleep is a lower bound however loaded the machine is).
+TEST(TakeRecorder, TheStatusSaysHowLongTheTakeHasRolled) {
+    HangGuard guard("a take's duration", std::chrono::seconds(60));
+    TakeRecorder recorder(recorderConfig("duration"));
+    Result<std::string> take = recorder.start("duration");
+    ASSERT_TRUE(take) << take.message();
+    std::this_thread::sleep_for(300ms);
+    ServiceStatus s;
+    s.record = recorder.status();
+    EXPECT_GE(s.record.seconds, 0.3);
+    EXPECT_LT(s.record.seconds, 60.0);
+    const nlohmann::json j = nlohmann::json::parse(statusJson(s));
+    EXPECT_GE(j["record"]["seconds"].get<double>(), 0.3);
     ASSERT_TRUE(recorder.stop());
 }
 
