@@ -25,7 +25,7 @@ struct DisplayColourTransform::Processors {
 namespace {
 
 // Names for a message: at most `most`, then how many there are in all.
-std::string someNames(const std::vector<std::string>& names, size_t most = 12) {
+std::string someNames(const std::vector<std::string>& names, size_t most = 16) {
     std::string out;
     for (size_t i = 0; i < names.size() && i < most; ++i)
         out += (i ? ", " : "") + ("\"" + names[i] + "\"");

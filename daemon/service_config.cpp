@@ -44,6 +44,10 @@ private:
                                   CameraConfig& c) const;
     Status parseRadiometry(const toml::table& t, std::string_view section,
                            InverseToneMapSettings& s) const;
+    Status parseCameraColour(const toml::table& camera, const std::string& cameraSection,
+                             CameraConfig& c) const;
+    Status parseOutputColour(const toml::table& output, OutputConfig& c) const;
+    Result<std::string> ocioConfigPath(const toml::table& t, const std::string& section) const;
     Status parseTracking(const toml::table& t, TrackingConfig& c) const;
     Status parseFreedIn(const toml::table& t, TrackingConfig& c) const;
     Status parseLighting(const toml::table& t, LightingConfig& c) const;
@@ -98,6 +102,73 @@ Status ConfigReader::parseRadiometry(const toml::table& t, std::string_view sect
     return {};
 }
 
+// [<section>] ocio_config: "" or absent = OCIO's built-in transforms; else an OCIO config file,
+// relative to the config's folder.
+Result<std::string> ConfigReader::ocioConfigPath(const toml::table& t,
+                                                 const std::string& section) const {
+    Result<std::optional<std::string>> path = r_.string(t, section, "ocio_config");
+    if (!path) return path.error();
+    if (!*path || (*path)->empty()) return std::string();
+    return (r_.folder() / fs::path(**path)).lexically_normal().string();
+}
+
+// [cameras.<name>.colour]: the camera's encoding through OpenColorIO (colour/ocio_colour.h), in
+// place of the radiometry's tone curve; its exposure and white balance still apply.
+Status ConfigReader::parseCameraColour(const toml::table& camera, const std::string& cameraSection,
+                                       CameraConfig& c) const {
+    Result<const toml::table*> table = r_.table(camera, cameraSection, "colour");
+    if (!table) return table.error();
+    if (!*table) return {};
+    const toml::table& t = **table;
+    const std::string section = cameraSection + ".colour";
+    if (Status st = r_.checkKeys(t, section, {"ocio_config", "input"}); !st) return st;
+    if (const toml::table* radiometry = camera["radiometry"].as_table())
+        for (const char* curveKey : {"tone_curve", "max_radiance", "white_luminance"})
+            if (radiometry->get(curveKey))
+                return fail(radiometry->get(curveKey),
+                            "'{}.radiometry.{}' and [{}] both say how the camera encodes light; "
+                            "keep one (with [{}] the radiometry keeps exposure_stops and "
+                            "white_balance only)",
+                            cameraSection, curveKey, section, section);
+    Result<std::string> configPath = ocioConfigPath(t, section);
+    if (!configPath) return configPath.error();
+    Result<std::optional<std::string>> input = r_.string(t, section, "input");
+    if (!input) return input.error();
+    c.colourConfigPath = *configPath;
+    c.colourInput = input->value_or("");
+    Result<std::shared_ptr<const CameraColourTransform>> transform =
+        CameraColourTransform::create({c.colourConfigPath, section}, c.colourInput);
+    if (!transform) {
+        const bool aboutFile = transform.message().find(".ocio_config'") != std::string::npos;
+        const toml::node* at = t.get(aboutFile ? "ocio_config" : "input");
+        return fail(at ? at : &t, "{}", transform.message());
+    }
+    c.radiometry.colour = std::move(*transform);
+    c.radiometryGiven = true;
+    return {};
+}
+
+// [output.colour]: the working space through an OpenColorIO display and view.
+Status ConfigReader::parseOutputColour(const toml::table& output, OutputConfig& c) const {
+    Result<const toml::table*> table = r_.table(output, "output", "colour");
+    if (!table) return table.error();
+    if (!*table) return {};
+    const toml::table& t = **table;
+    const std::string section = "output.colour";
+    if (Status st = r_.checkKeys(t, section, {"ocio_config", "display", "view"}); !st) return st;
+    Result<std::string> configPath = ocioConfigPath(t, section);
+    if (!configPath) return configPath.error();
+    c.colourConfigPath = *configPath;
+    if (Status st = stringKey(t, section, "display", c.colourDisplay); !st) return st;
+    if (Status st = stringKey(t, section, "view", c.colourView); !st) return st;
+    Result<std::shared_ptr<const DisplayColourTransform>> transform =
+        DisplayColourTransform::create({c.colourConfigPath, section}, c.colourDisplay,
+                                       c.colourView);
+    if (!transform) return fail(&t, "{}", transform.message());
+    c.colour = std::move(*transform);
+    return {};
+}
+
 // libcamera's controls are typed and named by libcamera, not by a driver.
 Status ConfigReader::parseLibcameraControls(const toml::table& t, const std::string& section,
                                             CameraConfig& c) const {
@@ -130,12 +201,13 @@ Status ConfigReader::parseCamera(const toml::table& t, const std::string& name,
     const std::string section = "cameras." + name;
     const bool fisheye = name == "fisheye";
     Status keys =
-        fisheye ? r_.checkKeys(t, section,
-                               {"source", "device", "width", "height", "format", "fps", "controls",
-                                "calibration", "radiometry", "mount_rotation_deg", "bracket"})
-                : r_.checkKeys(t, section,
-                               {"source", "device", "width", "height", "format", "fps", "controls",
-                                "calibration", "radiometry"});
+        fisheye
+            ? r_.checkKeys(t, section,
+                           {"source", "device", "width", "height", "format", "fps", "controls",
+                            "calibration", "radiometry", "colour", "mount_rotation_deg", "bracket"})
+            : r_.checkKeys(t, section,
+                           {"source", "device", "width", "height", "format", "fps", "controls",
+                            "calibration", "radiometry", "colour"});
     if (!keys) return keys;
     c.name = name;
 
@@ -253,6 +325,7 @@ Status ConfigReader::parseCamera(const toml::table& t, const std::string& name,
             return st;
         c.radiometryGiven = true;
     }
+    if (Status st = parseCameraColour(t, section, c); !st) return st;
     if (fisheye) return parseBracket(t, section, c);
     return {};
 }
@@ -636,7 +709,7 @@ Status ConfigReader::parseRefine(const toml::table& t, RefineConfig& c) const {
 Status ConfigReader::parseOutput(const toml::table& t, OutputConfig& c) const {
     if (Status st = r_.checkKeys(t, "output",
                                  {"kind", "folder", "card", "connector", "mode", "keep_frames",
-                                  "max_mb", "min_free_mb"});
+                                  "max_mb", "min_free_mb", "colour"});
         !st)
         return st;
     std::string kind = "none";
@@ -679,7 +752,7 @@ Status ConfigReader::parseOutput(const toml::table& t, OutputConfig& c) const {
                         "WIDTHxHEIGHT@HZ, e.g. \"1920x1080@60\"",
                         c.mode);
     }
-    return {};
+    return parseOutputColour(t, c);
 }
 
 Status ConfigReader::parseButton(const toml::table& t, ButtonConfig& c) const {

@@ -8,12 +8,14 @@
 
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "base/result.h"
+#include "colour/ocio_colour.h"
 #include "daemon/network_config.h"
 #include "net/freed_calibration.h"
 #include "render/render_settings.h"
@@ -59,9 +61,15 @@ struct CameraConfig {
     // (optional only because a calibration has no meaningful empty state).
     std::optional<CameraCalibration> calibration;
     // 8-bit frames → linear radiance in the scene's units (docs/camera-calibration.md §2).
+    // [cameras.<name>.colour] sets radiometry.colour: the camera's encoding through OpenColorIO
+    // in place of the tone curve (built when the config is read, so a bad name fails --check).
     InverseToneMapSettings radiometry;
-    // Whether the config gave [cameras.<name>.radiometry]; without it `radiometry` holds the
-    // sRGB defaults, a guess the tag-edge refit does not build on (vision/tag_edges.h).
+    // [cameras.<name>.colour] ocio_config ("" = the built-in transforms) and input, as given.
+    std::string colourConfigPath;
+    std::string colourInput;
+    // Whether the config gave [cameras.<name>.radiometry] or [cameras.<name>.colour]; without
+    // either `radiometry` holds the sRGB defaults, a guess the tag-edge refit does not build on
+    // (vision/tag_edges.h).
     bool radiometryGiven = false;
     // [cameras.fisheye.bracket]: the exposures the camera cycles through, each complete bracket
     // merged to radiance (vision/hdr_bracket.h); none: every frame is lit on its own.
@@ -191,6 +199,11 @@ struct OutputConfig {
     uint64_t keepFrames = 1000;
     uint64_t maxMb = 1024;
     uint64_t minFreeMb = 256;
+    // [output.colour]: the working space shown through an OpenColorIO display and view on every
+    // output (KMS, files, the monitor page) in place of the camera's tone curve. Null: the tone
+    // curve (today's default); nothing of OCIO is built.
+    std::shared_ptr<const DisplayColourTransform> colour;
+    std::string colourConfigPath, colourDisplay, colourView;  // as given
 };
 
 // The mode button and the status LED (libgpiod). Absent: no button (the socket still works).

@@ -269,6 +269,26 @@ position_m = [1, 0, 0]
         {"zero_max_radiance",
          minimal("[cameras.scene.radiometry]\nmax_radiance = 0"),
          {"'cameras.scene.radiometry.max_radiance' is 0", "(0,"}},
+        // Camera and display colour through OpenColorIO (issue 54).
+        {"unknown_colour_space",
+         minimal("[cameras.scene.colour]\ninput = \"LogC\""),
+         {"line 9", "'cameras.scene.colour.input' is 'LogC'", "\"ARRI LogC3 (EI800)\""}},
+        {"colour_without_input",
+         minimal("[cameras.scene.colour]\nocio_config = \"\""),
+         {"[cameras.scene.colour] needs 'input'", "\"Sony S-Log3 S-Gamut3\""}},
+        {"unreadable_ocio_config",
+         minimal("[cameras.scene.colour]\nocio_config = \"studio.ocio\"\ninput = \"LogC3\""),
+         {"line 9", "'cameras.scene.colour.ocio_config': cannot read", "studio.ocio"}},
+        {"colour_and_tone_curve",
+         minimal("[cameras.scene.radiometry]\ntone_curve = \"banterle\"\n"
+                 "[cameras.scene.colour]\ninput = \"Sony S-Log3 S-Gamut3\""),
+         {"'cameras.scene.radiometry.tone_curve' and [cameras.scene.colour]", "keep one"}},
+        {"unknown_view",
+         minimal("", "[output.colour]\ndisplay = \"sRGB\"\nview = \"Filmic\""),
+         {"'output.colour.view' is 'Filmic'", "\"ACES 1.0 - SDR Video\""}},
+        {"colour_typo",
+         minimal("[cameras.scene.colour]\ninput_space = \"ACEScct\""),
+         {"unknown key 'input_space' in [cameras.scene.colour]"}},
         {"no_board",
          replaced(minimal(), fmt::format("board = \"{}/board.toml\"", e), ""),
          {"[tracking] needs 'board'"}},
@@ -400,6 +420,31 @@ position_m = [1, 0, 0]
 
 INSTANTIATE_TEST_SUITE_P(Config, ServiceConfigErrors, ::testing::ValuesIn(badConfigs()),
                          [](const auto& p) { return std::string(p.param.name); });
+
+TEST(ServiceConfig, CameraAndDisplayColourBuildOcioOnlyWhenConfigured) {
+    Result<ServiceConfig> plain = loadServiceConfig(writeFile("plain.toml", minimal()));
+    ASSERT_TRUE(plain) << plain.message();
+    EXPECT_FALSE(plain->sceneCamera.radiometry.colour);
+    EXPECT_FALSE(plain->output.colour);
+
+    Result<ServiceConfig> c = loadServiceConfig(
+        writeFile("colour.toml", minimal("[cameras.scene.radiometry]\nexposure_stops = 1.0\n"
+                                         "[cameras.scene.colour]\ninput = \"ARRI LogC3 (EI800)\"",
+                                         "[output.colour]\ndisplay = \"Rec.1886 Rec.709\"")));
+    ASSERT_TRUE(c) << c.message();
+    ASSERT_TRUE(c->sceneCamera.radiometry.colour);
+    EXPECT_TRUE(c->sceneCamera.radiometryGiven) << "the curve is known: the edge refit uses it";
+    EXPECT_EQ(c->sceneCamera.colourInput, "ARRI LogC3 (EI800)");
+    EXPECT_EQ(c->sceneCamera.radiometry.exposureStops, 1.0f);
+    ASSERT_TRUE(c->output.colour);
+    EXPECT_NE(c->output.colour->description().find("'Rec.1886 Rec.709', view 'ACES 1.0"),
+              std::string::npos)
+        << c->output.colour->description();
+    // LogC3's 18 % grey code (0.391 ≈ 100/255) decodes near 0.18, halved by the exposure.
+    const std::array<float, 3> grey =
+        inverseToneMapRgb({0.391f, 0.391f, 0.391f}, c->sceneCamera.radiometry);
+    EXPECT_NEAR(grey[1], 0.09f, 0.001f);
+}
 
 TEST(ServiceConfig, ServiceSectionsParse) {
     const std::string path =
