@@ -330,6 +330,20 @@ TEST(WebMonitor, SignInChecksTheTokenAndDoesNothing) {
               false);
 }
 
+// previsd's statusJson writes "web": null when it has no monitor's counters (a test server, a
+// status taken before the monitor opened): the monitor's own are served, with web.control.
+TEST(WebMonitor, AStatusWithANullWebGetsTheMonitorsCounters) {
+    Result<std::unique_ptr<WebMonitor>> m = WebMonitor::create(
+        test::testSettings(),
+        {.statusJson = [] { return std::string(R"({"web":null})"); }, .command = {}});
+    ASSERT_TRUE(m.ok()) << m.message();
+    const nlohmann::json j =
+        nlohmann::json::parse(test::get((*m)->port(), "/status.json").body, nullptr, false);
+    ASSERT_TRUE(j.is_object());
+    EXPECT_EQ(j["web"]["viewers"], 0);
+    EXPECT_EQ(j["web"]["control"], true);
+}
+
 TEST(WebMonitor, WithoutATokenControlIsOffAndViewingWorks) {
     FakeService service;
     WebMonitorSettings s = test::testSettings();
