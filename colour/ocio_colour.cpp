@@ -7,6 +7,7 @@
 #include <fstream>
 #include <vector>
 
+#include "base/log.h"
 #include "colour/ocio_builtin_config.h"
 
 namespace previs {
@@ -237,6 +238,17 @@ void DisplayColourTransform::apply(const float* rgb, int width, int height, uint
     OCIO::PackedImageDesc dst(out, width, height, 3, OCIO::BIT_DEPTH_UINT8, 1, 3,
                               ptrdiff_t(width) * 3);
     processors_->toU8->apply(in, dst);
+}
+
+void DisplayColourTransform::applyScaled(float* pixels, int channels, int width, int height,
+                                         const std::array<float, 3>& gain, uint8_t* out) const {
+    const size_t count = size_t(width) * size_t(height);
+    PV_ASSERT(channels >= 3);
+    const size_t stride = size_t(channels);
+    // Pixel i is written at 3·i ≤ stride·i: never ahead of a pixel not yet read.
+    for (size_t i = 0; i < count; ++i)
+        for (size_t c = 0; c < 3; ++c) pixels[3 * i + c] = pixels[stride * i + c] * gain[c];
+    apply(pixels, width, height, out);
 }
 
 }  // namespace previs

@@ -8,6 +8,7 @@
 // names, connected through its aces_interchange role. Built only when configured: a camera
 // with the hand-written curves (vision/inverse_tone_map.h) never touches OCIO.
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -66,6 +67,11 @@ public:
 
     // Float RGB in the working space (3 floats a pixel, rows packed) → 8-bit RGB, rows packed.
     void apply(const float* rgb, int width, int height, uint8_t* out) const;
+    // A renderer's image (`channels` ≥ 3 floats a pixel: RGB first, alpha ignored), each channel
+    // times `gain` first (the camera's exposure and white balance undone), → 8-bit RGB. Packs
+    // the image to RGB in place: `pixels` is scratch afterwards (a frame is not copied).
+    void applyScaled(float* pixels, int channels, int width, int height,
+                     const std::array<float, 3>& gain, uint8_t* out) const;
 
     const std::string& description() const { return description_; }
 

@@ -74,6 +74,20 @@ std::vector<EstimatedLightSource> toLightSources(const std::vector<EstimatedLigh
 constexpr uint8_t kPlateDarkCode = 16;
 constexpr uint8_t kPlateClippedCode = 250;
 
+// The composite (scene radiance) back to the camera's exposure and white, as the curve path
+// does (toDisplayImage), then through the display's view.
+DisplayImage throughView(const DisplayColourTransform& view, ImageF composite,
+                         const InverseToneMapSettings& radiometry) {
+    std::array<float, 3> gain;
+    for (int c = 0; c < 3; ++c)
+        gain[c] = std::exp2(radiometry.exposureStops) / radiometry.whiteBalance[c];
+    DisplayImage out{composite.width, composite.height,
+                     std::vector<uint8_t>(size_t(composite.width) * composite.height * 3)};
+    view.applyScaled(composite.pixels.data(), int(composite.channels), int(composite.width),
+                     int(composite.height), gain, out.rgb.data());
+    return out;
+}
+
 PlateLimits plateLimitsOf(const InverseToneMapSettings& radiometry) {
     cv::Mat codes(1, 2, CV_8UC3);
     codes.at<cv::Vec3b>(0, 0) = cv::Vec3b(kPlateDarkCode, kPlateDarkCode, kPlateDarkCode);
@@ -105,6 +119,7 @@ Result<std::unique_ptr<PipelineRenderer>> PipelineRenderer::create(GpuContext& c
     p->plateLimits_ = plateLimitsOf(p->radiometry_);
     p->display_.tone = forwardOf(p->radiometry_);
     p->display_.whiteBalance = p->radiometry_.whiteBalance;
+    p->displayColour_ = config.output.colour;
     p->sceneCameraUntilTracked_ = config.tracking.sceneCameraUntilTracked;
 
     RenderSettings settings;
@@ -581,6 +596,11 @@ Result<ImageF> PipelineRenderer::composite(std::optional<double> noiseEstimate) 
 }
 
 Result<DisplayImage> PipelineRenderer::display(std::optional<double> noiseEstimate) {
+    if (displayColour_) {
+        Result<ImageF> image = composite(noiseEstimate);
+        if (!image) return image.error();
+        return toDisplay(std::move(*image));
+    }
     if (!rendered_) return toDisplayImage(plate_, display_);
     const Result<bool> denoised = chooseFilter(noiseEstimate);
     if (!denoised) return denoised.error();
@@ -589,6 +609,7 @@ Result<DisplayImage> PipelineRenderer::display(std::optional<double> noiseEstima
 }
 
 DisplayImage PipelineRenderer::toDisplay(ImageF composite) const {
+    if (displayColour_) return throughView(*displayColour_, std::move(composite), radiometry_);
     return toDisplayImage(std::move(composite), display_);
 }
 

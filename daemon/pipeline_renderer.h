@@ -80,6 +80,8 @@ public:
     Result<DisplayImage> display(std::optional<double> noiseEstimate = {});
     // The same curve applied on the host to a composite (from composite()), taken by value: it is
     // changed in place (callers move a temporary in).
+    // With [output.colour] both show the composite through OpenColorIO's display and view
+    // instead (on the host: the device's display pass knows only the camera curves).
     DisplayImage toDisplay(ImageF composite) const;
 
     uint64_t samples() const override;  // per pixel: this preview frame's, or the refinement's
@@ -161,6 +163,7 @@ private:
     InverseToneMapSettings radiometry_;
     PlateLimits plateLimits_;
     DisplaySettings display_;
+    std::shared_ptr<const DisplayColourTransform> displayColour_;  // [output.colour]; null: curve
     ImageF plate_;  // this frame's plate until it is moved into the renderer
     bool rendered_ = false;
     bool sceneCameraUntilTracked_ = false;

@@ -258,6 +258,24 @@ TEST(OcioDisplay, TheDefaultViewRollsHighlightsOffInsteadOfClipping) {
     EXPECT_LT(shown[6], 255) << "4.0, two stops over white, still has detail";
 }
 
+TEST(OcioDisplay, ARendersRgbaImageIsShownWithItsGainsUndone) {
+    Result<std::shared_ptr<const DisplayColourTransform>> t =
+        DisplayColourTransform::create({"", "output.colour"}, "sRGB", "Un-tone-mapped");
+    ASSERT_TRUE(t) << t.message();
+    // Two RGBA pixels; the gains are what PipelineRenderer passes: 2^exposure / white balance.
+    std::vector<float> rgba{0.09f, 0.18f, 0.36f, 1.0f, 0.02f, 0.5f, 0.25f, 0.0f};
+    const std::array<float, 3> gain{2.0f, 1.0f, 0.5f};
+    std::vector<uint8_t> shown(6);
+    (*t)->applyScaled(rgba.data(), 4, 2, 1, gain, shown.data());
+    const std::vector<uint8_t> expected = showGreys(**t, {0.18f, 0.04f});
+    EXPECT_EQ(shown[0], expected[0]);
+    EXPECT_EQ(shown[1], expected[1]);
+    EXPECT_EQ(shown[2], expected[2]);
+    EXPECT_EQ(shown[3], expected[3]);
+    EXPECT_NEAR(shown[4], 255.0f * srgbEncode(0.5f), 1.0f);
+    EXPECT_NEAR(shown[5], 255.0f * srgbEncode(0.125f), 1.0f);
+}
+
 TEST(OcioDisplay, AUsersConfigIsEnteredAtItsInterchangeSpace) {
     const fs::path path =
         writeConfig("previs_ocio_display.ocio", "  aces_interchange: ACES2065-1\n");
