@@ -269,8 +269,11 @@ TEST_F(CausticAgreementTest, PhotonsPlusPathsEqualPathTracing) {
     RenderSettings withPhotons = photonSettings(48, 36, PhotonMode::Auto);
     withPhotons.photons.perIteration = 1u << 15;
     constexpr uint32_t kRuns = 8;
-    std::vector<ImageF> reference = renders(s, pathOnly, 512, kRuns, 100);
-    std::vector<ImageF> photon = renders(s, withPhotons, 64, kRuns, 200);
+    // A photon iteration costs 60-100 path samples here, and the photon runs' means scatter less:
+    // 1024 samples against 32 iterations a run gives the difference of the means about the noise
+    // of 512 against 64 (sd 0.00048 against 0.00043 of a mean of 0.212) in 42 % of the time.
+    std::vector<ImageF> reference = renders(s, pathOnly, 1024, kRuns, 100);
+    std::vector<ImageF> photon = renders(s, withPhotons, 32, kRuns, 200);
     ASSERT_EQ(reference.size(), kRuns);
     ASSERT_EQ(photon.size(), kRuns);
     auto imageMean = [](const ImageF& img) {
