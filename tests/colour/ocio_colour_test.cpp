@@ -5,6 +5,7 @@
 #include <OpenColorIO/OpenColorIO.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <filesystem>
@@ -256,6 +257,41 @@ TEST(OcioDisplay, TheDefaultViewRollsHighlightsOffInsteadOfClipping) {
     EXPECT_LT(shown[3], shown[6]);
     EXPECT_LT(shown[6], shown[9]);
     EXPECT_LT(shown[6], 255) << "4.0, two stops over white, still has detail";
+}
+
+TEST(OcioDisplay, TheBakedViewMatchesOcioExactWithinACodeValue) {
+    Result<std::shared_ptr<const DisplayColourTransform>> t =
+        DisplayColourTransform::create({"", "output.colour"}, "sRGB", "ACES 1.0 - SDR Video");
+    ASSERT_TRUE(t) << t.message();
+    OCIO::DisplayViewTransformRcPtr dv = OCIO::DisplayViewTransform::Create();
+    dv->setSrc(kWorkingColourSpace);
+    dv->setDisplay("sRGB");
+    dv->setView("ACES 1.0 - SDR Video");
+    const OCIO::ConstCPUProcessorRcPtr exact =
+        builtinColourConfig()->getProcessor(dv)->getDefaultCPUProcessor();
+    // Colours from deep shadow to four stops over white whose channels lie within two stops of
+    // each other (saturations a set shows; far out-of-gamut colours, channels 5+ stops apart,
+    // land a few codes off: the ACES view bends hard there, between the grid's nodes).
+    cv::RNG rng(54);
+    const int count = 4096;
+    std::vector<float> rgb(size_t(count) * 3);
+    for (int i = 0; i < count; ++i) {
+        const double stops = rng.uniform(-10.0, 4.0);
+        for (int c = 0; c < 3; ++c)
+            rgb[3 * i + c] = float(std::exp2(stops + rng.uniform(-1.0, 1.0)));
+    }
+    std::vector<uint8_t> shown(rgb.size());
+    (*t)->apply(rgb.data(), count, 1, shown.data());
+    int worst = 0;
+    for (int i = 0; i < count; ++i) {
+        std::array<float, 3> reference{rgb[3 * i], rgb[3 * i + 1], rgb[3 * i + 2]};
+        exact->applyRGB(reference.data());
+        for (int c = 0; c < 3; ++c) {
+            const float code = 255.0f * std::clamp(reference[c], 0.0f, 1.0f);
+            worst = std::max(worst, int(std::ceil(std::abs(shown[3 * i + c] - code) - 0.5f)));
+        }
+    }
+    EXPECT_LE(worst, 1) << "8-bit codes off the exact view";
 }
 
 TEST(OcioDisplay, ARendersRgbaImageIsShownWithItsGainsUndone) {
