@@ -263,6 +263,8 @@ def check_starting(checks, page, server):
     """While the box starts: the page says what it is doing, and the controls wait."""
     checks.wait_for("the page says the box is starting, in words",
                     lambda: page.text("banner") == "Starting: compiling pipelines 3/7")
+    checks.expect("while starting, no tracking is not a warning",
+                  page.text("tracking") == "No tracking yet", page.text("tracking"))
     checks.expect("the controls are disabled while the box starts", page.disabled("preview"))
     checks.expect("the page says why the controls wait",
                   page.text("why") == "Wait: the box is starting", page.text("why"))
@@ -277,6 +279,8 @@ def check_picture_and_status(checks, page):
     first = checks.wait_for("a stream frame shows in the <img>", page.picture_sample, 30)
     checks.wait_for("the picture changes",
                     lambda: (s := page.picture_sample()) is not None and s != first)
+    checks.wait_for("nothing covers the picture once it shows", lambda: page.shown("offline") is
+                    False)
     updates = checks.wait_for("the page counts status updates",
                               lambda: page.eval("document.getElementById('state')"
                                                 "?.dataset.updates"))

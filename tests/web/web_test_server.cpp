@@ -49,6 +49,13 @@ public:
 
     std::string statusJson() {
         std::lock_guard lock(mutex_);
+        if (!starting_.empty()) {
+            // As previsd while it starts: the fields at their values before any frame.
+            nlohmann::json j = nlohmann::json::parse(previs::statusJson(previs::ServiceStatus{}));
+            j["state"] = "starting";
+            j["starting"] = starting_;
+            return j.dump();
+        }
         previs::ServiceStatus s;
         s.mode = refine_ ? previs::Mode::Refine : previs::Mode::Preview;
         s.framesShown = framesShown_;
@@ -72,12 +79,7 @@ public:
         plate.ratio = lightingOff_ ? std::array{0.41, 0.43, 0.42} : std::array{1.0, 1.01, 0.99};
         plate.ok = !lightingOff_;
         s.plateConsistency = previs::PlateConsistencyReading{plate, framesShown_, 0};
-        nlohmann::json j = nlohmann::json::parse(previs::statusJson(s));
-        if (!starting_.empty()) {
-            j["state"] = "starting";
-            j["starting"] = starting_;
-        }
-        return j.dump();
+        return previs::statusJson(s);
     }
 
     std::string command(const std::string& c) {
