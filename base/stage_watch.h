@@ -33,7 +33,13 @@ public:
     }
     // The step now under way may take `allowance` longer than any other (a pipeline compile on
     // a slow CPU: minutes on lavapipe under an emulated CPU), counted from its start.
-    void allowLonger(std::chrono::nanoseconds allowance) { allowanceNs_.store(allowance.count()); }
+    void allowLonger(std::chrono::nanoseconds allowance) {
+        allowanceNs_.store(allowance.count());
+        longerSteps_.fetch_add(1);
+    }
+    // How many steps were allowed longer so far: on a GPU context's stage, the pipelines compiled
+    // (previsd's start counts them for its status).
+    uint64_t longerSteps() const { return longerSteps_.load(); }
 
     // How long the step under way has been running beyond `limitNs` plus its allowance; 0 when
     // idle or within them.
@@ -45,6 +51,7 @@ private:
     const std::string name_;
     std::atomic<int64_t> stepStartNs_{0};  // 0: idle
     std::atomic<int64_t> allowanceNs_{0};
+    std::atomic<uint64_t> longerSteps_{0};
 };
 
 // A step for the lifetime of a scope, timed by the steady clock.

@@ -21,6 +21,9 @@ struct CtlOptions {
 
 // The human-readable form of `previs ctl status`.
 void printStatus(const nlohmann::json& s) {
+    // Before the pipeline runs (DESIGN.md §3 "state"): what the start is doing.
+    if (s.contains("starting") && s["starting"].is_string())
+        std::printf("starting  %s\n", s["starting"].get<std::string>().c_str());
     std::printf("mode      %s\n", s.value("mode", "?").c_str());
     std::printf("samples   %llu\n", (unsigned long long)s.value("samples", 0ull));
     std::printf("fps       %.2f\n", s.value("fps", 0.0));

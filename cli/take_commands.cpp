@@ -60,7 +60,7 @@ std::function<int()> addRenderSessionCommand(CLI::App& app) {
                     "render farm's array tasks take one each)");
     cmd->add_flag("--raw-poses", o->rawPoses,
                   "render with the tracker's pose of each frame, not the smoothed track");
-    cmd->add_flag("--quiet", o->quiet, "no per-frame progress line");
+    cmd->add_flag("--quiet", o->quiet, "no progress on stderr (stages and frames)");
     return [o] { return runTakeRender(*o); };
 }
 

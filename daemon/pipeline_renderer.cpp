@@ -108,9 +108,12 @@ void renderSize(const ServiceConfig& config, uint32_t& width, uint32_t& height) 
     height = config.render.height ? config.render.height : config.sceneCamera.height;
 }
 
-Result<std::unique_ptr<PipelineRenderer>> PipelineRenderer::create(GpuContext& ctx,
-                                                                   const Scene& scene,
-                                                                   const ServiceConfig& config) {
+Result<std::unique_ptr<PipelineRenderer>> PipelineRenderer::create(
+    GpuContext& ctx, const Scene& scene, const ServiceConfig& config,
+    const PipelineStartHooks& hooks) {
+    auto stage = [&hooks](const std::string& what) {
+        if (hooks.stage) hooks.stage(what);
+    };
     std::unique_ptr<PipelineRenderer> p(new PipelineRenderer());
     renderSize(config, p->width_, p->height_);
     p->previewSamples_ = config.render.samplesPerFrame;
@@ -164,9 +167,11 @@ Result<std::unique_ptr<PipelineRenderer>> PipelineRenderer::create(GpuContext& c
         p->sceneOriginM_ = scene.originM;
         p->lensGrid_ = std::move(*grid);
     }
+    stage(PipelineStartHooks::kCompilingStage);
     Result<std::unique_ptr<Renderer>> renderer = Renderer::create(ctx, scene, settings);
     if (!renderer) return makeError("{}: {}", config.scenePath, renderer.message());
     p->renderer_ = std::move(*renderer);
+    if (hooks.interrupt) p->renderer_->setInterrupt(hooks.interrupt);
     p->previewDepth_ = p->refineDepth_ = config.render.maxDepth;
     p->seed_ = config.render.seed;
     p->denoise_ = config.render.denoise;
@@ -178,8 +183,11 @@ Result<std::unique_ptr<PipelineRenderer>> PipelineRenderer::create(GpuContext& c
         p->denoise_ == "on" ||
         (p->denoise_ == "auto" && autoDenoise(std::nullopt, p->targetNoise_, p->previewSamples_));
     p->previewDenoiseLevels_ = previewDenoised ? p->denoiseLevels_ : 0;
-    if (config.render.previewFps > 0.0)
+    if (config.render.previewFps > 0.0) {
+        stage(
+            fmt::format("timing the preview's settings for {:.3g} fps", config.render.previewFps));
         if (Status s = p->chooseByDial(config.render.previewFps); !s) return s.error();
+    }
     return p;
 }
 

@@ -5,7 +5,9 @@
 // sequence, or the next step of a refinement. Owned by the render thread (it owns the Vulkan
 // device); `previs replay` drives the same object frame by frame.
 
+#include <atomic>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <vector>
@@ -25,10 +27,19 @@
 
 namespace previs {
 
+// What previsd's start shows while it makes a PipelineRenderer (daemon/service.h): each slow
+// part as it begins, and the flag that interrupts the dial's renders (a SIGTERM while starting).
+struct PipelineStartHooks {
+    static constexpr const char* kCompilingStage = "compiling pipelines";
+    std::function<void(const std::string& stage)> stage;
+    const std::atomic<bool>* interrupt = nullptr;
+};
+
 class PipelineRenderer final : public ShotRenderer {
 public:
     static Result<std::unique_ptr<PipelineRenderer>> create(GpuContext& ctx, const Scene& scene,
-                                                            const ServiceConfig& config);
+                                                            const ServiceConfig& config,
+                                                            const PipelineStartHooks& hooks = {});
 
     // Preview: this frame with its own pose and `lighting` (null = the scene's own), drawn with
     // the same random sequence as every preview frame.

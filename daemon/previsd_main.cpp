@@ -147,7 +147,9 @@ int run(const std::string& configPath, bool checkOnly, const std::string& unitsD
     blockServiceSignals();
     raiseOpenFileLimit();
     bool userError = false;
-    Result<std::unique_ptr<Service>> service = Service::create(*config, &userError);
+    // The control socket and the web port first: a second previsd is refused before the slow
+    // start, which run() does while both answer "starting".
+    Result<std::unique_ptr<Service>> service = Service::open(*config, &userError);
     if (!service) {
         logError("{}", service.message());
         return userError ? 2 : 1;

@@ -96,6 +96,7 @@ std::string etaText(double seconds) {
 }  // namespace
 
 std::string statusLine(const ServiceStatus& s) {
+    if (s.state == "starting") return "STARTING: " + s.starting;
     std::string line =
         fmt::format("{} {} spp ", s.mode == Mode::Refine ? "REFINE" : "PREVIEW", s.samples);
     if (s.mode == Mode::Refine && s.noiseEstimate)
@@ -203,6 +204,8 @@ nlohmann::json freedInJson(const FreedInputStats& s) {
 
 std::string statusJson(const ServiceStatus& s) {
     nlohmann::json j;
+    j["state"] = s.state;
+    j["starting"] = s.starting.empty() ? nlohmann::json(nullptr) : nlohmann::json(s.starting);
     j["mode"] = toString(s.mode);
     j["framesShown"] = s.framesShown;
     j["framesDropped"] = s.framesDropped;
@@ -708,42 +711,121 @@ Service::~Service() {
     if (threads_) threads_->stopAll();
 }
 
-Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config, bool* userError) {
-    // Most failures here are the config's (a scene, a connector, a GPIO line, a socket path):
-    // exit 2, which systemd does not restart. The GPU and the cameras' threads are runtime's.
-    bool ignored = false;
-    bool& configError = userError ? *userError : ignored;
-    configError = true;
+Result<std::unique_ptr<Service>> Service::open(const ServiceConfig& config, bool* userError) {
+    // The control socket and the port are the config's (exit 2): checked before any slow work,
+    // so a second previsd on them is refused at once.
+    if (userError) *userError = true;
     std::unique_ptr<Service> service(new Service(config));
     Threads& t = *service->threads_;
+    Service* self = service.get();
+    service->stopFd_ = t.stopEvent.get();
+    // Under systemd with the network units the sockets come made (docs/systemd.md).
+    t.passedSockets = systemd::ListenFds::fromEnvironment();
+    Result<std::unique_ptr<ControlServer>> control = ControlServer::create(
+        controlSocketPath(config.control),
+        [self](const std::string& command) { return self->handleCommand(command); });
+    if (!control) return control.error();
+    t.control = std::move(*control);
+    if (Status st = t.openWeb(config.network.web, self); !st) return st.error();
+    if (userError) *userError = false;
+    logInfo("serving {} (control socket {}); starting", config.path, t.control->path());
+    return service;
+}
+
+Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config, bool* userError) {
+    Result<std::unique_ptr<Service>> service = open(config, userError);
+    if (!service) return service;
+    if (Status s = (*service)->start(userError); !s) return s.error();
+    return service;
+}
+
+bool Service::beginStartStage(const std::string& what) {
+    if (threads_->stopping.load()) return false;
+    {
+        std::lock_guard lock(startMutex_);
+        startStage_ = what;
+        startStageSince_ = Clock::now();
+    }
+    logInfo("starting: {} ...", what);
+    systemd::notifyStatus("starting: " + what);
+    return true;
+}
+
+std::string Service::startingNow() const {
+    std::string stage;
+    Clock::time_point since;
+    {
+        std::lock_guard lock(startMutex_);
+        stage = startStage_;
+        since = startStageSince_;
+    }
+    // The GPU context counts its compiles on the render stage (base/stage_watch.h).
+    if (stage == PipelineStartHooks::kCompilingStage)
+        return fmt::format("{}: {} done", stage, threads_->renderStage.longerSteps());
+    const double seconds = std::chrono::duration<double>(Clock::now() - since).count();
+    if (seconds >= 2.0) return fmt::format("{}, {:.0f} s so far", stage, seconds);
+    return stage;
+}
+
+Status Service::start(bool* userError) {
+    // Most failures here are the config's (a scene, a connector, a GPIO line): exit 2, which
+    // systemd does not restart. The GPU and the cameras' threads are runtime's.
+    bool ignored = false;
+    bool& configError = userError ? *userError : ignored;
+    const ServiceConfig& config = config_;
+    const Error stopped = makeError("stopped while starting");
+    configError = true;
+    Threads& t = *threads_;
     t.refine = config.refine;
     t.previewSamples = config.render.samplesPerFrame;
 
+    if (!beginStartStage("loading the scene " + config.scenePath)) return stopped;
     Result<Scene> scene = loadScene(config.scenePath);
     if (!scene) return scene.error();
     // What would cross MemoryMax= is refused now, not found by the OOM killer mid-take.
     if (Status s = checkMemoryBudget(*scene, config, cgroupMemoryLimit()); !s) return s.error();
     configError = false;
+    if (!beginStartStage("opening the GPU")) return stopped;
     Result<std::unique_ptr<GpuContext>> gpu = GpuContext::create({});
     if (!gpu) return gpu.error();
     t.gpu = std::move(*gpu);
+    // From the first compile on: a compile extends the step (GpuContext::setStage), and the
+    // start's status counts them.
+    t.gpu->setStage(&t.renderStage);
     // A renderer that cannot be made (device memory, a driver's compile) may be made after a
-    // restart: not exit 2.
+    // restart: not exit 2. A stop must not wait for a whole frame on a slow device (lavapipe on
+    // a slow CPU), nor for the dial's timings while starting.
+    PipelineStartHooks hooks;
+    hooks.stage = [this](const std::string& what) { beginStartStage(what); };
+    hooks.interrupt = &t.stopping;
     Result<std::unique_ptr<PipelineRenderer>> renderer =
-        PipelineRenderer::create(*t.gpu, *scene, config);
+        PipelineRenderer::create(*t.gpu, *scene, config, hooks);
+    if (t.stopping.load()) return stopped;
     if (!renderer) return renderer.error();
     t.renderer = std::move(*renderer);
     configError = true;
-    // A stop must not wait for a whole frame on a slow device (lavapipe on a slow CPU).
-    t.renderer->renderer().setInterrupt(&t.stopping);
-    t.gpu->setStage(&t.renderStage);
     // With [render] preview_fps the dial chose the preview's samples (PipelineRenderer).
     t.previewSamples = t.renderer->previewSamples();
     logInfo("render: {}x{} on {}, {} spp per preview frame", t.renderer->width(),
             t.renderer->height(), t.gpu->deviceName(), t.previewSamples);
+    if (Status s = startStages(configError); !s) return s;
+    if (Status s = startThreads(configError); !s) return s;
+    // Everything status() and the commands read exists from here on.
+    running_.store(true, std::memory_order_release);
+    logInfo("running: started in {:.1f} s",
+            std::chrono::duration<double>(Clock::now() - started_).count());
+    // [record] auto: a box that cannot record says so, and still previews.
+    if (config.record.autoStart)
+        if (Result<std::string> take = startRecording(""); !take)
+            logError("recording: [record] auto: {}", take.message());
+    return {};
+}
 
-    // Under systemd with the network units the sockets come made (docs/systemd.md).
-    t.passedSockets = systemd::ListenFds::fromEnvironment();
+Status Service::startStages(bool& configError) {
+    const ServiceConfig& config = config_;
+    Threads& t = *threads_;
+    const Error stopped = makeError("stopped while starting");
+    if (!beginStartStage("opening the tracking and the network")) return stopped;
     // FreeD in: received whenever [tracking] listen is set (a take records the packets, for
     // `previs freed-calibrate`); the pose with source = "freed".
     t.recorder = std::make_unique<TakeRecorder>(config);
@@ -761,50 +843,22 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config, bo
     if (!tracking) return tracking.error();
     t.tracking.emplace(std::move(*tracking));
     if (config.fisheyeCamera) {
+        if (!beginStartStage("preparing the lighting")) return stopped;
         Result<LightingStage> lighting = LightingStage::create(config);
         if (!lighting) return lighting.error();
         t.lighting.emplace(std::move(*lighting));
         t.savedLighting = savedLightingPath(config.lighting);
     }
 
+    if (!beginStartStage(fmt::format("opening the display ({})", toString(config.output.kind))))
+        return stopped;
     Result<std::unique_ptr<FrameOutput>> output = makeFrameOutput(outputSettings(config.output));
     if (!output) return output.error();
     t.display = std::make_unique<DisplayThread>(std::move(*output), &t.displayStage);
 
-    Service* self = service.get();
     if (config.button) {
-        const ButtonConfig& b = *config.button;
-        // The LED before the button: the button's thread switches it from its first press.
-        // Either may be absent at start (a chip not probed yet, udev's rule not applied): they
-        // start without it and keep looking (io/gpio_button.h); only a wrong line is exit 2.
-        if (!b.ledLine.empty()) {
-            Result<std::unique_ptr<StatusLed>> led =
-                StatusLed::create(b.ledChip, b.ledLine, b.ledActiveLow);
-            if (!led) return led.error();
-            t.led = std::move(*led);
-        }
-        ButtonSettings settings;
-        settings.chip = b.chip;
-        settings.line = b.line;
-        settings.activeLow = b.activeLow;
-        settings.debounceMs = b.debounceMs;
-        settings.longPressMs = b.longPressMs;
-        Result<std::unique_ptr<GpioButton>> button =
-            GpioButton::create(settings, [self](ButtonEvent e) {
-                if (e == ButtonEvent::ShortPress) {
-                    self->recordEvent("mode-button", "short-press");
-                    self->modes_.toggle("button");
-                    self->updateLed();
-                    return;
-                }
-                self->recordEvent("mode-button", "long-press");
-                const bool rolling = self->threads_->recorder->recording();
-                Result<std::string> take =
-                    rolling ? self->stopRecording() : self->startRecording("");
-                if (!take) logError("button: long press: {}", take.message());
-            });
-        if (!button) return button.error();
-        t.button = std::move(*button);
+        if (!beginStartStage("opening the button")) return stopped;
+        if (Status s = openButton(*config.button); !s) return s;
     }
 
     if (config.sceneCamera.source == CameraSourceKind::Session && config.replaySessionEvents) {
@@ -813,7 +867,7 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config, bo
         if (!events) return events.error();
         if (*events) {
             t.recordedEvents = std::move(**events);
-            t.applyEvent = [self](const SessionEvent& e) { self->applyRecordedEvent(e); };
+            t.applyEvent = [this](const SessionEvent& e) { applyRecordedEvent(e); };
             logInfo("{} recorded button/ctl event(s) replay with the session",
                     t.recordedEvents->size());
         }
@@ -825,7 +879,49 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config, bo
         TrackingOut::create(config.network, config.sceneCamera, t.passedSockets);
     if (!trackingOut) return trackingOut.error();
     t.trackingOut = std::move(*trackingOut);
+    configError = false;
+    return {};
+}
 
+Status Service::openButton(const ButtonConfig& b) {
+    Threads& t = *threads_;
+    // The LED before the button: the button's thread switches it from its first press. Either
+    // may be absent at start (a chip not probed yet, udev's rule not applied): they start
+    // without it and keep looking (io/gpio_button.h); only a wrong line is exit 2.
+    if (!b.ledLine.empty()) {
+        Result<std::unique_ptr<StatusLed>> led =
+            StatusLed::create(b.ledChip, b.ledLine, b.ledActiveLow);
+        if (!led) return led.error();
+        t.led = std::move(*led);
+    }
+    ButtonSettings settings;
+    settings.chip = b.chip;
+    settings.line = b.line;
+    settings.activeLow = b.activeLow;
+    settings.debounceMs = b.debounceMs;
+    settings.longPressMs = b.longPressMs;
+    Result<std::unique_ptr<GpioButton>> button =
+        GpioButton::create(settings, [this](ButtonEvent e) {
+            if (e == ButtonEvent::ShortPress) {
+                recordEvent("mode-button", "short-press");
+                modes_.toggle("button");
+                updateLed();
+                return;
+            }
+            recordEvent("mode-button", "long-press");
+            const bool rolling = threads_->recorder->recording();
+            Result<std::string> take = rolling ? stopRecording() : startRecording("");
+            if (!take) logError("button: long press: {}", take.message());
+        });
+    if (!button) return button.error();
+    t.button = std::move(*button);
+    return {};
+}
+
+Status Service::startThreads(bool& configError) {
+    const ServiceConfig& config = config_;
+    Threads& t = *threads_;
+    if (!beginStartStage("opening the cameras")) return makeError("stopped while starting");
     // Cameras: once they stream, frames flow into the stages (and into a take while one rolls).
     configError = false;
     t.recorder->setTimecodeSource(t.timecode.get());
@@ -847,33 +943,17 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config, bo
                 [&t](const std::string& why) { t.stageFailed(why); });
         });
     }
-    t.trackingThread = std::thread([&t, self] {
+    t.trackingThread = std::thread([&t, this] {
         runGuarded(
-            "tracking", [&t, self] { t.runTracking(self->modes_); },
+            "tracking", [&t, this] { t.runTracking(modes_); },
             [&t](const std::string& why) { t.stageFailed(why); });
     });
-    t.renderThread = std::thread([&t, self] {
+    t.renderThread = std::thread([&t, this] {
         runGuarded(
-            "render", [&t, self] { t.runRender(self->modes_); },
+            "render", [&t, this] { t.runRender(modes_); },
             [&t](const std::string& why) { t.stageFailed(why); });
     });
-    service->stopFd_ = t.stopEvent.get();
-
-    // The control socket last: a status request may come the moment it listens.
-    configError = true;
-    Result<std::unique_ptr<ControlServer>> control = ControlServer::create(
-        controlSocketPath(config.control),
-        [self](const std::string& command) { return self->handleCommand(command); });
-    if (!control) return control.error();
-    t.control = std::move(*control);
-    if (Status st = t.openWeb(config.network.web, self); !st) return st.error();
-    configError = false;
-    logInfo("serving {} (control socket {})", config.path, t.control->path());
-    // [record] auto: a box that cannot record says so, and still previews.
-    if (config.record.autoStart)
-        if (Result<std::string> take = service->startRecording(""); !take)
-            logError("recording: [record] auto: {}", take.message());
-    return service;
+    return {};
 }
 
 Result<std::string> Service::startRecording(const std::string& name) {
@@ -919,7 +999,21 @@ void Service::requestStop() {
     [[maybe_unused]] ssize_t n = ::write(stopFd_, &one, sizeof(one));
 }
 
+ServiceStatus Service::startingStatus() const {
+    ServiceStatus s;
+    s.state = "starting";
+    s.starting = startingNow();
+    s.mode = modes_.mode();
+    s.display = toString(config_.output.kind);
+    s.sceneCamera = toString(CaptureState::Stopped);
+    s.fisheyeCamera = config_.fisheyeCamera ? toString(CaptureState::Stopped) : "none";
+    s.uptimeSeconds = std::chrono::duration<double>(Clock::now() - started_).count();
+    if (threads_->web) s.web = threads_->web->stats();
+    return s;
+}
+
 ServiceStatus Service::status() const {
+    if (!running_.load(std::memory_order_acquire)) return startingStatus();
     const Threads& t = *threads_;
     ServiceStatus s;
     {
@@ -984,6 +1078,9 @@ std::string Service::handleCommand(const std::string& command) {
             -1, ' ', false, nlohmann::json::error_handler_t::replace);
     };
     if (command == "status") return statusJson(status());
+    // Nothing but the status exists yet (no recorder, renderer or cameras).
+    if (!running_.load(std::memory_order_acquire))
+        return error("starting: " + startingNow() + "; try again when ready");
     if (command == "toggle") {
         recordEvent("ctl", "mode=toggle");
         const Mode m = modes_.toggle("ctl");
@@ -1080,6 +1177,71 @@ Result<std::string> Service::reload() {
     return applied;
 }
 
+std::optional<int> Service::startAnsweringSignals(int signalFd) {
+    Threads& t = *threads_;
+    UniqueFD started(::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK));
+    if (!started.isValid()) {
+        logError("eventfd: {}", std::strerror(errno));
+        return 1;
+    }
+    Status result;
+    bool userError = false;
+    std::thread starter([&] {
+        nameThread("pv-start");
+        runGuarded(
+            "start", [&] { result = start(&userError); },
+            [&](const std::string& why) { result = makeError("{}", why); });
+        const uint64_t one = 1;
+        [[maybe_unused]] ssize_t n = ::write(started.get(), &one, sizeof(one));
+    });
+    bool stopAsked = false;
+    auto stop = [&](const std::string& why) {
+        if (!stopAsked) logInfo("{}: stopping while starting ({})", why, startingNow());
+        stopAsked = true;
+        t.stopping.store(true);  // the start's next stage, or its GPU pass, ends it
+    };
+    uint64_t compiled = t.renderStage.longerSteps();
+    for (;;) {
+        pollfd fds[3] = {
+            {signalFd, POLLIN, 0}, {t.stopEvent.get(), POLLIN, 0}, {started.get(), POLLIN, 0}};
+        const int r = ::poll(fds, 3, 500);
+        if (r < 0 && errno != EINTR) stop(fmt::format("poll: {}", std::strerror(errno)));
+        if (fds[2].revents) break;
+        if (fds[1].revents) stop("asked to stop");
+        signalfd_siginfo info{};
+        while (r > 0 && (fds[0].revents & POLLIN) &&
+               ::read(signalFd, &info, sizeof(info)) == ssize_t(sizeof(info))) {
+            if (info.ssi_signo == SIGHUP)
+                logInfo(
+                    "SIGHUP: still starting; the config read at start applies (reload once "
+                    "running)");
+            else
+                stop(strsignal(int(info.ssi_signo)));
+        }
+        // The compiles' progress, at most every poll's timeout; other stages are logged as
+        // they begin.
+        const std::string now = startingNow();
+        const uint64_t n = t.renderStage.longerSteps();
+        if (n != compiled && !stopAsked && now.starts_with(PipelineStartHooks::kCompilingStage)) {
+            logInfo("starting: {}", now);
+            systemd::notifyStatus("starting: " + now);
+            compiled = n;
+        }
+    }
+    starter.join();
+    if (stopAsked) {
+        t.stopAll();
+        logInfo("stopped while starting");
+        return 0;
+    }
+    if (!result) {
+        logError("{}", result.message());
+        t.stopAll();
+        return userError ? 2 : 1;
+    }
+    return std::nullopt;
+}
+
 int Service::run() {
     sigset_t set;
     sigemptyset(&set);
@@ -1091,6 +1253,8 @@ int Service::run() {
         logError("signalfd: {}", std::strerror(errno));
         return 1;
     }
+    if (!running_.load(std::memory_order_acquire))
+        if (std::optional<int> code = startAnsweringSignals(signals.get())) return *code;
     Threads& t = *threads_;
     systemd::notifyReady();
     const std::optional<std::chrono::microseconds> watchdog = systemd::watchdogInterval();

@@ -33,6 +33,11 @@ namespace previs {
 
 // What `previs ctl status` reports (DESIGN.md §3), as one consistent snapshot.
 struct ServiceStatus {
+    // "starting" from the moment the control socket and the page answer until the pipeline runs
+    // (issue 54), then "running"; `starting` says what the start is doing meanwhile
+    // ("compiling pipelines (3 compiled)"), empty once running.
+    std::string state = "running";
+    std::string starting;
     Mode mode = Mode::Preview;
     uint64_t framesShown = 0;
     uint64_t framesDropped = 0;  // camera frames that never reached the screen, all stages
@@ -107,18 +112,30 @@ std::string statusLine(const ServiceStatus& status);
 
 class Service {
 public:
-    // Opens everything the config names that must exist at start (scene, GPU, control socket,
-    // button); cameras and the display may be absent and come later. `userError` (optional)
-    // tells a failure the config caused (exit 2) from a runtime one (exit 1).
+    // Opens what answers at once, the control socket and the web monitor, so that a second
+    // previsd on the same socket or port is refused before any slow work; status says "starting"
+    // until run() has started the rest. `userError` (optional) tells a failure the config caused
+    // (exit 2) from a runtime one (exit 1).
+    static Result<std::unique_ptr<Service>> open(const ServiceConfig& config,
+                                                 bool* userError = nullptr);
+    // open() and start(): ready to run when it returns (the benchmarks, which time the start).
     static Result<std::unique_ptr<Service>> create(const ServiceConfig& config,
                                                    bool* userError = nullptr);
     ~Service();
     Service(const Service&) = delete;
     Service& operator=(const Service&) = delete;
 
-    // Runs until SIGTERM/SIGINT (exit 0) or a fatal error (1). Speaks sd_notify, feeds the
-    // watchdog while no thread is stuck in a step (base/stage_watch.h), reloads on SIGHUP. The
-    // caller must have blocked SIGTERM, SIGINT and SIGHUP in every thread (blockServiceSignals()).
+    // The slow part of the start: opens everything the config names that must exist at start
+    // (scene, GPU and its pipelines, button); cameras and the display may be absent and come
+    // later. Each stage is logged as it begins and shown by status(). Fails with "stopped" once
+    // a stop was asked for (a SIGTERM while starting).
+    Status start(bool* userError = nullptr);
+
+    // Starts the pipeline (on a thread, unless start() ran) and runs until SIGTERM/SIGINT (exit
+    // 0), a failed start (2 or 1) or a fatal error (1); a SIGTERM while starting stops at the
+    // start's next stage or GPU pass. Speaks sd_notify (ready once started), feeds the watchdog
+    // while no thread is stuck in a step (base/stage_watch.h), reloads on SIGHUP. The caller must
+    // have blocked SIGTERM, SIGINT and SIGHUP in every thread (blockServiceSignals()).
     int run();
     // Asks run() to return (tests; signals do the same).
     void requestStop();
@@ -131,6 +148,18 @@ public:
 private:
     explicit Service(ServiceConfig config);
     struct Threads;
+    // start()'s stages: logged ("starting: loading the scene ...") and kept for status(); false
+    // once a stop was asked for.
+    bool beginStartStage(const std::string& what);
+    std::string startingNow() const;
+    ServiceStatus startingStatus() const;
+    // run()'s first part: start() on a thread while this one answers signals (a SIGTERM stops
+    // the start). The exit code when the start failed or was stopped; none once it runs.
+    std::optional<int> startAnsweringSignals(int signalFd);
+    // start()'s parts after the renderer: the stages, the button, the cameras and threads.
+    Status startStages(bool& configError);
+    Status openButton(const ButtonConfig& button);
+    Status startThreads(bool& configError);
     // Rereads the config and applies what a running pipeline can take ([refine], the preview's
     // samples), keeping the running config when the new one is bad. Returns what was applied,
     // and what would need a restart (SIGHUP and `previs ctl reload`; the latter answers with it).
@@ -149,6 +178,12 @@ private:
     std::unique_ptr<Threads> threads_;
     std::chrono::steady_clock::time_point started_;
     std::atomic<bool> stop_{false};
+    // Set (release) once start() has made every thread's part: until then status() and the
+    // commands touch none of it.
+    std::atomic<bool> running_{false};
+    mutable std::mutex startMutex_;
+    std::string startStage_;  // what start() is doing, and since when (under startMutex_)
+    std::chrono::steady_clock::time_point startStageSince_;
     int stopFd_ = -1;         // eventfd owned by threads_
     std::mutex reloadMutex_;  // SIGHUP (the main thread) and `ctl reload` (the socket's)
 };

@@ -14,6 +14,7 @@
 
 #include "base/atomic_file.h"
 #include "base/log.h"
+#include "base/progress.h"
 #include "capture/recorded_source.h"
 #include "daemon/pipeline_renderer.h"
 #include "daemon/pipeline_stages.h"
@@ -468,6 +469,29 @@ Result<Prepared> prepare(const TakeRenderOptions& o) {
     return p;
 }
 
+// A stage as it begins, one line on stderr unless --quiet.
+void stageLine(const std::string& what, bool quiet) {
+    if (!quiet) logInfo("render-session: {} ...", what);
+}
+
+// The take tracked frame by frame (trackTake), its progress on stderr as ProgressLine shows it.
+Result<TakeTrack> trackWithProgress(const SessionInfo& session, const ServiceConfig& config,
+                                    bool quiet) {
+    ProgressLine line("previs: render-session", quiet);
+    line.update("tracking the take ...");
+    Result<TakeTrack> track = trackTake(session, config, [&line](size_t done, size_t total) {
+        line.update(fmt::format("tracking the take: frame {}/{}", done, total));
+    });
+    if (track) {
+        const size_t tracked =
+            size_t(std::count_if(track->frames.begin(), track->frames.end(),
+                                 [](const TakeFrame& f) { return f.tracked.has_value(); }));
+        line.update(fmt::format("tracked the take: {} of {} frames have a pose", tracked,
+                                track->frames.size()));
+    }
+    return track;
+}
+
 }  // namespace
 
 int runTakeRender(const TakeRenderOptions& o) {
@@ -497,30 +521,38 @@ int runTakeRender(const TakeRenderOptions& o) {
                 p.frames.size() - todo.size(), p.frames.size(), o.outDir);
     if (todo.empty()) return 0;
 
-    Result<TakeTrack> track = trackTake(p.session, p.config);
+    // Every stage before the first frame says what it does (DESIGN.md §3): tracking a long take
+    // alone takes minutes. The time a frame reported at the end includes them.
+    const auto start = std::chrono::steady_clock::now();
+    Result<TakeTrack> track = trackWithProgress(p.session, p.config, o.quiet);
     if (!track) {
         logError("render-session: {}", track.message());
         return 2;
     }
     for (const std::string& line : track->skippedLines) logError("render-session: {}", line);
+    stageLine("reading the take's lighting", o.quiet);
     Result<std::vector<std::shared_ptr<const LiveLighting>>> lighting =
         takeLighting(p.session, p.config);
     if (!lighting) {
         logError("render-session: {}", lighting.message());
         return 2;
     }
+    stageLine("loading the scene " + p.config.scenePath, o.quiet);
     Result<Scene> scene = loadScene(p.config.scenePath);
     if (!scene) {
         logError("render-session: {}", scene.message());
         return 2;
     }
+    stageLine("opening the GPU", o.quiet);
     Result<std::unique_ptr<GpuContext>> gpu = GpuContext::create({});
     if (!gpu) {
         logError("render-session: {}", gpu.message());
         return 1;
     }
+    PipelineStartHooks hooks;
+    hooks.stage = [&o](const std::string& what) { stageLine(what, o.quiet); };
     Result<std::unique_ptr<PipelineRenderer>> renderer =
-        PipelineRenderer::create(**gpu, *scene, p.config);
+        PipelineRenderer::create(**gpu, *scene, p.config, hooks);
     if (!renderer) {
         logError("render-session: {}", renderer.message());
         return 2;
@@ -547,7 +579,8 @@ int runTakeRender(const TakeRenderOptions& o) {
     if (takeDir.filename().empty()) takeDir = takeDir.parent_path();  // "TAKE/"
     const std::string take = takeDir.filename().string();
     size_t failed = track->skippedLines.size(), rendered = 0;
-    const auto start = std::chrono::steady_clock::now();
+    const double setupSeconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     for (size_t index : todo) {
         if (gStop.load()) break;
         if (index >= track->frames.size()) continue;
@@ -580,9 +613,11 @@ int runTakeRender(const TakeRenderOptions& o) {
     }
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    logInfo("render-session: {} frame(s) in {:.1f} s ({:.2f} s a frame){}", rendered, seconds,
-            rendered ? seconds / double(rendered) : 0.0,
-            failed ? fmt::format("; {} could not be rendered (see above)", failed) : "");
+    logInfo(
+        "render-session: {} frame(s) in {:.1f} s ({:.2f} s a frame, the take's tracking and the "
+        "setup's {:.1f} s included){}",
+        rendered, seconds, rendered ? seconds / double(rendered) : 0.0, setupSeconds,
+        failed ? fmt::format("; {} could not be rendered (see above)", failed) : "");
     return failed ? 1 : 0;
 }
 

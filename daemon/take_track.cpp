@@ -7,7 +7,8 @@
 
 namespace previs {
 
-Result<TakeTrack> trackTake(const SessionInfo& session, const ServiceConfig& config) {
+Result<TakeTrack> trackTake(const SessionInfo& session, const ServiceConfig& config,
+                            const TrackProgress& progress) {
     const SessionCamera* scene = session.cameraWithRole("scene");
     if (!scene) return makeError("{}: the take has no scene camera (cameras/scene)", session.dir);
     TakeTrack track;
@@ -42,6 +43,7 @@ Result<TakeTrack> trackTake(const SessionInfo& session, const ServiceConfig& con
         }
         samples.push_back(sample);
         track.frames.push_back(std::move(f));
+        if (progress) progress(track.frames.size(), entries->size());
     }
     const std::vector<std::optional<cv::Matx44d>> smoothed = smoothTrack(samples);
     for (size_t i = 0; i < track.frames.size(); ++i) track.frames[i].smoothed = smoothed[i];

@@ -6,6 +6,7 @@
 // hands it to post.
 
 #include <cstdint>
+#include <functional>
 #include <opencv2/core.hpp>
 #include <optional>
 #include <string>
@@ -35,7 +36,10 @@ struct TakeTrack {
 };
 
 // Reads the scene camera's index leniently and tracks every frame (decoding each). A frame that
-// does not decode gets its problem set and no pose; the track goes on.
-Result<TakeTrack> trackTake(const SessionInfo& session, const ServiceConfig& config);
+// does not decode gets its problem set and no pose; the track goes on. `progress` (optional)
+// hears of each frame tracked: (frames done, frames in the take).
+using TrackProgress = std::function<void(size_t done, size_t total)>;
+Result<TakeTrack> trackTake(const SessionInfo& session, const ServiceConfig& config,
+                            const TrackProgress& progress = {});
 
 }  // namespace previs

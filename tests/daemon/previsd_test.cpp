@@ -498,10 +498,19 @@ TEST(Previsd, RunsTheDemoTogglesRefinementAndStopsOnSigterm) {
     const std::string socket = socketOf(config);
     ChildProcess p({previsd(), "--config", config}, (scratch() / "run.log").string());
 
+    // The socket answers from the start (issue 54), long before the first frame: the scene, the
+    // GPU and its compiles come after it.
+    auto first = waitFor(socket, kStartup, [](const nlohmann::json&) { return true; });
+    ASSERT_TRUE(first) << p.log();
+    EXPECT_EQ((*first)["state"], "starting") << first->dump();
+    EXPECT_TRUE((*first)["starting"].is_string()) << first->dump();
+    EXPECT_EQ((*first)["framesShown"], 0) << first->dump();
     auto shown = waitFor(socket, kStartup, [](const nlohmann::json& s) {
         return s["framesShown"].get<int>() >= 5 && s["pose"].is_object();
     });
     ASSERT_TRUE(shown) << p.log();
+    EXPECT_EQ((*shown)["state"], "running") << shown->dump();
+    EXPECT_TRUE((*shown)["starting"].is_null()) << shown->dump();
     ASSERT_GE((*shown)["framesShown"].get<int>(), 5) << shown->dump() << p.log();
     EXPECT_EQ((*shown)["mode"], "preview");
     EXPECT_EQ((*shown)["samples"], 1);
@@ -517,8 +526,8 @@ TEST(Previsd, RunsTheDemoTogglesRefinementAndStopsOnSigterm) {
         0);
     const nlohmann::json viaCli = nlohmann::json::parse(fileBytes(ctlLog));
     for (const char* key :
-         {"mode", "framesShown", "framesDropped", "samples", "noiseEstimate", "etaSeconds", "fps",
-          "recording", "display", "pose", "uptimeSeconds", "plateConsistency"})
+         {"state", "starting", "mode", "framesShown", "framesDropped", "samples", "noiseEstimate",
+          "etaSeconds", "fps", "recording", "display", "pose", "uptimeSeconds", "plateConsistency"})
         EXPECT_TRUE(viaCli.contains(key)) << key << " missing from " << viaCli.dump();
     ASSERT_EQ(testing::runProcess({previs(), "ctl", "--socket", socket, "status"}, ctlLog, 30s), 0);
     EXPECT_NE(fileBytes(ctlLog).find("mode      preview"), std::string::npos) << fileBytes(ctlLog);
@@ -599,7 +608,70 @@ TEST(Previsd, RunsTheDemoTogglesRefinementAndStopsOnSigterm) {
     EXPECT_NE(log.find("mode: preview -> refine (ctl)"), std::string::npos) << log;
     EXPECT_NE(log.find("mode: refine -> preview (ctl)"), std::string::npos) << log;
     EXPECT_NE(log.find("reload:"), std::string::npos) << log;
+    // Each start stage on stderr as it begins.
+    for (const char* stage : {"previsd: starting: loading the scene", "starting: opening the GPU",
+                              "starting: compiling pipelines", "running: started in"})
+        EXPECT_NE(log.find(stage), std::string::npos) << stage << " in:\n" << log;
     EXPECT_FALSE(fs::exists(socket)) << "the socket is removed on a clean stop";
+}
+
+// Issue 54: the socket answers at once, saying what the start does; a command that cannot act
+// yet says so; a second previsd on the same socket is refused while the first is still starting;
+// SIGTERM while starting (here in the preview dial's timings, the longest stage) stops it
+// promptly. The demo's own size and dial: a start of several seconds to look at.
+TEST(Previsd, AnswersWhileStartingRefusesASecondOneAndStopsOnSigterm) {
+    std::string config = demoConfig("starting", "", "kind = \"none\"");
+    std::string text = fileBytes(config);
+    for (auto [from, to] : {std::pair{"width = 160", "width = 640"},
+                            {"height = 90", "height = 360"},
+                            {"preview_fps = 0", "preview_fps = 15"}})
+        text.replace(text.find(from), std::string(from).size(), to);
+    writeFile(config, text);
+    const std::string socket = socketOf(config);
+    ChildProcess p({previsd(), "--config", config}, (scratch() / "starting.log").string());
+
+    // The first thing asked is refused, not left hanging: nothing of the pipeline exists yet.
+    std::optional<std::string> refused;
+    for (auto deadline = std::chrono::steady_clock::now() + kStartup;
+         !refused && std::chrono::steady_clock::now() < deadline; std::this_thread::sleep_for(50ms))
+        if (Result<std::string> reply = controlRequest(socket, "mode refine")) refused = *reply;
+    ASSERT_TRUE(refused) << p.log();
+    const nlohmann::json answer = nlohmann::json::parse(*refused);
+    EXPECT_EQ(answer["ok"], false) << *refused;
+    EXPECT_TRUE(answer.value("error", "").starts_with("starting: ")) << *refused;
+    EXPECT_NE(answer.value("error", "").find("try again when ready"), std::string::npos)
+        << *refused;
+    std::optional<nlohmann::json> now = status(socket);
+    ASSERT_TRUE(now) << p.log();
+    EXPECT_EQ((*now)["state"], "starting") << now->dump();
+    EXPECT_EQ((*now)["mode"], "preview") << "the refused command changed nothing";
+
+    const std::string secondLog = (scratch() / "starting_second.log").string();
+    EXPECT_EQ(testing::runProcess({previsd(), "--config", config}, secondLog, kStartup), 2)
+        << fileBytes(secondLog);
+    EXPECT_NE(fileBytes(secondLog).find("control socket " + socket +
+                                        ": another previsd is running there"),
+              std::string::npos)
+        << fileBytes(secondLog);
+    now = status(socket);
+    ASSERT_TRUE(now) << p.log();
+    EXPECT_EQ((*now)["state"], "starting") << "refused before the first one's start ended";
+
+    auto timing = waitFor(socket, kStartup, [](const nlohmann::json& s) {
+        return s["state"] == "running" ||
+               s["starting"].get<std::string>().starts_with("timing the preview");
+    });
+    ASSERT_TRUE(timing && (*timing)["state"] == "starting") << (timing ? timing->dump() : p.log());
+    const auto stopAt = std::chrono::steady_clock::now();
+    p.signal(SIGTERM);
+    std::optional<int> code = p.wait(30s);
+    ASSERT_TRUE(code) << "still running 30 s after SIGTERM; its threads:\n"
+                      << p.threads() << p.log();
+    EXPECT_EQ(*code, 0) << p.log();
+    EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - stopAt).count(), 5.0)
+        << p.log();
+    EXPECT_NE(p.log().find("stopping while starting"), std::string::npos) << p.log();
+    EXPECT_FALSE(fs::exists(socket)) << "the socket is removed on a stop while starting";
 }
 
 TEST(Previsd, ATakeSurvivesSigkillAndReplays) {

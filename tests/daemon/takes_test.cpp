@@ -49,10 +49,13 @@ std::string fileBytes(const fs::path& path) {
 
 // A small, quick final render: what the tests compare is where the bytes come from.
 std::vector<std::string> renderSession(const std::string& take, const fs::path& out,
-                                       const std::string& frames) {
-    return {PREVIS_BINARY, "render-session", take,    "--out",  out.string(),
-            "--frames",    frames,           "--spp", "4",      "--width",
-            "160",         "--height",       "90",    "--quiet"};
+                                       const std::string& frames, bool quiet = true) {
+    std::vector<std::string> argv = {PREVIS_BINARY, "render-session", take,   "--out",
+                                     out.string(),  "--frames",       frames, "--spp",
+                                     "4",           "--width",        "160",  "--height",
+                                     "90"};
+    if (quiet) argv.push_back("--quiet");
+    return argv;
 }
 
 // A command found on PATH (runProcess execs a path).
@@ -79,8 +82,18 @@ void expectSameFiles(const fs::path& a, const fs::path& b) {
 TEST(RenderSession, AFrameDependsOnlyOnTheTakeAndItsIndex) {
     const fs::path dir = scratch() / "determinism";
     const fs::path once = dir / "once", split = dir / "split";
-    ASSERT_EQ(run(renderSession(kDemoTake, once, "0:6"), dir / "once.log"), 0)
+    fs::create_directories(dir);  // for the logs
+    ASSERT_EQ(run(renderSession(kDemoTake, once, "0:6", false), dir / "once.log"), 0)
         << fileBytes(dir / "once.log");
+    // Progress for every stage (DESIGN.md §3), the take's tracking first (issue 54: silent for
+    // about 50 s on a long take), and a frame's time that counts it.
+    const std::string progress = fileBytes(dir / "once.log");
+    for (const char* stage :
+         {"render-session: tracking the take", "tracked the take: ", "reading the take's lighting",
+          "compiling pipelines", "the take's tracking and the setup's"})
+        EXPECT_NE(progress.find(stage), std::string::npos) << stage << " in:\n" << progress;
+    EXPECT_LT(progress.find("tracking the take"), progress.find("render-session: frame 0"))
+        << progress;
     // The same frames in two parts, the later part first (as two farm nodes might).
     ASSERT_EQ(run(renderSession(kDemoTake, split, "3:6"), dir / "b.log"), 0)
         << fileBytes(dir / "b.log");
@@ -99,6 +112,8 @@ TEST(RenderSession, AFrameDependsOnlyOnTheTakeAndItsIndex) {
     EXPECT_NE(fileBytes(dir / "again.log").find("3 of the 6 frames are already in"),
               std::string::npos)
         << fileBytes(dir / "again.log");
+    EXPECT_EQ(fileBytes(dir / "again.log").find("tracking the take"), std::string::npos)
+        << "--quiet silences the progress: " << fileBytes(dir / "again.log");
     expectSameFiles(once, split);
 }
 
