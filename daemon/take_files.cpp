@@ -188,6 +188,14 @@ Result<std::string> copyConfigIntoTake(const ServiceConfig& config, const std::s
                 fs::path("config/cameras") / camName / fs::path(c->calibrationPath).filename();
             if (Status s = copyInto(c->calibrationPath, take / calibration); !s) return s.error();
             cam->insert_or_assign("calibration", calibration.string());
+            // The camera's OCIO config too (the file: LUTs it names by search_path are not).
+            if (toml::table* colour = (*cam)["colour"].as_table();
+                colour && !c->colourConfigPath.empty()) {
+                const fs::path ocio =
+                    fs::path("config/colour") / camName / fs::path(c->colourConfigPath).filename();
+                if (Status s = copyInto(c->colourConfigPath, take / ocio); !s) return s.error();
+                colour->insert_or_assign("ocio_config", ocio.string());
+            }
             cam->insert_or_assign("source", "session");
             cam->insert_or_assign("device", "cameras/" + camName);
             cam->erase("format");
@@ -261,6 +269,10 @@ Status checkTakeContained(const std::string& takeDir, const std::string& configP
                 if (Result<std::string> p = check(toml::node_view<toml::node>(node)[key], folder);
                     !p)
                     return p.error();
+            if (Result<std::string> p =
+                    check(toml::node_view<toml::node>(node)["colour"]["ocio_config"], false);
+                !p)
+                return p.error();
         }
     // Every file the config loader reads: a FreeD calibration is checked as the board is.
     for (const toml::node_view<toml::node> node :

@@ -358,6 +358,67 @@ TEST(TakeFiles, ARecordedTakeHoldsItsFreedCalibration) {
     EXPECT_TRUE(config->tracking.freedCalibration.has_value());
 }
 
+// A camera's OCIO config (issue 54) is copied into the take as the calibrations are, and a take
+// whose ocio_config leaves its folder is refused.
+TEST(TakeFiles, ARecordedTakeHoldsItsCamerasOcioConfig) {
+    const fs::path demo = testing::sourcePath("examples/demo");
+    const fs::path dir = testing::scratchDir("takes_unit") / "ocio_take";
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    std::ofstream(dir / "studio.ocio")
+        << "ocio_profile_version: 2.1\nroles:\n  aces_interchange: ACES2065-1\n"
+           "  default: ACES2065-1\ndisplays:\n  sRGB:\n"
+           "    - !<View> {name: Raw, colorspace: ACES2065-1}\ncolorspaces:\n"
+           "  - !<ColorSpace>\n    name: ACES2065-1\n  - !<ColorSpace>\n    name: LogC3\n"
+           "    to_scene_reference: !<BuiltinTransform> "
+           "{style: ARRI_ALEXA-LOGC-EI800-AWG_to_ACES2065-1}\n";
+    std::string text = fileText(demo / "previsd.toml");
+    for (const std::string name : {"previs.toml", "session/cameras/scene", "scene_camera.yaml",
+                                   "session/cameras/fisheye", "fisheye.yaml", "board.toml"}) {
+        const size_t at = text.find('"' + name + '"');
+        ASSERT_NE(at, std::string::npos) << name;
+        text.replace(at + 1, name.size(), (demo / name).string());
+    }
+    // The scene camera as a LogC3 camera: its curve from the OCIO config, not the radiometry.
+    const std::string curve =
+        "tone_curve = \"banterle\"\nexposure_stops = 0.0\nwhite_balance = [1.0, 1.0, 1.0]\n"
+        "max_radiance = 16.0\nwhite_luminance = 16.0\n\n[cameras.fisheye]";
+    const size_t at = text.find(curve);
+    ASSERT_NE(at, std::string::npos);
+    text.replace(at, curve.size(),
+                 fmt::format("exposure_stops = 0.0\n[cameras.scene.colour]\nocio_config = \"{}\"\n"
+                             "input = \"LogC3\"\n\n[cameras.fisheye]",
+                             (dir / "studio.ocio").string()));
+    std::ofstream(dir / "previsd.toml") << text;
+    Result<ServiceConfig> live = loadServiceConfig((dir / "previsd.toml").string());
+    ASSERT_TRUE(live) << live.message();
+
+    const fs::path take = dir / "take";
+    fs::create_directories(take);
+    fs::copy(demo / "session" / "cameras", take / "cameras", fs::copy_options::recursive);
+    Result<std::string> configToml = copyConfigIntoTake(*live, take.string());
+    ASSERT_TRUE(configToml) << configToml.message();
+    EXPECT_NE(configToml->find("config/colour/scene/studio.ocio"), std::string::npos)
+        << *configToml;
+    std::ofstream(take / "session.toml") << "format = \"previs-session\"\nversion = 3\n";
+    std::ofstream(take / "config.toml") << *configToml;
+    fs::remove(dir / "studio.ocio");  // the take stands alone
+    Result<SessionInfo> session = openSession(take.string());
+    ASSERT_TRUE(session) << session.message();
+    Result<ServiceConfig> config = loadSessionConfig(*session);
+    ASSERT_TRUE(config) << config.message();
+    EXPECT_TRUE(config->sceneCamera.radiometry.colour);
+
+    std::string outside = *configToml;
+    const std::string copied = "config/colour/scene/studio.ocio";
+    fs::copy_file(take / copied, dir / "studio.ocio");
+    outside.replace(outside.find(copied), copied.size(), "../studio.ocio");
+    std::ofstream(take / "config.toml") << outside;
+    Result<ServiceConfig> refused = loadSessionConfig(*session);
+    ASSERT_FALSE(refused);
+    EXPECT_NE(refused.message().find("leaves the folder"), std::string::npos) << refused.message();
+}
+
 TEST(TakeTrack, TheDemoTakesStillStretchIsTrackedWithoutBias) {
     Result<SessionInfo> session = openSession(testing::sourcePath("examples/demo/session"));
     ASSERT_TRUE(session) << session.message();
