@@ -108,7 +108,9 @@ Status parseWeb(const TomlReader& r, const toml::table& t, WebConfig& c) {
         return r.fail(&t, "[web] needs 'listen' (e.g. listen = \"0.0.0.0:8080\")");
     Result<std::optional<std::string>> token = r.string(t, "web", "token_file");
     if (!token) return token.error();
-    if (*token) c.tokenFile = (r.folder() / fs::path(**token)).lexically_normal().string();
+    // "" (docs/config-format.md): the unit's credential, as when the key is absent.
+    if (*token && !(*token)->empty())
+        c.tokenFile = (r.folder() / fs::path(**token)).lexically_normal().string();
     if (Status st = r.numberIn(t, "web", "stream_fps", c.streamFps, 0.0, 60.0, true); !st)
         return st;
     int64_t v = c.streamWidth;

@@ -633,5 +633,20 @@ TEST(ServiceConfig, WebHostNames) {
     EXPECT_TRUE(c->network.web.hostNames.empty());
 }
 
+// docs/config-format.md: token_file = "" means the unit's credential (web-token), as no key does;
+// it was read as the config's folder, and previsd refused to start ("the token in '/etc/previs/'
+// is empty").
+TEST(ServiceConfig, AnEmptyWebTokenFileMeansTheUnitsCredential) {
+    const std::string web = "[web]\nlisten = \"0.0.0.0:8080\"\n";
+    Result<ServiceConfig> c = loadServiceConfig(
+        writeFile("token_file_empty.toml", minimal("", web + "token_file = \"\"")));
+    ASSERT_TRUE(c) << c.message();
+    EXPECT_EQ(c->network.web.tokenFile, "");
+    c = loadServiceConfig(
+        writeFile("token_file_named.toml", minimal("", web + "token_file = \"t\"")));
+    ASSERT_TRUE(c) << c.message();
+    EXPECT_EQ(fs::path(c->network.web.tokenFile).filename(), "t");
+}
+
 }  // namespace
 }  // namespace previs
