@@ -4,6 +4,7 @@
 
 #include <cerrno>
 #include <cstring>
+#include <exception>
 #include <fstream>
 #include <vector>
 
@@ -51,7 +52,7 @@ Result<OCIO::ConstConfigRcPtr> loadConfig(const OcioSource& source) {
         OCIO::ConstConfigRcPtr config = OCIO::Config::CreateFromFile(source.configPath.c_str());
         config->validate();
         return config;
-    } catch (const OCIO::Exception& e) {
+    } catch (const std::exception& e) {
         return makeError("'{}.ocio_config': '{}' is not a valid OCIO config: {}", source.key,
                          source.configPath, e.what());
     }
@@ -124,7 +125,7 @@ Result<std::shared_ptr<const CameraColourTransform>> CameraColourTransform::crea
         const std::string description = fmt::format("'{}' from {}", input, configName(source));
         return std::shared_ptr<const CameraColourTransform>(
             new CameraColourTransform(std::move(p), description));
-    } catch (const OCIO::Exception& e) {
+    } catch (const std::exception& e) {
         return makeError("'{}.input' '{}' in {}: OCIO cannot build its transform: {}", source.key,
                          input, configName(source), e.what());
     }
@@ -132,6 +133,7 @@ Result<std::shared_ptr<const CameraColourTransform>> CameraColourTransform::crea
 
 void CameraColourTransform::apply8(const uint8_t* src, std::ptrdiff_t srcStrideBytes, float* dst,
                                    std::ptrdiff_t dstStrideBytes, int width, int height) const {
+    if (width <= 0 || height <= 0) return;  // OCIO refuses an empty image (by throwing)
     const OCIO::PackedImageDesc in(const_cast<uint8_t*>(src), width, height, 3,
                                    OCIO::BIT_DEPTH_UINT8, 1, 3, srcStrideBytes);
     OCIO::PackedImageDesc out(dst, width, height, 3, OCIO::BIT_DEPTH_F32, 4, 12, dstStrideBytes);
@@ -140,6 +142,7 @@ void CameraColourTransform::apply8(const uint8_t* src, std::ptrdiff_t srcStrideB
 
 void CameraColourTransform::applyFloat(float* rgb, int width, int height,
                                        std::ptrdiff_t strideBytes) const {
+    if (width <= 0 || height <= 0) return;  // OCIO refuses an empty image (by throwing)
     OCIO::PackedImageDesc image(rgb, width, height, 3, OCIO::BIT_DEPTH_F32, 4, 12, strideBytes);
     processors_->fromFloat->apply(image);
 }
@@ -269,13 +272,14 @@ Result<std::shared_ptr<const DisplayColourTransform>> DisplayColourTransform::cr
             fmt::format("display '{}', view '{}' from {}", display, view, configName(source));
         return std::shared_ptr<const DisplayColourTransform>(
             new DisplayColourTransform(std::move(p), description));
-    } catch (const OCIO::Exception& e) {
+    } catch (const std::exception& e) {
         return makeError("[{}] display '{}', view '{}' in {}: OCIO cannot build the transform: {}",
                          source.key, display, view, configName(source), e.what());
     }
 }
 
 void DisplayColourTransform::apply(const float* rgb, int width, int height, uint8_t* out) const {
+    if (width <= 0 || height <= 0) return;  // OCIO refuses an empty image (by throwing)
     const OCIO::PackedImageDesc in(const_cast<float*>(rgb), width, height, 3, OCIO::BIT_DEPTH_F32,
                                    4, 12, ptrdiff_t(width) * 12);
     OCIO::PackedImageDesc dst(out, width, height, 3, OCIO::BIT_DEPTH_UINT8, 1, 3,

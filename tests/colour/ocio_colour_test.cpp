@@ -185,6 +185,17 @@ TEST(OcioCameraPath, ARegionOfAFrameKeepsItsRowStride) {
     EXPECT_EQ(cv::norm(part, whole(inner), cv::NORM_INF), 0.0);
 }
 
+TEST(OcioCameraPath, AnEmptyFrameIsNoWork) {
+    InverseToneMapSettings radiometry;
+    radiometry.colour = camera("Sony S-Log3 S-Gamut3");
+    ASSERT_TRUE(radiometry.colour);
+    EXPECT_TRUE(inverseToneMapRgb8(cv::Mat(0, 0, CV_8UC3), radiometry).empty());
+    Result<std::shared_ptr<const DisplayColourTransform>> view =
+        DisplayColourTransform::create({"", "output.colour"}, "", "");
+    ASSERT_TRUE(view) << view.message();
+    (*view)->apply(nullptr, 0, 0, nullptr);  // OCIO itself would throw on a 0×0 image
+}
+
 // A user's config: two colour spaces, the interchange role and a display.
 fs::path writeConfig(const std::string& name, const std::string& roles) {
     const fs::path path = fs::temp_directory_path() / name;
