@@ -20,7 +20,7 @@ start_early_build() {
     # Not setsid: a new session is a new autogroup, which the kernel shares the CPU with as an
     # equal, whatever its nice.
     set -m
-    PREVIS_BUILD_JOBS=1 nice -n 19 "$root/scripts/setup.sh" "$@" >/dev/null 2>"$early_log" &
+    PREVIS_BUILD_JOBS=1 nice -n 19 "$root/scripts/setup.sh" "$@" </dev/null >/dev/null 2>"$early_log" &
     early_pid=$!
     set +m
 }
