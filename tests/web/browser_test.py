@@ -55,17 +55,26 @@ class Checks:
     def __init__(self, keep_going):
         self.keep_going = keep_going
         self.failures = []
+        self.count = 0
         self.started = time.monotonic()
 
     def fail(self, what):
+        self.count += 1
         print(f"FAIL: {what}", flush=True)
         if not self.keep_going:
             raise SystemExit(1)
         self.failures.append(what)
 
+    def succeed(self, what):
+        self.count += 1
+        if self.keep_going:
+            print(f"pass: {what}", flush=True)
+
     def expect(self, what, ok, detail=""):
         if not ok:
             self.fail(f"{what}{': ' + str(detail) if detail else ''}")
+        else:
+            self.succeed(what)
         return ok
 
     def wait_for(self, what, condition, timeout=20.0, interval=0.1):
@@ -76,6 +85,7 @@ class Checks:
         while time.monotonic() < end:
             last = condition()
             if last:
+                self.succeed(what)
                 return last
             time.sleep(interval)
         self.fail(f"{what} (after {timeout:.0f} s; last value {last!r})")
@@ -271,7 +281,7 @@ def check_starting(checks, page, server):
     server.stdin.write(b"ready\n")
     server.stdin.flush()
     checks.wait_for("the starting banner goes once the box runs",
-                    lambda: page.shown("banner") is False)
+                    lambda: page.eval("document.getElementById('banner')?.hidden") is True)
     checks.passed("starting shown in words")
 
 
@@ -312,8 +322,10 @@ def check_sign_in(checks, page, port):
     checks.expect("the controls are disabled before signing in",
                   all(page.disabled(b) for b in ("preview", "refineButton", "recStart")))
     page.click("preview")
+    time.sleep(0.3)  # a request, had the press sent one, has reached the server by now
+    web = server_status(port)["web"]
     checks.expect("a press before signing in sends nothing",
-                  server_status(port)["web"]["commands"] == 0)
+                  (web["commands"], web["rejected"]["unauthorized"]) == (0, 0), web["rejected"])
 
     page.type_into("token", "not-the-token")
     checks.expect("the page has a sign-in button", page.click("signinButton"))
@@ -335,7 +347,8 @@ def check_sign_in(checks, page, port):
     page.reload()
     checks.wait_for("after a reload the page is still signed in",
                     lambda: page.shown("signedIn") and page.disabled("refineButton") is False)
-    checks.expect("after a reload the page asks for no token", page.shown("signin") is False)
+    checks.expect("after a reload the page asks for no token",
+                  page.shown("signin") is False and page.shown("signedIn"))
     checks.passed("sign-in")
 
 
@@ -508,9 +521,10 @@ def main():
     checks = Checks(keep_going="--all" in sys.argv[1:])
     run(arguments[0], checks)
     if checks.failures:
-        print(f"{len(checks.failures)} checks failed:\n  " + "\n  ".join(checks.failures))
+        print(f"{len(checks.failures)} of {checks.count} checks failed:\n  " +
+              "\n  ".join(checks.failures))
         return 1
-    print(f"PASS in {time.monotonic() - checks.started:.1f} s")
+    print(f"PASS: {checks.count} checks in {time.monotonic() - checks.started:.1f} s")
     return 0
 
 
