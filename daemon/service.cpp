@@ -225,7 +225,8 @@ std::string statusJson(const ServiceStatus& s) {
                             {"frames", s.record.frames},
                             {"dropped", s.record.dropped},
                             {"bytes", s.record.bytes},
-                            {"freeBytes", s.record.freeBytes}};
+                            {"freeBytes", s.record.freeBytes},
+                            {"seconds", std::round(s.record.seconds * 10.0) / 10.0}};
         r["freedDropped"] = s.record.freedDropped;  // FreeD packets left out (issue 52)
         if (!s.record.stoppedBecause.empty()) r["stoppedBecause"] = s.record.stoppedBecause;
         j["record"] = r;
