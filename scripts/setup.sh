@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Installs the Debian packages previs needs (skipping those present), then configures and
-# builds one configuration. Usage: scripts/setup.sh [release|asan|fuzz] [TARGET]   (default
-# release, every target; TARGET builds only that one and what it needs; PREVIS_BUILD_JOBS: how
-# many compile jobs, default one a core)
+# builds one configuration. Usage: scripts/setup.sh [release|asan|fuzz|packages] [TARGET]
+# (default release, every target; TARGET builds only that one and what it needs; packages: only
+# the install; PREVIS_BUILD_JOBS: how many compile jobs, default one a core)
 # fuzz: clang-14 with libFuzzer+ASan+UBSan in build-fuzz, only the fuzz targets (docs/fuzzing.md).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
@@ -21,6 +21,7 @@ if ((${#missing[@]})); then
     DEBIAN_FRONTEND=noninteractive "${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends \
         "${missing[@]}" >&2
 fi
+[[ $config == packages ]] && exit 0
 
 # Debug info as line tables only (-g1): backtraces, ASan reports and perf keep file:line, and a
 # heavy translation unit compiles faster than with full -g (tests/daemon/previsd_test.cpp: 16 s
@@ -37,7 +38,7 @@ case "$config" in
     fuzz) build="$root/build-fuzz"
           flags=(-DCMAKE_BUILD_TYPE=RelWithDebInfo -DPREVIS_FUZZ=ON -DCMAKE_C_COMPILER=clang-14
                  -DCMAKE_CXX_COMPILER=clang++-14) ;;
-    *) echo "setup: unknown configuration '$config' (use release, asan or fuzz)" >&2; exit 2 ;;
+    *) echo "setup: unknown configuration '$config' (use release, asan, fuzz or packages)" >&2; exit 2 ;;
 esac
 # Unity build: CMake compiles each target's sources in batches of 16 as one translation unit, so
 # the CLI11/nlohmann-json/fmt/GoogleTest templates are parsed and instantiated once per batch
