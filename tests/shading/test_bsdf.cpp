@@ -22,6 +22,15 @@ using namespace previs::shader;
 // All chi-square tests in this file share one overall significance of 1%.
 constexpr int kChi2Tests = 2 + 5 * 3;
 const double kLevel = sidakLevel(0.01, kChi2Tests);
+// Directions drawn for each lobe and angle of MixtureSamplingMatchesReportedPdf. The chi-square
+// verdict at full power is the optimised build's; the sanitized build (CI's ASan+UBSan stage,
+// where the million took 31 s) runs the same sample and pdf code over a tenth of them (195
+// expected a bin on average) at the same p-value level.
+#if defined(__SANITIZE_ADDRESS__)
+constexpr int kMixtureSamples = 100'000;
+#else
+constexpr int kMixtureSamples = 1'000'000;
+#endif
 
 BsdfParams material(glm::vec3 color, float metallic, float roughness, float transmission = 0.0f,
                     float ior = 1.5f, float specular = 1.0f) {
@@ -117,7 +126,7 @@ TEST(BsdfTest, MixtureSamplingMatchesReportedPdf) {
                     bsdfEvaluate(c.params, wo, wi, pdf);
                     return double(pdf);
                 },
-                16, 32, 1'000'000, 11);
+                16, 32, kMixtureSamples, 11);
             EXPECT_GT(r.pValue, kLevel) << c.name << " θo=" << thetaO << ": " << r.describe();
         }
     }
