@@ -32,6 +32,8 @@ constexpr size_t kStillFirst = 20;
 constexpr size_t kStillLast = 44;
 // Flicker is measured over the hold's last frames, where every variant has settled.
 constexpr size_t kFlickerFrames = 8;
+// The longest hold measured (the "after 64 still frames"): past the take's 25 frames.
+constexpr size_t kLongHold = 64;
 
 struct ShotVariant {
     std::string name;
@@ -41,8 +43,10 @@ struct ShotVariant {
 struct FrameRow {
     size_t frame = 0;
     double sqrtRelMse = 0.0;  // of (composite − plate) against the reference's; NaN in the pan
-    double ms = 0.0;          // lock step: tracking, lighting, render, composite
-    ImageF added;             // composite − plate (kept for the hold's flicker)
+    double sqrtRelMseTrimmed = 0.0;  // the same, its worst thousandth of pixels left out
+    double ms = 0.0;                 // lock step: tracking, lighting, render, composite
+    ImageF added;                    // composite − plate (kept for the hold's flicker)
+    bool extraHold = false;  // beyond the take's hold (holdLonger): frame is kStillFirst + held
 };
 
 // What the renderer adds to the plate: composite − plate (the plate cancels, noise and all).
@@ -132,9 +136,45 @@ Result<References> references(const ServiceConfig& shipped, const std::string& s
     return refs;
 }
 
-// `dialPoint`: what the dial chose on this machine, where the variant runs it.
+// The row's errors against `ref` (NaN without one).
+Status measure(FrameRow& row, const ImageF& added, const ImageF* ref) {
+    row.sqrtRelMse = row.sqrtRelMseTrimmed = std::nan("");
+    if (!ref) return {};
+    Result<ImageDifference> d = compareImages(added, *ref);
+    if (!d) return d.error();
+    row.sqrtRelMse = std::sqrt(d->relMse);
+    row.sqrtRelMseTrimmed = std::sqrt(d->relMseTrimmed);
+    return {};
+}
+
+// The take holds its still view for kStillLast − kStillFirst + 1 frames; a crew may hold longer.
+// The last still frame is previewed again until `holdTo` frames have held (the pose, plate and
+// lighting of that frame: what a camera that stays put sends), each a row after it.
+Status holdLonger(SessionReplay& replay, const TrackedFrame& still, const References& refs,
+                  size_t holdTo, std::vector<FrameRow>& rows) {
+    PipelineRenderer& r = replay.renderer();
+    for (size_t held = kStillLast - kStillFirst + 1; held <= holdTo; ++held) {
+        const Clock::time_point t = Clock::now();
+        if (Status s = r.renderPreview(still, replay.lighting()); !s) return s;
+        Result<ImageF> image = r.composite();
+        if (!image) return image.error();
+        FrameRow row;
+        row.frame = kStillFirst + held;
+        row.ms = std::chrono::duration<double, std::milli>(Clock::now() - t).count();
+        Result<ImageF> added = addedToPlate(r, std::move(*image));
+        if (!added) return added.error();
+        if (Status s = measure(row, *added, refs.at(kStillFirst)); !s) return s;
+        row.extraHold = true;
+        benchProgress("held {}: {:.0f} ms", held, row.ms);
+        rows.push_back(std::move(row));
+    }
+    return {};
+}
+
+// `dialPoint`: what the dial chose on this machine, where the variant runs it. `holdTo` > 0
+// extends the hold (holdLonger).
 Result<std::vector<FrameRow>> run(const ShotVariant& v, const std::string& session,
-                                  const References& refs, size_t lastFrame,
+                                  const References& refs, size_t lastFrame, size_t holdTo,
                                   std::string& dialPoint) {
     auto opened = SessionReplay::open(session, v.config, Mode::Preview);
     if (auto* e = std::get_if<SessionReplay::OpenError>(&opened)) return e->error;
@@ -154,15 +194,13 @@ Result<std::vector<FrameRow>> run(const ShotVariant& v, const std::string& sessi
         row.ms = std::chrono::duration<double, std::milli>(Clock::now() - t).count();
         Result<ImageF> added = addedToPlate(replay.renderer(), std::move(*image));
         if (!added) return added.error();
-        row.sqrtRelMse = std::nan("");
-        if (const ImageF* ref = refs.at(i)) {
-            Result<ImageDifference> d = compareImages(*added, *ref);
-            if (!d) return d.error();
-            row.sqrtRelMse = std::sqrt(d->relMse);
-        }
+        if (Status s = measure(row, *added, refs.at(i)); !s) return s.error();
         if (i >= kStillFirst && i <= kStillLast) row.added = std::move(*added);
         benchProgress("{}: frame {}, {:.0f} ms", v.name, i, row.ms);
         rows.push_back(std::move(row));
+        if (i == kStillLast && holdTo > 0)
+            if (Status s = holdLonger(replay, *(*step)->shot.shown, refs, holdTo, rows); !s)
+                return s.error();
     }
     return rows;
 }
@@ -193,6 +231,62 @@ double upperMedian(std::vector<double> v) {
     return v[v.size() / 2];
 }
 
+struct VariantResult {
+    std::string name;
+    std::string dialPoint;  // what the dial chose on this machine, where the variant runs it
+    std::vector<FrameRow> rows;
+    double flicker = 0.0;
+    double msMedian = 0.0;
+};
+
+// The row of the take's frame `frame` (the hold's frames past the take's: kStillFirst + held).
+const FrameRow* rowOf(const std::vector<FrameRow>& rows, size_t frame, bool extraHold) {
+    for (const FrameRow& r : rows)
+        if (r.frame == frame && r.extraHold == extraHold) return &r;
+    return nullptr;
+}
+
+// One markdown table of every variant: the trimmed error or the whole one.
+void printTable(const std::vector<VariantResult>& results, bool trimmed) {
+    struct Column {
+        const char* name;
+        size_t frame;
+        bool extraHold;
+    };
+    const Column columns[] = {{"pan 5", 5, false},
+                              {"pan 10", 10, false},
+                              {"pan 15", 15, false},
+                              {"pan 19", 19, false},
+                              {"held 0", kStillFirst, false},
+                              {"held 1", kStillFirst + 1, false},
+                              {"held 2", kStillFirst + 2, false},
+                              {"held 4", kStillFirst + 4, false},
+                              {"held 8", kStillFirst + 8, false},
+                              {"held 16", kStillFirst + 16, false},
+                              {"held 24", kStillFirst + 24, false},
+                              {"held 64", kStillFirst + kLongHold, true},
+                              {"pan 48", 48, false},
+                              {"pan 52", 52, false}};
+    std::printf("\n%s\n\n| preview |",
+                trimmed ? "√relMSE, the worst 0.1 % of pixels left out:" : "√relMSE, every pixel:");
+    for (const Column& c : columns) std::printf(" %s |", c.name);
+    std::printf(" flicker | ms/frame (median) |\n|---|");
+    for (size_t i = 0; i < std::size(columns) + 2; ++i) std::printf("---|");
+    std::printf("\n");
+    for (const VariantResult& v : results) {
+        std::printf("| %s |", v.name.c_str());
+        for (const Column& c : columns) {
+            const FrameRow* r = rowOf(v.rows, c.frame, c.extraHold);
+            if (r)
+                std::printf(" %.3f |", trimmed ? r->sqrtRelMseTrimmed : r->sqrtRelMse);
+            else
+                std::printf(" – |");
+        }
+        std::printf(" %.3f | %.0f |\n", v.flicker, v.msMedian);
+    }
+    std::fflush(stdout);
+}
+
 }  // namespace
 
 int runShotBench(const ShotBenchOptions& o) {
@@ -215,6 +309,15 @@ int runShotBench(const ShotBenchOptions& o) {
     fixedPoint.config.render.denoise = "on";
     fixedPoint.config.render.denoiseLevels = 2;
     variants.push_back(fixedPoint);
+    ShotVariant noClamp{"fixed, samples not clamped", fixedPoint.config};
+    noClamp.config.render.previewSampleClamp = 0.0;
+    variants.push_back(noClamp);
+    ShotVariant noObjectSamples{"fixed, no samples added at the objects", fixedPoint.config};
+    noObjectSamples.config.render.previewObjectSamples = 0.0;
+    variants.push_back(noObjectSamples);
+    ShotVariant neither{"fixed, neither", noClamp.config};
+    neither.config.render.previewObjectSamples = 0.0;
+    variants.push_back(neither);
     ShotVariant noDial{"shipped, dial off", *shipped};
     noDial.config.render.previewFps = 0.0;
     variants.push_back(noDial);
@@ -226,7 +329,9 @@ int runShotBench(const ShotBenchOptions& o) {
 
     // A cache makes the deep reference free after the first run, quick or not.
     const uint32_t spp = o.quick && o.referenceCache.empty() ? 64 : o.referenceSpp;
-    const size_t last = o.quick ? kStillFirst + 8 : kStillLast + 8;
+    // Quick: the hold and no more (the later pan's references are not rendered).
+    const size_t last = o.quick ? kStillLast : kStillLast + 8;
+    const size_t holdTo = kLongHold;
     Result<References> refs =
         references(*shipped, session, spp, last, o.referenceCache, configText(configPath));
     if (!refs) {
@@ -237,49 +342,47 @@ int runShotBench(const ShotBenchOptions& o) {
     std::ofstream csv;
     if (!o.csvPath.empty()) {
         csv.open(o.csvPath, std::ios::trunc);
-        csv << "variant,frame,frames_held,sqrt_rel_mse,ms\n";
+        csv << "variant,frame,frames_held,sqrt_rel_mse,sqrt_rel_mse_trimmed,ms\n";
     }
     std::printf(
         "Demo take (examples/demo), %ux%u, as `previs replay --mode preview` steps it; reference: "
         "the still view (frame %zu) refined to %u spp without the denoiser. Error: DESIGN.md §4's "
-        "√relMSE of composite − plate against the reference's; the pan's frames against their own "
-        "references (a quarter of the samples). Flicker: temporal std of the last "
-        "%zu held frames' composite − plate, RMS over pixels, over the reference's RMS.\n\n",
-        still.width, still.height, kStillFirst, spp, kFlickerFrames);
-    std::printf(
-        "| preview | pan 5 | pan 10 | pan 15 | pan 19 | held 0 | held 1 | held 2 | held 4 | held 8 "
-        "| held 16 | held 24 | pan 48 | pan 52 | flicker | ms/frame (median) |\n"
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
-    std::vector<std::string> dialPoints;
+        "√relMSE of composite − plate against the reference's, its worst %.1f %% of pixels left "
+        "out (the first table) and all of them (the second); the pan's frames against their own "
+        "references (a quarter of the samples); held %zu previews the last still frame again "
+        "after the take's hold ends. Flicker: temporal std of the last %zu of the take's held "
+        "frames' composite − plate, RMS over pixels, over the reference's RMS.\n\n",
+        still.width, still.height, kStillFirst, spp, kTrimmedFraction * 100.0, kLongHold,
+        kFlickerFrames);
+    std::vector<VariantResult> results;
     for (const ShotVariant& v : variants) {
-        std::string dialPoint;
-        Result<std::vector<FrameRow>> rows = run(v, session, *refs, last, dialPoint);
-        if (!dialPoint.empty()) dialPoints.push_back(v.name + ": " + dialPoint);
+        VariantResult result;
+        result.name = v.name;
+        Result<std::vector<FrameRow>> rows = run(v, session, *refs, last, holdTo, result.dialPoint);
         if (!rows) {
             logError("{}", rows.message());
             return 1;
         }
         std::vector<double> ms;
-        std::printf("| %s |", v.name.c_str());
-        for (size_t i : {size_t(5), size_t(10), size_t(15), size_t(19), kStillFirst,
-                         kStillFirst + 1, kStillFirst + 2, kStillFirst + 4, kStillFirst + 8,
-                         kStillFirst + 16, kStillFirst + 24, size_t(48), size_t(52)}) {
-            if (i < rows->size())
-                std::printf(" %.3f |", (*rows)[i].sqrtRelMse);
-            else
-                std::printf(" – |");
-        }
         for (const FrameRow& r : *rows) {
-            if (r.frame > 0) ms.push_back(r.ms);  // frame 0 compiles the pipelines
+            if (r.frame > 0 && !r.extraHold) ms.push_back(r.ms);  // frame 0 compiles the pipelines
             if (csv.is_open())
                 csv << v.name << "," << r.frame << ","
-                    << (r.frame >= kStillFirst ? long(r.frame - kStillFirst) : -1L) << ","
-                    << r.sqrtRelMse << "," << r.ms << "\n";
+                    << (r.frame >= kStillFirst && (r.extraHold || r.frame <= kStillLast)
+                            ? long(r.frame - kStillFirst)
+                            : -1L)
+                    << "," << r.sqrtRelMse << "," << r.sqrtRelMseTrimmed << "," << r.ms << "\n";
         }
-        std::printf(" %.3f | %.0f |\n", flicker(*rows, still), upperMedian(ms));
-        std::fflush(stdout);
+        result.flicker = flicker(*rows, still);
+        result.msMedian = upperMedian(ms);
+        result.rows = std::move(*rows);
+        results.push_back(std::move(result));
     }
-    for (const std::string& d : dialPoints) std::printf("\nThe dial chose, %s.\n", d.c_str());
+    printTable(results, true);
+    printTable(results, false);
+    for (const VariantResult& r : results)
+        if (!r.dialPoint.empty())
+            std::printf("\nThe dial chose, %s: %s.\n", r.name.c_str(), r.dialPoint.c_str());
     return 0;
 }
 

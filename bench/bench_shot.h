@@ -15,8 +15,8 @@
 namespace previs::bench {
 
 struct ShotBenchOptions {
-    std::string examplesDir;       // the repository's examples/ (the demo config and take)
-    bool quick = false;            // a 64-spp reference and the first 8 still frames: a smoke run
+    std::string examplesDir;  // the repository's examples/ (the demo config and take)
+    bool quick = false;       // a 64-spp reference (without a cache) and no later pan: a smoke run
     uint32_t referenceSpp = 1600;  // the deep refinement of the still view
     std::string csvPath;           // per-frame rows as CSV ("" = none)
     // References are read from this folder when there, else rendered and written there ("" =

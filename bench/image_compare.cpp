@@ -1,6 +1,8 @@
 #include "bench/image_compare.h"
 
+#include <algorithm>
 #include <cmath>
+#include <vector>
 
 namespace previs::bench {
 
@@ -21,8 +23,11 @@ Result<ImageDifference> compareImages(const ImageF& a, const ImageF& b,
     // Sums in double: 1920×1080×3 float values would lose the small differences in float.
     double sumSquared = 0.0, sumRelative = 0.0, sumA = 0.0, sumB = 0.0;
     size_t values = 0;
+    std::vector<double> pixelRelative;  // per pixel, over its channels
+    pixelRelative.reserve(size_t(r.x1 - r.x0) * (r.y1 - r.y0));
     for (uint32_t y = r.y0; y < r.y1; ++y)
-        for (uint32_t x = r.x0; x < r.x1; ++x)
+        for (uint32_t x = r.x0; x < r.x1; ++x) {
+            double pixel = 0.0;
             for (uint32_t c = 0; c < a.channels; ++c) {
                 const size_t i = (size_t(y) * a.width + x) * a.channels + c;
                 ++values;
@@ -31,14 +36,23 @@ Result<ImageDifference> compareImages(const ImageF& a, const ImageF& b,
                     return makeError("value {} (pixel {}, channel {}) is not finite: {} against {}",
                                      i, i / a.channels, i % a.channels, va, vb);
                 sumSquared += (va - vb) * (va - vb);
-                sumRelative += (va - vb) * (va - vb) / (vb * vb + 0.01);
+                pixel += (va - vb) * (va - vb) / (vb * vb + 0.01);
                 sumA += va;
                 sumB += vb;
             }
+            sumRelative += pixel;
+            pixelRelative.push_back(pixel);
+        }
     ImageDifference d;
     d.values = values;
     d.rmse = std::sqrt(sumSquared / double(d.values));
     d.relMse = sumRelative / double(d.values);
+    const size_t left = size_t(double(pixelRelative.size()) * kTrimmedFraction);
+    const auto kept = pixelRelative.end() - std::ptrdiff_t(left);
+    std::nth_element(pixelRelative.begin(), kept, pixelRelative.end());
+    double sumKept = 0.0;
+    for (auto it = pixelRelative.begin(); it != kept; ++it) sumKept += *it;
+    d.relMseTrimmed = sumKept / double((pixelRelative.size() - left) * a.channels);
     d.meanA = sumA / double(d.values);
     d.meanB = sumB / double(d.values);
     return d;

@@ -132,6 +132,8 @@ Result<std::unique_ptr<PipelineRenderer>> PipelineRenderer::create(
     settings.seed = config.render.seed;
     settings.photons = config.render.photons;
     settings.differential = true;
+    settings.objectSamplesPerOutputPixel = float(config.render.previewObjectSamples);
+    settings.previewSampleClamp = float(config.render.previewSampleClamp);
     // Guides are written only when the denoiser may run: to filter, or to reproject preview's
     // accumulation.
     p->accumulate_ = config.render.previewAccumulate;
@@ -492,6 +494,15 @@ Status PipelineRenderer::renderPreview(const TrackedFrame& frame,
                                        const std::shared_ptr<const LiveLighting>& lighting) {
     if (Status s = prepare(frame, lighting); !s) return s;
     if (!rendered_) return {};
+    // Back from refinement under the same lighting: its samples carry over where the camera
+    // still holds on the refined view (cameraHolds measures from that view).
+    std::optional<std::vector<glm::vec4>> refined;
+    if (refining_ && accumulate_ && refinedPose_ && historyLighting_ == refinedLighting_) {
+        Result<std::vector<glm::vec4>> samples = renderer_->refinedSamples();
+        if (!samples) return samples.error();
+        refined = std::move(*samples);
+        heldSince_ = refinedPose_;
+    }
     // Nothing happens unless the traced size changes (entering preview from refinement).
     if (Status s = renderer_->setResolutionScale(previewResolutionScale_); !s) return s;
     renderer_->setMaxDepth(previewDepth_);
@@ -499,6 +510,8 @@ Status PipelineRenderer::renderPreview(const TrackedFrame& frame,
     // Preview denoises with temporal reprojection: the history follows the tracked camera.
     renderer_->setTemporalDenoise(true);
     if (Status s = renderer_->holdView(accumulate_ && cameraHolds(frame)); !s) return s;
+    if (refined)
+        if (Status s = renderer_->seedHeldView(*refined); !s) return s;
     return renderer_->renderPreviewFrame(previewSamples_, accumulate_ ? ++previewFrame_ : 0);
 }
 
@@ -536,6 +549,8 @@ Status PipelineRenderer::beginRefine(const TrackedFrame& frame,
     renderer_->setTemporalDenoise(false);
     if (Denoiser* d = renderer_->denoiser()) d->resetHistory();
     heldSince_.reset();
+    refinedPose_ = frame.worldFromCamera;
+    refinedLighting_ = historyLighting_;
     if (Status s = renderer_->holdView(false); !s) return s;
     return renderer_->reset();
 }

@@ -196,6 +196,10 @@ private:
     // pixel. A move, a lost pose, a lighting change or refinement starts it afresh.
     bool cameraHolds(const TrackedFrame& frame);
     std::optional<cv::Matx44d> heldSince_;
+    // Refinement's view and the history's lighting then: a preview that resumes on both starts
+    // its held view from refinement's samples (renderPreview).
+    std::optional<cv::Matx44d> refinedPose_;
+    std::shared_ptr<const LiveLighting> refinedLighting_;
     // A tracked pose jitters by a fraction of a pixel (0.05° on the demo take); a blur of up to a
     // pixel in the held view costs less than restarting it on every jitter.
     static constexpr double kHeldPixels = 1.0;

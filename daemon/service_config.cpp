@@ -607,7 +607,8 @@ Status ConfigReader::parseRender(const toml::table& t, RenderConfig& c) const {
                          {"width", "height", "samples_per_frame", "max_depth", "seed", "photons",
                           "preview_photons", "photon_radius_m", "photon_alpha", "photon_neighbours",
                           "photon_splat", "resolution_scale", "preview_fps", "denoise",
-                          "denoise_levels", "preview_accumulate", "preview_history_frames"});
+                          "denoise_levels", "preview_accumulate", "preview_history_frames",
+                          "preview_object_samples", "preview_sample_clamp"});
         !st)
         return st;
     int64_t width = c.width, height = c.height, spp = c.samplesPerFrame, depth = c.maxDepth,
@@ -673,6 +674,14 @@ Status ConfigReader::parseRender(const toml::table& t, RenderConfig& c) const {
     if (Status st = r_.integerIn(t, "render", "preview_history_frames", history, 1, 1024); !st)
         return st;
     c.previewHistoryFrames = uint32_t(history);
+    if (Status st =
+            r_.numberIn(t, "render", "preview_object_samples", c.previewObjectSamples, 0.0, 16.0);
+        !st)
+        return st;
+    if (Status st =
+            r_.numberIn(t, "render", "preview_sample_clamp", c.previewSampleClamp, 0.0, 1e6);
+        !st)
+        return st;
     return {};
 }
 

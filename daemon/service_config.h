@@ -165,6 +165,12 @@ struct RenderConfig {
     // exponential average with weight 1/N): longer converges further, shorter follows a change
     // of shading sooner. [1, 1024].
     uint32_t previewHistoryFrames = 32;
+    // Below full resolution, samples per output pixel each preview frame adds where the virtual
+    // objects are (RenderSettings::objectSamplesPerOutputPixel), [0, 16]; 0: none.
+    double previewObjectSamples = 1.0;
+    // Preview's estimate scales a sample brighter than this (luminance) down to it
+    // (RenderSettings::previewSampleClamp); 0: off.
+    double previewSampleClamp = 4.0;
     // Caustics (render/photon_map.h): mode and photons per iteration, first radius, alpha.
     PhotonSettings photons;
 };

@@ -202,6 +202,24 @@ bool Film::holdView(bool on, uint32_t traceWidth, uint32_t traceHeight) {
     return on && held_;
 }
 
+Result<std::vector<glm::vec4>> Film::heldSamplesOf(const TracedBuffers& traced) const {
+    if (traced.width != width_ || traced.height != height_)
+        return makeError(
+            "the held view's samples come from a trace at the output's size ({}x{}), "
+            "not {}x{}",
+            width_, height_, traced.width, traced.height);
+    Result<Accumulation> read = readAccumulation(traced);
+    if (!read) return read.error();
+    const size_t pixels = size_t(width_) * height_;
+    std::vector<glm::vec4> samples(2 * pixels);
+    for (size_t i = 0; i < pixels; ++i) {
+        for (int c = 0; c < 4; ++c)
+            samples[2 * i][c] = float(read->value(i, PV_ACCUM_COMPOSITE, c));
+        samples[2 * i + 1] = glm::vec4(float(read->count(i)), 0.0f, 0.0f, 0.0f);
+    }
+    return samples;
+}
+
 Result<ImageF> Film::heldComposite(const TracedBuffers& traced, const ImageF& estimate) {
     std::vector<glm::vec4> samples(size_t(width_) * height_ * 2);
     if (Status s = traced.held->download(samples.data(), samples.size() * sizeof(glm::vec4)); !s)

@@ -87,6 +87,10 @@ public:
     // Frames the held view keeps (0 while off, and before its first: its samples are then to be
     // cleared).
     uint64_t heldFrames() const { return held_ ? held_->frames() : 0; }
+    // The accumulation of a full-resolution trace (refinement's) as the held view's samples
+    // (PV_BINDING_HELD_SAMPLES' layout: per output pixel the sums of Eq. 1's plate-free part and
+    // of M, then the sample count): a preview that resumes on the refined view starts from them.
+    Result<std::vector<glm::vec4>> heldSamplesOf(const TracedBuffers& traced) const;
     // A preview frame's samples joined the held view's (the renderer sums them on the device).
     void heldFrameAdded() {
         if (held_) held_->frameAdded();

@@ -153,6 +153,21 @@ struct RenderSettings {
     // height guided by the plate (render/upsample.h); the plate is never resampled. In (0, 1];
     // 1 traces every output pixel (and image() is what it was without this setting, bit for bit).
     float resolutionScale = 1.0f;
+    // Below full resolution, each preview frame also traces this many samples per output pixel
+    // where the virtual objects are (their box projected; Renderer::traceObjectRegion): they are
+    // a few per cent of the picture and carry most of its detail finer than a traced pixel,
+    // which the held view then gains at the output's resolution. 0: off. Free without virtual
+    // objects in view.
+    float objectSamplesPerOutputPixel = 1.0f;
+    // Preview frames scale a sample whose luminance is above this down to it, in the frame's
+    // estimate (which the denoiser and the upsampling spread over many output pixels) and in the
+    // held view's samples: the rare path to a bright lamp through glass or chrome that one
+    // sample in thousands finds would otherwise light a blotch for the whole history. The
+    // preview is biased by it (BENCHMARKS.md measures it); refinement, never clamped, is the
+    // picture that converges. A clamp that rises with the frames held (so the held view would
+    // converge to refinement's image) was measured worse over 64 frames: the lamps' paths are
+    // too rare for a held view to average. 0: off.
+    float previewSampleClamp = 0.0f;
     // The denoiser (render/denoiser.h): the first hit writes its guide buffers and
     // image(aov, true) filters. Off: neither the guides' code nor their memory is paid for.
     bool denoise = false;

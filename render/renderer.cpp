@@ -616,6 +616,7 @@ Status Renderer::buildScene(const Scene& scene, const Geometry& g, SceneBvh bvh)
     allocate(PV_BINDING_STATS, sizeof(shader::RenderStats), "stats");
     upload(PV_BINDING_TRIANGLE_LIGHT_PDF, triangleLightPdf, "triangleLightPdf");
     upload(PV_BINDING_LENS_GRID, settings_.lensGrid, "lensGrid");
+    traceLensGrid_ = settings_.lensGrid;
     allocate(PV_BINDING_PHOTON_LIGHTS, 0, "photonLights");
     // Photon buffers have a size only where photons may run (create() set photonAim_).
     for (int b = PV_BINDING_PHOTON_RECORDS; b <= PV_BINDING_PHOTON_CELLS; ++b)
@@ -626,6 +627,7 @@ Status Renderer::buildScene(const Scene& scene, const Geometry& g, SceneBvh bvh)
              "photonSplats");
     allocate(PV_BINDING_HELD_SAMPLES, 0, "heldSamples");  // holdView makes it when needed
     if (!s) return s;
+    findVirtualBoxes();
     buffers_.clear();
     buffers_.reserve(PV_BINDING_COUNT);
     for (int b = 0; b < int(PV_BINDING_COUNT); ++b) {
@@ -759,11 +761,12 @@ Status Renderer::setResolutionScale(float scale) {
         buffers_[PV_BINDING_GUIDES] = std::move(fresh.value());
     }
     if (!settings_.lensGrid.empty()) {
-        const std::vector<glm::vec2> grid = traceLensGrid(width, height);
+        std::vector<glm::vec2> grid = traceLensGrid(width, height);
         if (Status s = replaceBufferContents(PV_BINDING_LENS_GRID, grid.data(),
                                              grid.size() * sizeof(glm::vec2), "lensGrid");
             !s)
             return s;
+        traceLensGrid_ = std::move(grid);
     }
     // The pinhole keeps tanHalfFov: the traced pixels span the same image plane.
     params_.width = width;
@@ -791,6 +794,17 @@ Status Renderer::holdView(bool on) {
     params_.heldWidth = settings_.width;
     params_.heldHeight = settings_.height;
     if (film_->heldFrames() == 0) return held.fill(0);
+    return {};
+}
+
+Status Renderer::seedHeldView(std::span<const glm::vec4> samples) {
+    if (params_.heldWidth == 0u || film_->heldFrames() != 0) return {};
+    GpuBuffer& held = buffers_[PV_BINDING_HELD_SAMPLES];
+    if (samples.size_bytes() != held.size())
+        return makeError("the held view holds {} bytes, not the {} given", held.size(),
+                         samples.size_bytes());
+    if (Status s = held.upload(samples.data(), samples.size_bytes()); !s) return s;
+    film_->heldFrameAdded();
     return {};
 }
 
@@ -850,15 +864,16 @@ Status Renderer::renderPreviewFrame(uint32_t spp, uint64_t frameIndex) {
     // One random sequence: a preview frame reports no noise estimate, so it keeps all of the
     // sampler's stratification (the convergence meter's replicates are refinement's).
     accumulationReplicates_ = 1;
+    params_.estimateClamp = params_.heldClamp = settings_.previewSampleClamp;
     Status s = render(spp);
+    if (s) s = traceObjectRegions(spp);
+    params_.estimateClamp = params_.heldClamp = 0.0f;
     params_.photonCount = full;
     if (s && params_.heldWidth != 0u) film_->heldFrameAdded();
     return s;
 }
 
 uint32_t Renderer::samplesForNextDispatch(uint32_t remaining) const {
-    // Each sample is a photon iteration of its own (its own photon map and radius).
-    if (photonsActive_) return 1;
     uint32_t n =
         std::min({remaining, std::max(1u, settings_.samplesPerDispatch), kMaxSamplesPerDispatch});
     if (!ctx_->isCpuDevice() || !settings_.respectCpuLoopLimit) return n;
@@ -871,7 +886,6 @@ uint32_t Renderer::samplesForNextDispatch(uint32_t remaining) const {
 Status Renderer::render(uint32_t samples,
                         const std::function<void(const RenderProgress&)>& progress) {
     if (Status s = ensurePipelines(); !s) return s;
-    uint32_t groupsX = (params_.width + PV_WORKGROUP_SIZE_X - 1) / PV_WORKGROUP_SIZE_X;
     constexpr size_t kMaxLoopOffset = offsetof(shader::RenderStats, maxLoopIterations);
     // Camera-relative rendering: the GPU's origin follows the camera, with hysteresis.
     const glm::dvec3 cameraM(worldFromCameraM_[3]);
@@ -886,7 +900,8 @@ Status Renderer::render(uint32_t samples,
     params_.replicates = accumulationReplicates_;
     uint32_t done = 0;
     while (done < samples) {
-        const uint32_t n = samplesForNextDispatch(samples - done);
+        // Each sample is a photon iteration of its own (its own photon map and radius).
+        const uint32_t n = photonsActive_ ? 1u : samplesForNextDispatch(samples - done);
         // The sample index selects the random sequence; it wraps after 2^32 samples.
         params_.sampleBase = uint32_t(samples_);
         params_.samplesPerDispatch = n;
@@ -909,26 +924,8 @@ Status Renderer::render(uint32_t samples,
                 !s)
                 return s;
         }
-        double ms = 0.0;
-        for (uint32_t first = 0; first < params_.height; first += bandRows_) {
-            if (bandRows_ < params_.height) {
-                params_.bandFirstRow = first;
-                if (Status s = buffers_[PV_BINDING_PARAMS].upload(&params_, sizeof(params_)); !s)
-                    return s;
-                if (Status s = bindBuffers(first); !s) return s;
-            }
-            const uint32_t rows = std::min(bandRows_, params_.height - first);
-            const uint32_t groupsY = (rows + PV_WORKGROUP_SIZE_Y - 1) / PV_WORKGROUP_SIZE_Y;
-            ComputePipeline& paths = pipelines_->paths();
-            auto bandMs = interrupt_ ? pathParts_.run(paths, groupsX, groupsY, *interrupt_)
-                                     : paths.dispatch(groupsX, groupsY);
-            if (!bandMs) return bandMs.error();
-            ms += bandMs.value();
-        }
-        if (bandRows_ < params_.height) {
-            params_.bandFirstRow = 0;
-            if (Status s = bindBuffers(0); !s) return s;
-        }
+        auto ms = dispatchPaths({0, 0, params_.width, params_.height});
+        if (!ms) return ms.error();
         uint32_t maxLoop = 0;
         if (watchLoops) {
             if (Status s =
@@ -945,12 +942,189 @@ Status Renderer::render(uint32_t samples,
                 "limit ({} iterations per lane x {} lanes >= {}): parts of paths may be "
                 "missing",
                 ctx_->deviceName(), n, maxLoop, ctx_->subgroupSize(), kCpuLoopLimit);
-        gpuMs_ += ms;
+        gpuMs_ += *ms;
         samples_ += n;
         done += n;
         if (progress) progress({done, samples});
     }
     return {};
+}
+
+Result<double> Renderer::dispatchPaths(const TraceRegion& region) {
+    params_.columnFirst = region.x0;
+    params_.columnEnd = region.x1;
+    const uint32_t groupsX =
+        (region.x1 - region.x0 + PV_WORKGROUP_SIZE_X - 1) / PV_WORKGROUP_SIZE_X;
+    const bool banded = bandRows_ < params_.height;
+    double ms = 0.0;
+    for (uint32_t first = region.y0 / bandRows_ * bandRows_; first < region.y1;
+         first += bandRows_) {
+        params_.bandFirstRow = banded ? first : 0u;
+        params_.rowFirst = std::max(first, region.y0);
+        params_.rowEnd = std::min({first + bandRows_, region.y1, params_.height});
+        if (Status s = buffers_[PV_BINDING_PARAMS].upload(&params_, sizeof(params_)); !s)
+            return s.error();
+        if (banded)
+            if (Status s = bindBuffers(first); !s) return s.error();
+        const uint32_t rows = params_.rowEnd - params_.rowFirst;
+        const uint32_t groupsY = (rows + PV_WORKGROUP_SIZE_Y - 1) / PV_WORKGROUP_SIZE_Y;
+        ComputePipeline& paths = pipelines_->paths();
+        auto bandMs = interrupt_ ? pathParts_.run(paths, groupsX, groupsY, *interrupt_)
+                                 : paths.dispatch(groupsX, groupsY);
+        if (!bandMs) return bandMs.error();
+        ms += bandMs.value();
+    }
+    if (banded) {
+        params_.bandFirstRow = 0;
+        if (Status s = bindBuffers(0); !s) return s.error();
+    }
+    return ms;
+}
+
+void Renderer::findVirtualBoxes() {
+    virtualBoxes_.clear();
+    if (bvh_.virtualRoot == kBvhNoRoot) return;
+    // The virtual tree's nodes kObjectBoxLevels below its root: separate objects part at the
+    // top splits, and a few levels more fit each one's shape.
+    std::vector<uint32_t> frontier{bvh_.virtualRoot};
+    for (uint32_t level = 0; level < kObjectBoxLevels; ++level) {
+        std::vector<uint32_t> next;
+        for (uint32_t n : frontier) {
+            const shader::BvhNode& node = bvh_.nodes[n];
+            if (node.count > 0) {
+                next.push_back(n);
+            } else {
+                next.push_back(node.leftOrFirst);
+                next.push_back(node.leftOrFirst + 1);
+            }
+        }
+        frontier = std::move(next);
+    }
+    for (uint32_t n : frontier) {
+        // A subtree's triangles are contiguous in BVH order: its leaves' extremes bound them.
+        uint32_t first = std::numeric_limits<uint32_t>::max(), end = 0;
+        std::vector<uint32_t> stack{n};
+        while (!stack.empty()) {
+            const shader::BvhNode& node = bvh_.nodes[stack.back()];
+            stack.pop_back();
+            if (node.count > 0) {
+                first = std::min(first, node.leftOrFirst);
+                end = std::max(end, node.leftOrFirst + node.count);
+            } else {
+                stack.push_back(node.leftOrFirst);
+                stack.push_back(node.leftOrFirst + 1);
+            }
+        }
+        WorldBox box{glm::dvec3(std::numeric_limits<double>::max()),
+                     glm::dvec3(-std::numeric_limits<double>::max())};
+        for (size_t v = 3 * size_t(first); v < 3 * size_t(end); ++v) {
+            const glm::dvec3 p = sceneOriginM_ + glm::dvec3(sceneTriangleVertices_[v]);
+            box.lo = glm::min(box.lo, p);
+            box.hi = glm::max(box.hi, p);
+        }
+        if (first < end) virtualBoxes_.push_back(box);
+    }
+}
+
+std::optional<Renderer::TraceRegion> Renderer::boxRegion(const WorldBox& box) const {
+    const TraceRegion whole{0, 0, params_.width, params_.height};
+    // The box's corners in normalised camera coordinates (OpenCV's: x right, y down, over z).
+    const glm::dmat4 cameraFromWorld = glm::inverse(worldFromCameraM_);
+    glm::dvec2 lo(std::numeric_limits<double>::max()), hi(-std::numeric_limits<double>::max());
+    for (int corner = 0; corner < 8; ++corner) {
+        const glm::dvec3 w(corner & 1 ? box.hi.x : box.lo.x, corner & 2 ? box.hi.y : box.lo.y,
+                           corner & 4 ? box.hi.z : box.lo.z);
+        const glm::dvec3 c(cameraFromWorld * glm::dvec4(w, 1.0));
+        if (c.z > -kObjectRegionNearM) return whole;  // the box reaches behind the camera
+        const glm::dvec2 n(c.x / -c.z, c.y / c.z);
+        lo = glm::min(lo, n);
+        hi = glm::max(hi, n);
+    }
+    // The traced pixels whose corners fall in that rectangle: through the calibrated lens where
+    // there is one (its distortion moves the edge of the picture by many pixels), else the
+    // pinhole's. A margin of kObjectRegionMargin traced pixels takes the corners' neighbours.
+    uint32_t x0 = params_.width, y0 = params_.height, x1 = 0, y1 = 0;
+    const uint32_t row = params_.width + 1;
+    const bool lens = traceLensGrid_.size() == size_t(row) * (params_.height + 1);
+    for (uint32_t j = 0; j <= params_.height; ++j)
+        for (uint32_t i = 0; i <= params_.width; ++i) {
+            glm::dvec2 n;
+            if (lens) {
+                n = glm::dvec2(traceLensGrid_[size_t(j) * row + i]);
+            } else {
+                const double ndcX = 2.0 * i / params_.width - 1.0;
+                const double ndcY = 1.0 - 2.0 * j / params_.height;
+                n = glm::dvec2(ndcX * params_.tanHalfFov.x, -ndcY * params_.tanHalfFov.y);
+            }
+            if (n.x < lo.x || n.x > hi.x || n.y < lo.y || n.y > hi.y) continue;
+            x0 = std::min(x0, i);
+            y0 = std::min(y0, j);
+            x1 = std::max(x1, i);
+            y1 = std::max(y1, j);
+        }
+    if (x0 > x1 || y0 > y1) return std::nullopt;  // not in view
+    const uint32_t m = kObjectRegionMargin;
+    return TraceRegion{x0 > m ? x0 - m : 0u, y0 > m ? y0 - m : 0u, std::min(x1 + m, params_.width),
+                       std::min(y1 + m, params_.height)};
+}
+
+std::vector<Renderer::TraceRegion> Renderer::objectRegions() const {
+    std::vector<TraceRegion> regions;
+    for (const WorldBox& box : virtualBoxes_)
+        if (std::optional<TraceRegion> r = boxRegion(box)) regions.push_back(*r);
+    // Overlapping rectangles become their bounding one, so no pixel is traced twice.
+    auto overlap = [](const TraceRegion& a, const TraceRegion& b) {
+        return a.x0 < b.x1 && b.x0 < a.x1 && a.y0 < b.y1 && b.y0 < a.y1;
+    };
+    for (bool merged = true; merged;) {
+        merged = false;
+        for (size_t i = 0; i < regions.size() && !merged; ++i)
+            for (size_t j = i + 1; j < regions.size() && !merged; ++j) {
+                if (!overlap(regions[i], regions[j])) continue;
+                TraceRegion& a = regions[i];
+                const TraceRegion& b = regions[j];
+                a = {std::min(a.x0, b.x0), std::min(a.y0, b.y0), std::max(a.x1, b.x1),
+                     std::max(a.y1, b.y1)};
+                regions.erase(regions.begin() + std::ptrdiff_t(j));
+                merged = true;
+            }
+    }
+    return regions;
+}
+
+Status Renderer::traceObjectRegions(uint32_t frameSamples) {
+    const double outputPerTraced =
+        double(settings_.width) * settings_.height / (double(params_.width) * params_.height);
+    objectRegionSamples_ = 0;
+    if (settings_.objectSamplesPerOutputPixel <= 0.0f || outputPerTraced <= 1.0) return {};
+    const std::vector<TraceRegion> regions = objectRegions();
+    double regionPixels = 0.0;
+    for (const TraceRegion& r : regions) regionPixels += double(r.x1 - r.x0) * (r.y1 - r.y0);
+    if (regionPixels == 0.0) return {};
+    const double budget =
+        kObjectSampleBudget * frameSamples * params_.width * params_.height / regionPixels;
+    const uint32_t total = uint32_t(std::min(
+        std::ceil(settings_.objectSamplesPerOutputPixel * outputPerTraced), std::floor(budget)));
+    params_.objectSamples = 1u;
+    Status s;
+    for (uint32_t done = 0; s && done < total;) {
+        // The frame's photon map serves them all (the splats stay the frame's own).
+        const uint32_t n = samplesForNextDispatch(total - done);
+        params_.sampleBase = uint32_t(samples_) + done;
+        params_.samplesPerDispatch = n;
+        for (const TraceRegion& r : regions) {
+            Result<double> ms = dispatchPaths(r);
+            if (!ms) {
+                s = ms.error();
+                break;
+            }
+            gpuMs_ += *ms;
+        }
+        done += n;
+    }
+    params_.objectSamples = 0u;
+    if (s) objectRegionSamples_ = uint64_t(total) * uint64_t(regionPixels);
+    return s;
 }
 
 TracedBuffers Renderer::traced() const {

@@ -162,6 +162,13 @@ public:
     Status holdView(bool on);
     // Frames the held view keeps (0 while off).
     uint64_t heldViewFrames() const { return film_->heldFrames(); }
+    // Refinement's samples so far, as the held view keeps samples (Film::heldSamplesOf): read
+    // them before the preview's resolution scale replaces the accumulation, and hand them to
+    // seedHeldView once the held view is on, so a preview that resumes on the refined view shows
+    // what refinement reached instead of starting again.
+    Result<std::vector<glm::vec4>> refinedSamples() const { return film_->heldSamplesOf(traced()); }
+    // The held view, on and empty, starts from `samples` (refinedSamples); nothing while it is off.
+    Status seedHeldView(std::span<const glm::vec4> samples);
 
     // The most scattering events on a path for the next renders (RenderSettings::maxDepth; the
     // preview can trace shorter paths than refinement). Call reset() before refining on.
@@ -299,6 +306,25 @@ private:
     // the bottom); the other bindings whole.
     std::vector<BufferRange> accumulationBand(uint32_t firstRow) const;
     uint32_t samplesForNextDispatch(uint32_t remaining) const;
+    // Traced pixels [x0, x1) × [y0, y1).
+    struct TraceRegion {
+        uint32_t x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+    };
+    // One path-tracing dispatch of params_'s samples over `region`, band by band; its GPU ms.
+    Result<double> dispatchPaths(const TraceRegion& region);
+    struct WorldBox {
+        glm::dvec3 lo, hi;
+    };
+    // virtualBoxes_ from the BVH and sceneTriangleVertices_.
+    void findVirtualBoxes();
+    // The traced pixels `box` covers from this frame's pose; none when it is out of view.
+    std::optional<TraceRegion> boxRegion(const WorldBox& box) const;
+    // The virtual objects' regions this frame: virtualBoxes_' regions, overlapping ones merged.
+    std::vector<TraceRegion> objectRegions() const;
+    // A preview frame below full resolution adds samples over objectRegions()
+    // (RenderSettings::objectSamplesPerOutputPixel), at most kObjectSampleBudget of its own
+    // `frameSamples` a traced pixel, in the accumulation and the held view alike.
+    Status traceObjectRegions(uint32_t frameSamples);
     // Moves the GPU's origin to `originM` (world): re-uploads vertices, BVH boxes, lights.
     Status recentre(const glm::dvec3& originM);
     // The lights buffer: the scene's lights, then the estimated (cone) lights.
@@ -327,7 +353,21 @@ private:
     glm::dvec3 renderOriginM_{0.0};
     glm::dmat4 worldFromCameraM_{1.0};
     std::vector<glm::vec3> sceneTriangleVertices_;  // scene frame, 3 per triangle, BVH order
-    std::vector<glm::vec3> sceneLightPositions_;    // scene frame, per scene light
+    // Boxes around the virtual geometry (world frame): its BVH's nodes kObjectBoxLevels below
+    // the root, so that separate objects get separate boxes; empty without virtual geometry.
+    std::vector<WorldBox> virtualBoxes_;
+    // The lens grid at the traced size (empty without a calibrated lens), as the device has it.
+    std::vector<glm::vec2> traceLensGrid_;
+    // The added samples' pixels, in traced pixels × samples, of the last preview frame.
+    uint64_t objectRegionSamples_ = 0;
+    // objectRegion: a box corner this close to the camera plane (or behind it) makes it the
+    // whole frame; the region's margin in traced pixels. traceObjectRegion: its samples are at
+    // most this fraction of the frame's own (an object filling the frame costs at most 1.5×).
+    static constexpr double kObjectRegionNearM = 0.01;
+    static constexpr uint32_t kObjectRegionMargin = 2;
+    static constexpr double kObjectSampleBudget = 0.5;
+    static constexpr uint32_t kObjectBoxLevels = 3;
+    std::vector<glm::vec3> sceneLightPositions_;  // scene frame, per scene light
     uint64_t recentres_ = 0;
     uint64_t sceneBuilds_ = 0;
     uint64_t samples_ = 0;

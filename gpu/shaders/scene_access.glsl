@@ -45,7 +45,7 @@ FrameParams params;
 // (a thin lens's aperture or a calibrated lens grid keep the gather there).
 bool photonSplatsActive() {
     return kPhotons && kPhotonSplat && !kHasLensGrid &&
-           !(kHasThinLens && params.apertureRadiusM > 0.0);
+           !(kHasThinLens && params.apertureRadiusM > 0.0) && params.objectSamples == 0u;
 }
 
 // The first of the PV_SPLAT_WORDS words of sum `sum` (PV_SPLAT_*) of pixel `pixelIndex` in the

@@ -541,8 +541,21 @@ void addSample(uint sampleIndex, uint pixelIndex, vec3 lm, vec3 lr, bool firstHi
     vec3 composite = (firstHitVirtual ? lm : lm - lr) + splatMixed - splatUnhidden;
     lm += splatMixed;
     lr += splatReal;
+    // The preview's clamps: one factor for the solutions and their difference, as fireflyClamp's.
+    float lum = max(luminance(lm), luminance(lr));
+    if (params.heldWidth != 0u) {
+        float k = params.heldClamp > 0.0 && lum > params.heldClamp ? params.heldClamp / lum : 1.0;
+        addHeldSample(pixel, key, composite * k, mask);
+    }
+    if (params.estimateClamp > 0.0) {
+        if (lum > params.estimateClamp) {
+            float k = params.estimateClamp / lum;
+            lm *= k;
+            lr *= k;
+            composite *= k;
+        }
+    }
     kahanAdd(gSum[PV_ACCUM_COMPOSITE], gComp[PV_ACCUM_COMPOSITE], vec4(composite, mask));
-    if (params.heldWidth != 0u) addHeldSample(pixel, key, composite, mask);
     kahanAdd(gSum[PV_ACCUM_MIXED], gComp[PV_ACCUM_MIXED], vec4(lm, 1.0));
     float realHit = gFirstHitReal ? 1.0 : 0.0;
     if (kDifferential) kahanAdd(gSum[PV_ACCUM_REAL], gComp[PV_ACCUM_REAL], vec4(lr, realHit));
@@ -794,8 +807,8 @@ void tracePaths(uvec2 pixel, uint pixelIndex) {
 
 void main() {
     params = paramsBuffer;  // before any branch (scene_access.glsl)
-    uvec2 pixel = gl_GlobalInvocationID.xy + uvec2(0u, params.bandFirstRow);
-    if (pixel.x >= params.width || pixel.y >= params.height) return;
+    uvec2 pixel = gl_GlobalInvocationID.xy + uvec2(params.columnFirst, params.rowFirst);
+    if (pixel.x >= params.columnEnd || pixel.y >= params.rowEnd) return;
     uint pixelIndex = pixel.y * params.width + pixel.x;
     for (uint k = 0u; k < PV_ACCUM_COUNT; ++k) {
         PV_COUNT_LOOP_ITERATION();

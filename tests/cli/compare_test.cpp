@@ -55,6 +55,25 @@ TEST(CompareImages, EveryChannelCounts) {
     EXPECT_NEAR(d->meanB, 0.5, 1e-12);
 }
 
+TEST(CompareImages, TheTrimmedRelMseLeavesOutTheLargestThousandth) {
+    // 100×100 pixels, each off by 0.1 in one channel against a reference of 0 (relative term
+    // 0.01/0.01 = 1), and ten fireflies of 100 (term 10⁶): relMse is dominated by the ten; the
+    // trimmed figure leaves out the 10 largest of 10,000 pixels and sees only the 1s.
+    ImageF reference = constant(100, 100, 3, 0.0f);
+    ImageF image = reference;
+    for (size_t p = 0; p < 10000; ++p) image.pixels[p * 3] = p % 1000 == 7 ? 100.0f : 0.1f;
+    auto d = compareImages(image, reference);
+    ASSERT_TRUE(d) << d.message();
+    // (0.1f)² / 0.01 is 1 to float's precision, 1e-7.
+    EXPECT_NEAR(d->relMse, (9990.0 * 1.0 + 10.0 * 1e6) / 30000.0, 1e-6 * d->relMse);
+    EXPECT_NEAR(d->relMseTrimmed, 9990.0 / (9990.0 * 3.0), 1e-6);
+    // Without fireflies the two differ only by the thousandth left out.
+    for (size_t p = 0; p < 10000; ++p) image.pixels[p * 3] = 0.1f;
+    d = compareImages(image, reference);
+    ASSERT_TRUE(d) << d.message();
+    EXPECT_NEAR(d->relMseTrimmed, d->relMse, 1e-9);
+}
+
 TEST(CompareImages, RegionCountsOnlyItsPixels) {
     // A 6x4 image differing by 1 only in pixels x in [2, 4), y in [1, 3): inside that region the
     // RMSE is 1, over the whole image sqrt(4·3/72); a region off it sees no difference.

@@ -287,6 +287,21 @@ struct FrameParams {
     // landed in (PV_BINDING_HELD_SAMPLES).
     uint heldWidth;
     uint heldHeight;
+    // The dispatch traces columns [columnFirst, columnEnd) of rows [rowFirst, rowEnd), within
+    // its band: the band's rows, or the virtual objects' part of them where the renderer adds
+    // samples there (Renderer::traceObjectRegion).
+    uint columnFirst;
+    uint rowFirst;
+    uint columnEnd;
+    uint rowEnd;
+    // 1: such a dispatch of added samples. The photon splats, which the frame's own dispatch adds
+    // once per pixel, are not added again: its first vertex gathers instead, as without splats.
+    uint objectSamples;
+    // Preview: a sample whose luminance is above this is scaled down to it in the accumulation
+    // (the frame's estimate); 0 = off (refinement). RenderSettings::previewSampleClamp.
+    float estimateClamp;
+    // The held view's samples the same way at this; 0 = off.
+    float heldClamp;
 };
 
 PV_END
