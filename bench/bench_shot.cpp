@@ -137,7 +137,7 @@ Result<References> references(const ServiceConfig& shipped, const std::string& s
 }
 
 // The row's errors against `ref` (NaN without one).
-Status measure(FrameRow& row, const ImageF& added, const ImageF* ref) {
+Status measureRow(FrameRow& row, const ImageF& added, const ImageF* ref) {
     row.sqrtRelMse = row.sqrtRelMseTrimmed = std::nan("");
     if (!ref) return {};
     Result<ImageDifference> d = compareImages(added, *ref);
@@ -163,7 +163,7 @@ Status holdLonger(SessionReplay& replay, const TrackedFrame& still, const Refere
         row.ms = std::chrono::duration<double, std::milli>(Clock::now() - t).count();
         Result<ImageF> added = addedToPlate(r, std::move(*image));
         if (!added) return added.error();
-        if (Status s = measure(row, *added, refs.at(kStillFirst)); !s) return s;
+        if (Status s = measureRow(row, *added, refs.at(kStillFirst)); !s) return s;
         row.extraHold = true;
         benchProgress("held {}: {:.0f} ms", held, row.ms);
         rows.push_back(std::move(row));
@@ -194,7 +194,7 @@ Result<std::vector<FrameRow>> run(const ShotVariant& v, const std::string& sessi
         row.ms = std::chrono::duration<double, std::milli>(Clock::now() - t).count();
         Result<ImageF> added = addedToPlate(replay.renderer(), std::move(*image));
         if (!added) return added.error();
-        if (Status s = measure(row, *added, refs.at(i)); !s) return s.error();
+        if (Status s = measureRow(row, *added, refs.at(i)); !s) return s.error();
         if (i >= kStillFirst && i <= kStillLast) row.added = std::move(*added);
         benchProgress("{}: frame {}, {:.0f} ms", v.name, i, row.ms);
         rows.push_back(std::move(row));
