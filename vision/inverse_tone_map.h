@@ -55,7 +55,7 @@ struct InverseToneMapSettings {
     // OpenColorIO decodes it to the working space in place of the sRGB decode and `op`;
     // exposure and white balance still apply after it. Null (the demo's, and any camera without
     // the section): the curves above, and OCIO is never touched.
-    std::shared_ptr<const CameraColourTransform> colour;
+    std::shared_ptr<const CameraColourTransform> colour{};
 };
 
 // sRGB transfer function, decoding (IEC 61966-2-1): encoded value in [0,1] → linear.
