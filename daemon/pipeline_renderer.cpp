@@ -112,7 +112,7 @@ Result<std::unique_ptr<PipelineRenderer>> PipelineRenderer::create(
     GpuContext& ctx, const Scene& scene, const ServiceConfig& config,
     const PipelineStartHooks& hooks) {
     auto stage = [&hooks](const std::string& what) {
-        if (hooks.stage) hooks.stage(what);
+        if (hooks.stage) hooks.stage(what, 0);
     };
     std::unique_ptr<PipelineRenderer> p(new PipelineRenderer());
     renderSize(config, p->width_, p->height_);
@@ -185,20 +185,21 @@ Result<std::unique_ptr<PipelineRenderer>> PipelineRenderer::create(
         p->denoise_ == "on" ||
         (p->denoise_ == "auto" && autoDenoise(std::nullopt, p->targetNoise_, p->previewSamples_));
     p->previewDenoiseLevels_ = previewDenoised ? p->denoiseLevels_ : 0;
-    if (config.render.previewFps > 0.0) {
-        stage(
-            fmt::format("timing the preview's settings for {:.3g} fps", config.render.previewFps));
-        if (Status s = p->chooseByDial(config.render.previewFps); !s) return s.error();
-    }
+    if (config.render.previewFps > 0.0)
+        if (Status s = p->chooseByDial(config.render.previewFps, hooks); !s) return s.error();
     return p;
 }
 
-Status PipelineRenderer::chooseByDial(double fps) {
+Status PipelineRenderer::chooseByDial(double fps, const PipelineStartHooks& hooks) {
     // Samples of the reference: its noise adds the same expected squared error to every point,
     // so it orders them as a converged one would, at a few seconds' cost.
     constexpr uint32_t kReferenceSpp = 16;
     const auto start = std::chrono::steady_clock::now();
     Renderer& r = *renderer_;
+    // The grid first: the stage says from its start how many settings it times.
+    const std::vector<DialPoint> grid = dialGrid(dialAxes());
+    if (hooks.stage)
+        hooks.stage(fmt::format("timing the preview's settings for {:.3g} fps", fps), grid.size());
     ImageF grey;
     grey.width = width_;
     grey.height = height_;
@@ -215,22 +216,6 @@ Status PipelineRenderer::chooseByDial(double fps) {
     r.setSeed(seed_);
     Result<ImageF> reference = r.image(Aov::Composite);
     if (!reference) return reference.error();
-    DialAxes axes;
-    axes.scales = {1.0f, 0.5f, 1.0f / 3.0f, 0.25f};
-    axes.samples = {1, 2, 4};
-    for (uint32_t d : {2u, 4u, 8u})
-        if (d <= refineDepth_) axes.depths.push_back(d);
-    if (axes.depths.empty()) axes.depths.push_back(refineDepth_);
-    // The denoiser's strength: off or two strengths with "auto", the configured one with "on".
-    if (denoise_ == "auto") axes.denoiseLevels = {0, 2, 4};
-    if (denoise_ == "on") axes.denoiseLevels = {denoiseLevels_};
-    // The photon budget, where the scene runs the photon pass: around the configured one.
-    if (r.photonsActive()) {
-        const uint32_t configured = std::max(128u, previewPhotons_);
-        for (uint32_t n : {configured / 4, configured, configured * 4})
-            if (n >= 128 && n <= r.photonsPerIteration()) axes.photonBudgets.push_back(n);
-        if (axes.photonBudgets.empty()) axes.photonBudgets.push_back(r.photonsPerIteration());
-    }
     // Each point is timed on a pan that ends at the reference's view, through the same temporal
     // stage preview runs (DialMotion): what the denoiser and reprojection gain or cost in motion
     // decides, not a still camera's single frame. Points that cannot fit the frame budget are not
@@ -239,7 +224,7 @@ Status PipelineRenderer::chooseByDial(double fps) {
     pan.panStepRad = kDialPanPixels * double(r.camera().fovYRad) / double(height_);
     pan.accumulate = accumulate_;
     Result<std::vector<DialMeasurement>> measured =
-        measureDial(r, dialGrid(axes), *reference, 2, 1.0 / fps, pan);
+        measureDial(r, grid, *reference, 2, 1.0 / fps, pan, hooks.progress);
     if (!measured) return measured.error();
     dial_ = std::move(*measured);
     if (dial_.empty()) return makeError("render: the dial measured no preview setting");
@@ -265,6 +250,27 @@ Status PipelineRenderer::chooseByDial(double fps) {
     r.setMaxDepth(refineDepth_);
     if (Status s = r.setResolutionScale(1.0f); !s) return s;
     return r.reset();
+}
+
+DialAxes PipelineRenderer::dialAxes() const {
+    const Renderer& r = *renderer_;
+    DialAxes axes;
+    axes.scales = {1.0f, 0.5f, 1.0f / 3.0f, 0.25f};
+    axes.samples = {1, 2, 4};
+    for (uint32_t d : {2u, 4u, 8u})
+        if (d <= refineDepth_) axes.depths.push_back(d);
+    if (axes.depths.empty()) axes.depths.push_back(refineDepth_);
+    // The denoiser's strength: off or two strengths with "auto", the configured one with "on".
+    if (denoise_ == "auto") axes.denoiseLevels = {0, 2, 4};
+    if (denoise_ == "on") axes.denoiseLevels = {denoiseLevels_};
+    // The photon budget, where the scene runs the photon pass: around the configured one.
+    if (r.photonsActive()) {
+        const uint32_t configured = std::max(128u, previewPhotons_);
+        for (uint32_t n : {configured / 4, configured, configured * 4})
+            if (n >= 128 && n <= r.photonsPerIteration()) axes.photonBudgets.push_back(n);
+        if (axes.photonBudgets.empty()) axes.photonBudgets.push_back(r.photonsPerIteration());
+    }
+    return axes;
 }
 
 Status PipelineRenderer::useDialPoint(size_t i) {

@@ -28,10 +28,13 @@
 namespace previs {
 
 // What previsd's start shows while it makes a PipelineRenderer (daemon/service.h): each slow
-// part as it begins, and the flag that interrupts the dial's renders (a SIGTERM while starting).
+// part as it begins, with how many steps it will count through `progress` (0: none), then
+// those steps (the dial's settings: done of total); and the flag that interrupts the dial's
+// renders (a SIGTERM while starting).
 struct PipelineStartHooks {
     static constexpr const char* kCompilingStage = "compiling pipelines";
-    std::function<void(const std::string& stage)> stage;
+    std::function<void(const std::string& stage, size_t steps)> stage;
+    std::function<void(size_t done, size_t total)> progress;
     const std::atomic<bool>* interrupt = nullptr;
 };
 
@@ -132,7 +135,9 @@ private:
     // [render] preview_fps: times every preview setting on the scene (its own camera, a grey
     // plate) and scores it against a short full-resolution reference, then takes the most
     // accurate one that reaches `fps` (render/quality_dial.h).
-    Status chooseByDial(double fps);
+    Status chooseByDial(double fps, const PipelineStartHooks& hooks);
+    // The settings the dial sweeps on this scene and device (chooseByDial).
+    DialAxes dialAxes() const;
     // Plate, pose and lighting for the next samples.
     Status prepare(const TrackedFrame& frame, const std::shared_ptr<const LiveLighting>& lighting);
 

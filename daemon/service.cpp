@@ -740,12 +740,14 @@ Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config, bo
     return service;
 }
 
-bool Service::beginStartStage(const std::string& what) {
+bool Service::beginStartStage(const std::string& what, size_t steps) {
     if (threads_->stopping.load()) return false;
     {
         std::lock_guard lock(startMutex_);
         startStage_ = what;
         startStageSince_ = Clock::now();
+        startStepsDone_ = 0;
+        startSteps_ = steps;
     }
     logInfo("starting: {} ...", what);
     systemd::notifyStatus("starting: " + what);
@@ -755,14 +757,20 @@ bool Service::beginStartStage(const std::string& what) {
 std::string Service::startingNow() const {
     std::string stage;
     Clock::time_point since;
+    size_t done = 0;
+    size_t steps = 0;
     {
         std::lock_guard lock(startMutex_);
         stage = startStage_;
         since = startStageSince_;
+        done = startStepsDone_;
+        steps = startSteps_;
     }
     // The GPU context counts its compiles on the render stage (base/stage_watch.h).
     if (stage == PipelineStartHooks::kCompilingStage)
         return fmt::format("{}: {} done", stage, threads_->renderStage.longerSteps());
+    // A stage that counts its steps (the dial's settings) says how far it is.
+    if (steps > 0) stage = fmt::format("{}: {}/{}", stage, done, steps);
     const double seconds = std::chrono::duration<double>(Clock::now() - since).count();
     if (seconds >= 2.0) return fmt::format("{}, {:.0f} s so far", stage, seconds);
     return stage;
@@ -797,7 +805,11 @@ Status Service::start(bool* userError) {
     // restart: not exit 2. A stop must not wait for a whole frame on a slow device (lavapipe on
     // a slow CPU), nor for the dial's timings while starting.
     PipelineStartHooks hooks;
-    hooks.stage = [this](const std::string& what) { beginStartStage(what); };
+    hooks.stage = [this](const std::string& what, size_t steps) { beginStartStage(what, steps); };
+    hooks.progress = [this](size_t done, size_t) {
+        std::lock_guard lock(startMutex_);
+        startStepsDone_ = std::min(done, startSteps_);
+    };
     hooks.interrupt = &t.stopping;
     Result<std::unique_ptr<PipelineRenderer>> renderer =
         PipelineRenderer::create(*t.gpu, *scene, config, hooks);

@@ -148,9 +148,10 @@ public:
 private:
     explicit Service(ServiceConfig config);
     struct Threads;
-    // start()'s stages: logged ("starting: loading the scene ...") and kept for status(); false
-    // once a stop was asked for.
-    bool beginStartStage(const std::string& what);
+    // start()'s stages: logged ("starting: loading the scene ...") and kept for status(), with
+    // how many steps the stage counts (0: none; PipelineStartHooks); false once a stop was
+    // asked for.
+    bool beginStartStage(const std::string& what, size_t steps = 0);
     std::string startingNow() const;
     ServiceStatus startingStatus() const;
     // run()'s first part: start() on a thread while this one answers signals (a SIGTERM stops
@@ -184,6 +185,8 @@ private:
     mutable std::mutex startMutex_;
     std::string startStage_;  // what start() is doing, and since when (under startMutex_)
     std::chrono::steady_clock::time_point startStageSince_;
+    size_t startStepsDone_ = 0;  // of startSteps_ (0: the stage counts none; under startMutex_)
+    size_t startSteps_ = 0;
     int stopFd_ = -1;         // eventfd owned by threads_
     std::mutex reloadMutex_;  // SIGHUP (the main thread) and `ctl reload` (the socket's)
 };

@@ -550,7 +550,7 @@ int runTakeRender(const TakeRenderOptions& o) {
         return 1;
     }
     PipelineStartHooks hooks;
-    hooks.stage = [&o](const std::string& what) { stageLine(what, o.quiet); };
+    hooks.stage = [&o](const std::string& what, size_t) { stageLine(what, o.quiet); };
     Result<std::unique_ptr<PipelineRenderer>> renderer =
         PipelineRenderer::create(**gpu, *scene, p.config, hooks);
     if (!renderer) {

@@ -199,19 +199,25 @@ Result<ImageF> panFrames(Renderer& renderer, const DialPoint& p, const DialMotio
 
 }  // namespace
 
-Result<std::vector<DialMeasurement>> measureDial(Renderer& renderer,
-                                                 std::span<const DialPoint> grid,
-                                                 const ImageF& reference, int reps,
-                                                 std::optional<double> budgetSeconds,
-                                                 const DialMotion& motion) {
+Result<std::vector<DialMeasurement>> measureDial(
+    Renderer& renderer, std::span<const DialPoint> grid, const ImageF& reference, int reps,
+    std::optional<double> budgetSeconds, const DialMotion& motion, const DialProgress& progress) {
+    auto done = [&progress, total = grid.size()](size_t n) {
+        if (progress) progress(n, total);
+    };
+    done(0);
     std::vector<DialPoint> order(grid.begin(), grid.end());
     if (budgetSeconds)
         std::stable_sort(order.begin(), order.end(), [](const DialPoint& a, const DialPoint& b) {
             return tracedSamples(a) < tracedSamples(b);
         });
     std::vector<DialMeasurement> out;
-    for (const DialPoint& p : order) {
-        if (budgetSeconds && cannotFit(out, p, *budgetSeconds)) continue;
+    for (size_t k = 0; k < order.size(); ++k) {
+        const DialPoint& p = order[k];
+        if (budgetSeconds && cannotFit(out, p, *budgetSeconds)) {
+            done(k + 1);
+            continue;
+        }
         if (Status s = usePoint(renderer, p); !s) return s.error();
         std::vector<double> times;
         Result<ImageF> frame = motion.panStepRad != 0.0 ? panFrames(renderer, p, motion, times)
@@ -229,6 +235,7 @@ Result<std::vector<DialMeasurement>> measureDial(Renderer& renderer,
         const size_t n = times.size();
         const double median = n % 2 ? times[n / 2] : 0.5 * (times[n / 2 - 1] + times[n / 2]);
         out.push_back({p, median, std::sqrt(squares / double(frame->pixels.size()))});
+        done(k + 1);
     }
     return out;
 }

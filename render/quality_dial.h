@@ -7,6 +7,7 @@
 // to every point's expected squared error and so leaves their order as it is).
 
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <span>
 #include <string>
@@ -94,12 +95,17 @@ struct DialMotion {
 // grows (scale, samples, depth, strength, photons), so a point at or above, on every axis, one
 // measured over the budget (by kDialPruneMargin, for the timing noise) is left out of the
 // result. Cheap points are measured first. The bench measures all (no budget), to show the front.
+//
+// `progress`, when set, hears how many of the grid's points are done (measured or left out) of
+// all of them: once with 0 before the first, then after each (previsd's start shows it).
 inline constexpr double kDialPruneMargin = 1.25;
+using DialProgress = std::function<void(size_t done, size_t total)>;
 bool cannotFit(std::span<const DialMeasurement> measured, const DialPoint& p, double budgetSeconds);
 Result<std::vector<DialMeasurement>> measureDial(Renderer& renderer,
                                                  std::span<const DialPoint> grid,
                                                  const ImageF& reference, int reps,
                                                  std::optional<double> budgetSeconds = {},
-                                                 const DialMotion& motion = {});
+                                                 const DialMotion& motion = {},
+                                                 const DialProgress& progress = {});
 
 }  // namespace previs

@@ -6,6 +6,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "daemon/pipeline_renderer.h"
 #include "daemon/service_config.h"
@@ -64,7 +67,9 @@ TEST(Dial, ASlowTargetTakesTheMostAccurateSetting) {
     EXPECT_EQ((*p)->renderer().resolutionScale(), 1.0f);
 }
 
-// An unreachable rate: no choice, and preview falls back to the fastest setting measured.
+// An unreachable rate: no choice, and preview falls back to the fastest setting measured. The
+// start's hooks hear the dial's stage with its 24 settings, then each one done, those pruned
+// included: 0/24 up to 24/24 (previsd's status while starting).
 TEST(Dial, AnUnreachableTargetTakesTheFastest) {
     auto ctx = GpuContext::create({});
     ASSERT_TRUE(ctx) << ctx.message();
@@ -73,10 +78,21 @@ TEST(Dial, AnUnreachableTargetTakesTheFastest) {
     Demo d = demo(240.0);
     d.config.render.width = 640;
     d.config.render.height = 360;
-    auto p = PipelineRenderer::create(**ctx, d.scene, d.config);
+    std::vector<std::pair<std::string, size_t>> stages;
+    std::vector<std::pair<size_t, size_t>> progress;
+    PipelineStartHooks hooks;
+    hooks.stage = [&](const std::string& what, size_t steps) { stages.emplace_back(what, steps); };
+    hooks.progress = [&](size_t done, size_t total) { progress.emplace_back(done, total); };
+    auto p = PipelineRenderer::create(**ctx, d.scene, d.config, hooks);
     ASSERT_TRUE(p) << p.message();
     const auto& m = (*p)->dialMeasurements();
     ASSERT_FALSE(m.empty());
+    const size_t grid = 4u * 3u * 2u;
+    ASSERT_FALSE(stages.empty());
+    EXPECT_EQ(stages.back(),
+              std::make_pair(std::string("timing the preview's settings for 240 fps"), grid));
+    ASSERT_EQ(progress.size(), grid + 1);
+    for (size_t i = 0; i <= grid; ++i) EXPECT_EQ(progress[i], std::make_pair(i, grid));
     if ((*p)->dialChoice()) GTEST_SKIP() << "this device renders 640x360 at 240 fps";
     double fastest = m[0].frameSeconds;
     for (const DialMeasurement& x : m) fastest = std::min(fastest, x.frameSeconds);
