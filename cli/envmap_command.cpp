@@ -93,7 +93,7 @@ Result<cv::Mat> mergedBracket(const EnvmapOptions& o) {
     return std::move(merged->radiance);
 }
 
-int run(const EnvmapOptions& o) {
+int run(EnvmapOptions& o) {
     cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);
     if (!endsWith(o.out, ".exr")) {
         logError("--out {}: the environment map is written as linear HDR OpenEXR; use a .exr name",
@@ -101,6 +101,10 @@ int run(const EnvmapOptions& o) {
         return 2;
     }
     if (Status s = checkOutputFile("--out", o.out); !s) {
+        logError("{}", s.message());
+        return 2;
+    }
+    if (Status s = o.curve.buildColour(); !s) {
         logError("{}", s.message());
         return 2;
     }
@@ -181,6 +185,7 @@ std::function<int()> addEnvmapCommand(CLI::App& app) {
         ->check(CLI::Range(8, 16384));
     cmd->add_option("--out", o->out, "output ENV.exr (linear float RGB)")->required();
     o->curve.addTo(cmd, "", "LDR input", true);
+    o->curve.addColourTo(cmd, "", "LDR input");
     cmd->add_option("--max-angle", o->maxFieldAngleDeg,
                     "largest angle from the optical axis taken as seen, degrees (default 95)")
         ->check(CLI::Range(1.0, 180.0));

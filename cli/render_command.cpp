@@ -86,7 +86,7 @@ std::string aovPath(const std::string& out, const std::string& aov) {
     return (p.parent_path() / (p.stem().string() + "." + aov + ".exr")).string();
 }
 
-int run(const RenderOptions& o) {
+int run(RenderOptions& o) {
     if (!endsWith(o.out, ".exr") && !endsWith(o.out, ".png")) {
         logError("--out {}: the output must end in .exr (linear HDR) or .png (tone mapped)", o.out);
         return 2;
@@ -100,6 +100,10 @@ int run(const RenderOptions& o) {
         return 2;
     }
     if (Status s = checkOutputFile("--out", o.out); !s) {
+        logError("{}", s.message());
+        return 2;
+    }
+    if (Status s = o.plateCurve.buildColour(); !s) {
         logError("{}", s.message());
         return 2;
     }
@@ -526,6 +530,7 @@ std::function<int()> addRenderCommand(CLI::App& app) {
                     "OpenEXR (linear, used as is); sets the resolution")
         ->check(CLI::ExistingFile);
     o->plateCurve.addTo(cmd, "plate-", "LDR plate", true);
+    o->plateCurve.addColourTo(cmd, "plate-", "LDR plate");
     cmd->add_option("--aov", o->aovs,
                     "also write buffers as OUT.<aov>.exr: composite, mixed, real, mask, and the "
                     "denoiser's guides albedo, normal, depth (first hit, mean over the samples)")

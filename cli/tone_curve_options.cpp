@@ -26,6 +26,35 @@ void ToneCurveOptions::addTo(CLI::App* cmd, const std::string& prefix, const std
         ->check(CLI::PositiveNumber);
 }
 
+void ToneCurveOptions::addColourTo(CLI::App* cmd, const std::string& prefix,
+                                   const std::string& what) {
+    colourPrefix_ = prefix;
+    CLI::Option* input = cmd->add_option(
+        "--" + prefix + "colour", colourInput,
+        what +
+            ": the camera's OpenColorIO colour space (e.g. \"ARRI LogC3 (EI800)\", "
+            "\"Sony S-Log3 S-Gamut3\", \"Rec.709 - Camera\"), decoded to scene-linear in "
+            "place of the tone curve; exposure and white balance still apply");
+    for (const char* curveOption : {"tone-curve", "max-radiance", "white-luminance"})
+        if (CLI::Option* o = cmd->get_option_no_throw("--" + prefix + curveOption))
+            input->excludes(o);
+    cmd->add_option("--" + prefix + "ocio-config", ocioConfig,
+                    what + ": OCIO config file for --" + prefix +
+                        "colour (default: OCIO's built-in camera transforms)")
+        ->needs(input);
+}
+
+Status ToneCurveOptions::buildColour() {
+    if (!colourGiven()) return {};
+    const OcioSource source = OcioSource::fromOptions(ocioConfig, "--" + colourPrefix_ + "colour",
+                                                      "--" + colourPrefix_ + "ocio-config");
+    Result<std::shared_ptr<const CameraColourTransform>> transform =
+        CameraColourTransform::create(source, colourInput);
+    if (!transform) return transform.error();
+    colour_ = std::move(*transform);
+    return {};
+}
+
 InverseToneMapSettings ToneCurveOptions::inverse() const {
     InverseToneMapSettings s;
     s.op = *parseInverseToneMapOperator(curve);  // the option's check admits only known names
@@ -33,6 +62,7 @@ InverseToneMapSettings ToneCurveOptions::inverse() const {
     s.whiteBalance = {whiteBalance[0], whiteBalance[1], whiteBalance[2]};
     s.maxRadiance = maxRadiance;
     s.whiteLuminance = whiteLuminance;
+    s.colour = colour_;
     return s;
 }
 

@@ -71,6 +71,10 @@ void printText(const std::string& image, const std::vector<TagDetection>& detect
 int run(TrackOptions& o) {
     // Our own messages name the file and the fix; OpenCV's console warnings would only repeat them.
     cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);
+    if (Status s = o.toneCurve.buildColour(); !s) {
+        logError("{}", s.message());
+        return 2;
+    }
     auto calib = CameraCalibration::load(o.camera);
     if (!calib) {
         logError("--camera: {}", calib.message());
@@ -127,7 +131,7 @@ int run(TrackOptions& o) {
             logInfo(
                 "no --tone-curve: the images' transfer curve is unknown, so the tag corners are "
                 "libapriltag's; give --tone-curve (srgb, reinhard or banterle, as the camera's "
-                "radiometry) to re-fit them in linear light");
+                "radiometry) or --colour (its OCIO colour space) to re-fit them in linear light");
             toldCurve = true;
         }
         if (gray.size() != calib->imageSize())
@@ -225,6 +229,7 @@ std::function<int()> addTrackCommand(CLI::App& app) {
         ->description(
             "images: their transfer curve, srgb, reinhard or banterle (with --max-radiance and "
             "--white-luminance), for --linear-edges; no default (unknown: libapriltag's corners)");
+    o->toneCurve.addColourTo(cmd, "", "images");
     cmd->add_option("--sigma", o->detector.sigma, "quad_sigma: Gaussian blur, pixels (default 0)")
         ->check(CLI::NonNegativeNumber);
     cmd->add_option("--threads", o->detector.threads, "detector threads (default 1)")
@@ -232,7 +237,7 @@ std::function<int()> addTrackCommand(CLI::App& app) {
     cmd->add_flag("--quiet", o->quiet, "no progress on stderr");
     return [o, family, cmd] {
         o->familyGiven = family->count() > 0;
-        o->curveGiven = cmd->count("--tone-curve") > 0;
+        o->curveGiven = cmd->count("--tone-curve") > 0 || cmd->count("--colour") > 0;
         return run(*o);
     };
 }

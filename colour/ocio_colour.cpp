@@ -39,21 +39,30 @@ std::string configName(const OcioSource& source) {
     return source.configPath.empty() ? "OCIO's built-in transforms" : "'" + source.configPath + "'";
 }
 
+// How a message names the input and the config: a command line's option or the config's key.
+std::string inputName(const OcioSource& source) {
+    return source.inputOption.empty() ? "'" + source.key + ".input'" : source.inputOption;
+}
+
+std::string configKeyName(const OcioSource& source) {
+    return source.configOption.empty() ? "'" + source.key + ".ocio_config'" : source.configOption;
+}
+
 Result<OCIO::ConstConfigRcPtr> loadConfig(const OcioSource& source) {
     if (source.configPath.empty()) return builtinColourConfig();
     // OCIO's own message for a missing file does not say which key named it.
     std::ifstream probe(source.configPath);
     if (!probe)
         return makeError(
-            "'{}.ocio_config': cannot read '{}' ({}); name a readable OCIO config "
-            "file, or leave ocio_config out for the built-in camera transforms",
-            source.key, source.configPath, std::strerror(errno));
+            "{}: cannot read '{}' ({}); name a readable OCIO config "
+            "file, or leave it out for the built-in camera transforms",
+            configKeyName(source), source.configPath, std::strerror(errno));
     try {
         OCIO::ConstConfigRcPtr config = OCIO::Config::CreateFromFile(source.configPath.c_str());
         config->validate();
         return config;
     } catch (const std::exception& e) {
-        return makeError("'{}.ocio_config': '{}' is not a valid OCIO config: {}", source.key,
+        return makeError("{}: '{}' is not a valid OCIO config: {}", configKeyName(source),
                          source.configPath, e.what());
     }
 }
@@ -78,7 +87,7 @@ Status checkInput(const OcioSource& source, const OCIO::ConstConfigRcPtr& config
     if (input.empty())
         return makeError("[{}] needs 'input', the camera's colour space in {}, e.g. {}", source.key,
                          configName(source), someNames(valid));
-    return makeError("'{}.input' is '{}', not a colour space of {}; use one of {}", source.key,
+    return makeError("{} is '{}', not a colour space of {}; use one of {}", inputName(source),
                      input, configName(source), someNames(valid));
 }
 
@@ -86,10 +95,10 @@ Status checkInput(const OcioSource& source, const OCIO::ConstConfigRcPtr& config
 Status checkInterchange(const OcioSource& source, const OCIO::ConstConfigRcPtr& config) {
     if (source.configPath.empty() || config->getColorSpace(OCIO::ROLE_INTERCHANGE_SCENE)) return {};
     return makeError(
-        "'{}.ocio_config': '{}' has no aces_interchange role, which previs needs to reach its "
+        "{}: '{}' has no aces_interchange role, which previs needs to reach its "
         "working space (linear Rec.709); add 'aces_interchange: <its ACES2065-1 colour space>' "
         "to the config's roles",
-        source.key, source.configPath);
+        configKeyName(source), source.configPath);
 }
 
 OCIO::ConstProcessorRcPtr cameraProcessor(const OcioSource& source,
@@ -126,7 +135,7 @@ Result<std::shared_ptr<const CameraColourTransform>> CameraColourTransform::crea
         return std::shared_ptr<const CameraColourTransform>(
             new CameraColourTransform(std::move(p), description));
     } catch (const std::exception& e) {
-        return makeError("'{}.input' '{}' in {}: OCIO cannot build its transform: {}", source.key,
+        return makeError("{} '{}' in {}: OCIO cannot build its transform: {}", inputName(source),
                          input, configName(source), e.what());
     }
 }

@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <utility>
 
 #include "base/result.h"
 
@@ -21,8 +22,22 @@ namespace previs {
 // Where a colour transform comes from: a config file ("" = the built-in one) and, for error
 // messages, the config key that named it ("cameras.scene.colour").
 struct OcioSource {
+    OcioSource(std::string configPath_, std::string key_)
+        : configPath(std::move(configPath_)), key(std::move(key_)) {}
+    // For a command line: messages name its options ("--colour", "--ocio-config") in place of
+    // '<key>.input' and '<key>.ocio_config'.
+    static OcioSource fromOptions(std::string configPath, std::string inputOption,
+                                  std::string configOption) {
+        OcioSource s(std::move(configPath), "");
+        s.inputOption = std::move(inputOption);
+        s.configOption = std::move(configOption);
+        return s;
+    }
+
     std::string configPath;
     std::string key;
+    std::string inputOption;
+    std::string configOption;
 };
 
 // A camera's encoding → the working space. Immutable and thread-safe once built (OCIO's CPU

@@ -14,10 +14,12 @@
 #include <string>
 #include <vector>
 
+#include "colour/ocio_colour.h"
 #include "image/image.h"
 #include "tests/support/process.h"
 #include "tests/support/temp_dir.h"
 #include "tests/support/test_data.h"
+#include "vision/inverse_tone_map.h"
 
 namespace previs {
 namespace {
@@ -294,6 +296,55 @@ TEST(CommandLine, TrackKeepsLibapriltagsCornersWithoutAToneCurve) {
     ASSERT_EQ(srgb.exitCode, 0) << srgb.err;
     EXPECT_EQ(srgb.err, "");
     EXPECT_GT(worstCornerPx(srgb.out), 0.3);
+}
+
+}  // namespace
+}  // namespace previs
+
+namespace previs {
+namespace {
+
+// --colour decodes a camera's log frame as [cameras.<name>.colour] input does (issue 54): a
+// uniform S-Log3 fisheye frame becomes, wherever the lens sees, the radiance the config's
+// transform gives, exposure and white balance after it. An unknown colour space is exit 2 on one
+// line naming the option and some valid names.
+TEST(CommandLine, EnvmapColourDecodesALogFrameAsTheCameraConfigDoes) {
+    const fs::path dir = testing::scratchDir("previs_cli");
+    const std::array<uint8_t, 3> code{120, 100, 80};
+    std::vector<uint8_t> rgb8;
+    for (int i = 0; i < 640 * 480; ++i) rgb8.insert(rgb8.end(), code.begin(), code.end());
+    const std::string frame = (dir / "slog3.png").string();
+    ASSERT_TRUE(writePng(frame, 640, 480, rgb8));
+    const std::string input = "Sony S-Log3 S-Gamut3";
+    const std::string out = (dir / "slog3_env.exr").string();
+    CommandResult r = previs({"envmap", frame, "--camera", kExamples + "/demo/fisheye.yaml",
+                              "--width", "32", "--out", out, "--colour", input, "--exposure-stops",
+                              "1", "--white-balance", "1.5,1,0.8", "--quiet"});
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+
+    InverseToneMapSettings config;
+    auto transform = CameraColourTransform::create({"", "cameras.fisheye.colour"}, input);
+    ASSERT_TRUE(transform) << transform.message();
+    config.colour = *transform;
+    config.exposureStops = 1.0f;
+    config.whiteBalance = {1.5f, 1.0f, 0.8f};
+    const std::array<float, 3> expected =
+        inverseToneMapRgb({code[0] / 255.0f, code[1] / 255.0f, code[2] / 255.0f}, config);
+    Result<ImageF> env = readImage(out);
+    ASSERT_TRUE(env) << env.message();
+    for (int c = 0; c < 3; ++c)  // the zenith row: seen by the upward fisheye
+        EXPECT_NEAR(env->at(0, 0, uint32_t(c)), expected[c], 1e-3f * expected[c]) << c;
+    EXPECT_GT(expected[0], 1.2f * expected[2]);  // S-Gamut3 → Rec.709 kept the colour
+
+    CommandResult unknown = previs({"envmap", frame, "--camera", kExamples + "/demo/fisheye.yaml",
+                                    "--out", out, "--colour", "S-Log9"});
+    EXPECT_EQ(unknown.exitCode, 2);
+    expectOneLineError(unknown, "--colour");
+    EXPECT_NE(unknown.err.find("ARRI LogC3 (EI800)"), std::string::npos) << unknown.err;
+    CommandResult both = previs({"envmap", frame, "--camera", kExamples + "/demo/fisheye.yaml",
+                                 "--out", out, "--colour", input, "--tone-curve", "banterle"});
+    EXPECT_EQ(both.exitCode, 2);
+    expectOneLineError(both, "--colour");
 }
 
 }  // namespace
