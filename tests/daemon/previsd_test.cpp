@@ -28,6 +28,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <regex>
 #include <sstream>
 #include <thread>
 
@@ -151,6 +152,19 @@ std::optional<nlohmann::json> waitFor(const std::string& socket, std::chrono::se
         std::this_thread::sleep_for(100ms);
     }
     return last;
+}
+
+// A starting text that names the dial's stage says how many of its settings are timed:
+// "timing the preview's settings for 15 fps: N/M", N <= M, perhaps ", S s so far" after.
+::testing::AssertionResult countsTheDialsSettings(const std::string& starting) {
+    const std::string stage = "timing the preview's settings for ";
+    if (!starting.starts_with(stage)) return ::testing::AssertionSuccess();
+    static const std::regex form(R"(^[^:]+ fps: ([0-9]+)/([0-9]+)(, [0-9]+ s so far)?$)");
+    std::smatch m;
+    if (!std::regex_match(starting, m, form) || std::stoul(m[1]) > std::stoul(m[2]) ||
+        std::stoul(m[2]) == 0)
+        return ::testing::AssertionFailure() << "not N/M of the settings: " << starting;
+    return ::testing::AssertionSuccess();
 }
 
 std::string previsd() { return PREVISD_BINARY; }
@@ -657,11 +671,17 @@ TEST(Previsd, AnswersWhileStartingRefusesASecondOneAndStopsOnSigterm) {
     ASSERT_TRUE(now) << p.log();
     EXPECT_EQ((*now)["state"], "starting") << "refused before the first one's start ended";
 
-    auto timing = waitFor(socket, kStartup, [](const nlohmann::json& s) {
+    // Every starting text seen on the way names the dial's settings done of all, if it names
+    // them; polled, so which stages are seen depends on the machine's load.
+    std::vector<std::string> seen;
+    auto timing = waitFor(socket, kStartup, [&seen](const nlohmann::json& s) {
+        if (s["state"] == "starting") seen.push_back(s["starting"].get<std::string>());
         return s["state"] == "running" ||
                s["starting"].get<std::string>().starts_with("timing the preview");
     });
     ASSERT_TRUE(timing && (*timing)["state"] == "starting") << (timing ? timing->dump() : p.log());
+    // The last one seen is the dial's: at least one "N/M" is checked.
+    for (const std::string& starting : seen) EXPECT_TRUE(countsTheDialsSettings(starting));
     const auto stopAt = std::chrono::steady_clock::now();
     p.signal(SIGTERM);
     std::optional<int> code = p.wait(30s);
