@@ -87,12 +87,13 @@ int check(const ServiceConfig& config) {
         logError("{}: {}", config.path, takes.message());
         return 2;
     }
+    const std::string colour = cameraColourSummary(config);
     logInfo(
-        "{}: OK (scene {} with {} triangles; output {}; button {}; web monitor {}; takes in {})",
+        "{}: OK (scene {} with {} triangles; output {}; button {}; web monitor {}; takes in {}{})",
         config.path, config.scenePath, scene->geometry.triangles.size(),
         toString(config.output.kind),
         config.button ? config.button->chip + ":" + config.button->line : "none", web,
-        takesFolder(config.record));
+        takesFolder(config.record), colour.empty() ? "" : "; colour: " + colour);
     return 0;
 }
 

@@ -1005,6 +1005,18 @@ std::string takesFolder(const RecordConfig& record) {
     return (fs::path(first) / "takes").string();
 }
 
+std::string cameraColourSummary(const ServiceConfig& config) {
+    std::string summary;
+    auto add = [&](const char* name, const CameraConfig& camera) {
+        if (!camera.radiometry.colour) return;
+        summary += fmt::format("{}{} camera {}", summary.empty() ? "" : "; ", name,
+                               camera.radiometry.colour->description());
+    };
+    add("scene", config.sceneCamera);
+    if (config.fisheyeCamera) add("fisheye", *config.fisheyeCamera);
+    return summary;
+}
+
 std::string savedLightingPath(const LightingConfig& lighting) {
     if (lighting.savedPath) return *lighting.savedPath;
     const char* state = std::getenv("STATE_DIRECTORY");

@@ -282,4 +282,8 @@ std::string controlSocketPath(const ControlConfig& control);
 Result<ServiceConfig> loadServiceConfig(const std::string& path,
                                         const std::string& relativeTo = "");
 
+// The cameras OpenColorIO decodes, for previsd --check: "scene camera 'ARRI LogC3 (EI800)' from
+// OCIO's built-in transforms" ("; fisheye camera …" after it); "" when none has a colour section.
+std::string cameraColourSummary(const ServiceConfig& config);
+
 }  // namespace previs

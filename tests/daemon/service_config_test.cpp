@@ -446,6 +446,19 @@ TEST(ServiceConfig, CameraAndDisplayColourBuildOcioOnlyWhenConfigured) {
     EXPECT_NEAR(grey[1], 0.09f, 0.001f);
 }
 
+// previsd --check's OK line says which cameras OpenColorIO decodes and from what (issue 54).
+TEST(ServiceConfig, CameraColourSummaryNamesEachCamerasInput) {
+    Result<ServiceConfig> plain = loadServiceConfig(writeFile("plain_summary.toml", minimal()));
+    ASSERT_TRUE(plain) << plain.message();
+    EXPECT_EQ(cameraColourSummary(*plain), "");
+    Result<ServiceConfig> c = loadServiceConfig(
+        writeFile("colour_summary.toml",
+                  minimal("[cameras.scene.colour]\ninput = \"Sony S-Log3 S-Gamut3\"")));
+    ASSERT_TRUE(c) << c.message();
+    EXPECT_EQ(cameraColourSummary(*c),
+              "scene camera 'Sony S-Log3 S-Gamut3' from OCIO's built-in transforms");
+}
+
 TEST(ServiceConfig, ServiceSectionsParse) {
     const std::string path =
         writeFile("service_sections.toml", minimal("", R"(until_tracked = "scene-camera"
