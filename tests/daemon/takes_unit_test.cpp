@@ -244,6 +244,18 @@ std::string fileText(const fs::path& p) {
     return std::string(std::istreambuf_iterator<char>(in), {});
 }
 
+// The demo's config with its paths made absolute, as a box's /etc/previs config names them.
+std::string demoConfigWithAbsolutePaths(const fs::path& demo) {
+    std::string text = fileText(demo / "previsd.toml");
+    for (const std::string name : {"previs.toml", "session/cameras/scene", "scene_camera.yaml",
+                                   "session/cameras/fisheye", "fisheye.yaml", "board.toml"}) {
+        const size_t at = text.find('"' + name + '"');
+        EXPECT_NE(at, std::string::npos) << name;
+        if (at != std::string::npos) text.replace(at + 1, name.size(), (demo / name).string());
+    }
+    return text;
+}
+
 // The shipped demo is a take like any other (issue 52): it holds copies of everything its config
 // names, exactly as the recorder copies them from examples/demo/previsd.toml, so it replays,
 // renders and exports under the untrusted-take rules, with no config_dir outside it.
@@ -327,14 +339,7 @@ TEST(TakeFiles, ARecordedTakeHoldsItsFreedCalibration) {
     fs::remove_all(dir);
     fs::create_directories(dir);
     ASSERT_TRUE(writeFreedCalibration((dir / "freed_calibration.toml").string(), {}));
-    // The demo's config with its paths made absolute, as a box's /etc/previs config names them.
-    std::string text = fileText(demo / "previsd.toml");
-    for (const std::string name : {"previs.toml", "session/cameras/scene", "scene_camera.yaml",
-                                   "session/cameras/fisheye", "fisheye.yaml", "board.toml"}) {
-        const size_t at = text.find('"' + name + '"');
-        ASSERT_NE(at, std::string::npos) << name;
-        text.replace(at + 1, name.size(), (demo / name).string());
-    }
+    std::string text = demoConfigWithAbsolutePaths(demo);
     text.insert(
         text.find("[tracking]\n") + 11,
         fmt::format("freed_calibration = \"{}\"\n", (dir / "freed_calibration.toml").string()));
@@ -372,13 +377,7 @@ TEST(TakeFiles, ARecordedTakeHoldsItsCamerasOcioConfig) {
            "  - !<ColorSpace>\n    name: ACES2065-1\n  - !<ColorSpace>\n    name: LogC3\n"
            "    to_scene_reference: !<BuiltinTransform> "
            "{style: ARRI_ALEXA-LOGC-EI800-AWG_to_ACES2065-1}\n";
-    std::string text = fileText(demo / "previsd.toml");
-    for (const std::string name : {"previs.toml", "session/cameras/scene", "scene_camera.yaml",
-                                   "session/cameras/fisheye", "fisheye.yaml", "board.toml"}) {
-        const size_t at = text.find('"' + name + '"');
-        ASSERT_NE(at, std::string::npos) << name;
-        text.replace(at + 1, name.size(), (demo / name).string());
-    }
+    std::string text = demoConfigWithAbsolutePaths(demo);
     // The scene camera as a LogC3 camera: its curve from the OCIO config, not the radiometry.
     const std::string curve =
         "tone_curve = \"banterle\"\nexposure_stops = 0.0\nwhite_balance = [1.0, 1.0, 1.0]\n"
