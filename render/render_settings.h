@@ -70,7 +70,7 @@ struct DenoiseSettings {
     uint32_t kernelRadius = 2;
     // SVGF's σ_n and σ_z (Schied et al. 2017, §4.4). Its σ_l = 4 suits its few-frame variance;
     // with the accumulation's own variance it blurs converged gradients (the soft occlusion
-    // around a virtual object's contact): measured on tests/integrator/test_denoise.cpp's set,
+    // around a virtual object's contact): measured on tests/integrator/denoise_test.cpp's set,
     // the 256-spp change was 3.1× the noise bound at 4, 1.5× at 2, 0.9× at 1, 0.5× at 0.5, while
     // the 4-spp RMSE gain was 1.39×, 1.55×, 1.55×, 1.28×: 1 keeps both.
     float sigmaLuminance = 1.0f;

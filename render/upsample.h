@@ -56,7 +56,7 @@ OutlineKernel outlineKernel(const UpsampleSettings& settings, uint32_t width, ui
 // for 4 channels, the mask's between the outline at p and q's M (OutlineKernel).
 // Neighbours outside the low grid are left out (the weights renormalise).
 //
-// Exact cases (tests/render/test_upsample.cpp): a constant comes out as that constant, a
+// Exact cases (tests/render/upsample_test.cpp): a constant comes out as that constant, a
 // linear ramp under a constant guide as the ramp (away from the border), and a pixel whose
 // 4 × 4 neighbours are all exactly 0 as exactly 0.
 //

@@ -11,7 +11,7 @@
 //            the held view's samples, composited with the plate by Eq. 1, tone mapped and
 //            encoded as 8-bit sRGB.
 // render/upsample.cpp, render/held_view.cpp and render/tonemap.cpp run the same steps on the
-// host for the float images `previs render` writes; tests/integrator/test_display_frame.cpp holds
+// host for the float images `previs render` writes; tests/integrator/display_frame_test.cpp holds
 // the two within one 8-bit code.
 #version 460
 #extension GL_EXT_scalar_block_layout : require

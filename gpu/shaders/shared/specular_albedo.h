@@ -18,7 +18,7 @@
 // above: the diffuse weight 1 − E and the glass scale 1/E may lose a little energy, never create
 // it (the loss is measured in test_bsdf). The values are written by the disabled tests
 // BsdfTest.DISABLED_PrintSpecularAlbedoTable and DISABLED_PrintGlassAlbedoTables
-// (tests/shading/test_bsdf.cpp; run them with --gtest_also_run_disabled_tests) and checked against
+// (tests/shading/bsdf_test.cpp; run them with --gtest_also_run_disabled_tests) and checked against
 // a fresh integration by BsdfTest.SpecularAlbedoTableBoundsTheIntegral and
 // GlassAlbedoTablesBoundTheIntegral.
 #ifndef PREVIS_SHARED_SPECULAR_ALBEDO_H

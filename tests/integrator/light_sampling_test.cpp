@@ -44,7 +44,7 @@ RenderSettings settingsFor(LightSampling lightSampling, uint32_t maxDepth) {
 
 // Unbiased: over 16 seeds each, the solid-angle mean image equals the area-sampling one within
 // the noise, with three bounces (so BSDF-sampled hits of the emitters are weighed by MIS with
-// the solid-angle pdf). Bounds as in test_sampler_render.cpp: per pixel and channel (768 tests)
+// the solid-angle pdf). Bounds as in sampler_render_test.cpp: per pixel and channel (768 tests)
 // |Δ|/σ, σ² the sum of both variances of the mean with 15 degrees of freedom each, below 6.6
 // (Student's t with 15, Šidák-corrected 1% two-sided over 1024 tests, conservative for 768);
 // per channel over the image, |Δ|/σ below 2.94 = Φ⁻¹(1 − 0.01/(2·3)).

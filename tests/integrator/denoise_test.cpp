@@ -52,7 +52,7 @@ ImageF constantPlate(uint32_t w, uint32_t h, float v) {
 }
 
 // A real floor and box under a real sun and sky, a virtual sphere: shadows, occlusion and
-// colour bleeding in L_om − L_or (as test_differential.cpp's set).
+// colour bleeding in L_om − L_or (as differential_test.cpp's set).
 Scene differentialSet(bool withSky) {
     Scene s;
     addQuad(s, {0, 0, 0}, {0, 0, 2}, {2, 0, 0}, addMaterial(s, lambert(glm::vec3(0.7f))), true);
@@ -290,7 +290,7 @@ TEST_F(DenoiseTest, ConvergesToTheUndenoisedImageAtHighSampleCounts) {
 
 // The RMSE of 4-spp composites over seeds 300..303, undenoised over denoised, against a
 // 1024-spp render at the same resolution scale (the error the filter can remove is the noise;
-// what a scale loses in resolution is the upsampler's, tests/integrator/test_resolution_scale.cpp).
+// what a scale loses in resolution is the upsampler's, tests/integrator/resolution_scale_test.cpp).
 // Every denoised frame has the output's size and is finite.
 double denoiseGainAt4Spp(GpuContext& ctx, float resolutionScale) {
     Scene s = differentialSet(true);
@@ -304,7 +304,7 @@ double denoiseGainAt4Spp(GpuContext& ctx, float resolutionScale) {
     // The virtual objects' outline is steepened from the traced mask, which the denoiser does
     // not filter (render/upsample.h): at 4 spp that adds the mask's noise at the outline to both
     // sides of the comparison (the summed gain at 1/2 fell from 1.26× to 1.10×). Off here, so
-    // the test measures the filter; tests/render/test_upsample.cpp measures the outline.
+    // the test measures the filter; tests/render/upsample_test.cpp measures the outline.
     r.upsampleSettings().outlineSharpening = 0.0f;
     r.setSeed(77);
     EXPECT_TRUE(r.render(1024).ok());

@@ -18,7 +18,7 @@ namespace previs::testing {
 namespace {
 
 constexpr float kPi = 3.14159265358979f;
-// As in test_integrator.cpp: Student's t with 15 dof, Šidák-corrected 1% over ~1000 pixels.
+// As in integrator_test.cpp: Student's t with 15 dof, Šidák-corrected 1% over ~1000 pixels.
 constexpr int kRuns = 16;
 constexpr double kPixelT = 6.6;
 // Photons an iteration where a mirror ball switches them on (PhotonMode::Auto) in the estimates

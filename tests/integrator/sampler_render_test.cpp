@@ -45,7 +45,7 @@ RenderSettings settingsFor(Sampler sampler) {
 // Per pixel and channel (16×16×3 = 768 tests) |Δ|/σ with σ² the sum of both variances of the
 // mean: each variance has 15 degrees of freedom, so the statistic is at least as concentrated as
 // Student's t with 15, whose Šidák-corrected 1% two-sided bound over 1024 tests is 6.6 (as in
-// test_integrator.cpp; conservative for 768). And per channel over the whole image, where a
+// integrator_test.cpp; conservative for 768). And per channel over the whole image, where a
 // small bias would add up: pixels are independent, so the image mean's variance is the sum of
 // the pixels' over n²; with 2×16×256 runs-pixels behind it the normal bound applies, 2.94 =
 // Φ⁻¹(1 − 0.01/(2·3)) after Šidák over the 3 channels.
