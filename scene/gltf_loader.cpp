@@ -332,6 +332,53 @@ private:
     Status loadMesh(int meshIndex, const glm::dmat4& worldFromMesh, bool real);
     Status loadPrimitive(const tinygltf::Mesh& mesh, int meshIndex, size_t primIndex,
                          const glm::dmat4& worldFromMesh, bool real);
+    // One primitive's vertex attributes as the file stores them (mesh space, flat arrays).
+    struct PrimitiveVertices {
+        std::vector<float> positions;  // xyz per vertex
+        std::vector<float> normals;    // xyz per vertex, or empty (flat shading)
+        std::vector<float> uvs;        // uv per vertex, or empty
+        size_t count = 0;
+        glm::vec3 position(uint32_t i) const {
+            return glm::vec3(positions[3 * i], positions[3 * i + 1], positions[3 * i + 2]);
+        }
+        glm::vec2 uv(uint32_t i) const {
+            return uvs.empty() ? glm::vec2(0.0f) : glm::vec2(uvs[2 * i], uvs[2 * i + 1]);
+        }
+    };
+    // A primitive's triangles that are kept, with its vertices placed in the scene's frame.
+    struct PrimitiveTriangles {
+        const PrimitiveVertices& vertices;
+        const std::vector<glm::vec3>& world;
+        std::vector<glm::uvec3> triangles;
+        uint32_t material = 0;
+        bool real = false;
+    };
+    Result<PrimitiveVertices> readVertices(const tinygltf::Mesh& mesh, int meshIndex,
+                                           const tinygltf::Primitive& prim,
+                                           const std::string& what) const;
+    struct VertexAttribute {
+        const char* name;      // glTF attribute semantic
+        int type;              // TINYGLTF_TYPE_VEC*
+        bool allowNormalized;  // normalized unsigned integer components are accepted
+        const char* noun;      // for the count mismatch message
+    };
+    // An optional per-vertex attribute: absent leaves `out` empty; present must match POSITION.
+    Status readVertexAttribute(const tinygltf::Primitive& prim, const VertexAttribute& attribute,
+                               const std::string& what, size_t vertexCount,
+                               std::vector<float>& out) const;
+    Result<std::vector<uint32_t>> readTriangleIndices(const tinygltf::Primitive& prim,
+                                                      const std::string& what,
+                                                      size_t vertexCount) const;
+    Result<uint32_t> primitiveMaterial(const tinygltf::Primitive& prim, const std::string& what);
+    // Drops repeated-index and degenerate triangles (counted), fixing the winding if mirrored.
+    std::vector<glm::uvec3> keepTriangles(const std::vector<uint32_t>& indices,
+                                          const PrimitiveVertices& vertices,
+                                          const std::vector<glm::vec3>& world, bool mirrored);
+    void appendFlatTriangles(const PrimitiveTriangles& prim);
+    std::vector<glm::vec3> worldNormals(const PrimitiveTriangles& prim,
+                                        const glm::mat3& normalMatrix);
+    void appendSmoothTriangles(const PrimitiveTriangles& prim,
+                               const std::vector<glm::vec3>& normals);
     Status loadCamera(const tinygltf::Node& node, const glm::dmat4& world);
     void shiftTextureCoordinates(std::vector<float>& uvs, const Material& material) const;
     Status loadLight(const tinygltf::Node& node, const glm::dmat4& world, bool real);
@@ -891,64 +938,71 @@ Status Loader::loadMesh(int meshIndex, const glm::dmat4& worldFromMesh, bool rea
     return {};
 }
 
-Status Loader::loadPrimitive(const tinygltf::Mesh& mesh, int meshIndex, size_t primIndex,
-                             const glm::dmat4& worldFromMesh, bool real) {
-    const tinygltf::Primitive& prim = mesh.primitives[primIndex];
-    const std::string what =
-        fmt::format("mesh {} ('{}') primitive {}", meshIndex, mesh.name, primIndex);
-    if (prim.mode != TINYGLTF_MODE_TRIANGLES) {
-        // Points and lines have no area to render; strips/fans are rare in exported files.
-        logWarning("glTF '{}': {} has mode {} (only TRIANGLES is rendered); skipped", path_, what,
-                   prim.mode);
-        ++skippedPrimitives_;
-        return {};
-    }
-    auto attribute = [&](const char* name) {
-        auto it = prim.attributes.find(name);
-        return it == prim.attributes.end() ? -1 : it->second;
-    };
-    const int positionAccessor = attribute("POSITION");
-    if (positionAccessor < 0) return fail("{} has no POSITION attribute", what);
+// |cross| in double: exact zero for collinear or coincident authored data; the relative
+// threshold also catches float-rounded collinear points whose normal would be noise. Slivers
+// (any aspect ratio above ~1e-7) are kept: they are legitimate geometry.
+bool isDegenerate(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c) {
+    const glm::dvec3 e1 = glm::dvec3(b) - glm::dvec3(a);
+    const glm::dvec3 e2 = glm::dvec3(c) - glm::dvec3(a);
+    const glm::dvec3 e3 = glm::dvec3(c) - glm::dvec3(b);
+    const double maxEdge2 = std::max({glm::dot(e1, e1), glm::dot(e2, e2), glm::dot(e3, e3)});
+    const double area2 = glm::length(glm::cross(e1, e2));
+    return !(area2 > 1e-14 * maxEdge2) || maxEdge2 == 0.0;
+}
 
-    std::vector<float> positions;
-    size_t vertexCount = 0;
-    if (Status s = readFloats(positionAccessor, TINYGLTF_TYPE_VEC3, false, what + " POSITION",
-                              positions, vertexCount);
+// Twice the area times the unit normal, in double (counter-clockwise winding).
+glm::dvec3 areaNormal(const std::vector<glm::vec3>& world, const glm::uvec3& tri) {
+    return glm::cross(glm::dvec3(world[tri.y]) - glm::dvec3(world[tri.x]),
+                      glm::dvec3(world[tri.z]) - glm::dvec3(world[tri.x]));
+}
+
+Status Loader::readVertexAttribute(const tinygltf::Primitive& prim,
+                                   const VertexAttribute& attribute, const std::string& what,
+                                   size_t vertexCount, std::vector<float>& out) const {
+    auto it = prim.attributes.find(attribute.name);
+    if (it == prim.attributes.end()) return {};
+    size_t n = 0;
+    if (Status s = readFloats(it->second, attribute.type, attribute.allowNormalized,
+                              what + " " + attribute.name, out, n);
         !s)
         return s;
-    for (float v : positions)
+    if (n != vertexCount)
+        return fail("{} has {} {} for {} positions", what, n, attribute.noun, vertexCount);
+    return {};
+}
+
+Result<Loader::PrimitiveVertices> Loader::readVertices(const tinygltf::Mesh& mesh, int meshIndex,
+                                                       const tinygltf::Primitive& prim,
+                                                       const std::string& what) const {
+    auto position = prim.attributes.find("POSITION");
+    if (position == prim.attributes.end()) return fail("{} has no POSITION attribute", what);
+    PrimitiveVertices vertices;
+    if (Status s = readFloats(position->second, TINYGLTF_TYPE_VEC3, false, what + " POSITION",
+                              vertices.positions, vertices.count);
+        !s)
+        return s.error();
+    for (float v : vertices.positions)
         if (!std::isfinite(v))
             return fail(
                 "mesh '{}' (mesh {}) has NaN or infinite vertex positions; fix the "
                 "mesh in the modelling tool",
                 mesh.name, meshIndex);
+    const VertexAttribute normal{"NORMAL", TINYGLTF_TYPE_VEC3, false, "normals"};
+    if (Status s = readVertexAttribute(prim, normal, what, vertices.count, vertices.normals); !s)
+        return s.error();
+    // Texture coordinates may be stored as normalized unsigned integers (glTF §3.7.2.1).
+    const VertexAttribute uv{"TEXCOORD_0", TINYGLTF_TYPE_VEC2, true, "texture coordinates"};
+    if (Status s = readVertexAttribute(prim, uv, what, vertices.count, vertices.uvs); !s)
+        return s.error();
+    return vertices;
+}
 
-    std::vector<float> normals;
-    const int normalAccessor = attribute("NORMAL");
-    if (normalAccessor >= 0) {
-        size_t n = 0;
-        if (Status s =
-                readFloats(normalAccessor, TINYGLTF_TYPE_VEC3, false, what + " NORMAL", normals, n);
-            !s)
-            return s;
-        if (n != vertexCount)
-            return fail("{} has {} normals for {} positions", what, n, vertexCount);
-    }
-    std::vector<float> uvs;
-    const int uvAccessor = attribute("TEXCOORD_0");
-    if (uvAccessor >= 0) {
-        size_t n = 0;
-        if (Status s =
-                readFloats(uvAccessor, TINYGLTF_TYPE_VEC2, true, what + " TEXCOORD_0", uvs, n);
-            !s)
-            return s;
-        if (n != vertexCount)
-            return fail("{} has {} texture coordinates for {} positions", what, n, vertexCount);
-    }
-
+Result<std::vector<uint32_t>> Loader::readTriangleIndices(const tinygltf::Primitive& prim,
+                                                          const std::string& what,
+                                                          size_t vertexCount) const {
     std::vector<uint32_t> indices;
     if (prim.indices >= 0) {
-        if (Status s = readIndices(prim.indices, what, indices); !s) return s;
+        if (Status s = readIndices(prim.indices, what, indices); !s) return s.error();
         for (uint32_t i : indices)
             if (i >= vertexCount)
                 return fail("{} has index {} out of range (it has {} vertices)", what, i,
@@ -960,97 +1014,69 @@ Status Loader::loadPrimitive(const tinygltf::Mesh& mesh, int meshIndex, size_t p
     if (indices.size() % 3 != 0)
         logWarning("glTF '{}': {} has {} indices, not a multiple of 3; the last {} are ignored",
                    path_, what, indices.size(), indices.size() % 3);
+    return indices;
+}
 
-    uint32_t material = 0;
+Result<uint32_t> Loader::primitiveMaterial(const tinygltf::Primitive& prim,
+                                           const std::string& what) {
     if (prim.material >= 0) {
         if (size_t(prim.material) >= scene_.materials.size())
             return fail("{} uses material {}, but the file has {} materials", what, prim.material,
                         scene_.materials.size());
-        material = uint32_t(prim.material);
-    } else {
-        if (defaultMaterial_ < 0) {
-            defaultMaterial_ = int(scene_.materials.size());
-            Material m;
-            m.name = "default";
-            scene_.materials.push_back(m);
-        }
-        material = uint32_t(defaultMaterial_);
+        return uint32_t(prim.material);
     }
+    if (defaultMaterial_ < 0) {
+        defaultMaterial_ = int(scene_.materials.size());
+        Material m;
+        m.name = "default";
+        scene_.materials.push_back(m);
+    }
+    return uint32_t(defaultMaterial_);
+}
 
-    checkThinGlassOnClosedMesh(material, meshIndex);
-    shiftTextureCoordinates(uvs, scene_.materials[material]);
-
-    const glm::mat3 linear{glm::dmat3(worldFromMesh)};
-    const glm::mat3 normalMatrix = glm::transpose(glm::inverse(linear));
-    // A mirroring transform flips the winding; swap two indices so the geometric normal
-    // (counter-clockwise, glTF §3.7.2.1) still points to the front face.
-    const bool mirrored = glm::determinant(linear) < 0.0f;
-
-    Geometry& g = scene_.geometry;
-    const bool flat = normals.empty();
-    const uint32_t base = uint32_t(g.positions.size());
-    auto localPosition = [&](uint32_t i) {
-        return glm::vec3(positions[3 * i], positions[3 * i + 1], positions[3 * i + 2]);
-    };
-    std::vector<glm::vec3> world(vertexCount);
-    for (size_t i = 0; i < vertexCount; ++i)
-        world[i] = glm::vec3(worldFromMesh * glm::dvec4(localPosition(uint32_t(i)), 1.0));
-
-    // |cross| in double: exact zero for collinear or coincident authored data; the relative
-    // threshold also catches float-rounded collinear points whose normal would be noise. Slivers
-    // (any aspect ratio above ~1e-7) are kept: they are legitimate geometry.
-    auto isDegenerate = [](const glm::vec3& a, const glm::vec3& b, const glm::vec3& c) {
-        const glm::dvec3 e1 = glm::dvec3(b) - glm::dvec3(a);
-        const glm::dvec3 e2 = glm::dvec3(c) - glm::dvec3(a);
-        const glm::dvec3 e3 = glm::dvec3(c) - glm::dvec3(b);
-        const double maxEdge2 = std::max({glm::dot(e1, e1), glm::dot(e2, e2), glm::dot(e3, e3)});
-        const double area2 = glm::length(glm::cross(e1, e2));
-        return !(area2 > 1e-14 * maxEdge2) || maxEdge2 == 0.0;
-    };
-
+std::vector<glm::uvec3> Loader::keepTriangles(const std::vector<uint32_t>& indices,
+                                              const PrimitiveVertices& vertices,
+                                              const std::vector<glm::vec3>& world, bool mirrored) {
     std::vector<glm::uvec3> tris;
     tris.reserve(indices.size() / 3);
-    size_t degenerate = 0;
     for (size_t t = 0; t + 2 < indices.size(); t += 3) {
         glm::uvec3 tri(indices[t], indices[t + 1], indices[t + 2]);
         if (tri.x == tri.y || tri.y == tri.z || tri.x == tri.z ||
-            isDegenerate(localPosition(tri.x), localPosition(tri.y), localPosition(tri.z)) ||
+            isDegenerate(vertices.position(tri.x), vertices.position(tri.y),
+                         vertices.position(tri.z)) ||
             isDegenerate(world[tri.x], world[tri.y], world[tri.z])) {
-            ++degenerate;
+            ++degenerateTriangles_;
             continue;
         }
+        // A mirroring transform flips the winding; swap two indices so the geometric normal
+        // (counter-clockwise, glTF §3.7.2.1) still points to the front face.
         if (mirrored) std::swap(tri.y, tri.z);
         tris.push_back(tri);
     }
-    degenerateTriangles_ += degenerate;
+    return tris;
+}
 
-    auto faceNormal = [&](const glm::uvec3& tri) {
-        const glm::dvec3 n = glm::cross(glm::dvec3(world[tri.y]) - glm::dvec3(world[tri.x]),
-                                        glm::dvec3(world[tri.z]) - glm::dvec3(world[tri.x]));
-        return glm::vec3(glm::normalize(n));
-    };
-
-    auto uvOf = [&](uint32_t i) {
-        return uvs.empty() ? glm::vec2(0.0f) : glm::vec2(uvs[2 * i], uvs[2 * i + 1]);
-    };
-
-    if (flat) {
-        // No normals: one vertex per corner so each triangle carries its own flat normal.
-        for (const glm::uvec3& tri : tris) {
-            const glm::vec3 n = faceNormal(tri);
-            const uint32_t first = uint32_t(g.positions.size());
-            for (uint32_t k = 0; k < 3; ++k) {
-                g.positions.push_back(world[tri[k]]);
-                g.normals.push_back(n);
-                g.uvs.push_back(uvOf(tri[k]));
-            }
-            g.triangles.emplace_back(first, first + 1, first + 2);
-            g.triangleMaterials.push_back(material);
-            g.triangleIsReal.push_back(real ? 1 : 0);
+// No normals: one vertex per corner so each triangle carries its own flat normal.
+void Loader::appendFlatTriangles(const PrimitiveTriangles& prim) {
+    Geometry& g = scene_.geometry;
+    for (const glm::uvec3& tri : prim.triangles) {
+        const glm::vec3 n = glm::vec3(glm::normalize(areaNormal(prim.world, tri)));
+        const uint32_t first = uint32_t(g.positions.size());
+        for (uint32_t k = 0; k < 3; ++k) {
+            g.positions.push_back(prim.world[tri[k]]);
+            g.normals.push_back(n);
+            g.uvs.push_back(prim.vertices.uv(tri[k]));
         }
-        return {};
+        g.triangles.emplace_back(first, first + 1, first + 2);
+        g.triangleMaterials.push_back(prim.material);
+        g.triangleIsReal.push_back(prim.real ? 1 : 0);
     }
+}
 
+std::vector<glm::vec3> Loader::worldNormals(const PrimitiveTriangles& prim,
+                                            const glm::mat3& normalMatrix) {
+    const std::vector<float>& normals = prim.vertices.normals;
+    const size_t vertexCount = prim.vertices.count;
     std::vector<glm::vec3> worldNormals(vertexCount);
     std::vector<uint8_t> bad(vertexCount, 0);
     for (size_t i = 0; i < vertexCount; ++i) {
@@ -1066,32 +1092,72 @@ Status Loader::loadPrimitive(const tinygltf::Mesh& mesh, int meshIndex, size_t p
     }
     // Unusable normals (NaN, Inf, zero) become the area-weighted geometric normal of the
     // triangles around the vertex.
-    size_t replaced = 0;
-    for (const glm::uvec3& tri : tris) {
-        const glm::dvec3 n = glm::cross(glm::dvec3(world[tri.y]) - glm::dvec3(world[tri.x]),
-                                        glm::dvec3(world[tri.z]) - glm::dvec3(world[tri.x]));
+    for (const glm::uvec3& tri : prim.triangles) {
+        const glm::dvec3 n = areaNormal(prim.world, tri);
         for (int k = 0; k < 3; ++k)
             if (bad[tri[k]]) worldNormals[tri[k]] += glm::vec3(n);
     }
     for (size_t i = 0; i < vertexCount; ++i) {
         if (!bad[i]) continue;
-        ++replaced;
+        ++replacedNormals_;
         const float len = glm::length(worldNormals[i]);
         worldNormals[i] =
             std::isfinite(len) && len > 0.0f ? worldNormals[i] / len : glm::vec3(0.0f, 1.0f, 0.0f);
     }
-    replacedNormals_ += replaced;
+    return worldNormals;
+}
 
-    for (size_t i = 0; i < vertexCount; ++i) {
-        g.positions.push_back(world[i]);
-        g.normals.push_back(worldNormals[i]);
-        g.uvs.push_back(uvOf(uint32_t(i)));
+void Loader::appendSmoothTriangles(const PrimitiveTriangles& prim,
+                                   const std::vector<glm::vec3>& normals) {
+    Geometry& g = scene_.geometry;
+    const uint32_t base = uint32_t(g.positions.size());
+    for (size_t i = 0; i < prim.vertices.count; ++i) {
+        g.positions.push_back(prim.world[i]);
+        g.normals.push_back(normals[i]);
+        g.uvs.push_back(prim.vertices.uv(uint32_t(i)));
     }
-    for (const glm::uvec3& tri : tris) {
+    for (const glm::uvec3& tri : prim.triangles) {
         g.triangles.push_back(tri + glm::uvec3(base));
-        g.triangleMaterials.push_back(material);
-        g.triangleIsReal.push_back(real ? 1 : 0);
+        g.triangleMaterials.push_back(prim.material);
+        g.triangleIsReal.push_back(prim.real ? 1 : 0);
     }
+}
+
+Status Loader::loadPrimitive(const tinygltf::Mesh& mesh, int meshIndex, size_t primIndex,
+                             const glm::dmat4& worldFromMesh, bool real) {
+    const tinygltf::Primitive& prim = mesh.primitives[primIndex];
+    const std::string what =
+        fmt::format("mesh {} ('{}') primitive {}", meshIndex, mesh.name, primIndex);
+    if (prim.mode != TINYGLTF_MODE_TRIANGLES) {
+        // Points and lines have no area to render; strips/fans are rare in exported files.
+        logWarning("glTF '{}': {} has mode {} (only TRIANGLES is rendered); skipped", path_, what,
+                   prim.mode);
+        ++skippedPrimitives_;
+        return {};
+    }
+    Result<PrimitiveVertices> vertices = readVertices(mesh, meshIndex, prim, what);
+    if (!vertices) return vertices.error();
+    Result<std::vector<uint32_t>> indices = readTriangleIndices(prim, what, vertices->count);
+    if (!indices) return indices.error();
+    Result<uint32_t> material = primitiveMaterial(prim, what);
+    if (!material) return material.error();
+
+    checkThinGlassOnClosedMesh(*material, meshIndex);
+    shiftTextureCoordinates(vertices->uvs, scene_.materials[*material]);
+
+    const glm::mat3 linear{glm::dmat3(worldFromMesh)};
+    std::vector<glm::vec3> world(vertices->count);
+    for (size_t i = 0; i < vertices->count; ++i)
+        world[i] = glm::vec3(worldFromMesh * glm::dvec4(vertices->position(uint32_t(i)), 1.0));
+    const bool mirrored = glm::determinant(linear) < 0.0f;
+    PrimitiveTriangles triangles{
+        *vertices, world, keepTriangles(*indices, *vertices, world, mirrored), *material, real};
+    if (vertices->normals.empty()) {
+        appendFlatTriangles(triangles);
+        return {};
+    }
+    const glm::mat3 normalMatrix = glm::transpose(glm::inverse(linear));
+    appendSmoothTriangles(triangles, worldNormals(triangles, normalMatrix));
     return {};
 }
 
