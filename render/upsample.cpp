@@ -126,23 +126,14 @@ OutlineKernel outlineKernel(const UpsampleSettings& settings, uint32_t width, ui
             .rangeScale = 1.0f / (2.0f * settings.maskRangeSigma * settings.maskRangeSigma)};
 }
 
-ImageF jointBilateralUpsample(const ImageF& low, uint32_t width, uint32_t height,
-                              const ImageF* guide, const UpsampleSettings& settings) {
-    PV_ASSERT(low.width > 0 && low.height > 0 && low.channels >= 1 && low.channels <= 4);
-    PV_ASSERT(low.pixels.size() == size_t(low.width) * low.height * low.channels);
+namespace {
+
+// Which output pixels have any non-zero neighbour, per low pixel: a low pixel's 4 × 4
+// neighbourhood (taps i1 − 1 … i1 + 2, stored at index i1 + 1) dilated separably, on a
+// (w + 1) × (h + 1) grid. Elsewhere the output stays exactly 0 without any work: most of a
+// preview frame is plate alone.
+std::vector<uint8_t> nonZeroNeighbourhoods(const ImageF& low) {
     const uint32_t w = low.width, h = low.height, nc = low.channels;
-    ImageF out;
-    out.width = width;
-    out.height = height;
-    out.channels = nc;
-    out.pixels.assign(size_t(width) * height * nc, 0.0f);
-    if (width == 0 || height == 0) return out;
-
-    const Taps cols = makeTaps(width, w), rows = makeTaps(height, h);
-
-    // Which output pixels have any non-zero neighbour: a low pixel's 4 × 4 neighbourhood
-    // (taps i1 − 1 … i1 + 2, stored at index i1 + 1) dilated separably. Elsewhere the output
-    // stays exactly 0 without any work: most of a preview frame is plate alone.
     std::vector<uint8_t> nonZero(size_t(w) * h, 0);
     for (size_t i = 0; i < nonZero.size(); ++i)
         for (uint32_t c = 0; c < nc; ++c)
@@ -162,108 +153,158 @@ ImageF jointBilateralUpsample(const ImageF& low, uint32_t width, uint32_t height
                 any |= dilatedX[size_t(j) * (w + 1) + i];
             needs[size_t(j1 + 1) * (w + 1) + i] = any;
         }
+    return needs;
+}
 
-    // The guide: log colour at full resolution (computed per pixel that needs it) and the log
-    // of its area mean over each low pixel's footprint.
-    const bool ranged = guide && settings.rangeSigma > 0.0f;
-    std::vector<float> lowGuide;
+// The guide on the low grid: the log2 of the guide's area mean over each low pixel's
+// footprint, and the epsilon added before every log (a fraction of the mean brightness).
+struct LowGuide {
+    std::vector<float> logMean;  // 3 per low pixel
     float epsilon = 0.0f;
+};
+
+LowGuide lowResolutionGuide(const ImageF& guide, uint32_t w, uint32_t h, float logEpsilonFraction) {
+    const uint32_t width = guide.width, height = guide.height, gc = guide.channels;
+    const auto ax = areaWeights(width, w), ay = areaWeights(height, h);
+    std::vector<double> rowMean(size_t(w) * height * 3, 0.0);
+    for (uint32_t y = 0; y < height; ++y)
+        for (uint32_t i = 0; i < w; ++i)
+            for (auto [x, f] : ax[i])
+                for (int c = 0; c < 3; ++c)
+                    rowMean[(size_t(y) * w + i) * 3 + c] +=
+                        f * double(guide.pixels[(size_t(y) * width + x) * gc + c]);
+    std::vector<double> mean(size_t(w) * h * 3, 0.0);
+    double total = 0.0;
+    for (uint32_t j = 0; j < h; ++j)
+        for (uint32_t i = 0; i < w; ++i)
+            for (int c = 0; c < 3; ++c) {
+                double v = 0.0;
+                for (auto [y, f] : ay[j]) v += f * rowMean[(size_t(y) * w + i) * 3 + c];
+                mean[(size_t(j) * w + i) * 3 + c] = v;
+                total += v;
+            }
+    LowGuide out;
+    out.epsilon = std::max(float(logEpsilonFraction * total / double(mean.size())), 1e-12f);
+    out.logMean.resize(mean.size());
+    for (size_t k = 0; k < mean.size(); ++k)
+        out.logMean[k] = fastLog2(std::max(float(mean[k]), 0.0f) + out.epsilon);
+    return out;
+}
+
+// Everything the per-pixel filter reads: the low image, its taps, and the range kernel (guide
+// colour and outline mask distances, both as steps into the tabulated exp(−x)).
+struct BilateralFilter {
+    const ImageF& low;
+    const ImageF* guide;  // null: no colour range term
+    Taps cols, rows;
+    LowGuide lowGuide{};
+    OutlineKernel outline{};
+    float toTable = 0.0f;      // squared log2 colour distance → table steps
+    float maskToTable = 0.0f;  // squared mask distance → table steps (0: no outline term)
+    std::array<float, kRangeTable + 1> rangeTable{};
+
+    // One output pixel (x, y) whose tap origin is (i0, j0) into `o`.
+    void filterPixel(uint32_t x, uint32_t y, int i0, int j0, float* o) const;
+};
+
+void BilateralFilter::filterPixel(uint32_t x, uint32_t y, int i0, int j0, float* o) const {
+    const uint32_t w = low.width, nc = low.channels;
+    const std::array<double, 4>& wx = cols.weights[x];
+    const std::array<double, 4>& wy = rows.weights[y];
+    const bool ranged = guide != nullptr;
+    float gp[3] = {};
+    if (ranged) {
+        const float* g = &guide->pixels[(size_t(y) * guide->width + x) * guide->channels];
+        for (int c = 0; c < 3; ++c) gp[c] = fastLog2(std::max(g[c], 0.0f) + lowGuide.epsilon);
+    }
+    const float target =
+        maskToTable > 0.0f ? outlineTarget(low, i0, j0, wx, wy, outline.sharpness) : -1.0f;
+    // Pass 0 with the range kernel; pass 1, rarely, the spatial kernel alone.
+    double acc[4] = {};
+    double weight = 0.0, spatial = 0.0;
+    for (int pass = 0; pass < 2; ++pass) {
+        for (int b = 0; b < 4; ++b) {
+            if (wy[b] == 0.0) continue;
+            const size_t rowBase = size_t(j0 + b) * w;
+            for (int a = 0; a < 4; ++a) {
+                if (wx[a] == 0.0) continue;
+                const size_t q = rowBase + size_t(i0 + a);
+                const double ws = wx[a] * wy[b];
+                const float* v = &low.pixels[q * nc];
+                double r = 1.0;
+                if ((ranged || target >= 0.0f) && pass == 0) {
+                    float t = 0.0f;
+                    if (ranged) {
+                        const float* gq = &lowGuide.logMean[q * 3];
+                        const float d0 = gp[0] - gq[0], d1 = gp[1] - gq[1], d2 = gp[2] - gq[2];
+                        t = (d0 * d0 + d1 * d1 + d2 * d2) * toTable;
+                    }
+                    if (target >= 0.0f) {
+                        const float dm = target - v[3];
+                        t += dm * dm * maskToTable;
+                    }
+                    r = t < float(kRangeTable) ? rangeTable[int(t)] : 0.0f;
+                }
+                for (uint32_t c = 0; c < nc; ++c) acc[c] += ws * r * double(v[c]);
+                weight += ws * r;
+                spatial += ws;
+            }
+        }
+        if (weight > kMinRangeWeightFraction * spatial) break;
+        acc[0] = acc[1] = acc[2] = acc[3] = 0.0;
+        weight = spatial = 0.0;
+        PV_DCHECK(pass == 0);
+    }
+    for (uint32_t c = 0; c < nc; ++c) o[c] = float(acc[c] / weight);
+}
+
+BilateralFilter makeFilter(const ImageF& low, uint32_t width, uint32_t height, const ImageF* guide,
+                           const UpsampleSettings& settings) {
+    const uint32_t w = low.width, h = low.height;
+    const bool ranged = guide && settings.rangeSigma > 0.0f;
+    BilateralFilter f{.low = low,
+                      .guide = ranged ? guide : nullptr,
+                      .cols = makeTaps(width, w),
+                      .rows = makeTaps(height, h)};
     if (ranged) {
         PV_ASSERT(guide->width == width && guide->height == height && guide->channels >= 3);
-        const auto ax = areaWeights(width, w), ay = areaWeights(height, h);
-        const uint32_t gc = guide->channels;
-        std::vector<double> rowMean(size_t(w) * height * 3, 0.0);
-        for (uint32_t y = 0; y < height; ++y)
-            for (uint32_t i = 0; i < w; ++i)
-                for (auto [x, f] : ax[i])
-                    for (int c = 0; c < 3; ++c)
-                        rowMean[(size_t(y) * w + i) * 3 + c] +=
-                            f * double(guide->pixels[(size_t(y) * width + x) * gc + c]);
-        std::vector<double> mean(size_t(w) * h * 3, 0.0);
-        double total = 0.0;
-        for (uint32_t j = 0; j < h; ++j)
-            for (uint32_t i = 0; i < w; ++i)
-                for (int c = 0; c < 3; ++c) {
-                    double v = 0.0;
-                    for (auto [y, f] : ay[j]) v += f * rowMean[(size_t(y) * w + i) * 3 + c];
-                    mean[(size_t(j) * w + i) * 3 + c] = v;
-                    total += v;
-                }
-        epsilon =
-            std::max(float(settings.logEpsilonFraction * total / double(mean.size())), 1e-12f);
-        lowGuide.resize(mean.size());
-        for (size_t k = 0; k < mean.size(); ++k)
-            lowGuide[k] = fastLog2(std::max(float(mean[k]), 0.0f) + epsilon);
+        f.lowGuide = lowResolutionGuide(*guide, w, h, settings.logEpsilonFraction);
+        // exp(−d²/(2σ²)) with d in natural-log units; the guide is in log2 (d_ln = ln2 · d_log2).
+        const float ln2 = 0.69314718f;
+        f.toTable = ln2 * ln2 / (2.0f * settings.rangeSigma * settings.rangeSigma) * kRangeSteps;
     }
-    const OutlineKernel outline =
-        nc == 4 ? outlineKernel(settings, width, height, w, h) : OutlineKernel{};
-    const float maskToTable = outline.rangeScale * kRangeSteps;
-    // exp(−d²/(2σ²)) with d in natural-log units; the guide is in log2 (d_ln = ln2 · d_log2).
-    const float ln2 = 0.69314718f;
-    const float toTable =
-        ranged ? ln2 * ln2 / (2.0f * settings.rangeSigma * settings.rangeSigma) * kRangeSteps
-               : 0.0f;
-    std::array<float, kRangeTable + 1> rangeTable{};
-    for (int k = 0; k < kRangeTable; ++k) rangeTable[k] = std::exp(-float(k) / kRangeSteps);
+    f.outline = low.channels == 4 ? outlineKernel(settings, width, height, w, h) : OutlineKernel{};
+    f.maskToTable = f.outline.rangeScale * kRangeSteps;
+    for (int k = 0; k < kRangeTable; ++k) f.rangeTable[k] = std::exp(-float(k) / kRangeSteps);
+    return f;
+}
 
+}  // namespace
+
+ImageF jointBilateralUpsample(const ImageF& low, uint32_t width, uint32_t height,
+                              const ImageF* guide, const UpsampleSettings& settings) {
+    PV_ASSERT(low.width > 0 && low.height > 0 && low.channels >= 1 && low.channels <= 4);
+    PV_ASSERT(low.pixels.size() == size_t(low.width) * low.height * low.channels);
+    const uint32_t nc = low.channels, stride = low.width + 1;
+    ImageF out;
+    out.width = width;
+    out.height = height;
+    out.channels = nc;
+    out.pixels.assign(size_t(width) * height * nc, 0.0f);
+    if (width == 0 || height == 0) return out;
+
+    const std::vector<uint8_t> needs = nonZeroNeighbourhoods(low);
+    const BilateralFilter filter = makeFilter(low, width, height, guide, settings);
     const uint32_t threads =
         settings.threads ? settings.threads : std::max(1u, std::thread::hardware_concurrency());
     forRows(height, threads, [&](uint32_t y0, uint32_t y1) {
         for (uint32_t y = y0; y < y1; ++y) {
-            const int j0 = rows.first[y];
-            const std::array<double, 4>& wy = rows.weights[y];
-            const uint8_t* needRow = &needs[size_t(j0 + 2) * (w + 1)];
+            const int j0 = filter.rows.first[y];
+            const uint8_t* needRow = &needs[size_t(j0 + 2) * stride];
             for (uint32_t x = 0; x < width; ++x) {
-                const int i0 = cols.first[x];
+                const int i0 = filter.cols.first[x];
                 if (!needRow[i0 + 2]) continue;
-                const std::array<double, 4>& wx = cols.weights[x];
-                float gp[3] = {};
-                if (ranged) {
-                    const float* g = &guide->pixels[(size_t(y) * width + x) * guide->channels];
-                    for (int c = 0; c < 3; ++c) gp[c] = fastLog2(std::max(g[c], 0.0f) + epsilon);
-                }
-                const float target = maskToTable > 0.0f
-                                         ? outlineTarget(low, i0, j0, wx, wy, outline.sharpness)
-                                         : -1.0f;
-                // Pass 0 with the range kernel; pass 1, rarely, the spatial kernel alone.
-                double acc[4] = {};
-                double weight = 0.0, spatial = 0.0;
-                for (int pass = 0; pass < 2; ++pass) {
-                    for (int b = 0; b < 4; ++b) {
-                        if (wy[b] == 0.0) continue;
-                        const size_t rowBase = size_t(j0 + b) * w;
-                        for (int a = 0; a < 4; ++a) {
-                            if (wx[a] == 0.0) continue;
-                            const size_t q = rowBase + size_t(i0 + a);
-                            const double ws = wx[a] * wy[b];
-                            const float* v = &low.pixels[q * nc];
-                            double r = 1.0;
-                            if ((ranged || target >= 0.0f) && pass == 0) {
-                                float t = 0.0f;
-                                if (ranged) {
-                                    const float* gq = &lowGuide[q * 3];
-                                    const float d0 = gp[0] - gq[0], d1 = gp[1] - gq[1],
-                                                d2 = gp[2] - gq[2];
-                                    t = (d0 * d0 + d1 * d1 + d2 * d2) * toTable;
-                                }
-                                if (target >= 0.0f) {
-                                    const float dm = target - v[3];
-                                    t += dm * dm * maskToTable;
-                                }
-                                r = t < float(kRangeTable) ? rangeTable[int(t)] : 0.0f;
-                            }
-                            for (uint32_t c = 0; c < nc; ++c) acc[c] += ws * r * double(v[c]);
-                            weight += ws * r;
-                            spatial += ws;
-                        }
-                    }
-                    if (weight > kMinRangeWeightFraction * spatial) break;
-                    acc[0] = acc[1] = acc[2] = acc[3] = 0.0;
-                    weight = spatial = 0.0;
-                    PV_DCHECK(pass == 0);
-                }
-                float* o = &out.pixels[(size_t(y) * width + x) * nc];
-                for (uint32_t c = 0; c < nc; ++c) o[c] = float(acc[c] / weight);
+                filter.filterPixel(x, y, i0, j0, &out.pixels[(size_t(y) * width + x) * nc]);
             }
         }
     });
