@@ -2,6 +2,7 @@
 
 #include <OpenColorIO/OpenColorIO.h>
 
+#include <array>
 #include <cerrno>
 #include <cstring>
 #include <exception>
@@ -109,6 +110,21 @@ OCIO::ConstProcessorRcPtr cameraProcessor(const OcioSource& source,
                                                  kWorkingColourSpace);
 }
 
+// Legal range's codes to the signal: v/255 → (v − 16)/219, as a matrix (OCIO's RangeTransform
+// would clamp, and super-whites above 235 are picture).
+OCIO::ConstProcessorRcPtr fromLegalRange(const OCIO::ConstProcessorRcPtr& processor) {
+    constexpr double scale = 255.0 / 219.0, offset = -16.0 / 219.0;
+    const std::array<double, 16> m{scale, 0, 0, 0, 0, scale, 0, 0, 0, 0, scale, 0, 0, 0, 0, 1};
+    const std::array<double, 4> o{offset, offset, offset, 0};
+    OCIO::MatrixTransformRcPtr legal = OCIO::MatrixTransform::Create();
+    legal->setMatrix(m.data());
+    legal->setOffset(o.data());
+    OCIO::GroupTransformRcPtr all = OCIO::GroupTransform::Create();
+    all->appendTransform(legal);
+    all->appendTransform(processor->createGroupTransform());
+    return builtinColourConfig()->getProcessor(all);
+}
+
 }  // namespace
 
 CameraColourTransform::CameraColourTransform(std::unique_ptr<const Processors> processors,
@@ -118,20 +134,23 @@ CameraColourTransform::CameraColourTransform(std::unique_ptr<const Processors> p
 CameraColourTransform::~CameraColourTransform() = default;
 
 Result<std::shared_ptr<const CameraColourTransform>> CameraColourTransform::create(
-    const OcioSource& source, const std::string& input) {
+    const OcioSource& source, const std::string& input, CodeRange range) {
     Result<OCIO::ConstConfigRcPtr> config = loadConfig(source);
     if (!config) return config.error();
     if (Status s = checkInput(source, *config, input); !s) return s.error();
     if (Status s = checkInterchange(source, *config); !s) return s.error();
     try {
         OCIO::ConstProcessorRcPtr processor = cameraProcessor(source, *config, input);
+        if (range == CodeRange::Legal) processor = fromLegalRange(processor);
         auto p = std::make_unique<Processors>();
         // For 8-bit input OCIO folds the per-channel curve into a 256-entry table
         // (OPTIMIZATION_COMP_SEPARABLE_PREFIX): the matrix is all that is left per pixel.
         p->from8 = processor->getOptimizedCPUProcessor(OCIO::BIT_DEPTH_UINT8, OCIO::BIT_DEPTH_F32,
                                                        OCIO::OPTIMIZATION_DEFAULT);
         p->fromFloat = processor->getOptimizedCPUProcessor(OCIO::OPTIMIZATION_DEFAULT);
-        const std::string description = fmt::format("'{}' from {}", input, configName(source));
+        const std::string description =
+            fmt::format("'{}' from {}{}", input, configName(source),
+                        range == CodeRange::Legal ? ", legal range (16-235)" : "");
         return std::shared_ptr<const CameraColourTransform>(
             new CameraColourTransform(std::move(p), description));
     } catch (const std::exception& e) {
@@ -214,16 +233,22 @@ OCIO::ConstProcessorRcPtr displayProcessor(const OcioSource& source,
     return config->getProcessor(all);
 }
 
-// A view's output transform can be ~100 operations a pixel (ACES 1.0's: 170 ms a 1280×720
-// frame on a 2-core box), too slow for a live monitor. It is sampled once on a 65³ grid over
-// ACEScct's log curve (0.27 stop a step up to 222, so shadows and highlights are as fine as
-// mid-tones) and applied as that curve and a tetrahedral 3D LUT.
-constexpr unsigned long kViewGrid = 65;
+// The curve alone, per channel of the working space: a view that is separable there (an
+// un-tone-mapped one) stays separable, and the LUT interpolates along each axis only.
+OCIO::BuiltinTransformRcPtr acescctToLinear() {
+    OCIO::BuiltinTransformRcPtr logToLinear = OCIO::BuiltinTransform::Create();
+    logToLinear->setStyle("CURVE - ACEScct-LOG_to_LINEAR");
+    return logToLinear;
+}
 
-OCIO::ConstProcessorRcPtr bakedView(const OCIO::ConstProcessorRcPtr& view) {
-    const OCIO::ConstConfigRcPtr builtin = builtinColourConfig();
-    const size_t n = kViewGrid;
-    // The grid's nodes in ACEScct, red fastest (OCIO's Lut3DTransform index order is set below).
+// A view's output transform can be ~100 operations a pixel (ACES 1.0's: 170 ms a 1280×720
+// frame on a 2-core box), too slow for a live monitor. It is sampled once on a grid over
+// ACEScct's log curve and applied as that curve and a tetrahedral 3D LUT (on the host here, or
+// on the device: DisplayColourTransform::lut).
+// The view sampled on the grid's nodes (DisplayColourTransform::kLutSize³ over ACEScct).
+std::vector<float> viewTable(const OCIO::ConstProcessorRcPtr& view) {
+    const size_t n = DisplayColourTransform::kLutSize;
+    // The grid's nodes in ACEScct, red fastest.
     std::vector<float> rgb(n * n * n * 3);
     for (size_t b = 0; b < n; ++b)
         for (size_t g = 0; g < n; ++g)
@@ -234,33 +259,38 @@ OCIO::ConstProcessorRcPtr bakedView(const OCIO::ConstProcessorRcPtr& view) {
                 p[2] = float(b) / float(n - 1);
             }
     OCIO::PackedImageDesc grid(rgb.data(), long(n * n * n), 1, 3);
-    // The curve alone, per channel of the working space: a view that is separable there (an
-    // un-tone-mapped one) stays separable, and the LUT interpolates along each axis only.
-    OCIO::BuiltinTransformRcPtr logToLinear = OCIO::BuiltinTransform::Create();
-    logToLinear->setStyle("CURVE - ACEScct-LOG_to_LINEAR");
-    builtin->getProcessor(logToLinear)->getDefaultCPUProcessor()->apply(grid);
+    builtinColourConfig()->getProcessor(acescctToLinear())->getDefaultCPUProcessor()->apply(grid);
     view->getDefaultCPUProcessor()->apply(grid);
+    return rgb;
+}
+
+// The table applied as OCIO does it: the ACEScct curve, then the tetrahedral 3D LUT.
+OCIO::ConstProcessorRcPtr tableProcessor(const std::vector<float>& table) {
+    const size_t n = DisplayColourTransform::kLutSize;
     OCIO::Lut3DTransformRcPtr lut = OCIO::Lut3DTransform::Create(n);
     lut->setInterpolation(OCIO::INTERP_TETRAHEDRAL);
     for (size_t b = 0; b < n; ++b)
         for (size_t g = 0; g < n; ++g)
             for (size_t r = 0; r < n; ++r) {
-                const float* p = &rgb[3 * ((b * n + g) * n + r)];
+                const float* p = &table[3 * ((b * n + g) * n + r)];
                 lut->setValue(r, g, b, p[0], p[1], p[2]);
             }
     OCIO::GroupTransformRcPtr baked = OCIO::GroupTransform::Create();
-    OCIO::TransformRcPtr linearToLog = logToLinear->createEditableCopy();
+    OCIO::TransformRcPtr linearToLog = acescctToLinear()->createEditableCopy();
     linearToLog->setDirection(OCIO::TRANSFORM_DIR_INVERSE);
     baked->appendTransform(linearToLog);
     baked->appendTransform(lut);
-    return builtin->getProcessor(baked);
+    return builtinColourConfig()->getProcessor(baked);
 }
 
 }  // namespace
 
 DisplayColourTransform::DisplayColourTransform(std::unique_ptr<const Processors> processors,
+                                               std::shared_ptr<const std::vector<float>> lut,
                                                std::string description)
-    : processors_(std::move(processors)), description_(std::move(description)) {}
+    : processors_(std::move(processors)),
+      lut_(std::move(lut)),
+      description_(std::move(description)) {}
 
 DisplayColourTransform::~DisplayColourTransform() = default;
 
@@ -272,15 +302,16 @@ Result<std::shared_ptr<const DisplayColourTransform>> DisplayColourTransform::cr
     if (Status s = resolveDisplayView(source, *config, display, view); !s) return s.error();
     if (Status s = checkInterchange(source, *config); !s) return s.error();
     try {
-        OCIO::ConstProcessorRcPtr processor =
-            bakedView(displayProcessor(source, *config, display, view));
+        auto lut = std::make_shared<const std::vector<float>>(
+            viewTable(displayProcessor(source, *config, display, view)));
+        OCIO::ConstProcessorRcPtr processor = tableProcessor(*lut);
         auto p = std::make_unique<Processors>();
         p->toU8 = processor->getOptimizedCPUProcessor(OCIO::BIT_DEPTH_F32, OCIO::BIT_DEPTH_UINT8,
                                                       OCIO::OPTIMIZATION_DEFAULT);
         const std::string description =
             fmt::format("display '{}', view '{}' from {}", display, view, configName(source));
         return std::shared_ptr<const DisplayColourTransform>(
-            new DisplayColourTransform(std::move(p), description));
+            new DisplayColourTransform(std::move(p), std::move(lut), description));
     } catch (const std::exception& e) {
         return makeError("[{}] display '{}', view '{}' in {}: OCIO cannot build the transform: {}",
                          source.key, display, view, configName(source), e.what());

@@ -14,6 +14,7 @@
 #include <memory>
 #include <string>
 #include <utility>
+#include <vector>
 
 #include "base/result.h"
 
@@ -40,15 +41,22 @@ struct OcioSource {
     std::string configOption;
 };
 
+// How a camera's 8-bit codes span the signal. Full: 0–255 (what previs assumed before `range`).
+// Legal (video, "limited"): Rec.709 over SDI/HDMI puts black at 16 and white at 235, so a code v
+// is the signal (v − 16)/219, applied to each of R, G, B before the input transform; codes below
+// 16 and above 235 (super-whites) map below 0 and above 1, kept, not clipped. A 10-bit legal
+// signal (64–940) is exactly the 8-bit one times 4, so once captured to 8 bits it maps the same.
+enum class CodeRange { Full, Legal };
+
 // A camera's encoding → the working space. Immutable and thread-safe once built (OCIO's CPU
 // processors are), so one is shared by every thread that linearises the camera's frames.
 class CameraColourTransform {
 public:
     // `input`: a colour space (or alias or role) of the config. An unknown name, an unreadable
     // config or one without an aces_interchange role is one message naming the key and the file,
-    // with a few valid names.
-    static Result<std::shared_ptr<const CameraColourTransform>> create(const OcioSource& source,
-                                                                       const std::string& input);
+    // with a few valid names. `range`: how the codes span the signal, undone first.
+    static Result<std::shared_ptr<const CameraColourTransform>> create(
+        const OcioSource& source, const std::string& input, CodeRange range = CodeRange::Full);
     ~CameraColourTransform();
 
     // 8-bit RGB (rows of `width` packed triples, `srcStrideBytes` apart) → float RGB in the
@@ -90,11 +98,22 @@ public:
 
     const std::string& description() const { return description_; }
 
+    // The view as apply() runs it, for a device to run the same (render/display_pass.h): a
+    // working-space value v goes to ACEScct per channel (v ≤ 2⁻⁷: 10.5402377416545·v +
+    // 0.0729055341958355, else (log2 v + 9.72)/17.52), clamped to [0, 1], then through this
+    // kLutSize³ table by tetrahedral interpolation to display code values in [0, 1]. RGB per
+    // node, red fastest, then green, then blue. The grid is 0.27 stop a step up to 222, so
+    // shadows and highlights are as fine as mid-tones.
+    static constexpr uint32_t kLutSize = 65;
+    const std::shared_ptr<const std::vector<float>>& lut() const { return lut_; }
+
     struct Processors;
 
 private:
-    DisplayColourTransform(std::unique_ptr<const Processors> processors, std::string description);
+    DisplayColourTransform(std::unique_ptr<const Processors> processors,
+                           std::shared_ptr<const std::vector<float>> lut, std::string description);
     std::unique_ptr<const Processors> processors_;
+    std::shared_ptr<const std::vector<float>> lut_;
     std::string description_;
 };
 

@@ -38,7 +38,8 @@ static_assert(offsetof(GpuLight, cosInnerCone) == 44 && offsetof(EmissiveTriangl
 static_assert(sizeof(PhotonRecord) == 32 && offsetof(PhotonRecord, flags) == 12);
 static_assert(offsetof(PhotonRecord, power) == 16 && offsetof(PhotonRecord, direction) == 28);
 static_assert(sizeof(DenoiseParams) == 140 && offsetof(DenoiseParams, tanHalfFov) == 64);
-static_assert(sizeof(FilmParams) == 64 && offsetof(FilmParams, maskSharpness) == 24);
+static_assert(sizeof(FilmParams) == 68 && offsetof(FilmParams, maskSharpness) == 24);
+static_assert(offsetof(FilmParams, viewLutSize) == 64);
 static_assert(offsetof(FilmParams, held) == 32 && offsetof(FilmParams, exposure) == 44);
 static_assert(offsetof(DenoiseParams, width) == 80 && offsetof(DenoiseParams, sigmaMask) == 136);
 

@@ -80,7 +80,7 @@ Result<DisplayPass> DisplayPass::create(GpuContext& ctx, uint32_t width, uint32_
 uint64_t DisplayPass::deviceBytes() const {
     uint64_t total = 0;
     for (const std::optional<GpuBuffer>* b :
-         {&params_, &plate_, &estimate_, &lowGuide_, &thresholds_, &output_, &none_})
+         {&params_, &plate_, &estimate_, &lowGuide_, &thresholds_, &output_, &none_, &viewLut_})
         if (*b) total += (*b)->size();
     return total;
 }
@@ -120,6 +120,20 @@ Status DisplayPass::uploadPlate(const ImageF& plate, uint64_t plateVersion) {
     return {};
 }
 
+Status DisplayPass::uploadView(const DisplaySettings& settings) {
+    if (!settings.viewLut || settings.viewLut == viewUploaded_) return {};
+    const std::vector<float>& table = *settings.viewLut;
+    PV_ASSERT(table.size() ==
+              size_t(settings.viewLutSize) * settings.viewLutSize * settings.viewLutSize * 3);
+    auto lut = GpuBuffer::create(*ctx_, table.size() * sizeof(float), "filmViewLut");
+    if (!lut) return lut.error();
+    if (Status s = lut->upload(table.data(), table.size() * sizeof(float)); !s) return s;
+    viewLut_.emplace(std::move(lut.value()));
+    viewUploaded_ = settings.viewLut;
+    bound_ = {};  // the new table is not bound yet
+    return {};
+}
+
 Status DisplayPass::bind(const Inputs& in) {
     auto orNone = [&](const GpuBuffer* b) -> const GpuBuffer& { return b ? *b : *none_; };
     const std::array<const GpuBuffer*, 6> inputs{&orNone(in.held),         &orNone(in.sum),
@@ -143,6 +157,7 @@ Status DisplayPass::bind(const Inputs& in) {
     bound[PV_FILM_BINDING_GUIDES] = inputs[3];
     bound[PV_FILM_BINDING_SIGNAL_OUT] = inputs[4];
     bound[PV_FILM_BINDING_DENOISED] = inputs[5];
+    bound[PV_FILM_BINDING_VIEW_LUT] = viewLut_ ? &*viewLut_ : &*none_;
     for (ComputePipeline* p : {&*signalStage_, &*estimateStage_, &*guide_, &*resolve_})
         if (Status s = p->bind(bound); !s) return s;
     bound_ = ids;
@@ -165,6 +180,7 @@ Result<DisplayImage> DisplayPass::run(const Inputs& in, const UpsampleSettings& 
     PV_ASSERT(in.plate && in.sum && in.compensation);
     if (Status s = sizeTrace(in.traceWidth, in.traceHeight); !s) return s.error();
     if (Status s = uploadPlate(*in.plate, in.plateVersion); !s) return s.error();
+    if (Status s = uploadView(settings); !s) return s.error();
     if (Status s = bind(in); !s) return s.error();
     const shader::FilmParams p = params(in, upsample, settings);
     if (Status s = params_->upload(&p, sizeof(p)); !s) return s.error();
@@ -207,6 +223,7 @@ shader::FilmParams DisplayPass::params(const Inputs& in, const UpsampleSettings&
     for (int c = 0; c < 3; ++c) p.exposure[c] = exposure / settings.whiteBalance[c];
     p.maxRadiance = settings.tone.maxRadiance;
     p.whiteLuminance = settings.tone.whiteLuminance;
+    p.viewLutSize = settings.viewLut ? settings.viewLutSize : 0u;
     return p;
 }
 

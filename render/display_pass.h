@@ -8,6 +8,7 @@
 
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <vector>
 
@@ -27,6 +28,12 @@ namespace previs {
 struct DisplaySettings {
     ToneMapSettings tone;
     std::array<float, 3> whiteBalance{1.0f, 1.0f, 1.0f};
+    // [output.colour]'s display and view baked to viewLutSize³ RGB nodes (colour/
+    // ocio_colour.h's DisplayColourTransform::lut, which says how it is applied), in place of
+    // the curve and the sRGB encode; the exposure and the white balance still apply first. Null:
+    // the curve. The device only: toDisplayImage knows the curve alone.
+    std::shared_ptr<const std::vector<float>> viewLut;
+    uint32_t viewLutSize = 0;
 };
 
 // An 8-bit sRGB frame, RGB interleaved.
@@ -78,6 +85,8 @@ private:
     DisplayPass() = default;
     Status sizeTrace(uint32_t traceWidth, uint32_t traceHeight);
     Status uploadPlate(const ImageF& plate, uint64_t plateVersion);
+    // The view's table, uploaded when it is not the one the device holds.
+    Status uploadView(const DisplaySettings& settings);
     // Binds what changed since the last frame (buffers are compared by GpuBuffer::id).
     Status bind(const Inputs& in);
     shader::FilmParams params(const Inputs& in, const UpsampleSettings& upsample,
@@ -89,10 +98,12 @@ private:
     uint32_t traceWidth_ = 0;
     uint32_t traceHeight_ = 0;
     std::optional<uint64_t> plateVersion_;
+    std::shared_ptr<const std::vector<float>> viewUploaded_;
     float plateMean_ = 0.0f;
     // GpuBuffer::id of the inputs bound last: held, sum, compensation, guides, signal, denoised.
     std::array<uint64_t, 6> bound_{};
-    std::optional<GpuBuffer> params_, plate_, estimate_, lowGuide_, thresholds_, output_, none_;
+    std::optional<GpuBuffer> params_, plate_, estimate_, lowGuide_, thresholds_, output_, none_,
+        viewLut_;
     std::optional<ComputePipeline> signalStage_, estimateStage_, guide_, resolve_;
 };
 

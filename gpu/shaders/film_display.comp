@@ -9,7 +9,7 @@
 //   resolve: per output pixel, the traced estimate upsampled (render/upsample.h's kernel: a
 //            cubic B-spline on the traced grid times the range kernel on the plate), blended with
 //            the held view's samples, composited with the plate by Eq. 1, tone mapped and
-//            encoded as 8-bit sRGB.
+//            encoded as 8-bit sRGB, or shown through a display's view ([output.colour]).
 // render/upsample.cpp, render/held_view.cpp and render/tonemap.cpp run the same steps on the
 // host for the float images `previs render` writes; tests/integrator/display_frame_test.cpp holds
 // the two within one 8-bit code.
@@ -41,6 +41,7 @@ layout(binding = PV_FILM_BINDING_ACCUM_COMPENSATION, scalar) readonly buffer Acc
 layout(binding = PV_FILM_BINDING_GUIDES, scalar) readonly buffer Guides { vec4 guides[]; };
 layout(binding = PV_FILM_BINDING_SIGNAL_OUT, scalar) writeonly buffer SignalOut { vec4 signalOut[]; };
 layout(binding = PV_FILM_BINDING_DENOISED, scalar) readonly buffer Denoised { vec4 denoised[]; };
+layout(binding = PV_FILM_BINDING_VIEW_LUT, scalar) readonly buffer ViewLut { vec3 viewLut[]; };
 
 // Range weights summing below this fraction of the spatial ones: the pixel's colour matches no
 // neighbour (a detail finer than the traced grid) and the spatial kernel alone is used.
@@ -183,6 +184,52 @@ uint encodeSrgb8(float v) {
     return code;
 }
 
+// The display's view in place of the curve and the sRGB encode, as OCIO's processor runs it on
+// the host (colour/ocio_colour.h's DisplayColourTransform::lut): ACEScct per channel, clamped to
+// the table's domain, then tetrahedral interpolation between the cube's nodes.
+vec3 acescct(vec3 v) {
+    vec3 lin = 10.5402377416545 * v + 0.0729055341958355;
+    vec3 logarithmic = (log2(max(v, vec3(1e-30))) + 9.72) / 17.52;
+    return mix(logarithmic, lin, lessThanEqual(v, vec3(0.0078125)));
+}
+
+vec3 viewNode(uvec3 i) {
+    uint n = params.viewLutSize;
+    return viewLut[(i.b * n + i.g) * n + i.r];
+}
+
+vec3 throughView(vec3 linear) {
+    float last = float(params.viewLutSize - 1u);
+    vec3 x = clamp(acescct(linear), 0.0, 1.0) * last;
+    vec3 base = min(floor(x), vec3(last - 1.0));
+    vec3 f = x - base;
+    uvec3 i = uvec3(base);
+    vec3 c000 = viewNode(i), c111 = viewNode(i + uvec3(1u));
+    // The tetrahedron holding f: walk from c000 to c111 along the axes, largest fraction first.
+    uvec3 first, second;
+    vec3 w;  // the weights of c000 → first, first → second, second → c111
+    if (f.r > f.g) {
+        if (f.g > f.b) {
+            first = uvec3(1u, 0u, 0u), second = uvec3(1u, 1u, 0u), w = vec3(f.r, f.g, f.b);
+        } else if (f.r > f.b) {
+            first = uvec3(1u, 0u, 0u), second = uvec3(1u, 0u, 1u), w = vec3(f.r, f.b, f.g);
+        } else {
+            first = uvec3(0u, 0u, 1u), second = uvec3(1u, 0u, 1u), w = vec3(f.b, f.r, f.g);
+        }
+    } else if (f.b > f.g) {
+        first = uvec3(0u, 0u, 1u), second = uvec3(0u, 1u, 1u), w = vec3(f.b, f.g, f.r);
+    } else if (f.b > f.r) {
+        first = uvec3(0u, 1u, 0u), second = uvec3(0u, 1u, 1u), w = vec3(f.g, f.b, f.r);
+    } else {
+        first = uvec3(0u, 1u, 0u), second = uvec3(1u, 1u, 0u), w = vec3(f.g, f.r, f.b);
+    }
+    return (1.0 - w.x) * c000 + (w.x - w.y) * viewNode(i + first) +
+           (w.y - w.z) * viewNode(i + second) + w.z * c111;
+}
+
+// A display code value in [0, 1] to 8 bits, as OCIO's processor writes UINT8.
+uint code8(float v) { return uint(clamp(v * 255.0 + 0.5, 0.0, 255.0)); }
+
 void resolveStage(uvec2 p) {
     uint i = p.y * params.width + p.x;
     vec3 plate = plateAt(p.x, p.y);
@@ -191,6 +238,11 @@ void resolveStage(uvec2 p) {
     vec3 composite = PV_COMPOSITE_SUM(estimate.rgb, estimate.a, 1.0, plate);
     bvec3 bad = bvec3(uvec3(isnan(composite)) | uvec3(isinf(composite)));
     composite = mix(max(composite, vec3(0.0)), vec3(0.0), bad) * params.exposure;
+    if (params.viewLutSize != 0u) {
+        vec3 shown = throughView(composite);
+        display[i] = code8(shown.r) | (code8(shown.g) << 8) | (code8(shown.b) << 16);
+        return;
+    }
     vec3 linear = toneCurve(composite, params.toneOp, params.maxRadiance, params.whiteLuminance);
     display[i] = encodeSrgb8(linear.r) | (encodeSrgb8(linear.g) << 8) | (encodeSrgb8(linear.b) << 16);
 }

@@ -113,7 +113,10 @@ PV_INLINE vec3 toneCurve(vec3 rgb, uint op, float maxRadiance, float whiteLumina
 #define PV_FILM_BINDING_GUIDES 11
 #define PV_FILM_BINDING_SIGNAL_OUT 12
 #define PV_FILM_BINDING_DENOISED 13
-#define PV_FILM_BINDING_COUNT 14
+// The display's view baked to a table (FilmParams::viewLutSize³ RGB, red fastest; colour/
+// ocio_colour.h's DisplayColourTransform::lut). Any buffer while viewLutSize is 0.
+#define PV_FILM_BINDING_VIEW_LUT 14
+#define PV_FILM_BINDING_COUNT 15
 
 // The denoiser's input from the accumulation (denoised frames only; the denoiser runs between
 // it and the estimate), the estimate (the means, or the denoised signal with the mean mask),
@@ -159,6 +162,9 @@ struct FilmParams {
     vec3 exposure;
     float maxRadiance;
     float whiteLuminance;
+    // 0: the tone curve and the sRGB encode; else the display's view (PV_FILM_BINDING_VIEW_LUT)
+    // in their place, this many nodes an axis.
+    uint viewLutSize;
 };
 
 PV_END
