@@ -2,11 +2,14 @@
 
 #include <OpenColorIO/OpenColorIO.h>
 
+#include <algorithm>
 #include <array>
 #include <cerrno>
 #include <cstring>
 #include <exception>
+#include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <vector>
 
 #include "base/log.h"
@@ -336,6 +339,119 @@ void DisplayColourTransform::applyScaled(float* pixels, int channels, int width,
     for (size_t i = 0; i < count; ++i)
         for (size_t c = 0; c < 3; ++c) pixels[3 * i + c] = pixels[stride * i + c] * gain[c];
     apply(pixels, width, height, out);
+}
+
+}  // namespace previs
+
+namespace previs {
+
+namespace {
+
+// The FileTransforms' sources of `transform` and its groups' children.
+void collectFileSources(const OCIO::ConstTransformRcPtr& transform,
+                        std::vector<std::string>& sources) {
+    if (!transform) return;
+    if (auto file = OCIO::DynamicPtrCast<const OCIO::FileTransform>(transform)) {
+        sources.emplace_back(file->getSrc());
+    } else if (auto group = OCIO::DynamicPtrCast<const OCIO::GroupTransform>(transform)) {
+        for (int i = 0; i < group->getNumTransforms(); ++i)
+            collectFileSources(group->getTransform(i), sources);
+    }
+}
+
+// Every transform a config holds: its colour spaces' (active or not), looks', view transforms'
+// and named transforms', both directions.
+std::vector<std::string> fileSources(const OCIO::ConstConfigRcPtr& config) {
+    std::vector<std::string> sources;
+    const int spaces =
+        config->getNumColorSpaces(OCIO::SEARCH_REFERENCE_SPACE_ALL, OCIO::COLORSPACE_ALL);
+    for (int i = 0; i < spaces; ++i) {
+        OCIO::ConstColorSpaceRcPtr cs = config->getColorSpace(config->getColorSpaceNameByIndex(
+            OCIO::SEARCH_REFERENCE_SPACE_ALL, OCIO::COLORSPACE_ALL, i));
+        if (!cs) continue;
+        collectFileSources(cs->getTransform(OCIO::COLORSPACE_DIR_TO_REFERENCE), sources);
+        collectFileSources(cs->getTransform(OCIO::COLORSPACE_DIR_FROM_REFERENCE), sources);
+    }
+    for (int i = 0; i < config->getNumLooks(); ++i) {
+        OCIO::ConstLookRcPtr look = config->getLook(config->getLookNameByIndex(i));
+        collectFileSources(look->getTransform(), sources);
+        collectFileSources(look->getInverseTransform(), sources);
+    }
+    for (int i = 0; i < config->getNumViewTransforms(); ++i) {
+        OCIO::ConstViewTransformRcPtr vt =
+            config->getViewTransform(config->getViewTransformNameByIndex(i));
+        collectFileSources(vt->getTransform(OCIO::VIEWTRANSFORM_DIR_TO_REFERENCE), sources);
+        collectFileSources(vt->getTransform(OCIO::VIEWTRANSFORM_DIR_FROM_REFERENCE), sources);
+    }
+    for (int i = 0; i < config->getNumNamedTransforms(OCIO::NAMEDTRANSFORM_ALL); ++i) {
+        OCIO::ConstNamedTransformRcPtr nt = config->getNamedTransform(
+            config->getNamedTransformNameByIndex(OCIO::NAMEDTRANSFORM_ALL, i));
+        collectFileSources(nt->getTransform(OCIO::TRANSFORM_DIR_FORWARD), sources);
+        collectFileSources(nt->getTransform(OCIO::TRANSFORM_DIR_INVERSE), sources);
+    }
+    return sources;
+}
+
+Result<OCIO::ConstConfigRcPtr> readConfigFile(const std::string& configPath) {
+    try {
+        return OCIO::Config::CreateFromFile(configPath.c_str());
+    } catch (const std::exception& e) {
+        return makeError("'{}' is not a valid OCIO config: {}", configPath, e.what());
+    }
+}
+
+}  // namespace
+
+Result<std::vector<std::string>> ocioConfigFiles(const std::string& configPath) {
+    Result<OCIO::ConstConfigRcPtr> config = readConfigFile(configPath);
+    if (!config) return config.error();
+    OCIO::ConstContextRcPtr context = (*config)->getCurrentContext();
+    std::vector<std::string> files;
+    for (const std::string& source : fileSources(*config)) {
+        std::string resolved;
+        try {
+            resolved = context->resolveFileLocation(source.c_str());
+        } catch (const std::exception&) {
+            continue;  // not found: fails when used, as without a take
+        }
+        resolved = std::filesystem::absolute(resolved).lexically_normal().string();
+        if (std::find(files.begin(), files.end(), resolved) == files.end())
+            files.push_back(resolved);
+    }
+    return files;
+}
+
+Result<std::string> relocatableOcioConfig(const std::string& configPath) {
+    Result<OCIO::ConstConfigRcPtr> config = readConfigFile(configPath);
+    if (!config) return config.error();
+    const std::filesystem::path folder =
+        std::filesystem::absolute(configPath).parent_path().lexically_normal();
+    bool absolute = false;
+    for (int i = 0; i < (*config)->getNumSearchPaths(); ++i)
+        absolute |= std::filesystem::path((*config)->getSearchPath(i)).is_absolute();
+    if (!absolute) {
+        std::ifstream in(configPath, std::ios::binary);
+        std::ostringstream bytes;
+        bytes << in.rdbuf();
+        if (!in) return makeError("cannot read '{}' ({})", configPath, std::strerror(errno));
+        return bytes.str();
+    }
+    OCIO::ConfigRcPtr copy = (*config)->createEditableCopy();
+    copy->clearSearchPaths();
+    for (int i = 0; i < (*config)->getNumSearchPaths(); ++i) {
+        const std::filesystem::path p((*config)->getSearchPath(i));
+        copy->addSearchPath((p.is_absolute() ? p.lexically_normal().lexically_relative(folder) : p)
+                                .string()
+                                .c_str());
+    }
+    std::ostringstream text;
+    try {
+        copy->serialize(text);
+    } catch (const std::exception& e) {
+        return makeError("'{}': OCIO cannot write it with relative search paths: {}", configPath,
+                         e.what());
+    }
+    return text.str();
 }
 
 }  // namespace previs

@@ -118,3 +118,20 @@ private:
 };
 
 }  // namespace previs
+
+namespace previs {
+
+// What a take must hold for an OCIO config to work elsewhere (take/take_files.h): the files its
+// FileTransforms name (a .cube, .spi1d, .csp … in any colour space, look, view transform or
+// named transform), found through its search_path and context as OCIO finds them, absolute and
+// normalised, each once, the config itself not included. A file OCIO cannot find is left out
+// (a colour space naming it fails when used, as it does without a take).
+Result<std::vector<std::string>> ocioConfigFiles(const std::string& configPath);
+
+// The text of a copy of the config that keeps working once the config and its files are copied
+// keeping their layout relative to each other: the file's own bytes, or, when its search_path
+// names absolute folders, OCIO's serialisation of it with each absolute folder made relative to
+// the config's own folder.
+Result<std::string> relocatableOcioConfig(const std::string& configPath);
+
+}  // namespace previs
