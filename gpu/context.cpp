@@ -64,6 +64,70 @@ bool supportsRequiredFeatures(const vk::raii::PhysicalDevice& device) {
     return f12.scalarBlockLayout && device.getProperties().apiVersion >= VK_API_VERSION_1_2;
 }
 
+bool usable(const vk::raii::PhysicalDevice& device) {
+    return computeQueueFamily(device) && supportsRequiredFeatures(device);
+}
+
+bool validationLayerInstalled(const vk::raii::Context& context) {
+    for (const auto& layer : context.enumerateInstanceLayerProperties())
+        if (std::string_view(layer.layerName) == "VK_LAYER_KHRONOS_validation") return true;
+    return false;
+}
+
+// The device GpuOptions::deviceOverride or PREVIS_VK_DEVICE names, by index or by a part of
+// its name.
+Result<size_t> deviceNamed(const vk::raii::PhysicalDevices& devices, const std::string& wanted) {
+    const bool isIndex =
+        std::all_of(wanted.begin(), wanted.end(), [](unsigned char c) { return std::isdigit(c); });
+    for (size_t i = 0; i < devices.size(); ++i) {
+        std::string name = devices[i].getProperties().deviceName;
+        const bool match = isIndex ? std::stoul(wanted) == i
+                                   : lowercase(name).find(lowercase(wanted)) != std::string::npos;
+        if (!match) continue;
+        if (!usable(devices[i]))
+            return makeError(
+                "Vulkan device '{}' lacks a compute queue or Vulkan 1.2 scalar "
+                "block layout; choose another with PREVIS_VK_DEVICE",
+                name);
+        return i;
+    }
+    std::string names;
+    for (size_t i = 0; i < devices.size(); ++i)
+        names += fmt::format(" [{}] {}", i, devices[i].getProperties().deviceName);
+    return makeError("PREVIS_VK_DEVICE '{}' matches no Vulkan device; devices:{}", wanted, names);
+}
+
+// With no device named: the first usable one of the most preferred type.
+Result<size_t> bestDevice(const vk::raii::PhysicalDevices& devices) {
+    int bestRank = 0;
+    std::optional<size_t> chosen;
+    for (size_t i = 0; i < devices.size(); ++i) {
+        if (!usable(devices[i])) continue;
+        const int rank = deviceTypeRank(devices[i].getProperties().deviceType);
+        if (rank > bestRank) {
+            bestRank = rank;
+            chosen = i;
+        }
+    }
+    if (!chosen)
+        return makeError(
+            "no Vulkan device with a compute queue and Vulkan 1.2 scalar "
+            "block layout was found");
+    return *chosen;
+}
+
+Result<size_t> chooseDevice(const vk::raii::PhysicalDevices& devices, const GpuOptions& options) {
+    if (devices.empty())
+        return makeError(
+            "no Vulkan device found; install a Vulkan driver (on a machine without a GPU: "
+            "Debian package mesa-vulkan-drivers for lavapipe)");
+    std::string wanted = options.deviceOverride;
+    if (wanted.empty()) {
+        if (const char* env = std::getenv("PREVIS_VK_DEVICE")) wanted = env;
+    }
+    return wanted.empty() ? bestDevice(devices) : deviceNamed(devices, wanted);
+}
+
 }  // namespace
 
 VKAPI_ATTR VkBool32 VKAPI_CALL GpuContext::debugCallback(
@@ -85,21 +149,14 @@ Result<std::unique_ptr<GpuContext>> GpuContext::create(const GpuOptions& options
     try {
         std::vector<const char*> layers;
         std::vector<const char*> extensions;
-        if (options.validation) {
-            bool haveLayer = false;
-            for (const auto& layer : ctx->context_.enumerateInstanceLayerProperties()) {
-                if (std::string_view(layer.layerName) == "VK_LAYER_KHRONOS_validation")
-                    haveLayer = true;
-            }
-            if (haveLayer) {
-                layers.push_back("VK_LAYER_KHRONOS_validation");
-                extensions.push_back(VK_EXT_DEBUG_UTILS_EXTENSION_NAME);
-                ctx->validationEnabled_ = true;
-            } else {
-                logWarning(
-                    "Vulkan validation requested but VK_LAYER_KHRONOS_validation is not "
-                    "installed (Debian package vulkan-validationlayers); running without it");
-            }
+        if (options.validation && validationLayerInstalled(ctx->context_)) {
+            layers.push_back("VK_LAYER_KHRONOS_validation");
+            extensions.push_back(VK_EXT_DEBUG_UTILS_EXTENSION_NAME);
+            ctx->validationEnabled_ = true;
+        } else if (options.validation) {
+            logWarning(
+                "Vulkan validation requested but VK_LAYER_KHRONOS_validation is not "
+                "installed (Debian package vulkan-validationlayers); running without it");
         }
         vk::ApplicationInfo app("previs", 1, "previs", 1, VK_API_VERSION_1_2);
         vk::InstanceCreateInfo instanceInfo({}, &app, layers, extensions);
@@ -118,58 +175,9 @@ Result<std::unique_ptr<GpuContext>> GpuContext::create(const GpuOptions& options
 
         vk::raii::PhysicalDevices devices(ctx->instance_);
         keepLavapipeLoadedUnderSanitizers();
-        if (devices.empty()) {
-            return makeError(
-                "no Vulkan device found; install a Vulkan driver (on a machine without a GPU: "
-                "Debian package mesa-vulkan-drivers for lavapipe)");
-        }
-        std::string override = options.deviceOverride;
-        if (override.empty()) {
-            if (const char* env = std::getenv("PREVIS_VK_DEVICE")) override = env;
-        }
-        int chosen = -1;
-        if (!override.empty()) {
-            bool isIndex = std::all_of(override.begin(), override.end(),
-                                       [](unsigned char c) { return std::isdigit(c); });
-            for (size_t i = 0; i < devices.size(); ++i) {
-                std::string name = devices[i].getProperties().deviceName;
-                bool match = isIndex
-                                 ? std::stoul(override) == i
-                                 : lowercase(name).find(lowercase(override)) != std::string::npos;
-                if (match) {
-                    chosen = static_cast<int>(i);
-                    break;
-                }
-            }
-            if (chosen < 0) {
-                std::string names;
-                for (size_t i = 0; i < devices.size(); ++i)
-                    names += fmt::format(" [{}] {}", i, devices[i].getProperties().deviceName);
-                return makeError("PREVIS_VK_DEVICE '{}' matches no Vulkan device; devices:{}",
-                                 override, names);
-            }
-            if (!computeQueueFamily(devices[chosen]) || !supportsRequiredFeatures(devices[chosen]))
-                return makeError(
-                    "Vulkan device '{}' lacks a compute queue or Vulkan 1.2 scalar "
-                    "block layout; choose another with PREVIS_VK_DEVICE",
-                    std::string(devices[chosen].getProperties().deviceName));
-        } else {
-            int bestRank = 0;
-            for (size_t i = 0; i < devices.size(); ++i) {
-                if (!computeQueueFamily(devices[i]) || !supportsRequiredFeatures(devices[i]))
-                    continue;
-                int rank = deviceTypeRank(devices[i].getProperties().deviceType);
-                if (rank > bestRank) {
-                    bestRank = rank;
-                    chosen = static_cast<int>(i);
-                }
-            }
-            if (chosen < 0)
-                return makeError(
-                    "no Vulkan device with a compute queue and Vulkan 1.2 scalar "
-                    "block layout was found");
-        }
-        ctx->physicalDevice_ = std::move(devices[chosen]);
+        Result<size_t> chosen = chooseDevice(devices, options);
+        if (!chosen) return chosen.error();
+        ctx->physicalDevice_ = std::move(devices[*chosen]);
         auto props = ctx->physicalDevice_.getProperties();
         ctx->deviceName_ = props.deviceName.data();
         ctx->isCpu_ = props.deviceType == vk::PhysicalDeviceType::eCpu;
