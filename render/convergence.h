@@ -16,9 +16,12 @@
 // itself standing in for the unknown reference, and reports its square root.
 
 #include <cstdint>
+#include <functional>
 #include <glm/glm.hpp>
 #include <optional>
 #include <span>
+
+#include "base/result.h"
 
 namespace previs {
 
@@ -59,10 +62,21 @@ struct Convergence {
 uint64_t samplesForNoise(double noise, uint64_t samples, double target);
 inline constexpr uint64_t kMaxPredictedSamples = uint64_t(1) << 40;
 
-// Seconds until `target` at `secondsPerSample` (per sample per pixel), 0 once reached; nothing
-// without an estimate or a measured rate.
-std::optional<double> etaSeconds(std::optional<double> noise, uint64_t samples, double target,
-                                 double secondsPerSample);
+// Seconds until an accumulation stops — at `targetNoise` (relative RMSE; ≤ 0 or not finite:
+// none) or at `maxSamples` per pixel (0: none), whichever comes first — from the estimate `noise`
+// at `samples` and the measured `secondsPerSample` (per sample per pixel). The model is Monte
+// Carlo's, noise ∝ 1/√samples, so the target needs samples·(noise/target)². 0 once stopped;
+// nothing when nothing can be said (no samples and no maximum, no usable estimate and no maximum,
+// no measured rate, or no stopping point at all). Never NaN or infinite. StoppingRule::eta's
+// formula; the one ETA of the shot, `previs render` and render-session.
+std::optional<double> secondsToStop(uint64_t samples, std::optional<double> noise,
+                                    double targetNoise, uint64_t maxSamples,
+                                    double secondsPerSample);
+// secondsToStop without a maximum, in the argument order its tests still call.
+inline std::optional<double> etaSeconds(std::optional<double> noise, uint64_t samples,
+                                        double target, double secondsPerSample) {
+    return secondsToStop(samples, noise, target, 0, secondsPerSample);
+}
 
 // When to consult the meter (each look reads the whole accumulation back): at sample counts
 // growing by half each time — a few dozen looks over a million samples — and, aiming at a
@@ -88,6 +102,49 @@ private:
     double target_;
     uint64_t next_ = 2;
     std::optional<double> noise_;
+};
+
+// "Refine until good enough", the one stopping rule of the shot's refinement, `previs render`'s
+// loop and render-session's frames: stop at the target noise (the meter's last look at or under
+// it) or at the maximum samples per pixel, whichever comes first. The meter looks at
+// NoiseSchedule's counts; between looks the estimate is carried forward at the Monte Carlo rate,
+// 1/√samples — conservative, as stratified sampling converges at least that fast — so a status
+// line and the ETA move every step, while stopping at the target waits for a look.
+class StoppingRule {
+public:
+    // `targetNoise`: relative RMSE (DESIGN.md §4; ≤ 0: none); `maxSamples`: per pixel (0: none).
+    explicit StoppingRule(double targetNoise = 0.0, uint64_t maxSamples = 0);
+    double targetNoise() const { return target_; }
+    uint64_t maxSamples() const { return max_; }
+
+    // A fresh accumulation: looks start over.
+    void restart();
+    // Whether the meter should look at `samples` per pixel, and the count of its next look.
+    bool lookDue(uint64_t samples) const { return schedule_.due(samples); }
+    uint64_t nextLook() const { return schedule_.nextLook(); }
+    // Records a look at `samples` (the composite's relative RMSE, if the meter could say).
+    void looked(uint64_t samples, std::optional<double> noise);
+    // Looks at `samples` through `look` (one readback of the accumulation) if a look is due.
+    Status lookIfDue(uint64_t samples, const std::function<Result<std::optional<double>>()>& look);
+
+    // Where a chunk of samples from `samples` should end at the latest: the maximum, and aiming at
+    // a target, the next look. UINT64_MAX when neither.
+    uint64_t nextStop(uint64_t samples) const;
+    // The last look's estimate (measured), and that estimate carried to `samples` (≥ the look's).
+    std::optional<double> measured() const { return schedule_.noise(); }
+    std::optional<double> noiseAt(uint64_t samples) const;
+    // Whether the last look reached the target (never without one).
+    bool reachedTarget() const;
+    // Whether the accumulation stops at `samples`: the maximum reached, or the target.
+    bool done(uint64_t samples) const;
+    // Seconds until done (secondsToStop from the carried-forward estimate).
+    std::optional<double> eta(uint64_t samples, double secondsPerSample) const;
+
+private:
+    double target_;
+    uint64_t max_;
+    NoiseSchedule schedule_;
+    uint64_t lookSamples_ = 0;
 };
 
 }  // namespace previs
