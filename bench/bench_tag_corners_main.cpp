@@ -4,17 +4,14 @@
 #include <algorithm>
 #include <cstdio>
 
-#include "base/data_paths.h"
 #include "base/log.h"
+#include "bench/bench_data_arg.h"
 #include "bench/visp_tag_poses.h"
 
 int main(int argc, char** argv) {
-    const auto shared = previs::sharedDataDir();
-    if (argc <= 1 && !shared) {
-        previs::logError("no shared data found: pass DATA_DIR or set PREVIS_DATA_DIR");
-        return 2;
-    }
-    const std::string data = argc > 1 ? argv[1] : shared->string();
+    const auto dataDir = previs::bench::dataDirArgument(argc, argv);
+    if (!dataDir) return 2;
+    const std::string& data = *dataDir;
     std::vector<previs::bench::VispFamilyResult> results;
     for (const previs::bench::VispTagFamily& f : previs::bench::vispTagFamilies()) {
         auto r = previs::bench::measureVispFamily(

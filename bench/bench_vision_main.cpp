@@ -2,17 +2,14 @@
 #include <cstdio>
 #include <cstdlib>
 
-#include "base/data_paths.h"
 #include "base/log.h"
+#include "bench/bench_data_arg.h"
 #include "bench/bench_vision.h"
 
 int main(int argc, char** argv) {
-    const auto shared = previs::sharedDataDir();
-    if (argc <= 1 && !shared) {
-        previs::logError("no shared data found: pass DATA_DIR or set PREVIS_DATA_DIR");
-        return 2;
-    }
-    const std::string data = argc > 1 ? argv[1] : shared->string();
+    const auto dataDir = previs::bench::dataDirArgument(argc, argv);
+    if (!dataDir) return 2;
+    const std::string& data = *dataDir;
     const int runs = argc > 2 ? std::atoi(argv[2]) : 30;
     auto timings = previs::benchVision(data, runs);
     if (!timings) {

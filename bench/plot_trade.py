@@ -37,6 +37,20 @@ def curves(rows, key):
     return out
 
 
+def save(fig, path):
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def finish_axes(ax, xlabel, ylabel):
+    """The log plots' labels, grid and legend."""
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+
+
 def error_plot(rows, column, label, path, transform=lambda v: v):
     fig, ax = plt.subplots(figsize=(7, 5))
     for name, pts in curves(rows, "setting").items():
@@ -44,14 +58,9 @@ def error_plot(rows, column, label, path, transform=lambda v: v):
         ax.loglog([float(p["seconds"]) for p in pts],
                   [transform(float(p[column])) for p in pts], style, marker="o", ms=3,
                   label=name)
-    ax.set_xlabel("wall time (s)")
-    ax.set_ylabel(label)
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
+    finish_axes(ax, "wall time (s)", label)
     ax.set_title(f"{label} against time ({rows[0]['width']}x{rows[0]['height']})")
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save(fig, path)
 
 
 def meter_plot(rows, path):
@@ -64,13 +73,9 @@ def meter_plot(rows, path):
         line, = ax.loglog(spp, [math.sqrt(float(p["relmse"])) for p in pts], "-", label=name)
         ax.loglog(spp, [float(p["noise_estimate"]) for p in pts], ":", marker="x", ms=4,
                   color=line.get_color())
-    ax.set_xlabel("samples per pixel")
-    ax.set_ylabel("√relMSE: true (solid, includes depth bias) and estimated (dotted)")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    finish_axes(ax, "samples per pixel",
+                "√relMSE: true (solid, includes depth bias) and estimated (dotted)")
+    save(fig, path)
 
 
 def figure2(directory, path):
@@ -84,9 +89,7 @@ def figure2(directory, path):
         ax.set_title(f"{n} frame{'s' if n > 1 else ''}")
         ax.axis("off")
     fig.suptitle("Refinement: the composite after 1, 10, 100 and 1000 frames (1 spp each)")
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save(fig, path)
 
 
 def figure4(rows, path):
@@ -101,9 +104,7 @@ def figure4(rows, path):
     ax.set_ylabel("ms per 1-spp frame (median)")
     ax.grid(True, which="both", alpha=0.3)
     ax.set_title("Time against resolution")
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save(fig, path)
 
 
 def dial_plot(rows, path):
@@ -127,14 +128,9 @@ def dial_plot(rows, path):
     ax.axvline(100.0, color="red", ls=":", label="10 fps budget")
     ax.set_xscale("log")
     ax.set_yscale("log")
-    ax.set_xlabel("ms per preview frame (median)")
-    ax.set_ylabel("RMSE of one frame")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
+    finish_axes(ax, "ms per preview frame (median)", "RMSE of one frame")
     ax.set_title("The dial: preview settings at 640x480")
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save(fig, path)
 
 
 def blender(csv_path, path):
@@ -151,9 +147,7 @@ def blender(csv_path, path):
         ax.set_ylabel("RMSE against the reference")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend()
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save(fig, path)
 
 
 def main(argv):
