@@ -61,6 +61,16 @@ Result<GpuBuffer> GpuBuffer::create(GpuContext& ctx, size_t sizeBytes, const cha
     return b;
 }
 
+Status GpuBuffer::replaceContents(const void* data, size_t bytes, const char* label) {
+    if (size_ != bytes) {
+        auto fresh = create(*ctx_, bytes, label);
+        if (!fresh) return fresh.error();
+        *this = std::move(fresh.value());
+    }
+    if (bytes == 0) return {};
+    return upload(data, bytes);
+}
+
 Status GpuBuffer::upload(const void* data, size_t bytes, size_t offset) {
     if (bytes == 0) return {};
     if (mapped_) {

@@ -211,7 +211,7 @@ Status PhotonPasses::bind(std::span<const GpuBuffer* const> buffers,
     return {};
 }
 
-Result<double> PhotonPasses::run(shader::FrameParams& params, std::span<GpuBuffer> buffers,
+Result<double> PhotonPasses::run(shader::FrameParams& params, std::span<GpuBuffer* const> buffers,
                                  const std::atomic<bool>* stop) {
     const uint32_t slotBlocks =
         PV_PHOTON_RECORDS_PER_PHOTON * params.photonCount / PV_PHOTON_SORT_BLOCK;
@@ -223,13 +223,13 @@ Result<double> PhotonPasses::run(shader::FrameParams& params, std::span<GpuBuffe
         return {};
     };
     auto uploadParams = [&]() {
-        return buffers[PV_BINDING_PARAMS].upload(&params, sizeof(params));
+        return buffers[PV_BINDING_PARAMS]->upload(&params, sizeof(params));
     };
     params.photonSortShift = 0;
     if (Status s = uploadParams(); !s) return s.error();
-    if (Status s = buffers[PV_BINDING_PHOTON_CELLS].fill(0); !s) return s.error();
-    if (buffers[PV_BINDING_PHOTON_SPLATS].size() > 0)
-        if (Status s = buffers[PV_BINDING_PHOTON_SPLATS].fill(0); !s) return s.error();
+    if (Status s = buffers[PV_BINDING_PHOTON_CELLS]->fill(0); !s) return s.error();
+    if (buffers[PV_BINDING_PHOTON_SPLATS]->size() > 0)
+        if (Status s = buffers[PV_BINDING_PHOTON_SPLATS]->fill(0); !s) return s.error();
     const uint32_t traceGroups = params.photonCount / PV_PHOTON_GROUP_SIZE;
     if (stop) {
         auto t = traceParts_.run(*trace_, traceGroups, 1, *stop);
@@ -242,7 +242,7 @@ Result<double> PhotonPasses::run(shader::FrameParams& params, std::span<GpuBuffe
     if (Status s = dispatch(*grid_[kCompactScan], 1); !s) return s.error();
     if (Status s = dispatch(*grid_[kCompact], slotBlocks); !s) return s.error();
     uint32_t stored = 0;
-    if (Status s = buffers[PV_BINDING_PHOTON_BLOCK_COUNTS].download(
+    if (Status s = buffers[PV_BINDING_PHOTON_BLOCK_COUNTS]->download(
             &stored, sizeof(stored),
             sizeof(uint32_t) * (params.photonCount / PV_PHOTON_GROUP_SIZE));
         !s)

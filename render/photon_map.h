@@ -93,7 +93,7 @@ public:
     // Traces params.photonCount photons for params.photonIteration at params.photonRadius and
     // builds the grid. Uploads params (the sort passes change photonSortShift). Returns GPU ms.
     // With `stop`, the tracing (most of the time) runs in parts and ends early once it is set.
-    Result<double> run(shader::FrameParams& params, std::span<GpuBuffer> buffers,
+    Result<double> run(shader::FrameParams& params, std::span<GpuBuffer* const> buffers,
                        const std::atomic<bool>* stop = nullptr);
 
 private:

@@ -55,27 +55,6 @@ Camera defaultCamera(const Geometry& geometry) {
     return camera;
 }
 
-bool materialHasSpecular(const Material& m) { return m.metallic > 0.0f || m.specular > 0.0f; }
-
-// The environment's FrameParams fields; all zero without one (as a fresh renderer has them).
-void setEnvironmentParams(shader::FrameParams& p, const EnvironmentMap* map,
-                          const EnvironmentDistribution& dist) {
-    p.envWidth = map ? map->width : 0;
-    p.envHeight = map ? map->height : 0;
-    p.envScale = map ? map->scale : 0.0f;
-    // As shader::envRotationCosSin (env_sampling.h), which the CPU sampler uses.
-    p.envRotationCos = map ? std::cos(map->rotationRad) : 0.0f;
-    p.envRotationSin = map ? std::sin(map->rotationRad) : 0.0f;
-    p.envIntegral = map ? dist.integral : 0.0f;
-}
-
-bool finiteNonNegative(const glm::vec3& v) {
-    return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z) && v.x >= 0.0f &&
-           v.y >= 0.0f && v.z >= 0.0f;
-}
-
-constexpr float kFourPi = 4.0f * 3.14159265358979f;
-
 // The GPU's origin for a camera at `positionM` (world; Renderer::setCameraPose): snapped to a
 // grid, so that renderers created at nearby poses share it (the same float positions: the same
 // pixels), and a set at the world origin seen from within half a cell keeps origin 0 (GPU
@@ -87,58 +66,27 @@ std::optional<glm::dvec3> renderOriginFor(const glm::dvec3& positionM) {
     return glm::round(positionM / Renderer::kRecentreGridM) * Renderer::kRecentreGridM;
 }
 
-// A scene-frame position in the GPU's frame: the offset (scene origin − render origin) is added
-// in double, then rounded once to float.
-glm::vec3 toRenderFrame(const glm::vec3& p, const glm::dvec3& offset) {
-    return glm::vec3(glm::dvec3(p) + offset);
-}
-
 glm::mat4 renderFromCamera(const glm::dvec3& renderOriginM, const glm::dmat4& worldFromCamera) {
     return glm::mat4(glm::translate(glm::dmat4(1.0), -renderOriginM) * worldFromCamera);
 }
 
-}  // namespace
-
-SceneFeatures detectSceneFeatures(const Scene& scene, const Camera& camera) {
-    SceneFeatures f;
-    f.environment = scene.environment.has_value();
-    f.punctual = !scene.lights.empty();
-    f.thinLens = camera.apertureRadiusM > 0.0f;
-    f.textures = !scene.textures.empty();
-    // Only materials some triangle uses count.
-    std::vector<bool> used(scene.materials.size(), false);
-    for (uint32_t m : scene.geometry.triangleMaterials)
-        if (m < used.size()) used[m] = true;
-    for (size_t i = 0; i < scene.materials.size(); ++i) {
-        if (!used[i]) continue;
-        const Material& m = scene.materials[i];
-        f.specular |= materialHasSpecular(m);
-        f.transmission |= m.transmission > 0.0f;
-        f.emissive |= glm::length(m.emission) > 0.0f;
-        f.glossy |= glossyMaterial(m);
-    }
-    return f;
-}
-
-Result<std::unique_ptr<Renderer>> Renderer::create(GpuContext& ctx, const Scene& scene,
-                                                   const RenderSettings& settings) {
+// The camera `settings` select in `scene`, with their lens, once the settings are in range.
+Result<Camera> checkedCamera(const Scene& scene, const RenderSettings& settings) {
     if (settings.width == 0 || settings.height == 0 || settings.width > 16384 ||
         settings.height > 16384)
         return makeError("image size {}x{} is out of range (1..16384)", settings.width,
                          settings.height);
-    std::unique_ptr<Renderer> r(new Renderer());
-    r->ctx_ = &ctx;
-    r->settings_ = settings;
+    Camera camera;
     if (scene.cameras.empty()) {
-        r->camera_ = defaultCamera(scene.geometry);
+        camera = defaultCamera(scene.geometry);
     } else {
         if (settings.cameraIndex < 0 || size_t(settings.cameraIndex) >= scene.cameras.size())
             return makeError("camera index {} does not exist; the scene has {} camera(s)",
                              settings.cameraIndex, scene.cameras.size());
-        r->camera_ = scene.cameras[settings.cameraIndex];
+        camera = scene.cameras[settings.cameraIndex];
     }
-    if (settings.apertureRadiusM) r->camera_.apertureRadiusM = *settings.apertureRadiusM;
-    if (settings.focusDistanceM) r->camera_.focusDistanceM = *settings.focusDistanceM;
+    if (settings.apertureRadiusM) camera.apertureRadiusM = *settings.apertureRadiusM;
+    if (settings.focusDistanceM) camera.focusDistanceM = *settings.focusDistanceM;
     if (!settings.lensGrid.empty() &&
         settings.lensGrid.size() != size_t(settings.width + 1) * (settings.height + 1))
         return makeError("lens grid has {} entries; a {}x{} render needs {}",
@@ -158,22 +106,34 @@ Result<std::unique_ptr<Renderer>> Renderer::create(GpuContext& ctx, const Scene&
             "resolution scale {} is out of range: it must be in (0, 1] (1 traces "
             "every output pixel)",
             settings.resolutionScale);
-    if (!(r->camera_.apertureRadiusM >= 0.0f) || !(r->camera_.focusDistanceM > 0.0f))
+    if (!(camera.apertureRadiusM >= 0.0f) || !(camera.focusDistanceM > 0.0f))
         return makeError(
             "thin lens needs aperture radius >= 0 and focus distance > 0 (got {} m, "
             "{} m)",
-            r->camera_.apertureRadiusM, r->camera_.focusDistanceM);
+            camera.apertureRadiusM, camera.focusDistanceM);
+    return camera;
+}
 
-    r->sceneOriginM_ = scene.originM;
+}  // namespace
+
+Result<std::unique_ptr<Renderer>> Renderer::create(GpuContext& ctx, const Scene& scene,
+                                                   const RenderSettings& settings) {
+    Result<Camera> camera = checkedCamera(scene, settings);
+    if (!camera) return camera.error();
+    std::unique_ptr<Renderer> r(new Renderer());
+    r->ctx_ = &ctx;
+    r->settings_ = settings;
+    r->camera_ = std::move(camera.value());
+
     r->worldFromCameraM_ =
         glm::translate(glm::dmat4(1.0), scene.originM) * glm::dmat4(r->camera_.worldFromCamera);
     r->camera_.worldFromCamera = glm::mat4(r->worldFromCameraM_);
-    r->renderOriginM_ =
+    const glm::dvec3 renderOriginM =
         renderOriginFor(glm::dvec3(r->worldFromCameraM_[3])).value_or(glm::dvec3(0.0));
 
-    r->features_ = detectSceneFeatures(scene, r->camera_);
+    const SceneFeatures features = detectSceneFeatures(scene, r->camera_);
     // Positions in the GPU's frame (setCameraPose); a copy only where the frames differ.
-    const glm::dvec3 offset = r->sceneOriginM_ - r->renderOriginM_;
+    const glm::dvec3 offset = scene.originM - renderOriginM;
     Geometry shifted;
     if (offset != glm::dvec3(0.0)) {
         shifted = scene.geometry;
@@ -184,21 +144,33 @@ Result<std::unique_ptr<Renderer>> Renderer::create(GpuContext& ctx, const Scene&
     // thread (CPU work only) while this one compiles the pipelines (all Vulkan calls stay on one
     // thread). The pipelines' photon switch is predicted from what the scene holds: photons
     // run where they may (photonsPossible) and the scene has an emitter or a light to send
-    // them from. Where buildScene finds otherwise (emitters of zero area or power),
+    // them from. Where the uploaded scene finds otherwise (emitters of zero area or power),
     // ensurePipelines compiles again: a prediction costs time, never a wrong pipeline.
-    r->photonAim_ = photonAimFor(g, scene.materials);
-    r->photonSplats_ = r->photonSplatBytes() > 0;
+    const PhotonAim aim = photonAimFor(g, scene.materials);
+    r->photonSplats_ = r->photonSplatBytes(aim) > 0;
     const bool photonsLikely =
-        r->photonsPossible() && (r->features_.emissive || !scene.lights.empty());
+        r->photonsPossible(aim) && (features.emissive || !scene.lights.empty());
     auto bvh = std::async(std::launch::async, [&g] { return buildSceneBvh(g); });
     r->pipelines_.emplace(ctx, settings.specialise);
-    const Status compiled = r->pipelines_->ensure(r->pipelineConstants(photonsLikely));
+    const Status compiled = r->pipelines_->ensure(r->pipelineConstants(features, photonsLikely));
     Result<SceneBvh> built = bvh.get();
     if (!compiled) return compiled.error();
     if (!built) return built.error();
-    if (Status s = r->buildScene(scene, g, std::move(built.value())); !s) return s.error();
+    ++r->sceneBuilds_;
+    auto gpuScene = GpuScene::create(ctx, scene, g, std::move(built.value()), features, aim,
+                                     scene.originM, renderOriginM, r->params_);
+    if (!gpuScene) return gpuScene.error();
+    r->scene_.emplace(std::move(gpuScene.value()));
+    r->setFrameParams();
+    if (Status s = r->sizeBands(settings.width, settings.height); !s) return s.error();
+    auto buffers = r->createFrameBuffers();
+    if (!buffers) return buffers.error();
+    r->buffers_.emplace(std::move(buffers.value()));
+    r->traceLensGrid_ = settings.lensGrid;
+    r->virtualBoxes_ = r->scene_->virtualBoxes(kObjectBoxLevels);
+    if (Status s = r->scene_->updatePhotonLights(r->params_); !s) return s.error();
     if (Status s = r->ensurePipelines(); !s) return s.error();
-    // buildScene sized the accumulation for the output; a fraction shrinks it.
+    // The accumulation was sized for the output; a fraction shrinks it.
     r->settings_.resolutionScale = 1.0f;
     if (Status s = r->setResolutionScale(settings.resolutionScale); !s) return s.error();
     if (Status s = r->reset(); !s) return s.error();
@@ -210,8 +182,8 @@ Result<std::unique_ptr<Renderer>> Renderer::create(GpuContext& ctx, const Scene&
     return Result<std::unique_ptr<Renderer>>(std::move(r));
 }
 
-PipelineConstants Renderer::pipelineConstants(bool photons) const {
-    SceneFeatures spec = features_;
+PipelineConstants Renderer::pipelineConstants(const SceneFeatures& features, bool photons) const {
+    SceneFeatures spec = features;
     if (settings_.generalPipeline)
         spec = SceneFeatures{.environment = true,
                              .emissive = true,
@@ -246,7 +218,8 @@ PipelineConstants Renderer::pipelineConstants(bool photons) const {
 }
 
 Status Renderer::ensurePipelines() {
-    if (Status s = pipelines_->ensure(pipelineConstants(photonsActive_)); !s) return s;
+    if (Status s = pipelines_->ensure(pipelineConstants(scene_->features(), photonsActive())); !s)
+        return s;
     return bindBuffers();
 }
 
@@ -282,112 +255,32 @@ std::vector<BufferRange> Renderer::accumulationBand(uint32_t firstRow) const {
     return ranges;
 }
 
+std::array<GpuBuffer*, PV_BINDING_COUNT> Renderer::bindingTable() {
+    std::array<GpuBuffer*, PV_BINDING_COUNT> table{};
+    scene_->bindInto(table);
+    for (auto [binding, buffer] : kFrameBindings) table[binding] = &(*buffers_.*buffer);
+    return table;
+}
+
 Status Renderer::bindBuffers(uint32_t bandFirstRow) {
     // Without pipelines (their last compile failed) the next render() compiles and binds them.
-    std::vector<const GpuBuffer*> bound;
-    for (const auto& b : buffers_) bound.push_back(&b);
+    const std::array<GpuBuffer*, PV_BINDING_COUNT> table = bindingTable();
+    const std::vector<const GpuBuffer*> bound(table.begin(), table.end());
     return pipelines_->bind(bound, accumulationBand(bandFirstRow));
 }
 
-Status Renderer::replaceBufferContents(int binding, const void* data, size_t bytes,
-                                       const char* label) {
-    GpuBuffer& current = buffers_[binding];
-    if (current.size() != bytes) {
-        auto fresh = GpuBuffer::create(*ctx_, bytes, label);
-        if (!fresh) return fresh.error();
-        // Dispatches are synchronous (ComputePipeline::dispatch waits), so the GPU is done with
-        // the old buffer; a frame-overlapped renderer would have to defer this deletion.
-        current = std::move(fresh.value());
-    }
-    if (bytes == 0) return {};
-    return current.upload(data, bytes);
-}
-
 Status Renderer::setEnvironment(std::shared_ptr<const EnvironmentMap> map) {
-    if (map && map->width == 0 && map->height == 0) map.reset();
-    if (map && (map->width == 0 || map->height == 0 ||
-                map->radiance.size() != size_t(map->width) * map->height))
-        return makeError(
-            "environment map '{}' is {}x{} but has {} texels; expected width x "
-            "height RGB texels",
-            map->path, map->width, map->height, map->radiance.size());
-    // NaN, Inf or negative texels (a bad camera frame) would poison every pixel that samples
-    // them: they become 0 in a copy, as loadEnvironmentMap does for files.
-    if (map) {
-        size_t bad = std::count_if(map->radiance.begin(), map->radiance.end(),
-                                   [](const glm::vec3& v) { return !finiteNonNegative(v); });
-        if (bad > 0) {
-            logWarning("environment map '{}': {} NaN, infinite or negative texel(s) set to 0",
-                       map->path, bad);
-            auto clean = std::make_shared<EnvironmentMap>(*map);
-            for (glm::vec3& v : clean->radiance)
-                if (!finiteNonNegative(v)) v = glm::vec3(0.0f);
-            map = std::move(clean);
-        }
-    }
-
-    EnvironmentDistribution dist;
-    if (map) dist = buildEnvironmentDistribution(*map);
-    Status s;
-    auto upload = [&](int binding, const auto& v, const char* label) {
-        if (s) s = replaceBufferContents(binding, v.data(), v.size() * sizeof(v[0]), label);
-    };
-    static const std::vector<glm::vec3> kNoTexels;
-    upload(PV_BINDING_ENV_RADIANCE, map ? map->radiance : kNoTexels, "envRadiance");
-    upload(PV_BINDING_ENV_MARGINAL_CDF, dist.marginalCdf, "envMarginal");
-    upload(PV_BINDING_ENV_CONDITIONAL_CDF, dist.conditionalCdf, "envConditional");
-    // A half-replaced environment is no environment (black) rather than a wrong one.
-    setEnvironmentParams(params_, s ? map.get() : nullptr, dist);
-    features_.environment = s && map;
-    return s;  // the next render() compiles for the features and binds the buffers
+    // The next render() compiles for the features and binds the buffers.
+    return scene_->setEnvironment(std::move(map), params_);
 }
 
 Status Renderer::setEstimatedLights(std::span<const EstimatedLightSource> estimated) {
-    std::vector<shader::GpuLight> lights = sceneLights_;
-    std::vector<shader::GpuLight> cones;
-    for (size_t i = 0; i < estimated.size(); ++i) {
-        const EstimatedLightSource& e = estimated[i];
-        float len = glm::length(e.direction);
-        if (!(len > 0.0f) || !std::isfinite(len) || !(e.solidAngleSr > 0.0f) ||
-            !(e.solidAngleSr <= kFourPi) || !finiteNonNegative(e.radiance))
-            return makeError(
-                "estimated light {} is invalid (direction length {}, solid angle {} "
-                "sr, radiance {} {} {}): it needs a direction, a solid angle in "
-                "(0, 4pi] and finite non-negative radiance",
-                i, len, e.solidAngleSr, e.radiance.r, e.radiance.g, e.radiance.b);
-        shader::GpuLight gl{};
-        gl.type = PV_LIGHT_CONE | PV_LIGHT_REAL;
-        gl.direction = -e.direction / len;  // where the light points
-        gl.intensity = e.radiance;
-        // Ω = 2π(1 − cos θmax).
-        gl.cosInnerCone = e.solidAngleSr / (2.0f * 3.14159265358979f);
-        gl.cosOuterCone = 1.0f - gl.cosInnerCone;
-        lights.push_back(gl);
-        cones.push_back(gl);
-    }
-    Status s = replaceBufferContents(PV_BINDING_LIGHTS, lights.data(),
-                                     lights.size() * sizeof(shader::GpuLight), "lights");
-    const bool ok = s.ok();
-    estimatedLights_ = ok ? std::move(cones) : std::vector<shader::GpuLight>{};
-    if (Status p = updatePhotonLights(ok ? std::span<const shader::GpuLight>(lights)
-                                         : std::span<const shader::GpuLight>(sceneLights_));
-        !p)
-        return p;
-    params_.lightCount = uint32_t(ok ? lights.size() : sceneLights_.size());
-    features_.coneLights = ok && !estimated.empty();
-    if (!ok) {
-        // Keep at least the scene's lights.
-        if (Status r =
-                replaceBufferContents(PV_BINDING_LIGHTS, sceneLights_.data(),
-                                      sceneLights_.size() * sizeof(shader::GpuLight), "lights");
-            !r)
-            params_.lightCount = 0;
-    }
-    return s;  // the next render() compiles for the features and binds the buffers
+    // The next render() compiles for the features and binds the buffers.
+    return scene_->setEstimatedLights(estimated, params_);
 }
 
-size_t Renderer::photonSplatBytes() const {
-    if (!photonsPossible() || !settings_.photons.splatToCamera) return 0;
+size_t Renderer::photonSplatBytes(const PhotonAim& aim) const {
+    if (!photonsPossible(aim) || !settings_.photons.splatToCamera) return 0;
     // Mixed; with the real solution also real and real-unhidden (scene_types.h).
     const size_t sums = settings_.differential ? 3 : 1;
     const size_t bytes =
@@ -398,143 +291,16 @@ size_t Renderer::photonSplatBytes() const {
     return bytes <= limit ? bytes : 0;
 }
 
-bool Renderer::photonsPossible() const {
+bool Renderer::photonsPossible(const PhotonAim& aim) const {
     // Auto needs a specular object; its lights may still come from the captured environment.
     const PhotonSettings& ph = settings_.photons;
-    return ph.mode == PhotonMode::On || (ph.mode == PhotonMode::Auto && photonAim_.any);
+    return ph.mode == PhotonMode::On || (ph.mode == PhotonMode::Auto && aim.any);
 }
 
-Status Renderer::buildScene(const Scene& scene, const Geometry& g, SceneBvh bvh) {
-    ++sceneBuilds_;
-    const glm::dvec3 offset = sceneOriginM_ - renderOriginM_;
-    bvh_ = std::move(bvh);
-
-    // Triangles in BVH order, so that each leaf's triangles are contiguous.
-    size_t triCount = g.triangles.size();
-    std::vector<glm::uvec3> triangles(triCount);
-    // Texel layouts of the shaders (trace_paths.comp): a triangle's vertex indices + material,
-    // and per-vertex normals and uvs, one 16-byte texel each.
-    std::vector<glm::uvec4> triangleTexels(triCount);
-    std::vector<glm::vec4> normalTexels(g.normals.size());
-    std::vector<glm::vec4> uvTexels(g.uvs.size());
-    for (size_t v = 0; v < g.normals.size(); ++v) normalTexels[v] = glm::vec4(g.normals[v], 0.0f);
-    for (size_t v = 0; v < g.uvs.size(); ++v) uvTexels[v] = glm::vec4(g.uvs[v], 0.0f, 0.0f);
-    std::vector<uint32_t> triMaterials(triCount);
-    // xyz = position, w unused: one 16-byte texel per vertex (PV_BINDING_TRIANGLE_VERTICES).
-    std::vector<glm::vec4> triangleVertices(3 * triCount);
-    sceneTriangleVertices_.resize(3 * triCount);
-    for (size_t i = 0; i < triCount; ++i) {
-        uint32_t src = bvh_.triangleOrder[i];
-        triangles[i] = g.triangles[src];
-        triMaterials[i] = g.triangleMaterials[src];
-        triangleTexels[i] = glm::uvec4(triangles[i], triMaterials[i]);
-        for (int k = 0; k < 3; ++k) {
-            triangleVertices[3 * i + k] = glm::vec4(g.positions[triangles[i][k]], 0.0f);
-            sceneTriangleVertices_[3 * i + k] = scene.geometry.positions[triangles[i][k]];
-        }
-    }
-
-    std::vector<shader::GpuMaterial> materials;
-    for (const Material& m : scene.materials) {
-        shader::GpuMaterial gm{};
-        gm.baseColor = m.baseColor;
-        gm.emission = m.emission;
-        gm.metallic = m.metallic;
-        gm.roughness = m.roughness;
-        gm.transmission = m.transmission;
-        gm.ior = m.ior;
-        gm.specular = m.specular;
-        gm.specularColor = m.specularColor;
-        auto tex = [](int i) { return i < 0 ? PV_NO_TEXTURE : uint32_t(i); };
-        gm.baseColorTexture = tex(m.baseColorTexture);
-        gm.metallicRoughnessTexture = tex(m.metallicRoughnessTexture);
-        gm.normalTexture = tex(m.normalTexture);
-        gm.emissiveTexture = tex(m.emissiveTexture);
-        gm.flags = (m.doubleSided ? PV_MATERIAL_DOUBLE_SIDED : 0u) |
-                   (m.thinWalled ? PV_MATERIAL_THIN_WALLED : 0u);
-        // Beer–Lambert: attenuationColor remains after attenuationDistanceM, so the absorption
-        // coefficient is −ln(colour) / distance (a black colour absorbs within a micrometre).
-        if (!m.thinWalled && std::isfinite(m.attenuationDistanceM))
-            gm.attenuation =
-                -glm::log(glm::max(m.attenuationColor, glm::vec3(1e-6f))) / m.attenuationDistanceM;
-        materials.push_back(gm);
-    }
-
-    std::vector<shader::TextureInfo> textureInfos;
-    std::vector<uint32_t> texels;
-    for (const Texture& t : scene.textures) {
-        auto wrap = [](TextureWrap w) {
-            return w == TextureWrap::MirroredRepeat ? PV_WRAP_MIRRORED_REPEAT
-                   : w == TextureWrap::ClampToEdge  ? PV_WRAP_CLAMP_TO_EDGE
-                                                    : PV_WRAP_REPEAT;
-        };
-        const uint32_t flags =
-            (t.srgb ? PV_TEXTURE_SRGB : 0u) | wrap(t.wrapS) << PV_TEXTURE_WRAP_S_SHIFT |
-            wrap(t.wrapT) << PV_TEXTURE_WRAP_T_SHIFT | (t.nearest ? PV_TEXTURE_NEAREST : 0u);
-        textureInfos.push_back({uint32_t(texels.size()), t.width, t.height, flags});
-        texels.insert(texels.end(), t.rgba8.begin(), t.rgba8.end());
-    }
-
-    std::vector<shader::GpuLight> lights;
-    for (const PunctualLight& l : scene.lights) {
-        shader::GpuLight gl{};
-        gl.position = toRenderFrame(l.position, offset);
-        sceneLightPositions_.push_back(l.position);
-        gl.type = l.type == LightType::Point  ? PV_LIGHT_POINT
-                  : l.type == LightType::Spot ? PV_LIGHT_SPOT
-                                              : PV_LIGHT_DIRECTIONAL;
-        if (l.isReal) gl.type |= PV_LIGHT_REAL;
-        gl.direction = glm::normalize(l.direction);
-        gl.intensity = l.color * l.intensity;
-        gl.cosInnerCone = std::cos(l.innerConeAngleRad);
-        gl.cosOuterCone = std::cos(l.outerConeAngleRad);
-        lights.push_back(gl);
-    }
-    sceneLights_ = lights;
-
-    // Emissive triangles, chosen in proportion to their power (area × luminance).
-    std::vector<shader::EmissiveTriangle> emissive;
-    std::vector<float> triangleLightPdf(features_.emissive ? triCount : 0, 0.0f);
-    if (features_.emissive) {
-        double total = 0.0;
-        std::vector<double> power;
-        for (uint32_t i = 0; i < triCount; ++i) {
-            const Material& m = scene.materials[triMaterials[i]];
-            float lum = luminance(m.emission);
-            if (!(lum > 0.0f)) continue;
-            glm::vec3 p0 = g.positions[triangles[i].x];
-            float area = 0.5f * glm::length(glm::cross(g.positions[triangles[i].y] - p0,
-                                                       g.positions[triangles[i].z] - p0));
-            if (!(area > 0.0f)) continue;
-            emissive.push_back({i, area, 0.0f, 0.0f});
-            glm::vec3 centroid =
-                (p0 + g.positions[triangles[i].y] + g.positions[triangles[i].z]) / 3.0f;
-            emissivePhotonSources_.push_back(
-                {i, lum, area, centroid, g.triangleIsReal[bvh_.triangleOrder[i]] != 0});
-            power.push_back(double(area) * lum);
-            total += power.back();
-        }
-        double running = 0.0;
-        for (size_t k = 0; k < emissive.size(); ++k) {
-            running += power[k];
-            emissive[k].pdf = float(power[k] / total);
-            emissive[k].cdf = float(running / total);
-            triangleLightPdf[emissive[k].triangle] = emissive[k].pdf;
-        }
-        if (!emissive.empty()) emissive.back().cdf = 1.0f;
-        if (emissive.empty()) features_.emissive = false;
-    }
-
-    std::vector<glm::vec3> envRadiance;
-    EnvironmentDistribution envDist;
-    if (scene.environment) {
-        envRadiance = scene.environment->radiance;
-        envDist = buildEnvironmentDistribution(*scene.environment);
-    }
-
+void Renderer::setFrameParams() {
     // Parameters that do not change between dispatches.
     shader::FrameParams& p = params_;
-    p.worldFromCamera = renderFromCamera(renderOriginM_, worldFromCameraM_);
+    p.worldFromCamera = renderFromCamera(scene_->renderOriginM(), worldFromCameraM_);
     float tanY = std::tan(0.5f * camera_.fovYRad);
     p.tanHalfFov = glm::vec2(tanY * float(settings_.width) / float(settings_.height), tanY);
     p.apertureRadiusM = camera_.apertureRadiusM;
@@ -544,151 +310,66 @@ Status Renderer::buildScene(const Scene& scene, const Geometry& g, SceneBvh bvh)
     p.seed = settings_.seed;
     p.replicates = 1u;  // set per accumulation by render() (shared/sampler.h)
     p.maxDepth = settings_.maxDepth;
-    p.lightCount = uint32_t(lights.size());
-    p.emissiveTriangleCount = uint32_t(emissive.size());
-    p.realRoot = bvh_.wideRealRoot;
-    p.virtualRoot = bvh_.wideVirtualRoot;
-    setEnvironmentParams(p, scene.environment ? &*scene.environment : nullptr, envDist);
-    p.coneLightFirst = uint32_t(lights.size());
     p.fireflyClamp = settings_.fireflyClamp;
     p.rouletteStartDepth = settings_.rouletteStartDepth;
-    // The BVH puts real triangles first.
-    p.realTriangleCount =
-        uint32_t(std::count(g.triangleIsReal.begin(), g.triangleIsReal.end(), uint8_t(1)));
-    // Photon buffers exist only where photons may run (create() set photonAim_).
+    // Photon buffers exist only where photons may run.
     const PhotonSettings& ph = settings_.photons;
     // A multiple of 128: whole photon workgroups, and records (four a photon) in whole sort
     // blocks.
     static_assert(128u % PV_PHOTON_GROUP_SIZE == 0u &&
                   128u * PV_PHOTON_RECORDS_PER_PHOTON % PV_PHOTON_SORT_BLOCK == 0u);
-    p.photonCount = photonsPossible() ? (ph.perIteration + 127u) / 128u * 128u : 0u;
-    p.photonAimCenter = photonAim_.center;
-    p.photonAimRadius = photonAim_.radius;
-    p.photonSceneRadius = photonAim_.sceneRadius;
+    p.photonCount =
+        photonsPossible(scene_->photonAim()) ? (ph.perIteration + 127u) / 128u * 128u : 0u;
     p.photonMaxBounces = std::min(settings_.maxDepth, kMaxPhotonBounces + 1u) - 1u;
     p.photonGatherCap = ph.gatherCap;
     p.photonGatherNeighbours = ph.gatherNeighbours;
+}
 
+Result<Renderer::FrameBuffers> Renderer::createFrameBuffers() const {
     const size_t pixels = size_t(settings_.width) * settings_.height;
-    // Each buffer made for its binding, by name; buffers_ holds them in binding order after.
-    std::array<std::optional<GpuBuffer>, PV_BINDING_COUNT> made;
-    Status s;
-    auto put = [&](int binding, auto&& result) {
-        if (!s) return;
-        if (!result)
-            s = result.error();
-        else
-            made[binding].emplace(std::move(result.value()));
-    };
-    auto upload = [&](int binding, const auto& v, const char* label) {
-        put(binding, GpuBuffer::createWith(*ctx_, std::span(v.data(), v.size()), label));
-    };
-    auto allocate = [&](int binding, size_t bytes, const char* label) {
-        put(binding, GpuBuffer::create(*ctx_, bytes, label));
-    };
-    put(PV_BINDING_PARAMS, GpuBuffer::createWith(*ctx_, std::span(&params_, 1), "params"));
-    upload(PV_BINDING_TRIANGLE_VERTICES, triangleVertices, "triangleVertices");
-    upload(PV_BINDING_NORMALS, normalTexels, "normals");
-    upload(PV_BINDING_UVS, uvTexels, "uvs");
-    upload(PV_BINDING_TRIANGLES, triangleTexels, "triangles");
-    upload(PV_BINDING_TRIANGLE_MATERIALS, triMaterials, "triangleMaterials");
-    upload(PV_BINDING_BVH_NODES, bvh_.wideNodes, "bvhNodes");
-    // The specular albedo table (shared/specular_albedo.h) first, then the materials.
-    static_assert(sizeof(shader::kSpecularAlbedo) == 16 * PV_SPECULAR_ALBEDO_TEXELS);
-    std::vector<uint32_t> materialWords(
-        (sizeof(shader::kSpecularAlbedo) + materials.size() * sizeof(shader::GpuMaterial)) / 4);
-    std::memcpy(materialWords.data(), shader::kSpecularAlbedo, sizeof(shader::kSpecularAlbedo));
-    if (!materials.empty())  // memcpy from an empty vector's null data() is undefined
-        std::memcpy(materialWords.data() + sizeof(shader::kSpecularAlbedo) / 4, materials.data(),
-                    materials.size() * sizeof(shader::GpuMaterial));
-    upload(PV_BINDING_MATERIALS, materialWords, "materials");
-    upload(PV_BINDING_TEXTURES, textureInfos, "textures");
-    upload(PV_BINDING_TEXELS, texels, "texels");
-    upload(PV_BINDING_LIGHTS, lights, "lights");
-    upload(PV_BINDING_EMISSIVE_TRIANGLES, emissive, "emissiveTriangles");
-    upload(PV_BINDING_ENV_RADIANCE, envRadiance, "envRadiance");
-    upload(PV_BINDING_ENV_MARGINAL_CDF, envDist.marginalCdf, "envMarginal");
-    upload(PV_BINDING_ENV_CONDITIONAL_CDF, envDist.conditionalCdf, "envConditional");
-    if (Status bands = sizeBands(settings_.width, settings_.height); !bands) return bands;
     const size_t accumBytes = pixels * PV_ACCUM_COUNT * sizeof(glm::vec4);
-    allocate(PV_BINDING_ACCUM_SUM, accumBytes, "accumSum");
-    allocate(PV_BINDING_ACCUM_COMPENSATION, accumBytes, "accumCompensation");
-    allocate(PV_BINDING_STATS, sizeof(shader::RenderStats), "stats");
-    upload(PV_BINDING_TRIANGLE_LIGHT_PDF, triangleLightPdf, "triangleLightPdf");
-    upload(PV_BINDING_LENS_GRID, settings_.lensGrid, "lensGrid");
-    traceLensGrid_ = settings_.lensGrid;
-    allocate(PV_BINDING_PHOTON_LIGHTS, 0, "photonLights");
-    // Photon buffers have a size only where photons may run (create() set photonAim_).
-    for (int b = PV_BINDING_PHOTON_RECORDS; b <= PV_BINDING_PHOTON_CELLS; ++b)
-        allocate(b, photonBufferBytes(b, p.photonCount), "photons");
-    allocate(PV_BINDING_GUIDES,
-             settings_.denoise ? pixels * PV_GUIDE_COUNT * sizeof(glm::vec4) : size_t(0), "guides");
-    allocate(PV_BINDING_PHOTON_SPLATS, photonSplats_ ? photonSplatBytes() : size_t(0),
-             "photonSplats");
-    allocate(PV_BINDING_HELD_SAMPLES, 0, "heldSamples");  // holdView makes it when needed
-    if (!s) return s;
-    findVirtualBoxes();
-    buffers_.clear();
-    buffers_.reserve(PV_BINDING_COUNT);
-    for (int b = 0; b < int(PV_BINDING_COUNT); ++b) {
-        PV_ASSERT(made[b].has_value());  // every binding above has its buffer
-        buffers_.push_back(std::move(*made[b]));
-    }
-    return updatePhotonLights(lights);
+    auto make = [this](size_t bytes, const char* label) {
+        return GpuBuffer::create(*ctx_, bytes, label);
+    };
+    auto photons = [&](int binding) {
+        return make(photonBufferBytes(binding, params_.photonCount), "photons");
+    };
+    auto params = GpuBuffer::createWith(*ctx_, std::span(&params_, 1), "params");
+    auto sum = make(accumBytes, "accumSum");
+    auto compensation = make(accumBytes, "accumCompensation");
+    auto stats = make(sizeof(shader::RenderStats), "stats");
+    auto lensGrid = GpuBuffer::createWith(
+        *ctx_, std::span(settings_.lensGrid.data(), settings_.lensGrid.size()), "lensGrid");
+    auto records = photons(PV_BINDING_PHOTON_RECORDS);
+    auto sorted = photons(PV_BINDING_PHOTON_SORTED);
+    auto sortA = photons(PV_BINDING_PHOTON_SORT_A);
+    auto sortB = photons(PV_BINDING_PHOTON_SORT_B);
+    auto blockCounts = photons(PV_BINDING_PHOTON_BLOCK_COUNTS);
+    auto cells = photons(PV_BINDING_PHOTON_CELLS);
+    auto guides =
+        make(settings_.denoise ? pixels * PV_GUIDE_COUNT * sizeof(glm::vec4) : 0, "guides");
+    auto splats = make(photonSplats_ ? photonSplatBytes(scene_->photonAim()) : 0, "photonSplats");
+    auto held = make(0, "heldSamples");  // holdView makes it when needed
+    for (const Result<GpuBuffer>* r :
+         {&params, &sum, &compensation, &stats, &lensGrid, &records, &sorted, &sortA, &sortB,
+          &blockCounts, &cells, &guides, &splats, &held})
+        if (!*r) return r->error();
+    return FrameBuffers{std::move(*params),      std::move(*sum),      std::move(*compensation),
+                        std::move(*stats),       std::move(*lensGrid), std::move(*records),
+                        std::move(*sorted),      std::move(*sortA),    std::move(*sortB),
+                        std::move(*blockCounts), std::move(*cells),    std::move(*guides),
+                        std::move(*splats),      std::move(*held)};
 }
 
 void Renderer::setCameraPose(const glm::dmat4& worldFromCamera) {
     worldFromCameraM_ = worldFromCamera;
     camera_.worldFromCamera = glm::mat4(worldFromCamera);
-    params_.worldFromCamera = renderFromCamera(renderOriginM_, worldFromCamera);
-}
-
-std::vector<shader::GpuLight> Renderer::allLights() const {
-    std::vector<shader::GpuLight> lights = sceneLights_;
-    lights.insert(lights.end(), estimatedLights_.begin(), estimatedLights_.end());
-    return lights;
+    params_.worldFromCamera = renderFromCamera(scene_->renderOriginM(), worldFromCamera);
 }
 
 Status Renderer::recentre(const glm::dvec3& originM) {
-    // What moves by `shift` in the GPU's frame; exact geometry comes from the scene frame.
-    const glm::dvec3 shift = renderOriginM_ - originM;
-    renderOriginM_ = originM;
-    ++recentres_;
-    const glm::dvec3 offset = sceneOriginM_ - renderOriginM_;
-    std::vector<glm::vec4> vertices(sceneTriangleVertices_.size());
-    for (size_t i = 0; i < vertices.size(); ++i)
-        vertices[i] = glm::vec4(toRenderFrame(sceneTriangleVertices_[i], offset), 0.0f);
-    refitWideBvh(bvh_, vertices);
-    for (size_t i = 0; i < sceneLights_.size(); ++i)
-        sceneLights_[i].position = toRenderFrame(sceneLightPositions_[i], offset);
-    // The aim sphere and emitter centroids only steer photons (they bound, never define, the
-    // geometry): moved in double from where they were.
-    photonAim_.center = toRenderFrame(photonAim_.center, shift);
-    for (EmissivePhotonSource& e : emissivePhotonSources_)
-        e.centroid = toRenderFrame(e.centroid, shift);
-    params_.photonAimCenter = photonAim_.center;
-    params_.worldFromCamera = renderFromCamera(renderOriginM_, worldFromCameraM_);
-    const std::vector<shader::GpuLight> lights = allLights();
-    Status s = replaceBufferContents(PV_BINDING_TRIANGLE_VERTICES, vertices.data(),
-                                     vertices.size() * sizeof(glm::vec4), "triangleVertices");
-    if (s)
-        s = replaceBufferContents(PV_BINDING_BVH_NODES, bvh_.wideNodes.data(),
-                                  bvh_.wideNodes.size() * sizeof(shader::WideBvhNode), "bvhNodes");
-    if (s)
-        s = replaceBufferContents(PV_BINDING_LIGHTS, lights.data(),
-                                  lights.size() * sizeof(shader::GpuLight), "lights");
-    if (s) s = updatePhotonLights(lights);
-    return s;
-}
-
-Status Renderer::updatePhotonLights(std::span<const shader::GpuLight> lights) {
-    std::vector<glm::uvec4> table;
-    if (params_.photonCount > 0)
-        table = buildPhotonLights(photonAim_, emissivePhotonSources_, lights);
-    Status s = replaceBufferContents(PV_BINDING_PHOTON_LIGHTS, table.data(),
-                                     table.size() * sizeof(glm::uvec4), "photonLights");
-    params_.photonLightCount = s ? uint32_t(table.size()) : 0u;
-    photonsActive_ = params_.photonLightCount > 0;
+    Status s = scene_->recentre(originM, params_);
+    params_.worldFromCamera = renderFromCamera(scene_->renderOriginM(), worldFromCameraM_);
     return s;
 }
 
@@ -696,7 +377,7 @@ float Renderer::nextPhotonRadius() const {
     // The default follows the iteration's photon count: a preview frame's budget too.
     const float first = settings_.photons.initialRadius > 0.0f
                             ? settings_.photons.initialRadius
-                            : defaultPhotonRadius(photonAim_.radius, params_.photonCount);
+                            : defaultPhotonRadius(scene_->photonAim().radius, params_.photonCount);
     return shader::photonRadius(first, settings_.photons.alpha, uint32_t(samples_));
 }
 
@@ -748,22 +429,22 @@ Status Renderer::setResolutionScale(float scale) {
     // Dispatches are synchronous (ComputePipeline::dispatch waits): the GPU is done with the
     // buffers replaced here.
     const size_t accumBytes = size_t(width) * height * PV_ACCUM_COUNT * sizeof(glm::vec4);
-    for (auto [binding, label] : {std::pair{PV_BINDING_ACCUM_SUM, "accumSum"},
-                                  std::pair{PV_BINDING_ACCUM_COMPENSATION, "accumCompensation"}}) {
+    for (auto [buffer, label] : {std::pair{&buffers_->accumSum, "accumSum"},
+                                 std::pair{&buffers_->accumCompensation, "accumCompensation"}}) {
         auto fresh = GpuBuffer::create(*ctx_, accumBytes, label);
         if (!fresh) return fresh.error();
-        buffers_[binding] = std::move(fresh.value());
+        *buffer = std::move(fresh.value());
     }
     if (settings_.denoise) {
         auto fresh = GpuBuffer::create(
             *ctx_, size_t(width) * height * PV_GUIDE_COUNT * sizeof(glm::vec4), "guides");
         if (!fresh) return fresh.error();
-        buffers_[PV_BINDING_GUIDES] = std::move(fresh.value());
+        buffers_->guides = std::move(fresh.value());
     }
     if (!settings_.lensGrid.empty()) {
         std::vector<glm::vec2> grid = traceLensGrid(width, height);
-        if (Status s = replaceBufferContents(PV_BINDING_LENS_GRID, grid.data(),
-                                             grid.size() * sizeof(glm::vec2), "lensGrid");
+        if (Status s = buffers_->lensGrid.replaceContents(
+                grid.data(), grid.size() * sizeof(glm::vec2), "lensGrid");
             !s)
             return s;
         traceLensGrid_ = std::move(grid);
@@ -782,7 +463,7 @@ Status Renderer::holdView(bool on) {
     // The output's samples, made when first needed (a renderer that never previews below full
     // resolution never pays for them) and bound whole; summed over the frames the view holds,
     // cleared when it starts.
-    GpuBuffer& held = buffers_[PV_BINDING_HELD_SAMPLES];
+    GpuBuffer& held = buffers_->heldSamples;
     const uint64_t bytes = uint64_t(settings_.width) * settings_.height * 2 * sizeof(glm::vec4);
     if (held.size() != bytes) {
         const uint64_t limit = ctx_->physicalDevice().getProperties().limits.maxStorageBufferRange;
@@ -799,7 +480,7 @@ Status Renderer::holdView(bool on) {
 
 Status Renderer::seedHeldView(std::span<const glm::vec4> samples) {
     if (params_.heldWidth == 0u || film_->heldFrames() != 0) return {};
-    GpuBuffer& held = buffers_[PV_BINDING_HELD_SAMPLES];
+    GpuBuffer& held = buffers_->heldSamples;
     if (samples.size_bytes() != held.size())
         return makeError("the held view holds {} bytes, not the {} given", held.size(),
                          samples.size_bytes());
@@ -842,10 +523,9 @@ Status Renderer::reset() {
     gpuMs_ = 0.0;
     photonMs_ = 0.0;
     // Not the held view's samples: they outlive a preview frame (holdView clears them).
-    for (int b : {PV_BINDING_ACCUM_SUM, PV_BINDING_ACCUM_COMPENSATION, PV_BINDING_STATS,
-                  PV_BINDING_GUIDES}) {
-        if (Status s = buffers_[b].fill(0); !s) return s;
-    }
+    FrameBuffers& b = *buffers_;
+    for (GpuBuffer* buffer : {&b.accumSum, &b.accumCompensation, &b.stats, &b.guides})
+        if (Status s = buffer->fill(0); !s) return s;
     return {};
 }
 
@@ -889,7 +569,7 @@ Status Renderer::render(uint32_t samples,
     constexpr size_t kMaxLoopOffset = offsetof(shader::RenderStats, maxLoopIterations);
     // Camera-relative rendering: the GPU's origin follows the camera, with hysteresis.
     const glm::dvec3 cameraM(worldFromCameraM_[3]);
-    const glm::dvec3 away = glm::abs(cameraM - renderOriginM_);
+    const glm::dvec3 away = glm::abs(cameraM - scene_->renderOriginM());
     const std::optional<glm::dvec3> origin = renderOriginFor(cameraM);
     if (origin && std::max({away.x, away.y, away.z}) > kRecentreDistanceM)
         if (Status s = recentre(*origin); !s) return s;
@@ -899,38 +579,36 @@ Status Renderer::render(uint32_t samples,
         accumulationReplicates_ = settings_.convergenceMeter ? 2u : 1u;
     params_.replicates = accumulationReplicates_;
     uint32_t done = 0;
+    const std::array<GpuBuffer*, PV_BINDING_COUNT> table = bindingTable();
     while (done < samples) {
         // Each sample is a photon iteration of its own (its own photon map and radius).
-        const uint32_t n = photonsActive_ ? 1u : samplesForNextDispatch(samples - done);
+        const uint32_t n = photonsActive() ? 1u : samplesForNextDispatch(samples - done);
         // The sample index selects the random sequence; it wraps after 2^32 samples.
         params_.sampleBase = uint32_t(samples_);
         params_.samplesPerDispatch = n;
-        if (photonsActive_) {
+        if (photonsActive()) {
             params_.photonIteration = uint32_t(samples_);
             params_.photonRadius = nextPhotonRadius();
             lastPhotonCount_ = params_.photonCount;
-            auto photonMs = pipelines_->photons()->run(params_, buffers_, interrupt_);
+            auto photonMs = pipelines_->photons()->run(params_, table, interrupt_);
             if (!photonMs) return photonMs.error();
             photonMs_ += photonMs.value();
             gpuMs_ += photonMs.value();
         }
-        if (Status s = buffers_[PV_BINDING_PARAMS].upload(&params_, sizeof(params_)); !s) return s;
+        if (Status s = buffers_->params.upload(&params_, sizeof(params_)); !s) return s;
         // Only a CPU device has the loop limit: elsewhere the per-dispatch readback (a staging
         // copy on a discrete GPU) is skipped.
         const bool watchLoops = ctx_->isCpuDevice();
         const uint32_t zero = 0;
         if (watchLoops) {
-            if (Status s = buffers_[PV_BINDING_STATS].upload(&zero, sizeof(zero), kMaxLoopOffset);
-                !s)
+            if (Status s = buffers_->stats.upload(&zero, sizeof(zero), kMaxLoopOffset); !s)
                 return s;
         }
         auto ms = dispatchPaths({0, 0, params_.width, params_.height});
         if (!ms) return ms.error();
         uint32_t maxLoop = 0;
         if (watchLoops) {
-            if (Status s =
-                    buffers_[PV_BINDING_STATS].download(&maxLoop, sizeof(maxLoop), kMaxLoopOffset);
-                !s)
+            if (Status s = buffers_->stats.download(&maxLoop, sizeof(maxLoop), kMaxLoopOffset); !s)
                 return s;
         }
         // The costliest sample so far decides (a camera move can make paths longer).
@@ -962,8 +640,7 @@ Result<double> Renderer::dispatchPaths(const TraceRegion& region) {
         params_.bandFirstRow = banded ? first : 0u;
         params_.rowFirst = std::max(first, region.y0);
         params_.rowEnd = std::min({first + bandRows_, region.y1, params_.height});
-        if (Status s = buffers_[PV_BINDING_PARAMS].upload(&params_, sizeof(params_)); !s)
-            return s.error();
+        if (Status s = buffers_->params.upload(&params_, sizeof(params_)); !s) return s.error();
         if (banded)
             if (Status s = bindBuffers(first); !s) return s.error();
         const uint32_t rows = params_.rowEnd - params_.rowFirst;
@@ -979,51 +656,6 @@ Result<double> Renderer::dispatchPaths(const TraceRegion& region) {
         if (Status s = bindBuffers(0); !s) return s.error();
     }
     return ms;
-}
-
-void Renderer::findVirtualBoxes() {
-    virtualBoxes_.clear();
-    if (bvh_.virtualRoot == kBvhNoRoot) return;
-    // The virtual tree's nodes kObjectBoxLevels below its root: separate objects part at the
-    // top splits, and a few levels more fit each one's shape.
-    std::vector<uint32_t> frontier{bvh_.virtualRoot};
-    for (uint32_t level = 0; level < kObjectBoxLevels; ++level) {
-        std::vector<uint32_t> next;
-        for (uint32_t n : frontier) {
-            const shader::BvhNode& node = bvh_.nodes[n];
-            if (node.count > 0) {
-                next.push_back(n);
-            } else {
-                next.push_back(node.leftOrFirst);
-                next.push_back(node.leftOrFirst + 1);
-            }
-        }
-        frontier = std::move(next);
-    }
-    for (uint32_t n : frontier) {
-        // A subtree's triangles are contiguous in BVH order: its leaves' extremes bound them.
-        uint32_t first = std::numeric_limits<uint32_t>::max(), end = 0;
-        std::vector<uint32_t> stack{n};
-        while (!stack.empty()) {
-            const shader::BvhNode& node = bvh_.nodes[stack.back()];
-            stack.pop_back();
-            if (node.count > 0) {
-                first = std::min(first, node.leftOrFirst);
-                end = std::max(end, node.leftOrFirst + node.count);
-            } else {
-                stack.push_back(node.leftOrFirst);
-                stack.push_back(node.leftOrFirst + 1);
-            }
-        }
-        WorldBox box{glm::dvec3(std::numeric_limits<double>::max()),
-                     glm::dvec3(-std::numeric_limits<double>::max())};
-        for (size_t v = 3 * size_t(first); v < 3 * size_t(end); ++v) {
-            const glm::dvec3 p = sceneOriginM_ + glm::dvec3(sceneTriangleVertices_[v]);
-            box.lo = glm::min(box.lo, p);
-            box.hi = glm::max(box.hi, p);
-        }
-        if (first < end) virtualBoxes_.push_back(box);
-    }
 }
 
 std::optional<Renderer::TraceRegion> Renderer::boxRegion(const WorldBox& box) const {
@@ -1128,17 +760,17 @@ Status Renderer::traceObjectRegions(uint32_t frameSamples) {
 }
 
 TracedBuffers Renderer::traced() const {
-    return {&buffers_[PV_BINDING_ACCUM_SUM],
-            &buffers_[PV_BINDING_ACCUM_COMPENSATION],
-            settings_.denoise ? &buffers_[PV_BINDING_GUIDES] : nullptr,
-            params_.heldWidth ? &buffers_[PV_BINDING_HELD_SAMPLES] : nullptr,
+    return {&buffers_->accumSum,
+            &buffers_->accumCompensation,
+            settings_.denoise ? &buffers_->guides : nullptr,
+            params_.heldWidth ? &buffers_->heldSamples : nullptr,
             params_.width,
             params_.height};
 }
 
 Result<shader::RenderStats> Renderer::stats() const {
     shader::RenderStats stats{};
-    if (Status s = buffers_[PV_BINDING_STATS].download(&stats, sizeof(stats)); !s) return s.error();
+    if (Status s = buffers_->stats.download(&stats, sizeof(stats)); !s) return s.error();
     return stats;
 }
 
@@ -1150,7 +782,7 @@ Result<uint32_t> Renderer::nonFiniteSamples() const {
 
 Result<uint32_t> Renderer::raysTraced() const {
     shader::RenderStats stats{};
-    if (Status s = buffers_[PV_BINDING_STATS].download(&stats, sizeof(stats)); !s) return s.error();
+    if (Status s = buffers_->stats.download(&stats, sizeof(stats)); !s) return s.error();
     return stats.raysTraced;
 }
 

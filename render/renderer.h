@@ -1,7 +1,8 @@
 #pragma once
 
-// Turns a Scene into GPU data (BVHs, materials, textures, lights, environment tables) and runs
-// the path tracer on it: progressive, exact accumulation of samples per pixel.
+// Runs the path tracer on a scene it uploads (render/gpu_scene.h: BVHs, materials, textures,
+// lights, environment tables): progressive, exact accumulation of samples per pixel into its
+// buffers, which its Film reads.
 
 #include <array>
 #include <atomic>
@@ -11,6 +12,7 @@
 #include <optional>
 #include <span>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "base/result.h"
@@ -23,6 +25,7 @@
 #include "render/convergence.h"
 #include "render/denoiser.h"
 #include "render/film.h"
+#include "render/gpu_scene.h"
 #include "render/path_pipelines.h"
 #include "render/photon_map.h"
 #include "render/render_settings.h"
@@ -30,8 +33,6 @@
 #include "scene/scene.h"
 
 namespace previs {
-
-SceneFeatures detectSceneFeatures(const Scene& scene, const Camera& camera);
 
 class Renderer;
 
@@ -114,7 +115,7 @@ public:
     static constexpr double kRecentreGridM = 16.0;
     static constexpr double kRecentreDistanceM = 12.0;
     // The world position of the GPU's coordinate origin.
-    glm::dvec3 renderOriginM() const { return renderOriginM_; }
+    glm::dvec3 renderOriginM() const { return scene_->renderOriginM(); }
 
     // Live lighting: each fisheye snapshot replaces the environment and the estimated lights
     // without touching the scene's geometry or BVH. Like setCameraPose, they take effect with
@@ -132,7 +133,7 @@ public:
     // Whether renders run the photon pass (the settings' mode and the scene decide; estimated
     // lights can switch an Auto renderer on), its photons per iteration and the gather radius
     // the next sample will use (metres).
-    bool photonsActive() const { return photonsActive_; }
+    bool photonsActive() const { return params_.photonLightCount > 0; }
     uint32_t photonsPerIteration() const { return params_.photonCount; }
     float nextPhotonRadius() const;
     // The photons and gather radius of the last photon iteration rendered (a preview frame's
@@ -140,7 +141,7 @@ public:
     // photonRecords and photonGrid hold that iteration.
     uint32_t lastPhotonCount() const { return lastPhotonCount_; }
     float lastPhotonRadius() const { return params_.photonRadius; }
-    const PhotonAim& photonAim() const { return photonAim_; }
+    const PhotonAim& photonAim() const { return scene_->photonAim(); }
     // GPU time of the photon passes so far (ms; part of gpuMilliseconds()).
     double photonMilliseconds() const { return photonMs_; }
 
@@ -250,8 +251,8 @@ public:
 
     uint64_t samplesPerPixel() const { return samples_; }
     RendererDiagnostics diagnostics() const { return RendererDiagnostics(*this); }
-    const SceneFeatures& features() const { return features_; }
-    const SceneBvh& bvh() const { return bvh_; }
+    const SceneFeatures& features() const { return scene_->features(); }
+    const SceneBvh& bvh() const { return scene_->bvh(); }
     // GPU time of all dispatches so far (ms), and of the last one.
     double gpuMilliseconds() const { return gpuMs_; }
     // Samples the shader found NaN or infinite, or that cast a ray with a NaN/Inf origin or
@@ -271,33 +272,65 @@ public:
     // staging copies of an upload or readback come and go on top.
     uint64_t deviceBytes() const {
         uint64_t total = film_->deviceBytes();
-        for (const GpuBuffer& b : buffers_) total += b.size();
-        return total;
+        for (auto [binding, buffer] : kFrameBindings) total += ((*buffers_).*buffer).size();
+        return total + scene_->deviceBytes();
     }
 
 private:
     friend class RendererDiagnostics;
+    // The renderer's own device buffers (the scene's are GpuScene's), one per PV_BINDING_*.
+    struct FrameBuffers {
+        GpuBuffer params;             // shader::FrameParams
+        GpuBuffer accumSum;           // the accumulation (Film's TracedBuffers)
+        GpuBuffer accumCompensation;  // its Kahan compensation
+        GpuBuffer stats;              // shader::RenderStats
+        GpuBuffer lensGrid;           // at the traced size (empty without a calibrated lens)
+        // One photon iteration's records, their sorted copy and the grid (render/photon_map.h):
+        // sized where photons may run.
+        GpuBuffer photonRecords, photonSorted, photonSortA, photonSortB, photonBlockCounts,
+            photonCells;
+        GpuBuffer guides;        // the denoiser's guides, in the accumulation's bands
+        GpuBuffer photonSplats;  // photonSplatBytes(); empty where the renderer does not splat
+        GpuBuffer heldSamples;   // the held view's, made by holdView when first needed
+    };
+    static constexpr std::pair<int, GpuBuffer FrameBuffers::*> kFrameBindings[] = {
+        {PV_BINDING_PARAMS, &FrameBuffers::params},
+        {PV_BINDING_ACCUM_SUM, &FrameBuffers::accumSum},
+        {PV_BINDING_ACCUM_COMPENSATION, &FrameBuffers::accumCompensation},
+        {PV_BINDING_STATS, &FrameBuffers::stats},
+        {PV_BINDING_LENS_GRID, &FrameBuffers::lensGrid},
+        {PV_BINDING_PHOTON_RECORDS, &FrameBuffers::photonRecords},
+        {PV_BINDING_PHOTON_SORTED, &FrameBuffers::photonSorted},
+        {PV_BINDING_PHOTON_SORT_A, &FrameBuffers::photonSortA},
+        {PV_BINDING_PHOTON_SORT_B, &FrameBuffers::photonSortB},
+        {PV_BINDING_PHOTON_BLOCK_COUNTS, &FrameBuffers::photonBlockCounts},
+        {PV_BINDING_PHOTON_CELLS, &FrameBuffers::photonCells},
+        {PV_BINDING_GUIDES, &FrameBuffers::guides},
+        {PV_BINDING_PHOTON_SPLATS, &FrameBuffers::photonSplats},
+        {PV_BINDING_HELD_SAMPLES, &FrameBuffers::heldSamples},
+    };
     // The accumulation as the film reads it.
     TracedBuffers traced() const;
 
     Renderer() = default;
-    // Everything of the scene but its BVH, which `bvh` (built from `g`, the scene's geometry
-    // in the render frame) brings.
-    Status buildScene(const Scene& scene, const Geometry& g, SceneBvh bvh);
+    // The frame's parameters that the scene does not set (camera, size, depth, photons).
+    void setFrameParams();
+    // The renderer's own buffers for the output's size (params_ set).
+    Result<FrameBuffers> createFrameBuffers() const;
+    // Every binding's buffer, the scene's and the renderer's (PV_BINDING_* order).
+    std::array<GpuBuffer*, PV_BINDING_COUNT> bindingTable();
     // Photon mapping may run in this scene: forced on, or --photons auto with a specular object.
-    bool photonsPossible() const;
+    bool photonsPossible(const PhotonAim& aim) const;
     // Bytes of the photon splat sums (PV_BINDING_PHOTON_SPLATS) at the output's size; 0 where
     // the renderer does not splat.
-    size_t photonSplatBytes() const;
-    // The specialization constants of the pipelines for the scene's features and settings, with
+    size_t photonSplatBytes(const PhotonAim& aim) const;
+    // The specialization constants of the pipelines for `features` and the settings, with
     // photon mapping on or off.
-    PipelineConstants pipelineConstants(bool photons) const;
+    PipelineConstants pipelineConstants(const SceneFeatures& features, bool photons) const;
     // The pipelines for the current features (compiled where they changed: one compile for a
-    // whole lighting snapshot, at the next render), with buffers_ bound.
+    // whole lighting snapshot, at the next render), with the buffers bound.
     Status ensurePipelines();
-    // Uploads `bytes` into buffers_[binding], reallocating it only when its size differs.
-    Status replaceBufferContents(int binding, const void* data, size_t bytes, const char* label);
-    // Binds buffers_, the accumulation from row `bandFirstRow` on (accumulationBand).
+    // Binds the buffers, the accumulation from row `bandFirstRow` on (accumulationBand).
     Status bindBuffers(uint32_t bandFirstRow = 0);
     // Sets bandRows_ for a traced frame of width × height (an error when one row of
     // workgroups is already more than the device binds).
@@ -312,11 +345,6 @@ private:
     };
     // One path-tracing dispatch of params_'s samples over `region`, band by band; its GPU ms.
     Result<double> dispatchPaths(const TraceRegion& region);
-    struct WorldBox {
-        glm::dvec3 lo, hi;
-    };
-    // virtualBoxes_ from the BVH and sceneTriangleVertices_.
-    void findVirtualBoxes();
     // The traced pixels `box` covers from this frame's pose; none when it is out of view.
     std::optional<TraceRegion> boxRegion(const WorldBox& box) const;
     // The virtual objects' regions this frame: virtualBoxes_' regions, overlapping ones merged.
@@ -325,36 +353,25 @@ private:
     // (RenderSettings::objectSamplesPerOutputPixel), at most kObjectSampleBudget of its own
     // `frameSamples` a traced pixel, in the accumulation and the held view alike.
     Status traceObjectRegions(uint32_t frameSamples);
-    // Moves the GPU's origin to `originM` (world): re-uploads vertices, BVH boxes, lights.
+    // Moves the GPU's origin to `originM` (world): the scene re-uploads what moved.
     Status recentre(const glm::dvec3& originM);
-    // The lights buffer: the scene's lights, then the estimated (cone) lights.
-    std::vector<shader::GpuLight> allLights() const;
-    // Rebuilds the photon light table from `lights` and decides whether photons run.
-    Status updatePhotonLights(std::span<const shader::GpuLight> lights);
     // The traced size for a resolution scale, and the lens grid resampled to it.
     void traceSize(float scale, uint32_t& width, uint32_t& height) const;
     std::vector<glm::vec2> traceLensGrid(uint32_t width, uint32_t height) const;
 
     GpuContext* ctx_ = nullptr;
     RenderSettings settings_;
-    SceneFeatures features_;
     Camera camera_;
-    SceneBvh bvh_;
     shader::FrameParams params_{};
-    std::vector<GpuBuffer> buffers_;          // indexed by PV_BINDING_*
+    // The scene and the renderer's buffers: optional only so that create() can make them.
+    std::optional<GpuScene> scene_;
+    std::optional<FrameBuffers> buffers_;
     std::optional<PathPipelines> pipelines_;  // set in create(): it needs the context
     const std::atomic<bool>* interrupt_ = nullptr;
     InterruptibleDispatch pathParts_{kInterruptiblePartMs};
-    std::vector<shader::GpuLight> sceneLights_;      // the scene's own; estimated ones follow them
-    std::vector<shader::GpuLight> estimatedLights_;  // cone lights (directions only)
-    // Camera-relative rendering (setCameraPose): world = sceneOriginM_ + scene position;
-    // GPU position = float(world − renderOriginM_), computed in double.
-    glm::dvec3 sceneOriginM_{0.0};
-    glm::dvec3 renderOriginM_{0.0};
     glm::dmat4 worldFromCameraM_{1.0};
-    std::vector<glm::vec3> sceneTriangleVertices_;  // scene frame, 3 per triangle, BVH order
-    // Boxes around the virtual geometry (world frame): its BVH's nodes kObjectBoxLevels below
-    // the root, so that separate objects get separate boxes; empty without virtual geometry.
+    // Boxes around the virtual geometry (GpuScene::virtualBoxes), kObjectBoxLevels below the
+    // root.
     std::vector<WorldBox> virtualBoxes_;
     // The lens grid at the traced size (empty without a calibrated lens), as the device has it.
     std::vector<glm::vec2> traceLensGrid_;
@@ -367,8 +384,6 @@ private:
     static constexpr uint32_t kObjectRegionMargin = 2;
     static constexpr double kObjectSampleBudget = 0.5;
     static constexpr uint32_t kObjectBoxLevels = 3;
-    std::vector<glm::vec3> sceneLightPositions_;  // scene frame, per scene light
-    uint64_t recentres_ = 0;
     uint64_t sceneBuilds_ = 0;
     uint64_t samples_ = 0;
     uint32_t bandRows_ = 0;  // rows per dispatch: the storage-buffer range limits it
@@ -378,9 +393,6 @@ private:
     double gpuMs_ = 0.0;
     double loopIterationsPerSample_ = 0.0;  // the most one lane ran per sample, measured
     uint64_t loopLimitRisks_ = 0;
-    PhotonAim photonAim_;
-    std::vector<EmissivePhotonSource> emissivePhotonSources_;
-    bool photonsActive_ = false;
     bool photonSplats_ = false;  // the splat buffer exists (PV_SPEC_PHOTON_SPLAT)
     double photonMs_ = 0.0;
     uint32_t lastPhotonCount_ = 0;  // params_.photonCount is refinement's again after a preview
