@@ -602,14 +602,113 @@ void beginPath(uvec2 pixel, SampleKey key, out PathState st, out vec3 lm, out ve
     }
 }
 
+// The branches of a sample still to trace after the path in hand ends: the real solution behind
+// a virtual object, and the reflection of a split at smooth glass (mixed only), which is traced
+// first.
+struct PendingBranches {
+    PathState realContinuation;
+    bool haveRealContinuation;
+    PathState reflected;
+    bool haveReflected;
+};
+
+// The light a ray that leaves the scene sees: the environment, and the cone lights, which are
+// seen where they are (camera rays, mirrors, and the BSDF half of their multiple importance
+// sampling).
+void addEscapedLight(PathState st, uint mode, inout vec3 lm, inout vec3 lr) {
+    if (kHasEnv && params.envWidth > 0u) {
+        vec2 rotation = vec2(params.envRotationCos, params.envRotationSin);
+        vec3 le = params.envScale *
+                  envRadiance(st.ray.direction, params.envWidth, params.envHeight, rotation);
+        float w = st.prevDelta ? 1.0
+                               : powerHeuristic(st.prevPdf,
+                                                envPdf(st.ray.direction, params.envWidth,
+                                                       params.envHeight, rotation));
+        addRadiance(mode, st.throughput * le * w, lm, lr);
+    }
+    if (kHasConeLights) {
+        for (uint i = params.coneLightFirst; i < params.lightCount; ++i) {
+            PV_COUNT_LOOP_ITERATION();
+            GpuLight light = lightAt(i);
+            float pdf = coneLightPdf(light, st.ray.direction);
+            if (!(pdf > 0.0) || photonMapCarries(st)) continue;
+            float w = st.prevDelta ? 1.0 : powerHeuristic(st.prevPdf, pdf);
+            // Estimated lights are part of the captured (real) environment; a cone
+            // light without PV_LIGHT_REAL lights only the mixed solution.
+            vec3 l = st.throughput * light.intensity * w;
+            if ((light.type & PV_LIGHT_REAL) != 0u) addRadiance(mode, l, lm, lr);
+            else if (mode != MODE_REAL) lm += l;
+        }
+    }
+}
+
+// The photon map's estimate at a vertex of the camera path. Returns whether the vertex is a
+// gather vertex (not purely specular); a purely specular one extends a caustic chain.
+bool gatherAtVertex(SampleKey key, inout PathState st, uint mode, Surface s, BsdfParams bp,
+                    Frame frame, vec3 wo, inout vec3 lm, inout vec3 lr) {
+    if (bsdfIsPurelySpecular(bp)) {
+        if (st.causticState != CAUSTIC_NONE) {
+            st.causticState = CAUSTIC_SPECULAR_CHAIN;
+            st.causticBounces += 1u;
+        }
+        return false;
+    }
+    // Every vertex that is not purely specular gathers: level 2 always, level 1 where the rule
+    // allows (shared/photon_map.h), so the light a caustic throws onward (the wall beside a
+    // glass) is a density estimate, not the path tracer's rare, bright samples.
+    // The light set's fourth number is otherwise unused.
+    float u = draw(key, vertexSet(st.depth, PV_SET_VERTEX_LIGHT)).w;
+    // A gather of level 2 alone (the caustic's light after a diffuse bounce seen after another)
+    // adds little and costs a full grid lookup: it runs with a probability, weighted by its
+    // inverse (unbiased); u, rescaled, still places the window.
+    float pGather = st.gatherLevel1 ? 1.0 : PV_PHOTON_LEVEL_2_GATHER_PROBABILITY;
+    // The first vertex's photons reach the pixel as the photon pass's splats.
+    bool splatted = photonSplatsActive() && st.depth == 0u;
+    if (u < pGather && !splatted) {
+        vec3 causticMixed;
+        vec3 causticReal;
+        gatherPhotons(s, bp, frame, wo, st.depth, u / pGather, st.gatherLevel1, causticMixed,
+                      causticReal);
+        vec3 weight = st.throughput / pGather;
+        if (mode != MODE_REAL) lm += weight * causticMixed;
+        if (mode != MODE_MIXED) lr += weight * causticReal;
+    }
+    return true;
+}
+
+// The scattered ray from the vertex, into `st`; at smooth glass the camera sees, also the
+// reflected branch, into `pending`. Returns true when the path has ended (absorbed).
+bool scatterFromVertex(SampleKey key, inout PathState st, uint mode, Surface s, BsdfParams bp,
+                       Frame frame, vec3 wo, bool gatherVertex, inout PendingBranches pending) {
+    BsdfSample bs;
+    vec4 uBsdf = draw(key, vertexSet(st.depth, PV_SET_VERTEX_BSDF));
+    float pReflect;
+    if (kHasTransmission && st.depth == 0u && mode == MODE_MIXED &&
+        bsdfSplitsAtSmoothGlass(bp, wo, pReflect)) {
+        // Smooth glass the camera sees: both branches are followed, each weighted by its
+        // coefficient (unbiased). A Fresnel choice would show the reflection — a caustic
+        // or a light in the glass's grazing rim — in few samples, brightly: the noisiest
+        // pixels of a glass object. The reflection is traced after this path, mixed only (the
+        // split happens where the solutions have parted, or in a plain render).
+        BsdfSample reflection;
+        if (smoothDielectricReflection(bp, wo, pReflect, reflection)) {
+            pending.reflected = st;
+            pending.haveReflected = scatter(pending.reflected, s, frame, bp, reflection,
+                                            gatherVertex, uBsdf.w, pReflect);
+        }
+        return !smoothDielectricRefraction(bp, wo, 1.0 - pReflect, bs) ||
+               !scatter(st, s, frame, bp, bs, gatherVertex, uBsdf.w, 1.0 - pReflect);
+    }
+    return !sampleBsdf(bp, wo, uBsdf, bs) ||
+           !scatter(st, s, frame, bp, bs, gatherVertex, uBsdf.w, 1.0);
+}
+
 // One segment of the path in `st` (solution `mode`): the ray to its next hit, the light found
 // there, and the scattered ray. Returns true when the path has ended. Where the camera path's
 // solutions part behind a virtual object, or it splits at smooth glass, the branch to trace
-// after it is stored in realContinuation or reflectedBranch.
+// after it is stored in `pending`.
 bool extendPath(SampleKey key, inout PathState st, inout uint mode, inout vec3 lm,
-                inout vec3 lr, inout bool firstHitVirtual, inout PathState realContinuation,
-                inout bool haveRealContinuation, inout PathState reflectedBranch,
-                inout bool haveReflectedBranch) {
+                inout vec3 lr, inout bool firstHitVirtual, inout PendingBranches pending) {
     Hit hit;
     bool found = intersectScene(st.ray, mode, hit);
     bool hitVirtual = found && hit.triangle >= params.realTriangleCount;
@@ -618,37 +717,12 @@ bool extendPath(SampleKey key, inout PathState st, inout uint mode, inout vec3 l
     if (hitVirtual && mode == MODE_SHARED) {
         // The solutions part here: the real one continues this ray behind the virtual
         // object (traced after the mixed part), the mixed one shades the virtual hit.
-        realContinuation = st;
-        haveRealContinuation = true;
+        pending.realContinuation = st;
+        pending.haveRealContinuation = true;
         mode = MODE_MIXED;
     }
     if (!found) {
-        if (kHasEnv && params.envWidth > 0u) {
-            vec2 rotation = vec2(params.envRotationCos, params.envRotationSin);
-            vec3 le = params.envScale * envRadiance(st.ray.direction, params.envWidth,
-                                                    params.envHeight, rotation);
-            float w = st.prevDelta ? 1.0
-                                   : powerHeuristic(st.prevPdf,
-                                                    envPdf(st.ray.direction, params.envWidth,
-                                                           params.envHeight, rotation));
-            addRadiance(mode, st.throughput * le * w, lm, lr);
-        }
-        if (kHasConeLights) {
-            // Cone lights are seen where they are (camera rays, mirrors, and the BSDF
-            // half of their multiple importance sampling).
-            for (uint i = params.coneLightFirst; i < params.lightCount; ++i) {
-                PV_COUNT_LOOP_ITERATION();
-                GpuLight light = lightAt(i);
-                float pdf = coneLightPdf(light, st.ray.direction);
-                if (!(pdf > 0.0) || photonMapCarries(st)) continue;
-                float w = st.prevDelta ? 1.0 : powerHeuristic(st.prevPdf, pdf);
-                // Estimated lights are part of the captured (real) environment; a cone
-                // light without PV_LIGHT_REAL lights only the mixed solution.
-                vec3 l = st.throughput * light.intensity * w;
-                if ((light.type & PV_LIGHT_REAL) != 0u) addRadiance(mode, l, lm, lr);
-                else if (mode != MODE_REAL) lm += l;
-            }
-        }
+        addEscapedLight(st, mode, lm, lr);
         return true;
     }
     Surface s = surfaceAt(st.ray, hit);
@@ -679,38 +753,7 @@ bool extendPath(SampleKey key, inout PathState st, inout uint mode, inout vec3 l
         gGuideNormal = faceforward(s.shadingNormal, st.ray.direction, s.shadingNormal);
         gGuideDepthM = hit.t;  // the camera ray's direction is unit: metres
     }
-    bool gatherVertex = false;
-    if (kPhotons) {
-        bool purelySpecular = bsdfIsPurelySpecular(bp);
-        if (!purelySpecular) {
-            // Every vertex that is not purely specular gathers: level 2 always, level 1
-            // where the rule allows (shared/photon_map.h), so the light a caustic
-            // throws onward (the wall beside a glass) is a density estimate, not the
-            // path tracer's rare, bright samples.
-            gatherVertex = true;
-            // The light set's fourth number is otherwise unused.
-            float u = draw(key, vertexSet(st.depth, PV_SET_VERTEX_LIGHT)).w;
-            // A gather of level 2 alone (the caustic's light after a diffuse bounce
-            // seen after another) adds little and costs a full grid lookup: it runs
-            // with a probability, weighted by its inverse (unbiased); u, rescaled,
-            // still places the window.
-            float pGather = st.gatherLevel1 ? 1.0 : PV_PHOTON_LEVEL_2_GATHER_PROBABILITY;
-            // The first vertex's photons reach the pixel as the photon pass's splats.
-            bool splatted = photonSplatsActive() && st.depth == 0u;
-            if (u < pGather && !splatted) {
-                vec3 causticMixed;
-                vec3 causticReal;
-                gatherPhotons(s, bp, frame, wo, st.depth, u / pGather, st.gatherLevel1,
-                              causticMixed, causticReal);
-                vec3 weight = st.throughput / pGather;
-                if (mode != MODE_REAL) lm += weight * causticMixed;
-                if (mode != MODE_MIXED) lr += weight * causticReal;
-            }
-        } else if (st.causticState != CAUSTIC_NONE) {
-            st.causticState = CAUSTIC_SPECULAR_CHAIN;
-            st.causticBounces += 1u;
-        }
-    }
+    bool gatherVertex = kPhotons && gatherAtVertex(key, st, mode, s, bp, frame, wo, lm, lr);
     // Light sampling only where some lobe is not a delta (a smooth mirror or glass
     // can only see lights through its one reflected or refracted ray).
     if (!(kHasSpecular || kHasTransmission) || !bsdfIsDelta(bp) ||
@@ -721,28 +764,7 @@ bool extendPath(SampleKey key, inout PathState st, inout uint mode, inout vec3 l
         if (mode != MODE_REAL) lm += st.throughput * directMixed;
         if (mode != MODE_MIXED) lr += st.throughput * directReal;
     }
-
-    BsdfSample bs;
-    vec4 uBsdf = draw(key, vertexSet(st.depth, PV_SET_VERTEX_BSDF));
-    float pReflect;
-    if (kHasTransmission && st.depth == 0u && mode == MODE_MIXED &&
-        bsdfSplitsAtSmoothGlass(bp, wo, pReflect)) {
-        // Smooth glass the camera sees: both branches are followed, each weighted by its
-        // coefficient (unbiased). A Fresnel choice would show the reflection — a caustic
-        // or a light in the glass's grazing rim — in few samples, brightly: the noisiest
-        // pixels of a glass object. The reflection is traced after this path, mixed only (the
-        // split happens where the solutions have parted, or in a plain render).
-        BsdfSample reflection;
-        if (smoothDielectricReflection(bp, wo, pReflect, reflection)) {
-            reflectedBranch = st;
-            haveReflectedBranch = scatter(reflectedBranch, s, frame, bp, reflection,
-                                          gatherVertex, uBsdf.w, pReflect);
-        }
-        return !smoothDielectricRefraction(bp, wo, 1.0 - pReflect, bs) ||
-               !scatter(st, s, frame, bp, bs, gatherVertex, uBsdf.w, 1.0 - pReflect);
-    }
-    return !sampleBsdf(bp, wo, uBsdf, bs) ||
-           !scatter(st, s, frame, bp, bs, gatherVertex, uBsdf.w, 1.0);
+    return scatterFromVertex(key, st, mode, s, bp, frame, wo, gatherVertex, pending);
 }
 
 // The pixel's samples sampleBase .. sampleBase + samplesPerDispatch − 1, each added to the sums by
@@ -768,10 +790,9 @@ void tracePaths(uvec2 pixel, uint pixelIndex) {
     bool firstHitVirtual;
     uint nonFiniteRaysBefore;
     uint mode;
-    PathState realContinuation;
-    bool haveRealContinuation = false;
-    PathState reflectedBranch;
-    bool haveReflectedBranch = false;
+    PendingBranches pending;
+    pending.haveRealContinuation = false;
+    pending.haveReflected = false;
     bool sampleBegins = true;
     for (;;) {
         PV_COUNT_LOOP_ITERATION();
@@ -783,17 +804,16 @@ void tracePaths(uvec2 pixel, uint pixelIndex) {
             mode = kDifferential ? MODE_SHARED : MODE_MIXED;
             sampleBegins = false;
         }
-        bool ended = extendPath(key, st, mode, lm, lr, firstHitVirtual, realContinuation,
-                                haveRealContinuation, reflectedBranch, haveReflectedBranch);
+        bool ended = extendPath(key, st, mode, lm, lr, firstHitVirtual, pending);
         if (ended) {
-            if (haveReflectedBranch) {
-                st = reflectedBranch;
+            if (pending.haveReflected) {
+                st = pending.reflected;
                 mode = MODE_MIXED;
-                haveReflectedBranch = false;
-            } else if (haveRealContinuation) {
-                st = realContinuation;
+                pending.haveReflected = false;
+            } else if (pending.haveRealContinuation) {
+                st = pending.realContinuation;
                 mode = MODE_REAL;
-                haveRealContinuation = false;
+                pending.haveRealContinuation = false;
             } else {
                 addSample(params.sampleBase + nth, pixelIndex, lm, lr, firstHitVirtual,
                           gNonFiniteRays != nonFiniteRaysBefore, pixel, key);
