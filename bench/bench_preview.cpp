@@ -24,7 +24,7 @@ namespace previs::bench {
 namespace {
 
 // One preview frame's stages, in the order the service's render thread runs them
-// (daemon/pipeline_renderer.cpp, daemon/service.cpp's publish) and the display's compose. The
+// (shot/pipeline_renderer.cpp, daemon/service.cpp's publish) and the display's compose. The
 // service's frame is the device's (kDisplay: composite and tone map on the device, one 8-bit
 // readback); the host's float composite and tone map (kComposite, kToneMap: what `previs render`
 // and the error columns use, and what the service ran before) are timed beside it, not in the

@@ -10,7 +10,7 @@
 #include <random>
 
 #include "base/log.h"
-#include "daemon/take_recorder.h"
+#include "take/take_recorder.h"
 
 namespace previs::bench {
 

@@ -1,6 +1,6 @@
 #pragma once
 
-// `previs bench --only recorder` (issue 36): how fast the take recorder (daemon/take_recorder.h)
+// `previs bench --only recorder` (issue 36): how fast the take recorder (take/take_recorder.h)
 // writes, against what a box's two cameras deliver at 1280×720 and 30 fps: MJPEG frames (stored
 // as they came) and raw YUYV frames (stored as lossless PNG). Frames are a real photograph
 // (../shared/data) with sensor noise, so PNG compresses as it would on set.

@@ -23,15 +23,15 @@
 #include "bench/bench_progress.h"
 #include "bench/bench_stats.h"
 #include "capture/recorded_source.h"
-#include "daemon/pipeline_renderer.h"
-#include "daemon/pipeline_stages.h"
+#include "config/service_config.h"
 #include "daemon/service.h"
-#include "daemon/service_config.h"
-#include "daemon/shot_controller.h"
 #include "display/compose.h"
 #include "display/files_output.h"
 #include "gpu/context.h"
 #include "scene/scene_description.h"
+#include "shot/pipeline_renderer.h"
+#include "shot/pipeline_stages.h"
+#include "shot/shot_controller.h"
 
 namespace previs::bench {
 
@@ -181,7 +181,7 @@ Result<ServiceConfig> demoConfig(const ServiceBenchOptions& o, uint32_t w, uint3
     config->render.denoise = o.denoise;
     // The bench sets the mode itself: the take's recorded button presses would toggle it.
     config->replaySessionEvents = false;
-    // The looping take pans and relights: refinement would restart on it (daemon/refine_watch.h)
+    // The looping take pans and relights: refinement would restart on it (shot/refine_watch.h)
     // and the bench would time restarts, not a frozen shot's samples and idle.
     config->refine.poseThresholdM = std::numeric_limits<double>::infinity();
     config->refine.poseThresholdDeg = std::numeric_limits<double>::infinity();
@@ -210,7 +210,7 @@ Result<std::vector<std::shared_ptr<Frame>>> readAll(const std::string& dir,
     return frames;
 }
 
-// Part 1: every stage once per scene frame, in lock step (as daemon/replay.cpp), timed.
+// Part 1: every stage once per scene frame, in lock step (as take/replay.cpp), timed.
 StageResult measureStages(const ServiceBenchOptions& o, uint32_t w, uint32_t h) {
     StageResult r;
     r.width = w;
@@ -243,7 +243,7 @@ StageResult measureStages(const ServiceBenchOptions& o, uint32_t w, uint32_t h) 
     if (!files) return fail(files.message());
     std::vector<uint32_t> screen(1920 * 1080);
 
-    // The service's shot rules (daemon/shot_controller.h) on the live clock, in preview.
+    // The service's shot rules (shot/shot_controller.h) on the live clock, in preview.
     const ModeMachine modes(Mode::Preview);
     const SteadyShotClock clock;
     ShotController shot(pr, modes, clock, config->refine);

@@ -14,11 +14,11 @@
 #include "base/log.h"
 #include "bench/bench_progress.h"
 #include "bench/image_compare.h"
-#include "daemon/pipeline_renderer.h"
-#include "daemon/replay.h"
-#include "daemon/service_config.h"
+#include "config/service_config.h"
 #include "image/image.h"
 #include "render/renderer.h"
+#include "shot/pipeline_renderer.h"
+#include "take/replay.h"
 
 namespace previs::bench {
 

@@ -1,7 +1,7 @@
 #pragma once
 
 // `previs bench --only shot` (BENCHMARKS.md, "The preview as shipped"): the demo take
-// (examples/demo) through `previs replay`'s lock-step loop (daemon/replay.h) with the shipped
+// (examples/demo) through `previs replay`'s lock-step loop (take/replay.h) with the shipped
 // config and with the paper's fixed-sequence preview, against a deep refinement of the take's
 // still view (its frames 20–44 hold one view and one lighting). Per frame of the pan and of the
 // hold: DESIGN.md §4's √relMSE of what the preview adds to the plate (composite − plate, so the

@@ -44,8 +44,7 @@
 
 #include "base/log.h"
 #include "bench/board_render.h"
-#include "daemon/service_config.h"
-#include "daemon/take_files.h"
+#include "config/service_config.h"
 #include "gpu/context.h"
 #include "image/image.h"
 #include "io/session.h"
@@ -54,6 +53,7 @@
 #include "scene/environment_map.h"
 #include "scene/environment_sampler.h"
 #include "scene/gltf_loader.h"
+#include "take/take_files.h"
 #include "vision/board_file.h"
 #include "vision/camera_calibration.h"
 #include "vision/lens_grid.h"
@@ -616,7 +616,7 @@ struct TruthContext {
 };
 
 // previsd.toml and every file it names, copied into the session as the take recorder copies
-// them (daemon/take_files.h), and the session's config.toml naming the copies.
+// them (take/take_files.h), and the session's config.toml naming the copies.
 Status copyDemoConfig(const std::string& demoDir, const std::string& sessionDir) {
     Result<ServiceConfig> live = loadServiceConfig(demoDir + "/previsd.toml");
     if (!live) return live.error();

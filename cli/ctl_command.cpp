@@ -5,8 +5,8 @@
 #include <nlohmann/json.hpp>
 
 #include "base/log.h"
+#include "config/service_config.h"
 #include "daemon/control_server.h"
-#include "daemon/service_config.h"
 
 namespace previs {
 

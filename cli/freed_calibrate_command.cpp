@@ -10,10 +10,10 @@
 #include "base/command_line.h"
 #include "base/log.h"
 #include "base/strings.h"
-#include "daemon/take_files.h"
-#include "daemon/take_track.h"
 #include "io/session.h"
 #include "net/freed_calibration.h"
+#include "take/take_files.h"
+#include "take/take_track.h"
 
 namespace previs {
 

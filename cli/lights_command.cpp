@@ -4,8 +4,8 @@
 #include <nlohmann/json.hpp>
 
 #include "base/log.h"
-#include "daemon/pipeline_stages.h"
 #include "scene/environment_map.h"
+#include "shot/pipeline_stages.h"
 #include "vision/light_estimator.h"
 
 namespace previs {

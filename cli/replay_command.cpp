@@ -3,7 +3,7 @@
 #include <memory>
 
 #include "base/log.h"
-#include "daemon/replay.h"
+#include "take/replay.h"
 
 namespace previs {
 

@@ -7,8 +7,8 @@
 
 #include "base/log.h"
 #include "base/output_path.h"
-#include "daemon/take_render.h"
-#include "daemon/track_export.h"
+#include "take/take_render.h"
+#include "take/track_export.h"
 
 namespace previs {
 

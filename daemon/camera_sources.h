@@ -7,7 +7,7 @@
 #include <memory>
 
 #include "capture/camera_source.h"
-#include "daemon/service_config.h"
+#include "config/service_config.h"
 
 namespace previs {
 

@@ -5,7 +5,7 @@
 #include <utility>
 #include <vector>
 
-#include "daemon/service_config.h"
+#include "config/service_config.h"
 #include "scene/scene.h"
 
 namespace previs {

@@ -12,7 +12,7 @@
 #include <string>
 
 #include "base/result.h"
-#include "daemon/network_config.h"
+#include "config/network_config.h"
 
 namespace previs {
 

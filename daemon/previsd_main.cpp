@@ -14,11 +14,11 @@
 
 #include "base/command_line.h"
 #include "base/log.h"
+#include "config/service_config.h"
 #include "daemon/network_dropin.h"
-#include "daemon/pipeline_stages.h"
 #include "daemon/service.h"
-#include "daemon/service_config.h"
 #include "scene/scene_description.h"
+#include "shot/pipeline_stages.h"
 
 using namespace previs;
 

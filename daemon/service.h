@@ -17,14 +17,14 @@
 #include <thread>
 
 #include "base/result.h"
-#include "daemon/freed_input.h"
-#include "daemon/mode_machine.h"
-#include "daemon/service_config.h"
-#include "daemon/shot_controller.h"
-#include "daemon/take_recorder.h"
+#include "config/service_config.h"
 #include "daemon/tracking_out.h"
 #include "io/session.h"
 #include "render/plate_consistency.h"
+#include "shot/freed_input.h"
+#include "shot/mode_machine.h"
+#include "shot/shot_controller.h"
+#include "take/take_recorder.h"
 #include "timecode/timecode_source.h"
 #include "vision/board_pose.h"
 #include "web/web_monitor.h"
@@ -47,7 +47,7 @@ struct ServiceStatus {
     uint64_t framesRendered = 0;
     uint64_t samples = 0;  // per frame in preview, accumulated in refinement
     // Refinement only: the convergence meter's relative RMSE of the composite, and the seconds
-    // until refinement stops (daemon/refine_watch.h); none in preview or before an estimate.
+    // until refinement stops (shot/refine_watch.h); none in preview or before an estimate.
     std::optional<double> noiseEstimate;
     std::optional<double> etaSeconds;
     uint64_t refineRestarts = 0;  // refinements started over on a changed pose or lighting
@@ -84,7 +84,7 @@ struct ServiceStatus {
     // Preview: frames the held view keeps per output pixel since the camera last moved
     // (render/held_view.h; 0 while the camera moves, at full resolution, or in refinement).
     uint64_t heldViewFrames = 0;
-    // The take recorder (daemon/take_recorder.h): "recording" and the "record" object.
+    // The take recorder (take/take_recorder.h): "recording" and the "record" object.
     RecordStatus record;
     // The mode button and the status LED: "connected", "absent" (its GPIO chip or line is not
     // there yet, or went away: previsd looks for it every second) or "none" (not configured).
@@ -100,7 +100,7 @@ struct ServiceStatus {
     std::optional<TrackingOutStats> trackingOut;
     std::optional<WebStats> web;
     std::optional<FreedInputStats> freedIn;  // [tracking] listen
-    // The plate-consistency meter's last reading (DESIGN.md §4; daemon/shot_controller.h says
+    // The plate-consistency meter's last reading (DESIGN.md §4; shot/shot_controller.h says
     // when it reads); none before the first.
     std::optional<PlateConsistencyReading> plateConsistency;
     std::optional<LightingFitReport> lightingFit;  // the last lighting fit's (status "lightingFit")

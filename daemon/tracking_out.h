@@ -14,11 +14,11 @@
 #include <vector>
 
 #include "base/result.h"
-#include "daemon/network_config.h"
-#include "daemon/pipeline_stages.h"
+#include "config/network_config.h"
 #include "net/lens_sample.h"
 #include "net/opentrackio.h"
 #include "net/udp_socket.h"
+#include "shot/pipeline_stages.h"
 #include "systemd/listen_fds.h"
 #include "timecode/frame_rate.h"
 #include "timecode/timecode.h"

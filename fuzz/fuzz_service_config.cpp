@@ -4,7 +4,7 @@
 #include <filesystem>
 
 #include "base/data_paths.h"
-#include "daemon/service_config.h"
+#include "config/service_config.h"
 #include "fuzz/fuzz_support.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {

@@ -14,7 +14,7 @@
 
 #include "base/atomic_file.h"
 #include "base/bounded_file.h"
-#include "config/toml_reader.h"
+#include "base/toml_reader.h"
 #include "net/freed.h"
 
 namespace previs {

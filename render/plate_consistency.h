@@ -7,7 +7,7 @@
 //
 // Pure functions on host images, so the rule is tested on analytic input
 // (tests/render/plate_consistency_test.cpp); the service takes the inputs from the renderer's
-// accumulation (Renderer::realSurfaceMeans) and its plate (daemon/pipeline_renderer.h).
+// accumulation (Renderer::realSurfaceMeans) and its plate (shot/pipeline_renderer.h).
 
 #include <array>
 #include <cstddef>

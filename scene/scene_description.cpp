@@ -12,7 +12,7 @@
 #include <utility>
 #include <vector>
 
-#include "config/toml_reader.h"
+#include "base/toml_reader.h"
 #include "scene/environment_map.h"
 #include "scene/gltf_loader.h"
 

@@ -5,7 +5,7 @@
 #include <optional>
 #include <vector>
 
-#include "config/toml_reader.h"
+#include "base/toml_reader.h"
 #include "vision/tag_detector.h"
 
 namespace previs {

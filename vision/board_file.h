@@ -1,7 +1,7 @@
 #pragma once
 
 // The tag board file (docs/board-format.md). Its TOML is read here, in config/, with the same
-// checked reader as the other config formats (config/toml_reader.h): unknown keys and values out
+// checked reader as the other config formats (base/toml_reader.h): unknown keys and values out
 // of range are errors naming the file, the line and the key. vision/ keeps the board itself
 // (TagBoard::create validates the geometry); config depends on vision, never the reverse
 // (STYLE.md, layout).

@@ -18,17 +18,17 @@
 #include <set>
 #include <thread>
 
+#include "config/service_config.h"
 #include "daemon/control_server.h"
 #include "daemon/memory_budget.h"
-#include "daemon/mode_machine.h"
 #include "daemon/network_dropin.h"
-#include "daemon/pipeline_stages.h"
-#include "daemon/recorded_events.h"
 #include "daemon/service.h"
-#include "daemon/service_config.h"
-#include "daemon/take_recorder.h"
 #include "io/session.h"
 #include "scene/scene.h"
+#include "shot/mode_machine.h"
+#include "shot/pipeline_stages.h"
+#include "take/recorded_events.h"
+#include "take/take_recorder.h"
 #include "tests/daemon/recorder_fixtures.h"
 #include "tests/support/temp_dir.h"
 #include "tests/support/test_data.h"

@@ -20,9 +20,9 @@
 
 #include "capture/recorded_source.h"
 #include "daemon/control_server.h"
-#include "daemon/take_files.h"
 #include "display/drm_readback.h"
 #include "io/session.h"
+#include "take/take_files.h"
 #include "tests/support/process.h"
 #include "tests/support/test_data.h"
 

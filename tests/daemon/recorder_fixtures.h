@@ -8,7 +8,7 @@
 #include <filesystem>
 #include <string>
 
-#include "daemon/service_config.h"
+#include "config/service_config.h"
 #include "tests/support/hang_guard.h"
 #include "tests/support/temp_dir.h"
 #include "tests/support/test_data.h"

@@ -28,12 +28,12 @@
 #include <vector>
 
 #include "base/unique_fd.h"
-#include "daemon/freed_input.h"
+#include "config/service_config.h"
 #include "daemon/service.h"
-#include "daemon/service_config.h"
-#include "daemon/take_recorder.h"
 #include "net/freed.h"
 #include "net/freed_calibration.h"
+#include "shot/freed_input.h"
+#include "take/take_recorder.h"
 #include "tests/daemon/recorder_fixtures.h"
 #include "tests/support/temp_dir.h"
 #include "tests/support/test_data.h"

@@ -1,0 +1,369 @@
+// The shot's rules (issue 35, shot/shot_controller.h) with a hand-advanced clock and a renderer
+// whose samples cost a set time: refinement steps sized to the target, restarts, the stopping
+// point, the preview's cap, the dial's live correction, mode changes, tracking's pace. previsd,
+// `previs replay` and the service bench drive this same object; previsd_test.cpp checks replay.
+#include "shot/shot_controller.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <vector>
+
+namespace previs {
+namespace {
+
+using namespace std::chrono_literals;
+
+// Every sample costs `msPerSample` of the shot's clock, as a GPU would.
+class FakeRenderer final : public ShotRenderer {
+public:
+    FakeRenderer(ManualShotClock& clock, double msPerSample) : ms_(msPerSample), clock_(clock) {}
+
+    Status renderPreview(const TrackedFrame& frame,
+                         const std::shared_ptr<const LiveLighting>&) override {
+        spend(previewSamples_);
+        samples_ = previewSamples_;
+        rendered_ = frame.worldFromCamera.has_value();
+        previews.push_back(previewSamples_);
+        return {};
+    }
+    Status beginRefine(const TrackedFrame& frame,
+                       const std::shared_ptr<const LiveLighting>&) override {
+        samples_ = 0;
+        rendered_ = frame.worldFromCamera.has_value();
+        frozenOn.push_back(frame.frame ? frame.frame->sequence : 0);
+        return {};
+    }
+    Status refineStep(uint32_t samples) override {
+        spend(samples);
+        samples_ += samples;
+        steps.push_back(samples);
+        return {};
+    }
+    uint64_t samples() const override { return samples_; }
+    bool rendered() const override { return rendered_; }
+    // Monte Carlo: 10 % at 1 spp.
+    Result<std::optional<double>> measureNoise() override {
+        ++looks;
+        return std::optional<double>(0.1 / std::sqrt(double(samples_)));
+    }
+    uint32_t previewSamples() const override { return previewSamples_; }
+    void setPreviewSamples(uint32_t spp) override { previewSamples_ = spp; }
+    bool hasDial() const override { return dial; }
+    std::optional<std::string> adaptDial(double liveFrameSeconds) override {
+        dialCorrections.push_back(liveFrameSeconds);
+        return std::nullopt;
+    }
+    bool lightingPending() const override { return pending; }
+    // A reading whose ratio is the number of readings so far (so a test can tell them apart).
+    Result<std::optional<PlateConsistency>> measurePlateConsistency() override {
+        ++plateReadings;
+        PlateConsistency c;
+        c.ratio = {double(plateReadings), 1.0, 1.0};
+        c.pixels = 100;
+        c.ok = true;
+        return std::optional<PlateConsistency>(c);
+    }
+    // The lighting fit after each reading: `nextFit`, once (then not needed).
+    LightingFitReport fitLighting(const TrackedFrame&, const PlateConsistency&) override {
+        ++fits;
+        LightingFitReport r = nextFit;
+        nextFit = {};
+        return r;
+    }
+
+    bool dial = false;
+    std::vector<uint32_t> previews, steps;
+    std::vector<uint64_t> frozenOn;
+    std::vector<double> dialCorrections;
+    int looks = 0;
+    int plateReadings = 0;
+    int fits = 0;
+    LightingFitReport nextFit;
+    bool pending = false;
+    double ms_;
+
+private:
+    void spend(uint32_t samples) {
+        clock_.advance(std::chrono::nanoseconds(int64_t(ms_ * 1e6 * samples)));
+    }
+    ManualShotClock& clock_;
+    uint32_t previewSamples_ = 1;
+    uint64_t samples_ = 0;
+    bool rendered_ = false;
+};
+
+cv::Matx44d panned(double deg) {
+    const double a = deg * M_PI / 180.0, c = std::cos(a), s = std::sin(a);
+    return {c, 0, s, 0, 0, 1, 0, 0, -s, 0, c, 0, 0, 0, 0, 1};
+}
+
+std::shared_ptr<const TrackedFrame> frame(uint64_t sequence, double panDeg = 0.0) {
+    auto f = std::make_shared<TrackedFrame>();
+    auto camera = std::make_shared<Frame>();
+    camera->sequence = sequence;
+    f->frame = camera;
+    f->worldFromCamera = panned(panDeg);
+    f->lost = false;
+    return f;
+}
+
+RefineConfig refineConfig() {
+    RefineConfig c;
+    c.samplesPerStep = 16;
+    c.maxSamples = 0;
+    c.targetNoise = 0.0;
+    c.poseThresholdM = 0.01;
+    c.poseThresholdDeg = 0.5;
+    c.lightingThreshold = 0.05;
+    c.restartAfter = 3;
+    return c;
+}
+
+struct Fixture {
+    ManualShotClock clock;
+    FakeRenderer renderer;
+    ModeMachine modes;
+    ShotController shot;
+    explicit Fixture(double msPerSample, RefineConfig refine = refineConfig(),
+                     Mode mode = Mode::Preview)
+        : renderer(clock, msPerSample), modes(mode), shot(renderer, modes, clock, refine) {}
+};
+
+TEST(ShotController, PreviewRendersEveryFrameAndNothingWithout) {
+    Fixture f(10.0);
+    Result<ShotStep> none = f.shot.step(nullptr, nullptr);
+    ASSERT_TRUE(none) << none.message();
+    EXPECT_EQ(none->kind, ShotStep::Kind::NoFrame);
+    EXPECT_TRUE(f.shot.wantsFrame());
+    for (uint64_t i = 0; i < 5; ++i) {
+        Result<ShotStep> s = f.shot.step(frame(i), nullptr);
+        ASSERT_TRUE(s) << s.message();
+        EXPECT_EQ(s->kind, ShotStep::Kind::Previewed);
+        EXPECT_EQ(s->shown->frame->sequence, i);
+        f.clock.advance(50ms);  // the camera's next frame
+    }
+    EXPECT_EQ(f.renderer.previews.size(), 5u);
+    EXPECT_NEAR(f.shot.step(frame(5), nullptr)->fps, 1.0 / 0.06, 0.5);
+}
+
+TEST(ShotController, RefinementStepsAreSizedToTheTargetAndStopAtMaxSamples) {
+    // 100 ms a sample: the first step is samples_per_step (nothing measured yet), then 250 ms'
+    // worth (2); max_samples cuts the last one short and then the shot holds.
+    RefineConfig c = refineConfig();
+    c.maxSamples = 25;
+    Fixture f(100.0, c, Mode::Refine);
+    ASSERT_EQ(f.shot.step(frame(7), nullptr)->kind, ShotStep::Kind::Refined);
+    EXPECT_FALSE(f.shot.wantsFrame()) << "refining: take a frame only if there is one";
+    for (int i = 0; i < 8; ++i) ASSERT_TRUE(f.shot.step(nullptr, nullptr));
+    EXPECT_EQ(f.renderer.frozenOn, std::vector<uint64_t>{7});
+    const std::vector<uint32_t> expected{16, 2, 2, 2, 2, 1};
+    EXPECT_EQ(f.renderer.steps, expected);
+    Result<ShotStep> held = f.shot.step(nullptr, nullptr);
+    EXPECT_EQ(held->kind, ShotStep::Kind::Held);
+    EXPECT_EQ(held->shown->frame->sequence, 7u);
+    EXPECT_EQ(f.renderer.samples(), 25u);
+}
+
+TEST(ShotController, RefinementStopsAtTheTargetNoiseWithAnEta) {
+    // 10 % at 1 spp: 1 % at 100 spp. The meter looks at growing counts; the ETA falls to 0.
+    RefineConfig c = refineConfig();
+    c.samplesPerStep = 4;
+    c.targetNoise = 0.01;
+    Fixture f(1.0, c, Mode::Refine);
+    std::optional<double> firstEta;
+    for (int i = 0; i < 200; ++i) {
+        Result<ShotStep> s = f.shot.step(i == 0 ? frame(0) : nullptr, nullptr);
+        ASSERT_TRUE(s);
+        if (s->kind == ShotStep::Kind::Held) break;
+        if (!firstEta) firstEta = s->etaSeconds;
+        if (s->converged) {
+            EXPECT_EQ(s->etaSeconds.value_or(-1.0), 0.0);
+        }
+    }
+    ASSERT_TRUE(firstEta);
+    EXPECT_GT(*firstEta, 0.0);
+    EXPECT_GE(f.renderer.samples(), 100u);
+    EXPECT_LT(f.renderer.samples(), 160u) << "a look soon after the target is reached";
+    EXPECT_LT(f.renderer.looks, 20) << "looks grow geometrically, not one a step";
+}
+
+TEST(ShotController, AMoveRestartsAfterRestartAfterPosesAndAnOutlierDoesNot) {
+    Fixture f(1.0, refineConfig(), Mode::Refine);
+    ASSERT_TRUE(f.shot.step(frame(0), nullptr));
+    ASSERT_TRUE(f.shot.step(frame(1, 2.0), nullptr));  // one outlier
+    ASSERT_TRUE(f.shot.step(frame(2), nullptr));
+    EXPECT_EQ(f.shot.restarts(), 0u);
+    for (uint64_t i = 3; i < 6; ++i) {
+        Result<ShotStep> s = f.shot.step(frame(i, 2.0), nullptr);
+        ASSERT_TRUE(s);
+        EXPECT_EQ(s->restarted, i == 5) << "frame " << i;
+    }
+    EXPECT_EQ(f.shot.restarts(), 1u);
+    EXPECT_EQ(f.renderer.frozenOn, (std::vector<uint64_t>{0, 5}));
+    EXPECT_EQ(f.shot.frozen()->frame->sequence, 5u) << "re-frozen on the moved view";
+}
+
+TEST(ShotController, OutOfRefinementAndBackWithinOneStepRefreezes) {
+    Fixture f(1.0, refineConfig(), Mode::Refine);
+    ASSERT_TRUE(f.shot.step(frame(0), nullptr));
+    f.modes.toggle("test");
+    f.modes.toggle("test");
+    EXPECT_TRUE(f.shot.wantsFrame());
+    ASSERT_TRUE(f.shot.step(frame(1), nullptr));
+    EXPECT_EQ(f.renderer.frozenOn, (std::vector<uint64_t>{0, 1}));
+    f.modes.set(Mode::Preview, "test");
+    EXPECT_EQ(f.shot.step(frame(2), nullptr)->kind, ShotStep::Kind::Previewed);
+    EXPECT_EQ(f.shot.renderedMode(), Mode::Preview);
+}
+
+TEST(ShotController, APreviewFrameIsCappedToItsLongestTime) {
+    // 4 samples a frame at 1 s each would take 4 s: after the first frame, 3 s' worth.
+    Fixture f(1000.0);
+    f.renderer.setPreviewSamples(4);
+    f.shot.setConfig(refineConfig(), 4);
+    for (uint64_t i = 0; i < 3; ++i) ASSERT_TRUE(f.shot.step(frame(i), nullptr));
+    EXPECT_EQ(f.renderer.previews, (std::vector<uint32_t>{4, 3, 3}));
+    // A new configured count (SIGHUP) is taken, then capped again by what it costs.
+    f.renderer.ms_ = 10.0;
+    f.shot.setConfig(refineConfig(), 8);
+    for (uint64_t i = 3; i < 5; ++i) ASSERT_TRUE(f.shot.step(frame(i), nullptr));
+    EXPECT_EQ(f.renderer.previews.back(), 8u);
+}
+
+TEST(ShotController, TheDialIsCorrectedOnTheMedianOfAWindowOfLiveFrames) {
+    Fixture f(20.0);
+    f.renderer.dial = true;
+    for (uint64_t i = 0; i < 2 * ShotController::kDialWindowFrames; ++i) {
+        f.renderer.ms_ = i % 3 == 0 ? 200.0 : 20.0;  // an occasional slow frame
+        ASSERT_TRUE(f.shot.step(frame(i), nullptr));
+    }
+    ASSERT_EQ(f.renderer.dialCorrections.size(), 2u);
+    EXPECT_NEAR(f.renderer.dialCorrections[0], 0.020, 1e-9) << "the median, not the mean";
+}
+
+// The plate-consistency meter reads with a trusted pose only, once per view and lighting (a new
+// one beyond [refine]'s restart thresholds), at most every kPlateMeterPeriod.
+TEST(ShotController, ThePlateMeterReadsOnATrustedPoseWhenTheViewOrLightingChanges) {
+    Fixture f(20.0);
+    auto untracked = std::make_shared<TrackedFrame>(*frame(0));
+    untracked->worldFromCamera.reset();
+    untracked->lost = true;
+    Result<ShotStep> s = f.shot.step(untracked, nullptr);
+    ASSERT_TRUE(s);
+    EXPECT_FALSE(s->plateConsistency) << "nothing rendered";
+    auto held = std::make_shared<TrackedFrame>(*frame(1));
+    held->lost = true;  // tracking lost, the last pose held
+    ASSERT_TRUE(s = f.shot.step(held, nullptr));
+    EXPECT_FALSE(s->plateConsistency) << "a held pose is not trusted";
+    EXPECT_EQ(f.renderer.plateReadings, 0);
+    f.renderer.pending = true;
+    ASSERT_TRUE(s = f.shot.step(frame(2), nullptr));
+    EXPECT_FALSE(s->plateConsistency) << "lit by a stand-in";
+    EXPECT_EQ(f.renderer.plateReadings, 0);
+    f.renderer.pending = false;  // the first snapshot: read at once, not a period later
+
+    ASSERT_TRUE(s = f.shot.step(frame(2), nullptr));
+    ASSERT_TRUE(s->plateConsistency);
+    EXPECT_EQ(s->plateConsistency->frame, 2u);
+    EXPECT_EQ(s->plateConsistency->value.ratio[0], 1.0);
+    // The same view a while later: nothing new to read.
+    f.clock.advance(2s);
+    ASSERT_TRUE(s = f.shot.step(frame(3), nullptr));
+    EXPECT_FALSE(s->plateConsistency);
+    // Within the threshold (0.5 deg): still the same view.
+    f.clock.advance(2s);
+    ASSERT_TRUE(s = f.shot.step(frame(4, 0.3), nullptr));
+    EXPECT_FALSE(s->plateConsistency);
+    // A new view, but within a period of the last reading: not yet; after it, read.
+    ASSERT_TRUE(s = f.shot.step(frame(5, 5.0), nullptr));
+    ASSERT_TRUE(s->plateConsistency) << "2 s since the last";
+    ASSERT_TRUE(s = f.shot.step(frame(6, 10.0), nullptr));
+    EXPECT_FALSE(s->plateConsistency) << "40 ms since the last";
+    f.clock.advance(ShotController::kPlateMeterPeriod);
+    ASSERT_TRUE(s = f.shot.step(frame(7, 10.0), nullptr));
+    ASSERT_TRUE(s->plateConsistency);
+    EXPECT_EQ(f.renderer.plateReadings, 3);
+    ASSERT_TRUE(f.shot.plateConsistency());
+    EXPECT_EQ(f.shot.plateConsistency()->frame, 7u);
+
+    // Lighting: a first snapshot is a change; a small one is not; a large one is.
+    auto lit = [](double level) {
+        auto l = std::make_shared<LiveLighting>();
+        l->luminanceSh[0] = level;
+        return std::shared_ptr<const LiveLighting>(l);
+    };
+    f.clock.advance(2s);
+    ASSERT_TRUE(s = f.shot.step(frame(8, 10.0), lit(1.0)));
+    EXPECT_TRUE(s->plateConsistency);
+    f.clock.advance(2s);
+    ASSERT_TRUE(s = f.shot.step(frame(9, 10.0), lit(1.01)));
+    EXPECT_FALSE(s->plateConsistency) << "1 % is within lighting_threshold";
+    f.clock.advance(2s);
+    ASSERT_TRUE(s = f.shot.step(frame(10, 10.0), lit(1.5)));
+    EXPECT_TRUE(s->plateConsistency);
+    EXPECT_EQ(f.renderer.plateReadings, 5);
+}
+
+// Refinement: the first step of a new view reads (its accumulation so far), and the step that
+// converges reads again, on the same view, whatever the period: its L_or has the most samples.
+TEST(ShotController, ThePlateMeterReadsAgainAsRefinementConverges) {
+    RefineConfig c = refineConfig();
+    c.maxSamples = 25;
+    Fixture f(1.0, c, Mode::Refine);
+    std::vector<int> readOn;  // step indices with a reading
+    for (int i = 0; i < 10; ++i) {
+        Result<ShotStep> s = f.shot.step(i == 0 ? frame(7) : nullptr, nullptr);
+        ASSERT_TRUE(s);
+        if (s->plateConsistency) {
+            readOn.push_back(i);
+            EXPECT_EQ(s->plateConsistency->frame, 7u);
+            EXPECT_EQ(s->converged, i > 0) << "step " << i;
+        }
+    }
+    EXPECT_EQ(readOn.size(), 2u);
+    EXPECT_EQ(f.renderer.plateReadings, 2);
+}
+
+// A fit that changes the lighting while refining starts the accumulation over (its samples were
+// lit by the lighting before); one that failed does not, and is kept for the status.
+TEST(ShotController, ALightingFitRestartsRefinementAndAFailedOneDoesNot) {
+    Fixture f(1.0, refineConfig(), Mode::Refine);
+    f.renderer.nextFit.state = LightingFitReport::State::Fitted;
+    f.renderer.nextFit.changed = true;
+    Result<ShotStep> s = f.shot.step(frame(7), nullptr);
+    ASSERT_TRUE(s);
+    ASSERT_TRUE(s->lightingFit.has_value());
+    EXPECT_EQ(s->lightingFit->state, LightingFitReport::State::Fitted);
+    s = f.shot.step(nullptr, nullptr);
+    ASSERT_TRUE(s);
+    EXPECT_TRUE(s->restarted);
+    EXPECT_EQ(f.renderer.frozenOn.size(), 2u);
+
+    Fixture g(1.0, refineConfig(), Mode::Refine);
+    g.renderer.nextFit.state = LightingFitReport::State::Failed;
+    g.renderer.nextFit.why = "too few samples";
+    ASSERT_TRUE(g.shot.step(frame(7), nullptr));
+    s = g.shot.step(nullptr, nullptr);
+    ASSERT_TRUE(s);
+    EXPECT_FALSE(s->restarted);
+    ASSERT_TRUE(g.shot.lightingFit().has_value());
+    EXPECT_EQ(g.shot.lightingFit()->why, "too few samples");
+}
+
+TEST(TrackingPace, EveryFrameInPreviewAFewASecondRefining) {
+    TrackingPace pace;
+    const uint64_t period = 66'666'667;  // 15 fps
+    int tracked = 0;
+    for (uint64_t i = 0; i < 15; ++i) tracked += pace.due(Mode::Preview, i * period);
+    EXPECT_EQ(tracked, 15);
+    std::vector<uint64_t> refining;
+    for (uint64_t i = 15; i < 45; ++i)
+        if (pace.due(Mode::Refine, i * period)) refining.push_back(i);
+    // 250 ms at 66.7 ms a frame: every 4th frame.
+    EXPECT_EQ(refining, (std::vector<uint64_t>{18, 22, 26, 30, 34, 38, 42}));
+    EXPECT_TRUE(pace.due(Mode::Refine, 0)) << "a looping recording's clock starts over";
+}
+
+}  // namespace
+}  // namespace previs
