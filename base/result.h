@@ -11,14 +11,31 @@
 namespace previs {
 
 // The error half of a Result: a message a user can act on (names the file, device or option,
-// what is wrong and what to do).
+// what is wrong and what to do), and its kind, which decides how a program ends on it (previsd:
+// a config error exits 2, which systemd does not restart; the others exit 1).
 struct Error {
+    enum class Kind {
+        Runtime,  // may succeed when tried again (the default)
+        Config,   // the config, or a file, option or name it gives: the user must change it
+        Device,   // a device (the GPU, a camera) missing or failing
+    };
     std::string message;
+    Kind kind = Kind::Runtime;
 };
 
 template <typename... Args>
 Error makeError(fmt::format_string<Args...> format, Args&&... args) {
     return Error{fmt::format(format, std::forward<Args>(args)...)};
+}
+
+// An error of `kind`: a new message, or one passed on (its message kept).
+template <typename... Args>
+Error makeError(Error::Kind kind, fmt::format_string<Args...> format, Args&&... args) {
+    return Error{fmt::format(format, std::forward<Args>(args)...), kind};
+}
+inline Error withKind(Error error, Error::Kind kind) {
+    error.kind = kind;
+    return error;
 }
 
 // Taking the value of a Result that holds an error is a programming mistake: it stops the

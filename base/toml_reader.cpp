@@ -59,16 +59,16 @@ Error TomlReader::failMessage(const toml::node* at, const std::string& what) con
     return makeError("cannot load {} '{}': {}", what_, path_, what);
 }
 
-Status TomlReader::integerIn(const toml::table& table, std::string_view section,
-                             std::string_view key, int64_t& value, int64_t lo, int64_t hi) const {
+Result<std::optional<int64_t>> TomlReader::integerWithin(const toml::table& table,
+                                                         std::string_view section,
+                                                         std::string_view key, int64_t lo,
+                                                         int64_t hi) const {
     Result<std::optional<int64_t>> v = integer(table, section, key);
-    if (!v) return v.error();
-    if (!*v) return {};
+    if (!v || !*v) return v;
     if (**v < lo || **v > hi)
         return fail(table.get(key), "'{}' is {}; it must be an integer in [{}, {}]",
                     dotted(section, key), **v, lo, hi);
-    value = **v;
-    return {};
+    return v;
 }
 
 Status TomlReader::checkKeys(const toml::table& table, std::string_view section,

@@ -14,6 +14,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -75,9 +76,17 @@ public:
         value = T(x);
         return {};
     }
-    // An integer within [lo, hi], left as `value` when absent.
+    // An integer within [lo, hi] into `value`, narrowed to its type (which must hold [lo, hi]);
+    // left as it is when absent.
+    template <typename T>
     Status integerIn(const toml::table& table, std::string_view section, std::string_view key,
-                     int64_t& value, int64_t lo, int64_t hi) const;
+                     T& value, int64_t lo, int64_t hi) const {
+        static_assert(std::is_integral_v<T> && !std::is_same_v<T, bool>);
+        Result<std::optional<int64_t>> v = integerWithin(table, section, key, lo, hi);
+        if (!v) return v.error();
+        if (*v) value = T(**v);
+        return {};
+    }
     // An existing regular file with one of `extensions` (lower case, with the dot); relative
     // paths start at the file's folder. Returns the resolved path.
     Result<std::string> file(const toml::node& node, std::string_view key, const std::string& value,
@@ -94,6 +103,10 @@ public:
     }
 
 private:
+    Result<std::optional<int64_t>> integerWithin(const toml::table& table, std::string_view section,
+                                                 std::string_view key, int64_t lo,
+                                                 int64_t hi) const;
+
     std::string path_;
     std::string what_;
     std::filesystem::path folder_;  // relative paths inside the file are relative to this

@@ -1,5 +1,5 @@
 // Result: the value of a failed result is a checked programming error, reported with the
-// error's own message (issue 11: never a bare bad_variant_access).
+// error's own message (issue 11: never a bare bad_variant_access); an error's kind goes with it.
 #include "base/result.h"
 
 #include <gtest/gtest.h>
@@ -19,6 +19,36 @@ TEST(Result, HoldsValueOrError) {
     auto bad = parseDigit('x');
     ASSERT_FALSE(bad.ok());
     EXPECT_EQ(bad.message(), "'x' is not a digit");
+}
+
+// A config file that names a missing scene: the config's error, whoever passes it on.
+Status loadScene(bool sceneExists) {
+    if (!sceneExists)
+        return makeError(Error::Kind::Config, "scene 'set.gltf' not found; fix [scene] path");
+    return {};
+}
+
+Result<int> startService(bool sceneExists, bool gpuWorks) {
+    if (Status s = loadScene(sceneExists); !s) return s.error();
+    if (!gpuWorks) return withKind(makeError("no Vulkan device found"), Error::Kind::Device);
+    return 0;
+}
+
+TEST(Result, AnErrorsKindTravelsWithItThroughStatusAndResult) {
+    EXPECT_EQ(parseDigit('x').error().kind, Error::Kind::Runtime);  // the default
+    Result<int> config = startService(false, true);
+    ASSERT_FALSE(config.ok());
+    EXPECT_EQ(config.error().kind, Error::Kind::Config);
+    EXPECT_EQ(config.message(), "scene 'set.gltf' not found; fix [scene] path");
+    Result<int> device = startService(true, false);
+    ASSERT_FALSE(device.ok());
+    EXPECT_EQ(device.error().kind, Error::Kind::Device);
+    EXPECT_EQ(device.message(), "no Vulkan device found");
+    // Moved on as a Status and back into a Result, the kind stays.
+    Status passedOn = config.error();
+    Result<std::string> again = passedOn.error();
+    EXPECT_EQ(again.error().kind, Error::Kind::Config);
+    EXPECT_TRUE(startService(true, true).ok());
 }
 
 TEST(ResultDeathTest, ValueOfAnErrorStopsWithTheErrorsMessage) {
