@@ -80,11 +80,14 @@ void sendAnswer(int fd, int status, const std::string& message) {
     (void)::send(fd, reply.data(), reply.size(), MSG_DONTWAIT | MSG_NOSIGNAL);
 }
 
-// The client's address as text (an IPv4 client of an IPv6 socket as plain IPv4) and port.
-bool peerOf(int fd, std::string& address, int& port) {
+}  // namespace
+
+bool socketAddress(int fd, SocketEnd end, std::string& address, int& port) {
     sockaddr_storage a{};
     socklen_t size = sizeof a;
-    if (::getpeername(fd, reinterpret_cast<sockaddr*>(&a), &size) != 0) return false;
+    sockaddr* at = reinterpret_cast<sockaddr*>(&a);
+    if ((end == SocketEnd::Peer ? ::getpeername(fd, at, &size) : ::getsockname(fd, at, &size)) != 0)
+        return false;
     char text[INET6_ADDRSTRLEN] = {};
     if (a.ss_family == AF_INET) {
         const auto& v4 = reinterpret_cast<const sockaddr_in&>(a);
@@ -103,6 +106,8 @@ bool peerOf(int fd, std::string& address, int& port) {
     address = text;
     return true;
 }
+
+namespace {
 
 bool namedLike(std::string_view line, std::string_view lowerName) {
     if (line.size() <= lowerName.size() || line[lowerName.size()] != ':') return false;
@@ -213,7 +218,7 @@ void ConnectionHub::releaseSlot(const std::string& address) {
 void ConnectionHub::admit(UniqueFD fd) {
     std::string address;
     int port = 0;
-    if (!peerOf(fd.get(), address, port)) return;  // gone already
+    if (!socketAddress(fd.get(), SocketEnd::Peer, address, port)) return;  // gone already
     if (!reserveSlot(address)) {
         ++refused_;
         sendAnswer(fd.get(), 503,

@@ -42,6 +42,11 @@ struct ConnectionLimits {
 
 class ConnectionHub;
 
+// A socket's peer or local address as text (an IPv4 address of an IPv6 socket as plain IPv4) and
+// its port. False (nothing written) where the socket has none or is not IP.
+enum class SocketEnd { Peer, Local };
+bool socketAddress(int fd, SocketEnd end, std::string& address, int& port);
+
 // One client connection. The hub fills `buffer`; a worker consumes the request at readPos.
 struct Connection {
     using Clock = std::chrono::steady_clock;

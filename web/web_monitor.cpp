@@ -85,21 +85,9 @@ public:
         port = c_.port;
     }
     void get_local_ip_and_port(std::string& ip, int& port) const override {
-        sockaddr_storage a{};
-        socklen_t size = sizeof a;
-        char text[INET6_ADDRSTRLEN] = {};
         port = -1;
-        if (::getsockname(c_.fd.get(), reinterpret_cast<sockaddr*>(&a), &size) != 0) return;
-        if (a.ss_family == AF_INET) {
-            const auto& v4 = reinterpret_cast<const sockaddr_in&>(a);
-            ::inet_ntop(AF_INET, &v4.sin_addr, text, sizeof text);
-            port = ntohs(v4.sin_port);
-        } else if (a.ss_family == AF_INET6) {
-            const auto& v6 = reinterpret_cast<const sockaddr_in6&>(a);
-            ::inet_ntop(AF_INET6, &v6.sin6_addr, text, sizeof text);
-            port = ntohs(v6.sin6_port);
-        }
-        ip = text;
+        ip.clear();
+        socketAddress(c_.fd.get(), SocketEnd::Local, ip, port);
     }
     socket_t socket() const override { return c_.fd.get(); }
 
