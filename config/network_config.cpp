@@ -39,9 +39,7 @@ Status parseFreed(const TomlReader& r, const toml::table& t, FreedOutConfig& c) 
     if (Status st = hostPortKey(r, t, "freed", "out", c.out); !st) return st;
     if (c.out.empty())
         return r.fail(&t, "[freed] needs 'out' (where the packets go, e.g. out = \"HOST:40000\")");
-    int64_t id = c.cameraId;
-    if (Status st = r.integerIn(t, "freed", "camera_id", id, 0, 255); !st) return st;
-    c.cameraId = uint8_t(id);
+    if (Status st = r.integerIn(t, "freed", "camera_id", c.cameraId, 0, 255); !st) return st;
     Result<std::optional<std::string>> lost = r.string(t, "freed", "when_lost");
     if (!lost) return lost.error();
     if (*lost && **lost != "nothing" && **lost != "hold")
@@ -59,12 +57,9 @@ Status parseOpenTrackIo(const TomlReader& r, const toml::table& t, OpenTrackIoCo
         c.out = **out;
     else if (Status st = hostPortKey(r, t, "opentrackio", "out", c.out); !st)
         return st;
-    int64_t v = c.sourceNumber;
-    if (Status st = r.integerIn(t, "opentrackio", "source_number", v, 1, 200); !st) return st;
-    c.sourceNumber = int(v);
-    v = c.multicastTtl;
-    if (Status st = r.integerIn(t, "opentrackio", "ttl", v, 1, 255); !st) return st;
-    c.multicastTtl = int(v);
+    if (Status st = r.integerIn(t, "opentrackio", "source_number", c.sourceNumber, 1, 200); !st)
+        return st;
+    if (Status st = r.integerIn(t, "opentrackio", "ttl", c.multicastTtl, 1, 255); !st) return st;
     return {};
 }
 
@@ -88,12 +83,9 @@ Status parseTimecode(const TomlReader& r, const toml::table& t, TimecodeConfig& 
     Result<std::optional<std::string>> device = r.string(t, "timecode", "device");
     if (!device) return device.error();
     if (*device) c.device = **device;
-    int64_t v = c.channel;
-    if (Status st = r.integerIn(t, "timecode", "channel", v, 0, 63); !st) return st;
-    c.channel = int(v);
-    v = c.sampleRate;
-    if (Status st = r.integerIn(t, "timecode", "sample_rate", v, 8000, 384000); !st) return st;
-    c.sampleRate = int(v);
+    if (Status st = r.integerIn(t, "timecode", "channel", c.channel, 0, 63); !st) return st;
+    if (Status st = r.integerIn(t, "timecode", "sample_rate", c.sampleRate, 8000, 384000); !st)
+        return st;
     return {};
 }
 
@@ -113,15 +105,9 @@ Status parseWeb(const TomlReader& r, const toml::table& t, WebConfig& c) {
         c.tokenFile = (r.folder() / fs::path(**token)).lexically_normal().string();
     if (Status st = r.numberIn(t, "web", "stream_fps", c.streamFps, 0.0, 60.0, true); !st)
         return st;
-    int64_t v = c.streamWidth;
-    if (Status st = r.integerIn(t, "web", "stream_width", v, 64, 7680); !st) return st;
-    c.streamWidth = int(v);
-    v = c.jpegQuality;
-    if (Status st = r.integerIn(t, "web", "jpeg_quality", v, 1, 100); !st) return st;
-    c.jpegQuality = int(v);
-    v = c.maxViewers;
-    if (Status st = r.integerIn(t, "web", "max_viewers", v, 1, 64); !st) return st;
-    c.maxViewers = int(v);
+    if (Status st = r.integerIn(t, "web", "stream_width", c.streamWidth, 64, 7680); !st) return st;
+    if (Status st = r.integerIn(t, "web", "jpeg_quality", c.jpegQuality, 1, 100); !st) return st;
+    if (Status st = r.integerIn(t, "web", "max_viewers", c.maxViewers, 1, 64); !st) return st;
     Result<std::optional<std::vector<std::string>>> names = r.strings(t, "web", "host_names");
     if (!names) return names.error();
     if (*names) c.hostNames = **names;

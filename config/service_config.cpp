@@ -32,12 +32,25 @@ public:
     Result<ServiceConfig> read(const toml::table& root);
 
 private:
+    Status checkTopLevel(const toml::table& root) const;
+    Status parseScenePath(const toml::table& root, ServiceConfig& config) const;
+    Status parseCameras(const toml::table& root, ServiceConfig& config) const;
+    Status parseTrackingAndLighting(const toml::table& root, ServiceConfig& config) const;
+    Status parseOptionalSections(const toml::table& root, ServiceConfig& config) const;
     template <typename... Args>
     Error fail(const toml::node* at, fmt::format_string<Args...> format, Args&&... args) const {
         return r_.fail(at, format, std::forward<Args>(args)...);
     }
 
     Status parseCamera(const toml::table& t, const std::string& name, CameraConfig& c) const;
+    Status parseCameraSource(const toml::table& t, const std::string& section,
+                             CameraConfig& c) const;
+    Status parseCameraFormat(const toml::table& t, const std::string& section,
+                             CameraConfig& c) const;
+    Status parseCameraControls(const toml::table& t, const std::string& section,
+                               CameraConfig& c) const;
+    Status parseCameraCalibration(const toml::table& t, const std::string& section,
+                                  CameraConfig& c) const;
     Status parseBracket(const toml::table& camera, const std::string& cameraSection,
                         CameraConfig& c) const;
     Status parseLibcameraControls(const toml::table& t, const std::string& section,
@@ -48,6 +61,7 @@ private:
                              CameraConfig& c) const;
     Status parseOutputColour(const toml::table& output, OutputConfig& c) const;
     Result<std::string> ocioConfigPath(const toml::table& t, const std::string& section) const;
+    Result<CodeRange> codeRange(const toml::table& t, const std::string& section) const;
     Status parseTracking(const toml::table& t, TrackingConfig& c) const;
     Status parseFreedIn(const toml::table& t, TrackingConfig& c) const;
     Status parseLighting(const toml::table& t, LightingConfig& c) const;
@@ -112,6 +126,18 @@ Result<std::string> ConfigReader::ocioConfigPath(const toml::table& t,
     return (r_.folder() / fs::path(**path)).lexically_normal().string();
 }
 
+// [<section>] range: "full" (absent) or "legal" (video levels, 16–235).
+Result<CodeRange> ConfigReader::codeRange(const toml::table& t, const std::string& section) const {
+    Result<std::optional<std::string>> range = r_.string(t, section, "range");
+    if (!range) return range.error();
+    if (!*range || **range == "full") return CodeRange::Full;
+    if (**range == "legal") return CodeRange::Legal;
+    return fail(t.get("range"),
+                "'{}.range' is '{}'; use \"full\" (codes 0-255) or \"legal\" (video levels, "
+                "black at 16 and white at 235)",
+                section, **range);
+}
+
 // [cameras.<name>.colour]: the camera's encoding through OpenColorIO (colour/ocio_colour.h), in
 // place of the radiometry's tone curve; its exposure and white balance still apply.
 Status ConfigReader::parseCameraColour(const toml::table& camera, const std::string& cameraSection,
@@ -121,7 +147,7 @@ Status ConfigReader::parseCameraColour(const toml::table& camera, const std::str
     if (!*table) return {};
     const toml::table& t = **table;
     const std::string section = cameraSection + ".colour";
-    if (Status st = r_.checkKeys(t, section, {"ocio_config", "input"}); !st) return st;
+    if (Status st = r_.checkKeys(t, section, {"ocio_config", "input", "range"}); !st) return st;
     if (const toml::table* radiometry = camera["radiometry"].as_table())
         for (const char* curveKey : {"tone_curve", "max_radiance", "white_luminance"})
             if (radiometry->get(curveKey))
@@ -136,8 +162,11 @@ Status ConfigReader::parseCameraColour(const toml::table& camera, const std::str
     if (!input) return input.error();
     c.colourConfigPath = *configPath;
     c.colourInput = input->value_or("");
+    Result<CodeRange> range = codeRange(t, section);
+    if (!range) return range.error();
+    c.colourRange = *range;
     Result<std::shared_ptr<const CameraColourTransform>> transform =
-        CameraColourTransform::create({c.colourConfigPath, section}, c.colourInput);
+        CameraColourTransform::create({c.colourConfigPath, section}, c.colourInput, *range);
     if (!transform) {
         const bool aboutFile = transform.message().find(".ocio_config'") != std::string::npos;
         const toml::node* at = t.get(aboutFile ? "ocio_config" : "input");
@@ -196,21 +225,10 @@ Status ConfigReader::parseLibcameraControls(const toml::table& t, const std::str
     return {};
 }
 
-Status ConfigReader::parseCamera(const toml::table& t, const std::string& name,
-                                 CameraConfig& c) const {
-    const std::string section = "cameras." + name;
-    const bool fisheye = name == "fisheye";
-    Status keys =
-        fisheye
-            ? r_.checkKeys(t, section,
-                           {"source", "device", "width", "height", "format", "fps", "controls",
-                            "calibration", "radiometry", "colour", "mount_rotation_deg", "bracket"})
-            : r_.checkKeys(t, section,
-                           {"source", "device", "width", "height", "format", "fps", "controls",
-                            "calibration", "radiometry", "colour"});
-    if (!keys) return keys;
-    c.name = name;
-
+// Where the frames come from: the source kind and its device (a recorded camera's folder made
+// absolute).
+Status ConfigReader::parseCameraSource(const toml::table& t, const std::string& section,
+                                       CameraConfig& c) const {
     Result<std::optional<std::string>> source = r_.string(t, section, "source");
     if (!source) return source.error();
     const std::string kind = source->value_or("v4l2");
@@ -248,9 +266,13 @@ Status ConfigReader::parseCamera(const toml::table& t, const std::string& name,
                         section, c.device, folder.string());
         c.device = folder.string();
     }
+    return {};
+}
 
-    // The size is required: it must be the calibrated one, and a camera's default size is
-    // whatever the last program left it at.
+// The capture size (required: it must be the calibrated one, and a camera's default size is
+// whatever the last program left it at), pixel format and rate.
+Status ConfigReader::parseCameraFormat(const toml::table& t, const std::string& section,
+                                       CameraConfig& c) const {
     for (auto [key, field] : {std::pair<const char*, uint32_t*>{"width", &c.width},
                               std::pair<const char*, uint32_t*>{"height", &c.height}}) {
         int64_t v = 0;
@@ -274,7 +296,11 @@ Status ConfigReader::parseCamera(const toml::table& t, const std::string& name,
         c.pixelFormat = **format;
     }
     if (Status st = r_.numberIn(t, section, "fps", c.fps, 0.0, 1000.0); !st) return st;
+    return {};
+}
 
+Status ConfigReader::parseCameraControls(const toml::table& t, const std::string& section,
+                                         CameraConfig& c) const {
     Result<const toml::table*> controls = r_.table(t, section, "controls");
     if (!controls) return controls.error();
     if (*controls) {
@@ -293,7 +319,12 @@ Status ConfigReader::parseCamera(const toml::table& t, const std::string& name,
             }
         }
     }
+    return {};
+}
 
+// The OpenCV calibration, which must have been made at the configured size.
+Status ConfigReader::parseCameraCalibration(const toml::table& t, const std::string& section,
+                                            CameraConfig& c) const {
     Result<std::optional<std::string>> calibration = r_.string(t, section, "calibration");
     if (!calibration) return calibration.error();
     if (!*calibration)
@@ -317,7 +348,27 @@ Status ConfigReader::parseCamera(const toml::table& t, const std::string& name,
                     section, size.width, size.height, c.width, c.height);
     c.calibrationPath = *calibrationPath;
     c.calibration = std::move(*loaded);
+    return {};
+}
 
+Status ConfigReader::parseCamera(const toml::table& t, const std::string& name,
+                                 CameraConfig& c) const {
+    const std::string section = "cameras." + name;
+    const bool fisheye = name == "fisheye";
+    Status keys =
+        fisheye
+            ? r_.checkKeys(t, section,
+                           {"source", "device", "width", "height", "format", "fps", "controls",
+                            "calibration", "radiometry", "colour", "mount_rotation_deg", "bracket"})
+            : r_.checkKeys(t, section,
+                           {"source", "device", "width", "height", "format", "fps", "controls",
+                            "calibration", "radiometry", "colour"});
+    if (!keys) return keys;
+    c.name = name;
+    if (Status st = parseCameraSource(t, section, c); !st) return st;
+    if (Status st = parseCameraFormat(t, section, c); !st) return st;
+    if (Status st = parseCameraControls(t, section, c); !st) return st;
+    if (Status st = parseCameraCalibration(t, section, c); !st) return st;
     Result<const toml::table*> radiometry = r_.table(t, section, "radiometry");
     if (!radiometry) return radiometry.error();
     if (*radiometry) {
@@ -350,12 +401,10 @@ Status ConfigReader::parseBracket(const toml::table& camera, const std::string& 
                         c.source == CameraSourceKind::Libcamera
                             ? ": libcamera labels each frame from its metadata"
                             : ": a recording's frames carry their exposures");
-    int64_t framesPerStep = c.bracketFramesPerStep;
-    if (Status st =
-            r_.integerIn(t, section, "frames_per_step", framesPerStep, 1, kMaxFramesPerStep);
+    if (Status st = r_.integerIn(t, section, "frames_per_step", c.bracketFramesPerStep, 1,
+                                 kMaxFramesPerStep);
         !st)
         return st;
-    c.bracketFramesPerStep = int(framesPerStep);
     Result<std::optional<std::string>> control = r_.string(t, section, "control");
     if (!control) return control.error();
     if (*control) c.bracketControl = **control;
@@ -456,16 +505,14 @@ Status ConfigReader::parseTracking(const toml::table& t, TrackingConfig& c) cons
             r_.numberIn(t, "tracking", "decode_sharpening", c.detector.decodeSharpening, 0.0, 16.0);
         !st)
         return st;
-    int64_t threads = c.detector.threads;
-    if (Status st = r_.integerIn(t, "tracking", "threads", threads, 1, 64); !st) return st;
-    c.detector.threads = int(threads);
+    if (Status st = r_.integerIn(t, "tracking", "threads", c.detector.threads, 1, 64); !st)
+        return st;
     if (Status st = r_.numberIn(t, "tracking", "max_reproj_error_px", c.tracker.maxReprojErrorPx,
                                 0.0, 1e6, true);
         !st)
         return st;
-    int64_t minTags = c.tracker.minTags;
-    if (Status st = r_.integerIn(t, "tracking", "min_tags", minTags, 1, 1024); !st) return st;
-    c.tracker.minTags = int(minTags);
+    if (Status st = r_.integerIn(t, "tracking", "min_tags", c.tracker.minTags, 1, 1024); !st)
+        return st;
     if (Status st = r_.numberIn(t, "tracking", "max_position_std_fraction",
                                 c.tracker.maxPositionStdFraction, 0.0, 1e6, true);
         !st)
@@ -564,9 +611,8 @@ Status ConfigReader::parseLighting(const toml::table& t, LightingConfig& c) cons
         return st;
     if (Status st = r_.numberIn(t, "lighting", "update_hz", c.updateHz, 0.0, 1000.0); !st)
         return st;
-    int64_t maxLights = c.lights.maxLights;
-    if (Status st = r_.integerIn(t, "lighting", "max_lights", maxLights, 0, 256); !st) return st;
-    c.lights.maxLights = int(maxLights);
+    if (Status st = r_.integerIn(t, "lighting", "max_lights", c.lights.maxLights, 0, 256); !st)
+        return st;
     Result<std::optional<std::string>> saved = r_.string(t, "lighting", "saved");
     if (!saved) return saved.error();
     if (*saved && !(*saved)->empty())
@@ -611,22 +657,17 @@ Status ConfigReader::parseRender(const toml::table& t, RenderConfig& c) const {
                           "preview_object_samples", "preview_sample_clamp"});
         !st)
         return st;
-    int64_t width = c.width, height = c.height, spp = c.samplesPerFrame, depth = c.maxDepth,
-            seed = c.seed;
-    if (Status st = r_.integerIn(t, "render", "width", width, 0, 16384); !st) return st;
-    if (Status st = r_.integerIn(t, "render", "height", height, 0, 16384); !st) return st;
-    if ((width == 0) != (height == 0))
+    if (Status st = r_.integerIn(t, "render", "width", c.width, 0, 16384); !st) return st;
+    if (Status st = r_.integerIn(t, "render", "height", c.height, 0, 16384); !st) return st;
+    if ((c.width == 0) != (c.height == 0))
         return fail(&t,
                     "[render] needs both 'width' and 'height', or neither (the scene "
                     "camera's size)");
-    if (Status st = r_.integerIn(t, "render", "samples_per_frame", spp, 1, 65536); !st) return st;
-    if (Status st = r_.integerIn(t, "render", "max_depth", depth, 1, 1024); !st) return st;
-    if (Status st = r_.integerIn(t, "render", "seed", seed, 0, 0xffffffffLL); !st) return st;
-    c.width = uint32_t(width);
-    c.height = uint32_t(height);
-    c.samplesPerFrame = uint32_t(spp);
-    c.maxDepth = uint32_t(depth);
-    c.seed = uint32_t(seed);
+    if (Status st = r_.integerIn(t, "render", "samples_per_frame", c.samplesPerFrame, 1, 65536);
+        !st)
+        return st;
+    if (Status st = r_.integerIn(t, "render", "max_depth", c.maxDepth, 1, 1024); !st) return st;
+    if (Status st = r_.integerIn(t, "render", "seed", c.seed, 0, 0xffffffffLL); !st) return st;
     // photons: "auto" | "on" | "off" | a count per iteration (a TOML integer or string).
     if (const toml::node* node = t.get("photons")) {
         std::string spec;
@@ -637,21 +678,19 @@ Status ConfigReader::parseRender(const toml::table& t, RenderConfig& c) const {
         if (Status st = applyPhotonSpec(spec, c.photons); !st)
             return fail(node, "'render.photons': {}", st.message());
     }
-    int64_t previewPhotons = c.photons.previewPerIteration;
-    if (Status st = r_.integerIn(t, "render", "preview_photons", previewPhotons, 128,
+    if (Status st = r_.integerIn(t, "render", "preview_photons", c.photons.previewPerIteration, 128,
                                  kMaxPhotonsPerIteration);
         !st)
         return st;
-    c.photons.previewPerIteration = uint32_t(previewPhotons);
     if (Status st = r_.numberIn(t, "render", "photon_radius_m", c.photons.initialRadius, 0.0, 1e3);
         !st)
         return st;
     if (Status st = r_.numberIn(t, "render", "photon_alpha", c.photons.alpha, 0.0, 1.0, true); !st)
         return st;
-    int64_t neighbours = c.photons.gatherNeighbours;
-    if (Status st = r_.integerIn(t, "render", "photon_neighbours", neighbours, 0, 1 << 20); !st)
+    if (Status st =
+            r_.integerIn(t, "render", "photon_neighbours", c.photons.gatherNeighbours, 0, 1 << 20);
+        !st)
         return st;
-    c.photons.gatherNeighbours = uint32_t(neighbours);
     Result<std::optional<bool>> splat = r_.boolean(t, "render", "photon_splat");
     if (!splat) return splat.error();
     c.photons.splatToCamera = splat->value_or(c.photons.splatToCamera);
@@ -664,16 +703,15 @@ Status ConfigReader::parseRender(const toml::table& t, RenderConfig& c) const {
     if (c.denoise != "off" && c.denoise != "on" && c.denoise != "auto")
         return fail(t.get("denoise"), "'render.denoise' is '{}': use \"off\", \"on\" or \"auto\"",
                     c.denoise);
-    int64_t levels = c.denoiseLevels;
-    if (Status st = r_.integerIn(t, "render", "denoise_levels", levels, 1, 10); !st) return st;
-    c.denoiseLevels = uint32_t(levels);
+    if (Status st = r_.integerIn(t, "render", "denoise_levels", c.denoiseLevels, 1, 10); !st)
+        return st;
     Result<std::optional<bool>> accumulate = r_.boolean(t, "render", "preview_accumulate");
     if (!accumulate) return accumulate.error();
     c.previewAccumulate = accumulate->value_or(c.previewAccumulate);
-    int64_t history = c.previewHistoryFrames;
-    if (Status st = r_.integerIn(t, "render", "preview_history_frames", history, 1, 1024); !st)
+    if (Status st =
+            r_.integerIn(t, "render", "preview_history_frames", c.previewHistoryFrames, 1, 1024);
+        !st)
         return st;
-    c.previewHistoryFrames = uint32_t(history);
     if (Status st =
             r_.numberIn(t, "render", "preview_object_samples", c.previewObjectSamples, 0.0, 16.0);
         !st)
@@ -692,13 +730,11 @@ Status ConfigReader::parseRefine(const toml::table& t, RefineConfig& c) const {
              "lighting_threshold", "restart_after", "target_noise"});
         !st)
         return st;
-    int64_t step = c.samplesPerStep, maxSamples = int64_t(c.maxSamples),
-            restartAfter = c.restartAfter;
-    if (Status st = r_.integerIn(t, "refine", "samples_per_step", step, 1, 65536); !st) return st;
-    if (Status st = r_.integerIn(t, "refine", "max_samples", maxSamples, 0, int64_t(1) << 40); !st)
+    if (Status st = r_.integerIn(t, "refine", "samples_per_step", c.samplesPerStep, 1, 65536); !st)
         return st;
-    c.samplesPerStep = uint32_t(step);
-    c.maxSamples = uint64_t(maxSamples);
+    if (Status st = r_.integerIn(t, "refine", "max_samples", c.maxSamples, 0, int64_t(1) << 40);
+        !st)
+        return st;
     if (Status st = r_.numberIn(t, "refine", "pose_threshold_m", c.poseThresholdM, 0.0, 1e6); !st)
         return st;
     if (Status st = r_.numberIn(t, "refine", "pose_threshold_deg", c.poseThresholdDeg, 0.0, 180.0);
@@ -707,9 +743,8 @@ Status ConfigReader::parseRefine(const toml::table& t, RefineConfig& c) const {
     if (Status st = r_.numberIn(t, "refine", "lighting_threshold", c.lightingThreshold, 0.0, 1e6);
         !st)
         return st;
-    if (Status st = r_.integerIn(t, "refine", "restart_after", restartAfter, 1, 1000); !st)
+    if (Status st = r_.integerIn(t, "refine", "restart_after", c.restartAfter, 1, 1000); !st)
         return st;
-    c.restartAfter = int(restartAfter);
     if (Status st = r_.numberIn(t, "refine", "target_noise", c.targetNoise, 0.0, 1e6); !st)
         return st;
     return {};
@@ -742,15 +777,11 @@ Status ConfigReader::parseOutput(const toml::table& t, OutputConfig& c) const {
             return fail(&t, "[output] kind = \"files\" needs 'folder' (where the PNG frames go)");
         c.folder = (r_.folder() / fs::path(c.folder)).lexically_normal().string();
     }
-    auto count = [&](const char* key, uint64_t& field, int64_t low, int64_t high) {
-        int64_t value = int64_t(field);
-        Status st = r_.integerIn(t, "output", key, value, low, high);
-        field = uint64_t(value);
+    if (Status st = r_.integerIn(t, "output", "keep_frames", c.keepFrames, 1, 10'000'000); !st)
         return st;
-    };
-    if (Status st = count("keep_frames", c.keepFrames, 1, 10'000'000); !st) return st;
-    if (Status st = count("max_mb", c.maxMb, 1, 1 << 24); !st) return st;
-    if (Status st = count("min_free_mb", c.minFreeMb, 0, 1 << 24); !st) return st;
+    if (Status st = r_.integerIn(t, "output", "max_mb", c.maxMb, 1, 1 << 24); !st) return st;
+    if (Status st = r_.integerIn(t, "output", "min_free_mb", c.minFreeMb, 0, 1 << 24); !st)
+        return st;
     if (!c.mode.empty()) {
         unsigned w = 0, h = 0, hz = 0;
         char tail = 0;
@@ -786,17 +817,14 @@ Status ConfigReader::parseButton(const toml::table& t, ButtonConfig& c) const {
         if (!b) return b.error();
         if (*b) *field = **b;
     }
-    int64_t debounce = c.debounceMs, longPress = c.longPressMs;
-    if (Status st = r_.integerIn(t, "button", "debounce_ms", debounce, 0, 1000); !st) return st;
-    if (Status st = r_.integerIn(t, "button", "long_press_ms", longPress, 100, 60000); !st)
+    if (Status st = r_.integerIn(t, "button", "debounce_ms", c.debounceMs, 0, 1000); !st) return st;
+    if (Status st = r_.integerIn(t, "button", "long_press_ms", c.longPressMs, 100, 60000); !st)
         return st;
-    if (longPress <= debounce)
+    if (c.longPressMs <= c.debounceMs)
         return fail(t.get("long_press_ms"),
                     "'button.long_press_ms' ({}) must be longer than "
                     "'button.debounce_ms' ({})",
-                    longPress, debounce);
-    c.debounceMs = int(debounce);
-    c.longPressMs = int(longPress);
+                    c.longPressMs, c.debounceMs);
     if (c.ledChip.empty()) c.ledChip = c.chip;
     return {};
 }
@@ -822,25 +850,23 @@ Status ConfigReader::parseRecord(const toml::table& t, RecordConfig& c) const {
     Result<std::optional<bool>> autoStart = r_.boolean(t, "record", "auto");
     if (!autoStart) return autoStart.error();
     c.autoStart = autoStart->value_or(false);
-    int64_t v = int64_t(c.minFreeMb);
-    if (Status st = r_.integerIn(t, "record", "min_free_mb", v, 0, 1 << 24); !st) return st;
-    c.minFreeMb = uint64_t(v);
-    v = c.flushIntervalMs;
-    if (Status st = r_.integerIn(t, "record", "flush_interval_ms", v, 10, 60000); !st) return st;
-    c.flushIntervalMs = uint32_t(v);
-    v = c.queueMb;
-    if (Status st = r_.integerIn(t, "record", "queue_mb", v, 16, 16384); !st) return st;
-    c.queueMb = uint32_t(v);
+    if (Status st = r_.integerIn(t, "record", "min_free_mb", c.minFreeMb, 0, 1 << 24); !st)
+        return st;
+    if (Status st = r_.integerIn(t, "record", "flush_interval_ms", c.flushIntervalMs, 10, 60000);
+        !st)
+        return st;
+    if (Status st = r_.integerIn(t, "record", "queue_mb", c.queueMb, 16, 16384); !st) return st;
     return {};
 }
 
-Result<ServiceConfig> ConfigReader::read(const toml::table& root) {
+// The top level's keys, and the version this previs reads.
+Status ConfigReader::checkTopLevel(const toml::table& root) const {
     if (Status st = r_.checkKeys(
             root, "",
             {"version", "scene", "cameras", "tracking", "lighting", "render", "refine", "output",
              "button", "control", "session", "record", "freed", "opentrackio", "timecode", "web"});
         !st)
-        return st.error();
+        return st;
     const toml::node* version = root.get("version");
     if (!version)
         return fail(nullptr, "missing key 'version' (start the file with `version = {}`)",
@@ -849,9 +875,10 @@ Result<ServiceConfig> ConfigReader::read(const toml::table& root) {
     if (!v || v->get() != kFormatVersion)
         return fail(version, "'version' must be {} (this previs reads config version {} only)",
                     kFormatVersion, kFormatVersion);
+    return {};
+}
 
-    ServiceConfig config;
-    config.path = r_.path();
+Status ConfigReader::parseScenePath(const toml::table& root, ServiceConfig& config) const {
     Result<std::optional<std::string>> scene = r_.string(root, "", "scene");
     if (!scene) return scene.error();
     if (!*scene)
@@ -862,22 +889,25 @@ Result<ServiceConfig> ConfigReader::read(const toml::table& root) {
         r_.file(*root.get("scene"), "scene", **scene, {".gltf", ".glb", ".toml"}, "scene");
     if (!scenePath) return scenePath.error();
     config.scenePath = *scenePath;
+    return {};
+}
 
+// [cameras.scene] (required) and [cameras.fisheye], each on its own device.
+Status ConfigReader::parseCameras(const toml::table& root, ServiceConfig& config) const {
     Result<const toml::table*> cameras = r_.table(root, "", "cameras");
     if (!cameras) return cameras.error();
     if (!*cameras) return fail(nullptr, "missing [cameras.scene] (the camera that films the set)");
-    if (Status st = r_.checkKeys(**cameras, "cameras", {"scene", "fisheye"}); !st)
-        return st.error();
+    if (Status st = r_.checkKeys(**cameras, "cameras", {"scene", "fisheye"}); !st) return st;
     Result<const toml::table*> sceneCamera = r_.table(**cameras, "cameras", "scene");
     if (!sceneCamera) return sceneCamera.error();
     if (!*sceneCamera)
         return fail(*cameras, "missing [cameras.scene] (the camera that films the set)");
-    if (Status st = parseCamera(**sceneCamera, "scene", config.sceneCamera); !st) return st.error();
+    if (Status st = parseCamera(**sceneCamera, "scene", config.sceneCamera); !st) return st;
     Result<const toml::table*> fisheye = r_.table(**cameras, "cameras", "fisheye");
     if (!fisheye) return fisheye.error();
     if (*fisheye) {
         CameraConfig camera;
-        if (Status st = parseCamera(**fisheye, "fisheye", camera); !st) return st.error();
+        if (Status st = parseCamera(**fisheye, "fisheye", camera); !st) return st;
         Result<std::optional<std::vector<double>>> mount =
             r_.numbers(**fisheye, "cameras.fisheye", "mount_rotation_deg", 3);
         if (!mount) return mount.error();
@@ -891,14 +921,19 @@ Result<ServiceConfig> ConfigReader::read(const toml::table& root) {
                         camera.device);
         config.fisheyeCamera = std::move(camera);
     }
+    return {};
+}
 
+// [tracking] (required) and [lighting].
+Status ConfigReader::parseTrackingAndLighting(const toml::table& root,
+                                              ServiceConfig& config) const {
     Result<const toml::table*> tracking = r_.table(root, "", "tracking");
     if (!tracking) return tracking.error();
     if (!*tracking)
         return fail(nullptr,
                     "missing [tracking] (at least board = \"board.toml\", the tag "
                     "layout; docs/board-format.md)");
-    if (Status st = parseTracking(**tracking, config.tracking); !st) return st.error();
+    if (Status st = parseTracking(**tracking, config.tracking); !st) return st;
     // A recorded camera replays its take's own packets (freed.csv); a live one needs them sent.
     if (config.tracking.freedSource && config.tracking.freedListen.empty() &&
         config.sceneCamera.source != CameraSourceKind::Session)
@@ -909,14 +944,12 @@ Result<ServiceConfig> ConfigReader::read(const toml::table& root) {
     Result<const toml::table*> lighting = r_.table(root, "", "lighting");
     if (!lighting) return lighting.error();
     if (*lighting) {
-        if (Status st = parseLighting(**lighting, config.lighting); !st) return st.error();
+        if (Status st = parseLighting(**lighting, config.lighting); !st) return st;
     }
+    return {};
+}
 
-    // The dial aims at the scene camera's rate unless [render] preview_fps says otherwise: a
-    // preview cannot show more frames than the camera delivers.
-    config.render.previewFps =
-        config.sceneCamera.fps > 0.0 ? config.sceneCamera.fps : RenderConfig::kDefaultPreviewFps;
-
+Status ConfigReader::parseOptionalSections(const toml::table& root, ServiceConfig& config) const {
     // Optional sections: absent means the defaults (no button, no display).
     struct Optional {
         const char* key;
@@ -951,10 +984,25 @@ Result<ServiceConfig> ConfigReader::read(const toml::table& root) {
         Result<const toml::table*> t = r_.table(root, "", section.key);
         if (!t) return t.error();
         if (*t) {
-            if (Status st = section.parse(**t); !st) return st.error();
+            if (Status st = section.parse(**t); !st) return st;
         }
     }
     if (hasButton) config.button = std::move(button);
+    return {};
+}
+
+Result<ServiceConfig> ConfigReader::read(const toml::table& root) {
+    if (Status st = checkTopLevel(root); !st) return st.error();
+    ServiceConfig config;
+    config.path = r_.path();
+    if (Status st = parseScenePath(root, config); !st) return st.error();
+    if (Status st = parseCameras(root, config); !st) return st.error();
+    if (Status st = parseTrackingAndLighting(root, config); !st) return st.error();
+    // The dial aims at the scene camera's rate unless [render] preview_fps says otherwise: a
+    // preview cannot show more frames than the camera delivers.
+    config.render.previewFps =
+        config.sceneCamera.fps > 0.0 ? config.sceneCamera.fps : RenderConfig::kDefaultPreviewFps;
+    if (Status st = parseOptionalSections(root, config); !st) return st.error();
     if (Status st = parseNetworkConfig(r_, root, config.network); !st) return st.error();
     return config;
 }

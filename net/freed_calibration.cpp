@@ -878,11 +878,9 @@ Result<FreedCalibration> loadFreedCalibration(const std::string& path) {
         return s.error();
     if (Status s = r.numberIn(root, "", "mount_sigma_deg", c.mountSigmaDeg, 0.0, 360.0); !s)
         return s.error();
-    int64_t samples = 0, rejected = 0;
-    if (Status s = r.integerIn(root, "", "samples", samples, 0, INT32_MAX); !s) return s.error();
-    if (Status s = r.integerIn(root, "", "rejected", rejected, 0, INT32_MAX); !s) return s.error();
-    c.samples = int(samples);
-    c.rejected = int(rejected);
+    if (Status s = r.integerIn(root, "", "samples", c.samples, 0, INT32_MAX); !s) return s.error();
+    if (Status s = r.integerIn(root, "", "rejected", c.rejected, 0, INT32_MAX); !s)
+        return s.error();
     return c;
 }
 
