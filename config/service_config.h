@@ -67,6 +67,8 @@ struct CameraConfig {
     // [cameras.<name>.colour] ocio_config ("" = the built-in transforms) and input, as given.
     std::string colourConfigPath;
     std::string colourInput;
+    // [cameras.<name>.colour] range: how the 8-bit codes span the signal (colour/ocio_colour.h).
+    CodeRange colourRange = CodeRange::Full;
     // Whether the config gave [cameras.<name>.radiometry] or [cameras.<name>.colour]; without
     // either `radiometry` holds the sRGB defaults, a guess the tag-edge refit does not build on
     // (vision/tag_edges.h).
