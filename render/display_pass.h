@@ -32,7 +32,7 @@ struct DisplaySettings {
     // ocio_colour.h's DisplayColourTransform::lut, which says how it is applied), in place of
     // the curve and the sRGB encode; the exposure and the white balance still apply first. Null:
     // the curve. The device only: toDisplayImage knows the curve alone.
-    std::shared_ptr<const std::vector<float>> viewLut;
+    std::shared_ptr<const std::vector<float>> viewLut{};
     uint32_t viewLutSize = 0;
 };
 

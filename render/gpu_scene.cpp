@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <numbers>
 #include <utility>
 
 #include "base/log.h"
@@ -15,8 +16,7 @@ namespace previs {
 
 namespace {
 
-constexpr float kPi = 3.14159265358979f;
-constexpr float kFourPi = 4.0f * kPi;
+constexpr float kFourPi = 4.0f * std::numbers::pi_v<float>;
 
 bool materialHasSpecular(const Material& m) { return m.metallic > 0.0f || m.specular > 0.0f; }
 
@@ -283,7 +283,7 @@ Result<shader::GpuLight> coneLight(const EstimatedLightSource& e, size_t index) 
     gl.direction = -e.direction / len;  // where the light points
     gl.intensity = e.radiance;
     // Ω = 2π(1 − cos θmax).
-    gl.cosInnerCone = e.solidAngleSr / (2.0f * kPi);
+    gl.cosInnerCone = e.solidAngleSr / (2.0f * std::numbers::pi_v<float>);
     gl.cosOuterCone = 1.0f - gl.cosInnerCone;
     return gl;
 }

@@ -1,3 +1,5 @@
+#include "gpu/context.h"
+
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -5,7 +7,6 @@
 #include <numeric>
 
 #include "gpu/buffer.h"
-#include "gpu/context.h"
 
 namespace previs {
 namespace {

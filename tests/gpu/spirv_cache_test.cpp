@@ -1,3 +1,5 @@
+#include "gpu/spirv_cache.h"
+
 #include <gtest/gtest.h>
 
 #include <array>
@@ -7,7 +9,6 @@
 #include <thread>
 #include <vector>
 
-#include "gpu/spirv_cache.h"
 #include "gpu/spirv_specialise.h"
 #include "specialise_probe.spv.h"
 #include "tests/support/temp_dir.h"

@@ -1,6 +1,8 @@
 // The denoiser (render/denoiser.h, gpu/shaders/denoise.comp): exact where the signal is flat,
 // never touching the plate, edges kept, and measured bias: converging to the undenoised image at
 // high sample counts, reducing the error at low ones. Tolerances come from the measured noise.
+#include "shared/denoise.h"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -9,7 +11,6 @@
 #include <glm/gtc/matrix_transform.hpp>
 #include <random>
 
-#include "shared/denoise.h"
 #include "tests/integrator/gpu_fixture.h"
 #include "tests/support/scene_builders.h"
 

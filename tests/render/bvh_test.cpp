@@ -1,6 +1,8 @@
 // The BVH builder and the shared ray casting of gpu/shaders/shared/ray_tracing.h, run on the CPU
 // through CpuTracer: traversal against brute force, watertightness on shared edges and vertices,
 // self-intersection avoidance at millimetre and kilometre scales, SAH quality and degenerate input.
+#include "render/bvh.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -9,7 +11,6 @@
 #include <random>
 #include <tuple>
 
-#include "render/bvh.h"
 #include "render/cpu_tracer.h"
 #include "render/ply_reader.h"
 #include "tests/support/test_data.h"

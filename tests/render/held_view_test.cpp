@@ -1,8 +1,8 @@
 // The held view's bookkeeping (render/held_view.h): where a frame's samples are kept, and how
 // they join a frame's estimate.
-#include <gtest/gtest.h>
-
 #include "render/held_view.h"
+
+#include <gtest/gtest.h>
 
 namespace previs {
 namespace {

@@ -4,13 +4,14 @@
 // shadow ray — so the test checks the fit's model (coarse map, a cluster's brightest texels)
 // as well as its solver.
 
+#include "render/lighting_fit.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <random>
 
 #include "render/cpu_tracer.h"
-#include "render/lighting_fit.h"
 
 namespace previs {
 namespace {

@@ -1,12 +1,12 @@
 // The dial's choosing (render/quality_dial.h): the Pareto front against a brute-force check on
 // random measurements, the choice for a frame rate, and the grid neighbours the bench reports.
+#include "render/quality_dial.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <limits>
 #include <random>
-
-#include "render/quality_dial.h"
 
 namespace previs {
 namespace {

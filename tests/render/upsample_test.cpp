@@ -1,5 +1,7 @@
 // Joint bilateral upsampling (render/upsample.h) and the 8-bit encode table (render/tonemap.h):
 // the cases that must be exact, and the edge-keeping the plate guide is there for.
+#include "render/upsample.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -7,7 +9,6 @@
 #include <random>
 
 #include "render/tonemap.h"
-#include "render/upsample.h"
 
 namespace previs {
 namespace {

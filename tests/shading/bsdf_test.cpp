@@ -1,6 +1,8 @@
 // The shading math of trace_paths.comp, run on the CPU from the same headers: sampling warps and
 // BSDF lobes against their stated densities (chi-square), energy conservation, reciprocity and
 // the exact limit cases of DESIGN.md §4.
+#include "shared/bsdf.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -9,7 +11,6 @@
 #include <random>
 #include <vector>
 
-#include "shared/bsdf.h"
 #include "shared/sampling.h"
 #include "shared/specular_albedo.h"
 #include "tests/support/chi2.h"

@@ -2,12 +2,13 @@
 // matrices against Joe & Kuo's primitive polynomials, the stratification Owen scrambling must
 // keep (exact net properties, not statistics), the range of the values, and the randomisation
 // that makes the estimates unbiased and the pixels independent.
+#include "shared/sampler.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <vector>
 
-#include "shared/sampler.h"
 #include "tests/support/chi2.h"
 
 namespace previs::testing {
