@@ -98,6 +98,48 @@ TEST(OcioCameraCurves, TheBuiltinTransformsStyleNamesTheSameSpace) {
     for (int c = 0; c < 3; ++c) EXPECT_FLOAT_EQ(a[c], b[c]);
 }
 
+// Video levels (issue 54): black at code 16 and white at 235, each of R, G, B; codes outside
+// are kept (a super-white is picture), through the 8-bit path and the float one alike.
+TEST(OcioCameraRange, LegalRangeMapsSixteenToBlackAndTwoThirtyFiveToWhiteWithoutClipping) {
+    Result<std::shared_ptr<const CameraColourTransform>> legal =
+        CameraColourTransform::create(kBuiltin, kWorkingColourSpace, CodeRange::Legal);
+    ASSERT_TRUE(legal) << legal.message();
+    EXPECT_NE((*legal)->description().find("legal range"), std::string::npos);
+    const std::array<uint8_t, 6> codes{0, 8, 16, 126, 235, 255};
+    std::vector<uint8_t> rgb8;
+    std::vector<float> asFloats;
+    for (uint8_t c : codes) {
+        rgb8.insert(rgb8.end(), {c, c, c});
+        asFloats.insert(asFloats.end(), {c / 255.0f, c / 255.0f, c / 255.0f});
+    }
+    std::vector<float> linear(rgb8.size());
+    (*legal)->apply8(rgb8.data(), std::ptrdiff_t(rgb8.size()), linear.data(),
+                     std::ptrdiff_t(linear.size() * sizeof(float)), int(codes.size()), 1);
+    (*legal)->applyFloat(asFloats.data(), int(codes.size()), 1,
+                         std::ptrdiff_t(asFloats.size() * sizeof(float)));
+    for (size_t i = 0; i < codes.size(); ++i)
+        for (int c = 0; c < 3; ++c) {
+            const float expected = (float(codes[i]) - 16.0f) / 219.0f;  // 16 → 0, 235 → 1
+            EXPECT_NEAR(linear[3 * i + c], expected, 1e-5f) << int(codes[i]);
+            EXPECT_NEAR(asFloats[3 * i + c], expected, 1e-5f) << int(codes[i]);
+        }
+}
+
+TEST(OcioCameraRange, ALegalRec709CameraKeepsItsSuperWhitesAboveDiffuseWhite) {
+    const auto full = camera("Rec.709 - Camera");
+    Result<std::shared_ptr<const CameraColourTransform>> legal =
+        CameraColourTransform::create(kBuiltin, "Rec.709 - Camera", CodeRange::Legal);
+    ASSERT_TRUE(full && legal) << (legal ? "" : legal.message());
+    // Legal 16 and 235 are the full-range curve's 0 and 1.
+    EXPECT_NEAR(decode(**legal, {16 / 255.0f, 16 / 255.0f, 16 / 255.0f})[0], 0.0f, 1e-5f);
+    EXPECT_NEAR(decode(**legal, {235 / 255.0f, 235 / 255.0f, 235 / 255.0f})[0],
+                decode(*full, {1.0f, 1.0f, 1.0f})[0], 1e-5f);
+    // 255 is (255 − 16)/219 = 1.091 of the signal: the BT.709 OETF inverted there, above 1.
+    const float superWhite = decode(**legal, {1.0f, 1.0f, 1.0f})[1];
+    EXPECT_NEAR(superWhite, std::pow((239.0f / 219.0f + 0.099f) / 1.099f, 1.0f / 0.45f), 1e-4f);
+    EXPECT_GT(superWhite, 1.15f);
+}
+
 // Truth in the working space: greys from 0.01 to `brightest` and a few colours a set has.
 std::vector<std::array<float, 3>> truthPixels(float brightest) {
     std::vector<std::array<float, 3>> pixels;

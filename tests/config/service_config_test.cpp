@@ -286,6 +286,9 @@ position_m = [1, 0, 0]
         {"unknown_view",
          minimal("", "[output.colour]\ndisplay = \"sRGB\"\nview = \"Filmic\""),
          {"'output.colour.view' is 'Filmic'", "\"ACES 1.0 - SDR Video\""}},
+        {"unknown_range",
+         minimal("[cameras.scene.colour]\ninput = \"Rec.709 - Camera\"\nrange = \"video\""),
+         {"line 10", "'cameras.scene.colour.range' is 'video'", "\"legal\""}},
         {"colour_typo",
          minimal("[cameras.scene.colour]\ninput_space = \"ACEScct\""),
          {"unknown key 'input_space' in [cameras.scene.colour]"}},
@@ -457,6 +460,24 @@ TEST(ServiceConfig, CameraColourSummaryNamesEachCamerasInput) {
     ASSERT_TRUE(c) << c.message();
     EXPECT_EQ(cameraColourSummary(*c),
               "scene camera 'Sony S-Log3 S-Gamut3' from OCIO's built-in transforms");
+}
+
+// [cameras.<name>.colour] range = "legal": video levels undone before the input transform.
+TEST(ServiceConfig, ALegalRangeCameraDecodesVideoLevels) {
+    Result<ServiceConfig> c = loadServiceConfig(
+        writeFile("colour_legal.toml", minimal("[cameras.scene.colour]\ninput = \"Rec.709 - "
+                                               "Camera\"\nrange = \"legal\"")));
+    ASSERT_TRUE(c) << c.message();
+    EXPECT_EQ(c->sceneCamera.colourRange, CodeRange::Legal);
+    EXPECT_EQ(cameraColourSummary(*c),
+              "scene camera 'Rec.709 - Camera' from OCIO's built-in transforms, legal range "
+              "(16-235)");
+    const std::array<float, 3> black =
+        inverseToneMapRgb({16 / 255.0f, 16 / 255.0f, 16 / 255.0f}, c->sceneCamera.radiometry);
+    const std::array<float, 3> white =
+        inverseToneMapRgb({235 / 255.0f, 235 / 255.0f, 235 / 255.0f}, c->sceneCamera.radiometry);
+    EXPECT_NEAR(black[1], 0.0f, 1e-5f);
+    EXPECT_NEAR(white[1], 1.0f, 1e-4f);
 }
 
 TEST(ServiceConfig, ServiceSectionsParse) {
