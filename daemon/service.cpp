@@ -168,10 +168,7 @@ std::string Service::startingNow() const {
         done = startStepsDone_;
         steps = startSteps_;
     }
-    // The GPU context counts its compiles on the render stage (base/stage_watch.h).
-    if (stage == PipelineStartHooks::kCompilingStage)
-        return fmt::format("{}: {} done", stage, threads_->renderStage.longerSteps());
-    // A stage that counts its steps (the dial's settings) says how far it is.
+    // A stage that counts its steps (the pipelines, the dial's settings) says how far it is.
     if (steps > 0) stage = fmt::format("{}: {}/{}", stage, done, steps);
     const double seconds = std::chrono::duration<double>(Clock::now() - since).count();
     if (seconds >= 2.0) return fmt::format("{}, {:.0f} s so far", stage, seconds);

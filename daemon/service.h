@@ -35,7 +35,7 @@ namespace previs {
 struct ServiceStatus {
     // "starting" from the moment the control socket and the page answer until the pipeline runs
     // (issue 54), then "running"; `starting` says what the start is doing meanwhile
-    // ("compiling pipelines (3 compiled)"), empty once running.
+    // ("compiling pipelines: 3/12"), empty once running.
     std::string state = "running";
     std::string starting;
     Mode mode = Mode::Preview;

@@ -90,6 +90,7 @@ Result<ComputePipeline> ComputePipeline::create(GpuContext& ctx, std::span<const
     } catch (const std::exception& e) {
         return makeError("cannot create compute pipeline '{}': {}", label, e.what());
     }
+    ctx.pipelineCompiled();
     return p;
 }
 

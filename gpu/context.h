@@ -68,6 +68,15 @@ public:
     void setStage(Stage* stage) { stage_ = stage; }
     Stage* stage() const { return stage_; }
     static constexpr std::chrono::minutes kCompileAllowance{10};
+    // Called after each pipeline this context compiles (ComputePipeline::create), on the
+    // compiling thread: whoever waits for a batch of compiles counts them (Renderer::create's
+    // progress). One listener at a time; empty: none.
+    void setCompileListener(std::function<void()> listener) {
+        compileListener_ = std::move(listener);
+    }
+    void pipelineCompiled() const {
+        if (compileListener_) compileListener_();
+    }
 
 private:
     GpuContext() = default;
@@ -92,6 +101,7 @@ private:
     double timestampPeriodNs_ = 0.0;
     std::atomic<uint32_t> validationErrors_{0};
     Stage* stage_ = nullptr;
+    std::function<void()> compileListener_;
     std::chrono::milliseconds fenceTimeout_{};
     std::atomic<bool> deviceLost_{false};
 };

@@ -34,6 +34,8 @@ class Denoiser {
 public:
     static Result<Denoiser> create(GpuContext& ctx, uint32_t width, uint32_t height,
                                    const DenoiseSettings& settings = {});
+    // The pipelines create() compiles: denoise.comp's four stages.
+    static constexpr size_t kPipelineCount = 4;
 
     Denoiser(Denoiser&&) = default;
     Denoiser& operator=(Denoiser&&) = default;

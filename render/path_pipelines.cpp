@@ -26,9 +26,17 @@ std::array<BindingKind, PV_BINDING_COUNT> pathBindings() {
 
 }  // namespace
 
-Status PathPipelines::ensure(const PipelineConstants& constants) {
+bool PathPipelines::current(const PipelineConstants& constants) const {
     const bool photonsComplete = !constants[PV_SPEC_PHOTONS] || photons_;
-    if (paths_ && photonsComplete && constants == constants_) return {};
+    return paths_ && photonsComplete && constants == constants_;
+}
+
+size_t PathPipelines::pipelineCount(const PipelineConstants& constants) {
+    return 1 + (constants[PV_SPEC_PHOTONS] ? PhotonPasses::kPipelineCount : 0);
+}
+
+Status PathPipelines::ensure(const PipelineConstants& constants) {
+    if (current(constants)) return {};
     return compile(constants);
 }
 

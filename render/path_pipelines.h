@@ -32,6 +32,10 @@ public:
     // set's or no complete set exists (a failed compile leaves none, so the next call compiles
     // again). PV_SPEC_PHOTONS adds the photon passes, which share trace_paths' scene layout.
     Status ensure(const PipelineConstants& constants);
+    // Whether ensure(constants) has nothing to compile.
+    bool current(const PipelineConstants& constants) const;
+    // The pipelines a set for `constants` compiles (trace_paths, and the photon passes).
+    static size_t pipelineCount(const PipelineConstants& constants);
     // Binds buffers[i] (ranges[i] of it) at binding i of every pipeline of the set, unless the
     // set has them bound already. Nothing to do without a set.
     Status bind(std::span<const GpuBuffer* const> buffers, std::span<const BufferRange> ranges);

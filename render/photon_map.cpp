@@ -180,6 +180,7 @@ Result<PhotonPasses> PhotonPasses::create(GpuContext& ctx, std::span<const Bindi
                                           std::span<const uint32_t> sceneConstants,
                                           Specialise specialise) {
     PhotonPasses p;
+    static_assert(std::tuple_size_v<decltype(p.grid_)> + 1 == kPipelineCount);
     auto trace = ComputePipeline::create(
         ctx, std::span<const uint32_t>(trace_photons_spv, sizeof(trace_photons_spv) / 4), bindings,
         sceneConstants, "trace_photons", specialise);

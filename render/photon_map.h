@@ -81,6 +81,8 @@ std::vector<glm::uvec4> buildPhotonLights(const PhotonAim& aim,
 // The GPU passes of one photon iteration. Uses the renderer's buffers, indexed by PV_BINDING_*.
 class PhotonPasses {
 public:
+    // trace_photons and photon_grid.comp's stages.
+    static constexpr size_t kPipelineCount = 7;
     // `bindings` and `sceneConstants` are trace_paths'; trace_photons shares its scene layout.
     static Result<PhotonPasses> create(GpuContext& ctx, std::span<const BindingKind> bindings,
                                        std::span<const uint32_t> sceneConstants,

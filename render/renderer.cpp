@@ -114,10 +114,42 @@ Result<Camera> checkedCamera(const Scene& scene, const RenderSettings& settings)
     return camera;
 }
 
+// Counts the pipelines compiled on a context while it lives and tells `progress` (done of
+// total) after each (GpuContext::setCompileListener); nothing without `progress`.
+class CompileCount {
+public:
+    CompileCount(GpuContext& ctx, const Renderer::CompileProgress& progress, size_t total)
+        : ctx_(ctx), progress_(progress), total_(total) {
+        if (!progress_) return;
+        ctx_.setCompileListener([this] {
+            ++done_;
+            progress_(done_, total_);
+        });
+        progress_(done_, total_);
+    }
+    ~CompileCount() {
+        if (progress_) ctx_.setCompileListener({});
+    }
+    CompileCount(const CompileCount&) = delete;
+    CompileCount& operator=(const CompileCount&) = delete;
+    // More compiles than foreseen (create's prediction of the lights missed).
+    void expectMore(size_t n) {
+        total_ += n;
+        if (progress_) progress_(done_, total_);
+    }
+
+private:
+    GpuContext& ctx_;
+    const Renderer::CompileProgress& progress_;
+    size_t total_;
+    size_t done_ = 0;
+};
+
 }  // namespace
 
 Result<std::unique_ptr<Renderer>> Renderer::create(GpuContext& ctx, const Scene& scene,
-                                                   const RenderSettings& settings) {
+                                                   const RenderSettings& settings,
+                                                   const CompileProgress& progress) {
     Result<Camera> camera = checkedCamera(scene, settings);
     if (!camera) return camera.error();
     std::unique_ptr<Renderer> r(new Renderer());
@@ -152,7 +184,11 @@ Result<std::unique_ptr<Renderer>> Renderer::create(GpuContext& ctx, const Scene&
         r->photonsPossible(aim) && (features.emissive || !scene.lights.empty());
     auto bvh = std::async(std::launch::async, [&g] { return buildSceneBvh(g); });
     r->pipelines_.emplace(ctx, settings.specialise);
-    const Status compiled = r->pipelines_->ensure(r->pipelineConstants(features, photonsLikely));
+    const PipelineConstants predicted = r->pipelineConstants(features, photonsLikely);
+    CompileCount compiles(ctx, progress,
+                          PathPipelines::pipelineCount(predicted) +
+                              (settings.denoise ? Denoiser::kPipelineCount : 0));
+    const Status compiled = r->pipelines_->ensure(predicted);
     Result<SceneBvh> built = bvh.get();
     if (!compiled) return compiled.error();
     if (!built) return built.error();
@@ -169,6 +205,9 @@ Result<std::unique_ptr<Renderer>> Renderer::create(GpuContext& ctx, const Scene&
     r->traceLensGrid_ = settings.lensGrid;
     r->virtualBoxes_ = r->scene_->virtualBoxes(kObjectBoxLevels);
     if (Status s = r->scene_->updatePhotonLights(r->params_); !s) return s.error();
+    const PipelineConstants needed =
+        r->pipelineConstants(r->scene_->features(), r->photonsActive());
+    if (!r->pipelines_->current(needed)) compiles.expectMore(PathPipelines::pipelineCount(needed));
     if (Status s = r->ensurePipelines(); !s) return s.error();
     // The accumulation was sized for the output; a fraction shrinks it.
     r->settings_.resolutionScale = 1.0f;

@@ -29,48 +29,11 @@
 #include "render/path_pipelines.h"
 #include "render/photon_map.h"
 #include "render/render_settings.h"
+#include "render/renderer_diagnostics.h"
 #include "render/upsample.h"
 #include "scene/scene.h"
 
 namespace previs {
-
-class Renderer;
-
-// Probes into a renderer's inner state for tests and benchmarks, kept out of its API
-// (Renderer::diagnostics()). Valid while the renderer lives.
-class RendererDiagnostics {
-public:
-    explicit RendererDiagnostics(const Renderer& renderer) : r_(renderer) {}
-
-    // How often the renderer built its BVH and geometry buffers (1: only in create()).
-    uint64_t sceneBuildCount() const;
-    // How often it compiled its pipelines: 1 after create() where the constants it predicts
-    // before the BVH is built held, 2 where buildScene found otherwise.
-    uint64_t pipelineCompileCount() const;
-    // How often the GPU's origin moved since create() (Renderer::setCameraPose).
-    uint64_t recentreCount() const;
-    // The last photon iteration's records (two per photon, PV_PHOTON_* flags; empty slots have
-    // flags 0).
-    Result<std::vector<shader::PhotonRecord>> photonRecords() const;
-    // The last photon iteration's grid as the gather reads it: the records sorted by bucket,
-    // each bucket's [begin, end) in them (PV_PHOTON_BUCKETS), and the iteration's radius (the
-    // cell edge).
-    struct PhotonGrid {
-        std::vector<shader::PhotonRecord> sorted;
-        std::vector<glm::uvec2> buckets;
-        float radius = 0.0f;
-    };
-    Result<PhotonGrid> photonGrid() const;
-    // Dispatches whose loop iterations may have reached llvmpipe's limit (work silently lost);
-    // 0 unless respectCpuLoopLimit was turned off or one sample alone is too long.
-    uint64_t loopLimitRisks() const;
-    // The most loop iterations one invocation ran per sample (the dispatch sizing measure;
-    // measured on CPU devices only, 0 elsewhere).
-    double loopIterationsPerSample() const;
-
-private:
-    const Renderer& r_;
-};
 
 struct RenderProgress {
     uint64_t samplesDone;
@@ -79,8 +42,13 @@ struct RenderProgress {
 
 class Renderer {
 public:
+    // How far create() is through the pipelines it compiles: `done` of `total`, first with 0
+    // (the total is known before the first compile), then after each compile. The total grows
+    // only where the uploaded scene's lights differ from what create() predicted from the file.
+    using CompileProgress = std::function<void(size_t done, size_t total)>;
     static Result<std::unique_ptr<Renderer>> create(GpuContext& ctx, const Scene& scene,
-                                                    const RenderSettings& settings);
+                                                    const RenderSettings& settings,
+                                                    const CompileProgress& progress = {});
 
     // Adds `samples` paths per pixel to the accumulation.
     Status render(uint32_t samples,

@@ -1,5 +1,6 @@
+#include "render/renderer_diagnostics.h"
+
 #include "render/renderer.h"
-#include "shared/photon_map.h"
 
 namespace previs {
 

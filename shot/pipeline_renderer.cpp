@@ -111,9 +111,6 @@ void renderSize(const ServiceConfig& config, uint32_t& width, uint32_t& height) 
 Result<std::unique_ptr<PipelineRenderer>> PipelineRenderer::create(
     GpuContext& ctx, const Scene& scene, const ServiceConfig& config,
     const PipelineStartHooks& hooks) {
-    auto stage = [&hooks](const std::string& what) {
-        if (hooks.stage) hooks.stage(what, 0);
-    };
     std::unique_ptr<PipelineRenderer> p(new PipelineRenderer());
     renderSize(config, p->width_, p->height_);
     p->previewSamples_ = config.render.samplesPerFrame;
@@ -169,8 +166,16 @@ Result<std::unique_ptr<PipelineRenderer>> PipelineRenderer::create(
         p->sceneOriginM_ = scene.originM;
         p->lensGrid_ = std::move(*grid);
     }
-    stage(PipelineStartHooks::kCompilingStage);
-    Result<std::unique_ptr<Renderer>> renderer = Renderer::create(ctx, scene, settings);
+    // The stage counts the renderer's pipelines, whose total it knows before its first compile
+    // (and raises where its prediction from the file missed).
+    size_t compilesStaged = 0;
+    auto compiling = [&hooks, &compilesStaged](size_t done, size_t total) {
+        if (total != compilesStaged && hooks.stage)
+            hooks.stage(PipelineStartHooks::kCompilingStage, total);
+        compilesStaged = total;
+        if (hooks.progress) hooks.progress(done, total);
+    };
+    Result<std::unique_ptr<Renderer>> renderer = Renderer::create(ctx, scene, settings, compiling);
     if (!renderer) return makeError("{}: {}", config.scenePath, renderer.message());
     p->renderer_ = std::move(*renderer);
     if (hooks.interrupt) p->renderer_->setInterrupt(hooks.interrupt);

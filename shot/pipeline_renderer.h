@@ -29,8 +29,8 @@ namespace previs {
 
 // What previsd's start shows while it makes a PipelineRenderer (daemon/service.h): each slow
 // part as it begins, with how many steps it will count through `progress` (0: none), then
-// those steps (the dial's settings: done of total); and the flag that interrupts the dial's
-// renders (a SIGTERM while starting).
+// those steps (the pipelines compiled, the dial's settings: done of total); and the flag that
+// interrupts the dial's renders (a SIGTERM while starting).
 struct PipelineStartHooks {
     static constexpr const char* kCompilingStage = "compiling pipelines";
     std::function<void(const std::string& stage, size_t steps)> stage;

@@ -154,16 +154,18 @@ std::optional<nlohmann::json> waitFor(const std::string& socket, std::chrono::se
     return last;
 }
 
-// A starting text that names the dial's stage says how many of its settings are timed:
-// "timing the preview's settings for 15 fps: N/M", N <= M, perhaps ", S s so far" after.
-::testing::AssertionResult countsTheDialsSettings(const std::string& starting) {
-    const std::string stage = "timing the preview's settings for ";
-    if (!starting.starts_with(stage)) return ::testing::AssertionSuccess();
-    static const std::regex form(R"(^[^:]+ fps: ([0-9]+)/([0-9]+)(, [0-9]+ s so far)?$)");
+// A starting text that names a stage that counts its steps says how far it is: "compiling
+// pipelines: N/M" or "timing the preview's settings for 15 fps: N/M", N <= M, perhaps
+// ", S s so far" after.
+::testing::AssertionResult countsItsSteps(const std::string& starting) {
+    if (!starting.starts_with("compiling pipelines") &&
+        !starting.starts_with("timing the preview's settings for "))
+        return ::testing::AssertionSuccess();
+    static const std::regex form(R"(^[^:]+: ([0-9]+)/([0-9]+)(, [0-9]+ s so far)?$)");
     std::smatch m;
     if (!std::regex_match(starting, m, form) || std::stoul(m[1]) > std::stoul(m[2]) ||
         std::stoul(m[2]) == 0)
-        return ::testing::AssertionFailure() << "not N/M of the settings: " << starting;
+        return ::testing::AssertionFailure() << "not N/M of its steps: " << starting;
     return ::testing::AssertionSuccess();
 }
 
@@ -680,8 +682,19 @@ TEST(Previsd, AnswersWhileStartingRefusesASecondOneAndStopsOnSigterm) {
                s["starting"].get<std::string>().starts_with("timing the preview");
     });
     ASSERT_TRUE(timing && (*timing)["state"] == "starting") << (timing ? timing->dump() : p.log());
-    // The last one seen is the dial's: at least one "N/M" is checked.
-    for (const std::string& starting : seen) EXPECT_TRUE(countsTheDialsSettings(starting));
+    // The last one seen is the dial's: at least one "N/M" is checked. The compiles' counts are
+    // also logged as they change ("starting: compiling pipelines: N/M"): one at least, polled
+    // or logged, however fast the compiles went.
+    for (const std::string& starting : seen) EXPECT_TRUE(countsItsSteps(starting));
+    const std::string log = p.log();
+    static const std::regex compiling(R"(starting: (compiling pipelines: [^\n]*))");
+    size_t compileCounts = 0;
+    for (auto m = std::sregex_iterator(log.begin(), log.end(), compiling);
+         m != std::sregex_iterator(); ++m, ++compileCounts)
+        EXPECT_TRUE(countsItsSteps((*m)[1].str()));
+    for (const std::string& starting : seen)
+        compileCounts += starting.starts_with("compiling pipelines: ");
+    EXPECT_GE(compileCounts, 1u) << log;
     const auto stopAt = std::chrono::steady_clock::now();
     p.signal(SIGTERM);
     std::optional<int> code = p.wait(30s);

@@ -354,6 +354,31 @@ TEST_F(IntegratorTest, DispatchesStayInsideTheCpuDeviceLoopLimit) {
 
 // A Lambertian plane (albedo ρ) under a point light of intensity I at height h:
 // L = ρ/π · I cosθ / d² = ρ I h / (π d³) (inverse-square cosine law).
+// previsd's start says "compiling pipelines: N/M" from Renderer::create's progress: the total
+// before the first compile, then one step per pipeline up to it. A mirror lit by a point light
+// with photons on and the denoiser compiles trace_paths, the 7 photon passes and the
+// denoiser's 4 stages.
+TEST_F(IntegratorTest, CreateCountsItsPipelinesUpToATotalKnownFirst) {
+    Scene s;
+    addSphere(s, glm::vec3(0.0f), 1.0f, addMaterial(s, mirror()));
+    PunctualLight light;
+    light.position = {0.0f, 3.0f, 0.0f};
+    s.lights.push_back(light);
+    s.cameras.push_back(lookAt({0, 0, 4}, {0, 0, 0}, {0, 1, 0}, radians(40)));
+    RenderSettings rs;
+    rs.width = rs.height = 16;
+    rs.photons.mode = PhotonMode::On;
+    rs.denoise = true;
+    std::vector<std::pair<size_t, size_t>> heard;
+    auto r = Renderer::create(
+        ctx(), s, rs, [&heard](size_t done, size_t total) { heard.emplace_back(done, total); });
+    ASSERT_TRUE(r) << r.message();
+    ASSERT_EQ(heard.size(), 13u);
+    for (size_t i = 0; i < heard.size(); ++i)
+        EXPECT_EQ(heard[i], std::pair(i, size_t(12))) << "call " << i;
+    EXPECT_TRUE((*r)->photonsActive());
+}
+
 TEST_F(IntegratorTest, PointLightFollowsInverseSquareCosineLaw) {
     const float h = 1.0f, intensity = 10.0f, rho = 0.75f;
     Scene s;
