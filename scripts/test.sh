@@ -74,7 +74,10 @@ for config in release asan; do
     # tests of whole services (vm-release: minutes under an emulated CPU with ASan; the optimised
     # previsd runs end to end in previsd_vm) and the tree checks (lint). The host tests run only
     # sanitized: in both stages they took 189 CPU-s more (ctest -L unit, optimised, 2026-12-06).
-    target=() select=(-L '^(gpu|vm-release|lint)$') next=(asan previs_sanitized_tests)
+    # The release build builds previs_release_stage: every target but the test binaries only
+    # the sanitized stage runs (tests/CMakeLists.txt).
+    target=(previs_release_stage) select=(-L '^(gpu|vm-release|lint)$')
+    next=(asan previs_sanitized_tests)
     if [[ $config == asan ]]; then
         target=(previs_sanitized_tests)
         select=(-L '^(unit|vm|gpu-sanitized)$')
