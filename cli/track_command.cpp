@@ -68,45 +68,100 @@ void printText(const std::string& image, const std::vector<TagDetection>& detect
     }
 }
 
-int run(TrackOptions& o) {
-    // Our own messages name the file and the fix; OpenCV's console warnings would only repeat them.
-    cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);
-    if (Status s = o.toneCurve.buildColour(); !s) {
-        logError("{}", s.message());
-        return 2;
+void printJson(const std::string& image, const std::vector<TagDetection>& detections,
+               const std::vector<std::optional<cv::Matx44d>>& tagPoses,
+               const std::optional<BoardPose>& pose) {
+    nlohmann::ordered_json out;
+    out["image"] = image;
+    out["detections"] = nlohmann::ordered_json::array();
+    for (size_t i = 0; i < detections.size(); ++i) {
+        const TagDetection& d = detections[i];
+        nlohmann::ordered_json j;
+        j["id"] = d.id;
+        j["corners"] = nlohmann::ordered_json::array();
+        for (const cv::Point2d& c : d.corners) j["corners"].push_back({c.x, c.y});
+        j["margin"] = d.margin;
+        if (tagPoses[i]) j["cameraFromTag"] = matrixJson(*tagPoses[i]);
+        out["detections"].push_back(j);
     }
-    auto calib = CameraCalibration::load(o.camera);
-    if (!calib) {
-        logError("--camera: {}", calib.message());
-        return 2;
+    if (pose) {
+        out["pose"] = {{"worldFromCamera", matrixJson(pose->worldFromCamera)},
+                       {"reprojErrorPx", pose->reprojErrorPx},
+                       {"tags", pose->tagIds}};
+    } else {
+        out["pose"] = nullptr;
     }
+    std::printf("%s\n", out.dump().c_str());
+}
+
+// What every image is tracked with, built from the options before the first image.
+struct Tracker {
+    CameraCalibration calibration;
     std::optional<TagBoard> board;
-    if (!o.board.empty()) {
-        auto loaded = loadTagBoard(o.board);
-        if (!loaded) {
-            logError("--board: {}", loaded.message());
-            return 2;
-        }
-        board = std::move(loaded).value();
-        if (!board->family().empty()) {
-            if (o.familyGiven && board->family() != o.family) {
-                logError(
-                    "--family {} disagrees with the board file {} (family = \"{}\"); drop "
-                    "--family or fix the board",
-                    o.family, o.board, board->family());
-                return 2;
-            }
-            o.family = board->family();
-        }
+    TagDetector detector;
+};
+
+// The board file's family wins when --family is not given, and must agree when it is.
+Result<std::optional<TagBoard>> loadBoard(TrackOptions& o) {
+    if (o.board.empty()) return std::optional<TagBoard>();
+    auto board = loadTagBoard(o.board);
+    if (!board) return makeError("--board: {}", board.message());
+    if (!board->family().empty()) {
+        if (o.familyGiven && board->family() != o.family)
+            return makeError(
+                "--family {} disagrees with the board file {} (family = \"{}\"); drop "
+                "--family or fix the board",
+                o.family, o.board, board->family());
+        o.family = board->family();
     }
+    return std::optional<TagBoard>(std::move(board).value());
+}
+
+Result<Tracker> makeTracker(TrackOptions& o) {
+    if (Status s = o.toneCurve.buildColour(); !s) return s.error();
+    auto calibration = CameraCalibration::load(o.camera);
+    if (!calibration) return makeError("--camera: {}", calibration.message());
+    auto board = loadBoard(o);
+    if (!board) return board.error();
     o.detector.family = o.family;
     o.detector.refineEdges = o.refineEdges != 0;
     auto detector = TagDetector::create(o.detector);
-    if (!detector) {
-        logError("{}", detector.message());
+    if (!detector) return detector.error();
+    return Tracker{std::move(calibration).value(), std::move(board).value(),
+                   std::move(detector).value()};
+}
+
+// Empty when the file cannot be read or decoded (imread throws on some corrupt files: caught
+// here, at the edge).
+cv::Mat readGray(const std::string& path) {
+    try {
+        return cv::imread(path, cv::IMREAD_GRAYSCALE);
+    } catch (const cv::Exception& e) {
+        return cv::Mat();
+    }
+}
+
+// The camera's pose in the board's frame or, with no board, in the first detected tag's.
+std::optional<BoardPose> cameraPose(const Tracker& tracker, const TrackOptions& o,
+                                    const std::vector<TagDetection>& detections,
+                                    const std::string& path) {
+    if (tracker.board) return estimateBoardPose(detections, *tracker.board, tracker.calibration);
+    if (!o.tagSizeM || detections.empty()) return std::nullopt;
+    auto single = TagBoard::create({BoardTag{detections[0].id, *o.tagSizeM}}, path);
+    if (!single) return std::nullopt;
+    std::vector<TagDetection> first{detections[0]};
+    return estimateBoardPose(first, *single, tracker.calibration);
+}
+
+int run(TrackOptions& o) {
+    // Our own messages name the file and the fix; OpenCV's console warnings would only repeat them.
+    cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);
+    Result<Tracker> tracker = makeTracker(o);
+    if (!tracker) {
+        logError("{}", tracker.message());
         return 2;
     }
-
+    const CameraCalibration& calib = tracker->calibration;
     const LinearFromCode table = linearFromCodeTable(o.toneCurve.inverse());
     const bool refit = o.linearEdges && o.curveGiven;
     // Said once, with the first image that decodes: a run that only fails says one line.
@@ -115,13 +170,7 @@ int run(TrackOptions& o) {
     ProgressLine progress("track", o.quiet);
     for (size_t n = 0; n < o.images.size(); ++n) {
         const std::string& path = o.images[n];
-        cv::Mat gray;
-        // imread throws on some corrupt files: caught here, at the edge.
-        try {
-            gray = cv::imread(path, cv::IMREAD_GRAYSCALE);
-        } catch (const cv::Exception& e) {
-            gray.release();
-        }
+        cv::Mat gray = readGray(path);
         if (gray.empty()) {
             logError("{}: cannot decode the image (not found, or not a format OpenCV reads)", path);
             ++failures;
@@ -134,58 +183,25 @@ int run(TrackOptions& o) {
                 "radiometry) or --colour (its OCIO colour space) to re-fit them in linear light");
             toldCurve = true;
         }
-        if (gray.size() != calib->imageSize())
+        if (gray.size() != calib.imageSize())
             logWarning(
                 "{}: image is {}x{} but {} was calibrated at {}x{}; the pose will be wrong "
                 "unless the calibration is scaled",
-                path, gray.cols, gray.rows, o.camera, calib->imageSize().width,
-                calib->imageSize().height);
-        std::vector<TagDetection> detections = detector->detect(gray);
+                path, gray.cols, gray.rows, o.camera, calib.imageSize().width,
+                calib.imageSize().height);
+        std::vector<TagDetection> detections = tracker->detector.detect(gray);
         if (refit)
-            refineTagCornersInLinearLight(detections, gray, table, detector->border(), &*calib);
-
+            refineTagCornersInLinearLight(detections, gray, table, tracker->detector.border(),
+                                          &calib);
         std::vector<std::optional<cv::Matx44d>> tagPoses(detections.size());
         if (o.tagSizeM)
             for (size_t i = 0; i < detections.size(); ++i)
-                tagPoses[i] = estimateTagPose(detections[i], *calib, *o.tagSizeM);
-
-        std::optional<BoardPose> pose;
-        if (board) {
-            pose = estimateBoardPose(detections, *board, *calib);
-        } else if (o.tagSizeM && !detections.empty()) {
-            // No board: the world is the first detected tag's frame.
-            auto single = TagBoard::create({BoardTag{detections[0].id, *o.tagSizeM}}, path);
-            if (single) {
-                std::vector<TagDetection> first{detections[0]};
-                pose = estimateBoardPose(first, *single, *calib);
-            }
-        }
-
-        if (o.json) {
-            nlohmann::ordered_json out;
-            out["image"] = path;
-            out["detections"] = nlohmann::ordered_json::array();
-            for (size_t i = 0; i < detections.size(); ++i) {
-                const TagDetection& d = detections[i];
-                nlohmann::ordered_json j;
-                j["id"] = d.id;
-                j["corners"] = nlohmann::ordered_json::array();
-                for (const cv::Point2d& c : d.corners) j["corners"].push_back({c.x, c.y});
-                j["margin"] = d.margin;
-                if (tagPoses[i]) j["cameraFromTag"] = matrixJson(*tagPoses[i]);
-                out["detections"].push_back(j);
-            }
-            if (pose) {
-                out["pose"] = {{"worldFromCamera", matrixJson(pose->worldFromCamera)},
-                               {"reprojErrorPx", pose->reprojErrorPx},
-                               {"tags", pose->tagIds}};
-            } else {
-                out["pose"] = nullptr;
-            }
-            std::printf("%s\n", out.dump().c_str());
-        } else {
+                tagPoses[i] = estimateTagPose(detections[i], calib, *o.tagSizeM);
+        const std::optional<BoardPose> pose = cameraPose(*tracker, o, detections, path);
+        if (o.json)
+            printJson(path, detections, tagPoses, pose);
+        else
             printText(path, detections, tagPoses, pose);
-        }
         std::fflush(stdout);
         if (o.images.size() > 1)
             progress.update(fmt::format("{}/{} {}", n + 1, o.images.size(), path));
