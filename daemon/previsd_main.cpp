@@ -147,13 +147,12 @@ int run(const std::string& configPath, bool checkOnly, const std::string& unitsD
     // Before any thread starts, so that only run()'s signalfd sees these.
     blockServiceSignals();
     raiseOpenFileLimit();
-    bool userError = false;
     // The control socket and the web port first: a second previsd is refused before the slow
     // start, which run() does while both answer "starting".
-    Result<std::unique_ptr<Service>> service = Service::open(*config, &userError);
+    Result<std::unique_ptr<Service>> service = Service::open(*config);
     if (!service) {
         logError("{}", service.message());
-        return userError ? 2 : 1;
+        return exitCodeOf(service.error());
     }
     return (*service)->run();
 }

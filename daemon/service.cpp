@@ -15,6 +15,7 @@
 #include <cstring>
 #include <filesystem>
 #include <nlohmann/json.hpp>
+#include <tuple>
 
 #include "base/guarded_thread.h"
 #include "base/latest_value_slot.h"
@@ -114,10 +115,9 @@ Service::~Service() {
     if (threads_) threads_->stopAll();
 }
 
-Result<std::unique_ptr<Service>> Service::open(const ServiceConfig& config, bool* userError) {
+Result<std::unique_ptr<Service>> Service::open(const ServiceConfig& config) {
     // The control socket and the port are the config's (exit 2): checked before any slow work,
     // so a second previsd on them is refused at once.
-    if (userError) *userError = true;
     std::unique_ptr<Service> service(new Service(config));
     Threads& t = *service->threads_;
     Service* self = service.get();
@@ -127,18 +127,18 @@ Result<std::unique_ptr<Service>> Service::open(const ServiceConfig& config, bool
     Result<std::unique_ptr<ControlServer>> control = ControlServer::create(
         controlSocketPath(config.control),
         [self](const std::string& command) { return self->handleCommand(command); });
-    if (!control) return control.error();
+    if (!control) return withKind(control.error(), Error::Kind::Config);
     t.control = std::move(*control);
-    if (Status st = t.openWeb(config.network.web, self); !st) return st.error();
-    if (userError) *userError = false;
+    if (Status st = t.openWeb(config.network.web, self); !st)
+        return withKind(st.error(), Error::Kind::Config);
     logInfo("serving {} (control socket {}); starting", config.path, t.control->path());
     return service;
 }
 
-Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config, bool* userError) {
-    Result<std::unique_ptr<Service>> service = open(config, userError);
+Result<std::unique_ptr<Service>> Service::create(const ServiceConfig& config) {
+    Result<std::unique_ptr<Service>> service = open(config);
     if (!service) return service;
-    if (Status s = (*service)->start(userError); !s) return s.error();
+    if (Status s = (*service)->start(); !s) return s.error();
     return service;
 }
 
@@ -175,27 +175,25 @@ std::string Service::startingNow() const {
     return stage;
 }
 
-Status Service::start(bool* userError) {
+Status Service::start() {
     // Most failures here are the config's (a scene, a connector, a GPIO line): exit 2, which
-    // systemd does not restart. The GPU and the cameras' threads are runtime's.
-    bool ignored = false;
-    bool& configError = userError ? *userError : ignored;
+    // systemd does not restart. The GPU is the device's; the renderer and the cameras' threads
+    // are runtime's.
     const ServiceConfig& config = config_;
     const Error stopped = makeError("stopped while starting");
-    configError = true;
     Threads& t = *threads_;
     t.refine = config.refine;
     t.previewSamples = config.render.samplesPerFrame;
 
     if (!beginStartStage("loading the scene " + config.scenePath)) return stopped;
     Result<Scene> scene = loadScene(config.scenePath);
-    if (!scene) return scene.error();
+    if (!scene) return withKind(scene.error(), Error::Kind::Config);
     // What would cross MemoryMax= is refused now, not found by the OOM killer mid-take.
-    if (Status s = checkMemoryBudget(*scene, config, cgroupMemoryLimit()); !s) return s.error();
-    configError = false;
+    if (Status s = checkMemoryBudget(*scene, config, cgroupMemoryLimit()); !s)
+        return withKind(s.error(), Error::Kind::Config);
     if (!beginStartStage("opening the GPU")) return stopped;
     Result<std::unique_ptr<GpuContext>> gpu = GpuContext::create({});
-    if (!gpu) return gpu.error();
+    if (!gpu) return withKind(gpu.error(), Error::Kind::Device);
     t.gpu = std::move(*gpu);
     // From the first compile on: a compile extends the step (GpuContext::setStage), and the
     // start's status counts them.
@@ -215,13 +213,13 @@ Status Service::start(bool* userError) {
     if (t.stopping.load()) return stopped;
     if (!renderer) return renderer.error();
     t.renderer = std::move(*renderer);
-    configError = true;
     // With [render] preview_fps the dial chose the preview's samples (PipelineRenderer).
     t.previewSamples = t.renderer->previewSamples();
     logInfo("render: {}x{} on {}, {} spp per preview frame", t.renderer->width(),
             t.renderer->height(), t.gpu->deviceName(), t.previewSamples);
-    if (Status s = startStages(configError); !s) return s;
-    if (Status s = startThreads(configError); !s) return s;
+    // What the stages open (tracking, network, display, button) the config names.
+    if (Status s = startStages(); !s) return withKind(s.error(), Error::Kind::Config);
+    if (Status s = startThreads(); !s) return s;
     // Everything status() and the commands read exists from here on.
     running_.store(true, std::memory_order_release);
     logInfo("running: started in {:.1f} s",
@@ -233,7 +231,7 @@ Status Service::start(bool* userError) {
     return {};
 }
 
-Status Service::startStages(bool& configError) {
+Status Service::startStages() {
     const ServiceConfig& config = config_;
     Threads& t = *threads_;
     const Error stopped = makeError("stopped while starting");
@@ -291,7 +289,6 @@ Status Service::startStages(bool& configError) {
         TrackingOut::create(config.network, config.sceneCamera, t.passedSockets);
     if (!trackingOut) return trackingOut.error();
     t.trackingOut = std::move(*trackingOut);
-    configError = false;
     return {};
 }
 
@@ -330,12 +327,11 @@ Status Service::openButton(const ButtonConfig& b) {
     return {};
 }
 
-Status Service::startThreads(bool& configError) {
+Status Service::startThreads() {
     const ServiceConfig& config = config_;
     Threads& t = *threads_;
     if (!beginStartStage("opening the cameras")) return makeError("stopped while starting");
     // Cameras: once they stream, frames flow into the stages (and into a take while one rolls).
-    configError = false;
     t.recorder->setTimecodeSource(t.timecode.get());
     TakeRecorder* recorder = t.recorder.get();
     t.sceneCamera = makeCameraSource(
@@ -498,6 +494,18 @@ Result<std::string> Service::reload() {
         n.output.card != config_.output.card || n.output.connector != config_.output.connector ||
         n.output.mode != config_.output.mode)
         restart.push_back("output");
+    // OpenColorIO's transforms are built into the stages, the renderer and the display at start
+    // (issue 54): a colour change is named, never silently ignored.
+    auto colourKey = [](const CameraConfig& c) { return c.colourConfigPath + "|" + c.colourInput; };
+    if (colourKey(n.sceneCamera) != colourKey(config_.sceneCamera))
+        restart.push_back("cameras.scene.colour");
+    if (n.fisheyeCamera && config_.fisheyeCamera &&
+        colourKey(*n.fisheyeCamera) != colourKey(*config_.fisheyeCamera))
+        restart.push_back("cameras.fisheye.colour");
+    if (std::tie(n.output.colourConfigPath, n.output.colourDisplay, n.output.colourView) !=
+        std::tie(config_.output.colourConfigPath, config_.output.colourDisplay,
+                 config_.output.colourView))
+        restart.push_back("output.colour");
     if (n.button.has_value() != config_.button.has_value() ||
         (n.button &&
          (n.button->chip != config_.button->chip || n.button->line != config_.button->line)))
@@ -525,11 +533,10 @@ std::optional<int> Service::startAnsweringSignals(int signalFd) {
         return 1;
     }
     Status result;
-    bool userError = false;
     std::thread starter([&] {
         nameThread("pv-start");
         runGuarded(
-            "start", [&] { result = start(&userError); },
+            "start", [&] { result = start(); },
             [&](const std::string& why) { result = makeError("{}", why); });
         const uint64_t one = 1;
         [[maybe_unused]] ssize_t n = ::write(started.get(), &one, sizeof(one));
@@ -577,7 +584,7 @@ std::optional<int> Service::startAnsweringSignals(int signalFd) {
     if (!result) {
         logError("{}", result.message());
         t.stopAll();
-        return userError ? 2 : 1;
+        return exitCodeOf(result.error());
     }
     return std::nullopt;
 }

@@ -110,17 +110,19 @@ std::string statusJson(const ServiceStatus& status);
 // "PREVIEW 1 spp 9.8 fps", "REFINE 256 spp noise 1.8% ETA 12 s 2.0 fps" — the display overlay.
 std::string statusLine(const ServiceStatus& status);
 
+// previsd's exit code for a failed start (DESIGN.md: 2 for the config's errors, which systemd does
+// not restart; 1 for the device's and the others).
+inline int exitCodeOf(const Error& error) { return error.kind == Error::Kind::Config ? 2 : 1; }
+
 class Service {
 public:
     // Opens what answers at once, the control socket and the web monitor, so that a second
     // previsd on the same socket or port is refused before any slow work; status says "starting"
-    // until run() has started the rest. `userError` (optional) tells a failure the config caused
-    // (exit 2) from a runtime one (exit 1).
-    static Result<std::unique_ptr<Service>> open(const ServiceConfig& config,
-                                                 bool* userError = nullptr);
+    // until run() has started the rest. An error's kind tells a failure the config caused
+    // (Error::Kind::Config, exit 2) from the others (exit 1): exitCodeOf.
+    static Result<std::unique_ptr<Service>> open(const ServiceConfig& config);
     // open() and start(): ready to run when it returns (the benchmarks, which time the start).
-    static Result<std::unique_ptr<Service>> create(const ServiceConfig& config,
-                                                   bool* userError = nullptr);
+    static Result<std::unique_ptr<Service>> create(const ServiceConfig& config);
     ~Service();
     Service(const Service&) = delete;
     Service& operator=(const Service&) = delete;
@@ -129,7 +131,7 @@ public:
     // (scene, GPU and its pipelines, button); cameras and the display may be absent and come
     // later. Each stage is logged as it begins and shown by status(). Fails with "stopped" once
     // a stop was asked for (a SIGTERM while starting).
-    Status start(bool* userError = nullptr);
+    Status start();
 
     // Starts the pipeline (on a thread, unless start() ran) and runs until SIGTERM/SIGINT (exit
     // 0), a failed start (2 or 1) or a fatal error (1); a SIGTERM while starting stops at the
@@ -158,9 +160,9 @@ private:
     // the start). The exit code when the start failed or was stopped; none once it runs.
     std::optional<int> startAnsweringSignals(int signalFd);
     // start()'s parts after the renderer: the stages, the button, the cameras and threads.
-    Status startStages(bool& configError);
+    Status startStages();
     Status openButton(const ButtonConfig& button);
-    Status startThreads(bool& configError);
+    Status startThreads();
     // Rereads the config and applies what a running pipeline can take ([refine], the preview's
     // samples), keeping the running config when the new one is bad. Returns what was applied,
     // and what would need a restart (SIGHUP and `previs ctl reload`; the latter answers with it).
