@@ -18,6 +18,7 @@
 #include "capture/recorded_source.h"
 #include "gpu/context.h"
 #include "image/image.h"
+#include "render/convergence.h"
 #include "scene/scene_description.h"
 #include "shot/pipeline_renderer.h"
 #include "shot/pipeline_stages.h"
@@ -294,21 +295,21 @@ private:
                       std::optional<double>& noise, uint32_t& done, uint32_t most = 0) {
         if (Status s = r_.beginRefine(tracked, lighting); !s) return s;
         r_.renderer().setSeed(takeFrameSeed(seed_, index));
-        constexpr uint32_t kStep = 16;  // samples between looks of the meter
-        const uint32_t spp = most > 0 ? std::min(most, spp_) : spp_;
-        noise.reset();
+        constexpr uint32_t kStep = 16;  // samples a step at most, between checks for a stop
+        // The shot's stopping rule (render/convergence.h): the target, on a look, or the samples.
+        StoppingRule rule(target_, most > 0 ? std::min(most, spp_) : spp_);
         done = 0;
-        while (done < spp && !gStop.load()) {
-            const uint32_t n = std::min(kStep, spp - done);
+        while (!rule.done(done) && !gStop.load()) {
+            const uint32_t n = uint32_t(std::min<uint64_t>(kStep, rule.nextStop(done) - done));
             if (Status s = r_.refineStep(n); !s) return s;
             done += n;
-            if (target_ > 0.0 && done < spp) {
-                Result<std::optional<double>> measured = r_.measureNoise();
-                if (!measured) return measured.error();
-                noise = *measured;
-                if (noise && *noise <= target_) break;
-            }
+            // Without a target nothing is measured: the frame renders its samples, and the
+            // composite has no estimate to denoise by.
+            if (rule.targetNoise() > 0.0 && !rule.done(done))
+                if (Status s = rule.lookIfDue(done, [this] { return r_.measureNoise(); }); !s)
+                    return s;
         }
+        noise = rule.measured();
         return {};
     }
 
@@ -492,6 +493,111 @@ Result<TakeTrack> trackWithProgress(const SessionInfo& session, const ServiceCon
     return track;
 }
 
+// The frames of the range not yet in the output folder (a resubmitted job renders only what is
+// missing), the folder made first.
+Result<std::vector<size_t>> framesToRender(const TakeRenderOptions& o,
+                                           const std::vector<size_t>& frames) {
+    std::error_code ec;
+    fs::create_directories(o.outDir, ec);
+    if (ec) return makeError("cannot create {}: {}", o.outDir, ec.message());
+    std::vector<size_t> todo;
+    for (size_t f : frames)
+        if (!frameDone(o.outDir, f)) todo.push_back(f);
+    if (todo.size() < frames.size())
+        logInfo("render-session: {} of the {} frames are already in {}",
+                frames.size() - todo.size(), frames.size(), o.outDir);
+    return todo;
+}
+
+// The scene on the GPU, ready to render the take's frames (`gpu` made here, to outlive it).
+// The GPU's failure is the device's (exit 1); the scene's and the renderer's are the take's
+// config's (exit 2).
+Result<std::unique_ptr<PipelineRenderer>> openRenderer(const TakeRenderOptions& o,
+                                                       const ServiceConfig& config,
+                                                       std::unique_ptr<GpuContext>& gpu) {
+    stageLine("loading the scene " + config.scenePath, o.quiet);
+    Result<Scene> scene = loadScene(config.scenePath);
+    if (!scene) return withKind(scene.error(), Error::Kind::Config);
+    stageLine("opening the GPU", o.quiet);
+    Result<std::unique_ptr<GpuContext>> context = GpuContext::create({});
+    if (!context) return withKind(context.error(), Error::Kind::Device);
+    gpu = std::move(*context);
+    PipelineStartHooks hooks;
+    hooks.stage = [&o](const std::string& what, size_t) { stageLine(what, o.quiet); };
+    Result<std::unique_ptr<PipelineRenderer>> renderer =
+        PipelineRenderer::create(*gpu, *scene, config, hooks);
+    if (!renderer) return withKind(renderer.error(), Error::Kind::Config);
+    return renderer;
+}
+
+// SIGTERM and SIGINT stop the render between frames, or the frame's dispatches mid-frame.
+void stopOnSignals(PipelineRenderer& renderer) {
+    gStop.store(false);
+    struct sigaction action {};
+    action.sa_handler = onSignal;
+    sigaction(SIGTERM, &action, nullptr);
+    sigaction(SIGINT, &action, nullptr);
+    renderer.renderer().setInterrupt(&gStop);
+}
+
+// --spp N renders exactly N; otherwise the take's [refine] target, up to its max_samples
+// (kUncappedSpp when it has none: a final render must end).
+FrameRenderer makeFrameRenderer(PipelineRenderer& renderer, const TakeRenderOptions& o,
+                                const ServiceConfig& config) {
+    constexpr uint32_t kUncappedSpp = 4096;
+    const uint32_t spp = o.spp > 0                      ? o.spp
+                         : config.refine.maxSamples > 0 ? uint32_t(config.refine.maxSamples)
+                                                        : kUncappedSpp;
+    const double target = o.spp > 0              ? 0.0
+                          : o.targetNoise >= 0.0 ? o.targetNoise
+                                                 : config.refine.targetNoise;
+    return FrameRenderer(renderer, o, spp, target, config.render.seed);
+}
+
+struct FrameCounts {
+    size_t rendered = 0;
+    size_t failed = 0;
+};
+
+// Renders `todo` until done or a signal; a frame that cannot be rendered is one line and
+// skipped.
+FrameCounts renderFrames(FrameRenderer& frames, const std::vector<size_t>& todo,
+                         const TakeTrack& track,
+                         const std::vector<std::shared_ptr<const LiveLighting>>& lighting,
+                         const Prepared& p, const TakeRenderOptions& o) {
+    const std::pair<int, int> fps = exrFramesPerSecond(takeFrameRate(track, p.config));
+    fs::path takeDir = fs::absolute(p.session.dir).lexically_normal();
+    if (takeDir.filename().empty()) takeDir = takeDir.parent_path();  // "TAKE/"
+    const std::string take = takeDir.filename().string();
+    FrameCounts counts{.rendered = 0, .failed = track.skippedLines.size()};
+    for (size_t index : todo) {
+        if (gStop.load()) break;
+        if (index >= track.frames.size()) continue;
+        const TakeFrame& f = track.frames[index];
+        const std::optional<cv::Matx44d>& pose = o.rawPoses ? f.tracked : f.smoothed;
+        Status s =
+            !f.problem.empty() ? Status(makeError("{}", f.problem))
+            : !pose            ? Status(makeError("no camera pose (tracking lost, not bridged)"))
+                               : frames.render(
+                                     index, f, *pose, lightingAt(lighting, f.entry.timestampNs),
+                                     postAttributes(f, *pose, *p.config.sceneCamera.calibration, fps, take));
+        if (gStop.load()) break;
+        if (!s) {
+            logError("render-session: frame {} ({}): {}; skipped", index, f.entry.file,
+                     s.message());
+            ++counts.failed;
+            continue;
+        }
+        ++counts.rendered;
+        if (!o.quiet)
+            logInfo("render-session: frame {} ({} of {}): {} spp{}", index, counts.rendered,
+                    todo.size(), frames.lastSamples(),
+                    frames.lastNoise() ? fmt::format(", noise {:.2f} %", *frames.lastNoise() * 100)
+                                       : std::string());
+    }
+    return counts;
+}
+
 }  // namespace
 
 int runTakeRender(const TakeRenderOptions& o) {
@@ -506,20 +612,12 @@ int runTakeRender(const TakeRenderOptions& o) {
             std::printf("%s\n", range.c_str());
         return 0;
     }
-    std::error_code ec;
-    fs::create_directories(o.outDir, ec);
-    if (ec) {
-        logError("render-session: cannot create {}: {}", o.outDir, ec.message());
+    Result<std::vector<size_t>> todo = framesToRender(o, p.frames);
+    if (!todo) {
+        logError("render-session: {}", todo.message());
         return 2;
     }
-    // Finished frames are not rendered again (a resubmitted job).
-    std::vector<size_t> todo;
-    for (size_t f : p.frames)
-        if (!frameDone(o.outDir, f)) todo.push_back(f);
-    if (todo.size() < p.frames.size())
-        logInfo("render-session: {} of the {} frames are already in {}",
-                p.frames.size() - todo.size(), p.frames.size(), o.outDir);
-    if (todo.empty()) return 0;
+    if (todo->empty()) return 0;
 
     // Every stage before the first frame says what it does (DESIGN.md §3): tracking a long take
     // alone takes minutes. The time a frame reported at the end includes them.
@@ -537,78 +635,20 @@ int runTakeRender(const TakeRenderOptions& o) {
         logError("render-session: {}", lighting.message());
         return 2;
     }
-    stageLine("loading the scene " + p.config.scenePath, o.quiet);
-    Result<Scene> scene = loadScene(p.config.scenePath);
-    if (!scene) {
-        logError("render-session: {}", scene.message());
-        return 2;
-    }
-    stageLine("opening the GPU", o.quiet);
-    Result<std::unique_ptr<GpuContext>> gpu = GpuContext::create({});
-    if (!gpu) {
-        logError("render-session: {}", gpu.message());
-        return 1;
-    }
-    PipelineStartHooks hooks;
-    hooks.stage = [&o](const std::string& what, size_t) { stageLine(what, o.quiet); };
-    Result<std::unique_ptr<PipelineRenderer>> renderer =
-        PipelineRenderer::create(**gpu, *scene, p.config, hooks);
+    std::unique_ptr<GpuContext> gpu;
+    Result<std::unique_ptr<PipelineRenderer>> renderer = openRenderer(o, p.config, gpu);
     if (!renderer) {
         logError("render-session: {}", renderer.message());
-        return 2;
+        return renderer.error().kind == Error::Kind::Config ? 2 : 1;
     }
-    gStop.store(false);
-    struct sigaction action {};
-    action.sa_handler = onSignal;
-    sigaction(SIGTERM, &action, nullptr);
-    sigaction(SIGINT, &action, nullptr);
-    (*renderer)->renderer().setInterrupt(&gStop);
-
-    // --spp N renders exactly N; otherwise the take's [refine] target, up to its max_samples
-    // (kUncappedSpp when it has none: a final render must end).
-    constexpr uint32_t kUncappedSpp = 4096;
-    const uint32_t spp = o.spp > 0                        ? o.spp
-                         : p.config.refine.maxSamples > 0 ? uint32_t(p.config.refine.maxSamples)
-                                                          : kUncappedSpp;
-    const double target = o.spp > 0              ? 0.0
-                          : o.targetNoise >= 0.0 ? o.targetNoise
-                                                 : p.config.refine.targetNoise;
-    FrameRenderer frames(**renderer, o, spp, target, p.config.render.seed);
-    const std::pair<int, int> fps = exrFramesPerSecond(takeFrameRate(*track, p.config));
-    fs::path takeDir = fs::absolute(p.session.dir).lexically_normal();
-    if (takeDir.filename().empty()) takeDir = takeDir.parent_path();  // "TAKE/"
-    const std::string take = takeDir.filename().string();
-    size_t failed = track->skippedLines.size(), rendered = 0;
+    stopOnSignals(**renderer);
+    FrameRenderer frames = makeFrameRenderer(**renderer, o, p.config);
     const double setupSeconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    for (size_t index : todo) {
-        if (gStop.load()) break;
-        if (index >= track->frames.size()) continue;
-        const TakeFrame& f = track->frames[index];
-        const std::optional<cv::Matx44d>& pose = o.rawPoses ? f.tracked : f.smoothed;
-        Status s =
-            !f.problem.empty() ? Status(makeError("{}", f.problem))
-            : !pose            ? Status(makeError("no camera pose (tracking lost, not bridged)"))
-                               : frames.render(
-                                     index, f, *pose, lightingAt(*lighting, f.entry.timestampNs),
-                                     postAttributes(f, *pose, *p.config.sceneCamera.calibration, fps, take));
-        if (gStop.load()) break;
-        if (!s) {
-            logError("render-session: frame {} ({}): {}; skipped", index, f.entry.file,
-                     s.message());
-            ++failed;
-            continue;
-        }
-        ++rendered;
-        if (!o.quiet)
-            logInfo("render-session: frame {} ({} of {}): {} spp{}", index, rendered, todo.size(),
-                    frames.lastSamples(),
-                    frames.lastNoise() ? fmt::format(", noise {:.2f} %", *frames.lastNoise() * 100)
-                                       : std::string());
-    }
+    const FrameCounts counts = renderFrames(frames, *todo, *track, *lighting, p, o);
     if (gStop.load()) {
         logInfo("render-session: stopped by signal {} after {} frame(s); no partial frame left",
-                gSignal.load(), rendered);
+                gSignal.load(), counts.rendered);
         return 128 + gSignal.load();
     }
     const double seconds =
@@ -616,9 +656,10 @@ int runTakeRender(const TakeRenderOptions& o) {
     logInfo(
         "render-session: {} frame(s) in {:.1f} s ({:.2f} s a frame, the take's tracking and the "
         "setup's {:.1f} s included){}",
-        rendered, seconds, rendered ? seconds / double(rendered) : 0.0, setupSeconds,
-        failed ? fmt::format("; {} could not be rendered (see above)", failed) : "");
-    return failed ? 1 : 0;
+        counts.rendered, seconds, counts.rendered ? seconds / double(counts.rendered) : 0.0,
+        setupSeconds,
+        counts.failed ? fmt::format("; {} could not be rendered (see above)", counts.failed) : "");
+    return counts.failed ? 1 : 0;
 }
 
 }  // namespace previs
