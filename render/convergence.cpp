@@ -81,6 +81,11 @@ void StoppingRule::restart() {
     lookSamples_ = 0;
 }
 
+void StoppingRule::setLimits(double targetNoise, uint64_t maxSamples) {
+    target_ = std::isfinite(targetNoise) && targetNoise > 0.0 ? targetNoise : 0.0;
+    max_ = maxSamples;
+}
+
 void StoppingRule::looked(uint64_t samples, std::optional<double> noise) {
     schedule_.looked(samples, noise);
     lookSamples_ = samples;

@@ -72,11 +72,6 @@ inline constexpr uint64_t kMaxPredictedSamples = uint64_t(1) << 40;
 std::optional<double> secondsToStop(uint64_t samples, std::optional<double> noise,
                                     double targetNoise, uint64_t maxSamples,
                                     double secondsPerSample);
-// secondsToStop without a maximum, in the argument order its tests still call.
-inline std::optional<double> etaSeconds(std::optional<double> noise, uint64_t samples,
-                                        double target, double secondsPerSample) {
-    return secondsToStop(samples, noise, target, 0, secondsPerSample);
-}
 
 // When to consult the meter (each look reads the whole accumulation back): at sample counts
 // growing by half each time — a few dozen looks over a million samples — and, aiming at a
@@ -119,6 +114,9 @@ public:
 
     // A fresh accumulation: looks start over.
     void restart();
+    // New limits for the accumulation under way (a reload): done() and eta() use them at once;
+    // the looks already planned stand until restart().
+    void setLimits(double targetNoise, uint64_t maxSamples);
     // Whether the meter should look at `samples` per pixel, and the count of its next look.
     bool lookDue(uint64_t samples) const { return schedule_.due(samples); }
     uint64_t nextLook() const { return schedule_.nextLook(); }

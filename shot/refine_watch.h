@@ -1,13 +1,13 @@
 #pragma once
 
-// When a refinement starts over, and how long it has left (issue 10). Refinement freezes a shot —
-// frame, pose, lighting — and accumulates samples; a crew that moves the camera or changes the
-// lights wants the accumulation to follow, while sensor noise on the tracked pose or on the
-// fisheye must never throw samples away. RefineWatch compares every new observation with the
-// frozen one against [refine]'s thresholds and asks for a restart only once a change has been
-// seen in `restart_after` consecutive observations, so a single tracking outlier does not
-// restart. The service's render loop and `previs replay` use the same object, so the recorded
-// tests (tests/daemon/) check the very rule the box runs.
+// When a refinement starts over (issue 10; when it stops is render/convergence.h's StoppingRule).
+// Refinement freezes a shot — frame, pose, lighting — and accumulates samples; a crew that moves
+// the camera or changes the lights wants the accumulation to follow, while sensor noise on the
+// tracked pose or on the fisheye must never throw samples away. RefineWatch compares every new
+// observation with the frozen one against [refine]'s thresholds and asks for a restart only once a
+// change has been seen in `restart_after` consecutive observations, so a single tracking outlier
+// does not restart. The service's render loop and `previs replay` use the same object, so the
+// recorded tests (tests/daemon/) check the very rule the box runs.
 
 #include <array>
 #include <cstdint>
@@ -19,7 +19,6 @@
 
 #include "base/result.h"
 #include "config/service_config.h"
-#include "render/convergence.h"
 #include "shot/pipeline_stages.h"
 
 namespace previs {
@@ -64,39 +63,5 @@ private:
     int poseBeyond_ = 0;      // consecutive trusted poses beyond a threshold
     int lightingBeyond_ = 0;  // consecutive lighting snapshots beyond the threshold
 };
-
-// Seconds until refinement stops — at `targetNoise` (relative RMSE, ≤ 0: none) or at
-// `maxSamples` (0: none), whichever comes first — from the convergence meter's `noise` at
-// `samples` and the measured `msPerSample`. The model is Monte Carlo's: noise ∝ 1/√samples, so
-// the target needs samples·(noise/target)². 0 once reached; nullopt when nothing can be said
-// (no samples yet, no estimate, no cost measured, or no stopping point at all). Never NaN or Inf.
-std::optional<double> refineEtaSeconds(uint64_t samples, std::optional<double> noise,
-                                       double targetNoise, uint64_t maxSamples, double msPerSample);
-
-// The convergence meter (render/convergence.h) during one refinement. Each look reads the
-// accumulation back, so it looks at NoiseSchedule's counts (growing by half, and no later than
-// where the target should be reached); between looks the estimate is carried forward at the
-// Monte Carlo rate, 1/√samples — conservative, as stratified sampling converges at least that
-// fast — so the overlay and the ETA move every step. Stopping at the target waits for a look.
-class RefineMeter {
-public:
-    // The shot froze: looks start over, aiming at `targetNoise` (0: none).
-    void restart(double targetNoise);
-    // After a step to `samples` per pixel: looks (`look`, one readback of the accumulation
-    // giving the composite's relative RMSE) if a look is due.
-    Status update(uint64_t samples, const std::function<Result<std::optional<double>>()>& look);
-    // The last look's estimate of the composite's relative RMSE (DESIGN.md §4), measured.
-    std::optional<double> measured() const { return schedule_.noise(); }
-    // That estimate carried to `samples` (≥ the look's): what the status shows.
-    std::optional<double> at(uint64_t samples) const;
-
-private:
-    NoiseSchedule schedule_;
-    uint64_t lookSamples_ = 0;
-};
-
-// Whether refinement has stopped adding samples: max_samples reached, or the estimate at or
-// below target_noise.
-bool refineConverged(uint64_t samples, std::optional<double> noise, const RefineConfig& config);
 
 }  // namespace previs

@@ -25,11 +25,13 @@ ShotController::ShotController(ShotRenderer& renderer, const ModeMachine& modes,
       refine_(refine),
       configuredPreviewSamples_(renderer.previewSamples()),
       seenVersion_(modes.version()),
-      watch_(refine) {}
+      watch_(refine),
+      stopping_(refine.targetNoise, refine.maxSamples) {}
 
 void ShotController::setConfig(const RefineConfig& refine, uint32_t previewSamples) {
     refine_ = refine;
     watch_.setConfig(refine);
+    stopping_.setLimits(refine.targetNoise, refine.maxSamples);
     if (previewSamples != configuredPreviewSamples_) {
         configuredPreviewSamples_ = previewSamples;
         renderer_.setPreviewSamples(previewSamples);
@@ -223,7 +225,7 @@ Status ShotController::freeze(std::shared_ptr<const TrackedFrame> frame,
         return makeError("cannot start refinement: {}", s.message());
     refining_ = true;
     watch_.freeze(*frozen_, lighting);
-    meter_.restart(refine_.targetNoise);
+    stopping_.restart();
     frozeAt_ = clock_.now();
     refineMsPerSample_ = 0.0;
     fps_ = 0.0;
@@ -237,8 +239,8 @@ uint32_t ShotController::refineStepSamples() const {
     uint32_t step = refine_.samplesPerStep;
     if (refineMsPerSample_ > 0.0)
         step = std::clamp(uint32_t(kRefineStepTargetMs / refineMsPerSample_), 1u, step);
-    if (refine_.maxSamples > 0)
-        step = uint32_t(std::min<uint64_t>(step, refine_.maxSamples - renderer_.samples()));
+    if (stopping_.maxSamples() > 0)
+        step = uint32_t(std::min<uint64_t>(step, stopping_.maxSamples() - renderer_.samples()));
     return step;
 }
 
@@ -267,9 +269,9 @@ Result<ShotStep> ShotController::refine(std::shared_ptr<const TrackedFrame> newe
         }
     }
     out.shown = frozen_;
-    if (!renderer_.rendered() || refineConverged(renderer_.samples(), meter_.measured(), refine_)) {
+    if (!renderer_.rendered() || stopping_.done(renderer_.samples())) {
         out.kind = ShotStep::Kind::Held;
-        out.noiseEstimate = meter_.at(renderer_.samples());
+        out.noiseEstimate = stopping_.noiseAt(renderer_.samples());
         return out;
     }
     const uint32_t samples = refineStepSamples();
@@ -278,22 +280,21 @@ Result<ShotStep> ShotController::refine(std::shared_ptr<const TrackedFrame> newe
     refineMsPerSample_ = msSince(stepStart) / samples;
     tick();
     const uint64_t total = renderer_.samples();
-    if (Status s = meter_.update(total, [this] { return renderer_.measureNoise(); }); !s)
+    if (Status s = stopping_.lookIfDue(total, [this] { return renderer_.measureNoise(); }); !s)
         logWarning("render: convergence meter: {}", s.message());
     out.kind = ShotStep::Kind::Refined;
     out.fps = fps_;
-    out.noiseEstimate = meter_.at(total);
+    out.noiseEstimate = stopping_.noiseAt(total);
     out.etaSeconds =
-        refineEtaSeconds(total, out.noiseEstimate, refine_.targetNoise, refine_.maxSamples,
-                         msSince(frozeAt_) / double(std::max<uint64_t>(total, 1)));
-    const bool converged = refineConverged(total, meter_.measured(), refine_);
+        stopping_.eta(total, msSince(frozeAt_) * 1e-3 / double(std::max<uint64_t>(total, 1)));
+    const bool converged = stopping_.done(total);
     // Converged, the refinement's L_or is the meter's best input, and already there.
     meterPlate(*frozen_, frozenLighting_, out, converged);
     if (converged) {
         out.converged = true;
         logInfo("refinement: reached {} samples per pixel{}", total,
-                meter_.measured()
-                    ? fmt::format(", noise estimate {:.2f} %", *meter_.measured() * 100.0)
+                stopping_.measured()
+                    ? fmt::format(", noise estimate {:.2f} %", *stopping_.measured() * 100.0)
                     : "");
     }
     return out;

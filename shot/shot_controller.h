@@ -18,6 +18,7 @@
 
 #include "base/result.h"
 #include "config/service_config.h"
+#include "render/convergence.h"
 #include "render/plate_consistency.h"
 #include "shot/mode_machine.h"
 #include "shot/pipeline_stages.h"
@@ -166,7 +167,7 @@ public:
     Mode renderedMode() const { return refining_ ? Mode::Refine : Mode::Preview; }
     uint64_t restarts() const { return restarts_; }
     // The convergence meter's last look at this refinement (not carried forward).
-    std::optional<double> measuredNoise() const { return meter_.measured(); }
+    std::optional<double> measuredNoise() const { return stopping_.measured(); }
     // Preview samples in use (the cap or the dial may have lowered the configured count).
     uint32_t previewSamples() const { return renderer_.previewSamples(); }
     const std::shared_ptr<const TrackedFrame>& frozen() const { return frozen_; }
@@ -214,7 +215,8 @@ private:
     std::shared_ptr<const TrackedFrame> frozen_;
     std::shared_ptr<const LiveLighting> frozenLighting_;  // what the frozen shot is lit by
     RefineWatch watch_;
-    RefineMeter meter_;
+    // When refinement stops: [refine] target_noise and max_samples, and the meter's looks.
+    StoppingRule stopping_;
     uint64_t restarts_ = 0;
     // The ETA's cost per sample is the shot's time since it froze over its samples (steps,
     // meter looks, composites, tracking on the other core).

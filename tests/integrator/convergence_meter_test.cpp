@@ -201,7 +201,7 @@ void expectMeterSane(Renderer& r, const std::string& what) {
     EXPECT_TRUE(std::isfinite(*c.composite.relativeRmse)) << what;
     EXPECT_TRUE(std::isfinite(*c.differential.relativeRmse)) << what;
     const std::optional<double> eta =
-        etaSeconds(c.composite.relativeRmse, r.samplesPerPixel(), 0.01, 1e-3);
+        secondsToStop(r.samplesPerPixel(), c.composite.relativeRmse, 0.01, 0, 1e-3);
     ASSERT_TRUE(eta) << what;
     EXPECT_TRUE(std::isfinite(*eta)) << what;
     EXPECT_GE(*eta, 0.0) << what;
@@ -259,7 +259,7 @@ TEST_F(ConvergenceMeterTest, BlackSceneIsConvergedNotNaN) {
     const Convergence c = (*r)->convergence().value();
     ASSERT_TRUE(c.composite.relativeRmse);
     EXPECT_EQ(*c.composite.relativeRmse, 0.0);
-    EXPECT_EQ(etaSeconds(c.composite.relativeRmse, 8, 0.01, 1e-3), 0.0);
+    EXPECT_EQ(secondsToStop(8, c.composite.relativeRmse, 0.01, 0, 1e-3), 0.0);
 }
 
 // A pixel seeing a 1e5-radiance sun (a small emitter, as a real sun disc is): finite images and

@@ -1,14 +1,14 @@
 // The convergence meter's arithmetic (render/convergence.h) on synthetic accumulations whose
 // true error is known: Gaussian samples of a stated variance, and the extremes — no samples,
 // zero variance, a 1e5-radiance sun, a million samples per pixel.
+#include "render/convergence.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <limits>
 #include <random>
 #include <vector>
-
-#include "render/convergence.h"
 
 namespace previs {
 namespace {
@@ -137,15 +137,15 @@ TEST(ConvergenceMeter, PredictionAndEtaAreFiniteAndMonotone) {
     EXPECT_EQ(samplesForNoise(std::numeric_limits<double>::infinity(), 100, 0.01),
               kMaxPredictedSamples);
 
-    EXPECT_EQ(etaSeconds(0.005, 100, 0.01, 0.1), 0.0);
-    EXPECT_NEAR(*etaSeconds(0.02, 100, 0.01, 0.1), 30.0, 1e-9);
-    EXPECT_FALSE(etaSeconds(std::nullopt, 100, 0.01, 0.1));
-    EXPECT_FALSE(etaSeconds(0.02, 100, 0.01, 0.0));
-    EXPECT_FALSE(etaSeconds(0.02, 100, 0.01, std::numeric_limits<double>::infinity()));
+    EXPECT_EQ(secondsToStop(100, 0.005, 0.01, 0, 0.1), 0.0);
+    EXPECT_NEAR(*secondsToStop(100, 0.02, 0.01, 0, 0.1), 30.0, 1e-9);
+    EXPECT_FALSE(secondsToStop(100, std::nullopt, 0.01, 0, 0.1));
+    EXPECT_FALSE(secondsToStop(100, 0.02, 0.01, 0, 0.0));
+    EXPECT_FALSE(secondsToStop(100, 0.02, 0.01, 0, std::numeric_limits<double>::infinity()));
     // Larger noise, later arrival; every value finite.
     double last = 0.0;
     for (double noise = 0.011; noise < 10.0; noise *= 1.7) {
-        const std::optional<double> eta = etaSeconds(noise, 64, 0.01, 0.05);
+        const std::optional<double> eta = secondsToStop(64, noise, 0.01, 0, 0.05);
         ASSERT_TRUE(eta);
         EXPECT_TRUE(std::isfinite(*eta));
         EXPECT_GT(*eta, last);
@@ -182,6 +182,124 @@ TEST(ConvergenceMeter, ScheduleLooksGeometricallyAndAtThePrediction) {
     }
     EXPECT_TRUE(aimed.reached());
     EXPECT_NEAR(double(stop), 10000.0, 2.0);
+}
+
+// The stopping rule alone (issue 55): it stops at the target, on a look, or at the maximum,
+// whichever comes first, and nowhere else.
+TEST(StoppingRule, DoneAtTheTargetOrAtTheMaximum) {
+    // Noise exactly 0.5/√n aimed at 1 %: reached at n = 2500, seen at the first look past it.
+    const double c = 0.5;
+    StoppingRule aimed(0.01);
+    EXPECT_FALSE(aimed.done(0));
+    uint64_t n = 0;
+    while (!aimed.done(n)) {
+        ASSERT_LT(n, 100000u) << "never stopped";
+        n = std::min(aimed.nextStop(n), n + 16);
+        if (aimed.lookDue(n)) aimed.looked(n, c / std::sqrt(double(n)));
+    }
+    EXPECT_TRUE(aimed.reachedTarget());
+    EXPECT_GE(n, 2500u);
+    EXPECT_LE(double(n), 2500.0 * 1.5 + 2.0);
+
+    // The same curve capped at 1000 samples: the maximum first, exactly there, never past it.
+    StoppingRule capped(0.01, 1000);
+    n = 0;
+    while (!capped.done(n)) {
+        const uint64_t stop = capped.nextStop(n);
+        ASSERT_LE(stop, 1000u);
+        n = std::min(stop, n + 16);
+        if (capped.lookDue(n)) capped.looked(n, c / std::sqrt(double(n)));
+    }
+    EXPECT_EQ(n, 1000u);
+    EXPECT_FALSE(capped.reachedTarget());
+
+    // No target: only the maximum stops it, whatever the meter says.
+    StoppingRule fixed(0.0, 64);
+    fixed.looked(16, 0.0);
+    EXPECT_FALSE(fixed.reachedTarget());
+    EXPECT_FALSE(fixed.done(63));
+    EXPECT_TRUE(fixed.done(64));
+    EXPECT_EQ(fixed.nextStop(16), 64u);
+
+    // restart() forgets the looks: a new accumulation is not done because the last one was.
+    aimed.restart();
+    EXPECT_FALSE(aimed.done(0));
+    EXPECT_FALSE(aimed.measured());
+}
+
+// The ETA falls monotonically to 0 along a 1/√n noise curve seen at the rule's looks (carried
+// forward between them), and is exactly the remaining samples at the measured cost.
+TEST(StoppingRule, EtaFallsMonotonicallyAlongTheNoiseCurve) {
+    const double c = 0.5, target = 0.01, secondsPerSample = 0.04;
+    const double reachAt = (c / target) * (c / target);  // 2500 samples
+    StoppingRule rule(target);
+    double last = std::numeric_limits<double>::infinity();
+    size_t etas = 0;
+    for (uint64_t n = 1; n < 10000; ++n) {
+        if (rule.lookDue(n)) rule.looked(n, c / std::sqrt(double(n)));
+        const std::optional<double> eta = rule.eta(n, secondsPerSample);
+        if (eta) {  // from the first look on
+            ++etas;
+            ASSERT_TRUE(std::isfinite(*eta)) << n;
+            EXPECT_LE(*eta, last) << n;
+            EXPECT_NEAR(*eta, std::max(0.0, reachAt - double(n)) * secondsPerSample, 1e-6) << n;
+            last = *eta;
+        }
+        if (rule.done(n)) break;
+    }
+    EXPECT_TRUE(rule.reachedTarget());
+    EXPECT_GT(etas, 2000u);
+    EXPECT_EQ(last, 0.0);
+    // The maximum first: the ETA is to it.
+    StoppingRule capped(target, 1000);
+    capped.looked(100, c / 10.0);
+    EXPECT_NEAR(*capped.eta(100, secondsPerSample), 900 * secondsPerSample, 1e-9);
+    EXPECT_EQ(*capped.eta(1000, secondsPerSample), 0.0);
+}
+
+// The edges: no samples, zero noise, no measured rate, broken estimates; nothing divides by zero
+// and nothing is NaN or infinite.
+TEST(StoppingRule, NoDivisionByZeroAtZeroSamplesOrZeroNoise) {
+    const double nan = std::nan(""), inf = HUGE_VAL;
+    StoppingRule rule(0.01);
+    // Nothing looked, no samples: nothing to say, not done.
+    EXPECT_FALSE(rule.eta(0, 0.04));
+    EXPECT_FALSE(rule.noiseAt(0));
+    EXPECT_FALSE(rule.done(0));
+    // A look at 0 samples (zero noise there says nothing): still not done, still no ETA.
+    rule.looked(0, 0.0);
+    EXPECT_FALSE(rule.done(0));
+    EXPECT_FALSE(rule.eta(0, 0.04));
+    EXPECT_EQ(rule.noiseAt(16).value_or(-1.0), 0.0);
+    // Zero noise at 16 samples (a black scene): done, ETA 0.
+    rule.looked(16, 0.0);
+    EXPECT_TRUE(rule.done(16));
+    EXPECT_EQ(rule.eta(16, 0.04).value_or(-1.0), 0.0);
+    // No cost measured, or a broken one: nothing, unless already stopped.
+    StoppingRule far(0.01, 4096);
+    far.looked(16, 0.05);
+    for (double cost : {0.0, -1.0, nan, inf}) {
+        EXPECT_FALSE(far.eta(16, cost)) << cost;
+        EXPECT_EQ(far.eta(4096, cost).value_or(-1.0), 0.0) << cost;
+    }
+    // Without a target or a maximum the accumulation never stops: no ETA.
+    StoppingRule open;
+    open.looked(16, 0.05);
+    EXPECT_FALSE(open.eta(16, 0.04));
+    EXPECT_FALSE(open.done(UINT64_MAX));
+    EXPECT_EQ(open.nextStop(16), UINT64_MAX);
+    // A target that is not a number is none.
+    EXPECT_EQ(StoppingRule(nan).targetNoise(), 0.0);
+    // The formula itself at its edges.
+    EXPECT_FALSE(secondsToStop(0, 0.0, 0.01, 0, 0.04)) << "zero noise at zero samples";
+    EXPECT_NEAR(*secondsToStop(0, std::nullopt, 0.01, 64, 0.04), 64 * 0.04, 1e-12);
+    for (double noise : {nan, inf, -1.0})
+        EXPECT_NEAR(*secondsToStop(16, noise, 0.01, 4096, 0.04), 4080 * 0.04, 1e-9) << noise;
+    // A sun pixel's 1e5 relative error against a tiny target: astronomically far, still finite.
+    const std::optional<double> sun = secondsToStop(1, 1e5, 1e-6, 0, 1.0);
+    ASSERT_TRUE(sun);
+    EXPECT_TRUE(std::isfinite(*sun));
+    EXPECT_GT(*sun, 1e20);
 }
 
 }  // namespace

@@ -1,7 +1,7 @@
-// The refinement restart rule and the ETA model (issue 10, shot/refine_watch.h) on synthetic
-// input: poses with a tracker's jitter, outliers and real moves; lighting that brightens or turns;
-// the ETA over the whole range of sample counts and at its edges. The recorded sessions check
-// the same rule end to end (previsd_test.cpp, Replay.Refine*).
+// The refinement restart rule (issue 10, shot/refine_watch.h) on synthetic input: poses with a
+// tracker's jitter, outliers and real moves; lighting that brightens or turns. The recorded
+// sessions check the same rule end to end (previsd_test.cpp, Replay.Refine*). When refinement
+// stops, and its ETA, are render/convergence.h's StoppingRule (tests/render/convergence_test.cpp).
 #include "shot/refine_watch.h"
 
 #include <gtest/gtest.h>
@@ -188,74 +188,6 @@ TEST(RefineWatch, LightingRestartsOnlyOnAPersistentChange) {
     }
     ASSERT_TRUE(why);
     EXPECT_NE(why->find("dominant direction turned"), std::string::npos) << *why;
-}
-
-TEST(RefineEta, FollowsTheOneOverRootNModelMonotonicallyToZero) {
-    // The meter follows noise = c/√n exactly: the target 0.01 is reached at n = (c/0.01)².
-    const double c = 0.5, target = 0.01, ms = 40.0;
-    const double reachAt = (c / target) * (c / target);  // 2500 samples
-    double last = std::numeric_limits<double>::infinity();
-    for (uint64_t n = 1; n <= 10000; ++n) {
-        const std::optional<double> eta =
-            refineEtaSeconds(n, c / std::sqrt(double(n)), target, /*maxSamples=*/0, ms);
-        ASSERT_TRUE(eta) << n;
-        ASSERT_TRUE(std::isfinite(*eta)) << n;
-        EXPECT_LE(*eta, last) << n;
-        // Exactly the remaining samples at the measured cost.
-        EXPECT_NEAR(*eta, std::max(0.0, reachAt - double(n)) * ms * 1e-3, 1e-9 * reachAt) << n;
-        if (double(n) >= reachAt) {
-            EXPECT_EQ(*eta, 0.0) << n;
-        }
-        last = *eta;
-    }
-    // max_samples first: the ETA is to it.
-    EXPECT_NEAR(*refineEtaSeconds(100, c / 10.0, target, 1000, ms), 900 * ms * 1e-3, 1e-9);
-    EXPECT_EQ(*refineEtaSeconds(1000, c / std::sqrt(1000.0), target, 1000, ms), 0.0);
-}
-
-TEST(RefineEta, EdgesAreFiniteOrNoneNeverNaN) {
-    const double nan = std::nan(""), inf = HUGE_VAL;
-    // No samples yet: only max_samples says anything.
-    EXPECT_FALSE(refineEtaSeconds(0, std::nullopt, 0.01, 0, 40.0));
-    EXPECT_FALSE(refineEtaSeconds(0, 0.0, 0.01, 0, 40.0)) << "zero noise at zero samples";
-    EXPECT_NEAR(*refineEtaSeconds(0, std::nullopt, 0.01, 64, 40.0), 64 * 0.04, 1e-12);
-    // Zero noise (a black scene): reached.
-    EXPECT_EQ(*refineEtaSeconds(16, 0.0, 0.01, 0, 40.0), 0.0);
-    // No cost measured yet, or a broken one: nothing (unless already done).
-    for (double ms : {0.0, -1.0, nan, inf}) {
-        EXPECT_FALSE(refineEtaSeconds(16, 0.05, 0.01, 4096, ms)) << ms;
-        EXPECT_EQ(*refineEtaSeconds(16, 0.001, 0.01, 4096, ms), 0.0) << ms;
-        EXPECT_EQ(*refineEtaSeconds(4096, 0.05, 0.01, 4096, ms), 0.0) << ms;
-    }
-    // A broken estimate counts as none: the ETA falls back to max_samples.
-    for (double noise : {nan, inf, -1.0})
-        EXPECT_NEAR(*refineEtaSeconds(16, noise, 0.01, 4096, 40.0), 4080 * 0.04, 1e-9) << noise;
-    EXPECT_FALSE(refineEtaSeconds(16, nan, 0.01, 0, 40.0));
-    // No target and no sample limit: refinement never stops, so no ETA.
-    EXPECT_FALSE(refineEtaSeconds(16, 0.05, 0.0, 0, 40.0));
-    EXPECT_FALSE(refineEtaSeconds(16, 0.05, nan, 0, 40.0));
-    // A sun pixel's 1e5 relative error against a tiny target: astronomically far, still finite.
-    const std::optional<double> far = refineEtaSeconds(1, 1e5, 1e-6, 0, 1e3);
-    ASSERT_TRUE(far);
-    EXPECT_TRUE(std::isfinite(*far));
-    EXPECT_GT(*far, 1e20);
-}
-
-TEST(RefineEta, ConvergedAtTheTargetOrTheSampleLimit) {
-    RefineConfig c;
-    c.maxSamples = 1024;
-    c.targetNoise = 0.02;
-    EXPECT_FALSE(refineConverged(0, 0.0, c)) << "no samples: nothing converged";
-    EXPECT_FALSE(refineConverged(64, std::nullopt, c));
-    EXPECT_FALSE(refineConverged(64, 0.03, c));
-    EXPECT_TRUE(refineConverged(64, 0.02, c));
-    EXPECT_TRUE(refineConverged(64, 0.0, c));
-    EXPECT_FALSE(refineConverged(64, std::nan(""), c));
-    EXPECT_TRUE(refineConverged(1024, 0.5, c));
-    c.targetNoise = 0.0;  // off: only the sample limit
-    EXPECT_FALSE(refineConverged(64, 0.0, c));
-    c.maxSamples = 0;
-    EXPECT_FALSE(refineConverged(uint64_t(1) << 40, 0.0, c));
 }
 
 // Every frame of one of the demo session's cameras, in order.
