@@ -22,8 +22,7 @@ namespace {
 namespace fs = std::filesystem;
 
 fs::path freshDir(const std::string& name) {
-    const fs::path dir = testing::scratchDir("atomic_file") / name;
-    fs::remove_all(dir);
+    const fs::path dir = testing::emptyScratchDir("atomic_file", name);
     fs::create_directories(dir);
     return dir;
 }

@@ -22,9 +22,7 @@ namespace {
 namespace fs = std::filesystem;
 
 fs::path freshDir(const std::string& name) {
-    const fs::path dir = testing::scratchDir("files_output_test") / name;
-    fs::remove_all(dir);
-    return dir;
+    return testing::emptyScratchDir("files_output_test", name);
 }
 
 std::set<std::string> names(const fs::path& dir) {

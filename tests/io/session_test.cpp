@@ -34,9 +34,7 @@ namespace {
 namespace fs = std::filesystem;
 
 fs::path freshDir(const std::string& name) {
-    const fs::path dir = testing::scratchDir("session_test") / name;
-    fs::remove_all(dir);
-    return dir;
+    return testing::emptyScratchDir("session_test", name);
 }
 
 std::string readText(const fs::path& p) {

@@ -25,4 +25,12 @@ inline std::filesystem::path scratchDir(const std::string& prefix) {
     return dir;
 }
 
+// A test's own folder in the scratch folder, empty: what an earlier case left is removed; not
+// created (the code under test may be what creates it).
+inline std::filesystem::path emptyScratchDir(const std::string& prefix, const std::string& name) {
+    const auto dir = scratchDir(prefix) / name;
+    std::filesystem::remove_all(dir);
+    return dir;
+}
+
 }  // namespace previs::testing

@@ -89,6 +89,23 @@ std::vector<TagDetection> detectAll(const VispFamily& f, const cv::Mat& gray) {
     return d;
 }
 
+// ViSP's tag36h11 render: its image, camera, the family's border and libapriltag's detections.
+struct RenderedTags {
+    cv::Mat gray;
+    CameraCalibration calib;
+    TagBorder border;
+    std::vector<TagDetection> detected;
+};
+
+RenderedTags renderedTag36h11() {
+    RenderedTags tags{readImage(kTag36h11),
+                      vispCamera(),
+                      TagDetector::create(detectorFor(kTag36h11)).value().border(),
+                      {}};
+    tags.detected = detectAll(kTag36h11, tags.gray);
+    return tags;
+}
+
 // How far a refit moved each corner outward, away from the detected quad's centre (px).
 std::vector<double> outwardMoves(const std::vector<TagDetection>& before,
                                  const std::vector<TagDetection>& after) {
@@ -145,10 +162,8 @@ TEST(VispRendered, TheRendersAreLinearInTheirCodes) {
 // systematically: the mean outward move over the 20 corners within three standard errors of 0.
 TEST(VispRendered, ThroughTheImagesCurveTheRefitLeavesTheCornersUnbiased) {
     PREVIS_SKIP_WITHOUT_SHARED_DATA();
-    const cv::Mat gray = readImage(kTag36h11);
-    const CameraCalibration calib = vispCamera();
-    const TagBorder border = TagDetector::create(detectorFor(kTag36h11)).value().border();
-    const std::vector<TagDetection> detected = detectAll(kTag36h11, gray);
+    const RenderedTags tags = renderedTag36h11();
+    const auto& [gray, calib, border, detected] = tags;
     std::vector<TagDetection> refit = detected;
     const EdgeRefineStats stats =
         refineTagCornersInLinearLight(refit, gray, identityLinearFromCode(), border, &calib);
@@ -173,10 +188,8 @@ TEST(VispRendered, ThroughTheImagesCurveTheRefitLeavesTheCornersUnbiased) {
 // px bias the refit removes on the demo take (BENCHMARKS.md, issue 38), on every tag.
 TEST(VispRendered, ThroughAGuessedCurveTheRefitMovesEveryEdge) {
     PREVIS_SKIP_WITHOUT_SHARED_DATA();
-    const cv::Mat gray = readImage(kTag36h11);
-    const CameraCalibration calib = vispCamera();
-    const TagBorder border = TagDetector::create(detectorFor(kTag36h11)).value().border();
-    const std::vector<TagDetection> detected = detectAll(kTag36h11, gray);
+    const RenderedTags tags = renderedTag36h11();
+    const auto& [gray, calib, border, detected] = tags;
     std::vector<TagDetection> refit = detected;
     refineTagCornersInLinearLight(refit, gray, linearFromCodeTable(InverseToneMapSettings{}),
                                   border, &calib);
