@@ -18,7 +18,7 @@ struct LightsOptions {
     LightEstimatorSettings settings;
 };
 
-nlohmann::ordered_json vec3(const cv::Vec3d& v) { return {v[0], v[1], v[2]}; }
+nlohmann::ordered_json jsonVec3(const cv::Vec3d& v) { return {v[0], v[1], v[2]}; }
 
 int run(const LightsOptions& o) {
     auto map = loadEnvironmentMap(o.env);
@@ -35,8 +35,8 @@ int run(const LightsOptions& o) {
         // The lights as a take records them (one owner of their JSON), then the powers.
         nlohmann::ordered_json out =
             nlohmann::ordered_json::parse(estimatedLightsJson(snap->lights));
-        out["residualPower"] = vec3(snap->residualPower);
-        out["totalPower"] = vec3(snap->totalPower);
+        out["residualPower"] = jsonVec3(snap->residualPower);
+        out["totalPower"] = jsonVec3(snap->totalPower);
         std::printf("%s\n", out.dump().c_str());
         return 0;
     }

@@ -9,6 +9,7 @@
 
 #include "base/log.h"
 #include "scene/environment_sampler.h"
+#include "scene/material.h"
 #include "shared/specular_albedo.h"
 #include "shared/texture_sampling.h"
 

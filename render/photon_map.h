@@ -46,13 +46,6 @@ float defaultPhotonRadius(float aimRadius, uint32_t photonsPerIteration);
 // must include it. Errs on the side of yes — a larger aim costs photons, a smaller one bias.
 bool mayBePurelySpecular(const Material& m);
 
-// Neither Lambertian (no metal, specular layer or transmission: f = baseColor/π whatever the
-// textures, which only scale metalness) nor purely specular on every texel (textures only lower
-// the roughness, but may lower a metal's metalness). Errs on the side of yes: with none in the
-// scene, BSDF evaluations are Lambert's and the photon gather evaluates none per photon
-// (PV_SPEC_HAS_GLOSSY).
-bool glossyMaterial(const Material& m);
-
 // The sphere photons are aimed at: it holds every triangle that may be purely specular.
 struct PhotonAim {
     bool any = false;  // the scene has such a triangle

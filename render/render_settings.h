@@ -202,7 +202,7 @@ struct SceneFeatures {
     bool thinLens = false;
     bool textures = false;
     bool coneLights = false;  // estimated lights (Renderer::setEstimatedLights)
-    // A material neither Lambertian nor purely specular on every texel (glossyMaterial)
+    // A material neither Lambertian nor purely specular on every texel (scene/material.h)
     bool glossy = false;
 };
 

@@ -13,6 +13,7 @@
 #include <map>
 
 #include "render/quality_dial.h"
+#include "scene/material.h"
 #include "shared/bsdf.h"
 #include "shared/photon_map.h"
 #include "tests/integrator/gpu_fixture.h"
