@@ -7,8 +7,10 @@
 #include <set>
 #include <sstream>
 
+#include "base/atomic_file.h"
 #include "base/bounded_file.h"
 #include "base/log.h"
+#include "colour/ocio_colour.h"
 #include "io/session.h"
 
 namespace previs {
@@ -150,6 +152,55 @@ Status copyInto(const std::string& from, const fs::path& to) {
     return writeFileAtomic(to.string(), *bytes);
 }
 
+// An OCIO config and the LUTs it names, copied to `into` (relative to the take) keeping their
+// layout relative to each other, so the copy's search_path finds the copies; returns where the
+// config's copy is, relative to the take.
+Result<fs::path> copyOcioConfig(const std::string& configPath, const fs::path& take,
+                                const fs::path& into) {
+    Result<std::vector<std::string>> luts = ocioConfigFiles(configPath);
+    if (!luts) return makeError("recording: {}", luts.message());
+    const std::string config = fs::absolute(configPath).lexically_normal().string();
+    std::vector<std::string> all{config};
+    all.insert(all.end(), luts->begin(), luts->end());
+    const fs::path root = commonFolder(all);
+    for (const std::string& lut : *luts)
+        if (Status s = copyInto(lut, take / into / fs::path(lut).lexically_relative(root)); !s)
+            return s.error();
+    Result<std::string> text = relocatableOcioConfig(configPath);
+    if (!text) return makeError("recording: {}", text.message());
+    const fs::path copy = into / fs::path(config).lexically_relative(root);
+    std::error_code ec;
+    fs::create_directories((take / copy).parent_path(), ec);
+    if (ec)
+        return makeError("{}: cannot create: {}", (take / copy).parent_path().string(),
+                         ec.message());
+    const std::span<const uint8_t> bytes(reinterpret_cast<const uint8_t*>(text->data()),
+                                         text->size());
+    if (Status s = writeFileAtomic((take / copy).string(), bytes); !s) return s.error();
+    return copy;
+}
+
+// [output] belongs to the box (its KMS card, its frames' folder), but not its colour: a take
+// shows as the box showed it (issue 54). Keeps [output.colour] alone, its OCIO config copied.
+Status keepOutputColour(toml::table& t, const ServiceConfig& config, const fs::path& take) {
+    toml::table* colour = t["output"]["colour"].as_table();
+    if (!colour) {
+        t.erase("output");
+        return {};
+    }
+    toml::table kept = *colour;
+    if (!config.output.colourConfigPath.empty()) {
+        Result<fs::path> copy =
+            copyOcioConfig(config.output.colourConfigPath, take, "config/colour/output");
+        if (!copy) return copy.error();
+        kept.insert_or_assign("ocio_config", copy->string());
+    }
+    toml::table output;
+    output.insert("colour", std::move(kept));
+    t.insert_or_assign("output", std::move(output));
+    return {};
+}
+
 }  // namespace
 
 Result<std::string> copyConfigIntoTake(const ServiceConfig& config, const std::string& takeDir) {
@@ -188,13 +239,13 @@ Result<std::string> copyConfigIntoTake(const ServiceConfig& config, const std::s
                 fs::path("config/cameras") / camName / fs::path(c->calibrationPath).filename();
             if (Status s = copyInto(c->calibrationPath, take / calibration); !s) return s.error();
             cam->insert_or_assign("calibration", calibration.string());
-            // The camera's OCIO config too (the file: LUTs it names by search_path are not).
+            // The camera's OCIO config too, with the LUTs it names.
             if (toml::table* colour = (*cam)["colour"].as_table();
                 colour && !c->colourConfigPath.empty()) {
-                const fs::path ocio =
-                    fs::path("config/colour") / camName / fs::path(c->colourConfigPath).filename();
-                if (Status s = copyInto(c->colourConfigPath, take / ocio); !s) return s.error();
-                colour->insert_or_assign("ocio_config", ocio.string());
+                Result<fs::path> ocio =
+                    copyOcioConfig(c->colourConfigPath, take, fs::path("config/colour") / camName);
+                if (!ocio) return ocio.error();
+                colour->insert_or_assign("ocio_config", ocio->string());
             }
             cam->insert_or_assign("source", "session");
             cam->insert_or_assign("device", "cameras/" + camName);
@@ -216,8 +267,8 @@ Result<std::string> copyConfigIntoTake(const ServiceConfig& config, const std::s
             tracking->insert_or_assign("freed_calibration", freed.string());
     }
     if (toml::table* lighting = t["lighting"].as_table()) lighting->erase("saved");
-    for (const char* boxOnly : {"output", "button", "control", "record", "session"})
-        t.erase(boxOnly);
+    if (Status s = keepOutputColour(t, config, take); !s) return s.error();
+    for (const char* boxOnly : {"button", "control", "record", "session"}) t.erase(boxOnly);
 
     if (Status s = copyInto(config.path, take / "config/recorded-from.toml"); !s) return s.error();
     // The copies' folder entries, deepest first, then the take's own.
@@ -276,7 +327,8 @@ Status checkTakeContained(const std::string& takeDir, const std::string& configP
         }
     // Every file the config loader reads: a FreeD calibration is checked as the board is.
     for (const toml::node_view<toml::node> node :
-         {t["tracking"]["board"], t["tracking"]["freed_calibration"], t["lighting"]["saved"]})
+         {t["tracking"]["board"], t["tracking"]["freed_calibration"], t["lighting"]["saved"],
+          t["output"]["colour"]["ocio_config"]})
         if (Result<std::string> p = check(node, false); !p) return p.error();
     if (scene->empty()) return {};
     Result<std::vector<std::string>> files = sceneFiles(*scene, takeDir);

@@ -22,6 +22,7 @@
 #include "take/track_export.h"
 #include "tests/support/temp_dir.h"
 #include "tests/support/test_data.h"
+#include "vision/inverse_tone_map.h"
 #include "vision/pose_filter.h"
 #include "vision/track_smoother.h"
 
@@ -416,6 +417,74 @@ TEST(TakeFiles, ARecordedTakeHoldsItsCamerasOcioConfig) {
     Result<ServiceConfig> refused = loadSessionConfig(*session);
     ASSERT_FALSE(refused);
     EXPECT_NE(refused.message().find("leaves the folder"), std::string::npos) << refused.message();
+}
+
+// What an OCIO config finds through its search_path (issue 54): a take copies those LUTs with
+// the config, keeping their layout, and keeps [output.colour] (its config copied the same way)
+// while the rest of [output] stays the box's. Moved to another folder with the originals gone,
+// the take's config decodes the camera and shows the composite as the box did.
+TEST(TakeFiles, AMovedTakeKeepsItsOcioConfigsLutsAndItsOutputColour) {
+    const fs::path demo = testing::sourcePath("examples/demo");
+    const fs::path dir = testing::scratchDir("takes_unit") / "ocio_lut_take";
+    fs::remove_all(dir);
+    fs::create_directories(dir / "ocio");
+    fs::create_directories(dir / "luts");
+    // Doubles each channel: a grey code of 0.25 is 0.5 in ACES2065-1, and in the working space.
+    std::ofstream(dir / "luts" / "double.spi1d")
+        << "Version 1\nFrom 0.0 1.0\nLength 2\nComponents 1\n{\n0.0\n2.0\n}\n";
+    std::ofstream(dir / "ocio" / "studio.ocio")
+        << "ocio_profile_version: 2.1\nsearch_path: ../luts\nroles:\n"
+           "  aces_interchange: ACES2065-1\n  default: ACES2065-1\ndisplays:\n  sRGB:\n"
+           "    - !<View> {name: Doubled, colorspace: Doubled display}\ncolorspaces:\n"
+           "  - !<ColorSpace>\n    name: ACES2065-1\n"
+           "  - !<ColorSpace>\n    name: Doubled\n"
+           "    to_scene_reference: !<FileTransform> {src: double.spi1d, interpolation: linear}\n"
+           "  - !<ColorSpace>\n    name: Doubled display\n"
+           "    from_scene_reference: !<FileTransform> {src: double.spi1d, interpolation: "
+           "linear}\n";
+    const std::string ocio = (dir / "ocio" / "studio.ocio").string();
+    std::string text = demoConfigWithAbsolutePaths(demo);
+    const std::string curve =
+        "tone_curve = \"banterle\"\nexposure_stops = 0.0\nwhite_balance = [1.0, 1.0, 1.0]\n"
+        "max_radiance = 16.0\nwhite_luminance = 16.0\n\n[cameras.fisheye]";
+    const size_t at = text.find(curve);
+    ASSERT_NE(at, std::string::npos);
+    text.replace(at, curve.size(),
+                 fmt::format("exposure_stops = 0.0\n[cameras.scene.colour]\nocio_config = \"{}\"\n"
+                             "input = \"Doubled\"\n\n[cameras.fisheye]",
+                             ocio));
+    text += fmt::format("\n[output.colour]\nocio_config = \"{}\"\ndisplay = \"sRGB\"\n", ocio);
+    std::ofstream(dir / "previsd.toml") << text;
+    Result<ServiceConfig> live = loadServiceConfig((dir / "previsd.toml").string());
+    ASSERT_TRUE(live) << live.message();
+
+    const fs::path recorded = dir / "take";
+    fs::create_directories(recorded);
+    fs::copy(demo / "session" / "cameras", recorded / "cameras", fs::copy_options::recursive);
+    Result<std::string> configToml = copyConfigIntoTake(*live, recorded.string());
+    ASSERT_TRUE(configToml) << configToml.message();
+    std::ofstream(recorded / "session.toml") << "format = \"previs-session\"\nversion = 3\n";
+    std::ofstream(recorded / "config.toml") << *configToml;
+    const fs::path moved = testing::scratchDir("takes_unit") / "ocio_lut_take_moved";
+    fs::remove_all(moved);
+    fs::rename(recorded, moved);
+    fs::remove_all(dir / "ocio");
+    fs::remove_all(dir / "luts");
+
+    Result<SessionInfo> session = openSession(moved.string());
+    ASSERT_TRUE(session) << session.message();
+    Result<ServiceConfig> config = loadSessionConfig(*session);
+    ASSERT_TRUE(config) << config.message();
+    ASSERT_TRUE(config->sceneCamera.radiometry.colour);
+    const std::array<float, 3> grey =
+        inverseToneMapRgb({0.25f, 0.25f, 0.25f}, config->sceneCamera.radiometry);
+    for (float v : grey) EXPECT_NEAR(v, 0.5f, 2e-3f) << "the take's LUT doubles";
+    ASSERT_TRUE(config->output.colour) << "previs replay shows the take through the box's view";
+    EXPECT_NE(config->output.colour->description().find("view 'Doubled'"), std::string::npos)
+        << config->output.colour->description();
+    EXPECT_EQ(config->output.kind, OutputKind::None) << "the box's own output stays the box's";
+    EXPECT_TRUE(fs::exists(moved / "config/colour/scene/luts/double.spi1d"));
+    EXPECT_TRUE(fs::exists(moved / "config/colour/output/ocio/studio.ocio"));
 }
 
 TEST(TakeTrack, TheDemoTakesStillStretchIsTrackedWithoutBias) {
