@@ -120,6 +120,11 @@ Result<std::unique_ptr<PipelineRenderer>> PipelineRenderer::create(
     p->display_.tone = forwardOf(p->radiometry_);
     p->display_.whiteBalance = p->radiometry_.whiteBalance;
     p->displayColour_ = config.output.colour;
+    // The view on the device too: its table uploaded once, applied in the display pass.
+    if (p->displayColour_) {
+        p->display_.viewLut = p->displayColour_->lut();
+        p->display_.viewLutSize = DisplayColourTransform::kLutSize;
+    }
     p->sceneCameraUntilTracked_ = config.tracking.sceneCameraUntilTracked;
 
     RenderSettings settings;
@@ -630,12 +635,7 @@ Result<ImageF> PipelineRenderer::composite(std::optional<double> noiseEstimate) 
 }
 
 Result<DisplayImage> PipelineRenderer::display(std::optional<double> noiseEstimate) {
-    if (displayColour_) {
-        Result<ImageF> image = composite(noiseEstimate);
-        if (!image) return image.error();
-        return toDisplay(std::move(*image));
-    }
-    if (!rendered_) return toDisplayImage(plate_, display_);
+    if (!rendered_) return toDisplay(plate_);
     const Result<bool> denoised = chooseFilter(noiseEstimate);
     if (!denoised) return denoised.error();
     if (!*denoised) return renderer_->display(false, display_);

@@ -95,7 +95,7 @@ public:
     // The same curve applied on the host to a composite (from composite()), taken by value: it is
     // changed in place (callers move a temporary in).
     // With [output.colour] both show the composite through OpenColorIO's display and view
-    // instead (on the host: the device's display pass knows only the camera curves).
+    // instead (on the device, its 65³ table: DisplaySettings::viewLut).
     DisplayImage toDisplay(ImageF composite) const;
 
     uint64_t samples() const override;  // per pixel: this preview frame's, or the refinement's

@@ -7,8 +7,11 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
+#include <cmath>
 #include <cstdlib>
 
+#include "colour/ocio_colour.h"
 #include "render/display_pass.h"
 #include "tests/integrator/gpu_fixture.h"
 #include "tests/support/scene_builders.h"
@@ -158,6 +161,44 @@ TEST_F(DisplayTest, AHeldViewShowsItsKeptSamples) {
         Result<DisplayImage> unheld = r->display(false, curves()[0]);
         ASSERT_TRUE(held.ok() && unheld.ok());
         EXPECT_GT(compare(*held, *unheld).mean, 0.01) << scale;
+    }
+}
+
+// [output.colour]'s display and view on the device (DisplaySettings::viewLut) against the
+// host's: the float composite, the same gains, through OCIO's processor of the same table
+// (DisplayColourTransform::applyScaled). Both interpolate the same 65³ nodes; they differ by
+// float rounding (the device's log2 and its interpolation against OCIO's), so a value on a
+// code's edge can land on either side: at most one code apart, on one value in a thousand.
+TEST_F(DisplayTest, ThroughADisplaysViewTheDeviceFrameIsOcioOnTheHostToOneCode) {
+    Result<std::shared_ptr<const DisplayColourTransform>> view =
+        DisplayColourTransform::create({"", "output.colour"}, "sRGB", "ACES 1.0 - SDR Video");
+    ASSERT_TRUE(view) << view.message();
+    for (float scale : {1.0f, 0.5f}) {
+        auto r = make(scale);
+        ASSERT_TRUE(r);
+        ASSERT_TRUE(r->render(4).ok());
+        for (DisplaySettings s : curves()) {
+            s.viewLut = (*view)->lut();
+            s.viewLutSize = DisplayColourTransform::kLutSize;
+            Result<DisplayImage> device = r->display(false, s);
+            ASSERT_TRUE(device.ok()) << device.message();
+            Result<ImageF> host = r->image(Aov::Composite);
+            ASSERT_TRUE(host.ok()) << host.message();
+            std::array<float, 3> gain;
+            for (int c = 0; c < 3; ++c)
+                gain[c] = std::exp2(s.tone.exposureStops) / s.whiteBalance[c];
+            DisplayImage shown{host->width, host->height,
+                               std::vector<uint8_t>(size_t(host->width) * host->height * 3)};
+            (*view)->applyScaled(host->pixels.data(), int(host->channels), int(host->width),
+                                 int(host->height), gain, shown.rgb.data());
+            const CodeDifference d = compare(*device, shown);
+            EXPECT_LE(d.largest, 1) << scale;
+            EXPECT_LE(d.mean, 1e-3) << scale;
+            // Not the curve's frame: the view is what the device showed.
+            Result<DisplayImage> curve = r->display(false, curves()[0]);
+            ASSERT_TRUE(curve.ok());
+            EXPECT_GT(compare(*device, *curve).mean, 1.0) << scale;
+        }
     }
 }
 
