@@ -591,6 +591,20 @@ TEST(Previsd, RunsTheDemoTogglesRefinementAndStopsOnSigterm) {
         << fileBytes(ctlLog);
     EXPECT_NE(fileBytes(ctlLog).find(fs::path(config).filename().string()), std::string::npos)
         << fileBytes(ctlLog);
+    // A change of a camera's or the output's OpenColorIO colour is named as needing a restart
+    // (issue 54), not ignored.
+    // The scene camera's tone curve ([cameras.scene.radiometry]) gives way to a log encoding.
+    std::string colour = good;
+    const size_t curve = colour.find("[cameras.scene.radiometry]");
+    ASSERT_NE(curve, std::string::npos) << colour;
+    colour.replace(curve, colour.find("\n[", curve) + 1 - curve,
+                   "[cameras.scene.colour]\ninput = \"ARRI LogC3 (EI800)\"\n");
+    colour += "\n[output.colour]\ndisplay = \"sRGB\"\nview = \"ACES 1.0 - SDR Video\"\n";
+    writeFile(config, colour);
+    ASSERT_EQ(testing::runProcess({previs(), "ctl", "--socket", socket, "reload"}, ctlLog, 30s), 0)
+        << fileBytes(ctlLog);
+    for (const char* named : {"need a restart to apply", "cameras.scene.colour", "output.colour"})
+        EXPECT_NE(fileBytes(ctlLog).find(named), std::string::npos) << named << fileBytes(ctlLog);
     writeFile(config, good);
     // Leaving refinement returns to live preview frames of 1 spp.
     ASSERT_EQ(testing::runProcess({previs(), "ctl", "--socket", socket, "toggle"}, ctlLog, 30s), 0);
