@@ -2,9 +2,9 @@
 // (STYLE.md: every shared struct has static_assert(sizeof/offsetof) checks).
 #include <cstddef>
 
+#include "shared/composite.h"
 #include "shared/denoise.h"
-#include "shared/film.h"
-#include "shared/photon_map.h"
+#include "shared/photon_records.h"
 #include "shared/scene_types.h"
 
 namespace previs::shader {

@@ -19,7 +19,7 @@
 #include "image/image.h"
 #include "render/tonemap.h"
 #include "render/upsample.h"
-#include "shared/film.h"
+#include "shared/composite.h"
 
 namespace previs {
 

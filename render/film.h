@@ -23,14 +23,14 @@
 #include "render/held_view.h"
 #include "render/render_settings.h"
 #include "render/upsample.h"
-#include "shared/film.h"
+#include "shared/composite.h"
 
 namespace previs {
 
 // Eq. 1 summed over n samples of a pixel: Σ[M·L_om + (1−M)(L_om − L_or)] (the plate-free sum the
 // path tracer accumulates) plus (n − ΣM)·L_oc. With n = 1 and means it is the composite's mean;
 // where no sample met a virtual object (both sums 0) it is n·L_oc, the plate bit for bit.
-// (shared/film.h's PV_COMPOSITE_SUM, which the display pass runs too.)
+// (shared/composite.h's PV_COMPOSITE_SUM, which the display pass runs too.)
 inline double compositeSum(double plateFreeSum, double maskSum, double samples, double plate) {
     return PV_COMPOSITE_SUM(plateFreeSum, maskSum, samples, plate);
 }

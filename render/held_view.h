@@ -20,7 +20,7 @@
 #include <span>
 
 #include "image/image.h"
-#include "shared/film.h"
+#include "shared/composite.h"
 
 namespace previs {
 
@@ -40,8 +40,8 @@ public:
     void frameAdded() { ++frames_; }
     // `estimate` (RGBA at the output size: RGB the mean of Eq. 1's plate-free part, A the mask
     // M) averaged with the kept samples (per output pixel two vec4, as PV_BINDING_HELD_SAMPLES
-    // holds them), the estimate counted as kEstimateSamples samples (shared/film.h's heldBlend,
-    // which the display pass runs too).
+    // holds them), the estimate counted as kEstimateSamples samples (shared/composite.h's
+    // heldBlend, which the display pass runs too).
     static ImageF blend(std::span<const glm::vec4> samples, const ImageF& estimate);
     // About what the denoised estimate is worth where it is right: it averages a history of up to
     // 32 frames of its traced pixels and their neighbours' (BENCHMARKS.md, "The preview as

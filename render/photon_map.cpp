@@ -8,7 +8,7 @@
 
 #include "photon_grid.spv.h"
 #include "shared/bsdf.h"
-#include "shared/photon_map.h"
+#include "shared/photon_records.h"
 #include "shared/sampling.h"
 #include "trace_photons.spv.h"
 

@@ -1,6 +1,6 @@
 #pragma once
 
-// Caustics by progressive photon mapping (gpu/shaders/shared/photon_map.h has the rule that
+// Caustics by progressive photon mapping (gpu/shaders/shared/photon_records.h has the rule that
 // splits light paths between the photon map and the path tracer): what the scene needs (whether
 // photons run at all, where they are aimed, which lights emit them) and the GPU passes of one
 // iteration — trace_photons.comp, then photon_grid.comp's radix sort into the hashed grid that
@@ -22,7 +22,7 @@
 #include "gpu/interruptible_dispatch.h"
 #include "render/render_settings.h"
 #include "scene/scene.h"
-#include "shared/photon_map.h"
+#include "shared/photon_records.h"
 #include "shared/scene_types.h"
 
 namespace previs {

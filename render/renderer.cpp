@@ -11,7 +11,7 @@
 #include "base/log.h"
 #include "scene/environment_map.h"
 #include "shared/denoise.h"
-#include "shared/photon_map.h"
+#include "shared/photon_records.h"
 #include "shared/scene_types.h"
 #include "shared/specular_albedo.h"
 #include "shared/texture_sampling.h"

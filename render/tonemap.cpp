@@ -6,7 +6,7 @@
 #include <vector>
 
 #include "base/log.h"
-#include "shared/film.h"
+#include "shared/composite.h"
 
 namespace previs {
 
@@ -31,7 +31,7 @@ static_assert(uint32_t(ToneMapOperator::Clamp) == PV_TONE_CLAMP &&
               uint32_t(ToneMapOperator::Reinhard) == PV_TONE_REINHARD &&
               uint32_t(ToneMapOperator::ReinhardExtended) == PV_TONE_REINHARD_EXTENDED);
 
-// Exposed radiance (finite, ≥ 0) → linear display values, in place (shared/film.h's curve, the
+// Exposed radiance (finite, ≥ 0) → linear display values, in place (shared/composite.h's curve, the
 // one the display pass runs).
 inline void tonemap(float rgb[3], const ToneMapSettings& settings) {
     if (settings.op == ToneMapOperator::Clamp) return;

@@ -8,14 +8,14 @@
 #include <vector>
 
 #include "base/log.h"
-#include "shared/film.h"
+#include "shared/composite.h"
 
 namespace previs {
 
 namespace {
 
 // The range kernel exp(−x) tabulated on x = d²/(2σ²) ∈ [0, PV_RANGE_CUT) in steps of
-// 1/PV_RANGE_STEPS (shared/film.h: the display pass rounds x alike).
+// 1/PV_RANGE_STEPS (shared/composite.h: the display pass rounds x alike).
 constexpr int kRangeSteps = int(PV_RANGE_STEPS);
 constexpr int kRangeTable = int(PV_RANGE_CUT) * kRangeSteps;
 
@@ -77,7 +77,7 @@ std::vector<std::vector<std::pair<uint32_t, double>>> areaWeights(uint32_t full,
 
 using shader::fastLog2;
 
-// The outline the taps around an output pixel steer to (shared/film.h's outlineMask: −1 for
+// The outline the taps around an output pixel steer to (shared/composite.h's outlineMask: −1 for
 // none) from the spatial mean of the mask (channel 3 of `low`) and its extremes over the taps.
 float outlineTarget(const ImageF& low, int i0, int j0, const std::array<double, 4>& wx,
                     const std::array<double, 4>& wy, float sharpness) {

@@ -25,11 +25,11 @@ struct UpsampleSettings {
     // dark from looking like edges.
     float logEpsilonFraction = 0.02f;
     // A fourth channel is the mask M of Eq. 1 (the composite's plate-free part): the virtual
-    // objects' outline, which the plate does not show, is steered by it instead (shared/film.h's
-    // outlineMask): its ramp, which the B-spline leaves 1.3–2 traced pixels wide, is steepened
-    // by this factor times the traced pixel's width in output pixels (outlineKernel; ~1/0.6
-    // brings it to one output pixel), and each tap weighs exp(−(M_outline − M_tap)²/(2σ²)) with
-    // σ = maskRangeSigma. ≤ 0 turns both off.
+    // objects' outline, which the plate does not show, is steered by it instead
+    // (shared/composite.h's outlineMask): its ramp, which the B-spline leaves 1.3–2 traced pixels
+    // wide, is steepened by this factor times the traced pixel's width in output pixels
+    // (outlineKernel; ~1/0.6 brings it to one output pixel), and each tap weighs exp(−(M_outline −
+    // M_tap)²/(2σ²)) with σ = maskRangeSigma. ≤ 0 turns both off.
     float outlineSharpening = 1.6f;
     float maskRangeSigma = 0.2f;
     // Worker threads (the render thread waits for the result; the GPU is idle meanwhile).

@@ -16,7 +16,7 @@
 #extension GL_GOOGLE_include_directive : require
 
 #include "shared/denoise.h"
-#include "shared/photon_map.h"
+#include "shared/photon_records.h"
 #include "shared/sampling.h"
 
 layout(constant_id = 0) const uint kStage = PV_DENOISE_STAGE_PREPARE;

@@ -18,7 +18,7 @@
 #extension GL_GOOGLE_include_directive : require
 
 #include "shared/denoise.h"
-#include "shared/film.h"
+#include "shared/composite.h"
 #include "shared/sampling.h"
 #include "shared/scene_types.h"
 

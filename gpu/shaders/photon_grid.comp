@@ -12,7 +12,7 @@
 #extension GL_GOOGLE_include_directive : require
 
 #include "shared/scene_types.h"
-#include "shared/photon_map.h"
+#include "shared/photon_records.h"
 
 #define STAGE_HISTOGRAM 0u
 #define STAGE_SCAN 1u

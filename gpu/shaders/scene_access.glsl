@@ -25,7 +25,7 @@ layout(constant_id = PV_SPEC_SAMPLER) const uint kSampler = 0u;
 layout(constant_id = PV_SPEC_COUNT_LOOPS) const bool kCountLoops = true;
 // Emissive triangles sampled by solid angle (shared/triangle_light.h); off: by area (ablation).
 layout(constant_id = PV_SPEC_LIGHT_SOLID_ANGLE) const bool kLightSolidAngle = true;
-// Caustics from the photon map (shared/photon_map.h).
+// Caustics from the photon map (shared/photon_records.h).
 layout(constant_id = PV_SPEC_PHOTONS) const bool kPhotons = true;
 // Some material is neither Lambertian nor purely specular (else evaluateBsdf is Lambert's, and
 // photon gathers apply baseColor/π once).

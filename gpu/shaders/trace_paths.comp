@@ -26,7 +26,7 @@ layout(binding = PV_BINDING_PHOTON_CELLS) uniform usamplerBuffer photonCellTexel
 layout(binding = PV_BINDING_PHOTON_SPLATS, scalar) readonly buffer Splats { uint splats[]; };
 layout(binding = PV_BINDING_HELD_SAMPLES, scalar) buffer HeldSamples { vec4 heldSamples[]; };
 
-#include "shared/photon_map.h"
+#include "shared/photon_records.h"
 #include "shared/denoise.h"
 
 // What the camera ray's first hit shows the denoiser (beginPath and tracePaths set them where
@@ -309,7 +309,7 @@ float gatherWithin(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint maxBounc
             uint at = rangeStart + (offset >= n ? offset - n : offset);
             uvec4 t0 = texelFetch(photonTexels, int(2u * at));
             vec3 d = uintBitsToFloat(t0.xyz) - s.position;
-            // Level 1 only where the path may gather it (shared/photon_map.h's rule).
+            // Level 1 only where the path may gather it (shared/photon_records.h's rule).
             bool levelGathered = level1 || (t0.w & PV_PHOTON_LEVEL_2) != 0u;
             float d2 = dot(d, d);
             if (d2 < rq2 && (t0.w >> PV_PHOTON_BOUNCES_SHIFT) <= maxBounces && levelGathered) {
@@ -385,7 +385,7 @@ void gatherPhotons(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint depth, f
     }
 }
 
-// Where a path stands with respect to the photon map's paths (shared/photon_map.h's rule).
+// Where a path stands with respect to the photon map's paths (shared/photon_records.h's rule).
 #define CAUSTIC_NONE 0u            // the path tracer's own: from the camera, or after a delta lobe
 #define CAUSTIC_LEFT_GATHER 1u     // the last gather vertex scattered through a non-delta lobe
 #define CAUSTIC_SPECULAR_CHAIN 2u  // ... then only purely specular vertices (causticBounces)
@@ -411,7 +411,7 @@ struct PathState {
     uint causticState;  // CAUSTIC_*: which emitters the photon map already carries
     uint causticBounces;
     // The next gather vertex gathers level-1 photons: none before it, or the last one scattered
-    // through a delta lobe (shared/photon_map.h).
+    // through a delta lobe (shared/photon_records.h).
     bool gatherLevel1;
 };
 
@@ -654,7 +654,7 @@ bool gatherAtVertex(SampleKey key, inout PathState st, uint mode, Surface s, Bsd
         return false;
     }
     // Every vertex that is not purely specular gathers: level 2 always, level 1 where the rule
-    // allows (shared/photon_map.h), so the light a caustic throws onward (the wall beside a
+    // allows (shared/photon_records.h), so the light a caustic throws onward (the wall beside a
     // glass) is a density estimate, not the path tracer's rare, bright samples.
     // The light set's fourth number is otherwise unused.
     float u = draw(key, vertexSet(st.depth, PV_SET_VERTEX_LIGHT)).w;

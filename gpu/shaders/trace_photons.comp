@@ -2,7 +2,7 @@
 // photon light (chosen by the power it sends toward the specular objects), aimed at the sphere
 // that holds every purely specular triangle, follows its purely specular scatterings and stores
 // it where it first lands on anything else after at least one of them (L S+ D, level 1), then
-// once more where it lands next (level 2; shared/photon_map.h says why and which paths that
+// once more where it lands next (level 2; shared/photon_records.h says why and which paths that
 // carries). Like the path tracer's paths, a photon from a real light starts in both solutions
 // and splits where it first meets a virtual object: the mixed photon goes on from the virtual
 // surface, the real one continues the same ray behind it. Output: four records per photon in
@@ -15,7 +15,7 @@
 #extension GL_GOOGLE_include_directive : require
 
 #include "scene_access.glsl"
-#include "shared/photon_map.h"
+#include "shared/photon_records.h"
 
 layout(local_size_x = PV_PHOTON_GROUP_SIZE) in;
 
@@ -183,7 +183,7 @@ void splatAdd(uint at, vec3 v) {
     }
 }
 
-// Light tracing's last step for a photon just stored at s (shared/photon_map.h's level 1 or 2),
+// Light tracing's last step for a photon just stored at s (shared/photon_records.h's level 1 or 2),
 // in place of the camera path's gather at its first vertex: where the camera sees s directly,
 // the photon's light toward the camera goes to the pixel it lands in,
 //   f(w_cam, w_i) · Φ · |cos θ_s| / (d² · cos³θ_c · A_pixel),
@@ -288,7 +288,7 @@ bool extendPhoton(SampleKey key, inout PhotonState st, inout uint mode,
     BsdfSample bs;
     vec4 u = sampleSet(kSampler, key, PV_PHOTON_SET_BOUNCE + st.bounces);
     if (!sampleBsdf(bp, wo, u, bs)) return true;
-    // On to level 2 only through the non-delta part of D's BSDF (shared/photon_map.h):
+    // On to level 2 only through the non-delta part of D's BSDF (shared/photon_records.h):
     // a delta lobe there is the path tracer's.
     if (landed && bs.isDelta) return true;
     vec3 wi = toWorld(frame, bs.wi);

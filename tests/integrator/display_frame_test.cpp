@@ -1,7 +1,7 @@
 // The monitor's frame made on the device (Renderer::display, render/display_pass.h) against the
 // host's: the float composite (Renderer::image) tone mapped by toDisplayImage. The two run the
 // same steps (upsampling, the held view's blend, Eq. 1, the curve, the 8-bit encode: one
-// definition each in shared/film.h, or the same table) and differ only by float rounding (the
+// definition each in shared/composite.h, or the same table) and differ only by float rounding (the
 // host sums in double): a value on a code's edge can land on either side. So at most one code
 // apart, and on one value in a thousand at most.
 #include <gtest/gtest.h>

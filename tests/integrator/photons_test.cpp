@@ -1,4 +1,4 @@
-// Photon mapping for caustics (render/photon_map.h, gpu/shaders/shared/photon_map.h): the flux
+// Photon mapping for caustics (render/photon_map.h, gpu/shaders/shared/photon_records.h): the flux
 // photons deposit, the split of light paths between the photon map and the path tracer (their
 // sum equals a pure path trace where that converges), progressive convergence, the differential
 // identities, and that a scene without a caustic pays nothing. Seeds are fixed; tolerances come
@@ -15,7 +15,7 @@
 #include "render/quality_dial.h"
 #include "scene/material.h"
 #include "shared/bsdf.h"
-#include "shared/photon_map.h"
+#include "shared/photon_records.h"
 #include "tests/integrator/gpu_fixture.h"
 #include "tests/support/scene_builders.h"
 
@@ -233,7 +233,7 @@ protected:
         addSphere(s, glm::vec3(0.0f, 0.35f, 0.0f), 0.25f, glassMat, false);
         // A varnished wall behind the ball: diffuse under a smooth coat, so a camera path meets
         // a gather vertex that scatters through a delta lobe (level 1 is then gathered at the
-        // next one, shared/photon_map.h), and photons land on it twice (level 2).
+        // next one, shared/photon_records.h), and photons land on it twice (level 2).
         Material varnish = lambert(glm::vec3(0.6f));
         varnish.roughness = 0.0f;
         varnish.specular = 1.0f;
@@ -958,7 +958,7 @@ TEST_F(PhotonTest, LambertianGathersMatchTheBsdfPerPhoton) {
     EXPECT_TRUE((*glossy)->features().glossy);
 }
 
-// A photon's direction numbers are stratified along a Z-order curve (shared/photon_map.h): over
+// A photon's direction numbers are stratified along a Z-order curve (shared/photon_records.h): over
 // an iteration's N = 2^m photons every cell of the 2^k × 2^k grid (4^k ≥ N) is taken exactly
 // once — by the cell-picking number's two halves where a photon's stretch is two cells — so the
 // directions are uniform; the 8 photons of one SIMD batch lie within a 4 × 4-cell square; and

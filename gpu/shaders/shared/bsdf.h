@@ -125,7 +125,7 @@ PV_INLINE bool bsdfIsDelta(BsdfParams p) { return p.alpha < PV_DELTA_ALPHA; }
 
 // Every lobe a delta (a smooth mirror, smooth glass without a diffuse base): photons pass
 // through such a surface, and a camera path gathers photons at every vertex that is not one
-// (shared/photon_map.h).
+// (shared/photon_records.h).
 PV_INLINE bool bsdfIsPurelySpecular(BsdfParams p) {
     return bsdfIsDelta(p) &&
            (p.metallic >= 1.0f || p.transmission >= 1.0f || maxComponent(p.baseColor) <= 0.0f);

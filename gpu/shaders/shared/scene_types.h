@@ -44,7 +44,7 @@ PV_BEGIN
 // (width+1)×(height+1) vec2: normalised OpenCV camera coordinates of each pixel corner
 // (vision/lens_grid.h), when the camera has a calibrated lens.
 #define PV_BINDING_LENS_GRID 19
-// Photon mapping (shared/photon_map.h). Lights photons leave from, one texel each.
+// Photon mapping (shared/photon_records.h). Lights photons leave from, one texel each.
 #define PV_BINDING_PHOTON_LIGHTS 20
 // The iteration's photon records in photon order (PhotonRecord, 2 per photon) as traced, and the
 // same records sorted by grid bucket, which the gather reads.
@@ -103,7 +103,7 @@ PV_BEGIN
 // Emissive triangles sampled uniformly in the solid angle they subtend (where float precision
 // allows, shared/triangle_light.h); off: uniformly in area, the baseline for ablations.
 #define PV_SPEC_LIGHT_SOLID_ANGLE 12
-// Caustics from a photon map (shared/photon_map.h): the gather at the path's first non-specular
+// Caustics from a photon map (shared/photon_records.h): the gather at the path's first non-specular
 // vertex and the exclusion of the paths the photons carry. Off: the path tracer alone.
 #define PV_SPEC_PHOTONS 13
 // The denoiser's guide buffers (PV_BINDING_GUIDES): written only by renders that may denoise.
@@ -264,7 +264,7 @@ struct FrameParams {
     uint rouletteStartDepth;  // Russian roulette from this depth on
     uint realTriangleCount;   // triangles [0, this) in BVH order are real (phantoms)
     uint coneLightFirst;      // lights [this, lightCount) are cone lights (PV_LIGHT_CONE)
-    // Photon mapping (shared/photon_map.h); unused when the pipeline has no photons.
+    // Photon mapping (shared/photon_records.h); unused when the pipeline has no photons.
     uint photonCount;      // photons traced this iteration (a multiple of 128)
     uint photonIteration;  // the iteration: seeds its photons (the sample index it serves)
     float photonRadius;    // this iteration's gather radius (metres)

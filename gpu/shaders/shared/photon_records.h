@@ -26,8 +26,8 @@
 // Where the photon pass splats (photonSplatsActive), the camera path's first vertex does not
 // gather: the photon pass sends each record the camera sees directly to its pixel instead
 // (trace_photons.comp's splatToCamera), the same paths (L S+ D E, L S+ D S* D E) counted once.
-#ifndef PREVIS_SHARED_PHOTON_MAP_H
-#define PREVIS_SHARED_PHOTON_MAP_H
+#ifndef PREVIS_SHARED_PHOTON_RECORDS_H
+#define PREVIS_SHARED_PHOTON_RECORDS_H
 
 #include "shared/prelude.h"
 

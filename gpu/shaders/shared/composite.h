@@ -2,8 +2,8 @@
 // the display pass (film_display.comp) both run, and the display pass's bindings: Eq. 1 of Kán &
 // Kaufmann, the held view's blend, and the global tone curves. One definition each, so the
 // monitor shows what `previs render` writes.
-#ifndef PREVIS_SHARED_FILM_H
-#define PREVIS_SHARED_FILM_H
+#ifndef PREVIS_SHARED_COMPOSITE_H
+#define PREVIS_SHARED_COMPOSITE_H
 
 #include "shared/prelude.h"
 
