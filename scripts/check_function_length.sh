@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Fails if a function outside tests/, bench/ and fuzz/ is longer than a reader takes in at once
-# (LIMIT lines, default 120: docs/architecture.md, "Reading the code"). Lengths come from
+# (LIMIT lines, default 120: docs/architecture.md, "Where to start reading"). Lengths come from
 # universal-ctags' end lines, C++ and GLSL alike. Usage: check_function_length.sh [LIMIT]
 set -euo pipefail
 cd "$(dirname "$0")/.."
