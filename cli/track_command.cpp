@@ -95,7 +95,7 @@ void printJson(const std::string& image, const std::vector<TagDetection>& detect
 }
 
 // What every image is tracked with, built from the options before the first image.
-struct Tracker {
+struct TrackSetup {
     CameraCalibration calibration;
     std::optional<TagBoard> board;
     TagDetector detector;
@@ -117,7 +117,7 @@ Result<std::optional<TagBoard>> loadBoard(TrackOptions& o) {
     return std::optional<TagBoard>(std::move(board).value());
 }
 
-Result<Tracker> makeTracker(TrackOptions& o) {
+Result<TrackSetup> makeTrackSetup(TrackOptions& o) {
     if (Status s = o.toneCurve.buildColour(); !s) return s.error();
     auto calibration = CameraCalibration::load(o.camera);
     if (!calibration) return makeError("--camera: {}", calibration.message());
@@ -127,8 +127,8 @@ Result<Tracker> makeTracker(TrackOptions& o) {
     o.detector.refineEdges = o.refineEdges != 0;
     auto detector = TagDetector::create(o.detector);
     if (!detector) return detector.error();
-    return Tracker{std::move(calibration).value(), std::move(board).value(),
-                   std::move(detector).value()};
+    return TrackSetup{std::move(calibration).value(), std::move(board).value(),
+                      std::move(detector).value()};
 }
 
 // Empty when the file cannot be read or decoded (imread throws on some corrupt files: caught
@@ -142,7 +142,7 @@ cv::Mat readGray(const std::string& path) {
 }
 
 // The camera's pose in the board's frame or, with no board, in the first detected tag's.
-std::optional<BoardPose> cameraPose(const Tracker& tracker, const TrackOptions& o,
+std::optional<BoardPose> cameraPose(const TrackSetup& tracker, const TrackOptions& o,
                                     const std::vector<TagDetection>& detections,
                                     const std::string& path) {
     if (tracker.board) return estimateBoardPose(detections, *tracker.board, tracker.calibration);
@@ -156,7 +156,7 @@ std::optional<BoardPose> cameraPose(const Tracker& tracker, const TrackOptions& 
 int run(TrackOptions& o) {
     // Our own messages name the file and the fix; OpenCV's console warnings would only repeat them.
     cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);
-    Result<Tracker> tracker = makeTracker(o);
+    Result<TrackSetup> tracker = makeTrackSetup(o);
     if (!tracker) {
         logError("{}", tracker.message());
         return 2;

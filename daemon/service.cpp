@@ -496,7 +496,10 @@ Result<std::string> Service::reload() {
         restart.push_back("output");
     // OpenColorIO's transforms are built into the stages, the renderer and the display at start
     // (issue 54): a colour change is named, never silently ignored.
-    auto colourKey = [](const CameraConfig& c) { return c.colourConfigPath + "|" + c.colourInput; };
+    auto colourKey = [](const CameraConfig& c) {
+        return c.colourConfigPath + "|" + c.colourInput + "|" +
+               std::to_string(static_cast<int>(c.colourRange));
+    };
     if (colourKey(n.sceneCamera) != colourKey(config_.sceneCamera))
         restart.push_back("cameras.scene.colour");
     if (n.fisheyeCamera && config_.fisheyeCamera &&

@@ -959,8 +959,9 @@ glm::dvec3 areaNormal(const std::vector<glm::vec3>& world, const glm::uvec3& tri
 Status Loader::readVertexAttribute(const tinygltf::Primitive& prim,
                                    const VertexAttribute& attribute, const std::string& what,
                                    size_t vertexCount, std::vector<float>& out) const {
+    // A negative accessor index is glTF's "absent" as tinygltf parses it: flat or untextured.
     auto it = prim.attributes.find(attribute.name);
-    if (it == prim.attributes.end()) return {};
+    if (it == prim.attributes.end() || it->second < 0) return {};
     size_t n = 0;
     if (Status s = readFloats(it->second, attribute.type, attribute.allowNormalized,
                               what + " " + attribute.name, out, n);
@@ -975,7 +976,8 @@ Result<Loader::PrimitiveVertices> Loader::readVertices(const tinygltf::Mesh& mes
                                                        const tinygltf::Primitive& prim,
                                                        const std::string& what) const {
     auto position = prim.attributes.find("POSITION");
-    if (position == prim.attributes.end()) return fail("{} has no POSITION attribute", what);
+    if (position == prim.attributes.end() || position->second < 0)
+        return fail("{} has no POSITION attribute", what);
     PrimitiveVertices vertices;
     if (Status s = readFloats(position->second, TINYGLTF_TYPE_VEC3, false, what + " POSITION",
                               vertices.positions, vertices.count);

@@ -234,6 +234,20 @@ TEST(GltfLoader, NormalsTransformedByInverseTransposeAndMirroringKeepsFront) {
     EXPECT_GT(glm::dot(geo, g.normals[t.x]), 0.0f);
 }
 
+// tinygltf reads an attribute's accessor index as given, -1 included: the loader takes it as
+// absent (flat normals, no texture coordinates), as it does a missing attribute.
+TEST(GltfLoader, ANegativeAttributeAccessorIsAbsent) {
+    GltfBuilder b;
+    const int pos = b.addPositions({{0, 0, 0}, {1, 0, 0}, {0, 1, 0}});
+    const int mesh = b.addMesh(
+        json::array({{{"attributes", {{"POSITION", pos}, {"NORMAL", -1}, {"TEXCOORD_0", -1}}}}}));
+    b.addNode({{"mesh", mesh}});
+    Result<Scene> scene = loadGltf(b.writeGltf("negative_attributes.gltf"));
+    ASSERT_TRUE(scene.ok()) << scene.message();
+    ASSERT_EQ(scene->geometry.triangles.size(), 1u);
+    expectNear(scene->geometry.normals[scene->geometry.triangles[0].x], {0, 0, 1});
+}
+
 TEST(GltfLoader, RoleInheritance) {
     GltfBuilder b;
     const int mesh = b.addTriangleMesh();
