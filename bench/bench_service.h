@@ -1,12 +1,12 @@
 #pragma once
 
-// The service benchmark of issue 7 (`previs bench --only service`, BENCHMARKS.md "previsd"):
-// per-stage cost per frame in lock step over the demo session (as `previs replay` drives the
-// stages), then the live service (daemon/service.h) on the same session at recorded timing:
-// preview fps and latency, drops, refinement samples/s, CPU use once refinement has converged,
-// peak host RSS and the renderer's device memory. Each configuration runs in its own forked
-// child so that its peak RSS is its own; the parent must not have started threads or a Vulkan
-// device before calling runServiceBench.
+// The service benchmark of issue 7 (`previs bench --only service`, BENCHMARKS.md "The live service
+// (previsd)"): per-stage cost per frame in lock step over the demo session (as `previs replay`
+// drives the stages), then the live service (daemon/service.h) on the same session at recorded
+// timing: preview fps and latency, drops, refinement samples/s, CPU use once refinement has
+// converged, peak host RSS and the renderer's device memory. Each configuration runs in its own
+// forked child so that its peak RSS is its own; the parent must not have started threads or a
+// Vulkan device before calling runServiceBench.
 
 #include <cstdint>
 #include <string>

@@ -1,6 +1,6 @@
 // previs_bench_tag_corners [DATA_DIR]: the box's tag corners and poses against ViSP's rendered
 // benchmark's truth, by family and way of placing the corners (bench/visp_tag_poses.h), as the
-// table of BENCHMARKS.md "Tag corners on third-party images".
+// table of bench/results/benchmarks_2026-12-06.md, "Tag corners on third-party images".
 #include <algorithm>
 #include <cstdio>
 

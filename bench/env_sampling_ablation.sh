@@ -1,5 +1,5 @@
 #!/bin/sh
-# Issue 8 environment-sampling ablation (BENCHMARKS.md "Issue 8: environment sampling"): two
+# Issue 8 environment-sampling ablation (bench/results/benchmarks_2026-11-27.md, "Issue 8: environment sampling"): two
 # previs builds (e.g. main's CDF inversion and this branch's alias table) × two samplers, on the
 # env-lit bunny: RMSE and relMSE against a long reference at equal samples, and CPU time
 # (user + sys of the whole command, /usr/bin/time) per run. Builds alternate run by run.

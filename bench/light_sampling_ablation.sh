@@ -1,5 +1,5 @@
 #!/bin/sh
-# Issue 8 light-sampling ablation (BENCHMARKS.md "Issue 8: light sampling"): emissive triangles
+# Issue 8 light-sampling ablation (bench/results/benchmarks_2026-11-27.md, "Issue 8: light sampling"): emissive triangles
 # sampled by solid angle (--light-sampling solid-angle, the default) against by area, on one
 # scene: RMSE against a long reference at equal samples, and user+sys CPU time of each render
 # (/usr/bin/time; the device is lavapipe, so the render's CPU time is its cost), from

@@ -1,5 +1,5 @@
 #!/bin/sh
-# Issue 8 sampler ablation (BENCHMARKS.md "Issue 8: sampler"): Sobol' vs independent (PCG) on
+# Issue 8 sampler ablation (bench/results/benchmarks_2026-11-27.md, "Issue 8: sampler"): Sobol' vs independent (PCG) on
 # one scene: RMSE against a long reference at equal samples, and render time per sample, from
 # A/B-alternated runs over several seeds.
 #   bench/sampler_ablation.sh [SCENE] [W] [H] [REF_SPP] [SEEDS]

@@ -8,7 +8,8 @@
 // tag's pose (estimateTagPose, as `previs track` prints it) against the true pose, with ViSP's own
 // error measures and thresholds (lagadic/visp, modules/detection/test/apriltag-with-dataset/
 // testAprilTag.cpp). The test tests/vision/tag_edges_test.cpp and the program
-// previs_bench_tag_corners (BENCHMARKS.md, "Tag corners on third-party images") share it.
+// previs_bench_tag_corners (bench/results/benchmarks_2026-12-06.md, "Tag corners on third-party
+// images") share it.
 
 #include <array>
 #include <opencv2/core.hpp>

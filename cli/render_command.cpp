@@ -28,8 +28,8 @@ namespace previs {
 namespace {
 
 // Samples per dispatch at most (the renderer may lower it): on lavapipe 16 take about 0.75 of the
-// time of 16 one-sample dispatches (BENCHMARKS.md, "Issue 8: path regeneration"); more gains
-// little and makes the progress line and --seconds coarser.
+// time of 16 one-sample dispatches (bench/results/benchmarks_2026-11-29.md, "Issue 8: path
+// regeneration"); more gains little and makes the progress line and --seconds coarser.
 constexpr uint32_t kSamplesPerDispatch = 16;
 
 struct RenderOptions {

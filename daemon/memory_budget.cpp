@@ -12,9 +12,10 @@ namespace previs {
 
 namespace {
 
-// Fitted to previsd on the demo scene (BENCHMARKS.md, "previsd in the field"): peak resident
-// memory 480–520 MiB at 640×360 and 1.94–2.0 GiB at 1920×1080 on lavapipe, i.e. about 800
-// bytes a pixel over a fixed 340 MiB. Rounded up: the check refuses only what cannot fit.
+// Fitted to previsd on the demo scene (bench/results/benchmarks_2026-12-05.md, "previsd in the
+// field"): peak resident memory 480–520 MiB at 640×360 and 1.94–2.0 GiB at 1920×1080 on lavapipe,
+// i.e. about 800 bytes a pixel over a fixed 340 MiB. Rounded up: the check refuses only what cannot
+// fit.
 constexpr uint64_t kFixedBytes = uint64_t(360) << 20;
 constexpr uint64_t kBytesPerPixel = 850;
 // Each array of the scene is held about three times at the peak: as loaded, as uploaded, and in

@@ -4,7 +4,7 @@
 // big is made: a scene or render size that would cross systemd's MemoryMax= is refused with one
 // line at start (exit 2), instead of the kernel's OOM killer ending previsd mid-take over and
 // over. The model is fitted to previsd's measured peak resident memory on lavapipe (device
-// buffers are host memory there), BENCHMARKS.md "previsd in the field".
+// buffers are host memory there), bench/results/benchmarks_2026-12-05.md, "previsd in the field".
 
 #include <cstdint>
 #include <optional>

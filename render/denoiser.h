@@ -24,7 +24,7 @@ namespace previs {
 // The pinhole camera of a frame, for temporal reprojection (Renderer::denoiseCamera): the
 // camera's pose (looks along −Z, +Y up; double, as Renderer::setCameraPose takes it) and tan of
 // the half field of view in x and y. A calibrated lens grid is approximated by this pinhole
-// (BENCHMARKS.md "Issue 10: denoiser" says what that costs).
+// (bench/results/benchmarks_2026-11-28.md, "Issue 10: denoiser", says what that costs).
 struct DenoiseCamera {
     glm::dmat4 worldFromCamera{1.0};
     glm::vec2 tanHalfFov{1.0f};

@@ -42,11 +42,11 @@ case "$config" in
 esac
 # Unity build: CMake compiles each target's sources in batches of 16 as one translation unit, so
 # the CLI11/nlohmann-json/fmt/GoogleTest templates are parsed and instantiated once per batch
-# instead of once per file (BENCHMARKS.md, "CI time"). A fresh release or asan build folder (CI's)
-# is configured with it on; an existing one keeps its setting, so a developer's folder configured
-# with -DCMAKE_UNITY_BUILD=OFF (an edited file then recompiles alone, not with its batch) stays
-# so. PREVIS_UNITY=ON or OFF sets it either way. The fuzz build (clang) stays per file: as unity
-# it took 113 s against 110 (BENCHMARKS.md, "CI's run with unity builds").
+# instead of once per file (bench/results/benchmarks_2026-12-05.md, "CI's run with unity
+# builds"). A fresh release or asan build folder (CI's) is configured with it on; an existing one
+# keeps its setting, so a developer's folder configured with -DCMAKE_UNITY_BUILD=OFF (an edited
+# file then recompiles alone, not with its batch) stays so. PREVIS_UNITY=ON or OFF sets it either
+# way. The fuzz build (clang) stays per file: as unity it took 113 s against 110 (same section).
 unity=(-DCMAKE_UNITY_BUILD_BATCH_SIZE=16)
 if [[ -n ${PREVIS_UNITY:-} ]]; then
     unity+=(-DCMAKE_UNITY_BUILD="$PREVIS_UNITY")

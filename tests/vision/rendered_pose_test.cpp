@@ -1,7 +1,7 @@
 // The tracker on tag boards rendered by the path tracer at known poses through calibrated lenses
 // (bench/board_render.h): pose errors against the exact ground truth, and the cases where the
 // tracker must say "lost" instead of reporting a pose. The full sweep is `previs bench --only
-// pose` (BENCHMARKS.md, "Pose accuracy (rendered boards)").
+// pose` (bench/results/benchmarks_2026-11-22.md, "Pose accuracy (rendered boards)").
 //
 // Tolerances (each from the reasoning given, none fitted to the results):
 // - Corners: the detected corners' RMS distance to their true projection is at most

@@ -5,7 +5,7 @@
 // where they were; through a guessed sRGB it moves every edge; on the same renders recorded
 // through sRGB, the refit through sRGB undoes the curve's 0.5-1.3 px bias on every family. So
 // the tracker without a camera curve keeps libapriltag's corners. Each test prints its numbers
-// (BENCHMARKS.md, "Tag corners on third-party images").
+// (bench/results/benchmarks_2026-12-06.md, "Tag corners on third-party images").
 
 #include "vision/tag_edges.h"
 
@@ -205,9 +205,10 @@ TEST(VispRendered, ThroughAGuessedCurveTheRefitMovesEveryEdge) {
 }
 
 // The box's tag poses against ViSP's truth on every family here (bench/visp_tag_poses.h; the
-// same table as `previs_bench_tag_corners`, BENCHMARKS.md "Tag corners on third-party images"),
-// on the render as ViSP made it and as a camera with the sRGB curve would have recorded it. One
-// test per family: building a 48-52 bit family's decode tables takes seconds, once per process.
+// same table as `previs_bench_tag_corners`, bench/results/benchmarks_2026-12-06.md, "Tag corners on
+// third-party images"), on the render as ViSP made it and as a camera with the sRGB curve would
+// have recorded it. One test per family: building a 48-52 bit family's decode tables takes seconds,
+// once per process.
 class VispTagPoses : public ::testing::TestWithParam<bench::VispTagFamily> {};
 
 // vispCornerMethods' order.

@@ -74,7 +74,8 @@ PV_BEGIN
 #define PV_DENOISE_STAGE_TEMPORAL 3u
 
 // Workgroup shape: llvmpipe runs 8 consecutive invocations (along x) as one SIMD batch; 32×2
-// and 16×16 measured no faster than 8×8 (BENCHMARKS.md "Issue 10: denoiser").
+// and 16×16 measured no faster than 8×8 (bench/results/benchmarks_2026-11-28.md,
+// "Issue 10: denoiser").
 #define PV_DENOISE_GROUP_X 8
 #define PV_DENOISE_GROUP_Y 8
 

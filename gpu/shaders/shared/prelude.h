@@ -45,7 +45,7 @@
 // if (done) break; }`): a test at the top runs the whole body once more, masked, after the last
 // lane of the SIMD batch has left. And code that must run at most once per pass of an enclosing
 // loop appears in it once: every copy of a loop runs at least once per pass, needed or not
-// (BENCHMARKS.md, "llvmpipe runs every branch").
+// (bench/results/benchmarks_2026-11-29.md, "llvmpipe runs every branch").
 
 #define PV_PI 3.14159265358979323846f
 #define PV_INV_PI 0.31830988618379067154f
