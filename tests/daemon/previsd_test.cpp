@@ -957,11 +957,21 @@ TEST(Previsd, TheSetsNetworkGetsThePoseTheTimecodeAndThePicture) {
         if (i > 0) {
             EXPECT_EQ(timing["sequenceNumber"].get<int64_t>(),
                       samples[i - 1]["timing"]["sequenceNumber"].get<int64_t>() + 1);
-            // The demo's camera names no fps: the rate is measured on its frames (issue 54).
-            ASSERT_TRUE(timing.contains("sampleRate")) << samples[i].dump();
-            EXPECT_EQ(timing["sampleRate"]["num"].get<int>(), 15) << timing.dump();
-            EXPECT_EQ(timing["sampleRate"]["denom"].get<int>(), 1) << timing.dump();
         }
+    }
+    // The demo's camera names no fps: the rate is measured on its frames (issue 54), from the
+    // first two tracked frames at most 8 camera frames apart. On a loaded box (the sanitized
+    // stage) the first tracked frames can be further apart: it may come a few samples late, then
+    // stays, and is the camera's 15/1.
+    size_t firstRated = n;
+    for (size_t i = 0; i < n && firstRated == n; ++i)
+        if (samples[i]["timing"].contains("sampleRate")) firstRated = i;
+    ASSERT_LE(firstRated, std::min<size_t>(n - 1, 10)) << samples[n - 1].dump();
+    for (size_t i = firstRated; i < n; ++i) {
+        const nlohmann::json& timing = samples[i]["timing"];
+        ASSERT_TRUE(timing.contains("sampleRate")) << samples[i].dump();
+        EXPECT_EQ(timing["sampleRate"]["num"].get<int>(), 15) << timing.dump();
+        EXPECT_EQ(timing["sampleRate"]["denom"].get<int>(), 1) << timing.dump();
     }
     expectNetworkPosesNearTheTruth(freedPoses);
     auto now = waitFor(socket, kStartup,
