@@ -13,6 +13,7 @@
 #include "image/image.h"
 #include "scene/environment_map.h"
 #include "scene/environment_sampler.h"
+#include "tests/support/chi2.h"
 #include "tests/support/test_data.h"
 
 namespace previs {
@@ -23,40 +24,6 @@ const std::string kEnvDir = testing::sharedDataDir() + "envmaps/";
 // Two chi-square tests (real map, synthetic sun map) share the 1% family-wise significance.
 constexpr int kChiSquareTests = 2;
 constexpr double kSignificance = 0.01;
-
-// Regularised upper incomplete gamma Q(a, x) (Numerical Recipes §6.2: series for x < a + 1,
-// Lentz continued fraction otherwise); the chi-square survival function is Q(dof/2, x/2).
-double gammaQ(double a, double x) {
-    if (x <= 0.0) return 1.0;
-    const double lg = std::lgamma(a);
-    if (x < a + 1.0) {
-        double sum = 1.0 / a;
-        double term = sum;
-        for (int n = 1; n < 100000; ++n) {
-            term *= x / (a + n);
-            sum += term;
-            if (std::abs(term) < std::abs(sum) * 1e-15) break;
-        }
-        return 1.0 - sum * std::exp(-x + a * std::log(x) - lg);
-    }
-    double b = x + 1.0 - a;
-    double c = 1.0 / 1e-300;
-    double d = 1.0 / b;
-    double h = d;
-    for (int i = 1; i < 100000; ++i) {
-        const double an = -i * (i - a);
-        b += 2.0;
-        d = an * d + b;
-        if (std::abs(d) < 1e-300) d = 1e-300;
-        c = b + an / c;
-        if (std::abs(c) < 1e-300) c = 1e-300;
-        d = 1.0 / d;
-        const double del = d * c;
-        h *= del;
-        if (std::abs(del - 1.0) < 1e-15) break;
-    }
-    return std::exp(-x + a * std::log(x) - lg) * h;
-}
 
 EnvironmentMap loadOrDie(const std::string& relative) {
     Result<EnvironmentMap> map = loadEnvironmentMap(kEnvDir + relative);
@@ -357,14 +324,14 @@ ChiSquare chiSquareTest(const EnvironmentSampler& sampler, int sampleCount, uint
         result.statistic += (pooledObs - pooledExp) * (pooledObs - pooledExp) / pooledExp;
         ++result.dof;
     }
-    result.pValue = gammaQ(0.5 * result.dof, 0.5 * result.statistic);
+    result.pValue = testing::incompleteGammaQ(0.5 * result.dof, 0.5 * result.statistic);
     return result;
 }
 
 void expectGoodFit(const EnvironmentSampler& sampler, uint32_t seed) {
     const ChiSquare chi = chiSquareTest(sampler, 1000000, seed);
     // Šidák: each of the kChiSquareTests tests at 1 - (1 - α)^(1/n).
-    const double alpha = 1.0 - std::pow(1.0 - kSignificance, 1.0 / kChiSquareTests);
+    const double alpha = testing::sidakLevel(kSignificance, kChiSquareTests);
     std::printf("chi2 = %.1f, dof = %d, p = %.4f (reject below %.5f)\n", chi.statistic, chi.dof,
                 chi.pValue, alpha);
     EXPECT_GT(chi.pValue, alpha) << "chi2 " << chi.statistic << " dof " << chi.dof;
