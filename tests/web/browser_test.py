@@ -424,31 +424,36 @@ def check_control_off(checks, devtools, server_binary, children):
     checks.passed("control off")
 
 
+def start_child(command, children, stream_name, pattern, timeout, **popen_arguments):
+    """Starts `command` (kept in `children`) and waits for `pattern` on its pipe `stream_name`,
+    which is then drained: (process, match), or (None, None) when the line does not come."""
+    child = subprocess.Popen(command, **popen_arguments)
+    children.append(child)
+    stream = getattr(child, stream_name)
+    match = read_line_matching(stream, pattern, timeout)
+    if not match:
+        return None, None
+    drain(stream)
+    return child, match
+
+
 def start_server(server_binary, arguments, children):
-    server = subprocess.Popen([server_binary, "--fps", "10"] + arguments,
-                              stdin=subprocess.PIPE, stdout=subprocess.PIPE)
-    children.append(server)
-    listening = read_line_matching(server.stdout, r"LISTENING (\d+)", 30)
-    if not listening:
-        return None
-    drain(server.stdout)
-    return int(listening.group(1)), server
+    server, listening = start_child([server_binary, "--fps", "10"] + arguments, children,
+                                    "stdout", r"LISTENING (\d+)", 30,
+                                    stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+    return (int(listening.group(1)), server) if server else None
 
 
 def start_chromium(profile, children):
-    chromium = subprocess.Popen(
+    chromium, devtools_url = start_child(
         [CHROMIUM, "--headless=new", "--no-sandbox", "--remote-debugging-port=0",
          "--remote-allow-origins=*", f"--user-data-dir={profile}", "--disable-gpu",
          "--no-first-run", "--no-default-browser-check", "--disable-extensions",
          "--disable-background-networking", "--disable-dev-shm-usage", "--mute-audio",
          "--window-size=800,1000", "about:blank"],
+        children, "stderr", r"DevTools listening on (ws://\S+)", 60,
         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    children.append(chromium)
-    devtools_url = read_line_matching(chromium.stderr, r"DevTools listening on (ws://\S+)", 60)
-    if not devtools_url:
-        return None
-    drain(chromium.stderr)
-    return DevTools(devtools_url.group(1))
+    return DevTools(devtools_url.group(1)) if chromium else None
 
 
 def run(server_binary, checks):
