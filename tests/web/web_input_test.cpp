@@ -4,8 +4,10 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <memory>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "tests/web/synthetic_frames.h"
@@ -29,10 +31,20 @@ void expectStillServing(WebMonitor& monitor) {
 // The start of a TLS ClientHello, then a blank line: a browser told https:// for this port.
 constexpr char kTlsHello[] = "\x16\x03\x01\x02\x00\x01\x00\x01\xfc\x03\x03\r\n\r\n";
 
-TEST(WebInput, MalformedRequestsAreAnswered400) {
+// Each case's monitor, on a service that counts the commands it was given.
+class WebInput : public ::testing::Test {
+protected:
+    WebMonitor* start(WebMonitorSettings settings = test::testSettings()) {
+        monitor = test::startMonitor(service, std::move(settings));
+        return monitor.get();
+    }
+
     FakeService service;
-    auto monitor = test::startMonitor(service);
-    ASSERT_TRUE(monitor);
+    std::unique_ptr<WebMonitor> monitor;
+};
+
+TEST_F(WebInput, MalformedRequestsAreAnswered400) {
+    ASSERT_TRUE(start());
     const std::vector<std::string> malformed = {
         "HELLO\r\n\r\n",
         "GET\r\n\r\n",
@@ -49,10 +61,8 @@ TEST(WebInput, MalformedRequestsAreAnswered400) {
     expectStillServing(*monitor);
 }
 
-TEST(WebInput, UnknownPathIs404AndWrongMethod405) {
-    FakeService service;
-    auto monitor = test::startMonitor(service);
-    ASSERT_TRUE(monitor);
+TEST_F(WebInput, UnknownPathIs404AndWrongMethod405) {
+    ASSERT_TRUE(start());
     const int port = monitor->port();
     EXPECT_EQ(test::get(port, "/nope").status, 404);
     EXPECT_EQ(test::get(port, "/../../etc/passwd").status, 404);
@@ -72,10 +82,8 @@ TEST(WebInput, UnknownPathIs404AndWrongMethod405) {
     expectStillServing(*monitor);
 }
 
-TEST(WebInput, OversizedBodiesAre413AndHeaders431) {
-    FakeService service;
-    auto monitor = test::startMonitor(service);
-    ASSERT_TRUE(monitor);
+TEST_F(WebInput, OversizedBodiesAre413AndHeaders431) {
+    ASSERT_TRUE(start());
     const int port = monitor->port();
     const std::string auth = "Authorization: Bearer s3cret-token\r\n";
     // Declared too long (refused before reading it); chunked bodies are refused whatever their
@@ -112,10 +120,8 @@ TEST(WebInput, OversizedBodiesAre413AndHeaders431) {
 }
 
 // A client that half-closes after its request (nc -N, some scripts) still gets its answer.
-TEST(WebInput, AHalfClosedClientIsAnswered) {
-    FakeService service;
-    auto monitor = test::startMonitor(service);
-    ASSERT_TRUE(monitor);
+TEST_F(WebInput, AHalfClosedClientIsAnswered) {
+    ASSERT_TRUE(start());
     test::RawConnection c(monitor->port());
     ASSERT_TRUE(c.send("GET /status.json HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"));
     c.shutdownWrite();
@@ -128,15 +134,13 @@ TEST(WebInput, AHalfClosedClientIsAnswered) {
 // after the idle timeout, the others are answered 408 after the read timeout, each counted; and
 // meanwhile the page, the status and the stream keep being served even though the slow clients
 // outnumber the request workers.
-TEST(WebInput, SlowClientsAreDroppedWithoutStarvingViewers) {
-    FakeService service;
+TEST_F(WebInput, SlowClientsAreDroppedWithoutStarvingViewers) {
     WebMonitorSettings s = test::testSettings();
     s.readTimeoutMs = 700;
     s.keepAliveTimeoutS = 1;
     s.requestThreads = 2;
     s.maxStreams = 2;
-    auto monitor = test::startMonitor(service, s);
-    ASSERT_TRUE(monitor);
+    ASSERT_TRUE(start(s));
     const int port = monitor->port();
     std::vector<std::unique_ptr<test::RawConnection>> slow;
     for (int i = 0; i < 3; ++i) {

@@ -5,7 +5,9 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cstddef>
 #include <cstdio>
+#include <optional>
 #include <thread>
 
 #include "tests/web/synthetic_frames.h"
@@ -56,6 +58,26 @@ private:
     std::atomic<int64_t> longest_{0};
     std::atomic<uint64_t> submitted_{0};
     std::thread thread_;
+};
+
+// Noisy frames (each a JPEG of a few hundred KiB) streamed to a raw client that asked for the
+// stream and reads only when the test makes it, and to a viewer that reads all it gets.
+struct LaggardAndViewer {
+    LaggardAndViewer(WebMonitor& monitor, uint32_t width, uint32_t height, size_t laggardBuffer)
+        : producer(monitor, 30.0, width, height, true),
+          laggard(monitor.port(), laggardBuffer),
+          port(monitor.port()) {}
+    // The laggard's request sent, then the viewer has had its first two frames.
+    bool started() {
+        if (!laggard.send("GET /stream.mjpeg HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")) return false;
+        viewer.emplace(port);
+        return viewer->waitFrames(2, 10s);
+    }
+
+    FrameProducer producer;
+    test::RawConnection laggard;
+    std::optional<StreamViewer> viewer;
+    int port;
 };
 
 TEST(WebListen, ParsesHostAndPort) {
@@ -198,15 +220,12 @@ TEST(WebMonitor, AStalledViewerSlowsNeitherTheRenderNorOtherViewers) {
     s.writeTimeoutMs = 1000;
     auto monitor = test::startMonitor(service, s);
     ASSERT_TRUE(monitor);
-    // Noisy 1280×720 frames encode to a few hundred KiB: the stalled socket fills at once.
-    FrameProducer producer(*monitor, 30.0, 1280, 720, true);
-    test::RawConnection stalled(monitor->port(), 4096);
-    ASSERT_TRUE(stalled.send("GET /stream.mjpeg HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"));
-    StreamViewer healthy(monitor->port());
-    ASSERT_TRUE(healthy.waitFrames(2, 10s));
-    const int framesBefore = healthy.frames();
+    // At 1280×720 the stalled socket (the laggard, which never reads) fills at once.
+    LaggardAndViewer stream(*monitor, 1280, 720, 4096);
+    ASSERT_TRUE(stream.started());
+    const int framesBefore = stream.viewer->frames();
     std::this_thread::sleep_for(3s);
-    const int received = healthy.frames() - framesBefore;
+    const int received = stream.viewer->frames() - framesBefore;
     // 3 s at 10 fps; a loaded 2-core machine gets a wide margin.
     EXPECT_GE(received, 10);
     EXPECT_TRUE(test::eventually([&] { return monitor->stats().viewersStalled >= 1; }))
@@ -214,11 +233,11 @@ TEST(WebMonitor, AStalledViewerSlowsNeitherTheRenderNorOtherViewers) {
     const WebStats st = monitor->stats();
     EXPECT_GE(st.viewerFramesDropped, 1u);
     EXPECT_EQ(st.viewers, 1);
-    producer.stop();
+    stream.producer.stop();
     // A pointer swap (tens of microseconds): had it waited for the stalled viewer it would have
     // taken the write timeout (1 s). The margin is for a busy 2-core machine descheduling the
     // producer thread (12 ms seen), not for any wait of ours.
-    EXPECT_LT(producer.longestSubmitUs(), 200000);
+    EXPECT_LT(stream.producer.longestSubmitUs(), 200000);
 }
 
 // A viewer on a slow link (it takes 64 KiB every 100 ms, a fraction of the stream): it stays
@@ -231,12 +250,10 @@ TEST(WebMonitor, ASlowViewerSkipsToTheNewestFrame) {
     s.jpegQuality = 95;
     auto monitor = test::startMonitor(service, s);
     ASSERT_TRUE(monitor);
-    // Noise: each 640×360 JPEG is a few hundred KiB, several 100 ms reads each.
-    FrameProducer producer(*monitor, 30.0, 640, 360, true);
-    test::RawConnection slow(monitor->port(), 65536);
-    ASSERT_TRUE(slow.send("GET /stream.mjpeg HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"));
-    StreamViewer fast(monitor->port());
-    ASSERT_TRUE(fast.waitFrames(2, 10s));
+    // At 640×360 a JPEG takes the slow viewer (the laggard) several 100 ms reads.
+    LaggardAndViewer stream(*monitor, 640, 360, 65536);
+    ASSERT_TRUE(stream.started());
+    test::RawConnection& slow = stream.laggard;
     const auto start = std::chrono::steady_clock::now();
     while (std::chrono::steady_clock::now() - start < 3s) {
         slow.receiveSome(65536);
@@ -246,11 +263,11 @@ TEST(WebMonitor, ASlowViewerSkipsToTheNewestFrame) {
     EXPECT_EQ(st.viewers, 2);
     EXPECT_EQ(st.viewersStalled, 0u);
     EXPECT_GE(st.viewerFramesDropped, 3u);
-    EXPECT_GE(fast.frames(), 15);
+    EXPECT_GE(stream.viewer->frames(), 15);
     EXPECT_GE(test::completeParts(slow.buffer()), 1)
         << slow.buffer().size() << " bytes read, JPEGs of " << st.jpegBytes;
     std::printf("slow viewer: %d frames in 3 s, fast viewer %d, %llu skipped, JPEG %zu bytes\n",
-                test::completeParts(slow.buffer()), fast.frames(),
+                test::completeParts(slow.buffer()), stream.viewer->frames(),
                 static_cast<unsigned long long>(st.viewerFramesDropped), st.jpegBytes);
 }
 
