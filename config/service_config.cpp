@@ -1033,6 +1033,16 @@ const char* toString(OutputKind kind) {
     return "?";
 }
 
+Result<LabelRateRule> labelRateRule(const ServiceConfig& config, const CameraConfig& camera) {
+    LabelRateRule rule{std::nullopt, camera.fps};
+    const std::string& rate = config.network.timecode.rate;
+    if (rate.empty()) return rule;
+    Result<TimecodeRate> parsed = TimecodeRate::parse(rate);
+    if (!parsed) return makeError("[timecode] rate: {}", parsed.message());
+    rule.configured = *parsed;
+    return rule;
+}
+
 std::string controlSocketPath(const ControlConfig& control) {
     if (!control.socketPath.empty()) return control.socketPath;
     const char* runtime = std::getenv("RUNTIME_DIRECTORY");

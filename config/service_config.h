@@ -19,6 +19,7 @@
 #include "config/network_config.h"
 #include "net/freed_calibration.h"
 #include "render/render_settings.h"
+#include "timecode/timecode.h"
 #include "vision/board_pose.h"
 #include "vision/camera_calibration.h"
 #include "vision/fisheye_to_equirect.h"
@@ -271,6 +272,11 @@ struct ServiceConfig {
     // Off by default: live playback leaves the mode to the crew (`previs replay` follows them).
     bool replaySessionEvents = false;
 };
+
+// The rule `camera`'s timecode labels count at under this config (timecode/timecode.h): its
+// [timecode] rate, else the camera's fps. An unknown rate is an error naming [timecode] rate
+// (loadServiceConfig refuses it first; a config built in code may hold one).
+Result<LabelRateRule> labelRateRule(const ServiceConfig& config, const CameraConfig& camera);
 
 // The control socket the config names, or the default (DESIGN.md §3).
 std::string controlSocketPath(const ControlConfig& control);

@@ -52,16 +52,12 @@ Status Service::Threads::openTimecode(const ServiceConfig& config) {
     const TimecodeConfig& c = config.network.timecode;
     TimecodeSourceConfig source;
     source.kind = c.ltc ? TimecodeSourceKind::Ltc : TimecodeSourceKind::Clock;
-    // A camera without an fps: its rate measured on its frames (issue 54), not a guessed 30.
-    source.rate = config.sceneCamera.fps > 0.0
-                      ? std::optional(TimecodeRate::fromFps(config.sceneCamera.fps))
-                      : std::nullopt;
-    if (!c.rate.empty()) {
-        Result<TimecodeRate> rate = TimecodeRate::parse(c.rate);
-        if (!rate) return makeError("[timecode] rate: {}", rate.message());
-        source.rate = *rate;
-        source.ltcRate = *rate;
-    }
+    // The rate the take's labels count at (one rule with the recorder and the export); a camera
+    // without an fps has its rate measured on its frames (issue 54), not a guessed 30.
+    Result<LabelRateRule> rule = labelRateRule(config, config.sceneCamera);
+    if (!rule) return rule.error();
+    source.rate = *rule;
+    source.ltcRate = rule->configured;
     source.sampleRate = c.sampleRate;
     Result<std::unique_ptr<TimecodeSource>> made = TimecodeSource::create(source);
     if (!made) return made.error();

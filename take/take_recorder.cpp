@@ -75,8 +75,11 @@ struct TakeRecorder::Take {
         bool any = false;
     };
     std::map<std::string, CameraClock> clocks;
-    std::map<std::string, TimecodeRate> timecodeRates;  // per camera, once known
-    std::map<std::string, FrameItem> firstFrames;       // waiting for their rate
+    // Per camera: the rule its labels count at (timecode/timecode.h), its rate once known, and
+    // its first frame while the rate waits for a second one to be measured.
+    std::map<std::string, LabelRateRule> labelRules;
+    std::map<std::string, TimecodeRate> timecodeRates;
+    std::map<std::string, FrameItem> firstFrames;
 
     uint64_t takeTimestamp(const std::string& camera, uint64_t ns, uint64_t sequence) {
         CameraClock& c = clocks[camera];
@@ -181,12 +184,7 @@ Result<std::string> TakeRecorder::openTake(const std::string& name,
     auto take = std::make_unique<Take>(std::move(*writer));
     take->dir = dir;
     take->minFreeBytes = minFree;
-    if (config_.sceneCamera.fps > 0)
-        take->timecodeRates.insert_or_assign("scene",
-                                             TimecodeRate::fromFps(config_.sceneCamera.fps));
-    if (config_.fisheyeCamera && config_.fisheyeCamera->fps > 0)
-        take->timecodeRates.insert_or_assign("fisheye",
-                                             TimecodeRate::fromFps(config_.fisheyeCamera->fps));
+    if (Status s = setLabelRules(*take); !s) return abandon(s.error());
     {
         std::lock_guard lock(mutex_);
         status_ = RecordStatus{};
@@ -390,6 +388,21 @@ Status TakeRecorder::writeFrame(Take& take, const FrameItem& item) {
     return {};
 }
 
+Status TakeRecorder::setLabelRules(Take& take) const {
+    std::vector<std::pair<std::string, const CameraConfig*>> cameras{
+        {"scene", &config_.sceneCamera}};
+    if (config_.fisheyeCamera) cameras.emplace_back("fisheye", &*config_.fisheyeCamera);
+    for (const auto& [name, camera] : cameras) {
+        Result<LabelRateRule> rule = labelRateRule(config_, *camera);
+        if (!rule) return rule.error();
+        take.labelRules.insert_or_assign(name, *rule);
+        // A camera whose rate the config decides needs no measuring.
+        if (std::optional<TimecodeRate> known = rule->fromConfig())
+            take.timecodeRates.insert_or_assign(name, *known);
+    }
+    return {};
+}
+
 Status TakeRecorder::write(Take& take, Item& item) {
     if (auto* f = std::get_if<FrameItem>(&item)) {
         if (take.timecodeRates.count(f->camera)) return writeFrame(take, *f);
@@ -402,7 +415,8 @@ Status TakeRecorder::write(Take& take, Item& item) {
         }
         const uint64_t dt = f->frame->timestampNs - pending->second.frame->timestampNs;
         take.timecodeRates.insert_or_assign(
-            f->camera, TimecodeRate::fromFps(dt > 0 ? 1e9 / double(dt) : 30.0));
+            f->camera, take.labelRules[f->camera].rate(dt > 0 ? std::optional(1e9 / double(dt))
+                                                              : std::nullopt));
         const FrameItem first = pending->second;
         take.firstFrames.erase(pending);
         if (Status s = writeFrame(take, first); !s) return s;
@@ -480,9 +494,9 @@ void TakeRecorder::runWriter(std::unique_ptr<Take> take) {
             }
         }
     }
-    // A camera that sent one frame only: counted at the common 30.
+    // A camera that sent one frame only: nothing measured (the rule's 30).
     for (auto& [camera, first] : take->firstFrames) {
-        take->timecodeRates.insert_or_assign(camera, TimecodeRate::fps30());
+        take->timecodeRates.insert_or_assign(camera, take->labelRules[camera].rate());
         if (Status s = writeFrame(*take, first); !s && stoppedBecause.empty())
             stoppedBecause = s.message();
     }

@@ -121,6 +121,8 @@ private:
     // start()'s work once it owns the starting phase: the folder, the files, the writer.
     Result<std::string> openTake(const std::string& name,
                                  std::shared_ptr<const LiveLighting> lighting);
+    // Each camera's label rule under config_, and its rate where the config decides it.
+    Status setLabelRules(Take& take) const;
     void runWriter(std::unique_ptr<Take> take);
     Status write(Take& take, Item& item);
     Status writeFrame(Take& take, const FrameItem& item);

@@ -21,20 +21,6 @@ namespace {
 
 constexpr double kDegrees = 180.0 / CV_PI;
 
-// What a take's labels count at when a frame does not say (older takes): the box's own rule.
-struct LabelFallback {
-    std::optional<TimecodeRate> configured;
-    double cameraFps = 0.0;
-};
-
-LabelFallback labelFallback(const ServiceConfig& config) {
-    LabelFallback f;
-    if (Result<TimecodeRate> rate = TimecodeRate::parse(config.network.timecode.rate))
-        f.configured = *rate;
-    f.cameraFps = config.sceneCamera.fps;
-    return f;
-}
-
 std::string chanLine(size_t frame, const cv::Matx44d& m, double vfov) {
     const cv::Vec3d r = chanRotationDegrees(m.get_minor<3, 3>(0, 0));
     return fmt::format("{} {:.9f} {:.9f} {:.9f} {:.9f} {:.9f} {:.9f} {:.9f}\n", frame, m(0, 3),
@@ -42,7 +28,7 @@ std::string chanLine(size_t frame, const cv::Matx44d& m, double vfov) {
 }
 
 nlohmann::ordered_json jsonLine(size_t frame, const TakeFrame& f, const cv::Matx44d& m,
-                                const CameraCalibration& calibration, const LabelFallback& fallback,
+                                const CameraCalibration& calibration, const LabelRateRule& boxRule,
                                 bool smoothed) {
     nlohmann::ordered_json j;
     j["frame"] = frame;
@@ -52,9 +38,9 @@ nlohmann::ordered_json jsonLine(size_t frame, const TakeFrame& f, const cv::Matx
     if (f.entry.wallClockNs)
         timing["sampleTimestamp"] = {{"seconds", *f.entry.wallClockNs / 1'000'000'000ull},
                                      {"nanoseconds", *f.entry.wallClockNs % 1'000'000'000ull}};
-    // The label the take holds, at the rate it was labelled at (timecode/timecode.h labelRate).
-    const TimecodeRate rate =
-        labelRate(f.entry.timecode, f.entry.timecodeRate, fallback.configured, fallback.cameraFps);
+    // The label the take holds, at the rate it was labelled at (timecode/timecode.h labelRate;
+    // the box's rule for takes from before the rate column).
+    const TimecodeRate rate = labelRate(f.entry.timecode, f.entry.timecodeRate, boxRule);
     Result<Timecode> tc = Timecode::parse(f.entry.timecode, rate);
     if (tc)
         timing["timecode"] = {{"hours", tc->hours()},
@@ -152,7 +138,11 @@ int runTrackExport(const TrackExportOptions& o) {
     for (const std::string& line : track->skippedLines) logWarning("export-track: {}", line);
     const CameraCalibration& calibration = *config->sceneCamera.calibration;
     const double vfov = verticalFovDegrees(calibration);
-    const LabelFallback fallback = labelFallback(*config);
+    Result<LabelRateRule> boxRule = labelRateRule(*config, config->sceneCamera);
+    if (!boxRule) {
+        logError("export-track: {}", boxRule.message());
+        return 2;
+    }
     std::string text;
     size_t written = 0, gaps = 0;
     for (size_t i = 0; i < track->frames.size(); ++i) {
@@ -165,7 +155,7 @@ int runTrackExport(const TrackExportOptions& o) {
         if (ext == ".chan")
             text += chanLine(i, *pose, vfov);
         else
-            text += jsonLine(i, f, *pose, calibration, fallback, o.smoothed).dump() + "\n";
+            text += jsonLine(i, f, *pose, calibration, *boxRule, o.smoothed).dump() + "\n";
         ++written;
     }
     // Whole or not at all, beside the target (base/atomic_file.h); not synced, as before.

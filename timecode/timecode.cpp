@@ -93,16 +93,26 @@ std::string TimecodeRate::toString() const {
     return dropFrame_ ? text + " DF" : text;
 }
 
+std::optional<TimecodeRate> LabelRateRule::fromConfig() const {
+    if (configured) return configured;
+    if (cameraFps > 0.0) return TimecodeRate::fromFps(cameraFps);
+    return std::nullopt;
+}
+
+TimecodeRate LabelRateRule::rate(std::optional<double> measuredFps) const {
+    if (std::optional<TimecodeRate> known = fromConfig()) return *known;
+    if (measuredFps && *measuredFps > 0.0) return TimecodeRate::fromFps(*measuredFps);
+    return TimecodeRate::fps30();
+}
+
 TimecodeRate labelRate(std::string_view label, std::string_view recorded,
-                       std::optional<TimecodeRate> configured, double cameraFps) {
+                       const LabelRateRule& rule) {
     if (!recorded.empty())
         if (Result<TimecodeRate> rate = TimecodeRate::parse(recorded)) return *rate;
     const bool dropFrame = label.find_first_of(";.") != std::string_view::npos;
-    if (configured)
-        return configured->dropFrame() == dropFrame
-                   ? *configured
-                   : TimecodeRate::fromFps(configured->fps(), dropFrame);
-    return TimecodeRate::fromFps(cameraFps > 0.0 ? cameraFps : 30.0, dropFrame);
+    const TimecodeRate boxRate = rule.rate();
+    return boxRate.dropFrame() == dropFrame ? boxRate
+                                            : TimecodeRate::fromFps(boxRate.fps(), dropFrame);
 }
 
 std::string TimecodeRate::name() const {

@@ -107,13 +107,25 @@ private:
     TimecodeRate rate_;
 };
 
-// The rate a recorded label counts at (issue 54, docs/session-format.md), the one rule for every
-// reader of a take: the rate the recorder wrote beside the label (`recorded`, a name parse()
-// reads), else — a take from before that column, or a name this previs does not know — the rate
-// the box labelled at: `configured` ([timecode] rate), else the camera's `cameraFps` (fromFps),
-// else 30; drop-frame when the label says so (';' or '.' before the frames).
+// The rate a camera's timecode labels count at (docs/timecode.md "rate"), the one rule of the
+// service's timecode source, the take recorder and every reader of a take: `[timecode] rate`
+// when set; else the camera's configured fps; else the fps measured on its frames (each through
+// TimecodeRate::fromFps, so a 15 fps camera counts at 30); else 30.
+struct LabelRateRule {
+    std::optional<TimecodeRate> configured{};  // [timecode] rate
+    double cameraFps = 0.0;                    // the camera's configured fps; 0: none
+    // What the config decides alone; nothing: the rate is measured on the camera's frames.
+    std::optional<TimecodeRate> fromConfig() const;
+    // fromConfig(), else fromFps(measuredFps), else 30 (nothing measured yet, or one frame).
+    TimecodeRate rate(std::optional<double> measuredFps = std::nullopt) const;
+};
+
+// The rate a recorded label counts at (issue 54, docs/session-format.md), for every reader of a
+// take: the rate the recorder wrote beside the label (`recorded`, a name parse() reads), else —
+// a take from before that column, or a name this previs does not know — the rate the box
+// labelled at, `rule.rate()`, drop-frame when the label says so (';' or '.' before the frames).
 TimecodeRate labelRate(std::string_view label, std::string_view recorded,
-                       std::optional<TimecodeRate> configured, double cameraFps);
+                       const LabelRateRule& rule);
 
 // The local time of day of `wallClockNs` (CLOCK_REALTIME) as a timecode at `rate`. Non-drop
 // rates label HH:MM:SS with the clock's and count the frame within the second at the nominal

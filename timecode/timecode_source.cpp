@@ -122,9 +122,8 @@ const TimecodeSource::Anchor& TimecodeSource::anchorFor(int64_t t) const {
 }
 
 TimecodeRate TimecodeSource::clockRate() const {
-    if (config_.rate) return *config_.rate;
     const std::optional<FrameRate> measured = cameraRate_.rate();
-    return measured ? TimecodeRate::fromFps(measured->fps()) : TimecodeRate::fps30();
+    return config_.rate.rate(measured ? std::optional(measured->fps()) : std::nullopt);
 }
 
 FrameTimecode TimecodeSource::frameTimecode(int64_t monoNs, uint64_t realtimeNs,

@@ -36,10 +36,10 @@ Result<TimecodeSourceKind> parseTimecodeSourceKind(std::string_view text);
 
 struct TimecodeSourceConfig {
     TimecodeSourceKind kind = TimecodeSourceKind::Clock;
-    // The clock's timecode rate (the camera's), also used before LTC first locks. Nothing: the
-    // camera's rate measured from the frames asked (FrameRateMeter; TimecodeRate::fromFps, so
-    // a 15 fps camera counts at 30), 30 until the second frame.
-    std::optional<TimecodeRate> rate = TimecodeRate::fps25();
+    // The clock's timecode rate, also used before LTC first locks: the rule's (timecode/
+    // timecode.h), with the camera's rate measured from the frames asked (FrameRateMeter) where
+    // the config names none, 30 until the second frame.
+    LabelRateRule rate{TimecodeRate::fps25(), 0.0};
     // The rate the LTC must have; nothing: taken from the signal (24, 25, 30, 29.97 DF).
     std::optional<TimecodeRate> ltcRate;
     int sampleRate = 48000;

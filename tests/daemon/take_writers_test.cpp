@@ -2,7 +2,7 @@
 // and recorder is bounded (only the configured tracker's valid packets are recorded, at most
 // TakeRecorder::kFreedRecordHz, the rest counted) and `record stop` returns at once; and what the
 // writer wrote before a quiet spell is made durable within flush_interval_ms, not at the next
-// write.
+// write. Issue 55: the rate a take's labels count at follows the one rule (LabelRateRule).
 
 #include <arpa/inet.h>
 #include <fcntl.h>
@@ -14,6 +14,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <condition_variable>
 #include <cstdio>
 #include <cstdlib>
@@ -23,6 +24,7 @@
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <set>
 #include <string>
 #include <thread>
 #include <vector>
@@ -37,6 +39,7 @@
 #include "tests/daemon/recorder_fixtures.h"
 #include "tests/support/temp_dir.h"
 #include "tests/support/test_data.h"
+#include "timecode/timecode.h"
 
 namespace previs {
 namespace {
@@ -193,6 +196,71 @@ TEST(TakeRecorder, TheStatusSaysHowLongTheTakeHasRolled) {
     const nlohmann::json j = nlohmann::json::parse(statusJson(s));
     EXPECT_GE(j["record"]["seconds"].get<double>(), 0.3);
     ASSERT_TRUE(recorder.stop());
+}
+
+// `frames` 8x8 scene frames at `fps` (wall clock set) recorded under `config` with no timecode
+// source (the recorder labels them itself); the take's scene index.
+std::vector<RecordedFrameEntry> recordSceneFrames(const ServiceConfig& config, double fps,
+                                                  int frames) {
+    TakeRecorder recorder(config);
+    Result<std::string> take = recorder.start("");
+    EXPECT_TRUE(take) << take.message();
+    if (!take) return {};
+    for (int n = 0; n < frames; ++n) {
+        auto frame = std::make_shared<Frame>();
+        frame->width = 8;
+        frame->height = 8;
+        frame->rgb.assign(8 * 8 * 3, uint8_t(n));
+        frame->timestampNs = 1'000'000'000 + uint64_t(std::llround(n * 1e9 / fps));
+        frame->sequence = uint64_t(n);
+        frame->wallClockNs = 1'796'551'200'000'000'000ull + frame->timestampNs;
+        recorder.addFrame("scene", frame);
+    }
+    EXPECT_TRUE(recorder.stop());
+    Result<std::vector<RecordedFrameEntry>> index =
+        loadCameraIndex((fs::path(*take) / "cameras" / "scene").string());
+    EXPECT_TRUE(index) << index.message();
+    return index ? *index : std::vector<RecordedFrameEntry>{};
+}
+
+// The rates a take's index holds, one entry per distinct rate.
+std::set<std::string> recordedRates(const std::vector<RecordedFrameEntry>& index) {
+    std::set<std::string> rates;
+    for (const RecordedFrameEntry& e : index) rates.insert(e.timecodeRate);
+    return rates;
+}
+
+// Issue 55: a take recorded with [timecode] rate set and no LTC source counts its labels at that
+// rate (the recorder measured the camera instead), and the export reads that rate back, from the
+// column and, for a take without it, from the same rule.
+TEST(TakeRecorder, ATakesLabelsCountAtTheConfiguredTimecodeRate) {
+    HangGuard guard("a take at [timecode] rate", std::chrono::seconds(60));
+    ServiceConfig config = recorderConfig("timecode_rate");
+    ASSERT_EQ(config.sceneCamera.fps, 0.0) << "the demo's scene camera names no fps";
+    config.network.timecode.rate = "25";
+    const std::vector<RecordedFrameEntry> index = recordSceneFrames(config, 30.0, 6);
+    ASSERT_EQ(index.size(), 6u);
+    EXPECT_EQ(recordedRates(index), std::set<std::string>{"25"});
+    Result<LabelRateRule> rule = labelRateRule(config, config.sceneCamera);
+    ASSERT_TRUE(rule) << rule.message();
+    for (const RecordedFrameEntry& e : index) {
+        EXPECT_TRUE(Timecode::parse(e.timecode, TimecodeRate::fps25())) << e.timecode;
+        EXPECT_EQ(labelRate(e.timecode, e.timecodeRate, *rule), TimecodeRate::fps25());
+        EXPECT_EQ(labelRate(e.timecode, "", *rule), TimecodeRate::fps25())
+            << "a reader without the column takes the rate the recorder used";
+    }
+}
+
+// Without [timecode] rate the recorder keeps its rule: the camera's fps, else its rate measured
+// on its first two frames (a 15 fps camera counts at 30), else 30 for a lone frame.
+TEST(TakeRecorder, WithoutATimecodeRateLabelsCountAtTheCamerasRate) {
+    HangGuard guard("takes at the camera's rate", std::chrono::seconds(60));
+    ServiceConfig config = recorderConfig("camera_rate");
+    EXPECT_EQ(recordedRates(recordSceneFrames(config, 25.0, 4)), std::set<std::string>{"25"});
+    EXPECT_EQ(recordedRates(recordSceneFrames(config, 15.0, 4)), std::set<std::string>{"30"});
+    EXPECT_EQ(recordedRates(recordSceneFrames(config, 25.0, 1)), std::set<std::string>{"30"});
+    config.sceneCamera.fps = 24.0;
+    EXPECT_EQ(recordedRates(recordSceneFrames(config, 30.0, 4)), std::set<std::string>{"24"});
 }
 
 }  // namespace

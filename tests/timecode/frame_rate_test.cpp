@@ -64,21 +64,38 @@ TEST(FrameRate, ASlowCameraIsLabelledAtTheTimecodeRateItDivides) {
 // The one rule for the rate a take's labels count at (issue 54): the recorded rate, else the
 // box's: [timecode] rate, else the camera's fps, else 30; drop-frame from the label.
 TEST(FrameRate, ALabelCountsAtTheRateTheTakeRecorded) {
-    EXPECT_EQ(labelRate("10:00:00:28", "30", std::nullopt, 0.0), TimecodeRate::fps30());
-    EXPECT_EQ(labelRate("10:00:00:20", "25", TimecodeRate::fps24(), 15.0), TimecodeRate::fps25());
-    EXPECT_EQ(labelRate("10:00:00:28", "", std::nullopt, 0.0), TimecodeRate::fps30())
+    EXPECT_EQ(labelRate("10:00:00:28", "30", {std::nullopt, 0.0}), TimecodeRate::fps30());
+    EXPECT_EQ(labelRate("10:00:00:20", "25", {TimecodeRate::fps24(), 15.0}), TimecodeRate::fps25());
+    EXPECT_EQ(labelRate("10:00:00:28", "", {std::nullopt, 0.0}), TimecodeRate::fps30())
         << "an older take without the column, camera fps not configured";
-    EXPECT_EQ(labelRate("10:00:00:28", "", std::nullopt, 15.0), TimecodeRate::fps30());
-    EXPECT_EQ(labelRate("10:00:00:20", "", TimecodeRate::fps25(), 0.0), TimecodeRate::fps25());
-    EXPECT_EQ(labelRate("10:00:00;28", "", std::nullopt, 30000.0 / 1001),
+    EXPECT_EQ(labelRate("10:00:00:28", "", {std::nullopt, 15.0}), TimecodeRate::fps30());
+    EXPECT_EQ(labelRate("10:00:00:20", "", {TimecodeRate::fps25(), 0.0}), TimecodeRate::fps25());
+    EXPECT_EQ(labelRate("10:00:00;28", "", {std::nullopt, 30000.0 / 1001}),
               TimecodeRate::fps29_97Df());
-    EXPECT_EQ(labelRate("10:00:00:10", "12", std::nullopt, 0.0), TimecodeRate::fps30())
+    EXPECT_EQ(labelRate("10:00:00:10", "12", {std::nullopt, 0.0}), TimecodeRate::fps30())
         << "a name this previs does not know: the fallback";
+}
+
+// The rule the source, the recorder and the export share (issue 55): [timecode] rate, else the
+// camera's fps, else the measured fps, else 30; each fps through fromFps.
+TEST(FrameRate, ALabelRateRuleTakesTheConfigThenTheCameraThenTheMeasuredRate) {
+    const LabelRateRule configured{TimecodeRate::fps25(), 30.0};
+    EXPECT_EQ(configured.fromConfig(), TimecodeRate::fps25());
+    EXPECT_EQ(configured.rate(15.0), TimecodeRate::fps25()) << "the config, not the camera";
+    const LabelRateRule camera{std::nullopt, 15.0};
+    EXPECT_EQ(camera.fromConfig(), TimecodeRate::fps30()) << "15 fps counts at 30";
+    EXPECT_EQ(camera.rate(25.0), TimecodeRate::fps30());
+    const LabelRateRule measured{std::nullopt, 0.0};
+    EXPECT_EQ(measured.fromConfig(), std::nullopt);
+    EXPECT_EQ(measured.rate(25.0), TimecodeRate::fps25());
+    EXPECT_EQ(measured.rate(12.5), TimecodeRate::fps25());
+    EXPECT_EQ(measured.rate(), TimecodeRate::fps30()) << "nothing measured yet";
+    EXPECT_EQ(measured.rate(0.0), TimecodeRate::fps30());
 }
 
 TEST(FrameRate, TheClockSourceWithoutARateMeasuresTheCamera) {
     TimecodeSourceConfig config;
-    config.rate = std::nullopt;
+    config.rate = {};  // no [timecode] rate, no camera fps
     Result<std::unique_ptr<TimecodeSource>> source = TimecodeSource::create(config);
     ASSERT_TRUE(source) << source.message();
     int64_t t = 2'000'000'000;

@@ -25,7 +25,7 @@ std::unique_ptr<TimecodeSource> makeSource(TimecodeSourceKind kind, TimecodeRate
                                            std::optional<TimecodeRate> ltcRate = std::nullopt) {
     TimecodeSourceConfig config;
     config.kind = kind;
-    config.rate = rate;
+    config.rate.configured = rate;
     config.ltcRate = ltcRate;
     Result<std::unique_ptr<TimecodeSource>> source = TimecodeSource::create(config);
     EXPECT_TRUE(source) << (source ? "" : source.message());
