@@ -8,6 +8,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <regex>
@@ -148,6 +149,27 @@ std::vector<TagDetection> detect(const std::string& image, TagDetectorSettings s
     return detector->detect(gray);
 }
 
+// A photo's tags, detected at full resolution, against its line reference (the authors' or
+// Debian's): the vectors the match points into are kept with it.
+struct ReferenceMatch {
+    std::vector<ExpectedTag> expected;
+    std::vector<TagDetection> detected;
+    MatchResult match;
+};
+
+std::unique_ptr<ReferenceMatch> matchLineReference(const std::string& reference,
+                                                   const std::string& image, bool refineEdges,
+                                                   double tolPx) {
+    TagDetectorSettings s;
+    s.decimate = 1.0f;
+    s.refineEdges = refineEdges;
+    auto r = std::make_unique<ReferenceMatch>();
+    r->expected = readLineReference(reference);
+    r->detected = detect(image, s);
+    r->match = matchDetections(r->expected, r->detected, tolPx);
+    return r;
+}
+
 // ---- upstream NASA photos: the AprilTag authors' expected detections -------------------------
 
 class NasaImages : public ::testing::TestWithParam<std::string> {};
@@ -156,13 +178,10 @@ TEST_P(NasaImages, MatchesUpstreamDetections) {
     PREVIS_SKIP_WITHOUT_SHARED_DATA();
     const std::string base = kData + "apriltag/apriltag_upstream_nasa/" + GetParam();
     // Upstream test_detection.c settings; README: 0.25 px when decoded with libjpeg, not pjpeg.
-    TagDetectorSettings s;
-    s.decimate = 1.0f;
-    s.refineEdges = false;
-    std::vector<ExpectedTag> expected = readLineReference(base + ".txt");
-    std::vector<TagDetection> detected = detect(base + ".jpg", s);
+    const auto r = matchLineReference(base + ".txt", base + ".jpg", false, 0.25);
+    const std::vector<ExpectedTag>& expected = r->expected;
     ASSERT_FALSE(expected.empty());
-    MatchResult m = matchDetections(expected, detected, 0.25);
+    const MatchResult& m = r->match;
     EXPECT_EQ(m.missing, 0);
     EXPECT_EQ(m.extra, 0);
     RecordProperty("max_corner_error_px", std::to_string(m.maxCornerErrorPx));
@@ -268,14 +287,11 @@ TEST_P(DuckietownImages, MatchesReference) {
     PREVIS_SKIP_WITHOUT_SHARED_DATA();
     const DuckieCase& c = GetParam();
     const std::string base = kData + "apriltag/" + c.folder + "/" + c.name;
-    TagDetectorSettings s;
-    s.decimate = 1.0f;
-    s.refineEdges = true;
-    std::vector<ExpectedTag> expected = readLineReference(base + ".reference_libapriltag3.3.txt");
-    std::vector<TagDetection> detected = detect(base + ".png", s);
-    ASSERT_FALSE(expected.empty());
     // Same library, same lossless pixels: the corners must agree to print precision.
-    MatchResult m = matchDetections(expected, detected, 0.001);
+    const auto r =
+        matchLineReference(base + ".reference_libapriltag3.3.txt", base + ".png", true, 0.001);
+    ASSERT_FALSE(r->expected.empty());
+    const MatchResult& m = r->match;
     EXPECT_EQ(m.missing, 0);
     EXPECT_EQ(m.extra, 0);
     auto loaded = CameraCalibration::load(kTestData + c.calib);
