@@ -4,17 +4,10 @@
 
 #include <gtest/gtest.h>
 
+#include "tests/support/images.h"
+
 namespace previs {
 namespace {
-
-ImageF constant(uint32_t width, uint32_t height, float value) {
-    ImageF img;
-    img.width = width;
-    img.height = height;
-    img.channels = 4;
-    img.pixels.assign(size_t(width) * height * 4, value);
-    return img;
-}
 
 TEST(HeldView, AnyTraceSmallerThanTheOutput) {
     EXPECT_TRUE(HeldView::create(640, 360, 320, 180)->traces(320, 180));
@@ -36,7 +29,7 @@ TEST(HeldView, KeptSamplesJoinTheEstimate) {
     view->frameAdded();
     view->frameAdded();
     EXPECT_EQ(view->frames(), 2u);
-    const ImageF estimate = constant(4, 2, 1.0f);
+    const ImageF estimate = testing::filledImage(4, 2, 4, 1.0f);
     const ImageF out = HeldView::blend(kept, estimate);
     const double k = HeldView::kEstimateSamples;
     for (int c = 0; c < 3; ++c) EXPECT_FLOAT_EQ(out.pixels[c], float((12.0 + k) / (6.0 + k)));

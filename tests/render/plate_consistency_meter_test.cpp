@@ -8,6 +8,7 @@
 #include <random>
 
 #include "render/plate_consistency.h"
+#include "tests/support/images.h"
 
 namespace previs {
 namespace {
@@ -129,23 +130,11 @@ TEST(PlateConsistency, TooFewCellsGiveNoReading) {
 
 // The renderer's traced means: 5 channels (L_or RGB, real-hit fraction, mask).
 ImageF tracedImage(uint32_t w, uint32_t h, glm::vec3 real) {
-    ImageF t;
-    t.width = w;
-    t.height = h;
-    t.channels = 5;
-    for (uint32_t i = 0; i < w * h; ++i)
-        t.pixels.insert(t.pixels.end(), {real.x, real.y, real.z, 1.0f, 0.0f});
-    return t;
+    return testing::uniformImage(w, h, {real.x, real.y, real.z, 1.0f, 0.0f});
 }
 
 ImageF plateImage(uint32_t w, uint32_t h, glm::vec3 value) {
-    ImageF p;
-    p.width = w;
-    p.height = h;
-    p.channels = 3;
-    for (uint32_t i = 0; i < w * h; ++i)
-        p.pixels.insert(p.pixels.end(), {value.x, value.y, value.z});
-    return p;
+    return testing::uniformImage(w, h, {value.x, value.y, value.z});
 }
 
 TEST(PlateMeterGrid, AveragesCellsAndKeepsOnlyRealSurfaceWithAMargin) {

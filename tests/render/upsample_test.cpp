@@ -9,23 +9,17 @@
 #include <random>
 
 #include "render/tonemap.h"
+#include "tests/support/images.h"
 
 namespace previs {
 namespace {
 
-ImageF makeImage(uint32_t w, uint32_t h, uint32_t channels, float value = 0.0f) {
-    ImageF img;
-    img.width = w;
-    img.height = h;
-    img.channels = channels;
-    img.pixels.assign(size_t(w) * h * channels, value);
-    return img;
-}
+using testing::filledImage;
 
 ImageF randomGuide(uint32_t w, uint32_t h, uint32_t seed) {
     std::mt19937 rng(seed);
     std::uniform_real_distribution<float> u(0.0f, 4.0f);
-    ImageF g = makeImage(w, h, 3);
+    ImageF g = filledImage(w, h, 3);
     for (float& v : g.pixels) v = u(rng);
     return g;
 }
@@ -38,7 +32,7 @@ const Size kSizes[] = {{32, 24, 64, 48}, {21, 16, 64, 48}, {16, 12, 64, 48}, {23
 
 TEST(Upsample, ConstantIsReproducedExactlyWhateverTheGuide) {
     for (const Size& s : kSizes) {
-        const ImageF low = makeImage(s.lowW, s.lowH, 4, 0.3f);
+        const ImageF low = filledImage(s.lowW, s.lowH, 4, 0.3f);
         const ImageF guide = randomGuide(s.w, s.h, 7);
         for (const ImageF* g : {&guide, static_cast<const ImageF*>(nullptr)}) {
             const ImageF up = jointBilateralUpsample(low, s.w, s.h, g);
@@ -53,11 +47,11 @@ TEST(Upsample, LinearRampIsReproducedUnderAConstantGuide) {
     for (const Size& s : kSizes) {
         // f(u, v) = a + b·u + c·v on the low grid (pixel centres at integers).
         const double a = 0.25, b = 0.05, c = -0.03;
-        ImageF low = makeImage(s.lowW, s.lowH, 1);
+        ImageF low = filledImage(s.lowW, s.lowH, 1);
         for (uint32_t j = 0; j < s.lowH; ++j)
             for (uint32_t i = 0; i < s.lowW; ++i)
                 low.pixels[size_t(j) * s.lowW + i] = float(a + b * i + c * j);
-        const ImageF guide = makeImage(s.w, s.h, 3, 0.7f);
+        const ImageF guide = filledImage(s.w, s.h, 3, 0.7f);
         const ImageF up = jointBilateralUpsample(low, s.w, s.h, &guide);
         const double sx = double(s.lowW) / s.w, sy = double(s.lowH) / s.h;
         int checked = 0;
@@ -80,13 +74,13 @@ TEST(Upsample, StepEdgeInTheGuideDoesNotBleed) {
     // 64×48 output, 16×12 traced (1/4): the guide and the traced signal both step at output
     // column 32 = traced column 8. Dark floor on the left (0.05), bright on the right (1.0).
     const uint32_t w = 64, h = 48, lw = 16, lh = 12;
-    ImageF guide = makeImage(w, h, 3);
+    ImageF guide = filledImage(w, h, 3);
     for (uint32_t y = 0; y < h; ++y)
         for (uint32_t x = 0; x < w; ++x)
             for (int c = 0; c < 3; ++c)
                 guide.pixels[(size_t(y) * w + x) * 3 + c] = x < 32 ? 0.05f : 1.0f;
     const float left = -0.02f, right = -0.4f;  // a shadow's difference, proportional to albedo
-    ImageF low = makeImage(lw, lh, 1);
+    ImageF low = filledImage(lw, lh, 1);
     for (uint32_t j = 0; j < lh; ++j)
         for (uint32_t i = 0; i < lw; ++i) low.pixels[size_t(j) * lw + i] = i < 8 ? left : right;
     const ImageF up = jointBilateralUpsample(low, w, h, &guide);
@@ -107,7 +101,7 @@ TEST(Upsample, StepEdgeInTheGuideDoesNotBleed) {
 
 TEST(Upsample, ZeroNeighbourhoodStaysExactlyZero) {
     const uint32_t w = 60, h = 45, lw = 20, lh = 15;
-    ImageF low = makeImage(lw, lh, 4);
+    ImageF low = filledImage(lw, lh, 4);
     // One non-zero traced pixel at (3, 3): it reaches output pixels within 2 traced pixels.
     for (int c = 0; c < 4; ++c) low.pixels[(size_t(3) * lw + 3) * 4 + c] = 0.5f;
     const ImageF guide = randomGuide(w, h, 11);
@@ -127,7 +121,7 @@ TEST(Upsample, MaskStaysInsideZeroOne) {
     // Non-negative weights: the upsampled mask is a convex combination of the traced masks.
     std::mt19937 rng(3);
     std::bernoulli_distribution coin(0.5);
-    ImageF low = makeImage(21, 16, 1);
+    ImageF low = filledImage(21, 16, 1);
     for (float& v : low.pixels) v = coin(rng) ? 1.0f : 0.0f;
     const ImageF guide = randomGuide(64, 48, 5);
     for (float v : jointBilateralUpsample(low, 64, 48, &guide).pixels) {
@@ -154,7 +148,7 @@ template <typename Inside>
 std::pair<ImageF, ImageF> tracedAndTruth(uint32_t lw, uint32_t lh, uint32_t w, uint32_t h,
                                          Inside inside) {
     const float object = 0.3f, real = -0.05f;
-    ImageF low = makeImage(lw, lh, 4), truth = makeImage(w, h, 4);
+    ImageF low = filledImage(lw, lh, 4), truth = filledImage(w, h, 4);
     auto fill = [&](ImageF& img, uint32_t i, uint32_t j, float m) {
         float* px = &img.pixels[(size_t(j) * img.width + i) * 4];
         for (int c = 0; c < 3; ++c) px[c] = m * object + (1.0f - m) * real;
@@ -191,7 +185,7 @@ TEST(Upsample, AVirtualObjectsOutlineIsAsSharpAsTheOutputs) {
             return std::hypot(x - 0.52 * s.w, y - 0.47 * s.h) < 0.3 * s.h;
         };
         auto [low, truth] = tracedAndTruth(s.lowW, s.lowH, s.w, s.h, disc);
-        const ImageF guide = makeImage(s.w, s.h, 3, 0.7f);
+        const ImageF guide = filledImage(s.w, s.h, 3, 0.7f);
         UpsampleSettings blurred;
         blurred.outlineSharpening = 0.0f;
         const double sharp = outlineRms(jointBilateralUpsample(low, s.w, s.h, &guide), truth);
@@ -209,7 +203,7 @@ TEST(Upsample, DetailFinerThanATracedPixelIsKept) {
     const uint32_t w = 192, h = 144, lw = 64, lh = 48;
     auto wire = [](double x, double) { return x >= 96.0 && x < 97.0; };
     auto [low, truth] = tracedAndTruth(lw, lh, w, h, wire);
-    const ImageF guide = makeImage(w, h, 3, 0.7f);
+    const ImageF guide = filledImage(w, h, 3, 0.7f);
     UpsampleSettings blurred;
     blurred.outlineSharpening = 0.0f;
     const ImageF up = jointBilateralUpsample(low, w, h, &guide);
