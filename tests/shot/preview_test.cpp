@@ -8,37 +8,21 @@
 #include <cmath>
 #include <cstdio>
 
-#include "capture/recorded_source.h"
 #include "config/service_config.h"
 #include "gpu/context.h"
 #include "render/renderer.h"
 #include "scene/scene_description.h"
 #include "shot/pipeline_renderer.h"
 #include "shot/pipeline_stages.h"
+#include "tests/support/demo_frames.h"
 #include "tests/support/test_data.h"
 
 namespace previs {
 namespace {
 
-constexpr size_t kStill = 20;  // the first frame of the demo take's still view
+using testing::demoFrames;
 
-std::vector<std::shared_ptr<Frame>> demoFrames(const std::string& camera, size_t count) {
-    std::vector<std::shared_ptr<Frame>> frames;
-    Result<std::unique_ptr<RecordedReader>> reader =
-        RecordedReader::create(testing::sourcePath("examples/demo/session/cameras/" + camera),
-                               ReplayTiming::AsFastAsPossible);
-    if (!reader || !(*reader)->start()) return frames;
-    while (!(*reader)->finished() && frames.size() < count) {
-        auto f = std::make_shared<Frame>();
-        Result<bool> got = (*reader)->read(1000, *f);
-        if (!got) break;
-        if (*got) {
-            f->sequence = frames.size();
-            frames.push_back(f);
-        }
-    }
-    return frames;
-}
+constexpr size_t kStill = 20;  // the first frame of the demo take's still view
 
 struct Demo {
     ServiceConfig config;

@@ -10,7 +10,7 @@
 #include <limits>
 #include <random>
 
-#include "capture/recorded_source.h"
+#include "tests/support/demo_frames.h"
 #include "tests/support/test_data.h"
 #include "vision/equirect.h"
 
@@ -190,25 +190,6 @@ TEST(RefineWatch, LightingRestartsOnlyOnAPersistentChange) {
     EXPECT_NE(why->find("dominant direction turned"), std::string::npos) << *why;
 }
 
-// Every frame of one of the demo session's cameras, in order.
-std::vector<std::shared_ptr<Frame>> demoFrames(const std::string& camera) {
-    std::vector<std::shared_ptr<Frame>> frames;
-    Result<std::unique_ptr<RecordedReader>> reader =
-        RecordedReader::create(testing::sourcePath("examples/demo/session/cameras/" + camera),
-                               ReplayTiming::AsFastAsPossible);
-    if (!reader || !(*reader)->start()) return frames;
-    while (!(*reader)->finished()) {
-        auto f = std::make_shared<Frame>();
-        Result<bool> got = (*reader)->read(1000, *f);
-        if (!got) break;
-        if (*got) {
-            f->sequence = frames.size();
-            frames.push_back(f);
-        }
-    }
-    return frames;
-}
-
 // The measurement behind [refine]'s default thresholds (docs/config-format.md): the demo take's
 // still stretch (frames 20–44: one render, new sensor noise per frame) through the service's own
 // tracking and lighting stages, against the defaults.
@@ -220,7 +201,7 @@ TEST(RefineDefaults, SitAboveTheDemoTakesStillFrameNoise) {
 
     Result<TrackingStage> tracking = TrackingStage::create(*config);
     ASSERT_TRUE(tracking) << tracking.message();
-    const std::vector<std::shared_ptr<Frame>> scene = demoFrames("scene");
+    const std::vector<std::shared_ptr<Frame>> scene = testing::demoFrames("scene");
     ASSERT_EQ(scene.size(), 60u);
     std::vector<cv::Matx44d> still;
     double trackMs = 0.0;
@@ -256,7 +237,7 @@ TEST(RefineDefaults, SitAboveTheDemoTakesStillFrameNoise) {
     Result<LightingStage> lighting = LightingStage::create(*config);
     ASSERT_TRUE(lighting) << lighting.message();
     std::vector<std::shared_ptr<const LiveLighting>> lit;
-    for (const auto& f : demoFrames("fisheye")) {
+    for (const auto& f : testing::demoFrames("fisheye")) {
         Result<std::shared_ptr<const LiveLighting>> l = lighting->process(*f);
         ASSERT_TRUE(l) << l.message();
         if (*l) lit.push_back(*l);  // null: a bracket in progress (the demo brackets 3 frames)
