@@ -47,6 +47,27 @@ int maxAbsDiff(const std::vector<uint8_t>& a, const cv::Mat& b) {
     return worst;
 }
 
+// How OpenCV reads a format: `rows` lines of `width` elements of `type`, converted by `code`.
+struct OpenCvLayout {
+    uint32_t rows = 0;
+    int type = 0;
+    int code = 0;
+};
+
+// convertToRgb of `buf` (lines `stride` bytes apart) gives OpenCV's RGB of the same lines packed
+// tight, to the code.
+void expectSameAsOpenCv(uint32_t fourcc, const std::vector<uint8_t>& buf, uint32_t w, uint32_t h,
+                        uint32_t stride, OpenCvLayout layout) {
+    cv::Mat packed(int(layout.rows), int(w), layout.type);
+    for (uint32_t y = 0; y < layout.rows; ++y)
+        std::memcpy(packed.ptr(int(y)), buf.data() + size_t(y) * stride, w * packed.elemSize());
+    cv::Mat ref;
+    cv::cvtColor(packed, ref, layout.code);
+    std::vector<uint8_t> rgb;
+    ASSERT_TRUE(convertToRgb(fourcc, buf, w, h, stride, rgb));
+    EXPECT_EQ(maxAbsDiff(rgb, ref), 0);
+}
+
 // BT.601 limited range: Y 16..235, chroma 16..240 around 128.
 TEST(PixelFormat, YuyvKnownColours) {
     struct Case {
@@ -74,25 +95,14 @@ TEST(PixelFormat, YuyvKnownColours) {
 TEST(PixelFormat, YuyvWithPaddedStrideMatchesOpenCv) {
     const uint32_t w = 64, h = 16, stride = w * 2 + 32;
     std::vector<uint8_t> buf = randomBytes(size_t(stride) * h, 1);
-    cv::Mat packed(h, w, CV_8UC2);
-    for (uint32_t y = 0; y < h; ++y) std::memcpy(packed.ptr(y), buf.data() + y * stride, w * 2);
-    cv::Mat ref;
-    cv::cvtColor(packed, ref, cv::COLOR_YUV2RGB_YUYV);
-    std::vector<uint8_t> rgb;
-    ASSERT_TRUE(convertToRgb(V4L2_PIX_FMT_YUYV, buf, w, h, stride, rgb));
-    EXPECT_EQ(maxAbsDiff(rgb, ref), 0);
+    expectSameAsOpenCv(V4L2_PIX_FMT_YUYV, buf, w, h, stride, {h, CV_8UC2, cv::COLOR_YUV2RGB_YUYV});
 }
 
 TEST(PixelFormat, Nv12WithPaddedStrideMatchesOpenCv) {
     const uint32_t w = 48, h = 32, stride = 64;
     std::vector<uint8_t> buf = randomBytes(size_t(stride) * h * 3 / 2, 2);
-    cv::Mat packed(h * 3 / 2, w, CV_8UC1);
-    for (uint32_t y = 0; y < h * 3 / 2; ++y) std::memcpy(packed.ptr(y), buf.data() + y * stride, w);
-    cv::Mat ref;
-    cv::cvtColor(packed, ref, cv::COLOR_YUV2RGB_NV12);
-    std::vector<uint8_t> rgb;
-    ASSERT_TRUE(convertToRgb(V4L2_PIX_FMT_NV12, buf, w, h, stride, rgb));
-    EXPECT_EQ(maxAbsDiff(rgb, ref), 0);
+    expectSameAsOpenCv(V4L2_PIX_FMT_NV12, buf, w, h, stride,
+                       {h * 3 / 2, CV_8UC1, cv::COLOR_YUV2RGB_NV12});
 }
 
 // A take keeps raw frames as the camera sent them, without line padding, and replays them to the
