@@ -14,6 +14,7 @@
 #include <thread>
 #include <vector>
 
+#include "tests/web/monitor_fixture.h"
 #include "tests/web/web_test_support.h"
 #include "web/web_monitor.h"
 
@@ -21,8 +22,9 @@ namespace previs {
 namespace {
 
 using namespace std::chrono_literals;
-using test::FakeService;
 using test::RawConnection;
+
+class WebHostile : public test::MonitorTest {};
 
 int openDescriptors() {
     int n = 0;
@@ -61,13 +63,11 @@ test::HttpReply answerOn(RawConnection& c, const std::string& request) {
 
 // Beyond its bound per address, or the bound of all, a connection is answered 503 and closed at
 // once: it keeps no descriptor of the service and takes no worker.
-TEST(WebHostile, ConnectionsBeyondTheBoundsAreRefusedAndClosed) {
-    FakeService service;
+TEST_F(WebHostile, ConnectionsBeyondTheBoundsAreRefusedAndClosed) {
     WebMonitorSettings s = test::testSettings();
     s.maxConnectionsPerAddress = 3;
     s.maxConnections = 5;
-    auto monitor = test::startMonitor(service, s);
-    ASSERT_TRUE(monitor);
+    ASSERT_TRUE(start(s));
     const int port = monitor->port();
     std::vector<std::unique_ptr<RawConnection>> held;
     for (int i = 0; i < 3; ++i) held.push_back(std::make_unique<RawConnection>(port));
@@ -97,10 +97,8 @@ TEST(WebHostile, ConnectionsBeyondTheBoundsAreRefusedAndClosed) {
 // The review's 1100 idle connections, scaled down: the service holds at most its bound of them,
 // whatever the crowd (each client socket here is one descriptor of this process; the service's
 // own are what is left).
-TEST(WebHostile, AnIdleCrowdHoldsFewDescriptors) {
-    FakeService service;
-    auto monitor = test::startMonitor(service);
-    ASSERT_TRUE(monitor);
+TEST_F(WebHostile, AnIdleCrowdHoldsFewDescriptors) {
+    ASSERT_TRUE(start());
     const WebMonitorSettings defaults;
     const int before = openDescriptors();
     constexpr int kCrowd = 300;
@@ -125,10 +123,8 @@ TEST(WebHostile, AnIdleCrowdHoldsFewDescriptors) {
 // A flood of header lines, each within the library's line limit: the request is answered 431
 // once its headers pass the bound, and the service's memory does not follow the flood (the
 // review saw 3 bytes of memory per byte sent, never given back).
-TEST(WebHostile, AHeaderFloodIsCutOffWithoutMemoryGrowth) {
-    FakeService service;
-    auto monitor = test::startMonitor(service);
-    ASSERT_TRUE(monitor);
+TEST_F(WebHostile, AHeaderFloodIsCutOffWithoutMemoryGrowth) {
+    ASSERT_TRUE(start());
     std::string chunk;
     for (int i = 0; chunk.size() < 65536; ++i)
         chunk += "X-Flood-" + std::to_string(i) + ": " + std::string(1000, 'f') + "\r\n";
@@ -150,10 +146,8 @@ TEST(WebHostile, AHeaderFloodIsCutOffWithoutMemoryGrowth) {
 }
 
 // Many short header lines, together within the byte bound, beyond the bound of lines: 431.
-TEST(WebHostile, TooManyHeaderLinesAre431) {
-    FakeService service;
-    auto monitor = test::startMonitor(service);
-    ASSERT_TRUE(monitor);
+TEST_F(WebHostile, TooManyHeaderLinesAre431) {
+    ASSERT_TRUE(start());
     std::string request = "GET /status.json HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n";
     for (int i = 0; i < 200; ++i) request += "X-" + std::to_string(i) + ": a\r\n";
     EXPECT_EQ(test::roundTrip(monitor->port(), request + "\r\n").status, 431);
@@ -163,15 +157,13 @@ TEST(WebHostile, TooManyHeaderLinesAre431) {
 // The review's slowloris: more connections than workers, each dribbling its request a byte at a
 // time within the read timeout. The status is served meanwhile, and each dribbler is answered
 // 408 at its request's deadline.
-TEST(WebHostile, SlowlorisClientsHoldNoWorkerPastTheDeadline) {
-    FakeService service;
+TEST_F(WebHostile, SlowlorisClientsHoldNoWorkerPastTheDeadline) {
     WebMonitorSettings s = test::testSettings();
     s.maxStreams = 1;
     s.requestThreads = 2;
     s.readTimeoutMs = 2000;
     s.requestDeadlineMs = 3000;
-    auto monitor = test::startMonitor(service, s);
-    ASSERT_TRUE(monitor);
+    ASSERT_TRUE(start(s));
     const int port = monitor->port();
     std::vector<std::unique_ptr<RawConnection>> slow;
     for (int i = 0; i < 14; ++i) slow.push_back(std::make_unique<RawConnection>(port));
@@ -210,16 +202,14 @@ TEST(WebHostile, SlowlorisClientsHoldNoWorkerPastTheDeadline) {
 
 // Idle connections, new and kept alive, many more than the workers: they take none, so a new
 // request is answered at once, not after their timeouts.
-TEST(WebHostile, IdleConnectionsTakeNoWorker) {
-    FakeService service;
+TEST_F(WebHostile, IdleConnectionsTakeNoWorker) {
     WebMonitorSettings s = test::testSettings();
     s.maxStreams = 1;
     s.requestThreads = 2;
     s.readTimeoutMs = 30000;
     s.keepAliveTimeoutS = 30;
     s.maxConnectionsPerAddress = 32;
-    auto monitor = test::startMonitor(service, s);
-    ASSERT_TRUE(monitor);
+    ASSERT_TRUE(start(s));
     const int port = monitor->port();
     std::vector<std::unique_ptr<RawConnection>> idle;
     for (int i = 0; i < 10; ++i) idle.push_back(std::make_unique<RawConnection>(port));
@@ -238,15 +228,13 @@ TEST(WebHostile, IdleConnectionsTakeNoWorker) {
 // Clients that pipeline requests and never read the answers (a slow-read attack), more of them
 // than the workers: their answers wait in the kernel, not in a worker blocked on writing, so a
 // new request is answered at once.
-TEST(WebHostile, ClientsThatReadNoAnswersHoldNoWorker) {
-    FakeService service;
+TEST_F(WebHostile, ClientsThatReadNoAnswersHoldNoWorker) {
     WebMonitorSettings s = test::testSettings();
     s.maxStreams = 1;
     s.requestThreads = 2;
     s.writeTimeoutMs = 30000;
     s.keepAliveTimeoutS = 30;
-    auto monitor = test::startMonitor(service, s);
-    ASSERT_TRUE(monitor);
+    ASSERT_TRUE(start(s));
     const int port = monitor->port();
     std::string pipelined;
     // 2000 pages (about 16 MiB) each: more than Linux would queue for a socket (4 MiB at most).
@@ -264,10 +252,8 @@ TEST(WebHostile, ClientsThatReadNoAnswersHoldNoWorker) {
 
 // Thousands of ranges over the page: one whole answer, not a copy of the page per range (the
 // review turned 7.9 KB of request into 19.9 MB of answer).
-TEST(WebHostile, ManyRangesAreAnsweredOnceInFull) {
-    FakeService service;
-    auto monitor = test::startMonitor(service);
-    ASSERT_TRUE(monitor);
+TEST_F(WebHostile, ManyRangesAreAnsweredOnceInFull) {
+    ASSERT_TRUE(start());
     const test::HttpReply plain = test::get(monitor->port(), "/");
     ASSERT_EQ(plain.status, 200);
     std::string ranges = "bytes=0-";
@@ -279,7 +265,7 @@ TEST(WebHostile, ManyRangesAreAnsweredOnceInFull) {
     EXPECT_EQ(ranged.body.size(), plain.body.size());
 }
 
-TEST(WebHostile, HostIsThisMonitorAcceptsAddressesLocalhostAndTheNamesGiven) {
+TEST_F(WebHostile, HostIsThisMonitorAcceptsAddressesLocalhostAndTheNamesGiven) {
     const std::vector<std::string> names = {"previs-box.local"};
     for (const char* good :
          {"", "127.0.0.1", "127.0.0.1:8080", "10.1.2.3:80", "[::1]:8080", "[fe80::1]", "localhost",
@@ -293,12 +279,10 @@ TEST(WebHostile, HostIsThisMonitorAcceptsAddressesLocalhostAndTheNamesGiven) {
 
 // DNS rebinding: a page from another name that resolves to the box sends that name as Host; it
 // is refused (421) on every path, while the box's own addresses and names are served.
-TEST(WebHostile, AForeignHostIsMisdirected) {
-    FakeService service;
+TEST_F(WebHostile, AForeignHostIsMisdirected) {
     WebMonitorSettings s = test::testSettings();
     s.hostNames = {"previs-box.local"};
-    auto monitor = test::startMonitor(service, s);
-    ASSERT_TRUE(monitor);
+    ASSERT_TRUE(start(s));
     const int port = monitor->port();
     auto getWithHost = [&](const std::string& path, const std::string& host) {
         return test::roundTrip(
@@ -324,7 +308,7 @@ TEST(WebHostile, AForeignHostIsMisdirected) {
     EXPECT_EQ(test::roundTrip(port, "GET /status.json HTTP/1.0\r\n\r\n").status, 200);
 }
 
-TEST(WebHostile, ValidUtf8ReplacesOnlyWhatIsIllFormed) {
+TEST_F(WebHostile, ValidUtf8ReplacesOnlyWhatIsIllFormed) {
     EXPECT_EQ(validUtf8("plain"), "plain");
     EXPECT_EQ(validUtf8("caf\xc3\xa9 \xe2\x82\xac \xf0\x9f\x8e\xa5"),
               "caf\xc3\xa9 \xe2\x82\xac \xf0\x9f\x8e\xa5");
@@ -341,7 +325,7 @@ TEST(WebHostile, ValidUtf8ReplacesOnlyWhatIsIllFormed) {
 
 // A camera named with bytes that are not UTF-8 (a V4L2 card name, a USB string): /status.json
 // is still valid JSON, the names readable with U+FFFD where the bytes were.
-TEST(WebHostile, StatusIsValidJsonWhateverTheNamesHold) {
+TEST_F(WebHostile, StatusIsValidJsonWhateverTheNamesHold) {
     WebMonitorSettings s = test::testSettings();
     Result<std::unique_ptr<WebMonitor>> m = WebMonitor::create(
         s, {.statusJson =

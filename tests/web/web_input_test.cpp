@@ -4,12 +4,11 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
-#include <memory>
 #include <string>
 #include <thread>
-#include <utility>
 #include <vector>
 
+#include "tests/web/monitor_fixture.h"
 #include "tests/web/synthetic_frames.h"
 #include "tests/web/web_test_support.h"
 #include "web/web_monitor.h"
@@ -18,7 +17,6 @@ namespace previs {
 namespace {
 
 using namespace std::chrono_literals;
-using test::FakeService;
 
 // After each bad request the monitor still answers, and submitFrame still returns at once.
 void expectStillServing(WebMonitor& monitor) {
@@ -31,17 +29,7 @@ void expectStillServing(WebMonitor& monitor) {
 // The start of a TLS ClientHello, then a blank line: a browser told https:// for this port.
 constexpr char kTlsHello[] = "\x16\x03\x01\x02\x00\x01\x00\x01\xfc\x03\x03\r\n\r\n";
 
-// Each case's monitor, on a service that counts the commands it was given.
-class WebInput : public ::testing::Test {
-protected:
-    WebMonitor* start(WebMonitorSettings settings = test::testSettings()) {
-        monitor = test::startMonitor(service, std::move(settings));
-        return monitor.get();
-    }
-
-    FakeService service;
-    std::unique_ptr<WebMonitor> monitor;
-};
+class WebInput : public test::MonitorTest {};
 
 TEST_F(WebInput, MalformedRequestsAreAnswered400) {
     ASSERT_TRUE(start());
