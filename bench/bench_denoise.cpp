@@ -49,7 +49,7 @@ Result<std::unique_ptr<Renderer>> makeRenderer(GpuContext& ctx, const Scene& sce
     rs.denoise = true;
     auto r = Renderer::create(ctx, scene, rs);
     if (!r) return r;
-    if (Status s = (*r)->setPlate(greyPlate(w, h), "grey plate"); !s) return s.error();
+    if (Status s = (*r)->film().setPlate(greyPlate(w, h), "grey plate"); !s) return s.error();
     return r;
 }
 
@@ -89,10 +89,10 @@ struct Variant {
 constexpr Variant kVariants[] = {{"5×5, 5 levels", 2, 5}, {"3×3, 5 levels", 1, 5}};
 
 Status setVariant(Renderer& r, uint32_t kernelRadius, uint32_t iterations) {
-    DenoiseSettings d = r.denoiser()->settings();
+    DenoiseSettings d = r.film().denoiser()->settings();
     d.kernelRadius = kernelRadius;
     d.iterations = iterations;
-    return r.denoiser()->setSettings(d);
+    return r.film().denoiser()->setSettings(d);
 }
 
 // Mean and half the spread of a 2-seed (or more) set: the ± the bench quotes.
@@ -294,7 +294,7 @@ int runDenoiseBench(GpuContext& ctx, const DenoiseBenchOptions& o) {
             if (Status s = preview.render(spp); !s) return fail(s.error());
             for (int mode = 0; mode < 3; ++mode) {
                 // 0: none, 1: spatial only, 2: temporal + spatial.
-                preview.setTemporalDenoise(mode == 2);
+                preview.film().setTemporalDenoise(mode == 2);
                 auto img = preview.image(Aov::Composite, mode > 0);
                 if (!img) return fail(img.error());
                 auto d = compareImages(*img, *reference);

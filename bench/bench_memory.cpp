@@ -38,9 +38,9 @@ Status previewAsShipped(Renderer& r, uint32_t width, uint32_t height) {
     plate.height = height;
     plate.channels = 3;
     plate.pixels.assign(size_t(plate.width) * plate.height * 3, 0.18f);
-    if (Status s = r.setPlate(std::move(plate), "bench plate"); !s) return s;
+    if (Status s = r.film().setPlate(std::move(plate), "bench plate"); !s) return s;
     if (Status s = r.setResolutionScale(0.5f); !s) return s;
-    r.setTemporalDenoise(true);
+    r.film().setTemporalDenoise(true);
     for (uint64_t frame = 1; frame <= 3; ++frame) {
         if (Status s = r.holdView(true); !s) return s;
         if (Status s = r.renderPreviewFrame(1, frame); !s) return s;

@@ -155,7 +155,7 @@ int runPreviewBench(const PreviewBenchOptions& o) {
         return plate;
     };
     const ImageF plate = plateOf();
-    if (Status s = (*reference)->setPlate(plate, "bench plate"); !s) {
+    if (Status s = (*reference)->film().setPlate(plate, "bench plate"); !s) {
         logError("{}", s.message());
         return 1;
     }
@@ -183,7 +183,7 @@ int runPreviewBench(const PreviewBenchOptions& o) {
             logError("{}", r.message());
             return 1;
         }
-        if (Status st = (*r)->setPlate(plate, "bench plate"); !st) {
+        if (Status st = (*r)->film().setPlate(plate, "bench plate"); !st) {
             logError("{}", st.message());
             return 1;
         }
@@ -204,7 +204,7 @@ int runPreviewBench(const PreviewBenchOptions& o) {
                 ImageF p = plateOf();
                 run.ms[kPlate].push_back(msSince(t));
                 t = Clock::now();
-                if (Status s = run.renderer->setPlate(std::move(p), "bench plate"); !s) {
+                if (Status s = run.renderer->film().setPlate(std::move(p), "bench plate"); !s) {
                     logError("{}", s.message());
                     return 1;
                 }

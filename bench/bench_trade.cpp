@@ -73,7 +73,7 @@ Result<ConvergedSet> convergedSet(GpuContext& ctx, const Scene& scene, uint32_t 
     if (!real) return real.error();
     ConvergedSet set;
     set.plate = *real;
-    if (Status s = r.setPlate(set.plate, "the set's real-only render"); !s) return s.error();
+    if (Status s = r.film().setPlate(set.plate, "the set's real-only render"); !s) return s.error();
     auto composite = r.image(Aov::Composite);
     if (!composite) return composite.error();
     set.reference = std::move(*composite);
@@ -114,7 +114,7 @@ Result<std::vector<TradePoint>> measureCurve(GpuContext& ctx, const Scene& scene
     auto created = Renderer::create(ctx, scene, rs);
     if (!created) return created.error();
     Renderer& r = **created;
-    if (Status s = r.setPlate(plate, "the set's real-only render"); !s) return s.error();
+    if (Status s = r.film().setPlate(plate, "the set's real-only render"); !s) return s.error();
     // Warm-up: the first dispatch also sizes dispatches to the CPU loop limit.
     if (Status s = r.render(1); !s) return s.error();
     if (Status s = r.reset(); !s) return s.error();
@@ -330,7 +330,8 @@ int runTradeBench(const TradeBenchOptions& o) {
         dialSettings.denoise = true;
         auto dialRenderer = Renderer::create(**ctx, scene, dialSettings);
         if (!dialRenderer) return fail(dialRenderer.error());
-        if (Status s = (*dialRenderer)->setPlate(dialPlate, "the set's real-only render"); !s)
+        if (Status s = (*dialRenderer)->film().setPlate(dialPlate, "the set's real-only render");
+            !s)
             return fail(s.error());
         auto measured =
             measureDial(**dialRenderer, grid, dialReference, o.quick ? 1 : o.repetitions);

@@ -487,7 +487,8 @@ int run(RenderOptions& o) {
         return 1;
     }
     if (plate) {
-        if (Status s = (*renderer)->setPlate(*plate, fmt::format("--plate {}", o.plate)); !s) {
+        if (Status s = (*renderer)->film().setPlate(*plate, fmt::format("--plate {}", o.plate));
+            !s) {
             logError("--plate {}: {}", o.plate, s.message());
             return 2;
         }

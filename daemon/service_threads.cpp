@@ -209,7 +209,7 @@ void Service::Threads::publish(PipelineRenderer& r, const TrackedFrame& frame, M
         renderStatus.photonRadiusM = photons ? r.renderer().lastPhotonRadius() : 0.0f;
         renderStatus.lightingPending = r.lightingPending();
         renderStatus.previewHistoryFrames = mode == Mode::Preview ? r.previewHistoryFrames() : 0;
-        renderStatus.heldViewFrames = mode == Mode::Preview ? r.renderer().heldViewFrames() : 0;
+        renderStatus.heldViewFrames = mode == Mode::Preview ? r.renderer().film().heldFrames() : 0;
         out->index = renderStatus.framesRendered++;
         s = renderStatus;
     }

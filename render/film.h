@@ -56,12 +56,17 @@ public:
     static Result<Film> create(GpuContext& ctx, const RenderSettings& settings, uint32_t traceWidth,
                                uint32_t traceHeight);
 
-    // The camera image L_oc in linear radiance at the output size. NaN, Inf and negative values
-    // are never composited: repairPlate (render/plate.h) replaces them, with one warning naming
-    // `source` (the first time only: the service sets a plate every frame).
-    Status setPlate(ImageF plate, std::string_view source);
+    // The camera image L_oc in linear radiance at the output size (no resampling: primary rays
+    // follow the camera's lens model instead). Used by Aov::Composite. NaN, Inf and negative
+    // values are never composited: repairPlate (render/plate.h) replaces them, with one warning
+    // naming `source` (the first time only: the service sets a plate every frame). By value: a
+    // caller done with its plate moves it in.
+    Status setPlate(ImageF plate, std::string_view source = "plate");
+    // The plate as repaired and kept; nullptr before the first setPlate.
     const ImageF* plate() const { return plate_ ? &*plate_ : nullptr; }
+    // Plate values setPlate has replaced so far (NaN/Inf and negative).
     uint64_t plateValuesRepaired() const { return plateValuesRepaired_; }
+    // How image() brings a traced buffer to the output size (resolution scale < 1).
     UpsampleSettings& upsampleSettings() { return upsample_; }
 
     // Renderer::image's two forms and Renderer::convergence (render/renderer.h says what each
@@ -103,8 +108,13 @@ public:
                (displayPass_ ? displayPass_->deviceBytes() : 0);
     }
 
+    // The denoiser (null without RenderSettings::denoise): its settings and temporal history.
     Denoiser* denoiser() { return denoiser_ ? &*denoiser_ : nullptr; }
     const Denoiser* denoiser() const { return denoiser_ ? &*denoiser_ : nullptr; }
+    // Denoised images accumulate the denoiser's temporal history (preview; Denoiser::
+    // applyTemporal with Renderer::denoiseCamera()); off: spatial only (Denoiser::apply). The
+    // history is one signal's: denoise one AOV a frame while it is on (the composite), and reset
+    // it (denoiser()->resetHistory()) on a mode switch or a scene change.
     void setTemporalDenoise(bool on) { temporalDenoise_ = on; }
 
 private:

@@ -176,8 +176,8 @@ Result<ImageF> panFrames(Renderer& renderer, const DialPoint& p, const DialMotio
                          std::vector<double>& times) {
     const glm::dmat4 end = renderer.denoiseCamera().worldFromCamera;
     const bool filtered = p.denoiseIterations > 0 || motion.accumulate;
-    if (Denoiser* d = renderer.denoiser()) d->resetHistory();
-    renderer.setTemporalDenoise(motion.accumulate);
+    if (Denoiser* d = renderer.film().denoiser()) d->resetHistory();
+    renderer.film().setTemporalDenoise(motion.accumulate);
     std::optional<ImageF> frame;
     const uint32_t frames = std::max(2u, motion.frames);
     for (uint32_t i = 0; i < frames; ++i) {
@@ -192,8 +192,8 @@ Result<ImageF> panFrames(Renderer& renderer, const DialPoint& p, const DialMotio
         if (i > 0) times.push_back(secondsSince(start));
         frame = std::move(*image);
     }
-    renderer.setTemporalDenoise(false);
-    if (Denoiser* d = renderer.denoiser()) d->resetHistory();
+    renderer.film().setTemporalDenoise(false);
+    if (Denoiser* d = renderer.film().denoiser()) d->resetHistory();
     return std::move(*frame);
 }
 

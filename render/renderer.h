@@ -121,16 +121,12 @@ public:
     // The pixels the path tracer traces (the output size at resolution scale 1).
     uint32_t traceWidth() const { return params_.width; }
     uint32_t traceHeight() const { return params_.height; }
-    // How image() brings a traced buffer to the output size (resolution scale < 1).
-    UpsampleSettings& upsampleSettings() { return film_->upsampleSettings(); }
 
     // A held camera's preview (render/held_view.h, Film::holdView): on, the next frames also add
     // each sample to the output pixel it landed in and the composite keeps those per output
     // pixel; off, the kept samples are forgotten. On does nothing at full resolution (there is
     // nothing to gain).
     Status holdView(bool on);
-    // Frames the held view keeps (0 while off).
-    uint64_t heldViewFrames() const { return film_->heldFrames(); }
     // Refinement's samples so far, as the held view keeps samples (Film::heldSamplesOf): read
     // them before the preview's resolution scale replaces the accumulation, and hand them to
     // seedHeldView once the held view is on, so a preview that resumes on the refined view shows
@@ -161,18 +157,11 @@ public:
     // unless the new samples are meant to join the old ones).
     void setSeed(uint32_t seed) { params_.seed = seed; }
 
-    // The camera image L_oc in linear radiance, at the render's resolution (no resampling:
-    // primary rays follow the camera's lens model instead). Used by Aov::Composite. NaN, Inf and
-    // negative values are never composited: repairPlate (render/plate.h) replaces them, with
-    // one warning naming `source` (the first time only: the service sets a plate every frame).
-    // By value: a caller done with its plate moves it in.
-    Status setPlate(ImageF plate, std::string_view source = "plate") {
-        return film_->setPlate(std::move(plate), source);
-    }
-    // Plate values setPlate has replaced so far (NaN/Inf and negative).
-    uint64_t plateValuesRepaired() const { return film_->plateValuesRepaired(); }
-    // The plate as repaired and kept; nullptr before the first setPlate.
-    const ImageF* plate() const { return film_->plate(); }
+    // The film (render/film.h): the plate, upsampling, the denoiser and the held view's frames.
+    // The queries below that read the accumulation stay here, since they hand the film this
+    // renderer's buffers.
+    Film& film() { return *film_; }
+    const Film& film() const { return *film_; }
 
     // The mean per pixel so far (RGB linear; the mask one channel), at the output size. At a
     // resolution scale below 1 the traced means are upsampled (render/upsample.h; guided by the
@@ -208,14 +197,6 @@ public:
     // The camera of the next render, for the denoiser's temporal reprojection
     // (Denoiser::applyTemporal).
     DenoiseCamera denoiseCamera() const { return {worldFromCameraM_, params_.tanHalfFov}; }
-    // The denoiser (null without RenderSettings::denoise): its settings and temporal history.
-    Denoiser* denoiser() { return film_->denoiser(); }
-    const Denoiser* denoiser() const { return film_->denoiser(); }
-    // Denoised images accumulate the denoiser's temporal history (preview; Denoiser::
-    // applyTemporal with denoiseCamera()); off: spatial only (Denoiser::apply). The history is
-    // one signal's: denoise one AOV a frame while it is on (the composite), and reset it
-    // (denoiser()->resetHistory()) on a mode switch or a scene change.
-    void setTemporalDenoise(bool on) { film_->setTemporalDenoise(on); }
 
     uint64_t samplesPerPixel() const { return samples_; }
     RendererDiagnostics diagnostics() const { return RendererDiagnostics(*this); }

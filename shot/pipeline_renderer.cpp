@@ -215,7 +215,7 @@ Status PipelineRenderer::chooseByDial(double fps, const PipelineStartHooks& hook
     grey.height = height_;
     grey.channels = 3;
     grey.pixels.assign(size_t(width_) * height_ * 3, 0.18f);
-    if (Status s = r.setPlate(std::move(grey), "the dial's grey plate"); !s) return s;
+    if (Status s = r.film().setPlate(std::move(grey), "the dial's grey plate"); !s) return s;
     if (Status s = r.setResolutionScale(1.0f); !s) return s;
     r.setMaxDepth(refineDepth_);
     if (Status s = r.reset(); !s) return s;
@@ -343,7 +343,8 @@ Status PipelineRenderer::prepare(const TrackedFrame& tracked,
         neutralShown_ = true;
     }
     // The renderer keeps the plate; plate_ is needed only while there is nothing to render.
-    if (Status s = renderer_->setPlate(std::move(plate_), "scene camera frame"); !s) return s;
+    if (Status s = renderer_->film().setPlate(std::move(plate_), "scene camera frame"); !s)
+        return s;
     // Without a pose yet the renderer keeps the scene file's camera (until_tracked).
     if (tracked.worldFromCamera) {
         // The translation in double: it keeps its millimetres however far the board's world
@@ -372,7 +373,7 @@ std::shared_ptr<const LiveLighting> PipelineRenderer::withCorrection(
 
 Result<std::vector<PlateSample>> PipelineRenderer::plateSamples(
     const cv::Matx44d& worldFromCamera) const {
-    const ImageF* plate = renderer_->plate();
+    const ImageF* plate = renderer_->film().plate();
     if (!plate) return makeError("no plate rendered");
     Result<ImageF> traced = renderer_->realSurfaceMeans();
     if (!traced) return traced.error();
@@ -475,7 +476,7 @@ Status PipelineRenderer::applyLighting(const std::shared_ptr<const LiveLighting>
     // The saved lighting is the set as last seen, not as it is now: still pending.
     lightingPending_ = lighting->restored;
     if (changed) {
-        if (Denoiser* d = renderer_->denoiser()) d->resetHistory();
+        if (Denoiser* d = renderer_->film().denoiser()) d->resetHistory();
         if (Status s = renderer_->holdView(false); !s) return s;
         heldSince_.reset();
         historyLighting_ = lighting;
@@ -524,7 +525,7 @@ Status PipelineRenderer::renderPreview(const TrackedFrame& frame,
     renderer_->setMaxDepth(previewDepth_);
     refining_ = false;
     // Preview denoises with temporal reprojection: the history follows the tracked camera.
-    renderer_->setTemporalDenoise(true);
+    renderer_->film().setTemporalDenoise(true);
     if (Status s = renderer_->holdView(accumulate_ && cameraHolds(frame)); !s) return s;
     if (refined)
         if (Status s = renderer_->seedHeldView(*refined); !s) return s;
@@ -562,8 +563,8 @@ Status PipelineRenderer::beginRefine(const TrackedFrame& frame,
     refineComposite_ = {};
     refineDisplay_ = {};
     // Refinement filters its own accumulation, never a history; preview starts a new one after.
-    renderer_->setTemporalDenoise(false);
-    if (Denoiser* d = renderer_->denoiser()) d->resetHistory();
+    renderer_->film().setTemporalDenoise(false);
+    if (Denoiser* d = renderer_->film().denoiser()) d->resetHistory();
     heldSince_.reset();
     refinedPose_ = frame.worldFromCamera;
     refinedLighting_ = historyLighting_;
@@ -577,7 +578,7 @@ Status PipelineRenderer::refineStep(uint32_t samples) {
 }
 
 Result<std::optional<PlateConsistency>> PipelineRenderer::measurePlateConsistency() {
-    const ImageF* plate = renderer_->plate();
+    const ImageF* plate = renderer_->film().plate();
     if (!rendered_ || lightingPending_ || !plate) return std::optional<PlateConsistency>{};
     Result<ImageF> traced = renderer_->realSurfaceMeans();
     if (!traced) return traced.error();
@@ -593,7 +594,7 @@ Result<std::optional<double>> PipelineRenderer::measureNoise() {
 }
 
 uint32_t PipelineRenderer::previewHistoryFrames() const {
-    const Denoiser* d = renderer_->denoiser();
+    const Denoiser* d = renderer_->film().denoiser();
     return accumulate_ && d ? d->historyFrames() : 0;
 }
 

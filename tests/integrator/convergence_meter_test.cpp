@@ -106,7 +106,7 @@ protected:
         auto r = Renderer::create(ctx(), scene, rs);
         EXPECT_TRUE(r.ok()) << r.message();
         if (!r) return ref;
-        EXPECT_TRUE((*r)->setPlate(plate).ok());
+        EXPECT_TRUE((*r)->film().setPlate(plate).ok());
         (*r)->setSeed(9001);
         EXPECT_TRUE((*r)->render(kReferenceSpp).ok());
         ref.composite = values((*r)->image().value());
@@ -134,7 +134,7 @@ TEST_F(ConvergenceMeterTest, EstimateIsWithinOneAndAHalfOfTheTrueError) {
     auto created = Renderer::create(ctx(), scene, rs);
     ASSERT_TRUE(created.ok()) << created.message();
     Renderer& r = **created;
-    ASSERT_TRUE(r.setPlate(plate).ok());
+    ASSERT_TRUE(r.film().setPlate(plate).ok());
     r.setSeed(1);
     uint64_t done = 0;
     for (uint32_t spp : {16u, 64u, 256u, 1024u}) {
@@ -215,7 +215,7 @@ TEST_F(ConvergenceMeterTest, ExtremesOfSamplesAndDepthStayFinite) {
         rs.maxDepth = depth;
         auto r = Renderer::create(ctx(), scene, rs);
         ASSERT_TRUE(r.ok()) << r.message();
-        ASSERT_TRUE((*r)->setPlate(gradientPlate(64, 64)).ok());
+        ASSERT_TRUE((*r)->film().setPlate(gradientPlate(64, 64)).ok());
         for (uint32_t spp : {1u, 1u, 6u}) {
             ASSERT_TRUE((*r)->render(spp).ok());
             const std::string what = "depth " + std::to_string(depth) + ", " +
@@ -234,7 +234,7 @@ TEST_F(ConvergenceMeterTest, AMillionSamplesPerPixel) {
     rs.samplesPerDispatch = 4096;
     auto r = Renderer::create(ctx(), scene, rs);
     ASSERT_TRUE(r.ok()) << r.message();
-    ASSERT_TRUE((*r)->setPlate(gradientPlate(1, 1)).ok());
+    ASSERT_TRUE((*r)->film().setPlate(gradientPlate(1, 1)).ok());
     ASSERT_TRUE((*r)->render(1000).ok());
     const double at1000 = (*r)->convergence().value().composite.relativeRmse.value();
     ASSERT_TRUE((*r)->render(1000000 - 1000).ok());
@@ -271,7 +271,7 @@ TEST_F(ConvergenceMeterTest, SunOfRadianceOneHundredThousand) {
     RenderSettings rs = meterSettings(48, 48);
     auto r = Renderer::create(ctx(), scene, rs);
     ASSERT_TRUE(r.ok()) << r.message();
-    ASSERT_TRUE((*r)->setPlate(gradientPlate(48, 48)).ok());
+    ASSERT_TRUE((*r)->film().setPlate(gradientPlate(48, 48)).ok());
     ASSERT_TRUE((*r)->render(16).ok());
     expectFinite(**r, "sun");
     expectMeterSane(**r, "sun");
@@ -289,7 +289,7 @@ TEST_F(ConvergenceMeterTest, UltraHdFrame) {
     rs.maxDepth = 2;
     auto r = Renderer::create(ctx(), scene, rs);
     ASSERT_TRUE(r.ok()) << r.message();
-    ASSERT_TRUE((*r)->setPlate(gradientPlate(3840, 2160)).ok());
+    ASSERT_TRUE((*r)->film().setPlate(gradientPlate(3840, 2160)).ok());
     ASSERT_TRUE((*r)->render(2).ok());
     expectFinite(**r, "3840x2160");
     expectMeterSane(**r, "3840x2160");

@@ -180,7 +180,7 @@ TEST_F(DenoiseTest, PlatePixelsAreBitUnchanged) {
     for (float& v : plate.pixels) v = std::pow(10.0f, logv(rng));
     auto renderer = Renderer::create(ctx(), s, rs);
     ASSERT_TRUE(renderer.ok()) << renderer.message();
-    ASSERT_TRUE((*renderer)->setPlate(plate).ok());
+    ASSERT_TRUE((*renderer)->film().setPlate(plate).ok());
     ASSERT_TRUE((*renderer)->render(16).ok());
     ImageF composite = take((*renderer)->image(Aov::Composite));
     ImageF denoised = take((*renderer)->image(Aov::Composite, true));
@@ -272,7 +272,7 @@ TEST_F(DenoiseTest, ConvergesToTheUndenoisedImageAtHighSampleCounts) {
     auto renderer = Renderer::create(ctx(), s, rs);
     ASSERT_TRUE(renderer.ok()) << renderer.message();
     Renderer& r = **renderer;
-    ASSERT_TRUE(r.setPlate(constantPlate(rs.width, rs.height, 0.5f)).ok());
+    ASSERT_TRUE(r.film().setPlate(constantPlate(rs.width, rs.height, 0.5f)).ok());
     ImageF undenoised[2], denoised[2];
     for (int k = 0; k < 2; ++k) {
         ASSERT_TRUE(r.reset().ok());
@@ -300,13 +300,13 @@ double denoiseGainAt4Spp(GpuContext& ctx, float resolutionScale) {
     EXPECT_TRUE(renderer.ok()) << renderer.message();
     if (!renderer.ok()) return 0.0;
     Renderer& r = **renderer;
-    EXPECT_TRUE(r.setPlate(constantPlate(rs.width, rs.height, 0.5f)).ok());
+    EXPECT_TRUE(r.film().setPlate(constantPlate(rs.width, rs.height, 0.5f)).ok());
     EXPECT_TRUE(r.setResolutionScale(resolutionScale).ok());
     // The virtual objects' outline is steepened from the traced mask, which the denoiser does
     // not filter (render/upsample.h): at 4 spp that adds the mask's noise at the outline to both
     // sides of the comparison (the summed gain at 1/2 fell from 1.26× to 1.10×). Off here, so
     // the test measures the filter; tests/render/upsample_test.cpp measures the outline.
-    r.upsampleSettings().outlineSharpening = 0.0f;
+    r.film().upsampleSettings().outlineSharpening = 0.0f;
     r.setSeed(77);
     EXPECT_TRUE(r.render(1024).ok());
     ImageF ref = take(r.image(Aov::Composite));

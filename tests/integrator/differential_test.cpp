@@ -53,7 +53,7 @@ protected:
         if (!renderer) return e;
         Renderer& r = **renderer;
         if (plate) {
-            EXPECT_TRUE(r.setPlate(*plate).ok());
+            EXPECT_TRUE(r.film().setPlate(*plate).ok());
         }
         std::vector<double> sum[4], sum2[4];
         for (int run = 0; run < runs; ++run) {
@@ -129,7 +129,7 @@ TEST_F(DifferentialTest, NoVirtualObjectsGivesThePlateBitForBit) {
     ImageF plate = hdrPlate(rs.width, rs.height);
     auto renderer = Renderer::create(ctx(), s, rs);
     ASSERT_TRUE(renderer.ok()) << renderer.message();
-    ASSERT_TRUE((*renderer)->setPlate(plate).ok());
+    ASSERT_TRUE((*renderer)->film().setPlate(plate).ok());
     for (uint32_t spp : {1u, 3u, 17u}) {
         ASSERT_TRUE((*renderer)->reset().ok());
         ASSERT_TRUE((*renderer)->render(spp).ok());
@@ -158,7 +158,7 @@ TEST_F(DifferentialTest, LdrPlateRoundTripsWithinOneStep) {
     ImageF plate = inverseToneMap(codes, InverseToneMapSettings{});
     auto renderer = Renderer::create(ctx(), s, rs);
     ASSERT_TRUE(renderer.ok());
-    ASSERT_TRUE((*renderer)->setPlate(plate).ok());
+    ASSERT_TRUE((*renderer)->film().setPlate(plate).ok());
     ASSERT_TRUE((*renderer)->render(4).ok());
     ImageF composite = take((*renderer)->image());
     std::vector<uint8_t> out = toneMapToSrgb8(composite, ToneMapSettings{});
@@ -388,7 +388,7 @@ TEST_F(DifferentialTest, CompositeIsNeverNegativeAndTheDifferentialStaysSigned) 
     auto renderer = Renderer::create(ctx(), s, rs);
     ASSERT_TRUE(renderer.ok()) << renderer.message();
     Renderer& r = **renderer;
-    ASSERT_TRUE(r.setPlate(plate).ok());
+    ASSERT_TRUE(r.film().setPlate(plate).ok());
     r.setSeed(7);
     ASSERT_TRUE(r.render(8).ok());
     const ImageF composite = take(r.image(Aov::Composite));

@@ -75,7 +75,7 @@ protected:
         ImageF plate = *real;
         for (size_t i = 0; i < plate.pixels.size(); ++i)
             plate.pixels[i] *= ((i / 3 % kSize / 8 + i / 3 / kSize / 8) % 2) ? 1.0f : 0.3f;
-        EXPECT_TRUE((*r)->setPlate(plate).ok());
+        EXPECT_TRUE((*r)->film().setPlate(plate).ok());
         EXPECT_TRUE((*r)->reset().ok());
         return std::move(*r);
     }
@@ -128,7 +128,7 @@ TEST_F(DisplayTest, AccumulatedTheDeviceFrameIsTheHostFrame) {
     const DisplaySettings s = curves()[1];
     for (uint64_t frame = 1; frame <= 3; ++frame) {
         for (Renderer* r : {device.get(), host.get()}) {
-            r->setTemporalDenoise(true);
+            r->film().setTemporalDenoise(true);
             ASSERT_TRUE(r->renderPreviewFrame(2, frame).ok());
         }
         Result<DisplayImage> shown = device->display(true, s);
@@ -138,7 +138,7 @@ TEST_F(DisplayTest, AccumulatedTheDeviceFrameIsTheHostFrame) {
         EXPECT_LE(d.largest, 1) << frame;
         EXPECT_LE(d.mean, 1e-3) << frame;
     }
-    EXPECT_EQ(device->denoiser()->historyFrames(), 3u);
+    EXPECT_EQ(device->film().denoiser()->historyFrames(), 3u);
 }
 
 // The held view's samples add up on the device over the frames it holds, and both sides blend
@@ -153,7 +153,7 @@ TEST_F(DisplayTest, AHeldViewShowsItsKeptSamples) {
             ASSERT_TRUE(r->holdView(true).ok());
             ASSERT_TRUE(r->renderPreviewFrame(2, frame).ok());
         }
-        EXPECT_EQ(r->heldViewFrames(), 3u);
+        EXPECT_EQ(r->film().heldFrames(), 3u);
         expectClose(*r, false);
         // Against a frame without the held view: the kept samples change the picture.
         Result<DisplayImage> held = r->display(false, curves()[0]);

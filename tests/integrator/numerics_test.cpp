@@ -66,7 +66,7 @@ TEST_F(NumericsTest, DroppedSamplesNeitherDarkenNorShowThePlate) {
     plate.channels = 3;
     for (uint32_t i = 0; i < settings.width * settings.height; ++i)
         plate.pixels.insert(plate.pixels.end(), {plateValue.r, plateValue.g, plateValue.b});
-    ASSERT_TRUE((*r)->setPlate(plate));
+    ASSERT_TRUE((*r)->film().setPlate(plate));
     ASSERT_TRUE((*r)->render(kSpp));
     auto composite = (*r)->image(Aov::Composite);
     auto mixed = (*r)->image(Aov::Mixed);
@@ -165,8 +165,8 @@ TEST_F(NumericsTest, NonFinitePlateValuesNeverReachTheComposite) {
     plate.pixels[3 * 20 + 1] = std::numeric_limits<float>::infinity();
     plate.pixels[3 * 30 + 2] = -std::numeric_limits<float>::infinity();
     plate.pixels[3 * 40 + 0] = -0.25f;
-    ASSERT_TRUE((*r)->setPlate(plate, "test plate"));
-    EXPECT_EQ((*r)->plateValuesRepaired(), 4u);
+    ASSERT_TRUE((*r)->film().setPlate(plate, "test plate"));
+    EXPECT_EQ((*r)->film().plateValuesRepaired(), 4u);
     ASSERT_TRUE((*r)->render(2));
     auto composite = (*r)->image(Aov::Composite);
     ASSERT_TRUE(composite);

@@ -720,7 +720,7 @@ TEST_F(PhotonTest, SplatsAndGathersAgreeInEverySolution) {
         ASSERT_TRUE(renderer.ok()) << renderer.message();
         Renderer& r = **renderer;
         ASSERT_TRUE(r.photonsActive());
-        ASSERT_TRUE(r.setPlate(plate, "test plate").ok());
+        ASSERT_TRUE(r.film().setPlate(plate, "test plate").ok());
         for (uint32_t run = 0; run < kRuns; ++run) {
             ASSERT_TRUE(r.reset().ok());
             r.setSeed(700 + run + (splat ? 100 : 0));

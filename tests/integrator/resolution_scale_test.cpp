@@ -57,7 +57,7 @@ protected:
     }
     // The composite of `spp` samples with seed `seed`.
     ImageF composite(Renderer& r, const ImageF& plate, uint32_t spp, uint32_t seed) {
-        EXPECT_TRUE(r.setPlate(plate).ok());
+        EXPECT_TRUE(r.film().setPlate(plate).ok());
         EXPECT_TRUE(r.reset().ok());
         r.setSeed(seed);
         EXPECT_TRUE(r.render(spp).ok());
@@ -97,7 +97,7 @@ TEST_F(ResolutionScaleTest, ScaleOneIsTodaysRenderBitForBit) {
     ASSERT_TRUE(today->render(4).ok());
     const ImageF plate = texturedPlate(take(today->image(Aov::Real)));
     for (Renderer* r : {today.get(), switched.get()}) {
-        ASSERT_TRUE(r->setPlate(plate).ok());
+        ASSERT_TRUE(r->film().setPlate(plate).ok());
         ASSERT_TRUE(r->reset().ok());
         ASSERT_TRUE(r->render(4).ok());
     }

@@ -210,10 +210,10 @@ TEST(Dial, DenoiserStrengthIsOnTheDialAndRefinementStopsDenoisingAtTheTarget) {
     // Preview frames build the temporal history; refinement starts without one.
     ASSERT_TRUE((*q)->renderPreview(tracked, nullptr));
     ASSERT_TRUE((*q)->composite());
-    ASSERT_NE((*q)->renderer().denoiser(), nullptr);
-    EXPECT_EQ((*q)->renderer().denoiser()->historyFrames(), 2u);
+    ASSERT_NE((*q)->renderer().film().denoiser(), nullptr);
+    EXPECT_EQ((*q)->renderer().film().denoiser()->historyFrames(), 2u);
     ASSERT_TRUE((*q)->beginRefine(tracked, nullptr));
-    EXPECT_EQ((*q)->renderer().denoiser()->historyFrames(), 0u);
+    EXPECT_EQ((*q)->renderer().film().denoiser()->historyFrames(), 0u);
 }
 
 // The dial measures each point on a pan through preview's temporal stage (DialMotion): the pan
@@ -237,7 +237,7 @@ TEST(Dial, APanCountsWhatReprojectionKeepsAndEndsAtTheReferenceView) {
     grey.height = (*p)->height();
     grey.channels = 3;
     grey.pixels.assign(size_t(grey.width) * grey.height * 3, 0.18f);
-    ASSERT_TRUE(r.setPlate(std::move(grey)));
+    ASSERT_TRUE(r.film().setPlate(std::move(grey)));
     const glm::dmat4 view = r.denoiseCamera().worldFromCamera;
     ASSERT_TRUE(r.reset());
     r.setSeed(99);
@@ -255,7 +255,7 @@ TEST(Dial, APanCountsWhatReprojectionKeepsAndEndsAtTheReferenceView) {
     EXPECT_GT((*panned)[0].frameSeconds, 0.0);
     EXPECT_LT((*panned)[0].error, 0.8 * (*still)[0].error);
     EXPECT_EQ(r.denoiseCamera().worldFromCamera, view);
-    EXPECT_EQ(r.denoiser()->historyFrames(), 0u);  // preview starts its own history
+    EXPECT_EQ(r.film().denoiser()->historyFrames(), 0u);  // preview starts its own history
 }
 
 }  // namespace

@@ -70,7 +70,7 @@ TEST(PlateConsistencyReplay, TheDemoTakesAReadingThatAgreesWithTheAovs) {
     Result<ImageF> real = r.image(Aov::Real), mask = r.image(Aov::Mask),
                    depth = r.image(Aov::Depth);
     ASSERT_TRUE(real && mask && depth);
-    const ImageF* plate = r.plate();
+    const ImageF* plate = r.film().plate();
     ASSERT_TRUE(plate);
     const PlateLimits& limits = pr.plateLimits();
     std::array<std::vector<double>, 3> ratios;
