@@ -20,6 +20,8 @@ struct FreedOutConfig {
     // A lost pose sends nothing by default; `hold` repeats the last trusted pose (a receiver that
     // cannot tell "no packet" from "camera off"), counted in the status as held packets.
     bool holdWhenLost = false;
+
+    bool operator==(const FreedOutConfig&) const = default;
 };
 
 // [opentrackio]: one SMPTE RIS OpenTrackIO sample per tracked frame (docs/opentrackio.md).
@@ -28,6 +30,8 @@ struct OpenTrackIoConfig {
     std::string out;
     int sourceNumber = 1;  // 1..200
     int multicastTtl = 1;  // hops: 1 stays on the set's subnet
+
+    bool operator==(const OpenTrackIoConfig&) const = default;
 };
 
 // [timecode]: every frame's SMPTE timecode (docs/timecode.md).
@@ -39,6 +43,8 @@ struct TimecodeConfig {
     std::string device = "default";  // ltc: the ALSA capture device ("hw:1,0")
     int channel = 0;                 // ltc: the input channel carrying LTC
     int sampleRate = 48000;          // ltc: the device's rate
+
+    bool operator==(const TimecodeConfig&) const = default;
 };
 
 // [web]: the monitor page (docs/web-monitor.md).
@@ -54,6 +60,8 @@ struct WebConfig {
     // Names the page is opened by besides IP literals, localhost and the listen host (the
     // monitor answers any other Host 421: DNS rebinding, docs/web-monitor.md).
     std::vector<std::string> hostNames;
+
+    bool operator==(const WebConfig&) const = default;
 };
 
 struct NetworkConfig {
@@ -66,6 +74,8 @@ struct NetworkConfig {
     bool usesNetwork() const {
         return !freed.out.empty() || !opentrackio.out.empty() || !web.listen.empty();
     }
+
+    bool operator==(const NetworkConfig&) const = default;
 };
 
 // Whether `value` holds a control character (a newline, a tab, DEL). previsd writes addresses

@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <functional>
 #include <limits>
+#include <tuple>
 
 #include "base/toml_reader.h"
 #include "capture/exposure_bracket.h"
@@ -1031,6 +1032,97 @@ const char* toString(OutputKind kind) {
             return "kms";
     }
     return "?";
+}
+
+namespace {
+
+// The startup part as a reload compares it: OpenColorIO transforms built from the file by the
+// paths and names given beside them, the control socket as resolved, and samples_per_frame (which
+// a reload applies) left out.
+StartupConfig comparedAtReload(const ServiceConfig& config) {
+    StartupConfig c = config;
+    c.render.samplesPerFrame = 0;
+    c.sceneCamera.radiometry.colour = nullptr;
+    if (c.fisheyeCamera) c.fisheyeCamera->radiometry.colour = nullptr;
+    c.output.colour = nullptr;
+    c.control.socketPath = controlSocketPath(config.control);
+    return c;
+}
+
+// [cameras.<name>.colour] as given.
+auto cameraColour(const CameraConfig& c) {
+    return std::tie(c.colourConfigPath, c.colourInput, c.colourRange);
+}
+
+CameraConfig withoutColour(CameraConfig c) {
+    c.colourConfigPath.clear();
+    c.colourInput.clear();
+    c.colourRange = CodeRange::Full;
+    return c;
+}
+
+std::optional<CameraConfig> withoutColour(const std::optional<CameraConfig>& c) {
+    return c ? std::optional(withoutColour(*c)) : std::nullopt;
+}
+
+auto outputColour(const OutputConfig& o) {
+    return std::tie(o.colourConfigPath, o.colourDisplay, o.colourView);
+}
+
+OutputConfig withoutColour(OutputConfig o) {
+    o.colourConfigPath.clear();
+    o.colourDisplay.clear();
+    o.colourView.clear();
+    return o;
+}
+
+// The render keys a restart was always named for; a change of the others is named "render".
+bool renderSizeOrSamplingDiffers(const RenderConfig& a, const RenderConfig& b) {
+    return std::tie(a.width, a.height, a.maxDepth, a.seed, a.photons, a.previewFps,
+                    a.resolutionScale) != std::tie(b.width, b.height, b.maxDepth, b.seed, b.photons,
+                                                   b.previewFps, b.resolutionScale);
+}
+
+}  // namespace
+
+std::vector<std::string> restartNeeded(const ServiceConfig& running, const ServiceConfig& fresh) {
+    const StartupConfig a = comparedAtReload(running);
+    const StartupConfig b = comparedAtReload(fresh);
+    if (a == b) return {};
+    std::vector<std::string> names;
+    auto name = [&](bool differs, const char* what) {
+        if (differs) names.emplace_back(what);
+    };
+    name(a.scenePath != b.scenePath, "scene");
+    name(withoutColour(a.sceneCamera) != withoutColour(b.sceneCamera), "cameras.scene");
+    name(withoutColour(a.fisheyeCamera) != withoutColour(b.fisheyeCamera), "cameras.fisheye");
+    name(a.tracking != b.tracking, "tracking");
+    name(a.lighting != b.lighting, "lighting");
+    if (renderSizeOrSamplingDiffers(a.render, b.render))
+        names.emplace_back(
+            "render (size, max_depth, seed, photons, preview_fps, resolution_scale)");
+    else
+        name(a.render != b.render, "render");
+    name(withoutColour(a.output) != withoutColour(b.output), "output");
+    // OpenColorIO's transforms are built into the stages, the renderer and the display at start
+    // (issue 54): a colour change is named, never silently ignored.
+    name(cameraColour(a.sceneCamera) != cameraColour(b.sceneCamera), "cameras.scene.colour");
+    name(a.fisheyeCamera && b.fisheyeCamera &&
+             cameraColour(*a.fisheyeCamera) != cameraColour(*b.fisheyeCamera),
+         "cameras.fisheye.colour");
+    name(outputColour(a.output) != outputColour(b.output), "output.colour");
+    name(a.button != b.button, "button");
+    name(a.control != b.control, "control");
+    name(a.record != b.record, "record");
+    name(a.network.freed != b.network.freed, "freed");
+    name(a.network.opentrackio != b.network.opentrackio, "opentrackio");
+    name(a.network.timecode != b.network.timecode, "timecode");
+    name(a.network.web != b.network.web, "web");
+    name(a.loopSession != b.loopSession || a.replaySessionEvents != b.replaySessionEvents,
+         "session");
+    // A setting added to StartupConfig without a name here still needs the restart.
+    if (names.empty()) names.emplace_back("settings read at start");
+    return names;
 }
 
 Result<LabelRateRule> labelRateRule(const ServiceConfig& config, const CameraConfig& camera) {

@@ -38,6 +38,15 @@ enum class CameraSourceKind {
 };
 const char* toString(CameraSourceKind kind);
 
+// A value loaded from a file when the config is read, held beside the path it came from. Configs
+// compare by that path (a reload does not re-read the file), so this compares equal always.
+template <class T>
+struct LoadedFromPath : std::optional<T> {
+    using std::optional<T>::optional;
+    using std::optional<T>::operator=;
+    bool operator==(const LoadedFromPath&) const { return true; }
+};
+
 struct CameraConfig {
     std::string name;  // the table's name: "scene", "fisheye"
     CameraSourceKind source = CameraSourceKind::V4L2;
@@ -60,7 +69,7 @@ struct CameraConfig {
     std::string calibrationPath;
     // Loaded from calibrationPath; always set in a config loadServiceConfig returned
     // (optional only because a calibration has no meaningful empty state).
-    std::optional<CameraCalibration> calibration;
+    LoadedFromPath<CameraCalibration> calibration;
     // 8-bit frames → linear radiance in the scene's units (docs/camera-calibration.md §2).
     // [cameras.<name>.colour] sets radiometry.colour: the camera's encoding through OpenColorIO
     // in place of the tone curve (built when the config is read, so a bad name fails --check).
@@ -81,11 +90,13 @@ struct CameraConfig {
     // exposure (capture/exposure_bracket.h); libcamera labels from metadata and needs neither.
     int bracketFramesPerStep = 3;
     std::string bracketControl = "exposure_time_absolute";
+
+    bool operator==(const CameraConfig&) const = default;
 };
 
 struct TrackingConfig {
     std::string boardPath;
-    std::optional<TagBoard> board;  // loaded from boardPath; always set, as calibration
+    LoadedFromPath<TagBoard> board;  // loaded from boardPath; always set, as calibration
     TagDetectorSettings detector;
     TrackerSettings tracker;
     // Before the first tracked pose: false = show the camera picture alone; true = composite
@@ -102,7 +113,9 @@ struct TrackingConfig {
     std::string freedListen;
     std::optional<uint8_t> freedCameraId;  // packets of other cameras are refused (counted)
     std::string freedCalibrationPath;      // `previs freed-calibrate`'s result; "" = none
-    std::optional<FreedCalibration> freedCalibration;  // loaded from it
+    LoadedFromPath<FreedCalibration> freedCalibration;  // loaded from it
+
+    bool operator==(const TrackingConfig&) const = default;
 };
 
 enum class LightingMode {
@@ -129,6 +142,8 @@ struct LightingConfig {
     // environment map), so that after a restart the virtual objects are lit by the set as last
     // seen until the fisheye's first snapshot. Unset: savedLightingPath()'s default; "": off.
     std::optional<std::string> savedPath;
+
+    bool operator==(const LightingConfig&) const = default;
 };
 
 // The saved lighting's file: [lighting] saved, else $STATE_DIRECTORY/last_lighting.exr under
@@ -176,6 +191,8 @@ struct RenderConfig {
     double previewSampleClamp = 4.0;
     // Caustics (render/photon_map.h): mode and photons per iteration, first radius, alpha.
     PhotonSettings photons;
+
+    bool operator==(const RenderConfig&) const = default;
 };
 
 // Refinement: the frame, pose and lighting freeze and samples accumulate.
@@ -192,6 +209,8 @@ struct RefineConfig {
     double poseThresholdDeg = 0.5;
     double lightingThreshold = 0.06;  // relative change of the lighting (LightingDelta::change)
     int restartAfter = 3;
+
+    bool operator==(const RefineConfig&) const = default;
 };
 
 enum class OutputKind { None, Files, Kms };
@@ -213,6 +232,8 @@ struct OutputConfig {
     // curve (today's default); nothing of OCIO is built.
     std::shared_ptr<const DisplayColourTransform> colour;
     std::string colourConfigPath, colourDisplay, colourView;  // as given
+
+    bool operator==(const OutputConfig&) const = default;
 };
 
 // The mode button and the status LED (libgpiod). Absent: no button (the socket still works).
@@ -225,11 +246,15 @@ struct ButtonConfig {
     std::string ledChip;  // "" = the button's chip
     std::string ledLine;  // "" = no LED
     bool ledActiveLow = false;
+
+    bool operator==(const ButtonConfig&) const = default;
 };
 
 struct ControlConfig {
     // The control socket; "" = $RUNTIME_DIRECTORY/previsd.sock, else /run/previs/previsd.sock.
     std::string socketPath;
+
+    bool operator==(const ControlConfig&) const = default;
 };
 
 // Takes (DESIGN.md §3 "Recording", docs/takes.md).
@@ -243,13 +268,18 @@ struct RecordConfig {
     uint32_t flushIntervalMs = 1000;
     // Frames waiting for the disk at most (MiB of frame data) before the recorder drops one.
     uint32_t queueMb = 512;
+
+    bool operator==(const RecordConfig&) const = default;
 };
 
 // [record] dir, else $STATE_DIRECTORY/takes under systemd (/var/lib/previs/takes), else
 // ./takes.
 std::string takesFolder(const RecordConfig& record);
 
-struct ServiceConfig {
+// What previsd reads only at start (everything but LiveConfig): the cameras, the scene, the
+// pipeline and its outputs are built from it, so a reload names a change of it as needing a
+// restart (restartNeeded). A field added here needs a restart without more code.
+struct StartupConfig {
     std::string path;       // the file this came from
     std::string scenePath;  // a .gltf/.glb or previs.toml scene description (resolved)
     CameraConfig sceneCamera;
@@ -257,8 +287,8 @@ struct ServiceConfig {
     std::optional<CameraConfig> fisheyeCamera;
     TrackingConfig tracking;
     LightingConfig lighting;
+    // samples_per_frame is the one live key here: a reload applies it (without the dial).
     RenderConfig render;
-    RefineConfig refine;
     OutputConfig output;
     std::optional<ButtonConfig> button;
     ControlConfig control;
@@ -271,7 +301,27 @@ struct ServiceConfig {
     // Recorded cameras: replay the session's button and ctl events (events.csv) with its frames.
     // Off by default: live playback leaves the mode to the crew (`previs replay` follows them).
     bool replaySessionEvents = false;
+
+    bool operator==(const StartupConfig&) const = default;
 };
+
+// What a reload applies while previsd runs (Service::reload), besides [render]
+// samples_per_frame.
+struct LiveConfig {
+    RefineConfig refine;
+
+    bool operator==(const LiveConfig&) const = default;
+};
+
+// The whole file: the part read at start and the part a reload applies.
+struct ServiceConfig : StartupConfig, LiveConfig {};
+
+// What of `fresh` differs from the `running` config in a way only a restart applies, by the
+// config's names ("scene", "cameras.scene", "cameras.scene.colour", "render (size, ...)",
+// "output.colour", "record", "timecode", ...), in a fixed order; empty when nothing does. Files
+// (calibrations, the board, OpenColorIO configs) compare by their paths, the control socket as
+// resolved; the live part (LiveConfig, samples_per_frame) is not compared.
+std::vector<std::string> restartNeeded(const ServiceConfig& running, const ServiceConfig& fresh);
 
 // The rule `camera`'s timecode labels count at under this config (timecode/timecode.h): its
 // [timecode] rate, else the camera's fps. An unknown rate is an error naming [timecode] rate

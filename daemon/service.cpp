@@ -471,50 +471,7 @@ Result<std::string> Service::reload() {
         if (n.render.previewFps <= 0.0) threads_->previewSamples = n.render.samplesPerFrame;
     }
     // What the running pipeline cannot take without a restart.
-    std::vector<std::string> restart;
-    auto cameraKey = [](const CameraConfig& c) {
-        return fmt::format("{}|{}|{}x{}|{}|{}|{}", toString(c.source), c.device, c.width, c.height,
-                           c.pixelFormat, c.fps, c.calibrationPath);
-    };
-    if (n.scenePath != config_.scenePath) restart.push_back("scene");
-    if (cameraKey(n.sceneCamera) != cameraKey(config_.sceneCamera))
-        restart.push_back("cameras.scene");
-    if (n.fisheyeCamera.has_value() != config_.fisheyeCamera.has_value() ||
-        (n.fisheyeCamera && cameraKey(*n.fisheyeCamera) != cameraKey(*config_.fisheyeCamera)))
-        restart.push_back("cameras.fisheye");
-    if (n.tracking.boardPath != config_.tracking.boardPath) restart.push_back("tracking");
-    if (n.lighting.mode != config_.lighting.mode) restart.push_back("lighting");
-    if (n.render.width != config_.render.width || n.render.height != config_.render.height ||
-        n.render.maxDepth != config_.render.maxDepth || n.render.seed != config_.render.seed ||
-        !(n.render.photons == config_.render.photons) ||
-        n.render.previewFps != config_.render.previewFps ||
-        n.render.resolutionScale != config_.render.resolutionScale)
-        restart.push_back("render (size, max_depth, seed, photons, preview_fps, resolution_scale)");
-    if (n.output.kind != config_.output.kind || n.output.folder != config_.output.folder ||
-        n.output.card != config_.output.card || n.output.connector != config_.output.connector ||
-        n.output.mode != config_.output.mode)
-        restart.push_back("output");
-    // OpenColorIO's transforms are built into the stages, the renderer and the display at start
-    // (issue 54): a colour change is named, never silently ignored.
-    auto colourKey = [](const CameraConfig& c) {
-        return c.colourConfigPath + "|" + c.colourInput + "|" +
-               std::to_string(static_cast<int>(c.colourRange));
-    };
-    if (colourKey(n.sceneCamera) != colourKey(config_.sceneCamera))
-        restart.push_back("cameras.scene.colour");
-    if (n.fisheyeCamera && config_.fisheyeCamera &&
-        colourKey(*n.fisheyeCamera) != colourKey(*config_.fisheyeCamera))
-        restart.push_back("cameras.fisheye.colour");
-    if (std::tie(n.output.colourConfigPath, n.output.colourDisplay, n.output.colourView) !=
-        std::tie(config_.output.colourConfigPath, config_.output.colourDisplay,
-                 config_.output.colourView))
-        restart.push_back("output.colour");
-    if (n.button.has_value() != config_.button.has_value() ||
-        (n.button &&
-         (n.button->chip != config_.button->chip || n.button->line != config_.button->line)))
-        restart.push_back("button");
-    if (controlSocketPath(n.control) != controlSocketPath(config_.control))
-        restart.push_back("control");
+    const std::vector<std::string> restart = restartNeeded(config_, n);
     std::string applied = fmt::format(
         "{}: applied [refine]{}{}", config_.path,
         n.render.previewFps <= 0.0

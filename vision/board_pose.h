@@ -82,6 +82,8 @@ struct TrackerSettings {
     // assumed on ViSP's linear renders: 0.7 px outward, tag poses 30-70 mm off).
     bool linearEdges = true;
     std::optional<LinearFromCode> linearFromCode;
+
+    bool operator==(const TrackerSettings&) const = default;
 };
 
 // Why a frame gave no trusted pose, by kind, so the service can count them (status

@@ -26,6 +26,8 @@ struct FisheyeToEquirectSettings {
     // Width of the band at the edge of the seen field whose mean radiance fills the unseen
     // directions (see apply()).
     double fillRingDeg = 5.0;
+
+    bool operator==(const FisheyeToEquirectSettings&) const = default;
 };
 
 class FisheyeToEquirect {

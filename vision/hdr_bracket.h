@@ -34,6 +34,8 @@ struct BracketSettings {
     // Fewer pixels well exposed in both frames than this, and the pair cannot be checked by its
     // pictures (counted: BracketCounts::unchecked); its labels are then taken as they are.
     int minCheckPixels = 64;
+
+    bool operator==(const BracketSettings&) const = default;
 };
 
 // Validates settings.stops: 2 to 8 finite exposures within ±20 stops, each at least 1 stop from

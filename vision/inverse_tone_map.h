@@ -56,6 +56,8 @@ struct InverseToneMapSettings {
     // exposure and white balance still apply after it. Null (the demo's, and any camera without
     // the section): the curves above, and OCIO is never touched.
     std::shared_ptr<const CameraColourTransform> colour{};
+
+    bool operator==(const InverseToneMapSettings&) const = default;
 };
 
 // sRGB transfer function, decoding (IEC 61966-2-1): encoded value in [0,1] → linear.

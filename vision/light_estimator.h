@@ -32,6 +32,8 @@ struct LightEstimatorSettings {
     // residual (so the energy balance is unaffected).
     int maxLights = 16;
     double minPowerFraction = 0.002;
+
+    bool operator==(const LightEstimatorSettings&) const = default;
 };
 
 struct EstimatedLight {

@@ -30,6 +30,8 @@ struct TagDetectorSettings {
     double decodeSharpening = 0.25;  // decode_sharpening
     int threads = 1;                 // nthreads
     int bitsCorrected = 2;           // hamming errors corrected (memory grows steeply above 2)
+
+    bool operator==(const TagDetectorSettings&) const = default;
 };
 
 // Families Debian's libapriltag 3.3 ships.

@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <vector>
 
 #include "config/network_config.h"
 #include "tests/support/temp_dir.h"
@@ -680,6 +681,49 @@ TEST(ServiceConfig, AnEmptyWebTokenFileMeansTheUnitsCredential) {
         writeFile("token_file_named.toml", minimal("", web + "token_file = \"t\"")));
     ASSERT_TRUE(c) << c.message();
     EXPECT_EQ(fs::path(c->network.web.tokenFile).filename(), "t");
+}
+
+// A reload (Service::reload) names what only a restart applies and nothing else (issue 55): the
+// same file read again (new calibration, board and OpenColorIO objects) needs none; the live part
+// ([refine], samples_per_frame) none; each startup section by its name, a colour change only as
+// its colour; a key no restart name lists still needs a restart.
+TEST(ServiceConfig, AReloadNamesWhatNeedsARestart) {
+    const std::string colour = "[cameras.scene.colour]\ninput = \"ARRI LogC3 (EI800)\"\n";
+    const std::string outputColour = "[output.colour]\ndisplay = \"sRGB\"\n";
+    Result<ServiceConfig> running =
+        loadServiceConfig(writeFile("reload.toml", minimal(colour, outputColour)));
+    ASSERT_TRUE(running) << running.message();
+    // The file edited in place, as a reload reads it.
+    auto namesFor = [&](const std::string& text) {
+        Result<ServiceConfig> fresh = loadServiceConfig(writeFile("reload.toml", text));
+        EXPECT_TRUE(fresh) << fresh.message();
+        return fresh ? restartNeeded(*running, *fresh) : std::vector<std::string>{"unread"};
+    };
+    using Names = std::vector<std::string>;
+    EXPECT_EQ(namesFor(minimal(colour, outputColour)), Names{});
+    EXPECT_EQ(
+        namesFor(minimal(colour, outputColour + "[refine]\nmax_samples = 64\ntarget_noise = 0.05\n"
+                                                "[render]\nsamples_per_frame = 4\n")),
+        Names{});
+    EXPECT_EQ(namesFor(minimal("[cameras.scene.colour]\ninput = \"Sony S-Log3 S-Gamut3\"\n",
+                               outputColour)),
+              Names{"cameras.scene.colour"});
+    EXPECT_EQ(namesFor(minimal(colour, outputColour + "[render]\nwidth = 640\nheight = 360\n")),
+              Names{"render (size, max_depth, seed, photons, preview_fps, resolution_scale)"});
+    EXPECT_EQ(namesFor(minimal(colour, outputColour + "[render]\ndenoise = \"off\"\n")),
+              Names{"render"});
+    EXPECT_EQ(
+        namesFor(minimal(colour, outputColour + "[record]\nmin_free_mb = 10\n[timecode]\nrate = "
+                                                "\"25\"\n")),
+        (Names{"record", "timecode"}));
+    EXPECT_EQ(namesFor(replaced(minimal(colour, outputColour), "width = 1280\nheight = 720",
+                                "width = 1280\nheight = 720\nformat = \"MJPG\"")),
+              Names{"cameras.scene"});
+    // Every startup section compares whole: a field no name covers is still named.
+    ServiceConfig fresh = *running;
+    fresh.tracking.detector.decodeSharpening = 0.5;
+    fresh.lighting.updateHz = 1.0;
+    EXPECT_EQ(restartNeeded(*running, fresh), (Names{"tracking", "lighting"}));
 }
 
 }  // namespace
