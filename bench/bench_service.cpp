@@ -159,6 +159,19 @@ std::optional<T> inChild(Body body) {
     return result;
 }
 
+// One part's run at w×h in a forked child (inChild), its result appended to `results`; false,
+// with the failure logged, when the child failed.
+template <typename T, typename Body>
+bool appendChildRun(std::vector<T>& results, const char* part, uint32_t w, uint32_t h, Body body) {
+    std::optional<T> r = inChild<T>(body);
+    if (!r) {
+        logError("bench service: the {} run at {}x{} failed (see above)", part, w, h);
+        return false;
+    }
+    results.push_back(*r);
+    return true;
+}
+
 struct TempDir {
     std::string path;
     TempDir() {
@@ -511,12 +524,8 @@ int runServiceBench(const ServiceBenchOptions& o) {
     std::vector<StageResult> stages;
     for (auto [w, h] : sizes) {
         benchProgress("stages {}x{} (forked child)", w, h);
-        auto r = inChild<StageResult>([&] { return measureStages(o, w, h); });
-        if (!r) {
-            logError("bench service: the stage run at {}x{} failed (see above)", w, h);
+        if (!appendChildRun(stages, "stage", w, h, [&] { return measureStages(o, w, h); }))
             return 1;
-        }
-        stages.push_back(*r);
     }
     std::printf(
         "### Cost per frame of each stage, lock step (ms, median / p90)\n\n"
@@ -545,12 +554,8 @@ int runServiceBench(const ServiceBenchOptions& o) {
         for (bool files : {false, true}) {
             benchProgress("live service {}x{} output {} (forked child)", w, h,
                           files ? "files" : "none");
-            auto r = inChild<LiveResult>([&] { return measureLive(o, w, h, files); });
-            if (!r) {
-                logError("bench service: the live run at {}x{} failed (see above)", w, h);
+            if (!appendChildRun(live, "live", w, h, [&] { return measureLive(o, w, h, files); }))
                 return 1;
-            }
-            live.push_back(*r);
         }
     std::printf(
         "### The live service (recorded timing, looping; ms as median / p90)\n\n"
