@@ -8,6 +8,7 @@
 
 #include "render/convergence.h"
 #include "tests/integrator/gpu_fixture.h"
+#include "tests/support/images.h"
 #include "tests/support/scene_builders.h"
 
 namespace previs::testing {
@@ -46,22 +47,17 @@ Scene differentialSet(bool glossy = false) {
 
 // A smooth plate of moderate values (the meter adds its (1 − M)·L_oc per sample).
 ImageF gradientPlate(uint32_t w, uint32_t h) {
-    ImageF p;
-    p.width = w;
-    p.height = h;
-    p.channels = 3;
+    ImageF p = filledImage(w, h, 3);
     for (uint32_t y = 0; y < h; ++y)
         for (uint32_t x = 0; x < w; ++x)
-            for (int c = 0; c < 3; ++c)
-                p.pixels.push_back(0.1f + 0.8f * float(x + y + 7 * c) / float(w + h + 14));
+            for (uint32_t c = 0; c < 3; ++c)
+                p.pixels[(size_t(y) * w + x) * 3 + c] =
+                    0.1f + 0.8f * float(x + y + 7 * c) / float(w + h + 14);
     return p;
 }
 
 RenderSettings meterSettings(uint32_t w, uint32_t h) {
-    RenderSettings rs;
-    rs.width = w;
-    rs.height = h;
-    rs.maxDepth = 4;
+    RenderSettings rs = renderSettings(w, h, 4);
     rs.differential = true;
     rs.samplesPerDispatch = 64;
     return rs;

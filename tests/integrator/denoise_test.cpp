@@ -12,6 +12,7 @@
 #include <random>
 
 #include "tests/integrator/gpu_fixture.h"
+#include "tests/support/images.h"
 #include "tests/support/scene_builders.h"
 
 namespace previs::testing {
@@ -43,40 +44,19 @@ double rmse(const ImageF& a, const ImageF& ref) {
     return std::sqrt(sum / double(ref.pixels.size()));
 }
 
-ImageF constantPlate(uint32_t w, uint32_t h, float v) {
-    ImageF p;
-    p.width = w;
-    p.height = h;
-    p.channels = 3;
-    p.pixels.assign(size_t(w) * h * 3, v);
-    return p;
-}
+ImageF constantPlate(uint32_t w, uint32_t h, float v) { return filledImage(w, h, 3, v); }
 
 // A real floor and box under a real sun and sky, a virtual sphere: shadows, occlusion and
 // colour bleeding in L_om − L_or (as differential_test.cpp's set).
 Scene differentialSet(bool withSky) {
-    Scene s;
-    addQuad(s, {0, 0, 0}, {0, 0, 2}, {2, 0, 0}, addMaterial(s, lambert(glm::vec3(0.7f))), true);
-    addBox(s, {-0.9f, 0, -0.3f}, {-0.5f, 0.4f, 0.1f},
-           addMaterial(s, lambert(glm::vec3(0.8f, 0.1f, 0.1f))), true);
+    Scene s = realTableUnderSun(withSky);
     addSphere(s, {0.3f, 0.3f, 0.0f}, 0.25f, addMaterial(s, lambert(glm::vec3(0.1f, 0.8f, 0.2f))),
               false, 16, 32);
-    PunctualLight sun;
-    sun.type = LightType::Directional;
-    sun.direction = glm::normalize(glm::vec3(-1, -1, 0));
-    sun.intensity = 3.0f;
-    sun.isReal = true;
-    s.lights.push_back(sun);
-    if (withSky) s.environment = uniformEnvironment(glm::vec3(0.3f));
-    s.cameras.push_back(lookAt({0, 3, 0.01f}, {0, 0, 0}, {0, 0, -1}, glm::radians(60.0f)));
     return s;
 }
 
 RenderSettings settingsFor(uint32_t w, uint32_t h, uint32_t maxDepth) {
-    RenderSettings rs;
-    rs.width = w;
-    rs.height = h;
-    rs.maxDepth = maxDepth;
+    RenderSettings rs = renderSettings(w, h, maxDepth);
     rs.differential = true;
     rs.denoise = true;
     return rs;

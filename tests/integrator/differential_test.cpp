@@ -10,6 +10,7 @@
 
 #include "render/tonemap.h"
 #include "tests/integrator/gpu_fixture.h"
+#include "tests/support/images.h"
 #include "tests/support/scene_builders.h"
 #include "vision/inverse_tone_map.h"
 #include "vision/lens_grid.h"
@@ -85,39 +86,19 @@ protected:
 };
 
 RenderSettings differentialSettings(uint32_t w, uint32_t h) {
-    RenderSettings rs;
-    rs.width = w;
-    rs.height = h;
-    rs.maxDepth = 6;
+    RenderSettings rs = renderSettings(w, h, 6);
     rs.differential = true;
     return rs;
 }
 
 // The set: a real table top and a real red box under a real sun and sky, seen from above.
-Scene realSet() {
-    Scene s;
-    addQuad(s, {0, 0, 0}, {0, 0, 2}, {2, 0, 0}, addMaterial(s, lambert(glm::vec3(0.7f))), true);
-    addBox(s, {-0.9f, 0, -0.3f}, {-0.5f, 0.4f, 0.1f},
-           addMaterial(s, lambert(glm::vec3(0.8f, 0.1f, 0.1f))), true);
-    PunctualLight sun;
-    sun.type = LightType::Directional;
-    sun.direction = glm::normalize(glm::vec3(-1, -1, 0));
-    sun.intensity = 3.0f;
-    sun.isReal = true;
-    s.lights.push_back(sun);
-    s.environment = uniformEnvironment(glm::vec3(0.3f));
-    s.cameras.push_back(lookAt({0, 3, 0.01f}, {0, 0, 0}, {0, 0, -1}, glm::radians(60.0f)));
-    return s;
-}
+Scene realSet() { return realTableUnderSun(/*withSky=*/true); }
 
 ImageF hdrPlate(uint32_t w, uint32_t h) {
-    ImageF p;
-    p.width = w;
-    p.height = h;
-    p.channels = 3;
+    ImageF p = filledImage(w, h, 3);
     std::mt19937 rng(42);
     std::uniform_real_distribution<float> logv(-4.0f, 5.0f);
-    for (size_t i = 0; i < size_t(w) * h * 3; ++i) p.pixels.push_back(std::pow(10.0f, logv(rng)));
+    for (float& v : p.pixels) v = std::pow(10.0f, logv(rng));
     return p;
 }
 

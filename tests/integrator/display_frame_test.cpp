@@ -57,10 +57,7 @@ std::vector<DisplaySettings> curves() {
 class DisplayTest : public GpuTest {
 protected:
     std::unique_ptr<Renderer> make(float scale, bool denoise = false) {
-        RenderSettings rs;
-        rs.width = kSize;
-        rs.height = kSize;
-        rs.maxDepth = 4;
+        RenderSettings rs = renderSettings(kSize, kSize, 4);
         rs.differential = true;
         rs.samplesPerDispatch = 8;
         rs.resolutionScale = scale;

@@ -34,9 +34,7 @@ Scene smallCloseEmitters() {
 }
 
 RenderSettings settingsFor(LightSampling lightSampling, uint32_t maxDepth) {
-    RenderSettings rs;
-    rs.width = rs.height = 16;
-    rs.maxDepth = maxDepth;
+    RenderSettings rs = renderSettings(16, 16, maxDepth);
     rs.samplesPerDispatch = 64;
     rs.lightSampling = lightSampling;
     return rs;

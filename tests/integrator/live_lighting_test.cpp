@@ -67,9 +67,7 @@ Scene liveSet() {
 }
 
 RenderSettings smallSettings(bool differential = true) {
-    RenderSettings rs;
-    rs.width = rs.height = 32;
-    rs.maxDepth = 4;
+    RenderSettings rs = renderSettings(32, 32, 4);
     rs.seed = 7;
     rs.differential = differential;
     return rs;

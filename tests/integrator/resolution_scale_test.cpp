@@ -22,10 +22,7 @@ constexpr uint32_t kSize = 64;
 Scene ballOnFloor() { return ballOnRealFloor(glm::vec3(1.0f)); }
 
 RenderSettings settings(float scale) {
-    RenderSettings rs;
-    rs.width = kSize;
-    rs.height = kSize;
-    rs.maxDepth = 4;
+    RenderSettings rs = renderSettings(kSize, kSize, 4);
     rs.differential = true;
     rs.samplesPerDispatch = 16;
     rs.resolutionScale = scale;

@@ -30,9 +30,7 @@ Scene smallAreaLights() {
 }
 
 RenderSettings settingsFor(Sampler sampler) {
-    RenderSettings rs;
-    rs.width = rs.height = 16;
-    rs.maxDepth = 4;
+    RenderSettings rs = renderSettings(16, 16, 4);
     rs.samplesPerDispatch = 64;
     rs.sampler = sampler;
     // One sequence: the generators' own stratification is what is compared (the convergence

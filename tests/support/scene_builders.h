@@ -1,9 +1,11 @@
 #pragma once
 
-// Scenes with known answers, built in code for the renderer's tests and benchmarks.
+// Scenes with known answers, built in code for the renderer's tests and benchmarks, and the
+// render settings they are traced with.
 
 #include <glm/glm.hpp>
 
+#include "render/render_settings.h"
 #include "scene/scene.h"
 
 namespace previs::testing {
@@ -35,5 +37,12 @@ Camera lookAt(glm::vec3 eye, glm::vec3 target, glm::vec3 up, float fovYRad);
 // A virtual Lambertian ball on a real grey floor under a uniform sky of radiance `sky`, seen
 // from above and in front; the top rows of the image see the sky.
 Scene ballOnRealFloor(glm::vec3 sky);
+
+// A real table top and a real red box under a real sun (and a uniform sky of 0.3 when withSky),
+// seen from above: the real set of the differential-rendering and denoiser tests.
+Scene realTableUnderSun(bool withSky);
+
+// A width × height render traced to maxDepth bounces, the rest of RenderSettings as it comes.
+RenderSettings renderSettings(uint32_t width, uint32_t height, uint32_t maxDepth);
 
 }  // namespace previs::testing
