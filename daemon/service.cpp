@@ -183,7 +183,6 @@ Status Service::start() {
     const Error stopped = makeError("stopped while starting");
     Threads& t = *threads_;
     t.refine = config.refine;
-    t.previewSamples = config.render.samplesPerFrame;
 
     if (!beginStartStage("loading the scene " + config.scenePath)) return stopped;
     Result<Scene> scene = loadScene(config.scenePath);
@@ -214,9 +213,8 @@ Status Service::start() {
     if (!renderer) return renderer.error();
     t.renderer = std::move(*renderer);
     // With [render] preview_fps the dial chose the preview's samples (PipelineRenderer).
-    t.previewSamples = t.renderer->previewSamples();
     logInfo("render: {}x{} on {}, {} spp per preview frame", t.renderer->width(),
-            t.renderer->height(), t.gpu->deviceName(), t.previewSamples);
+            t.renderer->height(), t.gpu->deviceName(), t.renderer->previewSamples());
     // What the stages open (tracking, network, display, button) the config names.
     if (Status s = startStages(); !s) return withKind(s.error(), Error::Kind::Config);
     if (Status s = startThreads(); !s) return s;
@@ -468,7 +466,7 @@ Result<std::string> Service::reload() {
         std::lock_guard lock(threads_->settingsMutex);
         threads_->refine = n.refine;
         // The dial's choice stands while preview_fps is set.
-        if (n.render.previewFps <= 0.0) threads_->previewSamples = n.render.samplesPerFrame;
+        if (n.render.previewFps <= 0.0) threads_->reloadedPreviewSamples = n.render.samplesPerFrame;
     }
     // What the running pipeline cannot take without a restart.
     const std::vector<std::string> restart = restartNeeded(config_, n);

@@ -4,6 +4,7 @@
 #include "daemon/service_threads.h"
 
 #include <algorithm>
+#include <utility>
 
 #include "base/log.h"
 #include "base/monotonic_clock.h"
@@ -245,7 +246,7 @@ void Service::Threads::runRender(ModeMachine& modes) {
         StageStep pass(&renderStage);
         {
             std::lock_guard lock(settingsMutex);
-            shot.setConfig(refine, previewSamples);
+            shot.setConfig(refine, std::exchange(reloadedPreviewSamples, std::nullopt));
         }
         std::shared_ptr<const TrackedFrame> frame =
             shot.wantsFrame() ? trackedFrames.waitTakeFor(kRenderPoll) : trackedFrames.take();

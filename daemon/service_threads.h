@@ -92,10 +92,11 @@ struct Service::Threads {
     std::atomic<bool> pipelineFailed{false};
     void stageFailed(const std::string&) { pipelineFailed.store(true); }
 
-    // Settings SIGHUP may change while running.
+    // Settings SIGHUP may change while running: [refine], and a reload's samples_per_frame
+    // until the render thread hands it to the renderer (which holds preview's settings).
     std::mutex settingsMutex;
     RefineConfig refine;
-    uint32_t previewSamples = 1;
+    std::optional<uint32_t> reloadedPreviewSamples;
 
     // The render thread's part of the status.
     mutable std::mutex statusMutex;

@@ -242,8 +242,7 @@ ServiceStatus Service::status() const {
     const Mode rendered = s.mode;
     s.mode = modes_.mode();
     if (s.mode == Mode::Preview && rendered == Mode::Refine) {
-        std::lock_guard lock(threads_->settingsMutex);
-        s.samples = threads_->previewSamples;
+        s.samples = t.renderer->previewSamples();
         s.noiseEstimate.reset();
         s.etaSeconds.reset();
     }

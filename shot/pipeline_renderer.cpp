@@ -113,8 +113,9 @@ Result<std::unique_ptr<PipelineRenderer>> PipelineRenderer::create(
     const PipelineStartHooks& hooks) {
     std::unique_ptr<PipelineRenderer> p(new PipelineRenderer());
     renderSize(config, p->width_, p->height_);
-    p->previewSamples_ = config.render.samplesPerFrame;
-    p->previewResolutionScale_ = config.render.resolutionScale;
+    PreviewSettings preview;
+    preview.samplesPerFrame = config.render.samplesPerFrame;
+    preview.resolutionScale = config.render.resolutionScale;
     p->radiometry_ = config.sceneCamera.radiometry;
     p->plateLimits_ = plateLimitsOf(p->radiometry_);
     p->display_.tone = forwardOf(p->radiometry_);
@@ -184,17 +185,18 @@ Result<std::unique_ptr<PipelineRenderer>> PipelineRenderer::create(
     if (!renderer) return makeError("{}: {}", config.scenePath, renderer.message());
     p->renderer_ = std::move(*renderer);
     if (hooks.interrupt) p->renderer_->setInterrupt(hooks.interrupt);
-    p->previewDepth_ = p->refineDepth_ = config.render.maxDepth;
+    preview.maxDepth = p->refineDepth_ = config.render.maxDepth;
     p->seed_ = config.render.seed;
     p->denoise_ = config.render.denoise;
     p->denoiseLevels_ = config.render.denoiseLevels;
     p->targetNoise_ = config.refine.targetNoise;
-    p->previewPhotons_ = config.render.photons.previewPerIteration;
+    preview.photons = config.render.photons.previewPerIteration;
     // Without the dial, "auto" follows autoDenoise for a preview frame: no estimate, its spp.
     const bool previewDenoised =
-        p->denoise_ == "on" ||
-        (p->denoise_ == "auto" && autoDenoise(std::nullopt, p->targetNoise_, p->previewSamples_));
-    p->previewDenoiseLevels_ = previewDenoised ? p->denoiseLevels_ : 0;
+        p->denoise_ == "on" || (p->denoise_ == "auto" && autoDenoise(std::nullopt, p->targetNoise_,
+                                                                     preview.samplesPerFrame));
+    preview.denoiseLevels = previewDenoised ? p->denoiseLevels_ : 0;
+    if (Status s = p->setPreview(preview, preview.samplesPerFrame); !s) return s.error();
     if (config.render.previewFps > 0.0)
         if (Status s = p->chooseByDial(config.render.previewFps, hooks); !s) return s.error();
     return p;
@@ -275,7 +277,7 @@ DialAxes PipelineRenderer::dialAxes() const {
     if (denoise_ == "on") axes.denoiseLevels = {denoiseLevels_};
     // The photon budget, where the scene runs the photon pass: around the configured one.
     if (r.photonsActive()) {
-        const uint32_t configured = std::max(128u, previewPhotons_);
+        const uint32_t configured = std::max(128u, preview().configured.photons);
         for (uint32_t n : {configured / 4, configured, configured * 4})
             if (n >= 128 && n <= r.photonsPerIteration()) axes.photonBudgets.push_back(n);
         if (axes.photonBudgets.empty()) axes.photonBudgets.push_back(r.photonsPerIteration());
@@ -286,12 +288,25 @@ DialAxes PipelineRenderer::dialAxes() const {
 Status PipelineRenderer::useDialPoint(size_t i) {
     const DialPoint& p = dial_[i].point;
     dialInUse_ = i;
-    previewSamples_ = p.samplesPerFrame;
-    previewResolutionScale_ = p.resolutionScale;
-    previewDepth_ = p.maxDepth;
-    previewDenoiseLevels_ = p.denoiseIterations;
-    previewPhotons_ = p.photons;
-    if (previewPhotons_ > 0) return renderer_->setPreviewPhotons(previewPhotons_);
+    return setPreview(
+        {p.samplesPerFrame, p.resolutionScale, p.maxDepth, p.denoiseIterations, p.photons},
+        p.samplesPerFrame);
+}
+
+PreviewState PipelineRenderer::preview() const {
+    std::lock_guard lock(previewMutex_);
+    return preview_;
+}
+
+Status PipelineRenderer::setPreview(const PreviewSettings& configured, uint32_t samplesInUse) {
+    PreviewState next{configured, configured};
+    next.inUse.samplesPerFrame = std::max(1u, std::min(samplesInUse, configured.samplesPerFrame));
+    // Photons are the device's: uploaded only when the budget changes (the dial's choice).
+    const PreviewState before = preview();
+    if (configured.photons > 0 && configured.photons != before.configured.photons)
+        if (Status s = renderer_->setPreviewPhotons(configured.photons); !s) return s;
+    std::lock_guard lock(previewMutex_);
+    preview_ = next;
     return {};
 }
 
@@ -521,15 +536,17 @@ Status PipelineRenderer::renderPreview(const TrackedFrame& frame,
         heldSince_ = refinedPose_;
     }
     // Nothing happens unless the traced size changes (entering preview from refinement).
-    if (Status s = renderer_->setResolutionScale(previewResolutionScale_); !s) return s;
-    renderer_->setMaxDepth(previewDepth_);
+    const PreviewSettings preview = this->preview().inUse;
+    if (Status s = renderer_->setResolutionScale(preview.resolutionScale); !s) return s;
+    renderer_->setMaxDepth(preview.maxDepth);
     refining_ = false;
     // Preview denoises with temporal reprojection: the history follows the tracked camera.
     renderer_->film().setTemporalDenoise(true);
     if (Status s = renderer_->holdView(accumulate_ && cameraHolds(frame)); !s) return s;
     if (refined)
         if (Status s = renderer_->seedHeldView(*refined); !s) return s;
-    return renderer_->renderPreviewFrame(previewSamples_, accumulate_ ? ++previewFrame_ : 0);
+    return renderer_->renderPreviewFrame(preview.samplesPerFrame,
+                                         accumulate_ ? ++previewFrame_ : 0);
 }
 
 bool PipelineRenderer::cameraHolds(const TrackedFrame& frame) {
@@ -602,7 +619,7 @@ uint64_t PipelineRenderer::samples() const { return rendered_ ? renderer_->sampl
 
 Result<bool> PipelineRenderer::chooseFilter(std::optional<double> noiseEstimate) {
     lastDenoiseLevels_ = 0;
-    uint32_t levels = previewDenoiseLevels_;
+    uint32_t levels = preview().inUse.denoiseLevels;
     if (refining_)
         levels = denoise_ == "on" ||
                          (denoise_ == "auto" && autoDenoise(noiseEstimate, targetNoise_, samples()))

@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <vector>
 
@@ -23,6 +24,7 @@
 #include "render/tonemap.h"
 #include "scene/scene.h"
 #include "shot/pipeline_stages.h"
+#include "shot/preview_settings.h"
 #include "shot/shot_controller.h"
 
 namespace previs {
@@ -101,13 +103,18 @@ public:
     uint64_t samples() const override;  // per pixel: this preview frame's, or the refinement's
     uint32_t width() const { return width_; }
     uint32_t height() const { return height_; }
-    uint32_t previewSamples() const override { return previewSamples_; }
-    void setPreviewSamples(uint32_t spp) override { previewSamples_ = spp; }
-    float previewResolutionScale() const { return previewResolutionScale_; }
-    uint32_t previewMaxDepth() const { return previewDepth_; }
-    uint32_t previewDenoiseLevels() const { return previewDenoiseLevels_; }  // 0: not denoised
-    // Photons per preview frame where the photon pass runs (the dial's, or preview_photons).
-    uint32_t previewPhotons() const { return previewPhotons_; }
+    // Preview's settings, the one holder (issue 55): configured and in use. Its writers (create,
+    // the dial, ShotController's cap and a reload through it) call setPreview on the render
+    // thread; any thread may read (the status asks for the samples in use).
+    PreviewState preview() const override;
+    Status setPreview(const PreviewSettings& configured, uint32_t samplesInUse) override;
+    // In use: samples, resolution scale, depth, denoiser strength (0: not denoised) and photons
+    // per preview frame where the photon pass runs.
+    uint32_t previewSamples() const { return preview().inUse.samplesPerFrame; }
+    float previewResolutionScale() const { return preview().inUse.resolutionScale; }
+    uint32_t previewMaxDepth() const { return preview().inUse.maxDepth; }
+    uint32_t previewDenoiseLevels() const { return preview().inUse.denoiseLevels; }
+    uint32_t previewPhotons() const { return preview().inUse.photons; }
     // What the dial ([render] preview_fps) measured and chose at start; empty without it.
     const std::vector<DialMeasurement>& dialMeasurements() const { return dial_; }
     std::optional<size_t> dialChoice() const { return dialChoice_; }
@@ -144,15 +151,12 @@ private:
     std::unique_ptr<Renderer> renderer_;
     uint32_t width_ = 0;
     uint32_t height_ = 0;
-    uint32_t previewSamples_ = 1;
-    float previewResolutionScale_ = 1.0f;  // refinement traces every pixel
-    uint32_t previewDepth_ = 8;            // refinement traces refineDepth_
+    mutable std::mutex previewMutex_;
+    PreviewState preview_;
     uint32_t refineDepth_ = 8;
-    uint32_t seed_ = 0;                  // [render] seed: preview's fixed sequence
-    std::string denoise_ = "off";        // [render] denoise
-    uint32_t denoiseLevels_ = 5;         // [render] denoise_levels
-    uint32_t previewDenoiseLevels_ = 0;  // the dial's or the config's; 0: off
-    uint32_t previewPhotons_ = 0;        // the dial's photon budget per preview frame
+    uint32_t seed_ = 0;            // [render] seed: preview's fixed sequence
+    std::string denoise_ = "off";  // [render] denoise
+    uint32_t denoiseLevels_ = 5;   // [render] denoise_levels
     uint32_t lastDenoiseLevels_ = 0;
     // Refinement's last denoised frame and its samples (composite() and display() reuse it a
     // while: denoisedOnce).

@@ -23,20 +23,20 @@ ShotController::ShotController(ShotRenderer& renderer, const ModeMachine& modes,
       modes_(modes),
       clock_(clock),
       refine_(refine),
-      configuredPreviewSamples_(renderer.previewSamples()),
       seenVersion_(modes.version()),
       watch_(refine),
       stopping_(refine.targetNoise, refine.maxSamples) {}
 
-void ShotController::setConfig(const RefineConfig& refine, uint32_t previewSamples) {
+void ShotController::setConfig(const RefineConfig& refine, std::optional<uint32_t> previewSamples) {
     refine_ = refine;
     watch_.setConfig(refine);
     stopping_.setLimits(refine.targetNoise, refine.maxSamples);
-    if (previewSamples != configuredPreviewSamples_) {
-        configuredPreviewSamples_ = previewSamples;
-        renderer_.setPreviewSamples(previewSamples);
-        loggedPreviewCap_ = false;
-    }
+    PreviewSettings configured = renderer_.preview().configured;
+    if (!previewSamples || *previewSamples == configured.samplesPerFrame) return;
+    configured.samplesPerFrame = *previewSamples;
+    if (Status s = renderer_.setPreview(configured, *previewSamples); !s)
+        logError("render: samples_per_frame = {}: {}", *previewSamples, s.message());
+    loggedPreviewCap_ = false;
 }
 
 bool ShotController::wantsFrame() const {
@@ -100,11 +100,11 @@ Result<ShotStep> ShotController::preview(std::shared_ptr<const TrackedFrame> fra
     out.mode = Mode::Preview;
     if (!frame) return out;
     current_ = frame;
-    capPreviewSamples();
+    if (Status s = capPreviewSamples(); !s) return s.error();
     out.start = clock_.now();
     if (Status s = renderer_.renderPreview(*frame, lighting); !s) return s.error();
     const double ms = msSince(out.start);
-    previewMsPerSample_ = ms / std::max(1u, renderer_.previewSamples());
+    previewMsPerSample_ = ms / std::max(1u, previewSamples());
     tick();
     out.kind = ShotStep::Kind::Previewed;
     out.shown = std::move(frame);
@@ -189,9 +189,10 @@ void ShotController::fitLighting(const TrackedFrame& frame, const PlateConsisten
     out.lightingFit = std::move(fit);
 }
 
-void ShotController::capPreviewSamples() {
-    const uint32_t wanted = configuredPreviewSamples_;
-    if (!(previewMsPerSample_ > 0.0) || renderer_.hasDial()) return;
+Status ShotController::capPreviewSamples() {
+    const PreviewState preview = renderer_.preview();
+    const uint32_t wanted = preview.configured.samplesPerFrame;
+    if (!(previewMsPerSample_ > 0.0) || renderer_.hasDial()) return {};
     const uint32_t fits = std::max(1u, uint32_t(kMaxPreviewFrameMs / previewMsPerSample_));
     const uint32_t use = std::min(wanted, fits);
     if (use < wanted && !loggedPreviewCap_) {
@@ -201,7 +202,8 @@ void ShotController::capPreviewSamples() {
             wanted, wanted * previewMsPerSample_, use);
         loggedPreviewCap_ = true;
     }
-    if (use != renderer_.previewSamples()) renderer_.setPreviewSamples(use);
+    if (use == preview.inUse.samplesPerFrame) return {};
+    return renderer_.setPreview(preview.configured, use);
 }
 
 void ShotController::correctDial(double frameSeconds) {

@@ -22,6 +22,7 @@
 #include "render/plate_consistency.h"
 #include "shot/mode_machine.h"
 #include "shot/pipeline_stages.h"
+#include "shot/preview_settings.h"
 #include "shot/refine_watch.h"
 
 namespace previs {
@@ -81,8 +82,11 @@ public:
     virtual bool rendered() const = 0;
     // One look of the convergence meter: the composite's relative RMSE, if it can say.
     virtual Result<std::optional<double>> measureNoise() = 0;
-    virtual uint32_t previewSamples() const = 0;
-    virtual void setPreviewSamples(uint32_t spp) = 0;
+    // Preview's settings, configured and in use (PipelineRenderer holds them).
+    virtual PreviewState preview() const = 0;
+    // The one call that changes them: `configured` (the config's, the dial's, a reload's) in
+    // use with `samplesInUse` samples, at most its own (the cap lowers them).
+    virtual Status setPreview(const PreviewSettings& configured, uint32_t samplesInUse) = 0;
     // The dial (PipelineRenderer::adaptDial): whether it runs, and its live correction from the
     // median live frame time; the new setting's description when it changed.
     virtual bool hasDial() const = 0;
@@ -153,8 +157,10 @@ public:
     ShotController(ShotRenderer& renderer, const ModeMachine& modes, const ShotClock& clock,
                    const RefineConfig& refine);
 
-    // New [refine] settings and preview samples (SIGHUP); a refinement under way goes on.
-    void setConfig(const RefineConfig& refine, uint32_t previewSamples);
+    // New [refine] settings and, from a reload without the dial, preview's configured samples
+    // (SIGHUP); a refinement under way goes on.
+    void setConfig(const RefineConfig& refine,
+                   std::optional<uint32_t> previewSamples = std::nullopt);
     // Whether the next step needs a new frame to do anything (preview, or a shot to freeze):
     // the live loop waits for one then, else takes one only if it is there.
     bool wantsFrame() const;
@@ -169,7 +175,7 @@ public:
     // The convergence meter's last look at this refinement (not carried forward).
     std::optional<double> measuredNoise() const { return stopping_.measured(); }
     // Preview samples in use (the cap or the dial may have lowered the configured count).
-    uint32_t previewSamples() const { return renderer_.previewSamples(); }
+    uint32_t previewSamples() const { return renderer_.preview().inUse.samplesPerFrame; }
     const std::shared_ptr<const TrackedFrame>& frozen() const { return frozen_; }
     // The plate-consistency meter's last reading (none before the first). A reading is taken on a
     // rendered frame with a trusted pose (tracked, not held), the first one and then whenever
@@ -189,7 +195,7 @@ private:
     Result<ShotStep> refine(std::shared_ptr<const TrackedFrame> newest,
                             const std::shared_ptr<const LiveLighting>& lighting);
     // Lowers the preview's samples so one frame fits kMaxPreviewFrameMs (logged once).
-    void capPreviewSamples();
+    Status capPreviewSamples();
     // After a meter reading: the renderer's lighting fit (ShotRenderer::fitLighting), logged.
     void fitLighting(const TrackedFrame& frame, const PlateConsistency& reading, ShotStep& out);
     // Feeds the dial's live correction one preview frame's wall time.
@@ -207,7 +213,6 @@ private:
     const ModeMachine& modes_;
     const ShotClock& clock_;
     RefineConfig refine_;
-    uint32_t configuredPreviewSamples_ = 1;
 
     uint64_t seenVersion_ = 0;
     bool refining_ = false;

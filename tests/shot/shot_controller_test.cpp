@@ -21,10 +21,11 @@ public:
 
     Status renderPreview(const TrackedFrame& frame,
                          const std::shared_ptr<const LiveLighting>&) override {
-        spend(previewSamples_);
-        samples_ = previewSamples_;
+        const uint32_t spp = preview_.inUse.samplesPerFrame;
+        spend(spp);
+        samples_ = spp;
         rendered_ = frame.worldFromCamera.has_value();
-        previews.push_back(previewSamples_);
+        previews.push_back(spp);
         return {};
     }
     Status beginRefine(const TrackedFrame& frame,
@@ -47,8 +48,12 @@ public:
         ++looks;
         return std::optional<double>(0.1 / std::sqrt(double(samples_)));
     }
-    uint32_t previewSamples() const override { return previewSamples_; }
-    void setPreviewSamples(uint32_t spp) override { previewSamples_ = spp; }
+    PreviewState preview() const override { return preview_; }
+    Status setPreview(const PreviewSettings& configured, uint32_t samplesInUse) override {
+        preview_ = {configured, configured};
+        preview_.inUse.samplesPerFrame = std::min(samplesInUse, configured.samplesPerFrame);
+        return {};
+    }
     bool hasDial() const override { return dial; }
     std::optional<std::string> adaptDial(double liveFrameSeconds) override {
         dialCorrections.push_back(liveFrameSeconds);
@@ -88,7 +93,7 @@ private:
         clock_.advance(std::chrono::nanoseconds(int64_t(ms_ * 1e6 * samples)));
     }
     ManualShotClock& clock_;
-    uint32_t previewSamples_ = 1;
+    PreviewState preview_;
     uint64_t samples_ = 0;
     bool rendered_ = false;
 };
@@ -220,7 +225,6 @@ TEST(ShotController, OutOfRefinementAndBackWithinOneStepRefreezes) {
 TEST(ShotController, APreviewFrameIsCappedToItsLongestTime) {
     // 4 samples a frame at 1 s each would take 4 s: after the first frame, 3 s' worth.
     Fixture f(1000.0);
-    f.renderer.setPreviewSamples(4);
     f.shot.setConfig(refineConfig(), 4);
     for (uint64_t i = 0; i < 3; ++i) ASSERT_TRUE(f.shot.step(frame(i), nullptr));
     EXPECT_EQ(f.renderer.previews, (std::vector<uint32_t>{4, 3, 3}));
