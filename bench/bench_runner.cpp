@@ -42,8 +42,8 @@ struct Measurement {
 // Builds a renderer (BVH, upload, pipeline), renders one warm-up sample, then times `spp`
 // samples per pixel `reps` times.
 Result<Measurement> measure(GpuContext& ctx, const Scene& scene, RenderSettings settings,
-                            uint32_t spp, int reps) {
-    auto renderer = Renderer::create(ctx, scene, settings);
+                            uint32_t spp, int reps, const RendererTestOptions& testOptions = {}) {
+    auto renderer = Renderer::create(ctx, scene, settings, {}, testOptions);
     if (!renderer) return renderer.error();
     Renderer& r = **renderer;
     if (Status s = r.render(1); !s) return s.error();
@@ -239,9 +239,8 @@ int runBenchmarks(const BenchOptions& o) {
         double times[2] = {};
         for (int general = 0; general < 2; ++general) {
             RenderSettings rs = benchSettings(640, 480, 8);
-            rs.generalPipeline = general == 1;
             benchProgress("{} pipeline", general ? "general" : "specialised");
-            auto m = measure(**ctx, *bunny, rs, spp, reps);
+            auto m = measure(**ctx, *bunny, rs, spp, reps, {.generalPipeline = general == 1});
             if (!m) return fail(m.error());
             times[general] = m->seconds;
             std::printf(

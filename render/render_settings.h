@@ -11,7 +11,6 @@
 #include <vector>
 
 #include "base/result.h"
-#include "gpu/specialise_mode.h"
 
 namespace previs {
 
@@ -130,12 +129,6 @@ struct RenderSettings {
     // Paths per pixel in one GPU dispatch (fewer dispatches, less overhead). On a CPU device
     // the renderer lowers it to stay inside llvmpipe's loop limit (renderer.cpp).
     uint32_t samplesPerDispatch = 1;
-    // Off only to demonstrate what happens without it (tests): llvmpipe drops work.
-    bool respectCpuLoopLimit = true;
-    bool generalPipeline = false;  // run every feature's code (benchmarks the saving)
-    // Where the feature constants are applied (gpu/compute_pipeline.h): on the host, so the
-    // driver compiles only what the scene needs; InDriver only to compare against (tests).
-    Specialise specialise = Specialise::OnHost;
     // Differential rendering (the paper): also compute the real-only solution L_or in the same
     // pass, for compositing with the camera image. Off: a plain CG render of the mixed scene.
     bool differential = false;

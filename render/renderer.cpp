@@ -149,12 +149,14 @@ private:
 
 Result<std::unique_ptr<Renderer>> Renderer::create(GpuContext& ctx, const Scene& scene,
                                                    const RenderSettings& settings,
-                                                   const CompileProgress& progress) {
+                                                   const CompileProgress& progress,
+                                                   const RendererTestOptions& testOptions) {
     Result<Camera> camera = checkedCamera(scene, settings);
     if (!camera) return camera.error();
     std::unique_ptr<Renderer> r(new Renderer());
     r->ctx_ = &ctx;
     r->settings_ = settings;
+    r->testOptions_ = testOptions;
     r->camera_ = std::move(camera.value());
 
     r->worldFromCameraM_ =
@@ -183,7 +185,7 @@ Result<std::unique_ptr<Renderer>> Renderer::create(GpuContext& ctx, const Scene&
     const bool photonsLikely =
         r->photonsPossible(aim) && (features.emissive || !scene.lights.empty());
     auto bvh = std::async(std::launch::async, [&g] { return buildSceneBvh(g); });
-    r->pipelines_.emplace(ctx, settings.specialise);
+    r->pipelines_.emplace(ctx, testOptions.specialise);
     const PipelineConstants predicted = r->pipelineConstants(features, photonsLikely);
     CompileCount compiles(ctx, progress,
                           PathPipelines::pipelineCount(predicted) +
@@ -223,7 +225,7 @@ Result<std::unique_ptr<Renderer>> Renderer::create(GpuContext& ctx, const Scene&
 
 PipelineConstants Renderer::pipelineConstants(const SceneFeatures& features, bool photons) const {
     SceneFeatures spec = features;
-    if (settings_.generalPipeline)
+    if (testOptions_.generalPipeline)
         spec = SceneFeatures{.environment = true,
                              .emissive = true,
                              .punctual = true,
@@ -595,7 +597,7 @@ Status Renderer::renderPreviewFrame(uint32_t spp, uint64_t frameIndex) {
 uint32_t Renderer::samplesForNextDispatch(uint32_t remaining) const {
     uint32_t n =
         std::min({remaining, std::max(1u, settings_.samplesPerDispatch), kMaxSamplesPerDispatch});
-    if (!ctx_->isCpuDevice() || !settings_.respectCpuLoopLimit) return n;
+    if (!ctx_->isCpuDevice() || !testOptions_.respectCpuLoopLimit) return n;
     // Until one sample has been measured, one at a time.
     if (loopIterationsPerSample_ <= 0.0) return 1;
     const double laneBudget = kCpuLoopLimit * kCpuLoopSafety / double(ctx_->subgroupSize());

@@ -20,6 +20,7 @@
 #include "gpu/compute_pipeline.h"
 #include "gpu/context.h"
 #include "gpu/interruptible_dispatch.h"
+#include "gpu/specialise_mode.h"
 #include "image/image.h"
 #include "render/bvh.h"
 #include "render/convergence.h"
@@ -35,6 +36,18 @@
 
 namespace previs {
 
+// Switches only tests and benchmarks turn, to show or measure what the renderer's defaults buy
+// (RenderSettings holds what a user sets).
+struct RendererTestOptions {
+    // Off only to demonstrate what happens without it: llvmpipe drops work (renderer.cpp).
+    bool respectCpuLoopLimit = true;
+    // Every feature's code in the pipelines, whatever the scene holds (benchmarks the saving).
+    bool generalPipeline = false;
+    // Where the feature constants are applied (gpu/compute_pipeline.h): on the host, so the
+    // driver compiles only what the scene needs; InDriver only to compare against.
+    Specialise specialise = Specialise::OnHost;
+};
+
 struct RenderProgress {
     uint64_t samplesDone;
     uint64_t samplesTotal;
@@ -48,7 +61,8 @@ public:
     using CompileProgress = std::function<void(size_t done, size_t total)>;
     static Result<std::unique_ptr<Renderer>> create(GpuContext& ctx, const Scene& scene,
                                                     const RenderSettings& settings,
-                                                    const CompileProgress& progress = {});
+                                                    const CompileProgress& progress = {},
+                                                    const RendererTestOptions& testOptions = {});
 
     // Adds `samples` paths per pixel to the accumulation.
     Status render(uint32_t samples,
@@ -310,6 +324,7 @@ private:
 
     GpuContext* ctx_ = nullptr;
     RenderSettings settings_;
+    RendererTestOptions testOptions_;
     Camera camera_;
     shader::FrameParams params_{};
     // The scene and the renderer's buffers: optional only so that create() can make them.

@@ -37,7 +37,7 @@ public:
     };
     Result<PhotonGrid> photonGrid() const;
     // Dispatches whose loop iterations may have reached llvmpipe's limit (work silently lost);
-    // 0 unless respectCpuLoopLimit was turned off or one sample alone is too long.
+    // 0 unless RendererTestOptions::respectCpuLoopLimit was off or one sample alone is too long.
     uint64_t loopLimitRisks() const;
     // The most loop iterations one invocation ran per sample (the dispatch sizing measure;
     // measured on CPU devices only, 0 elsewhere).

@@ -27,8 +27,9 @@ void GpuTest::TearDown() {
     }
 }
 
-ImageF GpuTest::render(const Scene& scene, const RenderSettings& settings, uint32_t spp) {
-    auto renderer = Renderer::create(*context_, scene, settings);
+ImageF GpuTest::render(const Scene& scene, const RenderSettings& settings, uint32_t spp,
+                       const RendererTestOptions& testOptions) {
+    auto renderer = Renderer::create(*context_, scene, settings, {}, testOptions);
     EXPECT_TRUE(renderer.ok()) << renderer.message();
     if (!renderer) return {};
     Status s = (*renderer)->render(spp);

@@ -47,7 +47,8 @@ protected:
 
     // Renders `spp` samples per pixel and returns the mean image; fails the test on any error,
     // on a NaN/Inf sample, or a non-finite pixel.
-    ImageF render(const Scene& scene, const RenderSettings& settings, uint32_t spp);
+    ImageF render(const Scene& scene, const RenderSettings& settings, uint32_t spp,
+                  const RendererTestOptions& testOptions = {});
 
     // The images of `runs` renders of `spp` samples, seeds firstSeed, firstSeed + 1, ... (one
     // renderer, one pipeline compile, re-seeded); fails the test on any error or NaN/Inf sample.

@@ -309,8 +309,7 @@ TEST_F(IntegratorTest, DispatchesStayInsideTheCpuDeviceLoopLimit) {
     auto renderWith = [&](uint32_t perDispatch, bool respectLimit) {
         RenderSettings settings = rs;
         settings.samplesPerDispatch = perDispatch;
-        settings.respectCpuLoopLimit = respectLimit;
-        auto r = Renderer::create(ctx(), s, settings);
+        auto r = Renderer::create(ctx(), s, settings, {}, {.respectCpuLoopLimit = respectLimit});
         EXPECT_TRUE(r.ok()) << r.message();
         EXPECT_TRUE((*r)->render(spp).ok());
         return std::move(*r);
@@ -720,8 +719,7 @@ TEST_F(IntegratorTest, SpecialisedPipelineMatchesGeneral) {
                  f.textures);
     EXPECT_TRUE(f.punctual);
     ImageF a = render(s, rs, 16);
-    rs.generalPipeline = true;
-    ImageF b = render(s, rs, 16);
+    ImageF b = render(s, rs, 16, {.generalPipeline = true});
     for (size_t i = 0; i < a.pixels.size(); ++i)
         ASSERT_NEAR(a.pixels[i], b.pixels[i], 1e-4f * std::max(1.0f, a.pixels[i]));
 }

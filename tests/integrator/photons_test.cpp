@@ -547,8 +547,7 @@ TEST_F(PhotonTest, HostSpecialisationMatchesTheDrivers) {
         // Not the shader's default values: a constant the host failed to apply would show.
         rs.sampler = Sampler::Independent;
         rs.lightSampling = LightSampling::Area;
-        rs.specialise = modes[m];
-        auto renderer = Renderer::create(ctx(), scene, rs);
+        auto renderer = Renderer::create(ctx(), scene, rs, {}, {.specialise = modes[m]});
         ASSERT_TRUE(renderer.ok()) << renderer.message();
         ASSERT_TRUE((*renderer)->photonsActive());
         ASSERT_TRUE((*renderer)->render(4).ok());
@@ -926,8 +925,7 @@ TEST_F(PhotonTest, LambertianGathersMatchTheBsdfPerPhoton) {
         RenderSettings rs = photonSettings(32, 24, PhotonMode::Auto);
         rs.differential = true;
         rs.photons.perIteration = 1u << 12;
-        rs.generalPipeline = general == 1;
-        auto renderer = Renderer::create(ctx(), scene, rs);
+        auto renderer = Renderer::create(ctx(), scene, rs, {}, {.generalPipeline = general == 1});
         ASSERT_TRUE(renderer.ok()) << renderer.message();
         ASSERT_TRUE((*renderer)->photonsActive());
         EXPECT_FALSE((*renderer)->features().glossy);
