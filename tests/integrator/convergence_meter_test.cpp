@@ -34,12 +34,7 @@ Scene differentialSet(bool glossy = false) {
         second.roughness = 0.3f;
     }
     addSphere(s, {-0.2f, 0.2f, 0.5f}, 0.2f, addMaterial(s, second), false, 16, 32);
-    PunctualLight sun;
-    sun.type = LightType::Directional;
-    sun.direction = glm::normalize(glm::vec3(-1, -1, 0.3f));
-    sun.intensity = 3.0f;
-    sun.isReal = true;
-    s.lights.push_back(sun);
+    s.lights.push_back(realSun(glm::vec3(-1, -1, 0.3f), 3.0f));
     s.environment = uniformEnvironment(glm::vec3(0.3f));
     s.cameras.push_back(lookAt({0, 2.2f, 1.2f}, {0, 0, 0}, {0, 1, 0}, glm::radians(60.0f)));
     return s;

@@ -151,15 +151,19 @@ Scene realTableUnderSun(bool withSky) {
     addQuad(s, {0, 0, 0}, {0, 0, 2}, {2, 0, 0}, addMaterial(s, lambert(glm::vec3(0.7f))), true);
     addBox(s, {-0.9f, 0, -0.3f}, {-0.5f, 0.4f, 0.1f},
            addMaterial(s, lambert(glm::vec3(0.8f, 0.1f, 0.1f))), true);
-    PunctualLight sun;
-    sun.type = LightType::Directional;
-    sun.direction = glm::normalize(glm::vec3(-1, -1, 0));
-    sun.intensity = 3.0f;
-    sun.isReal = true;
-    s.lights.push_back(sun);
+    s.lights.push_back(realSun(glm::vec3(-1, -1, 0), 3.0f));
     if (withSky) s.environment = uniformEnvironment(glm::vec3(0.3f));
     s.cameras.push_back(lookAt({0, 3, 0.01f}, {0, 0, 0}, {0, 0, -1}, glm::radians(60.0f)));
     return s;
+}
+
+PunctualLight realSun(glm::vec3 direction, float irradiance) {
+    PunctualLight sun;
+    sun.type = LightType::Directional;
+    sun.direction = glm::normalize(direction);
+    sun.intensity = irradiance;
+    sun.isReal = true;
+    return sun;
 }
 
 RenderSettings renderSettings(uint32_t width, uint32_t height, uint32_t maxDepth) {

@@ -32,6 +32,10 @@ void addBox(Scene& scene, glm::vec3 lo, glm::vec3 hi, uint32_t material, bool re
 
 EnvironmentMap uniformEnvironment(glm::vec3 radiance, uint32_t width = 16, uint32_t height = 8);
 
+// A directional light of the real set shining along `direction` (normalised here), `irradiance`
+// W/m².
+PunctualLight realSun(glm::vec3 direction, float irradiance);
+
 Camera lookAt(glm::vec3 eye, glm::vec3 target, glm::vec3 up, float fovYRad);
 
 // A virtual Lambertian ball on a real grey floor under a uniform sky of radiance `sky`, seen
