@@ -317,7 +317,7 @@ StageResult measureStages(const ServiceBenchOptions& o, uint32_t w, uint32_t h) 
     r.compose1080 = stat(compose);
     r.png = stat(png);
     r.peakRssMiB = peakRssMiB();
-    r.deviceMiB = double(pr.renderer().deviceBytes()) / (1024.0 * 1024.0);
+    r.deviceMiB = double(pr.deviceBytes()) / (1024.0 * 1024.0);
     r.ok = 1;
     return r;
 }

@@ -51,7 +51,7 @@ struct FrameRow {
 
 // What the renderer adds to the plate: composite − plate (the plate cancels, noise and all).
 Result<ImageF> addedToPlate(PipelineRenderer& renderer, ImageF composite) {
-    const ImageF* plate = renderer.renderer().film().plate();
+    const ImageF* plate = renderer.plate();
     if (!plate || plate->pixels.size() != composite.pixels.size())
         return makeError("bench shot: the composite and the plate differ in size");
     for (size_t i = 0; i < composite.pixels.size(); ++i) composite.pixels[i] -= plate->pixels[i];

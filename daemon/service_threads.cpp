@@ -203,14 +203,13 @@ void Service::Threads::publish(PipelineRenderer& r, const TrackedFrame& frame, M
         renderStatus.trackingLost = frame.lost;
         renderStatus.trackMs = frame.trackMs;
         renderStatus.timecode = frame.timecode;
-        renderStatus.deviceBytes = r.renderer().deviceBytes();
-        const bool photons = r.renderer().photonsActive();
+        renderStatus.deviceBytes = r.deviceBytes();
         // What the shown frame used: a preview frame's budget and radius, not refinement's.
-        renderStatus.photonsPerIteration = photons ? r.renderer().lastPhotonCount() : 0;
-        renderStatus.photonRadiusM = photons ? r.renderer().lastPhotonRadius() : 0.0f;
+        renderStatus.photonsPerIteration = r.lastPhotonCount();
+        renderStatus.photonRadiusM = r.lastPhotonRadius();
         renderStatus.lightingPending = r.lightingPending();
         renderStatus.previewHistoryFrames = mode == Mode::Preview ? r.previewHistoryFrames() : 0;
-        renderStatus.heldViewFrames = mode == Mode::Preview ? r.renderer().film().heldFrames() : 0;
+        renderStatus.heldViewFrames = mode == Mode::Preview ? r.heldViewFrames() : 0;
         out->index = renderStatus.framesRendered++;
         s = renderStatus;
     }

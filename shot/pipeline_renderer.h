@@ -135,9 +135,28 @@ public:
     uint32_t previewHistoryFrames() const;
     // Whether the last frame rendered the virtual objects (false before the first pose).
     bool rendered() const override { return rendered_; }
-    Renderer& renderer() { return *renderer_; }
+    // What is read of the renderer inside (not handed out): its device memory; the photon
+    // pass's photons per iteration and gather radius in the last frame (0 without the pass);
+    // the frames the held view holds; an AOV of the last frame; the plate it was composited on
+    // (null before the first).
+    uint64_t deviceBytes() const { return renderer_->deviceBytes(); }
+    uint32_t lastPhotonCount() const {
+        return renderer_->photonsActive() ? renderer_->lastPhotonCount() : 0;
+    }
+    float lastPhotonRadius() const {
+        return renderer_->photonsActive() ? renderer_->lastPhotonRadius() : 0.0f;
+    }
+    uint64_t heldViewFrames() const { return renderer_->film().heldFrames(); }
+    Result<ImageF> image(Aov aov) const { return renderer_->image(aov); }
+    const ImageF* plate() const { return renderer_->film().plate(); }
+    // render-session: each frame's own random sequence, and the flag that interrupts a pass.
+    void setSeed(uint32_t seed) { renderer_->setSeed(seed); }
+    void setInterrupt(const std::atomic<bool>* stop) { renderer_->setInterrupt(stop); }
 
 private:
+    // Tests check the inner renderer's state and drive it directly
+    // (tests/shot/pipeline_renderer_access.h).
+    friend struct PipelineRendererAccess;
     PipelineRenderer() = default;
     // [render] preview_fps: times every preview setting on the scene (its own camera, a grey
     // plate) and scores it against a short full-resolution reference, then takes the most

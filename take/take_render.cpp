@@ -294,7 +294,7 @@ private:
                       const std::shared_ptr<const LiveLighting>& lighting,
                       std::optional<double>& noise, uint32_t& done, uint32_t most = 0) {
         if (Status s = r_.beginRefine(tracked, lighting); !s) return s;
-        r_.renderer().setSeed(takeFrameSeed(seed_, index));
+        r_.setSeed(takeFrameSeed(seed_, index));
         constexpr uint32_t kStep = 16;  // samples a step at most, between checks for a stop
         // The shot's stopping rule (render/convergence.h): the target, on a look, or the samples.
         StoppingRule rule(target_, most > 0 ? std::min(most, spp_) : spp_);
@@ -371,9 +371,9 @@ private:
 
     Result<ImageF> aov(const std::string& name) {
         if (name == "differential") {
-            Result<ImageF> mixed = r_.renderer().image(Aov::Mixed);
+            Result<ImageF> mixed = r_.image(Aov::Mixed);
             if (!mixed) return mixed.error();
-            Result<ImageF> real = r_.renderer().image(Aov::Real);
+            Result<ImageF> real = r_.image(Aov::Real);
             if (!real) return real.error();
             for (size_t i = 0; i < mixed->pixels.size(); ++i) mixed->pixels[i] -= real->pixels[i];
             return mixed;
@@ -381,7 +381,7 @@ private:
         static const std::map<std::string, Aov> kAovs = {
             {"mixed", Aov::Mixed},   {"real", Aov::Real},     {"mask", Aov::Mask},
             {"albedo", Aov::Albedo}, {"normal", Aov::Normal}, {"depth", Aov::Depth}};
-        return r_.renderer().image(kAovs.at(name));
+        return r_.image(kAovs.at(name));
     }
 
     PipelineRenderer& r_;
@@ -537,7 +537,7 @@ void stopOnSignals(PipelineRenderer& renderer) {
     action.sa_handler = onSignal;
     sigaction(SIGTERM, &action, nullptr);
     sigaction(SIGINT, &action, nullptr);
-    renderer.renderer().setInterrupt(&gStop);
+    renderer.setInterrupt(&gStop);
 }
 
 // --spp N renders exactly N; otherwise the take's [refine] target, up to its max_samples

@@ -14,6 +14,7 @@
 #include "gpu/context.h"
 #include "scene/scene_description.h"
 #include "shot/pipeline_renderer.h"
+#include "tests/shot/pipeline_renderer_access.h"
 #include "tests/support/scene_builders.h"
 #include "tests/support/test_data.h"
 
@@ -63,8 +64,8 @@ TEST(Dial, ASlowTargetTakesTheMostAccurateSetting) {
     EXPECT_EQ((*p)->previewSamples(), m[chosen].point.samplesPerFrame);
     EXPECT_EQ((*p)->previewResolutionScale(), m[chosen].point.resolutionScale);
     EXPECT_EQ((*p)->previewMaxDepth(), m[chosen].point.maxDepth);
-    EXPECT_EQ((*p)->renderer().maxDepth(), 6u);
-    EXPECT_EQ((*p)->renderer().resolutionScale(), 1.0f);
+    EXPECT_EQ(testing::innerRenderer(**p).maxDepth(), 6u);
+    EXPECT_EQ(testing::innerRenderer(**p).resolutionScale(), 1.0f);
 }
 
 // An unreachable rate: no choice, and preview falls back to the fastest setting measured. The
@@ -204,16 +205,16 @@ TEST(Dial, DenoiserStrengthIsOnTheDialAndRefinementStopsDenoisingAtTheTarget) {
     Result<ImageF> filtered = (*q)->composite();
     ASSERT_TRUE(filtered) << filtered.message();
     EXPECT_EQ((*q)->lastDenoiseLevels(), 3u);
-    Result<ImageF> raw = (*q)->renderer().image(Aov::Composite);
+    Result<ImageF> raw = (*q)->image(Aov::Composite);
     ASSERT_TRUE(raw) << raw.message();
     EXPECT_NE(filtered->pixels, raw->pixels);
     // Preview frames build the temporal history; refinement starts without one.
     ASSERT_TRUE((*q)->renderPreview(tracked, nullptr));
     ASSERT_TRUE((*q)->composite());
-    ASSERT_NE((*q)->renderer().film().denoiser(), nullptr);
-    EXPECT_EQ((*q)->renderer().film().denoiser()->historyFrames(), 2u);
+    ASSERT_NE(testing::innerRenderer(**q).film().denoiser(), nullptr);
+    EXPECT_EQ(testing::innerRenderer(**q).film().denoiser()->historyFrames(), 2u);
     ASSERT_TRUE((*q)->beginRefine(tracked, nullptr));
-    EXPECT_EQ((*q)->renderer().film().denoiser()->historyFrames(), 0u);
+    EXPECT_EQ(testing::innerRenderer(**q).film().denoiser()->historyFrames(), 0u);
 }
 
 // The dial measures each point on a pan through preview's temporal stage (DialMotion): the pan
@@ -228,7 +229,7 @@ TEST(Dial, APanCountsWhatReprojectionKeepsAndEndsAtTheReferenceView) {
     d.config.render.previewAccumulate = true;
     auto p = PipelineRenderer::create(**ctx, d.scene, d.config);
     ASSERT_TRUE(p) << p.message();
-    Renderer& r = (*p)->renderer();
+    Renderer& r = testing::innerRenderer(**p);
     // The demo's set is lit by the fisheye alone: a sky stands in, and a grey plate.
     ASSERT_TRUE(r.setEnvironment(
         std::make_shared<EnvironmentMap>(::previs::testing::uniformEnvironment(glm::vec3(1.0f)))));

@@ -14,6 +14,7 @@
 #include "scene/scene_description.h"
 #include "shot/pipeline_renderer.h"
 #include "shot/pipeline_stages.h"
+#include "tests/shot/pipeline_renderer_access.h"
 #include "tests/support/demo_frames.h"
 #include "tests/support/test_data.h"
 
@@ -83,7 +84,7 @@ Demo demo() {
 
 // Mean over the pixels the virtual objects cover (mask above one half) of the composite, and
 // their count.
-std::pair<double, size_t> virtualMean(Renderer& r, const ImageF& composite) {
+std::pair<double, size_t> virtualMean(const PipelineRenderer& r, const ImageF& composite) {
     Result<ImageF> mask = r.image(Aov::Mask);
     EXPECT_TRUE(mask) << mask.message();
     double sum = 0.0;
@@ -112,7 +113,7 @@ TEST(Preview, BeforeTheFirstLightingTheVirtualObjectsAreLitAndLightingIsPending)
     ASSERT_TRUE((*p)->renderPreview(d.still, nullptr));
     Result<ImageF> pending = (*p)->composite();
     ASSERT_TRUE(pending) << pending.message();
-    const auto [pendingLevel, pixels] = virtualMean((*p)->renderer(), *pending);
+    const auto [pendingLevel, pixels] = virtualMean(**p, *pending);
     ASSERT_GT(pixels, 20u) << "the balls are in view";
     EXPECT_TRUE((*p)->lightingPending());
 
@@ -125,7 +126,7 @@ TEST(Preview, BeforeTheFirstLightingTheVirtualObjectsAreLitAndLightingIsPending)
     }
     EXPECT_FALSE((*p)->lightingPending());
     ASSERT_TRUE(lit) << lit.message();
-    const double litLevel = virtualMean((*p)->renderer(), *lit).first;
+    const double litLevel = virtualMean(**p, *lit).first;
     ASSERT_GT(litLevel, 0.0);
     EXPECT_GT(pendingLevel, litLevel / 4.0);
     EXPECT_LT(pendingLevel, litLevel * 4.0);
@@ -238,7 +239,7 @@ TEST(Preview, AtHalfResolutionAHeldCameraGoesBelowTheUpsamplingFloor) {
     auto half = PipelineRenderer::create(*d.gpu, d.scene, d.config);
     ASSERT_TRUE(half) << half.message();
     ASSERT_TRUE((*half)->renderPreview(d.still, d.lighting));
-    Renderer& r = (*half)->renderer();
+    Renderer& r = testing::innerRenderer(**half);
     ASSERT_EQ(r.traceWidth() * 2, (*half)->width());
     ASSERT_TRUE(r.holdView(false));
     ASSERT_TRUE(r.reset());
@@ -272,11 +273,11 @@ TEST(Preview, TheVirtualObjectsGetSamplesAddedWherePreviewTracesAFraction) {
         auto p = PipelineRenderer::create(*d.gpu, d.scene, d.config);
         EXPECT_TRUE(p) << p.message();
         EXPECT_TRUE((*p)->renderPreview(d.still, d.lighting));
-        EXPECT_EQ((*p)->renderer().traceWidth(), 32u);  // 96 × 54 at a third
-        Result<ImageF> m = (*p)->renderer().image(Aov::Mask);
+        EXPECT_EQ(testing::innerRenderer(**p).traceWidth(), 32u);  // 96 × 54 at a third
+        Result<ImageF> m = (*p)->image(Aov::Mask);
         EXPECT_TRUE(m) << m.message();
         mask = *m;
-        Result<ImageF> n = (*p)->renderer().image(Aov::SampleCount);
+        Result<ImageF> n = (*p)->image(Aov::SampleCount);
         EXPECT_TRUE(n) << n.message();
         return *n;
     };
@@ -346,13 +347,13 @@ TEST(Preview, TheEstimateClampsTheRareBrightSampleRefinementDoesNot) {
     double preview = 0.0;
     for (int frame = 0; frame < 4; ++frame) {
         ASSERT_TRUE((*p)->renderPreview(d.still, d.lighting));
-        Result<ImageF> mixed = (*p)->renderer().image(Aov::Mixed);
+        Result<ImageF> mixed = (*p)->image(Aov::Mixed);
         ASSERT_TRUE(mixed) << mixed.message();
         preview = std::max(preview, brightest(*mixed));
     }
     ASSERT_TRUE((*p)->beginRefine(d.still, d.lighting));
     ASSERT_TRUE((*p)->refineStep(16));
-    Result<ImageF> refined = (*p)->renderer().image(Aov::Mixed);
+    Result<ImageF> refined = (*p)->image(Aov::Mixed);
     ASSERT_TRUE(refined) << refined.message();
     std::printf("brightest mixed pixel: preview %.2f, refinement %.2f\n", preview,
                 brightest(*refined));

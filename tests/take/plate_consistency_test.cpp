@@ -66,11 +66,11 @@ TEST(PlateConsistencyReplay, TheDemoTakesAReadingThatAgreesWithTheAovs) {
     // The independent computation, per output pixel: L_or / plate where every sample's first hit
     // is real (mask 0, a finite first-hit distance) and the plate is trusted in every channel.
     PipelineRenderer& pr = replay.renderer();
-    Renderer& r = pr.renderer();
+    const PipelineRenderer& r = pr;
     Result<ImageF> real = r.image(Aov::Real), mask = r.image(Aov::Mask),
                    depth = r.image(Aov::Depth);
     ASSERT_TRUE(real && mask && depth);
-    const ImageF* plate = r.film().plate();
+    const ImageF* plate = r.plate();
     ASSERT_TRUE(plate);
     const PlateLimits& limits = pr.plateLimits();
     std::array<std::vector<double>, 3> ratios;
