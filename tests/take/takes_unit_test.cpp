@@ -332,6 +332,36 @@ TEST(TakeFiles, AnyVersionNamesOnlyFilesInsideTheTake) {
             "leaves the folder");
 }
 
+// `text` as the box's previsd.toml in `dir`, loaded, and a take recorded with it in dir/take: the
+// demo's camera frames and the config copyConfigIntoTake writes for it (in *configToml).
+void recordTake(const fs::path& demo, const fs::path& dir, const std::string& text,
+                std::string* configToml) {
+    std::ofstream(dir / "previsd.toml") << text;
+    Result<ServiceConfig> live = loadServiceConfig((dir / "previsd.toml").string());
+    ASSERT_TRUE(live) << live.message();
+
+    const fs::path take = dir / "take";
+    fs::create_directories(take);
+    fs::copy(demo / "session" / "cameras", take / "cameras", fs::copy_options::recursive);
+    Result<std::string> copied = copyConfigIntoTake(*live, take.string());
+    ASSERT_TRUE(copied) << copied.message();
+    *configToml = *copied;
+}
+
+// The demo config's scene camera as a camera whose curve is `input` of the OCIO config `ocio`
+// instead of its radiometry's tone curve.
+void sceneCameraThroughOcio(std::string& text, const std::string& ocio, const std::string& input) {
+    const std::string curve =
+        "tone_curve = \"banterle\"\nexposure_stops = 0.0\nwhite_balance = [1.0, 1.0, 1.0]\n"
+        "max_radiance = 16.0\nwhite_luminance = 16.0\n\n[cameras.fisheye]";
+    const size_t at = text.find(curve);
+    ASSERT_NE(at, std::string::npos);
+    text.replace(at, curve.size(),
+                 fmt::format("exposure_stops = 0.0\n[cameras.scene.colour]\nocio_config = \"{}\"\n"
+                             "input = \"{}\"\n\n[cameras.fisheye]",
+                             ocio, input));
+}
+
 // A take recorded with a FreeD tracker's calibration holds a copy of it, so the check above
 // (which now covers freed_calibration) still lets the take replay on any machine.
 TEST(TakeFiles, ARecordedTakeHoldsItsFreedCalibration) {
@@ -344,18 +374,12 @@ TEST(TakeFiles, ARecordedTakeHoldsItsFreedCalibration) {
     text.insert(
         text.find("[tracking]\n") + 11,
         fmt::format("freed_calibration = \"{}\"\n", (dir / "freed_calibration.toml").string()));
-    std::ofstream(dir / "previsd.toml") << text;
-    Result<ServiceConfig> live = loadServiceConfig((dir / "previsd.toml").string());
-    ASSERT_TRUE(live) << live.message();
-
+    std::string configToml;
+    ASSERT_NO_FATAL_FAILURE(recordTake(demo, dir, text, &configToml));
     const fs::path take = dir / "take";
-    fs::create_directories(take);
-    fs::copy(demo / "session" / "cameras", take / "cameras", fs::copy_options::recursive);
-    Result<std::string> configToml = copyConfigIntoTake(*live, take.string());
-    ASSERT_TRUE(configToml) << configToml.message();
-    EXPECT_NE(configToml->find("config/freed/freed_calibration.toml"), std::string::npos)
-        << *configToml;
-    std::ofstream(take / "config.toml") << *configToml;
+    EXPECT_NE(configToml.find("config/freed/freed_calibration.toml"), std::string::npos)
+        << configToml;
+    std::ofstream(take / "config.toml") << configToml;
     std::ofstream(take / "session.toml") << "format = \"previs-session\"\nversion = 3\n";
     Result<SessionInfo> session = openSession(take.string());
     ASSERT_TRUE(session) << session.message();
@@ -380,28 +404,13 @@ TEST(TakeFiles, ARecordedTakeHoldsItsCamerasOcioConfig) {
            "{style: ARRI_ALEXA-LOGC-EI800-AWG_to_ACES2065-1}\n";
     std::string text = demoConfigWithAbsolutePaths(demo);
     // The scene camera as a LogC3 camera: its curve from the OCIO config, not the radiometry.
-    const std::string curve =
-        "tone_curve = \"banterle\"\nexposure_stops = 0.0\nwhite_balance = [1.0, 1.0, 1.0]\n"
-        "max_radiance = 16.0\nwhite_luminance = 16.0\n\n[cameras.fisheye]";
-    const size_t at = text.find(curve);
-    ASSERT_NE(at, std::string::npos);
-    text.replace(at, curve.size(),
-                 fmt::format("exposure_stops = 0.0\n[cameras.scene.colour]\nocio_config = \"{}\"\n"
-                             "input = \"LogC3\"\n\n[cameras.fisheye]",
-                             (dir / "studio.ocio").string()));
-    std::ofstream(dir / "previsd.toml") << text;
-    Result<ServiceConfig> live = loadServiceConfig((dir / "previsd.toml").string());
-    ASSERT_TRUE(live) << live.message();
-
+    ASSERT_NO_FATAL_FAILURE(sceneCameraThroughOcio(text, (dir / "studio.ocio").string(), "LogC3"));
+    std::string configToml;
+    ASSERT_NO_FATAL_FAILURE(recordTake(demo, dir, text, &configToml));
     const fs::path take = dir / "take";
-    fs::create_directories(take);
-    fs::copy(demo / "session" / "cameras", take / "cameras", fs::copy_options::recursive);
-    Result<std::string> configToml = copyConfigIntoTake(*live, take.string());
-    ASSERT_TRUE(configToml) << configToml.message();
-    EXPECT_NE(configToml->find("config/colour/scene/studio.ocio"), std::string::npos)
-        << *configToml;
+    EXPECT_NE(configToml.find("config/colour/scene/studio.ocio"), std::string::npos) << configToml;
     std::ofstream(take / "session.toml") << "format = \"previs-session\"\nversion = 3\n";
-    std::ofstream(take / "config.toml") << *configToml;
+    std::ofstream(take / "config.toml") << configToml;
     fs::remove(dir / "studio.ocio");  // the take stands alone
     Result<SessionInfo> session = openSession(take.string());
     ASSERT_TRUE(session) << session.message();
@@ -409,7 +418,7 @@ TEST(TakeFiles, ARecordedTakeHoldsItsCamerasOcioConfig) {
     ASSERT_TRUE(config) << config.message();
     EXPECT_TRUE(config->sceneCamera.radiometry.colour);
 
-    std::string outside = *configToml;
+    std::string outside = configToml;
     const std::string copied = "config/colour/scene/studio.ocio";
     fs::copy_file(take / copied, dir / "studio.ocio");
     outside.replace(outside.find(copied), copied.size(), "../studio.ocio");
@@ -444,27 +453,13 @@ TEST(TakeFiles, AMovedTakeKeepsItsOcioConfigsLutsAndItsOutputColour) {
            "linear}\n";
     const std::string ocio = (dir / "ocio" / "studio.ocio").string();
     std::string text = demoConfigWithAbsolutePaths(demo);
-    const std::string curve =
-        "tone_curve = \"banterle\"\nexposure_stops = 0.0\nwhite_balance = [1.0, 1.0, 1.0]\n"
-        "max_radiance = 16.0\nwhite_luminance = 16.0\n\n[cameras.fisheye]";
-    const size_t at = text.find(curve);
-    ASSERT_NE(at, std::string::npos);
-    text.replace(at, curve.size(),
-                 fmt::format("exposure_stops = 0.0\n[cameras.scene.colour]\nocio_config = \"{}\"\n"
-                             "input = \"Doubled\"\n\n[cameras.fisheye]",
-                             ocio));
+    ASSERT_NO_FATAL_FAILURE(sceneCameraThroughOcio(text, ocio, "Doubled"));
     text += fmt::format("\n[output.colour]\nocio_config = \"{}\"\ndisplay = \"sRGB\"\n", ocio);
-    std::ofstream(dir / "previsd.toml") << text;
-    Result<ServiceConfig> live = loadServiceConfig((dir / "previsd.toml").string());
-    ASSERT_TRUE(live) << live.message();
-
+    std::string configToml;
+    ASSERT_NO_FATAL_FAILURE(recordTake(demo, dir, text, &configToml));
     const fs::path recorded = dir / "take";
-    fs::create_directories(recorded);
-    fs::copy(demo / "session" / "cameras", recorded / "cameras", fs::copy_options::recursive);
-    Result<std::string> configToml = copyConfigIntoTake(*live, recorded.string());
-    ASSERT_TRUE(configToml) << configToml.message();
     std::ofstream(recorded / "session.toml") << "format = \"previs-session\"\nversion = 3\n";
-    std::ofstream(recorded / "config.toml") << *configToml;
+    std::ofstream(recorded / "config.toml") << configToml;
     const fs::path moved = testing::scratchDir("takes_unit") / "ocio_lut_take_moved";
     fs::remove_all(moved);
     fs::rename(recorded, moved);
