@@ -66,6 +66,16 @@ Scene liveSet() {
     return s;
 }
 
+// The map most cases light the set with: 64 texels wide, a lamp of 300 at 30°, 40° up.
+EnvironmentMap lampSky() { return skyMap(64, 30, 40, glm::vec3(300.0f)); }
+
+// The set under lampSky().
+Scene litSet() {
+    Scene s = liveSet();
+    s.environment = lampSky();
+    return s;
+}
+
 RenderSettings smallSettings(bool differential = true) {
     RenderSettings rs = renderSettings(32, 32, 4);
     rs.seed = 7;
@@ -115,8 +125,7 @@ constexpr uint32_t kSpp = 4;
 // (1) Switching A → B (same size: an upload; another size: new buffers) draws what a renderer
 // created with B draws, and never rebuilds the BVH or the geometry.
 TEST_F(LiveLightingTest, EnvironmentSwitchMatchesFreshRenderer) {
-    Scene s = liveSet();
-    s.environment = skyMap(64, 30, 40, glm::vec3(300.0f));
+    Scene s = litSet();
     auto live = make(s, smallSettings());
     ASSERT_TRUE(live);
     const auto* nodes = live->bvh().nodes.data();
@@ -176,7 +185,7 @@ TEST_F(LiveLightingTest, LightingAppearingMatchesFreshRenderer) {
     EXPECT_FALSE(live->features().coneLights);
     frame(*live, kSpp);
 
-    auto map = std::make_shared<const EnvironmentMap>(skyMap(64, 30, 40, glm::vec3(300.0f)));
+    auto map = std::make_shared<const EnvironmentMap>(lampSky());
     ASSERT_TRUE(live->setEnvironment(map).ok());
     EXPECT_TRUE(live->features().environment);
     Scene lit = dark;
@@ -198,8 +207,7 @@ TEST_F(LiveLightingTest, LightingAppearingMatchesFreshRenderer) {
 
 // (3) Removing them gives the renderer that never had them (and its pipeline runs none of it).
 TEST_F(LiveLightingTest, LightingRemovedMatchesFreshRenderer) {
-    Scene lit = liveSet();
-    lit.environment = skyMap(64, 30, 40, glm::vec3(300.0f));
+    Scene lit = litSet();
     auto live = make(lit, smallSettings());
     ASSERT_TRUE(live);
     ASSERT_TRUE(live->setEstimatedLights(lightsB()).ok());
@@ -221,8 +229,7 @@ TEST_F(LiveLightingTest, LightingRemovedMatchesFreshRenderer) {
 }
 
 TEST_F(LiveLightingTest, RejectsBadInputWithoutChangingTheRender) {
-    Scene lit = liveSet();
-    lit.environment = skyMap(64, 30, 40, glm::vec3(300.0f));
+    Scene lit = litSet();
     auto live = make(lit, smallSettings());
     ASSERT_TRUE(live);
     std::vector<float> before = frame(*live, kSpp);
@@ -237,7 +244,7 @@ TEST_F(LiveLightingTest, RejectsBadInputWithoutChangingTheRender) {
     EXPECT_FALSE(live->setEstimatedLights(bad).ok());
     EXPECT_TRUE(identical(frame(*live, kSpp), before));
     // NaN texels (a bad camera frame) become black instead of poisoning the image.
-    EnvironmentMap nanMap = skyMap(64, 30, 40, glm::vec3(300.0f));
+    EnvironmentMap nanMap = lampSky();
     nanMap.radiance[100] = glm::vec3(std::nanf(""), -1.0f, INFINITY);
     ASSERT_TRUE(live->setEnvironment(std::make_shared<const EnvironmentMap>(nanMap)).ok());
     frame(*live, kSpp);  // checks that no sample is NaN
@@ -246,8 +253,7 @@ TEST_F(LiveLightingTest, RejectsBadInputWithoutChangingTheRender) {
 // The tracked pose moves the camera between preview frames, through a calibrated lens grid and
 // in differential mode, exactly as a renderer created at the new pose; the scene stays built.
 TEST_F(LiveLightingTest, CameraPoseChangeMatchesFreshRenderer) {
-    Scene s = liveSet();
-    s.environment = skyMap(64, 30, 40, glm::vec3(300.0f));
+    Scene s = litSet();
     RenderSettings rs = smallSettings(true);
     double fy = 0.5 * rs.height / std::tan(0.5 * s.cameras[0].fovYRad);
     cv::Matx33d k(fy, 0, 0.5 * rs.width - 0.5, 0, fy, 0.5 * rs.height - 0.5, 0, 0, 1);
