@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstring>
 #include <map>
+#include <optional>
 #include <random>
 #include <tuple>
 
@@ -603,14 +604,22 @@ TEST(OffsetRayOrigin, NoSelfIntersectionAtAnyScale) {
 
 double oneLeafCost(size_t triangles) { return double(triangles); }
 
+// A scan of the shared data as geometry (*g) and its SAH BVH (*bvh), whose structure is checked.
+void buildScanBvh(const char* scan, Geometry* g, std::optional<SceneBvh>* bvh) {
+    auto mesh = readPly(meshPath(scan));
+    ASSERT_TRUE(mesh) << mesh.message();
+    *g = makeGeometry(mesh->positions, mesh->triangles);
+    auto built = buildSceneBvh(*g);
+    ASSERT_TRUE(built) << built.message();
+    checkStructure(*built, *g);
+    *bvh = std::move(*built);
+}
+
 TEST(BvhBuild, SahBeatsMedianAndOneLeafOnBunny) {
     PREVIS_SKIP_WITHOUT_SHARED_DATA();
-    auto mesh = readPly(meshPath(kBunny));
-    ASSERT_TRUE(mesh) << mesh.message();
-    Geometry g = makeGeometry(mesh->positions, mesh->triangles);
-    auto sah = buildSceneBvh(g);
-    ASSERT_TRUE(sah) << sah.message();
-    checkStructure(*sah, g);
+    Geometry g;
+    std::optional<SceneBvh> sah;
+    ASSERT_NO_FATAL_FAILURE(buildScanBvh(kBunny, &g, &sah));
     BvhBuildOptions medianOptions;
     medianOptions.split = BvhSplit::Median;
     auto median = buildSceneBvh(g, medianOptions);
@@ -632,12 +641,9 @@ TEST(BvhBuild, SahBeatsMedianAndOneLeafOnBunny) {
 
 TEST(BvhBuild, DragonBuildTime) {
     PREVIS_SKIP_WITHOUT_SHARED_DATA();
-    auto mesh = readPly(meshPath(kDragon));
-    ASSERT_TRUE(mesh) << mesh.message();
-    Geometry g = makeGeometry(mesh->positions, mesh->triangles);
-    auto bvh = buildSceneBvh(g);
-    ASSERT_TRUE(bvh) << bvh.message();
-    checkStructure(*bvh, g);
+    Geometry g;
+    std::optional<SceneBvh> bvh;
+    ASSERT_NO_FATAL_FAILURE(buildScanBvh(kDragon, &g, &bvh));
     std::printf(
         "%s (%zu triangles): SAH cost %.2f, depth %u, largest leaf %u, "
         "built in %.3f s\n",
