@@ -281,6 +281,9 @@ void Service::Threads::runRender(ModeMachine& modes) {
                 lastPublished = Clock::now();
                 publish(r, *step->shown, step->mode, step->start, step->fps, step->noiseEstimate,
                         step->etaSeconds);
+                if (step->kind == ShotStep::Kind::Previewed)
+                    shot.previewShown(
+                        std::chrono::duration<double>(Clock::now() - step->start).count());
                 break;
         }
     }

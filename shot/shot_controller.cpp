@@ -109,7 +109,7 @@ Result<ShotStep> ShotController::preview(std::shared_ptr<const TrackedFrame> fra
     out.kind = ShotStep::Kind::Previewed;
     out.shown = std::move(frame);
     out.fps = fps_;
-    correctDial(ms * 1e-3);
+    if (!timesShownFrames_) correctDial(ms * 1e-3);
     meterPlate(*out.shown, lighting, out);
     return out;
 }
@@ -204,6 +204,11 @@ Status ShotController::capPreviewSamples() {
     }
     if (use == preview.inUse.samplesPerFrame) return {};
     return renderer_.setPreview(preview.configured, use);
+}
+
+void ShotController::previewShown(double frameSeconds) {
+    timesShownFrames_ = true;
+    correctDial(frameSeconds);
 }
 
 void ShotController::correctDial(double frameSeconds) {

@@ -170,6 +170,13 @@ public:
     Result<ShotStep> step(std::shared_ptr<const TrackedFrame> newest,
                           std::shared_ptr<const LiveLighting> lighting);
 
+    // A previewed step's picture is on its way to the monitor: `frameSeconds` is the frame's
+    // whole time, from its render's start to its picture's readback (the display pass and the
+    // status beside the render). The dial's live correction then budgets what the crew waits
+    // for; a caller that never calls it (a lock-step replay) leaves the correction on the
+    // render's own time.
+    void previewShown(double frameSeconds);
+
     Mode renderedMode() const { return refining_ ? Mode::Refine : Mode::Preview; }
     uint64_t restarts() const { return restarts_; }
     // The convergence meter's last look at this refinement (not carried forward).
@@ -230,6 +237,7 @@ private:
     double previewMsPerSample_ = 0.0;
     bool loggedPreviewCap_ = false;
     std::vector<double> liveFrameSeconds_;  // preview frames since the dial's last correction
+    bool timesShownFrames_ = false;         // previewShown feeds the dial, not preview()
     double fps_ = 0.0;
     std::optional<ShotClock::TimePoint> lastFrame_;
     // The plate-consistency meter: its last reading, the pose and lighting it was taken with, and

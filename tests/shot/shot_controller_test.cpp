@@ -246,6 +246,20 @@ TEST(ShotController, TheDialIsCorrectedOnTheMedianOfAWindowOfLiveFrames) {
     EXPECT_NEAR(f.renderer.dialCorrections[0], 0.020, 1e-9) << "the median, not the mean";
 }
 
+// A caller that shows its frames (the service) corrects the dial on each frame's whole time,
+// render to readback (previewShown), not on the render's alone: the display pass shares the
+// frame's budget.
+TEST(ShotController, TheDialIsCorrectedOnTheWholeTimeOfTheFramesShown) {
+    Fixture f(20.0);
+    f.renderer.dial = true;
+    for (uint64_t i = 0; i < ShotController::kDialWindowFrames; ++i) {
+        ASSERT_TRUE(f.shot.step(frame(i), nullptr));
+        f.shot.previewShown(0.050);  // 20 ms of render, 30 more to the monitor
+    }
+    ASSERT_EQ(f.renderer.dialCorrections.size(), 1u);
+    EXPECT_NEAR(f.renderer.dialCorrections[0], 0.050, 1e-9);
+}
+
 // The plate-consistency meter reads with a trusted pose only, once per view and lighting (a new
 // one beyond [refine]'s restart thresholds), at most every kPlateMeterPeriod.
 TEST(ShotController, ThePlateMeterReadsOnATrustedPoseWhenTheViewOrLightingChanges) {
