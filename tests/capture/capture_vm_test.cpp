@@ -45,14 +45,20 @@ void expectColorbar(const Frame& f, int tolerance) {
     }
 }
 
-Result<std::unique_ptr<V4L2Device>> openVivid(const std::string& path, uint32_t fourcc, uint32_t w,
-                                              uint32_t h) {
+// The device at `path` opened for w×h frames of `fourcc` (0: YUYV).
+Result<std::unique_ptr<V4L2Device>> openDevice(const std::string& path, uint32_t fourcc, uint32_t w,
+                                               uint32_t h) {
     V4L2Config config;
     config.device = path;
     config.fourcc = fourcc;
     config.width = w;
     config.height = h;
-    auto dev = V4L2Device::create(config);
+    return V4L2Device::create(config);
+}
+
+Result<std::unique_ptr<V4L2Device>> openVivid(const std::string& path, uint32_t fourcc, uint32_t w,
+                                              uint32_t h) {
+    auto dev = openDevice(path, fourcc, w, h);
     if (!dev) return dev;
     // Deterministic frames: a fixed pattern and no timestamp text (vmtest README).
     if (Status s = (*dev)->setControl("Test Pattern", 1); !s) return s.error();
@@ -185,12 +191,7 @@ TEST(Loopback, StreamsMjpeg) {
         }
     } joiner{stop, writer};
 
-    V4L2Config config;
-    config.device = node;
-    config.fourcc = V4L2_PIX_FMT_MJPEG;
-    config.width = w;
-    config.height = h;
-    auto dev = V4L2Device::create(config);
+    auto dev = openDevice(node, V4L2_PIX_FMT_MJPEG, w, h);
     ASSERT_TRUE(dev) << dev.message();
     ASSERT_TRUE((*dev)->start());
     int frames = 0;
@@ -208,11 +209,7 @@ TEST(Loopback, StreamsMjpeg) {
 
 FrameReaderFactory vividFactory(const std::string& path, uint32_t w, uint32_t h) {
     return [=]() -> Result<std::unique_ptr<FrameReader>> {
-        V4L2Config config;
-        config.device = path;
-        config.width = w;
-        config.height = h;
-        auto dev = V4L2Device::create(config);
+        auto dev = openDevice(path, 0, w, h);
         if (!dev) return dev.error();
         return std::unique_ptr<FrameReader>(std::move(*dev));
     };
