@@ -12,7 +12,7 @@ function(previs_embed_shaders target)
         add_custom_command(
             OUTPUT ${out}
             COMMAND ${GLSLANG_VALIDATOR} -V --target-env vulkan1.2 -g0
-                    -I${CMAKE_SOURCE_DIR}/gpu/shaders
+                    -I${CMAKE_SOURCE_DIR}
                     --depfile ${out_dir}/${name}.d --vn ${name}_spv
                     -o ${out} ${CMAKE_CURRENT_SOURCE_DIR}/${src}
             DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/${src}

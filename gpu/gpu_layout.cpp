@@ -2,10 +2,10 @@
 // (STYLE.md: every shared struct has static_assert(sizeof/offsetof) checks).
 #include <cstddef>
 
-#include "shared/composite.h"
-#include "shared/denoise.h"
-#include "shared/photon_records.h"
-#include "shared/scene_types.h"
+#include "gpu/shaders/shared/composite.h"
+#include "gpu/shaders/shared/denoise.h"
+#include "gpu/shaders/shared/photon_records.h"
+#include "gpu/shaders/shared/scene_types.h"
 
 namespace previs::shader {
 

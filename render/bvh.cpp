@@ -7,7 +7,7 @@
 #include <thread>
 
 #include "base/log.h"
-#include "shared/ray_tracing.h"
+#include "gpu/shaders/shared/ray_tracing.h"
 
 namespace previs {
 

@@ -10,8 +10,8 @@
 #include <vector>
 
 #include "base/result.h"
+#include "gpu/shaders/shared/scene_types.h"
 #include "scene/scene.h"
-#include "shared/scene_types.h"
 
 namespace previs {
 

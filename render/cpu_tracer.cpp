@@ -24,7 +24,7 @@ thread_local BoundScene gBound;
 #define PV_BVH_NODE(i) (::previs::gBound.nodes[i])
 #define PV_BVH_NODE_CHILDREN(i) (::previs::gBound.nodes[i].child)
 #define PV_TRIANGLE_VERTEX(i, k) (::previs::gBound.triangleVertices[3 * (i) + (k)])
-#include "shared/ray_tracing.h"
+#include "gpu/shaders/shared/ray_tracing.h"
 
 namespace previs {
 

@@ -10,9 +10,9 @@
 #include <vector>
 
 #include "base/result.h"
+#include "gpu/shaders/shared/ray_tracing.h"
 #include "render/bvh.h"
 #include "scene/scene.h"
-#include "shared/ray_tracing.h"
 
 namespace previs {
 

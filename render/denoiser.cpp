@@ -4,7 +4,7 @@
 #include <iterator>
 
 #include "denoise.spv.h"
-#include "shared/denoise.h"
+#include "gpu/shaders/shared/denoise.h"
 
 namespace previs {
 

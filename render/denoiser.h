@@ -15,9 +15,9 @@
 #include "gpu/buffer.h"
 #include "gpu/compute_pipeline.h"
 #include "gpu/context.h"
+#include "gpu/shaders/shared/denoise.h"
 #include "image/image.h"
 #include "render/render_settings.h"
-#include "shared/denoise.h"
 
 namespace previs {
 

@@ -6,7 +6,7 @@
 
 #include "base/log.h"
 #include "film_display.spv.h"
-#include "shared/composite.h"
+#include "gpu/shaders/shared/composite.h"
 
 namespace previs {
 

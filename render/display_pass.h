@@ -16,10 +16,10 @@
 #include "gpu/buffer.h"
 #include "gpu/compute_pipeline.h"
 #include "gpu/context.h"
+#include "gpu/shaders/shared/composite.h"
 #include "image/image.h"
 #include "render/tonemap.h"
 #include "render/upsample.h"
-#include "shared/composite.h"
 
 namespace previs {
 

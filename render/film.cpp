@@ -4,9 +4,9 @@
 #include <utility>
 
 #include "base/log.h"
+#include "gpu/shaders/shared/denoise.h"
+#include "gpu/shaders/shared/scene_types.h"
 #include "render/plate.h"
-#include "shared/denoise.h"
-#include "shared/scene_types.h"
 
 namespace previs {
 

@@ -16,6 +16,7 @@
 #include "base/result.h"
 #include "gpu/buffer.h"
 #include "gpu/context.h"
+#include "gpu/shaders/shared/composite.h"
 #include "image/image.h"
 #include "render/convergence.h"
 #include "render/denoiser.h"
@@ -23,7 +24,6 @@
 #include "render/held_view.h"
 #include "render/render_settings.h"
 #include "render/upsample.h"
-#include "shared/composite.h"
 
 namespace previs {
 

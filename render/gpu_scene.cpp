@@ -8,10 +8,10 @@
 #include <utility>
 
 #include "base/log.h"
+#include "gpu/shaders/shared/specular_albedo.h"
+#include "gpu/shaders/shared/texture_sampling.h"
 #include "scene/environment_sampler.h"
 #include "scene/material.h"
-#include "shared/specular_albedo.h"
-#include "shared/texture_sampling.h"
 
 namespace previs {
 

@@ -19,12 +19,12 @@
 #include "base/result.h"
 #include "gpu/buffer.h"
 #include "gpu/context.h"
+#include "gpu/shaders/shared/scene_types.h"
 #include "render/bvh.h"
 #include "render/photon_map.h"
 #include "render/render_settings.h"
 #include "scene/environment_map.h"
 #include "scene/scene.h"
-#include "shared/scene_types.h"
 
 namespace previs {
 

@@ -19,8 +19,8 @@
 #include <optional>
 #include <span>
 
+#include "gpu/shaders/shared/composite.h"
 #include "image/image.h"
-#include "shared/composite.h"
 
 namespace previs {
 

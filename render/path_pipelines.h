@@ -17,8 +17,8 @@
 #include "gpu/buffer.h"
 #include "gpu/compute_pipeline.h"
 #include "gpu/context.h"
+#include "gpu/shaders/shared/scene_types.h"
 #include "render/photon_map.h"
-#include "shared/scene_types.h"
 
 namespace previs {
 

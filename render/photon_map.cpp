@@ -6,10 +6,10 @@
 #include <cstdlib>
 #include <cstring>
 
+#include "gpu/shaders/shared/bsdf.h"
+#include "gpu/shaders/shared/photon_records.h"
+#include "gpu/shaders/shared/sampling.h"
 #include "photon_grid.spv.h"
-#include "shared/bsdf.h"
-#include "shared/photon_records.h"
-#include "shared/sampling.h"
 #include "trace_photons.spv.h"
 
 namespace previs {

@@ -20,10 +20,10 @@
 #include "gpu/compute_pipeline.h"
 #include "gpu/context.h"
 #include "gpu/interruptible_dispatch.h"
+#include "gpu/shaders/shared/photon_records.h"
+#include "gpu/shaders/shared/scene_types.h"
 #include "render/render_settings.h"
 #include "scene/scene.h"
-#include "shared/photon_records.h"
-#include "shared/scene_types.h"
 
 namespace previs {
 

@@ -9,12 +9,12 @@
 #include <glm/gtc/matrix_transform.hpp>
 
 #include "base/log.h"
+#include "gpu/shaders/shared/denoise.h"
+#include "gpu/shaders/shared/photon_records.h"
+#include "gpu/shaders/shared/scene_types.h"
+#include "gpu/shaders/shared/specular_albedo.h"
+#include "gpu/shaders/shared/texture_sampling.h"
 #include "scene/environment_map.h"
-#include "shared/denoise.h"
-#include "shared/photon_records.h"
-#include "shared/scene_types.h"
-#include "shared/specular_albedo.h"
-#include "shared/texture_sampling.h"
 
 namespace previs {
 

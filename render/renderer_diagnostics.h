@@ -5,7 +5,7 @@
 #include <vector>
 
 #include "base/result.h"
-#include "shared/photon_records.h"
+#include "gpu/shaders/shared/photon_records.h"
 
 namespace previs {
 

@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "base/log.h"
-#include "shared/composite.h"
+#include "gpu/shaders/shared/composite.h"
 
 namespace previs {
 

@@ -19,7 +19,7 @@ thread_local const EnvTables* currentTables = nullptr;
 #define PV_ENV_RADIANCE(i) (::previs::currentTables->radiance[(i)])
 #define PV_ENV_MARGINAL_CDF(i) (::previs::currentTables->marginal[(i)])
 #define PV_ENV_CONDITIONAL_CDF(i) (::previs::currentTables->conditional[(i)])
-#include "shared/env_sampling.h"
+#include "gpu/shaders/shared/env_sampling.h"
 
 namespace previs {
 namespace {

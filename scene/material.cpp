@@ -1,6 +1,6 @@
 #include "scene/material.h"
 
-#include "shared/bsdf.h"
+#include "gpu/shaders/shared/bsdf.h"
 
 namespace previs {
 

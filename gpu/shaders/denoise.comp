@@ -15,9 +15,9 @@
 #extension GL_EXT_scalar_block_layout : require
 #extension GL_GOOGLE_include_directive : require
 
-#include "shared/denoise.h"
-#include "shared/photon_records.h"
-#include "shared/sampling.h"
+#include "gpu/shaders/shared/denoise.h"
+#include "gpu/shaders/shared/photon_records.h"
+#include "gpu/shaders/shared/sampling.h"
 
 layout(constant_id = 0) const uint kStage = PV_DENOISE_STAGE_PREPARE;
 layout(local_size_x = PV_DENOISE_GROUP_X, local_size_y = PV_DENOISE_GROUP_Y) in;

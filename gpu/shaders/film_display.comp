@@ -17,10 +17,10 @@
 #extension GL_EXT_scalar_block_layout : require
 #extension GL_GOOGLE_include_directive : require
 
-#include "shared/denoise.h"
-#include "shared/composite.h"
-#include "shared/sampling.h"
-#include "shared/scene_types.h"
+#include "gpu/shaders/shared/denoise.h"
+#include "gpu/shaders/shared/composite.h"
+#include "gpu/shaders/shared/sampling.h"
+#include "gpu/shaders/shared/scene_types.h"
 
 layout(constant_id = 0) const uint kStage = PV_FILM_STAGE_RESOLVE;
 layout(local_size_x = PV_FILM_GROUP_X, local_size_y = PV_FILM_GROUP_Y) in;

@@ -11,8 +11,8 @@
 #extension GL_EXT_scalar_block_layout : require
 #extension GL_GOOGLE_include_directive : require
 
-#include "shared/scene_types.h"
-#include "shared/photon_records.h"
+#include "gpu/shaders/shared/scene_types.h"
+#include "gpu/shaders/shared/photon_records.h"
 
 #define STAGE_HISTOGRAM 0u
 #define STAGE_SCAN 1u

@@ -7,8 +7,8 @@
 // only where kCountLoops (a CPU device).
 uint gLoopIterations = 0u;
 #define PV_COUNT_LOOP_ITERATION() (kCountLoops ? ++gLoopIterations : 0u)
-#include "shared/scene_types.h"
-#include "shared/texture_sampling.h"
+#include "gpu/shaders/shared/scene_types.h"
+#include "gpu/shaders/shared/texture_sampling.h"
 // Scene features: a variant compiled with a feature off runs none of its code.
 layout(constant_id = PV_SPEC_HAS_ENV) const bool kHasEnv = true;
 layout(constant_id = PV_SPEC_HAS_EMISSIVE) const bool kHasEmissive = true;
@@ -82,7 +82,7 @@ layout(binding = PV_BINDING_MATERIALS) uniform usamplerBuffer materialTexels;
 // The materials buffer starts with the specular albedo table (render/renderer.cpp).
 #define PV_SPECULAR_ALBEDO(index) \
     uintBitsToFloat(texelFetch(materialTexels, (index) / 4)[(index) % 4])
-#include "shared/specular_albedo.h"
+#include "gpu/shaders/shared/specular_albedo.h"
 layout(binding = PV_BINDING_LIGHTS) uniform usamplerBuffer lightTexels;
 layout(binding = PV_BINDING_EMISSIVE_TRIANGLES) uniform usamplerBuffer emissiveTriangleTexels;
 
@@ -176,17 +176,17 @@ vec2 lensGridAt(uint corner) {
 #define PV_BVH_NODE_CHILDREN(i) texelFetch(bvhNodeTexels, int(7u * (i) + 6u))
 #define PV_TRIANGLE_VERTEX(i, k) \
     uintBitsToFloat(texelFetch(triangleVertexTexels, int(3u * (i) + (k))).xyz)
-#include "shared/ray_tracing.h"
+#include "gpu/shaders/shared/ray_tracing.h"
 
 #define PV_ENV_RADIANCE(i) envRadianceAt(i)
 #define PV_ENV_MARGINAL_CDF(i) wordAsFloat(envMarginalWords, i)
 #define PV_ENV_CONDITIONAL_CDF(i) wordAsFloat(envConditionalWords, i)
-#include "shared/env_sampling.h"
+#include "gpu/shaders/shared/env_sampling.h"
 
-#include "shared/bsdf.h"
-#include "shared/sampling.h"
-#include "shared/sampler.h"
-#include "shared/triangle_light.h"
+#include "gpu/shaders/shared/bsdf.h"
+#include "gpu/shaders/shared/sampling.h"
+#include "gpu/shaders/shared/sampler.h"
+#include "gpu/shaders/shared/triangle_light.h"
 #define NO_HIT 0xffffffffu
 
 // Rays this invocation traced, added to stats.raysTraced once at the end (one atomic per pixel).

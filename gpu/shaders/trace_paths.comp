@@ -26,8 +26,8 @@ layout(binding = PV_BINDING_PHOTON_CELLS) uniform usamplerBuffer photonCellTexel
 layout(binding = PV_BINDING_PHOTON_SPLATS, scalar) readonly buffer Splats { uint splats[]; };
 layout(binding = PV_BINDING_HELD_SAMPLES, scalar) buffer HeldSamples { vec4 heldSamples[]; };
 
-#include "shared/photon_records.h"
-#include "shared/denoise.h"
+#include "gpu/shaders/shared/photon_records.h"
+#include "gpu/shaders/shared/denoise.h"
 
 // What the camera ray's first hit shows the denoiser (beginPath and tracePaths set them where
 // kDenoiseGuides).

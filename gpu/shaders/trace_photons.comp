@@ -15,7 +15,7 @@
 #extension GL_GOOGLE_include_directive : require
 
 #include "scene_access.glsl"
-#include "shared/photon_records.h"
+#include "gpu/shaders/shared/photon_records.h"
 
 layout(local_size_x = PV_PHOTON_GROUP_SIZE) in;
 

@@ -1,7 +1,7 @@
 // The denoiser (render/denoiser.h, gpu/shaders/denoise.comp): exact where the signal is flat,
 // never touching the plate, edges kept, and measured bias: converging to the undenoised image at
 // high sample counts, reducing the error at low ones. Tolerances come from the measured noise.
-#include "shared/denoise.h"
+#include "gpu/shaders/shared/denoise.h"
 
 #include <gtest/gtest.h>
 

@@ -9,7 +9,7 @@
 #include <glm/gtc/matrix_transform.hpp>
 #include <numeric>
 
-#include "shared/bsdf.h"
+#include "gpu/shaders/shared/bsdf.h"
 #include "tests/integrator/gpu_fixture.h"
 #include "tests/support/scene_builders.h"
 

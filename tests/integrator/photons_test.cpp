@@ -12,10 +12,10 @@
 #include <cstring>
 #include <map>
 
+#include "gpu/shaders/shared/bsdf.h"
+#include "gpu/shaders/shared/photon_records.h"
 #include "render/quality_dial.h"
 #include "scene/material.h"
-#include "shared/bsdf.h"
-#include "shared/photon_records.h"
 #include "tests/integrator/gpu_fixture.h"
 #include "tests/support/scene_builders.h"
 

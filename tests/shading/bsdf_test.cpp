@@ -1,7 +1,7 @@
 // The shading math of trace_paths.comp, run on the CPU from the same headers: sampling warps and
 // BSDF lobes against their stated densities (chi-square), energy conservation, reciprocity and
 // the exact limit cases of DESIGN.md §4.
-#include "shared/bsdf.h"
+#include "gpu/shaders/shared/bsdf.h"
 
 #include <gtest/gtest.h>
 
@@ -11,8 +11,8 @@
 #include <random>
 #include <vector>
 
-#include "shared/sampling.h"
-#include "shared/specular_albedo.h"
+#include "gpu/shaders/shared/sampling.h"
+#include "gpu/shaders/shared/specular_albedo.h"
 #include "tests/support/chi2.h"
 
 namespace previs::testing {

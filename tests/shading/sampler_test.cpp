@@ -2,7 +2,7 @@
 // matrices against Joe & Kuo's primitive polynomials, the stratification Owen scrambling must
 // keep (exact net properties, not statistics), the range of the values, and the randomisation
 // that makes the estimates unbiased and the pixels independent.
-#include "shared/sampler.h"
+#include "gpu/shaders/shared/sampler.h"
 
 #include <gtest/gtest.h>
 

@@ -3,7 +3,7 @@
 // the texel index modulo the size, MIRRORED_REPEAT modulo twice the size and mirrored in the
 // second half, CLAMP_TO_EDGE clamps it. Coordinates include negative ones and offsets up to 1e7;
 // any coordinate, however huge or non-finite, must give an index inside the image.
-#include "shared/texture_sampling.h"
+#include "gpu/shaders/shared/texture_sampling.h"
 
 #include <gtest/gtest.h>
 

@@ -2,7 +2,7 @@
 // uniform in the triangle's solid angle (chi-square on cells of exactly known solid angle), the
 // density integrating to 1 over the triangle for both strategies, and finite samples and
 // densities at the extremes (tiny, far, grazing, huge and near).
-#include "shared/triangle_light.h"
+#include "gpu/shaders/shared/triangle_light.h"
 
 #include <gtest/gtest.h>
 

@@ -52,9 +52,9 @@
 #ifndef PREVIS_SHARED_BSDF_H
 #define PREVIS_SHARED_BSDF_H
 
-#include "shared/prelude.h"
-#include "shared/sampling.h"
-#include "shared/specular_albedo.h"
+#include "gpu/shaders/shared/prelude.h"
+#include "gpu/shaders/shared/sampling.h"
+#include "gpu/shaders/shared/specular_albedo.h"
 
 PV_BEGIN
 

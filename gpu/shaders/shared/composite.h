@@ -5,7 +5,7 @@
 #ifndef PREVIS_SHARED_COMPOSITE_H
 #define PREVIS_SHARED_COMPOSITE_H
 
-#include "shared/prelude.h"
+#include "gpu/shaders/shared/prelude.h"
 
 PV_BEGIN
 

@@ -5,7 +5,7 @@
 #ifndef PREVIS_SHARED_DENOISE_H
 #define PREVIS_SHARED_DENOISE_H
 
-#include "shared/prelude.h"
+#include "gpu/shaders/shared/prelude.h"
 
 PV_BEGIN
 

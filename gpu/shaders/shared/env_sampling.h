@@ -14,7 +14,7 @@
 #ifndef PREVIS_SHARED_ENV_SAMPLING_H
 #define PREVIS_SHARED_ENV_SAMPLING_H
 
-#include "shared/prelude.h"
+#include "gpu/shaders/shared/prelude.h"
 
 #if !defined(PV_ENV_RADIANCE) || !defined(PV_ENV_MARGINAL_CDF) || \
     !defined(PV_ENV_CONDITIONAL_CDF)

@@ -29,7 +29,7 @@
 #ifndef PREVIS_SHARED_PHOTON_RECORDS_H
 #define PREVIS_SHARED_PHOTON_RECORDS_H
 
-#include "shared/prelude.h"
+#include "gpu/shaders/shared/prelude.h"
 
 PV_BEGIN
 

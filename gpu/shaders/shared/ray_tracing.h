@@ -13,8 +13,8 @@
 #ifndef PREVIS_SHARED_RAY_TRACING_H
 #define PREVIS_SHARED_RAY_TRACING_H
 
-#include "shared/prelude.h"
-#include "shared/scene_types.h"
+#include "gpu/shaders/shared/prelude.h"
+#include "gpu/shaders/shared/scene_types.h"
 
 // `precise` stops the GLSL compiler from fusing a*b - c*d into an fma: an fma rounds the two
 // products differently, so the two triangles sharing an edge would no longer compute exactly

@@ -32,9 +32,9 @@
 #ifndef PREVIS_SHARED_SAMPLER_H
 #define PREVIS_SHARED_SAMPLER_H
 
-#include "shared/prelude.h"
-#include "shared/sampling.h"
-#include "shared/scene_types.h"
+#include "gpu/shaders/shared/prelude.h"
+#include "gpu/shaders/shared/sampling.h"
+#include "gpu/shaders/shared/scene_types.h"
 
 PV_BEGIN
 

@@ -3,7 +3,7 @@
 #ifndef PREVIS_SHARED_SAMPLING_H
 #define PREVIS_SHARED_SAMPLING_H
 
-#include "shared/prelude.h"
+#include "gpu/shaders/shared/prelude.h"
 
 PV_BEGIN
 

@@ -3,7 +3,7 @@
 #ifndef PREVIS_SHARED_SCENE_TYPES_H
 #define PREVIS_SHARED_SCENE_TYPES_H
 
-#include "shared/prelude.h"
+#include "gpu/shaders/shared/prelude.h"
 
 PV_BEGIN
 

@@ -24,7 +24,7 @@
 #ifndef PREVIS_SHARED_SPECULAR_ALBEDO_H
 #define PREVIS_SHARED_SPECULAR_ALBEDO_H
 
-#include "shared/prelude.h"
+#include "gpu/shaders/shared/prelude.h"
 
 #define PV_SPECULAR_ALBEDO_MU 16
 #define PV_SPECULAR_ALBEDO_ALPHA 16
@@ -47,9 +47,9 @@ PV_BEGIN
 // PV_SPECULAR_ALBEDO_MU + i.
 #ifdef __cplusplus
 inline constexpr float kSpecularAlbedo[PV_SPECULAR_ALBEDO_SIZE] = {
-#include "shared/specular_albedo_table.inc"
+#include "gpu/shaders/shared/specular_albedo_table.inc"
     ,
-#include "shared/glass_albedo_table.inc"
+#include "gpu/shaders/shared/glass_albedo_table.inc"
 };
 #define PV_SPECULAR_ALBEDO(index) kSpecularAlbedo[index]
 #endif

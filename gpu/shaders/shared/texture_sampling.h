@@ -7,7 +7,7 @@
 #ifndef PREVIS_SHARED_TEXTURE_SAMPLING_H
 #define PREVIS_SHARED_TEXTURE_SAMPLING_H
 
-#include "shared/prelude.h"
+#include "gpu/shaders/shared/prelude.h"
 
 // TextureInfo::flags (shared/scene_types.h): bit 0 sRGB, bits 8-9 wrapS, bits 10-11 wrapT,
 // bit 16 nearest filtering.

@@ -7,8 +7,8 @@
 #ifndef PREVIS_SHARED_TRIANGLE_LIGHT_H
 #define PREVIS_SHARED_TRIANGLE_LIGHT_H
 
-#include "shared/prelude.h"
-#include "shared/sampling.h"
+#include "gpu/shaders/shared/prelude.h"
+#include "gpu/shaders/shared/sampling.h"
 
 PV_BEGIN
 
