@@ -13,7 +13,7 @@
 #include "bench/bench_progress.h"
 #include "bench/bench_scenes.h"
 #include "bench/bench_stats.h"
-#include "bench/image_compare.h"
+#include "image/image_compare.h"
 #include "render/renderer.h"
 
 namespace previs::bench {

@@ -15,8 +15,8 @@
 
 #include "base/log.h"
 #include "bench/bench_progress.h"
-#include "bench/board_render.h"
 #include "io/session.h"
+#include "render/board_render.h"
 #include "take/take_files.h"
 #include "take/take_track.h"
 #include "vision/board_file.h"

@@ -13,9 +13,9 @@
 
 #include "base/log.h"
 #include "bench/bench_progress.h"
-#include "bench/image_compare.h"
 #include "config/service_config.h"
 #include "image/image.h"
+#include "image/image_compare.h"
 #include "render/renderer.h"
 #include "shot/pipeline_renderer.h"
 #include "take/replay.h"

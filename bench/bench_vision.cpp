@@ -7,7 +7,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "bench/board_render.h"
+#include "render/board_render.h"
 #include "vision/board_pose.h"
 #include "vision/fisheye_to_equirect.h"
 #include "vision/inverse_tone_map.h"
@@ -57,7 +57,7 @@ Result<std::vector<VisionTiming>> benchVision(const std::string& dataDir, int ru
                   607.2342529296875 * 1.5, 241.91822814941406 * 1.5, 0, 0, 1);
     auto calib = CameraCalibration::create(k, {}, {1280, 720}, DistortionModel::Pinhole, "bench");
     if (!calib) return calib.error();
-    const TagBoard board = bench::vispRbtBoard();
+    const TagBoard board = vispRbtBoard();
 
     struct Config {
         float decimate;

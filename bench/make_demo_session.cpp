@@ -43,7 +43,6 @@
 #include <vector>
 
 #include "base/log.h"
-#include "bench/board_render.h"
 #include "config/service_config.h"
 #include "gpu/context.h"
 #include "image/image.h"
@@ -275,7 +274,7 @@ Result<std::vector<uint8_t>> boardTexture(const TagBoard& board, uint32_t& width
                 const uint8_t v = bits->buf[int(by) * bits->stride + int(bx)] ? paper : ink;
                 for (int c = 0; c < 3; ++c) rgb[(size_t(y) * width + x) * 3 + c] = v;
             }
-        // apriltag_to_image allocates with calloc (bench/board_render.cpp: no exported destroy).
+        // apriltag_to_image allocates with calloc (render/board_render.cpp: no exported destroy).
         std::free(bits->buf);
         std::free(bits);
     }

@@ -9,7 +9,7 @@
 #include "base/log.h"
 #include "bench/bench_progress.h"
 #include "bench/bench_stats.h"
-#include "bench/board_render.h"
+#include "render/board_render.h"
 #include "vision/board_pose.h"
 #include "vision/tag_detector.h"
 
@@ -53,7 +53,7 @@ struct BoardFrame {
     double noiseLevels = 0.0;
     TransferCurve curve = TransferCurve::Srgb;
     bool tracked = false;
-    PoseError error;
+    CameraPoseError error;
 };
 
 struct Summary {
@@ -207,7 +207,8 @@ int runPoseSweep(GpuContext& ctx, const PoseSweepOptions& o) {
                                 tracker.reset();
                                 const TrackingState& st = tracker.track(gray);
                                 BoardFrame f{l, d, a, blur, noise, curve, !st.lost, {}};
-                                if (f.tracked) f.error = poseError(st.pose->worldFromCamera, truth);
+                                if (f.tracked)
+                                    f.error = cameraPoseError(st.pose->worldFromCamera, truth);
                                 frames.push_back(f);
                             }
                         }
@@ -363,7 +364,7 @@ int runReachSweep(GpuContext& ctx, bool quick) {
                         ++row.frames;
                         if (st.lost) continue;
                         ++row.tracked;
-                        const PoseError e = poseError(st.pose->worldFromCamera, truth);
+                        const CameraPoseError e = cameraPoseError(st.pose->worldFromCamera, truth);
                         row.percent.push_back(100.0 * e.translationM / view.distanceM);
                         row.deg.push_back(e.rotationDeg);
                         if (e.translationM <= kSpecRelativeTranslation * view.distanceM &&

@@ -1,7 +1,7 @@
 #pragma once
 
 // `previs bench --only pose`: camera-pose accuracy of the tracker on boards rendered by the path
-// tracer at known poses (bench/board_render.h), over distances, viewing angles, blur, noise and
+// tracer at known poses (render/board_render.h), over distances, viewing angles, blur, noise and
 // both lens models. Prints Markdown tables.
 
 #include <cstdint>

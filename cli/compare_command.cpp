@@ -3,8 +3,8 @@
 #include <cstdio>
 
 #include "base/log.h"
-#include "bench/image_compare.h"
 #include "image/image.h"
+#include "image/image_compare.h"
 
 namespace previs {
 
@@ -29,10 +29,9 @@ int run(const CompareOptions& o) {
             return 2;
         }
     }
-    std::optional<bench::PixelRegion> region;
-    if (!o.region.empty())
-        region = bench::PixelRegion{o.region[0], o.region[1], o.region[2], o.region[3]};
-    auto d = bench::compareImages(*images[0], *images[1], region);
+    std::optional<PixelRegion> region;
+    if (!o.region.empty()) region = PixelRegion{o.region[0], o.region[1], o.region[2], o.region[3]};
+    auto d = compareImages(*images[0], *images[1], region);
     if (!d) {
         logError("{} against {}: {}", o.a, o.b, d.message());
         return 2;

@@ -1,5 +1,5 @@
 // The tracker on tag boards rendered by the path tracer at known poses through calibrated lenses
-// (bench/board_render.h): pose errors against the exact ground truth, and the cases where the
+// (render/board_render.h): pose errors against the exact ground truth, and the cases where the
 // tracker must say "lost" instead of reporting a pose. The full sweep is `previs bench --only
 // pose` (bench/results/benchmarks_2026-11-22.md, "Pose accuracy (rendered boards)").
 //
@@ -27,7 +27,7 @@
 #include <opencv2/imgproc.hpp>
 #include <optional>
 
-#include "bench/board_render.h"
+#include "render/board_render.h"
 #include "tests/integrator/gpu_fixture.h"
 #include "vision/board_pose.h"
 #include "vision/camera_calibration.h"
@@ -35,10 +35,6 @@
 
 namespace previs::testing {
 namespace {
-
-using bench::BoardView;
-using bench::Degradation;
-using bench::TransferCurve;
 
 constexpr double kCornerBudgetPx = 0.25;
 constexpr double kSecondOrder = 0.05;
@@ -87,7 +83,7 @@ std::vector<cv::Point2d> projectWorld(const std::vector<cv::Point3d>& world,
 
 // A = (JᵀJ)⁻¹Jᵀ of the least-squares pose fit to the ideal pinhole pixels of `world` at the true
 // pose (6 × 2N; see the header comment), by central differences. Parameters: the camera centre
-// (world) and a rotation ω with R = R_true·exp([ω]×), so |ω| is the angle poseError reports.
+// (world) and a rotation ω with R = R_true·exp([ω]×), so |ω| is the angle cameraPoseError reports.
 cv::Mat pnpLinearisation(const CameraCalibration& calib, const std::vector<cv::Point3d>& world,
                          const cv::Matx44d& worldFromCamera) {
     const cv::Matx33d k = calib.cameraMatrix();
@@ -129,15 +125,14 @@ cv::Vec3d translationOf(const cv::Matx44d& m) { return {m(0, 3), m(1, 3), m(2, 3
 
 class RenderedPoseTest : public GpuTest {
 protected:
-    std::optional<bench::BoardRenderer> makeRenderer(const CameraCalibration& calib,
-                                                     uint32_t spp = kSpp) {
-        auto r = bench::BoardRenderer::create(ctx(), bench::posterBoard(), "tag36h11", calib, spp);
+    std::optional<BoardRenderer> makeRenderer(const CameraCalibration& calib, uint32_t spp = kSpp) {
+        auto r = BoardRenderer::create(ctx(), posterBoard(), "tag36h11", calib, spp);
         EXPECT_TRUE(r.ok()) << r.message();
         if (!r) return std::nullopt;
         return std::move(r).value();
     }
 
-    ImageF render(bench::BoardRenderer& renderer, const cv::Matx44d& worldFromCamera) {
+    ImageF render(BoardRenderer& renderer, const cv::Matx44d& worldFromCamera) {
         auto linear = renderer.render(worldFromCamera);
         EXPECT_TRUE(linear.ok()) << linear.message();
         return linear ? std::move(linear).value() : ImageF{};
@@ -148,7 +143,7 @@ protected:
         double cornerRmsPx = 0.0;                         // vs the true projection, raw pixels
         cv::Vec3d centreError, predictedCentreError;      // metres, world frame
         cv::Vec3d rotationError, predictedRotationError;  // ω, radians
-        bench::PoseError error;
+        CameraPoseError error;
     };
 
     // Degrades the rendered `linear` image, tracks it with `tracker` and compares with `truth`.
@@ -156,12 +151,12 @@ protected:
                   const ImageF& linear, const Degradation& degradation) {
         Outcome out;
         if (linear.pixels.empty()) return out;
-        out.state = tracker.track(bench::toCameraGray8(linear, degradation));
+        out.state = tracker.track(toCameraGray8(linear, degradation));
         const std::vector<TagDetection>& detections = tracker.detections();
         if (out.state.lost) return out;
-        out.error = bench::poseError(out.state.pose->worldFromCamera, truth);
+        out.error = cameraPoseError(out.state.pose->worldFromCamera, truth);
 
-        const TagBoard board = bench::posterBoard();
+        const TagBoard board = posterBoard();
         std::vector<cv::Point3d> world;
         std::vector<cv::Point2d> detected;
         for (const TagDetection& d : detections) {
@@ -215,7 +210,7 @@ protected:
         settings.linearFromCode = curve == TransferCurve::Linear
                                       ? identityLinearFromCode()
                                       : linearFromCodeTable(InverseToneMapSettings{});
-        return Tracker::create({}, bench::posterBoard(), calib, settings).value();
+        return Tracker::create({}, posterBoard(), calib, settings).value();
     }
 
     // Pose given the corners, and the on-set requirement (header comment).
@@ -239,7 +234,7 @@ protected:
                    double noiseLevels) {
         auto renderer = makeRenderer(calib);
         ASSERT_TRUE(renderer.has_value());
-        const cv::Matx44d truth = bench::cameraViewingBoard(view);
+        const cv::Matx44d truth = cameraViewingBoard(view);
         ImageF linear = render(*renderer, truth);
         for (TransferCurve curve : {TransferCurve::Linear, TransferCurve::Srgb}) {
             Tracker tracker = freshTracker(calib, curve);
@@ -257,7 +252,7 @@ TEST_F(RenderedPoseTest, CleanRenderThroughIdealLensGivesSubMillimetrePose) {
     auto renderer = makeRenderer(lens, kCleanSpp);
     ASSERT_TRUE(renderer.has_value());
     BoardView view{.distanceM = 1.0, .angleDeg = 20.0, .azimuthDeg = 30.0, .rollDeg = 10.0};
-    const cv::Matx44d truth = bench::cameraViewingBoard(view);
+    const cv::Matx44d truth = cameraViewingBoard(view);
     ImageF linear = render(*renderer, truth);
     Tracker tracker = freshTracker(lens, TransferCurve::Linear);
     Outcome o = track(tracker, lens, truth, linear, {.curve = TransferCurve::Linear});
@@ -299,13 +294,13 @@ TEST_F(RenderedPoseTest, GrazingBoardIsLostNotWrong) {
     ASSERT_TRUE(renderer.has_value());
     Tracker tracker = freshTracker(lens);
     BoardView good{.distanceM = 1.2, .angleDeg = 30.0, .azimuthDeg = 10.0};
-    const cv::Matx44d goodTruth = bench::cameraViewingBoard(good);
+    const cv::Matx44d goodTruth = cameraViewingBoard(good);
     Outcome first = track(tracker, lens, goodTruth, render(*renderer, goodTruth),
                           {.blurSigmaPx = 0.5, .noiseSigmaLevels = 2.0});
     expectPoseFollowsCorners(first, good.distanceM);
 
     BoardView grazing{.distanceM = 1.2, .angleDeg = 85.0, .azimuthDeg = 10.0};
-    const cv::Matx44d truth = bench::cameraViewingBoard(grazing);
+    const cv::Matx44d truth = cameraViewingBoard(grazing);
     Outcome o = track(tracker, lens, truth, render(*renderer, truth),
                       {.blurSigmaPx = 0.5, .noiseSigmaLevels = 2.0});
     if (o.state.lost) {
@@ -327,13 +322,13 @@ TEST_F(RenderedPoseTest, DistantBoardIsLost) {
     ASSERT_TRUE(renderer.has_value());
     Tracker tracker = freshTracker(lens);
     BoardView good{.distanceM = 1.5, .angleDeg = 0.0, .rollDeg = 30.0};
-    const cv::Matx44d goodTruth = bench::cameraViewingBoard(good);
+    const cv::Matx44d goodTruth = cameraViewingBoard(good);
     Outcome first =
         track(tracker, lens, goodTruth, render(*renderer, goodTruth), {.noiseSigmaLevels = 2.0});
     ASSERT_FALSE(first.state.lost) << first.state.reason;
 
     BoardView far{.distanceM = 25.0, .angleDeg = 0.0, .rollDeg = 30.0};
-    const cv::Matx44d truth = bench::cameraViewingBoard(far);
+    const cv::Matx44d truth = cameraViewingBoard(far);
     Outcome o = track(tracker, lens, truth, render(*renderer, truth), {.noiseSigmaLevels = 2.0});
     EXPECT_TRUE(o.state.lost);
     EXPECT_EQ(o.state.reason, "no tags detected");
@@ -352,9 +347,8 @@ TEST_F(RenderedPoseTest, SmallTagsAreFoundAtTheDefaults) {
     ASSERT_TRUE(renderer.has_value());
     for (double distance : {1.0, 2.2}) {
         const BoardView view{.distanceM = distance, .angleDeg = 30.0, .azimuthDeg = 60.0};
-        const cv::Mat gray =
-            bench::toCameraGray8(render(*renderer, bench::cameraViewingBoard(view)),
-                                 {.blurSigmaPx = 0.5, .noiseSigmaLevels = 2.0});
+        const cv::Mat gray = toCameraGray8(render(*renderer, cameraViewingBoard(view)),
+                                           {.blurSigmaPx = 0.5, .noiseSigmaLevels = 2.0});
         auto fullResolution = TagDetector::create({.decimate = 1.0f});
         auto coarse = TagDetector::create({.decimate = 2.0f});
         ASSERT_TRUE(fullResolution && coarse);
@@ -376,7 +370,7 @@ TEST_F(RenderedPoseTest, SmallTagsAreFoundAtTheDefaults) {
         std::printf("  after a pose: decimate %.1f, %d re-detected\n",
                     tracker.searchStats().decimate, tracker.searchStats().redetected);
 
-        auto fixed = Tracker::create({.decimate = 2.0f}, bench::posterBoard(), lens);
+        auto fixed = Tracker::create({.decimate = 2.0f}, posterBoard(), lens);
         ASSERT_TRUE(fixed.ok());
         fixed->track(gray);
         EXPECT_EQ(fixed->detections().size(), coarseCount);
@@ -393,13 +387,12 @@ TEST_F(RenderedPoseTest, SmallTagsAreFoundAtTheDefaults) {
 TEST_F(RenderedPoseTest, BadFramesAreLostOrRight) {
     const CameraCalibration lens = radTanLens();
     const BoardView view{.distanceM = 1.0, .angleDeg = 20.0, .azimuthDeg = 45.0};
-    const cv::Matx44d truth = bench::cameraViewingBoard(view);
+    const cv::Matx44d truth = cameraViewingBoard(view);
 
-    auto other = bench::BoardRenderer::create(ctx(), bench::posterBoard(), "tag25h9", lens, kSpp);
+    auto other = BoardRenderer::create(ctx(), posterBoard(), "tag25h9", lens, kSpp);
     ASSERT_TRUE(other.ok()) << other.message();
     Tracker wrongFamily = freshTracker(lens);
-    const TrackingState& family =
-        wrongFamily.track(bench::toCameraGray8(render(*other, truth), {}));
+    const TrackingState& family = wrongFamily.track(toCameraGray8(render(*other, truth), {}));
     EXPECT_TRUE(family.lost);
     EXPECT_EQ(family.lostReason, LostReason::NoTags) << family.reason;
     EXPECT_FALSE(family.pose.has_value());
@@ -413,7 +406,7 @@ TEST_F(RenderedPoseTest, BadFramesAreLostOrRight) {
             EXPECT_NE(st.lostReason, LostReason::None);
             return;
         }
-        const bench::PoseError e = bench::poseError(st.pose->worldFromCamera, t);
+        const CameraPoseError e = cameraPoseError(st.pose->worldFromCamera, t);
         std::printf("%s: %zu tags, %.2f mm, %.3f deg\n", what, st.pose->tagIds.size(),
                     e.translationM * 1e3, e.rotationDeg);
         EXPECT_LT(e.translationM, kMaxRelativeTranslation * distanceM) << what;
@@ -422,11 +415,11 @@ TEST_F(RenderedPoseTest, BadFramesAreLostOrRight) {
 
     // The board's centre 30° off the optical axis at 0.6 m: half of it beyond the frame's edge.
     const BoardView edge{.distanceM = 0.6, .angleDeg = 20.0, .offAxisDeg = 30.0};
-    const cv::Matx44d edgeTruth = bench::cameraViewingBoard(edge);
+    const cv::Matx44d edgeTruth = cameraViewingBoard(edge);
     Tracker halfOut = freshTracker(lens);
     lostOrRight("half out of frame",
-                halfOut.track(bench::toCameraGray8(render(*renderer, edgeTruth),
-                                                   {.blurSigmaPx = 0.5, .noiseSigmaLevels = 2.0})),
+                halfOut.track(toCameraGray8(render(*renderer, edgeTruth),
+                                            {.blurSigmaPx = 0.5, .noiseSigmaLevels = 2.0})),
                 edgeTruth, edge.distanceM);
 
     // A pan smears the frame 12 px sideways (in linear light, as a shutter integrates).
@@ -437,7 +430,7 @@ TEST_F(RenderedPoseTest, BadFramesAreLostOrRight) {
                  cv::BORDER_REPLICATE);
     Tracker blurred = freshTracker(lens);
     lostOrRight("motion blur 12 px",
-                blurred.track(bench::toCameraGray8(smeared, {.noiseSigmaLevels = 2.0})), truth,
+                blurred.track(toCameraGray8(smeared, {.noiseSigmaLevels = 2.0})), truth,
                 view.distanceM);
 }
 

@@ -1,4 +1,4 @@
-#include "bench/board_render.h"
+#include "render/board_render.h"
 
 #include <apriltag/apriltag.h>
 #include <apriltag/tag16h5.h>
@@ -16,7 +16,7 @@
 #include "render/tonemap.h"
 #include "vision/lens_grid.h"
 
-namespace previs::bench {
+namespace previs {
 
 namespace {
 
@@ -363,9 +363,9 @@ cv::Matx44d cameraViewingBoard(const BoardView& view) {
     return out;
 }
 
-PoseError poseError(const cv::Matx44d& estimatedWorldFromCamera,
-                    const cv::Matx44d& trueWorldFromCamera) {
-    PoseError e;
+CameraPoseError cameraPoseError(const cv::Matx44d& estimatedWorldFromCamera,
+                                const cv::Matx44d& trueWorldFromCamera) {
+    CameraPoseError e;
     e.translationM = cv::norm(column(estimatedWorldFromCamera, 3) - column(trueWorldFromCamera, 3));
     const cv::Matx33d rEst = estimatedWorldFromCamera.get_minor<3, 3>(0, 0);
     const cv::Matx33d rTrue = trueWorldFromCamera.get_minor<3, 3>(0, 0);
@@ -376,4 +376,4 @@ PoseError poseError(const cv::Matx44d& estimatedWorldFromCamera,
     return e;
 }
 
-}  // namespace previs::bench
+}  // namespace previs

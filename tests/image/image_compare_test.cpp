@@ -1,15 +1,16 @@
-// `previs compare`'s measure (bench/image_compare.h): the RMSE and means it reports, on images
+// `previs compare`'s measure (image/image_compare.h): the RMSE and means it reports, on images
 // whose answer is known in closed form, and its refusals.
+#include "image/image_compare.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <filesystem>
 #include <limits>
 
-#include "bench/image_compare.h"
 #include "image/image.h"
 
-namespace previs::bench {
+namespace previs {
 namespace {
 
 ImageF constant(uint32_t w, uint32_t h, uint32_t channels, float v) {
@@ -129,4 +130,4 @@ TEST(CompareImages, ExrRoundTripKeepsTheError) {
 }
 
 }  // namespace
-}  // namespace previs::bench
+}  // namespace previs

@@ -1,10 +1,10 @@
-#include "bench/image_compare.h"
+#include "image/image_compare.h"
 
 #include <algorithm>
 #include <cmath>
 #include <vector>
 
-namespace previs::bench {
+namespace previs {
 
 Result<ImageDifference> compareImages(const ImageF& a, const ImageF& b,
                                       const std::optional<PixelRegion>& region) {
@@ -58,4 +58,4 @@ Result<ImageDifference> compareImages(const ImageF& a, const ImageF& b,
     return d;
 }
 
-}  // namespace previs::bench
+}  // namespace previs

@@ -19,7 +19,7 @@
 #include "vision/camera_calibration.h"
 #include "vision/tag_board.h"
 
-namespace previs::bench {
+namespace previs {
 
 // How the printed board looks. Its surfaces emit their albedo and nothing else lights the
 // scene, so a pixel is exactly the box-filtered albedo under it: the image of a uniformly lit
@@ -106,12 +106,12 @@ struct BoardView {
 // worldFromCamera in OpenCV's camera frame for a board on the plane z = 0 readable from +Z.
 cv::Matx44d cameraViewingBoard(const BoardView& view);
 
-struct PoseError {
+struct CameraPoseError {
     double translationM = 0.0;  // distance between the estimated and true camera centres
     double rotationDeg = 0.0;   // angle of R_estᵀ·R_true
 };
 
-PoseError poseError(const cv::Matx44d& estimatedWorldFromCamera,
-                    const cv::Matx44d& trueWorldFromCamera);
+CameraPoseError cameraPoseError(const cv::Matx44d& estimatedWorldFromCamera,
+                                const cv::Matx44d& trueWorldFromCamera);
 
-}  // namespace previs::bench
+}  // namespace previs

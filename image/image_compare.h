@@ -10,7 +10,7 @@
 #include "base/result.h"
 #include "image/image.h"
 
-namespace previs::bench {
+namespace previs {
 
 struct ImageDifference {
     double rmse = 0.0;    // sqrt(mean over every pixel and channel of (a − b)²)
@@ -39,4 +39,4 @@ struct PixelRegion {
 Result<ImageDifference> compareImages(const ImageF& a, const ImageF& b,
                                       const std::optional<PixelRegion>& region = std::nullopt);
 
-}  // namespace previs::bench
+}  // namespace previs
