@@ -113,7 +113,8 @@ int runBenchmarks(const BenchOptions& o) {
         return runShotBench({.examplesDir = o.examplesDir,
                              .quick = o.quick,
                              .csvPath = o.csvPath,
-                             .referenceCache = o.referenceCache});
+                             .referenceCache = o.referenceCache,
+                             .variant = o.variant});
     if (o.only == "trade")
         return runTradeBench({.dataDir = o.dataDir,
                               .outDir = o.outDir,

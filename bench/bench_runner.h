@@ -25,6 +25,7 @@ struct BenchOptions {
     std::string only;
     std::string csvPath;         // service, preview: also write the results as CSV here ("" = none)
     std::string referenceCache;  // shot: its references' folder (bench/bench_shot.h)
+    std::string variant;         // shot: only the variants whose name contains this
     // trade: its CSVs, frames and plots go here, drawn by this script.
     std::string outDir = "bench-trade";
     std::string plotter;

@@ -305,10 +305,13 @@ int runShotBench(const ShotBenchOptions& o) {
     fixedPoint.config.render.previewFps = 0.0;
     fixedPoint.config.render.resolutionScale = 1.0f / 3.0f;
     fixedPoint.config.render.samplesPerFrame = 4;
-    fixedPoint.config.render.maxDepth = 2;
+    fixedPoint.config.render.previewMaxDepth = 2;
     fixedPoint.config.render.denoise = "on";
     fixedPoint.config.render.denoiseLevels = 2;
     variants.push_back(fixedPoint);
+    ShotVariant holdAsMoving{"fixed, the hold at depth 2", fixedPoint.config};
+    holdAsMoving.config.render.previewHoldDepth = false;
+    variants.push_back(holdAsMoving);
     ShotVariant noClamp{"fixed, samples not clamped", fixedPoint.config};
     noClamp.config.render.previewSampleClamp = 0.0;
     variants.push_back(noClamp);
@@ -356,6 +359,7 @@ int runShotBench(const ShotBenchOptions& o) {
         kFlickerFrames);
     std::vector<VariantResult> results;
     for (const ShotVariant& v : variants) {
+        if (v.name.find(o.variant) == std::string::npos) continue;
         VariantResult result;
         result.name = v.name;
         Result<std::vector<FrameRow>> rows = run(v, session, *refs, last, holdTo, result.dialPoint);

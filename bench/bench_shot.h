@@ -23,6 +23,8 @@ struct ShotBenchOptions {
     // always rendered), named by a hash of the demo config's text: empty the folder after a
     // change to the renderer or the take, which the name does not see.
     std::string referenceCache;
+    // Only the variants whose name contains this ("" = all).
+    std::string variant;
 };
 
 // Prints a Markdown report on stdout (progress on stderr); returns the process exit code.

@@ -40,6 +40,8 @@ std::function<int()> addBenchCommand(CLI::App& app) {
                     "shot: read its references from this folder, or render them (1600 spp, "
                     "--quick too) and write them there")
         ->check(CLI::ExistingDirectory);
+    cmd->add_option("--variant", o->variant,
+                    "shot: only the variants whose name contains this text");
     cmd->add_option("--out-dir", o->outDir,
                     "trade: folder for its CSVs, frames and plots (default bench-trade)");
     auto quiet = std::make_shared<bool>(false);

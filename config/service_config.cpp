@@ -649,15 +649,17 @@ Status ConfigReader::stringKey(const toml::table& t, std::string_view section, s
 }
 
 Status ConfigReader::parseRender(const toml::table& t, RenderConfig& c) const {
-    if (Status st =
-            r_.checkKeys(t, "render",
-                         {"width", "height", "samples_per_frame", "max_depth", "seed", "photons",
-                          "preview_photons", "photon_radius_m", "photon_alpha", "photon_neighbours",
-                          "photon_splat", "resolution_scale", "preview_fps", "denoise",
-                          "denoise_levels", "preview_accumulate", "preview_history_frames",
-                          "preview_object_samples", "preview_sample_clamp"});
+    // Past 20 keys clang-format would put one a line.
+    // clang-format off
+    if (Status st = r_.checkKeys(t, "render",
+            {"width", "height", "samples_per_frame", "max_depth", "preview_max_depth", "seed",
+             "photons", "preview_photons", "photon_radius_m", "photon_alpha", "photon_neighbours",
+             "photon_splat", "resolution_scale", "preview_fps", "denoise", "denoise_levels",
+             "preview_accumulate", "preview_history_frames", "preview_object_samples",
+             "preview_sample_clamp", "preview_hold_depth"});
         !st)
         return st;
+    // clang-format on
     if (Status st = r_.integerIn(t, "render", "width", c.width, 0, 16384); !st) return st;
     if (Status st = r_.integerIn(t, "render", "height", c.height, 0, 16384); !st) return st;
     if ((c.width == 0) != (c.height == 0))
@@ -668,6 +670,8 @@ Status ConfigReader::parseRender(const toml::table& t, RenderConfig& c) const {
         !st)
         return st;
     if (Status st = r_.integerIn(t, "render", "max_depth", c.maxDepth, 1, 1024); !st) return st;
+    if (Status st = r_.integerIn(t, "render", "preview_max_depth", c.previewMaxDepth, 0, 1024); !st)
+        return st;
     if (Status st = r_.integerIn(t, "render", "seed", c.seed, 0, 0xffffffffLL); !st) return st;
     // photons: "auto" | "on" | "off" | a count per iteration (a TOML integer or string).
     if (const toml::node* node = t.get("photons")) {
@@ -721,6 +725,9 @@ Status ConfigReader::parseRender(const toml::table& t, RenderConfig& c) const {
             r_.numberIn(t, "render", "preview_sample_clamp", c.previewSampleClamp, 0.0, 1e6);
         !st)
         return st;
+    Result<std::optional<bool>> holdDepth = r_.boolean(t, "render", "preview_hold_depth");
+    if (!holdDepth) return holdDepth.error();
+    c.previewHoldDepth = holdDepth->value_or(c.previewHoldDepth);
     return {};
 }
 

@@ -156,6 +156,8 @@ struct RenderConfig {
     uint32_t height = 0;           // 0 = the scene camera's height
     uint32_t samplesPerFrame = 1;  // preview: samples per pixel of each live frame
     uint32_t maxDepth = 8;
+    // Preview's depth without the dial (the dial chooses its own, ≤ max_depth); 0 = max_depth.
+    uint32_t previewMaxDepth = 0;
     uint32_t seed = 0;  // preview's fixed random sequence
     // Preview traces this fraction of the width and height and upsamples it guided by the plate
     // (RenderSettings::resolutionScale); refinement always traces every pixel. (0, 1].
@@ -189,6 +191,10 @@ struct RenderConfig {
     // Preview's estimate scales a sample brighter than this (luminance) down to it
     // (RenderSettings::previewSampleClamp); 0: off.
     double previewSampleClamp = 4.0;
+    // While the camera holds still (the held view: render/held_view.h), preview frames trace
+    // refinement's depth (max_depth), so a held preview converges toward refinement's picture,
+    // not the dial's shallower one; false: preview's depth throughout.
+    bool previewHoldDepth = true;
     // Caustics (render/photon_map.h): mode and photons per iteration, first radius, alpha.
     PhotonSettings photons;
 

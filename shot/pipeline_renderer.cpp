@@ -140,6 +140,7 @@ Result<std::unique_ptr<PipelineRenderer>> PipelineRenderer::create(
     // Guides are written only when the denoiser may run: to filter, or to reproject preview's
     // accumulation.
     p->accumulate_ = config.render.previewAccumulate;
+    p->holdDepth_ = config.render.previewHoldDepth;
     settings.denoise = config.render.denoise != "off" || p->accumulate_;
     settings.denoiseSettings.iterations = config.render.denoiseLevels;
     if (p->accumulate_) {
@@ -185,7 +186,10 @@ Result<std::unique_ptr<PipelineRenderer>> PipelineRenderer::create(
     if (!renderer) return makeError("{}: {}", config.scenePath, renderer.message());
     p->renderer_ = std::move(*renderer);
     if (hooks.interrupt) p->renderer_->setInterrupt(hooks.interrupt);
-    preview.maxDepth = p->refineDepth_ = config.render.maxDepth;
+    p->refineDepth_ = config.render.maxDepth;
+    preview.maxDepth = config.render.previewMaxDepth > 0
+                           ? std::min(config.render.previewMaxDepth, config.render.maxDepth)
+                           : config.render.maxDepth;
     p->seed_ = config.render.seed;
     p->denoise_ = config.render.denoise;
     p->denoiseLevels_ = config.render.denoiseLevels;
@@ -312,6 +316,7 @@ Status PipelineRenderer::setPreview(const PreviewSettings& configured, uint32_t 
 
 std::optional<std::string> PipelineRenderer::adaptDial(double liveFrameSeconds) {
     if (dial_.empty() || !(dialFps_ > 0.0) || !(liveFrameSeconds > 0.0)) return std::nullopt;
+    if (heldAtRefineDepth_) return std::nullopt;
     const DialMeasurement& current = dial_[dialInUse_];
     const double slowdown = liveFrameSeconds / current.frameSeconds;
     const std::optional<size_t> fits = chooseForFrameRate(dial_, dialFps_, slowdown);
@@ -538,11 +543,16 @@ Status PipelineRenderer::renderPreview(const TrackedFrame& frame,
     // Nothing happens unless the traced size changes (entering preview from refinement).
     const PreviewSettings preview = this->preview().inUse;
     if (Status s = renderer_->setResolutionScale(preview.resolutionScale); !s) return s;
-    renderer_->setMaxDepth(preview.maxDepth);
+    const bool holds = accumulate_ && cameraHolds(frame);
+    // A held camera's frames trace refinement's depth ([render] preview_hold_depth): the held
+    // view then converges toward refinement's picture, not the dial's shallower one, whose
+    // bias no number of frames averages away.
+    heldAtRefineDepth_ = holds && holdDepth_;
+    renderer_->setMaxDepth(heldAtRefineDepth_ ? refineDepth_ : preview.maxDepth);
     refining_ = false;
     // Preview denoises with temporal reprojection: the history follows the tracked camera.
     renderer_->film().setTemporalDenoise(true);
-    if (Status s = renderer_->holdView(accumulate_ && cameraHolds(frame)); !s) return s;
+    if (Status s = renderer_->holdView(holds); !s) return s;
     if (refined)
         if (Status s = renderer_->seedHeldView(*refined); !s) return s;
     return renderer_->renderPreviewFrame(preview.samplesPerFrame,

@@ -209,6 +209,10 @@ private:
     // [render] preview_accumulate: preview frame k draws sequence k (Renderer::
     // renderPreviewFrame) and is averaged through the denoiser's reprojection.
     bool accumulate_ = false;
+    // [render] preview_hold_depth: a held camera traces refinement's depth; the last preview
+    // frame did (its time says nothing of the dial's point: adaptDial skips it).
+    bool holdDepth_ = true;
+    bool heldAtRefineDepth_ = false;
     uint64_t previewFrame_ = 0;
     double lightingThreshold_ = 0.0;  // [refine] lighting_threshold: a change that resets it
     std::shared_ptr<const LiveLighting> historyLighting_;  // the snapshot the history began with

@@ -353,6 +353,9 @@ position_m = [1, 0, 0]
         {"render_denoise_levels_zero",
          minimal("", "[render]\ndenoise_levels = 0"),
          {"'render.denoise_levels' is 0"}},
+        {"render_hold_depth_not_a_boolean",
+         minimal("", "[render]\npreview_hold_depth = 1"),
+         {"preview_hold_depth"}},
         {"refine_negative",
          minimal("", "[refine]\npose_threshold_m = -1"),
          {"'refine.pose_threshold_m' is -1"}},
@@ -489,6 +492,8 @@ width = 320
 height = 180
 samples_per_frame = 2
 max_depth = 5
+preview_max_depth = 2
+preview_hold_depth = false
 photons = 20000
 preview_photons = 4096
 photon_radius_m = 0.004
@@ -523,6 +528,8 @@ loop = false
     EXPECT_EQ(c->render.width, 320u);
     EXPECT_EQ(c->render.samplesPerFrame, 2u);
     EXPECT_EQ(c->render.maxDepth, 5u);
+    EXPECT_EQ(c->render.previewMaxDepth, 2u);
+    EXPECT_FALSE(c->render.previewHoldDepth);
     EXPECT_EQ(c->render.photons.mode, PhotonMode::On);
     EXPECT_EQ(c->render.photons.perIteration, 20000u);
     EXPECT_EQ(c->render.photons.previewPerIteration, 4096u);
