@@ -305,9 +305,9 @@ PreviewState PipelineRenderer::preview() const {
 Status PipelineRenderer::setPreview(const PreviewSettings& configured, uint32_t samplesInUse) {
     PreviewState next{configured, configured};
     next.inUse.samplesPerFrame = std::max(1u, std::min(samplesInUse, configured.samplesPerFrame));
-    // Photons are the device's: uploaded only when the budget changes (the dial's choice).
-    const PreviewState before = preview();
-    if (configured.photons > 0 && configured.photons != before.configured.photons)
+    // Set every time (it only writes the renderer's setting): the dial's timing leaves the
+    // renderer at the budget it timed last, whatever the configured one was.
+    if (configured.photons > 0)
         if (Status s = renderer_->setPreviewPhotons(configured.photons); !s) return s;
     std::lock_guard lock(previewMutex_);
     preview_ = next;
@@ -316,7 +316,6 @@ Status PipelineRenderer::setPreview(const PreviewSettings& configured, uint32_t 
 
 std::optional<std::string> PipelineRenderer::adaptDial(double liveFrameSeconds) {
     if (dial_.empty() || !(dialFps_ > 0.0) || !(liveFrameSeconds > 0.0)) return std::nullopt;
-    if (heldAtRefineDepth_) return std::nullopt;
     const DialMeasurement& current = dial_[dialInUse_];
     const double slowdown = liveFrameSeconds / current.frameSeconds;
     const std::optional<size_t> fits = chooseForFrameRate(dial_, dialFps_, slowdown);

@@ -126,6 +126,7 @@ public:
     // when the choice changed.
     std::optional<std::string> adaptDial(double liveFrameSeconds) override;
     bool hasDial() const override { return !dial_.empty(); }
+    bool lastPreviewOffDial() const override { return heldAtRefineDepth_; }
     static constexpr double kDialUpgradeMargin = 0.85;
     // The fisheye is configured but no snapshot of it has arrived: the virtual objects are lit
     // meanwhile by the box's saved lighting (LiveLighting::restored) or, without one, by a
@@ -210,7 +211,7 @@ private:
     // renderPreviewFrame) and is averaged through the denoiser's reprojection.
     bool accumulate_ = false;
     // [render] preview_hold_depth: a held camera traces refinement's depth; the last preview
-    // frame did (its time says nothing of the dial's point: adaptDial skips it).
+    // frame did (lastPreviewOffDial).
     bool holdDepth_ = true;
     bool heldAtRefineDepth_ = false;
     uint64_t previewFrame_ = 0;

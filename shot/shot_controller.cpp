@@ -207,12 +207,14 @@ Status ShotController::capPreviewSamples() {
 }
 
 void ShotController::previewShown(double frameSeconds) {
+    // The first shown frame's render time went in already (preview() could not know yet).
+    if (!timesShownFrames_ && !liveFrameSeconds_.empty()) liveFrameSeconds_.pop_back();
     timesShownFrames_ = true;
     correctDial(frameSeconds);
 }
 
 void ShotController::correctDial(double frameSeconds) {
-    if (!renderer_.hasDial() || !(frameSeconds > 0.0)) return;
+    if (!renderer_.hasDial() || !(frameSeconds > 0.0) || renderer_.lastPreviewOffDial()) return;
     liveFrameSeconds_.push_back(frameSeconds);
     if (liveFrameSeconds_.size() < kDialWindowFrames) return;
     std::nth_element(liveFrameSeconds_.begin(),

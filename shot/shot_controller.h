@@ -91,6 +91,9 @@ public:
     // median live frame time; the new setting's description when it changed.
     virtual bool hasDial() const = 0;
     virtual std::optional<std::string> adaptDial(double liveFrameSeconds) = 0;
+    // The last preview frame was traced off the dial's point (a held camera at refinement's
+    // depth, [render] preview_hold_depth): its time says nothing of the point.
+    virtual bool lastPreviewOffDial() const = 0;
     // The plate-consistency meter (render/plate_consistency.h) on the last frame rendered: none
     // when it cannot say (nothing rendered, lighting pending, too few real surfaces in view).
     virtual Result<std::optional<PlateConsistency>> measurePlateConsistency() = 0;

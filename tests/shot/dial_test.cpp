@@ -141,20 +141,6 @@ TEST(Dial, LiveFramesSlowerThanMeasuredMovePreviewToACheaperPoint) {
     EXPECT_EQ(*r.dialChoice(), best);
     EXPECT_EQ(r.previewSamples(), m[best].point.samplesPerFrame);
     EXPECT_FALSE(r.adaptDial(m[best].frameSeconds));
-    // A held camera's frames trace refinement's depth ([render] preview_hold_depth), not the
-    // dial's point: however slow, they do not move it.
-    auto still = std::make_shared<Frame>();
-    still->width = r.width();
-    still->height = r.height();
-    still->rgb.assign(size_t(still->width) * still->height * 3, 118);
-    TrackedFrame held;
-    held.frame = still;
-    held.worldFromCamera = cv::Matx44d::eye();
-    held.lost = false;
-    ASSERT_TRUE(r.renderPreview(held, nullptr));
-    ASSERT_TRUE(r.renderPreview(held, nullptr));
-    EXPECT_FALSE(r.adaptDial(m[best].frameSeconds * 1e6));
-    EXPECT_EQ(*r.dialChoice(), best);
 }
 
 // [render] denoise = "auto": the dial sweeps the denoiser's strength too, preview frames are

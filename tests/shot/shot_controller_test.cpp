@@ -55,6 +55,7 @@ public:
         return {};
     }
     bool hasDial() const override { return dial; }
+    bool lastPreviewOffDial() const override { return offDial; }
     std::optional<std::string> adaptDial(double liveFrameSeconds) override {
         dialCorrections.push_back(liveFrameSeconds);
         return std::nullopt;
@@ -78,6 +79,7 @@ public:
     }
 
     bool dial = false;
+    bool offDial = false;
     std::vector<uint32_t> previews, steps;
     std::vector<uint64_t> frozenOn;
     std::vector<double> dialCorrections;
@@ -253,11 +255,27 @@ TEST(ShotController, TheDialIsCorrectedOnTheWholeTimeOfTheFramesShown) {
     Fixture f(20.0);
     f.renderer.dial = true;
     for (uint64_t i = 0; i < ShotController::kDialWindowFrames; ++i) {
+        EXPECT_TRUE(f.renderer.dialCorrections.empty()) << "each frame counts once";
         ASSERT_TRUE(f.shot.step(frame(i), nullptr));
         f.shot.previewShown(0.050);  // 20 ms of render, 30 more to the monitor
     }
     ASSERT_EQ(f.renderer.dialCorrections.size(), 1u);
     EXPECT_NEAR(f.renderer.dialCorrections[0], 0.050, 1e-9);
+}
+
+// A held camera's frames trace refinement's depth, off the dial's point ([render]
+// preview_hold_depth): however slow, they never enter the dial's window, so a window is all
+// moving frames.
+TEST(ShotController, FramesOffTheDialsPointDoNotReTimeIt) {
+    Fixture f(20.0);
+    f.renderer.dial = true;
+    for (uint64_t i = 0; i < 3 * ShotController::kDialWindowFrames; ++i) {
+        f.renderer.offDial = i % 3 != 0;  // two frames of three held
+        f.renderer.ms_ = f.renderer.offDial ? 500.0 : 20.0;
+        ASSERT_TRUE(f.shot.step(frame(i), nullptr));
+    }
+    ASSERT_EQ(f.renderer.dialCorrections.size(), 1u);
+    EXPECT_NEAR(f.renderer.dialCorrections[0], 0.020, 1e-9);
 }
 
 // The plate-consistency meter reads with a trusted pose only, once per view and lighting (a new
