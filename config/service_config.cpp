@@ -174,7 +174,7 @@ Status ConfigReader::parseCameraColour(const toml::table& camera, const std::str
         return fail(at ? at : &t, "{}", transform.message());
     }
     c.radiometry.colour = std::move(*transform);
-    c.radiometryGiven = true;
+    c.colourGiven = true;
     return {};
 }
 
@@ -196,6 +196,7 @@ Status ConfigReader::parseOutputColour(const toml::table& output, OutputConfig& 
                                        c.colourView);
     if (!transform) return fail(&t, "{}", transform.message());
     c.colour = std::move(*transform);
+    c.colourGiven = true;
     return {};
 }
 
@@ -1058,10 +1059,11 @@ StartupConfig comparedAtReload(const ServiceConfig& config) {
 
 // [cameras.<name>.colour] as given.
 auto cameraColour(const CameraConfig& c) {
-    return std::tie(c.colourConfigPath, c.colourInput, c.colourRange);
+    return std::tie(c.colourGiven, c.colourConfigPath, c.colourInput, c.colourRange);
 }
 
 CameraConfig withoutColour(CameraConfig c) {
+    c.colourGiven = false;
     c.colourConfigPath.clear();
     c.colourInput.clear();
     c.colourRange = CodeRange::Full;
@@ -1073,10 +1075,11 @@ std::optional<CameraConfig> withoutColour(const std::optional<CameraConfig>& c) 
 }
 
 auto outputColour(const OutputConfig& o) {
-    return std::tie(o.colourConfigPath, o.colourDisplay, o.colourView);
+    return std::tie(o.colourGiven, o.colourConfigPath, o.colourDisplay, o.colourView);
 }
 
 OutputConfig withoutColour(OutputConfig o) {
+    o.colourGiven = false;
     o.colourConfigPath.clear();
     o.colourDisplay.clear();
     o.colourView.clear();

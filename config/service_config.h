@@ -74,15 +74,18 @@ struct CameraConfig {
     // [cameras.<name>.colour] sets radiometry.colour: the camera's encoding through OpenColorIO
     // in place of the tone curve (built when the config is read, so a bad name fails --check).
     InverseToneMapSettings radiometry;
-    // [cameras.<name>.colour] ocio_config ("" = the built-in transforms) and input, as given.
+    // [cameras.<name>.colour] as given: whether it is there, its ocio_config ("" = the built-in
+    // transforms), input and range (how the 8-bit codes span the signal: colour/ocio_colour.h).
+    bool colourGiven = false;
     std::string colourConfigPath;
     std::string colourInput;
-    // [cameras.<name>.colour] range: how the 8-bit codes span the signal (colour/ocio_colour.h).
     CodeRange colourRange = CodeRange::Full;
-    // Whether the config gave [cameras.<name>.radiometry] or [cameras.<name>.colour]; without
-    // either `radiometry` holds the sRGB defaults, a guess the tag-edge refit does not build on
-    // (vision/tag_edges.h).
+    // Whether the config gave [cameras.<name>.radiometry].
     bool radiometryGiven = false;
+    // Whether the config says how the camera encodes light ([cameras.<name>.radiometry] or
+    // [cameras.<name>.colour]); without either `radiometry` holds the sRGB defaults, a guess the
+    // tag-edge refit does not build on (vision/tag_edges.h).
+    bool encodingGiven() const { return radiometryGiven || colourGiven; }
     // [cameras.fisheye.bracket]: the exposures the camera cycles through, each complete bracket
     // merged to radiance (vision/hdr_bracket.h); none: every frame is lit on its own.
     std::optional<BracketSettings> bracket;
@@ -237,7 +240,9 @@ struct OutputConfig {
     // output (KMS, files, the monitor page) in place of the camera's tone curve. Null: the tone
     // curve (today's default); nothing of OCIO is built.
     std::shared_ptr<const DisplayColourTransform> colour;
-    std::string colourConfigPath, colourDisplay, colourView;  // as given
+    // [output.colour] as given: whether it is there, its ocio_config, display and view.
+    bool colourGiven = false;
+    std::string colourConfigPath, colourDisplay, colourView;
 
     bool operator==(const OutputConfig&) const = default;
 };

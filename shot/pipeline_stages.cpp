@@ -53,7 +53,7 @@ Result<TrackingStage> TrackingStage::create(const ServiceConfig& config,
     TrackerSettings settings = config.tracking.tracker;
     // One radiometric model per camera: the curve the plate is linearised with is the one the
     // tag edges are; a camera without one keeps libapriltag's corners (vision/tag_edges.h).
-    if (config.sceneCamera.radiometryGiven)
+    if (config.sceneCamera.encodingGiven())
         settings.linearFromCode = linearFromCodeTable(config.sceneCamera.radiometry);
     else if (settings.linearEdges && !config.tracking.freedSource)
         logInfo(

@@ -440,7 +440,7 @@ TEST(ServiceConfig, CameraAndDisplayColourBuildOcioOnlyWhenConfigured) {
                                          "[output.colour]\ndisplay = \"Rec.1886 Rec.709\"")));
     ASSERT_TRUE(c) << c.message();
     ASSERT_TRUE(c->sceneCamera.radiometry.colour);
-    EXPECT_TRUE(c->sceneCamera.radiometryGiven) << "the curve is known: the edge refit uses it";
+    EXPECT_TRUE(c->sceneCamera.encodingGiven()) << "the curve is known: the edge refit uses it";
     EXPECT_EQ(c->sceneCamera.colourInput, "ARRI LogC3 (EI800)");
     EXPECT_EQ(c->sceneCamera.radiometry.exposureStops, 1.0f);
     ASSERT_TRUE(c->output.colour);
@@ -464,6 +464,8 @@ TEST(ServiceConfig, CameraColourSummaryNamesEachCamerasInput) {
     ASSERT_TRUE(c) << c.message();
     EXPECT_EQ(cameraColourSummary(*c),
               "scene camera 'Sony S-Log3 S-Gamut3' from OCIO's built-in transforms");
+    EXPECT_TRUE(c->sceneCamera.encodingGiven()) << "[colour] alone: the edge refit uses it";
+    EXPECT_FALSE(plain->sceneCamera.encodingGiven());
 }
 
 // [cameras.<name>.colour] range = "legal": video levels undone before the input transform.
@@ -731,6 +733,31 @@ TEST(ServiceConfig, AReloadNamesWhatNeedsARestart) {
     fresh.tracking.detector.decodeSharpening = 0.5;
     fresh.lighting.updateHz = 1.0;
     EXPECT_EQ(restartNeeded(*running, fresh), (Names{"tracking", "lighting"}));
+}
+
+// A colour section added or removed is named as its colour alone: the camera's other settings
+// did not change, though [colour] makes its encoding known as [radiometry] does; and an
+// [output.colour] of the defaults alone is still a colour section.
+TEST(ServiceConfig, AReloadNamesAColourSectionAddedOrRemovedAsItsColourAlone) {
+    const std::string colour = "[cameras.scene.colour]\ninput = \"ARRI LogC3 (EI800)\"\n";
+    const std::string fisheye = liveFisheye("");
+    const std::string fisheyeColour = "[cameras.fisheye.colour]\ninput = \"ARRI LogC3 (EI800)\"\n";
+    using Names = std::vector<std::string>;
+    auto namesFor = [](const std::string& running, const std::string& fresh) {
+        // The file edited in place, as a reload reads it.
+        Result<ServiceConfig> a = loadServiceConfig(writeFile("colour.toml", running));
+        Result<ServiceConfig> b = loadServiceConfig(writeFile("colour.toml", fresh));
+        EXPECT_TRUE(a && b) << (a ? b.message() : a.message());
+        return a && b ? restartNeeded(*a, *b) : Names{"unread"};
+    };
+    EXPECT_EQ(namesFor(minimal(), minimal(colour)), Names{"cameras.scene.colour"});
+    EXPECT_EQ(namesFor(minimal(colour), minimal()), Names{"cameras.scene.colour"});
+    EXPECT_EQ(namesFor(minimal(fisheye), minimal(fisheye + fisheyeColour)),
+              Names{"cameras.fisheye.colour"});
+    EXPECT_EQ(namesFor(minimal(fisheye + fisheyeColour), minimal(fisheye)),
+              Names{"cameras.fisheye.colour"});
+    EXPECT_EQ(namesFor(minimal(), minimal("", "[output.colour]\n")), Names{"output.colour"});
+    EXPECT_EQ(namesFor(minimal("", "[output.colour]\n"), minimal()), Names{"output.colour"});
 }
 
 }  // namespace
