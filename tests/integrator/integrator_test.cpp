@@ -484,47 +484,22 @@ RenderSettings convergenceSettings(Sampler sampler) {
     return rs;
 }
 
-// With independent samples the error against a high-sample reference falls as 1/√spp: log-log
-// slope −0.5 ± 0.05. A bias would flatten the slope as the noise falls below it.
-TEST_F(IntegratorTest, ErrorFallsAsInverseSquareRootOfSamples) {
-    Scene s = convergenceScene();
-    RenderSettings rs = convergenceSettings(Sampler::Independent);
-    auto renderer = Renderer::create(ctx(), s, rs);
-    ASSERT_TRUE(renderer.ok()) << renderer.message();
-    Renderer& r = **renderer;
-    auto renderWithSeed = [&](uint32_t seed, uint32_t spp) {
-        EXPECT_TRUE(r.reset().ok());
-        r.setSeed(seed);
-        EXPECT_TRUE(r.render(spp).ok());
-        return r.image().value();
-    };
-    // Reference noise adds σ²/16384 to each MSE: 1.6% at 256 spp, a slope change below 0.005.
-    ImageF reference = renderWithSeed(999, 16384);
-    std::vector<double> logN, logErr;
-    for (uint32_t spp : {4u, 16u, 64u, 256u}) {
-        double mse = 0.0;
-        const int runs = 4;
-        for (int run = 0; run < runs; ++run) {
-            ImageF img = renderWithSeed(uint32_t(run + 1), spp);
-            for (size_t i = 0; i < img.pixels.size(); ++i) {
-                double d = img.pixels[i] - reference.pixels[i];
-                mse += d * d;
-            }
-        }
-        mse /= runs * double(reference.pixels.size());
-        logN.push_back(std::log(double(spp)));
-        logErr.push_back(0.5 * std::log(mse));
+// The renderer's image after `spp` samples of a fresh accumulation with `seed`.
+ImageF renderWithSeed(Renderer& r, uint32_t seed, uint32_t spp) {
+    EXPECT_TRUE(r.reset().ok());
+    r.setSeed(seed);
+    EXPECT_TRUE(r.render(spp).ok());
+    return r.image().value();
+}
+
+// The squared differences of every channel of every pixel, summed.
+double sumSquaredError(const ImageF& img, const ImageF& reference) {
+    double sum = 0.0;
+    for (size_t i = 0; i < img.pixels.size(); ++i) {
+        double d = img.pixels[i] - reference.pixels[i];
+        sum += d * d;
     }
-    double mx = std::accumulate(logN.begin(), logN.end(), 0.0) / logN.size();
-    double my = std::accumulate(logErr.begin(), logErr.end(), 0.0) / logErr.size();
-    double sxy = 0.0, sxx = 0.0;
-    for (size_t i = 0; i < logN.size(); ++i) {
-        sxy += (logN[i] - mx) * (logErr[i] - my);
-        sxx += (logN[i] - mx) * (logN[i] - mx);
-    }
-    double slope = sxy / sxx;
-    RecordProperty("slope", std::to_string(slope));
-    EXPECT_NEAR(slope, -0.5, 0.05);
+    return sum;
 }
 
 // Least-squares slope of y against x.
@@ -539,6 +514,31 @@ double slopeOf(const std::vector<double>& x, const std::vector<double>& y) {
     return sxy / sxx;
 }
 
+// With independent samples the error against a high-sample reference falls as 1/√spp: log-log
+// slope −0.5 ± 0.05. A bias would flatten the slope as the noise falls below it.
+TEST_F(IntegratorTest, ErrorFallsAsInverseSquareRootOfSamples) {
+    Scene s = convergenceScene();
+    RenderSettings rs = convergenceSettings(Sampler::Independent);
+    auto renderer = Renderer::create(ctx(), s, rs);
+    ASSERT_TRUE(renderer.ok()) << renderer.message();
+    Renderer& r = **renderer;
+    // Reference noise adds σ²/16384 to each MSE: 1.6% at 256 spp, a slope change below 0.005.
+    ImageF reference = renderWithSeed(r, 999, 16384);
+    std::vector<double> logN, logErr;
+    for (uint32_t spp : {4u, 16u, 64u, 256u}) {
+        double mse = 0.0;
+        const int runs = 4;
+        for (int run = 0; run < runs; ++run)
+            mse += sumSquaredError(renderWithSeed(r, uint32_t(run + 1), spp), reference);
+        mse /= runs * double(reference.pixels.size());
+        logN.push_back(std::log(double(spp)));
+        logErr.push_back(0.5 * std::log(mse));
+    }
+    double slope = slopeOf(logN, logErr);
+    RecordProperty("slope", std::to_string(slope));
+    EXPECT_NEAR(slope, -0.5, 0.05);
+}
+
 // With Sobol' samples the error falls at least as fast as 1/√spp (stratification can only make
 // it faster: about spp^−0.75 where the integrand is smooth in the stratified dimensions). Each
 // of 8 seeds gives one log-log slope over 4-256 spp; their mean must not exceed −0.5 by more
@@ -549,28 +549,18 @@ TEST_F(IntegratorTest, SobolErrorFallsAtLeastAsFastAsInverseSquareRoot) {
     auto renderer = Renderer::create(ctx(), s, convergenceSettings(Sampler::Sobol));
     ASSERT_TRUE(renderer.ok()) << renderer.message();
     Renderer& r = **renderer;
-    auto renderWithSeed = [&](uint32_t seed, uint32_t spp) {
-        EXPECT_TRUE(r.reset().ok());
-        r.setSeed(seed);
-        EXPECT_TRUE(r.render(spp).ok());
-        return r.image().value();
-    };
     // Sobol's reference error at 16384 spp is below the independent one's, which the test
     // above bounds at a slope change below 0.005.
-    ImageF reference = renderWithSeed(999, 16384);
+    ImageF reference = renderWithSeed(r, 999, 16384);
     const int runs = 8;
     std::vector<double> slopes;
     for (int run = 0; run < runs; ++run) {
         std::vector<double> logN, logErr;
         for (uint32_t spp : {4u, 16u, 64u, 256u}) {
-            ImageF img = renderWithSeed(uint32_t(run + 1), spp);
-            double mse = 0.0;
-            for (size_t i = 0; i < img.pixels.size(); ++i) {
-                double d = img.pixels[i] - reference.pixels[i];
-                mse += d * d;
-            }
+            ImageF img = renderWithSeed(r, uint32_t(run + 1), spp);
+            double mse = sumSquaredError(img, reference) / double(img.pixels.size());
             logN.push_back(std::log(double(spp)));
-            logErr.push_back(0.5 * std::log(mse / double(img.pixels.size())));
+            logErr.push_back(0.5 * std::log(mse));
         }
         slopes.push_back(slopeOf(logN, logErr));
     }
