@@ -73,15 +73,6 @@ Result<Measurement> measure(GpuContext& ctx, const Scene& scene, RenderSettings 
 
 std::string millions(double v) { return fmt::format("{:.2f} M", v * 1e-6); }
 
-// The sections' settings: a size and a path depth, the renderer's defaults for the rest.
-RenderSettings benchSettings(uint32_t width, uint32_t height, uint32_t maxDepth) {
-    RenderSettings rs;
-    rs.width = width;
-    rs.height = height;
-    rs.maxDepth = maxDepth;
-    return rs;
-}
-
 }  // namespace
 
 int runBenchmarks(const BenchOptions& o) {
@@ -169,7 +160,7 @@ int runBenchmarks(const BenchOptions& o) {
         std::pair<const char*, const Scene*> list[] = {{"bunny on a plane", &bunny.value()},
                                                        {"dragon ×4 subdivided", &bigDragon}};
         for (auto [name, scene] : list) {
-            RenderSettings rs = benchSettings(640, 480, 8);
+            RenderSettings rs = renderSettings(640, 480, 8);
             benchProgress("throughput {}", name);
             auto m = measure(**ctx, *scene, rs, spp, reps);
             if (!m) return fail(m.error());
@@ -193,7 +184,7 @@ int runBenchmarks(const BenchOptions& o) {
             scene.geometry.triangles.size());
         for (auto [w, h] :
              {std::pair{320u, 240u}, {640u, 480u}, {800u, 600u}, {1280u, 720u}, {1920u, 1080u}}) {
-            RenderSettings rs = benchSettings(w, h, 4);
+            RenderSettings rs = renderSettings(w, h, 4);
             benchProgress("resolution {}x{}", w, h);
             auto m = measure(**ctx, scene, rs, 1, reps);
             if (!m) return fail(m.error());
@@ -217,7 +208,7 @@ int runBenchmarks(const BenchOptions& o) {
             auto mesh = loadMesh(subdivided ? "dragon_vrip_res2.ply" : name);
             if (!mesh) return fail(mesh.error());
             Scene scene = meshOnPlaneScene(subdivided ? subdivide(*mesh) : *mesh, env, 0.3f);
-            RenderSettings rs = benchSettings(640, 480, 4);
+            RenderSettings rs = renderSettings(640, 480, 4);
             benchProgress("triangles {}", name);
             auto m = measure(**ctx, scene, rs, spp, reps);
             if (!m) return fail(m.error());
@@ -239,7 +230,7 @@ int runBenchmarks(const BenchOptions& o) {
             spp);
         double times[2] = {};
         for (int general = 0; general < 2; ++general) {
-            RenderSettings rs = benchSettings(640, 480, 8);
+            RenderSettings rs = renderSettings(640, 480, 8);
             benchProgress("{} pipeline", general ? "general" : "specialised");
             auto m = measure(**ctx, *bunny, rs, spp, reps, {.generalPipeline = general == 1});
             if (!m) return fail(m.error());
@@ -272,7 +263,7 @@ int runBenchmarks(const BenchOptions& o) {
         for (auto [name, scene] : list) {
             double t[2] = {}, rays[2] = {};
             for (int differential = 0; differential < 2; ++differential) {
-                RenderSettings rs = benchSettings(640, 480, 8);
+                RenderSettings rs = renderSettings(640, 480, 8);
                 rs.differential = differential == 1;
                 benchProgress("{} {}", name, differential ? "differential" : "plain");
                 auto m = measure(**ctx, *scene, rs, spp, reps);

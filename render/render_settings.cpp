@@ -25,4 +25,12 @@ Status applyPhotonSpec(const std::string& spec, PhotonSettings& settings) {
     return {};
 }
 
+RenderSettings renderSettings(uint32_t width, uint32_t height, uint32_t maxDepth) {
+    RenderSettings rs;
+    rs.width = width;
+    rs.height = height;
+    rs.maxDepth = maxDepth;
+    return rs;
+}
+
 }  // namespace previs

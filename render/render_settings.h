@@ -167,6 +167,10 @@ struct RenderSettings {
     DenoiseSettings denoiseSettings;
 };
 
+// A width × height render traced to maxDepth bounces, the rest of RenderSettings as it comes:
+// where the tests and the benchmarks start from.
+RenderSettings renderSettings(uint32_t width, uint32_t height, uint32_t maxDepth);
+
 // The buffers a render produces (DESIGN.md §3 --aov).
 enum class Aov {
     Composite,  // Eq. 1 with the plate; without a plate the mixed scene

@@ -34,9 +34,7 @@ PunctualLight pointLight(glm::vec3 position, float candela, bool real) {
 }
 
 RenderSettings photonSettings(uint32_t width, uint32_t height, PhotonMode mode) {
-    RenderSettings rs;
-    rs.width = width;
-    rs.height = height;
+    RenderSettings rs = renderSettings(width, height, RenderSettings{}.maxDepth);
     rs.photons.mode = mode;
     // These tests were written at 32768 photons per iteration (the default until BENCHMARKS.md's
     // eighth caustics pass): their small images need no more, and their time stays.

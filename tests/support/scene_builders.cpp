@@ -166,12 +166,4 @@ PunctualLight realSun(glm::vec3 direction, float irradiance) {
     return sun;
 }
 
-RenderSettings renderSettings(uint32_t width, uint32_t height, uint32_t maxDepth) {
-    RenderSettings rs;
-    rs.width = width;
-    rs.height = height;
-    rs.maxDepth = maxDepth;
-    return rs;
-}
-
 }  // namespace previs::testing

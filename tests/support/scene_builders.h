@@ -46,7 +46,4 @@ Scene ballOnRealFloor(glm::vec3 sky);
 // seen from above: the real set of the differential-rendering and denoiser tests.
 Scene realTableUnderSun(bool withSky);
 
-// A width × height render traced to maxDepth bounces, the rest of RenderSettings as it comes.
-RenderSettings renderSettings(uint32_t width, uint32_t height, uint32_t maxDepth);
-
 }  // namespace previs::testing
