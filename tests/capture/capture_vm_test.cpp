@@ -20,6 +20,7 @@
 #include "capture/camera_source.h"
 #include "capture/pixel_format.h"
 #include "capture/v4l2_device.h"
+#include "tests/support/vm_test_main.h"
 #include "vision/hdr_bracket.h"
 
 namespace previs {
@@ -456,10 +457,5 @@ TEST(Vivid, UnplugAndReplugResumeWithoutRestart) {
 }  // namespace previs
 
 int main(int argc, char** argv) {
-    if (!std::getenv("VMTEST")) {
-        std::puts("test_capture_vm: not inside vmtest (VMTEST unset): skipped");
-        return 77;
-    }
-    testing::InitGoogleTest(&argc, argv);
-    return RUN_ALL_TESTS();
+    return previs::testing::runVmTests(argc, argv, "test_capture_vm");
 }

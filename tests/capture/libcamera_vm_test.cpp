@@ -20,6 +20,7 @@
 
 #include "capture/camera_source.h"
 #include "capture/libcamera_camera.h"
+#include "tests/support/vm_test_main.h"
 
 namespace previs {
 namespace {
@@ -365,10 +366,5 @@ TEST(VimcUnplug, RemovalIsReportedAndARestartedProcessReopens) {
 }  // namespace previs
 
 int main(int argc, char** argv) {
-    if (!std::getenv("VMTEST")) {
-        std::puts("test_libcamera_vm: not inside vmtest (VMTEST unset): skipped");
-        return 77;
-    }
-    testing::InitGoogleTest(&argc, argv);
-    return RUN_ALL_TESTS();
+    return previs::testing::runVmTests(argc, argv, "test_libcamera_vm");
 }

@@ -25,6 +25,7 @@
 #include "take/take_files.h"
 #include "tests/support/process.h"
 #include "tests/support/test_data.h"
+#include "tests/support/vm_test_main.h"
 
 namespace previs {
 namespace {
@@ -380,10 +381,5 @@ TEST(PrevisdInTheVm, ATakeSurvivesSigkill) {
 }  // namespace previs
 
 int main(int argc, char** argv) {
-    if (!std::getenv("VMTEST")) {
-        std::printf("previsd_vm_test: runs inside ../shared/vmtest only; skipped\n");
-        return 77;
-    }
-    ::testing::InitGoogleTest(&argc, argv);
-    return RUN_ALL_TESTS();
+    return previs::testing::runVmTests(argc, argv, "test_previsd_vm");
 }

@@ -16,6 +16,7 @@
 #include "display/drm_readback.h"
 #include "display/kms_output.h"
 #include "tests/display/pattern.h"
+#include "tests/support/vm_test_main.h"
 
 namespace previs {
 namespace {
@@ -214,10 +215,5 @@ TEST(KmsVm, UserErrorsListWhatExists) {
 }  // namespace previs
 
 int main(int argc, char** argv) {
-    if (!std::getenv("VMTEST")) {
-        std::printf("test_display_vm: not inside vmtest (VMTEST unset): skipped\n");
-        return 77;
-    }
-    ::testing::InitGoogleTest(&argc, argv);
-    return RUN_ALL_TESTS();
+    return previs::testing::runVmTests(argc, argv, "test_display_vm");
 }

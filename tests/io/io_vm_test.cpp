@@ -18,6 +18,7 @@
 #include "base/log.h"
 #include "io/gpio_button.h"
 #include "io/status_led.h"
+#include "tests/support/vm_test_main.h"
 
 namespace previs {
 
@@ -145,7 +146,7 @@ ButtonSettings modeButton() {
     return s;
 }
 
-class IoVm : public testing::Test {
+class IoVm : public ::testing::Test {
 protected:
     void SetUp() override { ASSERT_TRUE(button_.setHigh(false)); }  // idle: released
     void TearDown() override { button_.setHigh(false); }
@@ -451,12 +452,7 @@ TEST_F(IoVm, LedComesBackWithItsChip) {
 }  // namespace previs
 
 int main(int argc, char** argv) {
-    if (!std::getenv("VMTEST")) {
-        std::puts("test_io_vm: not inside vmtest (VMTEST unset): skipped");
-        return 77;
-    }
-    testing::InitGoogleTest(&argc, argv);
     // IO_TRACE=1: the button's debug log too (presses, levels read back after dropped edges).
     if (std::getenv("IO_TRACE")) previs::setLogLevel(previs::LogLevel::Debug);
-    return RUN_ALL_TESTS();
+    return previs::testing::runVmTests(argc, argv, "test_io_vm");
 }
