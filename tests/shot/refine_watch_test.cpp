@@ -11,6 +11,7 @@
 #include <random>
 
 #include "tests/support/demo_frames.h"
+#include "tests/support/refine_config.h"
 #include "tests/support/test_data.h"
 #include "vision/equirect.h"
 
@@ -30,20 +31,11 @@ TrackedFrame tracked(const cv::Matx44d& worldFromCamera, bool lost = false) {
     return f;
 }
 
-RefineConfig config() {
-    RefineConfig c;
-    c.poseThresholdM = 0.01;
-    c.poseThresholdDeg = 0.5;
-    c.lightingThreshold = 0.05;
-    c.restartAfter = 3;
-    return c;
-}
-
 TEST(RefineWatch, JitterBelowTheThresholdsNeverRestarts) {
     // 10⁴ frames of Gaussian jitter at a third of the thresholds (σ per axis for the angle,
     // of the 3-D norm for the position): the angle leaves its threshold on about 0.3 % of the
     // frames, three times in a row on about 3e-6 of them — with this fixed seed, never.
-    RefineWatch watch(config());
+    RefineWatch watch(testing::restartRuleConfig());
     watch.freeze(tracked(pose(0.0)), nullptr);
     std::mt19937 rng(7);
     std::normal_distribution<double> mm(0.0, 0.01 / 3.0 / std::sqrt(3.0)), deg(0.0, 0.5 / 3.0);
@@ -58,7 +50,7 @@ TEST(RefineWatch, JitterBelowTheThresholdsNeverRestarts) {
 }
 
 TEST(RefineWatch, OutliersShorterThanRestartAfterDoNotRestart) {
-    RefineWatch watch(config());
+    RefineWatch watch(testing::restartRuleConfig());
     watch.freeze(tracked(pose(0.0)), nullptr);
     for (int run = 1; run < 3; ++run) {
         for (int i = 0; i < run; ++i) EXPECT_FALSE(watch.observeFrame(tracked(pose(5.0, 0.2))));
@@ -70,7 +62,7 @@ TEST(RefineWatch, OutliersShorterThanRestartAfterDoNotRestart) {
 
 TEST(RefineWatch, APersistentMoveRestartsOnItsThirdFrame) {
     for (const cv::Matx44d& moved : {pose(0.0, 0.02), pose(1.0)}) {  // translation; rotation
-        RefineWatch watch(config());
+        RefineWatch watch(testing::restartRuleConfig());
         watch.freeze(tracked(pose(0.0)), nullptr);
         EXPECT_FALSE(watch.observeFrame(tracked(moved)));
         // A frame without a trusted pose (its held pose is the frozen one) is no evidence.
@@ -86,7 +78,7 @@ TEST(RefineWatch, APersistentMoveRestartsOnItsThirdFrame) {
 }
 
 TEST(RefineWatch, TheFirstPoseOrLightingRestartsAtOnce) {
-    RefineWatch watch(config());
+    RefineWatch watch(testing::restartRuleConfig());
     TrackedFrame none;
     watch.freeze(none, nullptr);
     EXPECT_FALSE(watch.observeFrame(none));
@@ -167,7 +159,7 @@ TEST(LightingDelta, SeesBothABrighterAndATurnedSky) {
 }
 
 TEST(RefineWatch, LightingRestartsOnlyOnAPersistentChange) {
-    RefineWatch watch(config());
+    RefineWatch watch(testing::restartRuleConfig());
     auto base = std::make_shared<const LiveLighting>(sky(0.2, 20.0, 40.0, 0.0));
     watch.freeze(tracked(pose(0.0)), base);
     // The same snapshot again is not a new observation.
