@@ -304,7 +304,7 @@ int runShotBench(const ShotBenchOptions& o) {
     ShotVariant fixedPoint{"shipped, fixed at 1/3, 4 spp, depth 2, 2 levels", *shipped};
     fixedPoint.config.render.previewFps = 0.0;
     fixedPoint.config.render.resolutionScale = 1.0f / 3.0f;
-    fixedPoint.config.render.samplesPerFrame = 4;
+    fixedPoint.config.liveRender.samplesPerFrame = 4;
     fixedPoint.config.render.previewMaxDepth = 2;
     fixedPoint.config.render.denoise = "on";
     fixedPoint.config.render.denoiseLevels = 2;

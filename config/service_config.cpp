@@ -66,7 +66,7 @@ private:
     Status parseTracking(const toml::table& t, TrackingConfig& c) const;
     Status parseFreedIn(const toml::table& t, TrackingConfig& c) const;
     Status parseLighting(const toml::table& t, LightingConfig& c) const;
-    Status parseRender(const toml::table& t, RenderConfig& c) const;
+    Status parseRender(const toml::table& t, RenderConfig& c, LiveRenderConfig& live) const;
     Status parseRefine(const toml::table& t, RefineConfig& c) const;
     Status parseOutput(const toml::table& t, OutputConfig& c) const;
     Status parseButton(const toml::table& t, ButtonConfig& c) const;
@@ -649,7 +649,8 @@ Status ConfigReader::stringKey(const toml::table& t, std::string_view section, s
     return {};
 }
 
-Status ConfigReader::parseRender(const toml::table& t, RenderConfig& c) const {
+Status ConfigReader::parseRender(const toml::table& t, RenderConfig& c,
+                                 LiveRenderConfig& live) const {
     // Past 20 keys clang-format would put one a line.
     // clang-format off
     if (Status st = r_.checkKeys(t, "render",
@@ -667,7 +668,7 @@ Status ConfigReader::parseRender(const toml::table& t, RenderConfig& c) const {
         return fail(&t,
                     "[render] needs both 'width' and 'height', or neither (the scene "
                     "camera's size)");
-    if (Status st = r_.integerIn(t, "render", "samples_per_frame", c.samplesPerFrame, 1, 65536);
+    if (Status st = r_.integerIn(t, "render", "samples_per_frame", live.samplesPerFrame, 1, 65536);
         !st)
         return st;
     if (Status st = r_.integerIn(t, "render", "max_depth", c.maxDepth, 1, 1024); !st) return st;
@@ -967,7 +968,8 @@ Status ConfigReader::parseOptionalSections(const toml::table& root, ServiceConfi
     ButtonConfig button;
     bool hasButton = false;
     const Optional sections[] = {
-        {"render", [&](const toml::table& t) { return parseRender(t, config.render); }},
+        {"render",
+         [&](const toml::table& t) { return parseRender(t, config.render, config.liveRender); }},
         {"refine", [&](const toml::table& t) { return parseRefine(t, config.refine); }},
         {"output", [&](const toml::table& t) { return parseOutput(t, config.output); }},
         {"button",
@@ -1045,11 +1047,9 @@ const char* toString(OutputKind kind) {
 namespace {
 
 // The startup part as a reload compares it: OpenColorIO transforms built from the file by the
-// paths and names given beside them, the control socket as resolved, and samples_per_frame (which
-// a reload applies) left out.
+// paths and names given beside them, the control socket as resolved.
 StartupConfig comparedAtReload(const ServiceConfig& config) {
     StartupConfig c = config;
-    c.render.samplesPerFrame = 0;
     c.sceneCamera.radiometry.colour = nullptr;
     if (c.fisheyeCamera) c.fisheyeCamera->radiometry.colour = nullptr;
     c.output.colour = nullptr;

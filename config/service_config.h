@@ -153,11 +153,11 @@ struct LightingConfig {
 // systemd (/var/lib/previs), else none (an empty string).
 std::string savedLightingPath(const LightingConfig& lighting);
 
-// What the render thread does per frame (issue 7: preview and refinement).
+// What the render thread does per frame (issue 7: preview and refinement), read at start; the
+// [render] key a reload applies is LiveRenderConfig's.
 struct RenderConfig {
-    uint32_t width = 0;            // 0 = the scene camera's width (the plate's resolution)
-    uint32_t height = 0;           // 0 = the scene camera's height
-    uint32_t samplesPerFrame = 1;  // preview: samples per pixel of each live frame
+    uint32_t width = 0;   // 0 = the scene camera's width (the plate's resolution)
+    uint32_t height = 0;  // 0 = the scene camera's height
     uint32_t maxDepth = 8;
     // Preview's depth without the dial (the dial chooses its own, ≤ max_depth); 0 = max_depth.
     uint32_t previewMaxDepth = 0;
@@ -298,7 +298,6 @@ struct StartupConfig {
     std::optional<CameraConfig> fisheyeCamera;
     TrackingConfig tracking;
     LightingConfig lighting;
-    // samples_per_frame is the one live key here: a reload applies it (without the dial).
     RenderConfig render;
     OutputConfig output;
     std::optional<ButtonConfig> button;
@@ -316,10 +315,19 @@ struct StartupConfig {
     bool operator==(const StartupConfig&) const = default;
 };
 
-// What a reload applies while previsd runs (Service::reload), besides [render]
-// samples_per_frame.
+// The [render] keys a reload applies at once (read from [render] with RenderConfig's).
+struct LiveRenderConfig {
+    // [render] samples_per_frame: preview's samples per pixel of each live frame; where the dial
+    // runs ([render] preview_fps), its choice in place of this.
+    uint32_t samplesPerFrame = 1;
+
+    bool operator==(const LiveRenderConfig&) const = default;
+};
+
+// What a reload applies while previsd runs (Service::reload, ShotController::setConfig).
 struct LiveConfig {
     RefineConfig refine;
+    LiveRenderConfig liveRender;
 
     bool operator==(const LiveConfig&) const = default;
 };
@@ -331,7 +339,7 @@ struct ServiceConfig : StartupConfig, LiveConfig {};
 // config's names ("scene", "cameras.scene", "cameras.scene.colour", "render (size, ...)",
 // "output.colour", "record", "timecode", ...), in a fixed order; empty when nothing does. Files
 // (calibrations, the board, OpenColorIO configs) compare by their paths, the control socket as
-// resolved; the live part (LiveConfig, samples_per_frame) is not compared.
+// resolved; the live part (LiveConfig) is not compared.
 std::vector<std::string> restartNeeded(const ServiceConfig& running, const ServiceConfig& fresh);
 
 // The rule `camera`'s timecode labels count at under this config (timecode/timecode.h): its

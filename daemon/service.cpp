@@ -182,7 +182,7 @@ Status Service::start() {
     const ServiceConfig& config = config_;
     const Error stopped = makeError("stopped while starting");
     Threads& t = *threads_;
-    t.refine = config.refine;
+    t.live = static_cast<const LiveConfig&>(config);
 
     if (!beginStartStage("loading the scene " + config.scenePath)) return stopped;
     Result<Scene> scene = loadScene(config.scenePath);
@@ -464,17 +464,17 @@ Result<std::string> Service::reload() {
     const ServiceConfig& n = *fresh;
     {
         std::lock_guard lock(threads_->settingsMutex);
-        threads_->refine = n.refine;
-        // The dial's choice stands while preview_fps is set.
-        if (n.render.previewFps <= 0.0) threads_->reloadedPreviewSamples = n.render.samplesPerFrame;
+        threads_->live = static_cast<const LiveConfig&>(n);
+        threads_->liveReloaded = true;
     }
     // What the running pipeline cannot take without a restart.
     const std::vector<std::string> restart = restartNeeded(config_, n);
+    // The running dial, if any, keeps choosing preview's samples (ShotController::setConfig).
+    const bool dialRuns = config_.render.previewFps > 0.0;
     std::string applied = fmt::format(
         "{}: applied [refine]{}{}", config_.path,
-        n.render.previewFps <= 0.0
-            ? fmt::format(" and render.samples_per_frame = {}", n.render.samplesPerFrame)
-            : std::string(" (render.preview_fps keeps the dial's samples per frame)"),
+        dialRuns ? std::string(" (render.preview_fps keeps the dial's samples per frame)")
+                 : fmt::format(" and render.samples_per_frame = {}", n.liveRender.samplesPerFrame),
         restart.empty()
             ? std::string()
             : fmt::format("; these need a restart to apply: {}", fmt::join(restart, ", ")));

@@ -237,7 +237,7 @@ void Service::Threads::runRender(ModeMachine& modes) {
     nameThread("pv-render");
     PipelineRenderer& r = *renderer;
     const SteadyShotClock clock;
-    ShotController shot(r, modes, clock, refine);
+    ShotController shot(r, modes, clock, live.refine);
     Clock::time_point lastPublished = Clock::now();
     while (!stopping.load()) {
         // One step a pass: its waits are bounded (kRenderPoll); a compile extends it
@@ -245,7 +245,7 @@ void Service::Threads::runRender(ModeMachine& modes) {
         StageStep pass(&renderStage);
         {
             std::lock_guard lock(settingsMutex);
-            shot.setConfig(refine, std::exchange(reloadedPreviewSamples, std::nullopt));
+            if (std::exchange(liveReloaded, false)) shot.setConfig(live);
         }
         std::shared_ptr<const TrackedFrame> frame =
             shot.wantsFrame() ? trackedFrames.waitTakeFor(kRenderPoll) : trackedFrames.take();

@@ -92,11 +92,11 @@ struct Service::Threads {
     std::atomic<bool> pipelineFailed{false};
     void stageFailed(const std::string&) { pipelineFailed.store(true); }
 
-    // Settings SIGHUP may change while running: [refine], and a reload's samples_per_frame
-    // until the render thread hands it to the renderer (which holds preview's settings).
+    // The config's live part, which SIGHUP may change while running: the start's, then each
+    // reload's; `liveReloaded` until the render thread hands it to the shot.
     std::mutex settingsMutex;
-    RefineConfig refine;
-    std::optional<uint32_t> reloadedPreviewSamples;
+    LiveConfig live;
+    bool liveReloaded = false;
 
     // The render thread's part of the status.
     mutable std::mutex statusMutex;

@@ -114,7 +114,7 @@ Result<std::unique_ptr<PipelineRenderer>> PipelineRenderer::create(
     std::unique_ptr<PipelineRenderer> p(new PipelineRenderer());
     renderSize(config, p->width_, p->height_);
     PreviewSettings preview;
-    preview.samplesPerFrame = config.render.samplesPerFrame;
+    preview.samplesPerFrame = config.liveRender.samplesPerFrame;
     preview.resolutionScale = config.render.resolutionScale;
     p->radiometry_ = config.sceneCamera.radiometry;
     p->plateLimits_ = plateLimitsOf(p->radiometry_);

@@ -27,15 +27,18 @@ ShotController::ShotController(ShotRenderer& renderer, const ModeMachine& modes,
       watch_(refine),
       stopping_(refine.targetNoise, refine.maxSamples) {}
 
-void ShotController::setConfig(const RefineConfig& refine, std::optional<uint32_t> previewSamples) {
-    refine_ = refine;
-    watch_.setConfig(refine);
-    stopping_.setLimits(refine.targetNoise, refine.maxSamples);
+void ShotController::setConfig(const LiveConfig& live) {
+    refine_ = live.refine;
+    watch_.setConfig(live.refine);
+    stopping_.setLimits(live.refine.targetNoise, live.refine.maxSamples);
+    // The dial chooses preview's samples while it runs ([render] preview_fps).
+    if (renderer_.hasDial()) return;
+    const uint32_t samples = live.liveRender.samplesPerFrame;
     PreviewSettings configured = renderer_.preview().configured;
-    if (!previewSamples || *previewSamples == configured.samplesPerFrame) return;
-    configured.samplesPerFrame = *previewSamples;
-    if (Status s = renderer_.setPreview(configured, *previewSamples); !s)
-        logError("render: samples_per_frame = {}: {}", *previewSamples, s.message());
+    if (samples == configured.samplesPerFrame) return;
+    configured.samplesPerFrame = samples;
+    if (Status s = renderer_.setPreview(configured, samples); !s)
+        logError("render: samples_per_frame = {}: {}", samples, s.message());
     loggedPreviewCap_ = false;
 }
 

@@ -160,10 +160,9 @@ public:
     ShotController(ShotRenderer& renderer, const ModeMachine& modes, const ShotClock& clock,
                    const RefineConfig& refine);
 
-    // New [refine] settings and, from a reload without the dial, preview's configured samples
-    // (SIGHUP); a refinement under way goes on.
-    void setConfig(const RefineConfig& refine,
-                   std::optional<uint32_t> previewSamples = std::nullopt);
+    // A reload's live settings (SIGHUP): [refine], and preview's configured samples unless the
+    // dial runs (it chooses them); a refinement under way goes on.
+    void setConfig(const LiveConfig& live);
     // Whether the next step needs a new frame to do anything (preview, or a shot to freeze):
     // the live loop waits for one then, else takes one only if it is there.
     bool wantsFrame() const;

@@ -205,7 +205,7 @@ int runReplay(const ReplayOptions& o) {
         logInfo(
             "replay: the dial ([render] preview_fps = {:g}) is live only: preview renders "
             "samples_per_frame = {} at resolution_scale = {:g}",
-            config->render.previewFps, config->render.samplesPerFrame,
+            config->render.previewFps, config->liveRender.samplesPerFrame,
             config->render.resolutionScale);
         config->render.previewFps = 0.0;
     }

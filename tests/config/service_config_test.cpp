@@ -528,7 +528,7 @@ loop = false
     ASSERT_TRUE(c) << c.message();
     EXPECT_TRUE(c->tracking.sceneCameraUntilTracked);
     EXPECT_EQ(c->render.width, 320u);
-    EXPECT_EQ(c->render.samplesPerFrame, 2u);
+    EXPECT_EQ(c->liveRender.samplesPerFrame, 2u);
     EXPECT_EQ(c->render.maxDepth, 5u);
     EXPECT_EQ(c->render.previewMaxDepth, 2u);
     EXPECT_FALSE(c->render.previewHoldDepth);

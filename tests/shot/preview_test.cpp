@@ -303,7 +303,7 @@ TEST(Preview, TheVirtualObjectsGetSamplesAddedWherePreviewTracesAFraction) {
         EXPECT_TRUE(n) << n.message();
         return *n;
     };
-    const double spp = d.config.render.samplesPerFrame;
+    const double spp = d.config.liveRender.samplesPerFrame;
     ImageF mask;
     const ImageF added = counts(1.0, mask);
     size_t objectPixels = 0, plain = 0;

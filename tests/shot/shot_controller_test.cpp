@@ -224,17 +224,43 @@ TEST(ShotController, OutOfRefinementAndBackWithinOneStepRefreezes) {
     EXPECT_EQ(f.shot.renderedMode(), Mode::Preview);
 }
 
+// A reload's live settings: [refine], and [render] samples_per_frame.
+LiveConfig liveConfig(uint32_t samplesPerFrame) {
+    LiveConfig c;
+    c.refine = refineConfig();
+    c.liveRender.samplesPerFrame = samplesPerFrame;
+    return c;
+}
+
 TEST(ShotController, APreviewFrameIsCappedToItsLongestTime) {
     // 4 samples a frame at 1 s each would take 4 s: after the first frame, 3 s' worth.
     Fixture f(1000.0);
-    f.shot.setConfig(refineConfig(), 4);
+    f.shot.setConfig(liveConfig(4));
     for (uint64_t i = 0; i < 3; ++i) ASSERT_TRUE(f.shot.step(frame(i), nullptr));
     EXPECT_EQ(f.renderer.previews, (std::vector<uint32_t>{4, 3, 3}));
     // A new configured count (SIGHUP) is taken, then capped again by what it costs.
     f.renderer.ms_ = 10.0;
-    f.shot.setConfig(refineConfig(), 8);
+    f.shot.setConfig(liveConfig(8));
     for (uint64_t i = 3; i < 5; ++i) ASSERT_TRUE(f.shot.step(frame(i), nullptr));
     EXPECT_EQ(f.renderer.previews.back(), 8u);
+}
+
+// Where the dial runs it chooses preview's samples: a reload's samples_per_frame leaves its
+// choice, and the reload's [refine] still applies.
+TEST(ShotController, AReloadLeavesTheDialsSamples) {
+    Fixture f(1.0);
+    f.renderer.dial = true;
+    PreviewSettings dialsChoice;
+    dialsChoice.samplesPerFrame = 2;
+    ASSERT_TRUE(f.renderer.setPreview(dialsChoice, 2));
+    LiveConfig reloaded = liveConfig(8);
+    reloaded.refine.samplesPerStep = 4;
+    f.shot.setConfig(reloaded);
+    ASSERT_TRUE(f.shot.step(frame(0), nullptr));
+    EXPECT_EQ(f.renderer.previews, (std::vector<uint32_t>{2}));
+    f.modes.set(Mode::Refine, "test");
+    ASSERT_EQ(f.shot.step(frame(1), nullptr)->kind, ShotStep::Kind::Refined);
+    EXPECT_EQ(f.renderer.steps, (std::vector<uint32_t>{4})) << "the reload's samples_per_step";
 }
 
 TEST(ShotController, TheDialIsCorrectedOnTheMedianOfAWindowOfLiveFrames) {

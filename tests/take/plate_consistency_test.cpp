@@ -33,7 +33,7 @@ TEST(PlateConsistencyReplay, TheDemoTakesAReadingThatAgreesWithTheAovs) {
     config->render.width = 160;
     config->render.height = 90;
     config->render.previewFps = 0.0;
-    config->render.samplesPerFrame = 16;
+    config->liveRender.samplesPerFrame = 16;
     config->render.resolutionScale = 1.0f;
     config->render.denoise = "on";
     auto opened =
