@@ -13,6 +13,7 @@
 set -euo pipefail
 [ -n "${VMTEST:-}" ] || { echo "not in the test VM (VMTEST unset): skipped"; exit 77; }
 src=$1
+. "$src/tests/systemd/vm_box.sh"
 unit=$src/systemd/previsd.service.in
 failures=0
 fail() { echo "FAIL: $*"; failures=$((failures + 1)); }
@@ -21,11 +22,7 @@ allow=$(sed -n 's/^DeviceAllow=//p' "$unit")
 groups=$(sed -n 's/^SupplementaryGroups=//p' "$unit")
 
 # The group the unit's rule needs (systemd-sysusers creates it on the box), then our udev rule.
-getent group previs >/dev/null || groupadd --system previs
-cp "$src/systemd/60-previs-gpio.rules" /etc/udev/rules.d/
-udevadm control --reload
-udevadm trigger --action=add --subsystem-match=gpio
-udevadm settle --timeout=30
+install_previs_udev_rule "$src"
 
 gids=""
 for g in $groups; do

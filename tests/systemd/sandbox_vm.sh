@@ -10,16 +10,13 @@
 set -euo pipefail
 [ -n "${VMTEST:-}" ] || { echo "not in the test VM (VMTEST unset): skipped"; exit 77; }
 src=$1
+. "$src/tests/systemd/vm_box.sh"
 probe=$2
 previsd=${3:-}
 
 # What the box has after `cmake --install --prefix /usr` and systemd-sysusers: group previs and
 # the udev rule.
-getent group previs >/dev/null || groupadd --system previs
-cp "$src/systemd/60-previs-gpio.rules" /etc/udev/rules.d/
-udevadm control --reload
-udevadm trigger --action=add --subsystem-match=gpio
-udevadm settle --timeout=30
+install_previs_udev_rule "$src"
 # Nodes whose file mode lets anyone in: only the device cgroup can refuse them.
 chmod 0666 /dev/uinput /dev/input/event0
 
@@ -40,17 +37,9 @@ mkdir -p "$PREVIS_SHADER_CACHE_DIR" && touch "$PREVIS_SHADER_CACHE_DIR/probe" &&
 EOT
 chmod 755 /usr/local/bin/previs-sandbox-check
 
-sed -e 's|@PREVIS_BINDIR@|/usr/bin|; s|@PREVIS_CONFDIR@|/etc/previs|' \
-    -e 's|@PREVIS_DOCDIR@|/usr/share/doc/previs|' \
-    "$src/systemd/previsd.service.in" >/etc/systemd/system/previsd.service
+install_previsd_unit "$src"
 mkdir -p /etc/systemd/system/previsd.service.d
-cat >/etc/systemd/system/previsd.service.d/probe.conf <<'EOT'
-[Unit]
-DefaultDependencies=no
-SuccessAction=exit-force
-FailureAction=exit-force
-[Service]
-Type=oneshot
+{ manager_ending_oneshot_head; cat <<'EOT'; } >/etc/systemd/system/previsd.service.d/probe.conf
 Restart=no
 WatchdogSec=0
 ExecStart=

@@ -40,9 +40,8 @@ cat >"$work/inside.sh" <<EOT
 mount -t tmpfs tmpfs /run
 mount -t tmpfs tmpfs /etc/systemd/system
 cp -r "$work/units/." /etc/systemd/system/
-sed -e 's|@PREVIS_BINDIR@|/usr/bin|; s|@PREVIS_CONFDIR@|/etc/previs|' \
-    -e 's|@PREVIS_DOCDIR@|/usr/share/doc/previs|' \
-    "$src/systemd/previsd.service.in" >/etc/systemd/system/previsd.service
+. "$src/tests/systemd/vm_box.sh"
+install_previsd_unit "$src"
 cat >/etc/systemd/system/previsd.service.d/standin.conf <<'EOF'
 [Unit]
 DefaultDependencies=no
@@ -61,13 +60,7 @@ for s in /etc/systemd/system/previsd-*.socket; do
     mkdir -p "\$s.d"
     printf '[Unit]\nDefaultDependencies=no\n' >"\$s.d/test.conf"
 done
-cat >/etc/systemd/system/driver.service <<'EOF'
-[Unit]
-DefaultDependencies=no
-SuccessAction=exit-force
-FailureAction=exit-force
-[Service]
-Type=oneshot
+{ manager_ending_oneshot_head; cat <<'EOF'; } >/etc/systemd/system/driver.service
 ExecStart=$work/driver.sh
 StandardOutput=truncate:$work/driver.log
 StandardError=inherit
