@@ -274,10 +274,10 @@ TEST_F(ConvergenceMeterTest, SunOfRadianceOneHundredThousand) {
 
 // 3840×2160: the accumulation (six vec4 sums and compensations per pixel, 1.6 GB) and the
 // meter's readback work at UHD. Each image() and convergence() reads the whole accumulation back
-// (about 10 CPU-s at this size), so the frame is read twice: the composite over the plate (Eq. 1:
-// the plate-free and mask slots) and the meter, which reads every slot (a NaN or an infinity in
-// the mixed or real slots makes the differential's estimate non-finite). Each AOV's own
-// finiteness, the same per-slot means at any size, is ExtremesOfSamplesAndDepthStayFinite's.
+// (about 10 CPU-s at this size), so the frame is read twice, not once an AOV: the composite over
+// the plate (Eq. 1: the plate-free and mask slots) and the meter (every slot). The other AOVs are
+// other slots' means of the same readback, checked finite at 64x64
+// (ExtremesOfSamplesAndDepthStayFinite); no sample was dropped as non-finite here either.
 TEST_F(ConvergenceMeterTest, UltraHdFrame) {
     const Scene scene = differentialSet();
     RenderSettings rs = meterSettings(3840, 2160);
