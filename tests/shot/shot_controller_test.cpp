@@ -9,6 +9,8 @@
 #include <cmath>
 #include <vector>
 
+#include "tests/support/refine_config.h"
+
 namespace previs {
 namespace {
 
@@ -116,14 +118,10 @@ std::shared_ptr<const TrackedFrame> frame(uint64_t sequence, double panDeg = 0.0
 }
 
 RefineConfig refineConfig() {
-    RefineConfig c;
+    RefineConfig c = testing::restartRuleConfig();
     c.samplesPerStep = 16;
     c.maxSamples = 0;
     c.targetNoise = 0.0;
-    c.poseThresholdM = 0.01;
-    c.poseThresholdDeg = 0.5;
-    c.lightingThreshold = 0.05;
-    c.restartAfter = 3;
     return c;
 }
 
