@@ -32,6 +32,17 @@ constexpr int kMixtureSamples = 100'000;
 #else
 constexpr int kMixtureSamples = 1'000'000;
 #endif
+// The same split for RoughGlassFurnaceIsOne (11 of the binary's 65 s under ASan): its bounds are 4
+// standard errors of the estimate itself (plus the tables' fixed excess), so a tenth of the
+// samples keeps each comparison's significance and widens the interval by √10; the full-power
+// verdict runs in the optimised build (tests/shading/CMakeLists.txt). Not for
+// RoughGlassKeepsSingleScatteringTimesItsCompensation: at roughness 0.05 its two estimates differ
+// by float rounding (4e-9), which a tenth of the samples' 4 standard errors no longer cover.
+#if defined(__SANITIZE_ADDRESS__)
+constexpr int kGlassSampleDivisor = 10;
+#else
+constexpr int kGlassSampleDivisor = 1;
+#endif
 
 BsdfParams material(glm::vec3 color, float metallic, float roughness, float transmission = 0.0f,
                     float ior = 1.5f, float specular = 1.0f) {
@@ -353,7 +364,7 @@ TEST(BsdfTest, RoughGlassKeepsSingleScatteringTimesItsCompensation) {
 // energy). Also at IORs between the tables' nodes (water) and for diamond's.
 TEST(BsdfTest, RoughGlassFurnaceIsOne) {
     const double kSigmas = 4.0;
-    const int n = 50000;
+    const int n = 50000 / kGlassSampleDivisor;
     double worst = 0.0;
     for (float ior : {1.5f, 1.33f, 2.42f}) {
         for (float eta : {ior, 1.0f / ior}) {
