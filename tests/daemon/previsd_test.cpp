@@ -605,14 +605,24 @@ TEST(Previsd, RunsTheDemoTogglesRefinementAndStopsOnSigterm) {
         << fileBytes(ctlLog);
     for (const char* named : {"need a restart to apply", "cameras.scene.colour", "output.colour"})
         EXPECT_NE(fileBytes(ctlLog).find(named), std::string::npos) << named << fileBytes(ctlLog);
-    writeFile(config, good);
-    // Leaving refinement returns to live preview frames of 1 spp.
+    // [render] samples_per_frame is live (no dial here): after its reload, leaving refinement
+    // returns to live preview frames of 2 spp.
+    std::string twoSamples = good;
+    const size_t samples = twoSamples.find("samples_per_frame = 1");
+    ASSERT_NE(samples, std::string::npos) << good;
+    writeFile(config, twoSamples.replace(samples, 21, "samples_per_frame = 2"));
+    ASSERT_EQ(testing::runProcess({previs(), "ctl", "--socket", socket, "reload"}, ctlLog, 30s), 0)
+        << fileBytes(ctlLog);
+    EXPECT_NE(fileBytes(ctlLog).find("applied [refine] and render.samples_per_frame = 2"),
+              std::string::npos)
+        << fileBytes(ctlLog);
+    EXPECT_EQ(fileBytes(ctlLog).find("need a restart"), std::string::npos) << fileBytes(ctlLog);
     ASSERT_EQ(testing::runProcess({previs(), "ctl", "--socket", socket, "toggle"}, ctlLog, 30s), 0);
     EXPECT_EQ(fileBytes(ctlLog), "preview\n");
     auto preview = waitFor(socket, kStartup, [](const nlohmann::json& s) {
-        return s["mode"] == "preview" && s["samples"] == 1;
+        return s["mode"] == "preview" && s["samples"] == 2;
     });
-    EXPECT_TRUE(preview && (*preview)["samples"] == 1) << p.log();
+    EXPECT_TRUE(preview && (*preview)["samples"] == 2) << p.log();
     EXPECT_TRUE((*preview)["noiseEstimate"].is_null()) << preview->dump();
     EXPECT_TRUE((*preview)["etaSeconds"].is_null()) << preview->dump();
     // An unknown command is a clear error, not a crash — also in bytes that are not UTF-8.
