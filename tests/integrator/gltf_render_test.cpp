@@ -68,9 +68,7 @@ TEST_F(GltfRenderTest, BlenderLightUnitsMatchCycles) {
         ASSERT_EQ(s.materials.size(), 1u);
         s.materials[0].specular = 0.0f;
         ASSERT_EQ(s.cameras.size(), 1u);
-        RenderSettings rs;
-        rs.width = rs.height = size;
-        rs.maxDepth = 1;
+        RenderSettings rs = renderSettings(size, size, 1);
         Estimate e = estimate(s, rs, 4, 16);
         const Camera& cam = s.cameras[0];
         const glm::vec3 eye(cam.worldFromCamera[3]);
@@ -217,9 +215,7 @@ TEST_F(GltfRenderTest, FarAndNegativeTextureCoordinatesWrapAsTheSamplerSays) {
         s->cameras = {cam};
         return std::move(*s);
     };
-    RenderSettings rs;
-    rs.width = rs.height = 24;
-    rs.maxDepth = 1;
+    RenderSettings rs = renderSettings(24, 24, 1);
     rs.seed = 7;
     auto renderAt = [&](int wrap, double u, double v) {
         return render(sceneWith(wrap, u, v), rs, 4);

@@ -62,9 +62,7 @@ Scene furnaceScene(const Material& material) {
 
 TEST_F(IntegratorTest, WhiteFurnaceLambertianSphere) {
     Scene s = furnaceScene(lambert(glm::vec3(1.0f)));
-    RenderSettings rs;
-    rs.width = rs.height = 24;
-    rs.maxDepth = 64;
+    RenderSettings rs = renderSettings(24, 24, 64);
     Estimate e = estimate(s, rs, 16, kRuns);
     double sum = 0.0, var = 0.0;
     double worstZ = 0.0;
@@ -87,9 +85,7 @@ TEST_F(IntegratorTest, WhiteFurnaceLambertianSphere) {
 
 TEST_F(IntegratorTest, WhiteFurnaceMirrorSphereIsExact) {
     Scene s = furnaceScene(mirror());
-    RenderSettings rs;
-    rs.width = rs.height = 24;
-    rs.maxDepth = 64;
+    RenderSettings rs = renderSettings(24, 24, 64);
     ImageF img = render(s, rs, 4);
     for (float v : img.pixels) ASSERT_NEAR(v, 1.0f, 1e-5f);
 }
@@ -97,9 +93,7 @@ TEST_F(IntegratorTest, WhiteFurnaceMirrorSphereIsExact) {
 TEST_F(IntegratorTest, WhiteFurnaceGlassSphereIsExact) {
     for (float ior : {1.33f, 1.5f, 2.4f}) {
         Scene s = furnaceScene(glass(ior));
-        RenderSettings rs;
-        rs.width = rs.height = 24;
-        rs.maxDepth = 256;
+        RenderSettings rs = renderSettings(24, 24, 256);
         ImageF img = render(s, rs, 8);
         // Each path carries weight 1: Fresnel reflection and refraction are chosen with their
         // exact probabilities and the η² factors cancel on the way out.
@@ -120,9 +114,7 @@ TEST_F(IntegratorTest, WhiteFurnaceRoughGlassSphereKeepsItsEnergy) {
         Material m = glass(1.5f);
         m.roughness = roughness;
         Scene s = furnaceScene(m);
-        RenderSettings rs;
-        rs.width = rs.height = 24;
-        rs.maxDepth = 256;
+        RenderSettings rs = renderSettings(24, 24, 256);
         Estimate e = estimate(s, rs, 16, 8);
         double sum = 0.0, var = 0.0;
         const size_t n = size_t(rs.width) * rs.height;
@@ -191,9 +183,7 @@ TEST_F(IntegratorTest, ThinWalledPaneDoesNotShiftWhatIsBehindIt) {
     Scene s;
     addQuad(s, {0, 0, -2}, {0.4f, 0, 0}, {0, 0.4f, 0}, addMaterial(s, emitter(glm::vec3(le))));
     s.cameras.push_back(lookAt({0, 0, 3}, {0, 0, 0}, {0, 1, 0}, radians(20)));
-    RenderSettings rs;
-    rs.width = rs.height = 32;
-    rs.maxDepth = 8;
+    RenderSettings rs = renderSettings(32, 32, 8);
     ImageF bare = render(s, rs, 64);
     Material pane = glass(1.5f);
     pane.thinWalled = true;
@@ -255,9 +245,7 @@ TEST_F(IntegratorTest, AbsorbingSlabFollowsBeerLambert) {
     addBox(s, {-20, -20, -0.5f * thicknessM}, {20, 20, 0.5f * thicknessM}, addMaterial(s, slab));
     s.environment = uniformEnvironment(glm::vec3(1.0f));
     s.cameras.push_back(lookAt({0, 0, 3}, {0, 0, 0}, {0, 1, 0}, radians(20)));
-    RenderSettings rs;
-    rs.width = rs.height = 16;
-    rs.maxDepth = 256;
+    RenderSettings rs = renderSettings(16, 16, 256);
     Estimate e = estimate(s, rs, 16, kRuns);
     const Camera& cam = s.cameras[0];
     double worstT = 0.0;
@@ -302,9 +290,7 @@ TEST_F(IntegratorTest, AbsorbingSlabFollowsBeerLambert) {
 // the sizing off reproduces the loss the guard exists for.
 TEST_F(IntegratorTest, DispatchesStayInsideTheCpuDeviceLoopLimit) {
     Scene s = furnaceScene(mirror());
-    RenderSettings rs;
-    rs.width = rs.height = 16;
-    rs.maxDepth = 64;
+    RenderSettings rs = renderSettings(16, 16, 64);
     const uint32_t spp = 1024;
     auto renderWith = [&](uint32_t perDispatch, bool respectLimit) {
         RenderSettings settings = rs;
@@ -388,9 +374,7 @@ TEST_F(IntegratorTest, PointLightFollowsInverseSquareCosineLaw) {
     light.intensity = intensity;
     s.lights.push_back(light);
     s.cameras.push_back(lookAt({0.3f, 3, 0.2f}, {0.3f, 0, 0}, {0, 0, -1}, radians(70)));
-    RenderSettings rs;
-    rs.width = rs.height = 32;
-    rs.maxDepth = 1;
+    RenderSettings rs = renderSettings(32, 32, 1);
     Estimate e = estimate(s, rs, 8, kRuns);
     const Camera& cam = s.cameras[0];
     glm::vec3 eye = cameraPosition(cam);
@@ -425,9 +409,7 @@ TEST_F(IntegratorTest, EmissiveSphereGivesClosedFormIrradiance) {
     addQuad(s, {0, 0, 0}, {0, 0, 50}, {50, 0, 0}, addMaterial(s, lambert(glm::vec3(rho))));
     addSphere(s, center, radius, addMaterial(s, emitter(glm::vec3(le))), false, 96, 192);
     s.cameras.push_back(lookAt({0, 1.2f, 3}, {0, 0, 0}, {0, 1, 0}, radians(50)));
-    RenderSettings rs;
-    rs.width = rs.height = 24;
-    rs.maxDepth = 1;
+    RenderSettings rs = renderSettings(24, 24, 1);
     Estimate e = estimate(s, rs, 32, kRuns);
     const Camera& cam = s.cameras[0];
     glm::vec3 eye = cameraPosition(cam);
@@ -476,9 +458,7 @@ Scene convergenceScene() {
 }
 
 RenderSettings convergenceSettings(Sampler sampler) {
-    RenderSettings rs;
-    rs.width = rs.height = 12;
-    rs.maxDepth = 4;
+    RenderSettings rs = renderSettings(12, 12, 4);
     rs.samplesPerDispatch = 256;
     rs.sampler = sampler;
     return rs;
@@ -618,9 +598,7 @@ TEST_F(IntegratorTest, NoAcneOrLeaksFromMillimetreToKilometre) {
         s.lights.push_back(sun);
         s.cameras.push_back(lookAt(glm::vec3(0, 2, 3) * scale, glm::vec3(0, 0, -1) * scale,
                                    {0, 1, 0}, radians(30)));
-        RenderSettings rs;
-        rs.width = rs.height = 32;
-        rs.maxDepth = 1;
+        RenderSettings rs = renderSettings(32, 32, 1);
         ImageF img = render(s, rs, 2);
         const float expected = rho / kPi * lux * std::sqrt(0.5f);
         for (uint32_t y = 0; y < rs.height; ++y)
@@ -652,9 +630,7 @@ TEST_F(IntegratorTest, EnvironmentWithIntenseSunMatchesIrradianceSum) {
     env.radiance[size_t(8) * w + 40] = glm::vec3(1e5f);  // a 1-texel sun 33.75° up
     s.environment = env;
     s.cameras.push_back(lookAt({0, 1, 0}, {0, 0, -1}, {0, 1, 0}, radians(60)));
-    RenderSettings rs;
-    rs.width = rs.height = 16;
-    rs.maxDepth = 1;
+    RenderSettings rs = renderSettings(16, 16, 1);
     Estimate e = estimate(s, rs, 16, kRuns);
     double irradiance = 0.0;
     for (uint32_t row = 0; row < hgt / 2; ++row) {
@@ -682,9 +658,7 @@ TEST_F(IntegratorTest, TangentRaysStayFinite) {
     addSphere(s, {0, 0.5f, -3}, 0.5f, addMaterial(s, mirror()));
     s.environment = uniformEnvironment(glm::vec3(1.0f));
     s.cameras.push_back(lookAt({0, 0, 5}, {0, 0, -5}, {0, 1, 0}, radians(30)));
-    RenderSettings rs;
-    rs.width = rs.height = 16;
-    rs.maxDepth = 8;
+    RenderSettings rs = renderSettings(16, 16, 8);
     render(s, rs, 16);
 }
 
@@ -699,9 +673,7 @@ TEST_F(IntegratorTest, SpecialisedPipelineMatchesGeneral) {
     light.intensity = 5.0f;
     s.lights.push_back(light);
     s.cameras.push_back(lookAt({0, 1, 2}, {0, 0.2f, 0}, {0, 1, 0}, radians(45)));
-    RenderSettings rs;
-    rs.width = rs.height = 16;
-    rs.maxDepth = 6;
+    RenderSettings rs = renderSettings(16, 16, 6);
     auto specialised = Renderer::create(ctx(), s, rs);
     ASSERT_TRUE(specialised.ok());
     SceneFeatures f = (*specialised)->features();

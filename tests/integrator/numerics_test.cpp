@@ -52,9 +52,7 @@ TEST_F(NumericsTest, DroppedSamplesNeitherDarkenNorShowThePlate) {
             {{0, 0, 1}, {0, 0, 1}, {0, 0, 1}}, {{0, 1, 2}}, infinite, false);
     scene.cameras.push_back(lookAt(glm::vec3(0), glm::vec3(0, 0, -1), glm::vec3(0, 1, 0), 0.8f));
 
-    RenderSettings settings;
-    settings.width = settings.height = 32;
-    settings.maxDepth = 2;
+    RenderSettings settings = renderSettings(32, 32, 2);
     settings.differential = true;
     constexpr uint32_t kSpp = 16;
     auto r = Renderer::create(ctx(), scene, settings);
@@ -117,9 +115,7 @@ TEST_F(NumericsTest, NanRaysAreCulledCountedAndDropped) {
     Camera camera = lookAt(glm::vec3(0), glm::vec3(0, 0, -1), glm::vec3(0, 1, 0), 0.8f);
     camera.worldFromCamera[3] = glm::vec4(kNaN, 0.0f, 0.0f, 1.0f);
     scene.cameras.push_back(camera);
-    RenderSettings settings;
-    settings.width = settings.height = 16;
-    settings.maxDepth = 3;
+    RenderSettings settings = renderSettings(16, 16, 3);
     auto r = Renderer::create(ctx(), scene, settings);
     ASSERT_TRUE(r) << r.message();
     constexpr uint32_t kSpp = 4;
@@ -431,9 +427,7 @@ protected:
         return std::move(*scene);
     }
     ImageF renderCamera(const Scene& scene, int camera, uint32_t seed) {
-        RenderSettings settings;
-        settings.width = settings.height = 64;
-        settings.maxDepth = 4;
+        RenderSettings settings = renderSettings(64, 64, 4);
         settings.cameraIndex = camera;
         settings.seed = seed;
         return render(scene, settings, kSpp);
@@ -495,9 +489,7 @@ TEST(ScaleLoader, ComposesTransformsInDouble) {
 // the new pose renders (same seed; within the noise as above).
 TEST_F(ScaleTest, RecentresOnlyWhenTheCameraMovesFar) {
     const Scene scene = load(glm::dvec3(10000.3, 0.0, 0.0), "recentre");
-    RenderSettings settings;
-    settings.width = settings.height = 64;
-    settings.maxDepth = 4;
+    RenderSettings settings = renderSettings(64, 64, 4);
     auto r = Renderer::create(ctx(), scene, settings);
     ASSERT_TRUE(r) << r.message();
     const glm::dmat4 start = (*r)->worldFromCameraM();
