@@ -39,7 +39,9 @@ std::string fileText(const fs::path& path) {
 // The box's final render of one frame at half the plate's size (the truth is box-filtered to
 // it): 64 samples a pixel, whose noise on the regions' sums is below 1 % (their pixels number
 // in the hundreds; the truth's own error is in truth.toml, 0.1–0.3 %).
-Result<BoxFrame> renderFrame(const std::string& take, int frame, const fs::path& dir) {
+constexpr int kFinalSpp = 64;
+Result<BoxFrame> renderFrame(const std::string& take, int frame, const fs::path& dir,
+                             int spp = kFinalSpp) {
     const fs::path out = dir / "render";
     const std::vector<std::string> argv{PREVIS_BINARY,
                                         "render-session",
@@ -49,7 +51,7 @@ Result<BoxFrame> renderFrame(const std::string& take, int frame, const fs::path&
                                         "--frames",
                                         fmt::format("{}:{}", frame, frame + 1),
                                         "--spp",
-                                        "64",
+                                        std::to_string(spp),
                                         "--width",
                                         "320",
                                         "--height",
@@ -132,7 +134,8 @@ TEST(LightTruth, ASingleClippedExposureIsFittedToThePlate) {
     std::map<std::string, TruthScore> scores;
     for (const std::string fit : {"off", "auto"}) {
         const fs::path take = singleExposureTake(dir / fit, fit);
-        Result<BoxFrame> box = renderFrame(take.string(), still.index, dir / fit);
+        Result<BoxFrame> box =
+            renderFrame(take.string(), still.index, dir / fit, fit == "off" ? 8 : kFinalSpp);
         ASSERT_TRUE(box.ok()) << box.message();
         Result<TruthScore> score = scoreAgainstTruth(*box, still);
         ASSERT_TRUE(score.ok()) << score.message();
