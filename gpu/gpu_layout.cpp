@@ -37,10 +37,10 @@ static_assert(offsetof(GpuLight, cosInnerCone) == 44 && offsetof(EmissiveTriangl
 // Two texels (trace_paths.comp's gather reads position + flags, then power + direction).
 static_assert(sizeof(PhotonRecord) == 32 && offsetof(PhotonRecord, flags) == 12);
 static_assert(offsetof(PhotonRecord, power) == 16 && offsetof(PhotonRecord, direction) == 28);
-static_assert(sizeof(DenoiseParams) == 140 && offsetof(DenoiseParams, tanHalfFov) == 64);
+static_assert(sizeof(DenoiseParams) == 144 && offsetof(DenoiseParams, tanHalfFov) == 64);
 static_assert(sizeof(FilmParams) == 68 && offsetof(FilmParams, maskSharpness) == 24);
 static_assert(offsetof(FilmParams, viewLutSize) == 64);
 static_assert(offsetof(FilmParams, held) == 32 && offsetof(FilmParams, exposure) == 44);
-static_assert(offsetof(DenoiseParams, width) == 80 && offsetof(DenoiseParams, sigmaMask) == 136);
+static_assert(offsetof(DenoiseParams, width) == 80 && offsetof(DenoiseParams, sigmaMask) == 140);
 
 }  // namespace previs::shader

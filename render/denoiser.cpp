@@ -179,8 +179,11 @@ Result<ImageF> Denoiser::run(const ImageF& signal, std::span<const glm::vec4> gu
     out.height = height_;
     out.channels = 3;
     out.pixels.resize(pixels * 3);
-    for (size_t i = 0; i < pixels; ++i)
+    lastMask_.resize(pixels);
+    for (size_t i = 0; i < pixels; ++i) {
         for (int c = 0; c < 3; ++c) out.pixels[3 * i + c] = color[i][c];
+        lastMask_[i] = color[i].w;
+    }
     return out;
 }
 
@@ -215,6 +218,7 @@ Status Denoiser::filter(const GpuBuffer& guides, const DenoiseCamera* now) {
             glm::mat4(glm::inverse(prevCamera_.worldFromCamera) * now->worldFromCamera);
         params.tanHalfFov = now->tanHalfFov;
         params.historyValid = historyValid_ ? 1u : 0u;
+        params.temporal = 1u;
         params.prevTanHalfFov = prevCamera_.tanHalfFov;
     }
     GpuBuffer& paramsBuffer = buffers_[PV_DENOISE_BINDING_PARAMS];

@@ -10,6 +10,7 @@
 #include <glm/glm.hpp>
 #include <optional>
 #include <span>
+#include <vector>
 
 #include "base/result.h"
 #include "gpu/buffer.h"
@@ -49,7 +50,9 @@ public:
 
     // The same with SVGF's temporal accumulation first (preview): the previous call's history,
     // reprojected from its camera to `now` through the guides' depth, is kept where depth,
-    // normal and mask agree (else the pixel starts afresh), blended with this frame with weight
+    // normal and mask agree (else the pixel starts afresh; a pixel's own history, when the
+    // reprojection moves it under half a pixel, is kept whatever its guides: at an outline they
+    // change with which surface a frame's samples hit), blended with this frame with weight
     // max(α, 1/(history + 1)), and the blend's variance (shader: "temporal") sets the spatial
     // filter's luminance tolerance. The depth must be the distance along the pixel centre's ray
     // of a pinhole camera `now`. apply() calls in between leave the history alone.
@@ -58,9 +61,13 @@ public:
     // The same for a signal already on the device, leaving the result there: the caller has
     // written colourInput() (per pixel the signal's RGB and the variance of its mean's luminance
     // in w, negative where unknown), `guides` is the path tracer's own buffer (layout as above),
-    // and output() holds the filtered signal (vec4 per pixel, w unused). `now`: through the
-    // temporal stage, as applyTemporal; null: as apply.
+    // and output() holds the filtered signal (vec4 per pixel, w the mask as lastMask() says).
+    // `now`: through the temporal stage, as applyTemporal; null: as apply.
     Status filter(const GpuBuffer& guides, const DenoiseCamera* now);
+    // The mask M that goes with the last apply()'s or applyTemporal()'s output, per pixel: after a
+    // temporal stage the history's mean of it, which the composite's plate term needs beside the
+    // history's mean of the signal (shared/denoise.h); else the guides' own.
+    std::span<const float> lastMask() const { return lastMask_; }
     GpuBuffer& colourInput() { return buffers_[PV_DENOISE_BINDING_COLOR]; }
     const GpuBuffer& output() const { return buffers_[PV_DENOISE_BINDING_OUTPUT]; }
 
@@ -101,6 +108,7 @@ private:
     uint32_t height_ = 0;
     DenoiseSettings settings_;
     double lastGpuMs_ = 0.0;
+    std::vector<float> lastMask_;
     // Temporal state: the packed-guide image and history image holding the previous frame, and
     // its camera.
     uint32_t prevPacked_ = 1;

@@ -59,7 +59,7 @@ public:
     // for a denoised frame, its guides. `held`: the held view's samples at the output size
     // (PV_BINDING_HELD_SAMPLES), or null. `signal`: the denoiser's input buffer writeSignal
     // fills; `denoised`: its output, which run() then takes for the estimate's RGB (null: the
-    // means).
+    // means), and with `denoisedMask` for its mask too (the temporal history's mean).
     struct Inputs {
         const ImageF* plate = nullptr;
         uint64_t plateVersion = 0;
@@ -71,6 +71,7 @@ public:
         const GpuBuffer* guides = nullptr;
         GpuBuffer* signal = nullptr;
         const GpuBuffer* denoised = nullptr;
+        bool denoisedMask = false;
     };
     // Writes the denoiser's input (Denoiser::colourInput: the mean of Eq. 1's plate-free part
     // and the variance of its luminance) from the accumulation and the guides' moments.

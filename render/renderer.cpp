@@ -570,14 +570,19 @@ Status Renderer::reset() {
     return {};
 }
 
-Status Renderer::renderPreviewFrame(uint32_t spp, uint64_t frameIndex) {
-    if (Status s = reset(); !s) return s;
-    // Frame k's seed: a 64-bit mix (splitmix64's finaliser) of the base seed and k, so
-    // neighbouring frames' scrambles are unrelated.
-    uint64_t z = (uint64_t(settings_.seed) << 32) + frameIndex * 0x9e3779b97f4a7c15ull;
+uint32_t Renderer::previewFrameSeed(uint32_t seed, uint64_t frameIndex) {
+    if (frameIndex == 0) return seed;
+    // A 64-bit mix (splitmix64's finaliser) of the base seed and k, so neighbouring frames'
+    // scrambles are unrelated.
+    uint64_t z = (uint64_t(seed) << 32) + frameIndex * 0x9e3779b97f4a7c15ull;
     z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
     z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-    params_.seed = frameIndex == 0 ? settings_.seed : uint32_t(z ^ (z >> 31));
+    return uint32_t(z ^ (z >> 31));
+}
+
+Status Renderer::renderPreviewFrame(uint32_t spp, uint64_t frameIndex) {
+    if (Status s = reset(); !s) return s;
+    params_.seed = previewFrameSeed(settings_.seed, frameIndex);
     // The preview's photon budget (never more than the buffers hold), then refinement's again.
     const uint32_t full = params_.photonCount;
     params_.photonCount =

@@ -76,6 +76,9 @@ public:
     // (Denoiser::applyTemporal) are independent and a held camera converges. One sequence,
     // without the convergence meter's replicates: convergence() says nothing after it.
     Status renderPreviewFrame(uint32_t spp, uint64_t frameIndex = 0);
+    // The seed preview frame `frameIndex` draws its sequence with, from the base `seed`
+    // (RenderSettings::seed): frame 0's is the base itself.
+    static uint32_t previewFrameSeed(uint32_t seed, uint64_t frameIndex);
     // Refinement mode: adds `spp` more samples to the accumulation, continuing the sequence, so
     // the image converges frame after frame (exact over millions of samples).
     Status refine(uint32_t spp) { return render(spp); }

@@ -47,10 +47,16 @@ const float kKernel3[3] = float[3](1.0 / 2.0, 1.0 / 4.0, 0.0);
 const float kMinCosine = 1e-30;
 // Temporal validation (SVGF §4.1 compares depth, normal and mesh id): the reprojected depth may
 // differ by 1 % plus the depth change over the bilinear footprint (one pixel each way); normals by
-// about 25°; the mask by 1/16 (the spatial filter weighs that e^−16: a different signal).
+// about 25°; the mask by 1/16 (the spatial filter weighs that e^−16: a different signal). None
+// of them holds for a pixel's own history when it moved less than kOwnHistoryPx: the same
+// surfaces lie under it (the scene does not move; only the camera does), and guides that change
+// are which of them this frame's few samples hit at an outline (a virtual object's, or any depth
+// edge's), not a disocclusion. Checking them there restarted the outlines' history every few
+// frames (a held camera's outline pixels kept 3.8 of 16 frames on the demo).
 const float kTemporalDepthRel = 0.01;
 const float kTemporalMinCos = 0.9;
 const float kTemporalMaxMaskChange = 1.0 / 16.0;
+const float kOwnHistoryPx = 0.5;
 // A reprojected position within this of a pixel centre is that centre: a still camera then
 // reads its history exactly instead of blurring it by a float-rounding bilinear weight.
 const float kSnapPx = 1.0 / 64.0;
@@ -162,7 +168,7 @@ void temporal(ivec2 p) {
     Guide gp = guideOf(params.packedImage, p);
     const uint prevPacked = 1u - params.packedImage;
     const uint histIn = params.historyIn;
-    vec4 h0 = vec4(0.0), h1 = vec4(0.0);
+    vec4 h0 = vec4(0.0), h1 = vec4(0.0), h2 = vec4(0.0);
     float sumW = 0.0;
     if (params.historyValid != 0u) {
         vec2 ndc = vec2((float(p.x) + 0.5) / float(params.width) * 2.0 - 1.0,
@@ -176,6 +182,7 @@ void temporal(ivec2 p) {
                           (1.0 - prevNdc.y) * 0.5 * float(params.height)) - 0.5;
             vec2 rounded = round(q);
             q = mix(q, rounded, lessThan(abs(q - rounded), vec2(kSnapPx)));
+            const bool nearlyStill = all(lessThan(abs(q - vec2(p)), vec2(kOwnHistoryPx)));
             ivec2 q0 = ivec2(floor(q));
             vec2 f = q - vec2(q0);
             float tolerance = kTemporalDepthRel * gp.depth + gp.slope.x + gp.slope.y;
@@ -185,27 +192,32 @@ void temporal(ivec2 p) {
                 ivec2 t = q0 + o;
                 if (w <= 0.0 || !inside(t)) continue;
                 Guide gq = guideOf(prevPacked, t);
-                if (abs(gq.depth - prevDistance) > tolerance ||
-                    dot(gp.normal, gq.normal) < kTemporalMinCos ||
-                    abs(gp.mask - gq.mask) > kTemporalMaxMaskChange)
+                const bool ownHistory = nearlyStill && t == p;
+                if (!ownHistory && (abs(gq.depth - prevDistance) > tolerance ||
+                                    dot(gp.normal, gq.normal) < kTemporalMinCos ||
+                                    abs(gp.mask - gq.mask) > kTemporalMaxMaskChange))
                     continue;
                 uint i = (histIn * pixelCount() + indexOf(t)) * PV_HISTORY_TEXELS;
                 h0 += w * fetch(historyTexels, i);
                 h1 += w * fetch(historyTexels, i + 1u);
+                h2 += w * fetch(historyTexels, i + 2u);
                 sumW += w;
             }
         }
     }
     float l = luminance(current.rgb);
-    vec4 out0, out1;
+    const vec4 signalAndMask = vec4(colorAt(p).rgb, gp.mask);
+    vec4 out0, out1, out2;
     if (sumW < kMinHistoryWeight) {
         // Disoccluded, off screen or reset: the history starts with this frame.
         out0 = vec4(current.rgb, 1.0);
         out1 = vec4(l, l * l, current.w, 1.0);
+        out2 = signalAndMask;
     } else {
         // Weights summing to 1 keep equal histories exact: Σ w·h / Σ w = h when w = 1.
         h0 /= sumW;
         h1 /= sumW;
+        h2 /= sumW;
         float n = h0.w;
         // SVGF's α, with a plain mean while the history is shorter than 1/α.
         float alpha = max(params.temporalAlpha, 1.0 / (n + 1.0));
@@ -214,10 +226,12 @@ void temporal(ivec2 p) {
         out1 = vec4(h1.x + alpha * (l - h1.x), h1.y + alpha * (l * l - h1.y),
                     h1.z + alpha * (current.w - h1.z),
                     (1.0 - alpha) * (1.0 - alpha) * h1.w + alpha * alpha);
+        out2 = h2 + alpha * (signalAndMask - h2);
     }
     uint o = ((1u - histIn) * pixelCount() + indexOf(p)) * PV_HISTORY_TEXELS;
     historyOut[o] = out0;
     historyOut[o + 1u] = out1;
+    historyOut[o + 2u] = out2;
     // The variance of the integrated mean. Preview traces the same sample sequence every frame,
     // so successive frames' noise is correlated (ρ = 1 with a still camera) and averaging them
     // need not reduce it. With σ² the frames' own variance (EMA), g = Σ w² the EMA's weights and
@@ -273,9 +287,20 @@ void atrous(ivec2 p) {
         vec4(centre.rgb + change / sumW, filteredVariance / (sumW * sumW));
 }
 
+// The spatial filter's change to the demodulated signal, remodulated, on the signal it filtered:
+// this frame's, or after a temporal stage the history's mean of the signal itself (with the
+// mask's mean that goes with it), which this frame's albedo does not scale.
 void finish(ivec2 p) {
+    if (params.temporal != 0u) {
+        vec3 change = workAt(params.inImage, p).rgb - workAt(PV_DENOISE_WORK_TEMPORAL, p).rgb;
+        uint o = ((1u - params.historyIn) * pixelCount() + indexOf(p)) * PV_HISTORY_TEXELS;
+        vec4 mean = fetch(historyTexels, o + 2u);
+        outColor[indexOf(p)] = vec4(mean.rgb + change * albedoAt(p), mean.w);
+        return;
+    }
     vec3 change = workAt(params.inImage, p).rgb - workAt(PV_DENOISE_WORK_PREPARED, p).rgb;
-    outColor[indexOf(p)] = vec4(colorAt(p).rgb + change * albedoAt(p), 0.0);
+    outColor[indexOf(p)] =
+        vec4(colorAt(p).rgb + change * albedoAt(p), guideAt(p, PV_GUIDE_MOMENTS).w);
 }
 
 void main() {

@@ -155,7 +155,9 @@ struct FilmParams {
     float maskSharpness;
     float maskRangeScale;
     uint held;      // 1: blend the held view's samples (PV_FILM_BINDING_HELD)
-    uint denoised;  // 1: the estimate's RGB is the denoiser's output (PV_FILM_BINDING_DENOISED)
+    // 1: the estimate's RGB is the denoiser's output (PV_FILM_BINDING_DENOISED); 2: its mask too
+    // (a temporal history's mean, Denoiser::lastMask).
+    uint denoised;
     uint toneOp;    // PV_TONE_*
     // Multiplies the composite before the curve: the exposure's 2^stops over the white balance
     // the plate's inverse applied (undone here, as PipelineRenderer's display does).

@@ -38,7 +38,9 @@ PV_BEGIN
 // (without the temporal stage, images 1 and 2: the buffer holds three until the first temporal
 // frame, four from then on).
 #define PV_DENOISE_BINDING_WORK 3
-#define PV_DENOISE_BINDING_OUTPUT 4  // the filtered signal, vec4 per pixel (w unused)
+// The filtered signal, vec4 per pixel: RGB, and in w the mask M that goes with it (the history's
+// mean after a temporal stage, else the frame's own).
+#define PV_DENOISE_BINDING_OUTPUT 4
 // The work buffer again, as a texel buffer the stages read (on llvmpipe a texel fetch is a
 // gather, a storage-buffer load with per-lane addresses a loop over the lanes). A dispatch reads
 // only images it does not write.
@@ -50,7 +52,10 @@ PV_BEGIN
 #define PV_DENOISE_BINDING_PACKED_TEXELS 7  // the same, read
 // Two images (read, written; swapped each frame) of the temporal history, PV_HISTORY_TEXELS
 // vec4 per pixel: (integrated demodulated RGB, history length in frames), (EMA of the
-// luminance, EMA of its square, EMA of the frames' own variance, Σ of the squared EMA weights).
+// luminance, EMA of its square, EMA of the frames' own variance, Σ of the squared EMA weights),
+// (EMA of the signal itself, not demodulated, and of the mask M: where M varies from frame to
+// frame, at the virtual objects' outlines, the composite needs the mean of M that goes with the
+// signal's mean, and a mean of the signal that does not depend on this frame's albedo).
 // Made with the first temporal frame (refinement, which filters without it, never holds them;
 // nor the temporal work image: its iterations ping-pong in images 1 and 2).
 #define PV_DENOISE_BINDING_HISTORY 8
@@ -60,7 +65,7 @@ PV_BEGIN
 #define PV_DENOISE_WORK_IMAGES 4u
 #define PV_DENOISE_WORK_PREPARED 0u
 #define PV_DENOISE_WORK_TEMPORAL 1u
-#define PV_HISTORY_TEXELS 2u
+#define PV_HISTORY_TEXELS 3u
 
 // The packed guide texel: x depth (float bits, m), y normal (packSnorm2x16 of its octahedral
 // map, or PV_PACKED_NO_NORMAL where the guide has none), z mask M (float bits: the mask weight
@@ -95,6 +100,7 @@ struct DenoiseParams {
     uint packedImage;      // packed guide image of this frame (the other is the previous frame's)
     uint historyIn;        // history image read (temporal stage); the other is written
     uint historyValid;     // 0: no usable previous frame (reset), every pixel starts afresh
+    uint temporal;         // 1: this frame runs the temporal stage (the finish reads its history)
     float temporalAlpha;   // the EMA's smallest weight of the new frame (SVGF's α)
     float maxHistory;      // history length cap (frames)
     float sigmaLuminance;  // SVGF's σ_l: luminance tolerance in standard deviations of the noise
