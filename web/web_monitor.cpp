@@ -162,9 +162,35 @@ struct ViewerState {
     bool started = false;       // the opening boundary is sent
 };
 
+// Each rejected answer's status code, its WebStats counter and its name in the status JSON.
+struct RejectedCount {
+    int status;
+    uint64_t WebStats::*count;
+    const char* name;
+};
+constexpr RejectedCount kRejectedCounts[] = {
+    {400, &WebStats::badRequest, "badRequest"},
+    {401, &WebStats::unauthorized, "unauthorized"},
+    {403, &WebStats::forbidden, "forbidden"},
+    {404, &WebStats::notFound, "notFound"},
+    {405, &WebStats::methodNotAllowed, "methodNotAllowed"},
+    {408, &WebStats::requestTimeout, "requestTimeout"},
+    {421, &WebStats::misdirected, "misdirected"},
+    {411, &WebStats::lengthRequired, "lengthRequired"},
+    {413, &WebStats::payloadTooLarge, "payloadTooLarge"},
+    {414, &WebStats::uriTooLong, "uriTooLong"},
+    {431, &WebStats::headersTooLarge, "headersTooLarge"},
+    {503, &WebStats::busy, "busy"},
+    {500, &WebStats::internalError, "internalError"},
+};
+
 }  // namespace
 
 nlohmann::json toJson(const WebStats& s) {
+    nlohmann::json rejected;
+    for (const RejectedCount& r : kRejectedCounts) rejected[r.name] = s.*r.count;
+    rejected["connectionsRefused"] = s.connectionsRefused;
+    rejected["silentConnections"] = s.silentConnections;
     return {{"viewers", s.viewers},
             {"streamsServed", s.streamsServed},
             {"framesSubmitted", s.framesSubmitted},
@@ -177,22 +203,7 @@ nlohmann::json toJson(const WebStats& s) {
             {"requests", s.requests},
             {"commands", s.commands},
             {"connections", s.connections},
-            {"rejected",
-             {{"badRequest", s.badRequest},
-              {"unauthorized", s.unauthorized},
-              {"forbidden", s.forbidden},
-              {"notFound", s.notFound},
-              {"methodNotAllowed", s.methodNotAllowed},
-              {"requestTimeout", s.requestTimeout},
-              {"misdirected", s.misdirected},
-              {"lengthRequired", s.lengthRequired},
-              {"payloadTooLarge", s.payloadTooLarge},
-              {"uriTooLong", s.uriTooLong},
-              {"headersTooLarge", s.headersTooLarge},
-              {"busy", s.busy},
-              {"internalError", s.internalError},
-              {"connectionsRefused", s.connectionsRefused},
-              {"silentConnections", s.silentConnections}}}};
+            {"rejected", rejected}};
 }
 
 Result<ListenAddress> parseListenAddress(const std::string& listen) {
@@ -633,20 +644,8 @@ WebStats WebMonitor::Impl::stats() const {
     s.jpegBytes = e.lastJpegBytes;
     s.requests = requests;
     s.commands = commands;
-    auto at = [&](int code) { return rejected[size_t(code - 400)].load(); };
-    s.badRequest = at(400);
-    s.unauthorized = at(401);
-    s.forbidden = at(403);
-    s.notFound = at(404);
-    s.methodNotAllowed = at(405);
-    s.requestTimeout = at(408);
-    s.misdirected = at(421);
-    s.lengthRequired = at(411);
-    s.payloadTooLarge = at(413);
-    s.uriTooLong = at(414);
-    s.headersTooLarge = at(431);
-    s.busy = at(503);
-    s.internalError = at(500);
+    for (const RejectedCount& r : kRejectedCounts)
+        s.*r.count = rejected[size_t(r.status - 400)].load();
     const ConnectionStats connections = hub->stats();
     s.connections = connections.open;
     s.connectionsRefused = connections.refused;
