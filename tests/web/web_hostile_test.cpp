@@ -61,6 +61,22 @@ test::HttpReply answerOn(RawConnection& c, const std::string& request) {
     return test::parseReply(c.buffer());
 }
 
+// Two request workers and one stream: a few clients that held a worker each would take them
+// all, which the cases of slow and idle clients check they do not.
+WebMonitorSettings twoWorkers() {
+    WebMonitorSettings s = test::testSettings();
+    s.maxStreams = 1;
+    s.requestThreads = 2;
+    return s;
+}
+
+// `count` connections to the monitor, opened and left silent.
+std::vector<std::unique_ptr<RawConnection>> openConnections(int port, int count) {
+    std::vector<std::unique_ptr<RawConnection>> connections;
+    for (int i = 0; i < count; ++i) connections.push_back(std::make_unique<RawConnection>(port));
+    return connections;
+}
+
 // Beyond its bound per address, or the bound of all, a connection is answered 503 and closed at
 // once: it keeps no descriptor of the service and takes no worker.
 TEST_F(WebHostile, ConnectionsBeyondTheBoundsAreRefusedAndClosed) {
@@ -69,8 +85,7 @@ TEST_F(WebHostile, ConnectionsBeyondTheBoundsAreRefusedAndClosed) {
     s.maxConnections = 5;
     ASSERT_TRUE(start(s));
     const int port = monitor->port();
-    std::vector<std::unique_ptr<RawConnection>> held;
-    for (int i = 0; i < 3; ++i) held.push_back(std::make_unique<RawConnection>(port));
+    std::vector<std::unique_ptr<RawConnection>> held = openConnections(port, 3);
     ASSERT_TRUE(test::eventually([&] { return monitor->stats().connections == 3; }));
     RawConnection fourth(port);
     EXPECT_TRUE(fourth.receiveToClose(10s)) << "the 4th connection of one address stayed open";
@@ -158,15 +173,12 @@ TEST_F(WebHostile, TooManyHeaderLinesAre431) {
 // time within the read timeout. The status is served meanwhile, and each dribbler is answered
 // 408 at its request's deadline.
 TEST_F(WebHostile, SlowlorisClientsHoldNoWorkerPastTheDeadline) {
-    WebMonitorSettings s = test::testSettings();
-    s.maxStreams = 1;
-    s.requestThreads = 2;
+    WebMonitorSettings s = twoWorkers();
     s.readTimeoutMs = 2000;
     s.requestDeadlineMs = 3000;
     ASSERT_TRUE(start(s));
     const int port = monitor->port();
-    std::vector<std::unique_ptr<RawConnection>> slow;
-    for (int i = 0; i < 14; ++i) slow.push_back(std::make_unique<RawConnection>(port));
+    std::vector<std::unique_ptr<RawConnection>> slow = openConnections(port, 14);
     // And one that sends its head whole, then withholds the body it declared.
     auto withheld = std::make_unique<RawConnection>(port);
     ASSERT_TRUE(
@@ -203,16 +215,13 @@ TEST_F(WebHostile, SlowlorisClientsHoldNoWorkerPastTheDeadline) {
 // Idle connections, new and kept alive, many more than the workers: they take none, so a new
 // request is answered at once, not after their timeouts.
 TEST_F(WebHostile, IdleConnectionsTakeNoWorker) {
-    WebMonitorSettings s = test::testSettings();
-    s.maxStreams = 1;
-    s.requestThreads = 2;
+    WebMonitorSettings s = twoWorkers();
     s.readTimeoutMs = 30000;
     s.keepAliveTimeoutS = 30;
     s.maxConnectionsPerAddress = 32;
     ASSERT_TRUE(start(s));
     const int port = monitor->port();
-    std::vector<std::unique_ptr<RawConnection>> idle;
-    for (int i = 0; i < 10; ++i) idle.push_back(std::make_unique<RawConnection>(port));
+    std::vector<std::unique_ptr<RawConnection>> idle = openConnections(port, 10);
     for (int i = 0; i < 10; ++i) {
         idle.push_back(std::make_unique<RawConnection>(port));
         EXPECT_EQ(
@@ -229,9 +238,7 @@ TEST_F(WebHostile, IdleConnectionsTakeNoWorker) {
 // than the workers: their answers wait in the kernel, not in a worker blocked on writing, so a
 // new request is answered at once.
 TEST_F(WebHostile, ClientsThatReadNoAnswersHoldNoWorker) {
-    WebMonitorSettings s = test::testSettings();
-    s.maxStreams = 1;
-    s.requestThreads = 2;
+    WebMonitorSettings s = twoWorkers();
     s.writeTimeoutMs = 30000;
     s.keepAliveTimeoutS = 30;
     ASSERT_TRUE(start(s));

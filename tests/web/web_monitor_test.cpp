@@ -10,6 +10,7 @@
 #include <optional>
 #include <thread>
 
+#include "tests/web/monitor_fixture.h"
 #include "tests/web/synthetic_frames.h"
 #include "tests/web/web_test_support.h"
 
@@ -17,7 +18,6 @@ namespace previs {
 namespace {
 
 using namespace std::chrono_literals;
-using test::FakeService;
 using test::StreamViewer;
 
 // The display thread's stand-in: submits frames at `fps` and records the longest submitFrame.
@@ -80,6 +80,8 @@ struct LaggardAndViewer {
     int port;
 };
 
+class WebMonitorTest : public test::MonitorTest {};
+
 TEST(WebListen, ParsesHostAndPort) {
     Result<ListenAddress> a = parseListenAddress("0.0.0.0:8080");
     ASSERT_TRUE(a.ok()) << a.message();
@@ -111,21 +113,17 @@ TEST(WebToken, MatchesOnlyTheBearerToken) {
     EXPECT_FALSE(bearerTokenMatches("Bearer ", ""));
 }
 
-TEST(WebMonitor, RefusesAPortInUse) {
-    FakeService service;
-    auto first = test::startMonitor(service);
-    ASSERT_TRUE(first);
+TEST_F(WebMonitorTest, RefusesAPortInUse) {
+    ASSERT_TRUE(start());
     WebMonitorSettings s = test::testSettings();
-    s.listen = "127.0.0.1:" + std::to_string(first->port());
+    s.listen = "127.0.0.1:" + std::to_string(monitor->port());
     Result<std::unique_ptr<WebMonitor>> second = WebMonitor::create(s, {});
     ASSERT_FALSE(second.ok());
     EXPECT_NE(second.message().find(s.listen), std::string::npos) << second.message();
 }
 
-TEST(WebMonitor, ServesThePageAndTheStatus) {
-    FakeService service;
-    auto monitor = test::startMonitor(service);
-    ASSERT_TRUE(monitor);
+TEST_F(WebMonitorTest, ServesThePageAndTheStatus) {
+    ASSERT_TRUE(start());
     const test::HttpReply page = test::get(monitor->port(), "/");
     EXPECT_EQ(page.status, 200);
     EXPECT_NE(page.head.find("text/html"), std::string::npos);
@@ -145,10 +143,8 @@ TEST(WebMonitor, ServesThePageAndTheStatus) {
     EXPECT_EQ(j["web"]["viewers"], 0);
 }
 
-TEST(WebMonitor, StreamsJpegFramesThatChange) {
-    FakeService service;
-    auto monitor = test::startMonitor(service);
-    ASSERT_TRUE(monitor);
+TEST_F(WebMonitorTest, StreamsJpegFramesThatChange) {
+    ASSERT_TRUE(start());
     FrameProducer producer(*monitor, 30.0, 1280, 720, false);
     test::RawConnection c(monitor->port());
     ASSERT_TRUE(c.send("GET /stream.mjpeg HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"));
@@ -177,13 +173,11 @@ TEST(WebMonitor, StreamsJpegFramesThatChange) {
 }
 
 // Five viewers cost what one does: one encode per stream frame, every viewer gets each one.
-TEST(WebMonitor, FiveViewersShareOneEncodePerFrame) {
-    FakeService service;
+TEST_F(WebMonitorTest, FiveViewersShareOneEncodePerFrame) {
     WebMonitorSettings s = test::testSettings();
     s.streamFps = 10.0;
     s.maxStreams = 5;
-    auto monitor = test::startMonitor(service, s);
-    ASSERT_TRUE(monitor);
+    ASSERT_TRUE(start(s));
     FrameProducer producer(*monitor, 30.0, 640, 360, false);
     std::vector<std::unique_ptr<StreamViewer>> viewers;
     for (int i = 0; i < 5; ++i) viewers.push_back(std::make_unique<StreamViewer>(monitor->port()));
@@ -211,15 +205,13 @@ TEST(WebMonitor, FiveViewersShareOneEncodePerFrame) {
 
 // A viewer that stops reading: the render's submitFrame and the other viewer go on as before,
 // the stalled one is dropped after the write timeout and its missed frames counted.
-TEST(WebMonitor, AStalledViewerSlowsNeitherTheRenderNorOtherViewers) {
-    FakeService service;
+TEST_F(WebMonitorTest, AStalledViewerSlowsNeitherTheRenderNorOtherViewers) {
     WebMonitorSettings s = test::testSettings();
     s.streamFps = 10.0;
     s.streamWidth = 1280;
     s.jpegQuality = 95;
     s.writeTimeoutMs = 1000;
-    auto monitor = test::startMonitor(service, s);
-    ASSERT_TRUE(monitor);
+    ASSERT_TRUE(start(s));
     // At 1280×720 the stalled socket (the laggard, which never reads) fills at once.
     LaggardAndViewer stream(*monitor, 1280, 720, 4096);
     ASSERT_TRUE(stream.started());
@@ -243,13 +235,11 @@ TEST(WebMonitor, AStalledViewerSlowsNeitherTheRenderNorOtherViewers) {
 // A viewer on a slow link (it takes 64 KiB every 100 ms, a fraction of the stream): it stays
 // connected, skips to the newest frame each time it is done with one, and the skipped frames are
 // counted; the fast viewer gets every frame.
-TEST(WebMonitor, ASlowViewerSkipsToTheNewestFrame) {
-    FakeService service;
+TEST_F(WebMonitorTest, ASlowViewerSkipsToTheNewestFrame) {
     WebMonitorSettings s = test::testSettings();
     s.streamFps = 10.0;
     s.jpegQuality = 95;
-    auto monitor = test::startMonitor(service, s);
-    ASSERT_TRUE(monitor);
+    ASSERT_TRUE(start(s));
     // At 640×360 a JPEG takes the slow viewer (the laggard) several 100 ms reads.
     LaggardAndViewer stream(*monitor, 640, 360, 65536);
     ASSERT_TRUE(stream.started());
@@ -271,12 +261,10 @@ TEST(WebMonitor, ASlowViewerSkipsToTheNewestFrame) {
                 static_cast<unsigned long long>(st.viewerFramesDropped), st.jpegBytes);
 }
 
-TEST(WebMonitor, ABusyStreamLimitAnswers503) {
-    FakeService service;
+TEST_F(WebMonitorTest, ABusyStreamLimitAnswers503) {
     WebMonitorSettings s = test::testSettings();
     s.maxStreams = 2;
-    auto monitor = test::startMonitor(service, s);
-    ASSERT_TRUE(monitor);
+    ASSERT_TRUE(start(s));
     FrameProducer producer(*monitor, 30.0, 320, 180, false);
     auto a = std::make_unique<StreamViewer>(monitor->port());
     StreamViewer b(monitor->port());
@@ -294,10 +282,8 @@ TEST(WebMonitor, ABusyStreamLimitAnswers503) {
     EXPECT_TRUE(c.waitFrames(1, 10s));
 }
 
-TEST(WebMonitor, ControlNeedsTheToken) {
-    FakeService service;
-    auto monitor = test::startMonitor(service);
-    ASSERT_TRUE(monitor);
+TEST_F(WebMonitorTest, ControlNeedsTheToken) {
+    ASSERT_TRUE(start());
     const int port = monitor->port();
     EXPECT_EQ(test::post(port, "/mode", "toggle").status, 401);
     EXPECT_EQ(test::post(port, "/mode", "toggle", "Authorization: Bearer wrong\r\n").status, 401);
@@ -325,10 +311,8 @@ TEST(WebMonitor, ControlNeedsTheToken) {
 
 // The page's sign-in (GET /control) checks a token without doing anything, and the status says
 // whether control is on at all (the page then says so instead of offering a sign-in).
-TEST(WebMonitor, SignInChecksTheTokenAndDoesNothing) {
-    FakeService service;
-    auto monitor = test::startMonitor(service);
-    ASSERT_TRUE(monitor);
+TEST_F(WebMonitorTest, SignInChecksTheTokenAndDoesNothing) {
+    ASSERT_TRUE(start());
     const int port = monitor->port();
     EXPECT_EQ(test::get(port, "/control").status, 401);
     EXPECT_EQ(test::get(port, "/control", "Authorization: Bearer wrong\r\n").status, 401);
@@ -361,12 +345,10 @@ TEST(WebMonitor, AStatusWithANullWebGetsTheMonitorsCounters) {
     EXPECT_EQ(j["web"]["control"], true);
 }
 
-TEST(WebMonitor, WithoutATokenControlIsOffAndViewingWorks) {
-    FakeService service;
+TEST_F(WebMonitorTest, WithoutATokenControlIsOffAndViewingWorks) {
     WebMonitorSettings s = test::testSettings();
     s.token.clear();
-    auto monitor = test::startMonitor(service, s);
-    ASSERT_TRUE(monitor);
+    ASSERT_TRUE(start(s));
     EXPECT_EQ(test::post(monitor->port(), "/mode", "toggle", "Authorization: Bearer \r\n").status,
               403);
     EXPECT_EQ(test::post(monitor->port(), "/mode", "toggle").status, 403);
