@@ -314,10 +314,17 @@ Status PipelineRenderer::setPreview(const PreviewSettings& configured, uint32_t 
     return {};
 }
 
-std::optional<std::string> PipelineRenderer::adaptDial(double liveFrameSeconds) {
+std::optional<std::string> PipelineRenderer::adaptDial(double liveFrameSeconds, double heldCost) {
     if (dial_.empty() || !(dialFps_ > 0.0) || !(liveFrameSeconds > 0.0)) return std::nullopt;
+    const double slowdown = liveFrameSeconds / dial_[dialInUse_].frameSeconds;
+    std::optional<std::string> point = choosePoint(slowdown, liveFrameSeconds);
+    std::optional<std::string> hold = chooseHoldDepth(slowdown, heldCost);
+    if (point && hold) return *point + "; " + *hold;
+    return point ? point : hold;
+}
+
+std::optional<std::string> PipelineRenderer::choosePoint(double slowdown, double liveFrameSeconds) {
     const DialMeasurement& current = dial_[dialInUse_];
-    const double slowdown = liveFrameSeconds / current.frameSeconds;
     const std::optional<size_t> fits = chooseForFrameRate(dial_, dialFps_, slowdown);
     // None fits even now: the fastest.
     const size_t next = fits ? *fits : fastest(dial_).value_or(dialInUse_);
@@ -335,6 +342,24 @@ std::optional<std::string> PipelineRenderer::adaptDial(double liveFrameSeconds) 
     return fmt::format("{} (live frames took {:.0f} ms, {:.2f}x the {:.0f} ms measured at start)",
                        candidate.point.describe(), liveFrameSeconds * 1e3, slowdown,
                        current.frameSeconds * 1e3);
+}
+
+std::optional<std::string> PipelineRenderer::chooseHoldDepth(double slowdown, double heldCost) {
+    const DialMeasurement& point = dial_[dialInUse_];
+    if (!holdDepth_ || point.point.maxDepth >= refineDepth_ || !(heldCost > 0.0)) return {};
+    const double heldSeconds = point.frameSeconds * slowdown * heldCost;
+    // Back to refinement's depth only within the margin, so it does not swing back and forth.
+    const bool keeps = holdDepthKeepsRate_ ? heldSeconds <= 1.0 / dialFps_
+                                           : heldSeconds <= kDialUpgradeMargin / dialFps_;
+    if (keeps == holdDepthKeepsRate_) return {};
+    holdDepthKeepsRate_ = keeps;
+    if (keeps)
+        return fmt::format("a held camera at refinement's depth {} again ({:.0f} ms a frame)",
+                           refineDepth_, heldSeconds * 1e3);
+    return fmt::format(
+        "a held camera at depth {}: at refinement's depth {} its frames would take {:.0f} ms "
+        "({:.2f}x the point's), over the {:.0f} ms budget",
+        point.point.maxDepth, refineDepth_, heldSeconds * 1e3, heldCost, 1e3 / dialFps_);
 }
 
 Status PipelineRenderer::prepare(const TrackedFrame& tracked,
@@ -546,7 +571,7 @@ Status PipelineRenderer::renderPreview(const TrackedFrame& frame,
     // A held camera's frames trace refinement's depth ([render] preview_hold_depth): the held
     // view then converges toward refinement's picture, not the dial's shallower one, whose
     // bias no number of frames averages away.
-    heldAtRefineDepth_ = holds && holdDepth_;
+    heldAtRefineDepth_ = holds && holdDepth_ && holdDepthKeepsRate_;
     renderer_->setMaxDepth(heldAtRefineDepth_ ? refineDepth_ : preview.maxDepth);
     refining_ = false;
     // Preview denoises with temporal reprojection: the history follows the tracked camera.

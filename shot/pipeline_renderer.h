@@ -122,9 +122,12 @@ public:
     // at start, with the CPU to itself (tracking, lighting and display share it). Given the
     // median live frame time of the point in use, every measurement is scaled by live/measured
     // and the choice made again; a dearer point must fit within kDialUpgradeMargin of the
-    // budget, so the choice does not swing back and forth. Returns the new point's description
-    // when the choice changed.
-    std::optional<std::string> adaptDial(double liveFrameSeconds) override;
+    // budget, so the choice does not swing back and forth. A held camera's frames at
+    // refinement's depth cost `heldCost` times the point's: where that would not keep the rate,
+    // they trace the point's own depth (a held view that keeps the rate converges a little
+    // slower; one that drops it stutters), and refinement's again once it fits within the
+    // margin. Returns the description of what changed.
+    std::optional<std::string> adaptDial(double liveFrameSeconds, double heldCost) override;
     bool hasDial() const override { return !dial_.empty(); }
     bool lastPreviewOffDial() const override { return heldAtRefineDepth_; }
     static constexpr double kDialUpgradeMargin = 0.85;
@@ -210,10 +213,15 @@ private:
     // [render] preview_accumulate: preview frame k draws sequence k (Renderer::
     // renderPreviewFrame) and is averaged through the denoiser's reprojection.
     bool accumulate_ = false;
-    // [render] preview_hold_depth: a held camera traces refinement's depth; the last preview
-    // frame did (lastPreviewOffDial).
+    // [render] preview_hold_depth: a held camera traces refinement's depth while that keeps the
+    // dial's rate (adaptDial); the last preview frame did (lastPreviewOffDial).
     bool holdDepth_ = true;
+    bool holdDepthKeepsRate_ = true;
     bool heldAtRefineDepth_ = false;
+    // adaptDial's two choices at a slowdown: the point, and whether a held camera traces
+    // refinement's depth; each says what it changed.
+    std::optional<std::string> choosePoint(double slowdown, double liveFrameSeconds);
+    std::optional<std::string> chooseHoldDepth(double slowdown, double heldCost);
     uint64_t previewFrame_ = 0;
     double lightingThreshold_ = 0.0;  // [refine] lighting_threshold: a change that resets it
     std::shared_ptr<const LiveLighting> historyLighting_;  // the snapshot the history began with

@@ -90,7 +90,7 @@ Result<ShotStep> ShotController::step(std::shared_ptr<const TrackedFrame> newest
             frozenLighting_.reset();
             fps_ = 0.0;
             lastFrame_.reset();
-            liveFrameSeconds_.clear();
+            clearDialWindows();
         }
         return preview(std::move(newest), lighting);
     }
@@ -211,22 +211,70 @@ Status ShotController::capPreviewSamples() {
 
 void ShotController::previewShown(double frameSeconds) {
     // The first shown frame's render time went in already (preview() could not know yet).
-    if (!timesShownFrames_ && !liveFrameSeconds_.empty()) liveFrameSeconds_.pop_back();
+    std::vector<double>& window = dialTimes_[lastDialFrameHeld_].seconds;
+    if (!timesShownFrames_ && !window.empty()) window.pop_back();
     timesShownFrames_ = true;
     correctDial(frameSeconds);
 }
 
+namespace {
+
+double medianOf(std::vector<double> values) {
+    const auto middle = values.begin() + ptrdiff_t(values.size() / 2);
+    std::nth_element(values.begin(), middle, values.end());
+    return *middle;
+}
+
+}  // namespace
+
+void ShotController::clearDialWindows() {
+    for (DialFrameTimes& t : dialTimes_) t = {};
+    ++dialPoint_;  // nothing before pairs with what comes after
+}
+
 void ShotController::correctDial(double frameSeconds) {
-    if (!renderer_.hasDial() || !(frameSeconds > 0.0) || renderer_.lastPreviewOffDial()) return;
-    liveFrameSeconds_.push_back(frameSeconds);
-    if (liveFrameSeconds_.size() < kDialWindowFrames) return;
-    std::nth_element(liveFrameSeconds_.begin(),
-                     liveFrameSeconds_.begin() + ptrdiff_t(liveFrameSeconds_.size() / 2),
-                     liveFrameSeconds_.end());
-    const double median = liveFrameSeconds_[liveFrameSeconds_.size() / 2];
-    liveFrameSeconds_.clear();
-    if (std::optional<std::string> now = renderer_.adaptDial(median))
+    if (!renderer_.hasDial() || !(frameSeconds > 0.0)) return;
+    const bool held = renderer_.lastPreviewOffDial();
+    const uint64_t frame = ++dialFrames_;
+    DialFrameTimes& mine = dialTimes_[held];
+    DialFrameTimes& other = dialTimes_[!held];
+    // Frames a window of the other kind ago are another load's (a long hold, a long move).
+    if (!mine.seconds.empty() && frame - mine.lastFrame > kDialWindowFrames) mine.seconds.clear();
+    // The camera starts or stops holding: the frames before it are what pairs with this kind's.
+    if (held != lastDialFrameHeld_ && other.seconds.size() >= kDialPairFrames) {
+        other.median = medianOf(other.seconds);
+        other.medianFrame = frame;
+        other.medianPoint = dialPoint_;
+    }
+    lastDialFrameHeld_ = held;
+    mine.seconds.push_back(frameSeconds);
+    mine.lastFrame = frame;
+    if (mine.seconds.size() >= kDialWindowFrames) closeDialWindow(held);
+}
+
+void ShotController::closeDialWindow(bool held) {
+    DialFrameTimes& mine = dialTimes_[held];
+    const DialFrameTimes& other = dialTimes_[!held];
+    const double median = medianOf(mine.seconds);
+    const uint64_t firstFrame = mine.lastFrame + 1 - mine.seconds.size();
+    mine.seconds.clear();
+    mine.median = median;
+    mine.medianFrame = mine.lastFrame;
+    mine.medianPoint = dialPoint_;
+    // The other kind's window just before or during this one, at the same point: the same load.
+    if (other.median && other.medianPoint == dialPoint_ &&
+        other.medianFrame + kDialWindowFrames >= firstFrame) {
+        const double heldMedian = held ? median : *other.median;
+        const double pointMedian = held ? *other.median : median;
+        // Deeper paths never cost less: a ratio under 1 is the timing's noise.
+        heldCost_ = std::max(1.0, heldMedian / pointMedian);
+    }
+    const double pointSeconds = held && heldCost_ ? median / *heldCost_ : median;
+    if (std::optional<std::string> now =
+            renderer_.adaptDial(pointSeconds, heldCost_.value_or(1.0))) {
         logInfo("render: preview now at {}", *now);
+        ++dialPoint_;
+    }
 }
 
 Status ShotController::freeze(std::shared_ptr<const TrackedFrame> frame,

@@ -88,11 +88,13 @@ public:
     // use with `samplesInUse` samples, at most its own (the cap lowers them).
     virtual Status setPreview(const PreviewSettings& configured, uint32_t samplesInUse) = 0;
     // The dial (PipelineRenderer::adaptDial): whether it runs, and its live correction from the
-    // median live frame time; the new setting's description when it changed.
+    // median live frame time at the point in use and its own depth, and what a held camera's
+    // frames cost against that (`heldCost`, 1 when not known): the new setting's description
+    // when it changed (the point, or whether a held camera traces refinement's depth).
     virtual bool hasDial() const = 0;
-    virtual std::optional<std::string> adaptDial(double liveFrameSeconds) = 0;
+    virtual std::optional<std::string> adaptDial(double liveFrameSeconds, double heldCost) = 0;
     // The last preview frame was traced off the dial's point (a held camera at refinement's
-    // depth, [render] preview_hold_depth): its time says nothing of the point.
+    // depth, [render] preview_hold_depth): it costs more than the point's own frames.
     virtual bool lastPreviewOffDial() const = 0;
     // The plate-consistency meter (render/plate_consistency.h) on the last frame rendered: none
     // when it cannot say (nothing rendered, lighting pending, too few real surfaces in view).
@@ -153,6 +155,9 @@ public:
     static constexpr double kMaxPreviewFrameMs = 3000.0;
     // Preview frames timed before each live correction of the dial (their median).
     static constexpr size_t kDialWindowFrames = 15;
+    // The fewest frames of one kind (at the dial's point, or held) whose median, taken as the
+    // camera starts or stops holding, pairs with the other kind's window for the held cost.
+    static constexpr size_t kDialPairFrames = 5;
     // The plate-consistency meter reads at most this often (shot time), however the camera moves:
     // a reading costs a readback of the accumulation, and the lighting changes slowly.
     static constexpr std::chrono::seconds kPlateMeterPeriod{1};
@@ -209,6 +214,9 @@ private:
     void fitLighting(const TrackedFrame& frame, const PlateConsistency& reading, ShotStep& out);
     // Feeds the dial's live correction one preview frame's wall time.
     void correctDial(double frameSeconds);
+    // A window's median handed to the dial (a held one as the point's own time, by the held
+    // cost); a window paired with the other kind's recent one measures the held cost first.
+    void closeDialWindow(bool held);
     uint32_t refineStepSamples() const;
     // Takes a plate-consistency reading of `frame` (just rendered with `lighting`) into `out` if
     // one is due (plateConsistency() says when) or `force`d; a failed readback is logged, not
@@ -238,8 +246,27 @@ private:
     double refineMsPerSample_ = 0.0;
     double previewMsPerSample_ = 0.0;
     bool loggedPreviewCap_ = false;
-    std::vector<double> liveFrameSeconds_;  // preview frames since the dial's last correction
-    bool timesShownFrames_ = false;         // previewShown feeds the dial, not preview()
+    // The dial's live correction keeps a window for each kind of preview frame: [0] those at
+    // the dial's point, [1] a held camera's at refinement's depth (lastPreviewOffDial). A held
+    // frame costs heldCost_ times the point's own at the same load: measured where a window of
+    // one kind closes right after the other kind's (the hold's first window against the frames
+    // before it; the first window after it against the hold's last), kept through a long hold,
+    // so the held windows between re-time the dial on the load alone. Unknown (a camera held
+    // since the start): held frames count as they are, which keeps them at the rate.
+    struct DialFrameTimes {
+        std::vector<double> seconds{};   // since this kind's last correction
+        uint64_t lastFrame = 0;          // dialFrames_ at the newest
+        std::optional<double> median{};  // the last window's, or the frames' as the kind changed
+        uint64_t medianFrame = 0;        // dialFrames_ then
+        uint64_t medianPoint = 0;        // dialPoint_ then
+    };
+    DialFrameTimes dialTimes_[2];
+    uint64_t dialFrames_ = 0;  // preview frames timed for the dial
+    uint64_t dialPoint_ = 0;   // counts the dial's changes: a pair must be at one point
+    bool lastDialFrameHeld_ = false;
+    std::optional<double> heldCost_;
+    void clearDialWindows();
+    bool timesShownFrames_ = false;  // previewShown feeds the dial, not preview()
     double fps_ = 0.0;
     std::optional<ShotClock::TimePoint> lastFrame_;
     // The plate-consistency meter: its last reading, the pose and lighting it was taken with, and

@@ -128,19 +128,66 @@ TEST(Dial, LiveFramesSlowerThanMeasuredMovePreviewToACheaperPoint) {
         if (m[i].frameSeconds < m[fastest].frameSeconds) fastest = i;
     ASSERT_NE(best, fastest);
     // 10^4 times slower than measured: at 0.01 fps nothing fits any more.
-    std::optional<std::string> moved = r.adaptDial(m[best].frameSeconds * 1e4 * 1e2);
+    std::optional<std::string> moved = r.adaptDial(m[best].frameSeconds * 1e4 * 1e2, 1.0);
     ASSERT_TRUE(moved);
     EXPECT_FALSE(r.dialChoice());
     EXPECT_EQ(r.previewSamples(), m[fastest].point.samplesPerFrame);
     EXPECT_EQ(r.previewResolutionScale(), m[fastest].point.resolutionScale);
     EXPECT_EQ(r.previewMaxDepth(), m[fastest].point.maxDepth);
     // As fast as measured: back to the most accurate.
-    moved = r.adaptDial(m[fastest].frameSeconds);
+    moved = r.adaptDial(m[fastest].frameSeconds, 1.0);
     ASSERT_TRUE(moved);
     ASSERT_TRUE(r.dialChoice());
     EXPECT_EQ(*r.dialChoice(), best);
     EXPECT_EQ(r.previewSamples(), m[best].point.samplesPerFrame);
-    EXPECT_FALSE(r.adaptDial(m[best].frameSeconds));
+    EXPECT_FALSE(r.adaptDial(m[best].frameSeconds, 1.0));
+}
+
+// A held camera's frames trace refinement's depth while that keeps the rate: a held cost that
+// would take them over the budget makes them trace the point's own depth (on the dial's point,
+// timed as its frames), the point unchanged; a cost that fits again brings refinement's depth
+// back.
+TEST(Dial, HeldFramesThatWouldNotKeepTheRateTraceThePointsDepth) {
+    auto ctx = GpuContext::create({});
+    ASSERT_TRUE(ctx) << ctx.message();
+    Demo d = demo(0.01);
+    ASSERT_TRUE(d.config.render.previewAccumulate && d.config.render.previewHoldDepth);
+    auto p = PipelineRenderer::create(**ctx, d.scene, d.config);
+    ASSERT_TRUE(p) << p.message();
+    PipelineRenderer& r = **p;
+    ASSERT_TRUE(r.dialChoice());
+    const DialMeasurement& best = r.dialMeasurements()[*r.dialChoice()];
+    ASSERT_LT(best.point.maxDepth, d.config.render.maxDepth) << "a hold traces deeper";
+    auto camera = std::make_shared<Frame>();
+    camera->width = r.width();
+    camera->height = r.height();
+    camera->rgb.assign(size_t(camera->width) * camera->height * 3, 118);
+    TrackedFrame held;
+    held.frame = camera;
+    held.worldFromCamera = cv::Matx44d(1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, -2, 0, 0, 0, 1);
+    held.lost = false;
+    // The view's second frame holds: refinement's depth, off the dial's point.
+    auto heldFrame = [&] {
+        EXPECT_TRUE(r.renderPreview(held, nullptr));
+        EXPECT_TRUE(r.renderPreview(held, nullptr));
+        return testing::innerRenderer(r).maxDepth();
+    };
+    EXPECT_EQ(heldFrame(), d.config.render.maxDepth);
+    EXPECT_TRUE(r.lastPreviewOffDial());
+    // At the point's measured time, held frames that cost twice the budget.
+    const double overBudget = 2.0 / (d.config.render.previewFps * best.frameSeconds);
+    std::optional<std::string> changed = r.adaptDial(best.frameSeconds, overBudget);
+    ASSERT_TRUE(changed);
+    EXPECT_NE(changed->find("a held camera at depth"), std::string::npos) << *changed;
+    EXPECT_EQ(*r.dialChoice(), size_t(&best - r.dialMeasurements().data())) << "the same point";
+    EXPECT_EQ(heldFrame(), best.point.maxDepth);
+    EXPECT_FALSE(r.lastPreviewOffDial()) << "the point's own frames";
+    EXPECT_FALSE(r.adaptDial(best.frameSeconds, overBudget)) << "no change the second time";
+    changed = r.adaptDial(best.frameSeconds, 2.0);
+    ASSERT_TRUE(changed);
+    EXPECT_NE(changed->find("refinement's depth"), std::string::npos) << *changed;
+    EXPECT_EQ(heldFrame(), d.config.render.maxDepth);
+    EXPECT_TRUE(r.lastPreviewOffDial());
 }
 
 // [render] denoise = "auto": the dial sweeps the denoiser's strength too, preview frames are

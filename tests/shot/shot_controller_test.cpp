@@ -58,8 +58,9 @@ public:
     }
     bool hasDial() const override { return dial; }
     bool lastPreviewOffDial() const override { return offDial; }
-    std::optional<std::string> adaptDial(double liveFrameSeconds) override {
+    std::optional<std::string> adaptDial(double liveFrameSeconds, double heldCost) override {
         dialCorrections.push_back(liveFrameSeconds);
+        heldCosts.push_back(heldCost);
         return std::nullopt;
     }
     bool lightingPending() const override { return pending; }
@@ -84,7 +85,7 @@ public:
     bool offDial = false;
     std::vector<uint32_t> previews, steps;
     std::vector<uint64_t> frozenOn;
-    std::vector<double> dialCorrections;
+    std::vector<double> dialCorrections, heldCosts;
     int looks = 0;
     int plateReadings = 0;
     int fits = 0;
@@ -287,19 +288,68 @@ TEST(ShotController, TheDialIsCorrectedOnTheWholeTimeOfTheFramesShown) {
     EXPECT_NEAR(f.renderer.dialCorrections[0], 0.050, 1e-9);
 }
 
+// Preview frames of one kind in a row: `held` (off the dial's point) or not, each taking
+// `ms` of the shot's clock.
+void previewFrames(Fixture& f, size_t count, bool held, double ms) {
+    f.renderer.offDial = held;
+    f.renderer.ms_ = ms;
+    for (size_t i = 0; i < count; ++i) ASSERT_TRUE(f.shot.step(frame(i), nullptr));
+}
+
 // A held camera's frames trace refinement's depth, off the dial's point ([render]
-// preview_hold_depth): however slow, they never enter the dial's window, so a window is all
-// moving frames.
-TEST(ShotController, FramesOffTheDialsPointDoNotReTimeIt) {
+// preview_hold_depth): they re-time the dial too, as the point's own time, by the held cost that
+// the hold's first window measured against the moving frames before it. A hold at a steady load
+// leaves the correction where the moving frames put it; a load that doubles during the hold
+// doubles it; the first moving window after the hold pairs with the hold's last.
+TEST(ShotController, HeldFramesReTimeTheDialOnTheLoadNotOnTheirDepth) {
+    Fixture f(20.0);
+    f.renderer.dial = true;
+    const size_t window = ShotController::kDialWindowFrames;
+    previewFrames(f, window, false, 20.0);
+    previewFrames(f, window, true, 50.0);  // deeper paths: 2.5x the point's frames
+    previewFrames(f, window, true, 50.0);
+    previewFrames(f, window, true, 100.0);  // another process takes half the box
+    previewFrames(f, window, false, 40.0);  // the camera moves again
+    ASSERT_EQ(f.renderer.dialCorrections.size(), 5u) << "every window corrects the dial";
+    const std::vector<double> seconds = {0.020, 0.020, 0.020, 0.040, 0.040};
+    const std::vector<double> heldCosts = {1.0, 2.5, 2.5, 2.5, 2.5};
+    for (size_t i = 0; i < seconds.size(); ++i) {
+        EXPECT_NEAR(f.renderer.dialCorrections[i], seconds[i], 1e-9) << "window " << i;
+        EXPECT_NEAR(f.renderer.heldCosts[i], heldCosts[i], 1e-9) << "window " << i;
+    }
+}
+
+// A camera held since the start has no moving frames to measure the held cost against: its
+// frames count as they are (the dial then keeps them at the rate), with the cost unknown (1).
+// Once it moves, the first moving window pairs with the hold's last and the cost is known.
+TEST(ShotController, ACameraHeldSinceTheStartTimesItsFramesAsTheyAre) {
+    Fixture f(20.0);
+    f.renderer.dial = true;
+    const size_t window = ShotController::kDialWindowFrames;
+    previewFrames(f, window, true, 60.0);
+    previewFrames(f, window, false, 20.0);
+    previewFrames(f, window, true, 60.0);
+    ASSERT_EQ(f.renderer.dialCorrections.size(), 3u);
+    EXPECT_NEAR(f.renderer.dialCorrections[0], 0.060, 1e-9);
+    EXPECT_NEAR(f.renderer.heldCosts[0], 1.0, 1e-9);
+    EXPECT_NEAR(f.renderer.dialCorrections[1], 0.020, 1e-9);
+    EXPECT_NEAR(f.renderer.heldCosts[1], 3.0, 1e-9);
+    EXPECT_NEAR(f.renderer.dialCorrections[2], 0.020, 1e-9) << "the same load";
+}
+
+// A pose that jitters about the held threshold interleaves the two kinds (two frames of three
+// held, 25x dearer): each kind's window is corrected on the point's own time at the one load.
+TEST(ShotController, AJitteringHoldTimesBothKindsAtOneLoad) {
     Fixture f(20.0);
     f.renderer.dial = true;
     for (uint64_t i = 0; i < 3 * ShotController::kDialWindowFrames; ++i) {
-        f.renderer.offDial = i % 3 != 0;  // two frames of three held
+        f.renderer.offDial = i % 3 != 0;
         f.renderer.ms_ = f.renderer.offDial ? 500.0 : 20.0;
         ASSERT_TRUE(f.shot.step(frame(i), nullptr));
     }
-    ASSERT_EQ(f.renderer.dialCorrections.size(), 1u);
-    EXPECT_NEAR(f.renderer.dialCorrections[0], 0.020, 1e-9);
+    ASSERT_EQ(f.renderer.dialCorrections.size(), 3u);
+    for (double s : f.renderer.dialCorrections) EXPECT_NEAR(s, 0.020, 1e-9);
+    EXPECT_NEAR(f.renderer.heldCosts.back(), 25.0, 1e-9);
 }
 
 // The plate-consistency meter reads with a trusted pose only, once per view and lighting (a new
