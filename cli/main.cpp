@@ -3,7 +3,9 @@
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cstdio>
+#include <functional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "base/command_line.h"
@@ -31,17 +33,14 @@ int main(int argc, char** argv) {
     app.set_version_flag("--version", "previs " PREVIS_VERSION);
     app.require_subcommand(1);
     useOneLineUsageErrors(app);
-    auto runRender = addRenderCommand(app);
-    auto runTrack = addTrackCommand(app);
-    auto runEnvmap = addEnvmapCommand(app);
-    auto runLights = addLightsCommand(app);
-    auto runBench = addBenchCommand(app);
-    auto runReplay = addReplayCommand(app);
-    auto runCtl = addCtlCommand(app);
-    auto runCompare = addCompareCommand(app);
-    auto runRenderSession = addRenderSessionCommand(app);
-    auto runExportTrack = addExportTrackCommand(app);
-    auto runFreedCalibrate = addFreedCalibrateCommand(app);
+    // Each subcommand with its runner: an add function adds one subcommand, the app's last.
+    std::vector<std::pair<const CLI::App*, std::function<int()>>> commands;
+    for (auto add : {addRenderCommand, addTrackCommand, addEnvmapCommand, addLightsCommand,
+                     addBenchCommand, addReplayCommand, addCtlCommand, addCompareCommand,
+                     addRenderSessionCommand, addExportTrackCommand, addFreedCalibrateCommand}) {
+        std::function<int()> run = add(app);
+        commands.emplace_back(app.get_subcommands({}).back(), std::move(run));
+    }
     std::vector<std::string> names;
     for (const CLI::App* sub : app.get_subcommands({})) names.push_back(sub->get_name());
     if (argc > 1 && argv[1][0] != '-' &&
@@ -52,17 +51,8 @@ int main(int argc, char** argv) {
     }
     if (auto exitCode = parseCommandLine(app, argc, argv)) return *exitCode;
     return runReportingExceptions("previs", [&] {
-        if (app.got_subcommand("render")) return runRender();
-        if (app.got_subcommand("track")) return runTrack();
-        if (app.got_subcommand("envmap")) return runEnvmap();
-        if (app.got_subcommand("lights")) return runLights();
-        if (app.got_subcommand("bench")) return runBench();
-        if (app.got_subcommand("replay")) return runReplay();
-        if (app.got_subcommand("ctl")) return runCtl();
-        if (app.got_subcommand("compare")) return runCompare();
-        if (app.got_subcommand("render-session")) return runRenderSession();
-        if (app.got_subcommand("export-track")) return runExportTrack();
-        if (app.got_subcommand("freed-calibrate")) return runFreedCalibrate();
+        for (const auto& [sub, run] : commands)
+            if (sub->parsed()) return run();
         return kExitUsage;
     });
 }
