@@ -202,6 +202,13 @@ protected:
         return out;
     }
 
+    // Renders the board seen from `view` and tracks that frame, as track() does.
+    Outcome trackView(Tracker& tracker, const CameraCalibration& calib, BoardRenderer& renderer,
+                      const BoardView& view, const Degradation& degradation) {
+        const cv::Matx44d truth = cameraViewingBoard(view);
+        return track(tracker, calib, truth, render(renderer, truth), degradation);
+    }
+
     // A tracker that has seen nothing yet, so a reported pose is this frame's own; it reads the
     // frames through the camera's curve, as the service does from its radiometry.
     Tracker freshTracker(const CameraCalibration& calib,
@@ -222,6 +229,14 @@ protected:
                   kSecondOrder * cv::norm(o.predictedRotationError) + kSolverToleranceRad);
         EXPECT_LT(o.error.translationM, kMaxRelativeTranslation * distanceM);
         EXPECT_LT(o.error.rotationDeg, kMaxRotationDeg);
+    }
+    // A lost frame just after the good one `lastGood`: counted, and holding that pose.
+    void expectHoldsLastGoodPose(const Outcome& lost, const Outcome& lastGood) {
+        EXPECT_EQ(lost.state.framesSinceGood, 1u);
+        ASSERT_TRUE(lost.state.pose.has_value());
+        EXPECT_EQ(cv::norm(lost.state.pose->worldFromCamera - lastGood.state.pose->worldFromCamera),
+                  0.0)
+            << "a lost frame holds the last good pose";
     }
     // All of the header comment's checks.
     void expectAccurate(const Outcome& o, double distanceM) {
@@ -294,20 +309,15 @@ TEST_F(RenderedPoseTest, GrazingBoardIsLostNotWrong) {
     ASSERT_TRUE(renderer.has_value());
     Tracker tracker = freshTracker(lens);
     BoardView good{.distanceM = 1.2, .angleDeg = 30.0, .azimuthDeg = 10.0};
-    const cv::Matx44d goodTruth = cameraViewingBoard(good);
-    Outcome first = track(tracker, lens, goodTruth, render(*renderer, goodTruth),
-                          {.blurSigmaPx = 0.5, .noiseSigmaLevels = 2.0});
+    Outcome first =
+        trackView(tracker, lens, *renderer, good, {.blurSigmaPx = 0.5, .noiseSigmaLevels = 2.0});
     expectPoseFollowsCorners(first, good.distanceM);
 
     BoardView grazing{.distanceM = 1.2, .angleDeg = 85.0, .azimuthDeg = 10.0};
-    const cv::Matx44d truth = cameraViewingBoard(grazing);
-    Outcome o = track(tracker, lens, truth, render(*renderer, truth),
-                      {.blurSigmaPx = 0.5, .noiseSigmaLevels = 2.0});
+    Outcome o =
+        trackView(tracker, lens, *renderer, grazing, {.blurSigmaPx = 0.5, .noiseSigmaLevels = 2.0});
     if (o.state.lost) {
-        EXPECT_EQ(o.state.framesSinceGood, 1u);
-        ASSERT_TRUE(o.state.pose.has_value());
-        EXPECT_EQ(cv::norm(o.state.pose->worldFromCamera - first.state.pose->worldFromCamera), 0.0)
-            << "a lost frame holds the last good pose";
+        expectHoldsLastGoodPose(o, first);
     } else {
         EXPECT_LT(o.error.translationM, kMaxRelativeTranslation * grazing.distanceM);
         EXPECT_LT(o.error.rotationDeg, kMaxRotationDeg);
@@ -322,19 +332,14 @@ TEST_F(RenderedPoseTest, DistantBoardIsLost) {
     ASSERT_TRUE(renderer.has_value());
     Tracker tracker = freshTracker(lens);
     BoardView good{.distanceM = 1.5, .angleDeg = 0.0, .rollDeg = 30.0};
-    const cv::Matx44d goodTruth = cameraViewingBoard(good);
-    Outcome first =
-        track(tracker, lens, goodTruth, render(*renderer, goodTruth), {.noiseSigmaLevels = 2.0});
+    Outcome first = trackView(tracker, lens, *renderer, good, {.noiseSigmaLevels = 2.0});
     ASSERT_FALSE(first.state.lost) << first.state.reason;
 
     BoardView far{.distanceM = 25.0, .angleDeg = 0.0, .rollDeg = 30.0};
-    const cv::Matx44d truth = cameraViewingBoard(far);
-    Outcome o = track(tracker, lens, truth, render(*renderer, truth), {.noiseSigmaLevels = 2.0});
+    Outcome o = trackView(tracker, lens, *renderer, far, {.noiseSigmaLevels = 2.0});
     EXPECT_TRUE(o.state.lost);
     EXPECT_EQ(o.state.reason, "no tags detected");
-    EXPECT_EQ(o.state.framesSinceGood, 1u);
-    ASSERT_TRUE(o.state.pose.has_value());
-    EXPECT_EQ(cv::norm(o.state.pose->worldFromCamera - first.state.pose->worldFromCamera), 0.0);
+    expectHoldsLastGoodPose(o, first);
 }
 
 // Small tags at the defaults (issue 38): the tracker finds every tag full-resolution detection
