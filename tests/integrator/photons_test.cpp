@@ -77,17 +77,28 @@ protected:
         RenderSettings rs = photonSettings(32, 24, PhotonMode::Auto);
         rs.differential = true;
         rs.photons.perIteration = 1u << 14;
-        auto renderer = Renderer::create(ctx(), scene, rs);
+        std::unique_ptr<Renderer> r = photonRenderer(scene, rs);
+        if (r && !r->render(iterations).ok()) {
+            ADD_FAILURE() << "the render failed";
+            return nullptr;
+        }
+        return r;
+    }
+
+    // A renderer of `scene` whose photon pass runs; null, with the test failed, if it cannot be
+    // made or runs no photons.
+    std::unique_ptr<Renderer> photonRenderer(const Scene& scene, const RenderSettings& rs,
+                                             const RendererTestOptions& testOptions = {}) {
+        auto renderer = Renderer::create(ctx(), scene, rs, {}, testOptions);
         if (!renderer) {
             ADD_FAILURE() << renderer.message();
             return nullptr;
         }
-        std::unique_ptr<Renderer> r = std::move(renderer.value());
-        if (!r->photonsActive() || !r->render(iterations).ok()) {
-            ADD_FAILURE() << "no photon pass, or the render failed";
+        if (!(*renderer)->photonsActive()) {
+            ADD_FAILURE() << "no photon pass";
             return nullptr;
         }
-        return r;
+        return std::move(renderer.value());
     }
 };
 
@@ -111,10 +122,9 @@ TEST_F(PhotonTest, GlassBallDepositsTheFluxItIntercepts) {
 
     RenderSettings rs = photonSettings(16, 16, PhotonMode::Auto);
     rs.photons.perIteration = 1u << 16;
-    auto renderer = Renderer::create(ctx(), scene, rs);
-    ASSERT_TRUE(renderer.ok()) << renderer.message();
-    Renderer& r = **renderer;
-    ASSERT_TRUE(r.photonsActive());
+    std::unique_ptr<Renderer> renderer = photonRenderer(scene, rs);
+    ASSERT_TRUE(renderer);
+    Renderer& r = *renderer;
     const int iterations = 16;
     std::vector<double> perIteration, level2Ratio;
     size_t stored = 0;
@@ -167,13 +177,12 @@ TEST_F(PhotonTest, RefractedFluxIsNotScaledByEtaSquared) {
     scene.lights.push_back(pointLight(glm::vec3(0.0f, d, 0.0f), candela, true));
     scene.cameras.push_back(lookAt(glm::vec3(0, 1, 1.5f), glm::vec3(0), glm::vec3(0, 1, 0), 1.0f));
     RenderSettings rs = photonSettings(16, 16, PhotonMode::Auto);
-    auto renderer = Renderer::create(ctx(), scene, rs);
-    ASSERT_TRUE(renderer.ok()) << renderer.message();
-    ASSERT_TRUE((*renderer)->photonsActive());
+    std::unique_ptr<Renderer> renderer = photonRenderer(scene, rs);
+    ASSERT_TRUE(renderer);
     std::vector<double> perIteration;
     for (int i = 0; i < 16; ++i) {
-        ASSERT_TRUE((*renderer)->render(1).ok());
-        auto records = (*renderer)->diagnostics().photonRecords();
+        ASSERT_TRUE(renderer->render(1).ok());
+        auto records = renderer->diagnostics().photonRecords();
         ASSERT_TRUE(records.ok());
         perIteration.push_back(depositedPower(*records, PV_PHOTON_IN_MIXED));
     }
@@ -290,11 +299,10 @@ TEST_F(CausticAgreementTest, PhotonsPlusPathsEqualPathTracing) {
     // Student's t, 14 dof, two-sided 0.1 %.
     EXPECT_LT(z, 4.1) << "photon+path mean " << photonMean << ", path tracing " << refMean;
     // Not vacuous: the photons carry a real share of the light on the floor.
-    auto r = Renderer::create(ctx(), s, withPhotons);
-    ASSERT_TRUE(r.ok());
-    ASSERT_TRUE((*r)->photonsActive());
-    ASSERT_TRUE((*r)->render(1).ok());
-    auto records = (*r)->diagnostics().photonRecords();
+    std::unique_ptr<Renderer> r = photonRenderer(s, withPhotons);
+    ASSERT_TRUE(r);
+    ASSERT_TRUE(r->render(1).ok());
+    auto records = r->diagnostics().photonRecords();
     ASSERT_TRUE(records.ok());
     EXPECT_GT(depositedPower(*records, PV_PHOTON_IN_MIXED), 0.1);
 }
@@ -545,16 +553,15 @@ TEST_F(PhotonTest, HostSpecialisationMatchesTheDrivers) {
         // Not the shader's default values: a constant the host failed to apply would show.
         rs.sampler = Sampler::Independent;
         rs.lightSampling = LightSampling::Area;
-        auto renderer = Renderer::create(ctx(), scene, rs, {}, {.specialise = modes[m]});
-        ASSERT_TRUE(renderer.ok()) << renderer.message();
-        ASSERT_TRUE((*renderer)->photonsActive());
-        ASSERT_TRUE((*renderer)->render(4).ok());
-        auto stored = (*renderer)->diagnostics().photonRecords();
+        std::unique_ptr<Renderer> renderer = photonRenderer(scene, rs, {.specialise = modes[m]});
+        ASSERT_TRUE(renderer);
+        ASSERT_TRUE(renderer->render(4).ok());
+        auto stored = renderer->diagnostics().photonRecords();
         ASSERT_TRUE(stored.ok());
         for (const auto& rec : *stored) records[m] += rec.flags != 0;
         int a = 0;
         for (Aov aov : {Aov::Mixed, Aov::Real}) {
-            auto image = (*renderer)->image(aov);
+            auto image = renderer->image(aov);
             ASSERT_TRUE(image.ok());
             images[m][a++] = image->pixels;
         }
@@ -713,10 +720,9 @@ TEST_F(PhotonTest, SplatsAndGathersAgreeInEverySolution) {
         rs.differential = true;
         rs.photons.perIteration = 1u << 14;
         rs.photons.splatToCamera = splat;
-        auto renderer = Renderer::create(ctx(), scene, rs);
-        ASSERT_TRUE(renderer.ok()) << renderer.message();
-        Renderer& r = **renderer;
-        ASSERT_TRUE(r.photonsActive());
+        std::unique_ptr<Renderer> renderer = photonRenderer(scene, rs);
+        ASSERT_TRUE(renderer);
+        Renderer& r = *renderer;
         ASSERT_TRUE(r.film().setPlate(plate, "test plate").ok());
         for (uint32_t run = 0; run < kRuns; ++run) {
             ASSERT_TRUE(r.reset().ok());
@@ -797,10 +803,9 @@ TEST_F(CausticAgreementTest, PreviewPhotonBudgetIsADialAxis) {
     const Scene s = scene();
     RenderSettings rs = photonSettings(48, 36, PhotonMode::Auto);
     rs.photons.perIteration = 1u << 15;
-    auto r = Renderer::create(ctx(), s, rs);
-    ASSERT_TRUE(r.ok()) << r.message();
-    Renderer& renderer = **r;
-    ASSERT_TRUE(renderer.photonsActive());
+    std::unique_ptr<Renderer> r = photonRenderer(s, rs);
+    ASSERT_TRUE(r);
+    Renderer& renderer = *r;
     ASSERT_TRUE(renderer.render(16).ok());
     auto reference = renderer.image();
     ASSERT_TRUE(reference.ok());
@@ -836,23 +841,22 @@ TEST_F(CausticAgreementTest, TheDefaultFirstRadiusFollowsThePhotonsPerIteration)
 
     const Scene s = scene();
     RenderSettings rs = previewSettings();  // refinement 32768 photons, preview 4096
-    auto r = Renderer::create(ctx(), s, rs);
-    ASSERT_TRUE(r.ok()) << r.message();
-    ASSERT_TRUE((*r)->photonsActive());
-    const float aim = (*r)->photonAim().radius;
-    EXPECT_FLOAT_EQ((*r)->nextPhotonRadius(), defaultPhotonRadius(aim, 1u << 15));
-    EXPECT_EQ((*r)->lastPhotonCount(), 0u);
-    ASSERT_TRUE((*r)->renderPreviewFrame(1).ok());
-    EXPECT_EQ((*r)->lastPhotonCount(), 4096u);
-    EXPECT_FLOAT_EQ((*r)->lastPhotonRadius(), defaultPhotonRadius(aim, 4096));
+    std::unique_ptr<Renderer> r = photonRenderer(s, rs);
+    ASSERT_TRUE(r);
+    const float aim = r->photonAim().radius;
+    EXPECT_FLOAT_EQ(r->nextPhotonRadius(), defaultPhotonRadius(aim, 1u << 15));
+    EXPECT_EQ(r->lastPhotonCount(), 0u);
+    ASSERT_TRUE(r->renderPreviewFrame(1).ok());
+    EXPECT_EQ(r->lastPhotonCount(), 4096u);
+    EXPECT_FLOAT_EQ(r->lastPhotonRadius(), defaultPhotonRadius(aim, 4096));
     auto previewRecords =
-        (*r)->diagnostics().photonRecords();  // the preview iteration's, not refinement's
+        r->diagnostics().photonRecords();  // the preview iteration's, not refinement's
     ASSERT_TRUE(previewRecords.ok());
     EXPECT_EQ(previewRecords->size(), size_t(PV_PHOTON_RECORDS_PER_PHOTON) * 4096u);
-    ASSERT_TRUE((*r)->reset().ok());
-    ASSERT_TRUE((*r)->render(1).ok());
-    EXPECT_EQ((*r)->lastPhotonCount(), 1u << 15);
-    EXPECT_FLOAT_EQ((*r)->lastPhotonRadius(), defaultPhotonRadius(aim, 1u << 15));
+    ASSERT_TRUE(r->reset().ok());
+    ASSERT_TRUE(r->render(1).ok());
+    EXPECT_EQ(r->lastPhotonCount(), 1u << 15);
+    EXPECT_FLOAT_EQ(r->lastPhotonRadius(), defaultPhotonRadius(aim, 1u << 15));
     rs.photons.initialRadius = 0.004f;
     auto fixed = Renderer::create(ctx(), s, rs);
     ASSERT_TRUE(fixed.ok()) << fixed.message();
