@@ -170,10 +170,8 @@ Scene setWithVirtualObjects() {
     addSphere(s, {0.3f, 0.35f, 0.0f}, 0.25f, addMaterial(s, lambert(glm::vec3(0.1f, 0.8f, 0.2f))),
               false, 16, 32);
     addSphere(s, {-0.2f, 0.2f, 0.5f}, 0.2f, addMaterial(s, mirror()), false, 16, 32);
-    PunctualLight fill;  // a virtual (artistic) light: it lights the mixed solution only
-    fill.position = {0.5f, 1.0f, 0.8f};
-    fill.intensity = 0.5f;
-    s.lights.push_back(fill);
+    // A virtual (artistic) light: it lights the mixed solution only.
+    s.lights.push_back(pointLight({0.5f, 1.0f, 0.8f}, 0.5f));
     return s;
 }
 

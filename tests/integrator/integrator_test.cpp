@@ -346,9 +346,7 @@ TEST_F(IntegratorTest, DispatchesStayInsideTheCpuDeviceLoopLimit) {
 TEST_F(IntegratorTest, CreateCountsItsPipelinesUpToATotalKnownFirst) {
     Scene s;
     addSphere(s, glm::vec3(0.0f), 1.0f, addMaterial(s, mirror()));
-    PunctualLight light;
-    light.position = {0.0f, 3.0f, 0.0f};
-    s.lights.push_back(light);
+    s.lights.push_back(pointLight({0.0f, 3.0f, 0.0f}, 1.0f));
     s.cameras.push_back(lookAt({0, 0, 4}, {0, 0, 0}, {0, 1, 0}, radians(40)));
     RenderSettings rs;
     rs.width = rs.height = 16;
@@ -368,10 +366,7 @@ TEST_F(IntegratorTest, PointLightFollowsInverseSquareCosineLaw) {
     const float h = 1.0f, intensity = 10.0f, rho = 0.75f;
     Scene s;
     addQuad(s, {0, 0, 0}, {0, 0, 50}, {50, 0, 0}, addMaterial(s, lambert(glm::vec3(rho))));
-    PunctualLight light;
-    light.type = LightType::Point;
-    light.position = {0.0f, h, 0.0f};
-    light.intensity = intensity;
+    const PunctualLight light = pointLight({0.0f, h, 0.0f}, intensity);
     s.lights.push_back(light);
     s.cameras.push_back(lookAt({0.3f, 3, 0.2f}, {0.3f, 0, 0}, {0, 0, -1}, radians(70)));
     RenderSettings rs = renderSettings(32, 32, 1);
@@ -668,10 +663,7 @@ TEST_F(IntegratorTest, SpecialisedPipelineMatchesGeneral) {
     Scene s;
     addQuad(s, {0, 0, 0}, {0, 0, 2}, {2, 0, 0}, addMaterial(s, lambert(glm::vec3(0.6f))));
     addSphere(s, {0, 0.3f, 0}, 0.3f, addMaterial(s, lambert(glm::vec3(0.2f, 0.5f, 0.8f))));
-    PunctualLight light;
-    light.position = {1, 2, 1};
-    light.intensity = 5.0f;
-    s.lights.push_back(light);
+    s.lights.push_back(pointLight({1, 2, 1}, 5.0f));
     s.cameras.push_back(lookAt({0, 1, 2}, {0, 0.2f, 0}, {0, 1, 0}, radians(45)));
     RenderSettings rs = renderSettings(16, 16, 6);
     auto specialised = Renderer::create(ctx(), s, rs);

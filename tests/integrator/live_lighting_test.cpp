@@ -149,11 +149,7 @@ TEST_F(LiveLightingTest, EnvironmentSwitchMatchesFreshRenderer) {
 TEST_F(LiveLightingTest, EstimatedLightSwitchMatchesFreshRenderer) {
     Scene s = liveSet();
     // The scene's own light stays through every switch.
-    PunctualLight own;
-    own.position = {1, 2, 1};
-    own.intensity = 3.0f;
-    own.isReal = true;
-    s.lights.push_back(own);
+    s.lights.push_back(pointLight({1, 2, 1}, 3.0f, /*real=*/true));
     auto live = make(s, smallSettings());
     ASSERT_TRUE(live);
     ASSERT_TRUE(live->setEstimatedLights(lightsA()).ok());

@@ -24,15 +24,6 @@ namespace {
 
 constexpr float kPi = 3.14159265358979f;
 
-PunctualLight pointLight(glm::vec3 position, float candela, bool real) {
-    PunctualLight l;
-    l.type = LightType::Point;
-    l.position = position;
-    l.intensity = candela;
-    l.isReal = real;
-    return l;
-}
-
 RenderSettings photonSettings(uint32_t width, uint32_t height, PhotonMode mode) {
     RenderSettings rs = renderSettings(width, height, RenderSettings{}.maxDepth);
     rs.photons.mode = mode;

@@ -157,6 +157,15 @@ Scene realTableUnderSun(bool withSky) {
     return s;
 }
 
+PunctualLight pointLight(glm::vec3 position, float intensity, bool real) {
+    PunctualLight l;
+    l.type = LightType::Point;
+    l.position = position;
+    l.intensity = intensity;
+    l.isReal = real;
+    return l;
+}
+
 PunctualLight realSun(glm::vec3 direction, float irradiance) {
     PunctualLight sun;
     sun.type = LightType::Directional;

@@ -32,6 +32,10 @@ void addBox(Scene& scene, glm::vec3 lo, glm::vec3 hi, uint32_t material, bool re
 
 EnvironmentMap uniformEnvironment(glm::vec3 radiance, uint32_t width = 16, uint32_t height = 8);
 
+// A point light at `position` of `intensity` W/sr; `real`: of the real set (it lights both
+// solutions), else a virtual light (the mixed solution only).
+PunctualLight pointLight(glm::vec3 position, float intensity, bool real = false);
+
 // A directional light of the real set shining along `direction` (normalised here), `irradiance`
 // W/m².
 PunctualLight realSun(glm::vec3 direction, float irradiance);
