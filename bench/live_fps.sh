@@ -4,24 +4,29 @@
 # then reads `previs ctl status --json` once a second and reports the frames shown per second of
 # wall clock (framesShown's growth, not the service's own estimate), and the medians of the
 # service's fps, latencyMs and renderMs fields over the window.
-#   usage: bench/live_fps.sh [--config FILE] [--seconds N] [--warmup N] [--build DIR]
+# --keep DIR keeps previsd's log (the dial's corrections) and the status samples there.
+#   usage: bench/live_fps.sh [--config FILE] [--seconds N] [--warmup N] [--build DIR] [--keep DIR]
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 config=$root/examples/demo/previsd.toml
 seconds=30
 warmup=20
 build=$root/build
+keep=
 while (($#)); do
     case $1 in
         --config) config=$2; shift 2 ;;
         --seconds) seconds=$2; shift 2 ;;
         --warmup) warmup=$2; shift 2 ;;
         --build) build=$2; shift 2 ;;
+        --keep) keep=$2; shift 2 ;;
         *) echo "live_fps: unknown option '$1' (see the script's header)" >&2; exit 2 ;;
     esac
 done
 work=$(mktemp -d)
-trap 'kill "$pid" 2>/dev/null || true; wait "$pid" 2>/dev/null || true; rm -rf "$work"' EXIT
+trap 'kill "$pid" 2>/dev/null || true; wait "$pid" 2>/dev/null || true
+      [[ -n $keep ]] && mkdir -p "$keep" && cp "$work"/previsd.log "$work"/samples "$keep"/ 2>/dev/null
+      rm -rf "$work"' EXIT
 export RUNTIME_DIRECTORY=$work
 "$build/daemon/previsd" --config "$config" >"$work/previsd.log" 2>&1 &
 pid=$!

@@ -319,8 +319,8 @@ std::optional<std::string> PipelineRenderer::adaptDial(double liveFrameSeconds, 
     const double slowdown = liveFrameSeconds / dial_[dialInUse_].frameSeconds;
     std::optional<std::string> point = choosePoint(slowdown, liveFrameSeconds);
     std::optional<std::string> hold = chooseHoldDepth(slowdown, heldCost);
-    if (point && hold) return *point + "; " + *hold;
-    return point ? point : hold;
+    if (!hold) return point;
+    return (point ? *point : dial_[dialInUse_].point.describe()) + "; " + *hold;
 }
 
 std::optional<std::string> PipelineRenderer::choosePoint(double slowdown, double liveFrameSeconds) {
@@ -349,8 +349,9 @@ std::optional<std::string> PipelineRenderer::chooseHoldDepth(double slowdown, do
     if (!holdDepth_ || point.point.maxDepth >= refineDepth_ || !(heldCost > 0.0)) return {};
     const double heldSeconds = point.frameSeconds * slowdown * heldCost;
     // Back to refinement's depth only within the margin, so it does not swing back and forth.
-    const bool keeps = holdDepthKeepsRate_ ? heldSeconds <= 1.0 / dialFps_
-                                           : heldSeconds <= kDialUpgradeMargin / dialFps_;
+    const bool fits = holdDepthKeepsRate_ ? heldSeconds <= 1.0 / dialFps_
+                                          : heldSeconds <= kDialUpgradeMargin / dialFps_;
+    const bool keeps = fits || heldCost <= kHoldDepthWorthCost;
     if (keeps == holdDepthKeepsRate_) return {};
     holdDepthKeepsRate_ = keeps;
     if (keeps)

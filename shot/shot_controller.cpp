@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cmath>
 
 #include "base/log.h"
 
@@ -267,7 +268,12 @@ void ShotController::closeDialWindow(bool held) {
         const double heldMedian = held ? median : *other.median;
         const double pointMedian = held ? *other.median : median;
         // Deeper paths never cost less: a ratio under 1 is the timing's noise.
-        heldCost_ = std::max(1.0, heldMedian / pointMedian);
+        const double cost = std::max(1.0, heldMedian / pointMedian);
+        // Said when it first is known and as it changes by a tenth, not at every hold.
+        if (!heldCost_ || std::abs(cost / *heldCost_ - 1.0) > 0.1)
+            logInfo("render: a held camera's frames take {:.2f}x the dial point's ({:.0f} ms)",
+                    cost, heldMedian * 1e3);
+        heldCost_ = cost;
     }
     const double pointSeconds = held && heldCost_ ? median / *heldCost_ : median;
     if (std::optional<std::string> now =
