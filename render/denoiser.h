@@ -66,7 +66,8 @@ public:
     Status filter(const GpuBuffer& guides, const DenoiseCamera* now);
     // The mask M that goes with the last apply()'s or applyTemporal()'s output, per pixel: after a
     // temporal stage the history's mean of it, which the composite's plate term needs beside the
-    // history's mean of the signal (shared/denoise.h); else the guides' own.
+    // history's mean of the signal (shared/denoise.h); else the guides' own, the mean over the
+    // same samples as the accumulation's (the path tracer adds both from each kept sample).
     std::span<const float> lastMask() const { return lastMask_; }
     GpuBuffer& colourInput() { return buffers_[PV_DENOISE_BINDING_COLOR]; }
     const GpuBuffer& output() const { return buffers_[PV_DENOISE_BINDING_OUTPUT]; }

@@ -217,7 +217,7 @@ shader::FilmParams DisplayPass::params(const Inputs& in, const UpsampleSettings&
     p.maskSharpness = outline.sharpness;
     p.maskRangeScale = outline.rangeScale;
     p.held = in.held ? 1u : 0u;
-    p.denoised = !in.denoised ? 0u : in.denoisedMask ? 2u : 1u;
+    p.denoised = in.denoised ? 1u : 0u;
     p.toneOp = toneOp(settings.tone.op);
     const float exposure = std::exp2(settings.tone.exposureStops);
     for (int c = 0; c < 3; ++c) p.exposure[c] = exposure / settings.whiteBalance[c];

@@ -58,8 +58,8 @@ public:
     // tracer's accumulation at the traced size (`sum`, `compensation`: PV_BINDING_ACCUM_*) and,
     // for a denoised frame, its guides. `held`: the held view's samples at the output size
     // (PV_BINDING_HELD_SAMPLES), or null. `signal`: the denoiser's input buffer writeSignal
-    // fills; `denoised`: its output, which run() then takes for the estimate's RGB (null: the
-    // means), and with `denoisedMask` for its mask too (the temporal history's mean).
+    // fills; `denoised`: its output, which run() then takes for the estimate (RGB the filtered
+    // signal, A the mask's mean that goes with it; null: the means).
     struct Inputs {
         const ImageF* plate = nullptr;
         uint64_t plateVersion = 0;
@@ -71,7 +71,6 @@ public:
         const GpuBuffer* guides = nullptr;
         GpuBuffer* signal = nullptr;
         const GpuBuffer* denoised = nullptr;
-        bool denoisedMask = false;
     };
     // Writes the denoiser's input (Denoiser::colourInput: the mean of Eq. 1's plate-free part
     // and the variance of its luminance) from the accumulation and the guides' moments.

@@ -269,16 +269,16 @@ Result<ImageF> Film::compositeEstimate(const TracedBuffers& traced, bool denoise
     Result<Accumulation> m = readAccumulation(traced);
     if (!m) return m.error();
     if (!denoised) return plateFreeMeans(*m, traced);
-    // The filter sees the composite without its plate term; the mask keeps its mean (with the
-    // temporal stage, the history's mean that goes with the filtered signal).
+    // The filter sees the composite without its plate term; the mask is the one its output
+    // carries, the mean that goes with the filtered signal (with the temporal stage, the
+    // history's).
     auto filtered = denoisedMeans(traced, *m, PV_ACCUM_COMPOSITE, camera);
     if (!filtered) return filtered.error();
     const std::span<const float> mask = denoiser_->lastMask();
     ImageF plateFree = blankImage(traced.width, traced.height, 4);
     for (size_t i = 0; i < size_t(traced.width) * traced.height; ++i) {
         for (int c = 0; c < 3; ++c) plateFree.pixels[i * 4 + c] = filtered->pixels[i * 3 + c];
-        plateFree.pixels[i * 4 + 3] =
-            temporalDenoise_ ? mask[i] : float(m->mean(i, PV_ACCUM_COMPOSITE, 3));
+        plateFree.pixels[i * 4 + 3] = mask[i];
     }
     return plateFree;
 }
@@ -335,7 +335,6 @@ Result<DisplayImage> Film::display(const TracedBuffers& traced, bool denoised,
         if (Status s = (*d)->filter(*traced.guides, temporalDenoise_ ? &camera : nullptr); !s)
             return s.error();
         in.denoised = &(*d)->output();
-        in.denoisedMask = temporalDenoise_;
     }
     return displayPass_->run(in, upsample_, settings);
 }

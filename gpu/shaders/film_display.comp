@@ -91,9 +91,7 @@ void signalStage(uvec2 q) {
 void estimateStage(uvec2 q) {
     uint i = q.y * params.traceWidth + q.x;
     vec4 mean = compositeMean(i);
-    estimateOut[i] = params.denoised == 2u   ? denoised[i]
-                     : params.denoised != 0u ? vec4(denoised[i].rgb, mean.a)
-                                             : mean;
+    estimateOut[i] = params.denoised != 0u ? denoised[i] : mean;
 }
 
 void guideStage(uvec2 q) {

@@ -119,7 +119,7 @@ PV_INLINE vec3 toneCurve(vec3 rgb, uint op, float maxRadiance, float whiteLumina
 #define PV_FILM_BINDING_COUNT 15
 
 // The denoiser's input from the accumulation (denoised frames only; the denoiser runs between
-// it and the estimate), the estimate (the means, or the denoised signal with the mean mask),
+// it and the estimate), the estimate (the means, or the denoiser's output),
 // the low-resolution guide (skipped at full resolution), then the output pixels.
 #define PV_FILM_STAGE_SIGNAL 0u
 #define PV_FILM_STAGE_ESTIMATE 1u
@@ -155,8 +155,8 @@ struct FilmParams {
     float maskSharpness;
     float maskRangeScale;
     uint held;      // 1: blend the held view's samples (PV_FILM_BINDING_HELD)
-    // 1: the estimate's RGB is the denoiser's output (PV_FILM_BINDING_DENOISED); 2: its mask too
-    // (a temporal history's mean, Denoiser::lastMask).
+    // 1: the estimate is the denoiser's output (PV_FILM_BINDING_DENOISED): the filtered signal
+    // and the mask's mean that goes with it (Denoiser::lastMask).
     uint denoised;
     uint toneOp;    // PV_TONE_*
     // Multiplies the composite before the curve: the exposure's 2^stops over the white balance
