@@ -4,8 +4,11 @@
 # then reads `previs ctl status --json` once a second and reports the frames shown per second of
 # wall clock (framesShown's growth, not the service's own estimate), and the medians of the
 # service's fps, latencyMs and renderMs fields over the window.
-# --keep DIR keeps previsd's log (the dial's corrections) and the status samples there.
+# --keep DIR keeps previsd's log (the dial's corrections) and the status samples there;
+# --busy-after N busy-loops one core from N seconds into the window to its end (another process
+# loading the box) and reports the frames shown/s before and after it started.
 #   usage: bench/live_fps.sh [--config FILE] [--seconds N] [--warmup N] [--build DIR] [--keep DIR]
+#                            [--busy-after N]
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 config=$root/examples/demo/previsd.toml
@@ -13,6 +16,8 @@ seconds=30
 warmup=20
 build=$root/build
 keep=
+busyAfter=
+busy=
 while (($#)); do
     case $1 in
         --config) config=$2; shift 2 ;;
@@ -20,11 +25,13 @@ while (($#)); do
         --warmup) warmup=$2; shift 2 ;;
         --build) build=$2; shift 2 ;;
         --keep) keep=$2; shift 2 ;;
+        --busy-after) busyAfter=$2; shift 2 ;;
         *) echo "live_fps: unknown option '$1' (see the script's header)" >&2; exit 2 ;;
     esac
 done
 work=$(mktemp -d)
-trap 'kill "$pid" 2>/dev/null || true; wait "$pid" 2>/dev/null || true
+trap '[[ -n $busy ]] && kill "$busy" 2>/dev/null
+      kill "$pid" 2>/dev/null || true; wait "$pid" 2>/dev/null || true
       [[ -n $keep ]] && mkdir -p "$keep" && cp "$work"/previsd.log "$work"/samples "$keep"/ 2>/dev/null
       rm -rf "$work"' EXIT
 export RUNTIME_DIRECTORY=$work
@@ -36,15 +43,22 @@ for _ in $(seq 600); do
     shown=$(status | python3 -c 'import json,sys; print(json.load(sys.stdin)["framesShown"])' \
             2>/dev/null || echo 0)
     ((shown > 0)) && break
+    kill -0 "$pid" 2>/dev/null || break  # it stopped (a config error): the log says why
     sleep 1
 done
-((shown > 0)) || { echo "live_fps: no frame shown in 600 s; log:" >&2; cat "$work/previsd.log" >&2; exit 1; }
+((shown > 0)) || { echo "live_fps: no frame shown (previsd stopped, or 600 s); log:" >&2; cat "$work/previsd.log" >&2; exit 1; }
 sleep "$warmup"
 for i in $(seq 0 "$seconds"); do
+    if [[ $i == "$busyAfter" ]]; then
+        date +%s.%N >"$work/busy"
+        bash -c 'while :; do :; done' &
+        busy=$!
+    fi
     echo "$(date +%s.%N) $(status | tr -d '\n')" >>"$work/samples"
     sleep 1
 done
-python3 - "$work/samples" <<'EOF'
+[[ -n $busy ]] && { kill "$busy"; wait "$busy" 2>/dev/null || true; busy=; }
+python3 - "$work/samples" "$work/busy" <<'EOF'
 import json, statistics, sys
 rows = []
 for line in open(sys.argv[1]):
@@ -61,4 +75,14 @@ print(f"frames shown/s {shown:.2f} over {t1 - t0:.0f} s; medians: fps {med('fps'
       f"lightingMs {med('lightingMs'):.0f}, "
       f"dropped {b['framesDropped'] - a['framesDropped']}, mode {b['mode']}, "
       f"history {b.get('previewHistoryFrames')}")
+try:
+    busy = float(open(sys.argv[2]).read())
+except OSError:
+    sys.exit(0)
+def rate(w):
+    return (w[-1][1]["framesShown"] - w[0][1]["framesShown"]) / (w[-1][0] - w[0][0])
+quiet = [r for r in rows if r[0] <= busy]
+loaded = [r for r in rows if r[0] >= busy]
+if len(quiet) > 1 and len(loaded) > 1:
+    print(f"frames shown/s before the busy loop {rate(quiet):.2f}, with it {rate(loaded):.2f}")
 EOF
