@@ -58,26 +58,65 @@ Result<ImageF> addedToPlate(PipelineRenderer& renderer, ImageF composite) {
     return composite;
 }
 
-// Frames of the pan with a reference of their own (the hold shares frame kStillFirst's).
+// Frames of the pan with a reference of their own. The hold's frames share one of two: the map
+// turns until frame 19 and the fisheye's bracket lands a few frames after it is taken, so the
+// hold's first frames are lit by a bracket of the pan (frame kStillFirst's reference), the rest
+// by brackets of the still room (frame kStillLast's: what the crew holding on it would refine).
 constexpr size_t kPanFrames[] = {5, 10, 15, 19, 48, 52};
 
 struct References {
-    std::map<size_t, ImageF> added;  // frame → the reference's composite − plate
-    const ImageF* at(size_t frame) const {
-        if (frame >= kStillFirst && frame <= kStillLast) frame = kStillFirst;
+    std::map<size_t, ImageF> added;   // frame → the reference's composite − plate
+    uint64_t firstStillLighting = 0;  // the lighting snapshot frame kStillFirst is rendered with
+    // Frame kStillLast's reference again with another random sequence: the two differ by the
+    // reference's own noise (an error near it is the reference's, not the preview's).
+    ImageF twin;
+    // The reference of `frame`, rendered with the lighting snapshot `lighting`.
+    const ImageF* at(size_t frame, uint64_t lighting) const {
+        if (frame >= kStillFirst && frame <= kStillLast)
+            frame = lighting == firstStillLighting ? kStillFirst : kStillLast;
         auto it = added.find(frame);
         return it == added.end() ? nullptr : &it->second;
     }
 };
 
+// The sequence of the lighting snapshot `replay` renders with now (0: none).
+uint64_t lightingSequence(const SessionReplay& replay) {
+    return replay.lighting() ? replay.lighting()->sequence : 0;
+}
+
+// The twin reference's sequence: config.render.seed with these bits flipped.
+constexpr uint32_t kTwinSeed = 0x5bd1e995u;
+
 // The reference of `frame` at `spp` in `cacheDir` ("" = no cache), named by a hash of the
 // config's text too: another config is another reference. A change to the renderer is not seen:
 // empty the folder then (bench/bench_shot.h).
 std::string cachedReferencePath(const std::string& cacheDir, const std::string& configText,
-                                size_t frame, uint32_t spp) {
+                                size_t frame, uint32_t spp, bool twin = false) {
     if (cacheDir.empty()) return {};
-    return fmt::format("{}/shot_reference_{:016x}_frame{}_{}spp.exr", cacheDir,
-                       std::hash<std::string>{}(configText), frame, spp);
+    return fmt::format("{}/shot_reference_{:016x}_frame{}_{}spp{}.exr", cacheDir,
+                       std::hash<std::string>{}(configText), frame, spp, twin ? "_twin" : "");
+}
+
+// Frame `shown` refined to `spp` (read from `cached` where it is there, written there after),
+// what it adds to the plate.
+Result<ImageF> reference(PipelineRenderer& r, const TrackedFrame& shown,
+                         const std::shared_ptr<const LiveLighting>& lighting, uint32_t spp,
+                         const std::string& cached) {
+    if (!cached.empty() && std::filesystem::exists(cached)) return readImage(cached);
+    if (Status s = r.beginRefine(shown, lighting); !s) return s.error();
+    for (uint32_t done = 0; done < spp;) {
+        const uint32_t n = std::min<uint32_t>(64, spp - done);
+        if (Status s = r.refineStep(n); !s) return s.error();
+        done += n;
+        benchProgress("reference frame {}: {}/{} spp", shown.frame->sequence, done, spp);
+    }
+    Result<ImageF> image = r.composite();
+    if (!image) return image.error();
+    Result<ImageF> added = addedToPlate(r, std::move(*image));
+    if (!added) return added.error();
+    if (!cached.empty())
+        if (Status s = writeExr(cached, *added); !s) return s.error();
+    return added;
 }
 
 // The file's text ("" when unreadable: loadServiceConfig has read it already).
@@ -106,33 +145,26 @@ Result<References> references(const ServiceConfig& shipped, const std::string& s
         if (!*step) break;
         const bool pan =
             std::find(std::begin(kPanFrames), std::end(kPanFrames), i) != std::end(kPanFrames);
-        if (i != kStillFirst && !pan) continue;
+        if (i == kStillFirst) refs.firstStillLighting = lightingSequence(replay);
+        if (i != kStillFirst && i != kStillLast && !pan) continue;
         if (!(*step)->shot.shown) return makeError("bench shot: frame {} was not tracked", i);
         const uint32_t total = pan ? std::max<uint32_t>(1, spp / 4) : spp;
-        const std::string cached = cachedReferencePath(cacheDir, configText, i, total);
-        if (!cached.empty() && std::filesystem::exists(cached)) {
-            Result<ImageF> image = readImage(cached);
-            if (!image) return image.error();
-            refs.added.emplace(i, std::move(*image));
-            continue;
-        }
         PipelineRenderer& r = replay.renderer();
-        if (Status s = r.beginRefine(*(*step)->shot.shown, replay.lighting()); !s) return s.error();
-        for (uint32_t done = 0; done < total;) {
-            const uint32_t n = std::min<uint32_t>(64, total - done);
-            if (Status s = r.refineStep(n); !s) return s.error();
-            done += n;
-            benchProgress("reference frame {}: {}/{} spp", i, done, total);
-        }
-        Result<ImageF> image = r.composite();
-        if (!image) return image.error();
-        Result<ImageF> added = addedToPlate(r, std::move(*image));
+        const TrackedFrame& shown = *(*step)->shot.shown;
+        Result<ImageF> added = reference(r, shown, replay.lighting(), total,
+                                         cachedReferencePath(cacheDir, configText, i, total));
         if (!added) return added.error();
-        if (!cached.empty())
-            if (Status s = writeExr(cached, *added); !s) return s.error();
         refs.added.emplace(i, std::move(*added));
+        if (i != kStillLast) continue;
+        r.setSeed(config.render.seed ^ kTwinSeed);
+        Result<ImageF> twin = reference(r, shown, replay.lighting(), total,
+                                        cachedReferencePath(cacheDir, configText, i, total, true));
+        r.setSeed(config.render.seed);
+        if (!twin) return twin.error();
+        refs.twin = std::move(*twin);
     }
-    if (!refs.at(kStillFirst)) return makeError("bench shot: the demo take has no still view");
+    if (!refs.added.count(kStillFirst) || !refs.added.count(kStillLast))
+        return makeError("bench shot: the demo take has no still view");
     return refs;
 }
 
@@ -163,7 +195,8 @@ Status holdLonger(SessionReplay& replay, const TrackedFrame& still, const Refere
         row.ms = std::chrono::duration<double, std::milli>(Clock::now() - t).count();
         Result<ImageF> added = addedToPlate(r, std::move(*image));
         if (!added) return added.error();
-        if (Status s = measureRow(row, *added, refs.at(kStillFirst)); !s) return s;
+        const ImageF* ref = refs.at(kStillLast, lightingSequence(replay));
+        if (Status s = measureRow(row, *added, ref); !s) return s;
         row.extraHold = true;
         benchProgress("held {}: {:.0f} ms", held, row.ms);
         rows.push_back(std::move(row));
@@ -194,7 +227,8 @@ Result<std::vector<FrameRow>> run(const ShotVariant& v, const std::string& sessi
         row.ms = std::chrono::duration<double, std::milli>(Clock::now() - t).count();
         Result<ImageF> added = addedToPlate(replay.renderer(), std::move(*image));
         if (!added) return added.error();
-        if (Status s = measureRow(row, *added, refs.at(i)); !s) return s.error();
+        const ImageF* ref = refs.at(i, lightingSequence(replay));
+        if (Status s = measureRow(row, *added, ref); !s) return s.error();
         if (i >= kStillFirst && i <= kStillLast) row.added = std::move(*added);
         benchProgress("{}: frame {}, {:.0f} ms", v.name, i, row.ms);
         rows.push_back(std::move(row));
@@ -341,7 +375,7 @@ int runShotBench(const ShotBenchOptions& o) {
         logError("{}", refs.message());
         return 1;
     }
-    const ImageF& still = *refs->at(kStillFirst);
+    const ImageF& still = refs->added.at(kStillLast);
     std::ofstream csv;
     if (!o.csvPath.empty()) {
         csv.open(o.csvPath, std::ios::trunc);
@@ -349,14 +383,16 @@ int runShotBench(const ShotBenchOptions& o) {
     }
     std::printf(
         "Demo take (examples/demo), %ux%u, as `previs replay --mode preview` steps it; reference: "
-        "the still view (frame %zu) refined to %u spp without the denoiser. Error: DESIGN.md §4's "
+        "the still view refined to %u spp without the denoiser (frame %zu, lit by a bracket of the "
+        "pan, for the hold's first frames; frame %zu, lit by the still room's, for the rest). "
+        "Error: DESIGN.md §4's "
         "√relMSE of composite − plate against the reference's, its worst %.1f %% of pixels left "
         "out (the first table) and all of them (the second); the pan's frames against their own "
         "references (a quarter of the samples); held %zu previews the last still frame again "
         "after the take's hold ends. Flicker: temporal std of the last %zu of the take's held "
         "frames' composite − plate, RMS over pixels, over the reference's RMS.\n\n",
-        still.width, still.height, kStillFirst, spp, kTrimmedFraction * 100.0, kLongHold,
-        kFlickerFrames);
+        still.width, still.height, spp, kStillFirst, kStillLast, kTrimmedFraction * 100.0,
+        kLongHold, kFlickerFrames);
     std::vector<VariantResult> results;
     for (const ShotVariant& v : variants) {
         if (v.name.find(o.variant) == std::string::npos) continue;
@@ -384,6 +420,13 @@ int runShotBench(const ShotBenchOptions& o) {
     }
     printTable(results, true);
     printTable(results, false);
+    if (Result<ImageDifference> d = compareImages(refs->twin, still))
+        std::printf(
+            "\nThe reference's own noise: the still view refined again with another random "
+            "sequence scores √relMSE %.3f (the worst %.1f %% left out), %.3f (every pixel) "
+            "against it. An error near or below that is the reference's noise, not the "
+            "preview's.\n",
+            std::sqrt(d->relMseTrimmed), kTrimmedFraction * 100.0, std::sqrt(d->relMse));
     for (const VariantResult& r : results)
         if (!r.dialPoint.empty())
             std::printf("\nThe dial chose, %s: %s.\n", r.name.c_str(), r.dialPoint.c_str());
