@@ -5,10 +5,10 @@
 // config and with the paper's fixed-sequence preview, against a deep refinement of the take's
 // still view (its frames 20–44 hold one view; their first few are lit by a bracket the fisheye
 // took while the map still turned, so they have a reference of their own), and a second
-// refinement of it with another random sequence, the reference's own noise. Per frame of the pan and of the
-// hold: DESIGN.md §4's √relMSE of what the preview adds to the plate (composite − plate, so the
-// plates' own noise cancels) against the reference's; flicker (temporal standard deviation of
-// the still frames' added signal, relative to the reference's); the virtual objects' level on
+// refinement of it with another random sequence, the reference's own noise. Per frame of the pan
+// and of the hold: DESIGN.md §4's √relMSE of what the preview adds to the plate (composite − plate,
+// so the plates' own noise cancels) against the reference's; flicker (temporal standard deviation
+// of the still frames' added signal, relative to the reference's); the virtual objects' level on
 // the first frame (before any lighting snapshot) against the reference's; lock-step ms per frame.
 
 #include <cstdint>
