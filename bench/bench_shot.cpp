@@ -62,13 +62,15 @@ Result<ImageF> addedToPlate(PipelineRenderer& renderer, ImageF composite) {
 // turns until frame 19 and the fisheye's bracket lands a few frames after it is taken, so the
 // hold's first frames are lit by a bracket of the pan (frame kStillFirst's reference), the rest
 // by brackets of the still room (frame kStillLast's: what the crew holding on it would refine).
+// Those brackets all see the same room; what their capture noise changes counts as the
+// preview's error.
 constexpr size_t kPanFrames[] = {5, 10, 15, 19, 48, 52};
 
 struct References {
     std::map<size_t, ImageF> added;   // frame → the reference's composite − plate
     uint64_t firstStillLighting = 0;  // the lighting snapshot frame kStillFirst is rendered with
-    // Frame kStillLast's reference again with another random sequence: the two differ by the
-    // reference's own noise (an error near it is the reference's, not the preview's).
+    // Frame kStillLast's reference again with another random sequence: what refinement at the
+    // reference's samples scores against it (its own noise, on the metric's terms).
     ImageF twin;
     // The reference of `frame`, rendered with the lighting snapshot `lighting`.
     const ImageF* at(size_t frame, uint64_t lighting) const {
@@ -84,7 +86,9 @@ uint64_t lightingSequence(const SessionReplay& replay) {
     return replay.lighting() ? replay.lighting()->sequence : 0;
 }
 
-// The twin reference's sequence: config.render.seed with these bits flipped.
+// The twin reference's sequence: config.render.seed with these bits flipped (the references
+// before it refine on from the last preview frame's). Its cache file's name does not say it:
+// empty the folder after changing it.
 constexpr uint32_t kTwinSeed = 0x5bd1e995u;
 
 // The reference of `frame` at `spp` in `cacheDir` ("" = no cache), named by a hash of the
@@ -156,10 +160,10 @@ Result<References> references(const ServiceConfig& shipped, const std::string& s
         if (!added) return added.error();
         refs.added.emplace(i, std::move(*added));
         if (i != kStillLast) continue;
+        // The next preview frame sets its own seed (Renderer::previewFrameSeed).
         r.setSeed(config.render.seed ^ kTwinSeed);
         Result<ImageF> twin = reference(r, shown, replay.lighting(), total,
                                         cachedReferencePath(cacheDir, configText, i, total, true));
-        r.setSeed(config.render.seed);
         if (!twin) return twin.error();
         refs.twin = std::move(*twin);
     }
@@ -422,10 +426,9 @@ int runShotBench(const ShotBenchOptions& o) {
     printTable(results, false);
     if (Result<ImageDifference> d = compareImages(refs->twin, still))
         std::printf(
-            "\nThe reference's own noise: the still view refined again with another random "
-            "sequence scores √relMSE %.3f (the worst %.1f %% left out), %.3f (every pixel) "
-            "against it. An error near or below that is the reference's noise, not the "
-            "preview's.\n",
+            "\nThe reference's own noise: the still view refined again to the same samples with "
+            "another random sequence scores √relMSE %.3f (the worst %.1f %% left out), "
+            "%.3f (every pixel) against it.\n",
             std::sqrt(d->relMseTrimmed), kTrimmedFraction * 100.0, std::sqrt(d->relMse));
     for (const VariantResult& r : results)
         if (!r.dialPoint.empty())

@@ -30,9 +30,12 @@ while (($#)); do
     esac
 done
 work=$(mktemp -d)
-trap '[[ -n $busy ]] && kill "$busy" 2>/dev/null
+# Each step may fail (previsd gone, no samples yet) without stopping the rest: the folder goes.
+trap '{ [[ -n $busy ]] && kill "$busy"; } 2>/dev/null || true
       kill "$pid" 2>/dev/null || true; wait "$pid" 2>/dev/null || true
-      [[ -n $keep ]] && mkdir -p "$keep" && cp "$work"/previsd.log "$work"/samples "$keep"/ 2>/dev/null
+      if [[ -n $keep ]]; then
+          mkdir -p "$keep" && cp "$work"/previsd.log "$work"/samples "$keep"/ 2>/dev/null || true
+      fi
       rm -rf "$work"' EXIT
 export RUNTIME_DIRECTORY=$work
 "$build/daemon/previsd" --config "$config" >"$work/previsd.log" 2>&1 &
