@@ -40,6 +40,7 @@ int main(int argc, char** argv) {
                      addRenderSessionCommand, addExportTrackCommand, addFreedCalibrateCommand}) {
         std::function<int()> run = add(app);
         commands.emplace_back(app.get_subcommands({}).back(), std::move(run));
+        PV_ASSERT(app.get_subcommands({}).size() == commands.size());  // one subcommand each
     }
     std::vector<std::string> names;
     for (const CLI::App* sub : app.get_subcommands({})) names.push_back(sub->get_name());
