@@ -346,12 +346,13 @@ std::optional<std::string> PipelineRenderer::choosePoint(double slowdown, double
 
 std::optional<std::string> PipelineRenderer::chooseHoldDepth(double slowdown, double heldCost) {
     const DialMeasurement& point = dial_[dialInUse_];
-    if (!holdDepth_ || point.point.maxDepth >= refineDepth_ || !(heldCost > 0.0)) return {};
     const double heldSeconds = point.frameSeconds * slowdown * heldCost;
     // Back to refinement's depth only within the margin, so it does not swing back and forth.
-    const bool fits = holdDepthKeepsRate_ ? heldSeconds <= 1.0 / dialFps_
-                                          : heldSeconds <= kDialUpgradeMargin / dialFps_;
-    const bool keeps = fits || heldCost <= kHoldDepthWorthCost;
+    const double budget = (holdDepthKeepsRate_ ? 1.0 : kDialUpgradeMargin) / dialFps_;
+    // The point's depth gains nothing where it is refinement's or deeper, or where the depth
+    // costs under kHoldDepthWorthCost (an unknown cost, 1, included).
+    const bool keeps = !holdDepth_ || point.point.maxDepth >= refineDepth_ ||
+                       !(heldCost > kHoldDepthWorthCost) || heldSeconds <= budget;
     if (keeps == holdDepthKeepsRate_) return {};
     holdDepthKeepsRate_ = keeps;
     if (keeps)

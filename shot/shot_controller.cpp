@@ -230,7 +230,6 @@ double medianOf(std::vector<double> values) {
 
 void ShotController::clearDialWindows() {
     for (DialFrameTimes& t : dialTimes_) t = {};
-    ++dialPoint_;  // nothing before pairs with what comes after
 }
 
 void ShotController::correctDial(double frameSeconds) {
@@ -241,11 +240,11 @@ void ShotController::correctDial(double frameSeconds) {
     DialFrameTimes& other = dialTimes_[!held];
     // Frames a window of the other kind ago are another load's (a long hold, a long move).
     if (!mine.seconds.empty() && frame - mine.lastFrame > kDialWindowFrames) mine.seconds.clear();
-    // The camera starts or stops holding: the frames before it are what pairs with this kind's.
+    // The camera starts or stops holding: the frames before it are what pairs with this kind's
+    // first window (and, dated by their newest, with no later one).
     if (held != lastDialFrameHeld_ && other.seconds.size() >= kDialPairFrames) {
         other.median = medianOf(other.seconds);
-        other.medianFrame = frame;
-        other.medianPoint = dialPoint_;
+        other.medianFrame = other.lastFrame;
     }
     lastDialFrameHeld_ = held;
     mine.seconds.push_back(frameSeconds);
@@ -255,32 +254,39 @@ void ShotController::correctDial(double frameSeconds) {
 
 void ShotController::closeDialWindow(bool held) {
     DialFrameTimes& mine = dialTimes_[held];
-    const DialFrameTimes& other = dialTimes_[!held];
     const double median = medianOf(mine.seconds);
     const uint64_t firstFrame = mine.lastFrame + 1 - mine.seconds.size();
     mine.seconds.clear();
     mine.median = median;
     mine.medianFrame = mine.lastFrame;
-    mine.medianPoint = dialPoint_;
-    // The other kind's window just before or during this one, at the same point: the same load.
-    if (other.median && other.medianPoint == dialPoint_ &&
-        other.medianFrame + kDialWindowFrames >= firstFrame) {
-        const double heldMedian = held ? median : *other.median;
-        const double pointMedian = held ? *other.median : median;
-        // Deeper paths never cost less: a ratio under 1 is the timing's noise.
-        const double cost = std::max(1.0, heldMedian / pointMedian);
-        // Said when it first is known and as it changes by a tenth, not at every hold.
-        if (!heldCost_ || std::abs(cost / *heldCost_ - 1.0) > 0.1)
-            logInfo("render: a held camera's frames take {:.2f}x the dial point's ({:.0f} ms)",
-                    cost, heldMedian * 1e3);
-        heldCost_ = cost;
-    }
+    measureHeldCost(held, firstFrame);
     const double pointSeconds = held && heldCost_ ? median / *heldCost_ : median;
-    if (std::optional<std::string> now =
-            renderer_.adaptDial(pointSeconds, heldCost_.value_or(1.0))) {
-        logInfo("render: preview now at {}", *now);
-        ++dialPoint_;
+    const PreviewSettings pointBefore = renderer_.preview().configured;
+    std::optional<std::string> now = renderer_.adaptDial(pointSeconds, heldCost_.value_or(1.0));
+    if (!now) return;
+    logInfo("render: preview now at {}", *now);
+    // Another point: the frames so far, and the held cost, are the old point's.
+    if (!(renderer_.preview().configured == pointBefore)) {
+        clearDialWindows();
+        heldCost_.reset();
     }
+}
+
+void ShotController::measureHeldCost(bool held, uint64_t firstFrame) {
+    const DialFrameTimes& mine = dialTimes_[held];
+    const DialFrameTimes& other = dialTimes_[!held];
+    // The other kind's window just before or during this one: the same load.
+    if (!other.median || other.medianFrame + kDialWindowFrames < firstFrame) return;
+    const double heldMedian = held ? *mine.median : *other.median;
+    const double pointMedian = held ? *other.median : *mine.median;
+    // As measured, under 1 too (a held view's frames can be quicker: BENCHMARKS.md), so a hold
+    // re-times the dial on the load alone.
+    const double cost = heldMedian / pointMedian;
+    // Said when it first is known and as it changes by a tenth, not at every hold.
+    if (!heldCost_ || std::abs(cost / *heldCost_ - 1.0) > 0.1)
+        logInfo("render: a held camera's frames take {:.2f}x the dial point's ({:.0f} ms)", cost,
+                heldMedian * 1e3);
+    heldCost_ = cost;
 }
 
 Status ShotController::freeze(std::shared_ptr<const TrackedFrame> frame,

@@ -217,6 +217,11 @@ private:
     // A window's median handed to the dial (a held one as the point's own time, by the held
     // cost); a window paired with the other kind's recent one measures the held cost first.
     void closeDialWindow(bool held);
+    // The held cost, where the window of `held`'s kind just closed (from firstFrame) pairs with
+    // the other kind's recent one.
+    void measureHeldCost(bool held, uint64_t firstFrame);
+    // Forgets both kinds' frames and medians: nothing before pairs with what comes after.
+    void clearDialWindows();
     uint32_t refineStepSamples() const;
     // Takes a plate-consistency reading of `frame` (just rendered with `lighting`) into `out` if
     // one is due (plateConsistency() says when) or `force`d; a failed readback is logged, not
@@ -252,20 +257,18 @@ private:
     // one kind closes right after the other kind's (the hold's first window against the frames
     // before it; the first window after it against the hold's last), kept through a long hold,
     // so the held windows between re-time the dial on the load alone. Unknown (a camera held
-    // since the start): held frames count as they are, which keeps them at the rate.
+    // since the start, or since the dial's point changed: both windows start over): held frames
+    // count as they are, which keeps them at the rate.
     struct DialFrameTimes {
         std::vector<double> seconds{};   // since this kind's last correction
         uint64_t lastFrame = 0;          // dialFrames_ at the newest
         std::optional<double> median{};  // the last window's, or the frames' as the kind changed
-        uint64_t medianFrame = 0;        // dialFrames_ then
-        uint64_t medianPoint = 0;        // dialPoint_ then
+        uint64_t medianFrame = 0;        // dialFrames_ at its newest frame
     };
     DialFrameTimes dialTimes_[2];
     uint64_t dialFrames_ = 0;  // preview frames timed for the dial
-    uint64_t dialPoint_ = 0;   // counts the dial's changes: a pair must be at one point
     bool lastDialFrameHeld_ = false;
     std::optional<double> heldCost_;
-    void clearDialWindows();
     bool timesShownFrames_ = false;  // previewShown feeds the dial, not preview()
     double fps_ = 0.0;
     std::optional<ShotClock::TimePoint> lastFrame_;
