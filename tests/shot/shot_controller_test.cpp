@@ -384,6 +384,22 @@ TEST(ShotController, ANewDialPointStartsTheHeldCostOver) {
     EXPECT_NEAR(f.renderer.heldCosts[3], 3.0, 1e-9) << "measured at the new point";
 }
 
+// A hold that closes its window within a few moving frames leaves the moving kind's unfinished
+// window behind: a change of point there starts it over, so the new point's first moving window
+// is its own frames only.
+TEST(ShotController, ANewDialPointStartsTheOtherKindsWindowOver) {
+    Fixture f(20.0);
+    f.renderer.dial = true;
+    f.renderer.pointChangeAt = 1;
+    previewFrames(f, 10, true, 50.0);
+    previewFrames(f, 10, false, 20.0);
+    previewFrames(f, 5, true, 50.0);  // the held window closes: 2.5x; the dial moves
+    previewFrames(f, ShotController::kDialWindowFrames, false, 10.0);
+    ASSERT_EQ(f.renderer.dialCorrections.size(), 2u);
+    EXPECT_NEAR(f.renderer.heldCosts[0], 2.5, 1e-9);
+    EXPECT_NEAR(f.renderer.dialCorrections[1], 0.010, 1e-9) << "the new point's frames only";
+}
+
 // A change of the held camera's depth alone is no new point: the moving window before it pairs
 // with the hold's first.
 TEST(ShotController, AChangeOfTheHeldDepthAloneKeepsThePair) {
