@@ -123,19 +123,17 @@ TEST(Dial, LiveFramesSlowerThanMeasuredMovePreviewToACheaperPoint) {
     const auto& m = r.dialMeasurements();
     ASSERT_TRUE(r.dialChoice());
     const size_t best = *r.dialChoice();
-    size_t fastest = 0;
-    for (size_t i = 0; i < m.size(); ++i)
-        if (m[i].frameSeconds < m[fastest].frameSeconds) fastest = i;
-    ASSERT_NE(best, fastest);
+    const size_t quickest = *fastest(m);
+    ASSERT_NE(best, quickest);
     // 10^4 times slower than measured: at 0.01 fps nothing fits any more.
     std::optional<std::string> moved = r.adaptDial(m[best].frameSeconds * 1e4 * 1e2, 1.0);
     ASSERT_TRUE(moved);
     EXPECT_FALSE(r.dialChoice());
-    EXPECT_EQ(r.previewSamples(), m[fastest].point.samplesPerFrame);
-    EXPECT_EQ(r.previewResolutionScale(), m[fastest].point.resolutionScale);
-    EXPECT_EQ(r.previewMaxDepth(), m[fastest].point.maxDepth);
+    EXPECT_EQ(r.previewSamples(), m[quickest].point.samplesPerFrame);
+    EXPECT_EQ(r.previewResolutionScale(), m[quickest].point.resolutionScale);
+    EXPECT_EQ(r.previewMaxDepth(), m[quickest].point.maxDepth);
     // As fast as measured: back to the most accurate.
-    moved = r.adaptDial(m[fastest].frameSeconds, 1.0);
+    moved = r.adaptDial(m[quickest].frameSeconds, 1.0);
     ASSERT_TRUE(moved);
     ASSERT_TRUE(r.dialChoice());
     EXPECT_EQ(*r.dialChoice(), best);

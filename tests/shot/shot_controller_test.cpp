@@ -304,6 +304,18 @@ void previewFrames(Fixture& f, size_t count, bool held, double ms) {
     for (size_t i = 0; i < count; ++i) ASSERT_TRUE(f.shot.step(frame(i), nullptr));
 }
 
+// The dial's corrections in order: the point's seconds each window handed it, and the held cost
+// it was handed with.
+void expectCorrections(const Fixture& f, const std::vector<double>& seconds,
+                       const std::vector<double>& heldCosts) {
+    ASSERT_EQ(f.renderer.dialCorrections.size(), seconds.size())
+        << "every window corrects the dial";
+    for (size_t i = 0; i < seconds.size(); ++i) {
+        EXPECT_NEAR(f.renderer.dialCorrections[i], seconds[i], 1e-9) << "window " << i;
+        EXPECT_NEAR(f.renderer.heldCosts[i], heldCosts[i], 1e-9) << "window " << i;
+    }
+}
+
 // A held camera's frames trace refinement's depth, off the dial's point ([render]
 // preview_hold_depth): they re-time the dial too, as the point's own time, by the held cost that
 // the hold's first window measured against the moving frames before it. A hold at a steady load
@@ -318,13 +330,7 @@ TEST(ShotController, HeldFramesReTimeTheDialOnTheLoadNotOnTheirDepth) {
     previewFrames(f, window, true, 50.0);
     previewFrames(f, window, true, 100.0);  // another process takes half the box
     previewFrames(f, window, false, 40.0);  // the camera moves again
-    ASSERT_EQ(f.renderer.dialCorrections.size(), 5u) << "every window corrects the dial";
-    const std::vector<double> seconds = {0.020, 0.020, 0.020, 0.040, 0.040};
-    const std::vector<double> heldCosts = {1.0, 2.5, 2.5, 2.5, 2.5};
-    for (size_t i = 0; i < seconds.size(); ++i) {
-        EXPECT_NEAR(f.renderer.dialCorrections[i], seconds[i], 1e-9) << "window " << i;
-        EXPECT_NEAR(f.renderer.heldCosts[i], heldCosts[i], 1e-9) << "window " << i;
-    }
+    expectCorrections(f, {0.020, 0.020, 0.020, 0.040, 0.040}, {1.0, 2.5, 2.5, 2.5, 2.5});
 }
 
 // The moving frames' unfinished window (5 of them after a whole window) pairs with the hold's
@@ -340,13 +346,7 @@ TEST(ShotController, TheFramesBeforeAHoldPairWithItsFirstWindowOnly) {
     previewFrames(f, 5, true, 100.0);
     previewFrames(f, window, false, 40.0);
     previewFrames(f, window, false, 20.0);  // the other process has gone
-    ASSERT_EQ(f.renderer.dialCorrections.size(), 5u);
-    const std::vector<double> seconds = {0.020, 0.020, 0.040, 0.040, 0.020};
-    const std::vector<double> heldCosts = {1.0, 2.5, 2.5, 2.5, 2.5};
-    for (size_t i = 0; i < seconds.size(); ++i) {
-        EXPECT_NEAR(f.renderer.dialCorrections[i], seconds[i], 1e-9) << "window " << i;
-        EXPECT_NEAR(f.renderer.heldCosts[i], heldCosts[i], 1e-9) << "window " << i;
-    }
+    expectCorrections(f, {0.020, 0.020, 0.040, 0.040, 0.020}, {1.0, 2.5, 2.5, 2.5, 2.5});
 }
 
 // A held view's frames can be quicker than the point's (BENCHMARKS.md measures 0.88-0.98): the
