@@ -87,6 +87,11 @@ std::optional<size_t> fastest(std::span<const DialMeasurement> measurements) {
     return best;
 }
 
+bool holdKeepsRefineDepth(double heldSeconds, double heldCost, double targetFps, bool keepsNow) {
+    const double budget = (keepsNow ? 1.0 : kDialUpgradeMargin) / targetFps;
+    return !(heldCost > kHoldDepthWorthCost) || heldSeconds <= budget;
+}
+
 std::vector<size_t> gridNeighbours(std::span<const DialMeasurement> measurements, size_t chosen,
                                    const DialAxes& axes) {
     // Steps along an axis: a value missing from it (an axis not swept) counts as one place.

@@ -62,6 +62,20 @@ std::optional<size_t> chooseForFrameRate(std::span<const DialMeasurement> measur
 // The fastest measurement (the fallback when none fits); nothing when there are none.
 std::optional<size_t> fastest(std::span<const DialMeasurement> measurements);
 
+// A dearer point, or refinement's depth for a held camera once dropped, must fit within this
+// share of the frame budget, so that the live choice does not swing back and forth.
+inline constexpr double kDialUpgradeMargin = 0.85;
+// A held cost up to this keeps refinement's depth however slow the frames: the point's depth
+// would gain under a tenth of the rate and lose the held view's convergence toward refinement's
+// picture (the demo measures about 1).
+inline constexpr double kHoldDepthWorthCost = 1.1;
+
+// Whether a held camera's frames, which take `heldSeconds` at refinement's depth (`heldCost`
+// times the point's frames), trace that depth at `targetFps`: within the budget while they do
+// (`keepsNow`), within kDialUpgradeMargin of it to come back; always where the depth costs
+// under kHoldDepthWorthCost (an unknown cost, 1, included).
+bool holdKeepsRefineDepth(double heldSeconds, double heldCost, double targetFps, bool keepsNow);
+
 // The grid neighbours of measurement `chosen`: points one step away along one axis (scale,
 // samples, depth, denoiser strength or photon budget) — what the bench shows to prove the
 // choice is not dominated.

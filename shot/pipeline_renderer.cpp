@@ -347,12 +347,9 @@ std::optional<std::string> PipelineRenderer::choosePoint(double slowdown, double
 std::optional<std::string> PipelineRenderer::chooseHoldDepth(double slowdown, double heldCost) {
     const DialMeasurement& point = dial_[dialInUse_];
     const double heldSeconds = point.frameSeconds * slowdown * heldCost;
-    // Back to refinement's depth only within the margin, so it does not swing back and forth.
-    const double budget = (holdDepthKeepsRate_ ? 1.0 : kDialUpgradeMargin) / dialFps_;
-    // The point's depth gains nothing where it is refinement's or deeper, or where the depth
-    // costs under kHoldDepthWorthCost (an unknown cost, 1, included).
+    // The point's depth gains nothing where it is refinement's or deeper.
     const bool keeps = !holdDepth_ || point.point.maxDepth >= refineDepth_ ||
-                       !(heldCost > kHoldDepthWorthCost) || heldSeconds <= budget;
+                       holdKeepsRefineDepth(heldSeconds, heldCost, dialFps_, holdDepthKeepsRate_);
     if (keeps == holdDepthKeepsRate_) return {};
     holdDepthKeepsRate_ = keeps;
     if (keeps)

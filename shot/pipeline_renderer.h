@@ -124,17 +124,11 @@ public:
     // and the choice made again; a dearer point must fit within kDialUpgradeMargin of the
     // budget, so the choice does not swing back and forth. A held camera's frames at
     // refinement's depth cost `heldCost` times the point's: where that would not keep the rate
-    // and the depth is what costs (over kHoldDepthWorthCost), they trace the point's own depth
-    // (a held view that keeps the rate converges a little slower; one that drops it stutters),
-    // and refinement's again once they fit within the margin. Returns what changed.
+    // (holdKeepsRefineDepth), they trace the point's own depth (a held view that keeps the rate
+    // converges a little slower; one that drops it stutters). Returns what changed.
     std::optional<std::string> adaptDial(double liveFrameSeconds, double heldCost) override;
     bool hasDial() const override { return !dial_.empty(); }
     bool lastPreviewOffDial() const override { return heldAtRefineDepth_; }
-    static constexpr double kDialUpgradeMargin = 0.85;
-    // A held cost up to this keeps refinement's depth however slow the frames: the point's
-    // depth would gain under a tenth of the rate and lose the held view's convergence toward
-    // refinement's picture (the demo measures about 1).
-    static constexpr double kHoldDepthWorthCost = 1.1;
     // The fisheye is configured but no snapshot of it has arrived: the virtual objects are lit
     // meanwhile by the box's saved lighting (LiveLighting::restored) or, without one, by a
     // neutral environment at the plate's level (never black).

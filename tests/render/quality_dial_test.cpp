@@ -82,6 +82,19 @@ TEST(QualityDial, SlowdownScalesTheBudget) {
 
 // Unmeasurable points (a failed run: NaN or infinite) are never chosen nor on the front; no
 // frame rate or a zero one chooses nothing.
+// A held camera's depth (100 s budget): frames that take 99.5 s keep refinement's depth while
+// they do and do not bring it back once dropped; 84 s, within kDialUpgradeMargin, does. A depth
+// that costs under a tenth, or an unknown cost, keeps however slow the frames.
+TEST(QualityDial, TheHeldDepthComesBackOnlyWithinTheMargin) {
+    EXPECT_TRUE(holdKeepsRefineDepth(99.5, 1.105, 0.01, true));
+    EXPECT_FALSE(holdKeepsRefineDepth(300.0, 3.0, 0.01, true));
+    EXPECT_FALSE(holdKeepsRefineDepth(99.5, 1.105, 0.01, false));
+    EXPECT_TRUE(holdKeepsRefineDepth(84.0, 1.2, 0.01, false));
+    EXPECT_FALSE(holdKeepsRefineDepth(86.0, 1.2, 0.01, false));
+    EXPECT_TRUE(holdKeepsRefineDepth(1e6, 1.05, 0.01, false));
+    EXPECT_TRUE(holdKeepsRefineDepth(1e6, 1.0, 0.01, false));
+}
+
 TEST(QualityDial, InvalidMeasurementsAndTargetsAreRefused) {
     std::vector<DialMeasurement> m = {
         {{1.0f, 1, 2, 0, 0}, 0.05, 0.1},
