@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # The live service's frame rate and latency, measured from outside the process: starts previsd on
 # a config (default: the shipped demo, examples/demo/previsd.toml), waits until it shows frames,
-# then reads `previs ctl status --json` once a second and reports the frames shown per second of
-# wall clock (framesShown's growth, not the service's own estimate), and the medians of the
-# service's fps, latencyMs and renderMs fields over the window.
+# then reads its status once a second (bench/status_sampler.py: one reader, not a `previs ctl`
+# per sample) and reports the frames shown per second of wall clock (framesShown's growth, not the
+# service's own estimate), and the medians of the service's fps, latencyMs, renderMs and
+# lightingMs fields over the window.
 # --keep DIR keeps previsd's log (the dial's corrections) and the status samples there;
 # --busy-after N busy-loops one core from N seconds into the window to its end (another process
 # loading the box) and reports the frames shown/s before and after it started.
@@ -17,7 +18,6 @@ warmup=20
 build=$root/build
 keep=
 busyAfter=
-busy=
 while (($#)); do
     case $1 in
         --config) config=$2; shift 2 ;;
@@ -31,8 +31,7 @@ while (($#)); do
 done
 work=$(mktemp -d)
 # Each step may fail (previsd gone, no samples yet) without stopping the rest: the folder goes.
-trap '{ [[ -n $busy ]] && kill "$busy"; } 2>/dev/null || true
-      kill "$pid" 2>/dev/null || true; wait "$pid" 2>/dev/null || true
+trap 'kill "$pid" 2>/dev/null || true; wait "$pid" 2>/dev/null || true
       if [[ -n $keep ]]; then
           mkdir -p "$keep" && cp "$work"/previsd.log "$work"/samples "$keep"/ 2>/dev/null || true
       fi
@@ -40,27 +39,11 @@ trap '{ [[ -n $busy ]] && kill "$busy"; } 2>/dev/null || true
 export RUNTIME_DIRECTORY=$work
 "$build/daemon/previsd" --config "$config" >"$work/previsd.log" 2>&1 &
 pid=$!
-status() { "$build/cli/previs" ctl --socket "$work/previsd.sock" status --json 2>/dev/null; }
-# The dial measures its settings at start: wait for the first frames, then the warm-up.
-for _ in $(seq 600); do
-    shown=$(status | python3 -c 'import json,sys; print(json.load(sys.stdin)["framesShown"])' \
-            2>/dev/null || echo 0)
-    ((shown > 0)) && break
-    kill -0 "$pid" 2>/dev/null || break  # it stopped (a config error): the log says why
-    sleep 1
-done
-((shown > 0)) || { echo "live_fps: no frame shown (previsd stopped, or 600 s); log:" >&2; cat "$work/previsd.log" >&2; exit 1; }
-sleep "$warmup"
-for i in $(seq 0 "$seconds"); do
-    if [[ $i == "$busyAfter" ]]; then
-        date +%s.%N >"$work/busy"
-        bash -c 'while :; do :; done' &
-        busy=$!
-    fi
-    echo "$(date +%s.%N) $(status | tr -d '\n')" >>"$work/samples"
-    sleep 1
-done
-[[ -n $busy ]] && { kill "$busy"; wait "$busy" 2>/dev/null || true; busy=; }
+busyArgs=()
+[[ -n $busyAfter ]] && busyArgs=(--busy-after "$busyAfter" "$work/busy")
+python3 "$root/bench/status_sampler.py" "$work/previsd.sock" "$pid" "$warmup" "$seconds" \
+    "$work/samples" "${busyArgs[@]}" ||
+    { echo "live_fps: no frame shown (previsd stopped, or 600 s); log:" >&2; cat "$work/previsd.log" >&2; exit 1; }
 python3 - "$work/samples" "$work/busy" <<'EOF'
 import json, statistics, sys
 rows = []
