@@ -438,7 +438,7 @@ bool consistentSide(Surface s, vec3 wiWorld, vec3 wiLocal) {
 uint pickEmissiveTriangle(float u) {
     uint lo = 0u;
     uint hi = params.emissiveTriangleCount - 1u;
-    // The exit test at the end, as in envSearchMarginal (shared/env_sampling.h).
+    // The exit test at the end, as in PV_ENV_SEARCH_CDF (shared/env_sampling.h).
     if (lo < hi) {
         for (;;) {
             PV_COUNT_LOOP_ITERATION();

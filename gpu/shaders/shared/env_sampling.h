@@ -63,36 +63,34 @@ PV_INLINE vec3 envRadiance(vec3 dirWorld, uint width, uint height, vec2 rotation
     return PV_ENV_RADIANCE(envTexelIndex(envDirectionToUv(dMap), width, height));
 }
 
-// Largest i in [first, first + n) with cdf(i) <= x, for cdf(first) <= x < cdf(first + n).
-// Written out per table because GLSL has no function pointers. The loops test their exit at the
-// end: on llvmpipe a test at the top runs the body once more after the last lane is done
-// (trace_paths.comp's tracePaths).
-PV_INLINE uint envSearchMarginal(float x, uint height) {
-    uint lo = 0u;
-    uint hi = height;
-    if (hi - lo > 1u) {
-        for (;;) {
-            PV_COUNT_LOOP_ITERATION();
-            uint mid = (lo + hi) / 2u;
-            if (PV_ENV_MARGINAL_CDF(mid) <= x) lo = mid; else hi = mid;
-            if (hi - lo <= 1u) break;
-        }
+// Sets `lo` to the largest i in [0, n) with CDF(base + i) <= x, for CDF(base) <= x <
+// CDF(base + n). A macro taking the table's macro, not a function: GLSL has no function pointers,
+// and both tables share this one loop. The loop tests its exit at the end: on llvmpipe a test at
+// the top runs the body once more after the last lane is done (trace_paths.comp's tracePaths).
+#define PV_ENV_SEARCH_CDF(CDF, base, n, x, lo)                               \
+    {                                                                        \
+        uint hi_ = (n);                                                      \
+        (lo) = 0u;                                                           \
+        if (hi_ > 1u) {                                                      \
+            for (;;) {                                                       \
+                PV_COUNT_LOOP_ITERATION();                                   \
+                uint mid_ = ((lo) + hi_) / 2u;                               \
+                if (CDF((base) + mid_) <= (x)) (lo) = mid_; else hi_ = mid_; \
+                if (hi_ - (lo) <= 1u) break;                                 \
+            }                                                                \
+        }                                                                    \
     }
+
+PV_INLINE uint envSearchMarginal(float x, uint height) {
+    uint lo;
+    PV_ENV_SEARCH_CDF(PV_ENV_MARGINAL_CDF, 0u, height, x, lo)
     return lo;
 }
 
 PV_INLINE uint envSearchConditional(float x, uint row, uint width) {
     uint base = row * (width + 1u);
-    uint lo = 0u;
-    uint hi = width;
-    if (hi - lo > 1u) {
-        for (;;) {
-            PV_COUNT_LOOP_ITERATION();
-            uint mid = (lo + hi) / 2u;
-            if (PV_ENV_CONDITIONAL_CDF(base + mid) <= x) lo = mid; else hi = mid;
-            if (hi - lo <= 1u) break;
-        }
-    }
+    uint lo;
+    PV_ENV_SEARCH_CDF(PV_ENV_CONDITIONAL_CDF, base, width, x, lo)
     return lo;
 }
 
