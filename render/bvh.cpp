@@ -303,8 +303,7 @@ void setSlot(shader::WideBvhNode& w, int slot, const glm::vec3& lo, const glm::v
 // the range, all with the leaf's box.
 uint32_t leafReference(uint32_t first, uint32_t count, const glm::vec3& lo, const glm::vec3& hi,
                        std::vector<shader::WideBvhNode>& wide) {
-    if (count <= PV_WIDE_LEAF_MAX_COUNT)
-        return PV_WIDE_LEAF | ((count - 1) << PV_WIDE_LEAF_FIRST_BITS) | first;
+    if (count <= PV_WIDE_LEAF_MAX_COUNT) return shader::wideLeafReference(first, count);
     const uint32_t index = uint32_t(wide.size());
     wide.push_back(emptyWideNode());
     const uint32_t part = (count + 3) / 4;
@@ -456,8 +455,8 @@ RefitBox refitReference(SceneBvh& bvh, const std::vector<glm::vec4>& vertices, u
                         uint32_t depth) {
     RefitBox box;
     if (ref & PV_WIDE_LEAF) {
-        const uint32_t first = ref & ((1u << PV_WIDE_LEAF_FIRST_BITS) - 1u);
-        const uint32_t count = ((ref & ~PV_WIDE_LEAF) >> PV_WIDE_LEAF_FIRST_BITS) + 1u;
+        const uint32_t first = shader::wideLeafFirst(ref);
+        const uint32_t count = shader::wideLeafCount(ref);
         for (uint32_t i = 3 * first; i < 3 * (first + count); ++i) {
             box.lo = glm::min(box.lo, glm::vec3(vertices[i]));
             box.hi = glm::max(box.hi, glm::vec3(vertices[i]));

@@ -176,8 +176,8 @@ void checkWideStructure(const SceneBvh& bvh, const Geometry& g) {
                     stack.push_back({ref, v.depth + 1, lo, hi});
                     continue;
                 }
-                uint32_t first = ref & ((1u << PV_WIDE_LEAF_FIRST_BITS) - 1u);
-                uint32_t count = ((ref & ~PV_WIDE_LEAF) >> PV_WIDE_LEAF_FIRST_BITS) + 1u;
+                uint32_t first = shader::wideLeafFirst(ref);
+                uint32_t count = shader::wideLeafCount(ref);
                 ASSERT_LE(first + count, n);
                 for (uint32_t k = first; k < first + count; ++k) {
                     seen[k]++;

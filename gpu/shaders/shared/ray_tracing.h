@@ -401,8 +401,8 @@ PV_INLINE bool traceClosest(uint first, uint second, Ray ray, PV_INOUT(Hit) hit)
             PV_BVH_DESCEND(ref, stack, stackSize, top, pendingRoot, ray.origin, invDir, ray.tMin,
                            tMax, live)
             if (live) {
-                uint start = ref & ((1u << PV_WIDE_LEAF_FIRST_BITS) - 1u);
-                uint count = ((ref & ~PV_WIDE_LEAF) >> PV_WIDE_LEAF_FIRST_BITS) + 1u;
+                uint start = wideLeafFirst(ref);
+                uint count = wideLeafCount(ref);
                 if (intersectLeaf(tr, start, count, ray.tMin, tMax, hit)) found = true;
                 PV_BVH_POP(ref, stack, stackSize, top, pendingRoot, live)
             }
@@ -429,8 +429,8 @@ PV_INLINE uint traceAny(uint first, uint second, Ray ray) {
             PV_BVH_DESCEND(ref, stack, stackSize, top, pendingRoot, ray.origin, invDir, ray.tMin,
                            ray.tMax, live)
             if (live) {
-                uint start = ref & ((1u << PV_WIDE_LEAF_FIRST_BITS) - 1u);
-                uint count = ((ref & ~PV_WIDE_LEAF) >> PV_WIDE_LEAF_FIRST_BITS) + 1u;
+                uint start = wideLeafFirst(ref);
+                uint count = wideLeafCount(ref);
                 for (uint i = start;;) {
                     PV_COUNT_LOOP_ITERATION();
                     float t;

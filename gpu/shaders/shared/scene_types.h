@@ -158,6 +158,16 @@ struct WideBvhNode {
 #define PV_WIDE_LEAF_FIRST_BITS 24u
 #define PV_WIDE_LEAF_MAX_COUNT 128u
 
+// The leaf reference of triangles [first, first + count), and its first triangle and count back:
+// the one encoding render/bvh.cpp writes and the traversal (ray_tracing.h) reads.
+PV_INLINE uint wideLeafReference(uint first, uint count) {
+    return PV_WIDE_LEAF | ((count - 1u) << PV_WIDE_LEAF_FIRST_BITS) | first;
+}
+PV_INLINE uint wideLeafFirst(uint ref) { return ref & ((1u << PV_WIDE_LEAF_FIRST_BITS) - 1u); }
+PV_INLINE uint wideLeafCount(uint ref) {
+    return ((ref & ~PV_WIDE_LEAF) >> PV_WIDE_LEAF_FIRST_BITS) + 1u;
+}
+
 // glTF 2.0 metallic-roughness material with the transmission, ior, specular and
 // emissive_strength extensions. Texture fields index TextureInfo or are PV_NO_TEXTURE.
 struct GpuMaterial {
