@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <memory>
 #include <string>
 #include <utility>
 #include <vector>
@@ -42,12 +43,36 @@ Demo demo(double previewFps) {
     return d;
 }
 
+// Each case starts the service's renderer on the demo (its create runs the dial) on one device.
+class Dial : public ::testing::Test {
+protected:
+    void SetUp() override {
+        Result<std::unique_ptr<GpuContext>> ctx = GpuContext::create({});
+        ASSERT_TRUE(ctx) << ctx.message();
+        ctx_ = std::move(*ctx);
+    }
+
+    // The live corrections' start: `d` at a rate every point reaches, so the dial chose its most
+    // accurate point (best_); quickest_ is the fastest point it measured.
+    void startAtRest(const Demo& d) {
+        auto p = PipelineRenderer::create(*ctx_, d.scene, d.config);
+        ASSERT_TRUE(p) << p.message();
+        renderer_ = std::move(*p);
+        ASSERT_TRUE(renderer_->dialChoice());
+        best_ = *renderer_->dialChoice();
+        quickest_ = *fastest(renderer_->dialMeasurements());
+    }
+
+    std::unique_ptr<GpuContext> ctx_;
+    std::unique_ptr<PipelineRenderer> renderer_;  // after ctx_: destroyed before it
+    size_t best_ = 0;
+    size_t quickest_ = 0;
+};
+
 // Every frame rate is reachable at 1 fps here: the most accurate of all 36 settings.
-TEST(Dial, ASlowTargetTakesTheMostAccurateSetting) {
-    auto ctx = GpuContext::create({});
-    ASSERT_TRUE(ctx) << ctx.message();
+TEST_F(Dial, ASlowTargetTakesTheMostAccurateSetting) {
     Demo d = demo(0.01);
-    auto p = PipelineRenderer::create(**ctx, d.scene, d.config);
+    auto p = PipelineRenderer::create(*ctx_, d.scene, d.config);
     ASSERT_TRUE(p) << p.message();
     const auto& m = (*p)->dialMeasurements();
     ASSERT_EQ(m.size(), 4u * 3u * 2u);  // depths 2 and 4 only: max_depth is 6
@@ -71,9 +96,7 @@ TEST(Dial, ASlowTargetTakesTheMostAccurateSetting) {
 // An unreachable rate: no choice, and preview falls back to the fastest setting measured. The
 // start's hooks hear the dial's stage with its 24 settings, then each one done, those pruned
 // included: 0/24 up to 24/24 (previsd's status while starting).
-TEST(Dial, AnUnreachableTargetTakesTheFastest) {
-    auto ctx = GpuContext::create({});
-    ASSERT_TRUE(ctx) << ctx.message();
+TEST_F(Dial, AnUnreachableTargetTakesTheFastest) {
     // Large enough that even the cheapest point (160×90 traced) cannot reach 240 fps here; the
     // dial times only that one (the rest cost more on every axis and are pruned).
     Demo d = demo(240.0);
@@ -88,7 +111,7 @@ TEST(Dial, AnUnreachableTargetTakesTheFastest) {
         if (!stages.empty() && stages.back().first.starts_with("timing the preview's settings"))
             progress.emplace_back(done, total);
     };
-    auto p = PipelineRenderer::create(**ctx, d.scene, d.config, hooks);
+    auto p = PipelineRenderer::create(*ctx_, d.scene, d.config, hooks);
     ASSERT_TRUE(p) << p.message();
     const auto& m = (*p)->dialMeasurements();
     ASSERT_FALSE(m.empty());
@@ -113,52 +136,39 @@ TEST(Dial, AnUnreachableTargetTakesTheFastest) {
 // The live correction: frames far slower than measured move preview to the fastest point;
 // frames as fast as measured move it back to the most accurate one that fits; the same
 // observation again changes nothing.
-TEST(Dial, LiveFramesSlowerThanMeasuredMovePreviewToACheaperPoint) {
-    auto ctx = GpuContext::create({});
-    ASSERT_TRUE(ctx) << ctx.message();
-    Demo d = demo(0.01);
-    auto p = PipelineRenderer::create(**ctx, d.scene, d.config);
-    ASSERT_TRUE(p) << p.message();
-    PipelineRenderer& r = **p;
+TEST_F(Dial, LiveFramesSlowerThanMeasuredMovePreviewToACheaperPoint) {
+    ASSERT_NO_FATAL_FAILURE(startAtRest(demo(0.01)));
+    PipelineRenderer& r = *renderer_;
     const auto& m = r.dialMeasurements();
-    ASSERT_TRUE(r.dialChoice());
-    const size_t best = *r.dialChoice();
-    const size_t quickest = *fastest(m);
-    ASSERT_NE(best, quickest);
+    ASSERT_NE(best_, quickest_);
     // 10^4 times slower than measured: at 0.01 fps nothing fits any more.
-    std::optional<std::string> moved = r.adaptDial(m[best].frameSeconds * 1e4 * 1e2, 1.0);
+    std::optional<std::string> moved = r.adaptDial(m[best_].frameSeconds * 1e4 * 1e2, 1.0);
     ASSERT_TRUE(moved);
     EXPECT_FALSE(r.dialChoice());
-    EXPECT_EQ(r.previewSamples(), m[quickest].point.samplesPerFrame);
-    EXPECT_EQ(r.previewResolutionScale(), m[quickest].point.resolutionScale);
-    EXPECT_EQ(r.previewMaxDepth(), m[quickest].point.maxDepth);
+    EXPECT_EQ(r.previewSamples(), m[quickest_].point.samplesPerFrame);
+    EXPECT_EQ(r.previewResolutionScale(), m[quickest_].point.resolutionScale);
+    EXPECT_EQ(r.previewMaxDepth(), m[quickest_].point.maxDepth);
     // As fast as measured: back to the most accurate.
-    moved = r.adaptDial(m[quickest].frameSeconds, 1.0);
+    moved = r.adaptDial(m[quickest_].frameSeconds, 1.0);
     ASSERT_TRUE(moved);
     ASSERT_TRUE(r.dialChoice());
-    EXPECT_EQ(*r.dialChoice(), best);
-    EXPECT_EQ(r.previewSamples(), m[best].point.samplesPerFrame);
-    EXPECT_FALSE(r.adaptDial(m[best].frameSeconds, 1.0));
+    EXPECT_EQ(*r.dialChoice(), best_);
+    EXPECT_EQ(r.previewSamples(), m[best_].point.samplesPerFrame);
+    EXPECT_FALSE(r.adaptDial(m[best_].frameSeconds, 1.0));
 }
 
 // A held camera's frames trace refinement's depth while that keeps the rate. Where even the
 // fastest point's held frames would not, they trace its own depth if the depth is what costs
 // (3x the point's frames), not if it costs under a tenth (the rate would barely move); the point
 // stays. A box as fast as measured brings both back: the most accurate point, refinement's depth.
-TEST(Dial, HeldFramesThatWouldNotKeepTheRateTraceThePointsDepth) {
-    auto ctx = GpuContext::create({});
-    ASSERT_TRUE(ctx) << ctx.message();
+TEST_F(Dial, HeldFramesThatWouldNotKeepTheRateTraceThePointsDepth) {
     Demo d = demo(0.01);
     ASSERT_TRUE(d.config.render.previewAccumulate && d.config.render.previewHoldDepth);
     const uint32_t refineDepth = d.config.render.maxDepth;
-    auto p = PipelineRenderer::create(**ctx, d.scene, d.config);
-    ASSERT_TRUE(p) << p.message();
-    PipelineRenderer& r = **p;
+    ASSERT_NO_FATAL_FAILURE(startAtRest(d));
+    PipelineRenderer& r = *renderer_;
     const auto& m = r.dialMeasurements();
-    ASSERT_TRUE(r.dialChoice());
-    const size_t best = *r.dialChoice();
-    const size_t quickest = *fastest(m);
-    ASSERT_LT(m[quickest].point.maxDepth, refineDepth) << "a hold traces deeper";
+    ASSERT_LT(m[quickest_].point.maxDepth, refineDepth) << "a hold traces deeper";
     auto camera = std::make_shared<Frame>();
     camera->width = r.width();
     camera->height = r.height();
@@ -176,21 +186,21 @@ TEST(Dial, HeldFramesThatWouldNotKeepTheRateTraceThePointsDepth) {
     EXPECT_EQ(heldFrameDepth(), refineDepth);
     EXPECT_TRUE(r.lastPreviewOffDial());
     // 10^6 times slower than measured: nothing fits at 0.01 fps; the fastest point.
-    std::optional<std::string> changed = r.adaptDial(m[best].frameSeconds * 1e6, 1.05);
+    std::optional<std::string> changed = r.adaptDial(m[best_].frameSeconds * 1e6, 1.05);
     ASSERT_TRUE(changed);
     EXPECT_EQ(changed->find("held camera"), std::string::npos) << *changed;
     EXPECT_EQ(heldFrameDepth(), refineDepth) << "a depth that costs 5 % stays";
-    changed = r.adaptDial(m[quickest].frameSeconds * 1e6, 3.0);
+    changed = r.adaptDial(m[quickest_].frameSeconds * 1e6, 3.0);
     ASSERT_TRUE(changed);
     EXPECT_NE(changed->find("a held camera at depth"), std::string::npos) << *changed;
     EXPECT_FALSE(r.dialChoice()) << "the fastest still";
-    EXPECT_EQ(heldFrameDepth(), m[quickest].point.maxDepth);
+    EXPECT_EQ(heldFrameDepth(), m[quickest_].point.maxDepth);
     EXPECT_FALSE(r.lastPreviewOffDial()) << "the point's own frames";
-    EXPECT_FALSE(r.adaptDial(m[quickest].frameSeconds * 1e6, 3.0)) << "no change the second time";
-    changed = r.adaptDial(m[quickest].frameSeconds, 3.0);
+    EXPECT_FALSE(r.adaptDial(m[quickest_].frameSeconds * 1e6, 3.0)) << "no change the second time";
+    changed = r.adaptDial(m[quickest_].frameSeconds, 3.0);
     ASSERT_TRUE(changed);
     EXPECT_NE(changed->find("refinement's depth"), std::string::npos) << *changed;
-    EXPECT_EQ(r.dialChoice(), best);
+    EXPECT_EQ(r.dialChoice(), best_);
     EXPECT_EQ(heldFrameDepth(), refineDepth);
     EXPECT_TRUE(r.lastPreviewOffDial());
 }
@@ -198,14 +208,12 @@ TEST(Dial, HeldFramesThatWouldNotKeepTheRateTraceThePointsDepth) {
 // [render] denoise = "auto": the dial sweeps the denoiser's strength too, preview frames are
 // denoised at the strength it chose, and refinement denoises while the meter's estimate is above
 // target_noise and stops once it is below.
-TEST(Dial, DenoiserStrengthIsOnTheDialAndRefinementStopsDenoisingAtTheTarget) {
-    auto ctx = GpuContext::create({});
-    ASSERT_TRUE(ctx) << ctx.message();
+TEST_F(Dial, DenoiserStrengthIsOnTheDialAndRefinementStopsDenoisingAtTheTarget) {
     Demo d = demo(0.01);
     d.config.render.denoise = "auto";
     d.config.refine.targetNoise = 0.02;
     d.config.tracking.sceneCameraUntilTracked = true;  // render without a board in view
-    auto p = PipelineRenderer::create(**ctx, d.scene, d.config);
+    auto p = PipelineRenderer::create(*ctx_, d.scene, d.config);
     ASSERT_TRUE(p) << p.message();
     const auto& m = (*p)->dialMeasurements();
     ASSERT_EQ(m.size(), 4u * 3u * 2u * 3u);  // × strength 0, 2, 4
@@ -245,7 +253,7 @@ TEST(Dial, DenoiserStrengthIsOnTheDialAndRefinementStopsDenoisingAtTheTarget) {
     on.config.tracking.sceneCameraUntilTracked = true;
     // The demo scene is lit by the fisheye's estimate: without one, a sky of its own.
     on.scene.environment = ::previs::testing::uniformEnvironment(glm::vec3(0.5f));
-    auto q = PipelineRenderer::create(**ctx, on.scene, on.config);
+    auto q = PipelineRenderer::create(*ctx_, on.scene, on.config);
     ASSERT_TRUE(q) << q.message();
     EXPECT_EQ((*q)->previewDenoiseLevels(), 3u);
     auto bigger = std::make_shared<Frame>(*frame);
@@ -273,13 +281,11 @@ TEST(Dial, DenoiserStrengthIsOnTheDialAndRefinementStopsDenoisingAtTheTarget) {
 // ends at the view it started from, and the reprojected history of a slow pan lowers the last
 // frame's error well below a still camera's single frame (8 frames of history at 1 pixel a
 // frame; the 32-spp reference's own noise is common to both).
-TEST(Dial, APanCountsWhatReprojectionKeepsAndEndsAtTheReferenceView) {
-    auto ctx = GpuContext::create({});
-    ASSERT_TRUE(ctx) << ctx.message();
+TEST_F(Dial, APanCountsWhatReprojectionKeepsAndEndsAtTheReferenceView) {
     Demo d = demo(0.0);
     d.config.render.denoise = "on";
     d.config.render.previewAccumulate = true;
-    auto p = PipelineRenderer::create(**ctx, d.scene, d.config);
+    auto p = PipelineRenderer::create(*ctx_, d.scene, d.config);
     ASSERT_TRUE(p) << p.message();
     Renderer& r = testing::innerRenderer(**p);
     // The demo's set is lit by the fisheye alone: a sky stands in, and a grey plate.
