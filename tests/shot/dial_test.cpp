@@ -43,6 +43,15 @@ Demo demo(double previewFps) {
     return d;
 }
 
+// A camera frame of one mid grey (code 118: about 18 % linear through the sRGB curve).
+std::shared_ptr<Frame> greyFrame(uint32_t width, uint32_t height) {
+    auto f = std::make_shared<Frame>();
+    f->width = width;
+    f->height = height;
+    f->rgb.assign(size_t(width) * height * 3, 118);
+    return f;
+}
+
 // Each case starts the service's renderer on the demo (its create runs the dial) on one device.
 class Dial : public ::testing::Test {
 protected:
@@ -169,12 +178,8 @@ TEST_F(Dial, HeldFramesThatWouldNotKeepTheRateTraceThePointsDepth) {
     PipelineRenderer& r = *renderer_;
     const auto& m = r.dialMeasurements();
     ASSERT_LT(m[quickest_].point.maxDepth, refineDepth) << "a hold traces deeper";
-    auto camera = std::make_shared<Frame>();
-    camera->width = r.width();
-    camera->height = r.height();
-    camera->rgb.assign(size_t(camera->width) * camera->height * 3, 118);
     TrackedFrame held;
-    held.frame = camera;
+    held.frame = greyFrame(r.width(), r.height());
     held.worldFromCamera = cv::Matx44d(1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, -2, 0, 0, 0, 1);
     held.lost = false;
     // The view's second frame holds.
@@ -224,12 +229,8 @@ TEST_F(Dial, DenoiserStrengthIsOnTheDialAndRefinementStopsDenoisingAtTheTarget) 
     const DialPoint& chosen = m[*(*p)->dialChoice()].point;
     EXPECT_EQ((*p)->previewDenoiseLevels(), chosen.denoiseIterations);
 
-    auto frame = std::make_shared<Frame>();
-    frame->width = (*p)->width();
-    frame->height = (*p)->height();
-    frame->rgb.assign(size_t(frame->width) * frame->height * 3, 118);
     TrackedFrame tracked;
-    tracked.frame = frame;
+    tracked.frame = greyFrame((*p)->width(), (*p)->height());
     ASSERT_TRUE((*p)->renderPreview(tracked, nullptr));
     Result<ImageF> preview = (*p)->composite();
     ASSERT_TRUE(preview) << preview.message();
@@ -256,11 +257,7 @@ TEST_F(Dial, DenoiserStrengthIsOnTheDialAndRefinementStopsDenoisingAtTheTarget) 
     auto q = PipelineRenderer::create(*ctx_, on.scene, on.config);
     ASSERT_TRUE(q) << q.message();
     EXPECT_EQ((*q)->previewDenoiseLevels(), 3u);
-    auto bigger = std::make_shared<Frame>(*frame);
-    bigger->width = 160;
-    bigger->height = 90;
-    bigger->rgb.assign(size_t(160) * 90 * 3, 118);
-    tracked.frame = bigger;
+    tracked.frame = greyFrame(160, 90);
     ASSERT_TRUE((*q)->renderPreview(tracked, nullptr));
     Result<ImageF> filtered = (*q)->composite();
     ASSERT_TRUE(filtered) << filtered.message();
