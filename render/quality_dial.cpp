@@ -159,47 +159,60 @@ Status usePoint(Renderer& renderer, const DialPoint& p) {
     return {};
 }
 
+// The pan's pose `stepsLeft` steps of motion.panStepRad short of `end`.
+glm::dmat4 panPose(const glm::dmat4& end, const DialMotion& motion, uint32_t stepsLeft) {
+    return end * glm::rotate(glm::dmat4(1.0), motion.panStepRad * double(stepsLeft),
+                             glm::dvec3(0, 1, 0));
+}
+
+// One timed preview frame as the monitor gets it: traced, finished on the device (Film::display:
+// the filter, the upsampling, the held view, Eq. 1, the tone curve) and read back as 8 bits;
+// what the live service re-times the dial on (ShotController::previewShown). The float image
+// the dial scores is a host readback the monitor never waits for, so it is not timed.
+Status timedFrame(Renderer& renderer, const DialPoint& p, uint64_t sequence, bool filtered,
+                  std::vector<double>& times) {
+    const Clock::time_point start = Clock::now();
+    if (Status s = renderer.renderPreviewFrame(p.samplesPerFrame, sequence); !s) return s;
+    if (Result<DisplayImage> shown = renderer.display(filtered, DisplaySettings{}); !shown)
+        return shown.error();
+    times.push_back(secondsSince(start));
+    return {};
+}
+
 // A still camera's frames: the times of `reps` after one untimed; the last frame is scored.
 Result<ImageF> stillFrames(Renderer& renderer, const DialPoint& p, int reps,
                            std::vector<double>& times) {
+    const bool filtered = p.denoiseIterations > 0;
     // A first frame unmeasured: it may allocate (a new traced size) or size dispatches.
     if (Status s = renderer.renderPreviewFrame(p.samplesPerFrame); !s) return s.error();
-    std::optional<ImageF> frame;
-    for (int i = 0; i < std::max(1, reps); ++i) {
-        const Clock::time_point start = Clock::now();
-        if (Status s = renderer.renderPreviewFrame(p.samplesPerFrame); !s) return s.error();
-        auto image = renderer.image(Aov::Composite, p.denoiseIterations > 0);
-        if (!image) return image.error();
-        times.push_back(secondsSince(start));
-        frame = std::move(*image);
-    }
-    return std::move(*frame);
+    for (int i = 0; i < std::max(1, reps); ++i)
+        if (Status s = timedFrame(renderer, p, 0, filtered, times); !s) return s.error();
+    return renderer.image(Aov::Composite, filtered);
 }
 
-// A pan's frames (DialMotion): the times of all but the first; the last frame is scored.
+// A pan's frames (DialMotion), `times` empty on entry: the times of all but the first and the
+// last; the last is scored (its image runs the temporal stage once, as a shown frame's does).
 Result<ImageF> panFrames(Renderer& renderer, const DialPoint& p, const DialMotion& motion,
                          std::vector<double>& times) {
     const glm::dmat4 end = renderer.denoiseCamera().worldFromCamera;
     const bool filtered = p.denoiseIterations > 0 || motion.accumulate;
     if (Denoiser* d = renderer.film().denoiser()) d->resetHistory();
     renderer.film().setTemporalDenoise(motion.accumulate);
-    std::optional<ImageF> frame;
-    const uint32_t frames = std::max(2u, motion.frames);
-    for (uint32_t i = 0; i < frames; ++i) {
-        const double turn = motion.panStepRad * double(frames - 1 - i);
-        renderer.setCameraPose(end * glm::rotate(glm::dmat4(1.0), turn, glm::dvec3(0, 1, 0)));
-        const Clock::time_point start = Clock::now();
+    const uint32_t frames = std::max(3u, motion.frames);
+    for (uint32_t i = 0; i + 1 < frames; ++i) {
+        renderer.setCameraPose(panPose(end, motion, frames - 1 - i));
         const uint64_t sequence = motion.accumulate ? i + 1 : 0;
-        if (Status s = renderer.renderPreviewFrame(p.samplesPerFrame, sequence); !s)
-            return s.error();
-        auto image = renderer.image(Aov::Composite, filtered);
-        if (!image) return image.error();
-        if (i > 0) times.push_back(secondsSince(start));
-        frame = std::move(*image);
+        if (Status s = timedFrame(renderer, p, sequence, filtered, times); !s) return s.error();
     }
+    times.erase(times.begin());  // the first frame may allocate
+    renderer.setCameraPose(end);
+    if (Status s = renderer.renderPreviewFrame(p.samplesPerFrame, motion.accumulate ? frames : 0);
+        !s)
+        return s.error();
+    Result<ImageF> frame = renderer.image(Aov::Composite, filtered);
     renderer.film().setTemporalDenoise(false);
     if (Denoiser* d = renderer.film().denoiser()) d->resetHistory();
-    return std::move(*frame);
+    return frame;
 }
 
 }  // namespace

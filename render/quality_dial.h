@@ -90,8 +90,8 @@ class Renderer;
 // ending at the renderer's view (the reference's); with `accumulate` each frame draws new
 // samples and is filtered through the denoiser's temporal reprojection (its history afresh at
 // each point), as the service's accumulating preview is. The error is the last frame's: what
-// reprojection keeps in motion; the time every frame's but the first (it may allocate). What a
-// held camera gains later (render/held_view.h) is not scored.
+// reprojection keeps in motion; the time every frame's but the first (it may allocate) and the
+// last (scored, not shown). What a held camera gains later (render/held_view.h) is not scored.
 struct DialMotion {
     double panStepRad = 0.0;
     uint32_t frames = 5;
@@ -99,9 +99,10 @@ struct DialMotion {
 };
 
 // Measures every point of `grid` on `renderer` (its scene, plate, pose and lighting as they
-// are): the median wall time of `reps` preview frames (render, read back, denoise, upsample,
-// composite; a pan's frames but the first) and the RMSE of the last one against `reference`
-// (the output's size, from the renderer's view). Points
+// are): the median wall time of `reps` preview frames as the monitor gets them (traced, finished
+// on the device and read back as 8 bits: Renderer::display; a pan's frames but its first and
+// last) and the RMSE of the last one's float composite against `reference` (the output's size,
+// from the renderer's view). Points
 // that denoise need a renderer created with RenderSettings::denoise; points with photons, an
 // active photon pass. Leaves the renderer at the last point's settings.
 //
