@@ -161,8 +161,8 @@ Status usePoint(Renderer& renderer, const DialPoint& p) {
 
 // The pan's pose `stepsLeft` steps of motion.panStepRad short of `end`.
 glm::dmat4 panPose(const glm::dmat4& end, const DialMotion& motion, uint32_t stepsLeft) {
-    return end * glm::rotate(glm::dmat4(1.0), motion.panStepRad * double(stepsLeft),
-                             glm::dvec3(0, 1, 0));
+    return end *
+           glm::rotate(glm::dmat4(1.0), motion.panStepRad * double(stepsLeft), glm::dvec3(0, 1, 0));
 }
 
 // One timed preview frame as the monitor gets it: traced, finished on the device (Film::display:
