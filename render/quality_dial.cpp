@@ -87,6 +87,18 @@ std::optional<size_t> fastest(std::span<const DialMeasurement> measurements) {
     return best;
 }
 
+std::vector<DialMeasurement> liveCosts(std::span<const DialMeasurement> measured, double slowdown,
+                                       std::span<const std::optional<DialLiveTime>> live,
+                                       uint64_t window) {
+    std::vector<DialMeasurement> costs(measured.begin(), measured.end());
+    for (size_t i = 0; i < costs.size(); ++i) {
+        costs[i].frameSeconds *= slowdown;
+        if (i < live.size() && live[i] && window - live[i]->window < kDialLiveMemoryWindows)
+            costs[i].frameSeconds = std::max(costs[i].frameSeconds, live[i]->seconds);
+    }
+    return costs;
+}
+
 bool holdKeepsRefineDepth(double heldSeconds, double heldCost, double targetFps, bool keepsNow) {
     const double budget = (keepsNow ? 1.0 : kDialUpgradeMargin) / targetFps;
     return !(heldCost > kHoldDepthWorthCost) || heldSeconds <= budget;

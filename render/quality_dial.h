@@ -70,6 +70,28 @@ inline constexpr double kDialUpgradeMargin = 0.85;
 // picture (the demo measures about 1).
 inline constexpr double kHoldDepthWorthCost = 1.1;
 
+// What the live service saw one point's frames take (the median of a window), and adaptDial's
+// window count when it did.
+struct DialLiveTime {
+    double seconds = 0.0;
+    uint64_t window = 0;
+};
+// How many of adaptDial's windows a point's own live time outweighs the estimate from another
+// point's (about 8 s at 15 fps): long enough that a point found too slow is not tried again at
+// every window, short enough that a passing load does not keep it out.
+inline constexpr uint64_t kDialLiveMemoryWindows = 8;
+
+// The measurements as the live dial weighs them in window `window`: every time scaled by
+// `slowdown` (the point in use's live time against its measured one), and a point whose own live
+// frames took longer within the last kDialLiveMemoryWindows windows costs that. Frames do not
+// slow every point alike (a dearer point's longer frames meet more of the tracking and the
+// lighting beside them), so the scaled estimate alone moves the dial back to a point that just
+// proved too slow, window after window. `live` is by measurement index; missing entries are
+// unknown.
+std::vector<DialMeasurement> liveCosts(std::span<const DialMeasurement> measured, double slowdown,
+                                       std::span<const std::optional<DialLiveTime>> live,
+                                       uint64_t window);
+
 // Whether a held camera's frames, which take `heldSeconds` at refinement's depth (`heldCost`
 // times the point's frames), trace that depth at `targetFps`: within the budget while they do
 // (`keepsNow`), within kDialUpgradeMargin of it to come back; always where the depth costs

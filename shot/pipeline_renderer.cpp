@@ -271,7 +271,9 @@ Status PipelineRenderer::chooseByDial(double fps, const PipelineStartHooks& hook
 DialAxes PipelineRenderer::dialAxes() const {
     const Renderer& r = *renderer_;
     DialAxes axes;
-    axes.scales = {1.0f, 0.5f, 1.0f / 3.0f, 0.25f};
+    // 1/6 is the floor for a loaded box: the demo's frames at 1/4 took 68 ms live on lavapipe (2
+    // cores, tracking and lighting beside them), over a 15 fps budget; at 1/6 57 ms.
+    axes.scales = {1.0f, 0.5f, 1.0f / 3.0f, 0.25f, 1.0f / 6.0f};
     axes.samples = {1, 2, 4};
     for (uint32_t d : {2u, 4u, 8u})
         if (d <= refineDepth_) axes.depths.push_back(d);
@@ -317,6 +319,8 @@ Status PipelineRenderer::setPreview(const PreviewSettings& configured, uint32_t 
 std::optional<std::string> PipelineRenderer::adaptDial(double liveFrameSeconds, double heldCost) {
     if (dial_.empty() || !(dialFps_ > 0.0) || !(liveFrameSeconds > 0.0)) return std::nullopt;
     const double slowdown = liveFrameSeconds / dial_[dialInUse_].frameSeconds;
+    dialLive_.resize(dial_.size());
+    dialLive_[dialInUse_] = DialLiveTime{liveFrameSeconds, ++dialWindows_};
     std::optional<std::string> point = choosePoint(slowdown, liveFrameSeconds);
     std::optional<std::string> hold = chooseHoldDepth(slowdown, heldCost);
     if (!hold) return point;
@@ -325,13 +329,14 @@ std::optional<std::string> PipelineRenderer::adaptDial(double liveFrameSeconds, 
 
 std::optional<std::string> PipelineRenderer::choosePoint(double slowdown, double liveFrameSeconds) {
     const DialMeasurement& current = dial_[dialInUse_];
-    const std::optional<size_t> fits = chooseForFrameRate(dial_, dialFps_, slowdown);
+    const std::vector<DialMeasurement> costs = liveCosts(dial_, slowdown, dialLive_, dialWindows_);
+    const std::optional<size_t> fits = chooseForFrameRate(costs, dialFps_);
     // None fits even now: the fastest.
-    const size_t next = fits ? *fits : fastest(dial_).value_or(dialInUse_);
+    const size_t next = fits ? *fits : fastest(costs).value_or(dialInUse_);
     if (next == dialInUse_) return std::nullopt;
     const DialMeasurement& candidate = dial_[next];
     if (candidate.frameSeconds > current.frameSeconds &&
-        candidate.frameSeconds * slowdown > kDialUpgradeMargin / dialFps_)
+        costs[next].frameSeconds > kDialUpgradeMargin / dialFps_)
         return std::nullopt;
     if (Status s = useDialPoint(next); !s) {
         logWarning("render: the dial cannot switch to {}: {}", candidate.point.describe(),

@@ -199,6 +199,9 @@ private:
     std::optional<size_t> dialChoice_;
     size_t dialInUse_ = 0;  // the measurement preview renders with
     double dialFps_ = 0.0;
+    // Each point's own live time (liveCosts), and adaptDial's calls: its windows.
+    std::vector<std::optional<DialLiveTime>> dialLive_;
+    uint64_t dialWindows_ = 0;
     // Makes preview render with dial_[i].
     Status useDialPoint(size_t i);
     InverseToneMapSettings radiometry_;

@@ -95,6 +95,29 @@ TEST(QualityDial, TheHeldDepthComesBackOnlyWithinTheMargin) {
     EXPECT_TRUE(holdKeepsRefineDepth(1e6, 1.0, 0.01, false));
 }
 
+// The live dial's costs: every measured time scaled by the slowdown; a point's own live time
+// where it is longer and seen within kDialLiveMemoryWindows windows; a shorter one, or an older
+// one, leaves the estimate.
+TEST(QualityDial, APointSeenTooSlowLiveCostsWhatItTookForAWhile) {
+    const std::vector<DialMeasurement> m = {{{}, 0.010, 0.3}, {{}, 0.020, 0.2}, {{}, 0.050, 0.1}};
+    std::vector<std::optional<DialLiveTime>> live(3);
+    live[1] = DialLiveTime{0.100, 5};
+    live[2] = DialLiveTime{0.030, 5};
+    std::vector<DialMeasurement> c = liveCosts(m, 1.5, live, 5);
+    EXPECT_DOUBLE_EQ(c[0].frameSeconds, 0.015);
+    EXPECT_DOUBLE_EQ(c[1].frameSeconds, 0.100) << "its own, longer";
+    EXPECT_DOUBLE_EQ(c[2].frameSeconds, 0.075) << "its own is shorter: the estimate";
+    EXPECT_DOUBLE_EQ(c[1].error, 0.2);
+    c = liveCosts(m, 1.5, live, 5 + kDialLiveMemoryWindows - 1);
+    EXPECT_DOUBLE_EQ(c[1].frameSeconds, 0.100) << "still remembered";
+    c = liveCosts(m, 1.5, live, 5 + kDialLiveMemoryWindows);
+    EXPECT_DOUBLE_EQ(c[1].frameSeconds, 0.030) << "forgotten";
+    EXPECT_EQ(liveCosts(m, 1.0, {}, 0).size(), 3u);
+    // At 15 fps (66.7 ms) the scaled estimate would take point 1; its own time keeps it out.
+    EXPECT_EQ(chooseForFrameRate(liveCosts(m, 1.5, live, 5), 15.0), std::optional<size_t>(0));
+    EXPECT_EQ(chooseForFrameRate(liveCosts(m, 1.5, {}, 5), 15.0), std::optional<size_t>(1));
+}
+
 TEST(QualityDial, InvalidMeasurementsAndTargetsAreRefused) {
     std::vector<DialMeasurement> m = {
         {{1.0f, 1, 2, 0, 0}, 0.05, 0.1},
