@@ -42,7 +42,7 @@ pid=$!
 busyArgs=()
 [[ -n $busyAfter ]] && busyArgs=(--busy-after "$busyAfter" "$work/busy")
 python3 "$root/bench/status_sampler.py" "$work/previsd.sock" "$pid" "$warmup" "$seconds" \
-    "$work/samples" "${busyArgs[@]}" ||
+    "$work/samples" ${busyArgs[@]+"${busyArgs[@]}"} ||
     { echo "live_fps: no frame shown (previsd stopped, or 600 s); log:" >&2; cat "$work/previsd.log" >&2; exit 1; }
 python3 - "$work/samples" "$work/busy" <<'EOF'
 import json, statistics, sys

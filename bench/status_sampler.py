@@ -1,12 +1,12 @@
 #!/usr/bin/env python3
 """Reads a running previsd's status from its control socket (DESIGN.md §3: one command line in,
 one JSON line out), for the live benches. One process asks for every sample: a `previs ctl` per
-sample loads its 160-odd libraries each time, about 0.25 CPU-s, a quarter of a core taken from
+sample loads its 160-odd libraries each time, about 0.24 CPU-s, a quarter of a core taken from
 the box being measured.
 
 usage: status_sampler.py SOCKET PID WARMUP SECONDS OUT [--busy-after N BUSYFILE]
-Waits until previsd has shown a frame (the dial times its settings at start; 600 s at most, less
-if process PID stops: exit 1), sleeps WARMUP seconds, then writes SECONDS + 1 lines to OUT, one a
+Waits until previsd has shown a frame (the dial times its settings at start; about 600 s at most,
+less if process PID stops: exit 1), sleeps WARMUP seconds, then writes SECONDS + 1 lines to OUT, one a
 second: "<unix time> <status JSON>". With --busy-after it busy-loops one core from sample N to the
 end (another process loading the box) and writes when that began to BUSYFILE.
 """
@@ -38,11 +38,12 @@ def alive(pid):
 
 
 def wait_for_first_frame(path, pid):
-    for _ in range(600):
+    deadline = time.monotonic() + 600
+    while time.monotonic() < deadline:
         try:
             if json.loads(status(path))["framesShown"] > 0:
                 return True
-        except (OSError, ValueError, KeyError):
+        except (OSError, ValueError, KeyError):  # not listening yet, or starting
             pass
         if not alive(pid):
             return False
@@ -52,7 +53,11 @@ def wait_for_first_frame(path, pid):
 
 def main(argv):
     path, pid, warmup, seconds, out = argv[1], int(argv[2]), float(argv[3]), int(argv[4]), argv[5]
-    busy_after, busy_file = (int(argv[7]), argv[8]) if len(argv) > 8 else (-1, None)
+    busy_after, busy_file = -1, None
+    if len(argv) > 6:
+        if argv[6] != "--busy-after" or len(argv) != 9:
+            sys.exit("status_sampler.py: usage: see its header")
+        busy_after, busy_file = int(argv[7]), argv[8]
     if not wait_for_first_frame(path, pid):
         return 1
     time.sleep(warmup)
@@ -66,8 +71,8 @@ def main(argv):
                     busy = subprocess.Popen(["bash", "-c", "while :; do :; done"])
                 try:
                     samples.write(f"{time.time()} {status(path)}\n")
-                except OSError:
-                    pass  # previsd gone: the samples so far stand
+                except (OSError, ValueError):
+                    pass  # previsd gone or cut off mid-reply: the samples so far stand
                 time.sleep(1)
     finally:
         if busy:

@@ -195,8 +195,10 @@ Status timedFrame(Renderer& renderer, const DialPoint& p, uint64_t sequence, boo
 Result<ImageF> stillFrames(Renderer& renderer, const DialPoint& p, int reps,
                            std::vector<double>& times) {
     const bool filtered = p.denoiseIterations > 0;
-    // A first frame unmeasured: it may allocate (a new traced size) or size dispatches.
-    if (Status s = renderer.renderPreviewFrame(p.samplesPerFrame); !s) return s.error();
+    // A first frame unmeasured, shown too: it may allocate (a new traced size, the display pass,
+    // the denoiser at that size) or size dispatches.
+    std::vector<double> first;
+    if (Status s = timedFrame(renderer, p, 0, filtered, first); !s) return s.error();
     for (int i = 0; i < std::max(1, reps); ++i)
         if (Status s = timedFrame(renderer, p, 0, filtered, times); !s) return s.error();
     return renderer.image(Aov::Composite, filtered);

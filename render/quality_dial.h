@@ -113,7 +113,8 @@ class Renderer;
 // samples and is filtered through the denoiser's temporal reprojection (its history afresh at
 // each point), as the service's accumulating preview is. The error is the last frame's: what
 // reprojection keeps in motion; the time every frame's but the first (it may allocate) and the
-// last (scored, not shown). What a held camera gains later (render/held_view.h) is not scored.
+// last (scored, not shown), so at least 3 frames. What a held camera gains later
+// (render/held_view.h) is not scored.
 struct DialMotion {
     double panStepRad = 0.0;
     uint32_t frames = 5;

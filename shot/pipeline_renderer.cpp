@@ -244,6 +244,9 @@ Status PipelineRenderer::chooseByDial(double fps, const PipelineStartHooks& hook
     if (!measured) return measured.error();
     dial_ = std::move(*measured);
     if (dial_.empty()) return makeError("render: the dial measured no preview setting");
+    // Live times are by measurement index: a new measurement's order is its own.
+    dialLive_.clear();
+    dialWindows_ = 0;
     dialChoice_ = chooseForFrameRate(dial_, fps);
     size_t chosen = 0;
     if (dialChoice_) {

@@ -121,11 +121,12 @@ public:
     // The dial, corrected live: the service's preview frames take longer than the dial measured
     // at start, with the CPU to itself (tracking, lighting and display share it). Given the
     // median live frame time of the point in use, every measurement is scaled by live/measured
-    // and the choice made again; a dearer point must fit within kDialUpgradeMargin of the
-    // budget, so the choice does not swing back and forth. A held camera's frames at
-    // refinement's depth cost `heldCost` times the point's: where that would not keep the rate
-    // (holdKeepsRefineDepth), they trace the point's own depth (a held view that keeps the rate
-    // converges a little slower; one that drops it stutters). Returns what changed.
+    // (or costs its own live time where that was longer lately: liveCosts) and the choice made
+    // again; a dearer point must fit within kDialUpgradeMargin of the budget, so the choice
+    // does not swing back and forth. A held camera's frames at refinement's depth cost
+    // `heldCost` times the point's: where that would not keep the rate (holdKeepsRefineDepth),
+    // they trace the point's own depth (a held view that keeps the rate converges a little
+    // slower; one that drops it stutters). Returns what changed.
     std::optional<std::string> adaptDial(double liveFrameSeconds, double heldCost) override;
     bool hasDial() const override { return !dial_.empty(); }
     bool lastPreviewOffDial() const override { return heldAtRefineDepth_; }

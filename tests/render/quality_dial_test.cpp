@@ -80,8 +80,6 @@ TEST(QualityDial, SlowdownScalesTheBudget) {
     EXPECT_FALSE(chooseForFrameRate(m, 10.0, std::nan("")));
 }
 
-// Unmeasurable points (a failed run: NaN or infinite) are never chosen nor on the front; no
-// frame rate or a zero one chooses nothing.
 // A held camera's depth (100 s budget): frames that take 99.5 s keep refinement's depth while
 // they do and do not bring it back once dropped; 84 s, within kDialUpgradeMargin, does. A depth
 // that costs under a tenth, or an unknown cost, keeps however slow the frames.
@@ -118,6 +116,8 @@ TEST(QualityDial, APointSeenTooSlowLiveCostsWhatItTookForAWhile) {
     EXPECT_EQ(chooseForFrameRate(liveCosts(m, 1.5, {}, 5), 15.0), std::optional<size_t>(1));
 }
 
+// Unmeasurable points (a failed run: NaN or infinite) are never chosen nor on the front; no
+// frame rate or a zero one chooses nothing.
 TEST(QualityDial, InvalidMeasurementsAndTargetsAreRefused) {
     std::vector<DialMeasurement> m = {
         {{1.0f, 1, 2, 0, 0}, 0.05, 0.1},

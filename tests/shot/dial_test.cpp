@@ -214,7 +214,8 @@ TEST_F(Dial, HeldFramesThatWouldNotKeepTheRateTraceThePointsDepth) {
     changed = r.adaptDial(m[quickest_].frameSeconds, 3.0);
     ASSERT_TRUE(changed);
     EXPECT_NE(changed->find("refinement's depth"), std::string::npos) << *changed;
-    EXPECT_TRUE(r.dialChoice()) << "a point that fits";
+    ASSERT_TRUE(r.dialChoice()) << "a point that fits";
+    EXPECT_NE(*r.dialChoice(), best_) << "not the one seen 10^6x too slow 3 windows ago";
     EXPECT_EQ(heldFrameDepth(), refineDepth);
     EXPECT_TRUE(r.lastPreviewOffDial());
 }

@@ -67,18 +67,18 @@ PV_INLINE vec3 envRadiance(vec3 dirWorld, uint width, uint height, vec2 rotation
 // CDF(base + n). A macro taking the table's macro, not a function: GLSL has no function pointers,
 // and both tables share this one loop. The loop tests its exit at the end: on llvmpipe a test at
 // the top runs the body once more after the last lane is done (trace_paths.comp's tracePaths).
-#define PV_ENV_SEARCH_CDF(CDF, base, n, x, lo)                               \
-    {                                                                        \
-        uint hi_ = (n);                                                      \
-        (lo) = 0u;                                                           \
-        if (hi_ > 1u) {                                                      \
-            for (;;) {                                                       \
-                PV_COUNT_LOOP_ITERATION();                                   \
-                uint mid_ = ((lo) + hi_) / 2u;                               \
-                if (CDF((base) + mid_) <= (x)) (lo) = mid_; else hi_ = mid_; \
-                if (hi_ - (lo) <= 1u) break;                                 \
-            }                                                                \
-        }                                                                    \
+#define PV_ENV_SEARCH_CDF(CDF, base, n, x, lo)                                                   \
+    {                                                                                            \
+        uint searchHi = (n);                                                                     \
+        (lo) = 0u;                                                                               \
+        if (searchHi > 1u) {                                                                     \
+            for (;;) {                                                                           \
+                PV_COUNT_LOOP_ITERATION();                                                       \
+                uint searchMid = ((lo) + searchHi) / 2u;                                         \
+                if (CDF((base) + searchMid) <= (x)) (lo) = searchMid; else searchHi = searchMid; \
+                if (searchHi - (lo) <= 1u) break;                                                \
+            }                                                                                    \
+        }                                                                                        \
     }
 
 PV_INLINE uint envSearchMarginal(float x, uint height) {
