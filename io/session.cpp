@@ -590,31 +590,35 @@ Result<SessionWriter::Index*> SessionWriter::openIndex(const std::string& relPat
 Status SessionWriter::appendLine(Index& index, const std::string& line) {
     PV_DCHECK(!line.empty() && line.back() == '\n');
     // One write() per line: after a crash a line is whole or cut short (and then ignored),
-    // never interleaved.
-    // A short write (a full disk) is cut back off: readers skip only a cut *last* line, so a
-    // fragment that a later line were appended to would make the index unreadable.
+    // never interleaved. A short write gets one more for the rest: a full disk then says so
+    // (ENOSPC), and a write a signal cut short is completed.
     const off_t before = ::lseek(index.fd.get(), 0, SEEK_END);
-    ssize_t n;
-    do {
-        n = ::write(index.fd.get(), line.data(), line.size());
-    } while (n < 0 && errno == EINTR);
-    if (n >= 0 && size_t(n) != line.size() && before >= 0) {
-        if (::ftruncate(index.fd.get(), before) != 0) {
-            // The fragment stays: no later line may follow it.
-            index.fd.reset();
-            return makeError(
-                "{}: short write and the fragment could not be removed: {}; this "
-                "index takes no more lines",
-                index.path, errnoText());
-        }
+    size_t written = 0;
+    std::string why;
+    for (int attempt = 0; attempt < 2 && written < line.size() && why.empty(); ++attempt) {
+        ssize_t n;
+        do {
+            n = ::write(index.fd.get(), line.data() + written, line.size() - written);
+        } while (n < 0 && errno == EINTR);
+        if (n < 0)
+            why = errnoText();
+        else
+            written += size_t(n);
     }
-    if (n < 0)
-        return makeError("{}: write failed: {} (is the disk full?)", index.path, errnoText());
-    if (size_t(n) != line.size())
-        return makeError("{}: short write ({} of {} bytes; is the disk full?)", index.path, n,
-                         line.size());
-    index.dirty = true;
-    return {};
+    if (written == line.size()) {
+        index.dirty = true;
+        return {};
+    }
+    if (why.empty()) why = fmt::format("short write ({} of {} bytes)", written, line.size());
+    // The fragment is cut back off: readers skip only a cut *last* line, so a fragment that a
+    // later line were appended to would make the index unreadable.
+    if (written > 0 && before >= 0 && ::ftruncate(index.fd.get(), before) != 0) {
+        index.fd.reset();  // the fragment stays: no later line may follow it
+        return makeError(
+            "{}: {} and the fragment could not be removed: {}; this index takes no more lines",
+            index.path, why, errnoText());
+    }
+    return makeError("{}: write failed: {} (is the disk full?)", index.path, why);
 }
 
 Status SessionWriter::syncIfDue() {
