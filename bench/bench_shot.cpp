@@ -44,8 +44,12 @@ struct FrameRow {
     size_t frame = 0;
     double sqrtRelMse = 0.0;  // of (composite − plate) against the reference's; NaN in the pan
     double sqrtRelMseTrimmed = 0.0;  // the same, its worst thousandth of pixels left out
-    double ms = 0.0;                 // lock step: tracking, lighting, render, composite
-    ImageF added;                    // composite − plate (kept for the hold's flicker)
+    // Against the truth, the references' own noise taken out (image/image_compare.h's
+    // compareWithPairedReference with the frame's twin reference), whole and trimmed.
+    double sqrtNetRelMse = 0.0;
+    double sqrtNetRelMseTrimmed = 0.0;
+    double ms = 0.0;         // lock step: tracking, lighting, render, composite
+    ImageF added;            // composite − plate (kept for the hold's flicker)
     bool extraHold = false;  // beyond the take's hold (holdLonger): frame is kStillFirst + held
 };
 
@@ -67,17 +71,19 @@ Result<ImageF> addedToPlate(PipelineRenderer& renderer, ImageF composite) {
 constexpr size_t kPanFrames[] = {5, 10, 15, 19, 48, 52};
 
 struct References {
-    std::map<size_t, ImageF> added;   // frame → the reference's composite − plate
+    std::map<size_t, ImageF> added;  // frame → the reference's composite − plate
+    // The same frames again with another random sequence: the references' own noise, which
+    // the net error takes out (and what refinement at the reference's samples scores against
+    // it, on the metric's terms).
+    std::map<size_t, ImageF> twins;
     uint64_t firstStillLighting = 0;  // the lighting snapshot frame kStillFirst is rendered with
-    // Frame kStillLast's reference again with another random sequence: what refinement at the
-    // reference's samples scores against it (its own noise, on the metric's terms).
-    ImageF twin;
-    // The reference of `frame`, rendered with the lighting snapshot `lighting`.
-    const ImageF* at(size_t frame, uint64_t lighting) const {
+    // The reference (or its twin) of `frame`, rendered with the lighting snapshot `lighting`.
+    const ImageF* at(size_t frame, uint64_t lighting, bool twin = false) const {
         if (frame >= kStillFirst && frame <= kStillLast)
             frame = lighting == firstStillLighting ? kStillFirst : kStillLast;
-        auto it = added.find(frame);
-        return it == added.end() ? nullptr : &it->second;
+        const auto& images = twin ? twins : added;
+        auto it = images.find(frame);
+        return it == images.end() ? nullptr : &it->second;
     }
 };
 
@@ -159,27 +165,34 @@ Result<References> references(const ServiceConfig& shipped, const std::string& s
                                          cachedReferencePath(cacheDir, configText, i, total));
         if (!added) return added.error();
         refs.added.emplace(i, std::move(*added));
-        if (i != kStillLast) continue;
         // The next preview frame sets its own seed (Renderer::previewFrameSeed).
         r.setSeed(config.render.seed ^ kTwinSeed);
         Result<ImageF> twin = reference(r, shown, replay.lighting(), total,
                                         cachedReferencePath(cacheDir, configText, i, total, true));
         if (!twin) return twin.error();
-        refs.twin = std::move(*twin);
+        refs.twins.emplace(i, std::move(*twin));
     }
     if (!refs.added.count(kStillFirst) || !refs.added.count(kStillLast))
         return makeError("bench shot: the demo take has no still view");
     return refs;
 }
 
-// The row's errors against `ref` (NaN without one).
-Status measureRow(FrameRow& row, const ImageF& added, const ImageF* ref) {
+// The row's errors against the reference of `frame` and its twin (NaN without them).
+Status measureRow(FrameRow& row, const ImageF& added, const References& refs, size_t frame,
+                  uint64_t lighting) {
     row.sqrtRelMse = row.sqrtRelMseTrimmed = std::nan("");
-    if (!ref) return {};
+    row.sqrtNetRelMse = row.sqrtNetRelMseTrimmed = std::nan("");
+    const ImageF* ref = refs.at(frame, lighting);
+    const ImageF* twin = refs.at(frame, lighting, true);
+    if (!ref || !twin) return {};
     Result<ImageDifference> d = compareImages(added, *ref);
     if (!d) return d.error();
     row.sqrtRelMse = std::sqrt(d->relMse);
     row.sqrtRelMseTrimmed = std::sqrt(d->relMseTrimmed);
+    Result<PairedDifference> net = compareWithPairedReference(added, *ref, *twin);
+    if (!net) return net.error();
+    row.sqrtNetRelMse = std::sqrt(net->netRelMse);
+    row.sqrtNetRelMseTrimmed = std::sqrt(net->netRelMseTrimmed);
     return {};
 }
 
@@ -199,8 +212,8 @@ Status holdLonger(SessionReplay& replay, const TrackedFrame& still, const Refere
         row.ms = std::chrono::duration<double, std::milli>(Clock::now() - t).count();
         Result<ImageF> added = addedToPlate(r, std::move(*image));
         if (!added) return added.error();
-        const ImageF* ref = refs.at(kStillLast, lightingSequence(replay));
-        if (Status s = measureRow(row, *added, ref); !s) return s;
+        if (Status s = measureRow(row, *added, refs, kStillLast, lightingSequence(replay)); !s)
+            return s;
         row.extraHold = true;
         benchProgress("held {}: {:.0f} ms", held, row.ms);
         rows.push_back(std::move(row));
@@ -231,8 +244,8 @@ Result<std::vector<FrameRow>> run(const ShotVariant& v, const std::string& sessi
         row.ms = std::chrono::duration<double, std::milli>(Clock::now() - t).count();
         Result<ImageF> added = addedToPlate(replay.renderer(), std::move(*image));
         if (!added) return added.error();
-        const ImageF* ref = refs.at(i, lightingSequence(replay));
-        if (Status s = measureRow(row, *added, ref); !s) return s.error();
+        if (Status s = measureRow(row, *added, refs, i, lightingSequence(replay)); !s)
+            return s.error();
         if (i >= kStillFirst && i <= kStillLast) row.added = std::move(*added);
         benchProgress("{}: frame {}, {:.0f} ms", v.name, i, row.ms);
         rows.push_back(std::move(row));
@@ -284,8 +297,9 @@ const FrameRow* rowOf(const std::vector<FrameRow>& rows, size_t frame, bool extr
     return nullptr;
 }
 
-// One markdown table of every variant: the trimmed error or the whole one.
-void printTable(const std::vector<VariantResult>& results, bool trimmed) {
+// One markdown table of every variant: the rows' `error`, under `title`.
+void printTable(const std::vector<VariantResult>& results, const char* title,
+                double FrameRow::*error) {
     struct Column {
         const char* name;
         size_t frame;
@@ -305,8 +319,7 @@ void printTable(const std::vector<VariantResult>& results, bool trimmed) {
                               {"held 64", kStillFirst + kLongHold, true},
                               {"pan 48", 48, false},
                               {"pan 52", 52, false}};
-    std::printf("\n%s\n\n| preview |",
-                trimmed ? "√relMSE, the worst 0.1 % of pixels left out:" : "√relMSE, every pixel:");
+    std::printf("\n%s\n\n| preview |", title);
     for (const Column& c : columns) std::printf(" %s |", c.name);
     std::printf(" flicker | ms/frame (median) |\n|---|");
     for (size_t i = 0; i < std::size(columns) + 2; ++i) std::printf("---|");
@@ -316,7 +329,7 @@ void printTable(const std::vector<VariantResult>& results, bool trimmed) {
         for (const Column& c : columns) {
             const FrameRow* r = rowOf(v.rows, c.frame, c.extraHold);
             if (r)
-                std::printf(" %.3f |", trimmed ? r->sqrtRelMseTrimmed : r->sqrtRelMse);
+                std::printf(" %.3f |", r->*error);
             else
                 std::printf(" – |");
         }
@@ -383,18 +396,23 @@ int runShotBench(const ShotBenchOptions& o) {
     std::ofstream csv;
     if (!o.csvPath.empty()) {
         csv.open(o.csvPath, std::ios::trunc);
-        csv << "variant,frame,frames_held,sqrt_rel_mse,sqrt_rel_mse_trimmed,ms\n";
+        csv << "variant,frame,frames_held,sqrt_rel_mse,sqrt_rel_mse_trimmed,sqrt_net_rel_mse,"
+               "sqrt_net_rel_mse_trimmed,ms\n";
     }
     std::printf(
         "Demo take (examples/demo), %ux%u, as `previs replay --mode preview` steps it; reference: "
         "the still view refined to %u spp without the denoiser (frame %zu, lit by a bracket of the "
         "pan, for the hold's first frames; frame %zu, lit by the still room's, for the rest). "
-        "Error: DESIGN.md §4's "
-        "√relMSE of composite − plate against the reference's, its worst %.1f %% of pixels left "
-        "out (the first table) and all of them (the second); the pan's frames against their own "
-        "references (a quarter of the samples); held %zu previews the last still frame again "
-        "after the take's hold ends. Flicker: temporal std of the last %zu of the take's held "
-        "frames' composite − plate, RMS over pixels, over the reference's RMS.\n\n",
+        "Error: √relMSE of composite − plate against the truth, estimated with each reference "
+        "and its twin (the same frame refined again with another random sequence) so that their "
+        "own noise is not counted (image/image_compare.h, compareWithPairedReference), the %.1f %% "
+        "of pixels where the two disagree most left out "
+        "(the first table) and none (the second); then DESIGN.md §4's √relMSE against the "
+        "reference alone, as earlier sessions measured it, its worst pixels left out (the third) "
+        "and none (the fourth). The pan's frames against their own references (a quarter of the "
+        "samples); held %zu previews the last still frame again after the take's hold ends. "
+        "Flicker: temporal std of the last %zu of the take's held frames' composite − plate, RMS "
+        "over pixels, over the reference's RMS.\n\n",
         still.width, still.height, spp, kStillFirst, kStillLast, kTrimmedFraction * 100.0,
         kLongHold, kFlickerFrames);
     std::vector<VariantResult> results;
@@ -415,16 +433,23 @@ int runShotBench(const ShotBenchOptions& o) {
                     << (r.frame >= kStillFirst && (r.extraHold || r.frame <= kStillLast)
                             ? long(r.frame - kStillFirst)
                             : -1L)
-                    << "," << r.sqrtRelMse << "," << r.sqrtRelMseTrimmed << "," << r.ms << "\n";
+                    << "," << r.sqrtRelMse << "," << r.sqrtRelMseTrimmed << "," << r.sqrtNetRelMse
+                    << "," << r.sqrtNetRelMseTrimmed << "," << r.ms << "\n";
         }
         result.flicker = flicker(*rows, still);
         result.msMedian = upperMedian(ms);
         result.rows = std::move(*rows);
         results.push_back(std::move(result));
     }
-    printTable(results, true);
-    printTable(results, false);
-    if (Result<ImageDifference> d = compareImages(refs->twin, still))
+    printTable(results,
+               "√relMSE against the truth, the references' noise taken out (their twins'), the "
+               "0.1 % of pixels where the two disagree most left out:",
+               &FrameRow::sqrtNetRelMseTrimmed);
+    printTable(results, "The same, every pixel:", &FrameRow::sqrtNetRelMse);
+    printTable(results, "√relMSE against the reference, the worst 0.1 % of pixels left out:",
+               &FrameRow::sqrtRelMseTrimmed);
+    printTable(results, "√relMSE against the reference, every pixel:", &FrameRow::sqrtRelMse);
+    if (Result<ImageDifference> d = compareImages(refs->twins.at(kStillLast), still))
         std::printf(
             "\nThe reference's own noise: the still view refined again to the same samples with "
             "another random sequence scores √relMSE %.3f (the worst %.1f %% left out), "

@@ -387,6 +387,8 @@ Result<GpuScene> GpuScene::create(GpuContext& ctx, const Scene& scene, const Geo
     params.realRoot = bvh.wideRealRoot;
     params.virtualRoot = bvh.wideVirtualRoot;
     setEnvironmentParams(params, scene.environment ? &*scene.environment : nullptr, envDist);
+    s.environmentPhotonLuminance_ =
+        scene.environment ? environmentPhotonLuminance(*scene.environment) : 0.0;
     params.coneLightFirst = uint32_t(lights.size());
     // The BVH puts real triangles first.
     params.realTriangleCount =
@@ -418,6 +420,9 @@ Status GpuScene::setEnvironment(std::shared_ptr<const EnvironmentMap> map,
     // A half-replaced environment is no environment (black) rather than a wrong one.
     setEnvironmentParams(params, s ? map.get() : nullptr, dist);
     features_.environment = s && map;
+    environmentPhotonLuminance_ = s && map ? environmentPhotonLuminance(*map) : 0.0;
+    // The environment is a photon light: its power changed.
+    if (Status p = updatePhotonLights(params); !p && s) return p;
     return s;
 }
 
@@ -475,10 +480,13 @@ Status GpuScene::recentre(const glm::dvec3& originM, shader::FrameParams& params
 
 Status GpuScene::updatePhotonLights(shader::FrameParams& params) {
     std::vector<glm::uvec4> table;
+    const double environment = params.envWidth > 0 ? environmentPhotonLuminance_ : 0.0;
     if (params.photonCount > 0)
-        table = buildPhotonLights(photonAim_, emissivePhotonSources_, allLights());
+        table = buildPhotonLights(photonAim_, emissivePhotonSources_, allLights(), environment);
     Status s = replaceWith(buffers_.photonLights, table, "photonLights");
     params.photonLightCount = s ? uint32_t(table.size()) : 0u;
+    params.photonEnvironment =
+        params.photonLightCount > 0 && (table[0].x & 0xffu) == PV_PHOTON_LIGHT_ENVIRONMENT;
     return s;
 }
 

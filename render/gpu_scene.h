@@ -116,6 +116,8 @@ private:
     SceneBvh bvh_;
     PhotonAim photonAim_;
     std::vector<EmissivePhotonSource> emissivePhotonSources_;
+    // The environment's power as a photon light (environmentPhotonLuminance; 0: none).
+    double environmentPhotonLuminance_ = 0.0;
     std::vector<shader::GpuLight> sceneLights_;      // the scene's own; estimated ones follow them
     std::vector<shader::GpuLight> estimatedLights_;  // cone lights (directions only)
     glm::dvec3 sceneOriginM_{0.0};

@@ -51,10 +51,10 @@ float defaultPhotonRadius(float aimRadius, uint32_t photonsPerIteration) {
     return float(double(kDefaultRadiusFraction) * aimRadius * scale);
 }
 
-bool mayBePurelySpecular(const Material& m) {
-    // shader::bsdfIsPurelySpecular: alpha = roughness² below PV_DELTA_ALPHA, and no diffuse
+bool mayCarryCaustics(const Material& m) {
+    // shader::bsdfCarriesCaustics: alpha = roughness² below PV_CAUSTIC_ALPHA, and no diffuse
     // base. Textures scale roughness, metalness and base colour, so a textured factor may reach it.
-    bool smooth = m.roughness * m.roughness < PV_DELTA_ALPHA || m.metallicRoughnessTexture >= 0;
+    bool smooth = m.roughness * m.roughness < PV_CAUSTIC_ALPHA || m.metallicRoughnessTexture >= 0;
     float base = std::max({m.baseColor.r, m.baseColor.g, m.baseColor.b});
     bool noDiffuse =
         m.metallic >= 1.0f || m.transmission >= 1.0f || base <= 0.0f || m.baseColorTexture >= 0;
@@ -66,7 +66,7 @@ PhotonAim photonAimFor(const Geometry& g, std::span<const Material> materials) {
     glm::vec3 lo(INFINITY), hi(-INFINITY), sceneLo(INFINITY), sceneHi(-INFINITY);
     auto isSpecular = [&](size_t t) {
         uint32_t mat = g.triangleMaterials[t];
-        return mat < materials.size() && mayBePurelySpecular(materials[mat]);
+        return mat < materials.size() && mayCarryCaustics(materials[mat]);
     };
     for (size_t t = 0; t < g.triangles.size(); ++t) {
         bool specular = isSpecular(t);
@@ -109,12 +109,38 @@ PhotonAim photonAimFor(const Geometry& g, std::span<const Material> materials) {
     return aim;
 }
 
+double environmentPhotonLuminance(const EnvironmentMap& map) {
+    if (map.width == 0 || map.height == 0 || map.radiance.size() != size_t(map.width) * map.height)
+        return 0.0;
+    // Texel solid angles: dω = (2π/W)(π/H) sin θ at the row's centre.
+    double power = 0.0, peak = 0.0;
+    for (uint32_t y = 0; y < map.height; ++y) {
+        const double sinTheta = std::sin(kPi * (y + 0.5) / map.height);
+        const double texel = 2.0 * kPi * kPi / (double(map.width) * map.height) * sinTheta;
+        for (uint32_t x = 0; x < map.width; ++x) {
+            const double l = shader::luminance(map.radiance[size_t(y) * map.width + x]);
+            power += l * texel;
+            peak = std::max(peak, l);
+        }
+    }
+    const double mean = power / (4.0 * kPi);
+    if (!(power > 0.0) || !std::isfinite(power) || peak < kEnvironmentLampRatio * mean) return 0.0;
+    return power * map.scale;
+}
+
 std::vector<glm::uvec4> buildPhotonLights(const PhotonAim& aim,
                                           std::span<const EmissivePhotonSource> emissive,
-                                          std::span<const shader::GpuLight> lights) {
+                                          std::span<const shader::GpuLight> lights,
+                                          double environmentLuminance) {
     std::vector<glm::uvec4> table;
     std::vector<double> weight;
     const double crossSection = kPi * double(aim.radius) * aim.radius;
+    if (environmentLuminance > 0.0 && std::isfinite(environmentLuminance)) {
+        // As a distant light over the aim's disk: Φ = ∫ Le dω · π R². The captured environment
+        // is real.
+        table.emplace_back(PV_PHOTON_LIGHT_ENVIRONMENT | PV_PHOTON_LIGHT_REAL, 0u, 0u, 0u);
+        weight.push_back(environmentLuminance * crossSection);
+    }
     for (const EmissivePhotonSource& e : emissive) {
         // Flux toward the aim ≈ L · area · Ω (the cosine left out: any positive weight is
         // unbiased, the photon's power divides by the actual probability).

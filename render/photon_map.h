@@ -42,11 +42,12 @@ inline constexpr uint32_t kDefaultRadiusPhotons = 1u << 15;
 // (docs/caustics.md, "Progressive radius"; BENCHMARKS.md, issue 9, ninth pass).
 float defaultPhotonRadius(float aimRadius, uint32_t photonsPerIteration);
 
-// A material that may be purely specular (every lobe a delta) on some texel: the photons' aim
-// must include it. Errs on the side of yes — a larger aim costs photons, a smaller one bias.
-bool mayBePurelySpecular(const Material& m);
+// A material that may carry caustics (shader::bsdfCarriesCaustics: purely specular, or polished
+// without a diffuse base) on some texel: the photons' aim must include it. Errs on the side of
+// yes — a larger aim costs photons, a smaller one bias.
+bool mayCarryCaustics(const Material& m);
 
-// The sphere photons are aimed at: it holds every triangle that may be purely specular.
+// The sphere photons are aimed at: it holds every triangle that may carry caustics.
 struct PhotonAim {
     bool any = false;  // the scene has such a triangle
     glm::vec3 center{0.0f};
@@ -65,11 +66,24 @@ struct EmissivePhotonSource {
     bool real;
 };
 
+// How much brighter than the map's mean radiance a texel must be for the environment to send
+// photons: a lamp in it (the set's softbox, the sun) whose caustics the path tracer meets as
+// speckles. A sky without one (overcast, a uniform furnace) lights glass and mirrors smoothly
+// for the path tracer, and its photons would cost a pass every sample for nothing.
+inline constexpr double kEnvironmentLampRatio = 16.0;
+
+// ∫ Le dω of `map` in luminance (scale included) where a texel is kEnvironmentLampRatio times
+// its mean radiance or more; 0 otherwise (buildPhotonLights' environmentLuminance).
+double environmentPhotonLuminance(const EnvironmentMap& map);
+
 // The photon light table (PV_BINDING_PHOTON_LIGHTS texels): every light that can send photons,
 // picked in proportion to an estimate of the flux it sends toward the aim sphere.
+// `environmentLuminance`: ∫ Le dω of the environment map in luminance (0: none), which then
+// comes first (PV_PHOTON_LIGHT_ENVIRONMENT).
 std::vector<glm::uvec4> buildPhotonLights(const PhotonAim& aim,
                                           std::span<const EmissivePhotonSource> emissive,
-                                          std::span<const shader::GpuLight> lights);
+                                          std::span<const shader::GpuLight> lights,
+                                          double environmentLuminance = 0.0);
 
 // The GPU passes of one photon iteration. Uses the renderer's buffers, indexed by PV_BINDING_*.
 class PhotonPasses {

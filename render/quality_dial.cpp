@@ -93,10 +93,21 @@ std::vector<DialMeasurement> liveCosts(std::span<const DialMeasurement> measured
     std::vector<DialMeasurement> costs(measured.begin(), measured.end());
     for (size_t i = 0; i < costs.size(); ++i) {
         costs[i].frameSeconds *= slowdown;
-        if (i < live.size() && live[i] && window - live[i]->window < kDialLiveMemoryWindows)
+        if (i < live.size() && live[i] && window - live[i]->window < live[i]->memory)
             costs[i].frameSeconds = std::max(costs[i].frameSeconds, live[i]->seconds);
     }
     return costs;
+}
+
+DialLiveTime nextLiveTime(const std::optional<DialLiveTime>& before, double seconds,
+                          uint64_t window, double targetFps) {
+    DialLiveTime next{seconds, window, kDialLiveMemoryWindows};
+    const double budget = 1.0 / targetFps;
+    if (seconds <= budget || !before || before->seconds <= budget) return next;
+    const bool triedAgain = window > before->window + 1;
+    next.memory =
+        triedAgain ? std::min(2 * before->memory, kDialLiveMemoryMaxWindows) : before->memory;
+    return next;
 }
 
 bool holdKeepsRefineDepth(double heldSeconds, double heldCost, double targetFps, bool keepsNow) {

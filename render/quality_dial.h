@@ -70,20 +70,33 @@ inline constexpr double kDialUpgradeMargin = 0.85;
 // picture (the demo measures about 1).
 inline constexpr double kHoldDepthWorthCost = 1.1;
 
-// What the live service saw one point's frames take (the median of a window), and adaptDial's
-// window count when it did.
+// How many of adaptDial's windows a point's own live time outweighs the estimate from another
+// point's at first (about 8 s at 15 fps): long enough that a point found too slow is not tried
+// again at every window, short enough that a passing load does not keep it out.
+inline constexpr uint64_t kDialLiveMemoryWindows = 8;
+// The longest it does (about a minute): a point tried again after its memory lapsed and found too
+// slow again doubles it, up to this, so a lasting load costs a slow window ever more rarely and
+// a load that is gone is found within a minute.
+inline constexpr uint64_t kDialLiveMemoryMaxWindows = 64;
+
+// What the live service saw one point's frames take (the median of a window), adaptDial's window
+// count when it did, and for how many windows from then it outweighs the estimate.
 struct DialLiveTime {
     double seconds = 0.0;
     uint64_t window = 0;
+    uint64_t memory = kDialLiveMemoryWindows;
 };
-// How many of adaptDial's windows a point's own live time outweighs the estimate from another
-// point's (about 8 s at 15 fps): long enough that a point found too slow is not tried again at
-// every window, short enough that a passing load does not keep it out.
-inline constexpr uint64_t kDialLiveMemoryWindows = 8;
+
+// A point's live time `seconds` in window `window`, after its record `before` (if any): frames
+// over the budget of `targetFps` in a window that follows a gap (the point tried again after
+// its memory lapsed) where they were over it before too double the memory; frames within the
+// budget start it afresh.
+DialLiveTime nextLiveTime(const std::optional<DialLiveTime>& before, double seconds,
+                          uint64_t window, double targetFps);
 
 // The measurements as the live dial weighs them in window `window`: every time scaled by
 // `slowdown` (the point in use's live time against its measured one), and a point whose own live
-// frames took longer within the last kDialLiveMemoryWindows windows costs that. Frames do not
+// frames took longer within its memory's windows (DialLiveTime::memory) costs that. Frames do not
 // slow every point alike (a dearer point's longer frames meet more of the tracking and the
 // lighting beside them), so the scaled estimate alone moves the dial back to a point that just
 // proved too slow, window after window. `live` is by measurement index; missing entries are

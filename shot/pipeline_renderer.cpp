@@ -323,7 +323,8 @@ std::optional<std::string> PipelineRenderer::adaptDial(double liveFrameSeconds, 
     if (dial_.empty() || !(dialFps_ > 0.0) || !(liveFrameSeconds > 0.0)) return std::nullopt;
     const double slowdown = liveFrameSeconds / dial_[dialInUse_].frameSeconds;
     dialLive_.resize(dial_.size());
-    dialLive_[dialInUse_] = DialLiveTime{liveFrameSeconds, ++dialWindows_};
+    dialLive_[dialInUse_] =
+        nextLiveTime(dialLive_[dialInUse_], liveFrameSeconds, ++dialWindows_, dialFps_);
     std::optional<std::string> point = choosePoint(slowdown, liveFrameSeconds);
     std::optional<std::string> hold = chooseHoldDepth(slowdown, heldCost);
     if (!hold) return point;

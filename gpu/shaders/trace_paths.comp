@@ -78,10 +78,12 @@ float coneLightPdf(GpuLight light, vec3 dir) {
 }
 
 // Next-event estimation at a surface: one environment sample, one emissive-triangle sample and
-// one light of the lights buffer (punctual or cone), each added (without the path throughput) to the solutions that see it.
+// one light of the lights buffer (punctual or cone), each added (without the path throughput) to
+// the solutions that see it. `photonsCarry`: the path is on a caustic chain the photon map
+// carries (photonMapCarries), so the photon lights' light is left out here.
 void sampleDirectLight(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint mode, SampleKey key,
-                       uint depth, inout vec3 toMixed, inout vec3 toReal) {
-    if (kHasEnv && params.envWidth > 0u) {
+                       uint depth, bool photonsCarry, inout vec3 toMixed, inout vec3 toReal) {
+    if (kHasEnv && params.envWidth > 0u && !(photonsCarry && params.photonEnvironment != 0u)) {
         float envPdfValue;
         uint texel;
         vec2 u = draw(key, vertexSet(depth, PV_SET_VERTEX_ENV)).xy;
@@ -101,6 +103,7 @@ void sampleDirectLight(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint mode
             }
         }
     }
+    if (photonsCarry) return;
     if (kHasEmissive && params.emissiveTriangleCount > 0u) {
         vec4 u = draw(key, vertexSet(depth, PV_SET_VERTEX_EMISSIVE));
         float uPick = u.z;
@@ -388,7 +391,7 @@ void gatherPhotons(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint depth, f
 // Where a path stands with respect to the photon map's paths (shared/photon_records.h's rule).
 #define CAUSTIC_NONE 0u            // the path tracer's own: from the camera, or after a delta lobe
 #define CAUSTIC_LEFT_GATHER 1u     // the last gather vertex scattered through a non-delta lobe
-#define CAUSTIC_SPECULAR_CHAIN 2u  // ... then only purely specular vertices (causticBounces)
+#define CAUSTIC_SPECULAR_CHAIN 2u  // ... then only vertices that carry caustics (causticBounces)
 
 // Adds radiance to the solutions the path carries in `mode`, in the same order for both, so that
 // where the two solutions followed the same path L_om − L_or is exactly zero.
@@ -616,7 +619,7 @@ struct PendingBranches {
 // seen where they are (camera rays, mirrors, and the BSDF half of their multiple importance
 // sampling).
 void addEscapedLight(PathState st, uint mode, inout vec3 lm, inout vec3 lr) {
-    if (kHasEnv && params.envWidth > 0u) {
+    if (kHasEnv && params.envWidth > 0u && !(params.photonEnvironment != 0u && photonMapCarries(st))) {
         vec2 rotation = vec2(params.envRotationCos, params.envRotationSin);
         vec3 le = params.envScale *
                   envRadiance(st.ray.direction, params.envWidth, params.envHeight, rotation);
@@ -643,17 +646,17 @@ void addEscapedLight(PathState st, uint mode, inout vec3 lm, inout vec3 lr) {
 }
 
 // The photon map's estimate at a vertex of the camera path. Returns whether the vertex is a
-// gather vertex (not purely specular); a purely specular one extends a caustic chain.
+// gather vertex (one that does not carry caustics); one that does extends a caustic chain.
 bool gatherAtVertex(SampleKey key, inout PathState st, uint mode, Surface s, BsdfParams bp,
                     Frame frame, vec3 wo, inout vec3 lm, inout vec3 lr) {
-    if (bsdfIsPurelySpecular(bp)) {
+    if (bsdfCarriesCaustics(bp)) {
         if (st.causticState != CAUSTIC_NONE) {
             st.causticState = CAUSTIC_SPECULAR_CHAIN;
             st.causticBounces += 1u;
         }
         return false;
     }
-    // Every vertex that is not purely specular gathers: level 2 always, level 1 where the rule
+    // Every vertex that does not carry caustics gathers: level 2 always, level 1 where the rule
     // allows (shared/photon_records.h), so the light a caustic throws onward (the wall beside a
     // glass) is a density estimate, not the path tracer's rare, bright samples.
     // The light set's fourth number is otherwise unused.
@@ -760,7 +763,12 @@ bool extendPath(SampleKey key, inout PathState st, inout uint mode, inout vec3 l
         bsdfLobeProbabilities(bp, wo).z > 0.0) {
         vec3 directMixed = vec3(0.0);
         vec3 directReal = vec3(0.0);
-        sampleDirectLight(s, bp, frame, wo, mode, key, st.depth, directMixed, directReal);
+        // At a vertex that carries caustics on a chain the photons carry, the lights it samples
+        // end such a chain; at a gather vertex the state is still the chain's that reached it,
+        // and its lights are its own direct light.
+        bool carried = !gatherVertex && photonMapCarries(st);
+        sampleDirectLight(s, bp, frame, wo, mode, key, st.depth, carried, directMixed,
+                          directReal);
         if (mode != MODE_REAL) lm += st.throughput * directMixed;
         if (mode != MODE_MIXED) lr += st.throughput * directReal;
     }

@@ -1,6 +1,6 @@
 // trace_photons: the photon pass of one iteration. Each invocation emits one photon from a
 // photon light (chosen by the power it sends toward the specular objects), aimed at the sphere
-// that holds every purely specular triangle, follows its purely specular scatterings and stores
+// that holds every triangle that carries caustics, follows its scatterings there and stores
 // it where it first lands on anything else after at least one of them (L S+ D, level 1), then
 // once more where it lands next (level 2; shared/photon_records.h says why and which paths that
 // carries). Like the path tracer's paths, a photon from a real light starts in both solutions
@@ -127,9 +127,23 @@ bool emitPhoton(uint photon, SampleKey key, out Ray ray, out vec3 power, out boo
         ray.direction = dir;
         return maxComponent(power) > 0.0;
     }
+    float crossSection = PV_PI * params.photonAimRadius * params.photonAimRadius;
+    if ((entry.x & 0xffu) == PV_PHOTON_LIGHT_ENVIRONMENT) {
+        // The environment as a distant light: a direction d from its importance sampling (the
+        // light arrives from d; the photon travels along −d), then a point on the disk:
+        // Φ = Le(d) · π R² / p(d), p the solid-angle density the path tracer's light sampling
+        // draws with.
+        float pdf;
+        uint texel;
+        vec3 d = envSampleTexel(uDir, params.envWidth, params.envHeight,
+                                vec2(params.envRotationCos, params.envRotationSin), pdf, texel);
+        if (!(pdf > 0.0)) return false;
+        ray = distantPhotonRay(-d, uPoint);
+        power = params.envScale * envRadianceAt(texel) * crossSection / (pdf * pick);
+        return maxComponent(power) > 0.0;
+    }
     GpuLight light = lightAt(entry.y);
     uint type = light.type & PV_LIGHT_TYPE_MASK;
-    float crossSection = PV_PI * params.photonAimRadius * params.photonAimRadius;
     if (type == PV_LIGHT_DIRECTIONAL) {
         // Illuminance E (lux) over the disk: Φ = E · π R².
         ray = distantPhotonRay(light.direction, uPoint);
@@ -263,7 +277,7 @@ bool extendPhoton(SampleKey key, inout PhotonState st, inout uint mode,
     if (kHasTransmission && !s.frontFace && maxComponent(m.attenuation) > 0.0)
         st.power *= exp(-m.attenuation * hit.t);  // Beer–Lambert, as trace_paths
     BsdfParams bp = bsdfParamsAt(m, s);
-    bool landed = !bsdfIsPurelySpecular(bp);
+    bool landed = !bsdfCarriesCaustics(bp);
     if (landed) {
         // Direct light (no specular scattering yet) is the path tracer's.
         if (st.bounces == 0u) return true;
@@ -292,8 +306,12 @@ bool extendPhoton(SampleKey key, inout PhotonState st, inout uint mode,
     // a delta lobe there is the path tracer's.
     if (landed && bs.isDelta) return true;
     vec3 wi = toWorld(frame, bs.wi);
-    if (!consistentSide(s, wi, bs.wi))  // as trace_paths: only delta lobes come here
+    if (!consistentSide(s, wi, bs.wi)) {
+        // As trace_paths' scatter: a delta direction moves to its promised side, a sampled one
+        // (a polished S vertex's) ends.
+        if (!bs.isDelta) return true;
         wi = nearestDirectionOnSide(wi, s.geometricNormal, bs.wi.z > 0.0 ? 1.0 : -1.0);
+    }
     // Flux is not rescaled by 1/η² across a refraction (radiance is; the sample weight
     // holds that factor for the path tracer's radiance): the adjoint BSDF (Veach 1997).
     // A thin wall does not refract, and its weight has no such factor.

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <filesystem>
 #include <limits>
+#include <random>
 
 #include "image/image.h"
 
@@ -127,6 +128,53 @@ TEST(CompareImages, ExrRoundTripKeepsTheError) {
     ASSERT_TRUE(d) << d.message();
     EXPECT_NEAR(d->rmse, 0.125 / std::sqrt(3.0), 1e-7);
     std::filesystem::remove_all(dir);
+}
+
+// Two references with independent noise of σ = 0.2 around a truth of 1; the image under test
+// is the truth plus a bias of 0.1 (relMSE against the truth 0.01/1.01). The net estimate
+// recovers it within five standard errors (over 3·10⁴ values the per-value term's spread is
+// about 0.05: a standard error of 0.0003); relMSE against either reference is dominated by the
+// reference's noise (0.04/1.01).
+TEST(CompareWithPairedReference, TakesTheReferencesNoiseOut) {
+    ImageF truth = constant(100, 100, 3, 1.0f);
+    ImageF b = truth, twin = truth, a = truth;
+    std::mt19937 rng(7);
+    std::normal_distribution<float> noise(0.0f, 0.2f);
+    for (size_t i = 0; i < truth.pixels.size(); ++i) {
+        b.pixels[i] += noise(rng);
+        twin.pixels[i] += noise(rng);
+        a.pixels[i] += 0.1f;
+    }
+    auto d = compareWithPairedReference(a, b, twin);
+    ASSERT_TRUE(d) << d.message();
+    EXPECT_NEAR(d->netRelMse, 0.01 / 1.01, 5 * 0.0003);
+    EXPECT_GT(compareImages(a, b)->relMse, 4 * d->netRelMse);
+    // The truth itself scores about 0 (never below it).
+    auto perfect = compareWithPairedReference(truth, b, twin);
+    ASSERT_TRUE(perfect);
+    EXPECT_LT(perfect->netRelMse, 5 * 0.0003);
+    EXPECT_GE(perfect->netRelMse, 0.0);
+}
+
+// A firefly in one reference is the pixel where the two disagree most: the trimmed figure leaves
+// it out, so it is the bias' alone (0.05² over 0.5² + 0.01), but for the 24 pixels around whose
+// 5×5 mean it raises (0.24 % of the image, within 1 %). Untrimmed, the firefly's own term is
+// weighed by that raised mean too, so one firefly does not swamp the figure either.
+TEST(CompareWithPairedReference, AFireflyInOneReferenceDoesNotSwampIt) {
+    ImageF truth = constant(100, 100, 3, 0.5f);
+    ImageF a = truth, b = truth, twin = truth;
+    for (float& v : a.pixels) v += 0.05f;
+    for (int c = 0; c < 3; ++c) b.pixels[size_t(4321) * 3 + c] = 500.0f;
+    auto d = compareWithPairedReference(a, b, twin);
+    ASSERT_TRUE(d) << d.message();
+    EXPECT_NEAR(d->netRelMseTrimmed, 0.0025 / 0.26, 0.01 * 0.0025 / 0.26);
+    EXPECT_NEAR(d->netRelMse, 0.0025 / 0.26, 0.01 * 0.0025 / 0.26);
+}
+
+TEST(CompareWithPairedReference, RefusesReferencesOfAnotherSize) {
+    ImageF a = constant(4, 4, 3, 1.0f);
+    EXPECT_FALSE(compareWithPairedReference(a, a, constant(4, 5, 3, 1.0f)));
+    EXPECT_FALSE(compareWithPairedReference(a, constant(5, 4, 3, 1.0f), a));
 }
 
 }  // namespace

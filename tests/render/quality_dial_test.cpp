@@ -116,6 +116,34 @@ TEST(QualityDial, APointSeenTooSlowLiveCostsWhatItTookForAWhile) {
     EXPECT_EQ(chooseForFrameRate(liveCosts(m, 1.5, {}, 5), 15.0), std::optional<size_t>(1));
 }
 
+// A point tried again after its memory lapsed and still too slow (over 66.7 ms at 15 fps) is
+// remembered twice as long, up to the cap; while it stays in use its memory holds; frames within
+// the budget start it afresh.
+TEST(QualityDial, APointFoundTooSlowAgainIsRememberedLonger) {
+    const double fps = 15.0;
+    DialLiveTime t = nextLiveTime(std::nullopt, 0.080, 3, fps);
+    EXPECT_EQ(t.memory, kDialLiveMemoryWindows) << "the first time";
+    t = nextLiveTime(t, 0.080, 4, fps);
+    EXPECT_EQ(t.memory, kDialLiveMemoryWindows) << "still in use: the next window";
+    t = nextLiveTime(t, 0.075, 4 + kDialLiveMemoryWindows, fps);
+    EXPECT_EQ(t.memory, 2 * kDialLiveMemoryWindows) << "tried again, too slow again";
+    EXPECT_EQ(t.window, 4 + kDialLiveMemoryWindows);
+    EXPECT_DOUBLE_EQ(t.seconds, 0.075);
+    for (uint64_t w = 100; w < 1000; w += 100) t = nextLiveTime(t, 0.070, w, fps);
+    EXPECT_EQ(t.memory, kDialLiveMemoryMaxWindows);
+    // The longer memory keeps it out of liveCosts for its windows, then lets it be tried.
+    const std::vector<DialMeasurement> m = {{{}, 0.030, 0.2}};
+    std::vector<std::optional<DialLiveTime>> live{t};
+    EXPECT_DOUBLE_EQ(
+        liveCosts(m, 1.0, live, t.window + kDialLiveMemoryMaxWindows - 1)[0].frameSeconds, 0.070);
+    EXPECT_DOUBLE_EQ(liveCosts(m, 1.0, live, t.window + kDialLiveMemoryMaxWindows)[0].frameSeconds,
+                     0.030);
+    t = nextLiveTime(t, 0.060, 2000, fps);
+    EXPECT_EQ(t.memory, kDialLiveMemoryWindows) << "within the budget";
+    // Within the budget before: a slow window now is a first time.
+    EXPECT_EQ(nextLiveTime(DialLiveTime{0.050, 1}, 0.090, 20, fps).memory, kDialLiveMemoryWindows);
+}
+
 // Unmeasurable points (a failed run: NaN or infinite) are never chosen nor on the front; no
 // frame rate or a zero one chooses nothing.
 TEST(QualityDial, InvalidMeasurementsAndTargetsAreRefused) {

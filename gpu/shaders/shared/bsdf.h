@@ -123,11 +123,23 @@ PV_INLINE vec3 dielectricFresnel(BsdfParams p, float cosThetaI) {
 
 PV_INLINE bool bsdfIsDelta(BsdfParams p) { return p.alpha < PV_DELTA_ALPHA; }
 
-// Every lobe a delta (a smooth mirror, smooth glass without a diffuse base): photons pass
-// through such a surface, and a camera path gathers photons at every vertex that is not one
-// (shared/photon_records.h).
+// Every lobe a delta (a smooth mirror, smooth glass without a diffuse base).
 PV_INLINE bool bsdfIsPurelySpecular(BsdfParams p) {
     return bsdfIsDelta(p) &&
+           (p.metallic >= 1.0f || p.transmission >= 1.0f || maxComponent(p.baseColor) <= 0.0f);
+}
+
+// Below this alpha (roughness 0.1) a mirror or glass scatters into a lobe so narrow that the
+// light it throws from a lamp onto a diffuse surface is a caustic: the path tracer finds it only
+// where a diffuse bounce happens to sample the lobe toward the lamp (white speckles beside a
+// polished chrome ball under a softbox), the photon map as a density.
+#define PV_CAUSTIC_ALPHA 0.01f
+
+// A surface that carries caustics: purely specular, or as smooth as PV_CAUSTIC_ALPHA without a
+// diffuse base (a polished metal, slightly rough glass). Photons pass through it, and a camera
+// path gathers photons at every vertex that is not one (shared/photon_records.h).
+PV_INLINE bool bsdfCarriesCaustics(BsdfParams p) {
+    return p.alpha < PV_CAUSTIC_ALPHA &&
            (p.metallic >= 1.0f || p.transmission >= 1.0f || maxComponent(p.baseColor) <= 0.0f);
 }
 

@@ -3,20 +3,23 @@
 // (sorts them into cells), trace_paths.comp (gathers them) and the C++ host and tests.
 //
 // What the photon map carries (and the path tracer therefore leaves out): light from a photon
-// light — an emissive triangle, a punctual light or an estimated (cone) light, never the
-// environment map — that reached a surface D through one or more purely specular scatterings
-// (L S+ D, the caustic). The path tracer drops exactly those paths: an emitter of a photon light
-// reached from a gather vertex (a vertex that is not purely specular) through a non-delta
-// scattering followed only by 1..photonMaxBounces purely specular ones. Everything else (direct
-// light, diffuse interreflection, environment light through glass) stays with the path tracer.
+// light — an emissive triangle, a punctual light, an estimated (cone) light or the environment
+// map — that reached a surface D through one or more scatterings at surfaces that carry
+// caustics (S: purely specular, or polished below PV_CAUSTIC_ALPHA without a diffuse base;
+// bsdf.h's bsdfCarriesCaustics) (L S+ D, the caustic). The path tracer drops exactly those
+// paths: an emitter of a photon light reached from a gather vertex (a vertex that does not carry
+// caustics) through a non-delta scattering followed only by 1..photonMaxBounces S ones, whether
+// the last S vertex reaches the emitter by its sampled direction or by light sampling (a
+// polished vertex samples lights; a purely specular one cannot). Everything else (direct light,
+// diffuse interreflection) stays with the path tracer.
 //
 // Photons are stored at two levels, so that the light a caustic throws onward is a density
 // estimate too, not the path tracer's rare bright samples (a point in a glass ball's shadow that
 // sees the ball's bright caustic through the ball):
 // - level 1 where the photon lands on D, as above;
 // - level 2 where it lands next: after D it scatters through the non-delta part of D's BSDF (a
-//   delta lobe ends it) and purely specular scatterings, and is stored at the next vertex that
-//   is not purely specular (L S+ D S* G).
+//   delta lobe ends it) and S scatterings, and is stored at the next vertex that is not an S
+//   vertex (L S+ D S* G).
 // The camera path gathers level 2 at every gather vertex (where level 2 is all it takes, with a
 // probability and the inverse weight: PV_PHOTON_LEVEL_2_GATHER_PROBABILITY) and level 1 only at
 // a gather vertex whose previous gather vertex, if any, scattered through a delta lobe. Each of
@@ -82,6 +85,8 @@ PV_BEGIN
 // the triangle (BVH order) or light index in y, inclusive cdf and probability in z and w.
 #define PV_PHOTON_LIGHT_TRIANGLE 0u
 #define PV_PHOTON_LIGHT_PUNCTUAL 1u
+// The environment map as a distant light over the aim sphere's cross-section (y unused).
+#define PV_PHOTON_LIGHT_ENVIRONMENT 2u
 #define PV_PHOTON_LIGHT_REAL 0x100u
 
 // A stored photon, two 16-byte texels: where it landed, the flags, its power (flux, already

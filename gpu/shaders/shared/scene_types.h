@@ -312,6 +312,9 @@ struct FrameParams {
     float estimateClamp;
     // The held view's samples the same way at this; 0 = off.
     float heldClamp;
+    // The photon light table holds the environment (PV_PHOTON_LIGHT_ENVIRONMENT): its caustics
+    // are the photons', so the path tracer leaves them out (shared/photon_records.h).
+    uint photonEnvironment;
 };
 
 PV_END
