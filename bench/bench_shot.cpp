@@ -372,6 +372,11 @@ int runShotBench(const ShotBenchOptions& o) {
     ShotVariant neither{"fixed, neither", noClamp.config};
     neither.config.render.previewObjectSamples = 0.0;
     variants.push_back(neither);
+    // Before polished metal and the environment's lamps carried caustics by photons, the demo
+    // ran none: the chrome ball's caustic of the softbox was the path tracer's (then clamped).
+    ShotVariant noPhotons{"fixed, photons off", fixedPoint.config};
+    noPhotons.config.render.photons.mode = PhotonMode::Off;
+    variants.push_back(noPhotons);
     ShotVariant noDial{"shipped, dial off", *shipped};
     noDial.config.render.previewFps = 0.0;
     variants.push_back(noDial);

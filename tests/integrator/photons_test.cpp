@@ -44,6 +44,29 @@ double depositedPower(const std::vector<shader::PhotonRecord>& records, uint32_t
     return sum;
 }
 
+// Two sets of independent renders compared by their green image means: each set's mean, and
+// |difference| over its standard error (printed, photon+path first).
+struct MeanAgreement {
+    double meanA = 0.0, meanB = 0.0, z = 0.0;
+};
+MeanAgreement agreementOfMeans(const std::vector<ImageF>& a, const std::vector<ImageF>& b) {
+    auto means = [](const std::vector<ImageF>& images) {
+        std::vector<double> out;
+        for (const ImageF& img : images) {
+            double sum = 0.0;
+            for (size_t i = 1; i < img.pixels.size(); i += 3) sum += img.pixels[i];
+            out.push_back(sum / double(img.pixels.size() / 3));
+        }
+        return meanAndVarianceOfMean(out);
+    };
+    const auto [meanA, varA] = means(a);
+    const auto [meanB, varB] = means(b);
+    MeanAgreement m{meanA, meanB, std::abs(meanA - meanB) / std::sqrt(varA + varB)};
+    std::printf("photon+path image mean %.5f (sd of mean %.5f), path tracing %.5f (%.5f), z %.2f\n",
+                meanA, std::sqrt(varA), meanB, std::sqrt(varB), m.z);
+    return m;
+}
+
 // A closed white room (real) lit by a small real lamp in its ceiling, a smooth glass ball on its
 // floor (real or virtual), seen from above.
 Scene glassBallInAWhiteRoom(bool ballIsReal) {
@@ -275,20 +298,9 @@ TEST_F(CausticAgreementTest, PhotonsPlusPathsEqualPathTracing) {
     std::vector<ImageF> photon = renders(s, withPhotons, 32, kRuns, 200);
     ASSERT_EQ(reference.size(), kRuns);
     ASSERT_EQ(photon.size(), kRuns);
-    auto imageMean = [](const ImageF& img) {
-        double sum = 0.0;
-        for (size_t i = 1; i < img.pixels.size(); i += 3) sum += img.pixels[i];  // green
-        return sum / double(img.pixels.size() / 3);
-    };
-    std::vector<double> refMeans, photonMeans;
-    for (const ImageF& img : reference) refMeans.push_back(imageMean(img));
-    for (const ImageF& img : photon) photonMeans.push_back(imageMean(img));
-    auto [refMean, refVar] = meanAndVarianceOfMean(refMeans);
-    auto [photonMean, photonVar] = meanAndVarianceOfMean(photonMeans);
-    const double z = std::abs(photonMean - refMean) / std::sqrt(refVar + photonVar);
-    std::printf("photon+path image mean %.5f, path tracing %.5f, z %.2f\n", photonMean, refMean, z);
+    const MeanAgreement m = agreementOfMeans(photon, reference);
     // Student's t, 14 dof, two-sided 0.1 %.
-    EXPECT_LT(z, 4.1) << "photon+path mean " << photonMean << ", path tracing " << refMean;
+    EXPECT_LT(m.z, 4.1) << "photon+path mean " << m.meanA << ", path tracing " << m.meanB;
     // Not vacuous: the photons carry a real share of the light on the floor.
     std::unique_ptr<Renderer> r = photonRenderer(s, withPhotons);
     ASSERT_TRUE(r);
@@ -883,20 +895,8 @@ TEST_F(PhotonTest, AnEnvironmentsCausticThroughAPolishedBallEqualsPathTracing) {
     const std::vector<ImageF> photon = renders(s, withPhotons, 64, kRuns, 200);
     ASSERT_EQ(reference.size(), kRuns);
     ASSERT_EQ(photon.size(), kRuns);
-    auto imageMean = [](const ImageF& img) {
-        double sum = 0.0;
-        for (size_t i = 1; i < img.pixels.size(); i += 3) sum += img.pixels[i];  // green
-        return sum / double(img.pixels.size() / 3);
-    };
-    std::vector<double> refMeans, photonMeans;
-    for (const ImageF& img : reference) refMeans.push_back(imageMean(img));
-    for (const ImageF& img : photon) photonMeans.push_back(imageMean(img));
-    auto [refMean, refVar] = meanAndVarianceOfMean(refMeans);
-    auto [photonMean, photonVar] = meanAndVarianceOfMean(photonMeans);
-    const double z = std::abs(photonMean - refMean) / std::sqrt(refVar + photonVar);
-    std::printf("photon+path image mean %.5f (sd of mean %.5f), path tracing %.5f (%.5f), z %.2f\n",
-                photonMean, std::sqrt(photonVar), refMean, std::sqrt(refVar), z);
-    EXPECT_LT(z, 4.59) << "photon+path mean " << photonMean << ", path tracing " << refMean;
+    const MeanAgreement m = agreementOfMeans(photon, reference);
+    EXPECT_LT(m.z, 4.59) << "photon+path mean " << m.meanA << ", path tracing " << m.meanB;
     // Not vacuous: the environment is the only light, and its photons land on the floor after
     // the ball, carrying a real share of the light there.
     std::unique_ptr<Renderer> r = photonRenderer(s, withPhotons);
