@@ -177,13 +177,16 @@ Result<std::unique_ptr<Renderer>> Renderer::create(GpuContext& ctx, const Scene&
     // Two slow steps that need nothing of each other, on two cores: the BVH builds on a second
     // thread (CPU work only) while this one compiles the pipelines (all Vulkan calls stay on one
     // thread). The pipelines' photon switch is predicted from what the scene holds: photons
-    // run where they may (photonsPossible) and the scene has an emitter or a light to send
-    // them from. Where the uploaded scene finds otherwise (emitters of zero area or power),
-    // ensurePipelines compiles again: a prediction costs time, never a wrong pipeline.
+    // run where they may (photonsPossible) and the scene has an emitter, a light or an
+    // environment lamp to send them from. Where the uploaded scene finds otherwise (emitters of
+    // zero area or power), ensurePipelines compiles again: a prediction costs time, never a
+    // wrong pipeline.
     const PhotonAim aim = photonAimFor(g, scene.materials);
     r->photonSplats_ = r->photonSplatBytes(aim) > 0;
+    const bool environmentLamp =
+        scene.environment && environmentPhotonLuminance(*scene.environment) > 0.0;
     const bool photonsLikely =
-        r->photonsPossible(aim) && (features.emissive || !scene.lights.empty());
+        r->photonsPossible(aim) && (features.emissive || !scene.lights.empty() || environmentLamp);
     auto bvh = std::async(std::launch::async, [&g] { return buildSceneBvh(g); });
     r->pipelines_.emplace(ctx, testOptions.specialise);
     const PipelineConstants predicted = r->pipelineConstants(features, photonsLikely);

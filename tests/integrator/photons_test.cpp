@@ -1173,6 +1173,16 @@ TEST_F(PhotonTest, OnlyScenesWithACausticRunPhotons) {
     ASSERT_TRUE((*dark)->setEnvironment(sky).ok());
     ASSERT_TRUE((*dark)->render(1).ok());
     EXPECT_EQ((*dark)->diagnostics().pipelineCompileCount(), 2u);
+    // An environment with a lamp in it (the set's softbox, radiance 2000 times the rest) sends
+    // photons from the start: predicted, so create() compiles once.
+    Scene lampLit = unlit;
+    EnvironmentMap lamp = uniformEnvironment(glm::vec3(0.1f), 16, 8);
+    lamp.radiance[2 * 16 + 5] = glm::vec3(200.0f);
+    lampLit.environment = lamp;
+    auto lampRenderer = Renderer::create(ctx(), lampLit, photonSettings(8, 8, PhotonMode::Auto));
+    ASSERT_TRUE(lampRenderer.ok()) << lampRenderer.message();
+    EXPECT_TRUE((*lampRenderer)->photonsActive());
+    EXPECT_EQ((*lampRenderer)->diagnostics().pipelineCompileCount(), 1u);
 
     // A prediction buildScene refutes: the only light is an emitter of zero area, so no photon
     // leaves it. The pipelines are compiled again without photons and the render is the unlit
