@@ -36,8 +36,10 @@ struct Demo {
     std::shared_ptr<const LiveLighting> clippedLighting;
 };
 
-// The shipped demo config at 96×54, no dial (it times this machine) and no spatial filter (the
-// accumulation is what is measured).
+// The shipped demo config at 96×54, no dial (it times this machine), no spatial filter (the
+// accumulation is what is measured) and no photons: the chrome ball's caustic is
+// tests/integrator/photons_test.cpp's, and at 96×54 a pass of 65536 photons for every sample of
+// 5184 pixels made these tests 5–8× slower.
 Demo demo() {
     Demo d;
     Result<ServiceConfig> config =
@@ -48,6 +50,7 @@ Demo demo() {
     d.config.render.height = 54;
     d.config.render.previewFps = 0.0;
     d.config.render.denoise = "off";
+    d.config.render.photons.mode = PhotonMode::Off;
     Result<Scene> scene = loadScene(d.config.scenePath);
     EXPECT_TRUE(scene) << scene.message();
     d.scene = std::move(*scene);
