@@ -388,7 +388,7 @@ Result<GpuScene> GpuScene::create(GpuContext& ctx, const Scene& scene, const Geo
     params.virtualRoot = bvh.wideVirtualRoot;
     setEnvironmentParams(params, scene.environment ? &*scene.environment : nullptr, envDist);
     s.environmentPhotonLuminance_ =
-        scene.environment ? environmentPhotonLuminance(*scene.environment) : 0.0;
+        scene.environment ? environmentPhotonLuminance(*scene.environment, envDist) : 0.0;
     params.coneLightFirst = uint32_t(lights.size());
     // The BVH puts real triangles first.
     params.realTriangleCount =
@@ -420,7 +420,7 @@ Status GpuScene::setEnvironment(std::shared_ptr<const EnvironmentMap> map,
     // A half-replaced environment is no environment (black) rather than a wrong one.
     setEnvironmentParams(params, s ? map.get() : nullptr, dist);
     features_.environment = s && map;
-    environmentPhotonLuminance_ = s && map ? environmentPhotonLuminance(*map) : 0.0;
+    environmentPhotonLuminance_ = s && map ? environmentPhotonLuminance(*map, dist) : 0.0;
     // The environment is a photon light: its power changed.
     if (Status p = updatePhotonLights(params); !p && s) return p;
     return s;

@@ -109,22 +109,13 @@ PhotonAim photonAimFor(const Geometry& g, std::span<const Material> materials) {
     return aim;
 }
 
-double environmentPhotonLuminance(const EnvironmentMap& map) {
-    if (map.width == 0 || map.height == 0 || map.radiance.size() != size_t(map.width) * map.height)
+double environmentPhotonLuminance(const EnvironmentMap& map, const EnvironmentDistribution& dist) {
+    // ∫ Le dω = 2π² ∫∫ L sin θ du dv (EnvironmentDistribution::integral); the mean over 4π.
+    const double power = 2.0 * double(kPi) * double(kPi) * double(dist.integral);
+    const double mean = power / (4.0 * double(kPi));
+    if (!(power > 0.0) || !std::isfinite(power) ||
+        dist.peakLuminance < kEnvironmentLampRatio * mean)
         return 0.0;
-    // Texel solid angles: dω = (2π/W)(π/H) sin θ at the row's centre.
-    double power = 0.0, peak = 0.0;
-    for (uint32_t y = 0; y < map.height; ++y) {
-        const double sinTheta = std::sin(kPi * (y + 0.5) / map.height);
-        const double texel = 2.0 * kPi * kPi / (double(map.width) * map.height) * sinTheta;
-        for (uint32_t x = 0; x < map.width; ++x) {
-            const double l = shader::luminance(map.radiance[size_t(y) * map.width + x]);
-            power += l * texel;
-            peak = std::max(peak, l);
-        }
-    }
-    const double mean = power / (4.0 * kPi);
-    if (!(power > 0.0) || !std::isfinite(power) || peak < kEnvironmentLampRatio * mean) return 0.0;
     return power * map.scale;
 }
 

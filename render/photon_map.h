@@ -23,6 +23,7 @@
 #include "gpu/shaders/shared/photon_records.h"
 #include "gpu/shaders/shared/scene_types.h"
 #include "render/render_settings.h"
+#include "scene/environment_map.h"
 #include "scene/scene.h"
 
 namespace previs {
@@ -73,8 +74,9 @@ struct EmissivePhotonSource {
 inline constexpr double kEnvironmentLampRatio = 16.0;
 
 // ∫ Le dω of `map` in luminance (scale included) where a texel is kEnvironmentLampRatio times
-// its mean radiance or more; 0 otherwise (buildPhotonLights' environmentLuminance).
-double environmentPhotonLuminance(const EnvironmentMap& map);
+// its mean radiance or more; 0 otherwise (buildPhotonLights' environmentLuminance). From the
+// sums its sampling tables `dist` already hold.
+double environmentPhotonLuminance(const EnvironmentMap& map, const EnvironmentDistribution& dist);
 
 // The photon light table (PV_BINDING_PHOTON_LIGHTS texels): every light that can send photons,
 // picked in proportion to an estimate of the flux it sends toward the aim sphere.

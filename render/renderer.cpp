@@ -184,7 +184,9 @@ Result<std::unique_ptr<Renderer>> Renderer::create(GpuContext& ctx, const Scene&
     const PhotonAim aim = photonAimFor(g, scene.materials);
     r->photonSplats_ = r->photonSplatBytes(aim) > 0;
     const bool environmentLamp =
-        scene.environment && environmentPhotonLuminance(*scene.environment) > 0.0;
+        scene.environment &&
+        environmentPhotonLuminance(*scene.environment,
+                                   buildEnvironmentDistribution(*scene.environment)) > 0.0;
     const bool photonsLikely =
         r->photonsPossible(aim) && (features.emissive || !scene.lights.empty() || environmentLamp);
     auto bvh = std::async(std::launch::async, [&g] { return buildSceneBvh(g); });

@@ -101,6 +101,7 @@ EnvironmentDistribution buildEnvironmentDistribution(const EnvironmentMap& map) 
             // Non-finite input was cleaned at load; guard against maps built in memory.
             weights[i] = std::isfinite(lum) ? lum * s : 0.0;
             total += weights[i];
+            if (std::isfinite(lum)) dist.peakLuminance = std::max(dist.peakLuminance, float(lum));
         }
     }
     dist.integral = float(total / (double(w) * double(h)));

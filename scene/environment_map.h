@@ -35,6 +35,8 @@ struct EnvironmentDistribution {
     // ∫∫ weight du dv = sum of the weights / (width * height), in luminance units. 0 when the map
     // is black (the tables then sample the sphere uniformly).
     float integral = 0.0f;
+    // The brightest texel's luminance (photons take a map with a lamp: render/photon_map.h).
+    float peakLuminance = 0.0f;
 };
 
 // Sums run in double so a 1e5 sun next to 1e-3 sky keeps the small texels' probabilities. A row

@@ -985,7 +985,7 @@ TEST(PhotonLightsTest, TheEnvironmentIsAPhotonLight) {
 // ∫ Le dω over the texels' solid angles (a uniform map of radiance L: 4π L), times its scale.
 TEST(PhotonLightsTest, OnlyAnEnvironmentWithALampSendsPhotons) {
     EnvironmentMap sky = uniformEnvironment(glm::vec3(0.5f), 64, 32);
-    EXPECT_EQ(environmentPhotonLuminance(sky), 0.0);
+    EXPECT_EQ(environmentPhotonLuminance(sky, buildEnvironmentDistribution(sky)), 0.0);
     EnvironmentMap lamp = sky;
     lamp.radiance[5 * 64 + 10] = glm::vec3(2000.0f);
     lamp.scale = 2.0f;
@@ -994,11 +994,12 @@ TEST(PhotonLightsTest, OnlyAnEnvironmentWithALampSendsPhotons) {
     double sphere = 0.0;
     for (int y = 0; y < 32; ++y)
         sphere += 64.0 * 2.0 * kPi * kPi / (64.0 * 32.0) * std::sin(kPi * (y + 0.5) / 32.0);
-    EXPECT_NEAR(environmentPhotonLuminance(lamp), 2.0 * (0.5 * sphere + (2000.0 - 0.5) * texel),
-                1e-6 * environmentPhotonLuminance(lamp));
+    EXPECT_NEAR(environmentPhotonLuminance(lamp, buildEnvironmentDistribution(lamp)),
+                2.0 * (0.5 * sphere + (2000.0 - 0.5) * texel),
+                1e-6 * environmentPhotonLuminance(lamp, buildEnvironmentDistribution(lamp)));
     EnvironmentMap dim = sky;
     dim.radiance[5 * 64 + 10] = glm::vec3(5.0f);  // 10× the mean: no lamp
-    EXPECT_EQ(environmentPhotonLuminance(dim), 0.0);
+    EXPECT_EQ(environmentPhotonLuminance(dim, buildEnvironmentDistribution(dim)), 0.0);
 }
 
 // The gather's BSDF is baseColor/π only where every surface photons may land on is Lambertian

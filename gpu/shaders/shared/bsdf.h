@@ -123,11 +123,13 @@ PV_INLINE vec3 dielectricFresnel(BsdfParams p, float cosThetaI) {
 
 PV_INLINE bool bsdfIsDelta(BsdfParams p) { return p.alpha < PV_DELTA_ALPHA; }
 
-// Every lobe a delta (a smooth mirror, smooth glass without a diffuse base).
-PV_INLINE bool bsdfIsPurelySpecular(BsdfParams p) {
-    return bsdfIsDelta(p) &&
-           (p.metallic >= 1.0f || p.transmission >= 1.0f || maxComponent(p.baseColor) <= 0.0f);
+// No diffuse base under the specular layer: a metal, full transmission or a black base.
+PV_INLINE bool bsdfHasNoDiffuse(BsdfParams p) {
+    return p.metallic >= 1.0f || p.transmission >= 1.0f || maxComponent(p.baseColor) <= 0.0f;
 }
+
+// Every lobe a delta (a smooth mirror, smooth glass without a diffuse base).
+PV_INLINE bool bsdfIsPurelySpecular(BsdfParams p) { return bsdfIsDelta(p) && bsdfHasNoDiffuse(p); }
 
 // Below this alpha (roughness 0.1) a mirror or glass scatters into a lobe so narrow that the
 // light it throws from a lamp onto a diffuse surface is a caustic: the path tracer finds it only
@@ -139,8 +141,7 @@ PV_INLINE bool bsdfIsPurelySpecular(BsdfParams p) {
 // diffuse base (a polished metal, slightly rough glass). Photons pass through it, and a camera
 // path gathers photons at every vertex that is not one (shared/photon_records.h).
 PV_INLINE bool bsdfCarriesCaustics(BsdfParams p) {
-    return p.alpha < PV_CAUSTIC_ALPHA &&
-           (p.metallic >= 1.0f || p.transmission >= 1.0f || maxComponent(p.baseColor) <= 0.0f);
+    return p.alpha < PV_CAUSTIC_ALPHA && bsdfHasNoDiffuse(p);
 }
 
 // The share of light the specular layer lets through to the diffuse base seen from wo: one
