@@ -363,6 +363,9 @@ int runShotBench(const ShotBenchOptions& o) {
     ShotVariant holdAsMoving{"fixed, the hold at depth 2", fixedPoint.config};
     holdAsMoving.config.render.previewHoldDepth = false;
     variants.push_back(holdAsMoving);
+    ShotVariant noFollow{"fixed, the held view not following the camera", fixedPoint.config};
+    noFollow.config.render.previewFollow = false;
+    variants.push_back(noFollow);
     ShotVariant noClamp{"fixed, samples not clamped", fixedPoint.config};
     noClamp.config.render.previewSampleClamp = 0.0;
     variants.push_back(noClamp);

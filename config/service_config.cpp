@@ -658,7 +658,7 @@ Status ConfigReader::parseRender(const toml::table& t, RenderConfig& c,
              "photons", "preview_photons", "photon_radius_m", "photon_alpha", "photon_neighbours",
              "photon_splat", "resolution_scale", "preview_fps", "denoise", "denoise_levels",
              "preview_accumulate", "preview_history_frames", "preview_object_samples",
-             "preview_sample_clamp", "preview_hold_depth"});
+             "preview_sample_clamp", "preview_hold_depth", "preview_follow"});
         !st)
         return st;
     // clang-format on
@@ -730,6 +730,9 @@ Status ConfigReader::parseRender(const toml::table& t, RenderConfig& c,
     Result<std::optional<bool>> holdDepth = r_.boolean(t, "render", "preview_hold_depth");
     if (!holdDepth) return holdDepth.error();
     c.previewHoldDepth = holdDepth->value_or(c.previewHoldDepth);
+    Result<std::optional<bool>> follow = r_.boolean(t, "render", "preview_follow");
+    if (!follow) return follow.error();
+    c.previewFollow = follow->value_or(c.previewFollow);
     return {};
 }
 

@@ -198,6 +198,10 @@ struct RenderConfig {
     // refinement's depth (max_depth), so a held preview converges toward refinement's picture,
     // not the dial's shallower one; false: preview's depth throughout.
     bool previewHoldDepth = true;
+    // While the camera moves, the held view's samples at the output's resolution follow it
+    // (render/held_reprojection.h) and fade, instead of being dropped at every move; false: the
+    // held view starts afresh whenever the camera holds again.
+    bool previewFollow = true;
     // Caustics (render/photon_map.h): mode and photons per iteration, first radius, alpha.
     PhotonSettings photons;
 

@@ -199,7 +199,26 @@ bool Film::holdView(bool on, uint32_t traceWidth, uint32_t traceHeight) {
     if (on && held_ && !held_->traces(traceWidth, traceHeight)) held_.reset();
     if (on && !held_) held_ = HeldView::create(width_, height_, traceWidth, traceHeight);
     if (!on && held_) held_->reset();
+    if (on && held_) held_->hold();
     return on && held_;
+}
+
+bool Film::followView(uint32_t traceWidth, uint32_t traceHeight) {
+    if (!holdView(true, traceWidth, traceHeight)) return false;
+    held_->follow();
+    return true;
+}
+
+Status Film::reprojectHeld(GpuBuffer& held, const DenoiseCamera& to) {
+    const std::optional<DenoiseCamera> from = heldCamera();
+    if (!from) return {};
+    if (!reprojection_) {
+        auto r = HeldReprojection::create(*ctx_, width_, height_);
+        if (!r) return r.error();
+        reprojection_.emplace(std::move(r.value()));
+    }
+    return reprojection_->run(held,
+                              reprojectParams(*from, to, width_, height_, HeldView::kFollowKeep));
 }
 
 Result<std::vector<glm::vec4>> Film::heldSamplesOf(const TracedBuffers& traced) const {
@@ -210,12 +229,24 @@ Result<std::vector<glm::vec4>> Film::heldSamplesOf(const TracedBuffers& traced) 
             width_, height_, traced.width, traced.height);
     Result<Accumulation> read = readAccumulation(traced);
     if (!read) return read.error();
+    // The first hits' distances, which place the samples when the camera moves on: the
+    // guides' mean depth (without guides, all at the distance of a miss: they turn with the
+    // camera but do not shift).
+    std::vector<glm::vec4> guides;
+    if (traced.guides) {
+        Result<std::vector<glm::vec4>> g = readGuides(traced);
+        if (!g) return g.error();
+        guides = std::move(*g);
+    }
     const size_t pixels = size_t(width_) * height_;
     std::vector<glm::vec4> samples(2 * pixels);
     for (size_t i = 0; i < pixels; ++i) {
         for (int c = 0; c < 4; ++c)
             samples[2 * i][c] = float(read->value(i, PV_ACCUM_COMPOSITE, c));
-        samples[2 * i + 1] = glm::vec4(float(read->count(i)), 0.0f, 0.0f, 0.0f);
+        const float count = float(read->count(i));
+        const float distance =
+            guides.empty() ? PV_GUIDE_MISS_DEPTH_M : guides[i * PV_GUIDE_COUNT + PV_GUIDE_ALBEDO_DEPTH].w;
+        samples[2 * i + 1] = glm::vec4(count, count * distance, 0.0f, 0.0f);
     }
     return samples;
 }

@@ -21,6 +21,7 @@
 #include "render/convergence.h"
 #include "render/denoiser.h"
 #include "render/display_pass.h"
+#include "render/held_reprojection.h"
 #include "render/held_view.h"
 #include "render/render_settings.h"
 #include "render/upsample.h"
@@ -89,23 +90,35 @@ public:
     // estimate with them; off, it forgets them. Stays off at full resolution. Returns whether it
     // is on.
     bool holdView(bool on, uint32_t traceWidth, uint32_t traceHeight);
-    // Frames the held view keeps (0 while off, and before its first: its samples are then to be
-    // cleared).
+    // The camera moved: the held view stays on (as holdView(true)) and its samples are to follow
+    // the camera (reprojectHeld). Returns whether it is on.
+    bool followView(uint32_t traceWidth, uint32_t traceHeight);
+    // Frames the held view has kept since the camera last moved (0 while off or following).
     uint64_t heldFrames() const { return held_ ? held_->frames() : 0; }
+    // The camera the held view's samples are aligned with; none while it keeps none (they are
+    // then to be cleared).
+    std::optional<DenoiseCamera> heldCamera() const {
+        return held_ ? held_->camera() : std::nullopt;
+    }
+    // Moves the held view's samples (`held`, PV_BINDING_HELD_SAMPLES) from heldCamera() to `to`
+    // (render/held_reprojection.h), fading them by HeldView::kFollowKeep.
+    Status reprojectHeld(GpuBuffer& held, const DenoiseCamera& to);
     // The accumulation of a full-resolution trace (refinement's) as the held view's samples
     // (PV_BINDING_HELD_SAMPLES' layout: per output pixel the sums of Eq. 1's plate-free part and
     // of M, then the sample count): a preview that resumes on the refined view starts from them.
     Result<std::vector<glm::vec4>> heldSamplesOf(const TracedBuffers& traced) const;
-    // A preview frame's samples joined the held view's (the renderer sums them on the device).
-    void heldFrameAdded() {
-        if (held_) held_->frameAdded();
+    // A preview frame's samples, traced from `camera`, joined the held view's (the renderer sums
+    // them on the device).
+    void heldFrameAdded(const DenoiseCamera& camera) {
+        if (held_) held_->frameAdded(camera);
     }
 
     // Bytes of device memory in the denoiser's buffers (its history included) and the display
     // pass's.
     uint64_t deviceBytes() const {
         return (denoiser_ ? denoiser_->deviceBytes() : 0) +
-               (displayPass_ ? displayPass_->deviceBytes() : 0);
+               (displayPass_ ? displayPass_->deviceBytes() : 0) +
+               (reprojection_ ? reprojection_->deviceBytes() : 0);
     }
 
     // The denoiser (null without RenderSettings::denoise): its settings and temporal history.
@@ -170,6 +183,7 @@ private:
     std::optional<Denoiser> denoiser_;
     bool temporalDenoise_ = false;
     std::optional<HeldView> held_;
+    std::optional<HeldReprojection> reprojection_;  // made when the camera first moves
     std::optional<DisplayPass> displayPass_;  // made with the first display()
 };
 

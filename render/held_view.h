@@ -21,6 +21,7 @@
 
 #include "gpu/shaders/shared/composite.h"
 #include "image/image.h"
+#include "render/denoiser.h"
 
 namespace previs {
 
@@ -36,8 +37,11 @@ public:
     bool traces(uint32_t traceWidth, uint32_t traceHeight) const {
         return traceWidth == traceWidth_ && traceHeight == traceHeight_;
     }
-    // A frame's samples joined the kept ones.
-    void frameAdded() { ++frames_; }
+    // A frame's samples, traced from `camera`, joined the kept ones.
+    void frameAdded(const DenoiseCamera& camera) {
+        if (!following_) ++frames_;
+        camera_ = camera;
+    }
     // `estimate` (RGBA at the output size: RGB the mean of Eq. 1's plate-free part, A the mask
     // M) averaged with the kept samples (per output pixel two vec4, as PV_BINDING_HELD_SAMPLES
     // holds them), the estimate counted as kEstimateSamples samples (shared/composite.h's
@@ -47,9 +51,27 @@ public:
     // 32 frames of its traced pixels and their neighbours' (BENCHMARKS.md, "The preview as
     // shipped", measures the choice).
     static constexpr double kEstimateSamples = PV_HELD_ESTIMATE_SAMPLES;
-    // Frames kept since the camera last moved (0: the samples are to be cleared).
+    // Frames kept since the camera last moved.
     uint64_t frames() const { return frames_; }
-    void reset() { frames_ = 0; }
+    // The camera the kept samples are aligned with; none: there are none (to be cleared).
+    const std::optional<DenoiseCamera>& camera() const { return camera_; }
+    // The camera holds: its frames count (frames()).
+    void hold() { following_ = false; }
+    // The camera moves: the samples follow it (render/held_reprojection.h), its frames do not
+    // count.
+    void follow() {
+        following_ = true;
+        frames_ = 0;
+    }
+    // The weight a sample keeps each time the camera moves: the history of a moving camera is
+    // about 1/(1 − kFollowKeep) frames long, short enough that what the view changes (a
+    // reflection, a shadow's edge seen from aside) does not trail behind.
+    static constexpr float kFollowKeep = 0.75f;
+    void reset() {
+        frames_ = 0;
+        camera_.reset();
+        following_ = false;
+    }
 
 private:
     HeldView(uint32_t traceWidth, uint32_t traceHeight)
@@ -58,6 +80,8 @@ private:
     uint32_t traceWidth_;
     uint32_t traceHeight_;
     uint64_t frames_ = 0;
+    std::optional<DenoiseCamera> camera_;
+    bool following_ = false;
 };
 
 }  // namespace previs

@@ -504,14 +504,34 @@ Status Renderer::setResolutionScale(float scale) {
 }
 
 Status Renderer::holdView(bool on) {
+    return useHeldView(film_->holdView(on, params_.width, params_.height));
+}
+
+Status Renderer::followView() {
+    if (Status s = useHeldView(film_->followView(params_.width, params_.height)); !s) return s;
+    if (params_.heldWidth == 0u) return {};
+    return film_->reprojectHeld(buffers_->heldSamples, denoiseCamera());
+}
+
+Result<std::vector<glm::vec4>> Renderer::heldSamples() const {
+    if (params_.heldWidth == 0u) return std::vector<glm::vec4>{};
+    std::vector<glm::vec4> samples(buffers_->heldSamples.size() / sizeof(glm::vec4));
+    if (Status s = buffers_->heldSamples.download(samples.data(), buffers_->heldSamples.size());
+        !s)
+        return s.error();
+    return samples;
+}
+
+Status Renderer::useHeldView(bool on) {
     params_.heldWidth = params_.heldHeight = 0u;
-    if (!film_->holdView(on, params_.width, params_.height)) return {};
+    if (!on) return {};
     // The output's samples, made when first needed (a renderer that never previews below full
     // resolution never pays for them) and bound whole; summed over the frames the view holds,
     // cleared when it starts.
     GpuBuffer& held = buffers_->heldSamples;
     const uint64_t bytes = uint64_t(settings_.width) * settings_.height * 2 * sizeof(glm::vec4);
-    if (held.size() != bytes) {
+    const bool made = held.size() != bytes;
+    if (made) {
         const uint64_t limit = ctx_->physicalDevice().getProperties().limits.maxStorageBufferRange;
         if (bytes > limit) return {};  // an output too large to bind whole: no held view
         auto fresh = GpuBuffer::create(*ctx_, bytes, "heldSamples");
@@ -520,18 +540,18 @@ Status Renderer::holdView(bool on) {
     }
     params_.heldWidth = settings_.width;
     params_.heldHeight = settings_.height;
-    if (film_->heldFrames() == 0) return held.fill(0);
+    if (made || !film_->heldCamera()) return held.fill(0);
     return {};
 }
 
 Status Renderer::seedHeldView(std::span<const glm::vec4> samples) {
-    if (params_.heldWidth == 0u || film_->heldFrames() != 0) return {};
+    if (params_.heldWidth == 0u || film_->heldCamera()) return {};
     GpuBuffer& held = buffers_->heldSamples;
     if (samples.size_bytes() != held.size())
         return makeError("the held view holds {} bytes, not the {} given", held.size(),
                          samples.size_bytes());
     if (Status s = held.upload(samples.data(), samples.size_bytes()); !s) return s;
-    film_->heldFrameAdded();
+    film_->heldFrameAdded(denoiseCamera());
     return {};
 }
 
@@ -600,7 +620,7 @@ Status Renderer::renderPreviewFrame(uint32_t spp, uint64_t frameIndex) {
     if (s) s = traceObjectRegions(spp);
     params_.estimateClamp = params_.heldClamp = 0.0f;
     params_.photonCount = full;
-    if (s && params_.heldWidth != 0u) film_->heldFrameAdded();
+    if (s && params_.heldWidth != 0u) film_->heldFrameAdded(denoiseCamera());
     return s;
 }
 

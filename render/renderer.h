@@ -144,12 +144,19 @@ public:
     // pixel; off, the kept samples are forgotten. On does nothing at full resolution (there is
     // nothing to gain).
     Status holdView(bool on);
+    // The camera moved since the last preview frame (set its pose first): the held view stays on
+    // and its samples follow the camera (render/held_reprojection.h), so the output's resolution
+    // keeps a short history while the camera moves too.
+    Status followView();
+    // The held view's samples as kept (PV_BINDING_HELD_SAMPLES' layout); none while it is off.
+    Result<std::vector<glm::vec4>> heldSamples() const;
     // Refinement's samples so far, as the held view keeps samples (Film::heldSamplesOf): read
     // them before the preview's resolution scale replaces the accumulation, and hand them to
     // seedHeldView once the held view is on, so a preview that resumes on the refined view shows
     // what refinement reached instead of starting again.
     Result<std::vector<glm::vec4>> refinedSamples() const { return film_->heldSamplesOf(traced()); }
-    // The held view, on and empty, starts from `samples` (refinedSamples); nothing while it is off.
+    // The held view, on and empty, starts from `samples` (refinedSamples, traced from the camera
+    // now set); nothing while it is off.
     Status seedHeldView(std::span<const glm::vec4> samples);
 
     // The most scattering events on a path for the next renders (RenderSettings::maxDepth; the
@@ -243,6 +250,9 @@ public:
     }
 
 private:
+    // The held view's buffer for the film's answer `on` (made when first needed, cleared while
+    // the film keeps no samples) and the path tracer's parameters that write it.
+    Status useHeldView(bool on);
     friend class RendererDiagnostics;
     // The renderer's own device buffers (the scene's are GpuScene's), one per PV_BINDING_*.
     struct FrameBuffers {

@@ -141,6 +141,7 @@ Result<std::unique_ptr<PipelineRenderer>> PipelineRenderer::create(
     // accumulation.
     p->accumulate_ = config.render.previewAccumulate;
     p->holdDepth_ = config.render.previewHoldDepth;
+    p->follow_ = config.render.previewFollow;
     settings.denoise = config.render.denoise != "off" || p->accumulate_;
     settings.denoiseSettings.iterations = config.render.denoiseLevels;
     if (p->accumulate_) {
@@ -584,8 +585,10 @@ Status PipelineRenderer::renderPreview(const TrackedFrame& frame,
     refining_ = false;
     // Preview denoises with temporal reprojection: the history follows the tracked camera.
     renderer_->film().setTemporalDenoise(true);
-    if (Status s = renderer_->holdView(holds); !s) return s;
-    if (refined)
+    // A moving camera's samples follow it at the output's resolution; a held one's add up.
+    const bool follows = accumulate_ && follow_ && !holds;
+    if (Status s = follows ? renderer_->followView() : renderer_->holdView(holds); !s) return s;
+    if (refined && holds)
         if (Status s = renderer_->seedHeldView(*refined); !s) return s;
     return renderer_->renderPreviewFrame(preview.samplesPerFrame,
                                          accumulate_ ? ++previewFrame_ : 0);

@@ -220,6 +220,8 @@ private:
     bool holdDepth_ = true;
     bool holdDepthKeepsRate_ = true;
     bool heldAtRefineDepth_ = false;
+    // [render] preview_follow: while the camera moves, the held view's samples follow it.
+    bool follow_ = true;
     // adaptDial's two choices at a slowdown: the point, and whether a held camera traces
     // refinement's depth; each says what it changed.
     std::optional<std::string> choosePoint(double slowdown, double liveFrameSeconds);

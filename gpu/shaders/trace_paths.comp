@@ -38,6 +38,10 @@ float gGuideDepthM;
 // plate-consistency meter (render/plate_consistency.h) needs to compare L_or with the plate only
 // over real surfaces seen, never the environment behind them or a virtual object.
 bool gFirstHitReal;
+// How far the camera ray's first hit in the mixed scene lies (metres; PV_GUIDE_MISS_DEPTH_M on a
+// miss): the held view's samples carry it, so that they can follow a moving camera
+// (render/held_reprojection.h).
+float gFirstHitDistanceM;
 
 // Four random numbers of dimension set `set` (shared/sampler.h's table) for sample `key`.
 vec4 draw(SampleKey key, uint set) { return sampleSet(kSampler, key, set); }
@@ -499,7 +503,7 @@ void addHeldSample(uvec2 pixel, SampleKey key, vec3 composite, float mask) {
     if (owner != pixel) return;
     uint i = 2u * (at.y * size.x + at.x);
     heldSamples[i] += vec4(composite, mask);
-    heldSamples[i + 1u].x += 1.0;
+    heldSamples[i + 1u].xy += vec2(1.0, gFirstHitDistanceM);
 }
 
 void addSample(uint sampleIndex, uint pixelIndex, vec3 lm, vec3 lr, bool firstHitVirtual,
@@ -598,6 +602,7 @@ void beginPath(uvec2 pixel, SampleKey key, out PathState st, out vec3 lm, out ve
     lr = vec3(0.0);
     firstHitVirtual = false;
     gFirstHitReal = false;
+    gFirstHitDistanceM = PV_GUIDE_MISS_DEPTH_M;
     if (kDenoiseGuides) {
         gGuideAlbedo = vec3(1.0);
         gGuideNormal = -st.ray.direction;
@@ -717,6 +722,7 @@ bool extendPath(SampleKey key, inout PathState st, inout uint mode, inout vec3 l
     bool hitVirtual = found && hit.triangle >= params.realTriangleCount;
     if (hitVirtual && st.depth == 0u) firstHitVirtual = true;
     if (found && !hitVirtual && st.depth == 0u && mode != MODE_REAL) gFirstHitReal = true;
+    if (found && st.depth == 0u && mode != MODE_REAL) gFirstHitDistanceM = hit.t;
     if (hitVirtual && mode == MODE_SHARED) {
         // The solutions part here: the real one continues this ray behind the virtual
         // object (traced after the mixed part), the mixed one shades the virtual hit.

@@ -26,8 +26,8 @@ TEST(HeldView, KeptSamplesJoinTheEstimate) {
     std::vector<glm::vec4> kept(16, glm::vec4(0.0f));  // row 1 keeps nothing
     kept[0] = glm::vec4(12.0f, 12.0f, 12.0f, 6.0f);    // pixel 0: 6 samples of 2, all virtual
     kept[1].x = 6.0f;
-    view->frameAdded();
-    view->frameAdded();
+    view->frameAdded(DenoiseCamera{});
+    view->frameAdded(DenoiseCamera{});
     EXPECT_EQ(view->frames(), 2u);
     const ImageF estimate = testing::filledImage(4, 2, 4, 1.0f);
     const ImageF out = HeldView::blend(kept, estimate);
@@ -37,8 +37,31 @@ TEST(HeldView, KeptSamplesJoinTheEstimate) {
     for (size_t i = 4; i < out.pixels.size(); ++i) EXPECT_FLOAT_EQ(out.pixels[i], 1.0f) << i;
     view->reset();
     EXPECT_EQ(view->frames(), 0u);
+    EXPECT_FALSE(view->camera());
     EXPECT_EQ(HeldView::blend(std::vector<glm::vec4>(16, glm::vec4(0.0f)), estimate).pixels,
               estimate.pixels);
+}
+
+// While the camera moves, the samples are kept and follow it (render/held_reprojection.h), but
+// its frames are not frames held (the status's heldViewFrames); they count again once it holds.
+TEST(HeldView, AMovingCamerasFramesKeepSamplesButAreNotHeld) {
+    auto view = HeldView::create(4, 2, 2, 1);
+    ASSERT_TRUE(view);
+    DenoiseCamera a;
+    a.worldFromCamera[3][0] = 1.0;
+    view->frameAdded(a);
+    EXPECT_EQ(view->frames(), 1u);
+    view->follow();
+    DenoiseCamera b;
+    b.worldFromCamera[3][0] = 2.0;
+    view->frameAdded(b);
+    EXPECT_EQ(view->frames(), 0u);
+    ASSERT_TRUE(view->camera());
+    EXPECT_EQ(view->camera()->worldFromCamera[3][0], 2.0);
+    view->hold();
+    view->frameAdded(b);
+    EXPECT_EQ(view->frames(), 1u);
+    EXPECT_TRUE(view->camera());
 }
 
 }  // namespace
