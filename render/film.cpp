@@ -244,8 +244,9 @@ Result<std::vector<glm::vec4>> Film::heldSamplesOf(const TracedBuffers& traced) 
         for (int c = 0; c < 4; ++c)
             samples[2 * i][c] = float(read->value(i, PV_ACCUM_COMPOSITE, c));
         const float count = float(read->count(i));
-        const float distance =
-            guides.empty() ? PV_GUIDE_MISS_DEPTH_M : guides[i * PV_GUIDE_COUNT + PV_GUIDE_ALBEDO_DEPTH].w;
+        const float distance = guides.empty()
+                                   ? PV_GUIDE_MISS_DEPTH_M
+                                   : guides[i * PV_GUIDE_COUNT + PV_GUIDE_ALBEDO_DEPTH].w;
         samples[2 * i + 1] = glm::vec4(count, count * distance, 0.0f, 0.0f);
     }
     return samples;

@@ -184,7 +184,7 @@ private:
     bool temporalDenoise_ = false;
     std::optional<HeldView> held_;
     std::optional<HeldReprojection> reprojection_;  // made when the camera first moves
-    std::optional<DisplayPass> displayPass_;  // made with the first display()
+    std::optional<DisplayPass> displayPass_;        // made with the first display()
 };
 
 }  // namespace previs

@@ -53,14 +53,13 @@ Result<HeldReprojection> HeldReprojection::create(GpuContext& ctx, uint32_t widt
 }
 
 Status HeldReprojection::run(GpuBuffer& held, const shader::ReprojectParams& params) {
-    PV_ASSERT(params.width == width_ && params.height == height_ &&
-              held.size() == from_->size());
+    PV_ASSERT(params.width == width_ && params.height == height_ && held.size() == from_->size());
     if (Status s = params_->upload(&params, sizeof(params)); !s) return s;
     if (Status s = from_->copyFrom(held); !s) return s;
     if (Status s = held.fill(0); !s) return s;
     if (Status s = nearest_->fill(~0u); !s) return s;
-    const std::array<const GpuBuffer*, PV_REPROJECT_BINDING_COUNT> buffers{
-        &*params_, &*from_, &held, &*nearest_};
+    const std::array<const GpuBuffer*, PV_REPROJECT_BINDING_COUNT> buffers{&*params_, &*from_,
+                                                                           &held, &*nearest_};
     const uint32_t groupsX = (width_ + PV_REPROJECT_GROUP - 1) / PV_REPROJECT_GROUP;
     const uint32_t groupsY = (height_ + PV_REPROJECT_GROUP - 1) / PV_REPROJECT_GROUP;
     for (ComputePipeline* stage : {&*claim_, &*move_}) {

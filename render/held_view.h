@@ -13,6 +13,10 @@
 // outlines and contact shadows, which a few more samples do not tell apart from noise: path
 // tracing's heavy tails make a few samples agree too often, e.g. all miss a soft shadow, for a
 // per-pixel confidence test).
+//
+// While the camera moves the samples are not dropped: they follow it (render/held_reprojection.h)
+// and fade by kFollowKeep a frame, so the output's resolution keeps a short history during a pan
+// too, and a hold starts from it.
 
 #include <cstdint>
 #include <glm/glm.hpp>

@@ -152,14 +152,17 @@ struct RenderSettings {
     // which the held view then gains at the output's resolution. 0: off. Free without virtual
     // objects in view.
     float objectSamplesPerOutputPixel = 1.0f;
-    // Preview frames scale a sample whose luminance is above this down to it, in the frame's
-    // estimate (which the denoiser and the upsampling spread over many output pixels) and in the
-    // held view's samples: the rare path to a bright lamp through glass or chrome that one
-    // sample in thousands finds would otherwise light a blotch for the whole history. The
-    // preview is biased by it (BENCHMARKS.md measures it); refinement, never clamped, is the
-    // picture that converges. A clamp that rises with the frames held (so the held view would
-    // converge to refinement's image) was measured worse over 64 frames: the lamps' paths are
-    // too rare for a held view to average. 0: off.
+    // Preview frames scale a sample whose luminance is above this down to it in the frame's
+    // estimate (which the denoiser and the upsampling spread over many output pixels): the rare
+    // path to a bright lamp through glass or chrome that one sample in thousands finds would
+    // otherwise light a blotch for the whole history. The held view's samples, each kept in its
+    // own output pixel, have only their indirect light scaled to it (the light beyond the first
+    // rough surface's direct light, and the photons' caustics: trace_paths.comp's
+    // gIndirectMixed), and the whole sample to PV_HELD_DIRECT_CLAMP_RATIO times it, so a sunlit
+    // floor or a lamp's reflection converges to its level. The preview is biased by it
+    // (BENCHMARKS.md measures it); refinement, never clamped, is the picture that converges. A
+    // clamp that rises with the frames held was measured worse over 64 frames: the lamps' paths
+    // are too rare for a held view to average. 0: off.
     float previewSampleClamp = 0.0f;
     // The denoiser (render/denoiser.h): the first hit writes its guide buffers and
     // image(aov, true) filters. Off: neither the guides' code nor their memory is paid for.

@@ -516,8 +516,7 @@ Status Renderer::followView() {
 Result<std::vector<glm::vec4>> Renderer::heldSamples() const {
     if (params_.heldWidth == 0u) return std::vector<glm::vec4>{};
     std::vector<glm::vec4> samples(buffers_->heldSamples.size() / sizeof(glm::vec4));
-    if (Status s = buffers_->heldSamples.download(samples.data(), buffers_->heldSamples.size());
-        !s)
+    if (Status s = buffers_->heldSamples.download(samples.data(), buffers_->heldSamples.size()); !s)
         return s.error();
     return samples;
 }

@@ -397,11 +397,35 @@ void gatherPhotons(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint depth, f
 #define CAUSTIC_LEFT_GATHER 1u     // the last gather vertex scattered through a non-delta lobe
 #define CAUSTIC_SPECULAR_CHAIN 2u  // ... then only vertices that carry caustics (causticBounces)
 
+// The sample's indirect light so far (part of lm and lr): all but the light the camera sees
+// directly (an emitter or the environment, also in mirrors and through glass) and the first rough
+// surface's direct light (its light samples and the emitters its scattered ray meets next). The
+// preview's clamps scale this part alone (addSample): the fireflies are there — a lamp found
+// through a rare path, a caustic's few photons — while the direct light is sampled well and is
+// the picture's brightest detail (a lamp in the chrome ball, a sunlit floor), which a clamp of
+// the whole sample would dim.
+vec3 gIndirectMixed;
+vec3 gIndirectReal;
+
 // Adds radiance to the solutions the path carries in `mode`, in the same order for both, so that
-// where the two solutions followed the same path L_om − L_or is exactly zero.
-void addRadiance(uint mode, vec3 l, inout vec3 lm, inout vec3 lr) {
+// where the two solutions followed the same path L_om − L_or is exactly zero; `indirect`: also to
+// the indirect part.
+void addRadiance(uint mode, vec3 l, bool indirect, inout vec3 lm, inout vec3 lr) {
     if (mode != MODE_REAL) lm += l;
     if (mode != MODE_MIXED) lr += l;
+    if (!indirect) return;
+    if (mode != MODE_REAL) gIndirectMixed += l;
+    if (mode != MODE_MIXED) gIndirectReal += l;
+}
+
+// The same for light that differs between the solutions (`toMixed`, `toReal`: a vertex's sampled
+// or gathered light).
+void addLight(uint mode, vec3 toMixed, vec3 toReal, bool indirect, inout vec3 lm, inout vec3 lr) {
+    if (mode != MODE_REAL) lm += toMixed;
+    if (mode != MODE_MIXED) lr += toReal;
+    if (!indirect) return;
+    if (mode != MODE_REAL) gIndirectMixed += toMixed;
+    if (mode != MODE_MIXED) gIndirectReal += toReal;
 }
 
 struct PathState {
@@ -420,7 +444,20 @@ struct PathState {
     // The next gather vertex gathers level-1 photons: none before it, or the last one scattered
     // through a delta lobe (shared/photon_records.h).
     bool gatherLevel1;
+    // Vertices left through a lobe that is neither a delta nor one that carries caustics
+    // (bsdfCarriesCaustics), and whether the last vertex was one: light found with none is seen
+    // directly (through mirrors and glass), the emitters reached straight from the first are its
+    // direct light; the rest is indirect (gIndirectMixed).
+    uint roughVertices;
+    bool lastScatterRough;
 };
+
+// The light the path adds at its hit (an emitter, the environment) is indirect.
+bool emissionIsIndirect(PathState st) {
+    return !(st.roughVertices == 0u || (st.roughVertices == 1u && st.lastScatterRough));
+}
+// The light a vertex samples is indirect.
+bool vertexLightIsIndirect(PathState st) { return st.roughVertices > 0u; }
 
 // An emitter of a photon light reached now is light the photon map carries: the path tracer
 // leaves it out.
@@ -446,6 +483,8 @@ bool scatter(inout PathState st, Surface s, Frame frame, BsdfParams bp, BsdfSamp
     }
     st.throughput *= share * bs.weight;
     st.rouletteScale /= share;
+    st.lastScatterRough = !bs.isDelta && !bsdfCarriesCaustics(bp);
+    if (st.lastScatterRough) st.roughVertices += 1u;
     if (bs.lobe == PV_LOBE_TRANSMISSION && !bp.thinWalled)
         st.rouletteScale *= bp.etaRel * bp.etaRel;
     if (gatherVertex) {
@@ -548,12 +587,27 @@ void addSample(uint sampleIndex, uint pixelIndex, vec3 lm, vec3 lr, bool firstHi
     vec3 composite = (firstHitVirtual ? lm : lm - lr) + splatMixed - splatUnhidden;
     lm += splatMixed;
     lr += splatReal;
-    // The preview's clamps: one factor for the solutions and their difference, as fireflyClamp's.
-    float lum = max(luminance(lm), luminance(lr));
+    // The preview's clamps: one factor for both solutions and their difference, as
+    // fireflyClamp's, so where the solutions followed the same path their difference stays
+    // exactly zero. The held view's samples, each kept in the output pixel it landed in, have
+    // their indirect light scaled (gIndirectMixed says why), the splats (the caustics the camera
+    // sees) with it; the frame's estimate, which the denoiser and the upsampling spread over
+    // many output pixels, the whole sample: a lamp in the chrome ball, right in its own pixel,
+    // would light a blotch around it.
     if (params.heldWidth != 0u) {
+        vec3 compositeIndirect = (firstHitVirtual ? gIndirectMixed : gIndirectMixed - gIndirectReal) +
+                                 splatMixed - splatUnhidden;
+        float lum = max(luminance(gIndirectMixed + splatMixed), luminance(gIndirectReal + splatReal));
         float k = params.heldClamp > 0.0 && lum > params.heldClamp ? params.heldClamp / lum : 1.0;
-        addHeldSample(pixel, key, composite * k, mask);
+        // Then the whole sample to a bound the monitor shows as white in any case, so that a lamp
+        // in the chrome ball does not flicker in the held view.
+        float whole = max(luminance(lm - (1.0 - k) * (gIndirectMixed + splatMixed)),
+                          luminance(lr - (1.0 - k) * (gIndirectReal + splatReal)));
+        float wholeClamp = PV_HELD_DIRECT_CLAMP_RATIO * params.heldClamp;
+        float kWhole = params.heldClamp > 0.0 && whole > wholeClamp ? wholeClamp / whole : 1.0;
+        addHeldSample(pixel, key, kWhole * (composite - (1.0 - k) * compositeIndirect), mask);
     }
+    float lum = max(luminance(lm), luminance(lr));
     if (params.estimateClamp > 0.0) {
         if (lum > params.estimateClamp) {
             float k = params.estimateClamp / lum;
@@ -598,6 +652,10 @@ void beginPath(uvec2 pixel, SampleKey key, out PathState st, out vec3 lm, out ve
     st.causticState = CAUSTIC_NONE;
     st.causticBounces = 0u;
     st.gatherLevel1 = true;
+    st.roughVertices = 0u;
+    st.lastScatterRough = false;
+    gIndirectMixed = vec3(0.0);
+    gIndirectReal = vec3(0.0);
     lm = vec3(0.0);
     lr = vec3(0.0);
     firstHitVirtual = false;
@@ -632,7 +690,7 @@ void addEscapedLight(PathState st, uint mode, inout vec3 lm, inout vec3 lr) {
                                : powerHeuristic(st.prevPdf,
                                                 envPdf(st.ray.direction, params.envWidth,
                                                        params.envHeight, rotation));
-        addRadiance(mode, st.throughput * le * w, lm, lr);
+        addRadiance(mode, st.throughput * le * w, emissionIsIndirect(st), lm, lr);
     }
     if (kHasConeLights) {
         for (uint i = params.coneLightFirst; i < params.lightCount; ++i) {
@@ -644,8 +702,9 @@ void addEscapedLight(PathState st, uint mode, inout vec3 lm, inout vec3 lr) {
             // Estimated lights are part of the captured (real) environment; a cone
             // light without PV_LIGHT_REAL lights only the mixed solution.
             vec3 l = st.throughput * light.intensity * w;
-            if ((light.type & PV_LIGHT_REAL) != 0u) addRadiance(mode, l, lm, lr);
-            else if (mode != MODE_REAL) lm += l;
+            bool indirect = emissionIsIndirect(st);
+            if ((light.type & PV_LIGHT_REAL) != 0u) addRadiance(mode, l, indirect, lm, lr);
+            else if (mode != MODE_REAL) addRadiance(MODE_MIXED, l, indirect, lm, lr);
         }
     }
 }
@@ -678,8 +737,8 @@ bool gatherAtVertex(SampleKey key, inout PathState st, uint mode, Surface s, Bsd
         gatherPhotons(s, bp, frame, wo, st.depth, u / pGather, st.gatherLevel1, causticMixed,
                       causticReal);
         vec3 weight = st.throughput / pGather;
-        if (mode != MODE_REAL) lm += weight * causticMixed;
-        if (mode != MODE_MIXED) lr += weight * causticReal;
+        // A caustic is light that a mirror or glass sent on: indirect.
+        addLight(mode, weight * causticMixed, weight * causticReal, true, lm, lr);
     }
     return true;
 }
@@ -747,7 +806,8 @@ bool extendPath(SampleKey key, inout PathState st, inout uint mode, inout vec3 l
                                : powerHeuristic(st.prevPdf,
                                                 emissiveLightPdf(hit.triangle,
                                                                  st.prevPosition, s));
-        addRadiance(mode, st.throughput * emittedRadiance(m, s.uv) * w, lm, lr);
+        addRadiance(mode, st.throughput * emittedRadiance(m, s.uv) * w, emissionIsIndirect(st), lm,
+                    lr);
     }
     if (st.depth >= params.maxDepth) return true;
 
@@ -775,8 +835,8 @@ bool extendPath(SampleKey key, inout PathState st, inout uint mode, inout vec3 l
         bool carried = !gatherVertex && photonMapCarries(st);
         sampleDirectLight(s, bp, frame, wo, mode, key, st.depth, carried, directMixed,
                           directReal);
-        if (mode != MODE_REAL) lm += st.throughput * directMixed;
-        if (mode != MODE_MIXED) lr += st.throughput * directReal;
+        addLight(mode, st.throughput * directMixed, st.throughput * directReal,
+                 vertexLightIsIndirect(st), lm, lr);
     }
     return scatterFromVertex(key, st, mode, s, bp, frame, wo, gatherVertex, pending);
 }

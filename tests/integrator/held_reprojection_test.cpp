@@ -2,13 +2,14 @@
 // samples land (the shared math, analytically), the shader's two stages against the same math on
 // the host (the nearest surface hides the others), and, on a rendered scene, samples moved with
 // the camera against samples traced afresh from its new pose.
+#include "render/held_reprojection.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <glm/gtc/matrix_transform.hpp>
 #include <limits>
 
-#include "render/held_reprojection.h"
 #include "tests/integrator/gpu_fixture.h"
 #include "tests/support/scene_builders.h"
 
@@ -44,25 +45,26 @@ TEST(HeldLanding, AStillCameraLandsEveryPixelOnItself) {
 // step over its depth: near surfaces more than far ones, and the far sky not at all.
 TEST(HeldLanding, ASideStepMovesNearSurfacesMoreThanFarOnes) {
     const double step = 0.1;
-    const shader::ReprojectParams p = reprojectParams(
-        pinhole(glm::dmat4(1.0)), pinhole(moved(step, 0.0)), kWidth, kHeight, 1.0f);
+    const shader::ReprojectParams p =
+        reprojectParams(pinhole(glm::dmat4(1.0)), pinhole(moved(step, 0.0)), kWidth, kHeight, 1.0f);
     const glm::uvec2 centre(kWidth / 2, kHeight / 2);  // its ray is nearly the optical axis
     const double focalPx = 0.5 * kWidth / 0.6;
     const double rayX = ((centre.x + 0.5) / kWidth * 2.0 - 1.0) * 0.6;  // x/depth of its ray
     for (float depth : {1.0f, 4.0f}) {
-        const glm::vec3 l = shader::heldLanding(p, centre, depth * float(std::sqrt(1.0 + rayX * rayX)));
+        const glm::vec3 l =
+            shader::heldLanding(p, centre, depth * float(std::sqrt(1.0 + rayX * rayX)));
         EXPECT_NEAR(l.x, centre.x + 0.5 - step / depth * focalPx, 1e-3) << depth;
         EXPECT_NEAR(l.y, centre.y + 0.5, 1e-3) << depth;
     }
     EXPECT_NEAR(shader::heldLanding(p, centre, 1e4f).x, centre.x + 0.5, 0.01);
     // Behind the new camera, or out of its image: nowhere.
-    const shader::ReprojectParams back = reprojectParams(
-        pinhole(glm::dmat4(1.0)),
-        pinhole(glm::translate(glm::dmat4(1.0), glm::dvec3(0.0, 0.0, -3.0))), kWidth, kHeight,
-        1.0f);
+    const shader::ReprojectParams back =
+        reprojectParams(pinhole(glm::dmat4(1.0)),
+                        pinhole(glm::translate(glm::dmat4(1.0), glm::dvec3(0.0, 0.0, -3.0))),
+                        kWidth, kHeight, 1.0f);
     EXPECT_EQ(shader::heldLanding(back, centre, 2.0f).z, 0.0f);
-    const shader::ReprojectParams aside = reprojectParams(
-        pinhole(glm::dmat4(1.0)), pinhole(moved(0.0, 1.2)), kWidth, kHeight, 1.0f);
+    const shader::ReprojectParams aside =
+        reprojectParams(pinhole(glm::dmat4(1.0)), pinhole(moved(0.0, 1.2)), kWidth, kHeight, 1.0f);
     EXPECT_EQ(shader::heldLanding(aside, glm::uvec2(kWidth - 1, 0), 2.0f).z, 0.0f);
 }
 
@@ -160,8 +162,8 @@ TEST_F(HeldReprojectionTest, TheShaderMovesSamplesWhereTheHostMathSays) {
 
 TEST_F(HeldReprojectionTest, AStillCameraOnlyFadesTheSamples) {
     const std::vector<glm::vec4> from = boxBeforeAWall();
-    const shader::ReprojectParams p = reprojectParams(
-        pinhole(glm::dmat4(1.0)), pinhole(glm::dmat4(1.0)), kWidth, kHeight, 0.75f);
+    const shader::ReprojectParams p =
+        reprojectParams(pinhole(glm::dmat4(1.0)), pinhole(glm::dmat4(1.0)), kWidth, kHeight, 0.75f);
     const std::vector<glm::vec4> got = moveOnDevice(from, p);
     ASSERT_EQ(got.size(), from.size());
     for (size_t i = 0; i < got.size() / 2; ++i) {

@@ -71,6 +71,9 @@ PV_BEGIN
 // metres, 0, 0), summed over the frames the view holds. Each output pixel is written only by the traced pixel whose footprint
 // holds its centre: no atomics. A 16-byte placeholder where no held view is possible.
 #define PV_BINDING_HELD_SAMPLES 29
+// The held view's clamp of a whole sample over its clamp of the indirect light
+// (FrameParams::heldClamp).
+#define PV_HELD_DIRECT_CLAMP_RATIO 16.0f
 #define PV_BINDING_COUNT 30
 #define PV_SPLAT_MIXED 0u          // photons of the mixed solution the camera sees
 #define PV_SPLAT_REAL 1u           // photons of the real solution the real camera ray sees
@@ -310,7 +313,8 @@ struct FrameParams {
     // Preview: a sample whose luminance is above this is scaled down to it in the accumulation
     // (the frame's estimate); 0 = off (refinement). RenderSettings::previewSampleClamp.
     float estimateClamp;
-    // The held view's samples the same way at this; 0 = off.
+    // The held view's samples: their indirect light the same way at this, and the whole sample
+    // at PV_HELD_DIRECT_CLAMP_RATIO times it; 0 = off.
     float heldClamp;
     // The photon light table holds the environment (PV_PHOTON_LIGHT_ENVIRONMENT): its caustics
     // are the photons', so the path tracer leaves them out (shared/photon_records.h).
