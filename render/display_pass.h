@@ -68,6 +68,7 @@ public:
         uint32_t traceWidth = 0;
         uint32_t traceHeight = 0;
         const GpuBuffer* held = nullptr;
+        float heldEstimateSamples = 0.0f;  // what the estimate counts as beside them
         const GpuBuffer* guides = nullptr;
         GpuBuffer* signal = nullptr;
         const GpuBuffer* denoised = nullptr;

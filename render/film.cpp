@@ -256,7 +256,8 @@ Result<ImageF> Film::heldComposite(const TracedBuffers& traced, const ImageF& es
     std::vector<glm::vec4> samples(size_t(width_) * height_ * 2);
     if (Status s = traced.held->download(samples.data(), samples.size() * sizeof(glm::vec4)); !s)
         return s.error();
-    return compositeOverPlate(HeldView::blend(samples, upsample(estimate)));
+    return compositeOverPlate(
+        HeldView::blend(samples, upsample(estimate), HeldView::estimateSamples(frameSamples_)));
 }
 
 Result<Denoiser*> Film::denoiserFor(const TracedBuffers& traced) {
@@ -356,6 +357,7 @@ Result<DisplayImage> Film::display(const TracedBuffers& traced, bool denoised,
     DisplayPass::Inputs in{&*plate_,     plateVersion_, traced.sum, traced.compensation,
                            traced.width, traced.height};
     in.held = held_ && traced.held ? traced.held : nullptr;
+    in.heldEstimateSamples = HeldView::estimateSamples(frameSamples_);
     // Denoised, the filter's input is written and filtered on the device too: nothing is read
     // back but the frame.
     if (denoised) {

@@ -107,6 +107,8 @@ public:
     // (PV_BINDING_HELD_SAMPLES' layout: per output pixel the sums of Eq. 1's plate-free part and
     // of M, then the sample count): a preview that resumes on the refined view starts from them.
     Result<std::vector<glm::vec4>> heldSamplesOf(const TracedBuffers& traced) const;
+    // Samples per traced pixel a preview frame traces (what the held view weighs its estimate by).
+    void setFrameSamples(uint32_t spp) { frameSamples_ = spp; }
     // A preview frame's samples, traced from `camera`, joined the held view's (the renderer sums
     // them on the device).
     void heldFrameAdded(const DenoiseCamera& camera) {
@@ -183,6 +185,7 @@ private:
     std::optional<Denoiser> denoiser_;
     bool temporalDenoise_ = false;
     std::optional<HeldView> held_;
+    uint32_t frameSamples_ = 1;                     // setFrameSamples
     std::optional<HeldReprojection> reprojection_;  // made when the camera first moves
     std::optional<DisplayPass> displayPass_;        // made with the first display()
 };

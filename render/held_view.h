@@ -8,16 +8,17 @@
 // (PV_BINDING_HELD_SAMPLES), and while the camera holds still that buffer keeps summing them per
 // output pixel (the renderer clears it only when a held view starts), so a held preview converges
 // to the full-resolution image that refinement converges to. The frame's own (upsampled, denoised)
-// estimate counts as kEstimateSamples samples beside them: it carries the picture while they are
-// few, and they take over as they grow (the estimate's error is mostly the upsampling's bias at
-// outlines and contact shadows, which a few more samples do not tell apart from noise: path
-// tracing's heavy tails make a few samples agree too often, e.g. all miss a soft shadow, for a
-// per-pixel confidence test).
+// estimate counts as the samples behind it per output pixel beside them (estimateSamples): it
+// carries the picture while they are few, and they take over as they grow (the estimate's error is
+// mostly the upsampling's bias at outlines and contact shadows, which a few more samples do not
+// tell apart from noise: path tracing's heavy tails make a few samples agree too often, e.g. all
+// miss a soft shadow, for a per-pixel confidence test).
 //
 // While the camera moves the samples are not dropped: they follow it (render/held_reprojection.h)
 // and fade by kFollowKeep a frame, so the output's resolution keeps a short history during a pan
 // too, and a hold starts from it.
 
+#include <algorithm>
 #include <cstdint>
 #include <glm/glm.hpp>
 #include <optional>
@@ -48,13 +49,22 @@ public:
     }
     // `estimate` (RGBA at the output size: RGB the mean of Eq. 1's plate-free part, A the mask
     // M) averaged with the kept samples (per output pixel two vec4, as PV_BINDING_HELD_SAMPLES
-    // holds them), the estimate counted as kEstimateSamples samples (shared/composite.h's
+    // holds them), the estimate counted as `estimateSamples` samples (shared/composite.h's
     // heldBlend, which the display pass runs too).
-    static ImageF blend(std::span<const glm::vec4> samples, const ImageF& estimate);
-    // About what the denoised estimate is worth where it is right: it averages a history of up to
-    // 32 frames of its traced pixels and their neighbours' (BENCHMARKS.md, "The preview as
-    // shipped", measures the choice).
-    static constexpr double kEstimateSamples = PV_HELD_ESTIMATE_SAMPLES;
+    static ImageF blend(std::span<const glm::vec4> samples, const ImageF& estimate,
+                        float estimateSamples);
+    // What the estimate counts as: PV_HELD_ESTIMATE_SAMPLES_PER_SPP for each of the `spp`
+    // samples a frame traces per traced pixel, which feed its history. Measured
+    // (`previs bench --only shot`, BENCHMARKS.md): 16 at 1 spp, as the dial ships the demo; at
+    // 4 spp 16, 32 and 64 left 0.136, 0.121 and 0.117 after 64 held frames. Counting the
+    // denoiser's history frames and the traced pixels' share of the output too (the samples
+    // behind the estimate) weighed it 36 at half resolution and 1 spp, where the held view's
+    // unclamped samples then no longer halved their error in 32 frames
+    // (Preview.AtHalfResolutionAHeldCameraGoesBelowTheUpsamplingFloor): the estimate's bias at
+    // the outlines, which no number of its samples removes, caps its worth.
+    static float estimateSamples(uint32_t spp) {
+        return PV_HELD_ESTIMATE_SAMPLES_PER_SPP * float(std::max<uint32_t>(spp, 1));
+    }
     // Frames kept since the camera last moved.
     uint64_t frames() const { return frames_; }
     // The camera the kept samples are aligned with; none: there are none (to be cleared).

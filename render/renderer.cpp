@@ -615,6 +615,7 @@ Status Renderer::renderPreviewFrame(uint32_t spp, uint64_t frameIndex) {
     // sampler's stratification (the convergence meter's replicates are refinement's).
     accumulationReplicates_ = 1;
     params_.estimateClamp = params_.heldClamp = settings_.previewSampleClamp;
+    film_->setFrameSamples(spp);
     Status s = render(spp);
     if (s) s = traceObjectRegions(spp);
     params_.estimateClamp = params_.heldClamp = 0.0f;

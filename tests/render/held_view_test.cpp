@@ -19,7 +19,7 @@ TEST(HeldView, AnyTraceSmallerThanTheOutput) {
 }
 
 // The kept samples (summed over frames in the renderer's buffer) join the estimate, which
-// counts as kEstimateSamples samples; a pixel without samples shows the estimate.
+// counts as the samples given; a pixel without samples shows the estimate.
 TEST(HeldView, KeptSamplesJoinTheEstimate) {
     auto view = HeldView::create(4, 2, 2, 1);
     ASSERT_TRUE(view);
@@ -30,16 +30,24 @@ TEST(HeldView, KeptSamplesJoinTheEstimate) {
     view->frameAdded(DenoiseCamera{});
     EXPECT_EQ(view->frames(), 2u);
     const ImageF estimate = testing::filledImage(4, 2, 4, 1.0f);
-    const ImageF out = HeldView::blend(kept, estimate);
-    const double k = HeldView::kEstimateSamples;
+    const float k = 16.0f;
+    const ImageF out = HeldView::blend(kept, estimate, k);
     for (int c = 0; c < 3; ++c) EXPECT_FLOAT_EQ(out.pixels[c], float((12.0 + k) / (6.0 + k)));
     EXPECT_FLOAT_EQ(out.pixels[3], float((6.0 + k) / (6.0 + k)));
     for (size_t i = 4; i < out.pixels.size(); ++i) EXPECT_FLOAT_EQ(out.pixels[i], 1.0f) << i;
     view->reset();
     EXPECT_EQ(view->frames(), 0u);
     EXPECT_FALSE(view->camera());
-    EXPECT_EQ(HeldView::blend(std::vector<glm::vec4>(16, glm::vec4(0.0f)), estimate).pixels,
+    EXPECT_EQ(HeldView::blend(std::vector<glm::vec4>(16, glm::vec4(0.0f)), estimate, k).pixels,
               estimate.pixels);
+}
+
+// The estimate counts as 16 samples for each sample a frame traces per traced pixel (the weights
+// measured best at 1 and at 4 spp).
+TEST(HeldView, TheEstimateCountsMoreTheMoreSamplesAFrameTraces) {
+    EXPECT_FLOAT_EQ(HeldView::estimateSamples(1), 16.0f);
+    EXPECT_FLOAT_EQ(HeldView::estimateSamples(4), 64.0f);
+    EXPECT_FLOAT_EQ(HeldView::estimateSamples(0), 16.0f);
 }
 
 // While the camera moves, the samples are kept and follow it (render/held_reprojection.h), but

@@ -15,15 +15,15 @@ PV_BEGIN
 #define PV_COMPOSITE_SUM(plateFreeSum, maskSum, samples, plate) \
     ((plateFreeSum) + ((samples) - (maskSum)) * (plate))
 
-// What a held view's frame estimate counts as beside the samples kept per output pixel
-// (render/held_view.h says why 16).
-#define PV_HELD_ESTIMATE_SAMPLES 16.0f
+// What a held view's frame estimate counts as beside the samples kept per output pixel, for each
+// sample a frame traces per traced pixel (render/held_view.h says how it was measured).
+#define PV_HELD_ESTIMATE_SAMPLES_PER_SPP 16.0f
 
-// The held view's pixel: `estimate` (RGB the mean of Eq. 1's plate-free part, A the mask M)
-// averaged with `count` kept samples whose sum is `sum`.
-PV_INLINE vec4 heldBlend(vec4 sum, float count, vec4 estimate) {
+// The held view's pixel: `estimate` (RGB the mean of Eq. 1's plate-free part, A the mask M),
+// counted as `estimateSamples` samples, averaged with `count` kept samples whose sum is `sum`.
+PV_INLINE vec4 heldBlend(vec4 sum, float count, vec4 estimate, float estimateSamples) {
     if (count == 0.0f) return estimate;
-    return (sum + PV_HELD_ESTIMATE_SAMPLES * estimate) / (count + PV_HELD_ESTIMATE_SAMPLES);
+    return (sum + estimateSamples * estimate) / (count + estimateSamples);
 }
 
 // The joint bilateral upsampling's range kernel (render/upsample.h), as both sides evaluate it:
@@ -155,6 +155,7 @@ struct FilmParams {
     float maskSharpness;
     float maskRangeScale;
     uint held;      // 1: blend the held view's samples (PV_FILM_BINDING_HELD)
+    float heldEstimateSamples;  // ... counting the estimate as this many (heldEstimateSamples)
     // 1: the estimate is the denoiser's output (PV_FILM_BINDING_DENOISED): the filtered signal
     // and the mask's mean that goes with it (Denoiser::lastMask).
     uint denoised;
