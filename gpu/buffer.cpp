@@ -113,12 +113,4 @@ Status GpuBuffer::fill(uint32_t value) {
     });
 }
 
-Status GpuBuffer::copyFrom(const GpuBuffer& source) {
-    if (source.size_ > size_)
-        return makeError("cannot copy a buffer of {} bytes into one of {}", source.size_, size_);
-    return ctx_->submitAndWait([&](const vk::raii::CommandBuffer& cmd) {
-        cmd.copyBuffer(*source.buffer_, *buffer_, vk::BufferCopy(0, 0, source.size_));
-    });
-}
-
 }  // namespace previs

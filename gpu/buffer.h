@@ -34,8 +34,6 @@ public:
     Status upload(const void* data, size_t bytes, size_t offset = 0);
     Status download(void* data, size_t bytes, size_t offset = 0) const;
     Status fill(uint32_t value);
-    // Copies all of `source`, which is no larger, to this buffer's start.
-    Status copyFrom(const GpuBuffer& source);
     // Uploads `bytes` from the start, first replacing the buffer by one of that size (made with
     // `label`) when its size differs. Dispatches are synchronous (ComputePipeline::dispatch
     // waits), so the GPU is done with the old buffer; a frame-overlapped renderer would have to

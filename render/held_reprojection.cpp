@@ -4,6 +4,7 @@
 #include <glm/glm.hpp>
 #include <span>
 #include <tuple>
+#include <utility>
 
 #include "base/log.h"
 #include "held_reprojection.spv.h"
@@ -31,7 +32,7 @@ Result<HeldReprojection> HeldReprojection::create(GpuContext& ctx, uint32_t widt
     const size_t pixels = size_t(width) * height;
     for (auto [out, bytes, label] :
          {std::tuple{&r.params_, sizeof(shader::ReprojectParams), "reprojectParams"},
-          std::tuple{&r.from_, pixels * 2 * sizeof(glm::vec4), "reprojectFrom"},
+          std::tuple{&r.spare_, pixels * 2 * sizeof(glm::vec4), "heldSamples"},
           std::tuple{&r.nearest_, pixels * sizeof(uint32_t), "reprojectNearest"}}) {
         auto b = GpuBuffer::create(ctx, bytes, label);
         if (!b) return b.error();
@@ -53,24 +54,23 @@ Result<HeldReprojection> HeldReprojection::create(GpuContext& ctx, uint32_t widt
 }
 
 Status HeldReprojection::run(GpuBuffer& held, const shader::ReprojectParams& params) {
-    PV_ASSERT(params.width == width_ && params.height == height_ && held.size() == from_->size());
+    PV_ASSERT(params.width == width_ && params.height == height_ && held.size() == spare_->size());
     if (Status s = params_->upload(&params, sizeof(params)); !s) return s;
-    if (Status s = from_->copyFrom(held); !s) return s;
-    if (Status s = held.fill(0); !s) return s;
     if (Status s = nearest_->fill(~0u); !s) return s;
-    const std::array<const GpuBuffer*, PV_REPROJECT_BINDING_COUNT> buffers{&*params_, &*from_,
-                                                                           &held, &*nearest_};
+    const std::array<const GpuBuffer*, PV_REPROJECT_BINDING_COUNT> buffers{&*params_, &held,
+                                                                           &*spare_, &*nearest_};
     const uint32_t groupsX = (width_ + PV_REPROJECT_GROUP - 1) / PV_REPROJECT_GROUP;
     const uint32_t groupsY = (height_ + PV_REPROJECT_GROUP - 1) / PV_REPROJECT_GROUP;
     for (ComputePipeline* stage : {&*claim_, &*move_}) {
         if (Status s = stage->bind(buffers); !s) return s;
         if (auto ms = stage->dispatch(groupsX, groupsY); !ms) return ms.error();
     }
+    std::swap(held, *spare_);
     return {};
 }
 
 uint64_t HeldReprojection::deviceBytes() const {
-    return params_->size() + from_->size() + nearest_->size();
+    return params_->size() + spare_->size() + nearest_->size();
 }
 
 }  // namespace previs

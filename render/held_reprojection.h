@@ -33,9 +33,11 @@ public:
     HeldReprojection(HeldReprojection&&) = default;
     HeldReprojection& operator=(HeldReprojection&&) = default;
 
-    // Moves `held` (width × height pixels in PV_BINDING_HELD_SAMPLES' layout) as `params` say.
+    // Moves `held` (width × height pixels in PV_BINDING_HELD_SAMPLES' layout) as `params` say:
+    // the moved samples are written to a second buffer, which is then swapped with `held` (no
+    // copy; whoever binds `held` sees a new buffer id).
     Status run(GpuBuffer& held, const shader::ReprojectParams& params);
-    // Bytes of device memory it holds: the copy of the samples and the landing distances.
+    // Bytes of device memory it holds: the second buffer and the landing distances.
     uint64_t deviceBytes() const;
 
 private:
@@ -43,7 +45,7 @@ private:
     uint32_t width_ = 0;
     uint32_t height_ = 0;
     std::optional<GpuBuffer> params_;
-    std::optional<GpuBuffer> from_;
+    std::optional<GpuBuffer> spare_;
     std::optional<GpuBuffer> nearest_;
     std::optional<ComputePipeline> claim_;
     std::optional<ComputePipeline> move_;

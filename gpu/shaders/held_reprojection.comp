@@ -1,6 +1,7 @@
 // held_reprojection: the held view's samples moved with the camera (render/held_reprojection.h).
-// Two stages over the old output pixels: claim (a pixel with samples finds where they land in
-// the new camera, and the landing keeps the nearest distance), move (the pixel that won its
+// Two stages over the old output pixels: claim (each pixel clears its place in the output; one
+// with samples finds where they land in the new camera, and the landing keeps the nearest
+// distance), move (the pixel that won its
 // landing moves its samples there, weighted by `keep`). Where several land, the nearest surface
 // hides the others, as the new camera sees them; where none lands (what the move uncovers), the
 // new frames start afresh.
@@ -24,6 +25,11 @@ void main() {
     uvec2 pixel = gl_GlobalInvocationID.xy;
     if (pixel.x >= params.width || pixel.y >= params.height) return;
     uint i = pixel.y * params.width + pixel.x;
+    if (kStage == PV_REPROJECT_STAGE_CLAIM) {
+        // Cleared here: the move stage, which writes it, runs after every claim.
+        to[2u * i] = vec4(0.0);
+        to[2u * i + 1u] = vec4(0.0);
+    }
     vec4 counts = from[2u * i + 1u];  // (samples, Σ first-hit distance, 0, 0)
     if (!(counts.x > 0.0)) return;
     vec3 landing = heldLanding(params, pixel, counts.y / counts.x);

@@ -9,9 +9,9 @@
 PV_BEGIN
 
 #define PV_REPROJECT_BINDING_PARAMS 0
-// The held samples as the last camera kept them (PV_BINDING_HELD_SAMPLES' layout; a copy).
+// The held samples as the last camera kept them (PV_BINDING_HELD_SAMPLES' layout).
 #define PV_REPROJECT_BINDING_FROM 1
-// The held samples, cleared: the moved ones land here.
+// The moved samples land here (the same layout), cleared by the claim stage.
 #define PV_REPROJECT_BINDING_TO 2
 // Per output pixel the bits of the nearest distance landing there (cleared to all ones: the
 // bits of a positive float order as the floats do).
