@@ -292,6 +292,42 @@ TEST(Preview, AtHalfResolutionAHeldCameraGoesBelowTheUpsamplingFloor) {
     EXPECT_LT(errors.back(), errors.front() / 2.0);
 }
 
+// While the camera moves ([render] preview_follow), the held view's samples follow it at the
+// output's resolution, fading to 3/4 a frame (render/held_reprojection.h): after four moving
+// frames about 1 + 3/4 + (3/4)² + (3/4)³ = 2.7 frames' samples are kept (less those the move took
+// out of the image, and at a third of the resolution those of an output pixel another traced
+// pixel owns), and none count as held. Off, a moving camera keeps none.
+TEST(Preview, AMovingCamerasSamplesFollowItAtTheOutputsResolution) {
+    Demo d = demo();
+    d.config.render.resolutionScale = 1.0f / 3.0f;
+    d.config.render.previewObjectSamples = 0.0;  // a frame's samples: one per traced pixel
+    for (bool follow : {true, false}) {
+        d.config.render.previewFollow = follow;
+        auto p = PipelineRenderer::create(*d.gpu, d.scene, d.config);
+        ASSERT_TRUE(p) << p.message();
+        TrackedFrame frame = d.still;
+        ASSERT_TRUE(frame.worldFromCamera);
+        for (int i = 0; i < 4; ++i) {
+            (*frame.worldFromCamera)(0, 3) += 0.02;  // 2 cm a frame: a pan
+            ASSERT_TRUE((*p)->renderPreview(frame, d.lighting));
+        }
+        EXPECT_EQ((*p)->heldViewFrames(), 0u);
+        const Renderer& r = testing::innerRenderer(**p);
+        Result<std::vector<glm::vec4>> held = r.heldSamples();
+        ASSERT_TRUE(held) << held.message();
+        if (!follow) {
+            EXPECT_TRUE(held->empty());
+            continue;
+        }
+        double kept = 0.0;
+        for (size_t i = 0; i < held->size() / 2; ++i) kept += (*held)[2 * i + 1].x;
+        const double frameSamples =
+            double(r.traceWidth()) * r.traceHeight() * d.config.liveRender.samplesPerFrame;
+        EXPECT_GT(kept, 2.0 * frameSamples);
+        EXPECT_LT(kept, 2.74 * frameSamples);
+    }
+}
+
 // While the camera holds, preview frames trace refinement's depth ([render] preview_hold_depth),
 // so a held preview converges toward refinement's picture, not preview's shallower one; the
 // first frame of a view traces preview's depth, and with the setting off every frame does.
