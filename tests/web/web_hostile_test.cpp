@@ -128,10 +128,16 @@ TEST_F(WebHostile, AnIdleCrowdHoldsFewDescriptors) {
         return uint64_t(st.connections) + st.connectionsRefused == kCrowd;
     })) << monitor->stats().connections
         << " held, " << monitor->stats().connectionsRefused << " refused";
-    const int serviceHeld = openDescriptors() - before - kCrowd;
+    // A refused connection is counted before its descriptor is closed (after its 503 is sent):
+    // the bound holds once the refusals are done, not at the instant of the count (the CI's
+    // sanitized run once saw 17 for the bound of 16).
+    auto serviceHeld = [&] { return openDescriptors() - before - kCrowd; };
+    EXPECT_TRUE(test::eventually([&] {
+        return serviceHeld() <= defaults.maxConnectionsPerAddress;
+    })) << serviceHeld()
+        << " descriptors held";
     std::printf("%d idle connections: the service holds %d descriptors for them\n", kCrowd,
-                serviceHeld);
-    EXPECT_LE(serviceHeld, defaults.maxConnectionsPerAddress);
+                serviceHeld());
     EXPECT_EQ(monitor->stats().connections, defaults.maxConnectionsPerAddress);
 }
 
