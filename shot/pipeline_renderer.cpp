@@ -586,7 +586,8 @@ Status PipelineRenderer::renderPreview(const TrackedFrame& frame,
     // Preview denoises with temporal reprojection: the history follows the tracked camera.
     renderer_->film().setTemporalDenoise(true);
     // A moving camera's samples follow it at the output's resolution; a held one's add up.
-    const bool follows = accumulate_ && follow_ && !holds;
+    // Without a trusted pose there is nothing to follow (the history is dropped, as before).
+    const bool follows = accumulate_ && follow_ && !holds && frame.worldFromCamera && !frame.lost;
     if (Status s = follows ? renderer_->followView() : renderer_->holdView(holds); !s) return s;
     if (refined && holds)
         if (Status s = renderer_->seedHeldView(*refined); !s) return s;
