@@ -658,7 +658,8 @@ Status ConfigReader::parseRender(const toml::table& t, RenderConfig& c,
              "photons", "preview_photons", "photon_radius_m", "photon_alpha", "photon_neighbours",
              "photon_splat", "resolution_scale", "preview_fps", "denoise", "denoise_levels",
              "preview_accumulate", "preview_history_frames", "preview_object_samples",
-             "preview_sample_clamp", "preview_hold_depth", "preview_follow"});
+             "preview_sample_clamp", "preview_hold_depth", "preview_follow",
+             "preview_resampling"});
         !st)
         return st;
     // clang-format on
@@ -733,6 +734,13 @@ Status ConfigReader::parseRender(const toml::table& t, RenderConfig& c,
     Result<std::optional<bool>> follow = r_.boolean(t, "render", "preview_follow");
     if (!follow) return follow.error();
     c.previewFollow = follow->value_or(c.previewFollow);
+    if (Status st = stringKey(t, "render", "preview_resampling", c.previewResampling); !st)
+        return st;
+    if (c.previewResampling != "off" && c.previewResampling != "on" &&
+        c.previewResampling != "auto")
+        return fail(t.get("preview_resampling"),
+                    "'render.preview_resampling' is '{}': use \"off\", \"on\" or \"auto\"",
+                    c.previewResampling);
     return {};
 }
 

@@ -202,6 +202,14 @@ struct RenderConfig {
     // (render/held_reprojection.h) and fade, instead of being dropped at every move; false: the
     // held view starts afresh whenever the camera holds again.
     bool previewFollow = true;
+    // Preview frames resample the first rough hit's distant light across candidates, the last
+    // frame and neighbouring pixels (ReSTIR; RenderSettings::previewResampling): "on", "off", or
+    // "auto", on where [lighting] mode = "lights" lights the set with estimated lights, among
+    // which one light sample rarely finds the lamps that matter. Environment lighting alone
+    // gains nothing from it: its importance sampling already finds a lamp in the map, and on the
+    // demo resampling cost a third more frame time for a higher error (BENCHMARKS.md,
+    // "Resampling the distant light").
+    std::string previewResampling = "auto";
     // Caustics (render/photon_map.h): mode and photons per iteration, first radius, alpha.
     PhotonSettings photons;
 

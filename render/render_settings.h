@@ -164,6 +164,12 @@ struct RenderSettings {
     // clamp that rises with the frames held was measured worse over 64 frames: the lamps' paths
     // are too rare for a held view to average. 0: off.
     float previewSampleClamp = 0.0f;
+    // Preview frames resample the distant light (the environment and the cone lights) at the
+    // camera ray's first rough hit across candidates, the last frame and the neighbouring pixels
+    // (ReSTIR; gpu/shaders/distant_light_resampling.glsl): far less noise in the soft light and
+    // the virtual objects' shadows a frame, for a small bias BENCHMARKS.md measures. Refinement
+    // never resamples. Off: none of its code or memory is paid for.
+    bool previewResampling = false;
     // The denoiser (render/denoiser.h): the first hit writes its guide buffers and
     // image(aov, true) filters. Off: neither the guides' code nor their memory is paid for.
     bool denoise = false;

@@ -260,6 +260,7 @@ PipelineConstants Renderer::pipelineConstants(const SceneFeatures& features, boo
     constants[PV_SPEC_PHOTONS] = photons;
     constants[PV_SPEC_PHOTON_SPLAT] = photons && photonSplats_;
     constants[PV_SPEC_DENOISE_GUIDES] = settings_.denoise;
+    constants[PV_SPEC_RESAMPLING] = settings_.previewResampling;
     return constants;
 }
 
@@ -316,12 +317,15 @@ Status Renderer::bindBuffers(uint32_t bandFirstRow) {
 }
 
 Status Renderer::setEnvironment(std::shared_ptr<const EnvironmentMap> map) {
-    // The next render() compiles for the features and binds the buffers.
+    // The next render() compiles for the features and binds the buffers. The preview's
+    // reservoirs stay: they keep directions, whose targets the next frame weighs under the new
+    // light (a lamp gone weighs nothing, a new one is among the candidates).
     return scene_->setEnvironment(std::move(map), params_);
 }
 
 Status Renderer::setEstimatedLights(std::span<const EstimatedLightSource> estimated) {
-    // The next render() compiles for the features and binds the buffers.
+    // The next render() compiles for the features and binds the buffers (the reservoirs stay,
+    // as for setEnvironment).
     return scene_->setEstimatedLights(estimated, params_);
 }
 
@@ -395,16 +399,17 @@ Result<Renderer::FrameBuffers> Renderer::createFrameBuffers() const {
     auto guides =
         make(settings_.denoise ? pixels * PV_GUIDE_COUNT * sizeof(glm::vec4) : 0, "guides");
     auto splats = make(photonSplats_ ? photonSplatBytes(scene_->photonAim()) : 0, "photonSplats");
-    auto held = make(0, "heldSamples");  // holdView makes it when needed
+    auto held = make(0, "heldSamples");       // holdView makes it when needed
+    auto reservoirs = make(0, "reservoirs");  // the first preview frame that resamples
     for (const Result<GpuBuffer>* r :
          {&params, &sum, &compensation, &stats, &lensGrid, &records, &sorted, &sortA, &sortB,
-          &blockCounts, &cells, &guides, &splats, &held})
+          &blockCounts, &cells, &guides, &splats, &held, &reservoirs})
         if (!*r) return r->error();
     return FrameBuffers{std::move(*params),      std::move(*sum),      std::move(*compensation),
                         std::move(*stats),       std::move(*lensGrid), std::move(*records),
                         std::move(*sorted),      std::move(*sortA),    std::move(*sortB),
                         std::move(*blockCounts), std::move(*cells),    std::move(*guides),
-                        std::move(*splats),      std::move(*held)};
+                        std::move(*splats),      std::move(*held),     std::move(*reservoirs)};
 }
 
 void Renderer::setCameraPose(const glm::dmat4& worldFromCamera) {
@@ -616,12 +621,36 @@ Status Renderer::renderPreviewFrame(uint32_t spp, uint64_t frameIndex) {
     accumulationReplicates_ = 1;
     params_.estimateClamp = params_.heldClamp = settings_.previewSampleClamp;
     film_->setFrameSamples(spp);
-    Status s = render(spp);
+    Status s = useReservoirs();
+    if (s) s = render(spp);
     if (s) s = traceObjectRegions(spp);
     params_.estimateClamp = params_.heldClamp = 0.0f;
+    if (params_.resampling != 0u) {
+        // This frame's reservoirs are the next one's history.
+        params_.resampling = 0u;
+        params_.reservoirHistory = s ? 1u : 0u;
+        params_.reservoirHalf ^= 1u;
+    }
     params_.photonCount = full;
     if (s && params_.heldWidth != 0u) film_->heldFrameAdded(denoiseCamera());
     return s;
+}
+
+Status Renderer::useReservoirs() {
+    if (!settings_.previewResampling) return {};
+    const uint64_t bytes =
+        2ull * params_.width * params_.height * PV_RESERVOIR_VEC4S * sizeof(glm::vec4);
+    GpuBuffer& reservoirs = buffers_->reservoirs;
+    if (reservoirs.size() != bytes) {
+        const uint64_t limit = ctx_->physicalDevice().getProperties().limits.maxStorageBufferRange;
+        if (bytes > limit) return {};  // a traced size too large to bind whole: no resampling
+        auto fresh = GpuBuffer::create(*ctx_, bytes, "reservoirs");
+        if (!fresh) return fresh.error();
+        reservoirs = std::move(fresh.value());  // render() binds it
+        params_.reservoirHistory = 0u;
+    }
+    params_.resampling = 1u;
+    return {};
 }
 
 uint32_t Renderer::samplesForNextDispatch(uint32_t remaining) const {

@@ -253,6 +253,9 @@ private:
     // The held view's buffer for the film's answer `on` (made when first needed, cleared while
     // the film keeps no samples) and the path tracer's parameters that write it.
     Status useHeldView(bool on);
+    // The reservoirs' buffer at the traced size for a preview frame that resamples (made when
+    // first needed; its history forgotten when remade).
+    Status useReservoirs();
     friend class RendererDiagnostics;
     // The renderer's own device buffers (the scene's are GpuScene's), one per PV_BINDING_*.
     struct FrameBuffers {
@@ -268,6 +271,7 @@ private:
         GpuBuffer guides;        // the denoiser's guides, in the accumulation's bands
         GpuBuffer photonSplats;  // photonSplatBytes(); empty where the renderer does not splat
         GpuBuffer heldSamples;   // the held view's, made by holdView when first needed
+        GpuBuffer reservoirs;    // the preview's resampling, made by its first frame
     };
     static constexpr std::pair<int, GpuBuffer FrameBuffers::*> kFrameBindings[] = {
         {PV_BINDING_PARAMS, &FrameBuffers::params},
@@ -284,6 +288,7 @@ private:
         {PV_BINDING_GUIDES, &FrameBuffers::guides},
         {PV_BINDING_PHOTON_SPLATS, &FrameBuffers::photonSplats},
         {PV_BINDING_HELD_SAMPLES, &FrameBuffers::heldSamples},
+        {PV_BINDING_RESERVOIRS, &FrameBuffers::reservoirs},
     };
     // The accumulation as the film reads it.
     TracedBuffers traced() const;

@@ -42,6 +42,8 @@ bool gFirstHitReal;
 // miss): the held view's samples carry it, so that they can follow a moving camera
 // (render/held_reprojection.h).
 float gFirstHitDistanceM;
+// The traced pixel this invocation traces.
+uvec2 gPixel;
 
 // Four random numbers of dimension set `set` (shared/sampler.h's table) for sample `key`.
 vec4 draw(SampleKey key, uint set) { return sampleSet(kSampler, key, set); }
@@ -62,6 +64,8 @@ void addLightSample(vec3 c, bool lightIsReal, Ray ray, uint mode, inout vec3 toM
     if (mode == MODE_SHARED && lightIsReal) toReal += c;
     if (blocker == OCCLUDER_NONE) toMixed += c;
 }
+
+#include "distant_light_resampling.glsl"
 
 // Solid-angle pdf with which emissive-triangle sampling picks the point `lightSurface` seen from
 // `from`: the triangle's power share times shared/triangle_light.h's density, the very function
@@ -84,10 +88,13 @@ float coneLightPdf(GpuLight light, vec3 dir) {
 // Next-event estimation at a surface: one environment sample, one emissive-triangle sample and
 // one light of the lights buffer (punctual or cone), each added (without the path throughput) to
 // the solutions that see it. `photonsCarry`: the path is on a caustic chain the photon map
-// carries (photonMapCarries), so the photon lights' light is left out here.
+// carries (photonMapCarries), so the photon lights' light is left out here. `distantResampled`:
+// the environment and the cone lights are resampled at this vertex (resampleDistantLight).
 void sampleDirectLight(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint mode, SampleKey key,
-                       uint depth, bool photonsCarry, inout vec3 toMixed, inout vec3 toReal) {
-    if (kHasEnv && params.envWidth > 0u && !(photonsCarry && params.photonEnvironment != 0u)) {
+                       uint depth, bool photonsCarry, bool distantResampled, inout vec3 toMixed,
+                       inout vec3 toReal) {
+    if (kHasEnv && params.envWidth > 0u && !(photonsCarry && params.photonEnvironment != 0u) &&
+        !distantResampled) {
         float envPdfValue;
         uint texel;
         vec2 u = draw(key, vertexSet(depth, PV_SET_VERTEX_ENV)).xy;
@@ -154,7 +161,9 @@ void sampleDirectLight(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint mode
         // Solid-angle pdf of a cone light's sample (with the choice of the light); 0 for the
         // delta lights, which BSDF sampling cannot hit.
         float lightPdf = 0.0;
-        if (kHasConeLights && type == PV_LIGHT_CONE) {
+        if (kHasConeLights && type == PV_LIGHT_CONE && distantResampled) {
+            return;
+        } else if (kHasConeLights && type == PV_LIGHT_CONE) {
             Frame cone;
             cone.n = -light.direction;
             buildBasis(cone.n, cone.t, cone.b);
@@ -450,6 +459,10 @@ struct PathState {
     // direct light; the rest is indirect (gIndirectMixed).
     uint roughVertices;
     bool lastScatterRough;
+    // The vertex the path left last resampled its distant light (resampleDistantLight), which
+    // its BSDF candidate already weighs: the environment and the cone lights this ray meets are
+    // counted there.
+    bool distantResampled;
 };
 
 // The light the path adds at its hit (an emitter, the environment) is indirect.
@@ -483,6 +496,7 @@ bool scatter(inout PathState st, Surface s, Frame frame, BsdfParams bp, BsdfSamp
     }
     st.throughput *= share * bs.weight;
     st.rouletteScale /= share;
+    st.distantResampled = false;
     st.lastScatterRough = !bs.isDelta && !bsdfCarriesCaustics(bp);
     if (st.lastScatterRough) st.roughVertices += 1u;
     if (bs.lobe == PV_LOBE_TRANSMISSION && !bp.thinWalled)
@@ -654,6 +668,8 @@ void beginPath(uvec2 pixel, SampleKey key, out PathState st, out vec3 lm, out ve
     st.gatherLevel1 = true;
     st.roughVertices = 0u;
     st.lastScatterRough = false;
+    st.distantResampled = false;
+    if (kResampling && params.resampling != 0u) clearReservoir(pixel);
     gIndirectMixed = vec3(0.0);
     gIndirectReal = vec3(0.0);
     lm = vec3(0.0);
@@ -682,6 +698,7 @@ struct PendingBranches {
 // seen where they are (camera rays, mirrors, and the BSDF half of their multiple importance
 // sampling).
 void addEscapedLight(PathState st, uint mode, inout vec3 lm, inout vec3 lr) {
+    if (kResampling && st.distantResampled) return;
     if (kHasEnv && params.envWidth > 0u && !(params.photonEnvironment != 0u && photonMapCarries(st))) {
         vec2 rotation = vec2(params.envRotationCos, params.envRotationSin);
         vec3 le = params.envScale *
@@ -823,6 +840,7 @@ bool extendPath(SampleKey key, inout PathState st, inout uint mode, inout vec3 l
         gGuideDepthM = hit.t;  // the camera ray's direction is unit: metres
     }
     bool gatherVertex = kPhotons && gatherAtVertex(key, st, mode, s, bp, frame, wo, lm, lr);
+    bool resampled = false;
     // Light sampling only where some lobe is not a delta (a smooth mirror or glass
     // can only see lights through its one reflected or refracted ray).
     if (!(kHasSpecular || kHasTransmission) || !bsdfIsDelta(bp) ||
@@ -833,12 +851,21 @@ bool extendPath(SampleKey key, inout PathState st, inout uint mode, inout vec3 l
         // end such a chain; at a gather vertex the state is still the chain's that reached it,
         // and its lights are its own direct light.
         bool carried = !gatherVertex && photonMapCarries(st);
-        sampleDirectLight(s, bp, frame, wo, mode, key, st.depth, carried, directMixed,
-                          directReal);
+        // The preview resamples the distant light at the camera ray's first rough hit.
+        resampled = kResampling && params.resampling != 0u && st.depth == 0u &&
+                    mode != MODE_REAL && !bsdfCarriesCaustics(bp) && hasDistantLight();
+        if (resampled)
+            resampleDistantLight(s, bp, frame, wo, mode, gPixel, hit.t, key, directMixed,
+                                 directReal);
+        sampleDirectLight(s, bp, frame, wo, mode, key, st.depth, carried, resampled,
+                          directMixed, directReal);
         addLight(mode, st.throughput * directMixed, st.throughput * directReal,
                  vertexLightIsIndirect(st), lm, lr);
     }
-    return scatterFromVertex(key, st, mode, s, bp, frame, wo, gatherVertex, pending);
+    bool ended = scatterFromVertex(key, st, mode, s, bp, frame, wo, gatherVertex, pending);
+    // A delta lobe's direction is no candidate of the reservoir: what it meets counts.
+    st.distantResampled = resampled && !st.prevDelta;
+    return ended;
 }
 
 // The pixel's samples sampleBase .. sampleBase + samplesPerDispatch − 1, each added to the sums by
@@ -856,6 +883,7 @@ bool extendPath(SampleKey key, inout PathState st, inout uint mode, inout vec3 l
 // top would run one more whole segment, masked, for every SIMD batch (about 90 ms a dispatch at
 // 640×480, measured).
 void tracePaths(uvec2 pixel, uint pixelIndex) {
+    gPixel = pixel;
     uint nth = 0u;
     SampleKey key;
     PathState st;

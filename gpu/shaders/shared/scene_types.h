@@ -74,7 +74,13 @@ PV_BEGIN
 // The held view's clamp of a whole sample over its clamp of the indirect light
 // (FrameParams::heldClamp).
 #define PV_HELD_DIRECT_CLAMP_RATIO 16.0f
-#define PV_BINDING_COUNT 30
+// The preview's reservoirs of the first vertex's distant light (ReSTIR; FrameParams::resampling,
+// gpu/shaders/distant_light_resampling.glsl): two halves, the frame that wrote last and the one
+// being traced (FrameParams::reservoirHalf), each per traced pixel PV_RESERVOIR_VEC4S vec4. A
+// 16-byte placeholder until a preview frame resamples.
+#define PV_BINDING_RESERVOIRS 30
+#define PV_RESERVOIR_VEC4S 3u
+#define PV_BINDING_COUNT 31
 #define PV_SPLAT_MIXED 0u          // photons of the mixed solution the camera sees
 #define PV_SPLAT_REAL 1u           // photons of the real solution the real camera ray sees
 #define PV_SPLAT_REAL_UNHIDDEN 2u  // ... of which no virtual object hides in the mixed solution
@@ -121,7 +127,11 @@ PV_BEGIN
 // directly"): where the host allows it (the setting, and the splat buffer fits one binding).
 // The shaders also need a pinhole camera (no lens grid, no aperture): photonSplatsActive.
 #define PV_SPEC_PHOTON_SPLAT 16
-#define PV_SPEC_COUNT 17
+// The preview may resample the first vertex's distant light (RenderSettings::previewResampling):
+// off, none of its code is compiled in; on, it still runs only in preview frames
+// (FrameParams::resampling).
+#define PV_SPEC_RESAMPLING 17
+#define PV_SPEC_COUNT 18
 #define PV_SAMPLER_SOBOL 0u
 #define PV_SAMPLER_INDEPENDENT 1u
 
@@ -319,6 +329,15 @@ struct FrameParams {
     // The photon light table holds the environment (PV_PHOTON_LIGHT_ENVIRONMENT): its caustics
     // are the photons', so the path tracer leaves them out (shared/photon_records.h).
     uint photonEnvironment;
+    // Preview frames (0 = off: refinement, or RenderSettings::previewResampling off): the first
+    // vertex's environment and cone lights come from reservoirs resampled across candidates, the
+    // last frame and the pixel's neighbours (PV_BINDING_RESERVOIRS).
+    uint resampling;
+    // The other half of PV_BINDING_RESERVOIRS holds the last preview frame's reservoirs at this
+    // traced size (0: none to reuse).
+    uint reservoirHistory;
+    uint reservoirHalf;  // the half this frame writes (0 or 1)
+    uint reservoirUnused;
 };
 
 PV_END
