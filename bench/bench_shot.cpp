@@ -367,16 +367,16 @@ int runShotBench(const ShotBenchOptions& o) {
     noFollow.config.render.previewFollow = false;
     variants.push_back(noFollow);
     ShotVariant resampling{"fixed, the distant light resampled (ReSTIR)", fixedPoint.config};
-    resampling.config.render.previewResampling = "on";
+    resampling.config.render.previewResampling = true;
     variants.push_back(resampling);
     // The lighting as estimated lights over a residual map ([lighting] mode = "lights"), where
-    // resampling is on by default, and the same with one light sample.
-    ShotVariant lights{"fixed, estimated lights, resampled", fixedPoint.config};
+    // one light sample picks a light uniformly, with and without resampling.
+    ShotVariant lights{"fixed, estimated lights", fixedPoint.config};
     lights.config.lighting.mode = LightingMode::Lights;
     variants.push_back(lights);
-    ShotVariant lightsOneSample{"fixed, estimated lights, one light sample", lights.config};
-    lightsOneSample.config.render.previewResampling = "off";
-    variants.push_back(lightsOneSample);
+    ShotVariant lightsResampled{"fixed, estimated lights, resampled", lights.config};
+    lightsResampled.config.render.previewResampling = true;
+    variants.push_back(lightsResampled);
     ShotVariant noClamp{"fixed, samples not clamped", fixedPoint.config};
     noClamp.config.render.previewSampleClamp = 0.0;
     variants.push_back(noClamp);

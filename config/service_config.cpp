@@ -734,13 +734,9 @@ Status ConfigReader::parseRender(const toml::table& t, RenderConfig& c,
     Result<std::optional<bool>> follow = r_.boolean(t, "render", "preview_follow");
     if (!follow) return follow.error();
     c.previewFollow = follow->value_or(c.previewFollow);
-    if (Status st = stringKey(t, "render", "preview_resampling", c.previewResampling); !st)
-        return st;
-    if (c.previewResampling != "off" && c.previewResampling != "on" &&
-        c.previewResampling != "auto")
-        return fail(t.get("preview_resampling"),
-                    "'render.preview_resampling' is '{}': use \"off\", \"on\" or \"auto\"",
-                    c.previewResampling);
+    Result<std::optional<bool>> resampling = r_.boolean(t, "render", "preview_resampling");
+    if (!resampling) return resampling.error();
+    c.previewResampling = resampling->value_or(c.previewResampling);
     return {};
 }
 

@@ -203,13 +203,12 @@ struct RenderConfig {
     // held view starts afresh whenever the camera holds again.
     bool previewFollow = true;
     // Preview frames resample the first rough hit's distant light across candidates, the last
-    // frame and neighbouring pixels (ReSTIR; RenderSettings::previewResampling): "on", "off", or
-    // "auto", on where [lighting] mode = "lights" lights the set with estimated lights, among
-    // which one light sample rarely finds the lamps that matter. Environment lighting alone
-    // gains nothing from it: its importance sampling already finds a lamp in the map, and on the
-    // demo resampling cost a third more frame time for a higher error (BENCHMARKS.md,
-    // "Resampling the distant light").
-    std::string previewResampling = "auto";
+    // frame and neighbouring pixels (ReSTIR; RenderSettings::previewResampling). Off by default:
+    // it cuts a lone frame's noise (by 4/5 among 12 estimated lights), but on the demo, through
+    // the denoiser and the held view, whose averages its correlated samples defeat, the error
+    // rose in both lighting modes for a third more frame time (BENCHMARKS.md, "Resampling the
+    // distant light").
+    bool previewResampling = false;
     // Caustics (render/photon_map.h): mode and photons per iteration, first radius, alpha.
     PhotonSettings photons;
 

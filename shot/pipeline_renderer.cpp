@@ -137,9 +137,7 @@ Result<std::unique_ptr<PipelineRenderer>> PipelineRenderer::create(
     settings.differential = true;
     settings.objectSamplesPerOutputPixel = float(config.render.previewObjectSamples);
     settings.previewSampleClamp = float(config.render.previewSampleClamp);
-    settings.previewResampling =
-        config.render.previewResampling == "on" ||
-        (config.render.previewResampling == "auto" && config.lighting.mode == LightingMode::Lights);
+    settings.previewResampling = config.render.previewResampling;
     // Guides are written only when the denoiser may run: to filter, or to reproject preview's
     // accumulation.
     p->accumulate_ = config.render.previewAccumulate;

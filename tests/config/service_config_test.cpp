@@ -351,11 +351,8 @@ position_m = [1, 0, 0]
          minimal("", "[render]\ndenoise = \"sometimes\""),
          {"'render.denoise' is 'sometimes'", "\"off\", \"on\" or \"auto\""}},
         {"render_preview_resampling_type",
-         minimal("", "[render]\npreview_resampling = true"),
-         {"'render.preview_resampling'", "string"}},
-        {"render_preview_resampling_mode",
-         minimal("", "[render]\npreview_resampling = \"always\""),
-         {"'render.preview_resampling' is 'always'", "\"off\", \"on\" or \"auto\""}},
+         minimal("", "[render]\npreview_resampling = \"on\""),
+         {"'render.preview_resampling'", "true or false"}},
         {"render_denoise_levels_zero",
          minimal("", "[render]\ndenoise_levels = 0"),
          {"'render.denoise_levels' is 0"}},
@@ -512,7 +509,7 @@ resolution_scale = 0.3333
 preview_fps = 12.5
 denoise = "auto"
 denoise_levels = 3
-preview_resampling = "on"
+preview_resampling = true
 [refine]
 samples_per_step = 8
 max_samples = 0
@@ -550,7 +547,7 @@ loop = false
     EXPECT_DOUBLE_EQ(c->render.previewFps, 12.5);
     EXPECT_EQ(c->render.denoise, "auto");
     EXPECT_EQ(c->render.denoiseLevels, 3u);
-    EXPECT_EQ(c->render.previewResampling, "on");
+    EXPECT_TRUE(c->render.previewResampling);
     EXPECT_EQ(c->refine.samplesPerStep, 8u);
     EXPECT_EQ(c->refine.maxSamples, 0u);
     EXPECT_DOUBLE_EQ(c->refine.poseThresholdDeg, 1.5);

@@ -143,9 +143,10 @@ TEST_F(DistantLightResamplingTest, AFrameIsCloserToTheReferenceThanOneLightSampl
             error[resampling][1] += rmse(f.added[k], refAdded) / 8.0;
         }
     }
-    std::printf("per-frame RMSE, one light sample / resampled: picture %.4f / %.4f, added %.4f / "
-                "%.4f\n",
-                error[0][0], error[1][0], error[0][1], error[1][1]);
+    std::printf(
+        "per-frame RMSE, one light sample / resampled: picture %.4f / %.4f, added %.4f / "
+        "%.4f\n",
+        error[0][0], error[1][0], error[0][1], error[1][1]);
     EXPECT_LT(error[1][0], 0.7 * error[0][0]);
     EXPECT_LT(error[1][1], error[0][1]);
 }
@@ -194,8 +195,10 @@ RegionSums regionSums(const std::vector<float>& mixed, const std::vector<float>&
         const float m = refMask[i / 3];
         if (m > 0.99f) s.ball += mixed[i];
         if (m > 0.0f) continue;
-        if (refMixed[i] < refReal[i] - 0.02f) s.shadow += real[i] - mixed[i];
-        else s.floor += mixed[i];
+        if (refMixed[i] < refReal[i] - 0.02f)
+            s.shadow += real[i] - mixed[i];
+        else
+            s.floor += mixed[i];
     }
     return s;
 }
