@@ -1,11 +1,22 @@
 #include "gpu/compute_pipeline.h"
 
+#include <xxhash.h>
+
 #include <algorithm>
+#include <map>
+#include <mutex>
+#include <unordered_map>
 
 #include "base/log.h"
 #include "gpu/spirv_cache.h"
 
 namespace previs {
+
+struct CompiledPipeline {
+    vk::raii::DescriptorSetLayout setLayout{nullptr};
+    vk::raii::PipelineLayout layout{nullptr};
+    vk::raii::Pipeline pipeline{nullptr};
+};
 
 namespace {
 
@@ -21,67 +32,151 @@ vk::Format texelFormat(BindingKind kind) {
                                                  : vk::Format::eR32Uint;
 }
 
+// What a compiled pipeline is made from, whole (no two differing keys share a pipeline): the
+// module's words, where its constants are specialised, the constants and the binding kinds.
+struct PipelineKey {
+    std::vector<uint32_t> words;
+    bool operator==(const PipelineKey&) const = default;
+};
+struct PipelineKeyHash {
+    size_t operator()(const PipelineKey& k) const {
+        return size_t(XXH3_64bits(k.words.data(), k.words.size() * sizeof(uint32_t)));
+    }
+};
+PipelineKey pipelineKey(std::span<const uint32_t> spirv, std::span<const BindingKind> bindings,
+                        std::span<const uint32_t> specConstants, Specialise specialise) {
+    PipelineKey key;
+    key.words.reserve(spirv.size() + specConstants.size() + bindings.size() + 3);
+    key.words.assign(spirv.begin(), spirv.end());
+    key.words.push_back(uint32_t(specialise));
+    key.words.push_back(uint32_t(specConstants.size()));
+    key.words.insert(key.words.end(), specConstants.begin(), specConstants.end());
+    key.words.push_back(uint32_t(bindings.size()));
+    for (BindingKind b : bindings) key.words.push_back(uint32_t(b));
+    return key;
+}
+
+using PipelinesByKey =
+    std::unordered_map<PipelineKey, std::shared_ptr<const CompiledPipeline>, PipelineKeyHash>;
+
+// Every context's compiled pipelines. Never destroyed: a context may go at exit, after static
+// destruction began (releaseCompiledPipelines then still finds this).
+struct CompiledPipelines {
+    std::mutex mutex;
+    std::map<const GpuContext*, PipelinesByKey> byContext;
+};
+CompiledPipelines& compiledPipelines() {
+    static CompiledPipelines* pipelines = new CompiledPipelines;
+    return *pipelines;
+}
+
+// Compiles the pipeline (layouts, module, pipeline); throws what vk::raii throws.
+Result<std::shared_ptr<const CompiledPipeline>> compile(GpuContext& ctx,
+                                                        std::span<const uint32_t> spirv,
+                                                        std::span<const BindingKind> bindings,
+                                                        std::span<const uint32_t> specConstants,
+                                                        const char* label, Specialise specialise) {
+    // The driver's compile may be the longest thing the render thread does (GpuContext::stage).
+    if (Stage* stage = ctx.stage()) stage->allowLonger(GpuContext::kCompileAllowance);
+    auto c = std::make_shared<CompiledPipeline>();
+    const auto& device = ctx.device();
+    std::vector<vk::DescriptorSetLayoutBinding> layoutBindings;
+    for (uint32_t i = 0; i < bindings.size(); ++i)
+        layoutBindings.emplace_back(i, descriptorType(bindings[i]), 1,
+                                    vk::ShaderStageFlagBits::eCompute);
+    c->setLayout = vk::raii::DescriptorSetLayout(
+        device, vk::DescriptorSetLayoutCreateInfo({}, layoutBindings));
+    vk::DescriptorSetLayout setLayout = *c->setLayout;
+    c->layout = vk::raii::PipelineLayout(device, vk::PipelineLayoutCreateInfo({}, setLayout));
+    std::vector<uint32_t> specialised;
+    if (specialise == Specialise::OnHost && !specConstants.empty()) {
+        auto module = SpirvCache::fromEnvironment().specialise(spirv, specConstants);
+        if (!module)
+            return makeError("cannot create compute pipeline '{}': {}", label,
+                             module.error().message);
+        specialised = std::move(module.value());
+        spirv = specialised;
+    }
+    // The module is needed only while the pipeline is made.
+    vk::raii::ShaderModule module(device,
+                                  vk::ShaderModuleCreateInfo({}, spirv.size_bytes(), spirv.data()));
+
+    // 32-bit specialization constants, ids in order (none left in a module specialised on the
+    // host).
+    std::vector<vk::SpecializationMapEntry> entries;
+    if (specialised.empty())
+        for (uint32_t i = 0; i < specConstants.size(); ++i)
+            entries.emplace_back(i, i * sizeof(uint32_t), sizeof(uint32_t));
+    vk::SpecializationInfo spec(static_cast<uint32_t>(entries.size()), entries.data(),
+                                entries.empty() ? 0 : specConstants.size_bytes(),
+                                specConstants.data());
+    vk::PipelineShaderStageCreateInfo stage({}, vk::ShaderStageFlagBits::eCompute, *module, "main",
+                                            &spec);
+    // Dispatch base (core since Vulkan 1.1): dispatchPart() splits a dispatch.
+    c->pipeline =
+        vk::raii::Pipeline(device, nullptr,
+                           vk::ComputePipelineCreateInfo(vk::PipelineCreateFlagBits::eDispatchBase,
+                                                         stage, *c->layout));
+    return std::shared_ptr<const CompiledPipeline>(std::move(c));
+}
+
+// The context's pipeline for the key, compiled if it has none yet.
+Result<std::shared_ptr<const CompiledPipeline>> compiledFor(
+    GpuContext& ctx, std::span<const uint32_t> spirv, std::span<const BindingKind> bindings,
+    std::span<const uint32_t> specConstants, const char* label, Specialise specialise) {
+    PipelineKey key = pipelineKey(spirv, bindings, specConstants, specialise);
+    CompiledPipelines& all = compiledPipelines();
+    {
+        std::lock_guard lock(all.mutex);
+        auto& mine = all.byContext[&ctx];
+        if (auto found = mine.find(key); found != mine.end()) return found->second;
+    }
+    Result<std::shared_ptr<const CompiledPipeline>> made =
+        compile(ctx, spirv, bindings, specConstants, label, specialise);
+    if (!made) return made;
+    std::lock_guard lock(all.mutex);
+    // Another thread may have compiled the same meanwhile: one of the two is kept.
+    return all.byContext[&ctx].try_emplace(std::move(key), *made).first->second;
+}
+
 }  // namespace
+
+void releaseCompiledPipelines(const GpuContext& ctx) {
+    PipelinesByKey released;
+    CompiledPipelines& all = compiledPipelines();
+    std::lock_guard lock(all.mutex);
+    if (auto mine = all.byContext.find(&ctx); mine != all.byContext.end()) {
+        released = std::move(mine->second);
+        all.byContext.erase(mine);
+    }
+}
 
 Result<ComputePipeline> ComputePipeline::create(GpuContext& ctx, std::span<const uint32_t> spirv,
                                                 std::span<const BindingKind> bindings,
                                                 std::span<const uint32_t> specConstants,
                                                 const char* label, Specialise specialise) {
-    // The driver's compile may be the longest thing the render thread does (GpuContext::stage).
-    if (Stage* stage = ctx.stage()) stage->allowLonger(GpuContext::kCompileAllowance);
     ComputePipeline p;
     p.ctx_ = &ctx;
     p.label_ = label;
     p.bindings_.assign(bindings.begin(), bindings.end());
     try {
         const auto& device = ctx.device();
-        std::vector<vk::DescriptorSetLayoutBinding> layoutBindings;
+        Result<std::shared_ptr<const CompiledPipeline>> compiled =
+            compiledFor(ctx, spirv, bindings, specConstants, label, specialise);
+        if (!compiled) return compiled.error();
+        p.compiled_ = std::move(compiled.value());
         uint32_t storageCount = 0;
         uint32_t texelCount = 0;
-        for (uint32_t i = 0; i < bindings.size(); ++i) {
-            vk::DescriptorType type = descriptorType(bindings[i]);
-            (type == vk::DescriptorType::eStorageBuffer ? storageCount : texelCount) += 1;
-            layoutBindings.emplace_back(i, type, 1, vk::ShaderStageFlagBits::eCompute);
-        }
-        p.setLayout_ = vk::raii::DescriptorSetLayout(
-            device, vk::DescriptorSetLayoutCreateInfo({}, layoutBindings));
-        vk::DescriptorSetLayout setLayout = *p.setLayout_;
-        p.layout_ = vk::raii::PipelineLayout(device, vk::PipelineLayoutCreateInfo({}, setLayout));
-        std::vector<uint32_t> specialised;
-        if (specialise == Specialise::OnHost && !specConstants.empty()) {
-            auto module = SpirvCache::fromEnvironment().specialise(spirv, specConstants);
-            if (!module)
-                return makeError("cannot create compute pipeline '{}': {}", label,
-                                 module.error().message);
-            specialised = std::move(module.value());
-            spirv = specialised;
-        }
-        p.module_ = vk::raii::ShaderModule(
-            device, vk::ShaderModuleCreateInfo({}, spirv.size_bytes(), spirv.data()));
-
-        // 32-bit specialization constants, ids in order (none left in a module specialised
-        // on the host).
-        std::vector<vk::SpecializationMapEntry> entries;
-        if (specialised.empty())
-            for (uint32_t i = 0; i < specConstants.size(); ++i)
-                entries.emplace_back(i, i * sizeof(uint32_t), sizeof(uint32_t));
-        vk::SpecializationInfo spec(static_cast<uint32_t>(entries.size()), entries.data(),
-                                    entries.empty() ? 0 : specConstants.size_bytes(),
-                                    specConstants.data());
-        vk::PipelineShaderStageCreateInfo stage({}, vk::ShaderStageFlagBits::eCompute, *p.module_,
-                                                "main", &spec);
-        // Dispatch base (core since Vulkan 1.1): dispatchPart() splits a dispatch.
-        p.pipeline_ =
-            vk::raii::Pipeline(device, nullptr,
-                               vk::ComputePipelineCreateInfo(
-                                   vk::PipelineCreateFlagBits::eDispatchBase, stage, *p.layout_));
-
+        for (BindingKind kind : bindings)
+            (descriptorType(kind) == vk::DescriptorType::eStorageBuffer ? storageCount
+                                                                        : texelCount) += 1;
         std::vector<vk::DescriptorPoolSize> poolSizes;
         if (storageCount) poolSizes.emplace_back(vk::DescriptorType::eStorageBuffer, storageCount);
         if (texelCount) poolSizes.emplace_back(vk::DescriptorType::eUniformTexelBuffer, texelCount);
         p.pool_ = vk::raii::DescriptorPool(
             device, vk::DescriptorPoolCreateInfo(
                         vk::DescriptorPoolCreateFlagBits::eFreeDescriptorSet, 1, poolSizes));
+        vk::DescriptorSetLayout setLayout = *p.compiled_->setLayout;
         vk::raii::DescriptorSets sets(device, vk::DescriptorSetAllocateInfo(*p.pool_, setLayout));
         p.set_ = std::move(sets[0]);
         if (ctx.timestampPeriodNs() > 0.0)
@@ -90,6 +185,8 @@ Result<ComputePipeline> ComputePipeline::create(GpuContext& ctx, std::span<const
     } catch (const std::exception& e) {
         return makeError("cannot create compute pipeline '{}': {}", label, e.what());
     }
+    // Counted whether compiled now or before: whoever waits for a batch of pipelines counts
+    // each one it asked for (GpuContext::setCompileListener).
     ctx.pipelineCompiled();
     return p;
 }
@@ -158,8 +255,9 @@ Result<double> ComputePipeline::record(uint32_t baseX, uint32_t baseY, uint32_t 
             cmd.resetQueryPool(*queries_, 0, 2);
             cmd.writeTimestamp(vk::PipelineStageFlagBits::eTopOfPipe, *queries_, 0);
         }
-        cmd.bindPipeline(vk::PipelineBindPoint::eCompute, *pipeline_);
-        cmd.bindDescriptorSets(vk::PipelineBindPoint::eCompute, *layout_, 0, *set_, nullptr);
+        cmd.bindPipeline(vk::PipelineBindPoint::eCompute, *compiled_->pipeline);
+        cmd.bindDescriptorSets(vk::PipelineBindPoint::eCompute, *compiled_->layout, 0, *set_,
+                               nullptr);
         if (baseX == 0 && baseY == 0)
             cmd.dispatch(groupsX, groupsY, groupsZ);
         else

@@ -5,6 +5,7 @@
 // binding says so — with 32-bit specialization constants (ids 0..n-1) selecting the variant, and
 // timestamp queries around its dispatches so benchmarks can report GPU time per pass.
 
+#include <memory>
 #include <span>
 #include <vector>
 #include <vulkan/vulkan_raii.hpp>
@@ -32,10 +33,18 @@ struct BufferRange {
     uint64_t size = VK_WHOLE_SIZE;
 };
 
+// The layouts and the pipeline compiled from one module, constants and bindings; the context's
+// ComputePipelines made from the same share them (ComputePipeline::create).
+struct CompiledPipeline;
+
 class ComputePipeline {
 public:
     // bindings[i] is the kind of binding i; specConstants[i] the value of the 32-bit
-    // specialization constant with id i.
+    // specialization constant with id i. A pipeline this context compiled before from the same
+    // module (as specialised), constants and bindings is reused, not compiled again: a renderer
+    // made anew, or one switching back to features it had, pays the driver's compile once a
+    // process (on lavapipe most of a small render's time). Each ComputePipeline has its own
+    // descriptor set and timestamps.
     static Result<ComputePipeline> create(GpuContext& ctx, std::span<const uint32_t> spirv,
                                           std::span<const BindingKind> bindings,
                                           std::span<const uint32_t> specConstants,
@@ -61,6 +70,11 @@ public:
     Result<double> dispatchPart(uint32_t baseX, uint32_t baseY, uint32_t groupsX, uint32_t groupsY);
 
     const std::string& label() const { return label_; }
+    // Whether both run the one compiled pipeline (made from the same module, constants and
+    // bindings on the same context).
+    bool sharesCompileWith(const ComputePipeline& other) const {
+        return compiled_ == other.compiled_;
+    }
 
 private:
     ComputePipeline() = default;
@@ -69,15 +83,16 @@ private:
 
     GpuContext* ctx_ = nullptr;
     std::string label_;
-    vk::raii::DescriptorSetLayout setLayout_{nullptr};
-    vk::raii::PipelineLayout layout_{nullptr};
-    vk::raii::ShaderModule module_{nullptr};
-    vk::raii::Pipeline pipeline_{nullptr};
+    std::shared_ptr<const CompiledPipeline> compiled_;  // outlives the set below
     vk::raii::DescriptorPool pool_{nullptr};
     vk::raii::DescriptorSet set_{nullptr};
     vk::raii::QueryPool queries_{nullptr};
     std::vector<BindingKind> bindings_;
     std::vector<vk::raii::BufferView> texelViews_;  // of the buffers bound last
 };
+
+// Destroys the pipelines `ctx` keeps for reuse (GpuContext's destructor, before the device goes;
+// every ComputePipeline of the context is gone by then).
+void releaseCompiledPipelines(const GpuContext& ctx);
 
 }  // namespace previs

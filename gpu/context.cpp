@@ -7,6 +7,7 @@
 
 #include "base/log.h"
 #include "base/strings.h"
+#include "gpu/compute_pipeline.h"
 
 #if defined(__SANITIZE_ADDRESS__)
 #include <dlfcn.h>
@@ -214,11 +215,15 @@ GpuContext::~GpuContext() {
     // The C entry point: vk::raii's waitIdle() throws on VK_ERROR_DEVICE_LOST, and a throw from
     // a destructor is std::terminate. A lost or hung device is not waited for: its objects are
     // destroyed as they are (what the driver can still do).
-    if (!*device_ || deviceLost_.load()) return;
-    const VkResult r = device_.getDispatcher()->vkDeviceWaitIdle(static_cast<VkDevice>(*device_));
-    if (r != VK_SUCCESS)
-        logError("Vulkan device '{}': waiting for it to finish failed ({})", deviceName_,
-                 vk::to_string(vk::Result(r)));
+    if (*device_ && !deviceLost_.load()) {
+        const VkResult r =
+            device_.getDispatcher()->vkDeviceWaitIdle(static_cast<VkDevice>(*device_));
+        if (r != VK_SUCCESS)
+            logError("Vulkan device '{}': waiting for it to finish failed ({})", deviceName_,
+                     vk::to_string(vk::Result(r)));
+    }
+    // The pipelines kept for reuse (ComputePipeline::create) go before the device.
+    releaseCompiledPipelines(*this);
 }
 
 uint32_t GpuContext::findMemoryType(uint32_t typeBits, vk::MemoryPropertyFlags required,

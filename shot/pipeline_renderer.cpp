@@ -184,7 +184,18 @@ Result<std::unique_ptr<PipelineRenderer>> PipelineRenderer::create(
         compilesStaged = total;
         if (hooks.progress) hooks.progress(done, total);
     };
-    Result<std::unique_ptr<Renderer>> renderer = Renderer::create(ctx, scene, settings, compiling);
+    // Lit from the fisheye, every frame has an environment: the studio stand-in until the first
+    // snapshot (lightNeutrally), then the captured one. The renderer is made with the stand-in
+    // already in the scene, so the pipelines it compiles first are those frames render with; made
+    // without, the first frame compiled them again (minutes on a slow CPU).
+    std::optional<Scene> lit;
+    if (config.fisheyeCamera && !scene.environment) {
+        lit.emplace(scene);
+        lit->environment = studioEnvironment();
+    }
+    Result<std::unique_ptr<Renderer>> renderer =
+        Renderer::create(ctx, lit ? *lit : scene, settings, compiling);
+    lit.reset();
     if (!renderer) return makeError("{}: {}", config.scenePath, renderer.message());
     p->renderer_ = std::move(*renderer);
     if (hooks.interrupt) p->renderer_->setInterrupt(hooks.interrupt);

@@ -11,12 +11,21 @@ dir=${2:-}
 [[ -n $what && -n $dir ]] || { echo "usage: $0 start|stop DIR" >&2; exit 2; }
 dir=$(realpath -m "$dir")
 
+# Whether process $1 has exited: gone, or a zombie (its ports and files are released; its
+# parent, init here, may take seconds to reap it: about 2 s each on the CI machine).
+gone() {
+    local stat
+    stat=$(cat "/proc/$1/stat" 2>/dev/null) || return 0
+    stat=${stat##*) }  # the state follows the command's name, which may hold anything
+    [[ $stat == Z* ]]
+}
+
 stop() {
     for pidfile in slurmd.pid slurmctld.pid munged.pid; do
         [[ -f $dir/$pidfile ]] || continue
         pid=$(cat "$dir/$pidfile")
         kill "$pid" 2>/dev/null || true
-        for _ in $(seq 50); do kill -0 "$pid" 2>/dev/null || break; sleep 0.1; done
+        for _ in $(seq 50); do gone "$pid" && break; sleep 0.1; done
         kill -9 "$pid" 2>/dev/null || true
         rm -f "$dir/$pidfile"
     done

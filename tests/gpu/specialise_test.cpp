@@ -97,5 +97,48 @@ TEST(SpecialiseTest, HostAndDriverSpecialisationAgree) {
     EXPECT_EQ((*ctx)->validationErrorCount(), 0u);
 }
 
+// A pipeline made again from the same module, constants and bindings reuses the compile (a
+// renderer made anew compiles nothing it compiled before), but keeps its own buffers: each of two
+// such pipelines transforms the buffer bound to it, once. Other constants are another compile.
+// Every pipeline made is counted for whoever waits for a batch (GpuContext::setCompileListener).
+TEST(SpecialiseTest, PipelinesMadeAgainShareTheirCompileNotTheirBuffers) {
+    auto ctx = GpuContext::create({.validation = true, .deviceOverride = ""});
+    ASSERT_TRUE(ctx.ok()) << ctx.message();
+    int made = 0;
+    (*ctx)->setCompileListener([&made] { ++made; });
+    const std::array<BindingKind, 1> kinds{BindingKind::StorageBuffer};
+    const std::array<uint32_t, 3> squared{0, 1, 0}, offset{0, 0, 7};
+    std::vector<uint32_t> input(64);
+    std::iota(input.begin(), input.end(), 0u);
+    std::vector<GpuBuffer> buffers;
+    std::vector<ComputePipeline> pipelines;
+    for (const auto* constants : {&squared, &squared, &offset}) {
+        auto buffer = GpuBuffer::createWith(**ctx, std::span<const uint32_t>(input), "values");
+        ASSERT_TRUE(buffer.ok()) << buffer.message();
+        buffers.push_back(std::move(*buffer));
+        auto pipeline =
+            ComputePipeline::create(**ctx, probeSpirv(), kinds, *constants, "specialise_probe");
+        ASSERT_TRUE(pipeline.ok()) << pipeline.message();
+        pipelines.push_back(std::move(*pipeline));
+    }
+    EXPECT_EQ(made, 3);
+    EXPECT_TRUE(pipelines[1].sharesCompileWith(pipelines[0]));
+    EXPECT_FALSE(pipelines[2].sharesCompileWith(pipelines[0]));
+    for (size_t p = 0; p < pipelines.size(); ++p) {
+        const GpuBuffer* bound[] = {&buffers[p]};
+        ASSERT_TRUE(pipelines[p].bind(bound).ok());
+    }
+    for (size_t p : {1u, 2u, 0u}) ASSERT_TRUE(pipelines[p].dispatch(1, 1).ok());
+    for (size_t p = 0; p < pipelines.size(); ++p) {
+        std::vector<uint32_t> got(input.size());
+        ASSERT_TRUE(buffers[p].download(got.data(), got.size() * 4).ok());
+        for (uint32_t i = 0; i < input.size(); ++i)
+            ASSERT_EQ(got[i], p < 2 ? i * i : i + 7) << "pipeline " << p << ", value " << i;
+    }
+    pipelines.clear();
+    (*ctx)->setCompileListener({});
+    EXPECT_EQ((*ctx)->validationErrorCount(), 0u);
+}
+
 }  // namespace
 }  // namespace previs
