@@ -366,6 +366,10 @@ int runShotBench(const ShotBenchOptions& o) {
     ShotVariant noFollow{"fixed, the held view not following the camera", fixedPoint.config};
     noFollow.config.render.previewFollow = false;
     variants.push_back(noFollow);
+    ShotVariant randomPlaces{"fixed, held samples at random places (no phase schedule)",
+                             fixedPoint.config};
+    randomPlaces.config.render.previewPhases = false;
+    variants.push_back(randomPlaces);
     ShotVariant resampling{"fixed, the distant light resampled (ReSTIR)", fixedPoint.config};
     resampling.config.render.previewResampling = true;
     variants.push_back(resampling);

@@ -659,7 +659,7 @@ Status ConfigReader::parseRender(const toml::table& t, RenderConfig& c,
              "photon_splat", "resolution_scale", "preview_fps", "denoise", "denoise_levels",
              "preview_accumulate", "preview_history_frames", "preview_object_samples",
              "preview_sample_clamp", "preview_hold_depth", "preview_follow",
-             "preview_resampling"});
+             "preview_resampling", "preview_phases"});
         !st)
         return st;
     // clang-format on
@@ -737,6 +737,9 @@ Status ConfigReader::parseRender(const toml::table& t, RenderConfig& c,
     Result<std::optional<bool>> resampling = r_.boolean(t, "render", "preview_resampling");
     if (!resampling) return resampling.error();
     c.previewResampling = resampling->value_or(c.previewResampling);
+    Result<std::optional<bool>> phases = r_.boolean(t, "render", "preview_phases");
+    if (!phases) return phases.error();
+    c.previewPhases = phases->value_or(c.previewPhases);
     return {};
 }
 

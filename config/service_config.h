@@ -209,6 +209,9 @@ struct RenderConfig {
     // rose in both lighting modes for a third more frame time (BENCHMARKS.md, "Resampling the
     // distant light").
     bool previewResampling = false;
+    // While the held view keeps samples, each traced pixel's samples visit the output pixels of
+    // its footprint by a phase schedule (RenderSettings::previewPhases); false: at random.
+    bool previewPhases = true;
     // Caustics (render/photon_map.h): mode and photons per iteration, first radius, alpha.
     PhotonSettings photons;
 

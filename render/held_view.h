@@ -4,7 +4,9 @@
 // output size upsamples its traced pixels (render/upsample.h), and no number of frames averages
 // away what the upsampling blurs at the virtual objects' outlines, which the plate (its guide)
 // does not show. Yet each traced pixel's samples are jittered over its whole footprint of output
-// pixels: the path tracer also adds each sample to the output pixel it landed in
+// pixels, in a phase schedule that visits each of its k × k output pixels once in k² samples
+// (RenderSettings::previewPhases; shared/sampler.h's heldPhaseJitter): the path tracer also adds
+// each sample to the output pixel it landed in
 // (PV_BINDING_HELD_SAMPLES), and while the camera holds still that buffer keeps summing them per
 // output pixel (the renderer clears it only when a held view starts), so a held preview converges
 // to the full-resolution image that refinement converges to. The frame's own (upsampled, denoised)

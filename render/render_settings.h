@@ -170,6 +170,11 @@ struct RenderSettings {
     // the virtual objects' shadows a frame, for a small bias BENCHMARKS.md measures. Refinement
     // never resamples. Off: none of its code or memory is paid for.
     bool previewResampling = false;
+    // Preview frames with a held view (render/held_view.h) place each traced pixel's samples in
+    // the k × k output-pixel cells of its footprint by a phase schedule (shared/sampler.h's
+    // heldPhaseJitter) instead of at random: a held camera gives every output pixel its samples
+    // within k² samples a traced pixel. Off: the sampler's jitter, as refinement's.
+    bool previewPhases = true;
     // The denoiser (render/denoiser.h): the first hit writes its guide buffers and
     // image(aov, true) filters. Off: neither the guides' code nor their memory is paid for.
     bool denoise = false;

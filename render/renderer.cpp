@@ -620,11 +620,13 @@ Status Renderer::renderPreviewFrame(uint32_t spp, uint64_t frameIndex) {
     // sampler's stratification (the convergence meter's replicates are refinement's).
     accumulationReplicates_ = 1;
     params_.estimateClamp = params_.heldClamp = settings_.previewSampleClamp;
+    usePhaseSchedule(uint32_t(frameIndex * spp));
     film_->setFrameSamples(spp);
     Status s = useReservoirs();
     if (s) s = render(spp);
     if (s) s = traceObjectRegions(spp);
     params_.estimateClamp = params_.heldClamp = 0.0f;
+    params_.heldPhaseCells = 0u;
     if (params_.resampling != 0u) {
         // This frame's reservoirs are the next one's history.
         params_.resampling = 0u;
@@ -634,6 +636,18 @@ Status Renderer::renderPreviewFrame(uint32_t spp, uint64_t frameIndex) {
     params_.photonCount = full;
     if (s && params_.heldWidth != 0u) film_->heldFrameAdded(denoiseCamera());
     return s;
+}
+
+void Renderer::usePhaseSchedule(uint32_t firstPhase) {
+    params_.heldPhaseCells = 0u;
+    if (!settings_.previewPhases || params_.heldWidth == 0u) return;
+    // Cells no larger than an output pixel: k output pixels a side or fewer to a traced pixel's
+    // footprint (a fraction that is not a whole one gives cells a little smaller).
+    const double span = std::max(double(params_.heldWidth) / params_.width,
+                                 double(params_.heldHeight) / params_.height);
+    params_.heldPhaseCells = std::max(1u, uint32_t(std::ceil(span - 1e-3)));
+    params_.heldPhase = firstPhase;
+    params_.heldPhaseSeed = settings_.seed;
 }
 
 Status Renderer::useReservoirs() {

@@ -256,6 +256,10 @@ private:
     // The reservoirs' buffer at the traced size for a preview frame that resamples (made when
     // first needed; its history forgotten when remade).
     Status useReservoirs();
+    // A preview frame's phase schedule (RenderSettings::previewPhases) where it has a held view:
+    // its samples' phases from `firstPhase` on (frame k of spp samples: k·spp, so a frame
+    // rendered alone draws what it draws in its sequence).
+    void usePhaseSchedule(uint32_t firstPhase);
     friend class RendererDiagnostics;
     // The renderer's own device buffers (the scene's are GpuScene's), one per PV_BINDING_*.
     struct FrameBuffers {

@@ -138,6 +138,7 @@ Result<std::unique_ptr<PipelineRenderer>> PipelineRenderer::create(
     settings.objectSamplesPerOutputPixel = float(config.render.previewObjectSamples);
     settings.previewSampleClamp = float(config.render.previewSampleClamp);
     settings.previewResampling = config.render.previewResampling;
+    settings.previewPhases = config.render.previewPhases;
     // Guides are written only when the denoiser may run: to filter, or to reproject preview's
     // accumulation.
     p->accumulate_ = config.render.previewAccumulate;

@@ -204,8 +204,20 @@ void sampleDirectLight(Surface s, BsdfParams bp, Frame frame, vec3 wo, uint mode
     }
 }
 
-Ray cameraRay(uvec2 pixel, SampleKey key) {
-    vec2 jitter = draw(key, PV_SET_CAMERA_JITTER).xy;
+// The sample's position in its traced pixel, in [0, 1)² (cameraRay's, and addHeldSample's to
+// find its output pixel): the sampler's jitter, or, in a preview frame with a held view, the
+// phase schedule's cell with that jitter inside it (FrameParams::heldPhaseCells).
+vec2 gCameraJitter;
+
+vec2 cameraJitter(uint pixelIndex, uint sampleIndex, SampleKey key) {
+    vec2 u = draw(key, PV_SET_CAMERA_JITTER).xy;
+    if (params.heldPhaseCells == 0u) return u;
+    return heldPhaseJitter(params.heldPhase + sampleIndex,
+                           pcgHash(pixelIndex ^ pcgHash(params.heldPhaseSeed)),
+                           params.heldPhaseCells, u);
+}
+
+Ray cameraRay(uvec2 pixel, vec2 jitter, SampleKey key) {
     vec2 ndc = vec2((float(pixel.x) + jitter.x) / float(params.width) * 2.0 - 1.0,
                     1.0 - (float(pixel.y) + jitter.y) / float(params.height) * 2.0);
     vec3 dir = vec3(ndc * params.tanHalfFov, -1.0);
@@ -541,16 +553,14 @@ void kahanAdd(inout vec4 sum, inout vec4 c, vec4 x) {
     sum = t;
 }
 
-// Adds sample `sampleIndex`'s radiances to the pixel's sums; `nonFiniteRay`: one of its rays had
-// a NaN or infinite origin or direction.
 // The held view's sample (FrameParams::heldWidth): in the output pixel the sample's jitter
-// (cameraRay's) landed in. At a fraction that is not a whole one, an output pixel on a traced
+// (gCameraJitter) landed in. At a fraction that is not a whole one, an output pixel on a traced
 // pixel's edge is written only by the traced pixel that holds its centre (the one whose owner is
 // this pixel), so no two invocations add to one pixel; the other's samples there are not kept.
-void addHeldSample(uvec2 pixel, SampleKey key, vec3 composite, float mask) {
+void addHeldSample(uvec2 pixel, vec3 composite, float mask) {
     uvec2 size = uvec2(params.heldWidth, params.heldHeight);
     vec2 scale = vec2(size) / vec2(params.width, params.height);
-    vec2 p = (vec2(pixel) + draw(key, PV_SET_CAMERA_JITTER).xy) * scale;
+    vec2 p = (vec2(pixel) + gCameraJitter) * scale;
     uvec2 at = min(uvec2(p), size - 1u);
     uvec2 owner = min(uvec2((vec2(at) + 0.5) / scale), uvec2(params.width, params.height) - 1u);
     if (owner != pixel) return;
@@ -559,8 +569,10 @@ void addHeldSample(uvec2 pixel, SampleKey key, vec3 composite, float mask) {
     heldSamples[i + 1u].xy += vec2(1.0, gFirstHitDistanceM);
 }
 
+// Adds sample `sampleIndex`'s radiances to the pixel's sums; `nonFiniteRay`: one of its rays had
+// a NaN or infinite origin or direction.
 void addSample(uint sampleIndex, uint pixelIndex, vec3 lm, vec3 lr, bool firstHitVirtual,
-               bool nonFiniteRay, uvec2 pixel, SampleKey key) {
+               bool nonFiniteRay, uvec2 pixel) {
     if (nonFiniteRay || any(isnan(lm)) || any(isinf(lm)) ||
         any(isnan(lr)) || any(isinf(lr))) {
         // Counted, and the host reports it: never silently part of the image. Dropped
@@ -619,7 +631,7 @@ void addSample(uint sampleIndex, uint pixelIndex, vec3 lm, vec3 lr, bool firstHi
                           luminance(lr - (1.0 - k) * (gIndirectReal + splatReal)));
         float wholeClamp = PV_HELD_DIRECT_CLAMP_RATIO * params.heldClamp;
         float kWhole = params.heldClamp > 0.0 && whole > wholeClamp ? wholeClamp / whole : 1.0;
-        addHeldSample(pixel, key, kWhole * (composite - (1.0 - k) * compositeIndirect), mask);
+        addHeldSample(pixel, kWhole * (composite - (1.0 - k) * compositeIndirect), mask);
     }
     float lum = max(luminance(lm), luminance(lr));
     if (params.estimateClamp > 0.0) {
@@ -654,9 +666,10 @@ void addSample(uint sampleIndex, uint pixelIndex, vec3 lm, vec3 lr, bool firstHi
 
 // Starts sample `key` of `pixel`: the camera ray, and the sample's mixed radiance lm (L_om), real
 // radiance lr (L_or) and whether the camera ray's first hit is virtual (its mask M) at zero.
-void beginPath(uvec2 pixel, SampleKey key, out PathState st, out vec3 lm, out vec3 lr,
-               out bool firstHitVirtual) {
-    st.ray = cameraRay(pixel, key);
+void beginPath(uvec2 pixel, uint pixelIndex, uint sampleIndex, SampleKey key, out PathState st,
+               out vec3 lm, out vec3 lr, out bool firstHitVirtual) {
+    gCameraJitter = cameraJitter(pixelIndex, sampleIndex, key);
+    st.ray = cameraRay(pixel, gCameraJitter, key);
     st.throughput = vec3(1.0);
     st.prevPdf = 0.0;
     st.prevDelta = true;
@@ -901,7 +914,8 @@ void tracePaths(uvec2 pixel, uint pixelIndex) {
         if (sampleBegins) {
             key = interleavedSampleKey(pixelIndex, params.sampleBase + nth, params.seed,
                                        params.replicates);
-            beginPath(pixel, key, st, lm, lr, firstHitVirtual);
+            beginPath(pixel, pixelIndex, params.sampleBase + nth, key, st, lm, lr,
+                      firstHitVirtual);
             nonFiniteRaysBefore = gNonFiniteRays;
             mode = kDifferential ? MODE_SHARED : MODE_MIXED;
             sampleBegins = false;
@@ -918,7 +932,7 @@ void tracePaths(uvec2 pixel, uint pixelIndex) {
                 pending.haveRealContinuation = false;
             } else {
                 addSample(params.sampleBase + nth, pixelIndex, lm, lr, firstHitVirtual,
-                          gNonFiniteRays != nonFiniteRaysBefore, pixel, key);
+                          gNonFiniteRays != nonFiniteRaysBefore, pixel);
                 nth += 1u;
                 if (nth >= params.samplesPerDispatch) break;
                 sampleBegins = true;

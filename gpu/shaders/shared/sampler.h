@@ -185,6 +185,25 @@ PV_INLINE vec4 sampleSet(uint generator, SampleKey k, uint set) {
     return sobol ? sobolSet(k, set) : independentSet(k, set);
 }
 
+// The held view's phase schedule (temporal super-resolution; FrameParams::heldPhaseCells): a
+// preview that traces a pixel for each k×k output pixels places the pixel's samples, frame after
+// frame, in the k×k cells of its footprint in a Latin order: phase p is the cell in column
+// p mod k and row (p mod k + p / k) mod k, so the k phases from a multiple of k fill each column
+// and each row once, and any k² consecutive phases fill each cell once. A held camera then gives
+// every output pixel a sample within k² samples of its traced pixel (random jitter leaves
+// (1 − 1/k²)^(k²), about a third at k = 3, still without one), and the frames' samples spread
+// evenly over each output pixel. `offset` (a pixel's own, fixed while the view holds) starts
+// each traced pixel's cycle elsewhere, so a frame's sample still lies anywhere in its footprint:
+// over the offsets, `u` (uniform in [0, 1)²) gives a position uniform over the footprint, as the
+// sampler's own jitter does.
+PV_INLINE vec2 heldPhaseJitter(uint phase, uint offset, uint k, vec2 u) {
+    uint cells = k * k;
+    uint p = (phase % cells + offset % cells) % cells;
+    uint column = p % k;
+    uint row = (column + p / k) % k;
+    return (vec2(float(column), float(row)) + u) / float(k);
+}
+
 PV_END
 
 #endif

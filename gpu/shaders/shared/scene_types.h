@@ -337,7 +337,13 @@ struct FrameParams {
     // traced size (0: none to reuse).
     uint reservoirHistory;
     uint reservoirHalf;  // the half this frame writes (0 or 1)
-    uint reservoirUnused;
+    // Preview frames with a held view: a traced pixel's samples follow the phase schedule over
+    // the k × k cells of its footprint (shared/sampler.h's heldPhaseJitter), k = heldPhaseCells;
+    // 0: the sampler's jitter (refinement, or RenderSettings::previewPhases off). Sample i of the
+    // frame has phase heldPhase + i; heldPhaseSeed seeds each traced pixel's offset.
+    uint heldPhaseCells;
+    uint heldPhase;
+    uint heldPhaseSeed;
 };
 
 PV_END
