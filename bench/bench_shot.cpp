@@ -370,6 +370,9 @@ int runShotBench(const ShotBenchOptions& o) {
                              fixedPoint.config};
     randomPlaces.config.render.previewPhases = false;
     variants.push_back(randomPlaces);
+    ShotVariant noOutlineTest{"fixed, no test of the estimate's outline", fixedPoint.config};
+    noOutlineTest.config.render.previewOutlineTest = false;
+    variants.push_back(noOutlineTest);
     ShotVariant resampling{"fixed, the distant light resampled (ReSTIR)", fixedPoint.config};
     resampling.config.render.previewResampling = true;
     variants.push_back(resampling);

@@ -659,7 +659,7 @@ Status ConfigReader::parseRender(const toml::table& t, RenderConfig& c,
              "photon_splat", "resolution_scale", "preview_fps", "denoise", "denoise_levels",
              "preview_accumulate", "preview_history_frames", "preview_object_samples",
              "preview_sample_clamp", "preview_hold_depth", "preview_follow",
-             "preview_resampling", "preview_phases"});
+             "preview_resampling", "preview_phases", "preview_outline_test"});
         !st)
         return st;
     // clang-format on
@@ -740,6 +740,9 @@ Status ConfigReader::parseRender(const toml::table& t, RenderConfig& c,
     Result<std::optional<bool>> phases = r_.boolean(t, "render", "preview_phases");
     if (!phases) return phases.error();
     c.previewPhases = phases->value_or(c.previewPhases);
+    Result<std::optional<bool>> outline = r_.boolean(t, "render", "preview_outline_test");
+    if (!outline) return outline.error();
+    c.previewOutlineTest = outline->value_or(c.previewOutlineTest);
     return {};
 }
 

@@ -212,6 +212,9 @@ struct RenderConfig {
     // While the held view keeps samples, each traced pixel's samples visit the output pixels of
     // its footprint by a phase schedule (RenderSettings::previewPhases); false: at random.
     bool previewPhases = true;
+    // While the camera holds, the held view's samples overrule the estimate's outline where
+    // their mask disagrees with it (RenderSettings::previewOutlineTest).
+    bool previewOutlineTest = true;
     // Caustics (render/photon_map.h): mode and photons per iteration, first radius, alpha.
     PhotonSettings photons;
 

@@ -208,7 +208,7 @@ Status Service::start() {
     };
     hooks.interrupt = &t.stopping;
     Result<std::unique_ptr<PipelineRenderer>> renderer =
-        PipelineRenderer::create(*t.gpu, *scene, config, hooks);
+        PipelineRenderer::create(*t.gpu, std::move(*scene), config, hooks);
     if (t.stopping.load()) return stopped;
     if (!renderer) return renderer.error();
     t.renderer = std::move(*renderer);

@@ -56,14 +56,38 @@ PipelineKey pipelineKey(std::span<const uint32_t> spirv, std::span<const Binding
     return key;
 }
 
-using PipelinesByKey =
-    std::unordered_map<PipelineKey, std::shared_ptr<const CompiledPipeline>, PipelineKeyHash>;
+// A compiled pipeline and when it was last asked for (a count of requests).
+struct KeptPipeline {
+    std::shared_ptr<const CompiledPipeline> pipeline;
+    uint64_t lastUse = 0;
+};
+using PipelinesByKey = std::unordered_map<PipelineKey, KeptPipeline, PipelineKeyHash>;
+
+// Pipelines no ComputePipeline uses that a context keeps, the most recently asked for: a
+// renderer's variants (environment, lights, photons on or off), so a service switching between
+// them, or made again, does not compile them again; bounded, so a long run does not keep every
+// variant it ever saw (each is the driver's machine code, megabytes on lavapipe).
+constexpr size_t kKeptUnused = 16;
+
+// Drops the least recently asked-for pipelines nothing uses, past kKeptUnused.
+void dropUnused(PipelinesByKey& mine) {
+    std::vector<std::pair<uint64_t, const PipelineKey*>> unused;
+    for (const auto& [key, kept] : mine)
+        if (kept.pipeline.use_count() == 1) unused.emplace_back(kept.lastUse, &key);
+    if (unused.size() <= kKeptUnused) return;
+    std::sort(unused.begin(), unused.end(),
+              [](const auto& a, const auto& b) { return a.first < b.first; });
+    std::vector<PipelineKey> dropped;
+    for (size_t i = 0; i + kKeptUnused < unused.size(); ++i) dropped.push_back(*unused[i].second);
+    for (const PipelineKey& key : dropped) mine.erase(key);
+}
 
 // Every context's compiled pipelines. Never destroyed: a context may go at exit, after static
 // destruction began (releaseCompiledPipelines then still finds this).
 struct CompiledPipelines {
     std::mutex mutex;
     std::map<const GpuContext*, PipelinesByKey> byContext;
+    uint64_t requests = 0;  // KeptPipeline::lastUse's clock
 };
 CompiledPipelines& compiledPipelines() {
     static CompiledPipelines* pipelines = new CompiledPipelines;
@@ -129,17 +153,32 @@ Result<std::shared_ptr<const CompiledPipeline>> compiledFor(
     {
         std::lock_guard lock(all.mutex);
         auto& mine = all.byContext[&ctx];
-        if (auto found = mine.find(key); found != mine.end()) return found->second;
+        if (auto found = mine.find(key); found != mine.end()) {
+            found->second.lastUse = ++all.requests;
+            return found->second.pipeline;
+        }
     }
     Result<std::shared_ptr<const CompiledPipeline>> made =
         compile(ctx, spirv, bindings, specConstants, label, specialise);
     if (!made) return made;
     std::lock_guard lock(all.mutex);
+    PipelinesByKey& mine = all.byContext[&ctx];
     // Another thread may have compiled the same meanwhile: one of the two is kept.
-    return all.byContext[&ctx].try_emplace(std::move(key), *made).first->second;
+    KeptPipeline& kept = mine.try_emplace(std::move(key), KeptPipeline{*made}).first->second;
+    kept.lastUse = ++all.requests;
+    std::shared_ptr<const CompiledPipeline> pipeline = kept.pipeline;  // in use from here on
+    dropUnused(mine);
+    return pipeline;
 }
 
 }  // namespace
+
+size_t compiledPipelinesKept(const GpuContext& ctx) {
+    CompiledPipelines& all = compiledPipelines();
+    std::lock_guard lock(all.mutex);
+    const auto mine = all.byContext.find(&ctx);
+    return mine == all.byContext.end() ? 0 : mine->second.size();
+}
 
 void releaseCompiledPipelines(const GpuContext& ctx) {
     PipelinesByKey released;
@@ -149,6 +188,10 @@ void releaseCompiledPipelines(const GpuContext& ctx) {
         released = std::move(mine->second);
         all.byContext.erase(mine);
     }
+    // A ComputePipeline still holding one would destroy it after the device: a bug.
+    for (const auto& [key, kept] : released)
+        if (kept.pipeline.use_count() > 1)
+            logError("Vulkan: a compute pipeline outlives its device's context");
 }
 
 Result<ComputePipeline> ComputePipeline::create(GpuContext& ctx, std::span<const uint32_t> spirv,

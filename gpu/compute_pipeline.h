@@ -94,5 +94,7 @@ private:
 // Destroys the pipelines `ctx` keeps for reuse (GpuContext's destructor, before the device goes;
 // every ComputePipeline of the context is gone by then).
 void releaseCompiledPipelines(const GpuContext& ctx);
+// How many compiled pipelines `ctx` keeps, in use or not (at most 16 not in use after a compile).
+size_t compiledPipelinesKept(const GpuContext& ctx);
 
 }  // namespace previs

@@ -68,9 +68,9 @@ public:
     void setStage(Stage* stage) { stage_ = stage; }
     Stage* stage() const { return stage_; }
     static constexpr std::chrono::minutes kCompileAllowance{10};
-    // Called after each pipeline this context compiles (ComputePipeline::create), on the
-    // compiling thread: whoever waits for a batch of compiles counts them (Renderer::create's
-    // progress). One listener at a time; empty: none.
+    // Called after each pipeline made on this context (ComputePipeline::create), compiled or
+    // reused from an earlier compile, on the making thread: whoever waits for a batch counts
+    // them (Renderer::create's progress). One listener at a time; empty: none.
     void setCompileListener(std::function<void()> listener) {
         compileListener_ = std::move(listener);
     }

@@ -39,9 +39,10 @@ static_assert(offsetof(GpuLight, cosInnerCone) == 44 && offsetof(EmissiveTriangl
 static_assert(sizeof(PhotonRecord) == 32 && offsetof(PhotonRecord, flags) == 12);
 static_assert(offsetof(PhotonRecord, power) == 16 && offsetof(PhotonRecord, direction) == 28);
 static_assert(sizeof(DenoiseParams) == 144 && offsetof(DenoiseParams, tanHalfFov) == 64);
-static_assert(sizeof(FilmParams) == 72 && offsetof(FilmParams, maskSharpness) == 24);
-static_assert(offsetof(FilmParams, viewLutSize) == 68);
-static_assert(offsetof(FilmParams, held) == 32 && offsetof(FilmParams, exposure) == 48);
+static_assert(sizeof(FilmParams) == 76 && offsetof(FilmParams, maskSharpness) == 24);
+static_assert(offsetof(FilmParams, viewLutSize) == 72 &&
+              offsetof(FilmParams, heldOutlineTest) == 40);
+static_assert(offsetof(FilmParams, held) == 32 && offsetof(FilmParams, exposure) == 52);
 static_assert(sizeof(ReprojectParams) == 96 && offsetof(ReprojectParams, width) == 80);
 static_assert(offsetof(DenoiseParams, width) == 80 && offsetof(DenoiseParams, sigmaMask) == 140);
 

@@ -218,6 +218,7 @@ shader::FilmParams DisplayPass::params(const Inputs& in, const UpsampleSettings&
     p.maskRangeScale = outline.rangeScale;
     p.held = in.held ? 1u : 0u;
     p.heldEstimateSamples = in.heldEstimateSamples;
+    p.heldOutlineTest = in.heldOutlineTest ? 1u : 0u;
     p.denoised = in.denoised ? 1u : 0u;
     p.toneOp = toneOp(settings.tone.op);
     const float exposure = std::exp2(settings.tone.exposureStops);

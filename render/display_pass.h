@@ -69,6 +69,7 @@ public:
         uint32_t traceHeight = 0;
         const GpuBuffer* held = nullptr;
         float heldEstimateSamples = 0.0f;  // what the estimate counts as beside them
+        bool heldOutlineTest = false;      // ... after the test of its outline (heldBlend)
         const GpuBuffer* guides = nullptr;
         GpuBuffer* signal = nullptr;
         const GpuBuffer* denoised = nullptr;

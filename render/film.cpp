@@ -51,6 +51,7 @@ Result<Film> Film::create(GpuContext& ctx, const RenderSettings& settings, uint3
     film.width_ = settings.width;
     film.height_ = settings.height;
     film.differential_ = settings.differential;
+    film.heldOutlineTest_ = settings.previewOutlineTest;
     film.maxStorageRange_ = ctx.physicalDevice().getProperties().limits.maxStorageBufferRange;
     if (settings.denoise) {
         auto denoiser = Denoiser::create(ctx, traceWidth, traceHeight, settings.denoiseSettings);
@@ -256,8 +257,8 @@ Result<ImageF> Film::heldComposite(const TracedBuffers& traced, const ImageF& es
     std::vector<glm::vec4> samples(size_t(width_) * height_ * 2);
     if (Status s = traced.held->download(samples.data(), samples.size() * sizeof(glm::vec4)); !s)
         return s.error();
-    return compositeOverPlate(
-        HeldView::blend(samples, upsample(estimate), HeldView::estimateSamples(frameSamples_)));
+    return compositeOverPlate(HeldView::blend(
+        samples, upsample(estimate), HeldView::estimateSamples(frameSamples_), testsHeldOutline()));
 }
 
 Result<Denoiser*> Film::denoiserFor(const TracedBuffers& traced) {
@@ -358,6 +359,7 @@ Result<DisplayImage> Film::display(const TracedBuffers& traced, bool denoised,
                            traced.width, traced.height};
     in.held = held_ && traced.held ? traced.held : nullptr;
     in.heldEstimateSamples = HeldView::estimateSamples(frameSamples_);
+    in.heldOutlineTest = testsHeldOutline();
     // Denoised, the filter's input is written and filtered on the device too: nothing is read
     // back but the frame.
     if (denoised) {

@@ -95,6 +95,9 @@ public:
     bool followView(uint32_t traceWidth, uint32_t traceHeight);
     // Frames the held view has kept since the camera last moved (0 while off or following).
     uint64_t heldFrames() const { return held_ ? held_->frames() : 0; }
+    // Whether the held view's blend tests the estimate's outline (HeldView::blend): while the
+    // camera holds, unless RenderSettings::previewOutlineTest is off.
+    bool testsHeldOutline() const { return heldOutlineTest_ && held_ && held_->testsOutline(); }
     // The camera the held view's samples are aligned with; none while it keeps none (they are
     // then to be cleared).
     std::optional<DenoiseCamera> heldCamera() const {
@@ -186,6 +189,7 @@ private:
     bool temporalDenoise_ = false;
     std::optional<HeldView> held_;
     uint32_t frameSamples_ = 1;                     // setFrameSamples
+    bool heldOutlineTest_ = true;                   // RenderSettings::previewOutlineTest
     std::optional<HeldReprojection> reprojection_;  // made when the camera first moves
     std::optional<DisplayPass> displayPass_;        // made with the first display()
 };

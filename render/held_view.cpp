@@ -12,12 +12,13 @@ std::optional<HeldView> HeldView::create(uint32_t width, uint32_t height, uint32
 }
 
 ImageF HeldView::blend(std::span<const glm::vec4> samples, const ImageF& estimate,
-                       float estimateSamples) {
+                       float estimateSamples, bool testOutline) {
     ImageF out = estimate;
     for (size_t i = 0; i < samples.size() / 2; ++i) {
         float* o = &out.pixels[i * 4];
-        const glm::vec4 v = shader::heldBlend(samples[2 * i], samples[2 * i + 1].x,
-                                              glm::vec4(o[0], o[1], o[2], o[3]), estimateSamples);
+        const glm::vec4 v =
+            shader::heldBlend(samples[2 * i], samples[2 * i + 1].x,
+                              glm::vec4(o[0], o[1], o[2], o[3]), estimateSamples, testOutline);
         for (int c = 0; c < 4; ++c) o[c] = v[c];
     }
     return out;

@@ -52,9 +52,17 @@ public:
     // `estimate` (RGBA at the output size: RGB the mean of Eq. 1's plate-free part, A the mask
     // M) averaged with the kept samples (per output pixel two vec4, as PV_BINDING_HELD_SAMPLES
     // holds them), the estimate counted as `estimateSamples` samples (shared/composite.h's
-    // heldBlend, which the display pass runs too).
+    // heldBlend, which the display pass runs too); `testOutline`: its weight after the test of
+    // its outline against the samples' mask (shared/composite.h's heldEstimateWeight).
     static ImageF blend(std::span<const glm::vec4> samples, const ImageF& estimate,
-                        float estimateSamples);
+                        float estimateSamples, bool testOutline);
+    // Whether the blend may test the estimate's outline: the camera holds, and long enough
+    // (kOutlineTestFrames) that the samples traced in their own output pixels outnumber those
+    // carried from a move; where those disagree with the estimate's mask, the estimate is wrong
+    // (while the camera moves, a moved sample that disagrees may be the stale one).
+    bool testsOutline() const { return !following_ && frames_ >= kOutlineTestFrames; }
+    // About 1/(1 − kFollowKeep): the frames' worth of samples a move leaves.
+    static constexpr uint64_t kOutlineTestFrames = 4;
     // What the estimate counts as: PV_HELD_ESTIMATE_SAMPLES_PER_SPP for each of the `spp`
     // samples a frame traces per traced pixel, which feed its history. Measured
     // (`previs bench --only shot`, BENCHMARKS.md): 16 at 1 spp, as the dial ships the demo; at

@@ -175,6 +175,10 @@ struct RenderSettings {
     // heldPhaseJitter) instead of at random: a held camera gives every output pixel its samples
     // within k² samples a traced pixel. Off: the sampler's jitter, as refinement's.
     bool previewPhases = true;
+    // While the camera holds, the held view tests the frame's estimate's outline against its
+    // samples' mask (shared/composite.h's heldEstimateWeight): where they disagree beyond the
+    // samples' spread, the estimate counts for less. Off: it counts the same everywhere.
+    bool previewOutlineTest = true;
     // The denoiser (render/denoiser.h): the first hit writes its guide buffers and
     // image(aov, true) filters. Off: neither the guides' code nor their memory is paid for.
     bool denoise = false;

@@ -19,7 +19,8 @@ public:
 
     // How often the renderer built its BVH and geometry buffers (1: only in create()).
     uint64_t sceneBuildCount() const;
-    // How often it compiled its pipelines: 1 after create() where the constants it predicts
+    // How often it made its pipelines (each compiled, or reused from the context's compile of
+    // the same: ComputePipeline::create): 1 after create() where the constants it predicts
     // before the BVH is built held, 2 where the uploaded scene (GpuScene) found otherwise.
     uint64_t pipelineCompileCount() const;
     // How often the GPU's origin moved since create() (Renderer::setCameraPose).

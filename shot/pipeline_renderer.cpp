@@ -109,8 +109,7 @@ void renderSize(const ServiceConfig& config, uint32_t& width, uint32_t& height) 
 }
 
 Result<std::unique_ptr<PipelineRenderer>> PipelineRenderer::create(
-    GpuContext& ctx, const Scene& scene, const ServiceConfig& config,
-    const PipelineStartHooks& hooks) {
+    GpuContext& ctx, Scene scene, const ServiceConfig& config, const PipelineStartHooks& hooks) {
     std::unique_ptr<PipelineRenderer> p(new PipelineRenderer());
     renderSize(config, p->width_, p->height_);
     PreviewSettings preview;
@@ -139,6 +138,7 @@ Result<std::unique_ptr<PipelineRenderer>> PipelineRenderer::create(
     settings.previewSampleClamp = float(config.render.previewSampleClamp);
     settings.previewResampling = config.render.previewResampling;
     settings.previewPhases = config.render.previewPhases;
+    settings.previewOutlineTest = config.render.previewOutlineTest;
     // Guides are written only when the denoiser may run: to filter, or to reproject preview's
     // accumulation.
     p->accumulate_ = config.render.previewAccumulate;
@@ -189,14 +189,8 @@ Result<std::unique_ptr<PipelineRenderer>> PipelineRenderer::create(
     // snapshot (lightNeutrally), then the captured one. The renderer is made with the stand-in
     // already in the scene, so the pipelines it compiles first are those frames render with; made
     // without, the first frame compiled them again (minutes on a slow CPU).
-    std::optional<Scene> lit;
-    if (config.fisheyeCamera && !scene.environment) {
-        lit.emplace(scene);
-        lit->environment = studioEnvironment();
-    }
-    Result<std::unique_ptr<Renderer>> renderer =
-        Renderer::create(ctx, lit ? *lit : scene, settings, compiling);
-    lit.reset();
+    if (config.fisheyeCamera && !scene.environment) scene.environment = studioEnvironment();
+    Result<std::unique_ptr<Renderer>> renderer = Renderer::create(ctx, scene, settings, compiling);
     if (!renderer) return makeError("{}: {}", config.scenePath, renderer.message());
     p->renderer_ = std::move(*renderer);
     if (hooks.interrupt) p->renderer_->setInterrupt(hooks.interrupt);

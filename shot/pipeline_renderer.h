@@ -42,7 +42,9 @@ struct PipelineStartHooks {
 
 class PipelineRenderer final : public ShotRenderer {
 public:
-    static Result<std::unique_ptr<PipelineRenderer>> create(GpuContext& ctx, const Scene& scene,
+    // `scene` by value: a fisheye-lit one gets the studio stand-in environment before the renderer
+    // is made (callers that are done with theirs move it in).
+    static Result<std::unique_ptr<PipelineRenderer>> create(GpuContext& ctx, Scene scene,
                                                             const ServiceConfig& config,
                                                             const PipelineStartHooks& hooks = {});
 

@@ -90,7 +90,7 @@ std::variant<std::unique_ptr<SessionReplay>, SessionReplay::OpenError> SessionRe
     if (!gpu) return bad(gpu.error(), 1);
     r->gpu_ = std::move(*gpu);
     Result<std::unique_ptr<PipelineRenderer>> renderer =
-        PipelineRenderer::create(*r->gpu_, *loaded, config);
+        PipelineRenderer::create(*r->gpu_, std::move(*loaded), config);
     if (!renderer) return bad(renderer.error());
     r->renderer_ = std::move(*renderer);
     Result<TrackingStage> tracking = TrackingStage::create(config);

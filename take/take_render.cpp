@@ -525,7 +525,7 @@ Result<std::unique_ptr<PipelineRenderer>> openRenderer(const TakeRenderOptions& 
     PipelineStartHooks hooks;
     hooks.stage = [&o](const std::string& what, size_t) { stageLine(what, o.quiet); };
     Result<std::unique_ptr<PipelineRenderer>> renderer =
-        PipelineRenderer::create(*gpu, *scene, config, hooks);
+        PipelineRenderer::create(*gpu, std::move(*scene), config, hooks);
     if (!renderer) return withKind(renderer.error(), Error::Kind::Config);
     return renderer;
 }

@@ -234,8 +234,9 @@ void resolveStage(uvec2 p) {
     uint i = p.y * params.width + p.x;
     vec3 plate = plateAt(p.x, p.y);
     vec4 estimate = upsampled(p, plate);
-    if (params.held != 0u) estimate = heldBlend(held[2u * i], held[2u * i + 1u].x, estimate,
-                                                  params.heldEstimateSamples);
+    if (params.held != 0u)
+        estimate = heldBlend(held[2u * i], held[2u * i + 1u].x, estimate,
+                             params.heldEstimateSamples, params.heldOutlineTest != 0u);
     vec3 composite = PV_COMPOSITE_SUM(estimate.rgb, estimate.a, 1.0, plate);
     bvec3 bad = bvec3(uvec3(isnan(composite)) | uvec3(isinf(composite)));
     composite = mix(max(composite, vec3(0.0)), vec3(0.0), bad) * params.exposure;

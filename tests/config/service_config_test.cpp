@@ -356,6 +356,9 @@ position_m = [1, 0, 0]
         {"render_preview_phases_type",
          minimal("", "[render]\npreview_phases = 1"),
          {"'render.preview_phases'", "true or false"}},
+        {"render_preview_outline_test_type",
+         minimal("", "[render]\npreview_outline_test = \"yes\""),
+         {"'render.preview_outline_test'", "true or false"}},
         {"render_denoise_levels_zero",
          minimal("", "[render]\ndenoise_levels = 0"),
          {"'render.denoise_levels' is 0"}},
@@ -514,6 +517,7 @@ denoise = "auto"
 denoise_levels = 3
 preview_resampling = true
 preview_phases = false
+preview_outline_test = false
 [refine]
 samples_per_step = 8
 max_samples = 0
@@ -553,6 +557,7 @@ loop = false
     EXPECT_EQ(c->render.denoiseLevels, 3u);
     EXPECT_TRUE(c->render.previewResampling);
     EXPECT_FALSE(c->render.previewPhases);
+    EXPECT_FALSE(c->render.previewOutlineTest);
     EXPECT_EQ(c->refine.samplesPerStep, 8u);
     EXPECT_EQ(c->refine.maxSamples, 0u);
     EXPECT_DOUBLE_EQ(c->refine.poseThresholdDeg, 1.5);

@@ -140,5 +140,24 @@ TEST(SpecialiseTest, PipelinesMadeAgainShareTheirCompileNotTheirBuffers) {
     EXPECT_EQ((*ctx)->validationErrorCount(), 0u);
 }
 
+// Pipelines nothing uses are kept for reuse, the 16 most recently asked for; those in use always.
+TEST(SpecialiseTest, AContextKeepsOnlyTheRecentPipelinesNothingUses) {
+    auto ctx = GpuContext::create({.validation = true, .deviceOverride = ""});
+    ASSERT_TRUE(ctx.ok()) << ctx.message();
+    const std::array<BindingKind, 1> kinds{BindingKind::StorageBuffer};
+    std::vector<ComputePipeline> inUse;
+    for (uint32_t offset = 0; offset < 24; ++offset) {
+        const std::array<uint32_t, 3> constants{0, 0, offset};
+        auto pipeline = ComputePipeline::create(**ctx, probeSpirv(), kinds, constants, "probe");
+        ASSERT_TRUE(pipeline.ok()) << pipeline.message();
+        if (offset < 4) inUse.push_back(std::move(*pipeline));
+    }
+    // The 4 in use, the last one made, and the 16 most recent of the 19 between, unused when it
+    // was compiled (the 3 oldest dropped then).
+    EXPECT_EQ(compiledPipelinesKept(**ctx), 21u);
+    inUse.clear();
+    EXPECT_EQ((*ctx)->validationErrorCount(), 0u);
+}
+
 }  // namespace
 }  // namespace previs

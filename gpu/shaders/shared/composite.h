@@ -19,11 +19,34 @@ PV_BEGIN
 // sample a frame traces per traced pixel (render/held_view.h says how it was measured).
 #define PV_HELD_ESTIMATE_SAMPLES_PER_SPP 16.0f
 
+// A held camera's test of the estimate's outline (FilmParams::heldOutlineTest): the kept
+// samples' mean mask against the estimate's M. The mask is a Bernoulli variable (a sample's
+// first hit is virtual or not), so its spread over `count` samples follows from the estimate's
+// own M, with no heavy tail to fool the test (radiance has them: render/held_view.h). Beyond
+// PV_HELD_MASK_SPREADS spreads the estimate's outline is wrong in this output pixel (one finer
+// than a traced pixel, which the upsampling blurred or steered aside), and the estimate counts
+// for less by the excess: the kept samples, traced in this very pixel, show the outline. The
+// variance has a floor (that of M = 0.05), so an estimate's M of exactly 0 or 1 is not taken
+// as certain: one sample alone discounts it to a fifth at most.
+#define PV_HELD_MASK_SPREADS 2.0f
+#define PV_HELD_MASK_VARIANCE_FLOOR 0.0475f
+PV_INLINE float heldEstimateWeight(float maskSum, float count, float estimateMask,
+                                   float estimateSamples) {
+    float p = clamp(estimateMask, 0.0f, 1.0f);
+    float spread = sqrt(max(p * (1.0f - p), PV_HELD_MASK_VARIANCE_FLOOR) / count);
+    float excess = clamp(abs(maskSum / count - p) - PV_HELD_MASK_SPREADS * spread, 0.0f, 1.0f);
+    return estimateSamples * (1.0f - excess) * (1.0f - excess);
+}
+
 // The held view's pixel: `estimate` (RGB the mean of Eq. 1's plate-free part, A the mask M),
-// counted as `estimateSamples` samples, averaged with `count` kept samples whose sum is `sum`.
-PV_INLINE vec4 heldBlend(vec4 sum, float count, vec4 estimate, float estimateSamples) {
+// counted as `estimateSamples` samples, averaged with `count` kept samples whose sum is `sum`;
+// `testOutline`: the estimate's weight after heldEstimateWeight's test.
+PV_INLINE vec4 heldBlend(vec4 sum, float count, vec4 estimate, float estimateSamples,
+                         bool testOutline) {
     if (count == 0.0f) return estimate;
-    return (sum + estimateSamples * estimate) / (count + estimateSamples);
+    float w = testOutline ? heldEstimateWeight(sum.w, count, estimate.w, estimateSamples)
+                          : estimateSamples;
+    return (sum + w * estimate) / (count + w);
 }
 
 // The joint bilateral upsampling's range kernel (render/upsample.h), as both sides evaluate it:
@@ -156,6 +179,7 @@ struct FilmParams {
     float maskRangeScale;
     uint held;      // 1: blend the held view's samples (PV_FILM_BINDING_HELD)
     float heldEstimateSamples;  // ... counting the estimate as this many (heldEstimateSamples)
+    uint heldOutlineTest;       // 1: ... after the test of its outline (heldEstimateWeight)
     // 1: the estimate is the denoiser's output (PV_FILM_BINDING_DENOISED): the filtered signal
     // and the mask's mean that goes with it (Denoiser::lastMask).
     uint denoised;

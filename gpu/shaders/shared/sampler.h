@@ -192,16 +192,16 @@ PV_INLINE vec4 sampleSet(uint generator, SampleKey k, uint set) {
 // and each row once, and any k² consecutive phases fill each cell once. A held camera then gives
 // every output pixel a sample within k² samples of its traced pixel (random jitter leaves
 // (1 − 1/k²)^(k²), about a third at k = 3, still without one), and the frames' samples spread
-// evenly over each output pixel. `offset` (a pixel's own, fixed while the view holds) starts
-// each traced pixel's cycle elsewhere, so a frame's sample still lies anywhere in its footprint:
-// over the offsets, `u` (uniform in [0, 1)²) gives a position uniform over the footprint, as the
-// sampler's own jitter does.
+// evenly over each output pixel. `offset` (a hash, a traced pixel's own) shifts its columns and
+// rows (a shift keeps the order Latin), so a frame's sample still lies anywhere in its
+// footprint: over the offsets, `u` (uniform in [0, 1)²) gives a position uniform over the
+// footprint, as the sampler's own jitter does.
 PV_INLINE vec2 heldPhaseJitter(uint phase, uint offset, uint k, vec2 u) {
-    uint cells = k * k;
-    uint p = (phase % cells + offset % cells) % cells;
-    uint column = p % k;
-    uint row = (column + p / k) % k;
-    return (vec2(float(column), float(row)) + u) / float(k);
+    uint p = phase % (k * k);
+    uint column = (p % k + offset % k) % k;
+    uint row = (p % k + p / k + (offset / k) % k) % k;
+    // Below 1: (2 + u) / 3 rounds to 1 for the largest u below 1 in float.
+    return min((vec2(float(column), float(row)) + u) / float(k), vec2(0.99999994f));
 }
 
 PV_END
