@@ -68,16 +68,6 @@ TEST(HeldPhaseJitter, TheJitterStaysInItsCellAndInThePixel) {
 constexpr uint32_t kOutputWidth = 96;
 constexpr uint32_t kOutputHeight = 72;
 
-// A real floor seen from above, all of the image.
-Scene realFloor() {
-    Scene s;
-    addQuad(s, glm::vec3(0.0f), glm::vec3(2.0f, 0.0f, 0.0f), glm::vec3(0.0f, 0.0f, -2.0f),
-            addMaterial(s, lambert(glm::vec3(0.5f))), /*real=*/true);
-    s.cameras.push_back(lookAt(glm::vec3(-0.5f, 1.5f, 0.0f), glm::vec3(-0.5f, 0.0f, 0.0f),
-                               glm::vec3(0.0f, 0.0f, -1.0f), glm::radians(40.0f)));
-    return s;
-}
-
 // A virtual ball of radius 0.4 seen from 3 m: its disc about 13 output pixels in radius.
 Scene virtualBall() {
     Scene s;
@@ -92,8 +82,9 @@ protected:
     // The held view's sample count per output pixel after `frames` held preview frames of `spp`
     // samples a traced pixel, traced at a third of the output's size, with `objectSamples` more
     // a frame per output pixel where the virtual objects are.
-    std::vector<float> samplesAfter(uint32_t frames, bool phases, const Scene& s = realFloor(),
-                                    uint32_t spp = 1, float objectSamples = 0.0f) {
+    std::vector<float> samplesAfter(uint32_t frames, bool phases,
+                                    const Scene& s = realFloorSeenFromAbove(), uint32_t spp = 1,
+                                    float objectSamples = 0.0f) {
         RenderSettings rs = renderSettings(kOutputWidth, kOutputHeight, 2);
         rs.objectSamplesPerOutputPixel = objectSamples;
         rs.resolutionScale = 1.0f / 3.0f;

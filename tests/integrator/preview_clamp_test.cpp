@@ -20,16 +20,6 @@ constexpr float kClamp = 4.0f;
 
 class PreviewClampTest : public GpuTest {
 protected:
-    // A grey floor (albedo 0.5), seen from 1.5 m straight above, all of the image.
-    static Scene floorSeenFromAbove() {
-        Scene s;
-        addQuad(s, glm::vec3(0.0f), glm::vec3(2.0f, 0.0f, 0.0f), glm::vec3(0.0f, 0.0f, -2.0f),
-                addMaterial(s, lambert(glm::vec3(0.5f))), /*real=*/true);
-        s.cameras.push_back(lookAt(glm::vec3(-0.5f, 1.5f, 0.0f), glm::vec3(-0.5f, 0.0f, 0.0f),
-                                   glm::vec3(0.0f, 0.0f, -1.0f), glm::radians(40.0f)));
-        return s;
-    }
-
     struct Frames {
         ImageF estimate;          // a preview frame's (traced at half the output's size)
         std::vector<float> held;  // the held view's samples' means per output pixel (red)
@@ -78,7 +68,7 @@ float brightest(std::span<const float> values) {
 // Under a uniform sky of 20 the floor's radiance is 0.5 × 20 = 10, over the clamp: its light
 // sampled at the first hit is direct, and the held view keeps it whole.
 TEST_F(PreviewClampTest, DirectLightBrighterThanTheClampComesThroughWhole) {
-    Scene scene = floorSeenFromAbove();
+    Scene scene = realFloorSeenFromAbove();
     scene.environment = uniformEnvironment(glm::vec3(20.0f));
     const Frames f = previewAndRefinement(scene, 16);
     // A uniform sky through a cosine lobe, sampled by the environment and the BSDF: each
@@ -93,7 +83,7 @@ TEST_F(PreviewClampTest, DirectLightBrighterThanTheClampComesThroughWhole) {
 // bounce, indirect, and every preview pixel stays within the clamp, while refinement's floor is
 // several times brighter.
 TEST_F(PreviewClampTest, IndirectLightIsBoundedByTheClamp) {
-    Scene scene = floorSeenFromAbove();
+    Scene scene = realFloorSeenFromAbove();
     addQuad(scene, glm::vec3(1.0f, 1.0f, 0.0f), glm::vec3(0.0f, 0.0f, 2.0f),
             glm::vec3(0.0f, 1.0f, 0.0f), addMaterial(scene, lambert(glm::vec3(0.8f))),
             /*real=*/true);

@@ -133,6 +133,15 @@ Camera lookAt(glm::vec3 eye, glm::vec3 target, glm::vec3 up, float fovYRad) {
     return c;
 }
 
+Scene realFloorSeenFromAbove() {
+    Scene s;
+    addQuad(s, glm::vec3(0.0f), glm::vec3(2.0f, 0.0f, 0.0f), glm::vec3(0.0f, 0.0f, -2.0f),
+            addMaterial(s, lambert(glm::vec3(0.5f))), /*real=*/true);
+    s.cameras.push_back(lookAt(glm::vec3(-0.5f, 1.5f, 0.0f), glm::vec3(-0.5f, 0.0f, 0.0f),
+                               glm::vec3(0.0f, 0.0f, -1.0f), glm::radians(40.0f)));
+    return s;
+}
+
 Scene ballOnRealFloor(glm::vec3 sky) {
     Scene s;
     const uint32_t floor = addMaterial(s, lambert(glm::vec3(0.5f)));

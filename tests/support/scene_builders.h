@@ -42,6 +42,9 @@ PunctualLight realSun(glm::vec3 direction, float irradiance);
 
 Camera lookAt(glm::vec3 eye, glm::vec3 target, glm::vec3 up, float fovYRad);
 
+// A real grey floor (albedo 0.5), 2 m square, seen from 1.5 m straight above: all of the image.
+Scene realFloorSeenFromAbove();
+
 // A virtual Lambertian ball on a real grey floor under a uniform sky of radiance `sky`, seen
 // from above and in front; the top rows of the image see the sky.
 Scene ballOnRealFloor(glm::vec3 sky);
