@@ -1282,8 +1282,9 @@ TEST(Previsd, SigintStopsFromRefinement) {
     ASSERT_TRUE(code) << "still running 30 s after SIGINT; its threads:\n"
                       << p.threads() << p.log();
     EXPECT_EQ(*code, 0) << p.log();
-    EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - stopAt).count(),
-              5.0);
+    // Its log names a thread that held the stop up over 1 s ("stop: the ... thread took").
+    EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - stopAt).count(), 5.0)
+        << p.log();
 }
 
 TEST(Previsd, SessionThatDoesNotLoopEndsTheService) {
