@@ -182,10 +182,18 @@ std::optional<std::string> AlsaCapture::failure() const {
 
 int64_t ChunkClock::stamp(int64_t measuredNs, int64_t frames) {
     int64_t t = measuredNs;
-    if (nextNs_ && std::abs(measuredNs - *nextNs_) < kResyncNs) {
+    if (nextNs_) {
         const int64_t error = measuredNs - *nextNs_;
-        t = *nextNs_ + (error > 0 ? error / kLateWeight : error / 2);
+        if (std::abs(error) < kResyncNs)
+            t = *nextNs_ + (error > 0 ? error / kLateWeight : error / 2);
+        // Far early is a misread delay, not lost samples (an overrun resets the clock): the
+        // samples follow on from the last chunk's.
+        else if (error < 0)
+            t = *nextNs_;
+        // Never before the last chunk: the chunks' order is the samples'.
+        t = std::max(t, *lastNs_ + 1);
     }
+    lastNs_ = t;
     nextNs_ = t + frames * 1'000'000'000 / sampleRate_;
     return t;
 }

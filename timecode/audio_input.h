@@ -36,11 +36,15 @@ public:
     explicit ChunkClock(int sampleRate) : sampleRate_(sampleRate) {}
     int64_t stamp(int64_t measuredNs, int64_t frames);
     // Samples were lost (an overrun): start over from the next measurement.
-    void reset() { nextNs_.reset(); }
+    void reset() {
+        nextNs_.reset();
+        lastNs_.reset();
+    }
 
 private:
     int sampleRate_;
     std::optional<int64_t> nextNs_;
+    std::optional<int64_t> lastNs_;
 };
 
 struct AlsaCaptureConfig {

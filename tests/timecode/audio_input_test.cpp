@@ -44,6 +44,20 @@ TEST(ChunkClock, FollowsTheCardThroughSchedulingJitter) {
     std::printf("chunk clock: worst error %.0f us after settling\n", worstUs);
 }
 
+// A chunk measured far early (the card's delay misread: CI's VM once stamped a chunk 10.5 ms
+// before its predicted time, before the one before it) follows on from the last chunk; a chunk
+// measured far late (a stall) starts the time line over there. The stamps always increase.
+TEST(ChunkClock, AChunkMeasuredFarEarlyNeverGoesBeforeTheLastOne) {
+    ChunkClock clock(48000);
+    const int64_t chunkNs = 10'000'000;
+    const int64_t first = clock.stamp(1'000'000'000, 480);
+    const int64_t second = clock.stamp(first + chunkNs - 10'500'000, 480);
+    EXPECT_EQ(second, first + chunkNs);
+    const int64_t third = clock.stamp(second + chunkNs + 50'000'000, 480);
+    EXPECT_EQ(third, second + chunkNs + 50'000'000);
+    EXPECT_GT(clock.stamp(third - 40'000'000, 480), third);
+}
+
 TEST(AudioFile, WavRoundTripDecodes) {
     const TimecodeRate rate = TimecodeRate::fps25();
     const LtcSignal signal = encodeLtc(*Timecode::parse("07:00:00:00", rate), 50);
