@@ -54,6 +54,14 @@ public:
                                            std::string_view key) const;
     Result<std::optional<bool>> boolean(const toml::table& table, std::string_view section,
                                         std::string_view key) const;
+    // A boolean, left as `value` when absent.
+    Status booleanIn(const toml::table& table, std::string_view section, std::string_view key,
+                     bool& value) const {
+        Result<std::optional<bool>> v = boolean(table, section, key);
+        if (!v) return v.error();
+        value = v->value_or(value);
+        return {};
+    }
     // An array of exactly `count` finite numbers (any number of them when `count` is 0).
     Result<std::optional<std::vector<double>>> numbers(const toml::table& table,
                                                        std::string_view section,

@@ -728,21 +728,14 @@ Status ConfigReader::parseRender(const toml::table& t, RenderConfig& c,
             r_.numberIn(t, "render", "preview_sample_clamp", c.previewSampleClamp, 0.0, 1e6);
         !st)
         return st;
-    Result<std::optional<bool>> holdDepth = r_.boolean(t, "render", "preview_hold_depth");
-    if (!holdDepth) return holdDepth.error();
-    c.previewHoldDepth = holdDepth->value_or(c.previewHoldDepth);
-    Result<std::optional<bool>> follow = r_.boolean(t, "render", "preview_follow");
-    if (!follow) return follow.error();
-    c.previewFollow = follow->value_or(c.previewFollow);
-    Result<std::optional<bool>> resampling = r_.boolean(t, "render", "preview_resampling");
-    if (!resampling) return resampling.error();
-    c.previewResampling = resampling->value_or(c.previewResampling);
-    Result<std::optional<bool>> phases = r_.boolean(t, "render", "preview_phases");
-    if (!phases) return phases.error();
-    c.previewPhases = phases->value_or(c.previewPhases);
-    Result<std::optional<bool>> outline = r_.boolean(t, "render", "preview_outline_test");
-    if (!outline) return outline.error();
-    c.previewOutlineTest = outline->value_or(c.previewOutlineTest);
+    if (Status st = r_.booleanIn(t, "render", "preview_hold_depth", c.previewHoldDepth); !st)
+        return st;
+    if (Status st = r_.booleanIn(t, "render", "preview_follow", c.previewFollow); !st) return st;
+    if (Status st = r_.booleanIn(t, "render", "preview_resampling", c.previewResampling); !st)
+        return st;
+    if (Status st = r_.booleanIn(t, "render", "preview_phases", c.previewPhases); !st) return st;
+    if (Status st = r_.booleanIn(t, "render", "preview_outline_test", c.previewOutlineTest); !st)
+        return st;
     return {};
 }
 
