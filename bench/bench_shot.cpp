@@ -338,6 +338,69 @@ void printTable(const std::vector<VariantResult>& results, const char* title,
     std::fflush(stdout);
 }
 
+// `base` with one change: a row of the ablation.
+ShotVariant changed(std::string name, const ServiceConfig& base,
+                    const std::function<void(ServiceConfig&)>& change) {
+    ShotVariant v{std::move(name), base};
+    change(v.config);
+    return v;
+}
+
+// The rows: as shipped, the same preview at a fixed point, and that point with one part of the
+// preview off or changed at a time.
+std::vector<ShotVariant> shotVariants(const ServiceConfig& shipped) {
+    // The dial times this machine, so its point differs between runs on a loaded one: the same
+    // preview at its usual point, fixed, is comparable from run to run.
+    const ShotVariant fixed =
+        changed("shipped, fixed at 1/3, 4 spp, depth 2, 2 levels", shipped, [](ServiceConfig& c) {
+            c.render.previewFps = 0.0;
+            c.render.resolutionScale = 1.0f / 3.0f;
+            c.liveRender.samplesPerFrame = 4;
+            c.render.previewMaxDepth = 2;
+            c.render.denoise = "on";
+            c.render.denoiseLevels = 2;
+        });
+    // The lighting as estimated lights over a residual map ([lighting] mode = "lights"), where
+    // one light sample picks a light uniformly.
+    const ShotVariant lights =
+        changed("fixed, estimated lights", fixed.config,
+                [](ServiceConfig& c) { c.lighting.mode = LightingMode::Lights; });
+    const ShotVariant noClamp =
+        changed("fixed, samples not clamped", fixed.config,
+                [](ServiceConfig& c) { c.render.previewSampleClamp = 0.0; });
+    const auto noObjectSamples = [](ServiceConfig& c) { c.render.previewObjectSamples = 0.0; };
+    const auto resampled = [](ServiceConfig& c) { c.render.previewResampling = true; };
+    return {
+        ShotVariant{"as shipped", shipped},
+        fixed,
+        changed("fixed, the hold at depth 2", fixed.config,
+                [](ServiceConfig& c) { c.render.previewHoldDepth = false; }),
+        changed("fixed, the held view not following the camera", fixed.config,
+                [](ServiceConfig& c) { c.render.previewFollow = false; }),
+        changed("fixed, held samples at random places (no phase schedule)", fixed.config,
+                [](ServiceConfig& c) { c.render.previewPhases = false; }),
+        changed("fixed, no test of the estimate's outline", fixed.config,
+                [](ServiceConfig& c) { c.render.previewOutlineTest = false; }),
+        changed("fixed, the distant light resampled (ReSTIR)", fixed.config, resampled),
+        lights,
+        changed("fixed, estimated lights, resampled", lights.config, resampled),
+        noClamp,
+        changed("fixed, no samples added at the objects", fixed.config, noObjectSamples),
+        changed("fixed, neither", noClamp.config, noObjectSamples),
+        // Before polished metal and the environment's lamps carried caustics by photons, the
+        // demo ran none: the chrome ball's caustic of the softbox was the path tracer's.
+        changed("fixed, photons off", fixed.config,
+                [](ServiceConfig& c) { c.render.photons.mode = PhotonMode::Off; }),
+        changed("shipped, dial off", shipped, [](ServiceConfig& c) { c.render.previewFps = 0.0; }),
+        changed("fixed sequence (the paper), no denoiser", shipped,
+                [](ServiceConfig& c) {
+                    c.render.previewFps = 0.0;
+                    c.render.previewAccumulate = false;
+                    c.render.denoise = "off";
+                }),
+    };
+}
+
 }  // namespace
 
 int runShotBench(const ShotBenchOptions& o) {
@@ -348,64 +411,7 @@ int runShotBench(const ShotBenchOptions& o) {
         logError("{}", shipped.message());
         return 2;
     }
-    std::vector<ShotVariant> variants;
-    variants.push_back({"as shipped", *shipped});
-    // The dial times this machine, so its point differs between runs on a loaded one: the same
-    // preview at its usual point, fixed, is comparable from run to run.
-    ShotVariant fixedPoint{"shipped, fixed at 1/3, 4 spp, depth 2, 2 levels", *shipped};
-    fixedPoint.config.render.previewFps = 0.0;
-    fixedPoint.config.render.resolutionScale = 1.0f / 3.0f;
-    fixedPoint.config.liveRender.samplesPerFrame = 4;
-    fixedPoint.config.render.previewMaxDepth = 2;
-    fixedPoint.config.render.denoise = "on";
-    fixedPoint.config.render.denoiseLevels = 2;
-    variants.push_back(fixedPoint);
-    ShotVariant holdAsMoving{"fixed, the hold at depth 2", fixedPoint.config};
-    holdAsMoving.config.render.previewHoldDepth = false;
-    variants.push_back(holdAsMoving);
-    ShotVariant noFollow{"fixed, the held view not following the camera", fixedPoint.config};
-    noFollow.config.render.previewFollow = false;
-    variants.push_back(noFollow);
-    ShotVariant randomPlaces{"fixed, held samples at random places (no phase schedule)",
-                             fixedPoint.config};
-    randomPlaces.config.render.previewPhases = false;
-    variants.push_back(randomPlaces);
-    ShotVariant noOutlineTest{"fixed, no test of the estimate's outline", fixedPoint.config};
-    noOutlineTest.config.render.previewOutlineTest = false;
-    variants.push_back(noOutlineTest);
-    ShotVariant resampling{"fixed, the distant light resampled (ReSTIR)", fixedPoint.config};
-    resampling.config.render.previewResampling = true;
-    variants.push_back(resampling);
-    // The lighting as estimated lights over a residual map ([lighting] mode = "lights"), where
-    // one light sample picks a light uniformly, with and without resampling.
-    ShotVariant lights{"fixed, estimated lights", fixedPoint.config};
-    lights.config.lighting.mode = LightingMode::Lights;
-    variants.push_back(lights);
-    ShotVariant lightsResampled{"fixed, estimated lights, resampled", lights.config};
-    lightsResampled.config.render.previewResampling = true;
-    variants.push_back(lightsResampled);
-    ShotVariant noClamp{"fixed, samples not clamped", fixedPoint.config};
-    noClamp.config.render.previewSampleClamp = 0.0;
-    variants.push_back(noClamp);
-    ShotVariant noObjectSamples{"fixed, no samples added at the objects", fixedPoint.config};
-    noObjectSamples.config.render.previewObjectSamples = 0.0;
-    variants.push_back(noObjectSamples);
-    ShotVariant neither{"fixed, neither", noClamp.config};
-    neither.config.render.previewObjectSamples = 0.0;
-    variants.push_back(neither);
-    // Before polished metal and the environment's lamps carried caustics by photons, the demo
-    // ran none: the chrome ball's caustic of the softbox was the path tracer's (then clamped).
-    ShotVariant noPhotons{"fixed, photons off", fixedPoint.config};
-    noPhotons.config.render.photons.mode = PhotonMode::Off;
-    variants.push_back(noPhotons);
-    ShotVariant noDial{"shipped, dial off", *shipped};
-    noDial.config.render.previewFps = 0.0;
-    variants.push_back(noDial);
-    ShotVariant paper{"fixed sequence (the paper), no denoiser", *shipped};
-    paper.config.render.previewFps = 0.0;
-    paper.config.render.previewAccumulate = false;
-    paper.config.render.denoise = "off";
-    variants.push_back(paper);
+    const std::vector<ShotVariant> variants = shotVariants(*shipped);
 
     // A cache makes the deep reference free after the first run, quick or not.
     const uint32_t spp = o.quick && o.referenceCache.empty() ? 64 : o.referenceSpp;

@@ -4,7 +4,7 @@
 
 #include "gpu/shaders/shared/composite.h"
 #include "gpu/shaders/shared/denoise.h"
-#include "gpu/shaders/shared/held_reprojection.h"
+#include "gpu/shaders/shared/held_reprojection_params.h"
 #include "gpu/shaders/shared/photon_records.h"
 #include "gpu/shaders/shared/scene_types.h"
 

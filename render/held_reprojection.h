@@ -16,7 +16,7 @@
 #include "gpu/buffer.h"
 #include "gpu/compute_pipeline.h"
 #include "gpu/context.h"
-#include "gpu/shaders/shared/held_reprojection.h"
+#include "gpu/shaders/shared/held_reprojection_params.h"
 #include "render/denoiser.h"
 
 namespace previs {

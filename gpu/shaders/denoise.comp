@@ -16,7 +16,7 @@
 #extension GL_GOOGLE_include_directive : require
 
 #include "gpu/shaders/shared/denoise.h"
-#include "gpu/shaders/shared/photon_records.h"
+#include "gpu/shaders/shared/octahedral.h"
 #include "gpu/shaders/shared/sampling.h"
 
 layout(constant_id = 0) const uint kStage = PV_DENOISE_STAGE_PREPARE;

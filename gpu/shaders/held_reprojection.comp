@@ -9,7 +9,7 @@
 #extension GL_EXT_scalar_block_layout : require
 #extension GL_GOOGLE_include_directive : require
 
-#include "gpu/shaders/shared/held_reprojection.h"
+#include "gpu/shaders/shared/held_reprojection_params.h"
 
 layout(constant_id = 0) const uint kStage = PV_REPROJECT_STAGE_MOVE;
 layout(local_size_x = PV_REPROJECT_GROUP, local_size_y = PV_REPROJECT_GROUP) in;
@@ -44,5 +44,5 @@ void main() {
     if (nearest[j] != bits) return;
     float kept = counts.x * params.keep;
     to[2u * j] = from[2u * i] * params.keep;
-    to[2u * j + 1u] = vec4(kept, landing.z * kept, 0.0, 0.0);
+    to[2u * j + 1u] = vec4(kept, landing.z * kept, counts.z, PV_HELD_MOVED);
 }

@@ -28,6 +28,7 @@ layout(binding = PV_BINDING_HELD_SAMPLES, scalar) buffer HeldSamples { vec4 held
 
 #include "gpu/shaders/shared/photon_records.h"
 #include "gpu/shaders/shared/denoise.h"
+#include "gpu/shaders/shared/held_reprojection_params.h"
 
 // What the camera ray's first hit shows the denoiser (beginPath and tracePaths set them where
 // kDenoiseGuides).
@@ -42,6 +43,9 @@ bool gFirstHitReal;
 // miss): the held view's samples carry it, so that they can follow a moving camera
 // (render/held_reprojection.h).
 float gFirstHitDistanceM;
+// ... and its geometric normal, facing the camera (0 on a miss): the held view's samples keep the
+// last one, which tells a moved history whether the new camera sees the same surface there.
+vec3 gFirstHitNormal;
 // The traced pixel this invocation traces.
 uvec2 gPixel;
 
@@ -565,8 +569,18 @@ void addHeldSample(uvec2 pixel, vec3 composite, float mask) {
     uvec2 owner = min(uvec2((vec2(at) + 0.5) / scale), uvec2(params.width, params.height) - 1u);
     if (owner != pixel) return;
     uint i = 2u * (at.y * size.x + at.x);
-    heldSamples[i] += vec4(composite, mask);
-    heldSamples[i + 1u].xy += vec2(1.0, gFirstHitDistanceM);
+    vec4 sums = heldSamples[i];
+    vec4 counts = heldSamples[i + 1u];
+    // Samples moved from the last camera are kept only where this one's first sample meets their
+    // surface (shared/held_reprojection_params.h); the rest of its frame's samples add to them.
+    if (counts.w == PV_HELD_MOVED &&
+        !heldHistoryAgrees(sums, counts, gFirstHitDistanceM, gFirstHitNormal, mask)) {
+        sums = vec4(0.0);
+        counts = vec4(0.0);
+    }
+    heldSamples[i] = sums + vec4(composite, mask);
+    heldSamples[i + 1u] = vec4(counts.x + 1.0, counts.y + gFirstHitDistanceM,
+                               heldNormalCode(gFirstHitNormal), 0.0);
 }
 
 // Adds sample `sampleIndex`'s radiances to the pixel's sums; `nonFiniteRay`: one of its rays had
@@ -690,6 +704,7 @@ void beginPath(uvec2 pixel, uint pixelIndex, uint sampleIndex, SampleKey key, ou
     firstHitVirtual = false;
     gFirstHitReal = false;
     gFirstHitDistanceM = PV_GUIDE_MISS_DEPTH_M;
+    gFirstHitNormal = vec3(0.0);
     if (kDenoiseGuides) {
         gGuideAlbedo = vec3(1.0);
         gGuideNormal = -st.ray.direction;
@@ -824,6 +839,7 @@ bool extendPath(SampleKey key, inout PathState st, inout uint mode, inout vec3 l
         return true;
     }
     Surface s = surfaceAt(st.ray, hit);
+    if (st.depth == 0u && mode != MODE_REAL) gFirstHitNormal = s.geometricNormal;
     GpuMaterial m = materialAt(s.material);
     if (kHasTransmission && !s.frontFace && maxComponent(m.attenuation) > 0.0) {
         // Beer–Lambert (KHR_materials_volume): the segment just travelled ran inside

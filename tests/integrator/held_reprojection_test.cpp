@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <glm/gtc/matrix_transform.hpp>
 #include <limits>
 
@@ -109,7 +110,7 @@ std::vector<glm::vec4> moveOnHost(const std::vector<glm::vec4>& from,
         if (!(l.z > 0.0f) || l.z != nearest[at(l)]) continue;
         const float kept = from[2 * i + 1].x * p.keep;
         to[2 * at(l)] = from[2 * i] * p.keep;
-        to[2 * at(l) + 1] = glm::vec4(kept, l.z * kept, 0.0f, 0.0f);
+        to[2 * at(l) + 1] = glm::vec4(kept, l.z * kept, from[2 * i + 1].z, PV_HELD_MOVED);
         ++moved;
     }
     hidden = landed - moved;
@@ -246,6 +247,108 @@ TEST_F(HeldReprojectionTest, SamplesMovedWithTheCameraAgreeWithSamplesTracedTher
     }
     EXPECT_LT(after, before * HeldView::kFollowKeep * 1.001);
     EXPECT_GT(after, before * HeldView::kFollowKeep * 0.8);
+}
+
+TEST(HeldNormalCode, KeepsAUnitNormalWithinATenthOfADegree) {
+    EXPECT_EQ(shader::heldNormalCode(glm::vec3(0.0f)), 0.0f);
+    EXPECT_EQ(shader::heldNormalOf(0.0f), glm::vec3(0.0f));
+    for (int i = 0; i < 2000; ++i) {
+        // A spiral over the sphere, the poles and the octahedron's folds included.
+        const float z = 1.0f - 2.0f * (float(i) + 0.5f) / 2000.0f;
+        const float phi = 2.399963f * float(i);
+        const float r = std::sqrt(1.0f - z * z);
+        const glm::vec3 n(r * std::cos(phi), r * std::sin(phi), z);
+        const float code = shader::heldNormalCode(n);
+        EXPECT_EQ(code, std::floor(code)) << "an integer a float holds exactly";
+        EXPECT_LE(code, 16777216.0f);
+        const float cosine = glm::dot(shader::heldNormalOf(code), n);
+        EXPECT_GT(cosine, std::cos(glm::radians(0.1f))) << i;
+    }
+}
+
+// A history of 4 samples 2 m away on an upward-facing real surface: one more sample of that
+// surface agrees; one of another surface (nearer, turned, or virtual) does not.
+TEST(HeldHistoryAgrees, KeepsTheSameSurfaceAndDropsAnother) {
+    const glm::vec3 up(0.0f, 1.0f, 0.0f);
+    const glm::vec4 sums(1.0f, 1.0f, 1.0f, 0.0f);
+    const glm::vec4 counts(4.0f, 8.0f, shader::heldNormalCode(up), PV_HELD_MOVED);
+    const glm::vec3 tilted10(std::sin(glm::radians(10.0f)), std::cos(glm::radians(10.0f)), 0.0f);
+    const glm::vec3 tilted40(std::sin(glm::radians(40.0f)), std::cos(glm::radians(40.0f)), 0.0f);
+    EXPECT_TRUE(shader::heldHistoryAgrees(sums, counts, 2.05f, tilted10, 0.0f));
+    EXPECT_FALSE(shader::heldHistoryAgrees(sums, counts, 1.8f, up, 0.0f)) << "nearer";
+    EXPECT_FALSE(shader::heldHistoryAgrees(sums, counts, 2.3f, up, 0.0f)) << "farther";
+    EXPECT_FALSE(shader::heldHistoryAgrees(sums, counts, 2.0f, tilted40, 0.0f)) << "turned";
+    EXPECT_FALSE(shader::heldHistoryAgrees(sums, counts, 2.0f, up, 1.0f)) << "virtual";
+    // A mixed outline's history (half virtual) agrees with either side's mask.
+    const glm::vec4 mixed(1.0f, 1.0f, 1.0f, 2.0f);
+    EXPECT_TRUE(shader::heldHistoryAgrees(mixed, counts, 2.0f, up, 1.0f));
+    EXPECT_TRUE(shader::heldHistoryAgrees(mixed, counts, 2.0f, up, 0.0f));
+    // Without a normal on either side (refinement's seed; a miss) only distance and mask count.
+    const glm::vec4 noNormal(4.0f, 8.0f, 0.0f, PV_HELD_MOVED);
+    EXPECT_TRUE(shader::heldHistoryAgrees(sums, noNormal, 2.0f, tilted40, 0.0f));
+    EXPECT_TRUE(shader::heldHistoryAgrees(sums, counts, 2.0f, glm::vec3(0.0f), 0.0f));
+    EXPECT_TRUE(shader::heldHistoryAgrees(sums, glm::vec4(0.0f), 9.0f, up, 1.0f)) << "empty";
+}
+
+// The held view's history after a move is kept only where the new camera's first sample in a
+// pixel meets the same surface (SVGF's temporal test for the output-resolution history): seeded
+// with a hold's own samples and moved (in place), it is kept; altered to say another surface
+// (nearer, turned, or the virtual mask flipped), one frame from the same camera drops it.
+TEST_F(HeldReprojectionTest, AMovedHistoryIsKeptOnlyWhereTheNewCameraMeetsItsSurface) {
+    RenderSettings rs = renderSettings(64, 64, 2);
+    rs.differential = true;
+    rs.resolutionScale = 0.5f;
+    auto r = Renderer::create(ctx(), ballOnRealFloor(glm::vec3(1.0f)), rs);
+    ASSERT_TRUE(r.ok()) << r.message();
+    Renderer& renderer = **r;
+    ASSERT_TRUE(renderer.holdView(true).ok());
+    for (uint64_t frame = 1; frame <= 4; ++frame)
+        ASSERT_TRUE(renderer.renderPreviewFrame(8, frame).ok());
+    Result<std::vector<glm::vec4>> held = renderer.heldSamples();
+    ASSERT_TRUE(held.ok()) << held.message();
+    const std::vector<glm::vec4> traced = *held;
+    // The share of the `tested` pixels (by their seeded samples) whose history the next frame
+    // kept, among those its samples reached.
+    auto keptShare = [&](const std::vector<glm::vec4>& seed, auto tested) {
+        EXPECT_TRUE(renderer.holdView(false).ok());
+        EXPECT_TRUE(renderer.holdView(true).ok());
+        EXPECT_TRUE(renderer.seedHeldView(seed).ok());
+        EXPECT_TRUE(renderer.followView().ok());
+        EXPECT_TRUE(renderer.renderPreviewFrame(1, 5).ok());
+        Result<std::vector<glm::vec4>> after = renderer.heldSamples();
+        EXPECT_TRUE(after.ok());
+        size_t reached = 0, kept = 0;
+        for (size_t i = 0; after && i < after->size() / 2; ++i) {
+            const glm::vec4 c = (*after)[2 * i + 1];
+            if (!(seed[2 * i + 1].x > 0.0f) || !tested(seed[2 * i], seed[2 * i + 1]) ||
+                c.w == PV_HELD_MOVED)
+                continue;
+            ++reached;
+            // Kept: kFollowKeep of the seed's samples plus this frame's; dropped: its alone.
+            kept += c.x >= HeldView::kFollowKeep * seed[2 * i + 1].x ? 1 : 0;
+        }
+        EXPECT_GT(reached, traced.size() / 2 / 10);  // a quarter at 1 spp, less a filter
+        return reached > 0 ? double(kept) / double(reached) : -1.0;
+    };
+    auto any = [](glm::vec4, glm::vec4) { return true; };
+    const double asTraced = keptShare(traced, any);
+    std::printf("the hold's own samples kept in %.1f %% of the pixels reached\n", 100.0 * asTraced);
+    EXPECT_GT(asTraced, 0.95) << "only outline pixels may lose theirs";
+
+    std::vector<glm::vec4> nearer = traced, turned = traced, flipped = traced;
+    for (size_t i = 0; i < traced.size() / 2; ++i) {
+        nearer[2 * i + 1].y *= 0.8f;
+        const glm::vec3 n = shader::heldNormalOf(traced[2 * i + 1].z);
+        if (n != glm::vec3(0.0f))  // a normal at right angles to it
+            turned[2 * i + 1].z =
+                shader::heldNormalCode(glm::normalize(glm::cross(n, glm::vec3(0.3f, 0.5f, 0.8f))));
+        flipped[2 * i].w = traced[2 * i + 1].x - traced[2 * i].w;
+    }
+    auto hasNormal = [](glm::vec4, glm::vec4 c) { return c.z > 0.0f; };
+    auto pure = [](glm::vec4 s, glm::vec4 c) { return s.w == 0.0f || s.w == c.x; };
+    EXPECT_LT(keptShare(nearer, any), 0.01);
+    EXPECT_LT(keptShare(turned, hasNormal), 0.01);
+    EXPECT_LT(keptShare(flipped, pure), 0.01);
 }
 
 }  // namespace

@@ -32,6 +32,7 @@
 #ifndef PREVIS_SHARED_PHOTON_RECORDS_H
 #define PREVIS_SHARED_PHOTON_RECORDS_H
 
+#include "gpu/shaders/shared/octahedral.h"
 #include "gpu/shaders/shared/prelude.h"
 
 PV_BEGIN
@@ -125,28 +126,6 @@ PV_INLINE uint photonBucket(ivec3 c) {
     uvec3 place = u - block * 3u;
     uint h = (block.x * 73856093u) ^ (block.y * 19349663u) ^ (block.z * 83492791u);
     return (h % PV_PHOTON_PARENT_BUCKETS) * 27u + place.x + 3u * place.y + 9u * place.z;
-}
-
-// Octahedral map of a unit vector to [−1, 1]² (Cigolle et al. 2014) and back.
-PV_INLINE vec2 octahedralEncode(vec3 v) {
-    vec3 a = abs(v);
-    vec2 p = vec2(v.x, v.y) / (a.x + a.y + a.z);
-    if (v.z < 0.0f) {
-        vec2 s = vec2(p.x >= 0.0f ? 1.0f : -1.0f, p.y >= 0.0f ? 1.0f : -1.0f);
-        p = (vec2(1.0f) - abs(vec2(p.y, p.x))) * s;
-    }
-    return p;
-}
-
-PV_INLINE vec3 octahedralDecode(vec2 p) {
-    vec3 v = vec3(p.x, p.y, 1.0f - abs(p.x) - abs(p.y));
-    if (v.z < 0.0f) {
-        vec2 s = vec2(v.x >= 0.0f ? 1.0f : -1.0f, v.y >= 0.0f ? 1.0f : -1.0f);
-        vec2 xy = (vec2(1.0f) - abs(vec2(v.y, v.x))) * s;
-        v.x = xy.x;
-        v.y = xy.y;
-    }
-    return normalize(v);
 }
 
 // The even bits of v, packed: one coordinate of a Morton (Z-order) index.

@@ -68,8 +68,10 @@ PV_BEGIN
 #define PV_BINDING_PHOTON_SPLATS 28
 // The held view's samples at the output's resolution (FrameParams::heldWidth): per output pixel
 // two vec4, (Σ of Eq. 1's plate-free part, Σ M) and (the samples, Σ their first hit's distance in
-// metres, 0, 0), summed over the frames the view holds. Each output pixel is written only by the traced pixel whose footprint
-// holds its centre: no atomics. A 16-byte placeholder where no held view is possible.
+// metres, the last one's normal, whether they were moved: shared/held_reprojection_params.h),
+// summed over the frames the view holds. Each output pixel is written only by the traced pixel
+// whose footprint holds its centre: no atomics. A 16-byte placeholder where no held view is
+// possible.
 #define PV_BINDING_HELD_SAMPLES 29
 // The held view's clamp of a whole sample over its clamp of the indirect light
 // (FrameParams::heldClamp).
