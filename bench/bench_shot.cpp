@@ -1,6 +1,7 @@
 #include "bench/bench_shot.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -8,6 +9,7 @@
 #include <fstream>
 #include <functional>
 #include <iterator>
+#include <limits>
 #include <map>
 #include <variant>
 
@@ -215,6 +217,7 @@ Status holdLonger(SessionReplay& replay, const TrackedFrame& still, const Refere
         if (Status s = measureRow(row, *added, refs, kStillLast, lightingSequence(replay)); !s)
             return s;
         row.extraHold = true;
+        if (held == holdTo) row.added = std::move(*added);  // for printErrorBreakdown
         benchProgress("held {}: {:.0f} ms", held, row.ms);
         rows.push_back(std::move(row));
     }
@@ -261,7 +264,7 @@ Result<std::vector<FrameRow>> run(const ShotVariant& v, const std::string& sessi
 double flicker(const std::vector<FrameRow>& rows, const ImageF& ref) {
     std::vector<const ImageF*> held;
     for (auto it = rows.rbegin(); it != rows.rend() && held.size() < kFlickerFrames; ++it)
-        if (!it->added.pixels.empty()) held.push_back(&it->added);
+        if (!it->extraHold && !it->added.pixels.empty()) held.push_back(&it->added);
     if (held.size() < 2) return std::nan("");
     double variance = 0.0, signal = 0.0;
     const size_t n = ref.pixels.size();
@@ -274,6 +277,51 @@ double flicker(const std::vector<FrameRow>& rows, const ImageF& ref) {
         signal += double(ref.pixels[i]) * ref.pixels[i];
     }
     return signal > 0.0 ? std::sqrt(variance / signal) : std::nan("");
+}
+
+// Where a held frame's error lies: its pixels by what the references add to the plate around
+// them (their 5×5 mean), each class's share of the pixels and of the error against the truth
+// (compareWithPairedReference's terms: the references' noise taken out), and the frame's mean
+// over the references' there (below 1: too dark, e.g. light clamped away).
+Status printErrorBreakdown(const std::string& name, const ImageF& added, const ImageF& ref,
+                           const ImageF& twin) {
+    Result<std::vector<PairedPixel>> errors = pairedPixelErrors(added, ref, twin);
+    if (!errors) return errors.error();
+    struct Class {
+        const char* label;
+        double below;  // the references' local mean under this
+        double pixels = 0.0, error = 0.0, frame = 0.0, truth = 0.0;
+    };
+    std::array<Class, 5> classes{{{"darkens it (below −0.01)", -0.01},
+                                  {"about nothing (±0.01)", 0.01},
+                                  {"adds 0.01–0.1", 0.1},
+                                  {"adds 0.1–1", 1.0},
+                                  {"adds over 1", std::numeric_limits<double>::infinity()}}};
+    double total = 0.0;
+    for (size_t i = 0; i < errors->size(); ++i) {
+        const PairedPixel& p = (*errors)[i];
+        Class& c = *std::find_if(classes.begin(), classes.end(),
+                                 [&](const Class& k) { return p.localMean < k.below; });
+        c.pixels += 1.0;
+        c.error += p.error;
+        total += p.error;
+        for (uint32_t k = 0; k < ref.channels; ++k) {
+            const size_t v = i * ref.channels + k;
+            c.frame += added.pixels[v];
+            c.truth += 0.5 * (double(ref.pixels[v]) + double(twin.pixels[v]));
+        }
+    }
+    std::printf(
+        "\nWhere %s's held %zu error lies, by what the references add to the plate "
+        "around a pixel:\n\n| pixels where the references | share of pixels | share of "
+        "the error | frame / references |\n|---|---|---|---|\n",
+        name.c_str(), kLongHold);
+    for (const Class& c : classes)
+        std::printf("| %s | %.1f %% | %.1f %% | %.2f |\n", c.label,
+                    100.0 * c.pixels / double(errors->size()),
+                    total > 0.0 ? 100.0 * c.error / total : 0.0,
+                    c.truth != 0.0 ? c.frame / c.truth : std::nan(""));
+    return {};
 }
 
 double upperMedian(std::vector<double> v) {
@@ -487,6 +535,13 @@ int runShotBench(const ShotBenchOptions& o) {
             "another random sequence scores √relMSE %.3f (the worst %.1f %% left out), "
             "%.3f (every pixel) against it.\n",
             std::sqrt(d->relMseTrimmed), kTrimmedFraction * 100.0, std::sqrt(d->relMse));
+    for (const VariantResult& r : results)
+        if (const FrameRow* longest = rowOf(r.rows, kStillFirst + kLongHold, true);
+            longest && !longest->added.pixels.empty())
+            if (Status s =
+                    printErrorBreakdown(r.name, longest->added, still, refs->twins.at(kStillLast));
+                !s)
+                logError("{}", s.message());
     for (const VariantResult& r : results)
         if (!r.dialPoint.empty())
             std::printf("\nThe dial chose, %s: %s.\n", r.name.c_str(), r.dialPoint.c_str());

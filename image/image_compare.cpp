@@ -93,8 +93,8 @@ std::vector<double> localPairMean(const ImageF& b, const ImageF& twin) {
 
 }  // namespace
 
-Result<PairedDifference> compareWithPairedReference(const ImageF& a, const ImageF& b,
-                                                    const ImageF& twin) {
+Result<std::vector<PairedPixel>> pairedPixelErrors(const ImageF& a, const ImageF& b,
+                                                   const ImageF& twin) {
     if (Status s = checkSameShape(a, b); !s) return s.error();
     if (Status s = checkSameShape(b, twin); !s) return s.error();
     if (a.pixels.empty()) return makeError("the images are empty");
@@ -105,11 +105,7 @@ Result<PairedDifference> compareWithPairedReference(const ImageF& a, const Image
                              i / a.channels, i % a.channels, a.pixels[i], b.pixels[i],
                              twin.pixels[i]);
     const std::vector<double> m = localPairMean(b, twin);
-    // Per pixel, over its channels: the error term, and how far the references disagree.
-    struct Pixel {
-        double error = 0.0, disagreement = 0.0;
-    };
-    std::vector<Pixel> pixels(size_t(a.width) * a.height);
+    std::vector<PairedPixel> pixels(size_t(a.width) * a.height);
     for (size_t p = 0; p < pixels.size(); ++p)
         for (uint32_t c = 0; c < a.channels; ++c) {
             const size_t i = p * a.channels + c;
@@ -117,7 +113,16 @@ Result<PairedDifference> compareWithPairedReference(const ImageF& a, const Image
             const double weight = 1.0 / (m[i] * m[i] + 0.01);
             pixels[p].error += (va - vb) * (va - vt) * weight;
             pixels[p].disagreement += (vb - vt) * (vb - vt) * weight;
+            pixels[p].localMean += m[i] / double(a.channels);
         }
+    return pixels;
+}
+
+Result<PairedDifference> compareWithPairedReference(const ImageF& a, const ImageF& b,
+                                                    const ImageF& twin) {
+    Result<std::vector<PairedPixel>> errors = pairedPixelErrors(a, b, twin);
+    if (!errors) return errors.error();
+    std::vector<PairedPixel>& pixels = *errors;
     const auto mean = [&](auto first, auto last) {
         double sum = 0.0;
         for (auto it = first; it != last; ++it) sum += it->error;
@@ -127,9 +132,9 @@ Result<PairedDifference> compareWithPairedReference(const ImageF& a, const Image
     d.netRelMse = mean(pixels.begin(), pixels.end());
     const size_t left = size_t(double(pixels.size()) * kTrimmedFraction);
     const auto kept = pixels.end() - std::ptrdiff_t(left);
-    std::nth_element(pixels.begin(), kept, pixels.end(), [](const Pixel& x, const Pixel& y) {
-        return x.disagreement < y.disagreement;
-    });
+    std::nth_element(
+        pixels.begin(), kept, pixels.end(),
+        [](const PairedPixel& x, const PairedPixel& y) { return x.disagreement < y.disagreement; });
     d.netRelMseTrimmed = mean(pixels.begin(), kept);
     return d;
 }

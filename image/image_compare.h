@@ -58,4 +58,15 @@ struct PairedDifference {
 Result<PairedDifference> compareWithPairedReference(const ImageF& a, const ImageF& b,
                                                     const ImageF& twin);
 
+// Per pixel of `a`: its term of compareWithPairedReference's sum (over its channels), how far
+// the two references disagree there on the same scale, and the references' 5×5 mean (over the
+// channels): where an image's error lies.
+struct PairedPixel {
+    double error = 0.0;
+    double disagreement = 0.0;
+    double localMean = 0.0;
+};
+Result<std::vector<PairedPixel>> pairedPixelErrors(const ImageF& a, const ImageF& b,
+                                                   const ImageF& twin);
+
 }  // namespace previs

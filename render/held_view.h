@@ -18,7 +18,9 @@
 //
 // While the camera moves the samples are not dropped: they follow it (render/held_reprojection.h)
 // and fade by kFollowKeep a frame, so the output's resolution keeps a short history during a pan
-// too, and a hold starts from it.
+// too, and a hold starts from it. A moved pixel's history is kept only where the new camera's
+// first sample there meets the same surface: distance, normal and virtual mask agree
+// (shared/held_reprojection_params.h's heldHistoryAgrees, run by the path tracer as it adds).
 
 #include <algorithm>
 #include <cstdint>
