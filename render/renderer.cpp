@@ -318,14 +318,18 @@ Status Renderer::bindBuffers(uint32_t bandFirstRow) {
 
 Status Renderer::setEnvironment(std::shared_ptr<const EnvironmentMap> map) {
     // The next render() compiles for the features and binds the buffers. The preview's
-    // reservoirs stay: they keep directions, whose targets the next frame weighs under the new
-    // light (a lamp gone weighs nothing, a new one is among the candidates).
+    // reservoirs start afresh: their weights were computed under the old light, and the biased
+    // 1/M combination let a direction that was dim then and is bright now carry its old weight
+    // (the demo's turning map: held 64 0.527 with them kept, 0.131 with this and a count cap of
+    // 4; BENCHMARKS.md).
+    params_.reservoirHistory = 0u;
     return scene_->setEnvironment(std::move(map), params_);
 }
 
 Status Renderer::setEstimatedLights(std::span<const EstimatedLightSource> estimated) {
-    // The next render() compiles for the features and binds the buffers (the reservoirs stay,
-    // as for setEnvironment).
+    // The next render() compiles for the features and binds the buffers; the reservoirs start
+    // afresh, as for setEnvironment.
+    params_.reservoirHistory = 0u;
     return scene_->setEstimatedLights(estimated, params_);
 }
 

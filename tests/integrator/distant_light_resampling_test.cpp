@@ -6,7 +6,9 @@
 // identity bit for bit, and change nothing in refinement.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <memory>
 #include <span>
 
 #include "tests/integrator/gpu_fixture.h"
@@ -264,6 +266,32 @@ TEST_F(DistantLightResamplingTest, WithoutVirtualObjectsBothSolutionsAreEqual) {
         EXPECT_EQ(mixed->pixels, real->pixels) << "frame " << k;
         EXPECT_GT(sumOf(mixed->pixels), 0.0);
     }
+}
+
+// A change of light starts the reservoirs afresh (Renderer::setEnvironment): their weights were
+// the old light's. The frame after the change is the very frame a renderer made under the new
+// light draws first, with no history.
+TEST_F(DistantLightResamplingTest, ANewLightStartsTheReservoirsAfresh) {
+    EnvironmentMap moved = softboxRoom();
+    std::rotate(moved.radiance.begin(), moved.radiance.begin() + 16, moved.radiance.end());
+    Scene before = ballUnderSoftbox();
+    Scene after = before;
+    after.environment = moved;
+    auto changed = Renderer::create(ctx(), before, settings(true));
+    auto fresh = Renderer::create(ctx(), after, settings(true));
+    ASSERT_TRUE(changed.ok() && fresh.ok());
+    for (uint64_t k = 1; k <= 4; ++k) ASSERT_TRUE((*changed)->renderPreviewFrame(1, k).ok());
+    ASSERT_TRUE((*changed)->setEnvironment(std::make_shared<EnvironmentMap>(moved)).ok());
+    ASSERT_TRUE((*changed)->renderPreviewFrame(1, 5).ok());
+    ASSERT_TRUE((*fresh)->renderPreviewFrame(1, 5).ok());
+    Result<ImageF> a = (*changed)->image(Aov::Mixed);
+    Result<ImageF> b = (*fresh)->image(Aov::Mixed);
+    ASSERT_TRUE(a.ok() && b.ok());
+    EXPECT_EQ(a->pixels, b->pixels);
+    // And the light kept: the next frame reuses this one's reservoirs.
+    ASSERT_TRUE((*changed)->renderPreviewFrame(1, 6).ok());
+    ASSERT_TRUE((*fresh)->renderPreviewFrame(1, 6).ok());
+    EXPECT_EQ((*changed)->image(Aov::Mixed)->pixels, (*fresh)->image(Aov::Mixed)->pixels);
 }
 
 // Refinement never resamples: a renderer with the preview's resampling refines the very image
