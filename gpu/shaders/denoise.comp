@@ -54,7 +54,6 @@ const float kMinCosine = 1e-30;
 // edge's), not a disocclusion. Checking them there restarted the outlines' history every few
 // frames (a held camera's outline pixels kept 3.8 of 16 frames on the demo).
 const float kTemporalDepthRel = 0.01;
-const float kTemporalMinCos = 0.9;
 const float kTemporalMaxMaskChange = 1.0 / 16.0;
 const float kOwnHistoryPx = 0.5;
 // A reprojected position within this of a pixel centre is that centre: a still camera then
@@ -194,7 +193,7 @@ void temporal(ivec2 p) {
                 Guide gq = guideOf(prevPacked, t);
                 const bool ownHistory = nearlyStill && t == p;
                 if (!ownHistory && (abs(gq.depth - prevDistance) > tolerance ||
-                                    dot(gp.normal, gq.normal) < kTemporalMinCos ||
+                                    dot(gp.normal, gq.normal) < PV_HISTORY_MIN_NORMAL_COS ||
                                     abs(gp.mask - gq.mask) > kTemporalMaxMaskChange))
                     continue;
                 uint i = (histIn * pixelCount() + indexOf(t)) * PV_HISTORY_TEXELS;

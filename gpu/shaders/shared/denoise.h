@@ -26,6 +26,9 @@ PV_BEGIN
 // The camera distance recorded for a ray that hits nothing: far beyond any set, finite so that
 // means and differences stay finite.
 #define PV_GUIDE_MISS_DEPTH_M 1.0e4f
+// A history whose surface normal is further than this cosine (about 25°) from the pixel's is
+// another surface's: the denoiser's temporal test and the held view's (held_reprojection_params.h).
+#define PV_HISTORY_MIN_NORMAL_COS 0.9f
 
 // Descriptor set 0 of denoise.comp.
 #define PV_DENOISE_BINDING_PARAMS 0

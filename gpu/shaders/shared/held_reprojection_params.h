@@ -4,6 +4,7 @@
 #ifndef PREVIS_SHARED_HELD_REPROJECTION_PARAMS_H
 #define PREVIS_SHARED_HELD_REPROJECTION_PARAMS_H
 
+#include "gpu/shaders/shared/denoise.h"
 #include "gpu/shaders/shared/octahedral.h"
 #include "gpu/shaders/shared/prelude.h"
 
@@ -62,8 +63,7 @@ PV_INLINE vec3 heldLanding(ReprojectParams p, uvec2 pixel, float distance) {
 // (heldHistoryAgrees): the first hit's distance off the history's mean by more than this share
 // of the larger, ...
 #define PV_HELD_DEPTH_TOLERANCE 0.05f
-// ... the geometric normals more than about 25° apart (the denoiser's temporal test's bound),
-#define PV_HELD_MIN_NORMAL_COS 0.9f
+// ... the geometric normals further apart than PV_HISTORY_MIN_NORMAL_COS (the denoiser's bound),
 // ... or the virtual mask off the history's mean by more than a half.
 #define PV_HELD_MASK_TOLERANCE 0.5f
 
@@ -97,7 +97,7 @@ PV_INLINE bool heldHistoryAgrees(vec4 sums, vec4 counts, float distance, vec3 no
         return false;
     vec3 historyNormal = heldNormalOf(counts.z);
     bool normals = historyNormal != vec3(0.0f) && normal != vec3(0.0f);
-    if (normals && dot(historyNormal, normal) < PV_HELD_MIN_NORMAL_COS) return false;
+    if (normals && dot(historyNormal, normal) < PV_HISTORY_MIN_NORMAL_COS) return false;
     return abs(mask - sums.w / counts.x) <= PV_HELD_MASK_TOLERANCE;
 }
 
